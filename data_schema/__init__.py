@@ -1,0 +1,19 @@
+"""JSON Schemas for every file the suite reads or writes.
+
+Each ``<name>.schema.json`` here describes one document type (scene manifest, snapshot
+CLI output, stimuli manifest, study config, response/export row). Validation lives in
+``snapcore.schema``; this package only locates the files so they ship with the wheel.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["schema_path", "SCHEMA_DIR"]
+
+SCHEMA_DIR = Path(__file__).resolve().parent
+
+
+def schema_path(name: str) -> Path:
+    """Path of ``<name>.schema.json`` (``name`` like ``"scene"``)."""
+    return SCHEMA_DIR / f"{name}.schema.json"

@@ -1,0 +1,48 @@
+"""Exception types of snapcore.
+
+The library raises these precise types; only the edges (the CLI, the study app) catch
+them and turn them into one clear line for a person. Each is a ``ValueError`` too, so
+callers that only know the standard library still catch bad input.
+"""
+
+from __future__ import annotations
+
+__all__ = ["SnapshotError", "BVHError", "SceneError", "SchemaError"]
+
+
+class SnapshotError(ValueError):
+    """Base of every error snapcore raises for bad input or an impossible request."""
+
+
+class BVHError(SnapshotError):
+    """A BVH file that cannot be read.
+
+    Parameters
+    ----------
+    message : str
+        What was expected and what was found.
+    path : str, optional
+        The file, as given by the caller.
+    line : int, optional
+        1-based line number in the file where the problem is.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None):
+        self.path = path
+        self.line = line
+        self.reason = message
+        where = path or "<bvh>"
+        if line is not None:
+            where = f"{where}:{line}"
+        super().__init__(f"{where}: {message}")
+
+
+class SceneError(SnapshotError):
+    """A scene that cannot be built (incompatible characters, bad manifest values)."""
+
+
+class SchemaError(SnapshotError):
+    """A JSON/TOML document that does not follow its schema in ``data_schema/``.
+
+    The message names the file and the JSON path of the offending field.
+    """

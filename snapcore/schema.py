@@ -1,0 +1,81 @@
+"""Validation of documents against the JSON Schemas in ``data_schema/``.
+
+``jsonschema`` does the checking (Draft 2020-12); this module only loads schemas once
+and turns the first, most relevant error into one line that names the file and the
+field, e.g. ``scene.toml: characters[0].offset: [1, 2] is too short``.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from functools import lru_cache
+from pathlib import Path
+
+import jsonschema
+
+from data_schema import schema_path
+
+from .errors import SchemaError
+
+__all__ = ["load_schema", "validate", "read_document", "field_path"]
+
+
+@lru_cache(maxsize=None)
+def load_schema(name: str) -> dict:
+    """The schema called ``name`` (``"scene"``, ``"snapshot"``, ...) as a dict."""
+    path = schema_path(name)
+    if not path.exists():
+        raise SchemaError(f"no schema named '{name}' ({path})")
+    schema = json.loads(path.read_text(encoding="utf-8"))
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return schema
+
+
+def field_path(parts) -> str:
+    """``['characters', 0, 'offset']`` → ``characters[0].offset``."""
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "(document)"
+
+
+def validate(instance, name: str, *, source: str = "document") -> None:
+    """Raise :class:`SchemaError` if ``instance`` does not follow schema ``name``.
+
+    Parameters
+    ----------
+    instance : object
+        The parsed document.
+    name : str
+        Schema name, e.g. ``"scene"``.
+    source : str
+        Where the document came from (a file name), for the message.
+    """
+    validator = jsonschema.Draft202012Validator(load_schema(name))
+    error = jsonschema.exceptions.best_match(validator.iter_errors(instance))
+    if error is not None:
+        raise SchemaError(f"{source}: {field_path(error.absolute_path)}: {error.message}")
+
+
+def read_document(path: str | Path, name: str | None = None) -> dict:
+    """Read a TOML or JSON file, validating it against schema ``name`` if given."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SchemaError(f"{p}: no such file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise SchemaError(f"{p}: cannot read ({err})") from err
+    try:
+        if p.suffix.lower() == ".toml":
+            doc = tomllib.loads(text)
+        else:
+            doc = json.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise SchemaError(f"{p}: not valid TOML ({err})") from err
+    except json.JSONDecodeError as err:
+        raise SchemaError(f"{p}:{err.lineno}: not valid JSON ({err.msg})") from err
+    if name is not None:
+        validate(doc, name, source=str(p))
+    return doc
