@@ -64,8 +64,9 @@ DEFAULT_STATURE_M = 1.70
 #: Thigh + shank as a fraction of stature (Drillis & Contini 1966: 0.245 + 0.246).
 LEG_FRACTION = 0.491
 #: Root-relative joint speed (m/s) above which leading frames are an added T-pose or
-#: the blend out of it (see :func:`tpose_lead_in`). Real clips start below 10 m/s.
-TPOSE_SPEED = 15.0
+#: the blend out of it (see :func:`tpose_lead_in`). Real clips in ../shared/motions
+#: start below 8 m/s; the blends run at 12-80 m/s.
+TPOSE_SPEED = 10.0
 
 
 def yaw_matrix(degrees: float) -> np.ndarray:
@@ -326,13 +327,18 @@ def character_from_bvh(doc: BVHDocument, *, scale: float, name: str | None = Non
     )
     if name is None:
         name = _stem(doc.path) if doc.path else "character"
+    if not fps:
+        # Headers round the frame time (".0083333"): 120.0048 fps is 120 fps.
+        fps = doc.fps
+        if abs(fps - round(fps)) < 1e-3 * fps:
+            fps = float(round(fps))
     return Character(
         name=name,
         skeleton=skeleton,
         positions=positions * scale,
         rotations=rotations,
         local_rotations=rot_local,
-        fps=float(fps) if fps else doc.fps,
+        fps=float(fps),
         scale=float(scale),
         source=doc,
     )

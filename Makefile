@@ -1,0 +1,52 @@
+# Action Snapshot — the two commands: `make study` and `make test` (plus `make bench`).
+# Both work on a brand-new Debian machine: they create .venv, install the project, and
+# install the system packages the code needs (Mesa EGL for headless rendering, Chromium
+# for the browser test, PostgreSQL for the store test) only when they are missing.
+
+PYTHON    ?= python3
+VENV      := .venv
+PY        := $(VENV)/bin/python
+STAMP     := $(VENV)/.installed
+SUDO      := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+export PYOPENGL_PLATFORM ?= egl
+export SNAPSHOT_DATA ?= $(abspath ../shared/motions)
+PYTEST_ARGS ?=
+PORT      ?= 8501
+
+.PHONY: study test bench install sysdeps lint clean demo
+
+study: install sysdeps
+	$(VENV)/bin/snapshot study --port $(PORT)
+
+test: install sysdeps
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+bench: install sysdeps
+	$(VENV)/bin/snapshot bench
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check uv
+	$(VENV)/bin/uv pip install --python $(PY) --quiet -e '.[dev]'
+	@touch $(STAMP)
+
+# System packages, each installed only when absent (apt-get update once, if needed).
+SYS_PKGS = $(strip \
+  $(if $(shell ldconfig -p | grep -q 'libEGL_mesa.so.0' && echo y),,libegl1 libegl-mesa0 libgl1-mesa-dri) \
+  $(if $(wildcard /usr/bin/chromium),,chromium) \
+  $(if $(wildcard /usr/lib/postgresql/*/bin/initdb),,postgresql))
+
+sysdeps:
+	@if [ -n "$(SYS_PKGS)" ]; then \
+	  echo "installing system packages: $(SYS_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(SYS_PKGS); \
+	fi
+
+lint: install
+	$(VENV)/bin/ruff check snapcore study_app analysis tests
+
+clean:
+	rm -rf $(VENV) var/ .pytest_cache

@@ -1,0 +1,102 @@
+"""The ``snapshot`` command: a thin shell over the packages.
+
+Subcommands are registered as entry points (group ``action_snapshot.commands`` in
+``pyproject.toml``) and imported only when used, so ``snapshot info`` does not pay for
+Streamlit or matplotlib, and snapcore never imports study_app or analysis.
+
+Errors: every :class:`~snapcore.errors.SnapshotError` (bad BVH, bad manifest, bad
+database URL...) and every ``OSError`` becomes one line on stderr, ``error: <file>:<line>:
+<what>``, with exit code 2 and no traceback. Warnings become one ``warning:`` line each.
+``SNAPSHOT_DEBUG=1`` shows the traceback for developers.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+from importlib.metadata import entry_points
+
+import click
+
+from .errors import SnapshotError
+
+__all__ = ["main", "cli", "EXIT_BAD_INPUT"]
+
+#: Exit status for bad input or a failed request (click uses 2 for usage errors too).
+EXIT_BAD_INPUT = 2
+ENTRY_POINT_GROUP = "action_snapshot.commands"
+
+
+def _commands() -> dict:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+class _LazyGroup(click.Group):
+    """A click group whose subcommands are entry points loaded on first use."""
+
+    def list_commands(self, ctx):
+        return sorted(_commands())
+
+    def get_command(self, ctx, name):
+        ep = _commands().get(name)
+        if ep is None:
+            return None
+        try:
+            return ep.load()
+        except (ImportError, AttributeError) as err:
+            # A command whose module is not there yet (or broken): say so in one line
+            # instead of failing every other command.
+            @click.command(name=name, help=f"(unavailable: {err})")
+            def unavailable():
+                raise click.ClickException(f"command '{name}' is unavailable: {err}")
+
+            return unavailable
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except SnapshotError as err:
+            if os.environ.get("SNAPSHOT_DEBUG"):
+                raise
+            click.echo(f"error: {err}", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+        except OSError as err:
+            if os.environ.get("SNAPSHOT_DEBUG"):
+                raise
+            where = f"{err.filename}: " if getattr(err, "filename", None) else ""
+            click.echo(f"error: {where}{err.strerror or err}", err=True)
+            ctx.exit(EXIT_BAD_INPUT)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    click.echo(f"warning: {message}", err=True)
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="action-snapshot", prog_name="snapshot")
+def cli():
+    """Action Snapshot: one still image that tells the story of a character animation.
+
+    Reads motion capture (BVH, one or two characters, or a scene manifest), picks the
+    most informative pose (pose entropy) and view (Projected Motion Area), renders
+    stills, videos and bas-reliefs, runs the user study and analyses it.
+
+    Run `snapshot COMMAND --help` for each command. Real motion data is found through
+    SNAPSHOT_DATA (default ../shared/motions).
+    """
+    if not os.environ.get("SNAPSHOT_DEBUG"):
+        warnings.showwarning = _one_line_warning
+
+
+def main(argv=None) -> int:
+    """Console-script entry point."""
+    try:
+        cli.main(args=argv, prog_name="snapshot", standalone_mode=True)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

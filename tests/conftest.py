@@ -1,0 +1,41 @@
+"""Shared fixtures: where the real motion data is, and headless rendering setup.
+
+Tests that need ``../shared/motions`` skip with a reason when it is absent, and fail
+in CI (``CI=true``), where the data is always beside the checkout.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # before anything imports OpenGL
+
+import pytest  # noqa: E402
+
+from snapcore.load import data_dir  # noqa: E402
+
+IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
+def need(condition: bool, reason: str) -> None:
+    """Skip (locally) or fail (in CI) when a test's precondition is missing."""
+    if not condition:
+        if IN_CI:
+            pytest.fail(f"required in CI: {reason}")
+        pytest.skip(reason)
+
+
+@pytest.fixture(scope="session")
+def motions_dir():
+    """The real motion-capture folder (``SNAPSHOT_DATA`` or ``../shared/motions``)."""
+    d = data_dir()
+    need(d is not None, "no motion data: set SNAPSHOT_DATA or put ../shared/motions beside the repo")
+    return d
+
+
+@pytest.fixture(scope="session")
+def all_bvh(motions_dir):
+    """Every BVH file under the data folder, sorted."""
+    files = sorted(motions_dir.rglob("*.bvh"))
+    need(len(files) > 0, f"no BVH files under {motions_dir}")
+    return files
