@@ -344,78 +344,68 @@ def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
 
 
 def _parse_motion_block(lines, start, n_frames, n_chan, path) -> np.ndarray:
-    """Parse data rows ``lines[start:]`` into an (n_frames, n_chan) array, vectorised."""
+    """Parse data rows ``lines[start:]`` into an (n_frames, n_chan) array.
+
+    The fast path is one ``np.loadtxt`` call (NumPy's C parser); only when it fails does
+    a line-by-line pass find the first bad line for the message.
+    """
     body = lines[start:]
-    # Token count per line without a Python loop over values: a token starts where a
-    # non-space follows a space (or the start of a line).
-    block = "\n".join(body)
-    b = np.frombuffer(block.encode("utf-8", errors="replace"), dtype=np.uint8)
-    ws = (b == 32) | (b == 9) | (b == 13) | (b == 11) | (b == 12)
-    nl = b == 10
-    space = ws | nl
-    starts = ~space & np.concatenate(([True], space[:-1]))
-    line_end = np.concatenate((np.flatnonzero(nl), [b.size]))
-    cum = np.concatenate(([0], np.cumsum(starts)))
-    counts = np.diff(np.concatenate(([0], cum[line_end])))  # tokens per line
-    row_lines = np.flatnonzero(counts > 0)  # indices into body of non-blank lines
-    n_rows = row_lines.size
+    rows = [k for k, line in enumerate(body) if line.strip()]
+    n_rows = len(rows)
     if n_rows < n_frames:
-        last = start + (int(row_lines[-1]) + 1 if n_rows else 0)
+        last = start + (rows[-1] + 1 if rows else 0)
         raise BVHError(
             f"expected {n_frames} frames of motion data, found {n_rows} (file truncated?)",
             path=path,
             line=max(last, start),
         )
-    bad = np.flatnonzero(counts[row_lines[:n_frames]] != n_chan)
-    if bad.size:
-        k = int(row_lines[bad[0]])
-        got = int(counts[k])
-        what = "fewer" if got < n_chan else "more"
-        raise BVHError(
-            f"frame {int(bad[0])} has {got} values, {what} than the {n_chan} channels "
-            "the hierarchy declares",
-            path=path,
-            line=start + k + 1,
-        )
     if n_rows > n_frames:
         warnings.warn(
-            f"{path or '<bvh>'}:{start + int(row_lines[n_frames]) + 1}: {n_rows - n_frames} data "
+            f"{path or '<bvh>'}:{start + rows[n_frames] + 1}: {n_rows - n_frames} data "
             f"row(s) beyond the header's 'Frames: {n_frames}' ignored",
             stacklevel=3,
         )
-        end_line = int(row_lines[n_frames])
-        block = "\n".join(body[:end_line])
-    expected = n_frames * n_chan
+    data = [body[k] for k in rows[:n_frames]]
     if n_chan == 0:
         return np.zeros((n_frames, 0))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        values = np.fromstring(block, dtype=float, sep=" ")
-    if values.size != expected:
-        _raise_bad_token(body, row_lines[:n_frames], start, path)
-    motion = values.reshape(n_frames, n_chan)
+    try:
+        motion = np.loadtxt(data, dtype=float, ndmin=2, comments=None)
+    except ValueError:
+        motion = None
+    if motion is None or motion.shape != (n_frames, n_chan):
+        _raise_bad_row(data, rows, start, n_chan, path)
     finite = np.isfinite(motion)
     if not finite.all():
         f, c = np.argwhere(~finite)[0]
         raise BVHError(
             f"frame {int(f)}, channel {int(c)} is not a finite number ({motion[f, c]!r})",
             path=path,
-            line=start + int(row_lines[f]) + 1,
+            line=start + rows[f] + 1,
         )
     return motion
 
 
-def _raise_bad_token(body, row_lines, start, path):
-    """Slow path, only on error: find the first value that is not a number."""
-    for r, k in enumerate(row_lines):
-        for c, tok in enumerate(body[k].split()):
+def _raise_bad_row(data, rows, start, n_chan, path):
+    """Slow path, only on error: find the first row that is not n_chan numbers."""
+    for r, text in enumerate(data):
+        toks = text.split()
+        line = start + rows[r] + 1
+        if len(toks) != n_chan:
+            what = "fewer" if len(toks) < n_chan else "more"
+            raise BVHError(
+                f"frame {r} has {len(toks)} values, {what} than the {n_chan} channels "
+                "the hierarchy declares",
+                path=path,
+                line=line,
+            )
+        for c, tok in enumerate(toks):
             try:
                 float(tok)
             except ValueError:
                 raise BVHError(
                     f"frame {r}, channel {c}: expected a number, found '{tok[:20]}'",
                     path=path,
-                    line=start + int(k) + 1,
+                    line=line,
                 ) from None
     raise BVHError("motion data could not be parsed as numbers", path=path, line=start + 1)
 

@@ -138,15 +138,16 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
         docs.append(read_bvh(path))
+    # Forward kinematics once, in file units; positions scale linearly afterwards.
+    probes = [character_from_bvh(d, scale=1.0, name=e.get("name"),
+                                 fps=fps or e.get("fps") or spec.get("fps"))
+              for d, e in zip(docs, entries)]
     # One scale for the scene unless given per character: people captured together
     # must keep their distances.
     scene_scale = scale or spec.get("scale")
     how = "given"
     if scene_scale is None and not all("scale" in e for e in entries):
-        statures = []
-        for d, e in zip(docs, entries):
-            probe = character_from_bvh(d, scale=1.0)
-            statures.append(stature_units(probe.skeleton, probe.positions))
+        statures = [stature_units(p.skeleton, p.positions) for p in probes]
         scene_scale, how = infer_scale(statures)
         if how == "fitted":
             warnings.warn(
@@ -156,11 +157,9 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
             )
     chars = []
     used_names: set[str] = set()
-    for d, e in zip(docs, entries):
-        c_fps = fps or e.get("fps") or spec.get("fps")
-        c_scale = scale or e.get("scale") or scene_scale
-        c = character_from_bvh(d, scale=c_scale, name=e.get("name"), fps=c_fps)
-        c.meta["unit"] = how if not (scale or e.get("scale") or spec.get("scale")) else "given"
+    for probe, e in zip(probes, entries):
+        c = probe.rescaled(scale or e.get("scale") or scene_scale)
+        c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
         if c.name in used_names:
             c.name = f"{c.name}_{len(chars)}"
         used_names.add(c.name)

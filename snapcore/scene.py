@@ -33,7 +33,7 @@ import numpy as np
 
 from .bvh import BVHDocument
 from .errors import SceneError
-from .kinematics import channel_layout, forward_kinematics, local_transforms
+from .kinematics import channel_layout, forward_kinematics, local_transforms, quat_to_matrix
 
 __all__ = [
     "Skeleton",
@@ -191,6 +191,22 @@ class Character:
             meta=dict(self.meta),
         )
 
+    def rescaled(self, scale: float) -> Character:
+        """A copy whose source unit is ``scale`` metres (positions and offsets rescaled)."""
+        k = scale / self.scale
+        return Character(
+            name=self.name,
+            skeleton=Skeleton(self.skeleton.names, self.skeleton.parents,
+                              self.skeleton.offsets * k, self.skeleton.end_site),
+            positions=self.positions * k,
+            rotations=self.rotations,
+            local_rotations=self.local_rotations,
+            fps=self.fps,
+            scale=float(scale),
+            source=self.source,
+            meta=dict(self.meta),
+        )
+
     def frames(self, start: int, stop: int) -> Character:
         """A copy holding frames ``start:stop`` only."""
         return Character(
@@ -317,8 +333,8 @@ def character_from_bvh(doc: BVHDocument, *, scale: float, name: str | None = Non
     if not (np.isfinite(scale) and scale > 0):
         raise SceneError(f"scale must be a positive number of metres per unit, got {scale}")
     layout = channel_layout(doc.channels)
-    rot_local, trans_local = local_transforms(layout, doc.offsets, doc.motion)
-    positions, rotations = forward_kinematics(doc.parents, rot_local, trans_local)
+    quat_local, trans_local = local_transforms(layout, doc.offsets, doc.motion)
+    positions, quat_world = forward_kinematics(doc.parents, quat_local, trans_local)
     skeleton = Skeleton(
         names=doc.names,
         parents=doc.parents,
@@ -336,8 +352,8 @@ def character_from_bvh(doc: BVHDocument, *, scale: float, name: str | None = Non
         name=name,
         skeleton=skeleton,
         positions=positions * scale,
-        rotations=rotations,
-        local_rotations=rot_local,
+        rotations=quat_to_matrix(quat_world),
+        local_rotations=quat_to_matrix(quat_local),
         fps=float(fps),
         scale=float(scale),
         source=doc,
