@@ -1,0 +1,1 @@
+"""Subcommands of ``snapshot`` that belong to the study app (registered as entry points)."""
