@@ -1,0 +1,260 @@
+"""Forward kinematics, units and scenes: analytic chains, independent references, real data."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from snapcore import load_scene
+from snapcore.bvh import BVHDocument, parse_bvh, write_bvh
+from snapcore.errors import SceneError, SchemaError
+from snapcore.scene import KNOWN_UNITS, character_from_bvh
+
+ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
+
+
+def chain_document(order: str, motion: np.ndarray) -> BVHDocument:
+    """A 3-joint chain (root with 6 channels, two 3-channel joints, one end site)."""
+    rot = tuple(f"{a}rotation" for a in order)
+    return BVHDocument(
+        names=("root", "a", "b", "b_End"),
+        parents=np.array([-1, 0, 1, 2]),
+        offsets=np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, 0.25]]),
+        channels=(("Xposition", "Yposition", "Zposition") + rot, rot, rot, ()),
+        end_site=np.array([False, False, False, True]),
+        frame_time=1 / 30,
+        motion=motion,
+        path="chain.bvh",
+    )
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_fk_matches_scipy_reference_for_every_channel_order(order):
+    """FK of a 3-joint chain equals positions composed with SciPy's intrinsic Euler rotations."""
+    rng = np.random.default_rng(7)
+    f = 20
+    motion = np.concatenate([rng.normal(size=(f, 3)), rng.uniform(-180, 180, size=(f, 9))], axis=1)
+    doc = chain_document(order, motion)
+    c = character_from_bvh(doc, scale=1.0)
+    # Independent reference: SciPy with upper-case (intrinsic) axes is BVH's convention;
+    # compose one frame at a time with plain matrix products.
+    for i in range(f):
+        r0 = Rotation.from_euler(order, motion[i, 3:6], degrees=True).as_matrix()
+        r1 = Rotation.from_euler(order, motion[i, 6:9], degrees=True).as_matrix()
+        r2 = Rotation.from_euler(order, motion[i, 9:12], degrees=True).as_matrix()
+        p0 = motion[i, :3]
+        p1 = p0 + r0 @ doc.offsets[1]
+        p2 = p1 + r0 @ r1 @ doc.offsets[2]
+        p3 = p2 + r0 @ r1 @ r2 @ doc.offsets[3]
+        np.testing.assert_allclose(c.positions[i], [p0, p1, p2, p3], atol=1e-9)
+        np.testing.assert_allclose(c.rotations[i, 2], r0 @ r1 @ r2, atol=1e-9)
+        np.testing.assert_allclose(c.local_rotations[i, 1], r1, atol=1e-9)
+
+
+def test_fk_hand_computed_right_angles():
+    """Quarter turns give positions computable by hand."""
+    # ZXY order; root turns 90° about Z: the chain's +Y offset points to -X.
+    motion = np.array([[1.0, 2.0, 3.0, 90.0, 0, 0, 0, 0, 0, 0, 0, 0],
+                       # joint a turns 90° about Y: b's +X offset (in a's frame) points to -Z.
+                       [0.0, 0.0, 0.0, 0, 0, 0, 0, 0, 90.0, 0, 0, 0]])
+    c = character_from_bvh(chain_document("ZXY", motion), scale=1.0)
+    np.testing.assert_allclose(c.positions[0, 1], [0.0, 2.0, 3.0], atol=1e-12)  # (1,2,3) + (-1,0,0)
+    np.testing.assert_allclose(c.positions[0, 2], [0.0, 2.5, 3.0], atol=1e-12)  # + R_z(90)(0.5,0,0) = (0,0.5,0)
+    np.testing.assert_allclose(c.positions[1, 2], [0.0, 1.0, -0.5], atol=1e-12)
+    np.testing.assert_allclose(c.positions[1, 3], [0.25, 1.0, -0.5], atol=1e-12)  # R_y(90)(0,0,.25) = (.25,0,0)
+
+
+def test_six_channel_joint_positions_replace_offset():
+    """A non-root joint with position channels uses them instead of its offset."""
+    doc = chain_document("ZXY", np.zeros((1, 12)))
+    chans = list(doc.channels)
+    chans[1] = ("Xposition", "Yposition", "Zposition") + chans[1]
+    motion = np.zeros((1, 15))
+    motion[0, 6:9] = [0.0, 7.0, 0.0]  # joint a's position channels: (0, 7, 0), offset says (0, 1, 0)
+    doc = BVHDocument(doc.names, doc.parents, doc.offsets, tuple(chans), doc.end_site, doc.frame_time,
+                      motion)
+    c = character_from_bvh(doc, scale=1.0)
+    np.testing.assert_allclose(c.positions[0, 1], [0.0, 7.0, 0.0])
+
+
+def test_every_shared_file_loads_with_adult_height_and_rigid_bones(all_bvh):
+    """Every shared BVH loads; CMU statures are 1.4–2.0 m; bone lengths constant to 1e-6 relative."""
+    cmu = 0
+    for path in all_bvh:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load_scene(path)
+        c = scene.characters[0]
+        assert scene.n_frames > 1 and np.isfinite(c.positions).all(), path
+        # MANIFEST.tsv: CMU data comes from mocap.cs.cmu.edu (filenames NN_NN*).
+        if path.name[:2].isdigit():
+            cmu += 1
+            assert 1.4 <= c.height <= 2.0, f"{path.name}: stature {c.height:.2f} m"
+        parents = c.parents
+        child = np.flatnonzero(parents >= 0)
+        length = np.linalg.norm(c.positions[:, child] - c.positions[:, parents[child]], axis=2)
+        rest = np.linalg.norm(c.skeleton.offsets[child], axis=1)
+        # Joints with position channels (Bandai, root) may move; all others are rigid bones.
+        rigid = np.array([not any(ch.endswith("position") for ch in c.source.channels[j])
+                          for j in child])
+        ref = np.maximum(rest[rigid], 1e-9)
+        rel = np.abs(length[:, rigid] - rest[rigid]) / ref
+        rel[:, rest[rigid] < 1e-9] = 0.0
+        assert rel.max() < 1e-6, f"{path.name}: bone length drift {rel.max():.2e}"
+    assert cmu >= 10
+
+
+def test_known_units_are_recognised(motions_dir):
+    """Units snap to what the data README says: CMU cgspeed ~0.0564 m, Daz/Bandai cm."""
+    cases = {
+        "walk_run/02_01.bvh": "cmu",
+        "soccer/10_01.bvh": "cm",
+        "walk_run/dataset-2_run_normal_001.bvh": "cm",
+        "boxing_jump/Boxing_Toes.bvh": "cm",
+    }
+    for rel, unit in cases.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load_scene(motions_dir / rel)
+        assert scene.characters[0].scale == KNOWN_UNITS[unit], rel
+
+
+def test_salsa_pair_shares_one_scale_and_world_frame(motions_dir):
+    """Two files captured together get one scale; partners' hands touch (MANIFEST: 5-8 cm)."""
+    with pytest.warns(UserWarning, match="no standard unit"):
+        scene = load_scene([motions_dir / "two_person/60_01_scaled.bvh",
+                            motions_dir / "two_person/61_01_scaled.bvh"], fps=60)
+    a, b = scene.characters
+    assert a.scale == b.scale
+    assert scene.fps == 60 and scene.n_frames == a.n_frames == b.n_frames
+    # Hand and finger joints (Daz names: hands, then their descendants in file order).
+    def hand_region(c):
+        out = [c.skeleton.index("lHand"), c.skeleton.index("rHand")]
+        for j, p in enumerate(c.parents):
+            if p in out:
+                out.append(j)
+        return out
+
+    ha, hb = hand_region(a), hand_region(b)
+    d = np.linalg.norm(a.positions[:, ha][:, :, None] - b.positions[:, hb][:, None], axis=3)
+    assert d.min() < 0.02  # fingers interlock: a shared world frame and a shared scale
+    assert np.sum(d.min(axis=(1, 2)) < 0.05) >= 60  # and hold hands for at least a second
+    assert 1.5 < a.height < 1.9 and 1.5 < b.height < 1.9
+
+
+def test_tpose_lead_in_is_cut_and_numbering_kept(motions_dir):
+    """An added T-pose frame is dropped and frame_offset keeps the source numbering."""
+    path = motions_dir / "walk_run/02_03.bvh"  # MANIFEST: frame 0 = added T-pose
+    full = load_scene(path, drop_tpose=False)
+    cut = load_scene(path)
+    assert cut.frame_offset == 1 and cut.n_frames == full.n_frames - 1
+    np.testing.assert_array_equal(cut.characters[0].positions[0], full.characters[0].positions[1])
+    assert int(cut.source_frame(0)) == 1
+    # 02_01 is re-exported without a T-pose (MANIFEST): nothing is cut.
+    assert load_scene(motions_dir / "walk_run/02_01.bvh").frame_offset == 0
+
+
+def _write_chain(tmp_path, name="c.bvh", frames=5):
+    motion = np.zeros((frames, 12))
+    motion[:, 1] = 1.0
+    motion[:, 0] = np.arange(frames) * 0.1
+    write_bvh(chain_document("ZXY", motion), tmp_path / name)
+    return tmp_path / name
+
+
+def test_manifest_overrides(tmp_path):
+    """A TOML manifest sets per-character offset, yaw, fps, scale and the ground."""
+    _write_chain(tmp_path, "a.bvh")
+    _write_chain(tmp_path, "b.bvh")
+    (tmp_path / "s.toml").write_text(
+        'name = "pair"\nground = 0.5\nfps = 60\n'
+        '[[characters]]\nfile = "a.bvh"\nname = "left"\nscale = 2.0\n'
+        '[[characters]]\nfile = "b.bvh"\nname = "right"\nscale = 2.0\nyaw = 90\noffset = [0, 0, 5]\n',
+        encoding="utf-8",
+    )
+    scene = load_scene(tmp_path / "s.toml")
+    assert scene.name == "pair" and scene.ground == 0.5 and scene.fps == 60
+    left, right = scene.characters
+    assert (left.name, right.name) == ("left", "right")
+    # Root of frame 1 in file units: (0.1, 1, 0); scale 2 → (0.2, 2, 0).
+    np.testing.assert_allclose(left.positions[1, 0], [0.2, 2.0, 0.0], atol=1e-12)
+    # Yaw 90° about +Y maps +X to -Z, then offset (0, 0, 5).
+    np.testing.assert_allclose(right.positions[1, 0], [0.0, 2.0, 5.0 - 0.2], atol=1e-12)
+
+
+def test_json_manifest_equivalent(tmp_path):
+    """JSON manifests are read like TOML ones."""
+    _write_chain(tmp_path, "a.bvh")
+    (tmp_path / "s.json").write_text(json.dumps({"characters": [{"file": "a.bvh", "scale": 1.0}]}))
+    assert load_scene(tmp_path / "s.json").characters[0].scale == 1.0
+
+
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        ('[[characters]]\nfile = "a.bvh"\noffset = [1, 2]\n', "characters[0].offset"),
+        ('[[characters]]\nfile = "a.bvh"\nfps = -3\n', "characters[0].fps"),
+        ('[[characters]]\nfile = "a.bvh"\ncolour = "red"\n', "colour"),
+        ('characters = []\n', "characters"),
+        ('[[characters]]\nfile = "a.bvh"\n[[props]]\nname = "ball"\ntype = "sphere"\n', "props[0]"),
+    ],
+)
+def test_manifest_schema_errors_name_the_field(tmp_path, body, fragment):
+    """A manifest that breaks the schema names the file and the field."""
+    _write_chain(tmp_path, "a.bvh")
+    (tmp_path / "s.toml").write_text(body, encoding="utf-8")
+    with pytest.raises(SchemaError) as info:
+        load_scene(tmp_path / "s.toml")
+    assert "s.toml" in str(info.value) and fragment in str(info.value)
+
+
+def test_manifest_missing_file_and_bad_toml(tmp_path):
+    """A manifest naming a missing file, or not TOML at all, is a one-line error."""
+    (tmp_path / "s.toml").write_text('[[characters]]\nfile = "missing.bvh"\n', encoding="utf-8")
+    with pytest.raises(SceneError, match="missing.bvh: no such file"):
+        load_scene(tmp_path / "s.toml")
+    (tmp_path / "t.toml").write_text("characters = [\n", encoding="utf-8")
+    with pytest.raises(SchemaError, match="not valid TOML"):
+        load_scene(tmp_path / "t.toml")
+
+
+def test_different_frame_rates_are_refused(tmp_path):
+    """Characters with different fps need an explicit fps."""
+    a = _write_chain(tmp_path, "a.bvh")
+    doc = parse_bvh(a.read_text())
+    write_bvh(BVHDocument(doc.names, doc.parents, doc.offsets, doc.channels, doc.end_site, 1 / 60,
+                          doc.motion), tmp_path / "b.bvh")
+    with pytest.raises(SceneError, match="different frame rates"):
+        load_scene([a, tmp_path / "b.bvh"], scale=1.0)
+    assert load_scene([a, tmp_path / "b.bvh"], scale=1.0, fps=30).fps == 30
+
+
+def test_one_frame_motion_loads(tmp_path):
+    """A one-frame motion is a valid (static) scene."""
+    p = _write_chain(tmp_path, frames=1)
+    scene = load_scene(p, scale=1.0)
+    assert scene.n_frames == 1 and scene.duration == 0.0
+
+
+def test_info_json(motions_dir):
+    """`snapshot info --json` reports frames, fps, duration, height and bounds in metres."""
+    r = subprocess.run([sys.executable, "-m", "snapcore.cli", "info", "--json",
+                        str(motions_dir / "walk_run/02_01.bvh")], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    # MANIFEST: 343 frames at 120 fps, 31 joints (+ end sites).
+    assert s["n_frames"] == 343 and s["fps"] == 120
+    assert abs(s["duration_s"] - 342 / 120) < 1e-9
+    c = s["characters"][0]
+    assert c["n_joints"] - c["n_end_sites"] == 31
+    assert 1.4 < c["height_m"] < 2.0
+    lo, hi = np.array(s["bounds_m"]["min"]), np.array(s["bounds_m"]["max"])
+    assert 1.2 < hi[1] - lo[1] < 2.0  # a walking adult's vertical extent
