@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 __all__ = ["case", "CASES", "BenchContext", "BenchResult", "run_cases"]
 

@@ -45,11 +45,13 @@ class _LazyGroup(click.Group):
         try:
             return ep.load()
         except (ImportError, AttributeError) as err:
-            # A command whose module is not there yet (or broken): say so in one line
-            # instead of failing every other command.
-            @click.command(name=name, help=f"(unavailable: {err})")
+            # A command whose module is broken or whose optional part is not installed:
+            # say so in one line instead of failing every other command.
+            reason = str(err)
+
+            @click.command(name=name, help=f"(unavailable: {reason})")
             def unavailable():
-                raise click.ClickException(f"command '{name}' is unavailable: {err}")
+                raise click.ClickException(f"command '{name}' is unavailable: {reason}")
 
             return unavailable
 

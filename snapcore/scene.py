@@ -25,7 +25,6 @@ people captured in one world frame keep their distances (hands that touch still 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import tomllib
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import jsonschema
@@ -21,7 +21,7 @@ from .errors import SchemaError
 __all__ = ["load_schema", "validate", "read_document", "field_path"]
 
 
-@lru_cache(maxsize=None)
+@cache
 def load_schema(name: str) -> dict:
     """The schema called ``name`` (``"scene"``, ``"snapshot"``, ...) as a dict."""
     path = schema_path(name)

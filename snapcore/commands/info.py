@@ -55,9 +55,9 @@ def info(paths, fps, scale, as_json):
                + (f" (source frames from {s['frame_offset']})" if s["frame_offset"] else ""))
     click.echo(f"ground      y = {s['ground_m']:.3f} m")
     lo, hi = s["bounds_m"]["min"], s["bounds_m"]["max"]
-    size = [h - l for h, l in zip(hi, lo)]
-    click.echo("bounds      x %.2f..%.2f  y %.2f..%.2f  z %.2f..%.2f m  (%.2f x %.2f x %.2f m)"
-               % (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], *size))
+    sx, sy, sz = (h - low for h, low in zip(hi, lo))
+    click.echo(f"bounds      x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  "
+               f"z {lo[2]:.2f}..{hi[2]:.2f} m  ({sx:.2f} x {sy:.2f} x {sz:.2f} m)")
     for c in s["characters"]:
         click.echo(f"character   {c['name']}: {c['n_joints']} joints ({c['n_end_sites']} end sites), "
                    f"height {c['height_m']:.2f} m, {c['scale_m_per_unit']:.4g} m/unit ({c['unit']})")
