@@ -1,0 +1,356 @@
+"""The study protocol: configuration, per-participant trial order, answer checks.
+
+A study config (TOML or JSON, ``data_schema/study.schema.json``) names the scenes and
+the questions. From it and one participant's seed this module derives the trial plan
+the app walks through (paper §4.4):
+
+1. pose tasks, one per scene, in a seeded random order: watch the video, pick the most
+   meaningful frame;
+2. view tasks, one per scene, in another seeded order: three candidate views of the
+   selected pose (ours, viewpoint entropy, motion area) in seeded random positions;
+3. one attention check.
+
+Consent and the background questions come before the trials and are not trials.
+Everything here is pure (no Streamlit, no SQL): the same seed always gives the same
+plan, so a participant who reloads or returns later sees the same order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from snapcore.errors import SnapshotError
+from snapcore.schema import read_document, validate
+
+__all__ = [
+    "METHODS",
+    "TASKS",
+    "DEFAULT_BACKGROUND",
+    "DEFAULT_ATTENTION",
+    "DEFAULT_CONSENT",
+    "StudyError",
+    "AnswerError",
+    "Study",
+    "Trial",
+    "load_study",
+    "study_from_dict",
+    "trial_plan",
+    "check_video_frame",
+    "check_view_choice",
+    "check_attention_answer",
+    "redirect_url",
+]
+
+#: The three view-selection methods shown in every view task (paper Fig. 8–10, Table 2).
+METHODS = ("ours", "viewpoint_entropy", "motion_area")
+#: Trial kinds, in the order the plan puts them.
+TASKS = ("pose", "view", "attention")
+
+#: Background questions and their default choices (paper §4.4: age, gender, experience).
+DEFAULT_BACKGROUND = {
+    "age_bands": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older", "Prefer not to say"],
+    "genders": ["Woman", "Man", "Non-binary", "Prefer to self-describe", "Prefer not to say"],
+    "experience": [
+        "None",
+        "Some (a course or a hobby)",
+        "Experienced (animation, 3D or art is part of my work or studies)",
+        "Professional (animator, 3D artist, illustrator, sculptor)",
+    ],
+}
+
+#: An instructed-response item: it has one right answer whatever the participant thinks.
+DEFAULT_ATTENTION = {
+    "question": "This question checks that you are reading carefully. "
+    "Please choose the option 'A purple circle'.",
+    "options": ["A red square", "A purple circle", "A green triangle", "I am not sure"],
+    "answer": "A purple circle",
+}
+
+DEFAULT_CONSENT = """\
+You are invited to take part in a research study about how people see human motion.
+
+**What you will do.** You will watch short animations of moving figures and, for each,
+pick the moment that best tells what the figure is doing. Then you will see still
+images of such moments from three viewpoints and pick the one that shows the action
+best. A few questions about you come first. It takes about 10 minutes.
+
+**Your data.** We record your answers, how long each took, and how you used the video
+player (play, pause, seek). We do not record your name, e-mail or IP address. Answers
+are stored under a random identifier and analysed only in aggregate.
+
+**Your rights.** Taking part is voluntary. You may stop at any time by closing the page;
+you can come back later with the same link and continue where you left off.
+"""
+
+
+class StudyError(SnapshotError):
+    """A study configuration that cannot be used (names the file and the field)."""
+
+
+class AnswerError(SnapshotError):
+    """An answer that does not fit the trial it claims to answer (nothing is stored)."""
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study configuration with defaults filled in.
+
+    Attributes
+    ----------
+    id, title, description : str
+    video_fps : float
+        Frame rate of the stimulus videos (frames per second).
+    size : tuple of int
+        ``(width, height)`` in pixels of every video, frame and candidate view.
+    picker : str
+        ``"video"`` (frame-accurate player) or ``"frames"`` (slider over frames).
+    completion_code, redirect_url : str or None
+    consent : str
+        Markdown shown on the consent page.
+    background : dict of str to list of str
+        Choices for ``age_bands``, ``genders``, ``experience``.
+    attention : dict
+        ``question``, ``options``, ``answer``.
+    selection : dict
+        Keyword options for the pose/view selection.
+    scenes : tuple of dict
+        The config's scene entries, in config order.
+    base : Path or None
+        Folder that relative scene paths are resolved against (the config's folder).
+    """
+
+    id: str
+    title: str
+    description: str = ""
+    video_fps: float = 24.0
+    size: tuple[int, int] = (640, 480)
+    picker: str = "video"
+    completion_code: str | None = None
+    redirect_url: str | None = None
+    consent: str = DEFAULT_CONSENT
+    background: dict = field(default_factory=lambda: dict(DEFAULT_BACKGROUND))
+    attention: dict = field(default_factory=lambda: dict(DEFAULT_ATTENTION))
+    selection: dict = field(default_factory=dict)
+    scenes: tuple = ()
+    base: Path | None = None
+
+    @property
+    def scene_ids(self) -> list[str]:
+        """Scene ids in config order."""
+        return [s["id"] for s in self.scenes]
+
+    def to_dict(self) -> dict:
+        """The config as a document that :func:`study_from_dict` reads back (for manifests)."""
+        study = {"id": self.id, "title": self.title, "description": self.description,
+                 "video_fps": self.video_fps, "size": list(self.size), "picker": self.picker,
+                 "consent": self.consent}
+        if self.completion_code:
+            study["completion_code"] = self.completion_code
+        if self.redirect_url:
+            study["redirect_url"] = self.redirect_url
+        return {"study": study, "background": dict(self.background),
+                "attention": dict(self.attention), "selection": dict(self.selection),
+                "scenes": [dict(s) for s in self.scenes]}
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial of a participant's plan.
+
+    Attributes
+    ----------
+    index : int
+        0-based position in the plan (the store's ``trial_index``).
+    task : str
+        ``"pose"``, ``"view"`` or ``"attention"``.
+    scene : str
+        Scene id (``"attention"`` for the attention check).
+    stimulus_id : str
+        ``"<scene>/pose"``, ``"<scene>/view"`` or ``"attention"``.
+    shown_order : tuple of str or None
+        View task: the method shown at each screen position, left to right.
+    """
+
+    index: int
+    task: str
+    scene: str
+    stimulus_id: str
+    shown_order: tuple[str, ...] | None = None
+
+
+def load_study(path: str | Path) -> Study:
+    """Read and validate a study config file (TOML or JSON).
+
+    Raises
+    ------
+    SchemaError
+        The file breaks ``study.schema.json`` (message names file and field).
+    StudyError
+        A rule the schema cannot express (duplicate scene ids, an attention answer that
+        is not an option, an empty frame window).
+    """
+    p = Path(path)
+    doc = read_document(p, "study")
+    return study_from_dict(doc, source=str(p), base=p.resolve().parent, validated=True)
+
+
+def study_from_dict(doc: dict, *, source: str = "study config", base: Path | None = None,
+                    validated: bool = False) -> Study:
+    """Build a :class:`Study` from a parsed config document (validating it first)."""
+    if not validated:
+        validate(doc, "study", source=source)
+    s = doc["study"]
+    ids = [sc["id"] for sc in doc["scenes"]]
+    dupes = sorted({i for i in ids if ids.count(i) > 1})
+    if dupes:
+        raise StudyError(f"{source}: scenes: duplicate scene id(s) {', '.join(dupes)}")
+    for k, sc in enumerate(doc["scenes"]):
+        if "frames" in sc and sc["frames"][0] >= sc["frames"][1]:
+            raise StudyError(f"{source}: scenes[{k}].frames: {sc['frames']} is an empty window "
+                             "(need start < stop)")
+    attention = dict(doc.get("attention") or DEFAULT_ATTENTION)
+    if attention["answer"] not in attention["options"]:
+        raise StudyError(f"{source}: attention.answer: '{attention['answer']}' is not one of "
+                         "attention.options")
+    background = dict(DEFAULT_BACKGROUND)
+    background.update(doc.get("background") or {})
+    return Study(
+        id=s["id"],
+        title=s["title"],
+        description=s.get("description", ""),
+        video_fps=float(s.get("video_fps", 24.0)),
+        size=tuple(int(v) for v in s.get("size", (640, 480))),
+        picker=s.get("picker", "video"),
+        completion_code=s.get("completion_code") or None,
+        redirect_url=s.get("redirect_url") or None,
+        consent=s.get("consent") or DEFAULT_CONSENT,
+        background=background,
+        attention=attention,
+        selection=dict(doc.get("selection") or {}),
+        scenes=tuple(dict(sc) for sc in doc["scenes"]),
+        base=base,
+    )
+
+
+def trial_plan(scene_ids, seed: int, *, methods=METHODS, attention: bool = True) -> list[Trial]:
+    """The ordered trials of one participant.
+
+    Parameters
+    ----------
+    scene_ids : sequence of str
+        Scenes of the study (the order given does not matter beyond determinism).
+    seed : int
+        The participant's seed (stored with the participant): one seed, one plan.
+    methods : sequence of str
+        Methods whose views each view task shows.
+    attention : bool
+        Append the attention check.
+
+    Returns
+    -------
+    list of Trial
+        Pose tasks (a seeded permutation of the scenes), then view tasks (another
+        permutation, each with its own seeded screen order of the methods), then the
+        attention check; ``index`` runs 0..n-1.
+
+    Notes
+    -----
+    One ``numpy.random.Generator`` from ``seed`` draws, in a fixed sequence, the pose
+    order, the view order and each view trial's method order, so the plan is a pure
+    function of ``(scene_ids, seed)``.
+    """
+    ids = list(scene_ids)
+    if not ids:
+        raise StudyError("a study needs at least one scene")
+    rng = np.random.default_rng(int(seed))
+    pose_order = rng.permutation(len(ids))
+    view_order = rng.permutation(len(ids))
+    trials: list[Trial] = []
+    for k in pose_order:
+        trials.append(Trial(len(trials), "pose", ids[k], f"{ids[k]}/pose"))
+    for k in view_order:
+        shown = tuple(methods[m] for m in rng.permutation(len(methods)))
+        trials.append(Trial(len(trials), "view", ids[k], f"{ids[k]}/view", shown))
+    if attention:
+        trials.append(Trial(len(trials), "attention", "attention", "attention"))
+    return trials
+
+
+def _as_int(value, what: str) -> int:
+    # Values arrive from a browser as JSON: accept 12 and 12.0, refuse "12", True, 12.5.
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise AnswerError(f"{what} must be a whole number, got {value!r}")
+    if not math.isfinite(float(value)) or float(value) != int(value):
+        raise AnswerError(f"{what} must be a whole number, got {value!r}")
+    return int(value)
+
+
+def check_video_frame(video_frame, video_to_motion) -> tuple[int, int]:
+    """Check a chosen video frame and convert it to a motion frame.
+
+    Parameters
+    ----------
+    video_frame : int
+        0-based frame of the stimulus video the participant confirmed.
+    video_to_motion : sequence of int
+        The stimulus's map: motion frame (source numbering) shown at each video frame.
+
+    Returns
+    -------
+    (video_frame, motion_frame) : tuple of int
+
+    Raises
+    ------
+    AnswerError
+        Not a whole number, or outside ``[0, len(video_to_motion))``.
+    """
+    v = _as_int(video_frame, "the chosen frame")
+    n = len(video_to_motion)
+    if not 0 <= v < n:
+        raise AnswerError(f"frame {v} is outside this video (frames 0 to {n - 1})")
+    return v, int(video_to_motion[v])
+
+
+def check_view_choice(trial: Trial, position, method) -> tuple[int, str]:
+    """Check a view-task answer against what the plan showed.
+
+    The browser reports both the position clicked and the method label it displayed
+    there; both must agree with the participant's seeded screen order, so a stale page
+    or a forged label is refused instead of being counted for the wrong method.
+
+    Returns
+    -------
+    (position, method) : tuple
+
+    Raises
+    ------
+    AnswerError
+    """
+    if trial.task != "view" or not trial.shown_order:
+        raise AnswerError(f"trial {trial.index} is not a view task")
+    p = _as_int(position, "the chosen position")
+    if not 0 <= p < len(trial.shown_order):
+        raise AnswerError(f"position {p} does not exist (0 to {len(trial.shown_order) - 1})")
+    if method not in METHODS:
+        raise AnswerError(f"unknown method label {method!r}")
+    if trial.shown_order[p] != method:
+        raise AnswerError(f"the label {method!r} does not match the view shown at position {p}")
+    return p, method
+
+
+def check_attention_answer(study: Study, answer) -> bool:
+    """Whether ``answer`` is right; :class:`AnswerError` if it is not an option at all."""
+    if not isinstance(answer, str) or answer not in study.attention["options"]:
+        raise AnswerError(f"{answer!r} is not one of the options")
+    return answer == study.attention["answer"]
+
+
+def redirect_url(study: Study, code: str) -> str | None:
+    """The done page's link with ``{code}`` replaced, or None without a redirect."""
+    if not study.redirect_url:
+        return None
+    return study.redirect_url.replace("{code}", code)

@@ -1,0 +1,345 @@
+"""One participant's way through the study: the app's logic layer (no Streamlit here).
+
+The flow is a small state machine driven entirely by what the store holds, so a reload,
+a second tab or a return days later lands on the same step::
+
+    CONSENT ──(agree: participant created, id goes in the URL)──▶ BACKGROUND
+    BACKGROUND ──(answers stored)──▶ first unanswered trial (POSE / VIEW / ATTENTION)
+    ... every trial answered ──▶ DONE (completion code)
+
+:class:`ParticipantSession` checks every answer against the participant's seeded plan
+and the stimuli manifest *before* calling the store: a tampered or unknown id, an
+answer to a trial that is not the current one, an out-of-range frame or a forged
+method label raises a :class:`SessionError` with a message for the participant, and
+nothing is written.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import secrets
+from enum import StrEnum
+
+from snapcore.errors import SnapshotError
+
+from .protocol import (
+    AnswerError,
+    Trial,
+    check_attention_answer,
+    check_video_frame,
+    check_view_choice,
+    redirect_url,
+    trial_plan,
+)
+from .stimuli import Stimuli, app_version
+
+__all__ = [
+    "Stage",
+    "SessionError",
+    "UnknownParticipant",
+    "InvalidAnswer",
+    "ParticipantSession",
+    "prolific_params",
+    "PROLIFIC_KEYS",
+    "EVENT_KINDS",
+    "MAX_EVENTS_PER_TRIAL",
+]
+
+#: URL parameters Prolific appends to a study link; recorded when present.
+PROLIFIC_KEYS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
+#: Prolific ids are 24 hex characters; accept any short token of safe characters.
+_PROLIFIC_VALUE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+#: Participant ids are ``secrets.token_urlsafe(16)`` (22 characters); refuse anything
+#: that could not be one before asking the database.
+_PID = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
+#: Picker interactions worth keeping (plays, pauses, seeks, frame steps, scrubbing).
+EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select")
+#: A cap on stored events per trial, so a runaway client cannot flood the store.
+MAX_EVENTS_PER_TRIAL = 500
+#: Longest plausible response time (s) stored; longer ones (a tab left open) are clipped.
+MAX_RESPONSE_TIME_S = 24 * 3600.0
+#: Background questions: answer key → the study's choices key.
+BACKGROUND_FIELDS = {"age_band": "age_bands", "gender": "genders", "experience": "experience"}
+
+
+class Stage(StrEnum):
+    """Where a participant is."""
+
+    CONSENT = "consent"
+    BACKGROUND = "background"
+    POSE = "pose"
+    VIEW = "view"
+    ATTENTION = "attention"
+    DONE = "done"
+
+
+class SessionError(SnapshotError):
+    """Something a participant did that cannot be accepted; the message is for them."""
+
+
+class UnknownParticipant(SessionError):
+    """A participant id (from the URL) that is malformed, unknown or from another study."""
+
+
+class InvalidAnswer(SessionError):
+    """An answer that does not fit the current trial (nothing was written)."""
+
+
+def prolific_params(query: dict) -> dict:
+    """The Prolific parameters of a URL query (``PROLIFIC_PID``, ``STUDY_ID``, ``SESSION_ID``).
+
+    Values that could not be Prolific ids (wrong characters, too long, a list) are
+    dropped rather than stored.
+    """
+    out = {}
+    for k in PROLIFIC_KEYS:
+        v = query.get(k)
+        if isinstance(v, str) and _PROLIFIC_VALUE.match(v):
+            out[k] = v
+    return out
+
+
+class ParticipantSession:
+    """A participant's state, loaded from the store, and the only way to change it.
+
+    Create one per script run with :meth:`start` (on consent) or :meth:`resume` (from
+    the id in the URL); it is cheap (two queries).
+
+    Parameters
+    ----------
+    store : study_app.store.Store
+    stimuli : Stimuli
+        The verified stimuli the app serves.
+    participant : dict
+        The participant record (:meth:`Store.get_participant`).
+    answered : set of int
+        Trial indices already answered.
+    """
+
+    def __init__(self, store, stimuli: Stimuli, participant: dict, answered: set[int]):
+        self.store = store
+        self.stimuli = stimuli
+        self.participant = participant
+        self.answered = set(answered)
+        self.plan: list[Trial] = trial_plan(stimuli.scene_ids, participant["seed"])
+
+    # -- construction --------------------------------------------------------------
+    @classmethod
+    def start(cls, store, stimuli: Stimuli, *, prolific: dict | None = None,
+              seed: int | None = None, simulated: bool = False) -> ParticipantSession:
+        """Register a new participant (they agreed to take part) and return their session.
+
+        ``seed`` defaults to 62 random bits; pass one only to reproduce a plan.
+        """
+        if seed is None:
+            seed = secrets.randbits(62)
+        pid = store.create_participant(
+            stimuli.study.id, stimuli.sha256, app_version=app_version(), seed=int(seed),
+            prolific=prolific_params(prolific or {}) or None, simulated=simulated)
+        return cls.resume(store, stimuli, pid)
+
+    @classmethod
+    def resume(cls, store, stimuli: Stimuli, participant_id) -> ParticipantSession:
+        """The session of an existing participant.
+
+        Raises
+        ------
+        UnknownParticipant
+            The id is malformed or unknown, belongs to another study, or the participant
+            started with different stimuli (answers would not be comparable).
+        """
+        if not isinstance(participant_id, str) or not _PID.match(participant_id):
+            raise UnknownParticipant("This participant link is not valid. Please use the "
+                                     "link you were given, or start a new session.")
+        part = store.get_participant(participant_id)
+        if part is None:
+            raise UnknownParticipant("This participant link is not known to this study. "
+                                     "Please use the link you were given, or start a new session.")
+        if part["study_id"] != stimuli.study.id:
+            raise UnknownParticipant("This participant link belongs to another study.")
+        if part["manifest_sha256"] != stimuli.sha256:
+            raise UnknownParticipant("The study's materials have changed since you started, "
+                                     "so this session cannot continue. Please contact the "
+                                     "researchers.")
+        return cls(store, stimuli, part, store.answered_trials(participant_id))
+
+    # -- where the participant is ----------------------------------------------------
+    @property
+    def participant_id(self) -> str:
+        return self.participant["participant_id"]
+
+    @property
+    def seed(self) -> int:
+        return int(self.participant["seed"])
+
+    @property
+    def current_trial(self) -> Trial | None:
+        """The first unanswered trial (None when all are answered)."""
+        for t in self.plan:
+            if t.index not in self.answered:
+                return t
+        return None
+
+    @property
+    def stage(self) -> Stage:
+        if self.participant.get("background") is None:
+            return Stage.BACKGROUND
+        t = self.current_trial
+        return Stage.DONE if t is None else Stage(t.task)
+
+    def progress(self) -> tuple[int, int]:
+        """``(steps done, steps in all)``: consent, background, then each trial."""
+        total = 2 + len(self.plan)
+        done = 1 + (self.participant.get("background") is not None) + len(self.answered)
+        return min(done, total), total
+
+    @property
+    def completion_code(self) -> str | None:
+        return self.participant.get("completion_code")
+
+    # -- answers -----------------------------------------------------------------------
+    def submit_background(self, answers: dict) -> bool:
+        """Store the background answers; each must be one of the study's choices."""
+        clean = {}
+        for key, choices_key in BACKGROUND_FIELDS.items():
+            value = answers.get(key)
+            if value not in self.stimuli.study.background[choices_key]:
+                raise InvalidAnswer(f"Please answer the question about your {key.replace('_', ' ')}.")
+            clean[key] = value
+        stored = self.store.set_background(self.participant_id, clean)
+        self.participant = {**self.participant, "background": clean} if stored else \
+            self.store.get_participant(self.participant_id)
+        return bool(stored)
+
+    def _trial_for(self, trial_index, task: str) -> Trial | None:
+        """The trial an answer claims to answer; None if it is already answered."""
+        if isinstance(trial_index, bool) or not isinstance(trial_index, int) \
+                or not 0 <= trial_index < len(self.plan):
+            raise InvalidAnswer(f"There is no question number {trial_index!r} in this study.")
+        trial = self.plan[trial_index]
+        if trial.task != task:
+            raise InvalidAnswer("This answer does not belong to the current question.")
+        if trial_index in self.answered:
+            return None  # a re-sent answer: harmless, nothing changes
+        if self.participant.get("background") is None:
+            raise InvalidAnswer("Please answer the questions about yourself first.")
+        if trial_index != self.current_trial.index:
+            raise InvalidAnswer("Please answer the questions in order; this page was out of date.")
+        return trial
+
+    @staticmethod
+    def _time(response_time_s) -> float:
+        t = float(response_time_s)
+        if not math.isfinite(t) or t < 0:
+            raise InvalidAnswer("The response time is not valid.")
+        return min(t, MAX_RESPONSE_TIME_S)
+
+    def _record(self, row: dict) -> bool:
+        stored = self.store.record_response(self.participant_id, row)
+        self.answered.add(row["trial_index"])
+        return bool(stored)
+
+    def submit_pose(self, trial_index: int, video_frame, *, response_time_s: float,
+                    events=()) -> bool:
+        """Answer a pose task with the confirmed frame of the video.
+
+        The video frame is checked against the scene's frame map and converted to the
+        motion frame (source numbering). Returns True if stored, False if this trial was
+        already answered (nothing changes).
+
+        Raises
+        ------
+        InvalidAnswer
+            Wrong or out-of-order trial, or a frame outside the video. Nothing is written.
+        """
+        trial = self._trial_for(trial_index, "pose")
+        if trial is None:
+            return False
+        sc = self.stimuli.scenes[trial.scene]
+        try:
+            v, m = check_video_frame(video_frame, sc.video_to_motion)
+        except AnswerError as err:
+            raise InvalidAnswer(f"That frame cannot be stored: {err}.") from None
+        row = {"trial_index": trial.index, "task": "pose", "scene": trial.scene,
+               "stimulus_id": trial.stimulus_id, "chosen_frame": m, "chosen_video_frame": v,
+               "algorithm_frame": sc.algorithm_frame, "fps": sc.fps, "n_frames": sc.n_frames,
+               "response_time_s": self._time(response_time_s)}
+        stored = self._record(row)
+        if stored:
+            self._record_events(trial.index, events, n_video_frames=sc.n_video_frames)
+        return stored
+
+    def submit_view(self, trial_index: int, position, method, *, response_time_s: float) -> bool:
+        """Answer a view task: the screen position clicked and the label shown there.
+
+        Raises
+        ------
+        InvalidAnswer
+            Wrong trial, a position that does not exist, or a method label that is not
+            what the participant's seeded order put at that position. Nothing is written.
+        """
+        trial = self._trial_for(trial_index, "view")
+        if trial is None:
+            return False
+        try:
+            p, m = check_view_choice(trial, position, method)
+        except AnswerError as err:
+            raise InvalidAnswer(f"That choice cannot be stored: {err}.") from None
+        sc = self.stimuli.scenes[trial.scene]
+        row = {"trial_index": trial.index, "task": "view", "scene": trial.scene,
+               "stimulus_id": trial.stimulus_id, "algorithm_frame": sc.algorithm_frame,
+               "fps": sc.fps, "n_frames": sc.n_frames, "chosen_method": m,
+               "chosen_position": p, "shown_order": list(trial.shown_order),
+               "response_time_s": self._time(response_time_s)}
+        return self._record(row)
+
+    def submit_attention(self, trial_index: int, answer, *, response_time_s: float) -> bool:
+        """Answer the attention check (stored with whether it was right)."""
+        trial = self._trial_for(trial_index, "attention")
+        if trial is None:
+            return False
+        try:
+            correct = check_attention_answer(self.stimuli.study, answer)
+        except AnswerError:
+            raise InvalidAnswer("Please choose one of the options.") from None
+        row = {"trial_index": trial.index, "task": "attention", "scene": trial.scene,
+               "stimulus_id": trial.stimulus_id, "chosen_value": answer, "correct": correct,
+               "response_time_s": self._time(response_time_s)}
+        return self._record(row)
+
+    def _record_events(self, trial_index: int, events, *, n_video_frames: int) -> int:
+        """Store the picker's interaction log (malformed entries are skipped)."""
+        n = 0
+        for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
+            if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
+                continue
+            payload = {}
+            t = ev.get("t")
+            if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
+                payload["t"] = round(float(t), 3)
+            for key in ("frame", "from"):
+                f = ev.get(key)
+                if isinstance(f, int) and not isinstance(f, bool) and 0 <= f < n_video_frames:
+                    payload[key] = f
+            self.store.record_event(self.participant_id, trial_index, ev["kind"], payload)
+            n += 1
+        return n
+
+    def finish(self) -> str:
+        """Mark the participant complete; return the completion code (idempotent)."""
+        if self.stage is not Stage.DONE:
+            raise InvalidAnswer("There are still questions to answer.")
+        code = self.store.complete(self.participant_id, code=self.stimuli.study.completion_code)
+        self.participant = {**self.participant, "completion_code": code}
+        return code
+
+    def redirect(self, code: str) -> str | None:
+        """The study's redirect link for ``code`` (e.g. back to Prolific), or None."""
+        return redirect_url(self.stimuli.study, code)
+
+    def view_choices(self, trial: Trial) -> list[tuple[str, object]]:
+        """``[(method, image path), ...]`` in the participant's screen order."""
+        sc = self.stimuli.scenes[trial.scene]
+        return [(m, sc.views[m]) for m in trial.shown_order]
+

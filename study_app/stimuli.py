@@ -1,0 +1,531 @@
+"""Stimuli: the files participants see, built from a study config, and their manifest.
+
+A stimuli folder holds, per scene of the study::
+
+    <scene>/video.mp4           the whole animation, H.264, ``video_fps`` (24 by default)
+    <scene>/frames/00000.jpg    one image per video frame: the frames a participant picks from
+    <scene>/view_<method>.png   the selected pose seen from each method's view direction
+    <scene>/scene.json          the scene manifest that was loaded (provenance)
+
+and one ``manifest.json`` (``data_schema/stimuli.schema.json``) with the sha256 of every
+file, the motion frame (source numbering) shown at each video frame, the algorithm's
+picks, and which method made which view. The app refuses a folder whose manifest does
+not match its files (:func:`load_stimuli`), before any participant starts.
+
+The builder runs one function per stage, so each can be tested and replaced alone:
+:func:`load_study_scene` → :func:`select_scene` → :func:`write_video` →
+:func:`write_frames` → :func:`write_views` → :func:`write_manifest`. Rendering uses
+``snapcore.render`` (EGL, offline: see PLATFORM-NOTES, renderers do not cross threads).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from snapcore.errors import SchemaError, SnapshotError
+from snapcore.schema import validate
+
+from .protocol import METHODS, Study, study_from_dict
+
+__all__ = [
+    "MANIFEST_NAME",
+    "StimuliError",
+    "SceneStimulus",
+    "Stimuli",
+    "sha256_file",
+    "load_stimuli",
+    "verify_stimuli",
+    "build_stimuli",
+    "load_study_scene",
+    "select_scene",
+    "write_video",
+    "write_frames",
+    "write_views",
+    "write_manifest",
+    "app_version",
+]
+
+MANIFEST_NAME = "manifest.json"
+#: JPEG quality of the pickable frames: visually lossless at study sizes, ~20 kB a frame.
+FRAME_JPEG_QUALITY = 88
+_HASH_CHUNK = 1 << 20
+
+
+class StimuliError(SnapshotError):
+    """A stimuli folder that cannot be used (missing, altered or inconsistent files)."""
+
+
+def app_version() -> str:
+    """The installed package version (stored with manifests and responses)."""
+    try:
+        from importlib.metadata import version
+
+        return version("action-snapshot")
+    except Exception:  # noqa: BLE001 - running from a source tree without metadata
+        return "0+unknown"
+
+
+def sha256_file(path: str | Path) -> str:
+    """Lowercase hex sha256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(_HASH_CHUNK), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+# --------------------------------------------------------------------------- loading
+
+
+@dataclass(frozen=True)
+class SceneStimulus:
+    """One scene's stimuli, paths resolved.
+
+    Attributes
+    ----------
+    id : str
+    fps : float
+        Motion frame rate.
+    n_frames, frame_offset : int
+        Motion frames in the scene and the source number of its first frame.
+    video : Path
+    video_fps : float
+    video_to_motion : tuple of int
+        Motion frame (source numbering) shown at each video frame.
+    frames : tuple of Path
+        One image per video frame.
+    algorithm_frame : int
+        The algorithm's pose (source numbering).
+    views : dict of str to Path
+        Candidate view image per method.
+    """
+
+    id: str
+    fps: float
+    n_frames: int
+    frame_offset: int
+    video: Path
+    video_fps: float
+    video_to_motion: tuple[int, ...]
+    frames: tuple[Path, ...]
+    algorithm_frame: int
+    views: dict
+    entry: dict
+
+    @property
+    def n_video_frames(self) -> int:
+        return len(self.video_to_motion)
+
+    @property
+    def algorithm_video_frame(self) -> int:
+        """The video frame whose motion frame is closest to the algorithm's pick."""
+        m = np.asarray(self.video_to_motion)
+        return int(np.argmin(np.abs(m - self.algorithm_frame)))
+
+
+@dataclass(frozen=True)
+class Stimuli:
+    """A verified stimuli folder.
+
+    Attributes
+    ----------
+    folder : Path
+    manifest : dict
+        The parsed manifest.
+    sha256 : str
+        sha256 of ``manifest.json``: identifies this exact set of stimuli (stored with
+        every participant and response).
+    study : Study
+    scenes : dict of str to SceneStimulus
+    """
+
+    folder: Path
+    manifest: dict
+    sha256: str
+    study: Study
+    scenes: dict
+
+    @property
+    def scene_ids(self) -> list[str]:
+        return list(self.scenes)
+
+
+def _referenced_files(entry: dict) -> list[str]:
+    files = [entry["video"], *entry["frames"]]
+    files += [v["file"] for v in entry["views"].values()]
+    return files
+
+
+def verify_stimuli(folder: str | Path) -> dict:
+    """Check a stimuli folder against its manifest; return the parsed manifest.
+
+    Checks, in order: the manifest exists, parses and follows its schema; every file it
+    lists exists and has the listed sha256; every file a scene uses is listed; each
+    scene's frame map, frame images and video agree in length.
+
+    Raises
+    ------
+    StimuliError
+        Naming the folder and the first file or field that is wrong.
+    """
+    root = Path(folder)
+    mpath = root / MANIFEST_NAME
+    if not root.is_dir():
+        raise StimuliError(f"stimuli folder {root} does not exist (build it with "
+                           "`snapshot stimuli build STUDY.toml -o FOLDER`)")
+    if not mpath.is_file():
+        raise StimuliError(f"stimuli folder {root}: no {MANIFEST_NAME} (an unfinished build?)")
+    try:
+        manifest = json.loads(mpath.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise StimuliError(f"{mpath}: cannot read the manifest ({err})") from err
+    try:
+        validate(manifest, "stimuli", source=str(mpath))
+    except SchemaError as err:
+        raise StimuliError(str(err)) from err
+    listed = manifest["files"]
+    for rel, digest in listed.items():
+        p = root / rel
+        if not p.is_file():
+            raise StimuliError(f"stimuli folder {root}: {rel} is missing")
+        if sha256_file(p) != digest:
+            raise StimuliError(f"stimuli folder {root}: {rel} has been altered "
+                               "(its sha256 differs from the manifest)")
+    for entry in manifest["scenes"]:
+        for rel in _referenced_files(entry):
+            if rel not in listed:
+                raise StimuliError(f"{mpath}: scene {entry['id']}: {rel} has no sha256 in files")
+        if len(entry["frames"]) != len(entry["video_to_motion"]):
+            raise StimuliError(f"{mpath}: scene {entry['id']}: {len(entry['frames'])} frame images "
+                               f"but {len(entry['video_to_motion'])} video frames in the map")
+        lo, hi = entry["frame_offset"], entry["frame_offset"] + entry["n_frames"]
+        bad = [m for m in entry["video_to_motion"] if not lo <= m < hi]
+        if bad or not lo <= entry["picks"]["frame"] < hi:
+            raise StimuliError(f"{mpath}: scene {entry['id']}: motion frames outside the "
+                               f"scene's range [{lo}, {hi})")
+    return manifest
+
+
+def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
+    """Open a stimuli folder (verifying every file's sha256 unless ``verify=False``)."""
+    root = Path(folder).resolve()
+    if verify:
+        manifest = verify_stimuli(root)
+    else:
+        manifest = json.loads((root / MANIFEST_NAME).read_text(encoding="utf-8"))
+    try:
+        study = study_from_dict(manifest["study"], source=f"{root / MANIFEST_NAME}: study")
+    except SnapshotError as err:
+        raise StimuliError(str(err)) from err
+    missing = [s for s in study.scene_ids if s not in {e["id"] for e in manifest["scenes"]}]
+    if missing:
+        raise StimuliError(f"{root / MANIFEST_NAME}: no stimuli for scene(s) {', '.join(missing)}")
+    scenes = {}
+    for e in manifest["scenes"]:
+        scenes[e["id"]] = SceneStimulus(
+            id=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
+            frame_offset=int(e["frame_offset"]), video=root / e["video"],
+            video_fps=float(e["video_fps"]), video_to_motion=tuple(e["video_to_motion"]),
+            frames=tuple(root / f for f in e["frames"]), algorithm_frame=int(e["picks"]["frame"]),
+            views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
+        )
+    return Stimuli(folder=root, manifest=manifest, sha256=sha256_file(root / MANIFEST_NAME),
+                   study=study, scenes=scenes)
+
+
+# --------------------------------------------------------------------------- building
+
+
+def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
+    """Stage 1: load one scene of the study (trimmed to its frame window).
+
+    The entry's source (``demo``, ``files`` or ``manifest``) becomes a scene manifest
+    written to ``work_dir/scene.json`` (absolute paths, the window as ``frames``), which
+    :func:`snapcore.load_scene` reads; that file stays with the stimuli as provenance.
+
+    Returns
+    -------
+    (Scene, dict)
+        The scene and the manifest document that produced it.
+    """
+    from snapcore.load import load_scene, resolve_data_path
+    from snapcore.schema import read_document
+
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    base = study.base
+    if "demo" in entry:
+        doc = _demo_scene_document(entry["demo"], work.parent / ".demo")
+        src_base = work.parent / ".demo"
+    elif "manifest" in entry:
+        mpath = resolve_data_path(entry["manifest"], base)
+        doc = read_document(mpath, "scene")
+        src_base = mpath.resolve().parent
+    else:
+        doc = {"characters": [{"file": f} for f in entry["files"]]}
+        src_base = base
+    doc = json.loads(json.dumps(doc))  # a private copy
+    for c in doc["characters"]:
+        p = resolve_data_path(c["file"], src_base)
+        if not p.exists():
+            raise StimuliError(f"scene {entry['id']}: {c['file']}: no such file (looked beside the "
+                               "study config and in SNAPSHOT_DATA)")
+        c["file"] = str(p.resolve())
+    for key in ("fps", "scale", "frames"):
+        if key in entry:
+            doc[key] = entry[key]
+    doc["name"] = entry["id"]
+    spath = work / "scene.json"
+    spath.write_text(json.dumps(doc, indent=2), encoding="utf-8")
+    return load_scene(spath), doc
+
+
+def _demo_scene_document(name: str, folder: Path) -> dict:
+    """The scene manifest of synthetic demo scene ``name`` (written once into ``folder``)."""
+    from snapcore import synth
+    from snapcore.schema import read_document
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [Path(p) for p in synth.write_demo(folder)]
+    manifests = {p.stem.split(".")[0]: p for p in written if p.suffix in (".toml", ".json")}
+    if name in manifests:
+        return read_document(manifests[name], "scene")
+    bvhs = {p.stem: p for p in written if p.suffix == ".bvh"}
+    if name in bvhs:
+        return {"characters": [{"file": str(bvhs[name])}]}
+    raise StimuliError(f"no synthetic demo scene '{name}' (have: "
+                       f"{', '.join(sorted(set(manifests) | set(bvhs)))})")
+
+
+def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
+    """Stage 2: the pose and the three view directions.
+
+    Returns
+    -------
+    (picks, timings) : tuple of dict
+        ``picks``: ``frame`` and ``frames`` (source numbering), ``view`` (ours),
+        ``viewpoint_entropy`` and ``motion_area`` (unit vectors, world frame).
+        ``timings``: seconds per stage of the selection.
+    """
+    from snapcore.snapshot import take_snapshot
+
+    snap = take_snapshot(scene, **(options or {}))
+    d = snap.to_dict() if hasattr(snap, "to_dict") else dict(snap)
+    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d.get("frames", [d["frame"]])]}
+    picks["view"] = _unit(d["view"])
+    base = d.get("baselines") or {}
+    for m in ("viewpoint_entropy", "motion_area"):
+        picks[m] = _unit(base[m]["view"] if isinstance(base.get(m), dict) else base[m])
+    timings = {k: float(v) for k, v in (d.get("timings_s") or {}).items()}
+    return picks, timings
+
+
+def _unit(v) -> list[float]:
+    a = np.asarray(v, dtype=float).reshape(3)
+    return (a / np.linalg.norm(a)).tolist()
+
+
+def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], view=None) -> list[int]:
+    """Stage 3: the animation video; returns the motion frame (source numbering) per video frame."""
+    from snapcore.render import render_video
+
+    vmap = render_video(scene, path, fps=fps, size=size, view=view)
+    vmap = np.asarray(vmap, dtype=int)
+    # The renderer reports internal frames (0 = the scene's first frame); manifests
+    # speak the source motion's numbering (METHOD §0).
+    return [int(scene.source_frame(int(i))) for i in vmap]
+
+
+def write_frames(video: str | Path, folder: str | Path) -> list[Path]:
+    """Stage 4: decode the video into one JPEG per frame (what the picker shows).
+
+    Decoding the written video (instead of rendering again) makes each image exactly
+    the frame the participant sees in the player.
+    """
+    import imageio.v3 as iio
+    from PIL import Image
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, frame in enumerate(iio.imiter(video, plugin="pyav") if _has_pyav()
+                              else iio.imiter(video)):
+        p = out / f"{i:05d}.jpg"
+        Image.fromarray(np.asarray(frame)[..., :3]).save(p, quality=FRAME_JPEG_QUALITY)
+        paths.append(p)
+    if not paths:
+        raise StimuliError(f"{video}: the video has no frames")
+    return paths
+
+
+def _has_pyav() -> bool:
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]) -> dict:
+    """Stage 5: the selected pose seen along each method's direction (same size and framing).
+
+    Returns
+    -------
+    dict
+        ``{method: {"file": Path, "direction": [x, y, z]}}`` for :data:`METHODS`.
+    """
+    from snapcore.render import render_still
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    directions = {"ours": picks["view"], "viewpoint_entropy": picks["viewpoint_entropy"],
+                  "motion_area": picks["motion_area"]}
+    frame = int(picks["frame"]) - scene.frame_offset
+    # One framing for all three: fit the camera to the whole pose from every direction
+    # alike, so a view never wins by being bigger (the render module frames the pose
+    # over the union of the directions when given them).
+    views = {}
+    for m in METHODS:
+        p = out / f"view_{m}.png"
+        render_still(scene, frame, directions[m], p, size=size)
+        views[m] = {"file": p, "direction": directions[m]}
+    return views
+
+
+def write_manifest(folder: str | Path, study: Study, scenes: list[dict]) -> Path:
+    """Stage 6: hash every file the scenes use and write ``manifest.json``.
+
+    Parameters
+    ----------
+    folder : path
+        The stimuli folder.
+    study : Study
+    scenes : list of dict
+        Scene entries whose file fields (``video``, ``frames``, ``views[*].file`` and
+        ``scene_file``) may be absolute paths inside ``folder``; they are written
+        relative.
+
+    Returns
+    -------
+    Path
+        The manifest.
+    """
+    root = Path(folder).resolve()
+    files: dict[str, str] = {}
+
+    def rel(p) -> str:
+        p = Path(p)
+        r = (p if p.is_absolute() else root / p).resolve().relative_to(root).as_posix()
+        files[r] = sha256_file(root / r)
+        return r
+
+    out = []
+    for e in scenes:
+        e = dict(e)
+        e["video"] = rel(e["video"])
+        e["frames"] = [rel(f) for f in e["frames"]]
+        e["views"] = {m: {**v, "file": rel(v["file"])} for m, v in e["views"].items()}
+        if "scene_file" in e:
+            e.setdefault("source", {})["scene_file"] = rel(e.pop("scene_file"))
+        out.append(e)
+    manifest = {
+        "format": "action-snapshot-stimuli",
+        "version": 1,
+        "created_at": datetime.now(UTC).isoformat(timespec="seconds"),
+        "app_version": app_version(),
+        "study": study.to_dict(),
+        "scenes": out,
+        "files": dict(sorted(files.items())),
+    }
+    validate(manifest, "stimuli", source=str(root / MANIFEST_NAME))
+    path = root / MANIFEST_NAME
+    path.write_text(json.dumps(manifest, indent=1), encoding="utf-8")
+    return path
+
+
+def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
+                  quiet: bool = False) -> Path:
+    """Build every scene's stimuli into ``out_dir`` and write the manifest.
+
+    The build goes to ``<out_dir>.partial`` and is renamed when complete, so an
+    interrupted build never leaves a folder that looks usable.
+
+    Parameters
+    ----------
+    study : Study
+    out_dir : path
+    force : bool
+        Replace an existing ``out_dir``.
+    quiet : bool
+        No progress bar.
+
+    Returns
+    -------
+    Path
+        ``out_dir / "manifest.json"``.
+    """
+    from tqdm.auto import tqdm
+
+    out = Path(out_dir)
+    if out.exists() and not force:
+        raise StimuliError(f"{out} already exists (use --force to rebuild it)")
+    tmp = out.with_name(out.name + ".partial")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    entries = []
+    bar = tqdm(study.scenes, desc="stimuli", unit="scene", disable=quiet)
+    for sc in bar:
+        bar.set_postfix_str(sc["id"])
+        entries.append(_build_scene(study, sc, tmp))
+    write_manifest(tmp, study, entries)
+    shutil.rmtree(tmp / ".demo", ignore_errors=True)
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+    return out / MANIFEST_NAME
+
+
+def _build_scene(study: Study, sc: dict, root: Path) -> dict:
+    folder = root / sc["id"]
+    t0 = time.perf_counter()
+    scene, doc = load_study_scene(study, sc, folder)
+    t1 = time.perf_counter()
+    picks, timings = select_scene(scene, study.selection)
+    t2 = time.perf_counter()
+    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size,
+                       view=picks["view"])
+    frames = write_frames(folder / "video.mp4", folder / "frames")
+    if len(frames) != len(vmap):
+        raise StimuliError(f"scene {sc['id']}: the video decodes to {len(frames)} frames but the "
+                           f"renderer reported {len(vmap)}")
+    t3 = time.perf_counter()
+    views = write_views(scene, picks, folder, size=study.size)
+    t4 = time.perf_counter()
+    source = {k: sc[k] for k in ("demo", "files", "manifest", "fps", "scale", "frames") if k in sc}
+    return {
+        "id": sc["id"],
+        "title": sc.get("title", sc["id"]),
+        "source": source,
+        "scene_file": folder / "scene.json",
+        "fps": float(scene.fps),
+        "n_frames": int(scene.n_frames),
+        "frame_offset": int(scene.frame_offset),
+        "video": folder / "video.mp4",
+        "video_fps": float(study.video_fps),
+        "size": list(study.size),
+        "video_to_motion": vmap,
+        "frames": frames,
+        "picks": picks,
+        "views": views,
+        "timings_s": {"load": t1 - t0, "select": t2 - t1, "video": t3 - t2, "views": t4 - t3,
+                      **{f"select_{k}": v for k, v in timings.items()}},
+    }

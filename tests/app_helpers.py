@@ -1,0 +1,89 @@
+"""Test helpers for the study app: a tiny stimuli folder without rendering.
+
+``write_fixture_stimuli`` writes, per scene, a short H.264 video whose frames show their
+own number (large digits, so a screenshot or a decoded frame can be checked by eye),
+the matching frame images, three candidate-view images and a real manifest (via
+``study_app.stimuli.write_manifest``), so the app, the session logic and the browser
+test run on the same kind of folder ``snapshot stimuli build`` produces.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from study_app.protocol import METHODS, study_from_dict
+from study_app.stimuli import write_manifest
+
+#: Motion frames per fixture scene and the motion/video rates: 48 motion frames at
+#: 48 fps are 1 s, i.e. 24 video frames at 24 fps; video frame i shows motion frame 2i.
+FIXTURE_MOTION_FPS = 48.0
+FIXTURE_MOTION_FRAMES = 48
+FIXTURE_VIDEO_FPS = 24.0
+FIXTURE_SIZE = (160, 128)
+#: The fixture's "algorithm" picks motion frame 20 (video frame 10) in every scene.
+FIXTURE_ALGORITHM_FRAME = 20
+
+COLOURS = {"ours": (200, 60, 60), "viewpoint_entropy": (60, 160, 60), "motion_area": (60, 60, 200)}
+
+
+def fixture_study_doc(scene_ids=("walk", "jump"), **study_fields) -> dict:
+    """A study config document with the given scenes (as demo scenes)."""
+    study = {"id": "fixture", "title": "Fixture study", "video_fps": FIXTURE_VIDEO_FPS,
+             "size": list(FIXTURE_SIZE), **study_fields}
+    return {"study": study, "scenes": [{"id": s, "demo": s} for s in scene_ids]}
+
+
+def _digits_image(text: str, size, colour=(30, 30, 30)) -> np.ndarray:
+    from PIL import Image, ImageDraw, ImageFont
+
+    img = Image.new("RGB", size, (235, 235, 225))
+    d = ImageDraw.Draw(img)
+    try:
+        font = ImageFont.load_default(size=size[1] // 2)
+    except TypeError:  # Pillow < 10.1
+        font = ImageFont.load_default()
+    d.text((size[0] // 2, size[1] // 2), text, fill=colour, font=font, anchor="mm")
+    return np.asarray(img)
+
+
+def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
+    """Write a complete, valid stimuli folder for ``doc`` (default: two scenes)."""
+    import imageio.v3 as iio
+    from PIL import Image
+
+    doc = doc or fixture_study_doc()
+    study = study_from_dict(doc)
+    root = Path(folder)
+    root.mkdir(parents=True, exist_ok=True)
+    n_video = int(FIXTURE_MOTION_FRAMES * FIXTURE_VIDEO_FPS / FIXTURE_MOTION_FPS)
+    entries = []
+    for sc in study.scenes:
+        d = root / sc["id"]
+        (d / "frames").mkdir(parents=True, exist_ok=True)
+        frames = np.stack([_digits_image(str(i), study.size) for i in range(n_video)])
+        video = d / "video.mp4"
+        iio.imwrite(video, frames, plugin="FFMPEG", fps=study.video_fps, codec="libx264",
+                    macro_block_size=8, output_params=["-movflags", "+faststart", "-g", "6"])
+        paths = []
+        for i, f in enumerate(frames):
+            p = d / "frames" / f"{i:05d}.jpg"
+            Image.fromarray(f).save(p, quality=90)
+            paths.append(p)
+        views = {}
+        for k, m in enumerate(METHODS):
+            p = d / f"view_{m}.png"
+            Image.fromarray(_digits_image("ABC"[k], study.size, COLOURS[m])).save(p)
+            views[m] = {"file": p, "direction": [0.0, 0.0, 1.0]}
+        entries.append({
+            "id": sc["id"], "title": sc["id"], "fps": FIXTURE_MOTION_FPS,
+            "n_frames": FIXTURE_MOTION_FRAMES, "frame_offset": 0, "video": video,
+            "video_fps": study.video_fps, "size": list(study.size),
+            "video_to_motion": [2 * i for i in range(n_video)], "frames": paths,
+            "picks": {"frame": FIXTURE_ALGORITHM_FRAME, "frames": [FIXTURE_ALGORITHM_FRAME],
+                      "view": [0.0, 0.0, 1.0], "viewpoint_entropy": [1.0, 0.0, 0.0],
+                      "motion_area": [0.0, 1.0, 0.0]},
+            "views": views,
+        })
+    return write_manifest(root, study, entries)
