@@ -1,0 +1,94 @@
+"""analysis: the user study's responses → the paper's tables and figures, with statistics.
+
+Load responses (the store or an export file) into tidy frames (:mod:`analysis.load`),
+test the view votes of Table 2 (:mod:`analysis.votes`), compare chosen frames with the
+algorithm's pick and simple baselines (:mod:`analysis.frames`), simulate participants
+(:mod:`analysis.simulate`), plan sample sizes (:mod:`analysis.power`), and write
+everything as CSV/Markdown/LaTeX tables, figures and an HTML report
+(:mod:`analysis.report`, ``snapshot analyze``). Plotting (matplotlib) is imported only
+when a figure is drawn.
+"""
+
+from __future__ import annotations
+
+from .frames import (
+    SceneFrames,
+    baselines_from_stimuli,
+    closeness_tests,
+    frame_distances,
+    frame_histogram,
+    hit_rates,
+    motion_baselines,
+    scene_frames_from_rows,
+)
+from .load import (
+    METHODS,
+    LoadError,
+    attention_summary,
+    load_responses,
+    ordered_scenes,
+    pose_choices,
+    tidy_responses,
+    view_choices,
+)
+from .simulate import (
+    ObserverModel,
+    SimScene,
+    paper_design,
+    simulate_participants,
+    simulate_vote_counts,
+    simulated_rows,
+    store_simulation,
+)
+from .votes import (
+    chisquare_no_preference,
+    choices_from_counts,
+    claim_summary,
+    fleiss_kappa,
+    holm_adjust,
+    luce_strengths,
+    ours_vs_baselines,
+    paper_counts,
+    paper_table2,
+    vote_counts,
+    vote_table,
+    wilson_interval,
+)
+
+__all__ = [
+    "METHODS",
+    "LoadError",
+    "ObserverModel",
+    "SceneFrames",
+    "SimScene",
+    "attention_summary",
+    "baselines_from_stimuli",
+    "chisquare_no_preference",
+    "choices_from_counts",
+    "claim_summary",
+    "closeness_tests",
+    "fleiss_kappa",
+    "frame_distances",
+    "frame_histogram",
+    "hit_rates",
+    "holm_adjust",
+    "load_responses",
+    "luce_strengths",
+    "motion_baselines",
+    "ordered_scenes",
+    "ours_vs_baselines",
+    "paper_counts",
+    "paper_design",
+    "paper_table2",
+    "pose_choices",
+    "scene_frames_from_rows",
+    "simulate_participants",
+    "simulate_vote_counts",
+    "simulated_rows",
+    "store_simulation",
+    "tidy_responses",
+    "view_choices",
+    "vote_counts",
+    "vote_table",
+    "wilson_interval",
+]

@@ -1,0 +1,1 @@
+"""Package data of :mod:`analysis`: the paper's published tables (see ``SOURCES.md``)."""

@@ -1,0 +1,413 @@
+"""Pose-task choices against the algorithm's pick (the paper's Fig. 13), with baselines.
+
+The question: when people pick "the most meaningful frame" of an animation, how close
+are they to the frame the algorithm (pose entropy) picked — and is the algorithm closer
+to them than simple rules would be?
+
+Predictors compared with the people's choices, per scene:
+
+- ``algorithm``: the algorithm's pick (``algorithm_frame`` of the rows);
+- ``middle``: the middle frame of the clip;
+- ``uniform_random``: a frame drawn uniformly from the clip (its *expected* distance
+  and hit rate, computed exactly over every frame);
+- ``fastest``: the frame where the body moves fastest (largest summed joint speed);
+- ``farthest_from_mean``: the frame whose root-relative pose is farthest from the clip's
+  mean pose. The last two need the motion: :func:`motion_baselines` computes them from
+  a :class:`snapcore.Scene`, :func:`baselines_from_stimuli` loads the scenes named by a
+  stimuli manifest; without the motion they are left out (never guessed).
+
+Distances are in seconds, ``|chosen − predictor| / fps``. Hit rates count choices within
+±0.25, ±0.5 and ±1 s (``TOLERANCES_S``). Permutation tests ask whether the algorithm
+is closer to people than each baseline (one-sided):
+
+- deterministic baseline ``b``: paired sign-flip test on
+  ``d_i = |c_i − b| − |c_i − a|`` (statistic: mean ``d``; under "equally close" each
+  ``d_i`` is symmetric about 0); exact enumeration for up to ``EXACT_MAX_N`` choices,
+  else ``N_PERMUTATIONS`` random flips, ``p = (1 + #{T* >= T}) / (1 + B)``;
+- ``uniform_random``: the exact randomisation p-value, the fraction of the clip's frames
+  whose mean distance to the choices is at most the algorithm's.
+
+Frames are in source numbering; a clip covers frames ``frame_offset ..
+frame_offset + n_frames − 1`` (``frame_offset`` 0 unless the stimuli manifest says).
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .load import ordered_scenes
+from .votes import holm_adjust, wilson_interval
+
+__all__ = [
+    "TOLERANCES_S",
+    "N_PERMUTATIONS",
+    "EXACT_MAX_N",
+    "DETERMINISTIC_BASELINES",
+    "SceneFrames",
+    "scene_frames_from_rows",
+    "motion_baselines",
+    "baselines_from_stimuli",
+    "predictor_frames",
+    "frame_distances",
+    "hit_rates",
+    "closeness_tests",
+    "frame_histogram",
+]
+
+#: Hit-rate windows, seconds either side of the predicted frame.
+TOLERANCES_S = (0.25, 0.5, 1.0)
+#: Random sign flips of the permutation test when exact enumeration is too large.
+N_PERMUTATIONS = 10_000
+#: Up to this many choices the sign-flip test enumerates all 2^n flips exactly.
+EXACT_MAX_N = 16
+#: Baselines that predict one frame (tested by paired sign flips).
+DETERMINISTIC_BASELINES = ("middle", "fastest", "farthest_from_mean")
+
+
+@dataclass(frozen=True)
+class SceneFrames:
+    """What the frame analysis needs to know about one scene.
+
+    Attributes
+    ----------
+    scene : str
+        Scene id (as in the rows).
+    fps : float
+        Motion frames per second.
+    n_frames : int
+        Motion length in frames.
+    algorithm_frame : int
+        The algorithm's pick, source numbering.
+    frame_offset : int
+        Source number of the clip's first frame.
+    algorithm_frames : tuple of int
+        All of the algorithm's picks (top-k) to mark on histograms (may be empty).
+    baseline_frames : dict
+        Motion-derived baselines, name → source frame (``fastest``, ...).
+    label : str or None
+        Display name.
+    """
+
+    scene: str
+    fps: float
+    n_frames: int
+    algorithm_frame: int
+    frame_offset: int = 0
+    algorithm_frames: tuple = ()
+    baseline_frames: dict = field(default_factory=dict)
+    label: str | None = None
+
+    @property
+    def frames(self) -> np.ndarray:
+        """Every source frame of the clip, shape ``(n_frames,)``."""
+        return np.arange(self.frame_offset, self.frame_offset + self.n_frames)
+
+
+def _mode(values, name, scene):
+    v = pd.Series(values).dropna()
+    if v.empty:
+        return None
+    counts = v.value_counts()
+    if len(counts) > 1:
+        warnings.warn(f"scene '{scene}': rows disagree on {name} ({sorted(counts.index)}); "
+                      f"using the most common, {counts.index[0]}", stacklevel=3)
+    return counts.index[0]
+
+
+def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
+                           order=None) -> dict:
+    """Per-scene :class:`SceneFrames` from pose-task rows (fps, n_frames, algorithm_frame).
+
+    Parameters
+    ----------
+    pose : DataFrame
+        Pose-task rows (:func:`analysis.load.pose_choices`).
+    extra : dict, optional
+        scene → dict of further :class:`SceneFrames` fields (``frame_offset``,
+        ``algorithm_frames``, ``baseline_frames``, ``label``), e.g. from the stimuli
+        manifest.
+    order : sequence of str, optional
+        Preferred scene order (:func:`analysis.load.ordered_scenes`).
+    """
+    extra = extra or {}
+    out = {}
+    for scene in ordered_scenes(pose["scene"], order):
+        g = pose[pose["scene"] == scene]
+        fps = _mode(g["fps"], "fps", scene)
+        n = _mode(g["n_frames"], "n_frames", scene)
+        a = _mode(g["algorithm_frame"], "algorithm_frame", scene)
+        if fps is None or n is None or a is None:
+            warnings.warn(f"scene '{scene}': rows lack fps, n_frames or algorithm_frame; "
+                          "left out of the frame analysis", stacklevel=2)
+            continue
+        kw = dict(extra.get(scene, {}))
+        out[scene] = SceneFrames(scene=scene, fps=float(fps), n_frames=int(n),
+                                 algorithm_frame=int(a), **kw)
+    return out
+
+
+# ----------------------------------------------------------------- motion baselines
+
+
+def motion_baselines(scene, *, window=None) -> dict:
+    """The motion-derived baseline frames of a scene, in source numbering.
+
+    Parameters
+    ----------
+    scene : snapcore.Scene
+        The motion shown in the stimulus.
+    window : (int, int), optional
+        Source frames ``[start, stop)`` the participants saw (default: the whole scene);
+        the mean pose and both argmaxes are taken inside it.
+
+    Returns
+    -------
+    dict
+        ``{"fastest": int, "farthest_from_mean": int}``.
+
+    Notes
+    -----
+    - fastest: ``argmax_i Σ_{c,j} |p_{c,j}(i+1) − p_{c,j}(i−1)| / 2Δt`` (central
+      differences, one-sided at the ends), summed over every joint of every character.
+    - farthest from the mean pose: ``argmax_i Σ_{c,j} |q_{c,j}(i) − q̄_{c,j}|²`` with
+      ``q = p − p_root`` (root-relative positions in the world orientation) and ``q̄``
+      their mean over the window's frames.
+    A window of one frame returns that frame for both (with a warning).
+    """
+    source = np.arange(scene.n_frames) + int(scene.frame_offset)
+    keep = np.ones(scene.n_frames, dtype=bool)
+    if window is not None:
+        keep = (source >= window[0]) & (source < window[1])
+    if not keep.any():
+        raise ValueError(f"scene '{scene.name}': window {tuple(window)} holds no frame of the "
+                         f"motion (source frames {source[0]}..{source[-1]})")
+    speeds = np.zeros(int(keep.sum()))
+    spread = np.zeros(int(keep.sum()))
+    for ch in scene.characters:
+        p = np.asarray(ch.positions, dtype=float)  # (F, J, 3)
+        if p.shape[0] >= 2:
+            v = np.gradient(p, axis=0) * scene.fps
+            speeds += np.linalg.norm(v, axis=2).sum(axis=1)[keep]
+        q = (p - p[:, :1, :])[keep]
+        spread += ((q - q.mean(axis=0)) ** 2).sum(axis=(1, 2))
+    frames = source[keep]
+    if frames.size == 1:
+        warnings.warn(f"scene '{scene.name}': one frame; the baselines are that frame",
+                      stacklevel=2)
+    return {"fastest": int(frames[int(np.argmax(speeds))]),
+            "farthest_from_mean": int(frames[int(np.argmax(spread))])}
+
+
+def baselines_from_stimuli(manifest, *, loader=None) -> dict:
+    """Motion baselines and frame offsets for each scene of a stimuli manifest.
+
+    Parameters
+    ----------
+    manifest : str, Path or dict
+        The stimuli manifest (``data_schema/stimuli.schema.json``) or its path.
+    loader : callable, optional
+        ``loader(scene_entry, manifest_dir) -> snapcore.Scene``; default: load the
+        motion named in the entry with :func:`snapcore.load_scene`.
+
+    Returns
+    -------
+    dict
+        scene id → ``{"frame_offset", "baseline_frames", "algorithm_frames", "label"}``
+        (the ``extra`` argument of :func:`scene_frames_from_rows`). Scenes whose motion
+        cannot be loaded are left out with a warning.
+    """
+    from .stimuli import load_scene_for_entry, read_stimuli
+
+    doc, base = read_stimuli(manifest)
+    loader = loader or load_scene_for_entry
+    out = {}
+    for entry in doc.get("scenes", []):
+        sid = entry["id"]
+        picks = entry.get("picks") or {}
+        info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
+        if entry.get("title"):
+            info["label"] = entry["title"]
+        try:
+            sc = loader(entry, base)
+        except (ValueError, OSError) as err:
+            warnings.warn(f"stimuli scene '{sid}': motion not loaded ({err}); the fastest and "
+                          "farthest-from-mean baselines are left out", stacklevel=2)
+            sc = None
+        offset = int(entry.get("frame_offset", 0))
+        info["frame_offset"] = offset
+        if sc is not None:
+            window = (offset, offset + int(entry["n_frames"])) if "n_frames" in entry else None
+            info["baseline_frames"] = motion_baselines(sc, window=window)
+        out[sid] = info
+    return out
+
+
+# ----------------------------------------------------------------- distances and hits
+
+
+def predictor_frames(info: SceneFrames) -> dict:
+    """Name → predicted source frame for the deterministic predictors of a scene."""
+    out = {"algorithm": info.algorithm_frame,
+           "middle": info.frame_offset + (info.n_frames - 1) // 2}
+    for name in DETERMINISTIC_BASELINES[1:]:
+        if name in info.baseline_frames:
+            out[name] = int(info.baseline_frames[name])
+    return out
+
+
+def frame_distances(pose: pd.DataFrame, scenes: dict) -> pd.DataFrame:
+    """Signed distance of every choice to every deterministic predictor, in seconds.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``participant_id``, ``chosen_frame``, ``predictor``,
+        ``predicted_frame``, ``error_s`` (chosen − predicted, s), ``abs_error_s``.
+    """
+    parts = []
+    for scene, info in scenes.items():
+        g = pose[pose["scene"] == scene]
+        c = g["chosen_frame"].to_numpy(dtype=float)
+        for name, f in predictor_frames(info).items():
+            e = (c - f) / info.fps
+            parts.append(pd.DataFrame({"scene": scene, "participant_id": g["participant_id"].values,
+                                       "chosen_frame": c.astype(int), "predictor": name,
+                                       "predicted_frame": int(f), "error_s": e,
+                                       "abs_error_s": np.abs(e)}))
+    if not parts:
+        return pd.DataFrame(columns=["scene", "participant_id", "chosen_frame", "predictor",
+                                     "predicted_frame", "error_s", "abs_error_s"])
+    return pd.concat(parts, ignore_index=True)
+
+
+def _uniform_distance_matrix(c, info):
+    """|c_i − f| / fps for every choice i and every clip frame f, shape (n, n_frames)."""
+    return np.abs(c[:, None] - info.frames[None, :]) / info.fps
+
+
+def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
+              confidence: float = 0.95) -> pd.DataFrame:
+    """Hit rates and mean distances of every predictor, per scene.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``predictor``, ``predicted_frame`` (NaN for ``uniform_random``),
+        ``n`` (choices), ``mean_abs_error_s``, ``median_abs_error_s`` (NaN for
+        uniform_random), then for each tolerance ``t``: ``hit_<t>s`` (fraction of
+        choices within ±t s), ``hit_<t>s_low`` / ``hit_<t>s_high`` (Wilson interval;
+        NaN for uniform_random, whose rate is an exact expectation, not an estimate).
+    """
+    rows = []
+    for scene, info in scenes.items():
+        c = pose.loc[pose["scene"] == scene, "chosen_frame"].to_numpy(dtype=float)
+        n = c.size
+        if n == 0:
+            continue
+        for name, f in predictor_frames(info).items():
+            d = np.abs(c - f) / info.fps
+            row = {"scene": scene, "predictor": name, "predicted_frame": float(f), "n": n,
+                   "mean_abs_error_s": d.mean(), "median_abs_error_s": float(np.median(d))}
+            for t in tolerances:
+                k = int((d <= t + 1e-9).sum())
+                lo, hi = wilson_interval(k, n, confidence=confidence)
+                row[f"hit_{t:g}s"] = k / n
+                row[f"hit_{t:g}s_low"], row[f"hit_{t:g}s_high"] = float(lo), float(hi)
+            rows.append(row)
+        dm = _uniform_distance_matrix(c, info)  # expectation over a uniform frame
+        row = {"scene": scene, "predictor": "uniform_random", "predicted_frame": np.nan, "n": n,
+               "mean_abs_error_s": dm.mean(), "median_abs_error_s": np.nan}
+        for t in tolerances:
+            row[f"hit_{t:g}s"] = float((dm <= t + 1e-9).mean())
+            row[f"hit_{t:g}s_low"] = row[f"hit_{t:g}s_high"] = np.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _sign_flip_p(d, *, n_permutations, rng):
+    """One-sided p of mean(d) > 0 under sign symmetry; exact for small n."""
+    d = np.asarray(d, dtype=float)
+    t_obs = d.mean()
+    if np.allclose(d, 0):
+        return 1.0, True
+    n = d.size
+    if n <= EXACT_MAX_N:
+        signs = np.array(list(itertools.product((1.0, -1.0), repeat=n)))
+        t = (signs * d).mean(axis=1)
+        return float(np.mean(t >= t_obs - 1e-12)), True
+    signs = rng.choice((-1.0, 1.0), size=(n_permutations, n))
+    t = (signs * d).mean(axis=1)
+    return float((1 + np.sum(t >= t_obs - 1e-12)) / (1 + n_permutations)), False
+
+
+def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_permutations: int = N_PERMUTATIONS,
+                    seed: int = 0, alpha: float = 0.05) -> pd.DataFrame:
+    """Is the algorithm closer to people than each baseline? One-sided permutation tests.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``baseline``, ``n``, ``algorithm_mean_abs_s``,
+        ``baseline_mean_abs_s``, ``difference_s`` (baseline − algorithm; > 0 = the
+        algorithm is closer), ``p_value``, ``method`` (``"sign-flip exact"``,
+        ``"sign-flip Monte Carlo"``, ``"uniform frame exact"``), ``p_holm`` (over all
+        rows), ``significant`` (p_holm < alpha), ``note``.
+    """
+    rng = np.random.default_rng(seed)
+    rows = []
+    for scene, info in scenes.items():
+        c = pose.loc[pose["scene"] == scene, "chosen_frame"].to_numpy(dtype=float)
+        if c.size == 0:
+            continue
+        preds = predictor_frames(info)
+        a = preds.pop("algorithm")
+        da = np.abs(c - a) / info.fps
+        for name, b in preds.items():
+            db = np.abs(c - b) / info.fps
+            p, exact = _sign_flip_p(db - da, n_permutations=n_permutations, rng=rng)
+            rows.append({"scene": scene, "baseline": name, "n": c.size,
+                         "algorithm_mean_abs_s": da.mean(), "baseline_mean_abs_s": db.mean(),
+                         "difference_s": db.mean() - da.mean(), "p_value": p,
+                         "method": "sign-flip exact" if exact else "sign-flip Monte Carlo",
+                         "note": "same frame as the algorithm" if b == a else ""})
+        mean_per_frame = _uniform_distance_matrix(c, info).mean(axis=0)
+        p = float(np.mean(mean_per_frame <= da.mean() + 1e-12))
+        rows.append({"scene": scene, "baseline": "uniform_random", "n": c.size,
+                     "algorithm_mean_abs_s": da.mean(),
+                     "baseline_mean_abs_s": mean_per_frame.mean(),
+                     "difference_s": mean_per_frame.mean() - da.mean(), "p_value": p,
+                     "method": "uniform frame exact", "note": ""})
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    out["p_holm"] = holm_adjust(out["p_value"])
+    out["significant"] = out["p_holm"] < alpha
+    return out
+
+
+def frame_histogram(pose: pd.DataFrame, info: SceneFrames, *, bins: int | None = None):
+    """Histogram of one scene's chosen frames over the whole clip.
+
+    Parameters
+    ----------
+    bins : int, optional
+        Number of bins (default: one per ~0.25 s, between 10 and 60).
+
+    Returns
+    -------
+    counts : ndarray of int, shape (B,)
+    edges : ndarray of float, shape (B + 1,)
+        In source frames.
+    """
+    c = pose.loc[pose["scene"] == info.scene, "chosen_frame"].to_numpy(dtype=float)
+    if bins is None:
+        bins = int(np.clip(round(info.n_frames / (0.25 * info.fps)), 10, 60))
+    edges = np.linspace(info.frame_offset - 0.5, info.frame_offset + info.n_frames - 0.5,
+                        bins + 1)
+    counts, edges = np.histogram(c, bins=edges)
+    return counts, edges

@@ -1,0 +1,322 @@
+"""Study responses → tidy pandas frames, one row per choice.
+
+Sources (all give the same frame):
+
+- the study store, by SQLAlchemy URL (``sqlite:///var/study.db``,
+  ``postgresql+psycopg://...``), read through ``study_app.store.Store(url).export_rows``;
+- an export file written by ``snapshot export``: CSV (``shown_order`` as a JSON string,
+  empty cells = null) or JSON lines (``.jsonl``/``.ndjson``; a ``.json`` file holding a
+  list of rows is accepted too);
+- rows already in memory (a list of dicts or a DataFrame).
+
+Every row follows ``data_schema/response.schema.json``; rows are validated and a bad
+row raises :class:`LoadError` naming the file, the line and the field. Simulated
+participants (``simulated`` true, written by ``snapshot simulate``) are dropped unless
+``include_simulated=True``.
+
+Columns of the frame returned by :func:`load_responses` (dtypes in brackets) — the
+schema's fields plus derived ones:
+
+- every schema field; integers as nullable ``Int64``, ``correct`` as nullable
+  ``boolean``, ``shown_order`` as a tuple of method names (or None),
+  ``created_at`` as UTC datetimes;
+- ``chosen_s``, ``algorithm_s`` [float]: the chosen and the algorithm's frame in seconds
+  (frame / fps), pose task only;
+- ``error_s`` [float]: ``chosen_s - algorithm_s`` (negative = the person chose earlier);
+- ``abs_error_s`` [float]: ``|error_s|``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from snapcore.errors import SnapshotError
+
+__all__ = [
+    "LoadError",
+    "METHODS",
+    "BASELINE_METHODS",
+    "RESPONSE_FIELDS",
+    "load_responses",
+    "read_export",
+    "rows_from_store",
+    "tidy_responses",
+    "pose_choices",
+    "view_choices",
+    "attention_summary",
+    "PAPER_SCENES",
+    "ordered_scenes",
+]
+
+#: The view-task methods, in the paper's order (Fig. 8, 9, 10 = Table 2's rows).
+METHODS = ("ours", "viewpoint_entropy", "motion_area")
+#: The methods ours is compared against.
+BASELINE_METHODS = METHODS[1:]
+
+#: The paper's six animations (Table 2's columns), in its order (a)–(f).
+PAPER_SCENES = ("dancing", "running", "soccer_kicking", "basketball_shooting",
+                "two_person_arguing", "two_person_boxing")
+
+_INT_FIELDS = ("trial_index", "chosen_frame", "chosen_video_frame", "algorithm_frame",
+               "n_frames", "chosen_position")
+_FLOAT_FIELDS = ("fps", "response_time_s")
+_BOOL_FIELDS = ("correct", "simulated")
+_STR_FIELDS = ("participant_id", "study_id", "task", "scene", "stimulus_id", "chosen_method",
+               "chosen_value", "created_at", "app_version", "manifest_sha256", "age_band",
+               "gender", "experience", "prolific_pid")
+#: Every field of an export row, in the schema's order.
+RESPONSE_FIELDS = ("participant_id", "study_id", "trial_index", "task", "scene", "stimulus_id",
+                   "chosen_frame", "chosen_video_frame", "algorithm_frame", "fps", "n_frames",
+                   "chosen_method", "chosen_position", "shown_order", "chosen_value", "correct",
+                   "response_time_s", "created_at", "app_version", "manifest_sha256",
+                   "simulated", "age_band", "gender", "experience", "prolific_pid")
+_TRUE = {"true", "1", "yes", "t"}
+_FALSE = {"false", "0", "no", "f"}
+
+
+class LoadError(SnapshotError):
+    """Responses that cannot be read (bad file, bad row, unreachable store)."""
+
+
+# ----------------------------------------------------------------- sources
+
+
+def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
+    """Export rows from the study store at ``url`` (None: the store's default URL)."""
+    try:
+        from study_app.store import Store
+    except ImportError as err:  # the store module is another package's; say so plainly
+        raise LoadError(f"cannot read the study store: study_app.store unavailable ({err})") from err
+    return Store(url).export_rows(include_simulated=include_simulated)
+
+
+def _coerce_csv_value(field: str, text: str, where: str):
+    """One CSV cell (a string) → the JSON value the schema expects."""
+    if text == "":
+        return None
+    try:
+        if field in _INT_FIELDS:
+            value = float(text)
+            if not value.is_integer():
+                raise ValueError(f"not an integer: {text!r}")
+            return int(value)
+        if field in _FLOAT_FIELDS:
+            return float(text)
+        if field in _BOOL_FIELDS:
+            low = text.strip().lower()
+            if low in _TRUE:
+                return True
+            if low in _FALSE:
+                return False
+            raise ValueError(f"not a boolean: {text!r}")
+        if field == "shown_order":
+            value = json.loads(text)
+            if not isinstance(value, list):
+                raise ValueError(f"expected a JSON list, got {text!r}")
+            return value
+    except (ValueError, json.JSONDecodeError) as err:
+        raise LoadError(f"{where}: {field}: {err}") from None
+    return text
+
+
+def read_export(path: str | Path) -> list[dict]:
+    """Read the rows of an export file (CSV, JSON lines or a JSON list), unvalidated.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``; ``.jsonl``/``.ndjson``; or ``.json`` (a list of rows, or JSON lines).
+
+    Returns
+    -------
+    list of dict
+        One dict per row with JSON types (CSV cells converted by field).
+    """
+    p = Path(path)
+    if not p.exists():
+        raise LoadError(f"{p}: no such file")
+    suffix = p.suffix.lower()
+    if suffix == ".csv":
+        try:
+            raw = pd.read_csv(p, dtype=str, keep_default_na=False, na_values=[])
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+            raise LoadError(f"{p}: not a readable CSV file ({err})") from err
+        rows = []
+        for i, rec in enumerate(raw.to_dict(orient="records")):
+            where = f"{p}:{i + 2}"  # line 1 is the header
+            rows.append({k: _coerce_csv_value(k, v, where) for k, v in rec.items()})
+        return rows
+    if suffix in (".jsonl", ".ndjson", ".json"):
+        text = p.read_text(encoding="utf-8")
+        stripped = text.lstrip()
+        if suffix == ".json" and stripped.startswith("["):
+            try:
+                doc = json.loads(text)
+            except json.JSONDecodeError as err:
+                raise LoadError(f"{p}:{err.lineno}: not valid JSON ({err.msg})") from err
+            return list(doc)
+        rows = []
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            if not line.strip():
+                continue
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError as err:
+                raise LoadError(f"{p}:{lineno}: not valid JSON ({err.msg})") from err
+        return rows
+    raise LoadError(f"{p}: unknown export format '{suffix}' (expected .csv, .jsonl or .json)")
+
+
+def _validate_rows(rows: list[dict], source: str) -> None:
+    """Check every row against ``response.schema.json``; the first bad one raises."""
+    import jsonschema
+
+    from snapcore.schema import field_path, load_schema
+
+    validator = jsonschema.Draft202012Validator(load_schema("response"))
+    for i, row in enumerate(rows):
+        if not isinstance(row, Mapping):
+            raise LoadError(f"{source}: row {i + 1}: expected an object, got {type(row).__name__}")
+        error = jsonschema.exceptions.best_match(validator.iter_errors(dict(row)))
+        if error is not None:
+            raise LoadError(f"{source}: row {i + 1}: {field_path(error.absolute_path)}: "
+                            f"{error.message}")
+
+
+# ----------------------------------------------------------------- tidy frames
+
+
+def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated: bool = False,
+                   validate: bool = True, source: str = "rows") -> pd.DataFrame:
+    """Rows (dicts following the response schema) → the tidy frame described above.
+
+    Parameters
+    ----------
+    rows : iterable of dict, or DataFrame
+        Export rows.
+    include_simulated : bool
+        Keep rows of simulated participants (default: drop them).
+    validate : bool
+        Check each row against ``response.schema.json`` first (default True).
+    source : str
+        Where the rows came from, for error messages.
+    """
+    if isinstance(rows, pd.DataFrame):
+        records = rows.replace({np.nan: None}).to_dict(orient="records")
+    else:
+        records = [dict(r) for r in rows]
+    for r in records:  # JSON has lists; a DataFrame may already hold tuples
+        if isinstance(r.get("shown_order"), tuple):
+            r["shown_order"] = list(r["shown_order"])
+        for k in list(r):
+            if isinstance(r[k], np.generic):
+                r[k] = r[k].item()
+        for k in ("created_at",):
+            if isinstance(r.get(k), pd.Timestamp):
+                r[k] = r[k].isoformat()
+    if validate:
+        _validate_rows(records, source)
+    df = pd.DataFrame.from_records(records, columns=list(RESPONSE_FIELDS))
+    for c in _INT_FIELDS:
+        df[c] = pd.array(df[c].to_numpy(dtype=object), dtype="Int64")
+    for c in _FLOAT_FIELDS:
+        df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+    df["correct"] = pd.array(df["correct"].to_numpy(dtype=object), dtype="boolean")
+    df["simulated"] = df["simulated"].fillna(False).astype(bool)
+    df["shown_order"] = [tuple(v) if isinstance(v, list | tuple) else None
+                         for v in df["shown_order"]]
+    df["created_at"] = pd.to_datetime(df["created_at"], utc=True, errors="coerce", format="ISO8601")
+    if not include_simulated:
+        df = df[~df["simulated"]]
+    df = df.sort_values(["participant_id", "trial_index"], kind="stable").reset_index(drop=True)
+    chosen = df["chosen_frame"].astype("Float64").to_numpy(dtype=float, na_value=np.nan)
+    algo = df["algorithm_frame"].astype("Float64").to_numpy(dtype=float, na_value=np.nan)
+    fps = df["fps"].to_numpy(dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        df["chosen_s"] = chosen / fps
+        df["algorithm_s"] = algo / fps
+    df["error_s"] = df["chosen_s"] - df["algorithm_s"]
+    df["abs_error_s"] = df["error_s"].abs()
+    return df
+
+
+def load_responses(source, *, include_simulated: bool = False,
+                   validate: bool = True) -> pd.DataFrame:
+    """Load responses from a store URL, an export file, or rows in memory.
+
+    Parameters
+    ----------
+    source : str, Path, list of dict or DataFrame
+        A SQLAlchemy URL (contains ``://``), a path to an export file, or rows.
+    include_simulated : bool
+        Keep simulated participants (default False: real analyses exclude them).
+    validate : bool
+        Validate each row against the response schema.
+
+    Returns
+    -------
+    DataFrame
+        One row per choice; columns in the module docstring.
+    """
+    if isinstance(source, pd.DataFrame) or (isinstance(source, list | tuple)):
+        return tidy_responses(source, include_simulated=include_simulated, validate=validate)
+    text = str(source)
+    if "://" in text:
+        # The store's own filter is the first line of defence; tidy_responses filters again.
+        rows = rows_from_store(text, include_simulated=include_simulated)
+        return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
+                              source=text.split("@")[-1])
+    rows = read_export(text)
+    return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
+                          source=text)
+
+
+# ----------------------------------------------------------------- task views
+
+
+def ordered_scenes(scenes, order=None) -> list[str]:
+    """Distinct scene ids in a stable order: ``order`` first (e.g. the stimuli manifest's),
+    then the paper's order for its scene ids, then the rest alphabetically."""
+    distinct = list(dict.fromkeys(str(s) for s in scenes))
+    pref = [s for s in (list(order or ()) + list(PAPER_SCENES)) if s in distinct]
+    pref = list(dict.fromkeys(pref))
+    return pref + sorted(set(distinct) - set(pref))
+
+
+def pose_choices(df: pd.DataFrame) -> pd.DataFrame:
+    """The pose-task rows with a chosen frame (Fig. 13's data)."""
+    out = df[(df["task"] == "pose") & df["chosen_frame"].notna()]
+    return out.reset_index(drop=True)
+
+
+def view_choices(df: pd.DataFrame) -> pd.DataFrame:
+    """The view-task rows with a chosen method (Table 2's data)."""
+    out = df[(df["task"] == "view") & df["chosen_method"].notna()]
+    return out.reset_index(drop=True)
+
+
+def attention_summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Attention checks per participant.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``participant_id``, ``n_checks``, ``n_correct``, ``passed`` (all checks
+        right). Participants without attention checks are absent.
+    """
+    att = df[df["task"] == "attention"]
+    if att.empty:
+        return pd.DataFrame({"participant_id": pd.Series(dtype=str),
+                             "n_checks": pd.Series(dtype=int),
+                             "n_correct": pd.Series(dtype=int),
+                             "passed": pd.Series(dtype=bool)})
+    g = att.groupby("participant_id")["correct"]
+    out = pd.DataFrame({"n_checks": g.size(),
+                        "n_correct": g.apply(lambda s: int(s.fillna(False).sum()))})
+    out["passed"] = out["n_correct"] == out["n_checks"]
+    return out.reset_index()

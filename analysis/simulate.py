@@ -1,0 +1,344 @@
+"""Simulated participants from a documented observer model (``snapshot simulate``).
+
+Until real people have taken the study — and to check that the analysis recovers what
+it should — simulated observers answer the same trials. They are stored through the
+study store with ``simulated=True`` and every real analysis leaves them out unless asked.
+
+The observer model (:class:`ObserverModel`), one participant at a time:
+
+- **Pose task** (per scene): with probability ``lapse`` the observer picks a frame
+  uniformly at random from the clip; otherwise they pick one of the scene's *salient
+  moments* — the algorithm's pick with probability ``algorithm_weight``, else one of
+  the other salient frames (``SimScene.salient_frames``: the top-k entropy peaks of the
+  manifest, or moments the paper's text names) uniformly — and land
+  ``round(N(0, spread_s) · fps)`` frames from it, clipped to the clip.
+- **View task** (per scene): the three methods' views appear in a random left-to-right
+  order; the observer chooses by Luce's choice axiom, ``P(m) = s_m / Σ_shown s_j``,
+  from the scene's method strengths (``SimScene.strengths``, else the model's).
+- **Attention check**: answered right with probability ``attention_pass``, else a
+  random wrong option.
+- Response times: log-normal with medians ``pose_time_s`` / ``view_time_s`` and log-SD
+  0.5. Background answers: uniform over the study's choices.
+
+Trial order follows the app's protocol: pose tasks in a random scene order, then view
+tasks in another, then the attention check; stimulus ids ``<scene>/pose``,
+``<scene>/view``, ``attention``. Everything is drawn from one seeded
+``numpy.random.Generator``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field, replace
+from datetime import UTC, datetime
+
+import numpy as np
+import pandas as pd
+
+from .load import METHODS
+
+__all__ = [
+    "ObserverModel",
+    "SimScene",
+    "paper_design",
+    "design_from_stimuli",
+    "simulate_participants",
+    "simulated_rows",
+    "store_simulation",
+    "simulate_vote_counts",
+    "design_sha256",
+    "SIM_APP_VERSION",
+    "with_strengths",
+]
+
+#: ``app_version`` stored with simulated participants.
+SIM_APP_VERSION = "simulate-1"
+#: Fallback attention check when the design names none (mirrors the app's default).
+_ATTENTION = {"options": ["A red square", "A purple circle", "A green triangle",
+                          "I am not sure"], "answer": "A purple circle"}
+_BACKGROUND = {"age_band": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older"],
+               "gender": ["Woman", "Man", "Non-binary", "Prefer not to say"],
+               "experience": ["None", "Some (a course or a hobby)",
+                              "Experienced (animation, 3D or art is part of my work or studies)"]}
+
+
+@dataclass(frozen=True)
+class ObserverModel:
+    """Parameters of the simulated observer (see the module docstring).
+
+    Attributes
+    ----------
+    spread_s : float
+        Standard deviation, seconds, of a pose choice around the salient moment aimed at.
+    lapse : float
+        Probability of a uniformly random frame instead.
+    algorithm_weight : float
+        Probability that the moment aimed at is the algorithm's pick (when the scene has
+        other salient frames; otherwise it is always the pick).
+    strengths : dict
+        Default Luce strengths of the methods (any positive scale).
+    attention_pass : float
+        Probability of answering the attention check right.
+    pose_time_s, view_time_s : float
+        Median response times, seconds.
+    """
+
+    spread_s: float = 0.5
+    lapse: float = 0.1
+    algorithm_weight: float = 0.7
+    strengths: dict = field(default_factory=lambda: {m: 1.0 for m in METHODS})
+    attention_pass: float = 0.95
+    pose_time_s: float = 12.0
+    view_time_s: float = 5.0
+
+    def __post_init__(self):
+        for name in ("lapse", "algorithm_weight", "attention_pass"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"{name}: expected a probability in [0, 1], got {v}")
+        if not self.spread_s >= 0:
+            raise ValueError(f"spread_s: expected >= 0 seconds, got {self.spread_s}")
+        _check_strengths(self.strengths, "strengths")
+
+
+def _check_strengths(s: dict, what: str) -> None:
+    bad = {m: v for m, v in s.items() if not (np.isfinite(v) and v > 0)}
+    if bad or set(s) != set(METHODS):
+        raise ValueError(f"{what}: expected a positive strength for each of {list(METHODS)}, "
+                         f"got {s}")
+
+
+@dataclass(frozen=True)
+class SimScene:
+    """One scene of a simulated study.
+
+    Attributes
+    ----------
+    scene : str
+        Scene id.
+    fps : float
+        Motion frames per second.
+    n_frames : int
+        Motion length in frames.
+    algorithm_frame : int
+        The algorithm's pick (source numbering).
+    frame_offset : int
+        Source number of the first frame.
+    salient_frames : tuple of int
+        Other salient moments observers may aim at (source numbering).
+    strengths : dict or None
+        Luce strengths of the methods for this scene (None: the model's).
+    title : str or None
+        Display name.
+    """
+
+    scene: str
+    fps: float
+    n_frames: int
+    algorithm_frame: int
+    frame_offset: int = 0
+    salient_frames: tuple = ()
+    strengths: dict | None = None
+    title: str | None = None
+
+
+def paper_design() -> list[SimScene]:
+    """A study shaped like the paper's: its six animations, Table 2 shares as strengths.
+
+    Frame counts are the paper's Table 1; the motion rate is *assumed* 30 fps (the paper
+    gives only the 24 fps video rate). Algorithm picks are the frames the paper's §4.4
+    text names (Dancing 604, Soccer 406, Arguing 1240; Basketball: the middle of the
+    300–350 window it names) — Running and Boxing have none there, so illustrative
+    frames (40 of 66, 100 of 150) stand in. Other salient moments are those the text
+    says people also chose (Dancing 430, Soccer 360, Arguing 850 and 1470). Strengths are
+    the Table 2 vote shares, floored at 0.01 (Basketball's viewpoint entropy got 0).
+    """
+    from .votes import paper_counts
+
+    counts = paper_counts()
+    spec = [("dancing", "Dancing", 1096, 604, (430,)),
+            ("running", "Running", 66, 40, ()),
+            ("soccer_kicking", "Soccer kicking", 525, 406, (360,)),
+            ("basketball_shooting", "Basketball shooting", 540, 325, ()),
+            ("two_person_arguing", "Two-person arguing", 1992, 1240, (850, 1470)),
+            ("two_person_boxing", "Two-person boxing", 150, 100, ())]
+    out = []
+    for sid, title, n, a, extra in spec:
+        shares = counts.loc[sid] / counts.loc[sid].sum()
+        strengths = {m: max(float(shares[m]), 0.01) for m in METHODS}
+        out.append(SimScene(scene=sid, fps=30.0, n_frames=n, algorithm_frame=a,
+                            salient_frames=extra, strengths=strengths, title=title))
+    return out
+
+
+def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[SimScene]:
+    """Scenes of a stimuli manifest as a simulation design (top-k picks as salient moments)."""
+    from .stimuli import stimuli_scenes
+
+    t = stimuli_scenes(manifest)
+    return [SimScene(scene=r.scene, fps=r.fps, n_frames=r.n_frames,
+                     algorithm_frame=r.algorithm_frame, frame_offset=r.frame_offset,
+                     salient_frames=tuple(f for f in r.algorithm_frames if f != r.algorithm_frame),
+                     strengths=strengths, title=r.title) for r in t.itertuples()]
+
+
+def design_sha256(design, model: ObserverModel) -> str:
+    """A stable sha256 of a design + model (the store's ``manifest_sha256`` for them)."""
+    doc = {"design": [asdict(s) for s in design], "model": asdict(model)}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
+
+
+# ----------------------------------------------------------------- the observer
+
+
+def _pose_choice(rng, s: SimScene, model: ObserverModel) -> int:
+    lo, hi = s.frame_offset, s.frame_offset + s.n_frames - 1
+    if rng.random() < model.lapse:
+        return int(rng.integers(lo, hi + 1))
+    target = s.algorithm_frame
+    if s.salient_frames and rng.random() >= model.algorithm_weight:
+        target = s.salient_frames[int(rng.integers(len(s.salient_frames)))]
+    f = target + rng.normal(0.0, model.spread_s) * s.fps
+    return int(np.clip(np.rint(f), lo, hi))
+
+
+def _view_choice(rng, strengths: dict) -> tuple[tuple, int, str]:
+    shown = tuple(METHODS[i] for i in rng.permutation(len(METHODS)))
+    w = np.array([strengths[m] for m in shown], dtype=float)
+    pos = int(rng.choice(len(shown), p=w / w.sum()))
+    return shown, pos, shown[pos]
+
+
+def simulate_participants(design, n: int, *, seed: int = 0, model: ObserverModel | None = None,
+                          attention: dict | None = None, background: dict | None = None) -> list:
+    """Simulate ``n`` participants answering every trial of ``design``.
+
+    Parameters
+    ----------
+    design : sequence of SimScene
+        The study's scenes.
+    n : int
+        Number of participants.
+    seed : int
+        Seed of the one ``numpy.random.Generator`` behind every draw.
+    model : ObserverModel, optional
+        Observer parameters (default :class:`ObserverModel()`).
+    attention : dict, optional
+        ``{"options": [...], "answer": str}``; default the app's attention check.
+    background : dict, optional
+        field → choices for the background answers.
+
+    Returns
+    -------
+    list of dict
+        Per participant: ``seed`` (int), ``background`` (dict), ``rows`` (the trial
+        fields of ``response.schema.json``, in trial order).
+    """
+    if n < 0:
+        raise ValueError(f"n: expected a number of participants >= 0, got {n}")
+    design = list(design)
+    if not design:
+        raise ValueError("design: no scenes to simulate")
+    model = model or ObserverModel()
+    for s in design:
+        if s.strengths is not None:
+            _check_strengths(s.strengths, f"scene '{s.scene}' strengths")
+    attention = attention or _ATTENTION
+    background = background or _BACKGROUND
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        rows = []
+        for k in rng.permutation(len(design)):
+            s = design[k]
+            f = _pose_choice(rng, s, model)
+            rows.append({"task": "pose", "scene": s.scene, "stimulus_id": f"{s.scene}/pose",
+                         "chosen_frame": f, "algorithm_frame": s.algorithm_frame,
+                         "fps": float(s.fps), "n_frames": int(s.n_frames),
+                         "response_time_s": float(model.pose_time_s * rng.lognormal(0, 0.5))})
+        for k in rng.permutation(len(design)):
+            s = design[k]
+            shown, pos, method = _view_choice(rng, s.strengths or model.strengths)
+            rows.append({"task": "view", "scene": s.scene, "stimulus_id": f"{s.scene}/view",
+                         "chosen_method": method, "chosen_position": pos,
+                         "shown_order": list(shown),
+                         "response_time_s": float(model.view_time_s * rng.lognormal(0, 0.5))})
+        right = rng.random() < model.attention_pass
+        wrong = [o for o in attention["options"] if o != attention["answer"]]
+        value = attention["answer"] if right or not wrong else wrong[int(rng.integers(len(wrong)))]
+        rows.append({"task": "attention", "scene": "attention", "stimulus_id": "attention",
+                     "chosen_value": value, "correct": value == attention["answer"],
+                     "response_time_s": float(4.0 * rng.lognormal(0, 0.5))})
+        for i, r in enumerate(rows):
+            r["trial_index"] = i
+        bg = {k: v[int(rng.integers(len(v)))] for k, v in background.items()}
+        out.append({"seed": int(rng.integers(2**62)), "background": bg, "rows": rows})
+    return out
+
+
+def simulated_rows(participants, *, study_id: str = "simulated",
+                   manifest_sha256: str = "0" * 64) -> pd.DataFrame:
+    """Simulated participants → export-shaped rows (no database), ``simulated`` true.
+
+    Participant ids are ``sim-000000``, ``sim-000001``, ...; ``created_at`` is now.
+    """
+    now = datetime.now(UTC).isoformat()
+    recs = []
+    for i, p in enumerate(participants):
+        for r in p["rows"]:
+            recs.append({"participant_id": f"sim-{i:06d}", "study_id": study_id,
+                         "created_at": now, "app_version": SIM_APP_VERSION,
+                         "manifest_sha256": manifest_sha256, "simulated": True,
+                         "age_band": p["background"].get("age_band"),
+                         "gender": p["background"].get("gender"),
+                         "experience": p["background"].get("experience"),
+                         "prolific_pid": None, **r})
+    return pd.DataFrame.from_records(recs)
+
+
+def store_simulation(store, participants, *, study_id: str, manifest_sha256: str,
+                     app_version: str = SIM_APP_VERSION, progress: bool = False) -> list[str]:
+    """Write simulated participants through the study store, marked simulated.
+
+    Returns
+    -------
+    list of str
+        The new participant ids.
+    """
+    from tqdm import tqdm
+
+    ids = []
+    for p in tqdm(participants, desc="simulate", unit="participant", disable=not progress):
+        pid = store.create_participant(study_id, manifest_sha256, app_version=app_version,
+                                       seed=p["seed"], simulated=True)
+        store.set_background(pid, p["background"])
+        rows = [{k: v for k, v in r.items()} for r in p["rows"]]
+        store.record_responses(pid, rows)
+        store.complete(pid)
+        ids.append(pid)
+    return ids
+
+
+def simulate_vote_counts(n: int, strengths, *, n_sims: int, seed: int = 0) -> np.ndarray:
+    """Vote counts of ``n`` participants, all methods shown, ``n_sims`` times (numpy only).
+
+    Parameters
+    ----------
+    strengths : sequence of float, shape (M,)
+        Luce strengths; choice probabilities are ``strengths / sum``.
+
+    Returns
+    -------
+    ndarray of int, shape (n_sims, M)
+    """
+    p = np.asarray(strengths, dtype=float)
+    if p.ndim != 1 or np.any(p < 0) or p.sum() <= 0:
+        raise ValueError(f"strengths: expected non-negative weights, got {strengths}")
+    rng = np.random.default_rng(seed)
+    return rng.multinomial(n, p / p.sum(), size=n_sims)
+
+
+def with_strengths(design, strengths: dict | None):
+    """The design with every scene's strengths replaced (None: use the model's)."""
+    return [replace(s, strengths=strengths) for s in design]

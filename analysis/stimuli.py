@@ -1,0 +1,102 @@
+"""Reading the stimuli manifest (``data_schema/stimuli.schema.json``) for the analysis.
+
+The app's stimuli builder writes ``manifest.json``: per scene the motion's fps, length,
+frame offset, the algorithm's picks (``picks.frame``, top-k ``picks.frames``), timings,
+and ``source`` — what was loaded (a demo scene name, BVH files or a scene manifest,
+fps/scale overrides, a frame window). The analysis uses it for what response rows do
+not carry: the top-k picks to mark, the scene titles, and the motion itself for the
+motion-derived baselines (fastest frame, frame farthest from the mean pose).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pandas as pd
+
+from .load import LoadError
+
+__all__ = ["read_stimuli", "stimuli_scenes", "load_scene_for_entry"]
+
+
+def read_stimuli(manifest) -> tuple[dict, Path | None]:
+    """The manifest as a dict and the folder its relative paths start from.
+
+    Parameters
+    ----------
+    manifest : str, Path or dict
+        ``manifest.json``, the stimuli folder holding it, or the parsed document.
+    """
+    if isinstance(manifest, dict):
+        return manifest, None
+    p = Path(manifest)
+    if p.is_dir():
+        p = p / "manifest.json"
+    from snapcore.schema import read_document
+
+    return read_document(p, "stimuli"), p.parent
+
+
+def stimuli_scenes(manifest) -> pd.DataFrame:
+    """One row per scene of a stimuli manifest.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``title``, ``fps``, ``n_frames``, ``frame_offset``,
+        ``algorithm_frame``, ``algorithm_frames`` (tuple, top-k), ``pose_s`` and
+        ``view_s`` (selection timings when the manifest has them, else NaN).
+    """
+    doc, _ = read_stimuli(manifest)
+    rows = []
+    for e in doc.get("scenes", []):
+        picks = e.get("picks") or {}
+        t = e.get("timings_s") or {}
+        rows.append({"scene": e["id"], "title": e.get("title", e["id"]), "fps": float(e["fps"]),
+                     "n_frames": int(e["n_frames"]), "frame_offset": int(e["frame_offset"]),
+                     "algorithm_frame": int(picks["frame"]),
+                     "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ()),
+                     "pose_s": float(t.get("pose", t.get("pose_s", float("nan")))),
+                     "view_s": float(t.get("view", t.get("view_s", float("nan"))))})
+    return pd.DataFrame(rows)
+
+
+def _resolve(name: str, bases) -> Path:
+    from snapcore.load import resolve_data_path
+
+    p = Path(name).expanduser()
+    if p.is_absolute():
+        return p
+    for b in bases:
+        if b is not None and (Path(b) / p).exists():
+            return Path(b) / p
+    return resolve_data_path(name, None)
+
+
+def load_scene_for_entry(entry: dict, base: Path | None = None):
+    """Load the motion a manifest scene was built from (None when it cannot be named).
+
+    ``entry["source"]`` may hold ``demo`` (a :mod:`snapcore.synth` scene name),
+    ``files`` (BVH paths) or ``manifest`` (a scene manifest), plus ``fps``/``scale``
+    overrides and a ``config_dir`` to resolve relative paths against; paths are also
+    tried against the stimuli folder and the motion data folder (``SNAPSHOT_DATA``).
+    """
+    src = entry.get("source") or {}
+    fps, scale = src.get("fps"), src.get("scale")
+    bases = [src.get("config_dir"), base, base.parent if base is not None else None]
+    if src.get("demo"):
+        from snapcore import synth
+
+        kw = {"fps": fps} if fps else {}
+        return synth.synth_scene(src["demo"], **kw)
+    from snapcore import load_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # unit fitting etc. was reported when stimuli were built
+        if src.get("files"):
+            return load_scene([_resolve(f, bases) for f in src["files"]], fps=fps, scale=scale)
+        if src.get("manifest"):
+            return load_scene(_resolve(src["manifest"], bases), fps=fps, scale=scale)
+    raise LoadError(f"stimuli scene '{entry.get('id')}': source names no motion "
+                    "(expected demo, files or manifest)")
