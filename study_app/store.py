@@ -1,0 +1,902 @@
+"""The study store: participants, their answers and their interaction events, in SQL.
+
+The one place SQL lives (SQLAlchemy 2 Core). SQLite by default, at
+``<repo>/var/study.db`` (``$SNAPSHOT_DB`` or an explicit URL override it); any
+SQLAlchemy URL works, e.g. PostgreSQL through psycopg
+(``postgresql+psycopg://user:password@host:5432/db``; a plain ``postgresql://`` URL is
+mapped to psycopg).
+
+Tables
+------
+``participants``
+    One row per participant: an unguessable id (``secrets.token_urlsafe(16)``), the
+    study id, the per-participant seed, Prolific's ``PROLIFIC_PID``/``STUDY_ID``/
+    ``SESSION_ID`` when present, the background answers (JSON), the app version, the
+    stimulus-manifest sha256, the simulated flag, created/completed timestamps and the
+    completion code.
+``responses``
+    Append-only, one row per trial, ``UNIQUE (participant_id, trial_index)``: task,
+    scene, stimulus, the chosen motion frame (source numbering) and video frame, the
+    algorithm's frame, the chosen method/position and the order the methods were shown
+    in, the raw chosen value, response time, timestamp, app version, manifest hash.
+``events``
+    Interaction events (plays, pauses, seeks, steps...) with a JSON payload.
+
+Safety
+------
+Every write is one transaction. On SQLite each connection gets WAL journaling, a busy
+timeout and foreign keys (a connect event), and write transactions start with
+``BEGIN IMMEDIATE`` so that concurrent writers queue on the busy timeout instead of
+failing when a read lock cannot be upgraded. A re-sent answer hits the unique key:
+:meth:`Store.record_response` returns False and the first row stays. An unknown or
+malformed participant id raises :class:`StoreError` and writes nothing. Opening a
+store only creates missing tables (never drops or alters anything). A broken URL (bad
+scheme, unreachable host, wrong password, unwritable SQLite path) raises a one-line
+:class:`StoreError` naming the URL with the password masked.
+
+Timestamps are stored in UTC and returned/exported as ISO 8601 strings with an explicit
+``+00:00`` offset (``2025-01-31T12:00:00.123456+00:00``).
+
+Export format
+-------------
+:meth:`Store.export_rows` gives one dict per response with exactly the fields of
+``data_schema/response.schema.json`` (absent optional fields are ``None``).
+:func:`write_export` writes them as CSV or JSON lines; in CSV, ``shown_order`` is a
+JSON array string (``["ours", "motion_area", "viewpoint_entropy"]``), booleans are
+``true``/``false`` and ``None`` is an empty cell. :func:`read_export` reads either format
+back into typed rows (it parses ``shown_order`` back into a list).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import secrets
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+
+import sqlalchemy as sa
+from sqlalchemy import exc as sa_exc
+
+from snapcore.errors import SchemaError, SnapshotError
+from snapcore.schema import load_schema, validate
+
+__all__ = [
+    "Store", "StoreError", "default_url", "mask_url", "normalize_url",
+    "export_columns", "validate_rows", "write_export", "read_export", "export_format",
+    "participants_columns", "write_participants", "write_events", "EXPORT_FORMATS", "SQLITE_BUSY_TIMEOUT_MS",
+]
+
+#: How long (ms) a SQLite writer waits for another writer's lock before giving up.
+SQLITE_BUSY_TIMEOUT_MS = 30_000
+#: Seconds to wait for a database server to answer the first connection.
+CONNECT_TIMEOUT_S = 10
+#: Participant ids are ``secrets.token_urlsafe(16)``: 22 characters of [A-Za-z0-9_-].
+#: Anything else (much shorter/longer, other characters) is refused before any query.
+PARTICIPANT_ID_RE = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
+#: Completion codes: 8 characters from an alphabet without look-alikes (0/O, 1/I).
+COMPLETION_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"
+COMPLETION_CODE_LENGTH = 8
+#: Seeds are stored as signed 64-bit integers.
+MAX_SEED = 2**63 - 1
+#: A bare path with one of these suffixes is accepted as a SQLite database.
+SQLITE_SUFFIXES = (".db", ".sqlite", ".sqlite3")
+#: Export formats by file suffix.
+EXPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".json": "jsonl"}
+#: Fields of a response row that the caller gives (the store fills the others).
+TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
+                "chosen_video_frame", "algorithm_frame", "fps", "n_frames", "chosen_method",
+                "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s")
+#: Background answers joined into every export row.
+BACKGROUND_FIELDS = ("age_band", "gender", "experience")
+#: Retries of a write that lost a race on the (participant, trial) unique key.
+_DUPLICATE_RETRIES = 3
+PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id",
+                 "SESSION_ID": "prolific_session_id"}
+
+_ID = sa.String(64)
+_TEXT = sa.String(200)
+
+
+class StoreError(SnapshotError):
+    """The store cannot do what was asked: bad database URL, unknown participant, bad row."""
+
+
+# ----------------------------------------------------------------------------- schema
+metadata = sa.MetaData()
+
+participants = sa.Table(
+    "participants", metadata,
+    sa.Column("participant_id", _ID, primary_key=True),
+    sa.Column("study_id", _TEXT, nullable=False),
+    sa.Column("seed", sa.BigInteger, nullable=False),
+    sa.Column("prolific_pid", _TEXT),
+    sa.Column("prolific_study_id", _TEXT),
+    sa.Column("prolific_session_id", _TEXT),
+    sa.Column("background", sa.JSON),
+    sa.Column("app_version", _TEXT, nullable=False),
+    sa.Column("manifest_sha256", sa.String(64), nullable=False),
+    sa.Column("simulated", sa.Boolean, nullable=False, default=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("completed_at", sa.DateTime(timezone=True)),
+    sa.Column("completion_code", sa.String(64)),
+)
+
+responses = sa.Table(
+    "responses", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
+              nullable=False),
+    sa.Column("trial_index", sa.Integer, nullable=False),
+    sa.Column("task", sa.String(16), nullable=False),
+    sa.Column("scene", _TEXT, nullable=False),
+    sa.Column("stimulus_id", _TEXT, nullable=False),
+    sa.Column("chosen_frame", sa.Integer),
+    sa.Column("chosen_video_frame", sa.Integer),
+    sa.Column("algorithm_frame", sa.Integer),
+    sa.Column("fps", sa.Float),
+    sa.Column("n_frames", sa.Integer),
+    sa.Column("chosen_method", sa.String(32)),
+    sa.Column("chosen_position", sa.Integer),
+    sa.Column("shown_order", sa.JSON),
+    sa.Column("chosen_value", sa.Text),
+    sa.Column("correct", sa.Boolean),
+    sa.Column("response_time_s", sa.Float, nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("app_version", _TEXT, nullable=False),
+    sa.Column("manifest_sha256", sa.String(64), nullable=False),
+    # The guarantee that a re-sent answer cannot become a second row.
+    sa.UniqueConstraint("participant_id", "trial_index", name="uq_responses_participant_trial"),
+)
+
+events = sa.Table(
+    "events", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
+              nullable=False),
+    sa.Column("trial_index", sa.Integer),
+    sa.Column("kind", sa.String(32), nullable=False),
+    sa.Column("payload", sa.JSON),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
+
+
+# ----------------------------------------------------------------------------- URLs
+def default_url() -> str:
+    """``$SNAPSHOT_DB`` if set, else SQLite at ``<repo>/var/study.db`` (repo = parent of study_app)."""
+    env = os.environ.get("SNAPSHOT_DB", "").strip()
+    if env:
+        return env
+    path = Path(__file__).resolve().parent.parent / "var" / "study.db"
+    return f"sqlite:///{path}"
+
+
+_PASSWORD_RE = re.compile(r"(://[^:/@\s]*:)[^@\s]*@")
+
+
+def mask_url(url) -> str:
+    """The URL with its password replaced by ``***`` (works on unparsable strings too)."""
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except Exception:  # noqa: BLE001 - any unparsable text: mask by pattern
+        return _PASSWORD_RE.sub(r"\1***@", str(url))
+
+
+def normalize_url(url: str | None) -> sa.engine.URL:
+    """Parse a database URL; ``None`` → :func:`default_url`; ``postgresql://`` → psycopg.
+
+    A bare file path ending in ``.db``, ``.sqlite`` or ``.sqlite3`` is taken as a SQLite
+    database file.
+    """
+    text = default_url() if url is None else str(url).strip()
+    if not text:
+        raise StoreError("empty database URL")
+    if "://" not in text and Path(text).suffix.lower() in SQLITE_SUFFIXES:
+        text = f"sqlite:///{Path(text).expanduser().resolve()}"
+    try:
+        parsed = sa.engine.make_url(text)
+    except sa_exc.ArgumentError:
+        raise StoreError(f"{mask_url(text)}: not a database URL "
+                         "(expected e.g. sqlite:///path/study.db or "
+                         "postgresql+psycopg://user@host/db)") from None
+    if parsed.drivername in ("postgresql", "postgres"):
+        parsed = parsed.set(drivername="postgresql+psycopg")
+    return parsed
+
+
+def _one_line(err: BaseException) -> str:
+    orig = getattr(err, "orig", None) or err
+    text = str(orig).split("\n[SQL:")[0]
+    return " ".join(text.split()) or type(orig).__name__
+
+
+def _utcnow() -> datetime:
+    return datetime.now(UTC)
+
+
+def _iso(value) -> str | None:
+    """A stored timestamp as ISO 8601 in UTC (SQLite gives naive UTC datetimes back)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = datetime.fromisoformat(value)
+    if value.tzinfo is None:
+        value = value.replace(tzinfo=UTC)
+    return value.astimezone(UTC).isoformat(timespec="microseconds")
+
+
+# ----------------------------------------------------------------------------- the store
+class Store:
+    """Participants, responses and events in one SQL database.
+
+    Parameters
+    ----------
+    url : str, optional
+        SQLAlchemy URL (or a path to a SQLite file). Default: ``$SNAPSHOT_DB``, else
+        ``sqlite:///<repo>/var/study.db`` (its folder is created).
+    create : bool
+        Create missing tables (never drops or changes existing ones). Default True.
+        With False (readers such as ``snapshot export``) a missing SQLite file or
+        missing tables are an error instead.
+
+    Raises
+    ------
+    StoreError
+        One line naming the (password-masked) URL when the database cannot be opened.
+
+    Notes
+    -----
+    Thread-safe: one ``Store`` (one connection pool) is meant to be shared by every
+    session of the app. Each method is one transaction.
+    """
+
+    def __init__(self, url: str | None = None, *, create: bool = True):
+        self._url = normalize_url(url)
+        self.url = self._url.render_as_string(hide_password=True)
+        self.dialect = self._url.get_backend_name()
+        self._create = create
+        self.engine = self._make_engine()
+        try:
+            with self.engine.connect() as conn:
+                conn.exec_driver_sql("SELECT 1")
+                missing = [t for t in metadata.tables
+                           if not sa.inspect(conn).has_table(t)]
+            if create and missing:
+                self._create_tables()
+            elif missing:
+                raise StoreError(f"database {self.url} has no study tables "
+                                 f"({', '.join(missing)} missing): wrong database?")
+        except sa_exc.SQLAlchemyError as err:
+            self.engine.dispose()
+            raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
+        except StoreError:
+            self.engine.dispose()
+            raise
+
+    # -- engine ------------------------------------------------------------------------
+    def _make_engine(self) -> sa.engine.Engine:
+        url, kwargs = self._url, {}
+        if self.dialect == "sqlite":
+            database = url.database or ""
+            in_memory = database in ("", ":memory:") or database.startswith("file::memory:")
+            if in_memory:
+                # One shared connection, or every checkout would see an empty database.
+                kwargs["poolclass"] = sa.pool.StaticPool
+                kwargs["connect_args"] = {"check_same_thread": False}
+            else:
+                if not self._create and not Path(database).expanduser().exists():
+                    # Reading (export) must not leave an empty database at a mistyped path.
+                    raise StoreError(f"cannot open database {self.url}: no such file")
+                folder = Path(database).expanduser().resolve().parent
+                try:
+                    folder.mkdir(parents=True, exist_ok=True)
+                except OSError as err:
+                    raise StoreError(f"cannot open database {self.url}: cannot create folder "
+                                     f"{folder} ({err.strerror or err})") from None
+                # Threads of the app share the pool; writes queue on the busy timeout.
+                kwargs.update(pool_size=10, max_overflow=40, pool_timeout=60)
+        elif self.dialect == "postgresql":
+            if "connect_timeout" not in url.query:
+                kwargs["connect_args"] = {"connect_timeout": CONNECT_TIMEOUT_S}
+            kwargs.update(pool_size=10, max_overflow=40, pool_timeout=60, pool_pre_ping=True)
+        try:
+            engine = sa.create_engine(url, **kwargs)
+        except sa_exc.NoSuchModuleError:
+            raise StoreError(f"cannot open database {self.url}: unknown database type "
+                             f"{url.drivername!r} (expected sqlite:///PATH or "
+                             "postgresql+psycopg://USER@HOST:PORT/DB)") from None
+        except ImportError as err:
+            raise StoreError(f"cannot open database {self.url}: its driver is not "
+                             f"installed ({err})") from None
+        except (sa_exc.ArgumentError, TypeError) as err:
+            raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
+        if self.dialect == "sqlite":
+            _configure_sqlite(engine)
+        return engine
+
+    def _create_tables(self) -> None:
+        try:
+            metadata.create_all(self.engine, checkfirst=True)
+        except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
+            # Two processes creating the same tables at once (PostgreSQL): the loser
+            # retries and now finds them.
+            metadata.create_all(self.engine, checkfirst=True)
+
+    def close(self) -> None:
+        """Release every pooled connection."""
+        self.engine.dispose()
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"Store({self.url!r})"
+
+    @contextmanager
+    def _transaction(self, *, write: bool):
+        """One transaction; database failures become a one-line :class:`StoreError`."""
+        try:
+            with self.engine.connect() as conn:
+                if write:
+                    conn = conn.execution_options(snapshot_write=True)
+                with conn.begin():
+                    yield conn
+        except sa_exc.SQLAlchemyError as err:
+            raise StoreError(f"database {self.url}: {_one_line(err)}") from err
+
+    @staticmethod
+    def _check_pid(pid) -> str:
+        if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
+            raise StoreError(f"unknown participant id {str(pid)[:70]!r}")
+        return pid
+
+    def _participant_row(self, conn, pid: str):
+        row = conn.execute(sa.select(participants).where(
+            participants.c.participant_id == self._check_pid(pid))).mappings().first()
+        if row is None:
+            raise StoreError(f"unknown participant id {pid!r}")
+        return row
+
+    # -- participants ------------------------------------------------------------------
+    def create_participant(self, study_id: str, manifest_sha256: str, *, app_version: str,
+                           seed: int, prolific: dict | None = None,
+                           simulated: bool = False) -> str:
+        """Register a participant; return their new unguessable id.
+
+        Parameters
+        ----------
+        study_id : str
+            The study config's id.
+        manifest_sha256 : str
+            sha256 (64 hex digits) of the stimuli manifest the participant sees.
+        app_version : str
+            Version of the app serving them.
+        seed : int
+            Their trial-order seed, 0 <= seed < 2**63.
+        prolific : dict, optional
+            ``{"PROLIFIC_PID": ..., "STUDY_ID": ..., "SESSION_ID": ...}`` (any subset;
+            empty values are dropped).
+        simulated : bool
+            True for simulated observers (excluded from exports unless asked).
+        """
+        if not isinstance(study_id, str) or not study_id or len(study_id) > 200:
+            raise StoreError(f"study_id must be a non-empty string, got {study_id!r}")
+        if not isinstance(manifest_sha256, str) or not re.fullmatch(r"[0-9a-f]{64}",
+                                                                    manifest_sha256):
+            raise StoreError(f"manifest_sha256 must be 64 lowercase hex digits, "
+                             f"got {manifest_sha256!r}")
+        if not isinstance(app_version, str) or not app_version:
+            raise StoreError(f"app_version must be a non-empty string, got {app_version!r}")
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise StoreError(f"seed must be an integer in [0, 2**63), got {seed!r}")
+        values = {v: None for v in PROLIFIC_KEYS.values()}
+        for key, value in (prolific or {}).items():
+            if key not in PROLIFIC_KEYS:
+                raise StoreError(f"unknown Prolific parameter {key!r} "
+                                 f"(expected {', '.join(PROLIFIC_KEYS)})")
+            if value not in (None, ""):
+                values[PROLIFIC_KEYS[key]] = str(value)[:200]
+        pid = secrets.token_urlsafe(16)
+        with self._transaction(write=True) as conn:
+            conn.execute(participants.insert().values(
+                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
+                manifest_sha256=manifest_sha256, simulated=bool(simulated),
+                created_at=_utcnow(), **values))
+        return pid
+
+    def get_participant(self, pid: str) -> dict | None:
+        """The participant's record as a dict, or None if the id is unknown or malformed.
+
+        Keys: participant_id, study_id, seed, created_at, completed_at (ISO 8601 UTC or
+        None), completion_code, background (dict or None), prolific_pid,
+        prolific_study_id, prolific_session_id, simulated, manifest_sha256, app_version.
+        """
+        if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
+            return None
+        with self._transaction(write=False) as conn:
+            row = conn.execute(sa.select(participants).where(
+                participants.c.participant_id == pid)).mappings().first()
+        return None if row is None else _participant_dict(row)
+
+    def participants(self, *, include_simulated: bool = False) -> list[dict]:
+        """Every participant (as :meth:`get_participant`) with ``n_responses``, oldest first."""
+        n = (sa.select(sa.func.count()).where(
+            responses.c.participant_id == participants.c.participant_id)
+            .scalar_subquery().label("n_responses"))
+        query = sa.select(participants, n).order_by(participants.c.created_at,
+                                                    participants.c.participant_id)
+        if not include_simulated:
+            query = query.where(participants.c.simulated.is_(False))
+        with self._transaction(write=False) as conn:
+            rows = conn.execute(query).mappings().all()
+        return [{**_participant_dict(r), "n_responses": int(r["n_responses"])} for r in rows]
+
+    def set_background(self, pid: str, answers: dict) -> bool:
+        """Store the background answers (``{"age_band", "gender", "experience", ...}``).
+
+        The first answers stay (nothing stored is overwritten): a second call returns
+        False and changes nothing. Unknown participant → :class:`StoreError`.
+        """
+        if not isinstance(answers, dict) or not all(isinstance(k, str) for k in answers):
+            raise StoreError(f"background answers must be a dict with string keys, got {answers!r}")
+        for key, value in answers.items():
+            if not (value is None or isinstance(value, (str, int, float, bool))
+                    or (isinstance(value, list) and all(isinstance(v, str) for v in value))):
+                raise StoreError(f"background answer {key!r} must be text, a number or a "
+                                 f"list of text, got {value!r}")
+        with self._transaction(write=True) as conn:
+            row = self._participant_row(conn, pid)
+            if row["background"] is not None:
+                return False
+            conn.execute(participants.update()
+                         .where(participants.c.participant_id == pid)
+                         .values(background=dict(answers)))
+        return True
+
+    def complete(self, pid: str, *, code: str | None = None) -> str:
+        """Mark the participant done and return their completion code (idempotent).
+
+        Parameters
+        ----------
+        code : str, optional
+            The code to hand out (e.g. the study's Prolific completion code); default a
+            fresh random 8-character code. Once completed, later calls return the stored
+            code whatever ``code`` says.
+        """
+        if code is not None and (not isinstance(code, str) or not code or len(code) > 64):
+            raise StoreError(f"completion code must be 1-64 characters, got {code!r}")
+        with self._transaction(write=True) as conn:
+            row = self._participant_row(conn, pid)
+            if row["completed_at"] is not None:
+                return row["completion_code"]
+            new = code or "".join(secrets.choice(COMPLETION_ALPHABET)
+                                  for _ in range(COMPLETION_CODE_LENGTH))
+            conn.execute(participants.update()
+                         .where(participants.c.participant_id == pid)
+                         .where(participants.c.completed_at.is_(None))
+                         .values(completed_at=_utcnow(), completion_code=new))
+        return new
+
+    # -- responses ---------------------------------------------------------------------
+    def record_response(self, pid: str, row: dict) -> bool:
+        """Append one trial's answer; False (and nothing changed) if that trial is stored.
+
+        Parameters
+        ----------
+        pid : str
+            Participant id.
+        row : dict
+            The trial fields of ``data_schema/response.schema.json``: ``trial_index``,
+            ``task``, ``scene``, ``stimulus_id``, ``response_time_s`` and any of
+            ``chosen_frame``, ``chosen_video_frame``, ``algorithm_frame``, ``fps``,
+            ``n_frames``, ``chosen_method``, ``chosen_position``, ``shown_order``,
+            ``chosen_value``, ``correct`` (frames in source numbering). The store adds
+            participant, study, app version, manifest hash, simulated flag and time.
+
+        Returns
+        -------
+        bool
+            True if stored, False if this participant already answered this trial (the
+            first answer stays).
+
+        Raises
+        ------
+        StoreError
+            Unknown participant id, or a row that does not follow the schema (the
+            message names the field). Nothing is written.
+        """
+        return self.record_responses(pid, [row]) == 1
+
+    def record_responses(self, pid: str, rows: list[dict]) -> int:
+        """Append several trials of one participant in one transaction; return how many were new.
+
+        Already-answered trials are skipped (their first answer stays). Every row is
+        checked before anything is written.
+        """
+        checked = [self._checked_row(r) for r in rows]
+        indices = [r["trial_index"] for r in checked]
+        if len(set(indices)) != len(indices):
+            raise StoreError(f"participant {pid!r}: the same trial_index twice in one batch")
+        attempt = 0
+        while True:
+            try:
+                with self._transaction(write=True) as conn:
+                    part = self._participant_row(conn, pid)
+                    stored = self._answered(conn, pid)
+                    new = [r for r in checked if r["trial_index"] not in stored]
+                    now = _utcnow()
+                    if new:
+                        conn.execute(responses.insert(), [{
+                            **r, "participant_id": pid, "created_at": now,
+                            "app_version": part["app_version"],
+                            "manifest_sha256": part["manifest_sha256"]} for r in new])
+                    return len(new)
+            except StoreError as err:
+                # The same participant and trial sent by two requests at once (possible
+                # on PostgreSQL, where readers do not wait): one insert hit the unique
+                # key and rolled back. Retry: the answered-trials check now sees the
+                # winner's row and skips it.
+                if not isinstance(err.__cause__, sa_exc.IntegrityError) \
+                        or attempt == _DUPLICATE_RETRIES:
+                    raise
+                attempt += 1
+
+    def _checked_row(self, row: dict) -> dict:
+        if not isinstance(row, dict):
+            raise StoreError(f"a response must be a dict, got {type(row).__name__}")
+        extra = sorted(set(row) - set(TRIAL_FIELDS))
+        if extra:
+            raise StoreError(f"response has unknown field(s) {', '.join(extra)} "
+                             f"(the store fills participant, study, version, time itself)")
+        full = {k: row.get(k) for k in TRIAL_FIELDS}
+        for key in ("fps", "response_time_s"):
+            value = full[key]
+            if isinstance(value, float) and not math.isfinite(value):
+                raise StoreError(f"response to trial {row.get('trial_index')!r}: {key}: "
+                                 f"{value} is not a finite number")
+        # Validate as a complete export row (placeholders for the store's own fields).
+        probe = {**full, "participant_id": "x" * 22, "study_id": "s",
+                 "created_at": "2000-01-01T00:00:00+00:00", "app_version": "v",
+                 "manifest_sha256": "0" * 64, "simulated": False}
+        probe = {k: v for k, v in probe.items() if v is not None
+                 or k not in load_schema("response")["required"]}
+        try:
+            validate(probe, "response", source=f"response to trial {row.get('trial_index')!r}")
+        except SchemaError as err:
+            raise StoreError(str(err)) from None
+        return full
+
+    @staticmethod
+    def _answered(conn, pid: str) -> set[int]:
+        return set(conn.execute(sa.select(responses.c.trial_index)
+                                .where(responses.c.participant_id == pid)).scalars())
+
+    def answered_trials(self, pid: str) -> set[int]:
+        """Trial indices this participant has answered (to resume at the first gap)."""
+        with self._transaction(write=False) as conn:
+            self._participant_row(conn, pid)
+            return self._answered(conn, pid)
+
+    def responses(self, pid: str) -> list[dict]:
+        """This participant's stored responses (export rows), by trial index."""
+        self._check_pid(pid)
+        with self._transaction(write=False) as conn:
+            self._participant_row(conn, pid)
+            rows = conn.execute(self._export_query().where(
+                responses.c.participant_id == pid)).mappings().all()
+        return [_export_row(r) for r in rows]
+
+    # -- events ------------------------------------------------------------------------
+    def record_event(self, pid: str, trial_index: int | None, kind: str,
+                     payload: dict | None = None) -> None:
+        """Append an interaction event (``kind`` like "play", "pause", "seek", "step")."""
+        if not isinstance(kind, str) or not 0 < len(kind) <= 32:
+            raise StoreError(f"event kind must be 1-32 characters, got {kind!r}")
+        if trial_index is not None and (isinstance(trial_index, bool)
+                                        or not isinstance(trial_index, int) or trial_index < 0):
+            raise StoreError(f"event trial_index must be an integer >= 0 or None, "
+                             f"got {trial_index!r}")
+        try:
+            payload = json.loads(json.dumps(payload if payload is not None else {},
+                                            allow_nan=False))
+        except (TypeError, ValueError) as err:
+            raise StoreError(f"event payload is not plain JSON: {err}") from None
+        with self._transaction(write=True) as conn:
+            self._participant_row(conn, pid)
+            conn.execute(events.insert().values(participant_id=pid, trial_index=trial_index,
+                                                kind=kind, payload=payload,
+                                                created_at=_utcnow()))
+
+    def events(self, pid: str | None = None) -> list[dict]:
+        """Stored events (all, or one participant's), oldest first."""
+        query = sa.select(events).order_by(events.c.id)
+        if pid is not None:
+            query = query.where(events.c.participant_id == self._check_pid(pid))
+        with self._transaction(write=False) as conn:
+            rows = conn.execute(query).mappings().all()
+        return [{"participant_id": r["participant_id"], "trial_index": r["trial_index"],
+                 "kind": r["kind"], "payload": r["payload"], "created_at": _iso(r["created_at"])}
+                for r in rows]
+
+    # -- export and progress -----------------------------------------------------------
+    @staticmethod
+    def _export_query():
+        return (sa.select(responses, participants.c.study_id, participants.c.simulated,
+                          participants.c.background, participants.c.prolific_pid)
+                .join(participants, responses.c.participant_id == participants.c.participant_id)
+                .order_by(participants.c.created_at, responses.c.participant_id,
+                          responses.c.trial_index))
+
+    def export_rows(self, *, include_simulated: bool = False, validate: bool = False) -> list[dict]:
+        """Every response as a ``response.schema.json`` row (background joined in).
+
+        Ordered by participant (oldest first) then trial index. Every schema field is a
+        key (``None`` where absent). ``validate=True`` checks each row against the
+        schema (:func:`validate_rows`).
+        """
+        query = self._export_query()
+        if not include_simulated:
+            query = query.where(participants.c.simulated.is_(False))
+        with self._transaction(write=False) as conn:
+            rows = [_export_row(r) for r in conn.execute(query).mappings()]
+        if validate:
+            validate_rows(rows)
+        return rows
+
+    def progress(self, *, include_simulated: bool = False) -> dict:
+        """Counts for the researcher page.
+
+        ``{"participants", "completed", "responses", "by_task": {task: n}, "simulated"}``;
+        the first four count real participants only unless ``include_simulated``;
+        ``simulated`` is always the number of simulated participants.
+        """
+        p, r = participants, responses
+        real = sa.true() if include_simulated else p.c.simulated.is_(False)
+        with self._transaction(write=False) as conn:
+            n_part = conn.execute(sa.select(sa.func.count()).select_from(p).where(real)).scalar()
+            n_done = conn.execute(sa.select(sa.func.count()).select_from(p).where(
+                real, p.c.completed_at.is_not(None))).scalar()
+            n_sim = conn.execute(sa.select(sa.func.count()).select_from(p).where(
+                p.c.simulated.is_(True))).scalar()
+            by_task = dict(conn.execute(
+                sa.select(r.c.task, sa.func.count()).select_from(
+                    r.join(p, r.c.participant_id == p.c.participant_id))
+                .where(real).group_by(r.c.task)).all())
+        return {"participants": int(n_part), "completed": int(n_done),
+                "responses": int(sum(by_task.values())),
+                "by_task": {k: int(v) for k, v in sorted(by_task.items())},
+                "simulated": int(n_sim)}
+
+
+def _configure_sqlite(engine: sa.engine.Engine) -> None:
+    """WAL, busy timeout, foreign keys; ``BEGIN IMMEDIATE`` for write transactions."""
+
+    @sa.event.listens_for(engine, "connect")
+    def _on_connect(dbapi_conn, _record):
+        # Let SQLAlchemy's "begin" event emit BEGIN itself (pysqlite would defer it).
+        dbapi_conn.isolation_level = None
+        cur = dbapi_conn.cursor()
+        cur.execute(f"PRAGMA busy_timeout = {SQLITE_BUSY_TIMEOUT_MS}")
+        cur.execute("PRAGMA foreign_keys = ON")
+        cur.execute("PRAGMA journal_mode = WAL")
+        # synchronous stays FULL (the default): a committed answer survives power loss.
+        cur.close()
+
+    @sa.event.listens_for(engine, "begin")
+    def _on_begin(conn):
+        # A deferred transaction that reads and then writes cannot wait for a
+        # concurrent writer (SQLITE_BUSY at once); IMMEDIATE takes the write lock first
+        # and waits on the busy timeout.
+        immediate = conn.get_execution_options().get("snapshot_write", False)
+        conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
+
+
+def _participant_dict(row) -> dict:
+    return {
+        "participant_id": row["participant_id"], "study_id": row["study_id"],
+        "seed": int(row["seed"]), "created_at": _iso(row["created_at"]),
+        "completed_at": _iso(row["completed_at"]), "completion_code": row["completion_code"],
+        "background": row["background"], "prolific_pid": row["prolific_pid"],
+        "prolific_study_id": row["prolific_study_id"],
+        "prolific_session_id": row["prolific_session_id"],
+        "simulated": bool(row["simulated"]), "manifest_sha256": row["manifest_sha256"],
+        "app_version": row["app_version"],
+    }
+
+
+def _background_value(value):
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        return "; ".join(value)
+    return json.dumps(value)
+
+
+def _export_row(r) -> dict:
+    out = {}
+    for name in export_columns():
+        if name in BACKGROUND_FIELDS:
+            out[name] = _background_value((r["background"] or {}).get(name))
+        elif name == "created_at":
+            out[name] = _iso(r[name])
+        elif name in ("simulated",):
+            out[name] = bool(r[name])
+        elif name == "correct":
+            out[name] = None if r[name] is None else bool(r[name])
+        else:
+            out[name] = r[name]
+    return out
+
+
+# ----------------------------------------------------------------------------- files
+def export_columns() -> list[str]:
+    """Export columns, in ``response.schema.json`` order."""
+    return list(load_schema("response")["properties"])
+
+
+def participants_columns() -> list[str]:
+    """Columns of the participants export (:func:`write_participants`)."""
+    return ["participant_id", "study_id", "seed", "created_at", "completed_at",
+            "completion_code", "prolific_pid", "prolific_study_id", "prolific_session_id",
+            "simulated", "app_version", "manifest_sha256", *BACKGROUND_FIELDS, "background",
+            "n_responses"]
+
+
+def validate_rows(rows, *, source: str = "export") -> None:
+    """Check every row against ``response.schema.json``.
+
+    Raises
+    ------
+    SchemaError
+        Naming the row (1-based), its participant and trial, and the field.
+    """
+    for i, row in enumerate(rows, start=1):
+        where = (f"{source}: row {i} (participant {row.get('participant_id')!r}, "
+                 f"trial {row.get('trial_index')!r})")
+        validate(row, "response", source=where)
+
+
+def export_format(path, fmt: str | None = None) -> str:
+    """``"csv"`` or ``"jsonl"``: ``fmt`` if given, else from the file suffix."""
+    if fmt is not None:
+        if fmt not in ("csv", "jsonl"):
+            raise StoreError(f"unknown export format {fmt!r} (expected csv or jsonl)")
+        return fmt
+    suffix = Path(str(path)).suffix.lower()
+    if suffix not in EXPORT_FORMATS:
+        raise StoreError(f"{path}: cannot tell the format from the suffix "
+                         f"(use {', '.join(EXPORT_FORMATS)} or --format)")
+    return EXPORT_FORMATS[suffix]
+
+
+def _csv_cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+def _render(rows, columns, fmt: str) -> str:
+    buf = io.StringIO()
+    if fmt == "csv":
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(columns)
+        for row in rows:
+            writer.writerow([_csv_cell(row.get(c)) for c in columns])
+    else:
+        for row in rows:
+            buf.write(json.dumps({c: row.get(c) for c in columns}, allow_nan=False) + "\n")
+    return buf.getvalue()
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write via a temp file + rename, so a failed export never leaves half a file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8", newline="")
+        os.replace(tmp, path)
+    except OSError as err:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass  # the folder itself is unusable: there is no temp file to remove
+        raise StoreError(f"cannot write {path}: {err.strerror or err}") from None
+
+
+def write_export(rows, path, *, fmt: str | None = None) -> int:
+    """Validate ``rows`` and write them to ``path`` (CSV or JSON lines); return the count.
+
+    ``path`` ``"-"`` writes to stdout. Nothing is written if any row is invalid.
+    """
+    fmt = export_format(path, fmt) if str(path) != "-" else (fmt or "csv")
+    validate_rows(rows, source=str(path))
+    text = _render(rows, export_columns(), fmt)
+    if str(path) == "-":
+        import sys
+
+        sys.stdout.write(text)
+    else:
+        _write_atomic(Path(path), text)
+    return len(rows)
+
+
+def write_participants(records, path, *, fmt: str | None = None) -> int:
+    """Write :meth:`Store.participants` records (background flattened) to CSV/JSON lines."""
+    fmt = export_format(path, fmt)
+    rows = []
+    for rec in records:
+        bg = rec.get("background") or {}
+        rows.append({**rec, **{k: _background_value(bg.get(k)) for k in BACKGROUND_FIELDS}})
+    _write_atomic(Path(path), _render(rows, participants_columns(), fmt))
+    return len(rows)
+
+
+def write_events(records, path) -> int:
+    """Write :meth:`Store.events` records as JSON lines; return the count."""
+    _write_atomic(Path(path), "".join(json.dumps(e, allow_nan=False) + "\n" for e in records))
+    return len(records)
+
+
+def _typed(name: str, text: str, spec: dict):
+    """One CSV cell back to the type the schema gives ``name``."""
+    types = spec.get("type", "string")
+    types = types if isinstance(types, list) else [types]
+    if text == "":
+        return None if "null" in types else text
+    if "array" in types:
+        return json.loads(text)
+    if "boolean" in types:
+        if text not in ("true", "false"):
+            raise SchemaError(f"{name}: expected true/false, got {text!r}")
+        return text == "true"
+    if "integer" in types:
+        return int(text)
+    if "number" in types:
+        return float(text)
+    return text
+
+
+def read_export(path, *, fmt: str | None = None, validate: bool = True) -> list[dict]:
+    """Read a file written by :func:`write_export` back into typed rows.
+
+    CSV cells are turned back into the schema's types (``shown_order`` parsed from its
+    JSON string, ``true``/``false`` to bool, empty cell to None, numbers to int/float).
+    """
+    path = Path(path)
+    fmt = export_format(path, fmt)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise StoreError(f"cannot read {path}: {err.strerror or err}") from None
+    props = load_schema("response")["properties"]
+    rows = []
+    if fmt == "jsonl":
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            if line.strip():
+                try:
+                    rows.append(json.loads(line))
+                except json.JSONDecodeError as err:
+                    raise SchemaError(f"{path}:{lineno}: not valid JSON ({err.msg})") from None
+    else:
+        for lineno, rec in enumerate(csv.DictReader(io.StringIO(text, newline="")), start=2):
+            try:
+                rows.append({k: _typed(k, v, props.get(k, {})) for k, v in rec.items()})
+            except (ValueError, SchemaError) as err:
+                raise SchemaError(f"{path}:{lineno}: {err}") from None
+    if validate:
+        validate_rows(rows, source=str(path))
+    return rows
+
