@@ -563,6 +563,14 @@ class Store:
             if isinstance(value, float) and not math.isfinite(value):
                 raise StoreError(f"response to trial {row.get('trial_index')!r}: {key}: "
                                  f"{value} is not a finite number")
+        order, pos, method = full["shown_order"], full["chosen_position"], full["chosen_method"]
+        if isinstance(order, list) and isinstance(pos, int) and not isinstance(pos, bool) \
+                and method is not None:
+            # A forged label: the method claimed must be the one shown at that position.
+            if not 0 <= pos < len(order) or order[pos] != method:
+                raise StoreError(f"response to trial {row.get('trial_index')!r}: chosen_method "
+                                 f"{method!r} was not shown at chosen_position {pos!r} "
+                                 f"(shown_order {order!r})")
         # Validate as a complete export row (placeholders for the store's own fields).
         probe = {**full, "participant_id": "x" * 22, "study_id": "s",
                  "created_at": "2000-01-01T00:00:00+00:00", "app_version": "v",
@@ -598,7 +606,18 @@ class Store:
     # -- events ------------------------------------------------------------------------
     def record_event(self, pid: str, trial_index: int | None, kind: str,
                      payload: dict | None = None) -> None:
-        """Append an interaction event (``kind`` like "play", "pause", "seek", "step")."""
+        """Append an interaction event (``kind`` like "play", "pause", "seek", "step").
+
+        ``trial_index`` None is an event outside a trial (a page view); ``payload`` is
+        any plain-JSON dict (no NaN/inf). Unknown participant → :class:`StoreError`.
+        """
+        row = self._checked_event(trial_index, kind, payload)
+        with self._transaction(write=True) as conn:
+            self._participant_row(conn, pid)
+            conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
+
+    @staticmethod
+    def _checked_event(trial_index, kind, payload) -> dict:
         if not isinstance(kind, str) or not 0 < len(kind) <= 32:
             raise StoreError(f"event kind must be 1-32 characters, got {kind!r}")
         if trial_index is not None and (isinstance(trial_index, bool)
@@ -610,11 +629,23 @@ class Store:
                                             allow_nan=False))
         except (TypeError, ValueError) as err:
             raise StoreError(f"event payload is not plain JSON: {err}") from None
+        return {"trial_index": trial_index, "kind": kind, "payload": payload}
+
+    def record_events(self, pid: str, trial_index: int | None, items) -> int:
+        """Append several events of one trial in one transaction; return how many.
+
+        ``items``: ``(kind, payload)`` pairs, e.g. the picker's log of one trial. All are
+        checked before anything is written.
+        """
+        rows = [self._checked_event(trial_index, kind, payload) for kind, payload in items]
+        if not rows:
+            return 0
+        now = _utcnow()
         with self._transaction(write=True) as conn:
             self._participant_row(conn, pid)
-            conn.execute(events.insert().values(participant_id=pid, trial_index=trial_index,
-                                                kind=kind, payload=payload,
-                                                created_at=_utcnow()))
+            conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
+                                           for r in rows])
+        return len(rows)
 
     def events(self, pid: str | None = None) -> list[dict]:
         """Stored events (all, or one participant's), oldest first."""

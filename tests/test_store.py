@@ -309,6 +309,10 @@ def test_unknown_or_tampered_id_writes_nothing(store):
 
 @pytest.mark.parametrize("change, field", [
     ({"chosen_method": "forged"}, "chosen_method"),          # a forged method label
+    ({"chosen_method": "ours", "chosen_position": 0}, "chosen_method"),  # not shown there
+    ({"chosen_position": 3}, "chosen_position"),
+    ({"shown_order": ["ours", "ours", "motion_area"]}, "shown_order"),
+    ({"shown_order": ["ours", "mine", "motion_area"]}, "shown_order"),
     ({"chosen_position": -1}, "chosen_position"),
     ({"task": "quiz"}, "task"),
     ({"response_time_s": float("nan")}, "response_time_s"),
@@ -338,6 +342,15 @@ def test_events(store):
     with pytest.raises(StoreError, match="payload"):
         store.record_event(pid, 0, "seek", {"to": float("inf")})
     assert len(store.events()) == 3
+    # a batch: all or nothing
+    assert store.record_events(pid, 1, [("play", {}), ("step", {"frame": 3})]) == 2
+    with pytest.raises(StoreError, match="payload"):
+        store.record_events(pid, 2, [("play", {}), ("seek", {"to": float("nan")})])
+    assert [(e["kind"], e["trial_index"]) for e in store.events(pid)[3:]] == [
+        ("play", 1), ("step", 1)]
+    with pytest.raises(StoreError, match="unknown participant"):
+        store.record_events(tampered(pid), 1, [("play", {})])
+    assert len(store.events()) == 5
 
 
 def test_progress_counts(store):
