@@ -1,0 +1,893 @@
+"""View selection: the view sphere, Projected Motion Area, motion area and refinement.
+
+The paper's §3.2 (METHOD.md §2-3). Every link of every character sweeps a quad between
+two frames; split into two triangles with vector areas ``a_k`` (m²). For a view ``v``
+(a unit vector from the scene centre to an orthographic camera) the projected area of
+triangle ``k`` is ``|a_k · v|``, so both scores are sums of absolute dot products
+
+    score(v) = Σ_k |b_k · v|,    b_k = a_k / MA_orig(quad of k)   (PMA, eq. 10-11)
+                                 b_k = a_k                        (motion area, Kwon & Lee)
+
+and maximising either over the sphere is an L1-norm principal component. This module
+evaluates them exactly (:func:`pma_scores`, one matrix product per chunk of views),
+refines a view to a local optimum with the fixed-point step
+``v ← normalise(Σ_k sign(b_k·v) b_k)`` (:func:`refine_view`, never lowers the score),
+and selects the view of a scene fast (:func:`select_view`): a binned lower bound over
+the sample sphere, refinement of its best local maxima on the bins, exact refinement
+on the true triangles, and a certificate that no sample beats the answer. Front and
+back (``score(v) == score(-v)``) are told apart by the characters' facing
+(:mod:`snapcore.facing`).
+
+Conventions: metres, Y up; a view is a unit vector pointing from the scene centre to the
+camera; frames are internal indices (``scene.source_frame`` converts for output).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from .errors import SnapshotError
+from .facing import choose_side, scene_facing
+
+__all__ = [
+    "MA_FLOOR_M2",
+    "ICOSPHERE_COUNTS",
+    "WEIGHTINGS",
+    "MotionTriangles",
+    "RefineResult",
+    "ViewSelection",
+    "ViewError",
+    "view_sphere",
+    "motion_triangles",
+    "pma_scores",
+    "refine_view",
+    "select_view",
+    "window_frames",
+]
+
+#: Quads whose swept area ``MA_orig`` (m²) is below this are skipped: resting-limb
+#: jitter must not vote (each kept quad's PMA ratio weighs as much as a full swing).
+#: 1e-5 m² is a 10 cm link moving 0.1 mm between frames; on the shared clips it skips
+#: 0-2 % of quads (eye and toe end sites of the salsa and boxing files mostly).
+MA_FLOOR_M2 = 1e-5
+#: Icosphere vertex counts (10·4^k + 2) → subdivision level. Other counts give an
+#: antipodally symmetric Fibonacci set.
+ICOSPHERE_COUNTS = {10 * 4**k + 2: k for k in range(8)}
+#: Score weightings: ``"pma"`` (ratio per quad, the paper) and ``"motion_area"`` (m²).
+WEIGHTINGS = ("pma", "motion_area")
+#: Octahedral bins per side of the hemisphere map of triangle normals (R² bins, each
+#: ~1.6° across): the fast lower bound over the sample sphere.
+BIN_RESOLUTION = 64
+#: Local maxima of the binned score refined from (distinct basins of the sphere).
+N_STARTS = 6
+#: Best distinct binned optima refined exactly on the triangles (the best always;
+#: the others only when their binned score is within the bound's gap of the best).
+N_POLISH = 3
+#: Cap on fixed-point iterations (each one never lowers the score; convergence is
+#: reached when the sign pattern repeats, typically in < 10 steps).
+REFINE_MAX_ITER = 100
+#: Sine of the angle around the current view within which the exact refinement tracks
+#: signs on the near triangles only (re-centred with one full pass when it moves out).
+REFINE_WINDOW = 0.1
+#: Two refined views closer than this (degrees, up to sign) are the same optimum.
+SAME_VIEW_DEG = 0.5
+#: Rounds of the certificate (each scores the flagged samples exactly and climbs from
+#: the best one if it beats the answer; one round suffices in practice).
+CERT_ROUNDS = 5
+#: Relative slack of the certificate (covers float32 rounding of the binned bound).
+CERT_SLACK = 1e-5
+#: Largest views × triangles block held in memory by the exact evaluator (elements).
+CHUNK_ELEMENTS = 2_000_000
+#: Triangles per chunk of the element-wise kernels: temporaries of this size stay in
+#: cache and are recycled (fresh multi-MB temporaries cost more in page faults than
+#: the arithmetic; measured 3x on the salsa pair).
+CHUNK = 32768
+
+
+class ViewError(SnapshotError):
+    """A view-selection request that cannot be met (bad window, bad views array)."""
+
+
+# ----------------------------------------------------------------------- view sphere
+
+
+@lru_cache(maxsize=8)
+def _sphere(n: int) -> np.ndarray:
+    """Unit views, shape (n, 3), read-only; rows n/2.. are the antipodes of rows ..n/2."""
+    if n in ICOSPHERE_COUNTS:
+        v = _icosphere(ICOSPHERE_COUNTS[n])
+        tol = 1e-9
+        upper = (v[:, 1] > tol) | ((np.abs(v[:, 1]) <= tol) & (
+            (v[:, 2] > tol) | ((np.abs(v[:, 2]) <= tol) & (v[:, 0] > 0))))
+        half = v[upper]
+        if half.shape[0] != n // 2:  # pragma: no cover - the icosphere is centrally symmetric
+            raise ViewError(f"icosphere of {n} points is not antipodally symmetric")
+    else:
+        m = n // 2
+        i = np.arange(m) + 0.5
+        y = i / m  # the upper hemisphere, (0, 1)
+        r = np.sqrt(1.0 - y * y)
+        phi = np.arange(m) * math.pi * (3.0 - math.sqrt(5.0))  # golden angle
+        half = np.stack([r * np.sin(phi), y, r * np.cos(phi)], axis=1)
+    out = np.concatenate([half, -half])
+    out.setflags(write=False)
+    return out
+
+
+def _icosphere(level: int) -> np.ndarray:
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    v = np.array([(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+                  (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)], float)
+    f = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+                  (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+                  (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(level):
+        edges = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        mid = v[uniq[:, 0]] + v[uniq[:, 1]]
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        m = inv.reshape(-1, 3) + v.shape[0]  # midpoints of edges 01, 12, 20
+        v = np.concatenate([v, mid])
+        a, b, c = f.T
+        ab, bc, ca = m.T
+        f = np.concatenate([np.stack(x, axis=1) for x in
+                            ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
+    return v
+
+
+def view_sphere(n: int = 2562) -> np.ndarray:
+    """Sample views over the unit sphere.
+
+    Parameters
+    ----------
+    n : int
+        Number of views, even and ≥ 12. Icosphere counts (12, 42, 162, 642, 2562,
+        10242, ...; ~4° apart at 2562) give icosphere vertices; others a Fibonacci set.
+
+    Returns
+    -------
+    ndarray of shape (n, 3)
+        Unit vectors; the set is antipodally symmetric: row ``i + n/2`` is ``-row i``,
+        and rows ``:n/2`` have ``y > 0`` (or lie on the horizon).
+    """
+    n = int(n)
+    if n < 12 or n % 2:
+        raise ViewError(f"n_views must be an even number >= 12, got {n}")
+    return _sphere(n).copy()
+
+
+@lru_cache(maxsize=8)
+def _neighbours(n: int) -> np.ndarray:
+    """Indices of the 6 nearest other views of every view, shape (n, 6)."""
+    from scipy.spatial import cKDTree
+
+    v = _sphere(n)
+    _, idx = cKDTree(v).query(v, k=7)
+    return idx[:, 1:]
+
+
+# ------------------------------------------------------------------- motion triangles
+
+
+@dataclass(eq=False)
+class MotionTriangles:
+    """The triangles swept by every link between consecutive frames.
+
+    Attributes
+    ----------
+    areas : ndarray of shape (3, K)
+        Vector areas (m²), components in rows (fast products); ``vector_areas`` is the
+        ``(K, 3)`` view. Quad ``x_j(i), x_c(i), x_c(i+1), x_j(i+1)`` of link j → c is
+        split along ``x_j(i) → x_c(i+1)``: ``a1 = ½ e_i × d``, ``a2 = ½ d × g`` with
+        ``e_i = x_c(i) - x_j(i)``, ``d = x_c(i+1) - x_j(i)``, ``g = x_j(i+1) - x_j(i)``.
+    norms : ndarray of shape (K,)
+        ``|a_k|`` (m²).
+    quad_area : ndarray of shape (K,)
+        ``MA_orig = |a1| + |a2|`` of the quad each triangle belongs to (m²).
+    valid : ndarray of bool, shape (K,)
+        False for triangles of quads below the noise floor (they score 0).
+    frames : tuple of int
+        ``(start, stop)``: internal frames ``start .. stop-1`` were used.
+    blocks : list of tuple
+        Per character ``(character, offset, n_steps, links)``: its triangles are
+        ``offset .. offset + 2·n_steps·L`` in the order (triangle 1|2, step, link).
+    floor : float
+        The noise floor used (m²).
+    """
+
+    areas: np.ndarray
+    norms: np.ndarray
+    quad_area: np.ndarray
+    valid: np.ndarray
+    frames: tuple[int, int]
+    blocks: list
+    floor: float
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def vector_areas(self) -> np.ndarray:
+        """Vector areas, shape (K, 3), m²."""
+        return self.areas.T
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.areas.shape[1])
+
+    @property
+    def n_quads(self) -> int:
+        """Quads above the noise floor (the ones that vote)."""
+        return int(np.count_nonzero(self.valid)) // 2
+
+    @property
+    def n_skipped(self) -> int:
+        """Quads below the noise floor."""
+        return self.n_triangles // 2 - self.n_quads
+
+    def vectors(self, weighting: str = "pma") -> np.ndarray:
+        """``b_k`` of ``score(v) = Σ_k |b_k·v|``, shape (3, K) (cached, read-only).
+
+        ``"pma"``: ``a_k / MA_orig`` (dimensionless, each quad contributes ≤ 1);
+        ``"motion_area"``: ``a_k`` (m²). Skipped quads give zero vectors.
+        """
+        _check_weighting(weighting)
+        if weighting not in self._cache:
+            b = np.empty_like(self.areas)
+            bn = np.empty_like(self.norms)
+            for z in _chunks(self.n_triangles):
+                if weighting == "pma":
+                    w = np.zeros(z.stop - z.start)
+                    np.divide(1.0, self.quad_area[z], out=w, where=self.valid[z])
+                else:
+                    w = self.valid[z].astype(float)
+                np.multiply(self.areas[:, z], w, out=b[:, z])
+                np.multiply(self.norms[z], w, out=bn[z])
+            b.setflags(write=False)
+            bn.setflags(write=False)
+            self._cache[weighting] = (b, bn)
+        return self._cache[weighting][0]
+
+    def vector_norms(self, weighting: str = "pma") -> np.ndarray:
+        """``|b_k|``, shape (K,)."""
+        self.vectors(weighting)
+        return self._cache[weighting][1]
+
+
+def _chunks(n: int, size: int = CHUNK):
+    """Slices covering ``range(n)`` in steps of ``size``."""
+    return [slice(i, min(n, i + size)) for i in range(0, n, size)]
+
+
+def _check_weighting(weighting):
+    if weighting not in WEIGHTINGS:
+        raise ViewError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
+
+
+def _motion_sources(source, links):
+    """[(positions (F, J, 3), links (L, 2))] from a Scene, Character, array or list."""
+    if hasattr(source, "characters"):
+        return [(c.positions, c.skeleton.links) for c in source.characters]
+    if hasattr(source, "skeleton"):
+        return [(source.positions, source.skeleton.links)]
+    if isinstance(source, np.ndarray):
+        if links is None:
+            raise ViewError("links (L, 2) are required with a positions array")
+        return [(source, links)]
+    out = []
+    for item in source:
+        x, lk = item
+        out.append((np.asarray(x, float), np.asarray(lk)))
+    return out
+
+
+def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR_M2) -> MotionTriangles:
+    """Triangles swept by every link between consecutive frames (all characters).
+
+    Parameters
+    ----------
+    source : Scene, Character, ndarray of shape (F, J, 3), or list of (positions, links)
+        World joint positions in metres.
+    links : ndarray of int, shape (L, 2), optional
+        (parent, child) joint pairs; required when ``source`` is an array.
+    frames : tuple of int, optional
+        ``(start, stop)``: use frames ``start .. stop-1`` only (default: all).
+    floor : float
+        Noise floor on a quad's swept area, m² (:data:`MA_FLOOR_M2`).
+
+    Returns
+    -------
+    MotionTriangles
+        ``K = 2 · (frames - 1) · L`` triangles per character.
+    """
+    items = _motion_sources(source, links)
+    n_total = items[0][0].shape[0]
+    start, stop = (0, n_total) if frames is None else (int(frames[0]), int(frames[1]))
+    if not (0 <= start < stop <= n_total):
+        raise ViewError(f"frames must satisfy 0 <= start < stop <= {n_total}, got ({start}, {stop})")
+    steps = stop - start - 1
+    sizes = [2 * steps * np.asarray(lk).reshape(-1, 2).shape[0] for _, lk in items]
+    k_total = int(sum(sizes))
+    areas = np.empty((3, k_total))
+    norms = np.empty(k_total)
+    quad = np.empty(k_total)
+    blocks, off = [], 0
+    for ci, ((x, lk), size) in enumerate(zip(items, sizes)):
+        lk = np.asarray(lk, dtype=np.intp).reshape(-1, 2)
+        if x.shape[0] != n_total:
+            raise ViewError(f"character {ci} has {x.shape[0]} frames, expected {n_total}")
+        blocks.append((ci, off, steps, lk))
+        if size:
+            _swept_block(np.asarray(x[start:stop], float), lk, areas[:, off:off + size],
+                         norms[off:off + size], quad[off:off + size])
+        off += size
+    return MotionTriangles(areas=areas, norms=norms, quad_area=quad, valid=quad >= floor,
+                           frames=(start, stop), blocks=blocks, floor=float(floor))
+
+
+def _swept_block(x, links, areas, norms, quad):
+    """Fill one character's triangles: areas (3, K), norms (K,), quad (K,) views.
+
+    Works on chunks of :data:`CHUNK` triangles so temporaries stay in cache (large
+    fresh temporaries cost more in page faults than in arithmetic).
+    """
+    steps, n_links = x.shape[0] - 1, links.shape[0]
+    a4 = areas.reshape(3, 2, steps, n_links)  # views: (component, triangle, step, link)
+    n3 = norms.reshape(2, steps, n_links)
+    q3 = quad.reshape(2, steps, n_links)
+    xt = np.ascontiguousarray(x.transpose(2, 0, 1))  # (3, F, J): component-major
+    cs = max(1, CHUNK // n_links)
+    for s0 in range(0, steps, cs):
+        s1 = min(steps, s0 + cs)
+        xc = xt[:, s0:s1 + 1]
+        p = np.take(xc, links[:, 0], axis=2)
+        e = np.take(xc, links[:, 1], axis=2)
+        e -= p  # link vectors (3, frames, L)
+        g = p[:, 1:] - p[:, :-1]  # parent displacement
+        d = e[:, 1:] + g  # diagonal x_c(i+1) - x_j(i)
+        g *= 0.5  # the ½ of the triangle areas, folded into two of the factors
+        _cross_into(0.5 * e[:, :-1], d, a4[:, 0, s0:s1])
+        _cross_into(d, g, a4[:, 1, s0:s1])
+        for t in (0, 1):
+            nrm = n3[t, s0:s1]
+            np.square(a4[0, t, s0:s1], out=nrm)
+            nrm += np.square(a4[1, t, s0:s1])
+            nrm += np.square(a4[2, t, s0:s1])
+            np.sqrt(nrm, out=nrm)
+        np.add(n3[0, s0:s1], n3[1, s0:s1], out=q3[0, s0:s1])
+        q3[1, s0:s1] = q3[0, s0:s1]
+
+
+def _cross_into(u, w, out):
+    tmp = np.empty_like(out[0])
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        np.multiply(u[j], w[k], out=out[i])
+        np.multiply(u[k], w[j], out=tmp)
+        out[i] -= tmp
+
+
+# -------------------------------------------------------------------- exact scores
+
+
+def _as_views(views) -> np.ndarray:
+    v = np.asarray(views, dtype=float)
+    if v.ndim == 1:
+        v = v[None]
+    if v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
+        raise ViewError(f"views must be a finite array of shape (n, 3), got shape {np.shape(views)}")
+    return v
+
+
+def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> np.ndarray:
+    """Exact score of every view: ``Σ_k |b_k · v|``.
+
+    Parameters
+    ----------
+    views : ndarray of shape (V, 3) or (3,)
+        Unit view directions (scores are linear in ``|v|``).
+    triangles : MotionTriangles
+    weighting : {"pma", "motion_area"}
+        Projected Motion Area (eq. 10-11, dimensionless: the sum of the per-quad ratios
+        ``MA_proj / MA_orig``) or Kwon & Lee's motion area (m²).
+
+    Returns
+    -------
+    ndarray of shape (V,)
+
+    Notes
+    -----
+    One matrix product per block of views × triangles (at most
+    :data:`CHUNK_ELEMENTS` dot products held at once); no loop over single views.
+    ``score(v) = score(-v)``.
+    """
+    v = _as_views(views)
+    b = triangles.vectors(weighting)
+    out = np.zeros(v.shape[0])
+    step = max(1, CHUNK_ELEMENTS // CHUNK)
+    for i in range(0, v.shape[0], step):
+        for z in _chunks(b.shape[1]):
+            out[i:i + step] += np.abs(v[i:i + step] @ b[:, z]).sum(axis=1)
+    return out
+
+
+@dataclass(frozen=True)
+class RefineResult:
+    """Outcome of :func:`refine_view`: the view (unit), its exact score, the number of
+    fixed-point steps, and whether the sign pattern repeated (a true fixed point)."""
+
+    view: np.ndarray
+    score: float
+    iterations: int
+    converged: bool
+
+
+def refine_view(view, triangles: MotionTriangles, *, weighting: str = "pma",
+                max_iter: int = REFINE_MAX_ITER) -> RefineResult:
+    """Climb from ``view`` to a local maximum of ``Σ_k |b_k · v|``.
+
+    Parameters
+    ----------
+    view : array_like of shape (3,)
+        Start direction (normalised here; must be non-zero).
+    triangles : MotionTriangles
+    weighting : {"pma", "motion_area"}
+    max_iter : int
+
+    Returns
+    -------
+    RefineResult
+
+    Notes
+    -----
+    With ``s_k = sign(b_k·v)`` and ``g = Σ_k s_k b_k``, the step ``v' = g/|g|`` gives
+    ``score(v') ≥ g·v' = |g| ≥ g·v = score(v)``: the score never decreases, and the
+    iteration stops at a fixed point of the sign pattern (a vertex of the zonotope
+    ``Σ_k [-b_k, b_k]``, the L1-PCA optimality condition) after finitely many steps.
+    """
+    b = triangles.vectors(weighting)
+    v = _as_views(view)[0]
+    nv = float(np.linalg.norm(v))
+    if nv == 0:
+        raise ViewError("the start view must be non-zero")
+    return _refine_exact(v / nv, b, triangles.vector_norms(weighting), max_iter)[0]
+
+
+class _Local:
+    """Exact scores near a centre view ``v0``, from the triangles near its ⟂ plane.
+
+    A triangle with ``|n_k·v0| ≥ sin θ`` keeps its sign for every ``u`` within θ of
+    ``v0``, so there ``score(u) = g_out·u + Σ_{k near} |b_k·u|`` with ``g_out`` the signed
+    sum of the others: one full pass builds it, then each evaluation touches only the
+    near triangles (a few percent of them).
+    """
+
+    def __init__(self, v0, b, bn, sin_t):
+        self.v0 = v0
+        self.cos_t = math.sqrt(1.0 - sin_t * sin_t)
+        g = np.zeros(3)
+        near = []
+        for z in _chunks(b.shape[1]):
+            t = v0 @ b[:, z]
+            g += b[:, z] @ np.sign(t)
+            np.abs(t, out=t)
+            near.append(np.flatnonzero(t < sin_t * bn[z]) + z.start)
+        self.bc = b[:, np.concatenate(near)]
+        self.g_out = g - self.bc @ np.sign(v0 @ self.bc)
+        self.score0 = float(g @ v0)  # Σ_k sign(b_k·v0) b_k·v0 = Σ_k |b_k·v0|
+
+    def covers(self, u) -> np.ndarray:
+        """Whether ``u`` (3,) or (m, 3) lies strictly within θ of ``v0``."""
+        return u @ self.v0 > self.cos_t
+
+    def scores(self, u) -> np.ndarray:
+        """Exact scores of views ``u`` (m, 3) that :meth:`covers` accepts."""
+        return u @ self.g_out + np.abs(u @ self.bc).sum(axis=1)
+
+
+def _refine_exact(v, b, bn, max_iter, loc=None):
+    """Fixed-point ascent from unit ``v`` → (RefineResult, the last _Local)."""
+    if loc is None or not loc.covers(v):
+        loc = _Local(v, b, bn, REFINE_WINDOW)
+    t = v @ loc.bc
+    s = np.sign(t)
+    score = float(loc.g_out @ v + np.abs(t).sum())
+    it = 0
+    converged = False
+    while it < max_iter:
+        g = loc.g_out + loc.bc @ s
+        ng = float(np.linalg.norm(g))
+        if ng == 0.0:
+            converged = True
+            break
+        v_new = g / ng
+        same_loc = bool(loc.covers(v_new))
+        if not same_loc:
+            loc = _Local(v_new, b, bn, REFINE_WINDOW)  # moved far: re-centre
+        t = v_new @ loc.bc
+        s_new = np.sign(t)
+        score_new = float(loc.g_out @ v_new + np.abs(t).sum())
+        it += 1
+        if score_new < score:  # float rounding only (the step cannot lower the score)
+            converged = True
+            break
+        repeat = same_loc and np.array_equal(s_new, s)
+        v, s, score = v_new, s_new, score_new
+        if repeat:
+            converged = True
+            break
+    return RefineResult(view=v, score=score, iterations=it, converged=converged), loc
+
+
+# ------------------------------------------------- fast binned bound over the sphere
+
+
+@lru_cache(maxsize=4)
+def _bin_geometry(res: int):
+    """Centres (B, 3) and angular radii (B,) of the octahedral hemisphere bins."""
+    edges = np.linspace(-1.0, 1.0, res + 1)
+    mids = 0.5 * (edges[1:] + edges[:-1])
+
+    def unmap(s, t):
+        px, pz = 0.5 * (s - t), 0.5 * (s + t)
+        d = np.stack([px, 1.0 - np.abs(px) - np.abs(pz), pz], axis=-1)
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    si, ti = np.meshgrid(mids, mids, indexing="ij")
+    centres = unmap(si, ti).reshape(-1, 3)
+    # A cell's pieces (split by the octant kinks along its corners' diagonals) are
+    # spherical triangles whose farthest point from the centre is a corner.
+    radius = np.zeros(res * res)
+    for di in (0, 1):
+        for dj in (0, 1):
+            sc, tc = np.meshgrid(edges[di:res + di], edges[dj:res + dj], indexing="ij")
+            cos = np.einsum("ij,ij->i", centres, unmap(sc, tc).reshape(-1, 3))
+            radius = np.maximum(radius, np.arccos(np.clip(cos, -1.0, 1.0)))
+    radius += 1e-9  # rounding of the bin index at cell borders
+    return centres, radius
+
+
+@lru_cache(maxsize=4)
+def _straddle_factors(n: int, res: int):
+    """Sparse (n/2, B) bound factors of the bins a view's ⟂ plane may cut.
+
+    For bin j with radius r and centre at angle α from the plane ⟂ v (α < r), the gap
+    between ``Σ_k |b_k·v|`` and ``|Σ_k b_k·v|`` over the bin is twice the minority
+    side's sum, at most ``W_j min(2 sin(r - α), sin(r + α))`` (``W_j = Σ_k |b_k|``).
+    """
+    from scipy import sparse
+
+    centres, radius = _bin_geometry(res)
+    half = _sphere(n)[: n // 2]
+    alpha = np.arcsin(np.clip(np.abs(half @ centres.T), 0.0, 1.0))
+    cut = alpha < radius
+    rows, cols = np.nonzero(cut)
+    a, r = alpha[rows, cols], radius[cols]
+    vals = np.minimum(2.0 * np.sin(r - a), np.sin(np.minimum(r + a, np.pi / 2)))
+    return sparse.csr_matrix((vals, (rows, cols)), shape=cut.shape)
+
+
+def _bin_generators(b, norms, res):
+    """Fold ``b`` (3, K) onto y ≥ 0 and sum it per octahedral bin → G (B, 3), W (B,).
+
+    The bin of a folded unit normal ``n`` is its octahedral map
+    ``(s, t) = ((n_x + n_z), (n_z - n_x)) / (|n_x| + n_y + |n_z|)`` in [-1, 1]² on an
+    ``res × res`` grid; ``W_j`` sums ``|b_k|`` (for the certificate's gap bound).
+    """
+    nb = res * res
+    gen = np.zeros((nb, 3))
+    weight = np.zeros(nb)
+    h = res / 2.0
+    for z in _chunks(b.shape[1]):
+        bx, by, bz = b[:, z]
+        sg = np.sign(by)
+        sg[sg == 0] = 1.0
+        fx, fy, fz = bx * sg, np.abs(by), bz * sg
+        den = np.abs(fx)
+        den += fy
+        den += np.abs(fz)
+        den += 1e-300  # zero vectors (skipped quads) add nothing to any bin
+        np.divide(h, den, out=den)
+        i = fx + fz
+        i *= den
+        i += h
+        j = fz - fx
+        j *= den
+        j += h
+        idx = i.astype(np.intp)
+        np.minimum(idx, res - 1, out=idx)
+        jj = j.astype(np.intp)
+        np.minimum(jj, res - 1, out=jj)
+        idx *= res
+        idx += jj
+        gen[:, 0] += np.bincount(idx, fx, nb)
+        gen[:, 1] += np.bincount(idx, fy, nb)
+        gen[:, 2] += np.bincount(idx, fz, nb)
+        weight += np.bincount(idx, norms[z], nb)
+    return gen, weight
+
+
+def _grid_lower(views, gen):
+    """``Σ_j |G_j·v|`` for every view (float32, in blocks that stay in cache)."""
+    g32 = np.ascontiguousarray(gen.T, dtype=np.float32)
+    v32 = views.astype(np.float32)
+    out = np.empty(views.shape[0])
+    rows = max(1, CHUNK // max(g32.shape[1], 1))
+    buf = np.empty((rows, g32.shape[1]), np.float32)
+    for i in range(0, v32.shape[0], rows):
+        blk = buf[: min(rows, v32.shape[0] - i)]
+        np.matmul(v32[i:i + rows], g32, out=blk)
+        np.abs(blk, out=blk)
+        out[i:i + rows] = blk.sum(axis=1)
+    return out
+
+
+def _refine_binned(starts, gen, max_iter=REFINE_MAX_ITER):
+    """Fixed-point ascent of ``Σ_j |G_j·v|`` from every start at once → views, scores."""
+    v = starts.copy()
+    for _ in range(max_iter):
+        g = np.sign(v @ gen.T) @ gen
+        g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+        if np.allclose(g, v, rtol=0, atol=1e-13):
+            break
+        v = g
+    return v, np.abs(v @ gen.T).sum(axis=1)
+
+
+# --------------------------------------------------------------------- selection
+
+
+@dataclass
+class ViewSelection:
+    """The chosen view of a scene and how it was found.
+
+    Attributes
+    ----------
+    view : ndarray of shape (3,)
+        Unit vector from the scene centre to the camera (refined unless
+        ``refine=False``), on the side chosen by :func:`snapcore.facing.choose_side`.
+    view_grid : ndarray of shape (3,)
+        The best sample of the view sphere (same side rule).
+    score, score_grid : float
+        Exact scores of ``view`` and ``view_grid`` (PMA: sum of per-quad ratios;
+        motion area: m²).
+    method : str
+        ``"pma"`` or ``"motion_area"``.
+    views : ndarray of shape (V, 3)
+        The sample sphere.
+    scores : ndarray of shape (V,)
+        Score of every sample: the binned lower bound (within ``CERT_SLACK``-level
+        gaps of the exact score; exact where the certificate had to check a view).
+        :func:`pma_scores` gives exact values.
+    frames : tuple of int
+        ``(start, stop)`` internal frames scored.
+    window_s : float or None
+        Half-width of the window in seconds (None: whole sequence).
+    facing : ndarray of shape (3,)
+        Mean horizontal facing over the frames (:func:`snapcore.facing.scene_facing`).
+    side_rule : str
+        The rule that chose between ``±view`` (:data:`snapcore.facing.SIDE_RULES`).
+    n_quads, n_skipped : int
+        Quads that voted / fell below the noise floor.
+    iterations : int
+        Exact fixed-point steps taken.
+    certified : bool
+        True when every sample's upper bound was at most ``score`` (so no sample of the
+        sphere beats the returned view).
+    """
+
+    view: np.ndarray
+    view_grid: np.ndarray
+    score: float
+    score_grid: float
+    method: str
+    views: np.ndarray
+    scores: np.ndarray
+    frames: tuple[int, int]
+    window_s: float | None
+    facing: np.ndarray
+    side_rule: str
+    n_quads: int
+    n_skipped: int
+    iterations: int = 0
+    certified: bool = False
+
+    @property
+    def mean_ratio(self) -> float:
+        """PMA divided by the number of quads: the mean fraction of swept area seen."""
+        return self.score / max(self.n_quads, 1)
+
+    @property
+    def facing_note(self) -> str:
+        """One line saying how front and back were told apart."""
+        return {
+            "above": "steep view: camera above the floor",
+            "front": "camera on the side the characters face",
+            "right side": "profile view: camera sees the characters' right side (they face screen-right)",
+            "fallback": "no consistent facing, horizontal view: fixed fallback side",
+        }[self.side_rule]
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (internal frames; callers convert with ``source_frame``)."""
+        return {
+            "method": self.method,
+            "view": [float(x) for x in self.view],
+            "view_grid": [float(x) for x in self.view_grid],
+            "score": float(self.score),
+            "score_grid": float(self.score_grid),
+            "mean_ratio": float(self.mean_ratio),
+            "frames": [int(self.frames[0]), int(self.frames[1])],
+            "window_s": self.window_s,
+            "facing": [float(x) for x in self.facing],
+            "side_rule": self.side_rule,
+            "facing_note": self.facing_note,
+            "n_views": int(self.views.shape[0]),
+            "n_quads": int(self.n_quads),
+            "n_skipped": int(self.n_skipped),
+            "iterations": int(self.iterations),
+            "certified": bool(self.certified),
+        }
+
+
+def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
+    """Internal ``(start, stop)`` frames of the whole sequence or of ``frame ± window_s``.
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int, optional
+        Internal frame index (required with ``window_s``).
+    window_s : float, optional
+        Half-width in seconds; the window is clipped to the sequence and holds at least
+        the frame and one neighbour.
+    """
+    n = scene.n_frames
+    if window_s is None:
+        return 0, n
+    if frame is None:
+        raise ViewError("a window needs a frame: pass frame= with window_s=")
+    if not (np.isfinite(window_s) and window_s >= 0):
+        raise ViewError(f"window_s must be a non-negative number of seconds, got {window_s}")
+    f = int(frame)
+    if not 0 <= f < n:
+        raise ViewError(f"frame {f} is outside 0..{n - 1}")
+    half = max(1, int(round(window_s * scene.fps)))
+    return max(0, f - half), min(n, f + half + 1)
+
+
+def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_views: int = 2562,
+                refine: bool = True, floor: float = MA_FLOOR_M2,
+                triangles: MotionTriangles | None = None) -> ViewSelection:
+    """The view of a scene that maximises PMA (or the motion area).
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int, optional
+        Internal frame at the centre of the window (used only with ``window_s``).
+    window_s : float, optional
+        Score frames ``frame ± window_s`` seconds (the pose-specific view); default the
+        whole sequence (the global view, eq. 10).
+    method : {"pma", "motion_area"}
+    n_views : int
+        Samples of the view sphere (:func:`view_sphere`).
+    refine : bool
+        Refine the best samples exactly (fixed-point L1-PCA step).
+    floor : float
+        Noise floor on a quad's swept area, m².
+    triangles : MotionTriangles, optional
+        Precomputed for the same frames (shares work between methods).
+
+    Returns
+    -------
+    ViewSelection
+
+    Notes
+    -----
+    1. Triangle vectors ``b_k`` are folded to a hemisphere (``|b·v| = |-b·v|``) and summed
+       in ~1.6° octahedral bins: ``A(v) = Σ_bins |G_j·v| ≤ score(v)`` (triangle inequality),
+       equal except for bins the plane ⟂ v cuts, whose gap is bounded
+       (``_straddle_factors``). ``A`` over the samples is one (V/2 × B) product.
+    2. The best local maxima of ``A`` are refined on the bins, the best distinct results
+       exactly on the triangles (:func:`refine_view`).
+    3. Certificate: every sample whose upper bound exceeds the answer is scored exactly
+       and refined from if it is better, so the answer is never below any sample.
+    A clip without motion above the floor returns the facing direction (or +Z) with a
+    warning and score 0.
+    """
+    _check_weighting(method)
+    frames = window_frames(scene, frame, window_s)
+    if triangles is None:
+        triangles = motion_triangles(scene, frames=frames, floor=floor)
+    elif tuple(triangles.frames) != tuple(frames):
+        raise ViewError(f"triangles cover frames {triangles.frames}, the request {frames}")
+    facing = scene_facing(scene, frames=frames)
+    views = _sphere(int(n_views)) if n_views in ICOSPHERE_COUNTS else view_sphere(n_views)
+    n = views.shape[0]
+    base = dict(method=method, views=np.array(views), frames=frames, window_s=window_s,
+                facing=facing, n_quads=triangles.n_quads, n_skipped=triangles.n_skipped)
+    if triangles.n_quads == 0:
+        warnings.warn(f"no link moves more than the noise floor ({floor:g} m²) in frames "
+                      f"{frames[0]}..{frames[1] - 1}: the view defaults to the facing direction",
+                      stacklevel=2)
+        nf = np.linalg.norm(facing)
+        v = facing / nf if nf > 0 else np.array([0.0, 0.0, 1.0])
+        return ViewSelection(view=v, view_grid=v.copy(), score=0.0, score_grid=0.0,
+                             scores=np.zeros(n), side_rule="front" if nf > 0 else "fallback",
+                             **base)
+    b = triangles.vectors(method)
+    bn = triangles.vector_norms(method)
+    m = n // 2
+    half = views[:m]
+    gen, weight = _bin_generators(b, bn, BIN_RESOLUTION)
+    gen_k = gen[weight > 0]
+    lower = _grid_lower(half, gen_k)
+    upper = lower + _straddle_factors(n, BIN_RESOLUTION) @ weight + CERT_SLACK * weight.sum()
+    scores = np.concatenate([lower, lower])
+
+    best_v, iters = half[int(np.argmax(lower))], 0
+    if refine:
+        # local maxima of the bound on the whole sphere, best first (rows of the half)
+        is_max = scores >= scores[_neighbours(n)].max(axis=1)
+        cand = np.flatnonzero(is_max[:m])
+        cand = cand[np.argsort(-lower[cand])][:N_STARTS]
+        rv, rs = _refine_binned(half[cand], gen_k)
+        picked: list[np.ndarray] = []
+        cos_same = math.cos(math.radians(SAME_VIEW_DEG))
+        rs_picked = []
+        for i in np.argsort(-rs):
+            if all(abs(float(rv[i] @ p)) < cos_same for p in picked):
+                picked.append(rv[i])
+                rs_picked.append(float(rs[i]))
+        gap_max = float((upper - lower).max())
+        best_s, loc = -1.0, None
+        for i, v0 in enumerate(picked[:N_POLISH]):
+            if i and rs_picked[i] + gap_max < rs_picked[0]:
+                break  # no point of this basin can beat the first one's binned optimum
+            r, loc_i = _refine_exact(v0, b, bn, REFINE_MAX_ITER)
+            iters += r.iterations
+            if r.score > best_s:
+                best_v, best_s, loc = r.view, r.score, loc_i
+    else:
+        loc = _Local(best_v, b, bn, REFINE_WINDOW)
+        best_s = loc.score0
+    # certificate: score exactly every sample whose upper bound beats the answer
+    exact = np.zeros(m, dtype=bool)
+    certified = False
+    for _ in range(CERT_ROUNDS):
+        flagged = np.flatnonzero((upper > best_s) & ~exact)
+        if flagged.size == 0:
+            certified = True
+            break
+        u = half[flagged] * np.where(half[flagged] @ best_v < 0, -1.0, 1.0)[:, None]
+        near = loc.covers(u)
+        ex = np.empty(flagged.size)
+        ex[near] = loc.scores(u[near])
+        ex[~near] = pma_scores(u[~near], triangles, weighting=method)
+        scores[flagged] = scores[flagged + m] = upper[flagged] = ex
+        exact[flagged] = True
+        k = int(np.argmax(ex))
+        if ex[k] <= best_s * (1.0 + 1e-12):
+            certified = True
+            break
+        if refine:
+            r, loc = _refine_exact(half[flagged[k]], b, bn, REFINE_MAX_ITER)
+            iters += r.iterations
+            best_v, best_s = r.view, r.score
+        else:
+            best_v, best_s = half[flagged[k]], float(ex[k])
+            loc = _Local(best_v, b, bn, REFINE_WINDOW)
+    i_grid = int(np.argmax(scores[:m]))
+    grid_view = half[i_grid]
+    if exact[i_grid]:
+        score_grid = float(scores[i_grid])
+    else:
+        score_grid = float(pma_scores(grid_view, triangles, weighting=method)[0])
+    view, rule = choose_side(best_v, facing)
+    view_grid, _ = choose_side(grid_view, facing)
+    return ViewSelection(view=np.array(view), view_grid=np.array(view_grid), score=best_s,
+                         score_grid=score_grid, scores=scores, side_rule=rule,
+                         iterations=iters, certified=certified, **base)
