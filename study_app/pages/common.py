@@ -1,0 +1,169 @@
+"""What every page shares: session-state keys, the app context, small UI helpers.
+
+Pages are thin: they read the participant's :class:`~study_app.session.ParticipantSession`
+(made by ``app.py`` for this run), show one step, and hand answers to it. Every
+``st.session_state`` key the app uses is a named constant here.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import streamlit as st
+
+from snapcore.errors import SnapshotError
+
+__all__ = [
+    "QUERY_PID",
+    "KEY_SESSION",
+    "KEY_PROBLEM",
+    "KEY_TRIAL_SHOWN",
+    "KEY_ATTEMPT",
+    "KEY_FLASH",
+    "KEY_FRAMES_FALLBACK",
+    "KEY_CONSENT_AGREE",
+    "KEY_CONSENT_START",
+    "KEY_BG_AGE",
+    "KEY_BG_GENDER",
+    "KEY_BG_EXPERIENCE",
+    "KEY_BG_FORM",
+    "KEY_ATTENTION_CHOICE",
+    "KEY_ATTENTION_SUBMIT",
+    "KEY_FRAME_SLIDER",
+    "KEY_FRAME_CONFIRM",
+    "KEY_ADMIN_TOKEN",
+    "KEY_RESTART",
+    "ENV_STIMULI",
+    "ENV_DB",
+    "ENV_ADMIN_TOKEN",
+    "AppContext",
+    "load_context",
+    "current_session",
+    "trial_clock",
+    "elapsed_s",
+    "next_attempt",
+    "one_line",
+    "flash",
+    "show_flash",
+    "widget_key",
+]
+
+#: URL query parameter carrying the participant id.
+QUERY_PID = "pid"
+
+# -- session-state keys (one place, named) --------------------------------------------
+#: The run's ParticipantSession (or None before consent), set by app.py.
+KEY_SESSION = "snapshot.session"
+#: Why the participant id in the URL was refused (shown by the invalid-link page).
+KEY_PROBLEM = "snapshot.problem"
+#: {(participant id, trial index): wall-clock time the trial was first shown}.
+KEY_TRIAL_SHOWN = "snapshot.trial_shown"
+#: {trial index: attempt number}; a rejected answer remounts the widget fresh.
+KEY_ATTEMPT = "snapshot.attempt"
+#: A message to show once on the next run (kind, text).
+KEY_FLASH = "snapshot.flash"
+#: True when the browser could not play a video: pose tasks use the frame slider.
+KEY_FRAMES_FALLBACK = "snapshot.frames_fallback"
+#: Widget keys (AppTest drives widgets by these).
+KEY_CONSENT_AGREE = "consent.agree"
+KEY_CONSENT_START = "consent.start"
+KEY_BG_FORM = "background.form"
+KEY_BG_AGE = "background.age_band"
+KEY_BG_GENDER = "background.gender"
+KEY_BG_EXPERIENCE = "background.experience"
+KEY_ATTENTION_CHOICE = "attention.choice"
+KEY_ATTENTION_SUBMIT = "attention.submit"
+KEY_FRAME_SLIDER = "pose.slider"
+KEY_FRAME_CONFIRM = "pose.confirm"
+KEY_ADMIN_TOKEN = "researcher.token"
+KEY_RESTART = "invalid.restart"
+
+# -- environment (set by `snapshot study`) -------------------------------------------
+#: Stimuli folder to serve (default: the demo's, ``var/stimuli/demo``).
+ENV_STIMULI = "SNAPSHOT_STIMULI"
+#: Database URL (read by the store; default SQLite under ``var/``).
+ENV_DB = "SNAPSHOT_DB"
+#: Token that opens the researcher page; without it the page shows nothing.
+ENV_ADMIN_TOKEN = "SNAPSHOT_ADMIN_TOKEN"
+
+REPO = Path(__file__).resolve().parents[2]
+DEFAULT_STIMULI = REPO / "var" / "stimuli" / "demo"
+
+
+@dataclass(frozen=True)
+class AppContext:
+    """What the server holds for every participant: verified stimuli and the store."""
+
+    stimuli: object
+    store: object
+
+
+@st.cache_resource(show_spinner="Checking the study materials…")
+def _load_context(stimuli_dir: str, db_url: str | None) -> AppContext:
+    from study_app.stimuli import load_stimuli
+    from study_app.store import Store
+
+    # Verified once per server process, before anyone is served: a missing or altered
+    # file stops the app with the reason instead of serving wrong stimuli.
+    return AppContext(stimuli=load_stimuli(stimuli_dir), store=Store(db_url))
+
+
+def load_context() -> AppContext:
+    """The app context for the configured stimuli folder and database.
+
+    Raises
+    ------
+    SnapshotError
+        Stimuli missing or altered, or the database unreachable (one line).
+    """
+    folder = os.environ.get(ENV_STIMULI) or str(DEFAULT_STIMULI)
+    return _load_context(str(Path(folder).resolve()), os.environ.get(ENV_DB) or None)
+
+
+def current_session():
+    """This run's participant session (None before consent)."""
+    return st.session_state.get(KEY_SESSION)
+
+
+def widget_key(base: str, trial) -> str:
+    """A widget key unique to a trial and to the current attempt at it."""
+    attempt = st.session_state.get(KEY_ATTEMPT, {}).get(trial.index, 0)
+    return f"{base}.{trial.index}.{attempt}"
+
+
+def next_attempt(trial) -> None:
+    """Remount the trial's widgets fresh (after a rejected answer)."""
+    attempts = dict(st.session_state.get(KEY_ATTEMPT, {}))
+    attempts[trial.index] = attempts.get(trial.index, 0) + 1
+    st.session_state[KEY_ATTEMPT] = attempts
+
+
+def trial_clock(session, trial) -> float:
+    """When this trial was first shown to this participant in this browser session (s)."""
+    shown = st.session_state.setdefault(KEY_TRIAL_SHOWN, {})
+    return shown.setdefault((session.participant_id, trial.index), time.time())
+
+
+def elapsed_s(session, trial) -> float:
+    """Seconds since the trial was first shown (the stored response time)."""
+    return max(0.0, time.time() - trial_clock(session, trial))
+
+
+def flash(kind: str, text: str) -> None:
+    """Show ``text`` once, on the next run (``kind``: success, info, warning, error)."""
+    st.session_state[KEY_FLASH] = (kind, text)
+
+
+def show_flash() -> None:
+    """Show and clear the pending one-time message."""
+    item = st.session_state.pop(KEY_FLASH, None)
+    if item:
+        getattr(st, item[0])(item[1])
+
+
+def one_line(err: BaseException) -> str:
+    """A participant-facing line for an error (no traceback)."""
+    return str(err) if isinstance(err, SnapshotError) else f"{type(err).__name__}: {err}"

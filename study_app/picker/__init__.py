@@ -1,0 +1,141 @@
+"""Browser widgets of the study: a frame-accurate video frame picker and a view chooser.
+
+Both are Streamlit components v2 (``st.components.v2.component``): inline JavaScript
+and CSS read from this folder, no build step, mounted in the app page (not an iframe).
+Each reports one *trigger* value per answer, so a trial costs one round trip:
+
+- :func:`frame_picker` — the video with play/pause, step ±1 frame, a scrub bar and the
+  frame number; returns ``{"trial", "frame", "events"}`` when the participant confirms
+  (``frame`` = the 0-based video frame on screen, read with
+  ``requestVideoFrameCallback``), or ``{"trial", "error"}`` if the browser cannot play
+  the video.
+- :func:`view_chooser` — the candidate views side by side; returns
+  ``{"trial", "position", "method"}`` for the one clicked.
+
+Media reach the browser through Streamlit's media file manager (the mechanism behind
+``st.video``/``st.image``), which serves them with HTTP range requests, so seeking works.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+
+__all__ = ["frame_picker", "view_chooser", "media_url", "FRAME_PICKER", "VIEW_CHOOSER",
+           "DEFAULT_LABELS"]
+
+HERE = Path(__file__).resolve().parent
+#: Component names (unique in the app).
+FRAME_PICKER = "snapshot_frame_picker"
+VIEW_CHOOSER = "snapshot_view_chooser"
+#: Text shown by the widgets (English defaults; pass ``labels`` to translate).
+DEFAULT_LABELS = {
+    "play": "Play", "pause": "Pause", "back": "Previous frame", "forward": "Next frame",
+    "frame": "Frame", "confirm": "Confirm this frame", "saving": "Saving…",
+    "scrub": "Position in the animation", "video_error": "The video cannot be played",
+    "choose": "Choose",
+}
+_MIME = {".mp4": "video/mp4", ".webm": "video/webm", ".png": "image/png", ".jpg": "image/jpeg",
+         ".jpeg": "image/jpeg"}
+
+
+@cache
+def _components():
+    import streamlit as st
+
+    css = (HERE / "picker.css").read_text(encoding="utf-8")
+    picker = st.components.v2.component(
+        FRAME_PICKER, js=(HERE / "frame_picker.js").read_text(encoding="utf-8"), css=css)
+    chooser = st.components.v2.component(
+        VIEW_CHOOSER, js=(HERE / "view_chooser.js").read_text(encoding="utf-8"), css=css)
+    return picker, chooser
+
+
+def media_url(path: str | Path, *, where: str) -> str:
+    """A URL the browser can fetch ``path`` from (served by the running Streamlit app).
+
+    Parameters
+    ----------
+    path : path
+        A video or image file.
+    where : str
+        A stable name for the place in the page that shows it (the media manager frees
+        a session's file when another one takes its place).
+    """
+    from streamlit.runtime import Runtime
+    from streamlit.runtime.scriptrunner_utils.script_run_context import get_script_run_ctx
+
+    p = Path(path)
+    mime = _MIME.get(p.suffix.lower(), "application/octet-stream")
+    ctx = get_script_run_ctx()
+    coordinates = f"snapshot.{where}" if ctx is None else f"snapshot.{ctx.page_script_hash}.{where}"
+    return Runtime.instance().media_file_mgr.add(str(p), mime, coordinates)
+
+
+def frame_picker(video: str | Path, *, fps: float, n_frames: int, trial: int, key: str,
+                 start_frame: int = 0, labels: dict | None = None, height: int | None = None):
+    """Mount the frame picker; return the confirm payload of this run, else None.
+
+    Parameters
+    ----------
+    video : path
+        The stimulus video (H.264 MP4).
+    fps : float
+        Its frame rate (frames per second).
+    n_frames : int
+        Its number of frames; the picker offers frames ``0 .. n_frames-1``.
+    trial : int
+        Trial index, echoed back so a late answer cannot land on another trial.
+    key : str
+        Streamlit element key (one per trial keeps trials apart).
+    start_frame : int
+        Frame shown first.
+    labels : dict, optional
+        Overrides of :data:`DEFAULT_LABELS`.
+
+    Returns
+    -------
+    dict or None
+        ``{"trial", "frame", "events"}`` on confirm, ``{"trial", "error"}`` if the video
+        cannot be played, None otherwise.
+    """
+    picker, _ = _components()
+    data = {"src": media_url(video, where=f"video.{key}"), "fps": float(fps),
+            "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
+            "labels": {**DEFAULT_LABELS, **(labels or {})}}
+    result = picker(key=key, data=data, on_confirm_change=_noop, on_error_change=_noop,
+                    height=height or "content")
+    if result.get("confirm"):
+        return dict(result["confirm"])
+    if result.get("error"):
+        return {"trial": (result["error"] or {}).get("trial"),
+                "error": (result["error"] or {}).get("message", "")}
+    return None
+
+
+def view_chooser(views: list[tuple[str, str | Path]], *, trial: int, key: str,
+                 captions: list[str] | None = None, labels: dict | None = None):
+    """Mount the view chooser; return ``{"trial", "position", "method"}`` when one is chosen.
+
+    Parameters
+    ----------
+    views : list of (method, image path)
+        In screen order, left to right.
+    trial : int
+        Trial index, echoed back.
+    key : str
+        Streamlit element key.
+    captions : list of str, optional
+        What participants see under each image (default "View A", "View B", ...).
+    """
+    _, chooser = _components()
+    captions = captions or [f"View {chr(65 + i)}" for i in range(len(views))]
+    data = {"trial": int(trial), "labels": {**DEFAULT_LABELS, **(labels or {})},
+            "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "method": m,
+                       "label": captions[i]} for i, (m, p) in enumerate(views)]}
+    result = chooser(key=key, data=data, on_choice_change=_noop)
+    return dict(result["choice"]) if result.get("choice") else None
+
+
+def _noop():
+    """Trigger callbacks must exist for the trigger to be reported; the page reads the result."""
