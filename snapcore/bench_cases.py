@@ -45,3 +45,71 @@ def _parse_fk_boxing(ctx: BenchContext):
             return load_scene(p)
 
     return work
+
+
+# ----------------------------------------------------------------- relief (issue 6)
+
+
+def _relief_height_field(ctx: BenchContext, resolution: int):
+    """Salsa pair at source frame 900 seen from the front-right as a depth map (metres),
+    or, without motion data or GL, a dome with bumps (synthetic, same size)."""
+    import numpy as np
+
+    from .relief import ReliefParams, height_from_depth
+
+    scene = ctx.salsa()
+    if scene is not None:
+        try:
+            from .relief_scene import height_field_from_scene
+
+            dm = height_field_from_scene(scene, 900 - scene.frame_offset, (0.3, 0.2, 1.0),
+                                         params=ReliefParams(resolution=resolution))
+            h, m = height_from_depth(dm.depth)
+            return h, m, dm.pixel_size, "salsa pair, frame 900"
+        except Exception:  # no GL here: fall back to the synthetic field  # noqa: BLE001
+            pass
+    n = resolution
+    yy, xx = (np.mgrid[0:n, 0:n] - n / 2 + 0.5) / (n / 2)
+    r = np.hypot(xx, yy)
+    m = r < 0.8
+    h = np.sqrt(np.clip(0.64 - r * r, 0, None)) + 0.01 * np.sin(40 * xx) * np.sin(40 * yy)
+    return np.where(m, h, 0.0), m, 2.0 / n, "synthetic dome"
+
+
+@case("relief 1024x1024 height field -> STL", target_ms=2000.0,
+      note="compress (CBF + masked Poisson), mesh, binary STL written")
+def _relief_1024(ctx: BenchContext):
+    import os
+    import tempfile
+
+    from .relief import ReliefParams, relief_from_height_field
+
+    h, m, px, _ = _relief_height_field(ctx, 1024)
+    params = ReliefParams(resolution=1024)
+    fd, path = tempfile.mkstemp(suffix=".stl")
+    os.close(fd)
+
+    def work():
+        rel = relief_from_height_field(h, m, pixel=px, params=params)
+        rel.write_stl(path)
+        return rel
+
+    return work
+
+
+@case("relief 1024x1024 height field -> STL (linear)", note="plain linear compression, for comparison")
+def _relief_1024_linear(ctx: BenchContext):
+    import os
+    import tempfile
+
+    from .relief import ReliefParams, relief_from_height_field
+
+    h, m, px, _ = _relief_height_field(ctx, 1024)
+    params = ReliefParams(resolution=1024, method="linear")
+    fd, path = tempfile.mkstemp(suffix=".stl")
+    os.close(fd)
+
+    def work():
+        relief_from_height_field(h, m, pixel=px, params=params).write_stl(path)
+
+    return work

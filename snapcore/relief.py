@@ -30,7 +30,7 @@ from scipy import fft as sfft
 from scipy import ndimage
 
 from .errors import SnapshotError
-from .relief_mesh import relief_mesh, shade_relief, write_png, write_stl
+from .relief_mesh import relief_mesh, shade_relief, write_png, write_relief_stl
 
 __all__ = [
     "ReliefError",
@@ -680,9 +680,9 @@ class Relief:
         return shade_relief(self.height_mm, pixel_mm=self.pixel_mm, **light)
 
     def write_stl(self, path) -> Path:
-        """Write the solid as binary STL (millimetres)."""
-        v, f = self.mesh()
-        return write_stl(path, v, f)
+        """Write the solid as binary STL (millimetres; see :func:`write_relief_stl`)."""
+        p = self.params
+        return write_relief_stl(path, self.height_mm, size_mm=p.size_mm, base_mm=p.base_mm)
 
     def write_preview(self, path, **light) -> Path:
         """Write the shaded preview as PNG."""

@@ -21,6 +21,8 @@ __all__ = [
     "relief_mesh",
     "stl_array",
     "write_stl",
+    "relief_stl_array",
+    "write_relief_stl",
     "shade_relief",
     "write_png",
     "PREVIEW_AZIMUTH_DEG",
@@ -53,6 +55,22 @@ def _perimeter(ny: int, nx: int) -> np.ndarray:
     return np.concatenate([bottom, right, top, left])
 
 
+def _check_height(height_mm, size_mm, base_mm) -> np.ndarray:
+    h = np.asarray(height_mm, dtype=float)
+    if h.ndim != 2 or min(h.shape) < 2:
+        raise ValueError(
+            f"height_mm: expected a (ny, nx) array with ny, nx >= 2, got shape {h.shape}"
+        )
+    if not np.all(np.isfinite(h)):
+        raise ValueError("height_mm: contains NaN or infinity")
+    w, d = (float(s) for s in size_mm)
+    if not (w > 0 and d > 0):
+        raise ValueError(f"size_mm: both sides must be > 0, got {size_mm}")
+    if not base_mm > 0:
+        raise ValueError(f"base_mm: must be > 0, got {base_mm}")
+    return h
+
+
 def relief_mesh(height_mm, *, size_mm=(100.0, 100.0), base_mm=2.0):
     """Close a relief height field into a watertight, outward-oriented triangle mesh.
 
@@ -81,18 +99,8 @@ def relief_mesh(height_mm, *, size_mm=(100.0, 100.0), base_mm=2.0):
     vertices — every edge is then shared by exactly two faces in opposite directions,
     which is what "watertight" and "is a volume" test. ``P = 2(nx-1) + 2(ny-1)``.
     """
-    h = np.asarray(height_mm, dtype=float)
-    if h.ndim != 2 or min(h.shape) < 2:
-        raise ValueError(
-            f"height_mm: expected a (ny, nx) array with ny, nx >= 2, got shape {h.shape}"
-        )
-    if not np.all(np.isfinite(h)):
-        raise ValueError("height_mm: contains NaN or infinity")
+    h = _check_height(height_mm, size_mm, base_mm)
     w, d = (float(s) for s in size_mm)
-    if not (w > 0 and d > 0):
-        raise ValueError(f"size_mm: both sides must be > 0, got {size_mm}")
-    if not base_mm > 0:
-        raise ValueError(f"base_mm: must be > 0, got {base_mm}")
     ny, nx = h.shape
     xs = np.linspace(0.0, w, nx)
     ys = np.linspace(d, 0.0, ny)  # row 0 at the top
@@ -141,19 +149,94 @@ def stl_array(vertices, faces) -> np.ndarray:
     return rec
 
 
-def write_stl(path, vertices, faces, *, name: str = "action-snapshot relief") -> Path:
-    """Write a binary STL file (little endian, 80-byte header, millimetres).
+def relief_stl_array(height_mm, *, size_mm=(100.0, 100.0), base_mm=2.0) -> np.ndarray:
+    """The binary-STL records of :func:`relief_mesh`'s solid, built straight from the grid.
 
-    Returns the path written.
+    Same triangles, in the same order and orientation, as
+    ``stl_array(*relief_mesh(height_mm, ...))``, but the top grid's vertices and facet
+    normals are written by slicing the grid (normals in closed form) instead of
+    gathering 2·(ny-1)(nx-1) triangles through an index array: ~3x faster at 1024².
     """
+    h = _check_height(height_mm, size_mm, base_mm)
+    ny, nx = h.shape
+    w, d = (float(s) for s in size_mm)
+    x = np.linspace(0.0, w, nx).astype(np.float32)
+    y = np.linspace(d, 0.0, ny).astype(np.float32)
+    z = (base_mm + h).astype(np.float32)
+    dx, dy = np.float32(w / (nx - 1)), np.float32(d / (ny - 1))
+    n_cell = (ny - 1) * (nx - 1)
+    # walls and floor through the generic path (few triangles)
+    per = _perimeter(ny, nx)
+    top_v = np.stack([np.tile(x, ny), np.repeat(y, nx), z.ravel()], 1)[per]
+    n_per = per.size
+    bot_v = top_v.copy()
+    bot_v[:, 2] = 0.0
+    verts = np.concatenate([top_v, bot_v, [[w / 2.0, d / 2.0, 0.0]]])
+    k = np.arange(n_per)
+    k1 = (k + 1) % n_per
+    bk, bk1 = n_per + k, n_per + k1
+    side = np.concatenate(
+        [
+            np.stack([bk, bk1, k1], 1),
+            np.stack([bk, k1, k], 1),
+            np.stack([np.full(n_per, 2 * n_per), bk1, bk], 1),
+        ]
+    )
+    rec = np.zeros(2 * n_cell + side.shape[0], dtype=_STL_DTYPE)
+    rec[2 * n_cell :] = stl_array(verts, side)
+
+    za, zb, zc, ze = z[:-1, :-1], z[:-1, 1:], z[1:, :-1], z[1:, 1:]
+    xa, xb = x[None, :-1], x[None, 1:]
+    ya, yc = y[:-1, None], y[1:, None]
+    shape = (ny - 1, nx - 1)
+    for t, (corners, normal) in enumerate(
+        (
+            # triangle (a, c, e): normal (dy (zc - ze), dx (zc - za), dx dy)
+            (((xa, ya, za), (xa, yc, zc), (xb, yc, ze)), (dy * (zc - ze), dx * (zc - za))),
+            # triangle (a, e, b): normal (-dy (zb - za), dx (ze - zb), dx dy)
+            (((xa, ya, za), (xb, yc, ze), (xb, ya, zb)), (-dy * (zb - za), dx * (ze - zb))),
+        )
+    ):
+        part = rec[t * n_cell : (t + 1) * n_cell]
+        vv = part["vertices"].reshape(*shape, 3, 3)
+        for c, (cx, cy, cz) in enumerate(corners):
+            vv[:, :, c, 0] = cx
+            vv[:, :, c, 1] = cy
+            vv[:, :, c, 2] = cz
+        nxv, nyv = normal
+        nz = dx * dy
+        inv = 1.0 / np.sqrt(nxv * nxv + nyv * nyv + nz * nz)
+        nn = part["normal"].reshape(*shape, 3)
+        nn[:, :, 0] = nxv * inv
+        nn[:, :, 1] = nyv * inv
+        nn[:, :, 2] = nz * inv
+    return rec
+
+
+def _write_records(path, rec, name):
     path = Path(path)
-    rec = stl_array(vertices, faces)
     header = name.encode("ascii", "replace")[:80].ljust(80, b" ")
     with open(path, "wb") as fh:
         fh.write(header)
         fh.write(np.uint32(len(rec)).tobytes())
         rec.tofile(fh)
     return path
+
+
+def write_relief_stl(
+    path, height_mm, *, size_mm=(100.0, 100.0), base_mm=2.0, name: str = "action-snapshot relief"
+) -> Path:
+    """Write the solid of a relief height field as binary STL (fast path, millimetres)."""
+    return _write_records(path, relief_stl_array(height_mm, size_mm=size_mm, base_mm=base_mm), name)
+
+
+def write_stl(path, vertices, faces, *, name: str = "action-snapshot relief") -> Path:
+    """Write a binary STL file (little endian, 80-byte header, millimetres).
+
+    Returns the path written.
+    """
+    path = Path(path)
+    return _write_records(path, stl_array(vertices, faces), name)
 
 
 def shade_relief(

@@ -22,7 +22,13 @@ from snapcore.relief import (
     poisson_solve_masked,
     relief_from_height_field,
 )
-from snapcore.relief_mesh import PREVIEW_AMBIENT, relief_mesh, shade_relief
+from snapcore.relief_mesh import (
+    PREVIEW_AMBIENT,
+    relief_mesh,
+    relief_stl_array,
+    shade_relief,
+    stl_array,
+)
 
 # ----------------------------------------------------------------- synthetic scenes
 
@@ -254,6 +260,17 @@ def test_relief_mesh_counts():
     p = 2 * 6 + 2 * 4
     assert len(v) == 35 + p + 1
     assert len(f) == 2 * 4 * 6 + 3 * p
+
+
+def test_fast_stl_records_equal_generic_mesh_records():
+    """The grid-sliced STL writer gives the same triangles and normals as the generic mesh path."""
+    rng = np.random.default_rng(3)
+    h = rng.uniform(0, 3, size=(9, 13))
+    fast = relief_stl_array(h, size_mm=(40, 30), base_mm=1.2)
+    slow = stl_array(*relief_mesh(h, size_mm=(40, 30), base_mm=1.2))
+    assert fast.shape == slow.shape
+    assert np.allclose(fast["vertices"], slow["vertices"], atol=1e-5)
+    assert np.allclose(fast["normal"], slow["normal"], atol=1e-5)
 
 
 # ----------------------------------------------------------------- previews
