@@ -1,0 +1,278 @@
+"""Figures of the study's data: votes (Table 2), strengths, frame histograms (Fig. 13),
+distances to the algorithm and baselines, power curves.
+
+Every function draws with matplotlib (Agg backend, imported lazily), takes the tidy
+frames made by :mod:`analysis.votes`, :mod:`analysis.frames` and :mod:`analysis.power`,
+and returns the :class:`matplotlib.figure.Figure` (``ax=`` where one axes suffices).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "METHOD_LABELS",
+    "METHOD_COLORS",
+    "PREDICTOR_STYLES",
+    "plot_votes",
+    "plot_strengths",
+    "plot_frame_histograms",
+    "plot_error_distributions",
+    "plot_power_curve",
+    "save_figure",
+]
+
+#: Display names of the view methods (the paper's figure numbers in brackets).
+METHOD_LABELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint entropy (Fig. 9)",
+                 "motion_area": "motion area (Fig. 10)"}
+#: One colour per method, the same in every figure (colour-blind safe, Okabe–Ito).
+METHOD_COLORS = {"ours": "#D55E00", "viewpoint_entropy": "#0072B2", "motion_area": "#009E73"}
+#: How each frame predictor is marked: (colour, line style, label).
+PREDICTOR_STYLES = {"algorithm": ("#D55E00", "-", "algorithm's pick"),
+                    "middle": ("#555555", ":", "middle frame"),
+                    "fastest": ("#0072B2", "--", "fastest frame"),
+                    "farthest_from_mean": ("#009E73", "-.", "farthest from mean pose"),
+                    "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame")}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _grid(n: int, *, ncols: int = 3, size=(4.2, 2.9)):
+    plt = _plt()
+    ncols = max(1, min(ncols, n))
+    nrows = max(1, math.ceil(n / ncols))
+    fig, axes = plt.subplots(nrows, ncols, figsize=(size[0] * ncols, size[1] * nrows),
+                             squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(axes.flat[:n])
+
+
+def save_figure(fig, stem, *, formats=("png", "pdf"), dpi: int = 150) -> list:
+    """Write ``fig`` as ``<stem>.png`` and ``<stem>.pdf``; close it; return the paths."""
+    from pathlib import Path
+
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    out = []
+    for fmt in formats:
+        p = stem.with_suffix(f".{fmt}")
+        fig.savefig(p, dpi=dpi)
+        out.append(p)
+    _plt().close(fig)
+    return out
+
+
+def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
+               labels: dict | None = None, ax=None, title: str | None = None):
+    """Grouped bars: vote share per method per scene with its 95% interval (Table 2).
+
+    Parameters
+    ----------
+    table : DataFrame
+        :func:`analysis.votes.vote_table` output.
+    pairwise : DataFrame, optional
+        :func:`analysis.votes.ours_vs_baselines` output: a star above ours' bar for each
+        baseline it beats significantly (Holm-adjusted).
+    labels : dict, optional
+        Scene id → display name.
+    """
+    plt = _plt()
+    labels = labels or {}
+    scenes = list(dict.fromkeys(table["scene"]))
+    methods = list(dict.fromkeys(table["method"]))
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(max(6.0, 1.5 * len(scenes) + 2), 3.8), layout="constrained")
+    else:
+        fig = ax.figure
+    width = 0.8 / len(methods)
+    x = np.arange(len(scenes))
+    for j, m in enumerate(methods):
+        t = table[table["method"] == m].set_index("scene").reindex(scenes)
+        share = t["share"].to_numpy(dtype=float)
+        err = np.vstack([share - t["ci_low"].to_numpy(float), t["ci_high"].to_numpy(float) - share])
+        xs = x + (j - (len(methods) - 1) / 2) * width
+        ax.bar(xs, share, width, color=METHOD_COLORS.get(m), label=METHOD_LABELS.get(m, m))
+        ax.errorbar(xs, share, yerr=err, fmt="none", ecolor="black", elinewidth=0.8, capsize=2)
+        for xi, v, hi in zip(xs, t["votes"], t["ci_high"].to_numpy(float), strict=True):
+            ax.text(xi, hi + 0.01, f"{int(v)}", ha="center", va="bottom", fontsize=7)
+    if pairwise is not None and "ours" in methods:
+        j = methods.index("ours")
+        for i, s in enumerate(scenes):
+            won = pairwise[(pairwise["scene"] == s) & (pairwise["verdict"] == "ours preferred")]
+            if len(won):
+                top = float(table[(table["scene"] == s) & (table["method"] == "ours")]["ci_high"].iloc[0])
+                ax.text(x[i] + (j - (len(methods) - 1) / 2) * width, top + 0.05, "*" * len(won),
+                        ha="center", va="bottom", fontsize=11)
+    ax.set_xticks(x, [labels.get(s, s) for s in scenes], rotation=20, ha="right")
+    ax.set_ylabel("share of votes (95% Wilson CI)")
+    ax.set_ylim(0, 1)
+    ax.axhline(1 / len(methods), color="grey", lw=0.8, ls=":", label="no preference")
+    ax.legend(fontsize=8, ncols=len(methods) + 1, loc="lower center", bbox_to_anchor=(0.5, 1.0),
+              frameon=False)
+    note = ("* ours beats one baseline, ** both (exact binomial, Holm-adjusted, α = 0.05)"
+            if pairwise is not None else "")
+    ax.set_title("\n".join(t for t in (title, note) if t), fontsize=9, pad=22)
+    return fig
+
+
+def plot_strengths(strengths: pd.DataFrame, *, labels: dict | None = None, ax=None):
+    """Luce strengths (choice probability when all three are shown) with bootstrap CIs."""
+    plt = _plt()
+    labels = labels or {}
+    scenes = list(dict.fromkeys(strengths["scene"]))
+    methods = list(dict.fromkeys(strengths["method"]))
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(scenes) + 2), 3.6), layout="constrained")
+    else:
+        fig = ax.figure
+    y = np.arange(len(scenes))[::-1]
+    for j, m in enumerate(methods):
+        t = strengths[strengths["method"] == m].set_index("scene").reindex(scenes)
+        s = t["strength"].to_numpy(float)
+        yy = y + (j - 1) * 0.22
+        ax.errorbar(s, yy, xerr=np.vstack([s - t["ci_low"].to_numpy(float),
+                                           t["ci_high"].to_numpy(float) - s]),
+                    fmt="o", color=METHOD_COLORS.get(m), label=METHOD_LABELS.get(m, m),
+                    ms=4, capsize=2)
+    ax.set_yticks(y, [labels.get(s, s) for s in scenes])
+    ax.axvline(1 / max(1, len(methods)), color="grey", lw=0.8, ls=":")
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("Luce strength = P(chosen | all shown), 95% bootstrap CI")
+    ax.legend(fontsize=8, loc="lower right", frameon=False)
+    return fig
+
+
+def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None = None,
+                          show_baselines: bool = True):
+    """The paper's Fig. 13: per scene, the histogram of chosen frames, picks marked.
+
+    Parameters
+    ----------
+    pose : DataFrame
+        Pose-task rows.
+    scenes : dict
+        scene id → :class:`analysis.frames.SceneFrames`.
+    show_baselines : bool
+        Mark the baseline frames (middle, fastest, farthest from the mean pose) too.
+    """
+    from .frames import frame_histogram, predictor_frames
+
+    fig, axes = _grid(len(scenes))
+    for ax, (sid, info) in zip(axes, scenes.items(), strict=True):
+        counts, edges = frame_histogram(pose, info, bins=bins)
+        ax.stairs(counts, edges, fill=True, color="#BBBBBB", edgecolor="#666666", lw=0.6)
+        top = max(1, counts.max())
+        preds = predictor_frames(info)
+        for extra in info.algorithm_frames:
+            if extra != info.algorithm_frame:
+                ax.axvline(extra, color=PREDICTOR_STYLES["algorithm"][0], lw=0.8, ls=(0, (2, 2)),
+                           alpha=0.7)
+        for name, f in preds.items():
+            if name != "algorithm" and not show_baselines:
+                continue
+            color, ls, label = PREDICTOR_STYLES[name]
+            ax.axvline(f, color=color, ls=ls, lw=2.0 if name == "algorithm" else 1.2,
+                       label=label)
+        ax.plot([info.algorithm_frame], [top * 1.05], marker="v", color=PREDICTOR_STYLES["algorithm"][0],
+                ms=8, clip_on=False)
+        n = int((pose["scene"] == sid).sum())
+        ax.set_title(f"{info.label or sid}  (n = {n})", fontsize=9)
+        ax.set_xlim(edges[0], edges[-1])
+        ax.set_ylim(0, top * 1.12)
+        ax.set_xlabel(f"motion frame ({info.fps:g} fps)", fontsize=8)
+        ax.set_ylabel("participants", fontsize=8)
+        ax.yaxis.get_major_locator().set_params(integer=True)
+        ax.tick_params(labelsize=7)
+        sec = ax.secondary_xaxis("top", functions=(lambda f, i=info: (f - i.frame_offset) / i.fps,
+                                                   lambda s, i=info: s * i.fps + i.frame_offset))
+        sec.tick_params(labelsize=6)
+    if axes:
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
+                   frameon=False)
+    fig.suptitle("Chosen frames per animation (top axis: seconds); ▼ = the algorithm's pick",
+                 fontsize=10)
+    return fig
+
+
+def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerances=(0.25, 0.5, 1.0),
+                             hits: pd.DataFrame | None = None):
+    """Per scene, the cumulative distribution of |chosen − predictor| in seconds.
+
+    Parameters
+    ----------
+    distances : DataFrame
+        :func:`analysis.frames.frame_distances` output.
+    hits : DataFrame, optional
+        :func:`analysis.frames.hit_rates` output, for the uniform-random curve's
+        expected hit rates at the tolerances (drawn as grey points).
+    """
+    fig, axes = _grid(len(scenes))
+    for ax, sid in zip(axes, scenes, strict=True):
+        d = distances[distances["scene"] == sid]
+        xmax = 0.0
+        for name, g in d.groupby("predictor", sort=False):
+            x = np.sort(g["abs_error_s"].to_numpy(float))
+            if x.size == 0:
+                continue
+            color, ls, label = PREDICTOR_STYLES.get(name, ("black", "-", name))
+            ax.step(np.r_[0, x], np.r_[0, np.arange(1, x.size + 1) / x.size], where="post",
+                    color=color, ls=ls, lw=2.0 if name == "algorithm" else 1.2, label=label)
+            xmax = max(xmax, float(np.quantile(x, 0.9)))
+        if hits is not None:
+            u = hits[(hits["scene"] == sid) & (hits["predictor"] == "uniform_random")]
+            if len(u):
+                ys = [float(u[f"hit_{t:g}s"].iloc[0]) for t in tolerances]
+                color, _, label = PREDICTOR_STYLES["uniform_random"]
+                ax.plot(tolerances, ys, "s", color=color, ms=4, label=label)
+        for t in tolerances:
+            ax.axvline(t, color="grey", lw=0.5, ls=":")
+        ax.set_xlim(0, max(1.5, xmax * 1.05))
+        ax.set_ylim(0, 1)
+        ax.set_title(scenes[sid].label or sid, fontsize=9)
+        ax.set_xlabel("|chosen − predicted| (s)", fontsize=8)
+        ax.set_ylabel("fraction of participants", fontsize=8)
+        ax.tick_params(labelsize=7)
+    if axes:
+        handles, labels = [], []
+        for ax in axes:
+            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+        fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
+                   frameon=False)
+    fig.suptitle("How close are people to each predictor? (dotted: ±0.25, 0.5, 1 s)", fontsize=10)
+    return fig
+
+
+def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | None = None, ax=None):
+    """Power against participants (:func:`analysis.power.power_curve` output)."""
+    plt = _plt()
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
+    else:
+        fig = ax.figure
+    ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS["ours"],
+            label="ours vs baseline (exact binomial)")
+    ax.plot(curve["n"], curve["power_chisquare"], color="#555555", ls="--",
+            label="any preference (chi-square)")
+    ax.axhline(target, color="grey", lw=0.8, ls=":")
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("participants (votes per scene)")
+    ax.set_ylabel("power")
+    ax.legend(fontsize=8, frameon=False, loc="lower right")
+    if title:
+        ax.set_title(title, fontsize=9)
+    return fig

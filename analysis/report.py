@@ -1,0 +1,419 @@
+"""``snapshot analyze``: every table (CSV, Markdown, LaTeX), figure (PNG, PDF) and a
+one-page, self-contained HTML report.
+
+Layout of the output folder::
+
+    results/
+      report.html            one page, images embedded: send it as it is
+      summary.json           the headline numbers, machine-readable
+      tables/<name>.csv|.md|.tex
+      figures/<name>.png|.pdf
+
+Tables (columns documented in :mod:`analysis.votes` and :mod:`analysis.frames`):
+``votes`` (Table 2 with shares and Wilson CIs), ``chisquare`` (no preference),
+``pairwise`` (ours vs each baseline, exact binomial + Holm), ``strengths`` (Luce model,
+bootstrap CIs), ``agreement`` (Fleiss' kappa), ``frame_hits`` (hit rates of the
+algorithm and baselines), ``frame_tests`` (permutation tests), ``participants``.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import frames as fr
+from . import votes as vt
+from .load import attention_summary, load_responses, ordered_scenes, pose_choices, view_choices
+
+__all__ = ["format_table", "to_markdown", "to_latex", "write_table", "analyze",
+           "analyze_counts", "html_report", "DEFAULT_BOOT"]
+
+#: Bootstrap resamples for the Luce strengths' intervals.
+DEFAULT_BOOT = 1000
+
+
+# ----------------------------------------------------------------- table writers
+
+
+def _fmt(col: str, v) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)) or v is pd.NA:
+        return ""
+    if isinstance(v, bool | np.bool_):
+        return "yes" if v else "no"
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        if col.startswith("p_") or col == "p":
+            return "<1e-10" if v < 1e-10 else (f"{v:.2g}" if v < 0.001 else f"{v:.3f}")
+        if v.is_integer() and abs(v) < 1e6 and col in ("predicted_frame", "n"):
+            return str(int(v))
+        return f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
+    if isinstance(v, tuple | list):
+        return ", ".join(map(str, v))
+    return str(v)
+
+
+def format_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Every cell as display text (p-values to 2–3 significant digits, others 3 decimals)."""
+    return pd.DataFrame({c: [_fmt(str(c), v) for v in df[c]] for c in df.columns})
+
+
+def to_markdown(df: pd.DataFrame) -> str:
+    """A GitHub-flavoured Markdown pipe table of ``df`` (formatted cells)."""
+    f = format_table(df)
+    esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
+    lines = ["| " + " | ".join(esc(c) for c in f.columns) + " |",
+             "|" + "|".join("---" for _ in f.columns) + "|"]
+    lines += ["| " + " | ".join(esc(v) for v in row) + " |" for row in f.itertuples(index=False)]
+    return "\n".join(lines) + "\n"
+
+
+_LATEX_ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
+                  "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
+                  "^": r"\textasciicircum{}", "<": r"\textless{}", ">": r"\textgreater{}",
+                  "−": "-", "–": "--", "±": r"$\pm$", "α": r"$\alpha$", "|": r"\textbar{}"}
+
+
+def _latex_escape(s: str) -> str:
+    return "".join(_LATEX_ESCAPES.get(ch, ch) for ch in str(s))
+
+
+def to_latex(df: pd.DataFrame, *, caption: str = "", label: str = "") -> str:
+    """A ``booktabs`` LaTeX table of ``df`` (formatted cells, special characters escaped)."""
+    f = format_table(df)
+    num = [all(_is_number(v) for v in f[c] if v != "") for c in f.columns]
+    spec = "".join("r" if n else "l" for n in num)
+    out = ["\\begin{table}[ht]", "\\centering", "\\small", f"\\begin{{tabular}}{{{spec}}}",
+           "\\toprule", " & ".join(_latex_escape(c) for c in f.columns) + " \\\\", "\\midrule"]
+    out += [" & ".join(_latex_escape(v) for v in row) + " \\\\" for row in f.itertuples(index=False)]
+    out += ["\\bottomrule", "\\end{tabular}"]
+    if caption:
+        out.append(f"\\caption{{{_latex_escape(caption)}}}")
+    if label:
+        out.append(f"\\label{{{label}}}")
+    out.append("\\end{table}")
+    return "\n".join(out) + "\n"
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s.lstrip("<"))
+        return True
+    except ValueError:
+        return False
+
+
+def write_table(df: pd.DataFrame, stem, *, caption: str = "") -> list[Path]:
+    """Write ``df`` as ``<stem>.csv`` (raw values), ``.md`` and ``.tex`` (formatted)."""
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    csv_df = df.copy()
+    for c in csv_df.columns:
+        if csv_df[c].map(lambda v: isinstance(v, tuple)).any():
+            csv_df[c] = csv_df[c].map(lambda v: json.dumps(list(v)) if isinstance(v, tuple) else v)
+    paths = [stem.with_suffix(".csv"), stem.with_suffix(".md"), stem.with_suffix(".tex")]
+    csv_df.to_csv(paths[0], index=False)
+    paths[1].write_text((f"{caption}\n\n" if caption else "") + to_markdown(df), encoding="utf-8")
+    paths[2].write_text(to_latex(df, caption=caption, label=f"tab:{stem.name}"), encoding="utf-8")
+    return paths
+
+
+# ----------------------------------------------------------------- HTML
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;
+margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ddd}
+table{border-collapse:collapse;font-size:.82em;margin:.6em 0}
+th,td{border-bottom:1px solid #e4e4e4;padding:.2em .6em;text-align:right}
+th{background:#f4f4f4}td:first-child,th:first-child{text-align:left}
+img{max-width:100%;height:auto;border:1px solid #eee}
+.claim{background:#fff6e8;border-left:4px solid #D55E00;padding:.5em .8em;margin:.6em 0}
+.meta{color:#666;font-size:.85em}.note{color:#555;font-size:.85em}
+"""
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    return f'<img alt="{html.escape(Path(path).stem)}" src="data:image/png;base64,{data}">'
+
+
+def html_report(sections: list, path, *, title: str, meta: str = "") -> Path:
+    """Write a one-page self-contained HTML report.
+
+    Parameters
+    ----------
+    sections : list of (str, list)
+        ``(heading, items)``; an item is a DataFrame (a table), a Path to a PNG (embedded
+        as base64), or a str (HTML paragraph text; escaped unless it starts with ``<``).
+    """
+    parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{html.escape(title)}</h1>"]
+    if meta:
+        parts.append(f"<p class='meta'>{meta}</p>")
+    for heading, items in sections:
+        parts.append(f"<h2>{html.escape(heading)}</h2>")
+        for item in items:
+            if isinstance(item, pd.DataFrame):
+                parts.append(format_table(item).to_html(index=False, border=0, escape=True))
+            elif isinstance(item, Path):
+                parts.append(_img(item))
+            else:
+                text = str(item)
+                parts.append(text if text.startswith("<") else f"<p>{html.escape(text)}</p>")
+    parts.append("</body></html>")
+    path = Path(path)
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path
+
+
+# ----------------------------------------------------------------- the analyses
+
+
+def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
+    """Every vote table and figure; returns (html sections, summary dict)."""
+    from .plots import plot_strengths, plot_votes, save_figure
+
+    tables, figs = out / "tables", out / "figures"
+    table = vt.vote_table(counts)
+    chi = vt.chisquare_no_preference(counts, alpha=alpha)
+    pair = vt.ours_vs_baselines(counts, alpha=alpha)
+    choices = vt.choices_from_counts(counts) if choices is None else choices
+    strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed)
+    kappa = vt.fleiss_kappa(counts)
+    claims = vt.claim_summary(pair, alpha=alpha, labels=labels)
+    write_table(table, tables / "votes",
+                caption="Votes per method per scene with shares and 95% Wilson intervals.")
+    write_table(chi, tables / "chisquare",
+                caption="Chi-square goodness-of-fit test against no preference, per scene.")
+    write_table(pair, tables / "pairwise",
+                caption="Ours vs each baseline: exact two-sided binomial test among the two "
+                        "methods' votes, Holm-adjusted over all scenes and baselines.")
+    write_table(strengths, tables / "strengths",
+                caption=f"Luce strengths (choix ilsr_top1) with 95% percentile bootstrap "
+                        f"intervals ({n_boot} resamples, seed {seed}).")
+    write_table(kappa, tables / "agreement", caption="Fleiss' kappa over scenes.")
+    f_votes = save_figure(plot_votes(table, pairwise=pair, labels=labels), figs / "votes")[0]
+    f_str = save_figure(plot_strengths(strengths, labels=labels), figs / "strengths")[0]
+    k = kappa.iloc[0]
+    wide = counts.copy()
+    wide.insert(0, "scene", [labels.get(s, s) for s in counts.index])
+    sections = [
+        ("Views: which method's view do people prefer? (Table 2)",
+         [wide.reset_index(drop=True), f_votes]
+         + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims]),
+        ("No preference? Chi-square per scene", [chi]),
+        ("Ours vs each baseline (exact binomial, Holm)", [pair]),
+        ("Method strengths (Luce model)", [strengths, f_str]),
+        ("Agreement", [f"Fleiss' kappa over {int(k['n_items'])} scenes = {k['kappa']:.3f} "
+                       f"(chance-corrected agreement on the best view; 0 = chance, 1 = all "
+                       f"agree); z = {k['z']:.2f}, one-sided p = {_fmt('p_value', k['p_value'])}."]),
+    ]
+    summary = {"claims": claims,
+               "votes": {s: {m: int(v) for m, v in row.items()} for s, row in counts.iterrows()},
+               "chisquare_p": dict(zip(chi["scene"], chi["p_value"].astype(float), strict=True)),
+               "pairwise": pair[["scene", "baseline", "p_value", "p_holm", "verdict"]]
+               .to_dict(orient="records"),
+               "fleiss_kappa": float(k["kappa"])}
+    return sections, summary
+
+
+def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
+    from .plots import plot_error_distributions, plot_frame_histograms, save_figure
+
+    tables, figs = out / "tables", out / "figures"
+    hits = fr.hit_rates(pose, scenes)
+    tests = fr.closeness_tests(pose, scenes, n_permutations=n_permutations, seed=seed, alpha=alpha)
+    dist = fr.frame_distances(pose, scenes)
+    write_table(hits, tables / "frame_hits",
+                caption="Distance of chosen frames to each predictor and hit rates within "
+                        "±0.25/0.5/1 s (Wilson 95% intervals).")
+    write_table(tests, tables / "frame_tests",
+                caption="Is the algorithm closer to people than each baseline? One-sided "
+                        "permutation tests, Holm-adjusted.")
+    f_hist = save_figure(plot_frame_histograms(pose, scenes), figs / "fig13_frame_histograms")[0]
+    f_err = save_figure(plot_error_distributions(dist, scenes, hits=hits),
+                        figs / "frame_distances")[0]
+    algo = hits[hits["predictor"] == "algorithm"]
+    lines = [f"{scenes[r['scene']].label or r['scene']}: median |chosen − algorithm| = "
+             f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
+             f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
+             for r in algo.to_dict(orient="records")]
+    better = tests[tests["significant"]]
+    worse = tests[~tests["significant"]]
+    verdict = (f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
+               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+                            zip(better["scene"], better["baseline"], strict=True)) or "none")
+               + ". Not significantly closer than: "
+               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+                            zip(worse["scene"], worse["baseline"], strict=True)) or "none") + ".")
+    missing = [s for s, i in scenes.items() if not i.baseline_frames]
+    note = ("The fastest-frame and farthest-from-mean-pose baselines need the motion; "
+            f"they are missing for {', '.join(missing)} (pass --stimuli manifest.json)."
+            if missing else "")
+    sections = [("Poses: which frame do people pick? (Fig. 13)",
+                 [f_hist, *lines, f"<div class='claim'>{html.escape(verdict)}</div>",
+                  hits, tests, f_err] + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []))]
+    summary = {"frames": algo[["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s",
+                               "hit_1s"]].to_dict(orient="records"),
+               "frame_verdict": verdict}
+    return sections, summary
+
+
+_METHODS_TEXT = (
+    "Methods. Vote shares: Wilson score 95% intervals. No preference: Pearson chi-square "
+    "goodness of fit against equal shares. Ours vs each baseline: exact two-sided binomial test "
+    "of ours' share among the votes for the two (null 1/2), Clopper–Pearson intervals, Holm "
+    "adjustment over every scene × baseline. Strengths: Luce choice model fitted by iterative "
+    "Luce spectral ranking (choix.ilsr_top1), percentile bootstrap over choices. Agreement: "
+    "Fleiss' kappa (scenes = items, methods = categories). Frames: distances in seconds; hit "
+    "rates within ±0.25/0.5/1 s; baselines middle frame, uniform random frame (exact "
+    "expectation), fastest frame and frame farthest from the mean pose (from the motion); "
+    "paired sign-flip permutation tests (one-sided, algorithm closer), exact randomisation "
+    "test against a uniform frame; Holm over all frame tests.")
+
+
+def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
+                   title: str = "Vote analysis", source: str = "", n_boot: int = DEFAULT_BOOT,
+                   seed: int = 0, alpha: float = vt.ALPHA) -> dict:
+    """The vote analysis on a count table alone (e.g. the paper's Table 2).
+
+    Returns
+    -------
+    dict
+        The summary also written to ``summary.json`` (claims, votes, p-values, kappa).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    labels = labels or {}
+    sections, summary = _vote_section(counts, out, labels=labels, n_boot=n_boot, seed=seed,
+                                      alpha=alpha)
+    sections.append(("Methods", [_METHODS_TEXT]))
+    meta = (f"{html.escape(source)} · {int(counts.to_numpy().sum())} votes over "
+            f"{len(counts)} scenes · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
+    html_report(sections, out / "report.html", title=title, meta=meta)
+    summary["source"] = source
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
+    return summary
+
+
+def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
+            exclude_failed_attention: bool = False, n_boot: int = DEFAULT_BOOT, seed: int = 0,
+            n_permutations: int = fr.N_PERMUTATIONS, alpha: float = vt.ALPHA,
+            title: str | None = None) -> dict:
+    """The whole analysis of study responses → tables, figures, ``report.html``.
+
+    Parameters
+    ----------
+    source : str, Path, list or DataFrame
+        A store URL, an export file, or rows (:func:`analysis.load.load_responses`).
+    out_dir : str or Path
+        Output folder (created).
+    include_simulated : bool
+        Analyse simulated participants too (they are excluded by default).
+    stimuli : str, Path or dict, optional
+        The stimuli manifest: scene titles, top-k picks, and the motion for the fastest /
+        farthest-from-mean baselines.
+    exclude_failed_attention : bool
+        Drop participants who failed an attention check.
+    """
+    from snapcore.errors import SnapshotError
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    df = load_responses(source, include_simulated=include_simulated)
+    if df.empty:
+        raise SnapshotError(f"{_source_name(source)}: no responses to analyse"
+                            + ("" if include_simulated else
+                               " (simulated participants are excluded; add --include-simulated)"))
+    att = attention_summary(df)
+    failed = set(att.loc[~att["passed"], "participant_id"])
+    if exclude_failed_attention and failed:
+        df = df[~df["participant_id"].isin(failed)]
+    order, extra, labels = None, {}, {}
+    if stimuli is not None:
+        from .stimuli import stimuli_scenes
+
+        st = stimuli_scenes(stimuli)
+        order = list(st["scene"])
+        labels = dict(zip(st["scene"], st["title"], strict=True))
+        extra = fr.baselines_from_stimuli(stimuli)
+    if not labels:
+        from .votes import paper_table2
+
+        t = paper_table2()
+        labels = dict(zip(t["scene"], t["scene_label"], strict=True))
+    for sid, info in extra.items():
+        info.setdefault("label", labels.get(sid))
+    sections, summary = [], {}
+    views = view_choices(df)
+    if not views.empty:
+        counts = vt.vote_counts(views, order=order)
+        s, summ = _vote_section(counts, out, labels=labels, n_boot=n_boot, seed=seed,
+                                alpha=alpha, choices=views)
+        sections += s
+        summary.update(summ)
+    pose = pose_choices(df)
+    if not pose.empty:
+        extra = {sid: {**extra.get(sid, {}), "label": extra.get(sid, {}).get("label")
+                       or labels.get(sid)} for sid in ordered_scenes(pose["scene"], order)}
+        scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
+        s, summ = _frame_section(pose, out, scenes=scenes, n_permutations=n_permutations,
+                                 seed=seed, alpha=alpha)
+        sections += s
+        summary.update(summ)
+    parts = _participants_table(df, att)
+    write_table(parts, out / "tables" / "participants", caption="Participants and responses.")
+    sections.insert(0, ("Participants", [parts]))
+    sections.append(("Methods", [_METHODS_TEXT]))
+    n_sim = int(df.loc[df["simulated"], "participant_id"].nunique())
+    meta = (f"source: {html.escape(_source_name(source))} · "
+            f"{df['participant_id'].nunique()} participants"
+            + (f" ({n_sim} SIMULATED)" if n_sim else "")
+            + f" · {len(df)} responses"
+            + (f" · {len(failed)} failed the attention check"
+               + (" (excluded)" if exclude_failed_attention else " (kept)") if failed else "")
+            + f" · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
+    study = ", ".join(sorted(df["study_id"].dropna().unique()))
+    html_report(sections, out / "report.html", title=title or f"Action Snapshot study: {study}",
+                meta=meta)
+    summary.update({"source": _source_name(source), "participants": int(df["participant_id"].nunique()),
+                    "simulated_participants": n_sim, "responses": len(df),
+                    "failed_attention": len(failed)})
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
+    return summary
+
+
+def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:
+    g = df.groupby("simulated")
+    rows = []
+    for sim, part in g:
+        rows.append({"participants": "simulated" if sim else "real",
+                     "n": int(part["participant_id"].nunique()),
+                     "responses": len(part),
+                     "pose_choices": int((part["task"] == "pose").sum()),
+                     "view_choices": int((part["task"] == "view").sum()),
+                     "attention_passed": int(att[att["participant_id"].isin(part["participant_id"])]
+                                             ["passed"].sum()),
+                     "median_response_time_s": float(part["response_time_s"].median())})
+    return pd.DataFrame(rows)
+
+
+def _source_name(source) -> str:
+    if isinstance(source, pd.DataFrame | list | tuple):
+        return "rows in memory"
+    text = str(source)
+    if "://" in text and "@" in text:  # never print a password
+        scheme, rest = text.split("://", 1)
+        return f"{scheme}://***@{rest.split('@', 1)[1]}"
+    return text
