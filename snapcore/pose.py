@@ -1,0 +1,517 @@
+"""Pose entropy and pose selection (paper §3.1, METHOD §1).
+
+The informative pose of a motion is the frame of highest *pose entropy*
+
+    H(i) = w_local H*_local(i) + w_global H*_global(i)            (eq. 8-9)
+
+where ``H*`` is min-max normalisation over the frames of the scene and
+
+- the **local** term measures how sharply the joints turn, weighted by limb length
+  and by how fast the joint rotates (eq. 3-5):
+  ``p_i = sum_j l_j |dm_ji| kappa_ji``, normalised to ``sum_i p_i = 1``, and
+  ``H_local(i) = -p_i log2 p_i``;
+- the **global** term counts interaction events (eq. 6-7): joint j has interaction
+  probability ``p_j = N_interaction(j) / F`` and
+  ``H_global(i) = -sum_{j with an event at i} p_j log2 p_j``; events come from
+  :mod:`snapcore.contacts`.
+
+Several characters: per-character terms are summed per frame before normalising.
+The selected pose is the argmax; :func:`select_pose` also returns the top-k distinct
+peaks (non-maximum suppression with a minimum separation in seconds).
+
+Everything is vectorised over frames and joints (one Python loop over characters).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .contacts import DEFAULT_TOLERANCES, ContactTolerances, Interactions, detect_interactions
+
+__all__ = [
+    "SMOOTH_S",
+    "SAVGOL_POLYORDER",
+    "REST_SPEED",
+    "MIN_SEPARATION_S",
+    "EVENT_MODES",
+    "PoseEntropy",
+    "PoseSelection",
+    "smooth_positions",
+    "joint_curvature",
+    "rotation_change",
+    "limb_lengths",
+    "local_information",
+    "local_entropy",
+    "global_entropy",
+    "minmax",
+    "top_peaks",
+    "pose_entropy",
+    "select_pose",
+]
+
+#: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
+#: mocap jitter at 60-120 fps would otherwise turn every resting joint into a
+#: high-curvature one. A tenth of a second keeps turns of a dancer's hand.
+SMOOTH_S = 0.1
+#: Polynomial order of that filter (quadratic keeps peaks and turning points).
+SAVGOL_POLYORDER = 2
+#: Below this speed (m/s, for a 1.70 m person; scaled with stature) a joint is at rest
+#: and its curvature is 0: the direction of a jittering, resting joint means nothing.
+REST_SPEED = 0.05
+#: Default minimum separation (s) of the top-k poses.
+MIN_SEPARATION_S = 0.5
+#: What counts as an event in the global term: onset/release (default) or the whole
+#: interaction.
+EVENT_MODES = ("transitions", "state")
+#: Stature (m) the rest speed is given for.
+_REFERENCE_STATURE = 1.70
+
+
+# ----------------------------------------------------------------------- results
+
+
+@dataclass
+class PoseEntropy:
+    """Pose entropy of every frame of a scene.
+
+    Attributes
+    ----------
+    local : ndarray of shape (F,)
+        Normalised local term ``H*_local`` in [0, 1].
+    global_ : ndarray of shape (F,)
+        Normalised global term ``H*_global`` in [0, 1] (``global`` is a keyword).
+    total : ndarray of shape (F,)
+        ``w_local * local + w_global * global_``.
+    local_by_character, global_by_character : ndarray of shape (C, F)
+        Per-character terms before summing and normalising (bits).
+    information : ndarray of shape (C, F)
+        Per-character ``p_i = sum_j l_j |dm_ji| kappa_ji`` before normalisation.
+    interactions : Interactions
+        The events behind the global term.
+    weights : tuple of float
+        ``(w_local, w_global)``.
+    events_mode : str
+    fps : float
+    timings_s : dict
+        Seconds spent in ``contacts``, ``local``, ``global``.
+    """
+
+    local: np.ndarray
+    global_: np.ndarray
+    total: np.ndarray
+    local_by_character: np.ndarray
+    global_by_character: np.ndarray
+    information: np.ndarray
+    interactions: Interactions
+    weights: tuple[float, float]
+    events_mode: str
+    fps: float
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.total.shape[0])
+
+
+@dataclass
+class PoseSelection:
+    """The selected pose(s) of a scene.
+
+    Attributes
+    ----------
+    frame : int
+        Internal index of the selected frame (``argmax`` of the total entropy).
+    frames : list of int
+        Top-k distinct peaks, best first (``frames[0] == frame``); internal indices.
+    entropy : PoseEntropy
+    min_separation_s : float
+    timings_s : dict
+        Seconds: ``contacts``, ``local``, ``global``, ``select``, ``total``.
+    """
+
+    frame: int
+    frames: list[int]
+    entropy: PoseEntropy
+    min_separation_s: float
+    timings_s: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------- local term
+
+
+def _window_frames(smooth_s: float, fps: float, n_frames: int, polyorder: int) -> int:
+    """Odd Savitzky-Golay window for ``smooth_s`` seconds; 0 means no smoothing."""
+    w = int(round(smooth_s * fps))
+    w += 1 - w % 2  # odd
+    w = min(w, n_frames - 1 + n_frames % 2)  # at most the clip, still odd
+    return w if w > polyorder else 0
+
+
+def smooth_positions(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
+                     polyorder: int = SAVGOL_POLYORDER) -> np.ndarray:
+    """Savitzky-Golay smoothed trajectories.
+
+    Parameters
+    ----------
+    positions : ndarray of shape (F, J, 3)
+        Metres.
+    fps : float
+    smooth_s : float
+        Window in seconds (rounded to an odd number of frames at ``fps``); windows of
+        at most ``polyorder`` frames (or ``smooth_s=0``) leave the input unchanged.
+    polyorder : int
+
+    Returns
+    -------
+    ndarray of shape (F, J, 3)
+        A new array. The filter fits a polynomial to the edge windows (SciPy's
+        ``mode="interp"``), so the ends are not padded with invented samples.
+    """
+    x = np.asarray(positions, dtype=float)
+    w = _window_frames(smooth_s, fps, x.shape[0], polyorder) if smooth_s > 0 else 0
+    if w == 0:
+        return x.copy()
+    from scipy.signal import savgol_filter
+
+    return savgol_filter(x, w, polyorder, axis=0, mode="interp")
+
+
+def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
+                    rest_speed: float = REST_SPEED) -> np.ndarray:
+    """Discrete curvature ``kappa = sin(theta / 2)`` of every joint trajectory.
+
+    Parameters
+    ----------
+    positions : ndarray of shape (F, J, 3)
+        World positions, metres.
+    fps : float
+    smooth_s : float
+        Savitzky-Golay window in seconds (:func:`smooth_positions`); 0 for none.
+    rest_speed : float
+        Speed (m/s) below which a joint is at rest: where either edge at a vertex is
+        shorter than ``rest_speed / fps``, ``kappa = 0``.
+
+    Returns
+    -------
+    ndarray of shape (F, J)
+        In [0, 1]; 0 at the first and last frame (no turning angle there).
+
+    Notes
+    -----
+    Edges ``e_i = m_{i+1} - m_i``, unit tangents ``t_i``, turning angle ``theta_i``
+    between ``t_{i-1}`` and ``t_i``. ``sin(theta/2) = |t_i - t_{i-1}| / 2`` (chord of
+    the unit circle), which is exact for every angle and needs no ``arccos``. It
+    equals eq. 3's ``n . e / |e|`` with ``n`` the unit bisector normal. Points on a
+    circle, N per revolution, give ``theta = 2 pi / N`` and ``kappa = sin(pi / N)``.
+    """
+    x = smooth_positions(positions, fps=fps, smooth_s=smooth_s)
+    n_f, n_j = x.shape[:2]
+    kappa = np.zeros((n_f, n_j))
+    if n_f < 3:
+        return kappa
+    e = np.diff(x, axis=0)  # (F-1, J, 3)
+    length = np.sqrt(np.einsum("fjk,fjk->fj", e, e))  # (F-1, J)
+    moving = length >= rest_speed / fps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = e / np.where(moving, length, 1.0)[..., None]
+    dt = t[1:] - t[:-1]  # (F-2, J, 3)
+    chord = np.sqrt(np.einsum("fjk,fjk->fj", dt, dt))
+    kappa[1:-1] = np.where(moving[1:] & moving[:-1], 0.5 * chord, 0.0)
+    return kappa
+
+
+def rotation_change(local_rotations: np.ndarray) -> np.ndarray:
+    """Geodesic angle (radians) of each joint's rotation change from frame i to i + 1.
+
+    Parameters
+    ----------
+    local_rotations : ndarray of shape (F, J, 3, 3)
+
+    Returns
+    -------
+    ndarray of shape (F, J)
+        Row i is the angle between frames i and i + 1; the last row is 0.
+
+    Notes
+    -----
+    ``|R_i - R_{i+1}|_F = 2 sqrt(2) sin(theta / 2)`` for rotations, so
+    ``theta = 2 arcsin(|R_i - R_{i+1}|_F / (2 sqrt 2))``: accurate for the small
+    angles between frames, where ``arccos((trace - 1) / 2)`` loses half the digits.
+    """
+    r = np.asarray(local_rotations, dtype=float)
+    n_f, n_j = r.shape[:2]
+    out = np.zeros((n_f, n_j))
+    if n_f < 2:
+        return out
+    d = np.diff(r.reshape(n_f, n_j * 9), axis=0)
+    sq = (d * d).reshape(-1, 9) @ np.ones(9)  # row sums via BLAS, faster than sum(-1)
+    s = np.sqrt(sq.reshape(n_f - 1, n_j)) / (2.0 * math.sqrt(2.0))
+    out[:-1] = 2.0 * np.arcsin(np.minimum(s, 1.0))
+    return out
+
+
+def limb_lengths(skeleton) -> np.ndarray:
+    """Length (m) of the link from each joint to its child, the longest if several.
+
+    End sites and joints whose children all sit on them get 0: a joint without a
+    limb carries no weight in eq. 4.
+    """
+    lengths = np.linalg.norm(np.asarray(skeleton.offsets, dtype=float), axis=1)
+    parents = np.asarray(skeleton.parents)
+    out = np.zeros(len(parents))
+    has_parent = parents >= 0
+    np.maximum.at(out, parents[has_parent], lengths[has_parent])
+    return out
+
+
+def local_information(character, *, smooth_s: float = SMOOTH_S,
+                      rest_speed: float = REST_SPEED) -> np.ndarray:
+    """``p_i = sum_j l_j |dm_ji| kappa_ji`` of one character (eq. 4-5), shape (F,).
+
+    ``rest_speed`` is in m/s for the given positions (callers scale it by stature).
+    Joints without a limb (``l_j = 0``) are skipped: they add exactly 0.
+    """
+    ell = limb_lengths(character.skeleton)
+    joints = np.flatnonzero(ell > 0)
+    if joints.size == 0 or character.n_frames < 3:
+        return np.zeros(character.n_frames)
+    kappa = joint_curvature(character.positions[:, joints], fps=character.fps,
+                            smooth_s=smooth_s, rest_speed=rest_speed)
+    dm = rotation_change(character.local_rotations[:, joints])
+    return (kappa * dm) @ ell[joints]
+
+
+def local_entropy(information: np.ndarray) -> np.ndarray:
+    """``-p log2 p`` of the per-frame information normalised to sum 1 (eq. 5).
+
+    Returns zeros (not NaN) when the information is 0 everywhere; the caller warns.
+    """
+    p = np.asarray(information, dtype=float)
+    total = p.sum()
+    if not total > 0:
+        return np.zeros_like(p)
+    p = p / total
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(p > 0, -p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+
+
+# ----------------------------------------------------------------------- global term
+
+
+def global_entropy(active: np.ndarray, joints, starts, ends, *, mode: str = "transitions"
+                   ) -> np.ndarray:
+    """Event entropy of one character per frame (eq. 6-7), shape (F,).
+
+    Parameters
+    ----------
+    active : ndarray of bool, shape (F, J)
+        Joint in any interaction at that frame.
+    joints, starts, ends : array-like of int
+        The character's interactions (internal frames, ``ends`` inclusive).
+    mode : {"transitions", "state"}
+        ``"transitions"``: joint j has an event at frame i when one of its
+        interactions starts or ends there (onset at ``start``, release at ``end``;
+        an interaction already running at the first frame or still running at the
+        last has no onset or release there: the clip cut it, nothing happened).
+        ``"state"``: while any of its interactions holds.
+
+    Notes
+    -----
+    ``p_j = N_interaction(j) / F`` counts the frames joint j interacts with anything
+    (eq. 6); ``H(i) = -sum_{j with an event at i} p_j log2 p_j`` (eq. 7), each
+    joint counted once per frame.
+    """
+    if mode not in EVENT_MODES:
+        raise ValueError(f"mode must be one of {', '.join(EVENT_MODES)}, got {mode!r}")
+    active = np.asarray(active, dtype=bool)
+    n_f, n_j = active.shape
+    p = active.sum(axis=0) / max(n_f, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = np.where(p > 0, -p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+    if mode == "state":
+        return active.astype(float) @ h
+    joints = np.asarray(joints, dtype=np.int64)
+    starts = np.asarray(starts, dtype=np.int64)
+    ends = np.asarray(ends, dtype=np.int64)
+    mark = np.zeros((n_f, n_j), dtype=bool)
+    on = starts > 0
+    mark[starts[on], joints[on]] = True
+    off = ends < n_f - 1
+    mark[ends[off], joints[off]] = True
+    return mark.astype(float) @ h
+
+
+# ----------------------------------------------------------------------- combination
+
+
+def minmax(values: np.ndarray, *, name: str = "values") -> np.ndarray:
+    """Min-max normalise to [0, 1] (eq. 9); a constant array becomes 0 with a warning."""
+    v = np.asarray(values, dtype=float)
+    if v.size == 0:
+        return v.copy()
+    lo, hi = float(v.min()), float(v.max())
+    if not hi > lo:
+        warnings.warn(f"{name} is constant over the clip ({lo:g}); it contributes 0",
+                      stacklevel=3)
+        return np.zeros_like(v)
+    return (v - lo) / (hi - lo)
+
+
+def top_peaks(values: np.ndarray, k: int, *, min_separation: int) -> list[int]:
+    """Indices of the ``k`` highest distinct peaks, best first.
+
+    Candidates are local maxima (not lower than either neighbour); taken in
+    decreasing value (ties: earlier first), each suppresses every candidate closer
+    than ``min_separation`` frames. Fewer than ``k`` come back when the clip has
+    fewer distinct peaks.
+    """
+    v = np.asarray(values, dtype=float)
+    n = v.size
+    if n == 0 or k < 1:
+        return []
+    left = np.r_[True, v[1:] >= v[:-1]]
+    right = np.r_[v[:-1] >= v[1:], True]
+    cand = np.flatnonzero(left & right)
+    order = cand[np.lexsort((cand, -v[cand]))]
+    chosen: list[int] = []
+    sep = max(int(min_separation), 1)
+    for i in order.tolist():
+        if all(abs(i - c) >= sep for c in chosen):
+            chosen.append(i)
+            if len(chosen) == k:
+                break
+    return chosen
+
+
+def _rest_speed_for(scene, rest_speed: float) -> float:
+    h = float(np.mean([c.height for c in scene.characters]))
+    return rest_speed * (h / _REFERENCE_STATURE if np.isfinite(h) and h > 0 else 1.0)
+
+
+def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
+                 events: str = "transitions", smooth_s: float = SMOOTH_S,
+                 rest_speed: float = REST_SPEED,
+                 tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+                 interactions: Interactions | None = None) -> PoseEntropy:
+    """Pose entropy of every frame of ``scene``.
+
+    Parameters
+    ----------
+    scene : Scene
+    w_local, w_global : float
+        Weights of the normalised terms (eq. 9), both 1 by default.
+    events : {"transitions", "state"}
+        What counts as an event in the global term (:func:`global_entropy`).
+    smooth_s : float
+        Savitzky-Golay window (s) for the trajectories; 0 for none.
+    rest_speed : float
+        Rest threshold (m/s) for a 1.70 m person, scaled by the scene's mean stature
+        so the result does not depend on the unit.
+    tolerances : ContactTolerances
+        For :func:`snapcore.contacts.detect_interactions`.
+    interactions : Interactions, optional
+        Precomputed events (skips detection).
+
+    Returns
+    -------
+    PoseEntropy
+
+    Warns
+    -----
+    UserWarning
+        When a term is constant over the clip (no motion along curves, no events):
+        it is set to 0 rather than NaN.
+    """
+    if events not in EVENT_MODES:
+        raise ValueError(f"events must be one of {', '.join(EVENT_MODES)}, got {events!r}")
+    for name, w in (("w_local", w_local), ("w_global", w_global)):
+        if not (np.isfinite(w) and w >= 0):
+            raise ValueError(f"{name} must be a non-negative number, got {w}")
+    timings = {}
+    t0 = time.perf_counter()
+    if interactions is None:
+        interactions = detect_interactions(scene, tolerances=tolerances)
+    t1 = time.perf_counter()
+    timings["contacts"] = t1 - t0
+    n_c, n_f = scene.n_characters, scene.n_frames
+    rest = _rest_speed_for(scene, rest_speed)
+    info = np.zeros((n_c, n_f))
+    h_local = np.zeros((n_c, n_f))
+    for ci, c in enumerate(scene.characters):
+        info[ci] = local_information(c, smooth_s=smooth_s, rest_speed=rest)
+        h_local[ci] = local_entropy(info[ci])
+    t2 = time.perf_counter()
+    timings["local"] = t2 - t1
+    h_global = np.zeros((n_c, n_f))
+    by_char: list[list] = [[] for _ in range(n_c)]
+    for e in interactions.events:
+        by_char[e.character].append((e.joint, e.start, e.end))
+    for ci in range(n_c):
+        arr = np.array(by_char[ci], dtype=np.int64).reshape(-1, 3)
+        h_global[ci] = global_entropy(interactions.active[ci], arr[:, 0], arr[:, 1], arr[:, 2],
+                                      mode=events)
+    timings["global"] = time.perf_counter() - t2
+    if not info.any():
+        warnings.warn("no joint moves along a curve (static clip?): the local term is 0",
+                      stacklevel=2)
+    local = minmax(h_local.sum(axis=0), name="local pose entropy")
+    glob = minmax(h_global.sum(axis=0), name="global pose entropy (interaction events)")
+    total = w_local * local + w_global * glob
+    return PoseEntropy(local=local, global_=glob, total=total, local_by_character=h_local,
+                       global_by_character=h_global, information=info,
+                       interactions=interactions, weights=(float(w_local), float(w_global)),
+                       events_mode=events, fps=float(scene.fps), timings_s=timings)
+
+
+def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
+                **options) -> PoseSelection:
+    """The most informative pose of ``scene`` and the top-k distinct runners-up.
+
+    Parameters
+    ----------
+    scene : Scene
+    k : int
+        How many distinct peaks to return (at least 1).
+    min_separation_s : float
+        Minimum time (s) between two returned poses.
+    **options
+        Passed to :func:`pose_entropy` (``w_local``, ``w_global``, ``events``,
+        ``smooth_s``, ``rest_speed``, ``tolerances``, ``interactions``).
+
+    Returns
+    -------
+    PoseSelection
+        Frames are internal indices; report ``scene.source_frame(frame)``.
+
+    Warns
+    -----
+    UserWarning
+        When the total entropy is constant (e.g. a static clip): the first frame is
+        returned, a defined but arbitrary choice.
+    """
+    if int(k) != k or k < 1:
+        raise ValueError(f"k must be a positive integer, got {k}")
+    if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
+        raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
+    t0 = time.perf_counter()
+    entropy = pose_entropy(scene, **options)
+    t1 = time.perf_counter()
+    total = entropy.total
+    constant = not float(total.max()) > float(total.min())
+    sep = int(round(min_separation_s * scene.fps))
+    frames = top_peaks(total, int(k), min_separation=sep)
+    if constant:
+        warnings.warn("pose entropy is the same at every frame (static clip?); "
+                      "choosing the first frame", stacklevel=2)
+    t2 = time.perf_counter()
+    timings = dict(entropy.timings_s)
+    timings["select"] = t2 - t1
+    timings["total"] = t2 - t0
+    return PoseSelection(frame=int(frames[0]), frames=[int(f) for f in frames],
+                         entropy=entropy, min_separation_s=float(min_separation_s),
+                         timings_s=timings)
