@@ -216,7 +216,8 @@ def power_table(differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40), *, third
     -------
     DataFrame
         ``difference``, ``p_ours``, ``p_baseline``, ``p_third``, ``comparisons``,
-        ``level`` (α / comparisons), ``n_first``, ``n_stable``, ``power_at_n``.
+        ``level`` (α / comparisons), ``n_first``, ``n_stable``, ``power_at_n``, ``note``
+        (``"more than <n_max>"`` when the target is not reached).
     """
     rows = []
     for d in differences:
@@ -225,7 +226,8 @@ def power_table(differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40), *, third
             r = sample_size(po, pb, alpha=alpha, power=power, comparisons=c, n_max=n_max)
             rows.append({"difference": d, "p_ours": po, "p_baseline": pb, "p_third": third,
                          "comparisons": c, "level": alpha / c, "n_first": r["n_first"],
-                         "n_stable": r["n_stable"], "power_at_n": r["power_at_n"]})
+                         "n_stable": r["n_stable"], "power_at_n": r["power_at_n"],
+                         "note": "" if r["n_stable"] is not None else f"more than {n_max}"})
     out = pd.DataFrame(rows)
     for c in ("n_first", "n_stable"):
         out[c] = out[c].astype("Int64")

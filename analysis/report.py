@@ -147,7 +147,8 @@ def _img(path: Path) -> str:
     return f'<img alt="{html.escape(Path(path).stem)}" src="data:image/png;base64,{data}">'
 
 
-def html_report(sections: list, path, *, title: str, meta: str = "") -> Path:
+def html_report(sections: list, path, *, title: str, meta: str = "",
+                labels: dict | None = None) -> Path:
     """Write a one-page self-contained HTML report.
 
     Parameters
@@ -155,7 +156,10 @@ def html_report(sections: list, path, *, title: str, meta: str = "") -> Path:
     sections : list of (str, list)
         ``(heading, items)``; an item is a DataFrame (a table), a Path to a PNG (embedded
         as base64), or a str (HTML paragraph text; escaped unless it starts with ``<``).
+    labels : dict, optional
+        Scene id → display name, applied to a ``scene`` column of every table.
     """
+    labels = labels or {}
     parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
              f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
              f"<h1>{html.escape(title)}</h1>"]
@@ -165,7 +169,10 @@ def html_report(sections: list, path, *, title: str, meta: str = "") -> Path:
         parts.append(f"<h2>{html.escape(heading)}</h2>")
         for item in items:
             if isinstance(item, pd.DataFrame):
-                parts.append(format_table(item).to_html(index=False, border=0, escape=True))
+                shown = item.copy()
+                if "scene" in shown:
+                    shown["scene"] = shown["scene"].map(lambda v: labels.get(v, v))
+                parts.append(format_table(shown).to_html(index=False, border=0, escape=True))
             elif isinstance(item, Path):
                 parts.append(_img(item))
             else:
@@ -180,6 +187,63 @@ def html_report(sections: list, path, *, title: str, meta: str = "") -> Path:
 # ----------------------------------------------------------------- the analyses
 
 
+def _ci(v, lo, hi) -> str:
+    return f"{v:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def _compact_pairwise(pair: pd.DataFrame) -> pd.DataFrame:
+    """The pairwise table narrowed for the page (the CSV keeps every column)."""
+    return pd.DataFrame({
+        "scene": pair["scene"], "baseline": pair["baseline"],
+        "votes ours : baseline": [f"{a} : {b}" for a, b in
+                                  zip(pair["reference_votes"], pair["baseline_votes"], strict=True)],
+        "share of ours [95% CP]": [_ci(v, lo, hi) for v, lo, hi in
+                                   zip(pair["share_reference"], pair["ci_low"], pair["ci_high"],
+                                       strict=True)],
+        "p_value": pair["p_value"], "p_holm": pair["p_holm"], "verdict": pair["verdict"]})
+
+
+def _pct(v, lo=None, hi=None) -> str:
+    if lo is None or (isinstance(lo, float) and math.isnan(lo)):
+        return f"{100 * v:.0f}%"
+    return f"{100 * v:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
+def _compact_hits(hits: pd.DataFrame, tolerances=fr.TOLERANCES_S) -> pd.DataFrame:
+    """Hit rates for the page: one ``rate [low, high]`` cell per tolerance."""
+    out = pd.DataFrame({"scene": hits["scene"], "predictor": hits["predictor"],
+                        "frame": hits["predicted_frame"],
+                        "mean |Δ| s": hits["mean_abs_error_s"],
+                        "median |Δ| s": hits["median_abs_error_s"]})
+    for t in tolerances:
+        c = f"hit_{t:g}s"
+        out[f"within ±{t:g} s"] = [_pct(v, lo, hi) for v, lo, hi in
+                                   zip(hits[c], hits[c + "_low"], hits[c + "_high"], strict=True)]
+    return out
+
+
+def _compact_tests(tests: pd.DataFrame) -> pd.DataFrame:
+    """Permutation tests for the page."""
+    return pd.DataFrame({"scene": tests["scene"], "baseline": tests["baseline"],
+                         "mean |Δ| algorithm s": tests["algorithm_mean_abs_s"],
+                         "mean |Δ| baseline s": tests["baseline_mean_abs_s"],
+                         "p_value": tests["p_value"], "p_holm": tests["p_holm"],
+                         "algorithm closer": tests["significant"],
+                         "test": tests["method"] + np.where(tests["note"] != "",
+                                                            " (" + tests["note"] + ")", "")})
+
+
+def _compact_strengths(strengths: pd.DataFrame) -> pd.DataFrame:
+    """Strengths as scenes × methods, each cell ``value [low, high]``."""
+    cell = strengths.assign(text=[_ci(v, lo, hi) for v, lo, hi in
+                                  zip(strengths["strength"], strengths["ci_low"],
+                                      strengths["ci_high"], strict=True)])
+    wide = cell.pivot(index="scene", columns="method", values="text")
+    wide = wide.loc[list(dict.fromkeys(strengths["scene"])), list(dict.fromkeys(strengths["method"]))]
+    wide.columns.name = None
+    return wide.reset_index()
+
+
 def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     """Every vote table and figure; returns (html sections, summary dict)."""
     from .plots import plot_strengths, plot_votes, save_figure
@@ -189,7 +253,7 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     chi = vt.chisquare_no_preference(counts, alpha=alpha)
     pair = vt.ours_vs_baselines(counts, alpha=alpha)
     choices = vt.choices_from_counts(counts) if choices is None else choices
-    strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed)
+    strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed, order=list(counts.index))
     kappa = vt.fleiss_kappa(counts)
     claims = vt.claim_summary(pair, alpha=alpha, labels=labels)
     write_table(table, tables / "votes",
@@ -213,8 +277,9 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
          [wide.reset_index(drop=True), f_votes]
          + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims]),
         ("No preference? Chi-square per scene", [chi]),
-        ("Ours vs each baseline (exact binomial, Holm)", [pair]),
-        ("Method strengths (Luce model)", [strengths, f_str]),
+        ("Ours vs each baseline (exact binomial, Holm)", [_compact_pairwise(pair)]),
+        ("Method strengths (Luce model: probability of being chosen, 95% bootstrap CI)",
+         [_compact_strengths(strengths), f_str]),
         ("Agreement", [f"Fleiss' kappa over {int(k['n_items'])} scenes = {k['kappa']:.3f} "
                        f"(chance-corrected agreement on the best view; 0 = chance, 1 = all "
                        f"agree); z = {k['z']:.2f}, one-sided p = {_fmt('p_value', k['p_value'])}."]),
@@ -263,7 +328,7 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
             if missing else "")
     sections = [("Poses: which frame do people pick? (Fig. 13)",
                  [f_hist, *lines, f"<div class='claim'>{html.escape(verdict)}</div>",
-                  hits, tests, f_err] + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []))]
+                  _compact_hits(hits), _compact_tests(tests), f_err] + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []))]
     summary = {"frames": algo[["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s",
                                "hit_1s"]].to_dict(orient="records"),
                "frame_verdict": verdict}
@@ -301,7 +366,7 @@ def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
     sections.append(("Methods", [_METHODS_TEXT]))
     meta = (f"{html.escape(source)} · {int(counts.to_numpy().sum())} votes over "
             f"{len(counts)} scenes · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
-    html_report(sections, out / "report.html", title=title, meta=meta)
+    html_report(sections, out / "report.html", title=title, meta=meta, labels=labels)
     summary["source"] = source
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
     return summary
@@ -386,7 +451,7 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
             + f" · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
     study = ", ".join(sorted(df["study_id"].dropna().unique()))
     html_report(sections, out / "report.html", title=title or f"Action Snapshot study: {study}",
-                meta=meta)
+                meta=meta, labels=labels)
     summary.update({"source": _source_name(source), "participants": int(df["participant_id"].nunique()),
                     "simulated_participants": n_sim, "responses": len(df),
                     "failed_attention": len(failed)})

@@ -373,7 +373,7 @@ def _fit_shares(n_items, data, alpha, initial=None):
 
 def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000,
                    seed: int = 0, confidence: float = 0.95, pooled: bool = True,
-                   luce_alpha: float = LUCE_ALPHA) -> pd.DataFrame:
+                   luce_alpha: float = LUCE_ALPHA, order=None) -> pd.DataFrame:
     """Luce (Plackett–Luce top-1 / Bradley–Terry) method strengths with bootstrap CIs.
 
     Parameters
@@ -389,6 +389,8 @@ def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000
     pooled : bool
         Add rows for scene ``"all"``: one model over every scene's choices (bootstrap
         stratified by scene).
+    order : sequence of str, optional
+        Preferred scene order (:func:`analysis.load.ordered_scenes`).
 
     Returns
     -------
@@ -412,7 +414,7 @@ def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000
              for s in shown_col]
     chosen = list(choices["chosen_method"])
     scenes = list(choices["scene"])
-    groups = {s: [i for i, t in enumerate(scenes) if t == s] for s in dict.fromkeys(scenes)}
+    groups = {s: [i for i, t in enumerate(scenes) if t == s] for s in ordered_scenes(scenes, order)}
     data_all = _top1_data(chosen, shown, index)
     q = (1 - confidence) / 2
     rows = []

@@ -1,0 +1,314 @@
+"""The paper's figures and tables, regenerated (``snapshot figures``).
+
+Each figure is made from the paper-analogue clips of the motion data folder
+(``analysis/data/paper_analogues.csv``: which clip stands in for which of the paper's
+animations) by the snapcore modules that own the method:
+
+========  ============================================================================
+fig5      pose entropy over each clip, the selected frames marked (Fig. 5);
+          ``snapcore.entropy_plot``
+fig6      local and global pose entropy of the dance (Fig. 6); ``snapcore.entropy_plot``
+fig8-10   the selected pose from ours / viewpoint entropy / motion area (Fig. 8–10);
+          ``snapcore.render.compare_views``
+fig11     reliefs of the dance pose from the three views (Fig. 11);
+          ``snapcore.relief_scene.relief_comparison_figure``
+fig13     chosen-frame histograms (Fig. 13) from study responses, or — labelled as
+          such — from simulated participants on the paper's design
+table1    our pose / view selection times beside the paper's (Table 1), measured by
+          running ``snapcore.snapshot.take_snapshot`` on the clips
+table2    the paper's votes with our statistics (Table 2)
+========  ============================================================================
+
+A figure whose ingredients are missing (no motion data, a snapcore module absent) is
+skipped with a one-line reason; the rest are still made (:func:`make_figures`).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from snapcore.errors import SnapshotError
+
+__all__ = ["FIGURES", "FigureUnavailable", "paper_analogues", "load_analogue", "paper_table1",
+           "make_figures", "measure_table1"]
+
+#: Every figure/table ``snapshot figures`` can make, in the order it makes them.
+FIGURES = ("table2", "fig13", "table1", "fig5", "fig6", "fig8-10", "fig11")
+#: The clip the single-scene figures (Fig. 6, Fig. 11) use, like the paper's dancer.
+FEATURE_SCENE = "dancing"
+
+
+class FigureUnavailable(SnapshotError):
+    """A figure cannot be made here (missing data or module); the message says why."""
+
+
+def paper_analogues() -> pd.DataFrame:
+    """Which motion clip stands in for which paper animation (package data).
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``files`` (list of paths relative to the motion data folder),
+        ``fps`` (override or NaN), ``note``.
+    """
+    with (files("analysis") / "data" / "paper_analogues.csv").open("r", encoding="utf-8") as fh:
+        t = pd.read_csv(fh)
+    t["files"] = t["files"].str.split(";")
+    return t
+
+
+def paper_table1() -> pd.DataFrame:
+    """The paper's Table 1 (package data): faces, frames, joints, seconds per step."""
+    with (files("analysis") / "data" / "paper_table1.csv").open("r", encoding="utf-8") as fh:
+        return pd.read_csv(fh)
+
+
+def load_analogue(scene_id: str, *, data_dir=None):
+    """Load the paper-analogue clip of ``scene_id`` as a :class:`snapcore.Scene`."""
+    from snapcore import data_dir as find_data
+    from snapcore import load_scene
+
+    base = Path(data_dir) if data_dir is not None else find_data()
+    if base is None:
+        raise FigureUnavailable("no motion data folder (set SNAPSHOT_DATA)")
+    t = paper_analogues().set_index("scene")
+    if scene_id not in t.index:
+        raise FigureUnavailable(f"no analogue clip for '{scene_id}'")
+    row = t.loc[scene_id]
+    paths = [base / f for f in row["files"]]
+    missing = [str(p) for p in paths if not p.exists()]
+    if missing:
+        raise FigureUnavailable(f"motion file(s) missing: {', '.join(missing)}")
+    fps = None if pd.isna(row["fps"]) else float(row["fps"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # unit fitting of the salsa files warns, as documented
+        return load_scene(paths, fps=fps, name=scene_id)
+
+
+@dataclass
+class _Context:
+    """What several figures share: loaded clips and their snapshots (computed once)."""
+
+    out: Path
+    source: object = None
+    include_simulated: bool = False
+    repeats: int = 3
+    progress: bool = True
+    data_dir: object = None
+    scenes: dict = field(default_factory=dict)
+    snapshots: dict = field(default_factory=dict)
+
+    def scene(self, sid):
+        if sid not in self.scenes:
+            self.scenes[sid] = load_analogue(sid, data_dir=self.data_dir)
+        return self.scenes[sid]
+
+    def snapshot(self, sid):
+        if sid not in self.snapshots:
+            take = _require("snapcore.snapshot", "take_snapshot")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                self.snapshots[sid] = take(self.scene(sid))
+        return self.snapshots[sid]
+
+    def log(self, text):
+        if self.progress:
+            import click
+
+            click.echo(text, err=True)
+
+
+def _require(module: str, name: str):
+    """``module.name``, or :class:`FigureUnavailable` saying which piece is missing."""
+    import importlib
+
+    try:
+        mod = importlib.import_module(module)
+    except ImportError as err:
+        raise FigureUnavailable(f"{module} is not available ({err})") from None
+    fn = getattr(mod, name, None)
+    if fn is None:
+        raise FigureUnavailable(f"{module}.{name} does not exist (yet)")
+    return fn
+
+
+def _labels() -> dict:
+    from .votes import paper_table2
+
+    t = paper_table2()
+    return dict(zip(t["scene"], t["scene_label"], strict=True))
+
+
+# ----------------------------------------------------------------- the figures
+
+
+def _table2(ctx: _Context) -> list[Path]:
+    from .plots import plot_votes, save_figure
+    from .report import write_table
+    from .votes import ours_vs_baselines, paper_counts, vote_table
+
+    counts = paper_counts()
+    labels = _labels()
+    table = vote_table(counts)
+    pair = ours_vs_baselines(counts)
+    wide = counts.copy()
+    wide.insert(0, "animation", [labels[s] for s in counts.index])
+    paths = write_table(wide.reset_index(drop=True), ctx.out / "table2",
+                        caption="The paper's Table 2: votes of 100 participants per view.")
+    paths += write_table(pair, ctx.out / "table2_pairwise",
+                         caption="Ours vs each baseline on the paper's counts: exact binomial, "
+                                 "Holm-adjusted.")
+    paths += save_figure(plot_votes(table, pairwise=pair, labels=labels,
+                                    title="The paper's Table 2 (100 participants per animation)"),
+                         ctx.out / "table2_votes")
+    return paths
+
+
+def _fig13(ctx: _Context) -> list[Path]:
+    from . import frames as fr
+    from .load import load_responses, pose_choices
+    from .plots import plot_frame_histograms, save_figure
+
+    labels = _labels()
+    if ctx.source is not None:
+        df = load_responses(ctx.source, include_simulated=ctx.include_simulated)
+        title = None
+    else:
+        from .simulate import paper_design, simulate_participants, simulated_rows
+
+        design = paper_design()
+        df = load_responses(simulated_rows(simulate_participants(design, 100, seed=0)),
+                            include_simulated=True)
+        title = ("SIMULATED participants (100, observer model of analysis.simulate on the "
+                 "paper's design) — not study data")
+    pose = pose_choices(df)
+    if pose.empty:
+        raise FigureUnavailable("no pose-task responses")
+    scenes = fr.scene_frames_from_rows(
+        pose, extra={s: {"label": labels.get(s)} for s in pose["scene"].unique()})
+    fig = plot_frame_histograms(pose, scenes)
+    if title:
+        fig.suptitle(title + "\n▼ = the algorithm's pick", fontsize=9, color="#B00000")
+    return save_figure(fig, ctx.out / "fig13_frame_histograms")
+
+
+def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
+                   scenes=None) -> pd.DataFrame:
+    """Time our pose and view selection on the paper-analogue clips (Table 1).
+
+    Runs ``snapcore.snapshot.take_snapshot`` ``repeats`` times per clip and takes the
+    median of each step's time from its ``timings_s``.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``clip``, ``frames``, ``joints`` (all characters), ``ours_pose_s``,
+        ``ours_view_s``, ``paper_frames``, ``paper_joints``, ``paper_pose_s``,
+        ``paper_view_s``, ``note``.
+    """
+    take = _require("snapcore.snapshot", "take_snapshot")
+    paper = paper_table1().set_index("scene")
+    analogues = paper_analogues().set_index("scene")
+    rows = []
+    for sid in scenes or list(analogues.index):
+        sc = load_analogue(sid, data_dir=data_dir)
+        pose_t, view_t = [], []
+        for _ in range(repeats):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                snap = take(sc)
+            t = _timings(snap)
+            pose_t.append(t.get("pose", np.nan))
+            view_t.append(t.get("view", np.nan))
+        p = paper.loc[sid] if sid in paper.index else None
+        rows.append({"scene": sid, "clip": "; ".join(analogues.loc[sid, "files"]),
+                     "frames": sc.n_frames, "joints": sum(c.n_joints for c in sc.characters),
+                     "ours_pose_s": float(np.nanmedian(pose_t)),
+                     "ours_view_s": float(np.nanmedian(view_t)),
+                     "paper_frames": None if p is None else int(p["frames"]),
+                     "paper_joints": None if p is None else int(p["joints"]),
+                     "paper_pose_s": None if p is None else float(p["pose_selection_s"]),
+                     "paper_view_s": None if p is None else float(p["viewpoint_selection_s"]),
+                     "note": analogues.loc[sid, "note"]})
+        if progress:
+            import click
+
+            click.echo(f"table1: {sid}: pose {rows[-1]['ours_pose_s']:.3f} s, "
+                       f"view {rows[-1]['ours_view_s']:.3f} s", err=True)
+    return pd.DataFrame(rows)
+
+
+def _timings(snap) -> dict:
+    """Pose and view seconds from a snapshot's ``timings_s`` (dict or attribute)."""
+    t = snap.get("timings_s") if isinstance(snap, dict) else getattr(snap, "timings_s", None)
+    t = dict(t or {})
+    pose = sum(v for k, v in t.items() if k.startswith("pose") or k in ("contacts", "entropy"))
+    view = sum(v for k, v in t.items() if k.startswith("view"))
+    return {"pose": pose if pose else np.nan, "view": view if view else np.nan}
+
+
+def _table1(ctx: _Context) -> list[Path]:
+    from .report import write_table
+
+    t = measure_table1(repeats=ctx.repeats, data_dir=ctx.data_dir, progress=ctx.progress)
+    return write_table(t, ctx.out / "table1",
+                       caption="Selection time, seconds: ours (this machine, median of "
+                               f"{ctx.repeats} runs) beside the paper's (Xeon W3680). Clips "
+                               "are analogues of the paper's animations, not the same data.")
+
+
+def _figure_paths(fig, stem) -> list[Path]:
+    from .plots import save_figure
+
+    return save_figure(fig, stem)
+
+
+def _fig5(ctx: _Context) -> list[Path]:
+    raise FigureUnavailable("waiting for snapcore.entropy_plot")
+
+
+def _fig6(ctx: _Context) -> list[Path]:
+    raise FigureUnavailable("waiting for snapcore.entropy_plot")
+
+
+def _fig8_10(ctx: _Context) -> list[Path]:
+    raise FigureUnavailable("waiting for snapcore.render.compare_views")
+
+
+def _fig11(ctx: _Context) -> list[Path]:
+    raise FigureUnavailable("waiting for snapcore.snapshot.take_snapshot")
+
+
+_MAKERS = {"table2": _table2, "fig13": _fig13, "table1": _table1, "fig5": _fig5,
+           "fig6": _fig6, "fig8-10": _fig8_10, "fig11": _fig11}
+
+
+def make_figures(out_dir, *, names=FIGURES, source=None, include_simulated: bool = False,
+                 repeats: int = 3, progress: bool = True, data_dir=None) -> dict:
+    """Make the named figures in ``out_dir``.
+
+    Returns
+    -------
+    dict
+        name → ``(paths, reason)``: the files written, or ``[]`` and why it was skipped.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = _Context(out=out, source=source, include_simulated=include_simulated,
+                   repeats=repeats, progress=progress, data_dir=data_dir)
+    results = {}
+    for name in names:
+        t0 = time.perf_counter()
+        try:
+            results[name] = (_MAKERS[name](ctx), "")
+            ctx.log(f"{name}: done in {time.perf_counter() - t0:.1f} s")
+        except FigureUnavailable as err:
+            results[name] = ([], str(err))
+    return results
