@@ -309,8 +309,8 @@ class ParticipantSession:
         return self._record(row)
 
     def _record_events(self, trial_index: int, events, *, n_video_frames: int) -> int:
-        """Store the picker's interaction log (malformed entries are skipped)."""
-        n = 0
+        """Store the picker's interaction log in one transaction (malformed entries skipped)."""
+        items = []
         for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
             if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
                 continue
@@ -322,9 +322,10 @@ class ParticipantSession:
                 f = ev.get(key)
                 if isinstance(f, int) and not isinstance(f, bool) and 0 <= f < n_video_frames:
                     payload[key] = f
-            self.store.record_event(self.participant_id, trial_index, ev["kind"], payload)
-            n += 1
-        return n
+            if ev.get("by") in (-1, 1) and not isinstance(ev.get("by"), bool):
+                payload["by"] = ev["by"]
+            items.append((ev["kind"], payload))
+        return self.store.record_events(self.participant_id, trial_index, items) if items else 0
 
     def finish(self) -> str:
         """Mark the participant complete; return the completion code (idempotent)."""

@@ -382,20 +382,21 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     dict
         ``{method: {"file": Path, "direction": [x, y, z]}}`` for :data:`METHODS`.
     """
-    from snapcore.render import render_still
+    from snapcore.render import SceneRenderer, render_still, save_png
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     directions = {"ours": picks["view"], "viewpoint_entropy": picks["viewpoint_entropy"],
                   "motion_area": picks["motion_area"]}
     frame = int(picks["frame"]) - scene.frame_offset
-    # One framing for all three: fit the camera to the whole pose from every direction
-    # alike, so a view never wins by being bigger (the render module frames the pose
-    # over the union of the directions when given them).
+    # Same size and the same framing rule for all three (the pose fitted tightly with
+    # the same margin from each direction), so no view wins by being bigger.
+    renderer = SceneRenderer(scene, size=size)
     views = {}
     for m in METHODS:
         p = out / f"view_{m}.png"
-        render_still(scene, frame, directions[m], p, size=size)
+        save_png(render_still(scene, frame, directions[m], size=size, fit="frame",
+                              renderer=renderer), p)
         views[m] = {"file": p, "direction": directions[m]}
     return views
 

@@ -1,0 +1,345 @@
+"""End to end in a real browser: `snapshot study` on a free port, headless Chromium clicks.
+
+One participant goes through every page like a person (including the frame picker's
+play/pause/step buttons), reloads in the middle and resumes; then the database is
+checked row by row. Tampering (unknown id, out-of-range frame, forged method label) is
+done the way a participant could — through the URL or the page's DOM — and must store
+nothing. A screenshot of every page goes to ``var/test-artifacts/e2e/``.
+
+Needs Chromium (/usr/bin/chromium) and Playwright for Python (never `playwright install`).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+from app_helpers import write_fixture_stimuli
+from conftest import need
+
+from study_app.protocol import trial_plan
+from study_app.store import Store
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run",
+                 "--disable-quic"]
+REPO = Path(__file__).resolve().parents[1]
+SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
+ARTIFACTS = REPO / "var" / "test-artifacts" / "e2e"
+TOKEN = "e2e-researcher-token"
+#: Seconds to wait for the server to answer /_stcore/health.
+SERVER_START_S = 90
+#: Streamlit marks the app root with the script state; "notRunning" = the page is settled.
+IDLE = "[data-testid=stApp][data-test-script-state=notRunning]"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def playwright_api():
+    sync = pytest.importorskip("playwright.sync_api")
+    need(os.path.exists(CHROMIUM), f"no Chromium at {CHROMIUM}")
+    return sync
+
+
+@pytest.fixture(scope="module")
+def artifacts():
+    if ARTIFACTS.exists():
+        shutil.rmtree(ARTIFACTS)
+    ARTIFACTS.mkdir(parents=True)
+    return ARTIFACTS
+
+
+@pytest.fixture(scope="module")
+def stimuli_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("e2e") / "stimuli"
+    write_fixture_stimuli(d)
+    return d
+
+
+@pytest.fixture(scope="module")
+def server(stimuli_dir, tmp_path_factory, playwright_api):
+    """`snapshot study` serving the stimuli on a free port; yields (base url, store)."""
+    db = f"sqlite:///{tmp_path_factory.mktemp('e2e-db') / 'study.db'}"
+    port = free_port()
+    env = {**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN}
+    log = open(tmp_path_factory.mktemp("e2e-log") / "server.log", "w+")  # noqa: SIM115
+    proc = subprocess.Popen([SNAPSHOT, "study", "--stimuli", str(stimuli_dir), "--db", db,
+                             "--port", str(port)], env=env, stdout=log, stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + SERVER_START_S
+    while True:
+        try:
+            with urllib.request.urlopen(f"{base}/_stcore/health", timeout=2) as r:
+                if r.read() == b"ok":
+                    break
+        except OSError:
+            pass
+        if proc.poll() is not None or time.monotonic() > deadline:
+            log.seek(0)
+            proc.kill()
+            pytest.fail(f"server did not start:\n{log.read()}")
+        time.sleep(0.25)
+    store = Store(db)
+    yield base, store
+    store.close()
+    proc.terminate()
+    try:
+        proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+    log.close()
+
+
+@pytest.fixture(scope="module")
+def browser(playwright_api):
+    with playwright_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def page(browser):
+    context = browser.new_context(viewport={"width": 1000, "height": 900})
+    pg = context.new_page()
+    pg.set_default_timeout(20_000)
+    yield pg
+    context.close()
+
+
+def settle(page) -> None:
+    """Wait until Streamlit has finished the current script run."""
+    page.wait_for_timeout(200)
+    page.wait_for_selector(IDLE, timeout=30_000)
+
+
+def shot(page, artifacts, name: str) -> None:
+    settle(page)
+    page.screenshot(path=str(artifacts / f"{name}.png"), full_page=True)
+
+
+def heading(page, text: str):
+    from playwright.sync_api import expect
+
+    h = page.get_by_role("heading", name=text)
+    expect(h).to_be_visible(timeout=30_000)
+    return h
+
+
+def agree_and_start(page) -> str:
+    from playwright.sync_api import expect
+
+    page.get_by_text("I have read the information").click()
+    start = page.get_by_role("button", name="Start the study")
+    expect(start).to_be_enabled()
+    start.click()
+    heading(page, "About you")
+    pid = re.search(r"[?&]pid=([A-Za-z0-9_-]+)", page.url)
+    assert pid, page.url
+    return pid.group(1)
+
+
+def answer_background(page) -> None:
+    settle(page)
+    page.get_by_role("combobox", name="Your age").click()
+    page.get_by_role("option", name="35–44").click()
+    page.get_by_text("Prefer not to say", exact=True).first.click()
+    page.get_by_text("Some (a course or a hobby)").click()
+
+
+def picker_ready(page):
+    page.wait_for_selector(".snap-picker[data-ready='1']", timeout=30_000)
+    return page.get_by_test_id("picker-frame")
+
+
+def shown_frame(page) -> int:
+    """The 0-based video frame the picker says is on screen ("Frame k / n" is 1-based)."""
+    m = re.match(r"Frame (\d+) / (\d+)", page.get_by_test_id("picker-frame").inner_text())
+    return int(m.group(1)) - 1
+
+
+def test_participant_session_in_browser(server, page, artifacts):
+    """A participant clicks through every page; the database holds exactly their answers."""
+    base, store = server
+    n_before = store.progress()["participants"]
+    page.goto(f"{base}/?PROLIFIC_PID=60a1b2c3d4e5f60718293a4b&STUDY_ID=st1&SESSION_ID=se1")
+    heading(page, "Fixture study")
+    shot(page, artifacts, "01-consent")
+    pid = agree_and_start(page)
+    answer_background(page)
+    shot(page, artifacts, "02-background")
+    page.get_by_role("button", name="Continue").click()
+    heading(page, "Animation 1 of 2")
+
+    part = store.get_participant(pid)
+    assert part["background"] == {"age_band": "35–44", "gender": "Prefer not to say",
+                                  "experience": "Some (a course or a hobby)"}
+    assert part["prolific_pid"] == "60a1b2c3d4e5f60718293a4b"
+    plan = trial_plan(["walk", "jump"], part["seed"])
+
+    # Pose task 1: play, pause, step forward three frames and back one, confirm.
+    picker_ready(page)
+    page.get_by_test_id("picker-play").click()
+    page.wait_for_timeout(400)
+    page.get_by_test_id("picker-play").click()  # pause
+    page.wait_for_timeout(200)
+    paused = shown_frame(page)
+    for _ in range(3):
+        page.get_by_test_id("picker-forward").click()
+    page.get_by_test_id("picker-back").click()
+    page.wait_for_timeout(300)
+    first = shown_frame(page)
+    assert first == min(paused + 2, 23)
+    shot(page, artifacts, "03-pose-task")
+    page.get_by_test_id("picker-confirm").click()
+    heading(page, "Animation 2 of 2")
+    assert store.answered_trials(pid) == {0}
+
+    # Reload in the middle: the same participant resumes at the first unanswered trial.
+    page.reload()
+    heading(page, "Animation 2 of 2")
+    picker_ready(page)
+    shot(page, artifacts, "04-pose-task-after-reload")
+
+    # Pose task 2: scrub to a frame with the slider, confirm.
+    scrub = page.get_by_test_id("picker-scrub")
+    scrub.fill("17")  # the range input's value (0-based frame)
+    page.wait_for_timeout(300)
+    second = shown_frame(page)
+    assert second == 17
+    page.get_by_test_id("picker-confirm").click()
+
+    # View tasks: pick position 2, then position 0.
+    heading(page, "Pictures 1 of 2")
+    page.wait_for_selector(".snap-view img", timeout=30_000)
+    shot(page, artifacts, "05-view-task")
+    page.get_by_test_id("view-choose-2").click()
+    heading(page, "Pictures 2 of 2")
+    page.wait_for_selector(".snap-view img", timeout=30_000)
+    page.get_by_test_id("view-choose-0").click()
+
+    heading(page, "One more question")
+    page.get_by_test_id("stRadioGroup").get_by_text("A purple circle").click()
+    shot(page, artifacts, "06-attention")
+    page.get_by_role("button", name="Continue").click()
+    heading(page, "Thank you!")
+    shot(page, artifacts, "07-done")
+    code = page.locator("[data-testid=stCode]").inner_text().strip()
+
+    rows = store.responses(pid)
+    assert [r["trial_index"] for r in rows] == [0, 1, 2, 3, 4]
+    assert [(r["task"], r["scene"]) for r in rows] == [(t.task, t.scene) for t in plan]
+    # the fixture video shows motion frame 2v at video frame v
+    assert (rows[0]["chosen_video_frame"], rows[0]["chosen_frame"]) == (first, 2 * first)
+    assert (rows[1]["chosen_video_frame"], rows[1]["chosen_frame"]) == (second, 2 * second)
+    assert (rows[2]["chosen_position"], rows[2]["chosen_method"]) == (2, plan[2].shown_order[2])
+    assert (rows[3]["chosen_position"], rows[3]["chosen_method"]) == (0, plan[3].shown_order[0])
+    assert rows[2]["shown_order"] == list(plan[2].shown_order)
+    assert rows[4]["chosen_value"] == "A purple circle" and rows[4]["correct"] is True
+    assert all(r["prolific_pid"] == "60a1b2c3d4e5f60718293a4b" for r in rows)
+    assert all(r["response_time_s"] > 0 for r in rows)
+    kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
+    assert kinds[:2] == ["play", "pause"] and kinds.count("step") == 4 and kinds[-1] == "select"
+    part = store.get_participant(pid)
+    assert part["completion_code"] == code and part["completed_at"] is not None
+    assert store.progress()["participants"] == n_before + 1
+
+
+def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
+    """Unknown id in the URL, an out-of-range frame and a forged label: message, no rows."""
+    base, store = server
+    n_before = store.progress()["participants"]
+    page.goto(f"{base}/?pid=AAAAAAAAAAAAAAAAAAAAAA")
+    heading(page, "This link does not work")
+    shot(page, artifacts, "08-unknown-participant")
+    assert "not known" in page.locator("[data-testid=stAlert]").inner_text()
+    assert store.progress()["participants"] == n_before
+
+    page.goto(f"{base}/")
+    pid = agree_and_start(page)
+    answer_background(page)
+    page.get_by_role("button", name="Continue").click()
+    heading(page, "Animation 1 of 2")
+    picker = page.locator(".snap-picker")
+    picker_ready(page)
+    # What a participant could do in the developer tools: send a frame past the end.
+    picker.evaluate("root => { root._snap.frame = 999; }")
+    page.get_by_test_id("picker-confirm").click()
+    alert = page.locator("[data-testid=stAlert]")
+    alert.wait_for()
+    assert "outside this video" in alert.inner_text()
+    shot(page, artifacts, "09-out-of-range-frame")
+    assert store.answered_trials(pid) == set() and store.events(pid) == []
+
+    for _ in range(2):  # honest answers to reach the view tasks
+        picker_ready(page)
+        page.get_by_test_id("picker-confirm").click()
+        page.wait_for_timeout(300)
+    heading(page, "Pictures 1 of 2")
+    page.wait_for_selector(".snap-view img")
+    seed = store.get_participant(pid)["seed"]
+    shown = trial_plan(["walk", "jump"], seed)[2].shown_order
+    forged = next(m for m in ("ours", "viewpoint_entropy", "motion_area") if m != shown[1])
+    page.locator(".snap-view").nth(1).evaluate(f"fig => {{ fig.dataset.method = '{forged}'; }}")
+    page.get_by_test_id("view-choose-1").click()
+    alert = page.locator("[data-testid=stAlert]")
+    alert.wait_for()
+    assert "does not match" in alert.inner_text()
+    shot(page, artifacts, "10-forged-label")
+    assert store.answered_trials(pid) == {0, 1}
+    assert store.progress()["participants"] == n_before + 1
+
+
+def test_researcher_page_needs_token(server, page, artifacts):
+    """Without the right token the researcher page shows no data; with it, live counts."""
+    base, store = server
+    page.goto(f"{base}/researcher")
+    heading(page, "Researcher")
+    settle(page)
+    assert page.locator("[data-testid=stMetric]").count() == 0
+    field = page.get_by_label("Access token")
+    field.fill("not-the-token")
+    field.press("Enter")
+    page.get_by_text("Wrong token.").wait_for()
+    assert page.locator("[data-testid=stMetric]").count() == 0
+    shot(page, artifacts, "11-researcher-locked")
+    field.fill(TOKEN)
+    field.press("Enter")
+    page.locator("[data-testid=stMetric]").first.wait_for(timeout=60_000)
+    page.get_by_text("Votes per method").wait_for(timeout=60_000)
+    shot(page, artifacts, "12-researcher")
+    metrics = page.locator("[data-testid=stMetric]").all_inner_texts()
+    expected = store.progress()["participants"]
+    assert any(t.startswith("Participants") and t.split()[-1] == str(expected) for t in metrics)
+
+
+def test_altered_stimuli_refused_before_serving(stimuli_dir, tmp_path):
+    """`snapshot study` on a folder with an altered or missing file exits 2 naming it."""
+    bad = tmp_path / "stimuli"
+    shutil.copytree(stimuli_dir, bad)
+    (bad / "jump" / "video.mp4").write_bytes(b"not a video")
+    r = subprocess.run([SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "jump/video.mp4 has been altered" in r.stderr and "Traceback" not in r.stderr
+    (bad / "jump" / "video.mp4").unlink()
+    r = subprocess.run([SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "jump/video.mp4 is missing" in r.stderr
