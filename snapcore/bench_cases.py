@@ -113,3 +113,22 @@ def _relief_1024_linear(ctx: BenchContext):
         relief_from_height_field(h, m, pixel=px, params=params).write_stl(path)
 
     return work
+
+
+# ----------------------------------------------------------------- synth (demo data)
+
+
+@case("synth walk document (3 s at 30 fps)", target_ms=50.0,
+      note="procedural humanoid: keyframes, leg IK, Euler conversion")
+def _synth_walk(ctx: BenchContext):
+    from .synth import humanoid_document
+
+    return lambda: humanoid_document("walk")
+
+
+@case("synth push scene (2 characters, 3 s at 30 fps)", target_ms=50.0,
+      note="two documents (pusher's arms solved onto the other's chest) + FK")
+def _synth_push(ctx: BenchContext):
+    from .synth import synth_scene
+
+    return lambda: synth_scene("push")

@@ -26,7 +26,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 from scipy.spatial.transform import Rotation
 
 from .bvh import BVHDocument, write_bvh
@@ -68,7 +67,7 @@ DEMO_SCENES = ("walk", "jump", "kick", "punch", "push")
 #: Default clip length per scene, seconds (first to last frame).
 DEFAULT_SECONDS = {"walk": 3.0, "jump": 3.0, "kick": 2.5, "punch": 2.5,
                    "jumping_jacks": 3.0, "idle": 3.0, "push": 3.0}
-#: Fraction of a limb's length beyond which IK saturates smoothly (see _two_bone).
+#: Fraction of an arm's length beyond which arm IK saturates smoothly (see _two_bone).
 IK_SOFT_REACH = 0.97
 #: Decimal places of every written channel value (1e-6 m, 1e-6 degree).
 DECIMALS = 6
@@ -203,12 +202,41 @@ def _unit(v):
 def _keys(t, times, values):
     """PCHIP through keyframes ``(times, values)``, held constant outside them.
 
-    ``values`` may be (K,) or (K, D); returns (F,) or (F, D).
+    ``values`` may be (K,) or (K, D); returns (F,) or (F, D). Same curve as
+    ``scipy.interpolate.PchipInterpolator`` (Fritsch & Carlson 1980, with SciPy's
+    end-point rule), written out because building SciPy's object costs ~1 ms and a
+    motion uses dozens of curves.
     """
-    times = np.asarray(times, dtype=float)
-    values = np.asarray(values, dtype=float)
-    f = PchipInterpolator(times, values, axis=0)
-    return f(np.clip(t, times[0], times[-1]))
+    x = np.asarray(times, dtype=float)
+    y = np.asarray(values, dtype=float)
+    flat = y.ndim == 1
+    y = y.reshape(len(x), -1)
+    h = np.diff(x)[:, None]  # (K-1, 1)
+    delta = np.diff(y, axis=0) / h  # (K-1, D)
+    d = np.zeros_like(y)
+    if len(x) == 2:
+        d[:] = delta
+    else:
+        w1 = 2 * h[1:] + h[:-1]
+        w2 = h[1:] + 2 * h[:-1]
+        same = (np.sign(delta[:-1]) * np.sign(delta[1:])) > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            hm = (w1 + w2) / (w1 / delta[:-1] + w2 / delta[1:])
+        d[1:-1] = np.where(same, hm, 0.0)
+        for end, (h0, h1, m0, m1) in ((0, (h[0], h[1], delta[0], delta[1])),
+                                      (-1, (h[-1], h[-2], delta[-1], delta[-2]))):
+            de = ((2 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
+            de = np.where(np.sign(de) != np.sign(m0), 0.0, de)
+            de = np.where((np.sign(m0) != np.sign(m1)) & (np.abs(de) > 3 * np.abs(m0)),
+                          3 * m0, de)
+            d[end] = de
+    tc = np.clip(np.asarray(t, dtype=float), x[0], x[-1])
+    i = np.clip(np.searchsorted(x, tc, side="right") - 1, 0, len(x) - 2)
+    hi = h[i]
+    u = ((tc - x[i]) / hi[:, 0])[:, None]
+    out = ((2 * u**3 - 3 * u**2 + 1) * y[i] + (u**3 - 2 * u**2 + u) * hi * d[i]
+           + (-2 * u**3 + 3 * u**2) * y[i + 1] + (u**3 - u**2) * hi * d[i + 1])
+    return out[:, 0] if flat else out
 
 
 def _cyclic(phase, keys, values):
@@ -217,8 +245,7 @@ def _cyclic(phase, keys, values):
     values = np.asarray(values, dtype=float)
     k = np.concatenate([keys - 1, keys, keys + 1])
     v = np.concatenate([values, values, values])
-    f = PchipInterpolator(k, v, axis=0)
-    return f(np.mod(phase, 1.0))
+    return _keys(np.mod(phase, 1.0), k, v)
 
 
 def _minjerk(u):
@@ -270,7 +297,7 @@ class _Pose:
         return rot, pos
 
 
-def _two_bone(start, target, l1, l2, pole):
+def _two_bone(start, target, l1, l2, pole, *, soft=False):
     """Analytic two-bone IK.
 
     Returns unit directions of the first and second bone (F, 3), the bend angle
@@ -280,12 +307,15 @@ def _two_bone(start, target, l1, l2, pole):
     """
     d_vec = target - start
     d = np.linalg.norm(d_vec, axis=-1)
-    # Saturate smoothly near full extension: a target out of reach straightens the limb
-    # gradually instead of snapping it straight (0.2 % short at 99 % of the reach).
     full = l1 + l2
-    knee = IK_SOFT_REACH * full
-    soft = knee + (full - knee) * np.tanh((d - knee) / (full - knee))
-    d = np.clip(np.where(d > knee, soft, d), abs(l1 - l2) + 1e-6, full * (1 - 1e-9))
+    if soft:
+        # Saturate smoothly near full extension (arms): a target out of reach straightens
+        # the limb gradually instead of snapping it straight. Legs stay exact, so a
+        # planted foot is exactly where it was put.
+        knee = IK_SOFT_REACH * full
+        sat = knee + (full - knee) * np.tanh((d - knee) / (full - knee))
+        d = np.where(d > knee, sat, d)
+    d = np.clip(d, abs(l1 - l2) + 1e-6, full * (1 - 1e-9))
     n = _unit(d_vec)
     p = pole - np.sum(pole * n, axis=-1, keepdims=True) * n
     p = _unit(p)
@@ -325,7 +355,7 @@ def _solve_arm(pose: _Pose, side: str, wrist, pole, hand_rot=None):
     sign = _SIDES[side]
     r_parent, _ = pose.world(f"{side}Shoulder")
     _, shoulder = pose.world(f"{side}Arm")
-    u1, b, bend = _two_bone(shoulder, wrist, _UPPER_ARM, _FOREARM, pole)
+    u1, b, bend = _two_bone(shoulder, wrist, _UPPER_ARM, _FOREARM, pole, soft=True)
     # Upper-arm frame: rest bone axis (sign * X) maps to u1, the elbow bends toward +Z
     # (Ry(-bend) for the left arm, Ry(+bend) for the right).
     upper = np.stack([sign * u1, np.cross(b, sign * u1), b], axis=-1)
@@ -392,7 +422,7 @@ def _walk(t, rng):
     n = t.size
     pose = _Pose(n)
     T = WALK_STRIDE_S
-    step = 0.56 * _jitter(rng, 0.05)
+    step = 0.55 * _jitter(rng, 0.04)
     stride = 2 * step
     v = stride / T
     swing_arm = 16.0 * _jitter(rng, 0.2)
@@ -401,7 +431,7 @@ def _walk(t, rng):
     # Root: constant speed forward, bobbing (highest at mid-stance), swaying over the
     # stance foot, pelvis turning with the swinging leg.
     z_root = v * t
-    y_root = ROOT_HEIGHT_M - 0.05 + 0.015 * np.cos(4 * np.pi * (phi - 0.3))
+    y_root = ROOT_HEIGHT_M - 0.043 + 0.022 * np.cos(4 * np.pi * (phi - 0.27))
     x_root = 0.02 * np.cos(2 * np.pi * (phi - 0.3))
     pose.root = np.stack([x_root, y_root, z_root], axis=1)
     yaw = -5.0 * np.cos(2 * np.pi * phi)
@@ -610,7 +640,7 @@ def _jumping_jacks(t, rng):
     # The arms take longer than the legs: up over 0.4 of the period, down over 0.45.
     arms = np.where(active, _cyclic(f, [0.0, 0.4, 0.5, 0.95], [0.0, 1.0, 1.0, 0.0]), 0.0)
     hop_h = 0.07
-    y = ROOT_HEIGHT_M - 0.015 - 0.04 * spread + hop_h * hop - 0.04 * squat
+    y = ROOT_HEIGHT_M - 0.015 - 0.065 * spread + hop_h * hop - 0.04 * squat
     pose.root = np.stack([np.zeros(n), y, np.zeros(n)], axis=1)
     for side in _SIDES:
         sx = _SIDES[side] * (0.1 + wide * spread)
@@ -627,7 +657,7 @@ def _idle(t, rng):
     pose = _Pose(n)
     breath = np.sin(2 * np.pi * t / (3.2 * _jitter(rng, 0.1)))
     sway = np.sin(2 * np.pi * t / (4.5 * _jitter(rng, 0.1)) + rng.uniform(0, 2 * np.pi))
-    pose.root = np.stack([0.025 * sway, ROOT_HEIGHT_M - 0.012 + 0.003 * breath,
+    pose.root = np.stack([0.025 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath,
                           0.005 * breath], axis=1)
     pose.local["Hips"] = _zxy(1.5 * sway, 1.0, 2.0 * sway)
     pose.local["Spine"] = _zxy(-1.5 * sway, 1.0 + 1.0 * breath, -1.0 * sway)
@@ -651,7 +681,7 @@ def _push(t, rng):
     # --- B, the pushed person: stands, is shoved back, steps back with the left foot.
     b = _Pose(n)
     shove = 0.18 * _jitter(rng, 0.1)
-    back = _keys(t, [0.0, tc, te, te + 0.4, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16])
+    back = _keys(t, [0.0, tc, te, te + 0.5, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16])
     lean = _keys(t, [0.0, tc, tc + 0.2, te + 0.1, te + 0.6, te + 1.1], [1.0, 1.0, -7.0, -10.0, -4.0, 1.0])
     b.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - 0.02 * (back > 0.05), -back], axis=1)
     b.root[:, 1] = ROOT_HEIGHT_M - 0.015 - _keys(t, [0.0, tc, te, te + 0.5, te + 1.0],
@@ -660,8 +690,8 @@ def _push(t, rng):
     b.local["Spine"] = _zxy(0.0, lean * 0.5, 0.0)
     b.local["Neck"] = _zxy(0.0, -0.6 * lean + 8 * (lean < -5), 0.0)
     yb = _ANKLE_HEIGHT + _BALL[1]
-    step_l = _keys(t, [0.0, te - 0.15, te + 0.3], [0.0, 0.0, 1.0])
-    step_r = _keys(t, [0.0, te + 0.3, te + 0.75], [0.0, 0.0, 1.0])
+    step_l = _keys(t, [0.0, te - 0.2, te + 0.2], [0.0, 0.0, 1.0])
+    step_r = _keys(t, [0.0, te + 0.2, te + 0.6], [0.0, 0.0, 1.0])
     lift_l = 0.06 * np.sin(np.pi * step_l)
     lift_r = 0.05 * np.sin(np.pi * step_r)
     ball_l = np.stack([np.full(n, 0.1), yb + lift_l, _BALL[2] - 0.45 * step_l], axis=1)
@@ -673,9 +703,9 @@ def _push(t, rng):
     # --- A, the pusher: steps in with the right foot, the left one follows; leans
     # into the shove, then settles.
     a = _Pose(n)
-    adv = _keys(t, [0.0, 0.5, 1.05, tc, te, te + 0.7], [0.0, 0.0, 0.30, 0.42, 0.57, 0.50])
+    adv = _keys(t, [0.0, 0.5, 1.05, tc, te, te + 0.7], [0.0, 0.0, 0.33, 0.42, 0.57, 0.50])
     lunge = _keys(t, [0.0, 0.5, 1.05, te, te + 0.6, te + 1.2],
-                  [0.0, 0.0, 0.04, 0.04, 0.02, 0.015])
+                  [0.0, 0.0, 0.05, 0.045, 0.02, 0.015])
     a.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - lunge, adv], axis=1)
     lean_a = _keys(t, [0.0, 0.5, tc, te, te + 0.6, te + 1.2], [1.0, 1.0, 10.0, 14.0, 6.0, 3.0])
     a.local["Hips"] = _zxy(0.0, 0.4 * lean_a, 0.0)
@@ -730,20 +760,15 @@ def _document(pose: _Pose, fps: float, *, facing_deg: float = 0.0, offset=(0.0, 
     """BVH document of ``pose`` turned by ``facing_deg`` about +Y, then moved by ``offset``."""
     yaw = yaw_matrix(facing_deg)
     root_pos = pose.root @ yaw.T + np.asarray(offset, dtype=float)
-    cols = [root_pos]
-    channels = []
-    for name, end in zip(_NAMES, _END):
-        if end:
-            channels.append(())
-            continue
-        r = np.broadcast_to(pose.local[name], (pose.n, 3, 3))
-        if name == "Hips":
-            r = yaw @ r
-            channels.append(_ROOT_CHANNELS)
-        else:
-            channels.append(_JOINT_CHANNELS)
-        cols.append(_continuous_euler(r))
-    motion = np.round(np.concatenate(cols, axis=1), DECIMALS) + 0.0  # no "-0.0"
+    joints = [name for name, end in zip(_NAMES, _END) if not end]
+    rots = np.stack([np.broadcast_to(pose.local[name], (pose.n, 3, 3)) for name in joints],
+                    axis=1)  # (F, Jr, 3, 3)
+    rots[:, 0] = yaw @ rots[:, 0]
+    angles = _continuous_euler(rots)  # (F, Jr, 3)
+    channels = [() if end else (_ROOT_CHANNELS if name == "Hips" else _JOINT_CHANNELS)
+                for name, end in zip(_NAMES, _END)]
+    cols = np.concatenate([root_pos, angles.reshape(pose.n, -1)], axis=1)
+    motion = np.round(cols, DECIMALS) + 0.0  # "+ 0.0" turns -0.0 into 0.0
     parents = np.array([-1 if _PARENT[n] is None else _INDEX[_PARENT[n]] for n in _NAMES])
     return BVHDocument(
         names=_NAMES,
@@ -758,25 +783,28 @@ def _document(pose: _Pose, fps: float, *, facing_deg: float = 0.0, offset=(0.0, 
 
 
 def _continuous_euler(r):
-    """ZXY Euler angles (F, 3), degrees, continuous over frames.
+    """ZXY Euler angles (F, J, 3), degrees, of rotations (F, J, 3, 3), continuous over F.
 
     SciPy keeps the middle (X) angle in [-90, 90]; a knee bent past 90 degrees would
     then jump to the equivalent ``(z + 180, 180 - x, y + 180)``. Both triples are the
     same rotation, so we switch branch wherever the canonical one jumps (Z and Y both
     leap by more than 90 degrees between frames) and unwrap the 360-degree turns.
     """
-    e = Rotation.from_matrix(r).as_euler("ZXY", degrees=True)
-    alt = np.stack([e[:, 0] + 180.0, np.where(e[:, 1] >= 0, 180.0, -180.0) - e[:, 1],
-                    e[:, 2] + 180.0], axis=1)
-    alt[:, [0, 2]] = (alt[:, [0, 2]] + 180.0) % 360.0 - 180.0
+    f, j = r.shape[:2]
+    e = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(f, j, 3)
+    alt = np.stack([e[..., 0] + 180.0, np.where(e[..., 1] >= 0, 180.0, -180.0) - e[..., 1],
+                    e[..., 2] + 180.0], axis=-1)
+    alt[..., [0, 2]] = (alt[..., [0, 2]] + 180.0) % 360.0 - 180.0
 
     def wrapped(d):
         return np.abs((d + 180.0) % 360.0 - 180.0)
 
-    leap = (wrapped(np.diff(e[:, 0])) > 90) & (wrapped(np.diff(e[:, 2])) > 90)
-    first = np.abs(alt[0, [0, 2]]).sum() < np.abs(e[0, [0, 2]]).sum() - 1e-9
-    use_alt = (np.concatenate(([0], np.cumsum(leap))) + int(first)) % 2 == 1
-    out = np.where(use_alt[:, None], alt, e)
+    d = np.diff(e, axis=0)
+    leap = (wrapped(d[..., 0]) > 90) & (wrapped(d[..., 2]) > 90)  # (F-1, J)
+    first = np.abs(alt[0][:, [0, 2]]).sum(-1) < np.abs(e[0][:, [0, 2]]).sum(-1) - 1e-9
+    flips = np.concatenate([np.zeros((1, j), dtype=int), np.cumsum(leap, axis=0)], axis=0)
+    use_alt = (flips + first.astype(int)) % 2 == 1
+    out = np.where(use_alt[..., None], alt, e)
     return np.unwrap(out, period=360.0, axis=0)
 
 

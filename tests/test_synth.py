@@ -290,3 +290,21 @@ def test_seed_reproducible_and_varies():
         c = synth.humanoid_document(motion, seed=8)
         assert np.array_equal(a.motion, b.motion)
         assert not np.allclose(a.motion, c.motion, atol=1e-3), motion
+
+
+def test_keyframe_curves_match_scipy_pchip():
+    """The private PCHIP evaluator equals scipy.interpolate.PchipInterpolator (random
+    keys, flat runs included) and holds the end values outside the keys."""
+    from scipy.interpolate import PchipInterpolator
+
+    from snapcore.synth import _keys
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        k = int(rng.integers(2, 8))
+        x = np.sort(rng.uniform(0, 3, k)) + np.arange(k) * 0.05
+        y = rng.normal(size=k)
+        y[rng.uniform(size=k) < 0.3] = 0.5  # repeated values: flat segments
+        t = np.linspace(x[0] - 0.5, x[-1] + 0.5, 200)
+        ref = PchipInterpolator(x, y)(np.clip(t, x[0], x[-1]))
+        np.testing.assert_allclose(_keys(t, x, y), ref, atol=1e-12)
