@@ -1,0 +1,668 @@
+"""Body meshes for skeletons without skin: a capsule per bone, spheres at joints.
+
+Motion capture gives joints, not a body. This module dresses every character in a
+mannequin built from rigid pieces, like the articulated models of the Action Snapshot
+paper (3,191-6,412 faces per character):
+
+- one capsule per bone (parent → child joint with non-zero rest length), elliptical in
+  cross-section on the torso (wider left-right than front-back);
+- one sphere at every joint where bones meet (fills the gap where a thick bone meets a
+  thin one);
+- an ellipsoid head with a small nose (so the facing direction can be read), and a
+  hand blob for skeletons without finger bones.
+
+Radii come from :data:`ROLE_RADII`, indexed by the *role* of the bone's parent joint
+(pelvis, spine, chest, neck, head, clavicle, upper arm, forearm, hand, finger, thigh,
+shin, foot, toe), which :func:`joint_roles` reads from the joint names
+case-insensitively. The patterns cover CMU cgspeed names (``Hips``, ``LeftUpLeg``,
+``LeftLeg``, ``LeftFoot``, ``Spine1``, ``LeftShoulder`` = clavicle, ``LeftArm``...),
+Daz/Poser names (``hip``, ``abdomen``, ``chest``, ``lCollar``, ``lShldr``, ``lThigh``,
+``lShin``...), Bandai names (``UpperLeg_L``, ``LowerArm_R``...), the older CMU/assimp
+names (``LeftCollar``, ``LeftShoulder`` = upper arm, ``LeftElbow``, ``LeftHip`` =
+thigh...) and the synthetic humanoid. Unknown names get :data:`DEFAULT_ROLE`. Radii
+are for a 1.75 m person and scale with the character's stature.
+
+Posing
+------
+Each piece is built once, in the local frame of the joint that carries it (the bone's
+parent joint). Posing frame ``f`` is then a gather and one batched matrix product —
+``x = R[f, joint] @ x_local + p[f, joint]`` for every vertex (normals rotate alike) —
+with no mesh rebuilt per frame. Because a BVH child sits at ``p_parent + R_parent @
+offset``, a bone's capsule built along the rest offset stays attached to both joints.
+
+Orientation cues that BVH rest poses do not give reliably (which way is "left" in the
+chest's frame, which way is "up" in the head's frame) are measured from the motion:
+e.g. the left-minus-right hip vector expressed in the pelvis frame, averaged over frames.
+
+Public API
+----------
+:class:`SceneBody` (posable merged mesh of all characters), :class:`CharacterBody`,
+:class:`PosedMesh`, :func:`posed_mesh`, :func:`scene_trimesh`, :func:`joint_roles`,
+:func:`joint_sides`, :data:`ROLE_RADII`, :data:`CHARACTER_COLORS`.
+"""
+
+from __future__ import annotations
+
+import re
+import weakref
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .errors import SceneError
+
+__all__ = [
+    "SceneBody",
+    "CharacterBody",
+    "PosedMesh",
+    "posed_mesh",
+    "scene_trimesh",
+    "scene_body",
+    "joint_roles",
+    "joint_sides",
+    "ROLE_RADII",
+    "DEFAULT_ROLE",
+    "CHARACTER_COLORS",
+    "REFERENCE_STATURE_M",
+]
+
+#: Stature (m) the radii of :data:`ROLE_RADII` are given for; radii scale with
+#: ``character.height / REFERENCE_STATURE_M``.
+REFERENCE_STATURE_M = 1.75
+
+#: Bone radii in metres for a 1.75 m person, by the role of the bone's parent joint:
+#: ``(lateral, depth)`` semi-axes of the cross-section. Lateral ≠ depth only on the
+#: torso (hips are wider than deep). Roughly the anthropometric girths of an adult
+#: (e.g. thigh circumference ~0.50 m → radius ~0.08; forearm ~0.25 m → ~0.04) slimmed a
+#: little so limbs stay readable when they cross the torso.
+ROLE_RADII: dict[str, tuple[float, float]] = {
+    "pelvis": (0.085, 0.085),  # hip connectors (pelvis → hip joint), CMU LHipJoint, Daz buttock
+    "spine": (0.125, 0.095),  # lower back / abdomen
+    "chest": (0.140, 0.100),  # thorax up to the shoulders
+    "neck": (0.050, 0.050),
+    "head": (0.085, 0.100),  # drawn as an ellipsoid, see HEAD_* below
+    "clavicle": (0.050, 0.050),
+    "upperarm": (0.046, 0.046),
+    "forearm": (0.038, 0.038),
+    "hand": (0.030, 0.030),  # palm bones (hand → knuckles)
+    "finger": (0.010, 0.010),
+    "thigh": (0.072, 0.072),
+    "shin": (0.050, 0.050),
+    "foot": (0.042, 0.042),
+    "toe": (0.032, 0.032),
+    "other": (0.040, 0.040),
+}
+#: Role given to joint names no pattern recognises.
+DEFAULT_ROLE = "other"
+#: Roles whose bones are not drawn: a floor-level root's bone up to the hips (Bandai
+#: ``joint_Root``), eyes and jaw bones inside the head (Daz ``leftEye``).
+HIDDEN_ROLES = ("hidden",)
+#: Torso roles: elliptical cross-sections, oriented by the measured left-right axis.
+TORSO_ROLES = ("spine", "chest")
+
+#: Head ellipsoid semi-axes (lateral, front-back, vertical), metres at 1.75 m, and the
+#: height of its centre above the head joint along the neck direction.
+HEAD_SEMI_AXES = (0.080, 0.095, 0.112)
+HEAD_CENTRE_ABOVE = 0.085
+#: Nose: a small sphere on the front of the head, so facing can be read in a still.
+NOSE_RADIUS = 0.022
+#: Hand blob for skeletons whose hands have no bones (CMU cgspeed, Bandai): a sphere of
+#: this radius centred this far beyond the wrist along the forearm.
+HAND_BLOB_RADIUS = 0.045
+HAND_BLOB_BEYOND = 0.045
+#: A hand whose bone lengths below the wrist sum to less than this (m at 1.75 m) gets a blob.
+HAND_BONES_MIN = 0.06
+#: Joint spheres are this fraction of the largest radius of the bones meeting there.
+JOINT_SPHERE_FACTOR = 1.0
+#: Bones shorter than this (m) are not drawn (zero-length BVH links, rounding noise).
+MIN_BONE_M = 1e-4
+#: Tessellation (segments around, rings per cap) by radius (m, after scaling): thick
+#: pieces get more faces so silhouettes stay round. A capsule has 4·around·rings faces.
+TESSELLATION = ((0.08, (20, 5)), (0.035, (14, 4)), (0.018, (10, 3)), (0.0, (6, 2)))
+
+#: Base colours of characters 0, 1, 2... (RGB 0-1, Tableau 10): distinct for two people.
+CHARACTER_COLORS = (
+    (0.306, 0.475, 0.655),  # blue
+    (0.949, 0.557, 0.169),  # orange
+    (0.349, 0.631, 0.310),  # green
+    (0.882, 0.341, 0.349),  # red
+    (0.690, 0.478, 0.631),  # purple
+    (0.612, 0.459, 0.373),  # brown
+)
+#: Left limbs are lightened, right limbs darkened, so left and right read apart.
+LEFT_LIGHTEN = 0.22
+RIGHT_DARKEN = 0.12
+
+# --------------------------------------------------------------------------- names → roles
+
+# Patterns on the lower-cased joint name with its side marker removed, first match wins.
+_ROLE_PATTERNS = (
+    ("hidden", r"root|eye|jaw|tongue|nose|ear$"),
+    ("hand", r"fingerbase|handbase|palm|metacarp|carpal"),
+    ("finger", r"thumb|index|middle|mid\d|ring|pinky|little|finger|digit"),
+    ("head", r"head"),
+    ("neck", r"neck"),
+    ("hand", r"hand|wrist"),
+    ("forearm", r"forearm|lowerarm|lowarm|elbow"),
+    ("upperarm", r"upperarm|uparm|shldr|^arm"),
+    ("clavicle", r"collar|clavicle|shoulder"),
+    ("pelvis", r"hipjoint|buttock|pelvis"),
+    ("thigh", r"upleg|upperleg|thigh"),
+    ("shin", r"lowerleg|lowleg|shin|knee|calf|^leg"),
+    ("foot", r"foot|ankle|heel"),
+    ("toe", r"toe"),
+    ("chest", r"chest|thorax|upperback|ribcage|spine[1-9]"),
+    ("spine", r"spine|abdomen|lowerback|waist|torso|belly|^ab$|^abs$"),
+    ("pelvis", r"hips?$"),
+)
+_SIDE_PATTERNS = (
+    # (side, regex on the original name, how much of the match to strip)
+    ("L", re.compile(r"^left[_ .]?", re.I)),
+    ("R", re.compile(r"^right[_ .]?", re.I)),
+    ("L", re.compile(r"[_ .]l(eft)?$", re.I)),
+    ("R", re.compile(r"[_ .]r(ight)?$", re.I)),
+    ("L", re.compile(r"^l(?=[A-Z_])")),  # lCollar, LHipJoint, LThumb
+    ("R", re.compile(r"^r(?=[A-Z_])")),
+    ("L", re.compile(r"^l(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
+    ("R", re.compile(r"^r(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
+)
+
+
+def _split_side(name: str) -> tuple[str, str]:
+    """(side 'L'/'R'/'', base name lower-cased without the side marker)."""
+    base = re.sub(r"_end$", "", name, flags=re.I)
+    for side, pat in _SIDE_PATTERNS:
+        m = pat.search(base)
+        if m:
+            rest = (base[: m.start()] + base[m.end():]).strip("_ .")
+            return side, rest.lower()
+    return "", base.lower()
+
+
+def joint_sides(names) -> list[str]:
+    """Side of each joint from its name: ``'L'``, ``'R'`` or ``''`` (centre)."""
+    return [_split_side(n)[0] for n in names]
+
+
+def joint_roles(names, parents) -> list[str]:
+    """Body role of each joint, read from its name (case-insensitive).
+
+    Parameters
+    ----------
+    names : sequence of str, length J
+    parents : array of int, shape (J,)
+
+    Returns
+    -------
+    list of str
+        Keys of :data:`ROLE_RADII` or ``"hidden"``. Context resolves the ambiguous
+        names: ``Shoulder`` is the upper arm when its parent is a collar (older CMU,
+        assimp) and the clavicle otherwise (CMU cgspeed, Bandai); a sided ``Hip``
+        (``LeftHip``) is the thigh while ``hip``/``Hips`` is the pelvis; a ``Root``
+        joint is the pelvis unless it has a child that is (Bandai's floor-level root);
+        end sites take the role of their parent.
+    """
+    parents = np.asarray(parents)
+    roles: list[str] = []
+    for j, name in enumerate(names):
+        side, base = _split_side(name)
+        role = DEFAULT_ROLE
+        for r, pat in _ROLE_PATTERNS:
+            if re.search(pat, base):
+                role = r
+                break
+        p = int(parents[j])
+        if role == "pelvis" and side and re.fullmatch(r"hips?", base):
+            role = "thigh"  # LeftHip, RightHip (older CMU / assimp)
+        if role == "clavicle" and "shoulder" in base and p >= 0 and roles[p] == "clavicle":
+            role = "upperarm"  # LeftCollar → LeftShoulder → LeftElbow
+        if re.search(r"_end$", name, re.I) and p >= 0:
+            role = roles[p]
+        roles.append(role)
+    # a root called "Root" is the pelvis unless one of its children is
+    for j, name in enumerate(names):
+        if roles[j] == "hidden" and "root" in name.lower():
+            kids = [k for k in range(len(names)) if parents[k] == j]
+            if not any(roles[k] == "pelvis" for k in kids):
+                roles[j] = "pelvis"
+    return roles
+
+
+def _bone_role(parent_role: str, child_role: str) -> str:
+    """Role that sets a bone's radius from its two joints' roles."""
+    if parent_role == "pelvis":
+        if child_role in ("spine", "chest", "neck"):
+            return "spine"  # Daz hip → abdomen, Bandai Hips → Spine: the lower trunk
+        return "pelvis"
+    if parent_role == "spine" and child_role in ("clavicle", "upperarm", "neck"):
+        return "chest"
+    return parent_role
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def _capsule(length: float, a: float, b: float, c: float, around: int, rings: int):
+    """Closed capsule along +z from 0 to ``length``: elliptical cross-section (a along x,
+    b along y), half-ellipsoid caps of height c. ``length=0`` gives an ellipsoid.
+
+    Returns vertices (n, 3), normals (n, 3), faces (m, 3) with outward normals and
+    counter-clockwise faces; 4·around·rings faces.
+    """
+    phis = np.concatenate([
+        np.linspace(-np.pi / 2, 0.0, rings + 1)[1:],  # bottom cap rings up to the equator
+        np.linspace(0.0, np.pi / 2, rings + 1)[:-1],  # top equator up to below the pole
+    ])
+    zoff = np.concatenate([np.zeros(rings), np.full(rings, length)])
+    theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
+    cp, sp = np.cos(phis)[:, None], np.sin(phis)[:, None]
+    ct, st = np.cos(theta)[None, :], np.sin(theta)[None, :]
+    x = a * cp * ct
+    y = b * cp * st
+    z = c * sp + zoff[:, None] + 0 * ct
+    ring_v = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    ring_n = np.stack([cp * ct / a, cp * st / b, sp / c + 0 * ct], axis=-1).reshape(-1, 3)
+    verts = np.vstack([[0.0, 0.0, -c], ring_v, [0.0, 0.0, length + c]])
+    normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    n_rows = 2 * rings
+    top = 1 + n_rows * around
+    i = np.arange(around)
+    i1 = (i + 1) % around
+    faces = [np.stack([np.zeros(around, int), 1 + i1, 1 + i], axis=1)]  # bottom fan
+    for r in range(n_rows - 1):
+        lo, hi = 1 + r * around, 1 + (r + 1) * around
+        faces.append(np.stack([lo + i, lo + i1, hi + i1], axis=1))
+        faces.append(np.stack([lo + i, hi + i1, hi + i], axis=1))
+    last = 1 + (n_rows - 1) * around
+    faces.append(np.stack([last + i, last + i1, np.full(around, top)], axis=1))  # top fan
+    return verts, normals, np.vstack(faces)
+
+
+def _tessellation(radius: float) -> tuple[int, int]:
+    for r, t in TESSELLATION:
+        if radius >= r:
+            return t
+    return TESSELLATION[-1][1]
+
+
+def _frame_from(d: np.ndarray, lateral: np.ndarray | None) -> np.ndarray:
+    """Right-handed orthonormal basis (columns u, w, d) with d along ``d`` and u as close
+    to ``lateral`` as possible (any perpendicular when ``lateral`` is None/parallel)."""
+    d = d / np.linalg.norm(d)
+    u = None
+    if lateral is not None:
+        u = lateral - d * (lateral @ d)
+        if np.linalg.norm(u) < 0.3:
+            u = None
+    if u is None:
+        helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        u = helper - d * (helper @ d)
+    u = u / np.linalg.norm(u)
+    w = np.cross(d, u)
+    return np.stack([u, w, d], axis=1)
+
+
+def _mean_local_direction(rotations, vectors) -> np.ndarray | None:
+    """Unit mean over frames of ``R[f]^T v[f]`` (a world direction in a joint's frame)."""
+    v = np.einsum("fji,fj->fi", rotations, vectors)
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    ok = n[:, 0] > 1e-9
+    if not np.any(ok):
+        return None
+    m = (v[ok] / n[ok]).mean(axis=0)
+    nm = np.linalg.norm(m)
+    return m / nm if nm > 1e-6 else None
+
+
+def _lighten(rgb, k):
+    rgb = np.asarray(rgb, float)
+    return rgb + (1.0 - rgb) * k
+
+
+@dataclass(frozen=True, eq=False)
+class PosedMesh:
+    """A body mesh posed at one frame.
+
+    Attributes
+    ----------
+    vertices : ndarray of shape (N, 3)
+        World positions, metres (float64).
+    faces : ndarray of shape (M, 3)
+        Vertex indices (int64), counter-clockwise seen from outside.
+    face_colors : ndarray of shape (M, 4)
+        RGBA, uint8.
+    normals : ndarray of shape (N, 3)
+        Unit vertex normals (smooth within a piece).
+    face_character : ndarray of shape (M,)
+        Index of the character each face belongs to.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_colors: np.ndarray
+    normals: np.ndarray
+    face_character: np.ndarray
+
+    @property
+    def vertex_colors(self) -> np.ndarray:
+        """RGBA uint8 per vertex, shape (N, 4) (pieces are one colour each)."""
+        out = np.zeros((self.vertices.shape[0], 4), np.uint8)
+        out[self.faces.ravel()] = np.repeat(self.face_colors, 3, axis=0)
+        return out
+
+    def trimesh(self):
+        """The mesh as a :class:`trimesh.Trimesh` (face colours set, not processed)."""
+        import trimesh
+
+        return trimesh.Trimesh(self.vertices, self.faces, face_colors=self.face_colors,
+                               vertex_normals=self.normals, process=False)
+
+
+class CharacterBody:
+    """Rigid body pieces of one character, posable at any frame.
+
+    Parameters
+    ----------
+    character : Character
+    color : tuple of 3 floats, optional
+        Base RGB colour in 0-1 (default: ``CHARACTER_COLORS[0]``).
+
+    Attributes
+    ----------
+    joint : ndarray of shape (N,)
+        Joint carrying each vertex.
+    local_vertices, local_normals : ndarray of shape (N, 3)
+        Vertex positions (metres) and normals in the carrying joint's local frame.
+    faces : ndarray of shape (M, 3)
+    face_colors : ndarray of shape (M, 4), uint8
+    roles : list of str
+        :func:`joint_roles` of the skeleton.
+    """
+
+    def __init__(self, character, *, color=None):
+        self.character = character
+        sk = character.skeleton
+        names, parents = sk.names, np.asarray(sk.parents)
+        self.roles = joint_roles(names, parents)
+        self.sides = joint_sides(names)
+        # inherit a side from the parent chain (Daz fingers "lIndex1" have one, but
+        # e.g. "LeftHandIndex1_End" or unnamed children may not)
+        for j in range(len(names)):
+            if not self.sides[j] and parents[j] >= 0 and self.roles[j] not in ("spine", "chest",
+                                                                                "neck", "head"):
+                self.sides[j] = self.sides[parents[j]]
+        height = float(character.height)
+        if not (np.isfinite(height) and height > 0):
+            raise SceneError(f"character '{character.name}' has no stature; cannot size its body")
+        self.size = height / REFERENCE_STATURE_M
+        base = np.asarray(color if color is not None else CHARACTER_COLORS[0], float)
+        self.color = base
+        self._build(base)
+
+    # ---- orientation cues measured from the motion
+    @cached_property
+    def _sample(self) -> np.ndarray:
+        f = self.character.n_frames
+        return np.unique(np.linspace(0, f - 1, min(f, 200)).round().astype(int))
+
+    def _first_joint(self, role: str, side: str) -> int | None:
+        for j, (r, s) in enumerate(zip(self.roles, self.sides)):
+            if r == role and s == side:
+                return j
+        return None
+
+    def _lateral(self, j: int, pair: tuple[str, ...]) -> np.ndarray | None:
+        """Left-minus-right direction in joint j's frame, from the first pair of joints
+        with one of the roles ``pair`` (e.g. thighs, then upper arms)."""
+        c, s = self.character, self._sample
+        for role in pair:
+            a, b = self._first_joint(role, "L"), self._first_joint(role, "R")
+            if a is not None and b is not None:
+                v = c.positions[s, a] - c.positions[s, b]
+                return _mean_local_direction(c.rotations[s, j], v)
+        return None
+
+    # ---- construction
+    def _build(self, base):
+        c = self.character
+        sk = c.skeleton
+        parents = np.asarray(sk.parents)
+        offsets = np.asarray(sk.offsets, float)
+        k = self.size
+        roles = self.roles
+        pieces = []  # (joint, verts_local, normals_local, rgb)
+
+        def colour_of(j):
+            side = self.sides[j]
+            if side == "L":
+                return _lighten(base, LEFT_LIGHTEN)
+            if side == "R":
+                return base * (1 - RIGHT_DARKEN)
+            return base
+
+        def add(j, length, a, b, cap, frame, start, rgb):
+            around, rings = _tessellation(max(a, b))
+            v, n, f = _capsule(length, a, b, cap, around, rings)
+            pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
+
+        lateral_cache: dict[int, np.ndarray | None] = {}
+
+        def lateral(j):
+            if j not in lateral_cache:
+                pair = ("thigh", "upperarm") if roles[j] in ("pelvis", "spine") else (
+                    "upperarm", "clavicle", "thigh")
+                lateral_cache[j] = self._lateral(j, pair)
+            return lateral_cache[j]
+
+        joint_radius = np.zeros(len(roles))
+        for p, ch in np.asarray(sk.links).reshape(-1, 2):
+            off = offsets[ch]
+            length = float(np.linalg.norm(off))
+            if length < MIN_BONE_M or roles[p] in HIDDEN_ROLES + ("head",):
+                continue
+            if roles[ch] in HIDDEN_ROLES and not sk.end_site[ch]:
+                continue
+            role = _bone_role(roles[p], roles[ch])
+            la, de = ROLE_RADII.get(role, ROLE_RADII[DEFAULT_ROLE])
+            la, de = la * k, de * k
+            lat = lateral(p) if role in TORSO_ROLES else None
+            frame = _frame_from(off, lat)
+            if lat is None:
+                la = de = min(la, de) if role in TORSO_ROLES else la
+            add(p, length, la, de, min(la, de), frame, np.zeros(3), colour_of(ch))
+            r = min(la, de)
+            joint_radius[p] = max(joint_radius[p], r)
+            joint_radius[ch] = max(joint_radius[ch], r)
+
+        # joint spheres where bones meet (not at end sites: the capsule cap is the end)
+        for j in np.flatnonzero(joint_radius > 0):
+            if sk.end_site[j] or roles[j] in HIDDEN_ROLES:
+                continue
+            r = joint_radius[j] * JOINT_SPHERE_FACTOR
+            add(j, 0.0, r, r, r, np.eye(3), np.zeros(3), colour_of(j))
+
+        # head ellipsoid + nose, in the head joint's frame
+        s = self._sample
+        for j in [j for j, r in enumerate(roles) if r == "head" and not sk.end_site[j]]:
+            if parents[j] >= 0 and roles[parents[j]] == "head":
+                continue  # only the first head joint of a chain (e.g. Head, Head1)
+            anc = parents[j]
+            while anc >= 0 and np.allclose(c.positions[s, anc], c.positions[s, j]):
+                anc = parents[anc]
+            up = None
+            if anc >= 0:
+                up = _mean_local_direction(c.rotations[s, j], c.positions[s, j] - c.positions[s, anc])
+            if up is None:
+                up = np.array([0.0, 1.0, 0.0])
+            left = self._lateral(j, ("upperarm", "clavicle", "thigh"))
+            # columns: left, w = up × left, up. With left = +X and up = +Y, w = −Z while
+            # the person faces left × up = +Z: w points backwards.
+            frame = _frame_from(up, left)
+            forward = -frame[:, 1]
+            hx, hy, hz = (v * k for v in HEAD_SEMI_AXES)
+            centre = up * HEAD_CENTRE_ABOVE * k
+            add(j, 0.0, hx, hy, hz, frame, centre, _lighten(base, 0.08))
+            nose = centre + forward * (hy * 0.97) - up * (0.15 * hz)
+            r = NOSE_RADIUS * k
+            add(j, 0.0, r, r, r, np.eye(3), nose, base * 0.8)
+
+        # hand blobs for hands without bones of their own
+        lengths = np.linalg.norm(offsets, axis=1)
+        kids = sk.children
+        for j, r in enumerate(roles):
+            if r != "hand" or sk.end_site[j] or (parents[j] >= 0 and roles[parents[j]] == "hand"):
+                continue
+            stack, total = list(kids[j]), 0.0
+            while stack:
+                q = stack.pop()
+                total += lengths[q]
+                stack.extend(kids[q])
+            if total >= HAND_BONES_MIN * k or parents[j] < 0:
+                continue
+            d = _mean_local_direction(c.rotations[s, j], c.positions[s, j] - c.positions[s, parents[j]])
+            if d is None:
+                continue
+            rr = HAND_BLOB_RADIUS * k
+            add(j, 0.0, rr, rr * 0.8, rr * 1.1, _frame_from(d, None),
+                d * HAND_BLOB_BEYOND * k, colour_of(j))
+
+        if not pieces:
+            raise SceneError(f"character '{c.name}' has no bones to draw")
+        joint, verts, norms, faces, cols = [], [], [], [], []
+        n0 = 0
+        for j, v, n, f, rgb in pieces:
+            joint.append(np.full(len(v), j))
+            verts.append(v)
+            norms.append(n)
+            faces.append(f + n0)
+            cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
+            n0 += len(v)
+        self.joint = np.concatenate(joint)
+        self.local_vertices = np.vstack(verts)
+        self.local_normals = np.vstack(norms)
+        self.faces = np.vstack(faces).astype(np.int64)
+        self.face_colors = np.round(np.vstack(cols) * 255).astype(np.uint8)
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.local_vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def vertices(self, frame) -> np.ndarray:
+        """World vertex positions at internal frame(s) ``frame``: (N, 3) or (K, N, 3)."""
+        c = self.character
+        rot = c.rotations[frame][..., self.joint, :, :]  # (..., N, 3, 3)
+        pos = c.positions[frame][..., self.joint, :]
+        return np.einsum("...nij,nj->...ni", rot, self.local_vertices) + pos
+
+    def normals(self, frame) -> np.ndarray:
+        """World unit vertex normals at internal frame(s) ``frame``: (N, 3) or (K, N, 3)."""
+        rot = self.character.rotations[frame][..., self.joint, :, :]
+        return np.einsum("...nij,nj->...ni", rot, self.local_normals)
+
+
+class SceneBody:
+    """Posable body meshes of every character of a scene, merged into one mesh.
+
+    Parameters
+    ----------
+    scene : Scene
+    colors : sequence of RGB tuples, optional
+        One base colour per character (default :data:`CHARACTER_COLORS` in order).
+
+    Examples
+    --------
+    >>> body = SceneBody(scene)                  # doctest: +SKIP
+    >>> m = body.pose(120)                       # internal frame 120
+    >>> m.vertices.shape, m.faces.shape          # (N, 3), (M, 3)
+    >>> tm = body.trimesh(120)                   # trimesh.Trimesh with face colours
+    """
+
+    def __init__(self, scene, *, colors=None):
+        self.scene = scene
+        colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
+        self.characters = [
+            CharacterBody(ch, color=colors[i % len(colors)]) for i, ch in enumerate(scene.characters)
+        ]
+        offs = np.cumsum([0] + [b.n_vertices for b in self.characters])
+        self.vertex_offsets = offs  # character i owns vertices offs[i]:offs[i+1]
+        foffs = np.cumsum([0] + [b.n_faces for b in self.characters])
+        self.face_offsets = foffs
+        self.faces = np.vstack([b.faces + o for b, o in zip(self.characters, offs[:-1])])
+        self.face_colors = np.vstack([b.face_colors for b in self.characters])
+        self.face_character = np.concatenate(
+            [np.full(b.n_faces, i) for i, b in enumerate(self.characters)])
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertex_offsets[-1])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def _check(self, frame):
+        f = np.asarray(frame)
+        n = self.scene.n_frames
+        if f.size and (f.min() < 0 or f.max() >= n):
+            raise SceneError(f"frame {frame} is outside the scene's internal frames 0..{n - 1}")
+
+    def vertices(self, frame) -> np.ndarray:
+        """Merged world vertices at internal frame(s): (N, 3), or (K, N, 3) for K frames."""
+        self._check(frame)
+        return np.concatenate([b.vertices(frame) for b in self.characters], axis=-2)
+
+    def normals(self, frame) -> np.ndarray:
+        """Merged world vertex normals at internal frame(s): (N, 3) or (K, N, 3)."""
+        self._check(frame)
+        return np.concatenate([b.normals(frame) for b in self.characters], axis=-2)
+
+    def pose(self, frame: int) -> PosedMesh:
+        """The merged mesh of all characters at internal frame ``frame``."""
+        frame = int(frame)
+        return PosedMesh(self.vertices(frame), self.faces, self.face_colors,
+                         self.normals(frame), self.face_character)
+
+    def trimesh(self, frame: int):
+        """``self.pose(frame).trimesh()``: a :class:`trimesh.Trimesh` with face colours."""
+        return self.pose(frame).trimesh()
+
+    def character_pose(self, i: int, frame: int) -> PosedMesh:
+        """Character ``i`` alone at internal frame ``frame``."""
+        self._check(frame)
+        b = self.characters[i]
+        return PosedMesh(b.vertices(int(frame)), b.faces, b.face_colors, b.normals(int(frame)),
+                         np.full(b.n_faces, i))
+
+
+_BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def scene_body(scene) -> SceneBody:
+    """The (cached) default :class:`SceneBody` of ``scene``: built once per scene object."""
+    body = _BODIES.get(scene)
+    if body is None:
+        body = _BODIES[scene] = SceneBody(scene)
+    return body
+
+
+def posed_mesh(scene, frame: int) -> PosedMesh:
+    """Merged body mesh of every character of ``scene`` at internal frame ``frame``.
+
+    Returns
+    -------
+    PosedMesh
+        ``vertices`` (N, 3) metres, ``faces`` (M, 3), ``face_colors`` (M, 4) uint8,
+        ``normals`` (N, 3), ``face_character`` (M,). Thousands of faces per character.
+    """
+    return scene_body(scene).pose(frame)
+
+
+def scene_trimesh(scene, frame: int):
+    """:func:`posed_mesh` as a :class:`trimesh.Trimesh` (face colours set)."""
+    return posed_mesh(scene, frame).trimesh()
