@@ -193,11 +193,15 @@ def relief_comparison_figure(
     p = params or ReliefParams(resolution=384)
     rows = [p] + ([replace(p, method="linear")] if with_linear else [])
     w, d = p.size_mm
+    title_inches = 0.55 if with_linear else 0.4  # room for 2-3 title lines above each panel
     fig, axes = plt.subplots(
         len(rows),
         len(views),
         squeeze=False,
-        figsize=(panel_inches * len(views), panel_inches * len(rows) * d / w + 0.6),
+        figsize=(
+            panel_inches * len(views),
+            len(rows) * (panel_inches * d / w + title_inches) + 0.4,
+        ),
     )
     reliefs = {}
     for r, rp in enumerate(rows):

@@ -376,3 +376,138 @@ def test_relief_result_scaled_to_depth():
     assert isinstance(rel, Relief)
     assert rel.height_mm.max() == pytest.approx(2.5)
     assert rel.height_mm.min() == 0.0 and np.all(rel.height_mm[~mask] == 0)
+
+
+# ----------------------------------------------------------------- scenes and the CLI
+
+
+@pytest.fixture(scope="module")
+def salsa(motions_dir):
+    """The two-person salsa scene at its true 60 fps."""
+    from snapcore import load_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the salsa unit is fitted, which warns
+        return load_scene(
+            [
+                motions_dir / "two_person/60_01_scaled.bvh",
+                motions_dir / "two_person/61_01_scaled.bvh",
+            ],
+            fps=60,
+        )
+
+
+def test_scene_height_field_holds_both_characters(salsa):
+    """The depth render of a two-person pose sees faces of both characters, framed to the footprint."""
+    from snapcore.body import posed_mesh
+    from snapcore.relief_scene import height_field_from_scene
+
+    params = ReliefParams(size_mm=(120, 80), resolution=120)
+    dm = height_field_from_scene(salsa, 900, (0.3, 0.2, 1.0), params=params)
+    assert dm.depth.shape == (80, 120)
+    seen = np.unique(posed_mesh(salsa, 900).face_character[dm.face_ids[dm.mask] - 1])
+    assert seen.tolist() == [0, 1]
+    # the flat border (margin 5% of the shorter side = 4 mm = 4 px at 1 px/mm) stays
+    # background, and the figure touches it on at least one side (the binding dimension)
+    assert not dm.mask[:3].any() and not dm.mask[-3:].any()
+    assert not dm.mask[:, :3].any() and not dm.mask[:, -3:].any()
+    rows, cols = np.nonzero(dm.mask)
+    assert min(rows.min(), 79 - rows.max(), cols.min(), 119 - cols.max()) <= 5
+
+
+def _run_cli(*args):
+    from click.testing import CliRunner
+
+    from snapcore.cli import cli
+
+    return CliRunner().invoke(cli, ["relief", *map(str, args)], catch_exceptions=False)
+
+
+def test_cli_writes_watertight_stl_and_preview(salsa, motions_dir, tmp_path):
+    """`snapshot relief` with --frame in source numbering writes the STL asked for and its preview."""
+    import json
+
+    import trimesh
+    from PIL import Image
+
+    from snapcore.relief_scene import relief_from_scene
+
+    out = tmp_path / "pair.stl"
+    r = _run_cli(
+        motions_dir / "two_person/60_01_scaled.bvh",
+        motions_dir / "two_person/61_01_scaled.bvh",
+        "--fps",
+        60,
+        "--frame",
+        903,
+        "--view",
+        "0.3,0.2,1",
+        "-o",
+        out,
+        "--size",
+        "90x60",
+        "--depth",
+        3,
+        "--base",
+        1.5,
+        "--resolution",
+        150,
+        "--json",
+    )
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.output[r.output.index("{") :])
+    assert summary["frame"] == 903 and summary["grid"] == [100, 150]
+    m = trimesh.load(out)
+    assert m.is_watertight and m.is_volume
+    assert np.allclose(m.bounds, [[0, 0, 0], [90, 60, 4.5]], atol=0.01)
+    png = np.asarray(Image.open(out.with_suffix(".png")), float) / 255
+    assert png.shape == (100, 150) and png.std() > 0.02
+    # source frame 903 is internal frame 903 - frame_offset: the same relief from the library
+    lib = relief_from_scene(
+        salsa,
+        903 - salsa.frame_offset,
+        (0.3, 0.2, 1.0),
+        params=ReliefParams(size_mm=(90, 60), depth_mm=3, base_mm=1.5, resolution=150),
+    )
+    assert np.array_equal(
+        np.asarray(Image.open(out.with_suffix(".png"))),
+        np.round(np.clip(lib.shaded(), 0, 1) * 255).astype(np.uint8),
+    )
+
+
+def test_cli_rejects_frame_outside_scene(motions_dir, tmp_path):
+    """A frame outside the clip is a one-line usage error with exit code 2."""
+    r = _run_cli(
+        motions_dir / "two_person/60_01_scaled.bvh",
+        "--frame",
+        99999,
+        "--view",
+        "0,0,1",
+        "-o",
+        tmp_path / "x.stl",
+    )
+    assert r.exit_code == 2
+    assert "outside the scene" in r.output
+    assert not (tmp_path / "x.stl").exists()
+
+
+def test_comparison_figure_has_one_panel_per_view(salsa, tmp_path):
+    """The Fig. 11 figure carves the same pose from each named view (plus a linear row on request)."""
+    from snapcore.relief_scene import relief_comparison_figure
+
+    views = {"ours": (0, 0.15, 1), "viewpoint entropy": (1, 0.15, 0)}
+    fig = relief_comparison_figure(
+        salsa, 900, views, params=ReliefParams(resolution=64), with_linear=True
+    )
+    assert len(fig.axes) == 4
+    assert set(fig.reliefs) == {
+        "ours",
+        "viewpoint entropy",
+        "ours (linear)",
+        "viewpoint entropy (linear)",
+    }
+    a, b = fig.reliefs["ours"], fig.reliefs["viewpoint entropy"]
+    assert a.meta["frame"] == b.meta["frame"] == salsa.source_frame(900)
+    assert not np.array_equal(a.mask, b.mask)  # different views, different silhouettes
+    fig.savefig(tmp_path / "fig11.png")
+    assert (tmp_path / "fig11.png").stat().st_size > 10_000
