@@ -40,6 +40,7 @@ __all__ = [
     "synth_scene",
     "write_demo",
     "walk_heel_strikes",
+    "events",
     "WALK_STRIDE_S",
     "WALK_FIRST_LEFT_STRIKE_S",
     "WALK_STANCE_FRACTION",
@@ -737,7 +738,9 @@ def _push(t, rng):
         hang = a_chest + _apply(a_rot, np.array([s * 0.27, -0.35, 0.06]))
         wrist = hang + (ready - hang) * w_ready[:, None]
         wrist = wrist + (on_b - wrist) * w_touch[:, None]
-        pole = _apply(a_rot, np.array([s * 0.7, -0.6, -0.4]))
+        # Elbows back while the arms hang, out and down while they push.
+        pole = _apply(a_rot, np.array([s * 0.2, -0.3, -1.0])
+                      + w_ready[:, None] * np.array([s * 0.5, -0.3, 0.6]))
         _solve_arm(a, side, wrist, pole)
         # Palm flat on B's chest: fingers up, palm (local -Y) facing B, thumb (local
         # +Z) toward the midline.
@@ -950,10 +953,55 @@ def write_demo(folder: str | os.PathLike, *, fps: float = 30.0, seed: int = 0) -
     return manifests
 
 
+def events(name: str, *, seconds: float | None = None) -> dict:
+    """The documented event times (seconds) of a synthetic scene: its ground truth.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`SCENES`.
+    seconds : float, optional
+        Clip length (default :data:`DEFAULT_SECONDS`); events after it are dropped.
+
+    Returns
+    -------
+    dict
+        walk: ``left_heel_strikes``, ``right_heel_strikes``, ``left_toe_offs``,
+        ``right_toe_offs`` (arrays); jump: ``takeoff``, ``landing``; kick and punch:
+        ``impact``; push: ``contact`` (start, end); jumping_jacks: ``jack_starts``
+        (array, each jack lasting :data:`JACKS_PERIOD_S`); idle: nothing. The same for
+        every seed and frame rate.
+    """
+    if name not in SCENES:
+        raise ValueError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)}")
+    secs = DEFAULT_SECONDS[name] if seconds is None else float(seconds)
+    if name == "walk":
+        strikes = walk_heel_strikes(secs)
+        out = {f"{side}_heel_strikes": strikes[side] for side in ("left", "right")}
+        for side, first in (("left", WALK_FIRST_LEFT_STRIKE_S),
+                            ("right", WALK_FIRST_LEFT_STRIKE_S - WALK_STRIDE_S / 2)):
+            k = np.arange(0, int(secs / WALK_STRIDE_S) + 2)
+            offs = first + (k + WALK_STANCE_FRACTION - 1) * WALK_STRIDE_S
+            out[f"{side}_toe_offs"] = np.round(offs[(offs >= 0) & (offs <= secs)], 9)
+        return out
+    table = {
+        "jump": {"takeoff": JUMP_TAKEOFF_S, "landing": JUMP_LANDING_S},
+        "kick": {"impact": KICK_IMPACT_S},
+        "punch": {"impact": PUNCH_IMPACT_S},
+        "push": {"contact": (PUSH_CONTACT_S, PUSH_CONTACT_END_S)},
+        "idle": {},
+    }
+    if name == "jumping_jacks":
+        starts = JACKS_START_S + JACKS_PERIOD_S * np.arange(int(secs / JACKS_PERIOD_S) + 1)
+        return {"jack_starts": np.round(starts[starts + JACKS_PERIOD_S <= secs + 1e-9], 9)}
+    return {k: v for k, v in table[name].items() if np.min(v) <= secs}
+
+
 def walk_heel_strikes(seconds: float | None = None) -> dict[str, np.ndarray]:
     """Heel-strike times (seconds) of each foot within a walk clip of ``seconds``."""
     secs = DEFAULT_SECONDS["walk"] if seconds is None else float(seconds)
     k = np.arange(-1, int(secs / WALK_STRIDE_S) + 2)
     left = WALK_FIRST_LEFT_STRIKE_S + k * WALK_STRIDE_S
     right = left + WALK_STRIDE_S / 2
+    left, right = np.round(left, 9), np.round(right, 9)
     return {"left": left[(left >= 0) & (left <= secs)], "right": right[(right >= 0) & (right <= secs)]}

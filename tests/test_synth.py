@@ -308,3 +308,49 @@ def test_keyframe_curves_match_scipy_pchip():
         t = np.linspace(x[0] - 0.5, x[-1] + 0.5, 200)
         ref = PchipInterpolator(x, y)(np.clip(t, x[0], x[-1]))
         np.testing.assert_allclose(_keys(t, x, y), ref, atol=1e-12)
+
+
+def test_walk_toe_offs_are_where_documented(scenes):
+    """Each foot is on the ground (< 1 cm) 0.05 s before its documented toe-off and
+    clear of it (> 2 cm) 0.1 s after."""
+    c = scenes["walk"].characters[0]
+    ev = synth.events("walk")
+    for side in ("Left", "Right"):
+        low = _foot_low(c, side)
+        offs = ev[side.lower() + "_toe_offs"]
+        assert len(offs) >= 2
+        for t in offs:
+            assert low[_frame(t - 0.05)] < 0.01, (side, t)
+            if t + 0.1 <= scenes["walk"].duration:
+                assert low[_frame(t + 0.1)] > 0.02, (side, t)
+
+
+def test_jumping_jacks_hop_at_documented_times(scenes):
+    """Each documented jack starts with a hop (both feet > 3 cm up 0.07 s later) that
+    lands with the feet apart (ankles > 0.5 m apart mid-jack), then closes them again."""
+    c = scenes["jumping_jacks"].characters[0]
+    low = np.minimum(_foot_low(c, "Left"), _foot_low(c, "Right"))
+    ankles = c.positions[:, [c.skeleton.index("LeftFoot"), c.skeleton.index("RightFoot")]]
+    width = np.linalg.norm(ankles[:, 0] - ankles[:, 1], axis=1)
+    starts = synth.events("jumping_jacks")["jack_starts"]
+    assert len(starts) == 3
+    assert low[:_frame(starts[0])].max() < 0.01  # standing still before the first
+    for t in starts:
+        assert low[_frame(t + 0.07)] > 0.03
+        assert width[_frame(t + 0.3 * synth.JACKS_PERIOD_S)] > 0.5
+        assert low[_frame(t + 0.3 * synth.JACKS_PERIOD_S)] < 0.01
+        assert width[_frame(t + 0.9 * synth.JACKS_PERIOD_S)] < 0.25
+
+
+def test_events_cover_every_scene():
+    """events() answers for every scene, and matches the module constants."""
+    assert synth.events("jump") == {"takeoff": synth.JUMP_TAKEOFF_S, "landing": synth.JUMP_LANDING_S}
+    assert synth.events("push") == {"contact": (synth.PUSH_CONTACT_S, synth.PUSH_CONTACT_END_S)}
+    assert synth.events("kick") == {"impact": synth.KICK_IMPACT_S}
+    assert synth.events("punch") == {"impact": synth.PUNCH_IMPACT_S}
+    assert synth.events("idle") == {}
+    assert synth.events("jump", seconds=1.0) == {}  # both after the end of a 1 s clip
+    np.testing.assert_allclose(synth.events("walk")["left_heel_strikes"],
+                               synth.walk_heel_strikes()["left"])
+    with pytest.raises(ValueError):
+        synth.events("dance")
