@@ -45,6 +45,7 @@ __all__ = [
     "linear_height_field",
     "relief_from_height_field",
     "detail_energy",
+    "detail_region",
     "DETAIL_SIGMA_PX",
     "DETAIL_ERODE_PX",
     "CBF_TAPS_PER_SIGMA",
@@ -793,6 +794,34 @@ def relief_from_height_field(
     return Relief(unit * p.depth_mm, np.asarray(mask, bool).copy(), p, dict(meta or {}))
 
 
+def detail_region(
+    mask, *, height=None, pixel=(1.0, 1.0), max_slope: float = 5.0, erode_px: int = DETAIL_ERODE_PX
+):
+    """Where :func:`detail_energy` looks: the silhouette minus bands around its edges.
+
+    Pixels within ``erode_px`` of the outline are dropped and, when the original
+    ``height`` field is given, also those within ``erode_px`` of a depth discontinuity
+    (a slope above ``max_slope``, e.g. an arm in front of the torso): a step is not
+    detail, and a linear relief keeps every step at full height.
+    Returns ndarray of shape (ny, nx), bool.
+    """
+    m = np.asarray(mask, bool)
+    if height is None:
+        bad = ~m
+    else:
+        rx, ry = _forward_slopes(np.asarray(height, float), m, _pixel_of(pixel))
+        jump = np.zeros_like(m)
+        jx, jy = np.abs(rx) > max_slope, np.abs(ry) > max_slope
+        jump |= jx
+        jump[:, 1:] |= jx[:, :-1]
+        jump |= jy
+        jump[1:, :] |= jy[:-1, :]
+        bad = ~m | jump
+    if erode_px > 0:
+        bad = ndimage.binary_dilation(bad, iterations=erode_px)
+    return m & ~bad
+
+
 def detail_energy(
     relief,
     mask,
@@ -800,6 +829,7 @@ def detail_energy(
     sigma_px: float = DETAIL_SIGMA_PX,
     erode_px: int = DETAIL_ERODE_PX,
     depth: float | None = None,
+    region=None,
 ) -> float:
     """Small-scale gradient energy of a relief inside its silhouette, per unit depth.
 
@@ -815,19 +845,22 @@ def detail_energy(
         Pixels next to the outline left out (the outline itself is not detail).
     depth : float, optional
         Normalising depth; default the relief's peak height ``max(relief[mask])``.
+    region : ndarray of shape (ny, nx), bool, optional
+        Pixels to average over instead of the eroded mask, e.g. :func:`detail_region`
+        with the original height field, which also leaves out occlusion steps.
 
     Returns
     -------
     float
-        ``sqrt(mean_{eroded mask} |∇(r - G_σ * r)|²) / depth``: the RMS slope (per pixel)
+        ``sqrt(mean_{region} |∇(r - G_σ * r)|²) / depth``: the RMS slope (per pixel)
         of the high-pass relief, as a share of the total relief depth. Two reliefs of
         the same depth compare directly: the larger keeps more small-scale detail.
     """
     r = np.asarray(relief, float)
     m = np.asarray(mask, bool)
-    inner = ndimage.binary_erosion(m, iterations=erode_px) if erode_px > 0 else m
+    inner = detail_region(m, erode_px=erode_px) if region is None else np.asarray(region, bool)
     if not inner.any():
-        raise ReliefError("detail_energy: the eroded silhouette is empty; use a smaller erode_px")
+        raise ReliefError("detail_energy: the region is empty; use a smaller erode_px")
     hp = r - ndimage.gaussian_filter(r, sigma_px, mode="nearest")
     gy, gx = np.gradient(hp)
     d = float(r[m].max()) if depth is None else float(depth)

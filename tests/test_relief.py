@@ -16,6 +16,7 @@ from snapcore.relief import (
     compress_height_field,
     cross_bilateral,
     detail_energy,
+    detail_region,
     height_from_depth,
     linear_height_field,
     poisson_solve,
@@ -489,6 +490,25 @@ def test_cli_rejects_frame_outside_scene(motions_dir, tmp_path):
     assert r.exit_code == 2
     assert "outside the scene" in r.output
     assert not (tmp_path / "x.stl").exists()
+
+
+def test_compressed_body_relief_keeps_more_detail_than_linear(salsa):
+    """On a real two-person pose the compressed relief keeps more small-scale relief than linear.
+
+    Same metric as the dome test, averaged over detail_region: the silhouette minus 6-px
+    bands around the outline and around occlusion steps of the original depth (a step is
+    not detail; linear keeps it at full height). Measured ratio 3.5 here (256 px; 2.8-4.0
+    over three views), 2.2-2.9 at 512 px.
+    """
+    from snapcore.relief_scene import height_field_from_scene
+
+    dm = height_field_from_scene(salsa, 900, (0.3, 0.2, 1.0), params=ReliefParams(resolution=256))
+    h, m = height_from_depth(dm.depth)
+    region = detail_region(m, height=h, pixel=dm.pixel_size)
+    assert region.sum() > 0.25 * m.sum()  # measured 0.34
+    lin = detail_energy(linear_height_field(h, m), m, region=region)
+    comp = detail_energy(compress_height_field(h, m, pixel=dm.pixel_size), m, region=region)
+    assert comp > 1.8 * lin
 
 
 def test_comparison_figure_has_one_panel_per_view(salsa, tmp_path):
