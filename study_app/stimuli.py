@@ -333,15 +333,18 @@ def _unit(v) -> list[float]:
     return (a / np.linalg.norm(a)).tolist()
 
 
-def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], view=None) -> list[int]:
-    """Stage 3: the animation video; returns the motion frame (source numbering) per video frame."""
-    from snapcore.render import render_video
+def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], view=None,
+                progress: bool = False) -> list[int]:
+    """Stage 3: the animation video; returns the motion frame (source numbering) per video frame.
 
-    vmap = render_video(scene, path, fps=fps, size=size, view=view)
-    vmap = np.asarray(vmap, dtype=int)
-    # The renderer reports internal frames (0 = the scene's first frame); manifests
-    # speak the source motion's numbering (METHOD §0).
-    return [int(scene.source_frame(int(i))) for i in vmap]
+    ``view=None`` films from the renderer's neutral default (3/4 front of the
+    characters' facing, slightly above): not from any of the three candidate views,
+    so the video does not make one of them look familiar in the view task.
+    """
+    from snapcore.video import render_video
+
+    vmap = render_video(scene, path, fps=fps, size=size, view=view, progress=progress)
+    return [int(m) for m in np.asarray(vmap, dtype=int)]
 
 
 def write_frames(video: str | Path, folder: str | Path) -> list[Path]:
@@ -502,8 +505,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     t1 = time.perf_counter()
     picks, timings = select_scene(scene, study.selection)
     t2 = time.perf_counter()
-    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size,
-                       view=picks["view"])
+    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size)
     frames = write_frames(folder / "video.mp4", folder / "frames")
     if len(frames) != len(vmap):
         raise StimuliError(f"scene {sc['id']}: the video decodes to {len(frames)} frames but the "

@@ -175,7 +175,29 @@ def shown_frame(page) -> int:
     return int(m.group(1)) - 1
 
 
-def test_participant_session_in_browser(server, page, artifacts):
+def frame_on_screen_matches(page, stimuli_dir, scene: str, frame: int) -> None:
+    """The video element shows stimulus frame ``frame``: its pixels are closer to that
+    frame's image than to its neighbours' (the fixture frames show their numbers)."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    png = page.locator(".snap-video").screenshot()
+    img = Image.open(io.BytesIO(png)).convert("L")
+    ref = {}
+    for f in (frame - 1, frame, frame + 1):
+        p = stimuli_dir / scene / "frames" / f"{f:05d}.jpg"
+        if p.exists():
+            r = Image.open(p).convert("L")
+            ref[f] = np.asarray(r, dtype=float)
+    shown = np.asarray(img.resize(Image.open(stimuli_dir / scene / "frames" / "00000.jpg").size),
+                       dtype=float)
+    err = {f: float(np.abs(shown - r).mean()) for f, r in ref.items()}
+    assert min(err, key=err.get) == frame, err
+
+
+def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     """A participant clicks through every page; the database holds exactly their answers."""
     base, store = server
     n_before = store.progress()["participants"]
@@ -207,6 +229,7 @@ def test_participant_session_in_browser(server, page, artifacts):
     page.wait_for_timeout(300)
     first = shown_frame(page)
     assert first == min(paused + 2, 23)
+    frame_on_screen_matches(page, stimuli_dir, plan[0].scene, first)
     shot(page, artifacts, "03-pose-task")
     page.get_by_test_id("picker-confirm").click()
     heading(page, "Animation 2 of 2")
@@ -224,6 +247,7 @@ def test_participant_session_in_browser(server, page, artifacts):
     page.wait_for_timeout(300)
     second = shown_frame(page)
     assert second == 17
+    frame_on_screen_matches(page, stimuli_dir, plan[1].scene, second)
     page.get_by_test_id("picker-confirm").click()
 
     # View tasks: pick position 2, then position 0.
