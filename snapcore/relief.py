@@ -752,6 +752,12 @@ class Relief:
         w, d = self.params.size_mm
         return w / (nx - 1), d / (ny - 1)
 
+    @property
+    def n_triangles(self) -> int:
+        """Triangles of the solid: ``2(ny-1)(nx-1)`` on top, ``3P`` walls and bottom."""
+        ny, nx = self.height_mm.shape
+        return 2 * (ny - 1) * (nx - 1) + 3 * (2 * (nx - 1) + 2 * (ny - 1))
+
     def mesh(self):
         """``(vertices, faces)`` of the watertight solid (see :func:`relief_mesh`)."""
         return relief_mesh(self.height_mm, size_mm=self.params.size_mm, base_mm=self.params.base_mm)

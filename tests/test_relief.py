@@ -318,6 +318,8 @@ def test_relief_mesh_counts():
     p = 2 * 6 + 2 * 4
     assert len(v) == 35 + p + 1
     assert len(f) == 2 * 4 * 6 + 3 * p
+    rel = Relief(np.zeros((5, 7)), np.zeros((5, 7), bool), ReliefParams())
+    assert rel.n_triangles == len(f)
 
 
 def test_fast_stl_records_equal_generic_mesh_records():
@@ -474,6 +476,30 @@ def test_cli_writes_watertight_stl_and_preview(salsa, motions_dir, tmp_path):
         np.asarray(Image.open(out.with_suffix(".png"))),
         np.round(np.clip(lib.shaded(), 0, 1) * 255).astype(np.uint8),
     )
+
+
+def test_cli_default_pose_is_the_selected_one(salsa, motions_dir, tmp_path):
+    """Without --frame the relief carves the pose that take_snapshot selects (source numbering)."""
+    import json
+
+    snapshot = pytest.importorskip("snapcore.snapshot")
+    r = _run_cli(
+        motions_dir / "two_person/60_01_scaled.bvh",
+        motions_dir / "two_person/61_01_scaled.bvh",
+        "--fps",
+        60,
+        "--view",
+        "0,0.2,1",
+        "-o",
+        tmp_path / "a.stl",
+        "--resolution",
+        48,
+        "--json",
+    )
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.output[r.output.index("{") :])
+    assert summary["selected"] == ["frame"]
+    assert summary["frame"] == snapshot.take_snapshot(salsa).frame
 
 
 def test_cli_rejects_frame_outside_scene(motions_dir, tmp_path):

@@ -187,7 +187,6 @@ def relief(
     rel.write_stl(out)
     png = Path(preview) if preview else out.with_suffix(".png")
     rel.write_preview(png)
-    v, f = rel.mesh()
     summary = {
         "stl": str(out),
         "preview": str(png),
@@ -200,20 +199,21 @@ def relief(
         "base_mm": params.base_mm,
         "grid": list(rel.height_mm.shape),
         "pixel_mm": list(rel.pixel_mm),
-        "n_triangles": int(len(f)),
+        "n_triangles": rel.n_triangles,
         "scene_pixel_m": rel.meta["pixel_size_m"],
         "characters": len(scene.characters),
     }
     if as_json:
         echo_json(summary)
     elif not quiet:
-        src = " (selected)" if picked else ""
+        fsel = " (selected pose)" if "frame" in picked else ""
+        vsel = " (selected view)" if "view" in picked else ""
         click.echo(
-            f"relief      frame {frame}, view ({view[0]:+.3f}, {view[1]:+.3f}, {view[2]:+.3f}){src}, "
-            f"{params.method}"
+            f"relief      frame {frame}{fsel}, view ({view[0]:+.3f}, {view[1]:+.3f}, "
+            f"{view[2]:+.3f}){vsel}, {params.method}"
         )
         click.echo(
             f"print box   {size[0]:g} x {size[1]:g} mm, relief {depth:g} mm on a {base:g} mm plate, "
             f"{rel.height_mm.shape[1]}x{rel.height_mm.shape[0]} grid"
         )
-        click.echo(f"wrote       {out} ({len(f):,} triangles), preview {png}")
+        click.echo(f"wrote       {out} ({rel.n_triangles:,} triangles), preview {png}")
