@@ -5,6 +5,9 @@ few motions whose key events happen at documented times (the module constants be
 so other modules can be tested against a known answer: when the feet leave the ground,
 when the kick lands, when one person's hands touch the other's chest.
 
+The rig (skeleton, rotations, keyframe curves, IK) is in :mod:`snapcore.synth_rig`;
+this module holds the motions, the scenes and their ground truth (:func:`events`).
+
 How a motion is made
 --------------------
 Each motion is a handful of keyframed curves (PCHIP: smooth, no overshoot, flat where
@@ -26,10 +29,38 @@ import os
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .bvh import BVHDocument, write_bvh
 from .scene import Scene, character_from_bvh, yaw_matrix
+from .synth_rig import (
+    ANKLE_HEIGHT,
+    BALL,
+    FOREARM,
+    HIP_OFFSET,
+    OFFSET,
+    ROOT_HEIGHT_M,
+    SHANK,
+    SIDES,
+    THIGH,
+    UPPER_ARM,
+    Pose,
+    above_ground,
+    arm_fk,
+    cyclic,
+    foot_on_ground,
+    jitter,
+    minjerk,
+    nlerp,
+    pchip,
+    plant_feet,
+    rotate,
+    rx,
+    solve_arm,
+    solve_leg,
+    to_document,
+    unit,
+    zxy,
+)
 
 __all__ = [
     "MOTIONS",
@@ -68,10 +99,6 @@ DEMO_SCENES = ("walk", "jump", "kick", "punch", "push")
 #: Default clip length per scene, seconds (first to last frame).
 DEFAULT_SECONDS = {"walk": 3.0, "jump": 3.0, "kick": 2.5, "punch": 2.5,
                    "jumping_jacks": 3.0, "idle": 3.0, "push": 3.0}
-#: Fraction of an arm's length beyond which arm IK saturates smoothly (see _two_bone).
-IK_SOFT_REACH = 0.97
-#: Decimal places of every written channel value (1e-6 m, 1e-6 degree).
-DECIMALS = 6
 
 #: Walk: seconds per stride (two steps); left heel strikes at
 #: ``WALK_FIRST_LEFT_STRIKE_S + k * WALK_STRIDE_S``, right ones half a stride later.
@@ -102,331 +129,17 @@ JACKS_START_S = 0.3
 #: Standing height of the skeleton (floor to top of head), metres.
 STATURE_M = 1.75
 
-# --------------------------------------------------------------------------- skeleton
-
-_THIGH = 0.43  # Drillis & Contini: 0.245 H; stature estimate (0.43 + 0.43) / 0.491 = 1.75 m
-_SHANK = 0.43
-_UPPER_ARM = 0.29
-_FOREARM = 0.25
-_HIP_OFFSET = np.array([0.09, -0.06, 0.0])
-_ANKLE_HEIGHT = 0.08
-#: Root (pelvis) height when standing straight, metres.
-ROOT_HEIGHT_M = _ANKLE_HEIGHT + _SHANK + _THIGH + 0.06
-# Foot points in the ankle (Foot joint) frame: ball of the foot (the ToeBase joint),
-# toe tip (its end site), heel (not a joint; the pivot of the heel strike).
-_BALL = np.array([0.0, -0.07, 0.13])
-_TOE_TIP = np.array([0.0, -0.08, 0.19])
-_HEEL = np.array([0.0, -0.075, -0.05])
-
-# (name, parent, offset); parents precede children in depth-first order, which is the
-# order format_bvh writes and parse_bvh reads back. End sites are "<parent>_End".
-_JOINTS = [
-    ("Hips", None, (0.0, 0.0, 0.0)),
-    ("Spine", "Hips", (0.0, 0.10, 0.0)),
-    ("Spine1", "Spine", (0.0, 0.14, 0.0)),
-    ("Neck", "Spine1", (0.0, 0.21, 0.0)),
-    ("Head", "Neck", (0.0, 0.10, 0.0)),
-    ("Head_End", "Head", (0.0, 0.19, 0.0)),
-    ("LeftShoulder", "Spine1", (0.02, 0.17, 0.0)),
-    ("LeftArm", "LeftShoulder", (0.17, 0.0, 0.0)),
-    ("LeftForeArm", "LeftArm", (_UPPER_ARM, 0.0, 0.0)),
-    ("LeftHand", "LeftForeArm", (_FOREARM, 0.0, 0.0)),
-    ("LeftHand_End", "LeftHand", (0.17, 0.0, 0.0)),
-    ("RightShoulder", "Spine1", (-0.02, 0.17, 0.0)),
-    ("RightArm", "RightShoulder", (-0.17, 0.0, 0.0)),
-    ("RightForeArm", "RightArm", (-_UPPER_ARM, 0.0, 0.0)),
-    ("RightHand", "RightForeArm", (-_FOREARM, 0.0, 0.0)),
-    ("RightHand_End", "RightHand", (-0.17, 0.0, 0.0)),
-    ("LeftUpLeg", "Hips", tuple(_HIP_OFFSET)),
-    ("LeftLeg", "LeftUpLeg", (0.0, -_THIGH, 0.0)),
-    ("LeftFoot", "LeftLeg", (0.0, -_SHANK, 0.0)),
-    ("LeftToeBase", "LeftFoot", tuple(_BALL)),
-    ("LeftToeBase_End", "LeftToeBase", tuple(_TOE_TIP - _BALL)),
-    ("RightUpLeg", "Hips", tuple(_HIP_OFFSET * [-1, 1, 1])),
-    ("RightLeg", "RightUpLeg", (0.0, -_THIGH, 0.0)),
-    ("RightFoot", "RightLeg", (0.0, -_SHANK, 0.0)),
-    ("RightToeBase", "RightFoot", tuple(_BALL)),
-    ("RightToeBase_End", "RightToeBase", tuple(_TOE_TIP - _BALL)),
-]
-_NAMES = tuple(j[0] for j in _JOINTS)
-_INDEX = {n: i for i, n in enumerate(_NAMES)}
-_PARENT = {n: p for n, p, _ in _JOINTS}
-_OFFSET = {n: np.array(o, dtype=float) for n, _, o in _JOINTS}
-_END = tuple(n.endswith("_End") for n in _NAMES)
-_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
-_SIDES = {"Left": 1.0, "Right": -1.0}  # sign of the side's X in the character frame
-
-# --------------------------------------------------------------------------- helpers
-
-
-def _rx(deg):
-    a = np.deg2rad(np.asarray(deg, dtype=float))
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1),
-                     np.stack([z, s, c], -1)], -2)
-
-
-def _ry(deg):
-    a = np.deg2rad(np.asarray(deg, dtype=float))
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
-                     np.stack([-s, z, c], -1)], -2)
-
-
-def _rz(deg):
-    a = np.deg2rad(np.asarray(deg, dtype=float))
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
-                     np.stack([z, z, o], -1)], -2)
-
-
-def _zxy(z=0.0, x=0.0, y=0.0):
-    """BVH ``Zrotation Xrotation Yrotation`` angles (degrees) to matrices."""
-    z, x, y = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (z, x, y)))
-    return _rz(z) @ _rx(x) @ _ry(y)
-
-
-def _apply(r, v):
-    """Rotate vectors ``v`` (..., 3) by matrices ``r`` (..., 3, 3)."""
-    return np.einsum("...ij,...j->...i", r, v)
-
-
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, 1e-12)
-
-
-def _keys(t, times, values):
-    """PCHIP through keyframes ``(times, values)``, held constant outside them.
-
-    ``values`` may be (K,) or (K, D); returns (F,) or (F, D). Same curve as
-    ``scipy.interpolate.PchipInterpolator`` (Fritsch & Carlson 1980, with SciPy's
-    end-point rule), written out because building SciPy's object costs ~1 ms and a
-    motion uses dozens of curves.
-    """
-    x = np.asarray(times, dtype=float)
-    y = np.asarray(values, dtype=float)
-    flat = y.ndim == 1
-    y = y.reshape(len(x), -1)
-    h = np.diff(x)[:, None]  # (K-1, 1)
-    delta = np.diff(y, axis=0) / h  # (K-1, D)
-    d = np.zeros_like(y)
-    if len(x) == 2:
-        d[:] = delta
-    else:
-        w1 = 2 * h[1:] + h[:-1]
-        w2 = h[1:] + 2 * h[:-1]
-        same = (np.sign(delta[:-1]) * np.sign(delta[1:])) > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            hm = (w1 + w2) / (w1 / delta[:-1] + w2 / delta[1:])
-        d[1:-1] = np.where(same, hm, 0.0)
-        for end, (h0, h1, m0, m1) in ((0, (h[0], h[1], delta[0], delta[1])),
-                                      (-1, (h[-1], h[-2], delta[-1], delta[-2]))):
-            de = ((2 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
-            de = np.where(np.sign(de) != np.sign(m0), 0.0, de)
-            de = np.where((np.sign(m0) != np.sign(m1)) & (np.abs(de) > 3 * np.abs(m0)),
-                          3 * m0, de)
-            d[end] = de
-    tc = np.clip(np.asarray(t, dtype=float), x[0], x[-1])
-    i = np.clip(np.searchsorted(x, tc, side="right") - 1, 0, len(x) - 2)
-    hi = h[i]
-    u = ((tc - x[i]) / hi[:, 0])[:, None]
-    out = ((2 * u**3 - 3 * u**2 + 1) * y[i] + (u**3 - 2 * u**2 + u) * hi * d[i]
-           + (-2 * u**3 + 3 * u**2) * y[i + 1] + (u**3 - u**2) * hi * d[i + 1])
-    return out[:, 0] if flat else out
-
-
-def _cyclic(phase, keys, values):
-    """PCHIP through keys over one period of ``phase`` (in [0, 1)), periodically."""
-    keys = np.asarray(keys, dtype=float)
-    values = np.asarray(values, dtype=float)
-    k = np.concatenate([keys - 1, keys, keys + 1])
-    v = np.concatenate([values, values, values])
-    return _keys(np.mod(phase, 1.0), k, v)
-
-
-def _minjerk(u):
-    """Minimum-jerk ramp 0→1 on u in [0, 1] (zero velocity and acceleration at both ends)."""
-    u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10 - 15 * u + 6 * u**2)
-
-
-def _jitter(rng, spread):
-    """A factor in [1 - spread, 1 + spread]."""
-    return 1.0 + spread * rng.uniform(-1.0, 1.0)
-
-
-def _nlerp(ra, rb, w):
-    """Blend rotation matrices (F, 3, 3) with weights w (F,) (normalised quaternion lerp)."""
-    qa = Rotation.from_matrix(ra).as_quat()
-    qb = Rotation.from_matrix(rb).as_quat()
-    sign = np.where(np.sum(qa * qb, axis=-1, keepdims=True) < 0, -1.0, 1.0)
-    w = np.asarray(w, dtype=float)[..., None]
-    q = (1 - w) * qa + w * sign * qb
-    return Rotation.from_quat(q / np.linalg.norm(q, axis=-1, keepdims=True)).as_matrix()
-
-
-# --------------------------------------------------------------------------- pose
-
-
-class _Pose:
-    """Local joint rotations (F, 3, 3) and root translation (F, 3) of one character."""
-
-    def __init__(self, n: int):
-        self.n = n
-        eye = np.broadcast_to(np.eye(3), (n, 3, 3))
-        self.local = {name: eye.copy() for name, end in zip(_NAMES, _END) if not end}
-        self.root = np.zeros((n, 3))
-
-    def world(self, name: str):
-        """World rotation (F, 3, 3) and position (F, 3) of joint ``name``."""
-        chain = []
-        j = name
-        while j is not None:
-            chain.append(j)
-            j = _PARENT[j]
-        chain.reverse()
-        rot = self.local[chain[0]]
-        pos = self.root
-        for j in chain[1:]:
-            pos = pos + _apply(rot, _OFFSET[j])
-            rot = rot @ self.local[j] if j in self.local else rot
-        return rot, pos
-
-
-def _two_bone(start, target, l1, l2, pole, *, soft=False):
-    """Analytic two-bone IK.
-
-    Returns unit directions of the first and second bone (F, 3), the bend angle
-    between them in degrees (F,) and the unit bend direction (F, 3): the direction,
-    perpendicular to the first bone, toward which the second bone turns (away from
-    ``pole``, the side the middle joint points to).
-    """
-    d_vec = target - start
-    d = np.linalg.norm(d_vec, axis=-1)
-    full = l1 + l2
-    if soft:
-        # Saturate smoothly near full extension (arms): a target out of reach straightens
-        # the limb gradually instead of snapping it straight. Legs stay exact, so a
-        # planted foot is exactly where it was put.
-        knee = IK_SOFT_REACH * full
-        sat = knee + (full - knee) * np.tanh((d - knee) / (full - knee))
-        d = np.where(d > knee, sat, d)
-    d = np.clip(d, abs(l1 - l2) + 1e-6, full * (1 - 1e-9))
-    n = _unit(d_vec)
-    p = pole - np.sum(pole * n, axis=-1, keepdims=True) * n
-    p = _unit(p)
-    a = (l1**2 - l2**2 + d**2) / (2 * d)
-    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
-    u1 = (a[:, None] * n + h[:, None] * p) / l1
-    u1 = _unit(u1)
-    inner = np.arccos(np.clip((l1**2 + l2**2 - d**2) / (2 * l1 * l2), -1.0, 1.0))
-    bend = np.degrees(np.pi - inner)
-    b = -(p - np.sum(p * u1, axis=-1, keepdims=True) * u1)
-    return u1, _unit(b), bend
-
-
-def _solve_leg(pose: _Pose, side: str, ankle, foot_rot, toe_deg=0.0, pole=None):
-    """Set the hip, knee, ankle and toe rotations so the ankle reaches ``ankle`` (F, 3)
-    with world foot orientation ``foot_rot`` (F, 3, 3); knees point along ``pole``."""
-    r_root = np.broadcast_to(pose.local["Hips"], (pose.n, 3, 3))
-    hip = pose.root + _apply(r_root, _OFFSET[f"{side}UpLeg"])
-    if pole is None:
-        pole = _unit(_apply(r_root, np.array([0.0, 0.0, 1.0])) + foot_rot[:, :, 2])
-    u1, b, bend = _two_bone(hip, ankle, _THIGH, _SHANK, pole)
-    # Thigh frame: rest bone axis -Y maps to u1, the knee bends (Rx > 0) toward -Z.
-    thigh = np.stack([np.cross(u1, b), -u1, -b], axis=-1)
-    pose.local[f"{side}UpLeg"] = np.swapaxes(r_root, -1, -2) @ thigh
-    knee = _rx(bend)
-    pose.local[f"{side}Leg"] = knee
-    shank = thigh @ knee
-    pose.local[f"{side}Foot"] = np.swapaxes(shank, -1, -2) @ foot_rot
-    pose.local[f"{side}ToeBase"] = _rx(np.broadcast_to(-np.asarray(toe_deg, dtype=float),
-                                                       (pose.n,)))
-
-
-def _solve_arm(pose: _Pose, side: str, wrist, pole, hand_rot=None):
-    """Set shoulder and elbow rotations so the wrist reaches ``wrist`` (F, 3); the elbow
-    points along ``pole``. ``hand_rot`` (F, 3, 3) is the hand's world orientation
-    (default: in line with the forearm)."""
-    sign = _SIDES[side]
-    r_parent, _ = pose.world(f"{side}Shoulder")
-    _, shoulder = pose.world(f"{side}Arm")
-    u1, b, bend = _two_bone(shoulder, wrist, _UPPER_ARM, _FOREARM, pole, soft=True)
-    # Upper-arm frame: rest bone axis (sign * X) maps to u1, the elbow bends toward +Z
-    # (Ry(-bend) for the left arm, Ry(+bend) for the right).
-    upper = np.stack([sign * u1, np.cross(b, sign * u1), b], axis=-1)
-    pose.local[f"{side}Arm"] = np.swapaxes(r_parent, -1, -2) @ upper
-    elbow = _ry(-sign * bend)
-    pose.local[f"{side}ForeArm"] = elbow
-    if hand_rot is not None:
-        pose.local[f"{side}Hand"] = np.swapaxes(upper @ elbow, -1, -2) @ hand_rot
-
-
-def _arm_fk(pose: _Pose, side: str, abduct, flex, elbow, twist=0.0):
-    """Arm angles in degrees: ``abduct`` away from the body in the frontal plane (0 =
-    hanging, 90 = horizontal), ``flex`` forward (0 = down, 90 = forward), ``elbow``
-    flexion; sets the shoulder and elbow rotations."""
-    s = _SIDES[side]
-    n = pose.n
-    abduct, flex, elbow, twist = (np.broadcast_to(np.asarray(v, dtype=float), (n,))
-                                  for v in (abduct, flex, elbow, twist))
-    pose.local[f"{side}Arm"] = _zxy(-s * (90.0 - abduct), twist, -s * flex)
-    pose.local[f"{side}ForeArm"] = _ry(-s * elbow)
-
-
-def _foot_on_ground(ball, pitch, yaw=0.0):
-    """Ankle position (F, 3) and foot orientation (F, 3, 3) of a foot whose ball would
-    rest at ``ball`` (F, 3) when flat, rolled by ``pitch`` degrees (> 0: heel up,
-    rolling about the ball; < 0: toes up, rolling about the heel)."""
-    pitch = np.asarray(pitch, dtype=float)
-    rot = _ry(yaw) @ _rx(pitch)
-    pivot = np.where((pitch < 0)[:, None], _HEEL, _BALL)  # (F, 3) in the foot frame
-    pivot_world = ball + _apply(_ry(yaw), pivot - _BALL)
-    return pivot_world - _apply(rot, pivot), rot
-
-
-def _above_ground(ankle, rot):
-    """``ankle`` (F, 3) raised where needed so no point of the foot (ankle, heel, ball,
-    toe tip; orientation ``rot`` (F, 3, 3)) is below the floor (y = 0)."""
-    pts = np.stack([np.zeros(3), _HEEL, _BALL, _TOE_TIP])  # (4, 3)
-    low = (ankle[:, None, 1] + np.einsum("fij,kj->fki", rot, pts)[..., 1]).min(axis=1)
-    out = ankle.copy()
-    out[:, 1] += np.maximum(-low, 0.0)
-    return out
-
-
-def _standing(pose: _Pose, *, arms=True):
-    """Relaxed standing: arms hanging, slight elbow bend (legs are solved separately)."""
-    if arms:
-        for side in _SIDES:
-            _arm_fk(pose, side, 8.0, 5.0, 12.0)
-
-
-def _plant_feet(pose, ball_l, ball_r, pitch_l=None, pitch_r=None):
-    """Solve both legs for feet on the ground at the given ball positions."""
-    for side, ball, pitch in (("Left", ball_l, pitch_l), ("Right", ball_r, pitch_r)):
-        ball = np.broadcast_to(np.asarray(ball, dtype=float), (pose.n, 3))
-        p = np.zeros(pose.n) if pitch is None else np.asarray(pitch, dtype=float)
-        ankle, rot = _foot_on_ground(ball, p)
-        _solve_leg(pose, side, ankle, rot, toe_deg=np.maximum(p, 0.0))
-
-
 # --------------------------------------------------------------------------- motions
 
 
 def _walk(t, rng):
     n = t.size
-    pose = _Pose(n)
+    pose = Pose(n)
     T = WALK_STRIDE_S
-    step = 0.55 * _jitter(rng, 0.04)
+    step = 0.55 * jitter(rng, 0.04)
     stride = 2 * step
     v = stride / T
-    swing_arm = 16.0 * _jitter(rng, 0.2)
+    swing_arm = 16.0 * jitter(rng, 0.2)
     phase_l = (t - WALK_FIRST_LEFT_STRIKE_S) / T  # heel strike of the left foot at integers
     phi = np.mod(phase_l, 1.0)
     # Root: constant speed forward, bobbing (highest at mid-stance), swaying over the
@@ -437,11 +150,11 @@ def _walk(t, rng):
     pose.root = np.stack([x_root, y_root, z_root], axis=1)
     yaw = -5.0 * np.cos(2 * np.pi * phi)
     roll = 2.5 * np.sin(2 * np.pi * (phi - 0.1))
-    pose.local["Hips"] = _zxy(roll, 0.0, yaw)
-    pose.local["Spine"] = _zxy(-roll * 0.6, 3.0, -0.5 * yaw)
-    pose.local["Spine1"] = _zxy(0.0, 2.0, -0.5 * yaw)
-    pose.local["Neck"] = _zxy(0.0, -3.0, 0.0)
-    pose.local["Head"] = _zxy(-0.4 * roll, -1.0, 0.0)
+    pose.local["Hips"] = zxy(roll, 0.0, yaw)
+    pose.local["Spine"] = zxy(-roll * 0.6, 3.0, -0.5 * yaw)
+    pose.local["Spine1"] = zxy(0.0, 2.0, -0.5 * yaw)
+    pose.local["Neck"] = zxy(0.0, -3.0, 0.0)
+    pose.local["Head"] = zxy(-0.4 * roll, -1.0, 0.0)
     # Feet: stance = heel roll (toes up) → flat → heel off (rolling on the ball); the
     # ball of each foot is planted where the root will be at that foot's mid-stance.
     pitch_keys = ([0.0, 0.08, 0.42, 0.6, 0.75, 0.92], [-12.0, 0.0, 0.0, 35.0, 5.0, -12.0])
@@ -450,54 +163,54 @@ def _walk(t, rng):
         ph = phase_l - shift
         k = np.floor(ph)
         f = ph - k
-        sx = _SIDES[side] * 0.095
+        sx = SIDES[side] * 0.095
 
         def ball_at(cycle, shift=shift, sx=sx):  # ball of the foot planted in this cycle
             t_mid = (cycle + shift + 0.3) * T + WALK_FIRST_LEFT_STRIKE_S
-            z = v * t_mid + _BALL[2]
-            return np.stack([np.full_like(z, sx), np.full_like(z, _ANKLE_HEIGHT + _BALL[1]), z],
+            z = v * t_mid + BALL[2]
+            return np.stack([np.full_like(z, sx), np.full_like(z, ANKLE_HEIGHT + BALL[1]), z],
                             axis=1)
 
-        pitch = _cyclic(f, *pitch_keys)
-        ankle_st, rot_st = _foot_on_ground(ball_at(k), pitch)
+        pitch = cyclic(f, *pitch_keys)
+        ankle_st, rot_st = foot_on_ground(ball_at(k), pitch)
         # Swing: minimum-jerk from the toe-off ankle to the next heel-strike ankle.
-        a0, _ = _foot_on_ground(ball_at(k), np.full(n, pitch_keys[1][3]))
-        a1, _ = _foot_on_ground(ball_at(k + 1), np.full(n, pitch_keys[1][0]))
+        a0, _ = foot_on_ground(ball_at(k), np.full(n, pitch_keys[1][3]))
+        a1, _ = foot_on_ground(ball_at(k + 1), np.full(n, pitch_keys[1][0]))
         u = (f - stance) / (1 - stance)
-        s = _minjerk(u)[:, None]
+        s = minjerk(u)[:, None]
         uc = np.clip(u, 0, 1)
         lift = 0.07 * uc * (1 - uc) ** 2 * 27 / 4  # peaks early in the swing, at u = 1/3
         ankle_sw = a0 + (a1 - a0) * s + np.stack([0 * lift, lift, 0 * lift], axis=1)
         in_swing = (f >= stance)[:, None]
         ankle = np.where(in_swing, ankle_sw, ankle_st)
-        rot = np.where(in_swing[..., None], _rx(pitch), rot_st)
-        _solve_leg(pose, side, ankle, rot, toe_deg=np.maximum(pitch, 0.0))
+        rot = np.where(in_swing[..., None], rx(pitch), rot_st)
+        solve_leg(pose, side, ankle, rot, toe_deg=np.maximum(pitch, 0.0))
         # Arms swing opposite to the leg of the same side.
         arm_phase = 2 * np.pi * (f - 0.5)
         flex = 4.0 + swing_arm * np.cos(arm_phase)
-        _arm_fk(pose, side, 8.0, flex, 18.0 + 0.6 * np.maximum(flex, 0))
+        arm_fk(pose, side, 8.0, flex, 18.0 + 0.6 * np.maximum(flex, 0))
     return pose
 
 
 def _jump(t, rng):
     n = t.size
-    pose = _Pose(n)
+    pose = Pose(n)
     g = 9.81
     flight = JUMP_LANDING_S - JUMP_TAKEOFF_S
     v0 = g * flight / 2
-    depth = 0.22 * _jitter(rng, 0.15)
+    depth = 0.22 * jitter(rng, 0.15)
     # Take-off pose: legs almost straight, heels up 35 degrees (rolling on the balls).
     toe_pitch = 35.0
-    ball_l = np.array([0.11, _ANKLE_HEIGHT + _BALL[1], _BALL[2]])
+    ball_l = np.array([0.11, ANKLE_HEIGHT + BALL[1], BALL[2]])
     ball_r = ball_l * [-1, 1, 1]
-    a_to, _ = _foot_on_ground(ball_l[None], np.array([toe_pitch]))
-    y_to = a_to[0, 1] + 0.985 * (_THIGH + _SHANK) - _HIP_OFFSET[1]
+    a_to, _ = foot_on_ground(ball_l[None], np.array([toe_pitch]))
+    y_to = a_to[0, 1] + 0.985 * (THIGH + SHANK) - HIP_OFFSET[1]
     t_to, t_ld = JUMP_TAKEOFF_S, JUMP_LANDING_S
     tb = t_to - 0.3  # bottom of the crouch
     # Root height: hermite segments with the ballistic velocity at take-off/landing.
     y = np.full(n, ROOT_HEIGHT_M - 0.01)
     seg = (t >= 0.45) & (t < tb)
-    y[seg] = _keys(t[seg], [0.45, tb], [ROOT_HEIGHT_M - 0.01, ROOT_HEIGHT_M - depth])
+    y[seg] = pchip(t[seg], [0.45, tb], [ROOT_HEIGHT_M - 0.01, ROOT_HEIGHT_M - depth])
     y0, y1, m1, dt = ROOT_HEIGHT_M - depth, y_to, v0, t_to - tb
     seg = (t >= tb) & (t < t_to)
     u = (t[seg] - tb) / dt
@@ -506,168 +219,168 @@ def _jump(t, rng):
     seg = (t >= t_to) & (t < t_ld)
     tau = t[seg] - t_to
     y[seg] = y_to + v0 * tau - 0.5 * g * tau**2
-    tl, land_depth = t_ld + 0.3, 0.2 * _jitter(rng, 0.15)
+    tl, land_depth = t_ld + 0.3, 0.2 * jitter(rng, 0.15)
     seg = (t >= t_ld) & (t < tl)
     u = (t[seg] - t_ld) / (tl - t_ld)
     y0, y1, m0, dt = y_to, ROOT_HEIGHT_M - land_depth, -v0, tl - t_ld
     y[seg] = ((2 * u**3 - 3 * u**2 + 1) * y0 + (-2 * u**3 + 3 * u**2) * y1
               + (u**3 - 2 * u**2 + u) * m0 * dt)
     seg = t >= tl
-    y[seg] = _keys(t[seg], [tl, tl + 0.55], [ROOT_HEIGHT_M - land_depth, ROOT_HEIGHT_M - 0.01])
+    y[seg] = pchip(t[seg], [tl, tl + 0.55], [ROOT_HEIGHT_M - land_depth, ROOT_HEIGHT_M - 0.01])
     pose.root = np.stack([np.zeros(n), y, np.zeros(n)], axis=1)
-    lean = _keys(t, [0.45, tb, t_to, t_to + 0.25, t_ld, tl, tl + 0.55],
+    lean = pchip(t, [0.45, tb, t_to, t_to + 0.25, t_ld, tl, tl + 0.55],
                  [0.0, 25.0, 0.0, 0.0, 5.0, 22.0, 0.0])
-    pose.local["Hips"] = _zxy(0.0, lean, 0.0)
-    pose.local["Spine"] = _zxy(0.0, 0.3 * lean, 0.0)
-    pose.local["Neck"] = _zxy(0.0, -0.8 * lean, 0.0)
+    pose.local["Hips"] = zxy(0.0, lean, 0.0)
+    pose.local["Spine"] = zxy(0.0, 0.3 * lean, 0.0)
+    pose.local["Neck"] = zxy(0.0, -0.8 * lean, 0.0)
     # Feet on the ground except in flight; heels rise before take-off, toes touch first.
-    pitch = _keys(t, [0.0, tb + 0.05, t_to, t_to + 0.2, t_ld - 0.15, t_ld, t_ld + 0.12],
+    pitch = pchip(t, [0.0, tb + 0.05, t_to, t_to + 0.2, t_ld - 0.15, t_ld, t_ld + 0.12],
                   [0.0, 0.0, toe_pitch, 20.0, 25.0, toe_pitch, 0.0])
     air = (t > t_to) & (t < t_ld)
     u = np.clip((t - t_to) / flight, 0, 1)
     tuck = 0.16 * np.sin(np.pi * u) * air
     for side, ball in (("Left", ball_l), ("Right", ball_r)):
         ballf = np.broadcast_to(ball, (n, 3))
-        ankle, rot = _foot_on_ground(ballf, np.where(air, toe_pitch, pitch))
+        ankle, rot = foot_on_ground(ballf, np.where(air, toe_pitch, pitch))
         ankle = ankle + np.stack([0 * y, (y - y_to + tuck) * air, 0 * y], axis=1)
-        rot = np.where(air[:, None, None], _rx(pitch), rot)
-        _solve_leg(pose, side, ankle, rot, toe_deg=np.where(air, 0.0, np.maximum(pitch, 0)))
+        rot = np.where(air[:, None, None], rx(pitch), rot)
+        solve_leg(pose, side, ankle, rot, toe_deg=np.where(air, 0.0, np.maximum(pitch, 0)))
     # Arms: swing back in the crouch, up through take-off, down after landing.
-    amp = _jitter(rng, 0.1)
-    flex = _keys(t, [0.0, 0.45, tb, t_to, t_to + 0.2, t_ld, tl, tl + 0.55],
+    amp = jitter(rng, 0.1)
+    flex = pchip(t, [0.0, 0.45, tb, t_to, t_to + 0.2, t_ld, tl, tl + 0.55],
                  [5.0, 5.0, -45.0 * amp, 150.0 * amp, 160.0 * amp, 60.0, 20.0, 5.0])
-    elbow = _keys(t, [0.0, tb, t_to, t_ld, tl + 0.55], [12.0, 10.0, 20.0, 30.0, 12.0])
-    for side in _SIDES:
-        _arm_fk(pose, side, 10.0, flex, elbow)
+    elbow = pchip(t, [0.0, tb, t_to, t_ld, tl + 0.55], [12.0, 10.0, 20.0, 30.0, 12.0])
+    for side in SIDES:
+        arm_fk(pose, side, 10.0, flex, elbow)
     return pose
 
 
 def _kick(t, rng):
     n = t.size
-    pose = _Pose(n)
+    pose = Pose(n)
     ti = KICK_IMPACT_S
-    height = _jitter(rng, 0.08)
-    ball_l = np.array([0.1, _ANKLE_HEIGHT + _BALL[1], _BALL[2] + 0.02])
-    ball_r = np.array([-0.1, _ANKLE_HEIGHT + _BALL[1], _BALL[2] - 0.05])
+    height = jitter(rng, 0.08)
+    ball_l = np.array([0.1, ANKLE_HEIGHT + BALL[1], BALL[2] + 0.02])
+    ball_r = np.array([-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.05])
     # Weight onto the left foot, pelvis tilting back as the right leg kicks.
-    shift = _keys(t, [0.0, 0.3, 0.65, ti + 0.45, ti + 0.8, ti + 1.1], [0, 0, 1, 1, 0.3, 0])
+    shift = pchip(t, [0.0, 0.3, 0.65, ti + 0.45, ti + 0.8, ti + 1.1], [0, 0, 1, 1, 0.3, 0])
     x = 0.0 + 0.07 * shift
     y = ROOT_HEIGHT_M - 0.03 - 0.03 * shift
-    z = _keys(t, [0.0, 0.65, ti, ti + 0.5, ti + 1.1], [0.0, -0.02, 0.02, 0.0, 0.0])
+    z = pchip(t, [0.0, 0.65, ti, ti + 0.5, ti + 1.1], [0.0, -0.02, 0.02, 0.0, 0.0])
     pose.root = np.stack([x, y, z], axis=1)
-    tilt = _keys(t, [0.0, 0.6, ti - 0.1, ti + 0.15, ti + 0.6, ti + 1.0],
+    tilt = pchip(t, [0.0, 0.6, ti - 0.1, ti + 0.15, ti + 0.6, ti + 1.0],
                  [2.0, 0.0, -10.0, -12.0, -2.0, 2.0])
-    pose.local["Hips"] = _zxy(-4.0 * shift, tilt, 8.0 * shift)
-    pose.local["Spine"] = _zxy(2.0 * shift, 6.0 - 0.6 * tilt, -4.0 * shift)
-    pose.local["Spine1"] = _zxy(0.0, 3.0, -3.0 * shift)
-    pose.local["Neck"] = _zxy(0.0, -4.0 - 0.3 * tilt, 0.0)
+    pose.local["Hips"] = zxy(-4.0 * shift, tilt, 8.0 * shift)
+    pose.local["Spine"] = zxy(2.0 * shift, 6.0 - 0.6 * tilt, -4.0 * shift)
+    pose.local["Spine1"] = zxy(0.0, 3.0, -3.0 * shift)
+    pose.local["Neck"] = zxy(0.0, -4.0 - 0.3 * tilt, 0.0)
     # Left leg planted. The right ankle goes from its planted spot to where the kick's
     # keyframed leg angles put it and back, never letting the foot touch the floor
     # in between; IK then gives knee and hip.
-    _plant_feet(pose, ball_l, ball_r)
+    plant_feet(pose, ball_l, ball_r)
     keys_t = [0.0, 0.55, 0.8, ti - 0.16, ti, ti + 0.18, ti + 0.45, ti + 0.75]
-    hip = _keys(t, keys_t, [0, 5, 60, 70, 82 * height, 70, 35, 5])
-    knee = _keys(t, keys_t, [5, 10, 110, 115, 2, 95, 70, 10])
-    point = _keys(t, keys_t, [0, 5, 30, 35, 45, 30, 15, 0])  # ankle plantarflexion
-    w = _keys(t, [0.5, 0.7, ti + 0.5, ti + 0.85], [0.0, 1.0, 1.0, 0.0])
+    hip = pchip(t, keys_t, [0, 5, 60, 70, 82 * height, 70, 35, 5])
+    knee = pchip(t, keys_t, [5, 10, 110, 115, 2, 95, 70, 10])
+    point = pchip(t, keys_t, [0, 5, 30, 35, 45, 30, 15, 0])  # ankle plantarflexion
+    w = pchip(t, [0.5, 0.7, ti + 0.5, ti + 0.85], [0.0, 1.0, 1.0, 0.0])
     r_root = pose.local["Hips"]
-    hip_pos = pose.root + _apply(r_root, _OFFSET["RightUpLeg"])
-    thigh = r_root @ _rx(-hip)
-    kick_ankle = (hip_pos + _apply(thigh, np.array([0.0, -_THIGH, 0.0]))
-                  + _apply(thigh @ _rx(knee), np.array([0.0, -_SHANK, 0.0])))
-    planted, flat = _foot_on_ground(np.broadcast_to(ball_r, (n, 3)), np.zeros(n))
+    hip_pos = pose.root + rotate(r_root, OFFSET["RightUpLeg"])
+    thigh = r_root @ rx(-hip)
+    kick_ankle = (hip_pos + rotate(thigh, np.array([0.0, -THIGH, 0.0]))
+                  + rotate(thigh @ rx(knee), np.array([0.0, -SHANK, 0.0])))
+    planted, flat = foot_on_ground(np.broadcast_to(ball_r, (n, 3)), np.zeros(n))
     ankle = planted + (kick_ankle - planted) * w[:, None]
-    rot = _nlerp(flat, thigh @ _rx(knee) @ _rx(point), w)
-    ankle = _above_ground(ankle, rot)
-    _solve_leg(pose, "Right", ankle, rot)
+    rot = nlerp(flat, thigh @ rx(knee) @ rx(point), w)
+    ankle = above_ground(ankle, rot)
+    solve_leg(pose, "Right", ankle, rot)
     # Guard up; the right arm swings back as the leg swings forward.
-    for side in _SIDES:
+    for side in SIDES:
         back = shift if side == "Right" else 0 * shift
-        _arm_fk(pose, side, 22.0 + 10 * back, 22.0 - 55.0 * back, 125.0 - 60 * back)
+        arm_fk(pose, side, 22.0 + 10 * back, 22.0 - 55.0 * back, 125.0 - 60 * back)
     return pose
 
 
 def _punch(t, rng):
     n = t.size
-    pose = _Pose(n)
+    pose = Pose(n)
     ti = PUNCH_IMPACT_S
     reach = 1.0 - 0.01 * rng.uniform()
     # Boxing stance: left foot forward, knees soft.
-    ball_l = np.array([0.12, _ANKLE_HEIGHT + _BALL[1], _BALL[2] + 0.16])
-    ball_r = np.array([-0.14, _ANKLE_HEIGHT + _BALL[1], _BALL[2] - 0.16])
-    k = _keys(t, [0.0, ti - 0.25, ti, ti + 0.3, ti + 0.7], [0.0, -0.2, 1.0, 0.3, 0.0])
+    ball_l = np.array([0.12, ANKLE_HEIGHT + BALL[1], BALL[2] + 0.16])
+    ball_r = np.array([-0.14, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.16])
+    k = pchip(t, [0.0, ti - 0.25, ti, ti + 0.3, ti + 0.7], [0.0, -0.2, 1.0, 0.3, 0.0])
     x = 0.0 - 0.02 * k
     y = np.full(n, ROOT_HEIGHT_M - 0.05)
     z = 0.0 + 0.06 * k
     pose.root = np.stack([x, y, z], axis=1)
-    pose.local["Hips"] = _zxy(0.0, 4.0, -10.0 + 18.0 * k)
-    pose.local["Spine"] = _zxy(0.0, 5.0 + 3 * k, 10.0 * k)
-    pose.local["Spine1"] = _zxy(0.0, 4.0, 2.0 + 8.0 * k)
-    pose.local["Neck"] = _zxy(0.0, -6.0, 8.0 - 26.0 * k)
+    pose.local["Hips"] = zxy(0.0, 4.0, -10.0 + 18.0 * k)
+    pose.local["Spine"] = zxy(0.0, 5.0 + 3 * k, 10.0 * k)
+    pose.local["Spine1"] = zxy(0.0, 4.0, 2.0 + 8.0 * k)
+    pose.local["Neck"] = zxy(0.0, -6.0, 8.0 - 26.0 * k)
     heel = np.clip(k, 0, None) * 25.0  # the rear heel lifts as the hips turn
-    _plant_feet(pose, ball_l, ball_r, pitch_r=heel)
+    plant_feet(pose, ball_l, ball_r, pitch_r=heel)
     # Guard: fists in front of the chin (relative to the chest, so they turn with it).
     r_chest, p_chest = pose.world("Spine1")
-    pole_out = {s: _apply(r_chest, np.array([_SIDES[s] * 0.6, -1.0, -0.6])) for s in _SIDES}
-    guard = {s: p_chest + _apply(r_chest, np.array([_SIDES[s] * 0.13, 0.22, 0.24])) for s in _SIDES}
+    pole_out = {s: rotate(r_chest, np.array([SIDES[s] * 0.6, -1.0, -0.6])) for s in SIDES}
+    guard = {s: p_chest + rotate(r_chest, np.array([SIDES[s] * 0.13, 0.22, 0.24])) for s in SIDES}
     # The fist drives straight at chin height, ahead of the body's midline, to 98-99 % of
     # the arm's length from the (moving) shoulder: extended, never locked.
     _, shoulder = pose.world("RightArm")
-    aim = _unit(np.array([-0.03, 1.38, 1.2]) - shoulder)
-    target = shoulder + aim * 0.99 * reach * (_UPPER_ARM + _FOREARM)
-    w = _keys(t, [0.0, ti - 0.2, ti, ti + 0.06, ti + 0.4], [0.0, 0.0, 1.0, 1.0, 0.0])[:, None]
+    aim = unit(np.array([-0.03, 1.38, 1.2]) - shoulder)
+    target = shoulder + aim * 0.99 * reach * (UPPER_ARM + FOREARM)
+    w = pchip(t, [0.0, ti - 0.2, ti, ti + 0.06, ti + 0.4], [0.0, 0.0, 1.0, 1.0, 0.0])[:, None]
     wrist_r = guard["Right"] * (1 - w) + target * w
-    _solve_arm(pose, "Left", guard["Left"], pole_out["Left"])
-    _solve_arm(pose, "Right", wrist_r, pole_out["Right"])
+    solve_arm(pose, "Left", guard["Left"], pole_out["Left"])
+    solve_arm(pose, "Right", wrist_r, pole_out["Right"])
     return pose
 
 
 def _jumping_jacks(t, rng):
     n = t.size
-    pose = _Pose(n)
+    pose = Pose(n)
     T, t0 = JACKS_PERIOD_S, JACKS_START_S
-    wide = 0.32 * _jitter(rng, 0.1)
-    up = 170.0 * _jitter(rng, 0.03)
+    wide = 0.32 * jitter(rng, 0.1)
+    up = 170.0 * jitter(rng, 0.03)
     c = np.clip((t - t0) / T, 0, None)
     active = t >= t0
     f = np.mod(c, 1.0)
     # Out-jump in [0, 0.15), feet apart [0.15, 0.5), in-jump [0.5, 0.65), together after.
-    spread = np.where(active, _cyclic(f, [0.0, 0.15, 0.5, 0.65], [0.0, 1.0, 1.0, 0.0]), 0.0)
+    spread = np.where(active, cyclic(f, [0.0, 0.15, 0.5, 0.65], [0.0, 1.0, 1.0, 0.0]), 0.0)
     hop = np.where(active, np.sin(np.pi * np.clip(f / 0.15, 0, 1)) * (f < 0.15)
                    + np.sin(np.pi * np.clip((f - 0.5) / 0.15, 0, 1)) * ((f >= 0.5) & (f < 0.65)),
                    0.0)
     squat = np.where(active, 0.5 + 0.5 * np.cos(2 * np.pi * (f - 0.3) / 0.35), 0.0)
     squat = np.where((f > 0.15) & (f < 0.5) | (f > 0.65), squat, 0.0) * active
     # The arms take longer than the legs: up over 0.4 of the period, down over 0.45.
-    arms = np.where(active, _cyclic(f, [0.0, 0.4, 0.5, 0.95], [0.0, 1.0, 1.0, 0.0]), 0.0)
+    arms = np.where(active, cyclic(f, [0.0, 0.4, 0.5, 0.95], [0.0, 1.0, 1.0, 0.0]), 0.0)
     hop_h = 0.07
     y = ROOT_HEIGHT_M - 0.015 - 0.065 * spread + hop_h * hop - 0.04 * squat
     pose.root = np.stack([np.zeros(n), y, np.zeros(n)], axis=1)
-    for side in _SIDES:
-        sx = _SIDES[side] * (0.1 + wide * spread)
-        ball = np.stack([sx, np.full(n, _ANKLE_HEIGHT + _BALL[1] + hop_h * hop),
-                         np.full(n, _BALL[2])], axis=1)
-        ankle, rot = _foot_on_ground(ball, np.zeros(n))
-        _solve_leg(pose, side, ankle, rot, pole=np.broadcast_to([0.0, 0.0, 1.0], (n, 3)))
-        _arm_fk(pose, side, 6.0 + (up - 6.0) * arms, 0.0, 0.0)
+    for side in SIDES:
+        sx = SIDES[side] * (0.1 + wide * spread)
+        ball = np.stack([sx, np.full(n, ANKLE_HEIGHT + BALL[1] + hop_h * hop),
+                         np.full(n, BALL[2])], axis=1)
+        ankle, rot = foot_on_ground(ball, np.zeros(n))
+        solve_leg(pose, side, ankle, rot, pole=np.broadcast_to([0.0, 0.0, 1.0], (n, 3)))
+        arm_fk(pose, side, 6.0 + (up - 6.0) * arms, 0.0, 0.0)
     return pose
 
 
 def _idle(t, rng):
     n = t.size
-    pose = _Pose(n)
-    breath = np.sin(2 * np.pi * t / (3.2 * _jitter(rng, 0.1)))
-    sway = np.sin(2 * np.pi * t / (4.5 * _jitter(rng, 0.1)) + rng.uniform(0, 2 * np.pi))
+    pose = Pose(n)
+    breath = np.sin(2 * np.pi * t / (3.2 * jitter(rng, 0.1)))
+    sway = np.sin(2 * np.pi * t / (4.5 * jitter(rng, 0.1)) + rng.uniform(0, 2 * np.pi))
     pose.root = np.stack([0.025 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath,
                           0.005 * breath], axis=1)
-    pose.local["Hips"] = _zxy(1.5 * sway, 1.0, 2.0 * sway)
-    pose.local["Spine"] = _zxy(-1.5 * sway, 1.0 + 1.0 * breath, -1.0 * sway)
-    pose.local["Spine1"] = _zxy(0.0, 1.0 * breath, 0.0)
-    pose.local["Head"] = _zxy(0.0, -2.0 + 2.0 * breath, 6.0 * np.sin(2 * np.pi * t / 5.0))
-    _plant_feet(pose, [0.1, _ANKLE_HEIGHT + _BALL[1], _BALL[2]],
-                [-0.1, _ANKLE_HEIGHT + _BALL[1], _BALL[2] - 0.03])
-    for side in _SIDES:
-        _arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * _SIDES[side], 14.0)
+    pose.local["Hips"] = zxy(1.5 * sway, 1.0, 2.0 * sway)
+    pose.local["Spine"] = zxy(-1.5 * sway, 1.0 + 1.0 * breath, -1.0 * sway)
+    pose.local["Spine1"] = zxy(0.0, 1.0 * breath, 0.0)
+    pose.local["Head"] = zxy(0.0, -2.0 + 2.0 * breath, 6.0 * np.sin(2 * np.pi * t / 5.0))
+    plant_feet(pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]],
+                [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03])
+    for side in SIDES:
+        arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * SIDES[side], 14.0)
     return pose
 
 
@@ -680,46 +393,46 @@ def _push(t, rng):
     n = t.size
     tc, te = PUSH_CONTACT_S, PUSH_CONTACT_END_S
     # --- B, the pushed person: stands, is shoved back, steps back with the left foot.
-    b = _Pose(n)
-    shove = 0.18 * _jitter(rng, 0.1)
-    back = _keys(t, [0.0, tc, te, te + 0.5, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16])
-    lean = _keys(t, [0.0, tc, tc + 0.2, te + 0.1, te + 0.6, te + 1.1], [1.0, 1.0, -7.0, -10.0, -4.0, 1.0])
+    b = Pose(n)
+    shove = 0.18 * jitter(rng, 0.1)
+    back = pchip(t, [0.0, tc, te, te + 0.5, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16])
+    lean = pchip(t, [0.0, tc, tc + 0.2, te + 0.1, te + 0.6, te + 1.1], [1.0, 1.0, -7.0, -10.0, -4.0, 1.0])
     b.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - 0.02 * (back > 0.05), -back], axis=1)
-    b.root[:, 1] = ROOT_HEIGHT_M - 0.015 - _keys(t, [0.0, tc, te, te + 0.5, te + 1.0],
+    b.root[:, 1] = ROOT_HEIGHT_M - 0.015 - pchip(t, [0.0, tc, te, te + 0.5, te + 1.0],
                                                   [0.0, 0.0, 0.04, 0.03, 0.0])
-    b.local["Hips"] = _zxy(0.0, lean * 0.5, 0.0)
-    b.local["Spine"] = _zxy(0.0, lean * 0.5, 0.0)
-    b.local["Neck"] = _zxy(0.0, -0.6 * lean + 8 * (lean < -5), 0.0)
-    yb = _ANKLE_HEIGHT + _BALL[1]
-    step_l = _keys(t, [0.0, te - 0.2, te + 0.2], [0.0, 0.0, 1.0])
-    step_r = _keys(t, [0.0, te + 0.2, te + 0.6], [0.0, 0.0, 1.0])
+    b.local["Hips"] = zxy(0.0, lean * 0.5, 0.0)
+    b.local["Spine"] = zxy(0.0, lean * 0.5, 0.0)
+    b.local["Neck"] = zxy(0.0, -0.6 * lean + 8 * (lean < -5), 0.0)
+    yb = ANKLE_HEIGHT + BALL[1]
+    step_l = pchip(t, [0.0, te - 0.2, te + 0.2], [0.0, 0.0, 1.0])
+    step_r = pchip(t, [0.0, te + 0.2, te + 0.6], [0.0, 0.0, 1.0])
     lift_l = 0.06 * np.sin(np.pi * step_l)
     lift_r = 0.05 * np.sin(np.pi * step_r)
-    ball_l = np.stack([np.full(n, 0.1), yb + lift_l, _BALL[2] - 0.45 * step_l], axis=1)
-    ball_r = np.stack([np.full(n, -0.1), yb + lift_r, _BALL[2] - (shove + 0.12) * step_r], axis=1)
-    _plant_feet(b, ball_l, ball_r)
-    arms = _keys(t, [0.0, tc, tc + 0.2, te + 0.5, te + 1.1], [0.0, 0.0, 1.0, 0.8, 0.0])
-    for side in _SIDES:
-        _arm_fk(b, side, 8.0 + 35.0 * arms, 5.0 + 30.0 * arms, 12.0 + 50.0 * arms)
+    ball_l = np.stack([np.full(n, 0.1), yb + lift_l, BALL[2] - 0.45 * step_l], axis=1)
+    ball_r = np.stack([np.full(n, -0.1), yb + lift_r, BALL[2] - (shove + 0.12) * step_r], axis=1)
+    plant_feet(b, ball_l, ball_r)
+    arms = pchip(t, [0.0, tc, tc + 0.2, te + 0.5, te + 1.1], [0.0, 0.0, 1.0, 0.8, 0.0])
+    for side in SIDES:
+        arm_fk(b, side, 8.0 + 35.0 * arms, 5.0 + 30.0 * arms, 12.0 + 50.0 * arms)
     # --- A, the pusher: steps in with the right foot, the left one follows; leans
     # into the shove, then settles.
-    a = _Pose(n)
-    adv = _keys(t, [0.0, 0.5, 1.05, tc, te, te + 0.7], [0.0, 0.0, 0.33, 0.42, 0.57, 0.50])
-    lunge = _keys(t, [0.0, 0.5, 1.05, te, te + 0.6, te + 1.2],
+    a = Pose(n)
+    adv = pchip(t, [0.0, 0.5, 1.05, tc, te, te + 0.7], [0.0, 0.0, 0.33, 0.42, 0.57, 0.50])
+    lunge = pchip(t, [0.0, 0.5, 1.05, te, te + 0.6, te + 1.2],
                   [0.0, 0.0, 0.05, 0.045, 0.02, 0.015])
     a.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - lunge, adv], axis=1)
-    lean_a = _keys(t, [0.0, 0.5, tc, te, te + 0.6, te + 1.2], [1.0, 1.0, 10.0, 14.0, 6.0, 3.0])
-    a.local["Hips"] = _zxy(0.0, 0.4 * lean_a, 0.0)
-    a.local["Spine"] = _zxy(0.0, 0.6 * lean_a, 0.0)
-    a.local["Neck"] = _zxy(0.0, -0.8 * lean_a, 0.0)
-    step_r = _keys(t, [0.0, 0.5, 1.05], [0.0, 0.0, 1.0])
-    step_l = _keys(t, [0.0, 1.02, 1.32], [0.0, 0.0, 1.0])
+    lean_a = pchip(t, [0.0, 0.5, tc, te, te + 0.6, te + 1.2], [1.0, 1.0, 10.0, 14.0, 6.0, 3.0])
+    a.local["Hips"] = zxy(0.0, 0.4 * lean_a, 0.0)
+    a.local["Spine"] = zxy(0.0, 0.6 * lean_a, 0.0)
+    a.local["Neck"] = zxy(0.0, -0.8 * lean_a, 0.0)
+    step_r = pchip(t, [0.0, 0.5, 1.05], [0.0, 0.0, 1.0])
+    step_l = pchip(t, [0.0, 1.02, 1.32], [0.0, 0.0, 1.0])
     ball_ar = np.stack([np.full(n, -0.1), yb + 0.07 * np.sin(np.pi * step_r),
-                        _BALL[2] + 0.65 * step_r], axis=1)
+                        BALL[2] + 0.65 * step_r], axis=1)
     ball_al = np.stack([np.full(n, 0.1), yb + 0.05 * np.sin(np.pi * step_l),
-                        _BALL[2] + 0.30 * step_l], axis=1)
-    heel = _keys(t, [0.0, tc + 0.05, te, te + 0.4, te + 1.0], [0.0, 0.0, 15.0, 15.0, 0.0])
-    _plant_feet(a, ball_al, ball_ar, pitch_l=heel)
+                        BALL[2] + 0.30 * step_l], axis=1)
+    heel = pchip(t, [0.0, tc + 0.05, te, te + 0.4, te + 1.0], [0.0, 0.0, 15.0, 15.0, 0.0])
+    plant_feet(a, ball_al, ball_ar, pitch_l=heel)
     # A's hands: hanging → ready in front of the chest → on B's chest → back down.
     b_rot, b_chest = b.world("Spine1")
     # B's pose is in B's own frame; in A's frame B stands PUSH_DISTANCE_M ahead, turned.
@@ -727,88 +440,35 @@ def _push(t, rng):
     b_rot = turn @ b_rot
     b_chest = b_chest @ turn.T + np.array([0.0, 0.0, PUSH_DISTANCE_M])
     a_rot, a_chest = a.world("Spine1")
-    w_ready = _keys(t, [0.0, 0.6, 1.05, te + 0.15, te + 0.9], [0.0, 0.0, 1.0, 1.0, 0.0])
-    w_touch = _keys(t, [0.0, 0.95, tc, te, te + 0.25], [0.0, 0.0, 1.0, 1.0, 0.0])
+    w_ready = pchip(t, [0.0, 0.6, 1.05, te + 0.15, te + 0.9], [0.0, 0.0, 1.0, 1.0, 0.0])
+    w_touch = pchip(t, [0.0, 0.95, tc, te, te + 0.25], [0.0, 0.0, 1.0, 1.0, 0.0])
     hand_rot = {}
-    for side in _SIDES:
-        s = _SIDES[side]
+    for side in SIDES:
+        s = SIDES[side]
         # B faces -Z in A's frame, so B's left is A's right: A's left hand on B's right.
-        on_b = b_chest + _apply(b_rot, np.array([-s * 0.11, -0.05, CHEST_DEPTH_M]))
-        ready = a_chest + _apply(a_rot, np.array([s * 0.14, -0.04, 0.30]))
-        hang = a_chest + _apply(a_rot, np.array([s * 0.27, -0.35, 0.06]))
+        on_b = b_chest + rotate(b_rot, np.array([-s * 0.11, -0.05, CHEST_DEPTH_M]))
+        ready = a_chest + rotate(a_rot, np.array([s * 0.14, -0.04, 0.30]))
+        hang = a_chest + rotate(a_rot, np.array([s * 0.27, -0.35, 0.06]))
         wrist = hang + (ready - hang) * w_ready[:, None]
         wrist = wrist + (on_b - wrist) * w_touch[:, None]
         # Elbows back while the arms hang, out and down while they push.
-        pole = _apply(a_rot, np.array([s * 0.2, -0.3, -1.0])
+        pole = rotate(a_rot, np.array([s * 0.2, -0.3, -1.0])
                       + w_ready[:, None] * np.array([s * 0.5, -0.3, 0.6]))
-        _solve_arm(a, side, wrist, pole)
+        solve_arm(a, side, wrist, pole)
         # Palm flat on B's chest: fingers up, palm (local -Y) facing B, thumb (local
         # +Z) toward the midline.
         r_fore, _ = a.world(f"{side}ForeArm")
         up = np.broadcast_to([0.0, 1.0, 0.0], (n, 3))
         into = -b_rot[:, :, 2]
-        into = _unit(into - into[:, 1:2] * up)
+        into = unit(into - into[:, 1:2] * up)
         x_axis = s * up
         flat = np.stack([x_axis, -into, np.cross(x_axis, -into)], axis=-1)
-        hand_rot[side] = _nlerp(r_fore, flat, np.clip(w_touch, 0, 1) * 0.9)
+        hand_rot[side] = nlerp(r_fore, flat, np.clip(w_touch, 0, 1) * 0.9)
         a.local[f"{side}Hand"] = np.swapaxes(r_fore, -1, -2) @ hand_rot[side]
     return a, b
 
 
 # --------------------------------------------------------------------------- output
-
-
-def _document(pose: _Pose, fps: float, *, facing_deg: float = 0.0, offset=(0.0, 0.0, 0.0),
-              path: str | None = None) -> BVHDocument:
-    """BVH document of ``pose`` turned by ``facing_deg`` about +Y, then moved by ``offset``."""
-    yaw = yaw_matrix(facing_deg)
-    root_pos = pose.root @ yaw.T + np.asarray(offset, dtype=float)
-    joints = [name for name, end in zip(_NAMES, _END) if not end]
-    rots = np.stack([np.broadcast_to(pose.local[name], (pose.n, 3, 3)) for name in joints],
-                    axis=1)  # (F, Jr, 3, 3)
-    rots[:, 0] = yaw @ rots[:, 0]
-    angles = _continuous_euler(rots)  # (F, Jr, 3)
-    channels = [() if end else (_ROOT_CHANNELS if name == "Hips" else _JOINT_CHANNELS)
-                for name, end in zip(_NAMES, _END)]
-    cols = np.concatenate([root_pos, angles.reshape(pose.n, -1)], axis=1)
-    motion = np.round(cols, DECIMALS) + 0.0  # "+ 0.0" turns -0.0 into 0.0
-    parents = np.array([-1 if _PARENT[n] is None else _INDEX[_PARENT[n]] for n in _NAMES])
-    return BVHDocument(
-        names=_NAMES,
-        parents=parents,
-        offsets=np.array([_OFFSET[n] for n in _NAMES]),
-        channels=tuple(channels),
-        end_site=np.array(_END, dtype=bool),
-        frame_time=1.0 / fps,
-        motion=motion,
-        path=path,
-    )
-
-
-def _continuous_euler(r):
-    """ZXY Euler angles (F, J, 3), degrees, of rotations (F, J, 3, 3), continuous over F.
-
-    SciPy keeps the middle (X) angle in [-90, 90]; a knee bent past 90 degrees would
-    then jump to the equivalent ``(z + 180, 180 - x, y + 180)``. Both triples are the
-    same rotation, so we switch branch wherever the canonical one jumps (Z and Y both
-    leap by more than 90 degrees between frames) and unwrap the 360-degree turns.
-    """
-    f, j = r.shape[:2]
-    e = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(f, j, 3)
-    alt = np.stack([e[..., 0] + 180.0, np.where(e[..., 1] >= 0, 180.0, -180.0) - e[..., 1],
-                    e[..., 2] + 180.0], axis=-1)
-    alt[..., [0, 2]] = (alt[..., [0, 2]] + 180.0) % 360.0 - 180.0
-
-    def wrapped(d):
-        return np.abs((d + 180.0) % 360.0 - 180.0)
-
-    d = np.diff(e, axis=0)
-    leap = (wrapped(d[..., 0]) > 90) & (wrapped(d[..., 2]) > 90)  # (F-1, J)
-    first = np.abs(alt[0][:, [0, 2]]).sum(-1) < np.abs(e[0][:, [0, 2]]).sum(-1) - 1e-9
-    flips = np.concatenate([np.zeros((1, j), dtype=int), np.cumsum(leap, axis=0)], axis=0)
-    use_alt = (flips + first.astype(int)) % 2 == 1
-    out = np.where(use_alt[..., None], alt, e)
-    return np.unwrap(out, period=360.0, axis=0)
 
 
 def _times(name: str, seconds: float | None, fps: float) -> np.ndarray:
@@ -848,15 +508,15 @@ def humanoid_document(motion: str, *, seconds: float | None = None, fps: float =
         raise ValueError(f"unknown motion {motion!r}; expected one of {', '.join(MOTIONS)}")
     t = _times(motion, seconds, fps)
     pose = _MAKERS[motion](t, np.random.default_rng(seed))
-    return _document(pose, fps, facing_deg=facing_deg, path=f"{motion}.bvh")
+    return to_document(pose, fps, facing_deg=facing_deg, path=f"{motion}.bvh")
 
 
 def _push_documents(*, seconds=None, fps=30.0, seed=0, facing_deg=0.0):
     t = _times("push", seconds, fps)
     a, b = _push(t, np.random.default_rng(seed))
     yaw = yaw_matrix(facing_deg)
-    doc_a = _document(a, fps, facing_deg=facing_deg, path="push_pusher.bvh")
-    doc_b = _document(b, fps, facing_deg=facing_deg + 180.0,
+    doc_a = to_document(a, fps, facing_deg=facing_deg, path="push_pusher.bvh")
+    doc_b = to_document(b, fps, facing_deg=facing_deg + 180.0,
                       offset=yaw @ np.array([0.0, 0.0, PUSH_DISTANCE_M]), path="push_pushed.bvh")
     return doc_a, doc_b
 

@@ -95,12 +95,16 @@ def test_write_demo_loads_in_metres(tmp_path):
 
 
 def test_bvh_files_load_without_manifest(tmp_path):
-    """Loading the BVH files directly also snaps to metres (inference from stature)."""
+    """Loading the BVH files directly also snaps to metres (inference from stature),
+    infers the floor at 0 and cuts no lead-in frame (the clips start at rest)."""
     synth.write_demo(tmp_path)
-    scene = load_scene([tmp_path / "push_pusher.bvh", tmp_path / "push_pushed.bvh"])
-    assert scene.meta["unit"] == "m"
-    assert abs(scene.ground) < 0.01
-    assert scene.frame_offset == 0
+    groups = [[tmp_path / "push_pusher.bvh", tmp_path / "push_pushed.bvh"]]
+    groups += [[tmp_path / f"{n}.bvh"] for n in synth.DEMO_SCENES if n != "push"]
+    for files in groups:
+        scene = load_scene(files)
+        assert scene.meta["unit"] == "m"
+        assert abs(scene.ground) < 0.01
+        assert scene.frame_offset == 0
 
 
 def test_bone_lengths_constant(scenes):
@@ -297,7 +301,7 @@ def test_keyframe_curves_match_scipy_pchip():
     keys, flat runs included) and holds the end values outside the keys."""
     from scipy.interpolate import PchipInterpolator
 
-    from snapcore.synth import _keys
+    from snapcore.synth_rig import pchip as _keys
 
     rng = np.random.default_rng(1)
     for _ in range(50):
