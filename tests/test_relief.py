@@ -262,6 +262,23 @@ def test_occlusion_step_does_not_eat_the_depth_budget():
     assert np.ptp(comp[left]) > 5 * np.ptp(lin[left])
 
 
+def test_full_bilateral_kernel_agrees_with_separable():
+    """The separable cross-bilateral approximation gives nearly the full 2-D kernel's relief."""
+    h, mask, px = dome_scene(96)
+    sep = compress_height_field(h, mask, pixel=px)
+    full = compress_height_field(h, mask, pixel=px, params=ReliefParams(bilateral="full"))
+    assert np.sqrt(np.mean((sep - full)[mask] ** 2)) < 0.02
+
+
+def test_figure_filling_the_image_still_makes_a_relief():
+    """No background pixel (nothing to attach to): the lowest point goes on the plate, no error."""
+    n = 48
+    y, x = np.mgrid[0:n, 0:n] / n
+    h = np.sin(3 * x) + y
+    rel = compress_height_field(h, np.ones((n, n), bool), pixel=1 / n)
+    assert rel.min() == pytest.approx(0.0) and rel.max() == pytest.approx(1.0)
+
+
 def test_flat_figure_warns_and_gives_empty_plate():
     """A figure with no height gives a zero relief and a warning, not NaN."""
     mask = np.zeros((16, 16), bool)
