@@ -32,9 +32,12 @@ __all__ = [
     "KEY_BG_FORM",
     "KEY_ATTENTION_CHOICE",
     "KEY_ATTENTION_SUBMIT",
+    "KEY_PICKER",
+    "KEY_CHOOSER",
     "KEY_FRAME_SLIDER",
     "KEY_FRAME_CONFIRM",
     "KEY_ADMIN_TOKEN",
+    "KEY_DOWNLOAD",
     "KEY_RESTART",
     "ENV_STIMULI",
     "ENV_DB",
@@ -76,9 +79,12 @@ KEY_BG_GENDER = "background.gender"
 KEY_BG_EXPERIENCE = "background.experience"
 KEY_ATTENTION_CHOICE = "attention.choice"
 KEY_ATTENTION_SUBMIT = "attention.submit"
+KEY_PICKER = "pose.picker"
+KEY_CHOOSER = "view.chooser"
 KEY_FRAME_SLIDER = "pose.slider"
 KEY_FRAME_CONFIRM = "pose.confirm"
 KEY_ADMIN_TOKEN = "researcher.token"
+KEY_DOWNLOAD = "researcher.download"
 KEY_RESTART = "invalid.restart"
 
 # -- environment (set by `snapshot study`) -------------------------------------------

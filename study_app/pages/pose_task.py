@@ -28,7 +28,7 @@ def render() -> None:
         answer = _frames_picker(sc, trial)
     else:
         answer = frame_picker(sc.video, fps=sc.video_fps, n_frames=sc.n_video_frames,
-                              trial=trial.index, key=common.widget_key("pose.picker", trial))
+                              trial=trial.index, key=common.widget_key(common.KEY_PICKER, trial))
         if answer and "error" in answer:
             # This browser cannot play the video: offer the frames instead.
             st.session_state[common.KEY_FRAMES_FALLBACK] = True

@@ -20,7 +20,7 @@ def render() -> None:
     common.show_flash()
     common.trial_clock(session, trial)
     answer = view_chooser(session.view_choices(trial), trial=trial.index,
-                          key=common.widget_key("view.chooser", trial))
+                          key=common.widget_key(common.KEY_CHOOSER, trial))
     if answer is None:
         return
     try:
