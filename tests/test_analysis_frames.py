@@ -1,0 +1,154 @@
+"""Chosen frames against the algorithm (Fig. 13): distances, hit rates, baselines and the
+permutation tests, on hand-made choices with known answers."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import frames as fr
+
+
+def _pose(scene, chosen, *, algorithm, fps, n_frames):
+    return pd.DataFrame({"scene": scene, "participant_id": [f"p{i}" for i in range(len(chosen))],
+                         "chosen_frame": chosen, "algorithm_frame": algorithm, "fps": fps,
+                         "n_frames": n_frames})
+
+
+def test_hit_rates_known_answer():
+    """fps 10, pick 50, choices 50/52/54/60/70 → |d| = 0, .2, .4, 1, 2 s."""
+    pose = _pose("a", [50, 52, 54, 60, 70], algorithm=50, fps=10.0, n_frames=200)
+    scenes = fr.scene_frames_from_rows(pose)
+    hits = fr.hit_rates(pose, scenes).set_index("predictor")
+    alg = hits.loc["algorithm"]
+    assert alg["hit_0.25s"] == pytest.approx(2 / 5)
+    assert alg["hit_0.5s"] == pytest.approx(3 / 5)
+    assert alg["hit_1s"] == pytest.approx(4 / 5)
+    assert alg["mean_abs_error_s"] == pytest.approx((0 + 0.2 + 0.4 + 1 + 2) / 5)
+    assert alg["median_abs_error_s"] == pytest.approx(0.4)
+    mid = hits.loc["middle"]  # frame 99: distances 4.9 .. 2.9 s, no hits
+    assert mid["predicted_frame"] == 99
+    assert mid["hit_1s"] == 0
+    # Uniform frame: for a choice at 100 of 0..199, P(|f - 100| <= 5 frames) = 11/200 exactly.
+    one = _pose("b", [100], algorithm=100, fps=10.0, n_frames=200)
+    u = fr.hit_rates(one, fr.scene_frames_from_rows(one)).set_index("predictor").loc["uniform_random"]
+    assert u["hit_0.5s"] == pytest.approx(11 / 200)
+    assert u["mean_abs_error_s"] == pytest.approx(np.abs(np.arange(200) - 100).mean() / 10)
+
+
+def test_signed_errors_in_seconds():
+    """error_s = (chosen − predicted) / fps, negative when people choose earlier."""
+    pose = _pose("a", [40, 70], algorithm=50, fps=20.0, n_frames=100)
+    d = fr.frame_distances(pose, fr.scene_frames_from_rows(pose))
+    alg = d[d["predictor"] == "algorithm"]
+    np.testing.assert_allclose(alg["error_s"], [-0.5, 1.0])
+    np.testing.assert_allclose(alg["abs_error_s"], [0.5, 1.0])
+
+
+def test_sign_flip_exact_p():
+    """Five people all at the algorithm's frame, baseline far: exact one-sided p = 1/2^5."""
+    pose = _pose("a", [80] * 5, algorithm=80, fps=10.0, n_frames=100)
+    tests = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose)).set_index("baseline")
+    mid = tests.loc["middle"]  # middle = 49, all d_i = 3.1 s > 0
+    assert mid["method"] == "sign-flip exact"
+    assert mid["p_value"] == pytest.approx(1 / 32)
+    assert mid["difference_s"] == pytest.approx(3.1)
+    # Uniform baseline: frame 80 is the unique best of 100 frames → exact p = 1/100.
+    assert tests.loc["uniform_random", "p_value"] == pytest.approx(1 / 100)
+
+
+def test_permutation_test_direction_and_null():
+    """People at the baseline's frame → the algorithm is not closer (p near 1); identical → p = 1."""
+    rng = np.random.default_rng(0)
+    chosen = np.clip(np.rint(rng.normal(50, 3, size=60)), 0, 99).astype(int)
+    pose = _pose("a", chosen, algorithm=85, fps=10.0, n_frames=100)  # people near middle (49)
+    t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose), seed=1).set_index("baseline")
+    assert t.loc["middle", "method"] == "sign-flip Monte Carlo"
+    assert t.loc["middle", "p_value"] > 0.99
+    assert t.loc["middle", "difference_s"] < 0
+    same = _pose("a", chosen, algorithm=49, fps=10.0, n_frames=100)
+    t2 = fr.closeness_tests(same, fr.scene_frames_from_rows(same)).set_index("baseline")
+    assert t2.loc["middle", "p_value"] == 1.0
+    assert t2.loc["middle", "note"] == "same frame as the algorithm"
+
+
+def test_permutation_false_positive_rate():
+    """Choices symmetric between algorithm and baseline: one-sided tests reject ~5% or less."""
+    rng = np.random.default_rng(7)
+    rejections = 0
+    for i in range(200):
+        # Algorithm at 30, middle at 49: people uniformly spread over 20..59 are about
+        # equally close to both in expectation (symmetric around 39.5) → H0 holds.
+        chosen = rng.integers(20, 60, size=40)
+        pose = _pose("a", chosen, algorithm=30, fps=10.0, n_frames=100)
+        t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose), n_permutations=400, seed=i)
+        rejections += int(t.set_index("baseline").loc["middle", "p_value"] < 0.05)
+    assert rejections / 200 <= 0.085
+
+
+def _fake_scene(positions, *, fps=10.0, offset=0):
+    """A duck-typed snapcore Scene with one character (positions (F, J, 3))."""
+    ch = SimpleNamespace(positions=np.asarray(positions, float))
+    return SimpleNamespace(characters=[ch], fps=fps, n_frames=len(positions), frame_offset=offset,
+                           name="fake", source_frame=lambda i: i + offset)
+
+
+def test_motion_baselines_known_frames():
+    """A foot that jumps between frames 36 and 37 and a hand stretched only at frame 12."""
+    F = 60
+    t = np.arange(F, dtype=float)
+    root = np.zeros((F, 3))
+    hand = np.stack([np.full(F, 0.5), np.ones(F), np.zeros(F)], axis=1)
+    hand[12, 0] = 2.0  # the pose farthest from the mean (root-relative)
+    foot = np.stack([np.zeros(F), np.zeros(F), 0.01 * t], axis=1)
+    foot[37:, 2] += 0.5  # a jump between frames 36 and 37 → largest central difference there
+    pos = np.stack([root, hand, foot], axis=1)
+    b = fr.motion_baselines(_fake_scene(pos, offset=5))
+    assert b["farthest_from_mean"] == 12 + 5  # source numbering
+    # The hand's 1.5 m spike moves 0.75 m/frame by central differences at frames 11 and 13
+    # (more than the jump's (0.5 + 0.02) / 2); argmax takes the first.
+    assert b["fastest"] == 11 + 5
+    # Without the stretched hand the jump is the fastest moment (frames 36/37 tie by
+    # central differences; np.argmax takes the first).
+    pos2 = pos.copy()
+    pos2[12, 1, 0] = 0.5
+    assert fr.motion_baselines(_fake_scene(pos2))["fastest"] == 36
+    # A window excluding frame 12 moves the farthest pose elsewhere; within it stays put.
+    assert fr.motion_baselines(_fake_scene(pos), window=(0, 20))["farthest_from_mean"] == 12
+    with pytest.raises(ValueError, match="window"):
+        fr.motion_baselines(_fake_scene(pos), window=(100, 200))
+
+
+def test_baselines_enter_hits_and_tests():
+    """Motion baselines passed as extra scene info appear as predictors."""
+    pose = _pose("a", [10, 11, 12], algorithm=11, fps=10.0, n_frames=60)
+    scenes = fr.scene_frames_from_rows(
+        pose, extra={"a": {"baseline_frames": {"fastest": 40, "farthest_from_mean": 12}}})
+    hits = fr.hit_rates(pose, scenes)
+    assert set(hits["predictor"]) == {"algorithm", "middle", "fastest", "farthest_from_mean",
+                                      "uniform_random"}
+    t = fr.closeness_tests(pose, scenes).set_index("baseline")
+    assert t.loc["fastest", "p_value"] == pytest.approx(1 / 8)  # n = 3, all d > 0: 1/2^3
+    assert t.loc["farthest_from_mean", "difference_s"] == pytest.approx(
+        (np.abs([-2, -1, 0]).mean() - np.abs([-1, 0, 1]).mean()) / 10)
+
+
+def test_histogram_counts_every_choice():
+    """The Fig. 13 histogram covers the clip and counts every choice once."""
+    pose = _pose("a", [0, 5, 99, 50, 50], algorithm=50, fps=30.0, n_frames=100)
+    info = fr.scene_frames_from_rows(pose)["a"]
+    counts, edges = fr.frame_histogram(pose, info, bins=10)
+    assert counts.sum() == 5
+    assert edges[0] == -0.5 and edges[-1] == 99.5
+
+
+def test_disagreeing_rows_warn():
+    """Rows with different algorithm frames for one scene: warn and use the most common."""
+    pose = _pose("a", [1, 2, 3], algorithm=10, fps=10.0, n_frames=50)
+    pose.loc[0, "algorithm_frame"] = 11
+    with pytest.warns(UserWarning, match="disagree on algorithm_frame"):
+        s = fr.scene_frames_from_rows(pose)
+    assert s["a"].algorithm_frame == 10

@@ -1,0 +1,202 @@
+"""Loading responses, simulating participants, and the `snapshot analyze / simulate / power /
+figures` commands end to end: files written, figures not blank, simulated rows excluded."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from analysis import load as ld
+from analysis import simulate as sim
+from snapcore.cli import cli
+
+
+def _rows(n=20, seed=3, **kw):
+    return sim.simulated_rows(sim.simulate_participants(sim.paper_design(), n, seed=seed, **kw))
+
+
+def _png_std(path) -> float:
+    from PIL import Image
+
+    return float(np.asarray(Image.open(path).convert("L"), dtype=float).std())
+
+
+def _check_figures(folder, stems):
+    for stem in stems:
+        png, pdf = folder / f"{stem}.png", folder / f"{stem}.pdf"
+        assert png.exists() and pdf.exists(), stem
+        assert _png_std(png) > 10, f"{png} looks blank"  # a white page has std 0
+        assert pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 5000
+
+
+# ----------------------------------------------------------------- load
+
+
+def test_export_files_round_trip(tmp_path):
+    """CSV (shown_order as JSON, empty = null) and JSON lines load to the same tidy frame."""
+    rows = _rows(5)
+    recs = rows.replace({np.nan: None}).to_dict(orient="records")
+    (tmp_path / "r.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    csv = rows.copy()
+    csv["shown_order"] = [json.dumps(v) if isinstance(v, list) else "" for v in csv["shown_order"]]
+    csv["simulated"] = "true"
+    csv["correct"] = csv["correct"].map({True: "true", False: "false"}).fillna("")
+    csv.to_csv(tmp_path / "r.csv", index=False)
+    a = ld.load_responses(tmp_path / "r.jsonl", include_simulated=True)
+    b = ld.load_responses(tmp_path / "r.csv", include_simulated=True)
+    assert len(a) == len(b) == len(rows)
+    pd.testing.assert_frame_equal(a.drop(columns="created_at"), b.drop(columns="created_at"))
+    v = ld.view_choices(a)
+    assert all(isinstance(s, tuple) and len(s) == 3 for s in v["shown_order"])
+    # the chosen method is the one shown at the chosen position
+    assert all(s[p] == m for s, p, m in zip(v["shown_order"], v["chosen_position"],
+                                            v["chosen_method"], strict=True))
+    p = ld.pose_choices(a)
+    np.testing.assert_allclose(p["error_s"], (p["chosen_frame"] - p["algorithm_frame"]) / p["fps"])
+
+
+def test_simulated_rows_excluded_unless_asked(tmp_path):
+    """Real analyses never see simulated participants by default."""
+    rows = _rows(4)
+    assert ld.load_responses(rows).empty
+    assert len(ld.load_responses(rows, include_simulated=True)) == len(rows)
+
+
+def test_bad_row_is_named(tmp_path):
+    """A row breaking the response schema → LoadError with file, row and field."""
+    rows = _rows(2)
+    recs = rows.replace({np.nan: None}).to_dict(orient="records")
+    recs[3]["task"] = "dance"
+    f = tmp_path / "bad.jsonl"
+    f.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    with pytest.raises(ld.LoadError, match=r"bad.jsonl: row 4: task"):
+        ld.load_responses(f, include_simulated=True)
+    (tmp_path / "x.txt").write_text("")
+    with pytest.raises(ld.LoadError, match="unknown export format"):
+        ld.load_responses(tmp_path / "x.txt")
+
+
+def test_observer_model_frames():
+    """Without lapses the chosen frames scatter around the pick with the given spread."""
+    design = [sim.SimScene("a", 100.0, 2000, 1000)]
+    model = sim.ObserverModel(spread_s=0.5, lapse=0.0)
+    rows = sim.simulated_rows(sim.simulate_participants(design, 2000, seed=1, model=model))
+    f = rows.loc[rows["task"] == "pose", "chosen_frame"].to_numpy(float)
+    assert abs(f.mean() - 1000) < 3  # SE = 50 / sqrt(2000) ≈ 1.1 frames
+    assert f.std() == pytest.approx(50, rel=0.05)  # 0.5 s at 100 fps
+    lapse = sim.simulated_rows(sim.simulate_participants(
+        design, 2000, seed=2, model=sim.ObserverModel(spread_s=0.1, lapse=0.5)))
+    g = lapse.loc[lapse["task"] == "pose", "chosen_frame"].to_numpy(float)
+    far = np.mean(np.abs(g - 1000) > 100)  # lapses land far with probability 0.5 * 0.9
+    assert far == pytest.approx(0.45, abs=0.04)
+
+
+# ----------------------------------------------------------------- commands
+
+
+def test_analyze_paper_table2_cli(tmp_path):
+    """`snapshot analyze --paper-table2`: every table in three formats, figures, report, claims."""
+    out = tmp_path / "paper"
+    res = CliRunner().invoke(cli, ["analyze", "--paper-table2", "-o", str(out), "--boot", "100"])
+    assert res.exit_code == 0, res.output
+    assert ("ours is significantly preferred in 4 of 6 scenes ((a) Dancing, (c) Soccer kicking, "
+            "(d) Basketball shooting, (f) Two-person boxing); not significant in (b) Running, "
+            "(e) Two-person arguing.") in res.output
+    assert ("ours vs motion_area (exact binomial, Holm-adjusted, alpha=0.05): ours is "
+            "significantly preferred in 3 of 6 scenes ((c) Soccer kicking, (e) Two-person arguing, "
+            "(f) Two-person boxing)") in res.output
+    for name in ("votes", "chisquare", "pairwise", "strengths", "agreement"):
+        for ext in ("csv", "md", "tex"):
+            assert (out / "tables" / f"{name}.{ext}").stat().st_size > 50, (name, ext)
+    tex = (out / "tables" / "pairwise.tex").read_text()
+    assert "\\toprule" in tex and "viewpoint\\_entropy" in tex
+    votes = pd.read_csv(out / "tables" / "votes.csv")
+    assert votes.loc[(votes.scene == "dancing") & (votes.method == "ours"), "votes"].item() == 52
+    _check_figures(out / "figures", ["votes", "strengths"])
+    html = (out / "report.html").read_text()
+    assert html.count('src="data:image/png;base64,') == 2
+    assert not re.search(r'src="(?!data:)', html)  # self-contained: nothing to fetch
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["votes"]["basketball_shooting"]["viewpoint_entropy"] == 0
+
+
+def test_simulate_store_analyze_end_to_end(tmp_path):
+    """simulate → SQLite store (marked simulated) → analyze, via the CLI."""
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    r = CliRunner()
+    res = r.invoke(cli, ["simulate", "--n", "40", "--db", url, "--seed", "5", "-q"])
+    assert res.exit_code == 0, res.output
+    assert "stored 40 simulated participants (520 responses" in res.output
+    from study_app.store import Store
+
+    store = Store(url)
+    assert store.export_rows() == []  # simulated participants are not real data
+    rows = store.export_rows(include_simulated=True)
+    assert len(rows) == 520 and all(row["simulated"] for row in rows)
+    # A real analysis refuses to analyse nothing, in one line.
+    res = r.invoke(cli, ["analyze", "--db", url, "-o", str(tmp_path / "real")])
+    assert res.exit_code == 2 and "no responses" in res.output and "--include-simulated" in res.output
+    out = tmp_path / "sim"
+    res = r.invoke(cli, ["analyze", "--db", url, "--include-simulated", "-o", str(out),
+                         "--boot", "50"])
+    assert res.exit_code == 0, res.output
+    assert "40 participants (40 simulated), 520 responses" in res.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["simulated_participants"] == 40
+    assert sum(summary["votes"]["dancing"].values()) == 40
+    hits = pd.read_csv(out / "tables" / "frame_hits.csv")
+    assert set(hits["predictor"]) >= {"algorithm", "middle", "uniform_random"}
+    for name in ("frame_hits", "frame_tests", "participants"):
+        assert (out / "tables" / f"{name}.md").exists()
+    _check_figures(out / "figures", ["votes", "strengths", "fig13_frame_histograms",
+                                     "frame_distances"])
+    html = (out / "report.html").read_text()
+    assert "SIMULATED" in html and html.count("data:image/png;base64,") == 4
+
+
+def test_analyze_export_file_and_attention(tmp_path):
+    """--input reads an export; failed attention checks are counted and can be excluded."""
+    rows = _rows(30, seed=9, model=sim.ObserverModel(attention_pass=0.5))
+    rows["simulated"] = False  # pretend they are real people
+    f = tmp_path / "responses.jsonl"
+    f.write_text("".join(json.dumps(r) + "\n" for r in rows.replace({np.nan: None})
+                         .to_dict(orient="records")))
+    failed = int((rows.loc[rows.task == "attention", "correct"] == False).sum())  # noqa: E712
+    assert 0 < failed < 30
+    res = CliRunner().invoke(cli, ["analyze", "--input", str(f), "-o", str(tmp_path / "a"),
+                                   "--boot", "20", "--exclude-failed-attention"])
+    assert res.exit_code == 0, res.output
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["failed_attention"] == failed
+    assert s["participants"] == 30 - failed
+
+
+def test_power_cli(tmp_path):
+    """`snapshot power --ours --baseline` names the participants needed; -o writes the curve."""
+    res = CliRunner().invoke(cli, ["power", "--ours", "0.52", "--baseline", "0.40",
+                                   "--comparisons", "1", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    from analysis.power import power_pairwise
+
+    n = int(re.search(r"^(\d+) participants", res.output).group(1))
+    assert power_pairwise(n, 0.52, 0.40) >= 0.8 > power_pairwise(n - 1, 0.52, 0.40)
+    _check_figures(tmp_path, ["power_curve"])
+    res = CliRunner().invoke(cli, ["power"])
+    assert res.exit_code == 0 and "| difference |" in res.output
+    res = CliRunner().invoke(cli, ["power", "--ours", "0.7", "--baseline", "0.5"])
+    assert res.exit_code == 2 and "at most 1" in res.output
+
+
+def test_figures_cli_table2_and_fig13(tmp_path):
+    """`snapshot figures --only table2,fig13`: files written, not blank, Fig. 13 marked simulated."""
+    res = CliRunner().invoke(cli, ["figures", "--only", "table2,fig13", "-o", str(tmp_path), "-q"])
+    assert res.exit_code == 0, res.output
+    _check_figures(tmp_path, ["table2_votes", "fig13_frame_histograms"])
+    assert (tmp_path / "table2.tex").exists()
+    res = CliRunner().invoke(cli, ["figures", "--only", "fig99", "-o", str(tmp_path)])
+    assert res.exit_code == 2 and "unknown figure" in res.output
