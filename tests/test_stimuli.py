@@ -108,3 +108,118 @@ def test_fixture_video_decodes_to_its_frames(folder):
         jpg = np.asarray(Image.open(sc.frames[i]), dtype=float)
         assert np.abs(jpg - frames[i][..., :3]).mean() < 4  # JPEG vs H.264 noise only
     assert sha256_file(sc.video) == load_stimuli(folder).manifest["files"]["jump/video.mp4"]
+
+
+# ----------------------------------------------------------------------------- real build
+
+#: A tiny study on two synthetic scenes (one and two characters): small images, 12 fps.
+TINY = """\
+[study]
+id = "tiny"
+title = "Tiny demo"
+video_fps = 12
+size = [160, 120]
+
+[[scenes]]
+id = "jump"
+demo = "jump"
+
+[[scenes]]
+id = "push"
+demo = "push"
+frames = [10, 70]
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny_config(tmp_path_factory):
+    p = tmp_path_factory.mktemp("tiny") / "tiny.toml"
+    p.write_text(TINY)
+    return p
+
+
+@pytest.fixture(scope="module")
+def built(tiny_config):
+    """The tiny study built once through the CLI (`snapshot stimuli build`)."""
+    out = tiny_config.parent / "stimuli"
+    r = subprocess.run([SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(out), "-q"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "2 scenes" in r.stdout
+    return out
+
+
+def test_build_writes_a_verified_folder(built, tiny_config):
+    """Every scene: a decodable H.264 video, one image per video frame, three same-size views."""
+    import imageio.v3 as iio
+    from PIL import Image
+
+    s = load_stimuli(built)
+    assert s.study.id == "tiny" and s.scene_ids == ["jump", "push"]
+    assert not (built.parent / "stimuli.partial").exists()
+    for sc in s.scenes.values():
+        frames = list(iio.imiter(sc.video))
+        assert len(frames) == sc.n_video_frames == len(sc.frames)
+        assert frames[0].shape[:2] == (120, 160)
+        # Video frame k (time k / video_fps) shows the motion frame nearest that time:
+        # within half a motion frame of offset + k * fps / video_fps (30 → 12 fps here).
+        k = np.arange(sc.n_video_frames)
+        exact = sc.frame_offset + k * sc.fps / sc.video_fps
+        assert np.all(np.abs(np.asarray(sc.video_to_motion) - exact) <= 0.5)
+        assert sc.video_to_motion[-1] >= sc.frame_offset + sc.n_frames - 1 - sc.fps / sc.video_fps
+        assert sc.frame_offset <= sc.algorithm_frame < sc.frame_offset + sc.n_frames
+        images = {m: np.asarray(Image.open(p)) for m, p in sc.views.items()}
+        assert {im.shape for im in images.values()} == {(120, 160, 3)}
+        dirs = {m: np.array(v["direction"]) for m, v in sc.entry["views"].items()}
+        for d in dirs.values():
+            assert abs(np.linalg.norm(d) - 1) < 1e-9
+        for a, b in (("ours", "viewpoint_entropy"), ("ours", "motion_area")):
+            if np.degrees(np.arccos(np.clip(dirs[a] @ dirs[b], -1, 1))) > 10:
+                assert np.abs(images[a].astype(int) - images[b]).mean() > 1
+    push = s.scenes["push"]
+    assert (push.frame_offset, push.n_frames) == (10, 60)  # the config's window [10, 70)
+    assert push.entry["source"]["demo"] == "push"
+
+
+def test_build_records_the_selection(built):
+    """The manifest's picks and view directions are those take_snapshot gives for the scene."""
+    from snapcore.load import load_scene
+    from snapcore.snapshot import take_snapshot
+
+    s = load_stimuli(built)
+    sc = s.scenes["push"]
+    scene = load_scene(built / sc.entry["source"]["scene_file"])
+    snap = take_snapshot(scene).to_dict()
+    assert sc.algorithm_frame == snap["frame"]
+    np.testing.assert_allclose(sc.entry["views"]["ours"]["direction"], snap["view"], atol=1e-9)
+
+
+def test_build_refuses_to_overwrite(built, tiny_config):
+    r = subprocess.run([SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(built), "-q"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "already exists" in r.stderr
+
+
+def test_study_command_builds_missing_stimuli_then_serves(tiny_config, tmp_path, monkeypatch):
+    """`snapshot study --build` builds a missing folder, verifies it, then execs streamlit."""
+    from click.testing import CliRunner
+
+    from study_app.commands import serve
+
+    calls = []
+    monkeypatch.setattr(serve.os, "execve", lambda exe, argv, env: calls.append((argv, env)))
+    out = tmp_path / "st"
+    db = f"sqlite:///{tmp_path / 'db.sqlite'}"
+    r = CliRunner().invoke(serve.study, ["--config", str(tiny_config), "--stimuli", str(out),
+                                         "--db", db, "--port", "8599", "--build", "-q"])
+    assert r.exit_code == 0, r.output
+    (argv, env), = calls
+    assert argv[1:4] == ["-m", "streamlit", "run"] and argv[4].endswith("study_app/app.py")
+    assert argv[argv.index("--server.port") + 1] == "8599"
+    assert argv[argv.index("--server.headless") + 1] == "true"
+    assert env["SNAPSHOT_STIMULI"] == str(out.resolve()) and env["SNAPSHOT_DB"] == db
+    assert load_stimuli(out).study.id == "tiny"
+    # without --build, a study other than the demo is not built implicitly
+    r = CliRunner().invoke(serve.study, ["--config", str(tiny_config), "--stimuli",
+                                         str(tmp_path / "none"), "--db", db])
+    assert r.exit_code != 0 and "snapshot stimuli build" in str(r.exception)
