@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from snapcore.poisson import poisson_solve, poisson_solve_attached, poisson_solve_masked
 from snapcore.relief import (
     Relief,
     ReliefError,
@@ -19,9 +20,6 @@ from snapcore.relief import (
     detail_region,
     height_from_depth,
     linear_height_field,
-    poisson_solve,
-    poisson_solve_attached,
-    poisson_solve_masked,
     relief_from_height_field,
 )
 from snapcore.relief_mesh import (
@@ -267,7 +265,7 @@ def test_full_bilateral_kernel_agrees_with_separable():
     h, mask, px = dome_scene(96)
     sep = compress_height_field(h, mask, pixel=px)
     full = compress_height_field(h, mask, pixel=px, params=ReliefParams(bilateral="full"))
-    assert np.sqrt(np.mean((sep - full)[mask] ** 2)) < 0.02
+    assert np.sqrt(np.mean((sep - full)[mask] ** 2)) < 0.01  # measured 0.001
 
 
 def test_figure_filling_the_image_still_makes_a_relief():
