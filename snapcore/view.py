@@ -24,6 +24,7 @@ camera; frames are internal indices (``scene.source_frame`` converts for output)
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -71,9 +72,13 @@ N_POLISH = 3
 #: Cap on fixed-point iterations (each one never lowers the score; convergence is
 #: reached when the sign pattern repeats, typically in < 10 steps).
 REFINE_MAX_ITER = 100
-#: Sine of the angle around the current view within which the exact refinement tracks
-#: signs on the near triangles only (re-centred with one full pass when it moves out).
-REFINE_WINDOW = 0.1
+#: Sines of the angles around the current view within which the exact refinement
+#: tracks signs on the near triangles only (a few percent of them), nested: the outer
+#: window (8.6°) needs a full pass and also serves the certificate (it covers the
+#: sample sphere's neighbours of the answer); the inner one (2.3°) is re-derived from
+#: the outer one's triangles when the view leaves it.
+OUTER_WINDOW = 0.15
+REFINE_WINDOW = 0.04
 #: Two refined views closer than this (degrees, up to sign) are the same optimum.
 SAME_VIEW_DEG = 0.5
 #: Rounds of the certificate (each scores the flagged samples exactly and climbs from
@@ -81,8 +86,9 @@ SAME_VIEW_DEG = 0.5
 CERT_ROUNDS = 5
 #: Relative slack of the certificate (covers float32 rounding of the binned bound).
 CERT_SLACK = 1e-5
-#: Largest views × triangles block held in memory by the exact evaluator (elements).
-CHUNK_ELEMENTS = 2_000_000
+#: Views × triangles per block of the exact evaluator (one reused buffer, 2 MB:
+#: ~0.65 ns per view and triangle on one core).
+SCORE_BLOCK = (16, 16384)
 #: Triangles per chunk of the element-wise kernels: temporaries of this size stay in
 #: cache and are recycled (fresh multi-MB temporaries cost more in page faults than
 #: the arithmetic; measured 3x on the salsa pair).
@@ -91,6 +97,31 @@ CHUNK = 32768
 
 class ViewError(SnapshotError):
     """A view-selection request that cannot be met (bad window, bad views array)."""
+
+
+_BLAS = None
+
+
+def _one_blas_thread(func):
+    """Run ``func`` with one BLAS thread: its products are small (inner dimension 3),
+    and multi-threaded OpenBLAS made them ~20x slower on a busy 2-core machine."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        global _BLAS
+        if _BLAS is None:
+            try:
+                from threadpoolctl import ThreadpoolController
+
+                _BLAS = ThreadpoolController()
+            except ImportError:  # pragma: no cover - a declared dependency
+                _BLAS = False
+        if _BLAS is False:
+            return func(*args, **kwargs)
+        with _BLAS.limit(limits=1, user_api="blas"):
+            return func(*args, **kwargs)
+
+    return wrapper
 
 
 # ----------------------------------------------------------------------- view sphere
@@ -165,11 +196,13 @@ def view_sphere(n: int = 2562) -> np.ndarray:
 @lru_cache(maxsize=8)
 def _neighbours(n: int) -> np.ndarray:
     """Indices of the 6 nearest other views of every view, shape (n, 6)."""
-    from scipy.spatial import cKDTree
-
     v = _sphere(n)
-    _, idx = cKDTree(v).query(v, k=7)
-    return idx[:, 1:]
+    out = np.empty((n, 6), dtype=np.intp)
+    for i in range(0, n, 256):
+        d = v[i:i + 256] @ v.T
+        d[np.arange(d.shape[0]), np.arange(i, i + d.shape[0])] = -np.inf  # not itself
+        out[i:i + 256] = np.argpartition(-d, 6, axis=1)[:, :6]
+    return out
 
 
 # ------------------------------------------------------------------- motion triangles
@@ -382,6 +415,7 @@ def _as_views(views) -> np.ndarray:
     return v
 
 
+@_one_blas_thread
 def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> np.ndarray:
     """Exact score of every view: ``Σ_k |b_k · v|``.
 
@@ -400,17 +434,22 @@ def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> 
 
     Notes
     -----
-    One matrix product per block of views × triangles (at most
-    :data:`CHUNK_ELEMENTS` dot products held at once); no loop over single views.
+    One matrix product per block of views × triangles (:data:`SCORE_BLOCK`, a reused
+    buffer); no loop over single views.
     ``score(v) = score(-v)``.
     """
     v = _as_views(views)
     b = triangles.vectors(weighting)
     out = np.zeros(v.shape[0])
-    step = max(1, CHUNK_ELEMENTS // CHUNK)
-    for i in range(0, v.shape[0], step):
-        for z in _chunks(b.shape[1]):
-            out[i:i + step] += np.abs(v[i:i + step] @ b[:, z]).sum(axis=1)
+    rows, cols = SCORE_BLOCK
+    buf = np.empty(SCORE_BLOCK)
+    for i in range(0, v.shape[0], rows):
+        vi = v[i:i + rows]
+        for z in _chunks(b.shape[1], cols):
+            blk = buf[: vi.shape[0], : z.stop - z.start]
+            np.matmul(vi, b[:, z], out=blk)
+            np.abs(blk, out=blk)
+            out[i:i + rows] += blk.sum(axis=1)
     return out
 
 
@@ -425,6 +464,7 @@ class RefineResult:
     converged: bool
 
 
+@_one_blas_thread
 def refine_view(view, triangles: MotionTriangles, *, weighting: str = "pma",
                 max_iter: int = REFINE_MAX_ITER) -> RefineResult:
     """Climb from ``view`` to a local maximum of ``Σ_k |b_k · v|``.
@@ -461,37 +501,49 @@ class _Local:
 
     A triangle with ``|n_k·v0| ≥ sin θ`` keeps its sign for every ``u`` within θ of
     ``v0``, so there ``score(u) = g_out·u + Σ_{k near} |b_k·u|`` with ``g_out`` the signed
-    sum of the others: one full pass builds it, then each evaluation touches only the
-    near triangles (a few percent of them).
+    sum of the others: one pass builds it, then each evaluation touches only the near
+    triangles (a few percent of them). Built from a ``parent`` it passes over the
+    parent's near triangles only, and covers what both windows cover.
     """
 
-    def __init__(self, v0, b, bn, sin_t):
+    def __init__(self, v0, b, bn, sin_t, parent=None):
         self.v0 = v0
         self.cos_t = math.sqrt(1.0 - sin_t * sin_t)
-        g = np.zeros(3)
+        self.parent = parent
+        if parent is None:
+            g = np.zeros(3)
+        else:
+            b, bn, g = parent.bc, parent.bcn, parent.g_out.copy()
         near = []
         for z in _chunks(b.shape[1]):
             t = v0 @ b[:, z]
             g += b[:, z] @ np.sign(t)
             np.abs(t, out=t)
             near.append(np.flatnonzero(t < sin_t * bn[z]) + z.start)
-        self.bc = b[:, np.concatenate(near)]
+        idx = np.concatenate(near) if near else np.zeros(0, dtype=np.intp)
+        self.bc, self.bcn = b[:, idx], bn[idx]
         self.g_out = g - self.bc @ np.sign(v0 @ self.bc)
         self.score0 = float(g @ v0)  # Σ_k sign(b_k·v0) b_k·v0 = Σ_k |b_k·v0|
 
     def covers(self, u) -> np.ndarray:
-        """Whether ``u`` (3,) or (m, 3) lies strictly within θ of ``v0``."""
-        return u @ self.v0 > self.cos_t
+        """Whether ``u`` (3,) or (m, 3) lies strictly within the window(s)."""
+        ok = u @ self.v0 > self.cos_t
+        return ok if self.parent is None else ok & self.parent.covers(u)
 
     def scores(self, u) -> np.ndarray:
         """Exact scores of views ``u`` (m, 3) that :meth:`covers` accepts."""
         return u @ self.g_out + np.abs(u @ self.bc).sum(axis=1)
 
 
-def _refine_exact(v, b, bn, max_iter, loc=None):
-    """Fixed-point ascent from unit ``v`` → (RefineResult, the last _Local)."""
-    if loc is None or not loc.covers(v):
-        loc = _Local(v, b, bn, REFINE_WINDOW)
+def _refine_exact(v, b, bn, max_iter, outer=None):
+    """Fixed-point ascent from unit ``v`` → (RefineResult, outer _Local around the end).
+
+    Signs are tracked on the triangles of a small window (:data:`REFINE_WINDOW`) inside
+    a larger one (:data:`OUTER_WINDOW`); each is re-centred when the view leaves it.
+    """
+    if outer is None or not outer.covers(v):
+        outer = _Local(v, b, bn, OUTER_WINDOW)
+    loc = _Local(v, b, bn, REFINE_WINDOW, parent=outer)
     t = v @ loc.bc
     s = np.sign(t)
     score = float(loc.g_out @ v + np.abs(t).sum())
@@ -505,8 +557,10 @@ def _refine_exact(v, b, bn, max_iter, loc=None):
             break
         v_new = g / ng
         same_loc = bool(loc.covers(v_new))
-        if not same_loc:
-            loc = _Local(v_new, b, bn, REFINE_WINDOW)  # moved far: re-centre
+        if not same_loc:  # moved out of the window: re-centre
+            if not outer.covers(v_new):
+                outer = _Local(v_new, b, bn, OUTER_WINDOW)
+            loc = _Local(v_new, b, bn, REFINE_WINDOW, parent=outer)
         t = v_new @ loc.bc
         s_new = np.sign(t)
         score_new = float(loc.g_out @ v_new + np.abs(t).sum())
@@ -519,7 +573,9 @@ def _refine_exact(v, b, bn, max_iter, loc=None):
         if repeat:
             converged = True
             break
-    return RefineResult(view=v, score=score, iterations=it, converged=converged), loc
+    if not outer.covers(v):
+        outer = _Local(v, b, bn, OUTER_WINDOW)
+    return RefineResult(view=v, score=score, iterations=it, converged=converged), outer
 
 
 # ------------------------------------------------- fast binned bound over the sphere
@@ -552,34 +608,42 @@ def _bin_geometry(res: int):
 
 @lru_cache(maxsize=4)
 def _straddle_factors(n: int, res: int):
-    """Sparse (n/2, B) bound factors of the bins a view's ⟂ plane may cut.
+    """Bound factors (rows, cols, values) of the bins a view's ⟂ plane may cut.
 
     For bin j with radius r and centre at angle α from the plane ⟂ v (α < r), the gap
     between ``Σ_k |b_k·v|`` and ``|Σ_k b_k·v|`` over the bin is twice the minority
     side's sum, at most ``W_j min(2 sin(r - α), sin(r + α))`` (``W_j = Σ_k |b_k|``).
     """
-    from scipy import sparse
-
     centres, radius = _bin_geometry(res)
     half = _sphere(n)[: n // 2]
-    alpha = np.arcsin(np.clip(np.abs(half @ centres.T), 0.0, 1.0))
-    cut = alpha < radius
-    rows, cols = np.nonzero(cut)
-    a, r = alpha[rows, cols], radius[cols]
-    vals = np.minimum(2.0 * np.sin(r - a), np.sin(np.minimum(r + a, np.pi / 2)))
-    return sparse.csr_matrix((vals, (rows, cols)), shape=cut.shape)
+    rows, cols, vals = [], [], []
+    for i in range(0, half.shape[0], 128):
+        alpha = np.arcsin(np.clip(np.abs(half[i:i + 128] @ centres.T), 0.0, 1.0))
+        r_i, c_i = np.nonzero(alpha < radius)
+        a, r = alpha[r_i, c_i], radius[c_i]
+        rows.append(r_i + i)
+        cols.append(c_i)
+        vals.append(np.minimum(2.0 * np.sin(r - a), np.sin(np.minimum(r + a, np.pi / 2))))
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
 
-def _bin_generators(b, norms, res):
+def _gap_bound(n: int, res: int, weight) -> np.ndarray:
+    """Upper bound of ``score - lower`` for each of the n/2 sample views, shape (n/2,)."""
+    rows, cols, vals = _straddle_factors(n, res)
+    return np.bincount(rows, vals * weight[cols], minlength=n // 2)
+
+
+def _bin_generators(b, res):
     """Fold ``b`` (3, K) onto y ≥ 0 and sum it per octahedral bin → G (B, 3), W (B,).
 
     The bin of a folded unit normal ``n`` is its octahedral map
     ``(s, t) = ((n_x + n_z), (n_z - n_x)) / (|n_x| + n_y + |n_z|)`` in [-1, 1]² on an
-    ``res × res`` grid; ``W_j`` sums ``|b_k|`` (for the certificate's gap bound).
+    ``res × res`` grid. ``W_j ≥ Σ_k |b_k|`` over bin j (for the certificate's gap bound)
+    is ``G_j·c_j / cos r_j``: every member is within the bin radius ``r_j`` of its centre
+    ``c_j``, so ``b_k·c_j ≥ |b_k| cos r_j``.
     """
     nb = res * res
     gen = np.zeros((nb, 3))
-    weight = np.zeros(nb)
     h = res / 2.0
     for z in _chunks(b.shape[1]):
         bx, by, bz = b[:, z]
@@ -606,7 +670,8 @@ def _bin_generators(b, norms, res):
         gen[:, 0] += np.bincount(idx, fx, nb)
         gen[:, 1] += np.bincount(idx, fy, nb)
         gen[:, 2] += np.bincount(idx, fz, nb)
-        weight += np.bincount(idx, norms[z], nb)
+    centres, radius = _bin_geometry(res)
+    weight = np.maximum(np.einsum("ij,ij->i", gen, centres), 0.0) / np.cos(radius)
     return gen, weight
 
 
@@ -758,6 +823,7 @@ def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
     return max(0, f - half), min(n, f + half + 1)
 
 
+@_one_blas_thread
 def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_views: int = 2562,
                 refine: bool = True, floor: float = MA_FLOOR_M2,
                 triangles: MotionTriangles | None = None) -> ViewSelection:
@@ -822,10 +888,10 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     bn = triangles.vector_norms(method)
     m = n // 2
     half = views[:m]
-    gen, weight = _bin_generators(b, bn, BIN_RESOLUTION)
+    gen, weight = _bin_generators(b, BIN_RESOLUTION)
     gen_k = gen[weight > 0]
     lower = _grid_lower(half, gen_k)
-    upper = lower + _straddle_factors(n, BIN_RESOLUTION) @ weight + CERT_SLACK * weight.sum()
+    upper = lower + _gap_bound(n, BIN_RESOLUTION, weight) + CERT_SLACK * weight.sum()
     scores = np.concatenate([lower, lower])
 
     best_v, iters = half[int(np.argmax(lower))], 0
@@ -852,7 +918,7 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
             if r.score > best_s:
                 best_v, best_s, loc = r.view, r.score, loc_i
     else:
-        loc = _Local(best_v, b, bn, REFINE_WINDOW)
+        loc = _Local(best_v, b, bn, OUTER_WINDOW)
         best_s = loc.score0
     # certificate: score exactly every sample whose upper bound beats the answer
     exact = np.zeros(m, dtype=bool)
@@ -879,7 +945,7 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
             best_v, best_s = r.view, r.score
         else:
             best_v, best_s = half[flagged[k]], float(ex[k])
-            loc = _Local(best_v, b, bn, REFINE_WINDOW)
+            loc = _Local(best_v, b, bn, OUTER_WINDOW)
     i_grid = int(np.argmax(scores[:m]))
     grid_view = half[i_grid]
     if exact[i_grid]:
