@@ -246,12 +246,19 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
 
 
 def _timings(snap) -> dict:
-    """Pose and view seconds from a snapshot's ``timings_s`` (dict or attribute)."""
+    """Pose and view seconds from a snapshot's ``timings_s`` (dict or attribute).
+
+    The pipeline reports each stage under its own key (``pose`` for the whole pose stage,
+    its parts ``contacts``/``local``/...; the view stage ``view`` or ``view_*`` parts).
+    """
     t = snap.get("timings_s") if isinstance(snap, dict) else getattr(snap, "timings_s", None)
     t = dict(t or {})
-    pose = sum(v for k, v in t.items() if k.startswith("pose") or k in ("contacts", "entropy"))
-    view = sum(v for k, v in t.items() if k.startswith("view"))
-    return {"pose": pose if pose else np.nan, "view": view if view else np.nan}
+    pose = t.get("pose", np.nan)
+    view = t.get("view")
+    if view is None:
+        parts = [v for k, v in t.items() if k.startswith("view")]
+        view = sum(parts) if parts else np.nan
+    return {"pose": float(pose), "view": float(view)}
 
 
 def _table1(ctx: _Context) -> list[Path]:
@@ -271,11 +278,50 @@ def _figure_paths(fig, stem) -> list[Path]:
 
 
 def _fig5(ctx: _Context) -> list[Path]:
-    raise FigureUnavailable("waiting for snapcore.entropy_plot")
+    plot_strip = _require("snapcore.entropy_plot", "plot_strip")
+    from .plots import _plt
+
+    labels = _labels()
+    ids, skipped = [], []
+    for sid in paper_analogues()["scene"]:
+        try:
+            ctx.snapshot(sid)
+            ids.append(sid)
+        except FigureUnavailable as err:
+            skipped.append(f"{sid} ({err})")
+    if not ids:
+        raise FigureUnavailable("no paper-analogue clip could be loaded: " + "; ".join(skipped))
+    plt = _plt()
+    fig, axes = plt.subplots(len(ids), 1, figsize=(13, 2.5 * len(ids)), layout="constrained",
+                             squeeze=False)
+    for ax, sid in zip(axes[:, 0], ids, strict=True):
+        snap = ctx.snapshot(sid)
+        plot_strip(snap, strip=8, ax=ax)
+        ax.set_title(f"{labels.get(sid, sid)} — stand-in clip {_clip_name(sid)}: selected "
+                     f"frame {snap.frame}", fontsize=9, loc="left")
+    fig.suptitle("Fig. 5: pose entropy along each animation (brighter = more informative; "
+                 "#1-#3 = the selected poses)", fontsize=11)
+    return _figure_paths(fig, ctx.out / "fig5_pose_entropy")
 
 
 def _fig6(ctx: _Context) -> list[Path]:
-    raise FigureUnavailable("waiting for snapcore.entropy_plot")
+    plot_curves = _require("snapcore.entropy_plot", "plot_curves")
+    snap = ctx.snapshot(FEATURE_SCENE)
+    fig = plot_curves(snap)
+    fig.set_size_inches(10, 4.5)
+    bottom = fig.axes[-1]
+    bottom.set_xlabel("time (s)")
+    if bottom.get_legend() is not None:  # keep the #1 peak's label clear of the legend
+        bottom.legend(loc="upper right", fontsize=8, framealpha=0.8)
+    fig.tight_layout(rect=(0, 0, 1, 0.94))  # leave room for the title
+    fig.suptitle(f"Fig. 6: local and global pose entropy of the dance ({_clip_name(FEATURE_SCENE)})",
+                 fontsize=10)
+    return _figure_paths(fig, ctx.out / "fig6_local_global_entropy")
+
+
+def _clip_name(sid: str) -> str:
+    t = paper_analogues().set_index("scene")
+    return " + ".join(Path(f).stem for f in t.loc[sid, "files"])
 
 
 def _fig8_10(ctx: _Context) -> list[Path]:
