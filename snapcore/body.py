@@ -6,8 +6,10 @@ paper (3,191-6,412 faces per character):
 
 - one capsule per bone (parent → child joint with non-zero rest length), elliptical in
   cross-section on the torso (wider left-right than front-back);
-- one sphere at every joint where bones meet (fills the gap where a thick bone meets a
-  thin one);
+- a sphere at every joint: the capsule caps. Each capsule ends in a hemisphere centred
+  on its joints, so where bones meet, the thickest bone's cap *is* the joint sphere
+  (a separate sphere of the largest incident radius would lie exactly inside it and
+  only cost faces);
 - an ellipsoid head with a small nose (so the facing direction can be read), and a
   hand blob for skeletons without finger bones.
 
@@ -113,13 +115,11 @@ HAND_BLOB_RADIUS = 0.045
 HAND_BLOB_BEYOND = 0.045
 #: A hand whose bone lengths below the wrist sum to less than this (m at 1.75 m) gets a blob.
 HAND_BONES_MIN = 0.06
-#: Joint spheres are this fraction of the largest radius of the bones meeting there.
-JOINT_SPHERE_FACTOR = 1.0
 #: Bones shorter than this (m) are not drawn (zero-length BVH links, rounding noise).
 MIN_BONE_M = 1e-4
 #: Tessellation (segments around, rings per cap) by radius (m, after scaling): thick
 #: pieces get more faces so silhouettes stay round. A capsule has 4·around·rings faces.
-TESSELLATION = ((0.08, (20, 5)), (0.035, (14, 4)), (0.018, (10, 3)), (0.0, (6, 2)))
+TESSELLATION = ((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1)))
 
 #: Base colours of characters 0, 1, 2... (RGB 0-1, Tableau 10): distinct for two people.
 CHARACTER_COLORS = (
@@ -456,7 +456,6 @@ class CharacterBody:
                 lateral_cache[j] = self._lateral(j, pair)
             return lateral_cache[j]
 
-        joint_radius = np.zeros(len(roles))
         for p, ch in np.asarray(sk.links).reshape(-1, 2):
             off = offsets[ch]
             length = float(np.linalg.norm(off))
@@ -472,16 +471,6 @@ class CharacterBody:
             if lat is None:
                 la = de = min(la, de) if role in TORSO_ROLES else la
             add(p, length, la, de, min(la, de), frame, np.zeros(3), colour_of(ch))
-            r = min(la, de)
-            joint_radius[p] = max(joint_radius[p], r)
-            joint_radius[ch] = max(joint_radius[ch], r)
-
-        # joint spheres where bones meet (not at end sites: the capsule cap is the end)
-        for j in np.flatnonzero(joint_radius > 0):
-            if sk.end_site[j] or roles[j] in HIDDEN_ROLES:
-                continue
-            r = joint_radius[j] * JOINT_SPHERE_FACTOR
-            add(j, 0.0, r, r, r, np.eye(3), np.zeros(3), colour_of(j))
 
         # head ellipsoid + nose, in the head joint's frame
         s = self._sample

@@ -884,8 +884,10 @@ class SceneRenderer:
         self.pscene = pyrender.Scene(bg_color=[*bg, 1.0], ambient_light=[0.30] * 3)
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7)
+        # projected shadows have faces of both windings: draw them unculled
         self._shadow_material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0)
+            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
+            doubleSided=True)
         n = len(self.body.characters)
         self._nodes = [None] * n
         self._shadow_nodes = [None] * n
@@ -984,8 +986,7 @@ class SceneRenderer:
             self._set_camera(camera)
         self._update_bodies(int(frame))
         r = gl_renderer(*self.size)
-        # projected shadows have faces of both windings: draw without culling
-        color, _ = r.render(self.pscene, flags=pyrender.RenderFlags.SKIP_CULL_FACES)
+        color, _ = r.render(self.pscene, flags=pyrender.RenderFlags.NONE)
         return np.ascontiguousarray(color)
 
 
