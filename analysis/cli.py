@@ -176,8 +176,9 @@ def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study
 
         doc, base = read_stimuli(stimuli)
         design = sim.design_from_stimuli(doc, strengths=chosen)
-        study_id = study_id or (doc.get("study", {}).get("study", {}) or {}).get("id") \
-            or doc.get("study", {}).get("id") or "simulated"
+        # manifest["study"] is the study config document: {"study": {"id": ...}, ...}
+        study_id = study_id or ((doc.get("study") or {}).get("study") or {}).get("id") \
+            or "simulated"
         path = Path(stimuli) / "manifest.json" if Path(stimuli).is_dir() else Path(stimuli)
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         att = (doc.get("study") or {}).get("attention")

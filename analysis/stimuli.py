@@ -57,9 +57,16 @@ def stimuli_scenes(manifest) -> pd.DataFrame:
                      "n_frames": int(e["n_frames"]), "frame_offset": int(e["frame_offset"]),
                      "algorithm_frame": int(picks["frame"]),
                      "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ()),
-                     "pose_s": float(t.get("pose", t.get("pose_s", float("nan")))),
-                     "view_s": float(t.get("view", t.get("view_s", float("nan"))))})
+                     "pose_s": _first(t, "select_pose", "pose"),
+                     "view_s": _first(t, "select_view", "view")})
     return pd.DataFrame(rows)
+
+
+def _first(d: dict, *keys) -> float:
+    for k in keys:
+        if k in d:
+            return float(d[k])
+    return float("nan")
 
 
 def _resolve(name: str, bases) -> Path:
@@ -75,28 +82,34 @@ def _resolve(name: str, bases) -> Path:
 
 
 def load_scene_for_entry(entry: dict, base: Path | None = None):
-    """Load the motion a manifest scene was built from (None when it cannot be named).
+    """Load the motion a manifest scene was built from.
 
-    ``entry["source"]`` may hold ``demo`` (a :mod:`snapcore.synth` scene name),
-    ``files`` (BVH paths) or ``manifest`` (a scene manifest), plus ``fps``/``scale``
-    overrides and a ``config_dir`` to resolve relative paths against; paths are also
-    tried against the stimuli folder and the motion data folder (``SNAPSHOT_DATA``).
+    In order: ``source.scene_file`` (the scene manifest the stimuli builder wrote beside
+    the stimuli, window included), a ``demo`` name (rebuilt with
+    :func:`snapcore.synth.synth_scene`; the builder deletes its demo files), ``files``
+    (BVH paths) or ``manifest`` (a scene manifest), with the entry's ``fps``/``scale``
+    overrides. Relative paths are tried against the stimuli folder, its parent and the
+    motion data folder (``SNAPSHOT_DATA``). The frame window is applied by the caller
+    (the entry's ``frame_offset`` and ``n_frames``).
     """
-    src = entry.get("source") or {}
-    fps, scale = src.get("fps"), src.get("scale")
-    bases = [src.get("config_dir"), base, base.parent if base is not None else None]
-    if src.get("demo"):
-        from snapcore import synth
-
-        kw = {"fps": fps} if fps else {}
-        return synth.synth_scene(src["demo"], **kw)
     from snapcore import load_scene
 
+    src = entry.get("source") or {}
+    fps, scale = src.get("fps"), src.get("scale")
+    bases = [base, base.parent if base is not None else None]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unit fitting etc. was reported when stimuli were built
+        if src.get("scene_file") and not src.get("demo"):
+            path = _resolve(src["scene_file"], bases)
+            if path.exists():
+                return load_scene(path)
+        if src.get("demo"):
+            from snapcore import synth
+
+            return synth.synth_scene(src["demo"], **({"fps": fps} if fps else {}))
         if src.get("files"):
             return load_scene([_resolve(f, bases) for f in src["files"]], fps=fps, scale=scale)
         if src.get("manifest"):
             return load_scene(_resolve(src["manifest"], bases), fps=fps, scale=scale)
     raise LoadError(f"stimuli scene '{entry.get('id')}': source names no motion "
-                    "(expected demo, files or manifest)")
+                    "(expected scene_file, demo, files or manifest)")

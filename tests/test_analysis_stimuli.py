@@ -1,0 +1,121 @@
+"""The analysis side of the stimuli manifest: scene info, the motion for the motion-derived
+baselines, and simulating participants for a manifest's scenes."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from analysis import frames as fr
+from analysis import simulate as sim
+from analysis import stimuli as st
+from snapcore.cli import cli
+
+
+def _manifest(scenes):
+    """A schema-valid stimuli manifest around the given scene entries (files need not exist)."""
+    out = []
+    for e in scenes:
+        sid = e["id"]
+        out.append({"video": f"{sid}/video.mp4", "video_fps": 24.0,
+                    "video_to_motion": [e["frame_offset"]], "frames": [f"{sid}/f0.png"],
+                    "views": {m: {"file": f"{sid}/{m}.png"}
+                              for m in ("ours", "viewpoint_entropy", "motion_area")}, **e})
+    return {"format": "action-snapshot-stimuli", "version": 1,
+            "created_at": "2025-01-01T00:00:00+00:00", "app_version": "test",
+            "study": {"study": {"id": "stim-test", "title": "t"}}, "scenes": out,
+            "files": {"a/video.mp4": "0" * 64}}
+
+
+def _walk_entry(**kw):
+    from snapcore import synth
+
+    sc = synth.synth_scene("walk")
+    e = {"id": "walk", "title": "Synthetic walk", "source": {"demo": "walk"}, "fps": sc.fps,
+         "n_frames": sc.n_frames, "frame_offset": int(sc.frame_offset),
+         "picks": {"frame": int(sc.frame_offset) + sc.n_frames // 3,
+                   "frames": [int(sc.frame_offset) + sc.n_frames // 3, int(sc.frame_offset) + 5]}}
+    e.update(kw)
+    return e, sc
+
+
+def test_stimuli_scene_table():
+    """Scene rows carry fps, length, offset, the picks and titles from the manifest."""
+    e, sc = _walk_entry()
+    t = st.stimuli_scenes(_manifest([e])).iloc[0]
+    assert t["scene"] == "walk" and t["title"] == "Synthetic walk"
+    assert t["n_frames"] == sc.n_frames and t["fps"] == sc.fps
+    assert t["algorithm_frames"] == tuple(e["picks"]["frames"])
+
+
+def test_motion_baselines_from_manifest_demo_scene():
+    """The demo walk is rebuilt; its baselines equal motion_baselines on the same scene."""
+    e, sc = _walk_entry()
+    extra = fr.baselines_from_stimuli(_manifest([e]))["walk"]
+    assert extra["baseline_frames"] == fr.motion_baselines(sc)
+    assert extra["algorithm_frames"] == tuple(e["picks"]["frames"])
+    # A window (the study trimmed the clip): both baselines stay inside it.
+    w = _walk_entry(n_frames=20, frame_offset=int(sc.frame_offset) + 10)[0]
+    b = fr.baselines_from_stimuli(_manifest([w]))["walk"]["baseline_frames"]
+    assert all(w["frame_offset"] <= f < w["frame_offset"] + 20 for f in b.values())
+
+
+def test_unloadable_motion_warns_and_is_left_out(tmp_path):
+    """A manifest naming a missing BVH: warning, no motion baselines, still the picks."""
+    e, _ = _walk_entry(source={"files": [str(tmp_path / "gone.bvh")]})
+    with pytest.warns(UserWarning, match="motion not loaded"):
+        extra = fr.baselines_from_stimuli(_manifest([e]))["walk"]
+    assert "baseline_frames" not in extra
+
+
+def test_real_clip_source_files(motions_dir):
+    """A real BVH named by a source path relative to SNAPSHOT_DATA loads and gets baselines."""
+    from snapcore import load_scene
+
+    path = "walk_run/02_01.bvh"
+    sc = load_scene(motions_dir / path)
+    e = {"id": "walk_cmu", "source": {"files": [path]}, "fps": sc.fps, "n_frames": sc.n_frames,
+         "frame_offset": int(sc.frame_offset), "picks": {"frame": int(sc.frame_offset)}}
+    b = fr.baselines_from_stimuli(_manifest([e]))["walk_cmu"]["baseline_frames"]
+    assert b == fr.motion_baselines(sc)
+
+
+def test_analyze_with_stimuli_adds_motion_baselines(tmp_path):
+    """analyze(..., stimuli=manifest): fastest and farthest-from-mean rows appear, titles used."""
+    from analysis.report import analyze
+
+    e, sc = _walk_entry()
+    doc = _manifest([e])
+    design = sim.design_from_stimuli(doc)
+    assert design[0].salient_frames == (e["picks"]["frames"][1],)
+    rows = sim.simulated_rows(sim.simulate_participants(design, 25, seed=4))
+    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20)
+    hits = __import__("pandas").read_csv(tmp_path / "tables" / "frame_hits.csv")
+    assert {"fastest", "farthest_from_mean"} <= set(hits["predictor"])
+    assert summary["participants"] == 25
+    assert "Synthetic walk" in (tmp_path / "report.html").read_text()
+
+
+def test_simulate_cli_with_manifest(tmp_path):
+    """`snapshot simulate --stimuli manifest.json`: the manifest's scenes, study id and hash."""
+    import hashlib
+
+    e, _ = _walk_entry()
+    path = tmp_path / "manifest.json"
+    path.write_text(json.dumps(_manifest([e])))
+    url = f"sqlite:///{tmp_path / 's.db'}"
+    res = CliRunner().invoke(cli, ["simulate", "--n", "6", "--db", url, "--stimuli", str(path),
+                                   "--strengths", "ours=2,viewpoint_entropy=1,motion_area=1", "-q"])
+    assert res.exit_code == 0, res.output
+    from study_app.store import Store
+
+    rows = Store(url).export_rows(include_simulated=True)
+    assert {r["study_id"] for r in rows} == {"stim-test"}
+    assert {r["manifest_sha256"] for r in rows} == {hashlib.sha256(path.read_bytes()).hexdigest()}
+    pose = [r for r in rows if r["task"] == "pose"]
+    assert len(pose) == 6 and {r["algorithm_frame"] for r in pose} == {e["picks"]["frame"]}
+    res = CliRunner().invoke(cli, ["simulate", "--n", "2", "--db", url,
+                                   "--strengths", "ours=1,best=2"])
+    assert res.exit_code == 2 and "unknown method 'best'" in res.output
