@@ -132,3 +132,29 @@ def _synth_push(ctx: BenchContext):
     from .synth import synth_scene
 
     return lambda: synth_scene("push")
+
+
+# ----------------------------------------------------------------- view selection
+
+
+@case("view PMA salsa pair (2562 views + refinement)", target_ms=30.0,
+      note="2x2239 frames x 56 links: 500k swept triangles, bound, refine, certificate")
+def _view_pma_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .view import select_view
+
+    return lambda: select_view(scene)
+
+
+@case("view motion area salsa pair (triangles shared)",
+      note="the Kwon & Lee baseline on the PMA run's triangles")
+def _view_ma_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .view import motion_triangles, select_view
+
+    tri = motion_triangles(scene)
+    return lambda: select_view(scene, method="motion_area", triangles=tri)

@@ -62,8 +62,8 @@ ICOSPHERE_COUNTS = {10 * 4**k + 2: k for k in range(8)}
 #: Score weightings: ``"pma"`` (ratio per quad, the paper) and ``"motion_area"`` (m²).
 WEIGHTINGS = ("pma", "motion_area")
 #: Octahedral bins per side of the hemisphere map of triangle normals (R² bins, each
-#: ~1.6° across): the fast lower bound over the sample sphere.
-BIN_RESOLUTION = 64
+#: ~2° across): the fast lower bound over the sample sphere.
+BIN_RESOLUTION = 48
 #: Local maxima of the binned score refined from (distinct basins of the sphere).
 N_STARTS = 6
 #: Best distinct binned optima refined exactly on the triangles (the best always;
@@ -212,81 +212,108 @@ def _neighbours(n: int) -> np.ndarray:
 class MotionTriangles:
     """The triangles swept by every link between consecutive frames.
 
+    Quad ``x_j(i), x_c(i), x_c(i+1), x_j(i+1)`` of link j → c is split along
+    ``x_j(i) → x_c(i+1)`` into triangles with vector areas ``a1 = ½ e_i × d`` and
+    ``a2 = ½ d × g`` (``e_i = x_c(i) - x_j(i)``, ``d = x_c(i+1) - x_j(i)``,
+    ``g = x_j(i+1) - x_j(i)``); ``MA_orig = |a1| + |a2|``.
+
     Attributes
     ----------
-    areas : ndarray of shape (3, K)
-        Vector areas (m²), components in rows (fast products); ``vector_areas`` is the
-        ``(K, 3)`` view. Quad ``x_j(i), x_c(i), x_c(i+1), x_j(i+1)`` of link j → c is
-        split along ``x_j(i) → x_c(i+1)``: ``a1 = ½ e_i × d``, ``a2 = ½ d × g`` with
-        ``e_i = x_c(i) - x_j(i)``, ``d = x_c(i+1) - x_j(i)``, ``g = x_j(i+1) - x_j(i)``.
-    norms : ndarray of shape (K,)
-        ``|a_k|`` (m²).
-    quad_area : ndarray of shape (K,)
-        ``MA_orig = |a1| + |a2|`` of the quad each triangle belongs to (m²).
-    valid : ndarray of bool, shape (K,)
-        False for triangles of quads below the noise floor (they score 0).
+    pma_vectors : ndarray of shape (3, K)
+        ``a_k / MA_orig`` of the quad of triangle k, components in rows (fast
+        products); zero for quads below the noise floor. Read-only.
+    pma_norms : ndarray of shape (K,)
+        ``|a_k| / MA_orig`` (0 for skipped quads). Read-only.
+    quads : ndarray of shape (Q,)
+        ``MA_orig`` of every quad (m², ``Q = K / 2``).
     frames : tuple of int
         ``(start, stop)``: internal frames ``start .. stop-1`` were used.
     blocks : list of tuple
         Per character ``(character, offset, n_steps, links)``: its triangles are
-        ``offset .. offset + 2·n_steps·L`` in the order (triangle 1|2, step, link).
+        ``offset .. offset + 2·n_steps·L`` in the order (triangle 1|2, step, link), its
+        quads ``offset/2 ..`` in the order (step, link).
     floor : float
         The noise floor used (m²).
+
+    Only the PMA vectors and the quad areas are stored (the fast path needs nothing
+    else, and every stored megabyte costs page faults); the vector areas and the
+    motion-area weighting are derived on demand.
     """
 
-    areas: np.ndarray
-    norms: np.ndarray
-    quad_area: np.ndarray
-    valid: np.ndarray
+    pma_vectors: np.ndarray
+    pma_norms: np.ndarray
+    quads: np.ndarray
     frames: tuple[int, int]
     blocks: list
     floor: float
     _cache: dict = field(default_factory=dict, repr=False)
 
     @property
-    def vector_areas(self) -> np.ndarray:
-        """Vector areas, shape (K, 3), m²."""
-        return self.areas.T
-
-    @property
     def n_triangles(self) -> int:
-        return int(self.areas.shape[1])
+        return int(self.pma_vectors.shape[1])
 
     @property
     def n_quads(self) -> int:
         """Quads above the noise floor (the ones that vote)."""
-        return int(np.count_nonzero(self.valid)) // 2
+        return int(np.count_nonzero(self.quads >= self.floor))
 
     @property
     def n_skipped(self) -> int:
         """Quads below the noise floor."""
-        return self.n_triangles // 2 - self.n_quads
+        return int(self.quads.size) - self.n_quads
+
+    @property
+    def quad_area(self) -> np.ndarray:
+        """``MA_orig`` of the quad of each triangle, shape (K,), m²."""
+        if "quad_area" not in self._cache:
+            out = np.empty(self.n_triangles)
+            for _, off, steps, links in self.blocks:
+                n = steps * len(links)
+                out[off:off + 2 * n].reshape(2, n)[:] = self.quads[off // 2:off // 2 + n]
+            self._cache["quad_area"] = out
+        return self._cache["quad_area"]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Whether each triangle's quad is above the noise floor, shape (K,)."""
+        return self.quad_area >= self.floor
+
+    @property
+    def areas(self) -> np.ndarray:
+        """Vector areas ``a_k`` (m²) of the voting triangles, shape (3, K); zero for
+        quads below the noise floor."""
+        return self.vectors("motion_area")
+
+    @property
+    def vector_areas(self) -> np.ndarray:
+        """``areas`` as shape (K, 3)."""
+        return self.areas.T
 
     def vectors(self, weighting: str = "pma") -> np.ndarray:
-        """``b_k`` of ``score(v) = Σ_k |b_k·v|``, shape (3, K) (cached, read-only).
+        """``b_k`` of ``score(v) = Σ_k |b_k·v|``, shape (3, K), read-only.
 
         ``"pma"``: ``a_k / MA_orig`` (dimensionless, each quad contributes ≤ 1);
         ``"motion_area"``: ``a_k`` (m²). Skipped quads give zero vectors.
         """
         _check_weighting(weighting)
-        if weighting not in self._cache:
-            b = np.empty_like(self.areas)
-            bn = np.empty_like(self.norms)
+        if weighting == "pma":
+            return self.pma_vectors
+        if "motion_area" not in self._cache:
+            q = self.quad_area
+            b = np.empty_like(self.pma_vectors)
+            bn = np.empty_like(self.pma_norms)
             for z in _chunks(self.n_triangles):
-                if weighting == "pma":
-                    w = np.zeros(z.stop - z.start)
-                    np.divide(1.0, self.quad_area[z], out=w, where=self.valid[z])
-                else:
-                    w = self.valid[z].astype(float)
-                np.multiply(self.areas[:, z], w, out=b[:, z])
-                np.multiply(self.norms[z], w, out=bn[z])
+                np.multiply(self.pma_vectors[:, z], q[z], out=b[:, z])
+                np.multiply(self.pma_norms[z], q[z], out=bn[z])
             b.setflags(write=False)
             bn.setflags(write=False)
-            self._cache[weighting] = (b, bn)
-        return self._cache[weighting][0]
+            self._cache["motion_area"] = (b, bn)
+        return self._cache["motion_area"][0]
 
     def vector_norms(self, weighting: str = "pma") -> np.ndarray:
-        """``|b_k|``, shape (K,)."""
+        """``|b_k|``, shape (K,), read-only."""
+        if weighting == "pma":
+            return self.pma_norms
         self.vectors(weighting)
         return self._cache[weighting][1]
 
@@ -345,9 +372,9 @@ def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR
     steps = stop - start - 1
     sizes = [2 * steps * np.asarray(lk).reshape(-1, 2).shape[0] for _, lk in items]
     k_total = int(sum(sizes))
-    areas = np.empty((3, k_total))
-    norms = np.empty(k_total)
-    quad = np.empty(k_total)
+    b_pma = np.empty((3, k_total))
+    n_pma = np.empty(k_total)
+    quads = np.empty(k_total // 2)
     blocks, off = [], 0
     for ci, ((x, lk), size) in enumerate(zip(items, sizes)):
         lk = np.asarray(lk, dtype=np.intp).reshape(-1, 2)
@@ -355,27 +382,33 @@ def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR
             raise ViewError(f"character {ci} has {x.shape[0]} frames, expected {n_total}")
         blocks.append((ci, off, steps, lk))
         if size:
-            _swept_block(np.asarray(x[start:stop], float), lk, areas[:, off:off + size],
-                         norms[off:off + size], quad[off:off + size])
+            _swept_block(np.asarray(x[start:stop], float), lk, floor,
+                         b_pma[:, off:off + size], n_pma[off:off + size],
+                         quads[off // 2:(off + size) // 2])
         off += size
-    return MotionTriangles(areas=areas, norms=norms, quad_area=quad, valid=quad >= floor,
-                           frames=(start, stop), blocks=blocks, floor=float(floor))
+    b_pma.setflags(write=False)
+    n_pma.setflags(write=False)
+    return MotionTriangles(pma_vectors=b_pma, pma_norms=n_pma, quads=quads, frames=(start, stop),
+                           blocks=blocks, floor=float(floor))
 
 
-def _swept_block(x, links, areas, norms, quad):
-    """Fill one character's triangles: areas (3, K), norms (K,), quad (K,) views.
+def _swept_block(x, links, floor, b_pma, n_pma, quads):
+    """Fill one character's PMA vectors (3, K), their norms (K,) and quad areas (K/2,).
 
     Works on chunks of :data:`CHUNK` triangles so temporaries stay in cache (large
     fresh temporaries cost more in page faults than in arithmetic).
     """
     steps, n_links = x.shape[0] - 1, links.shape[0]
-    a4 = areas.reshape(3, 2, steps, n_links)  # views: (component, triangle, step, link)
-    n3 = norms.reshape(2, steps, n_links)
-    q3 = quad.reshape(2, steps, n_links)
+    pb4 = b_pma.reshape(3, 2, steps, n_links)  # views: (component, triangle, step, link)
+    pn3 = n_pma.reshape(2, steps, n_links)
+    q2 = quads.reshape(steps, n_links)
     xt = np.ascontiguousarray(x.transpose(2, 0, 1))  # (3, F, J): component-major
     cs = max(1, CHUNK // n_links)
+    a = np.empty((3, 2, cs, n_links))
+    nrm = np.empty((2, cs, n_links))
     for s0 in range(0, steps, cs):
         s1 = min(steps, s0 + cs)
+        ac, nc = a[:, :, : s1 - s0], nrm[:, : s1 - s0]
         xc = xt[:, s0:s1 + 1]
         p = np.take(xc, links[:, 0], axis=2)
         e = np.take(xc, links[:, 1], axis=2)
@@ -383,16 +416,18 @@ def _swept_block(x, links, areas, norms, quad):
         g = p[:, 1:] - p[:, :-1]  # parent displacement
         d = e[:, 1:] + g  # diagonal x_c(i+1) - x_j(i)
         g *= 0.5  # the ½ of the triangle areas, folded into two of the factors
-        _cross_into(0.5 * e[:, :-1], d, a4[:, 0, s0:s1])
-        _cross_into(d, g, a4[:, 1, s0:s1])
-        for t in (0, 1):
-            nrm = n3[t, s0:s1]
-            np.square(a4[0, t, s0:s1], out=nrm)
-            nrm += np.square(a4[1, t, s0:s1])
-            nrm += np.square(a4[2, t, s0:s1])
-            np.sqrt(nrm, out=nrm)
-        np.add(n3[0, s0:s1], n3[1, s0:s1], out=q3[0, s0:s1])
-        q3[1, s0:s1] = q3[0, s0:s1]
+        _cross_into(0.5 * e[:, :-1], d, ac[:, 0])
+        _cross_into(d, g, ac[:, 1])
+        np.square(ac[0], out=nc)
+        nc += np.square(ac[1])
+        nc += np.square(ac[2])
+        np.sqrt(nc, out=nc)
+        q = q2[s0:s1]
+        np.add(nc[0], nc[1], out=q)
+        w = np.zeros_like(q)
+        np.divide(1.0, q, out=w, where=q >= floor)
+        np.multiply(ac, w, out=pb4[:, :, s0:s1])
+        np.multiply(nc, w, out=pn3[:, s0:s1])
 
 
 def _cross_into(u, w, out):
@@ -854,7 +889,7 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     Notes
     -----
     1. Triangle vectors ``b_k`` are folded to a hemisphere (``|b·v| = |-b·v|``) and summed
-       in ~1.6° octahedral bins: ``A(v) = Σ_bins |G_j·v| ≤ score(v)`` (triangle inequality),
+       in ~2° octahedral bins: ``A(v) = Σ_bins |G_j·v| ≤ score(v)`` (triangle inequality),
        equal except for bins the plane ⟂ v cuts, whose gap is bounded
        (``_straddle_factors``). ``A`` over the samples is one (V/2 × B) product.
     2. The best local maxima of ``A`` are refined on the bins, the best distinct results
