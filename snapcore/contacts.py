@@ -40,6 +40,7 @@ __all__ = [
     "DEFAULT_TOLERANCES",
     "Event",
     "Interactions",
+    "bone_radii",
     "detect_interactions",
     "merge_adjacent",
     "scan_interactions",
@@ -54,7 +55,7 @@ GROUND = "ground"
 #: :func:`_body_near`). Small groups prune more, large groups cost fewer box tests.
 _GROUP_SIZE = 8
 #: Seconds per time block of that broad phase (a joint's swept box over the block).
-_BLOCK_S = 0.05
+_BLOCK_S = 0.1
 #: Elements per chunk in the exact narrow phase.
 _CHUNK = 8192
 
@@ -76,9 +77,11 @@ class ContactTolerances:
         this (m). Generous, because joints are bone centres: a standing ankle is
         7–12 cm up, and CMU floors drift by a few cm over a clip.
     body_distance : float
-        A joint is near another character while its distance to the axis of one of
-        that character's bones is at most this (m): the capsule radius of the touched
-        limb plus the toucher's own flesh.
+        A joint is near another character while its distance to the surface of one
+        of that character's bones is at most this (m). Bones are capsules with the
+        radii of the rendered body (:func:`bone_radii`: torso ~0.13 m, forearm
+        ~0.04 m, finger 0.01 m); the tolerance covers the toucher's own flesh (a
+        joint is a bone centre, 1-3 cm under the skin of a hand) and capture noise.
     prop_distance : float
         A joint is near a prop while its distance to the prop's surface is at most
         this (m); inside counts as 0.
@@ -92,7 +95,7 @@ class ContactTolerances:
     """
 
     ground_distance: float = 0.15
-    body_distance: float = 0.06
+    body_distance: float = 0.03
     prop_distance: float = 0.05
     displacement: float = 0.04
     min_duration: float = 0.1
@@ -443,8 +446,38 @@ def _segment_distance_soa(p, a, b):
     return np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-def _body_near(x: np.ndarray, other, radius: float, *, block: int = 3):
-    """Which joints of one character are within ``radius`` of another's bone axes.
+def bone_radii(character) -> np.ndarray:
+    """Capsule radius (m) of each bone of ``character.skeleton.links``, shape (L,).
+
+    The radii of the rendered body (:data:`snapcore.body.ROLE_RADII`, the larger
+    semi-axis, by the role of the bone read from joint names), scaled with the
+    character's stature like the body mesh. Bones the body does not draw (eyes
+    inside the head, a floor-level root's bone up to the hips) get ``-inf``: they
+    are not part of the surface and never touch anything.
+    """
+    from .body import DEFAULT_ROLE, REFERENCE_STATURE_M, ROLE_RADII, joint_roles
+
+    sk = character.skeleton
+    roles = joint_roles(sk.names, sk.parents)
+    k = character.height / REFERENCE_STATURE_M
+    out = np.empty(sk.links.shape[0])
+    for i, (p, c) in enumerate(np.asarray(sk.links).reshape(-1, 2)):
+        rp, rc = roles[p], roles[c]
+        if rp == "hidden" or (rc == "hidden" and not sk.end_site[c]):
+            out[i] = -np.inf
+            continue
+        role = rp  # the bone's radius follows its parent joint, as in snapcore.body
+        if rp == "pelvis" and rc in ("spine", "chest", "neck"):
+            role = "spine"
+        elif rp == "spine" and rc in ("clavicle", "upperarm", "neck"):
+            role = "chest"
+        out[i] = max(ROLE_RADII.get(role, ROLE_RADII[DEFAULT_ROLE])) * k
+    return out
+
+
+def _body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = None,
+               block: int = 3):
+    """Which joints of one character touch another's body (bones as capsules).
 
     Parameters
     ----------
@@ -452,26 +485,31 @@ def _body_near(x: np.ndarray, other, radius: float, *, block: int = 3):
         Joint positions of the toucher, metres.
     other : Character
         The touched character; its bones are ``other.skeleton.links``.
-    radius : float
-        Distance tolerance to a bone axis, metres.
+    gap : float
+        Largest distance (m) from a joint to a capsule's surface that counts.
+    radii : ndarray of shape (L,), optional
+        Capsule radius of each bone (default :func:`bone_radii`).
     block : int
         Frames per block of the broad phase.
 
     Returns
     -------
     near : ndarray of bool, shape (F, J)
+        Some bone's axis is within ``radius + gap`` of the joint.
     bone : ndarray of int, shape (F, J)
-        Index into ``other.skeleton.links`` of the nearest bone where near (the
-        lowest index among equal distances), -1 elsewhere.
+        Index into ``other.skeleton.links`` of the bone whose surface is nearest
+        (``axis distance - radius``; the lowest index among equals) where near, -1
+        elsewhere.
 
     Notes
     -----
     A bounding-volume hierarchy in time and space, equal to testing every bone at
-    every frame (the tests check it). Per block of frames, each joint's swept box
-    (grown by ``radius``) is tested against the other's swept whole-body box, then
-    against boxes of groups of neighbouring bones (:func:`_bone_groups`), then
-    against each bone's box; only the surviving (frame, joint, bone) triples get
-    the exact segment distance. Two people a metre apart keep a few percent.
+    every frame (the tests check it). Per block of frames, each joint's swept box is
+    tested against the other's swept whole-body box (bones grown by their reach
+    ``radius + gap``), then against boxes of groups of neighbouring bones
+    (:func:`_bone_groups`), then against each bone's box; only the surviving (frame,
+    joint, bone) triples get the exact segment distance. Two people a metre apart
+    keep a few percent.
     """
     n_f, n_j = x.shape[:2]
     links = other.skeleton.links
@@ -481,17 +519,20 @@ def _body_near(x: np.ndarray, other, radius: float, *, block: int = 3):
     if n_l == 0 or n_f == 0:
         return near, bone
     y = other.positions
+    radii = bone_radii(other) if radii is None else np.asarray(radii, dtype=float)
+    reach = radii + gap
     # Boxes component-first, (3, B, ...): comparisons then combine three planes instead
     # of reducing over a length-3 axis, which NumPy does slowly.
     jlo, jhi = _block_boxes(x, block)  # (B, J, 3)
-    jlo = np.moveaxis(jlo - radius, -1, 0).copy()  # (3, B, J)
-    jhi = np.moveaxis(jhi + radius, -1, 0).copy()
+    jlo = np.moveaxis(jlo, -1, 0).copy()  # (3, B, J)
+    jhi = np.moveaxis(jhi, -1, 0).copy()
     ylo, yhi = _block_boxes(y, block)  # (B, Jo, 3)
     # Bone boxes arranged by group, (3, B, G, S): the last level gathers whole rows.
     g_links = _bone_groups(n_l)  # (G, S)
     la, lb = links[g_links, 0], links[g_links, 1]
-    llo = np.moveaxis(np.minimum(ylo[:, la], ylo[:, lb]), -1, 0).copy()
-    lhi = np.moveaxis(np.maximum(yhi[:, la], yhi[:, lb]), -1, 0).copy()
+    g_reach = reach[g_links]  # (G, S); -inf for bones that never touch
+    llo = np.moveaxis(np.minimum(ylo[:, la], ylo[:, lb]) - g_reach[..., None], -1, 0).copy()
+    lhi = np.moveaxis(np.maximum(yhi[:, la], yhi[:, lb]) + g_reach[..., None], -1, 0).copy()
     glo, ghi = llo.min(axis=3), lhi.max(axis=3)  # (3, B, G) group boxes
     blo, bhi = glo.min(axis=2), ghi.max(axis=2)  # (3, B) whole body
     n_g, size = g_links.shape
@@ -535,7 +576,8 @@ def _body_near(x: np.ndarray, other, radius: float, *, block: int = 3):
         sl = slice(s, s + _CHUNK)
         d[sl] = _segment_distance_soa(xf.take(pi[sl], axis=0).T, yf.take(ai[sl], axis=0).T,
                                       yf.take(bi[sl], axis=0).T)
-    hit = np.flatnonzero(d <= radius)
+    d -= radii[l4]  # distance to the capsule surface
+    hit = np.flatnonzero(d <= gap)
     if hit.size == 0:
         return near, bone
     # Nearest bone per (frame, joint). Candidates were generated in link order for
@@ -631,8 +673,8 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
     Every joint may touch anything (hands on the floor, a knee on a partner); the
     joints of one foot produce correlated events, which METHOD accepts: the
     probability of eq. 6 is per joint. Another character's body is its bones
-    (``skeleton.links``) as capsules of radius ``body_distance``; characters do not
-    touch themselves.
+    (``skeleton.links``) as capsules with the radii of the rendered body
+    (:func:`bone_radii`); characters do not touch themselves.
     """
     import time
 
@@ -659,6 +701,7 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             events.append(Event(ci, j, name, s, e, part_of(k) if part_of else None))
             act[s:e + 1, j] = True
 
+    radii = [bone_radii(c) for c in scene.characters] if bodies else []
     for ci, c in enumerate(scene.characters):
         x = c.positions
         static = _static_displacement(x)
@@ -670,7 +713,8 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             for oi, other in enumerate(scene.characters):
                 if oi == ci:
                     continue
-                near, bone = _body_near(x, other, tol.body_distance, block=block)
+                near, bone = _body_near(x, other, tol.body_distance, radii=radii[oi],
+                                        block=block)
                 found = scan_interactions(near, _body_displacement(x, other, bone),
                                           min_frames=m, tolerance=tol.displacement)
                 parent = other.skeleton.links[:, 0]

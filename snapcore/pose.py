@@ -41,6 +41,7 @@ __all__ = [
     "EVENT_MODES",
     "PoseEntropy",
     "PoseSelection",
+    "savgol_matrix",
     "smooth_positions",
     "joint_curvature",
     "rotation_change",
@@ -70,6 +71,8 @@ MIN_SEPARATION_S = 0.5
 EVENT_MODES = ("transitions", "state")
 #: Stature (m) the rest speed is given for.
 _REFERENCE_STATURE = 1.70
+#: Numbers per chunk when working through a clip in pieces (see _chunk_frames).
+_CHUNK_VALUES = 32768
 
 
 # ----------------------------------------------------------------------- results
@@ -152,33 +155,56 @@ def _window_frames(smooth_s: float, fps: float, n_frames: int, polyorder: int) -
     return w if w > polyorder else 0
 
 
+def savgol_matrix(window: int, polyorder: int) -> np.ndarray:
+    """Savitzky-Golay smoothing as a matrix, shape (window, window).
+
+    Row ``r`` evaluates, at sample ``r``, the least-squares polynomial of degree
+    ``polyorder`` through the ``window`` samples. The middle row is the filter's
+    interior kernel; the first and last ``window // 2`` rows smooth the ends of a
+    signal from its first and last window (SciPy's ``savgol_filter(mode="interp")``).
+    """
+    half = window // 2
+    t = (np.arange(window, dtype=float) - half) / max(half, 1)  # centred, scaled: well posed
+    vander = np.vander(t, polyorder + 1, increasing=True)
+    return vander @ np.linalg.pinv(vander)
+
+
 def smooth_positions(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
                      polyorder: int = SAVGOL_POLYORDER) -> np.ndarray:
     """Savitzky-Golay smoothed trajectories.
 
     Parameters
     ----------
-    positions : ndarray of shape (F, J, 3)
-        Metres.
+    positions : ndarray of shape (F, ...)
+        Metres; smoothed along the first axis.
     fps : float
     smooth_s : float
-        Window in seconds (rounded to an odd number of frames at ``fps``); windows of
-        at most ``polyorder`` frames (or ``smooth_s=0``) leave the input unchanged.
+        Window in seconds (rounded to an odd number of frames at ``fps``, at most the
+        clip); windows of at most ``polyorder`` frames (or ``smooth_s=0``) leave the
+        input unchanged.
     polyorder : int
 
     Returns
     -------
-    ndarray of shape (F, J, 3)
-        A new array. The filter fits a polynomial to the edge windows (SciPy's
-        ``mode="interp"``), so the ends are not padded with invented samples.
+    ndarray of the input's shape
+        A new array. The ends are fitted, not padded (:func:`savgol_matrix`); equal
+        to ``scipy.signal.savgol_filter(x, w, polyorder, axis=0, mode="interp")``.
     """
     x = np.asarray(positions, dtype=float)
-    w = _window_frames(smooth_s, fps, x.shape[0], polyorder) if smooth_s > 0 else 0
+    n_f = x.shape[0]
+    w = _window_frames(smooth_s, fps, n_f, polyorder) if smooth_s > 0 else 0
     if w == 0:
         return x.copy()
-    from scipy.signal import savgol_filter
+    from numpy.lib.stride_tricks import sliding_window_view
 
-    return savgol_filter(x, w, polyorder, axis=0, mode="interp")
+    h = w // 2
+    mat = savgol_matrix(w, polyorder)
+    flat = x.reshape(n_f, -1)
+    out = np.empty_like(flat)
+    out[h:n_f - h] = sliding_window_view(flat, w, axis=0) @ mat[h]
+    out[:h] = mat[:h] @ flat[:w]
+    out[n_f - h:] = mat[h + 1:] @ flat[n_f - w:]
+    return out.reshape(x.shape)
 
 
 def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
@@ -214,14 +240,22 @@ def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOO
     kappa = np.zeros((n_f, n_j))
     if n_f < 3:
         return kappa
-    e = np.diff(x, axis=0)  # (F-1, J, 3)
-    length = np.sqrt(np.einsum("fjk,fjk->fj", e, e))  # (F-1, J)
-    moving = length >= rest_speed / fps
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = e / np.where(moving, length, 1.0)[..., None]
-    dt = t[1:] - t[:-1]  # (F-2, J, 3)
-    chord = np.sqrt(np.einsum("fjk,fjk->fj", dt, dt))
-    kappa[1:-1] = np.where(moving[1:] & moving[:-1], 0.5 * chord, 0.0)
+    floor = rest_speed / fps
+    flat = x.reshape(n_f, n_j * 3)
+    ones = np.ones(3)
+    step = _chunk_frames(n_j * 3)
+    for a in range(0, n_f - 2, step):  # vertices a+1 .. b; frames a .. b+1
+        b = min(a + step, n_f - 2)
+        e = flat[a + 1:b + 2] - flat[a:b + 1]  # edges a .. b, (n+1, J*3)
+        length = np.sqrt((e * e).reshape(-1, 3) @ ones).reshape(-1, n_j)
+        moving = length >= floor
+        e = e.reshape(-1, n_j, 3)
+        e /= np.where(moving, length, 1.0)[..., None]  # unit tangents
+        dt = e[1:] - e[:-1]
+        chord = np.sqrt((dt * dt).reshape(-1, 3) @ ones).reshape(-1, n_j)
+        chord *= 0.5
+        chord[~(moving[1:] & moving[:-1])] = 0.0
+        kappa[a + 1:b + 1] = chord
     return kappa
 
 
@@ -248,11 +282,30 @@ def rotation_change(local_rotations: np.ndarray) -> np.ndarray:
     out = np.zeros((n_f, n_j))
     if n_f < 2:
         return out
-    d = np.diff(r.reshape(n_f, n_j * 9), axis=0)
-    sq = (d * d).reshape(-1, 9) @ np.ones(9)  # row sums via BLAS, faster than sum(-1)
-    s = np.sqrt(sq.reshape(n_f - 1, n_j)) / (2.0 * math.sqrt(2.0))
-    out[:-1] = 2.0 * np.arcsin(np.minimum(s, 1.0))
+    flat = r.reshape(n_f, n_j * 9)
+    ones = np.ones(9)
+    scale = 1.0 / (2.0 * math.sqrt(2.0))
+    step = _chunk_frames(n_j * 9)
+    for a in range(0, n_f - 1, step):
+        b = min(a + step, n_f - 1)
+        d = flat[a + 1:b + 1] - flat[a:b]
+        d *= d
+        s = np.sqrt(d.reshape(-1, 9) @ ones)  # row sums via BLAS, faster than sum(-1)
+        s *= scale
+        np.minimum(s, 1.0, out=s)
+        out[a:b] = np.arcsin(s).reshape(b - a, n_j)
+    out *= 2.0
     return out
+
+
+def _chunk_frames(values_per_frame: int) -> int:
+    """Frames per chunk so that a chunk holds about :data:`_CHUNK_VALUES` numbers.
+
+    Working through long clips in chunks keeps temporaries in cache; on machines
+    where fresh memory pages are expensive (virtual machines) it is several times
+    faster than whole-array expressions.
+    """
+    return max(8, _CHUNK_VALUES // max(values_per_frame, 1))
 
 
 def limb_lengths(skeleton) -> np.ndarray:
@@ -273,17 +326,81 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
                       rest_speed: float = REST_SPEED) -> np.ndarray:
     """``p_i = sum_j l_j |dm_ji| kappa_ji`` of one character (eq. 4-5), shape (F,).
 
-    ``rest_speed`` is in m/s for the given positions (callers scale it by stature).
-    Joints without a limb (``l_j = 0``) are skipped: they add exactly 0.
+    Parameters
+    ----------
+    character : Character
+    smooth_s : float
+        Savitzky-Golay window (s) for the trajectories, 0 for none.
+    rest_speed : float
+        Rest threshold (m/s) in the character's units (callers scale it by stature).
+
+    Notes
+    -----
+    Equal to ``(joint_curvature(X) * rotation_change(R)) @ limb_lengths`` (the tests
+    check it), computed in chunks of frames that stay in cache: smoothing
+    (:func:`savgol_matrix`), curvature, rotation change and the weighted sum per chunk.
+    Joints without a limb (``l_j = 0``) add exactly 0 and are skipped.
     """
+    n_f = character.n_frames
     ell = limb_lengths(character.skeleton)
     joints = np.flatnonzero(ell > 0)
-    if joints.size == 0 or character.n_frames < 3:
-        return np.zeros(character.n_frames)
-    kappa = joint_curvature(character.positions[:, joints], fps=character.fps,
-                            smooth_s=smooth_s, rest_speed=rest_speed)
-    dm = rotation_change(character.local_rotations[:, joints])
-    return (kappa * dm) @ ell[joints]
+    p = np.zeros(n_f)
+    if joints.size == 0 or n_f < 3:
+        return p
+    weight = ell[joints]
+    n_j = joints.size
+    pos, rot = character.positions, character.local_rotations
+    w = _window_frames(smooth_s, character.fps, n_f, SAVGOL_POLYORDER) if smooth_s > 0 else 0
+    h = w // 2
+    if w:
+        from numpy.lib.stride_tricks import sliding_window_view
+
+        mat = savgol_matrix(w, SAVGOL_POLYORDER)
+        taps = mat[h]  # interior: y_i = sum_k taps_k x_{i-h+k}
+        head = mat[:h] @ pos[:w][:, joints].reshape(w, n_j * 3)  # smoothed frames 0 .. h-1
+        tail = mat[h + 1:] @ pos[n_f - w:][:, joints].reshape(w, n_j * 3)  # F-h .. F-1
+    floor = rest_speed / character.fps
+    ones3, ones9 = np.ones(3), np.ones(9)
+    half_sqrt8 = 1.0 / (2.0 * math.sqrt(2.0))
+    step = _chunk_frames(n_j * 9)
+    for a in range(0, n_f - 2, step):
+        b = min(a + step, n_f - 2)  # vertices a+1 .. b use smoothed frames a .. b+1
+        lo, hi = a, b + 2
+        if w:
+            # interior frames of [lo, hi) from a window of raw frames around them
+            i0, i1 = max(lo, h), min(hi, n_f - h)
+            x = np.empty((hi - lo, n_j * 3))
+            if i1 > i0:
+                raw = pos[i0 - h:i1 + h][:, joints].reshape(i1 - i0 + 2 * h, n_j * 3)
+                x[i0 - lo:i1 - lo] = sliding_window_view(raw, w, axis=0) @ taps
+            if lo < h:
+                x[:min(h, hi) - lo] = head[lo:min(h, hi)]
+            if hi > n_f - h:
+                k = max(lo, n_f - h)
+                x[k - lo:] = tail[k - (n_f - h):hi - (n_f - h)]
+        else:
+            x = pos[lo:hi][:, joints].reshape(hi - lo, n_j * 3)
+        # curvature at vertices a+1 .. b (see joint_curvature)
+        e = x[1:] - x[:-1]
+        length = np.sqrt((e * e).reshape(-1, 3) @ ones3).reshape(-1, n_j)
+        moving = length >= floor
+        e = e.reshape(-1, n_j, 3)
+        e /= np.where(moving, length, 1.0)[..., None]
+        dt = e[1:] - e[:-1]
+        kappa = np.sqrt((dt * dt).reshape(-1, 3) @ ones3).reshape(-1, n_j)
+        kappa *= 0.5
+        kappa[~(moving[1:] & moving[:-1])] = 0.0
+        # rotation change from frame i to i+1 for i = a+1 .. b (see rotation_change)
+        r = rot[a + 1:b + 2][:, joints].reshape(b + 1 - a, n_j * 9)
+        d = r[1:] - r[:-1]
+        d *= d
+        s = np.sqrt(d.reshape(-1, 9) @ ones9)
+        s *= half_sqrt8
+        np.minimum(s, 1.0, out=s)
+        dm = np.arcsin(s).reshape(b - a, n_j)
+        dm *= 2.0
+        p[a + 1:b + 1] = (kappa * dm) @ weight
+    return p
 
 
 def local_entropy(information: np.ndarray) -> np.ndarray:
