@@ -8,9 +8,12 @@ No Streamlit, no SQL here (DESIGN: data flows one way).
 from __future__ import annotations
 
 from .bvh import BVHDocument, read_bvh, write_bvh
+from .contacts import ContactTolerances, Interactions, detect_interactions
 from .errors import BVHError, SceneError, SchemaError, SnapshotError
 from .load import data_dir, load_scene
+from .pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
 from .scene import Character, Scene, Skeleton
+from .snapshot import Snapshot, take_snapshot
 
 __version__ = "0.1.0"
 
@@ -18,14 +21,23 @@ __all__ = [
     "BVHDocument",
     "BVHError",
     "Character",
+    "ContactTolerances",
+    "Interactions",
+    "PoseEntropy",
+    "PoseSelection",
     "Scene",
     "SceneError",
     "SchemaError",
     "Skeleton",
+    "Snapshot",
     "SnapshotError",
     "data_dir",
+    "detect_interactions",
     "load_scene",
+    "pose_entropy",
     "read_bvh",
+    "select_pose",
+    "take_snapshot",
     "write_bvh",
     "__version__",
 ]
