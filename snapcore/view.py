@@ -12,9 +12,10 @@ and maximising either over the sphere is an L1-norm principal component. This mo
 evaluates them exactly (:func:`pma_scores`, one matrix product per chunk of views),
 refines a view to a local optimum with the fixed-point step
 ``v ← normalise(Σ_k sign(b_k·v) b_k)`` (:func:`refine_view`, never lowers the score),
-and selects the view of a scene fast (:func:`select_view`): a binned lower bound over
-the sample sphere, refinement of its best local maxima on the bins, exact refinement
-on the true triangles, and a certificate that no sample beats the answer. Front and
+and selects the view of a scene fast (:func:`select_view`, the engine is
+:mod:`snapcore.view_search`): a binned lower bound over the sample sphere, refinement of
+its best local maxima on the bins, exact refinement on the true triangles, and a
+certificate that no sample beats the answer. Front and
 back (``score(v) == score(-v)``) are told apart by the characters' facing
 (:mod:`snapcore.facing`).
 
@@ -24,16 +25,25 @@ camera; frames are internal indices (``scene.source_frame`` converts for output)
 
 from __future__ import annotations
 
-import functools
-import math
 import warnings
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 
 from .errors import SnapshotError
 from .facing import choose_side, scene_facing
+from .view_search import (
+    CHUNK,
+    ICOSPHERE_COUNTS,
+    REFINE_MAX_ITER,
+    RefineResult,
+    abs_dot_sums,
+    chunk_slices,
+    one_blas_thread,
+    refine_exact,
+    sphere_samples,
+    sphere_search,
+)
 
 __all__ = [
     "MA_FLOOR_M2",
@@ -56,120 +66,13 @@ __all__ = [
 #: 1e-5 m² is a 10 cm link moving 0.1 mm between frames; on the shared clips it skips
 #: 0-2 % of quads (eye and toe end sites of the salsa and boxing files mostly).
 MA_FLOOR_M2 = 1e-5
-#: Icosphere vertex counts (10·4^k + 2) → subdivision level. Other counts give an
-#: antipodally symmetric Fibonacci set.
-ICOSPHERE_COUNTS = {10 * 4**k + 2: k for k in range(8)}
 #: Score weightings: ``"pma"`` (ratio per quad, the paper) and ``"motion_area"`` (m²).
 WEIGHTINGS = ("pma", "motion_area")
-#: Octahedral bins per side of the hemisphere map of triangle normals (R² bins, each
-#: ~2° across): the fast lower bound over the sample sphere.
-BIN_RESOLUTION = 48
-#: Local maxima of the binned score refined from (distinct basins of the sphere).
-N_STARTS = 6
-#: Best distinct binned optima refined exactly on the triangles (the best always;
-#: the others only when their binned score is within the bound's gap of the best).
-N_POLISH = 3
-#: Cap on fixed-point iterations (each one never lowers the score; convergence is
-#: reached when the sign pattern repeats, typically in < 10 steps).
-REFINE_MAX_ITER = 100
-#: Sines of the angles around the current view within which the exact refinement
-#: tracks signs on the near triangles only (a few percent of them), nested: the outer
-#: window (8.6°) needs a full pass and also serves the certificate (it covers the
-#: sample sphere's neighbours of the answer); the inner one (2.3°) is re-derived from
-#: the outer one's triangles when the view leaves it.
-OUTER_WINDOW = 0.15
-REFINE_WINDOW = 0.04
-#: Two refined views closer than this (degrees, up to sign) are the same optimum.
-SAME_VIEW_DEG = 0.5
-#: Rounds of the certificate (each scores the flagged samples exactly and climbs from
-#: the best one if it beats the answer; one round suffices in practice).
-CERT_ROUNDS = 5
-#: Relative slack of the certificate (covers float32 rounding of the binned bound).
-CERT_SLACK = 1e-5
-#: Views × triangles per block of the exact evaluator (one reused buffer, 2 MB:
-#: ~0.65 ns per view and triangle on one core).
-SCORE_BLOCK = (16, 16384)
-#: Triangles per chunk of the element-wise kernels: temporaries of this size stay in
-#: cache and are recycled (fresh multi-MB temporaries cost more in page faults than
-#: the arithmetic; measured 3x on the salsa pair).
-CHUNK = 32768
-
-
 class ViewError(SnapshotError):
     """A view-selection request that cannot be met (bad window, bad views array)."""
 
 
-_BLAS = None
-
-
-def _one_blas_thread(func):
-    """Run ``func`` with one BLAS thread: its products are small (inner dimension 3),
-    and multi-threaded OpenBLAS made them ~20x slower on a busy 2-core machine."""
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        global _BLAS
-        if _BLAS is None:
-            try:
-                from threadpoolctl import ThreadpoolController
-
-                _BLAS = ThreadpoolController()
-            except ImportError:  # pragma: no cover - a declared dependency
-                _BLAS = False
-        if _BLAS is False:
-            return func(*args, **kwargs)
-        with _BLAS.limit(limits=1, user_api="blas"):
-            return func(*args, **kwargs)
-
-    return wrapper
-
-
 # ----------------------------------------------------------------------- view sphere
-
-
-@lru_cache(maxsize=8)
-def _sphere(n: int) -> np.ndarray:
-    """Unit views, shape (n, 3), read-only; rows n/2.. are the antipodes of rows ..n/2."""
-    if n in ICOSPHERE_COUNTS:
-        v = _icosphere(ICOSPHERE_COUNTS[n])
-        tol = 1e-9
-        upper = (v[:, 1] > tol) | ((np.abs(v[:, 1]) <= tol) & (
-            (v[:, 2] > tol) | ((np.abs(v[:, 2]) <= tol) & (v[:, 0] > 0))))
-        half = v[upper]
-        if half.shape[0] != n // 2:  # pragma: no cover - the icosphere is centrally symmetric
-            raise ViewError(f"icosphere of {n} points is not antipodally symmetric")
-    else:
-        m = n // 2
-        i = np.arange(m) + 0.5
-        y = i / m  # the upper hemisphere, (0, 1)
-        r = np.sqrt(1.0 - y * y)
-        phi = np.arange(m) * math.pi * (3.0 - math.sqrt(5.0))  # golden angle
-        half = np.stack([r * np.sin(phi), y, r * np.cos(phi)], axis=1)
-    out = np.concatenate([half, -half])
-    out.setflags(write=False)
-    return out
-
-
-def _icosphere(level: int) -> np.ndarray:
-    t = (1.0 + math.sqrt(5.0)) / 2.0
-    v = np.array([(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
-                  (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)], float)
-    f = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
-                  (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
-                  (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)])
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(level):
-        edges = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-        mid = v[uniq[:, 0]] + v[uniq[:, 1]]
-        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        m = inv.reshape(-1, 3) + v.shape[0]  # midpoints of edges 01, 12, 20
-        v = np.concatenate([v, mid])
-        a, b, c = f.T
-        ab, bc, ca = m.T
-        f = np.concatenate([np.stack(x, axis=1) for x in
-                            ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
-    return v
 
 
 def view_sphere(n: int = 2562) -> np.ndarray:
@@ -190,19 +93,7 @@ def view_sphere(n: int = 2562) -> np.ndarray:
     n = int(n)
     if n < 12 or n % 2:
         raise ViewError(f"n_views must be an even number >= 12, got {n}")
-    return _sphere(n).copy()
-
-
-@lru_cache(maxsize=8)
-def _neighbours(n: int) -> np.ndarray:
-    """Indices of the 6 nearest other views of every view, shape (n, 6)."""
-    v = _sphere(n)
-    out = np.empty((n, 6), dtype=np.intp)
-    for i in range(0, n, 256):
-        d = v[i:i + 256] @ v.T
-        d[np.arange(d.shape[0]), np.arange(i, i + d.shape[0])] = -np.inf  # not itself
-        out[i:i + 256] = np.argpartition(-d, 6, axis=1)[:, :6]
-    return out
+    return sphere_samples(n).copy()
 
 
 # ------------------------------------------------------------------- motion triangles
@@ -302,7 +193,7 @@ class MotionTriangles:
             q = self.quad_area
             b = np.empty_like(self.pma_vectors)
             bn = np.empty_like(self.pma_norms)
-            for z in _chunks(self.n_triangles):
+            for z in chunk_slices(self.n_triangles):
                 np.multiply(self.pma_vectors[:, z], q[z], out=b[:, z])
                 np.multiply(self.pma_norms[z], q[z], out=bn[z])
             b.setflags(write=False)
@@ -316,11 +207,6 @@ class MotionTriangles:
             return self.pma_norms
         self.vectors(weighting)
         return self._cache[weighting][1]
-
-
-def _chunks(n: int, size: int = CHUNK):
-    """Slices covering ``range(n)`` in steps of ``size``."""
-    return [slice(i, min(n, i + size)) for i in range(0, n, size)]
 
 
 def _check_weighting(weighting):
@@ -450,7 +336,7 @@ def _as_views(views) -> np.ndarray:
     return v
 
 
-@_one_blas_thread
+@one_blas_thread
 def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> np.ndarray:
     """Exact score of every view: ``Σ_k |b_k · v|``.
 
@@ -469,37 +355,14 @@ def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> 
 
     Notes
     -----
-    One matrix product per block of views × triangles (:data:`SCORE_BLOCK`, a reused
-    buffer); no loop over single views.
+    One matrix product per block of views × triangles (a reused buffer,
+    :func:`snapcore.view_search.abs_dot_sums`); no loop over single views.
     ``score(v) = score(-v)``.
     """
-    v = _as_views(views)
-    b = triangles.vectors(weighting)
-    out = np.zeros(v.shape[0])
-    rows, cols = SCORE_BLOCK
-    buf = np.empty(SCORE_BLOCK)
-    for i in range(0, v.shape[0], rows):
-        vi = v[i:i + rows]
-        for z in _chunks(b.shape[1], cols):
-            blk = buf[: vi.shape[0], : z.stop - z.start]
-            np.matmul(vi, b[:, z], out=blk)
-            np.abs(blk, out=blk)
-            out[i:i + rows] += blk.sum(axis=1)
-    return out
+    return abs_dot_sums(_as_views(views), triangles.vectors(weighting))
 
 
-@dataclass(frozen=True)
-class RefineResult:
-    """Outcome of :func:`refine_view`: the view (unit), its exact score, the number of
-    fixed-point steps, and whether the sign pattern repeated (a true fixed point)."""
-
-    view: np.ndarray
-    score: float
-    iterations: int
-    converged: bool
-
-
-@_one_blas_thread
+@one_blas_thread
 def refine_view(view, triangles: MotionTriangles, *, weighting: str = "pma",
                 max_iter: int = REFINE_MAX_ITER) -> RefineResult:
     """Climb from ``view`` to a local maximum of ``Σ_k |b_k · v|``.
@@ -528,213 +391,7 @@ def refine_view(view, triangles: MotionTriangles, *, weighting: str = "pma",
     nv = float(np.linalg.norm(v))
     if nv == 0:
         raise ViewError("the start view must be non-zero")
-    return _refine_exact(v / nv, b, triangles.vector_norms(weighting), max_iter)[0]
-
-
-class _Local:
-    """Exact scores near a centre view ``v0``, from the triangles near its ⟂ plane.
-
-    A triangle with ``|n_k·v0| ≥ sin θ`` keeps its sign for every ``u`` within θ of
-    ``v0``, so there ``score(u) = g_out·u + Σ_{k near} |b_k·u|`` with ``g_out`` the signed
-    sum of the others: one pass builds it, then each evaluation touches only the near
-    triangles (a few percent of them). Built from a ``parent`` it passes over the
-    parent's near triangles only, and covers what both windows cover.
-    """
-
-    def __init__(self, v0, b, bn, sin_t, parent=None):
-        self.v0 = v0
-        self.cos_t = math.sqrt(1.0 - sin_t * sin_t)
-        self.parent = parent
-        if parent is None:
-            g = np.zeros(3)
-        else:
-            b, bn, g = parent.bc, parent.bcn, parent.g_out.copy()
-        near = []
-        for z in _chunks(b.shape[1]):
-            t = v0 @ b[:, z]
-            g += b[:, z] @ np.sign(t)
-            np.abs(t, out=t)
-            near.append(np.flatnonzero(t < sin_t * bn[z]) + z.start)
-        idx = np.concatenate(near) if near else np.zeros(0, dtype=np.intp)
-        self.bc, self.bcn = b[:, idx], bn[idx]
-        self.g_out = g - self.bc @ np.sign(v0 @ self.bc)
-        self.score0 = float(g @ v0)  # Σ_k sign(b_k·v0) b_k·v0 = Σ_k |b_k·v0|
-
-    def covers(self, u) -> np.ndarray:
-        """Whether ``u`` (3,) or (m, 3) lies strictly within the window(s)."""
-        ok = u @ self.v0 > self.cos_t
-        return ok if self.parent is None else ok & self.parent.covers(u)
-
-    def scores(self, u) -> np.ndarray:
-        """Exact scores of views ``u`` (m, 3) that :meth:`covers` accepts."""
-        return u @ self.g_out + np.abs(u @ self.bc).sum(axis=1)
-
-
-def _refine_exact(v, b, bn, max_iter, outer=None):
-    """Fixed-point ascent from unit ``v`` → (RefineResult, outer _Local around the end).
-
-    Signs are tracked on the triangles of a small window (:data:`REFINE_WINDOW`) inside
-    a larger one (:data:`OUTER_WINDOW`); each is re-centred when the view leaves it.
-    """
-    if outer is None or not outer.covers(v):
-        outer = _Local(v, b, bn, OUTER_WINDOW)
-    loc = _Local(v, b, bn, REFINE_WINDOW, parent=outer)
-    t = v @ loc.bc
-    s = np.sign(t)
-    score = float(loc.g_out @ v + np.abs(t).sum())
-    it = 0
-    converged = False
-    while it < max_iter:
-        g = loc.g_out + loc.bc @ s
-        ng = float(np.linalg.norm(g))
-        if ng == 0.0:
-            converged = True
-            break
-        v_new = g / ng
-        same_loc = bool(loc.covers(v_new))
-        if not same_loc:  # moved out of the window: re-centre
-            if not outer.covers(v_new):
-                outer = _Local(v_new, b, bn, OUTER_WINDOW)
-            loc = _Local(v_new, b, bn, REFINE_WINDOW, parent=outer)
-        t = v_new @ loc.bc
-        s_new = np.sign(t)
-        score_new = float(loc.g_out @ v_new + np.abs(t).sum())
-        it += 1
-        if score_new < score:  # float rounding only (the step cannot lower the score)
-            converged = True
-            break
-        repeat = same_loc and np.array_equal(s_new, s)
-        v, s, score = v_new, s_new, score_new
-        if repeat:
-            converged = True
-            break
-    if not outer.covers(v):
-        outer = _Local(v, b, bn, OUTER_WINDOW)
-    return RefineResult(view=v, score=score, iterations=it, converged=converged), outer
-
-
-# ------------------------------------------------- fast binned bound over the sphere
-
-
-@lru_cache(maxsize=4)
-def _bin_geometry(res: int):
-    """Centres (B, 3) and angular radii (B,) of the octahedral hemisphere bins."""
-    edges = np.linspace(-1.0, 1.0, res + 1)
-    mids = 0.5 * (edges[1:] + edges[:-1])
-
-    def unmap(s, t):
-        px, pz = 0.5 * (s - t), 0.5 * (s + t)
-        d = np.stack([px, 1.0 - np.abs(px) - np.abs(pz), pz], axis=-1)
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-    si, ti = np.meshgrid(mids, mids, indexing="ij")
-    centres = unmap(si, ti).reshape(-1, 3)
-    # A cell's pieces (split by the octant kinks along its corners' diagonals) are
-    # spherical triangles whose farthest point from the centre is a corner.
-    radius = np.zeros(res * res)
-    for di in (0, 1):
-        for dj in (0, 1):
-            sc, tc = np.meshgrid(edges[di:res + di], edges[dj:res + dj], indexing="ij")
-            cos = np.einsum("ij,ij->i", centres, unmap(sc, tc).reshape(-1, 3))
-            radius = np.maximum(radius, np.arccos(np.clip(cos, -1.0, 1.0)))
-    radius += 1e-9  # rounding of the bin index at cell borders
-    return centres, radius
-
-
-@lru_cache(maxsize=4)
-def _straddle_factors(n: int, res: int):
-    """Bound factors (rows, cols, values) of the bins a view's ⟂ plane may cut.
-
-    For bin j with radius r and centre at angle α from the plane ⟂ v (α < r), the gap
-    between ``Σ_k |b_k·v|`` and ``|Σ_k b_k·v|`` over the bin is twice the minority
-    side's sum, at most ``W_j min(2 sin(r - α), sin(r + α))`` (``W_j = Σ_k |b_k|``).
-    """
-    centres, radius = _bin_geometry(res)
-    half = _sphere(n)[: n // 2]
-    rows, cols, vals = [], [], []
-    for i in range(0, half.shape[0], 128):
-        alpha = np.arcsin(np.clip(np.abs(half[i:i + 128] @ centres.T), 0.0, 1.0))
-        r_i, c_i = np.nonzero(alpha < radius)
-        a, r = alpha[r_i, c_i], radius[c_i]
-        rows.append(r_i + i)
-        cols.append(c_i)
-        vals.append(np.minimum(2.0 * np.sin(r - a), np.sin(np.minimum(r + a, np.pi / 2))))
-    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-
-
-def _gap_bound(n: int, res: int, weight) -> np.ndarray:
-    """Upper bound of ``score - lower`` for each of the n/2 sample views, shape (n/2,)."""
-    rows, cols, vals = _straddle_factors(n, res)
-    return np.bincount(rows, vals * weight[cols], minlength=n // 2)
-
-
-def _bin_generators(b, res):
-    """Fold ``b`` (3, K) onto y ≥ 0 and sum it per octahedral bin → G (B, 3), W (B,).
-
-    The bin of a folded unit normal ``n`` is its octahedral map
-    ``(s, t) = ((n_x + n_z), (n_z - n_x)) / (|n_x| + n_y + |n_z|)`` in [-1, 1]² on an
-    ``res × res`` grid. ``W_j ≥ Σ_k |b_k|`` over bin j (for the certificate's gap bound)
-    is ``G_j·c_j / cos r_j``: every member is within the bin radius ``r_j`` of its centre
-    ``c_j``, so ``b_k·c_j ≥ |b_k| cos r_j``.
-    """
-    nb = res * res
-    gen = np.zeros((nb, 3))
-    h = res / 2.0
-    for z in _chunks(b.shape[1]):
-        bx, by, bz = b[:, z]
-        sg = np.sign(by)
-        sg[sg == 0] = 1.0
-        fx, fy, fz = bx * sg, np.abs(by), bz * sg
-        den = np.abs(fx)
-        den += fy
-        den += np.abs(fz)
-        den += 1e-300  # zero vectors (skipped quads) add nothing to any bin
-        np.divide(h, den, out=den)
-        i = fx + fz
-        i *= den
-        i += h
-        j = fz - fx
-        j *= den
-        j += h
-        idx = i.astype(np.intp)
-        np.minimum(idx, res - 1, out=idx)
-        jj = j.astype(np.intp)
-        np.minimum(jj, res - 1, out=jj)
-        idx *= res
-        idx += jj
-        gen[:, 0] += np.bincount(idx, fx, nb)
-        gen[:, 1] += np.bincount(idx, fy, nb)
-        gen[:, 2] += np.bincount(idx, fz, nb)
-    centres, radius = _bin_geometry(res)
-    weight = np.maximum(np.einsum("ij,ij->i", gen, centres), 0.0) / np.cos(radius)
-    return gen, weight
-
-
-def _grid_lower(views, gen):
-    """``Σ_j |G_j·v|`` for every view (float32, in blocks that stay in cache)."""
-    g32 = np.ascontiguousarray(gen.T, dtype=np.float32)
-    v32 = views.astype(np.float32)
-    out = np.empty(views.shape[0])
-    rows = max(1, CHUNK // max(g32.shape[1], 1))
-    buf = np.empty((rows, g32.shape[1]), np.float32)
-    for i in range(0, v32.shape[0], rows):
-        blk = buf[: min(rows, v32.shape[0] - i)]
-        np.matmul(v32[i:i + rows], g32, out=blk)
-        np.abs(blk, out=blk)
-        out[i:i + rows] = blk.sum(axis=1)
-    return out
-
-
-def _refine_binned(starts, gen, max_iter=REFINE_MAX_ITER):
-    """Fixed-point ascent of ``Σ_j |G_j·v|`` from every start at once → views, scores."""
-    v = starts.copy()
-    for _ in range(max_iter):
-        g = np.sign(v @ gen.T) @ gen
-        g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
-        if np.allclose(g, v, rtol=0, atol=1e-13):
-            break
-        v = g
-    return v, np.abs(v @ gen.T).sum(axis=1)
+    return refine_exact(v / nv, b, triangles.vector_norms(weighting), max_iter)[0]
 
 
 # --------------------------------------------------------------------- selection
@@ -858,7 +515,7 @@ def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
     return max(0, f - half), min(n, f + half + 1)
 
 
-@_one_blas_thread
+@one_blas_thread
 def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_views: int = 2562,
                 refine: bool = True, floor: float = MA_FLOOR_M2,
                 triangles: MotionTriangles | None = None) -> ViewSelection:
@@ -906,7 +563,7 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     elif tuple(triangles.frames) != tuple(frames):
         raise ViewError(f"triangles cover frames {triangles.frames}, the request {frames}")
     facing = scene_facing(scene, frames=frames)
-    views = _sphere(int(n_views)) if n_views in ICOSPHERE_COUNTS else view_sphere(n_views)
+    views = view_sphere(n_views)
     n = views.shape[0]
     base = dict(method=method, views=np.array(views), frames=frames, window_s=window_s,
                 facing=facing, n_quads=triangles.n_quads, n_skipped=triangles.n_skipped)
@@ -919,76 +576,11 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
         return ViewSelection(view=v, view_grid=v.copy(), score=0.0, score_grid=0.0,
                              scores=np.zeros(n), side_rule="front" if nf > 0 else "fallback",
                              **base)
-    b = triangles.vectors(method)
-    bn = triangles.vector_norms(method)
-    m = n // 2
-    half = views[:m]
-    gen, weight = _bin_generators(b, BIN_RESOLUTION)
-    gen_k = gen[weight > 0]
-    lower = _grid_lower(half, gen_k)
-    upper = lower + _gap_bound(n, BIN_RESOLUTION, weight) + CERT_SLACK * weight.sum()
-    scores = np.concatenate([lower, lower])
-
-    best_v, iters = half[int(np.argmax(lower))], 0
-    if refine:
-        # local maxima of the bound on the whole sphere, best first (rows of the half)
-        is_max = scores >= scores[_neighbours(n)].max(axis=1)
-        cand = np.flatnonzero(is_max[:m])
-        cand = cand[np.argsort(-lower[cand])][:N_STARTS]
-        rv, rs = _refine_binned(half[cand], gen_k)
-        picked: list[np.ndarray] = []
-        cos_same = math.cos(math.radians(SAME_VIEW_DEG))
-        rs_picked = []
-        for i in np.argsort(-rs):
-            if all(abs(float(rv[i] @ p)) < cos_same for p in picked):
-                picked.append(rv[i])
-                rs_picked.append(float(rs[i]))
-        gap_max = float((upper - lower).max())
-        best_s, loc = -1.0, None
-        for i, v0 in enumerate(picked[:N_POLISH]):
-            if i and rs_picked[i] + gap_max < rs_picked[0]:
-                break  # no point of this basin can beat the first one's binned optimum
-            r, loc_i = _refine_exact(v0, b, bn, REFINE_MAX_ITER)
-            iters += r.iterations
-            if r.score > best_s:
-                best_v, best_s, loc = r.view, r.score, loc_i
-    else:
-        loc = _Local(best_v, b, bn, OUTER_WINDOW)
-        best_s = loc.score0
-    # certificate: score exactly every sample whose upper bound beats the answer
-    exact = np.zeros(m, dtype=bool)
-    certified = False
-    for _ in range(CERT_ROUNDS):
-        flagged = np.flatnonzero((upper > best_s) & ~exact)
-        if flagged.size == 0:
-            certified = True
-            break
-        u = half[flagged] * np.where(half[flagged] @ best_v < 0, -1.0, 1.0)[:, None]
-        near = loc.covers(u)
-        ex = np.empty(flagged.size)
-        ex[near] = loc.scores(u[near])
-        ex[~near] = pma_scores(u[~near], triangles, weighting=method)
-        scores[flagged] = scores[flagged + m] = upper[flagged] = ex
-        exact[flagged] = True
-        k = int(np.argmax(ex))
-        if ex[k] <= best_s * (1.0 + 1e-12):
-            certified = True
-            break
-        if refine:
-            r, loc = _refine_exact(half[flagged[k]], b, bn, REFINE_MAX_ITER)
-            iters += r.iterations
-            best_v, best_s = r.view, r.score
-        else:
-            best_v, best_s = half[flagged[k]], float(ex[k])
-            loc = _Local(best_v, b, bn, OUTER_WINDOW)
-    i_grid = int(np.argmax(scores[:m]))
-    grid_view = half[i_grid]
-    if exact[i_grid]:
-        score_grid = float(scores[i_grid])
-    else:
-        score_grid = float(pma_scores(grid_view, triangles, weighting=method)[0])
+    found = sphere_search(triangles.vectors(method), triangles.vector_norms(method), n,
+                          refine=refine)
+    best_v, grid_view = found.view, views[found.grid_index]
     view, rule = choose_side(best_v, facing)
     view_grid, _ = choose_side(grid_view, facing)
-    return ViewSelection(view=np.array(view), view_grid=np.array(view_grid), score=best_s,
-                         score_grid=score_grid, scores=scores, side_rule=rule,
-                         iterations=iters, certified=certified, **base)
+    return ViewSelection(view=np.array(view), view_grid=np.array(view_grid), score=found.score,
+                         score_grid=found.score_grid, scores=found.scores, side_rule=rule,
+                         iterations=found.iterations, certified=found.certified, **base)
