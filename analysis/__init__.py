@@ -11,6 +11,7 @@ when a figure is drawn.
 
 from __future__ import annotations
 
+from .figures import FIGURES, make_figures, measure_table1, paper_analogues, paper_table1
 from .frames import (
     SceneFrames,
     baselines_from_stimuli,
@@ -31,6 +32,8 @@ from .load import (
     tidy_responses,
     view_choices,
 )
+from .power import power_chisquare, power_curve, power_pairwise, power_table, sample_size
+from .report import analyze, analyze_counts, write_table
 from .simulate import (
     ObserverModel,
     SimScene,
@@ -56,11 +59,14 @@ from .votes import (
 )
 
 __all__ = [
+    "FIGURES",
     "METHODS",
     "LoadError",
     "ObserverModel",
     "SceneFrames",
     "SimScene",
+    "analyze",
+    "analyze_counts",
     "attention_summary",
     "baselines_from_stimuli",
     "chisquare_no_preference",
@@ -74,13 +80,22 @@ __all__ = [
     "holm_adjust",
     "load_responses",
     "luce_strengths",
+    "make_figures",
+    "measure_table1",
     "motion_baselines",
     "ordered_scenes",
     "ours_vs_baselines",
+    "paper_analogues",
     "paper_counts",
     "paper_design",
+    "paper_table1",
     "paper_table2",
     "pose_choices",
+    "power_chisquare",
+    "power_curve",
+    "power_pairwise",
+    "power_table",
+    "sample_size",
     "scene_frames_from_rows",
     "simulate_participants",
     "simulate_vote_counts",
@@ -91,4 +106,5 @@ __all__ = [
     "vote_counts",
     "vote_table",
     "wilson_interval",
+    "write_table",
 ]

@@ -9,7 +9,7 @@ fig5      pose entropy over each clip, the selected frames marked (Fig. 5);
           ``snapcore.entropy_plot``
 fig6      local and global pose entropy of the dance (Fig. 6); ``snapcore.entropy_plot``
 fig8-10   the selected pose from ours / viewpoint entropy / motion area (Fig. 8–10);
-          ``snapcore.render.compare_views``
+          ``compare_views`` of ``snapcore.render`` (or ``snapcore.sheets``)
 fig11     reliefs of the dance pose from the three views (Fig. 11);
           ``snapcore.relief_scene.relief_comparison_figure``
 fig13     chosen-frame histograms (Fig. 13) from study responses, or — labelled as
@@ -36,8 +36,8 @@ import pandas as pd
 
 from snapcore.errors import SnapshotError
 
-__all__ = ["FIGURES", "FigureUnavailable", "paper_analogues", "load_analogue", "paper_table1",
-           "make_figures", "measure_table1"]
+__all__ = ["FIGURES", "FigureUnavailable", "VIEW_PANELS", "paper_analogues", "load_analogue",
+           "paper_table1", "make_figures", "measure_table1", "snapshot_views"]
 
 #: Every figure/table ``snapshot figures`` can make, in the order it makes them.
 FIGURES = ("table2", "fig13", "table1", "fig5", "fig6", "fig8-10", "fig11")
@@ -211,7 +211,8 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
     DataFrame
         ``scene``, ``clip``, ``frames``, ``joints`` (all characters), ``ours_pose_s``,
         ``ours_view_s``, ``paper_frames``, ``paper_joints``, ``paper_pose_s``,
-        ``paper_view_s``, ``note``.
+        ``paper_view_s``, ``note``. ``ours_view_s`` is NaN while the pipeline has no
+        view stage.
     """
     take = _require("snapcore.snapshot", "take_snapshot")
     paper = paper_table1().set_index("scene")
@@ -230,8 +231,8 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
         p = paper.loc[sid] if sid in paper.index else None
         rows.append({"scene": sid, "clip": "; ".join(analogues.loc[sid, "files"]),
                      "frames": sc.n_frames, "joints": sum(c.n_joints for c in sc.characters),
-                     "ours_pose_s": float(np.nanmedian(pose_t)),
-                     "ours_view_s": float(np.nanmedian(view_t)),
+                     "ours_pose_s": _median(pose_t),
+                     "ours_view_s": _median(view_t),
                      "paper_frames": None if p is None else int(p["frames"]),
                      "paper_joints": None if p is None else int(p["joints"]),
                      "paper_pose_s": None if p is None else float(p["pose_selection_s"]),
@@ -243,6 +244,13 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
             click.echo(f"table1: {sid}: pose {rows[-1]['ours_pose_s']:.3f} s, "
                        f"view {rows[-1]['ours_view_s']:.3f} s", err=True)
     return pd.DataFrame(rows)
+
+
+def _median(values) -> float:
+    """Median of the finite values; NaN (no warning) when a stage never ran."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else float("nan")
 
 
 def _timings(snap) -> dict:
@@ -324,12 +332,86 @@ def _clip_name(sid: str) -> str:
     return " + ".join(Path(f).stem for f in t.loc[sid, "files"])
 
 
+#: Panel names of the three methods' views (the paper's Fig. 8, 9, 10).
+VIEW_PANELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint entropy (Fig. 9)",
+               "motion_area": "motion area (Fig. 10)"}
+
+
+def snapshot_views(snap) -> dict:
+    """The three methods' view directions of a snapshot: method → unit vector (3,).
+
+    Raises :class:`FigureUnavailable` when the pipeline did not run the view stage.
+    """
+    d = snap.to_dict() if hasattr(snap, "to_dict") else dict(snap)
+    base = d.get("baselines") or {}
+    out = {}
+    if d.get("view") is not None:
+        out["ours"] = d["view"]
+    for m in ("viewpoint_entropy", "motion_area"):
+        v = base.get(m)
+        if isinstance(v, dict):
+            v = v.get("view", v.get("direction"))
+        if v is not None:
+            out[m] = v
+    missing = [m for m in VIEW_PANELS if m not in out]
+    if missing:
+        raise FigureUnavailable(f"take_snapshot gave no {', '.join(missing)} view (the view "
+                                "stage is not in the pipeline yet)")
+    return {m: np.asarray(out[m], dtype=float) for m in VIEW_PANELS}
+
+
+def _compare_views():
+    try:
+        return _require("snapcore.render", "compare_views")
+    except FigureUnavailable:
+        return _require("snapcore.sheets", "compare_views")
+
+
 def _fig8_10(ctx: _Context) -> list[Path]:
-    raise FigureUnavailable("waiting for snapcore.render.compare_views")
+    compare = _compare_views()
+    from .plots import _plt
+
+    labels = _labels()
+    images, names, skipped = [], [], []
+    for sid in paper_analogues()["scene"]:
+        try:
+            snap = ctx.snapshot(sid)
+        except FigureUnavailable as err:
+            skipped.append(f"{sid} ({err})")
+            continue
+        views = snapshot_views(snap)
+        img = compare(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
+                      title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}")
+        images.append(np.asarray(img))
+        names.append(sid)
+    if not images:
+        raise FigureUnavailable("no clip could be rendered: " + "; ".join(skipped))
+    plt = _plt()
+    h, w = images[0].shape[:2]
+    fig, axes = plt.subplots(len(images), 1, figsize=(12, 12 * h / w * len(images)),
+                             squeeze=False, layout="constrained")
+    for ax, img in zip(axes[:, 0], images, strict=True):
+        ax.imshow(img)
+        ax.set_axis_off()
+    fig.suptitle("Fig. 8-10: the selected pose from the view of each method", fontsize=11)
+    paths = _figure_paths(fig, ctx.out / "fig8-10_views")
+    from snapcore.render import save_png
+
+    for sid, img in zip(names, images, strict=True):
+        path = ctx.out / f"fig8-10_{sid}.png"
+        save_png(img, path)
+        paths.append(path)
+    return paths
 
 
 def _fig11(ctx: _Context) -> list[Path]:
-    raise FigureUnavailable("waiting for snapcore.snapshot.take_snapshot")
+    relief_figure = _require("snapcore.relief_scene", "relief_comparison_figure")
+    snap = ctx.snapshot(FEATURE_SCENE)
+    views = snapshot_views(snap)
+    fig = relief_figure(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
+                        title=f"Fig. 11: reliefs of the dance pose (frame {snap.frame}, "
+                              f"{_clip_name(FEATURE_SCENE)}) from each method's view")
+    return _figure_paths(fig, ctx.out / "fig11_reliefs")
 
 
 _MAKERS = {"table2": _table2, "fig13": _fig13, "table1": _table1, "fig5": _fig5,
