@@ -272,9 +272,10 @@ def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
             po, pb = p_ours, p_baseline
             write_table(curve, out / "power_curve",
                         caption=f"Power against participants (ours {po:g}, baseline {pb:g}).")
-            save_figure(plot_power_curve(curve, target=target,
-                                         title=f"ours {po:g} vs baseline {pb:g}, level "
-                                               f"{alpha:g}/{comparisons}"), out / "power_curve")
+            save_figure(plot_power_curve(curve, target=target, n_needed=r["n_stable"],
+                                         title=f"true shares: ours {po:g}, baseline {pb:g}; "
+                                               f"level {alpha:g}/{comparisons}"),
+                        out / "power_curve")
         click.echo(f"wrote {out}")
 
 

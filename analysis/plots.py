@@ -257,18 +257,26 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
     return fig
 
 
-def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | None = None, ax=None):
-    """Power against participants (:func:`analysis.power.power_curve` output)."""
+def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | None = None,
+                     n_needed: int | None = None, ax=None):
+    """Power against participants (:func:`analysis.power.power_curve` output).
+
+    ``n_needed`` (e.g. :func:`analysis.power.sample_size`'s ``n_stable``) is marked.
+    """
     plt = _plt()
     if ax is None:
         fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
     else:
         fig = ax.figure
     ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS["ours"],
-            label="ours vs baseline (exact binomial)")
+            label="ours beats the baseline (exact binomial, corrected level)")
     ax.plot(curve["n"], curve["power_chisquare"], color="#555555", ls="--",
-            label="any preference (chi-square)")
+            label="some preference among the three (chi-square, uncorrected)")
     ax.axhline(target, color="grey", lw=0.8, ls=":")
+    if n_needed is not None:
+        ax.axvline(n_needed, color=METHOD_COLORS["ours"], lw=0.8, ls=":")
+        ax.annotate(f"{n_needed} participants", (n_needed, target), xytext=(6, -14),
+                    textcoords="offset points", fontsize=8, color=METHOD_COLORS["ours"])
     ax.set_ylim(0, 1)
     ax.set_xlabel("participants (votes per scene)")
     ax.set_ylabel("power")
