@@ -78,8 +78,8 @@ FRAME_MARGIN = 0.06
 PERSPECTIVE_YFOV_DEG = 30.0
 #: Views closer than this to ±Y (cosine) use a horizontal up hint (see :func:`view_basis`).
 POLE_COS = float(np.cos(np.radians(0.5)))
-#: Background colour of stills and videos (RGB 0-1): a very light warm grey.
-BACKGROUND = (0.965, 0.962, 0.955)
+#: Background ("sky") colour of stills and videos (sRGB 0-1): near white.
+BACKGROUND = (0.975, 0.975, 0.975)
 #: Default 3/4 view: azimuth from the characters' facing direction and elevation, degrees.
 DEFAULT_AZIMUTH_DEG = 35.0
 DEFAULT_ELEVATION_DEG = 18.0
@@ -782,6 +782,8 @@ def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
 GRID_SPACING = 0.5
 GRID_LINE_HALF_WIDTH = 0.006
 GRID_FADE_RADIUS = 7.0
+#: Half-size of the floor square, metres (far enough to reach the horizon of any view).
+FLOOR_HALF_SIZE = 60.0
 #: Floor and grid colours (sRGB 0-1) and the shadow's darkening of the floor.
 FLOOR_COLOR = (0.93, 0.925, 0.915)
 GRID_COLOR = (0.74, 0.74, 0.74)
@@ -796,12 +798,14 @@ def _srgb_to_linear(c):
 
 
 def _ground_mesh(centre_xz, height):
-    """The floor grid at ``height``: lines every :data:`GRID_SPACING` around
-    ``centre_xz``, fading into the floor colour within :data:`GRID_FADE_RADIUS`.
+    """The floor at ``height``: a large square (half-size :data:`FLOOR_HALF_SIZE`) and
+    grid lines every :data:`GRID_SPACING` around ``centre_xz`` that fade into the floor
+    colour within :data:`GRID_FADE_RADIUS`.
 
-    The floor itself is not drawn: it is the background colour (a flat floor under
-    directional light has one colour anyway), which keeps full-screen shading off the
-    per-frame cost. Lines are thin quads without normals (drawn unlit), one mesh.
+    Everything here is unlit (no normals): a flat floor under directional light has one
+    colour anyway, and the unlit path keeps full-screen shading cheap. The floor is a
+    shade darker than the sky (:data:`BACKGROUND`), so a horizontal view still shows
+    the horizon at the characters' feet. Lines are thin quads. One mesh.
     """
     pyrender = _pyrender()
     cx, cz = centre_xz
@@ -825,13 +829,25 @@ def _ground_mesh(centre_xz, height):
     t = np.clip(dist / r, 0, 1)[:, None] ** 1.5
     grid, floor = _srgb_to_linear(GRID_COLOR), _srgb_to_linear(FLOOR_COLOR)
     col = np.hstack([grid * (1 - t) + floor * t, np.ones((len(pos), 1))]).astype(np.float32)
-    b = 4 * np.arange(len(q))
+    # the floor is a deep slab, not a plane: seen exactly edge-on (a horizontal
+    # orthographic view) a plane vanishes into a line, a slab still shows the floor
+    # below the characters' feet
+    hs, lo = FLOOR_HALF_SIZE, height - FLOOR_HALF_SIZE
+    x0, x1, z0, z1 = cx - hs, cx + hs, cz - hs, cz + hs
+    slab = np.array([
+        [[x0, height, z0], [x1, height, z0], [x1, height, z1], [x0, height, z1]],  # top
+        [[x0, lo, z0], [x1, lo, z0], [x1, height, z0], [x0, height, z0]],  # sides
+        [[x1, lo, z0], [x1, lo, z1], [x1, height, z1], [x1, height, z0]],
+        [[x1, lo, z1], [x0, lo, z1], [x0, height, z1], [x1, height, z1]],
+        [[x0, lo, z1], [x0, lo, z0], [x0, height, z0], [x0, height, z1]],
+    ]).reshape(-1, 3)
+    pos = np.vstack([pos, slab])
+    col = np.vstack([col, np.tile(np.append(floor, 1.0), (len(slab), 1))]).astype(np.float32)
+    b = 4 * np.arange(len(q) + 5)  # the slab's five faces come last
     faces = np.concatenate([np.stack([b, b + 1, b + 2], 1), np.stack([b, b + 2, b + 3], 1)])
-    e1, e2 = pos[faces[:, 1]] - pos[faces[:, 0]], pos[faces[:, 2]] - pos[faces[:, 0]]
-    down = np.cross(e1, e2)[:, 1] < 0
-    faces[down] = faces[down][:, ::-1]  # face +Y
     mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-                                             metallicFactor=0.0, roughnessFactor=1.0)
+                                             metallicFactor=0.0, roughnessFactor=1.0,
+                                             doubleSided=True)
     prim = pyrender.Primitive(positions=pos.astype(np.float32), color_0=col,
                               indices=faces.astype(np.uint32), material=mat, mode=4)
     return pyrender.Mesh([prim])
@@ -880,8 +896,7 @@ class SceneRenderer:
         self.ground = bool(ground)
         self.shadows = bool(shadows) and self.ground
         self._thread = threading.get_ident()
-        bg = FLOOR_COLOR if self.ground else BACKGROUND
-        self.pscene = pyrender.Scene(bg_color=[*bg, 1.0], ambient_light=[0.30] * 3)
+        self.pscene = pyrender.Scene(bg_color=[*BACKGROUND, 1.0], ambient_light=[0.30] * 3)
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7)
         # projected shadows have faces of both windings: draw them unculled
@@ -913,7 +928,7 @@ class SceneRenderer:
         # The floor reaches far beyond the characters: extend the depth range so it is
         # not clipped (an orthographic eye can move back freely without changing the
         # image; a perspective one keeps its near plane and sees farther).
-        far = 2.0 * GRID_FADE_RADIUS + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
+        far = 2.0 * FLOOR_HALF_SIZE + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
         if cam.projection == "orthographic":
             back = far
             gl_cam = Camera(cam.position + cam.back * back, cam.right, cam.up, cam.back, cam.size,

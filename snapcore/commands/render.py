@@ -1,0 +1,348 @@
+"""``snapshot render``, ``snapshot video`` and ``snapshot sheet``: pictures of a scene.
+
+Frame numbers on the command line and in every output are SOURCE frame numbers (as in
+the BVH file; ``snapshot select`` prints the same numbers); they are converted to the
+scene's internal frames with ``scene.frame_offset``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..errors import SnapshotError
+from .common import parse_vector, scene_arguments, scene_from_options
+
+__all__ = ["render", "video", "sheet", "parse_size", "pipeline_picks"]
+
+
+def parse_size(text: str, name: str = "--size") -> tuple[int, int]:
+    """Parse ``"1280x720"`` into ``(1280, 720)``, with a one-line error naming ``name``."""
+    try:
+        w, h = (int(t) for t in text.lower().replace("×", "x").split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WIDTHxHEIGHT like 1280x720, got '{text}'",
+                                 param_hint=name) from None
+    if not (8 <= w <= 8192 and 8 <= h <= 8192):
+        raise click.BadParameter(f"width and height must be 8..8192 pixels, got '{text}'",
+                                 param_hint=name)
+    return w, h
+
+
+def _internal(scene, source_frame: int, name: str = "--frame") -> int:
+    i = int(source_frame) - scene.frame_offset
+    if not 0 <= i < scene.n_frames:
+        first = scene.frame_offset
+        raise click.BadParameter(
+            f"frame {source_frame} is not in this scene (source frames {first}.."
+            f"{first + scene.n_frames - 1})", param_hint=name)
+    return i
+
+
+def _note(text: str) -> None:
+    click.echo(text, err=True)
+
+
+def _optional(module: str, name: str):
+    """``snapcore.<module>.<name>`` or None when that module is absent or broken (other
+    parts of the suite are optional here: the picture falls back to a default)."""
+    import importlib
+
+    try:
+        return getattr(importlib.import_module(f"snapcore.{module}"), name)
+    except ImportError:
+        return None
+    except Exception as err:  # a module that fails to import must not break pictures
+        _note(f"note: snapcore.{module} unavailable ({type(err).__name__}: {err})")
+        return None
+
+
+def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
+    """What the pipeline picks for a scene, as far as the installed modules go.
+
+    Uses :func:`snapcore.snapshot.take_snapshot` (pose entropy; its ``view`` and
+    ``baselines`` once the view stage fills them), falling back to
+    :func:`snapcore.view.select_view` for views it lacks, and to the middle frame /
+    no views when neither module is available.
+
+    Returns
+    -------
+    dict
+        ``frame`` (internal), ``frames`` (top-k, internal), ``entropy`` (total pose
+        entropy of each of ``frames`` or None), ``views`` (``{"ours": v, "viewpoint
+        entropy": v, "motion area": v}`` as available), ``how`` (one line).
+    """
+    out = {"frame": scene.n_frames // 2, "frames": [scene.n_frames // 2], "entropy": None,
+           "views": {}, "how": "middle frame"}
+    take_snapshot = _optional("snapshot", "take_snapshot")
+    snap = None
+    if take_snapshot is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            snap = take_snapshot(scene, k=k)
+        out.update(frame=int(snap.index), frames=[int(i) for i in snap.indices],
+                   entropy=[float(snap.pose.entropy.total[i]) for i in snap.indices],
+                   how="selected pose")
+    if not views:
+        return out
+    found = {}
+    if snap is not None and getattr(snap, "view", None) is not None:
+        found["ours"] = snap.view
+    baselines = (getattr(snap, "baselines", None) or {}) if snap is not None else {}
+    for key, label in (("viewpoint_entropy", "viewpoint entropy"), ("motion_area", "motion area")):
+        b = baselines.get(key)
+        if isinstance(b, dict):
+            b = b.get("view")
+        if b is not None:
+            found[label] = b
+    select_view = _optional("view", "select_view")
+    if select_view is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if "ours" not in found:
+                found["ours"] = select_view(scene).view
+            if "motion area" not in found:
+                found["motion area"] = select_view(scene, method="motion_area").view
+    order = ("ours", "viewpoint entropy", "motion area")
+    out["views"] = {n: np.asarray(found[n], float) / np.linalg.norm(found[n])
+                    for n in order if n in found}
+    return out
+
+
+def _view_option(text, scene, *, default="auto"):
+    """Resolve a --view value: 'x,y,z', 'auto' (the selected view) or 'default' (3/4)."""
+    from ..render import default_view
+
+    text = default if text is None else text
+    if text == "default":
+        return default_view(scene), "default 3/4 view"
+    if text == "auto":
+        views = pipeline_picks(scene)["views"]
+        if "ours" in views:
+            return views["ours"], "selected view (projected motion area)"
+        return default_view(scene), "default 3/4 view (no view selection available)"
+    return parse_vector(text, "--view"), "given view"
+
+
+def _render_options(f):
+    opts = [
+        click.option("--perspective", is_flag=True,
+                     help="Perspective camera (default: orthographic)."),
+        click.option("--no-ground", is_flag=True, help="No floor grid (and no shadows)."),
+        click.option("--no-shadows", is_flag=True, help="No shadows on the floor."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+@click.command()
+@scene_arguments
+@click.option("--frame", type=int, default=None, metavar="N",
+              help="Source frame number (as in the BVH file). Default: the selected pose.")
+@click.option("--view", default=None, metavar="x,y,z|auto|default",
+              help="Direction from the scene to the camera (Y up), 'auto' = the selected "
+                   "view (projected motion area) [default], 'default' = a 3/4 front view.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="PNG file to write.")
+@click.option("--size", default="1280x720", show_default=True, metavar="WxH",
+              help="Image size in pixels.")
+@click.option("--fit", type=click.Choice(["frame", "motion"]), default="frame", show_default=True,
+              help="Frame the pose tightly, or the whole motion (as videos do).")
+@_render_options
+def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_ground, no_shadows):
+    """Render one frame of a scene to a PNG.
+
+    \b
+    Example:
+      snapshot render walk_run/02_01.bvh --frame 120 --view 1,0.3,0.4 -o pose.png
+    """
+    from ..render import render_still, save_png
+
+    w, h = parse_size(size)
+    scene = scene_from_options(paths, fps, scale)
+    if frame is None:
+        picks = pipeline_picks(scene, views=False)
+        i = picks["frame"]
+        _note(f"frame {int(scene.source_frame(i))} ({picks['how']})")
+    else:
+        i = _internal(scene, frame)
+    v, how = _view_option(view, scene)
+    _note(f"view {np.round(v, 3).tolist()} ({how})")
+    img = render_still(scene, i, v, size=(w, h), projection="perspective" if perspective
+                       else "orthographic", fit=fit, ground=not no_ground,
+                       shadows=not (no_shadows or no_ground))
+    save_png(img, output)
+    click.echo(output)
+
+
+@click.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="MP4 file to write (H.264, yuv420p, faststart).")
+@click.option("--fps", "video_fps", type=click.FloatRange(min=1, max=240), default=24.0,
+              show_default=True,
+              help="Frame rate of the VIDEO; the motion is resampled (nearest frame).")
+@click.option("--motion-fps", "fps", type=float, default=None,
+              help="Frame rate override for the MOTION (what --fps means in the other "
+                   "commands; some headers are wrong, e.g. CMU salsa is 60).")
+@click.option("--scale", type=float, default=None,
+              help="Metres per file unit (default: inferred from the characters' stature).")
+@click.option("--size", default="1280x720", show_default=True, metavar="WxH",
+              help="Video size in pixels (even numbers).")
+@click.option("--view", default=None, metavar="x,y,z|auto|default",
+              help="Direction from the scene to the camera. Default: 'default' = a neutral "
+                   "3/4 front view; 'auto' = the selected view.")
+@click.option("--frames", "frame_range", default=None, metavar="A:B",
+              help="Only source frames A..B (inclusive).")
+@click.option("--frame-numbers", is_flag=True, help="Print source frame number and time.")
+@click.option("--frame-map", type=click.Path(dir_okay=False), default=None,
+              help="Also write the video-frame → source-frame map as JSON.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@_render_options
+def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_numbers,
+          frame_map, quiet, perspective, no_ground, no_shadows):
+    """Render a scene to an H.264 MP4 that plays in Chrome and Firefox.
+
+    One fixed camera frames the whole motion. Prints the number of video frames; the
+    frame map (which source frame each video frame shows) goes to --frame-map.
+    Note: here --fps is the VIDEO's rate; the motion's is --motion-fps.
+
+    \b
+    Example:
+      snapshot video two_person/60_01_scaled.bvh two_person/61_01_scaled.bvh \\
+          --motion-fps 60 -o salsa.mp4 --fps 30 --frame-numbers
+    """
+    from ..video import render_video
+
+    w, h = parse_size(size)
+    if w % 2 or h % 2:
+        raise click.BadParameter(f"video width and height must be even, got {w}x{h}",
+                                 param_hint="--size")
+    scene = scene_from_options(paths, fps, scale)
+    rng = None
+    if frame_range:
+        try:
+            a, b = (int(t) for t in frame_range.split(":"))
+        except ValueError:
+            raise click.BadParameter(f"expected A:B source frames, got '{frame_range}'",
+                                     param_hint="--frames") from None
+        rng = (_internal(scene, a, "--frames"), _internal(scene, b, "--frames") + 1)
+        if rng[1] <= rng[0]:
+            raise click.BadParameter("B must not be before A", param_hint="--frames")
+    v, how = _view_option(view, scene, default="default")
+    if not quiet:
+        _note(f"view {np.round(v, 3).tolist()} ({how})")
+    fmap = render_video(scene, output, fps=video_fps, size=(w, h), view=v,
+                        projection="perspective" if perspective else "orthographic",
+                        frame_numbers=frame_numbers, progress=not quiet, frame_range=rng,
+                        ground=not no_ground, shadows=not (no_shadows or no_ground))
+    if frame_map:
+        doc = {"video": str(output), "fps": float(video_fps), "size": [w, h],
+               "motion_fps": float(scene.fps), "source_frames": [int(x) for x in fmap]}
+        Path(frame_map).write_text(json.dumps(doc) + "\n")
+    click.echo(f"{output}: {len(fmap)} frames at {video_fps:g} fps "
+               f"(source frames {int(fmap[0])}..{int(fmap[-1])})")
+
+
+def _parse_frames(text: str) -> list[int]:
+    try:
+        return [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise click.BadParameter(f"expected source frame numbers like 120,340,560, got '{text}'",
+                                 param_hint="--frames") from None
+
+
+def _parse_named_view(text: str) -> tuple[str, np.ndarray]:
+    if "=" not in text:
+        raise click.BadParameter(f"expected NAME=x,y,z, got '{text}'", param_hint="--views")
+    name, vec = text.split("=", 1)
+    return name.strip(), parse_vector(vec, "--views")
+
+
+@click.command()
+@scene_arguments
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="PNG file to write.")
+@click.option("--frames", "frames_text", default=None, metavar="A,B,C",
+              help="Contact sheet of these source frames (default: the top poses).")
+@click.option("--top", type=click.IntRange(min=1, max=12), default=3, show_default=True,
+              help="Contact sheet of the K most informative poses (pose entropy).")
+@click.option("--view", default=None, metavar="x,y,z|auto|default",
+              help="View of the contact sheet (default: 'auto' = the selected view).")
+@click.option("--views", "views_text", multiple=True, metavar="NAME=x,y,z",
+              help="Compare views instead: one panel per NAME=x,y,z (repeat the option).")
+@click.option("--compare", is_flag=True,
+              help="Compare the three methods' views (ours / viewpoint entropy / motion "
+                   "area, as far as available) at --frame.")
+@click.option("--frame", type=int, default=None, metavar="N",
+              help="Source frame for --views/--compare (default: the selected pose).")
+@click.option("--size", default="480x540", show_default=True, metavar="WxH",
+              help="Size of each panel in pixels.")
+@click.option("--columns", type=click.IntRange(min=1), default=None,
+              help="Panels per row (default: one row).")
+@click.option("--title", default=None, help="Title line above the panels.")
+@_render_options
+def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare, frame, size,
+          columns, title, perspective, no_ground, no_shadows):
+    """Composite pictures: a contact sheet of poses, or one pose from several views.
+
+    \b
+    Contact sheet (the paper's Fig. 5 strip): the top poses, or --frames A,B,C.
+    View comparison (Fig. 8-10): --compare, or --views ours=1,0,0 --views top=0,1,0.
+    All panels share one size and one scale.
+
+    \b
+    Examples:
+      snapshot sheet dance/05_06.bvh -o top3.png --top 3
+      snapshot sheet dance/05_06.bvh -o views.png --compare
+    """
+    from ..render import save_png
+    from ..sheets import compare_views, contact_sheet
+
+    w, h = parse_size(size)
+    proj = "perspective" if perspective else "orthographic"
+    scene = scene_from_options(paths, fps, scale)
+    common = dict(size=(w, h), projection=proj, ground=not no_ground,
+                  shadows=not (no_shadows or no_ground))
+    picks = None
+    if views_text or compare:
+        if frame is None:
+            picks = pipeline_picks(scene, views=compare)
+            i = picks["frame"]
+            _note(f"frame {int(scene.source_frame(i))} ({picks['how']})")
+        else:
+            i = _internal(scene, frame)
+        if views_text:
+            views = dict(_parse_named_view(t) for t in views_text)
+        else:
+            views = (picks or pipeline_picks(scene))["views"]
+            if not views:
+                raise SnapshotError("--compare needs view selection (snapcore.view), which "
+                                    "is not available; give --views NAME=x,y,z instead")
+        img = compare_views(scene, i, views, title=title, **common)
+    else:
+        entropy = None
+        if frames_text:
+            frames = [_internal(scene, f, "--frames") for f in _parse_frames(frames_text)]
+        else:
+            picks = pipeline_picks(scene, k=top, views=False)
+            if picks["entropy"] is None:
+                raise SnapshotError("--top needs pose selection (snapcore.snapshot); give "
+                                    "--frames A,B,C instead")
+            frames, entropy = picks["frames"], picks["entropy"]
+        v, how = _view_option(view, scene)
+        _note(f"view {np.round(v, 3).tolist()} ({how})")
+        img = contact_sheet(scene, frames, view=v, entropy=entropy, columns=columns,
+                            title=title, **common)
+    save_png(img, output)
+    click.echo(output)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(sheet())
