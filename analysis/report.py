@@ -52,7 +52,7 @@ def _fmt(col: str, v) -> str:
     if isinstance(v, float | np.floating):
         v = float(v)
         if col.startswith("p_") or col == "p":
-            return "<1e-10" if v < 1e-10 else (f"{v:.2g}" if v < 0.001 else f"{v:.3f}")
+            return "<1e-300" if v < 1e-300 else (f"{v:.2g}" if v < 0.001 else f"{v:.3f}")
         if v.is_integer() and abs(v) < 1e6 and col in ("predicted_frame", "n"):
             return str(int(v))
         return f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
