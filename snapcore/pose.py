@@ -39,6 +39,7 @@ __all__ = [
     "REST_SPEED",
     "MIN_SEPARATION_S",
     "EVENT_MODES",
+    "ZERO_INFORMATION",
     "PoseEntropy",
     "PoseSelection",
     "savgol_matrix",
@@ -69,6 +70,9 @@ MIN_SEPARATION_S = 0.5
 #: What counts as an event in the global term: onset/release (default) or the whole
 #: interaction.
 EVENT_MODES = ("transitions", "state")
+#: Per-frame information (m rad) at or below which a clip counts as having none: far
+#: below any real motion (a 1 mm/frame turn of a 5 cm finger gives ~1e-6).
+ZERO_INFORMATION = 1e-12
 #: Stature (m) the rest speed is given for.
 _REFERENCE_STATURE = 1.70
 #: Numbers per chunk when working through a clip in pieces (see _chunk_frames).
@@ -406,11 +410,14 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
 def local_entropy(information: np.ndarray) -> np.ndarray:
     """``-p log2 p`` of the per-frame information normalised to sum 1 (eq. 5).
 
-    Returns zeros (not NaN) when the information is 0 everywhere; the caller warns.
+    Returns zeros (not NaN) when the information is 0 everywhere, numerically: at most
+    :data:`ZERO_INFORMATION` (rounding in the smoothing of a straight path leaves
+    curvatures of 1e-15, which normalisation would blow up into a random
+    distribution). The caller warns.
     """
     p = np.asarray(information, dtype=float)
     total = p.sum()
-    if not total > 0:
+    if not (total > 0 and p.max() > ZERO_INFORMATION):
         return np.zeros_like(p)
     p = p / total
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -573,7 +580,7 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
         h_global[ci] = global_entropy(interactions.active[ci], arr[:, 0], arr[:, 1], arr[:, 2],
                                       mode=events)
     timings["global"] = time.perf_counter() - t2
-    if not info.any():
+    if not info.max(initial=0.0) > ZERO_INFORMATION:
         warnings.warn("no joint moves along a curve (static clip?): the local term is 0",
                       stacklevel=2)
     local = minmax(h_local.sum(axis=0), name="local pose entropy")
