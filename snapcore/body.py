@@ -117,7 +117,7 @@ HAND_BLOB_BEYOND = 0.045
 HAND_BONES_MIN = 0.06
 #: Bones shorter than this (m) are not drawn (zero-length BVH links, rounding noise).
 MIN_BONE_M = 1e-4
-#: Tessellation (segments around, rings per cap) by radius (m, after scaling): thick
+#: Tessellation (segments around, rings per cap) by radius (m, for a 1.75 m person): thick
 #: pieces get more faces so silhouettes stay round. A capsule has 4·around·rings faces.
 TESSELLATION = ((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1)))
 
@@ -162,8 +162,8 @@ _SIDE_PATTERNS = (
     ("R", re.compile(r"^right[_ .]?", re.I)),
     ("L", re.compile(r"[_ .]l(eft)?$", re.I)),
     ("R", re.compile(r"[_ .]r(ight)?$", re.I)),
-    ("L", re.compile(r"^l(?=[A-Z_])")),  # lCollar, LHipJoint, LThumb
-    ("R", re.compile(r"^r(?=[A-Z_])")),
+    ("L", re.compile(r"^[lL](?=[A-Z_])")),  # lCollar, LHipJoint, LThumb (not LowerBack)
+    ("R", re.compile(r"^[rR](?=[A-Z_])")),
     ("L", re.compile(r"^l(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
     ("R", re.compile(r"^r(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
 )
@@ -248,13 +248,14 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     b along y), half-ellipsoid caps of height c. ``length=0`` gives an ellipsoid.
 
     Returns vertices (n, 3), normals (n, 3), faces (m, 3) with outward normals and
-    counter-clockwise faces; 4·around·rings faces.
+    counter-clockwise faces; 4·around·rings faces (2·around fewer for an ellipsoid).
     """
-    phis = np.concatenate([
-        np.linspace(-np.pi / 2, 0.0, rings + 1)[1:],  # bottom cap rings up to the equator
-        np.linspace(0.0, np.pi / 2, rings + 1)[:-1],  # top equator up to below the pole
-    ])
-    zoff = np.concatenate([np.zeros(rings), np.full(rings, length)])
+    bottom = np.linspace(-np.pi / 2, 0.0, rings + 1)[1:]  # rings up to the equator
+    top = np.linspace(0.0, np.pi / 2, rings + 1)[:-1]  # equator up to below the pole
+    if length <= 0:
+        top = top[1:]  # an ellipsoid has one equator, not two coincident ones
+    phis = np.concatenate([bottom, top])
+    zoff = np.concatenate([np.zeros(len(bottom)), np.full(len(top), max(length, 0.0))])
     theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
     cp, sp = np.cos(phis)[:, None], np.sin(phis)[:, None]
     ct, st = np.cos(theta)[None, :], np.sin(theta)[None, :]
@@ -266,7 +267,7 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     verts = np.vstack([[0.0, 0.0, -c], ring_v, [0.0, 0.0, length + c]])
     normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    n_rows = 2 * rings
+    n_rows = len(phis)
     top = 1 + n_rows * around
     i = np.arange(around)
     i1 = (i + 1) % around
@@ -373,6 +374,12 @@ class CharacterBody:
     ----------
     joint : ndarray of shape (N,)
         Joint carrying each vertex.
+    piece : ndarray of shape (N,)
+        Index into ``pieces`` of each vertex.
+    pieces : list of dict
+        One per rigid piece: ``kind`` ("bone", "head", "nose", "hand"), ``joint`` (the
+        carrying joint), ``child`` (a bone's child joint, else -1), ``radii``
+        (cross-section semi-axes, m), ``length`` (m, 0 for ellipsoids).
     local_vertices, local_normals : ndarray of shape (N, 3)
         Vertex positions (metres) and normals in the carrying joint's local frame.
     faces : ndarray of shape (M, 3)
@@ -432,7 +439,8 @@ class CharacterBody:
         offsets = np.asarray(sk.offsets, float)
         k = self.size
         roles = self.roles
-        pieces = []  # (joint, verts_local, normals_local, rgb)
+        pieces = []  # (joint, verts_local, normals_local, faces, rgb)
+        self.pieces: list[dict] = []
 
         def colour_of(j):
             side = self.sides[j]
@@ -442,10 +450,12 @@ class CharacterBody:
                 return base * (1 - RIGHT_DARKEN)
             return base
 
-        def add(j, length, a, b, cap, frame, start, rgb):
-            around, rings = _tessellation(max(a, b))
+        def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
+            around, rings = _tessellation(max(a, b) / k)  # by size relative to stature
             v, n, f = _capsule(length, a, b, cap, around, rings)
             pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
+            self.pieces.append({"kind": kind, "joint": int(j), "child": int(child),
+                                "radii": (float(a), float(b)), "length": float(length)})
 
         lateral_cache: dict[int, np.ndarray | None] = {}
 
@@ -470,7 +480,7 @@ class CharacterBody:
             frame = _frame_from(off, lat)
             if lat is None:
                 la = de = min(la, de) if role in TORSO_ROLES else la
-            add(p, length, la, de, min(la, de), frame, np.zeros(3), colour_of(ch))
+            add(p, length, la, de, min(la, de), frame, np.zeros(3), colour_of(ch), "bone", ch)
 
         # head ellipsoid + nose, in the head joint's frame
         s = self._sample
@@ -492,10 +502,10 @@ class CharacterBody:
             forward = -frame[:, 1]
             hx, hy, hz = (v * k for v in HEAD_SEMI_AXES)
             centre = up * HEAD_CENTRE_ABOVE * k
-            add(j, 0.0, hx, hy, hz, frame, centre, _lighten(base, 0.08))
+            add(j, 0.0, hx, hy, hz, frame, centre, _lighten(base, 0.08), "head")
             nose = centre + forward * (hy * 0.97) - up * (0.15 * hz)
             r = NOSE_RADIUS * k
-            add(j, 0.0, r, r, r, np.eye(3), nose, base * 0.8)
+            add(j, 0.0, r, r, r, np.eye(3), nose, base * 0.8, "nose")
 
         # hand blobs for hands without bones of their own
         lengths = np.linalg.norm(offsets, axis=1)
@@ -515,13 +525,14 @@ class CharacterBody:
                 continue
             rr = HAND_BLOB_RADIUS * k
             add(j, 0.0, rr, rr * 0.8, rr * 1.1, _frame_from(d, None),
-                d * HAND_BLOB_BEYOND * k, colour_of(j))
+                d * HAND_BLOB_BEYOND * k, colour_of(j), "hand")
 
         if not pieces:
             raise SceneError(f"character '{c.name}' has no bones to draw")
-        joint, verts, norms, faces, cols = [], [], [], [], []
+        joint, verts, norms, faces, cols, which = [], [], [], [], [], []
         n0 = 0
-        for j, v, n, f, rgb in pieces:
+        for k_piece, (j, v, n, f, rgb) in enumerate(pieces):
+            which.append(np.full(len(v), k_piece))
             joint.append(np.full(len(v), j))
             verts.append(v)
             norms.append(n)
@@ -529,6 +540,7 @@ class CharacterBody:
             cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
             n0 += len(v)
         self.joint = np.concatenate(joint)
+        self.piece = np.concatenate(which)
         self.local_vertices = np.vstack(verts)
         self.local_normals = np.vstack(norms)
         self.faces = np.vstack(faces).astype(np.int64)

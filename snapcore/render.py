@@ -1086,3 +1086,18 @@ def save_png(image: np.ndarray, path) -> None:
     from PIL import Image
 
     Image.fromarray(np.asarray(image, np.uint8)).save(str(path))
+
+
+_LAZY = {"render_video": "video", "video_frame_map": "video", "contact_sheet": "sheets",
+         "compare_views": "sheets"}
+
+
+def __getattr__(name):
+    """``snapcore.render.render_video`` / ``contact_sheet`` / ``compare_views``: the video
+    and composite functions live in :mod:`snapcore.video` and :mod:`snapcore.sheets`
+    (which import this module) and are reachable from here too."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"snapcore.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'snapcore.render' has no attribute '{name}'")

@@ -1,0 +1,305 @@
+"""Rendering checked by geometry: silhouettes, depth, face ids, framing, stills, threads."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+import trimesh
+
+from snapcore import synth
+from snapcore.render import (
+    Camera,
+    RenderError,
+    SceneRenderer,
+    default_view,
+    face_id_camera,
+    fit_camera,
+    motion_points,
+    render_depth,
+    render_face_ids,
+    render_still,
+    view_basis,
+)
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return synth.synth_scene("walk", fps=30)
+
+
+def _subdivided_cube(n=8, size=1.0):
+    """A closed cube whose every side is an n×n grid of quads (2n² triangles a side)."""
+    m = trimesh.creation.box(extents=[size] * 3)
+    for _ in range(int(np.log2(n))):
+        m = m.subdivide()
+    return m
+
+
+# ----------------------------------------------------------------------------- cameras
+
+
+@pytest.mark.parametrize("view", [[0, 0, 1], [1, 2, 3], [0, 1, 0], [0, -1, 0], [0, 1, 1e-9],
+                                  [-1, 0, 0]])
+def test_view_basis_is_right_handed_and_orthonormal(view):
+    """right × up = view for every view, including straight up and down."""
+    r, u, b = view_basis(view)
+    m = np.stack([r, u, b])
+    np.testing.assert_allclose(m @ m.T, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(np.cross(r, u), b, atol=1e-12)
+    np.testing.assert_allclose(b, np.asarray(view) / np.linalg.norm(view), atol=1e-12)
+    if abs(b[1]) < 0.99:
+        assert u[1] > 0  # world up stays up in the picture
+
+
+def test_view_basis_rejects_zero_view():
+    with pytest.raises(RenderError):
+        view_basis([0, 0, 0])
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_fit_camera_keeps_every_point_inside_the_margin(projection):
+    """Points projected by hand (independent of Camera.project) land inside the image,
+    and the fit is tight: some point touches the margin."""
+    rng = np.random.default_rng(1)
+    pts = rng.normal(size=(500, 3)) * [1.0, 0.5, 2.0] + [3, 1, -2]
+    view = np.array([0.4, 0.5, 0.75])
+    w, h = 320, 200
+    cam = fit_camera(pts, view, size=(w, h), projection=projection, margin=0.1)
+    r, u, b = view_basis(view)
+    rel = pts - cam.position
+    if projection == "orthographic":
+        x = (rel @ r) / (cam.half_height * w / h)
+        y = (rel @ u) / cam.half_height
+    else:
+        z = -(rel @ b)
+        assert z.min() > cam.znear
+        t = np.tan(cam.yfov / 2)
+        x = (rel @ r) / (z * t * w / h)
+        y = (rel @ u) / (z * t)
+    lim = 1 - 2 * 0.1
+    assert np.abs(x).max() <= lim + 1e-9 and np.abs(y).max() <= lim + 1e-9
+    assert max(np.abs(x).max(), np.abs(y).max()) > lim - 1e-6
+
+
+# ----------------------------------------------------------------------------- face ids
+
+
+def test_silhouette_area_of_a_cube_matches_the_analytic_area():
+    """A unit cube's shadow along an axis is 1 m²; along the diagonal (1,1,1) it is √3 m²
+    (½ Σ A_f |n_f·v|, three faces of 1 m² at cos = 1/√3 each, twice). Pixel count ×
+    pixel area matches to 2 %."""
+    m = _subdivided_cube(4)
+    views = np.array([[0, 0, 1], [1, 1, 1] / np.sqrt(3)])
+    res = 256
+    ids = render_face_ids(m.vertices, m.faces, views, resolution=res)
+    cam = face_id_camera(m.vertices, views[0], resolution=res)
+    px = cam.pixel_size ** 2
+    areas = (ids > 0).sum(axis=(1, 2)) * px
+    np.testing.assert_allclose(areas, [1.0, np.sqrt(3)], rtol=0.02)
+
+
+def test_face_ids_find_every_face_seen_head_on_and_nothing_else():
+    """Seen along +Z, a subdivided cube shows exactly its 128 triangles facing +Z."""
+    m = _subdivided_cube(8)
+    ids = render_face_ids(m.vertices, m.faces, [0, 0, 1], resolution=256)
+    seen = set(np.unique(ids[ids > 0]) - 1)
+    front = set(np.flatnonzero(m.face_normals @ [0, 0, 1] > 0.999))
+    assert len(front) == 128
+    assert seen == front
+
+
+def test_face_ids_name_only_front_faces_of_a_closed_mesh():
+    """On a sphere seen from 12 directions, every named face faces the camera
+    (n·v > 0): back faces never win, not even at the silhouette."""
+    m = trimesh.creation.icosphere(subdivisions=4)
+    views = trimesh.creation.icosahedron().vertices
+    ids = render_face_ids(m.vertices, m.faces, views, resolution=128)
+    for v, im in zip(views, ids):
+        named = np.unique(im[im > 0]) - 1
+        assert named.size > 100
+        assert np.all(m.face_normals[named] @ v > 0)
+
+
+def test_face_ids_are_exact_at_every_pixel():
+    """No blended ids: each pixel's face contains the pixel centre (barycentric test in
+    the image plane, computed here without the renderer), away from the edges."""
+    m = _subdivided_cube(2)
+    view = np.array([0.3, 0.5, 0.8])
+    res = 96
+    im = render_face_ids(m.vertices, m.faces, view, resolution=res)
+    cam = face_id_camera(m.vertices, view, resolution=res)
+    r, u, _ = view_basis(view)
+    s = cam.pixel_size
+    jj, ii = np.meshgrid(np.arange(res), np.arange(res))
+    px = np.stack([(jj + 0.5 - res / 2) * s, (res / 2 - ii - 0.5) * s], -1) + [
+        cam.position @ r, cam.position @ u]
+    hit = im > 0
+    assert im.max() <= len(m.faces)
+    tri = m.vertices[m.faces[im[hit] - 1]]
+    t2 = np.stack([tri @ r, tri @ u], -1)  # (P, 3, 2)
+    p = px[hit]
+    a, b, c = t2[:, 0], t2[:, 1], t2[:, 2]
+
+    def cross(o, x, y):
+        return (x[:, 0] - o[:, 0]) * (y[:, 1] - o[:, 1]) - (x[:, 1] - o[:, 1]) * (y[:, 0] - o[:, 0])
+
+    d1, d2, d3 = cross(a, b, p), cross(b, c, p), cross(c, a, p)
+    tol = 1e-9
+    inside = ((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)) | ((d1 <= tol) & (d2 <= tol) & (d3 <= tol))
+    assert inside.mean() > 0.995  # the rest sit exactly on shared edges
+
+
+def test_face_ids_input_errors():
+    with pytest.raises(RenderError):
+        render_face_ids(np.zeros((3, 3)), np.array([[0, 1, 5]]), [0, 0, 1])
+    with pytest.raises(RenderError):
+        render_face_ids(np.zeros((3, 2)), np.array([[0, 1, 2]]), [0, 0, 1])
+
+
+# ----------------------------------------------------------------------------- depth
+
+
+def test_depth_at_the_centre_of_a_box_is_the_analytic_distance():
+    """A 1 × 2 × 3 m box at the origin seen from +Z: the centre pixel hits the front face
+    z = +1.5 m; depth + the front face's z equals the image plane's z; the box is 1 m
+    wide in pixels × pixel size."""
+    m = trimesh.creation.box(extents=[1.0, 2.0, 3.0])
+    d = render_depth(m.vertices, m.faces, [0, 0, 1], resolution=200)
+    h, w = d.shape
+    centre = d.depth[h // 2, w // 2]
+    assert abs(d.origin[2] - centre - 1.5) < 1e-9
+    np.testing.assert_allclose(d.points()[h // 2, w // 2], [d.pixel_centers()[h // 2, w // 2, 0],
+                                                            d.pixel_centers()[h // 2, w // 2, 1],
+                                                            1.5], atol=1e-9)
+    assert np.allclose(d.depth[d.mask], centre)  # a flat face: one depth everywhere
+    assert abs(d.mask.any(axis=0).sum() * d.pixel_size - 1.0) <= 2 * d.pixel_size
+    assert abs(d.mask.any(axis=1).sum() * d.pixel_size - 2.0) <= 2 * d.pixel_size
+    np.testing.assert_allclose(d.forward, [0, 0, -1], atol=1e-12)
+    assert np.isnan(d.depth[~d.mask]).all()
+
+
+def test_depth_of_a_tilted_plane_is_exact():
+    """A square tilted 30° about x seen from +Z: depth grows by tan 30° per metre of y."""
+    a = np.radians(30)
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    rot = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    v = v @ rot.T
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    d = render_depth(v, f, [0, 0, 1], resolution=128)
+    pts = d.points()[d.mask]
+    # every surface point lies on the plane (independent check: the plane's normal)
+    n = rot @ [0, 0, 1]
+    np.testing.assert_allclose(pts @ n, 0, atol=1e-9)
+    rows = np.flatnonzero(d.mask[:, d.shape[1] // 2])
+    col = d.depth[rows, d.shape[1] // 2]
+    slope = np.polyfit(-(rows * d.pixel_size), col, 1)[0]  # image up = +y
+    assert abs(slope - (-np.tan(a))) < 1e-9  # higher y = nearer (z grows with y)
+
+
+def test_depth_extent_and_resolution_give_square_pixels():
+    m = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    d = render_depth(m.vertices, m.faces, [0, 0, 1], resolution=(100, 50), extent=(2.0, 1.0))
+    assert d.shape == (50, 100) and abs(d.pixel_size - 0.04) < 1e-12
+    assert abs(d.mask.sum() * d.pixel_size**2 - 1.0) < 0.05
+
+
+# ----------------------------------------------------------------------------- stills
+
+
+def test_still_shows_the_body_where_the_camera_projects_it(walk):
+    """The still's silhouette (pixels unlike the plain background, no floor) covers the
+    projected joints and fills the projected bounding box of the body, computed here by
+    hand from the camera basis."""
+    from snapcore.body import scene_body
+    from snapcore.render import BACKGROUND
+
+    size = (200, 160)
+    frame = 12
+    view = np.array([0.6, 0.25, 0.76])
+    verts = scene_body(walk).vertices(frame)
+    cam = fit_camera(verts, view, size=size)
+    img = render_still(walk, frame, camera=cam, ground=False, size=size)
+    assert img.shape == (160, 200, 3) and img.dtype == np.uint8
+    bg = np.round(np.asarray(BACKGROUND) * 255)
+    sil = np.abs(img.astype(int) - bg).sum(axis=2) > 12
+    r, u, _ = view_basis(view)
+    rel = verts - cam.position
+    x = ((rel @ r) / (cam.half_height * 200 / 160) + 1) * 100
+    y = (1 - (rel @ u) / cam.half_height) * 80
+    cols, rows = np.flatnonzero(sil.any(axis=0)), np.flatnonzero(sil.any(axis=1))
+    assert abs(cols.min() - x.min()) <= 2 and abs(cols.max() + 1 - x.max()) <= 2
+    assert abs(rows.min() - y.min()) <= 2 and abs(rows.max() + 1 - y.max()) <= 2
+    j = cam.project(walk.characters[0].positions[frame])
+    inside = sil[np.clip(j[:, 1].astype(int), 0, 159), np.clip(j[:, 0].astype(int), 0, 199)]
+    assert inside.mean() > 0.9
+
+
+def test_still_of_two_people_shows_both_colours():
+    """The push scene: both characters' colours appear in the picture."""
+    from snapcore.body import CHARACTER_COLORS
+
+    scene = synth.synth_scene("push", fps=30)
+    img = render_still(scene, 20, size=(240, 180)).astype(float) / 255
+    for rgb in CHARACTER_COLORS[:2]:
+        # lit colours keep the hue: look for pixels whose chromaticity matches
+        c = np.asarray(rgb) / np.sum(rgb)
+        chrom = img / np.maximum(img.sum(axis=2, keepdims=True), 1e-6)
+        assert (np.abs(chrom - c).sum(axis=2) < 0.04).sum() > 200
+
+
+def test_motion_framing_is_the_same_for_every_frame(walk):
+    """With fit='motion' the camera does not depend on the frame, and every posed
+    vertex of every frame is inside the picture."""
+    pts = motion_points(walk)
+    view = default_view(walk)
+    cam = fit_camera(pts, view, size=(320, 180))
+    from snapcore.body import scene_body
+
+    allv = scene_body(walk).vertices(np.arange(walk.n_frames)).reshape(-1, 3)
+    p = cam.project(allv)
+    assert p[:, 0].min() >= 0 and p[:, 0].max() <= 320
+    assert p[:, 1].min() >= 0 and p[:, 1].max() <= 180
+
+
+def test_default_view_is_a_front_three_quarter_view(walk):
+    """The synthetic walker faces +Z: the default view is in front (z > 0), turned
+    sideways and slightly from above."""
+    v = default_view(walk)
+    assert abs(np.linalg.norm(v) - 1) < 1e-12
+    assert v[2] > 0.6 and 0.1 < v[1] < 0.5 and abs(v[0]) > 0.3
+    turned = default_view(walk.transformed(yaw_deg=90))
+    np.testing.assert_allclose(turned, [v[2], v[1], -v[0]], atol=0.05)
+
+
+def test_renderer_is_bound_to_its_thread_and_threads_get_their_own(walk):
+    """A SceneRenderer refuses another thread; face ids in a worker thread (its own EGL
+    context) equal those of the main thread."""
+    sr = SceneRenderer(walk, size=(64, 64))
+    cam = fit_camera(sr.body.vertices(0), [0, 0, 1], size=(64, 64))
+    errors, results = [], {}
+
+    def worker():
+        try:
+            sr.render(0, cam)
+        except RenderError as err:
+            errors.append(err)
+        m = _subdivided_cube(2)
+        results["ids"] = render_face_ids(m.vertices, m.faces, [1, 1, 1], resolution=64)
+
+    t = threading.Thread(target=worker)
+    t.start()
+    t.join()
+    assert errors and "thread" in str(errors[0])
+    m = _subdivided_cube(2)
+    np.testing.assert_array_equal(results["ids"],
+                                  render_face_ids(m.vertices, m.faces, [1, 1, 1], resolution=64))
+
+
+def test_camera_project_matches_fit(walk):
+    cam = Camera(np.array([0, 0, 5.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
+                 np.array([0, 0, 1.0]), (100, 50), "orthographic", half_height=1.0)
+    np.testing.assert_allclose(cam.project([[0, 0, 0], [2, 1, 0]]), [[50, 25], [100, 0]])

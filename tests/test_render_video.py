@@ -1,0 +1,170 @@
+"""Videos, contact sheets, view comparisons and the render/video/sheet commands."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from snapcore import synth
+from snapcore.cli import cli
+from snapcore.render import RenderError
+from snapcore.video import render_video, video_frame_map
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return synth.synth_scene("walk", fps=30)
+
+
+def _probe(path):
+    """(metadata, number of frames, first frame) decoded with imageio-ffmpeg."""
+    import imageio_ffmpeg
+
+    gen = imageio_ffmpeg.read_frames(str(path))
+    meta = next(gen)
+    frames = [np.frombuffer(f, np.uint8) for f in gen]
+    return meta, len(frames), frames
+
+
+def test_frame_map_resamples_by_nearest_time():
+    """60 fps motion at 24 fps: frame k shows motion frame round(2.5 k)."""
+    m = video_frame_map(61, 60.0, 24.0)
+    assert len(m) == 25  # one second: floor(1.0 · 24) + 1
+    np.testing.assert_array_equal(m[:5], [0, 2, 5, 8, 10])  # round half to even at 2.5·1
+    assert m[-1] == 60
+    sub = video_frame_map(300, 120.0, 30.0, start=100, stop=141)
+    np.testing.assert_array_equal(sub, np.arange(100, 141, 4))
+    with pytest.raises(RenderError):
+        video_frame_map(10, 30.0, 24.0, start=5, stop=20)
+
+
+def test_video_decodes_to_the_expected_frames_size_fps_and_codec(walk, tmp_path):
+    """An H.264 yuv420p MP4 with floor(duration · fps) + 1 frames of the asked size."""
+    path = tmp_path / "walk.mp4"
+    fmap = render_video(walk, path, fps=24, size=(160, 96), progress=False)
+    expect = int(np.floor((walk.n_frames - 1) / walk.fps * 24 + 1e-9)) + 1  # 3 s → 73
+    assert len(fmap) == expect == 73
+    meta, n, frames = _probe(path)
+    assert n == expect
+    assert meta["size"] == (160, 96)
+    assert abs(meta["fps"] - 24) < 1e-6
+    assert meta["codec"].startswith("h264")
+    assert meta["pix_fmt"].startswith("yuv420p")
+    # faststart: the index ("moov") comes before the media data ("mdat")
+    head = path.read_bytes()
+    assert 0 < head.find(b"moov") < head.find(b"mdat")
+    # source numbering, monotone, within the scene
+    assert fmap[0] == walk.source_frame(0) and fmap[-1] == walk.source_frame(walk.n_frames - 1)
+    assert np.all(np.diff(fmap) >= 0)
+    # the character is in the picture: frames are not blank
+    img = frames[0].reshape(96, 160, 3)
+    assert img.std() > 5
+
+
+def test_video_frame_range_and_numbers(walk, tmp_path):
+    """A sub-range at the motion's own rate has one video frame per motion frame; the
+    frame-number label changes the pixels in its corner only."""
+    a, b = tmp_path / "a.mp4", tmp_path / "b.mp4"
+    fa = render_video(walk, a, fps=walk.fps, size=(128, 96), frame_range=(10, 20), progress=False)
+    fb = render_video(walk, b, fps=walk.fps, size=(128, 96), frame_range=(10, 20), progress=False,
+                      frame_numbers=True)
+    np.testing.assert_array_equal(fa, walk.source_frame(np.arange(10, 20)))
+    np.testing.assert_array_equal(fa, fb)
+    _, n, fa_frames = _probe(a)
+    _, _, fb_frames = _probe(b)
+    assert n == 10
+    da = fa_frames[0].reshape(96, 128, 3).astype(int)
+    db = fb_frames[0].reshape(96, 128, 3).astype(int)
+    diff = np.abs(da - db).sum(axis=2) > 30
+    assert diff[60:, :64].sum() > 20  # the label, bottom-left
+    assert diff[:30, 64:].sum() == 0  # nothing else changed
+
+
+def test_video_rejects_odd_sizes(walk, tmp_path):
+    with pytest.raises(RenderError, match="even"):
+        render_video(walk, tmp_path / "x.mp4", size=(101, 64), progress=False)
+
+
+def test_contact_sheet_and_view_comparison_layout(walk):
+    """Panels of the asked size side by side (plus gaps and captions); one scale in every
+    comparison panel, so the same pose seen from +Z and -Z has mirror silhouettes of
+    equal area."""
+    from snapcore.render import BACKGROUND
+    from snapcore.sheets import PANEL_GAP, compare_views, contact_sheet
+
+    img = contact_sheet(walk, [0, 30, 60], size=(120, 140), entropy=[1.0, 2.0, 3.0])
+    assert img.shape[1] == 3 * 120 + 4 * PANEL_GAP and img.shape[0] > 140
+    cmp = compare_views(walk, 30, {"front": [0, 0.2, 1], "back": [0, 0.2, -1]}, size=(120, 140),
+                        labels=False, ground=False)
+    assert cmp.shape == (140 + 2 * PANEL_GAP, 2 * 120 + 3 * PANEL_GAP, 3)
+    bg = np.round(np.asarray(BACKGROUND) * 255)
+    g = PANEL_GAP
+    panels = [cmp[g:g + 140, g:g + 120], cmp[g:g + 140, 2 * g + 120:2 * g + 240]]
+    areas = [(np.abs(p.astype(int) - bg).sum(axis=2) > 12).sum() for p in panels]
+    assert abs(areas[0] - areas[1]) / max(areas) < 0.05
+    with pytest.raises(RenderError):
+        contact_sheet(walk, [walk.n_frames])
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+@pytest.fixture(scope="module")
+def walk_bvh(tmp_path_factory):
+    from snapcore.bvh import write_bvh
+
+    p = tmp_path_factory.mktemp("bvh") / "walk.bvh"
+    write_bvh(synth.humanoid_document("walk", seconds=2.0, fps=30), p)
+    return p
+
+
+def test_cli_render_writes_a_png_of_the_asked_size(walk_bvh, tmp_path):
+    from PIL import Image
+
+    out = tmp_path / "pose.png"
+    r = CliRunner().invoke(cli, ["render", str(walk_bvh), "--frame", "12", "--view", "1,0.3,0.5",
+                                 "-o", str(out), "--size", "160x120"])
+    assert r.exit_code == 0, r.output
+    assert Image.open(out).size == (160, 120)
+
+
+def test_cli_render_bad_frame_is_one_line_exit_2(walk_bvh, tmp_path):
+    r = CliRunner().invoke(cli, ["render", str(walk_bvh), "--frame", "999", "-o",
+                                 str(tmp_path / "x.png"), "--view", "0,0,1"])
+    assert r.exit_code == 2
+    assert "frame 999 is not in this scene" in r.output
+    assert "Traceback" not in r.output
+
+
+def test_cli_video_writes_mp4_and_frame_map(walk_bvh, tmp_path):
+    out, fm = tmp_path / "walk.mp4", tmp_path / "map.json"
+    r = CliRunner().invoke(cli, ["video", str(walk_bvh), "-o", str(out), "--fps", "10", "--size",
+                                 "128x96", "--quiet", "--frame-map", str(fm), "--view", "0,0,1"])
+    assert r.exit_code == 0, r.output
+    from snapcore.bvh import read_bvh
+
+    doc = json.loads(fm.read_text())
+    meta, n, _ = _probe(out)
+    f = read_bvh(walk_bvh).motion.shape[0]  # 30 fps file, no lead-in to cut
+    assert n == len(doc["source_frames"]) == int(np.floor((f - 1) / 30 * 10 + 1e-9)) + 1
+    assert abs(meta["fps"] - 10) < 1e-6 and doc["source_frames"][0] == 0
+
+
+def test_cli_sheet_frames_and_views(walk_bvh, tmp_path):
+    from PIL import Image
+
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    r = CliRunner().invoke(cli, ["sheet", str(walk_bvh), "-o", str(a), "--frames", "5,25",
+                                 "--size", "96x120", "--view", "0,0.2,1"])
+    assert r.exit_code == 0, r.output
+    assert Image.open(a).size[0] == 2 * 96 + 3 * 8
+    r = CliRunner().invoke(cli, ["sheet", str(walk_bvh), "-o", str(b), "--frame", "10",
+                                 "--views", "front=0,0,1", "--views", "side=1,0,0",
+                                 "--views", "top=0,1,0", "--size", "96x120"])
+    assert r.exit_code == 0, r.output
+    assert Image.open(b).size[0] == 3 * 96 + 4 * 8
