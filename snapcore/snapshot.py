@@ -1,4 +1,4 @@
-"""The pipeline: Scene → Snapshot (the pose, and later the view, of one still image).
+"""The pipeline: Scene → Snapshot (the pose and the view of one still image).
 
 :func:`take_snapshot` runs the stages on a scene and returns a :class:`Snapshot`,
 whose :meth:`Snapshot.to_dict` is the JSON document ``snapshot select --json`` prints
@@ -162,8 +162,9 @@ def _jsonable(value):
 
 
 def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                  **pose_options) -> Snapshot:
-    """Run the pipeline on ``scene``: select the pose (and, later, the view).
+                  view: bool = True, window_s: float | None = None, baselines: bool = True,
+                  n_views: int = 2562, **pose_options) -> Snapshot:
+    """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
@@ -172,6 +173,15 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
         Number of distinct top poses to keep.
     min_separation_s : float
         Minimum time (s) between them.
+    view : bool
+        Run the view stage (:func:`snapcore.view.view_stage`): PMA view of the whole
+        sequence or of ``window_s``, and the baselines.
+    window_s : float, optional
+        Score the view over the selected pose ± this many seconds (pose-specific view).
+    baselines : bool
+        Also compute the motion-area and viewpoint-entropy views.
+    n_views : int
+        Samples of the view sphere.
     **pose_options
         Passed to :func:`snapcore.pose.select_pose` (``w_local``, ``w_global``,
         ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``).
@@ -198,5 +208,13 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
     }
     timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "select")}
     timings["pose"] = t1 - t0
+    fields = {}
+    if view:
+        from .view import view_stage
+
+        options.update(window_s=window_s, baselines=bool(baselines), n_views=int(n_views))
+        fields, view_timings = view_stage(scene, sel.frame, window_s=window_s,
+                                          baselines=baselines, n_views=n_views)
+        timings.update(view_timings)
     timings["total"] = time.perf_counter() - t0
-    return Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
+    return Snapshot(scene=scene, pose=sel, options=options, timings_s=timings, **fields)

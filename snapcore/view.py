@@ -58,6 +58,7 @@ __all__ = [
     "pma_scores",
     "refine_view",
     "select_view",
+    "view_stage",
     "window_frames",
 ]
 
@@ -584,3 +585,98 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     return ViewSelection(view=np.array(view), view_grid=np.array(view_grid), score=found.score,
                          score_grid=found.score_grid, scores=found.scores, side_rule=rule,
                          iterations=found.iterations, certified=found.certified, **base)
+
+
+# --------------------------------------------------------------- snapshot stage
+
+
+def view_stage(scene, frame: int, *, window_s: float | None = None, baselines: bool = True,
+               n_views: int = 2562, refine: bool = True,
+               floor: float = MA_FLOOR_M2) -> tuple[dict, dict]:
+    """The view fields of a :class:`~snapcore.snapshot.Snapshot` for the pose at ``frame``.
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Internal index of the selected pose (the window's centre, and the frame whose
+        posed body the viewpoint-entropy baseline looks at).
+    window_s : float, optional
+        ±W seconds around ``frame`` (pose-specific view); default the whole sequence.
+    baselines : bool
+        Also run motion area (Kwon & Lee) and viewpoint entropy (Vázquez et al.).
+    n_views, refine, floor
+        As in :func:`select_view`.
+
+    Returns
+    -------
+    fields : dict
+        ``view`` (the answer: refined, or the best sample with ``refine=False``),
+        ``view_refined`` (None without refinement), ``pma`` (scores and details),
+        ``baselines`` (``motion_area``, ``viewpoint_entropy``: ``view`` + ``score`` +
+        details; None when not run), ``window``. Frames in source numbering.
+    timings : dict
+        Seconds: ``view`` (PMA), ``motion_area``, ``viewpoint_entropy``.
+
+    Notes
+    -----
+    A baseline that cannot run (no OpenGL for the face-id renders) is left out with a
+    warning rather than failing the whole selection.
+    """
+    from time import perf_counter
+
+    src = scene.source_frame
+    t0 = perf_counter()
+    frames = window_frames(scene, frame if window_s is not None else None, window_s)
+    tri = motion_triangles(scene, frames=frames, floor=floor)
+    sel = select_view(scene, frame=frame, window_s=window_s, n_views=n_views, refine=refine,
+                      floor=floor, triangles=tri)
+    timings = {"view": perf_counter() - t0}
+    fields: dict = {
+        "view": sel.view,
+        "view_refined": sel.view if refine else None,
+        "pma": {
+            "score": sel.score,
+            "mean_ratio": sel.mean_ratio,
+            "view_grid": sel.view_grid,
+            "score_grid": sel.score_grid,
+            "n_views": int(sel.views.shape[0]),
+            "n_quads": sel.n_quads,
+            "n_skipped": sel.n_skipped,
+            "floor_m2": float(floor),
+            "iterations": sel.iterations,
+            "certified": sel.certified,
+            "facing": sel.facing,
+            "side_rule": sel.side_rule,
+            "facing_note": sel.facing_note,
+        },
+        "window": {
+            "mode": "sequence" if window_s is None else "pose",
+            "half_width_s": None if window_s is None else float(window_s),
+            "frame": None if window_s is None else int(src(frame)),
+            "start_frame": int(src(frames[0])),
+            "end_frame": int(src(frames[1] - 1)),
+        },
+        "baselines": None,
+    }
+    if baselines:
+        t1 = perf_counter()
+        ma = select_view(scene, frame=frame, window_s=window_s, method="motion_area",
+                         n_views=n_views, refine=refine, floor=floor, triangles=tri)
+        base = {"motion_area": {"view": ma.view, "score": ma.score, "units": "m2",
+                                "side_rule": ma.side_rule, "certified": ma.certified}}
+        t2 = perf_counter()
+        timings["motion_area"] = t2 - t1
+        try:
+            from .viewpoint_entropy import select_view_entropy
+
+            ve = select_view_entropy(scene, frame)
+        except (SnapshotError, ImportError, RuntimeError) as err:
+            warnings.warn(f"viewpoint-entropy baseline skipped: {err}", stacklevel=2)
+        else:
+            base["viewpoint_entropy"] = {"view": ve.view, "score": ve.score, "units": "bits",
+                                         "frame": int(src(frame)), "n_views": int(ve.views.shape[0]),
+                                         "resolution": ve.resolution, "n_faces": ve.n_faces}
+            timings["viewpoint_entropy"] = perf_counter() - t2
+        fields["baselines"] = base
+    return fields, timings

@@ -37,12 +37,15 @@ def pose_options(f):
     return f
 
 
-def snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth):
-    """Run :func:`snapcore.snapshot.take_snapshot` with the command's options."""
+def snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth, *,
+                          view=False, window=None, baselines=True):
+    """Run :func:`snapcore.snapshot.take_snapshot` with the command's options
+    (the view stage only with ``view=True``)."""
     from ..snapshot import take_snapshot
 
     return take_snapshot(scene, k=k, min_separation_s=min_separation, w_local=w_local,
-                         w_global=w_global, events=events, smooth_s=smooth)
+                         w_global=w_global, events=events, smooth_s=smooth, view=view,
+                         window_s=window, baselines=baselines)
 
 
 def format_snapshot(doc: dict) -> list[str]:
@@ -72,34 +75,67 @@ def format_snapshot(doc: dict) -> list[str]:
         lines.append("events      " + "; ".join(parts) + "  (interactions per object)")
     else:
         lines.append("events      none detected")
+    lines += _format_view(doc)
     t = doc["timings_s"]
-    keys = [k for k in ("contacts", "local", "global", "select", "pose", "total") if k in t]
+    keys = [k for k in ("contacts", "local", "global", "select", "pose", "view", "motion_area",
+                        "viewpoint_entropy", "total") if k in t]
     lines.append("timings     " + ", ".join(f"{k} {1000 * t[k]:.1f} ms" for k in keys))
+    return lines
+
+
+def _format_view(doc: dict) -> list[str]:
+    """Summary lines of the view stage (none when it did not run)."""
+    if "view" not in doc:
+        return []
+
+    def vec(v):
+        return "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+
+    pma, win = doc.get("pma", {}), doc.get("window", {})
+    span = (f"frames {win.get('start_frame')}..{win.get('end_frame')}"
+            + (f" (pose ± {win['half_width_s']:g} s)" if win.get("mode") == "pose" else ""))
+    lines = [f"view        {vec(doc['view'])}  PMA {pma.get('score', 0):.1f} "
+             f"(mean ratio {pma.get('mean_ratio', 0):.3f}), {span}",
+             f"            {pma.get('facing_note', '')}"]
+    for i, (name, b) in enumerate((doc.get("baselines") or {}).items()):
+        lines.append(f"{'baselines' if i == 0 else '':<12}{vec(b['view'])}  {name} "
+                     f"{b['score']:.4g} {b.get('units', '')}")
     return lines
 
 
 @click.command()
 @scene_arguments
 @pose_options
+@click.option("--window", "window", type=click.FloatRange(min=0.0), default=None,
+              metavar="SECONDS",
+              help="Score the view over the selected pose ± SECONDS (pose-specific view); "
+                   "default: the whole sequence.")
+@click.option("--no-baselines", is_flag=True,
+              help="Skip the motion-area and viewpoint-entropy baseline views (faster: no "
+                   "rendering).")
+@click.option("--no-view", is_flag=True, help="Select the pose only (no view stage).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the snapshot as JSON (data_schema/snapshot.schema.json).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), default=None,
               help="Also write the JSON document to this file.")
-def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, as_json,
-           output):
-    """Select the most informative pose of a scene (pose entropy, paper section 3.1).
+def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, window,
+           no_baselines, no_view, as_json, output):
+    """Select the most informative pose and view of a scene (paper sections 3.1-3.2).
 
     PATH is one or more BVH files (several = one multi-character scene sharing a
     world frame) or a scene manifest (.toml/.json). Frame numbers are the source
     file's, 0-based. Without --json a summary is printed: the pose, the top-k table,
-    interaction events per character and object, and timings.
+    interaction events per character and object, the view (Projected Motion Area,
+    refined) with the two baseline views, and timings. Views are unit vectors from
+    the scene centre to the camera (world frame, Y up).
 
     \b
     Example:
       snapshot select two_person/60_01_scaled.bvh two_person/61_01_scaled.bvh --fps 60
     """
     scene = scene_from_options(paths, fps, scale)
-    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth)
+    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth,
+                                 view=not no_view, window=window, baselines=not no_baselines)
     doc = snap.to_dict()
     from ..schema import validate
 
