@@ -66,7 +66,7 @@ SAVGOL_POLYORDER = 2
 #: and its curvature is 0: the direction of a jittering, resting joint means nothing.
 REST_SPEED = 0.05
 #: Default minimum separation (s) of the top-k poses.
-MIN_SEPARATION_S = 0.5
+MIN_SEPARATION_S = 0.3
 #: What counts as an event in the global term: onset/release (default) or the whole
 #: interaction.
 EVENT_MODES = ("transitions", "state")

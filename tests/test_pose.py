@@ -444,7 +444,7 @@ def reference_pose_entropy(scene):
 
     local, glob = norm(local), norm(glob)
     total = local + glob
-    sep = int(round(0.5 * scene.fps))
+    sep = int(round(0.3 * scene.fps))
     cands = [i for i in range(n_f) if (i == 0 or total[i] >= total[i - 1])
              and (i == n_f - 1 or total[i] >= total[i + 1])]
     cands.sort(key=lambda i: (-total[i], i))

@@ -1,0 +1,155 @@
+"""``snapshot select`` / ``snapshot plot-entropy`` and the Snapshot document."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from snapcore import load_scene, synth
+from snapcore.cli import cli
+from snapcore.schema import validate
+from snapcore.snapshot import VIEW_FIELDS, Snapshot, take_snapshot
+
+
+def _run(args):
+    result = CliRunner().invoke(cli, args)
+    return result
+
+
+def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
+    """--json: schema-valid; frames, peaks and events are source frame numbers
+    (02_03 has an added T-pose frame, so internal i is source i + 1)."""
+    path = motions_dir / "walk_run" / "02_03.bvh"
+    result = _run(["select", str(path), "--json", "-k", "2", "--no-view"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    validate(doc, "snapshot")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = take_snapshot(load_scene(path), k=2, view=False)
+    assert doc["frame_offset"] == 1 and doc["n_frames"] == 173 and doc["fps"] == 120
+    assert doc["frame"] == snap.index + 1 == snap.frame
+    assert doc["frames"] == [i + 1 for i in snap.indices] and len(doc["frames"]) == 2
+    assert [p["frame"] for p in doc["peaks"]] == doc["frames"]
+    assert doc["pose_entropy"]["first_frame"] == 1
+    total = np.array(doc["pose_entropy"]["total"])
+    assert total.shape == (173,)
+    assert np.argmax(total) + doc["pose_entropy"]["first_frame"] == doc["frame"]
+    ent = snap.pose.entropy
+    np.testing.assert_allclose(doc["pose_entropy"]["local"], ent.local, atol=1e-6)
+    events = snap.pose.entropy.interactions.events
+    assert [(e["start"], e["end"]) for e in doc["events"]] == [(e.start + 1, e.end + 1)
+                                                                  for e in events]
+    assert set(doc["timings_s"]) >= {"contacts", "local", "global", "select", "pose", "total"}
+
+
+def test_select_options_reach_the_method(motions_dir):
+    """--w-global 0 selects the local maximum; --events state changes the global term."""
+    path = str(motions_dir / "dance" / "05_06.bvh")
+    doc = json.loads(_run(["select", path, "--json", "--no-view", "--w-global", "0"]).stdout)
+    local = np.array(doc["pose_entropy"]["local"])
+    assert doc["frame"] == int(np.argmax(local)) + doc["frame_offset"]
+    trans = json.loads(_run(["select", path, "--json", "--no-view"]).stdout)
+    state = json.loads(_run(["select", path, "--json", "--no-view", "--events", "state"]).stdout)
+    assert state["pose_entropy"]["events_mode"] == "state"
+    assert state["pose_entropy"]["global"] != trans["pose_entropy"]["global"]
+    sep = json.loads(_run(["select", path, "--json", "--no-view", "-k", "3",
+                           "--min-separation", "2"]).stdout)
+    f = np.array(sep["frames"])
+    gaps = np.abs(f[:, None] - f[None])[~np.eye(3, dtype=bool)]
+    assert len(f) == 3 and np.all(gaps >= 2 * 120)  # 2 s at 120 fps
+
+
+def test_select_human_output(motions_dir, tmp_path):
+    """Without --json: the pose with its time, the top-k table, event counts, timings;
+    -o writes the JSON document too."""
+    a, b = (motions_dir / "two_person" / f"{p}_scaled.bvh" for p in ("60_12", "61_12"))
+    out = tmp_path / "snap.json"
+    result = _run(["select", str(a), str(b), "--fps", "60", "-k", "3", "--no-view",
+                   "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    text = result.stdout
+    doc = json.loads(out.read_text())
+    assert f"pose        frame {doc['frame']}" in text
+    assert "rank   frame   time_s   total   local  global" in text
+    for rank, frame in enumerate(doc["frames"], start=1):
+        assert any(line.split()[:2] == [str(rank), str(frame)] for line in text.splitlines())
+    assert "61_12_scaled: ground" in text and "60_12_scaled" in text
+    assert "timings" in text and "2 characters" in text
+
+
+def test_select_errors_are_one_line(tmp_path):
+    """A missing file or a broken BVH: one 'error:' line on stderr, exit code 2."""
+    bad = tmp_path / "broken.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
+    for target in (tmp_path / "missing.bvh", bad):
+        r = subprocess.run([sys.executable, "-m", "snapcore.cli", "select", str(target)],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in r.stderr
+    r = _run(["select", str(bad), "--events", "onsets"])
+    assert r.exit_code == 2 and "onsets" in r.output
+
+
+def test_plot_entropy_writes_a_figure(tmp_path):
+    """plot-entropy on a synthetic two-person scene writes a non-trivial PNG."""
+    folder = tmp_path / "demo"
+    written = synth.write_demo(folder)
+    manifest = next(p for p in written if p.name.startswith("push") and p.suffix == ".toml")
+    out = tmp_path / "push.png"
+    r = _run(["plot-entropy", str(manifest), "-o", str(out), "-k", "2", "--strip", "4"])
+    assert r.exit_code == 0, r.output
+    from PIL import Image
+
+    img = np.asarray(Image.open(out).convert("L"), dtype=float)
+    assert img.shape[0] > 500 and img.shape[1] > 1000
+    assert img.std() > 10  # not a blank canvas
+    assert "wrote" in r.stdout
+
+
+def test_snapshot_to_dict_includes_view_fields_when_set():
+    """The view stage's fields are absent until set, then serialised (arrays as lists)."""
+    scene = synth.synth_scene("kick", fps=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = take_snapshot(scene, k=1, view=False)
+    doc = snap.to_dict()
+    assert not set(VIEW_FIELDS) & set(doc)
+    validate(doc, "snapshot")
+    snap.view = np.array([0.0, 0.0, 1.0])
+    snap.view_refined = np.array([0.6, 0.0, 0.8])
+    snap.baselines = {"motion_area": {"view": np.array([1.0, 0.0, 0.0]),
+                                      "score": np.float64(2.5)}}
+    doc = snap.to_dict()
+    assert doc["view"] == [0.0, 0.0, 1.0] and doc["view_refined"] == [0.6, 0.0, 0.8]
+    assert doc["baselines"]["motion_area"] == {"view": [1.0, 0.0, 0.0], "score": 2.5}
+    assert type(doc["baselines"]["motion_area"]["score"]) is float
+    json.dumps(doc, allow_nan=False)  # plain JSON types throughout
+    assert isinstance(snap, Snapshot) and snap.frames == [snap.frame]
+
+
+def test_synthetic_kick_pose_is_near_the_kick():
+    """synth 'kick': the leg is extended at KICK_IMPACT_S; one of the top-3 poses lies
+    within 0.2 s of it (the others: the kicking foot leaving and meeting the floor)."""
+    scene = synth.synth_scene("kick", fps=60)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = take_snapshot(scene, k=3, view=False)
+    times = np.array(snap.indices) / scene.fps
+    assert np.min(np.abs(times - synth.KICK_IMPACT_S)) <= 0.2, times
+
+
+@pytest.mark.parametrize("bad", [{"k": 0}, {"min_separation_s": -1.0}, {"w_local": -1.0},
+                                 {"events": "onsets"}])
+def test_bad_options_raise_value_errors(bad):
+    """Options are checked at the boundary with a message naming the parameter."""
+    scene = synth.synth_scene("idle", fps=30)
+    with pytest.raises(ValueError, match=next(iter(bad)).split("_")[0]):
+        take_snapshot(scene, view=False, **bad)
