@@ -119,7 +119,7 @@ class EntropySelection:
         All sample views.
     scores : ndarray of shape (V,)
         Entropy of every view (bits; NaN for views below ``min_elevation_deg``, which
-        were not rendered).
+        were not rendered unless ``score_all``).
     frame : int
         Internal frame of the posed mesh.
     n_faces : int
@@ -153,7 +153,7 @@ class EntropySelection:
 def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
                         resolution: int = VE_RESOLUTION,
                         min_elevation_deg: float | None = MIN_ELEVATION_DEG,
-                        mesh=None) -> EntropySelection:
+                        score_all: bool = False, mesh=None) -> EntropySelection:
     """The view of maximal viewpoint entropy of the posed body at ``frame``.
 
     Parameters
@@ -167,8 +167,11 @@ def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
         Face-id image side in pixels (:data:`VE_RESOLUTION`; keep it fixed when
         comparing: entropy grows with it).
     min_elevation_deg : float or None
-        Skip views more than this far below the horizon (:data:`MIN_ELEVATION_DEG`);
-        None renders the whole sphere.
+        The pick is not more than this far below the horizon
+        (:data:`MIN_ELEVATION_DEG`); None allows the whole sphere.
+    score_all : bool
+        Render and score the views below ``min_elevation_deg`` too (for maps); by
+        default they are skipped (NaN scores).
     mesh : object with ``vertices`` (N, 3) and ``faces`` (M, 3), optional
         The mesh to use instead of :func:`snapcore.body.posed_mesh` of the scene.
 
@@ -190,14 +193,15 @@ def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
     if len(faces) == 0:
         raise EntropyError("the posed mesh has no faces")
     views = view_sphere(n_views)
-    keep = np.ones(len(views), dtype=bool)
+    allowed = np.ones(len(views), dtype=bool)
     if min_elevation_deg is not None:
-        keep = views[:, 1] >= math.sin(math.radians(min_elevation_deg)) - 1e-12
+        allowed = views[:, 1] >= math.sin(math.radians(min_elevation_deg)) - 1e-12
+    keep = np.ones(len(views), dtype=bool) if score_all else allowed
     ids = render.render_face_ids(vertices, faces, views[keep], resolution=resolution)
     scores = np.full(len(views), np.nan)
     visible = np.zeros(len(views), dtype=np.int64)
     scores[keep], visible[keep] = _entropy_visible(ids, len(faces))
-    best = int(np.nanargmax(scores))
+    best = int(np.nanargmax(np.where(allowed, scores, np.nan)))
     return EntropySelection(view=views[best].copy(), score=float(scores[best]), views=views,
                             scores=scores, frame=int(frame), n_faces=int(len(faces)),
                             resolution=int(resolution), visible_faces=visible)

@@ -467,3 +467,95 @@ def test_selection_to_dict_is_json_ready(motions_dir):
     d = json.loads(json.dumps(sel.to_dict()))
     assert d["method"] == "pma" and len(d["view"]) == 3 and d["side_rule"] in SIDE_RULES
     assert d["n_views"] == 2562 and 0 < d["mean_ratio"] <= 1
+
+
+# ------------------------------------------------------------- CLI and pipeline
+
+
+def test_select_json_reports_view_baselines_and_window(motions_dir):
+    """`snapshot select --json --window` gains view, view_refined, pma, baselines, window."""
+    import json
+
+    from click.testing import CliRunner
+
+    from snapcore.commands.select import select
+
+    path = motions_dir / "walk_run/02_03.bvh"
+    res = CliRunner().invoke(select, [str(path), "--json", "--window", "0.25"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output[res.output.index("{"):])  # the command validated it already
+    scene = load(path)
+    frame = doc["frame"] - scene.frame_offset  # internal index of the pose
+    half = round(0.25 * scene.fps)
+    lo, hi = max(0, frame - half), min(scene.n_frames - 1, frame + half)
+    assert doc["window"] == {"mode": "pose", "half_width_s": 0.25, "frame": doc["frame"],
+                             "start_frame": lo + scene.frame_offset,
+                             "end_frame": hi + scene.frame_offset}
+    view = np.array(doc["view"])
+    assert np.linalg.norm(view) == pytest.approx(1.0)
+    np.testing.assert_allclose(doc["view_refined"], view)
+    # PMA of the reported view, recomputed by the per-quad loop over the window's frames
+    window = Scene([c.frames(lo, hi + 1) for c in scene.characters], fps=scene.fps)
+    assert doc["pma"]["score"] == pytest.approx(loop_reference(window, view[None], weighting="pma")[0],
+                                                rel=1e-9)
+    assert doc["pma"]["score"] >= doc["pma"]["score_grid"] and doc["pma"]["certified"]
+    base = doc["baselines"]
+    assert set(base) == {"motion_area", "viewpoint_entropy"}
+    assert base["motion_area"]["score"] == pytest.approx(
+        loop_reference(window, np.array(base["motion_area"]["view"])[None], weighting="motion_area")[0],
+        rel=1e-9)
+    assert base["viewpoint_entropy"]["frame"] == doc["frame"] and base["viewpoint_entropy"]["score"] > 0
+    for b in base.values():
+        assert np.linalg.norm(b["view"]) == pytest.approx(1.0)
+    assert {"view", "motion_area", "viewpoint_entropy"} <= set(doc["timings_s"])
+
+
+def test_select_without_view_or_baselines(motions_dir):
+    """--no-baselines drops the baselines; --no-view drops every view field."""
+    import json
+
+    from click.testing import CliRunner
+
+    from snapcore.commands.select import select
+
+    path = str(motions_dir / "walk_run/dataset-2_run_normal_001.bvh")
+    doc = json.loads(CliRunner().invoke(select, [path, "--json", "--no-baselines"]).output)
+    assert "view" in doc and "baselines" not in doc and doc["window"]["mode"] == "sequence"
+    doc = json.loads(CliRunner().invoke(select, [path, "--json", "--no-view"]).output)
+    assert not {"view", "view_refined", "pma", "baselines", "window"} & set(doc)
+    text = CliRunner().invoke(select, [path]).output
+    assert "view" in text and "PMA" in text and "baselines" in text
+
+
+@pytest.mark.parametrize("projection", ["mollweide", "equirect"])
+def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
+    """`snapshot plot-views` writes an image with one map per method (entropy optional)."""
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from snapcore.commands.views import plot_views
+
+    out = tmp_path / f"views_{projection}.png"
+    args = [str(motions_dir / "walk_run/02_03.bvh"), "-o", str(out), "--projection", projection,
+            "--frame", "80"]
+    if projection == "equirect":
+        args.append("--no-entropy")
+    res = CliRunner().invoke(plot_views, args)
+    assert res.exit_code == 0, res.output
+    assert "frame 80" in res.output and "pma" in res.output
+    assert ("viewpoint_entropy" in res.output) == (projection == "mollweide")
+    img = np.asarray(Image.open(out).convert("L"), float)
+    panels = 3 if projection == "mollweide" else 2
+    assert img.shape[0] > 400 * panels * 0.9 and img.std() > 20  # tall, and not blank
+    bad = CliRunner().invoke(plot_views, [args[0], "-o", str(out), "--frame", "100000"])
+    assert bad.exit_code != 0 and "outside" in bad.output
+
+
+def test_view_maps_picks_are_the_maxima(motions_dir):
+    """The maps' exact scores peak at the picks (PMA, motion area) or contain them (entropy)."""
+    from snapcore.view_plot import view_maps
+
+    scene = load(motions_dir / "walk_run/02_03.bvh")
+    maps = view_maps(scene, frame=80, entropy=False)
+    for m in ("pma", "motion_area"):
+        assert maps[m]["score"] >= np.max(maps[m]["scores"]) * (1 - 1e-12)
