@@ -14,6 +14,7 @@ from .load import data_dir, load_scene
 from .pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
 from .scene import Character, Scene, Skeleton
 from .snapshot import Snapshot, take_snapshot
+from .view import ViewSelection, pma_scores, select_view
 
 __version__ = "0.1.0"
 
@@ -31,12 +32,15 @@ __all__ = [
     "Skeleton",
     "Snapshot",
     "SnapshotError",
+    "ViewSelection",
     "data_dir",
     "detect_interactions",
     "load_scene",
+    "pma_scores",
     "pose_entropy",
     "read_bvh",
     "select_pose",
+    "select_view",
     "take_snapshot",
     "write_bvh",
     "__version__",
