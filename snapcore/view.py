@@ -69,6 +69,8 @@ __all__ = [
 MA_FLOOR_M2 = 1e-5
 #: Score weightings: ``"pma"`` (ratio per quad, the paper) and ``"motion_area"`` (m²).
 WEIGHTINGS = ("pma", "motion_area")
+
+
 class ViewError(SnapshotError):
     """A view-selection request that cannot be met (bad window, bad views array)."""
 
@@ -455,8 +457,9 @@ class ViewSelection:
 
     @property
     def mean_ratio(self) -> float:
-        """PMA divided by the number of quads: the mean fraction of swept area seen."""
-        return self.score / max(self.n_quads, 1)
+        """PMA divided by the number of quads: the mean fraction of swept area seen, in
+        [0, 1] (clipped: a planar motion seen face-on gives 1 up to rounding)."""
+        return min(1.0, self.score / max(self.n_quads, 1))
 
     @property
     def facing_note(self) -> str:
@@ -569,7 +572,7 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     base = dict(method=method, views=np.array(views), frames=frames, window_s=window_s,
                 facing=facing, n_quads=triangles.n_quads, n_skipped=triangles.n_skipped)
     if triangles.n_quads == 0:
-        warnings.warn(f"no link moves more than the noise floor ({floor:g} m²) in frames "
+        warnings.warn(f"no link moves more than the noise floor ({triangles.floor:g} m²) in frames "
                       f"{frames[0]}..{frames[1] - 1}: the view defaults to the facing direction",
                       stacklevel=2)
         nf = np.linalg.norm(facing)

@@ -117,6 +117,7 @@ def test_link_sweeping_in_a_plane_is_seen_along_its_normal(normal):
     assert angle_deg(sel.view, normal, up_to_sign=True) < 0.5
     # every quad is seen whole from there: PMA = number of quads (ratio 1 each)
     assert sel.score == pytest.approx(sel.n_quads, rel=1e-9)
+    assert 0.999 < sel.mean_ratio <= 1.0
     assert sel.certified
 
 
