@@ -560,3 +560,16 @@ def test_view_maps_picks_are_the_maxima(motions_dir):
     maps = view_maps(scene, frame=80, entropy=False)
     for m in ("pma", "motion_area"):
         assert maps[m]["score"] >= np.max(maps[m]["scores"]) * (1 - 1e-12)
+
+
+def test_joint_roles_on_other_namings():
+    """Namespaces, _L/_R and l/r suffixes; CMU's clavicle "LeftShoulder" loses to "LeftArm"."""
+    names = ["mixamorig:Hips", "mixamorig:LeftUpLeg", "mixamorig:RightUpLeg",
+             "mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:RightShoulder",
+             "mixamorig:RightArm", "LHipJoint"]
+    assert joint_roles(names) == {"left_hip": 1, "right_hip": 2, "left_shoulder": 4,
+                                  "right_shoulder": 6}
+    assert joint_roles(["pelvis", "thigh_l", "thigh_r", "upperarm_l", "upperarm_r"]) == {
+        "left_hip": 1, "right_hip": 2, "left_shoulder": 3, "right_shoulder": 4}
+    assert joint_roles(["Hips", "Spine", "Head"]) == {"left_hip": None, "right_hip": None,
+                                                      "left_shoulder": None, "right_shoulder": None}
