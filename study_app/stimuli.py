@@ -248,15 +248,18 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     """Stage 1: load one scene of the study (trimmed to its frame window).
 
     The entry's source (``demo``, ``files`` or ``manifest``) becomes a scene manifest
-    written to ``work_dir/scene.json`` (absolute paths, the window as ``frames``), which
+    written to ``work_dir/scene.json`` (the window as ``frames``), which
     :func:`snapcore.load_scene` reads; that file stays with the stimuli as provenance.
+    So that it can be reloaded on another machine, a synthetic scene's BVH files are
+    copied beside it, and files found in the motion data folder keep their path relative
+    to it (resolved again through ``SNAPSHOT_DATA``); other files are named absolutely.
 
     Returns
     -------
     (Scene, dict)
         The scene and the manifest document that produced it.
     """
-    from snapcore.load import load_scene, resolve_data_path
+    from snapcore.load import data_dir, load_scene, resolve_data_path
     from snapcore.schema import read_document
 
     work = Path(work_dir)
@@ -273,12 +276,21 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
         doc = {"characters": [{"file": f} for f in entry["files"]]}
         src_base = base
     doc = json.loads(json.dumps(doc))  # a private copy
+    data = data_dir()
     for c in doc["characters"]:
         p = resolve_data_path(c["file"], src_base)
         if not p.exists():
             raise StimuliError(f"scene {entry['id']}: {c['file']}: no such file (looked beside the "
                                "study config and in SNAPSHOT_DATA)")
-        c["file"] = str(p.resolve())
+        p = p.resolve()
+        if "demo" in entry:
+            shutil.copy2(p, work / p.name)
+            c["file"] = p.name
+        elif data is not None and p.is_relative_to(data.resolve()) \
+                and not (base is not None and (base / c["file"]).exists()):
+            c["file"] = p.relative_to(data.resolve()).as_posix()
+        else:
+            c["file"] = str(p)
     for key in ("fps", "scale", "frames"):
         if key in entry:
             doc[key] = entry[key]
