@@ -120,6 +120,8 @@ MIN_BONE_M = 1e-4
 #: Tessellation (segments around, rings per cap) by radius (m, for a 1.75 m person): thick
 #: pieces get more faces so silhouettes stay round. A capsule has 4·around·rings faces.
 TESSELLATION = ((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1)))
+#: Coarse tessellation for stand-ins whose facets never show (e.g. shadows on the floor).
+TESSELLATION_COARSE = ((0.08, (10, 2)), (0.035, (8, 2)), (0.018, (6, 1)), (0.0, (4, 1)))
 
 #: Base colours of characters 0, 1, 2... (RGB 0-1, Tableau 10): distinct for two people.
 CHARACTER_COLORS = (
@@ -281,11 +283,11 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     return verts, normals, np.vstack(faces)
 
 
-def _tessellation(radius: float) -> tuple[int, int]:
-    for r, t in TESSELLATION:
+def _tessellation(radius: float, table=TESSELLATION) -> tuple[int, int]:
+    for r, t in table:
         if radius >= r:
             return t
-    return TESSELLATION[-1][1]
+    return table[-1][1]
 
 
 def _frame_from(d: np.ndarray, lateral: np.ndarray | None) -> np.ndarray:
@@ -369,6 +371,8 @@ class CharacterBody:
     character : Character
     color : tuple of 3 floats, optional
         Base RGB colour in 0-1 (default: ``CHARACTER_COLORS[0]``).
+    coarse : bool
+        Use :data:`TESSELLATION_COARSE` (~4× fewer faces), for stand-ins such as shadows.
 
     Attributes
     ----------
@@ -388,7 +392,7 @@ class CharacterBody:
         :func:`joint_roles` of the skeleton.
     """
 
-    def __init__(self, character, *, color=None):
+    def __init__(self, character, *, color=None, coarse=False):
         self.character = character
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
@@ -406,6 +410,7 @@ class CharacterBody:
         self.size = height / REFERENCE_STATURE_M
         base = np.asarray(color if color is not None else CHARACTER_COLORS[0], float)
         self.color = base
+        self._table = TESSELLATION_COARSE if coarse else TESSELLATION
         self._build(base)
 
     # ---- orientation cues measured from the motion
@@ -451,7 +456,7 @@ class CharacterBody:
             return base
 
         def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
-            around, rings = _tessellation(max(a, b) / k)  # by size relative to stature
+            around, rings = _tessellation(max(a, b) / k, self._table)  # relative to stature
             v, n, f = _capsule(length, a, b, cap, around, rings)
             pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
             self.pieces.append({"kind": kind, "joint": int(j), "child": int(child),
@@ -575,6 +580,8 @@ class SceneBody:
     scene : Scene
     colors : sequence of RGB tuples, optional
         One base colour per character (default :data:`CHARACTER_COLORS` in order).
+    coarse : bool
+        Coarser tessellation (:class:`CharacterBody`).
 
     Examples
     --------
@@ -584,11 +591,12 @@ class SceneBody:
     >>> tm = body.trimesh(120)                   # trimesh.Trimesh with face colours
     """
 
-    def __init__(self, scene, *, colors=None):
+    def __init__(self, scene, *, colors=None, coarse=False):
         self.scene = scene
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self.characters = [
-            CharacterBody(ch, color=colors[i % len(colors)]) for i, ch in enumerate(scene.characters)
+            CharacterBody(ch, color=colors[i % len(colors)], coarse=coarse)
+            for i, ch in enumerate(scene.characters)
         ]
         offs = np.cumsum([0] + [b.n_vertices for b in self.characters])
         self.vertex_offsets = offs  # character i owns vertices offs[i]:offs[i+1]

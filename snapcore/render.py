@@ -121,6 +121,8 @@ def _pyrender():
             return gl_enable(cap)
 
         prr.glEnable = _gl_enable
+        prr.Renderer._read_main_framebuffer = _read_colour_only(
+            prr.Renderer._read_main_framebuffer)
         _PYRENDER = pyrender
     return _PYRENDER
 
@@ -227,6 +229,37 @@ def _shader_dir() -> str:
                 fh.write(text)
         _SHADER_DIR = d
     return _SHADER_DIR
+
+
+def _read_colour_only(read_both):
+    """Wrap pyrender's framebuffer read: our passes never use its depth image, whose read
+    and linearisation cost ~5 ms a frame at 1280×720 — read (and flip) colour only."""
+    import ctypes  # noqa: F401  (PyOpenGL needs it loaded for glReadPixels)
+
+    from OpenGL.GL import (
+        GL_COLOR_BUFFER_BIT,
+        GL_DRAW_FRAMEBUFFER,
+        GL_LINEAR,
+        GL_READ_FRAMEBUFFER,
+        GL_RGB,
+        GL_UNSIGNED_BYTE,
+        glBindFramebuffer,
+        glBlitFramebuffer,
+        glReadPixels,
+    )
+
+    def read(self, scene, flags):
+        if flags & 1:  # RenderFlags.DEPTH_ONLY: leave pyrender's path alone
+            return read_both(self, scene, flags)
+        w, h = self._main_fb_dims
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, self._main_fb)
+        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_LINEAR)
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, self._main_fb)
+        buf = glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE)
+        return np.frombuffer(buf, np.uint8).reshape(h, w, 3)[::-1], None
+
+    return read
 
 
 def gl_renderer(width: int, height: int):
@@ -782,8 +815,8 @@ def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
 GRID_SPACING = 0.5
 GRID_LINE_HALF_WIDTH = 0.006
 GRID_FADE_RADIUS = 7.0
-#: Half-size of the floor square, metres (far enough to reach the horizon of any view).
-FLOOR_HALF_SIZE = 60.0
+#: Distance (m) from the motion's centre to the sky backdrop (beyond the grid's fade).
+SKY_DISTANCE = 40.0
 #: Floor and grid colours (sRGB 0-1) and the shadow's darkening of the floor.
 FLOOR_COLOR = (0.93, 0.925, 0.915)
 GRID_COLOR = (0.74, 0.74, 0.74)
@@ -798,14 +831,15 @@ def _srgb_to_linear(c):
 
 
 def _ground_mesh(centre_xz, height):
-    """The floor at ``height``: a large square (half-size :data:`FLOOR_HALF_SIZE`) and
-    grid lines every :data:`GRID_SPACING` around ``centre_xz`` that fade into the floor
-    colour within :data:`GRID_FADE_RADIUS`.
+    """The floor grid at ``height``: lines every :data:`GRID_SPACING` around
+    ``centre_xz`` that fade into the floor colour within :data:`GRID_FADE_RADIUS`;
+    thin unlit quads (no normals), one mesh.
 
-    Everything here is unlit (no normals): a flat floor under directional light has one
-    colour anyway, and the unlit path keeps full-screen shading cheap. The floor is a
-    shade darker than the sky (:data:`BACKGROUND`), so a horizontal view still shows
-    the horizon at the characters' feet. Lines are thin quads. One mesh.
+    The floor itself is not drawn: the image is cleared to the floor colour and the
+    sky is a backdrop (:func:`_sky_mesh`) standing on the floor far behind the
+    characters. Filling the whole frame with a floor polygon costs more than all the
+    bodies on llvmpipe with 4× multisampling; the backdrop covers only what is above
+    the horizon, and shows the horizon at the feet even in a horizontal view.
     """
     pyrender = _pyrender()
     cx, cz = centre_xz
@@ -829,27 +863,38 @@ def _ground_mesh(centre_xz, height):
     t = np.clip(dist / r, 0, 1)[:, None] ** 1.5
     grid, floor = _srgb_to_linear(GRID_COLOR), _srgb_to_linear(FLOOR_COLOR)
     col = np.hstack([grid * (1 - t) + floor * t, np.ones((len(pos), 1))]).astype(np.float32)
-    # the floor is a deep slab, not a plane: seen exactly edge-on (a horizontal
-    # orthographic view) a plane vanishes into a line, a slab still shows the floor
-    # below the characters' feet
-    hs, lo = FLOOR_HALF_SIZE, height - FLOOR_HALF_SIZE
-    x0, x1, z0, z1 = cx - hs, cx + hs, cz - hs, cz + hs
-    slab = np.array([
-        [[x0, height, z0], [x1, height, z0], [x1, height, z1], [x0, height, z1]],  # top
-        [[x0, lo, z0], [x1, lo, z0], [x1, height, z0], [x0, height, z0]],  # sides
-        [[x1, lo, z0], [x1, lo, z1], [x1, height, z1], [x1, height, z0]],
-        [[x1, lo, z1], [x0, lo, z1], [x0, height, z1], [x1, height, z1]],
-        [[x0, lo, z1], [x0, lo, z0], [x0, height, z0], [x0, height, z1]],
-    ]).reshape(-1, 3)
-    pos = np.vstack([pos, slab])
-    col = np.vstack([col, np.tile(np.append(floor, 1.0), (len(slab), 1))]).astype(np.float32)
-    b = 4 * np.arange(len(q) + 5)  # the slab's five faces come last
+    b = 4 * np.arange(len(q))
     faces = np.concatenate([np.stack([b, b + 1, b + 2], 1), np.stack([b, b + 2, b + 3], 1)])
     mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
                                              metallicFactor=0.0, roughnessFactor=1.0,
                                              doubleSided=True)
     prim = pyrender.Primitive(positions=pos.astype(np.float32), color_0=col,
                               indices=faces.astype(np.uint32), material=mat, mode=4)
+    return pyrender.Mesh([prim])
+
+
+def _sky_mesh(centre, back, height):
+    """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour, standing on
+    the floor (``y = height``) :data:`SKY_DISTANCE` metres behind ``centre`` as seen
+    along the camera axis ``-back``; None for views within 1° of straight up/down
+    (no horizon in the picture)."""
+    pyrender = _pyrender()
+    y = np.array([0.0, 1.0, 0.0])
+    hb = np.asarray(back, float) - y * (back @ y)
+    if np.linalg.norm(hb) < np.sin(np.radians(1.0)):
+        return None
+    hb /= np.linalg.norm(hb)
+    hr = np.cross(y, hb)
+    c = np.array([centre[0], height, centre[2]]) - hb * SKY_DISTANCE
+    w, h = 20 * SKY_DISTANCE, 20 * SKY_DISTANCE
+    pos = np.array([c - hr * w, c + hr * w, c + hr * w + y * h, c - hr * w + y * h], np.float32)
+    col = np.tile(np.append(_srgb_to_linear(BACKGROUND), 1.0), (4, 1)).astype(np.float32)
+    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
+                                             metallicFactor=0.0, roughnessFactor=1.0,
+                                             doubleSided=True)
+    prim = pyrender.Primitive(positions=pos, color_0=col,
+                              indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+                              material=mat, mode=4)
     return pyrender.Mesh([prim])
 
 
@@ -896,7 +941,10 @@ class SceneRenderer:
         self.ground = bool(ground)
         self.shadows = bool(shadows) and self.ground
         self._thread = threading.get_ident()
-        self.pscene = pyrender.Scene(bg_color=[*BACKGROUND, 1.0], ambient_light=[0.30] * 3)
+        # cleared to the floor colour: the floor is everything the sky does not cover
+        bg = FLOOR_COLOR if self.ground else BACKGROUND
+        self.pscene = pyrender.Scene(bg_color=[*bg, 1.0], ambient_light=[0.30] * 3)
+        self._sky_node = None
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7)
         # projected shadows have faces of both windings: draw them unculled
@@ -904,10 +952,16 @@ class SceneRenderer:
             baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
             doubleSided=True)
         n = len(self.body.characters)
-        self._nodes = [None] * n
-        self._shadow_nodes = [None] * n
-        self._vcols = [self._vertex_colors(i) for i in range(n)]
-        self._faces = [b.faces.astype(np.uint32) for b in self.body.characters]
+        self._node = None
+        self._shadow_node = None
+        self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
+        self._faces = self.body.faces.astype(np.uint32)
+        if self.shadows:
+            from .body import SceneBody
+
+            self._shadow_body = SceneBody(scene, coarse=True)
+            rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
+            self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:
             b = scene.bounds()
             self.pscene.add(_ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground))
@@ -928,7 +982,7 @@ class SceneRenderer:
         # The floor reaches far beyond the characters: extend the depth range so it is
         # not clipped (an orthographic eye can move back freely without changing the
         # image; a perspective one keeps its near plane and sees farther).
-        far = 2.0 * FLOOR_HALF_SIZE + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
+        far = 2.0 * SKY_DISTANCE + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
         if cam.projection == "orthographic":
             back = far
             gl_cam = Camera(cam.position + cam.back * back, cam.right, cam.up, cam.back, cam.size,
@@ -942,6 +996,14 @@ class SceneRenderer:
         else:
             self._cam_node.camera = gl_cam.pyrender_camera()
             self.pscene.set_pose(self._cam_node, gl_cam.pose)
+        if self.ground:
+            if self._sky_node is not None:
+                self.pscene.remove_node(self._sky_node)
+                self._sky_node = None
+            b = self.scene.bounds()
+            sky = _sky_mesh((b[0] + b[1]) / 2, cam.back, self.scene.ground)
+            if sky is not None:
+                self._sky_node = self.pscene.add(sky)
         for n in self._light_nodes:
             self.pscene.remove_node(n)
         self._light_nodes = []
@@ -967,26 +1029,30 @@ class SceneRenderer:
         self._last_cam = cam
 
     def _update_bodies(self, frame: int):
+        # All characters in one mesh and all shadows in another: each draw call costs
+        # ~1 ms of Python and GL state in pyrender, the triangles themselves are cheap.
         pyrender = _pyrender()
-        shadow_rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0).astype(np.float32)
-        for i, b in enumerate(self.body.characters):
-            v = b.vertices(frame)
-            prim = pyrender.Primitive(positions=v.astype(np.float32),
-                                      normals=b.normals(frame).astype(np.float32),
-                                      color_0=self._vcols[i], indices=self._faces[i],
-                                      material=self._material, mode=4)
-            if self._nodes[i] is not None:
-                self.pscene.remove_node(self._nodes[i])
-            self._nodes[i] = self.pscene.add(pyrender.Mesh([prim]))
-            if self.shadows:
-                sv = shadow_vertices(v, self._shadow_dir, self.scene.ground + 3e-3)
-                sprim = pyrender.Primitive(
-                    positions=sv.astype(np.float32),
-                    color_0=np.tile(shadow_rgb, (len(sv), 1)), indices=self._faces[i],
-                    material=self._shadow_material, mode=4)
-                if self._shadow_nodes[i] is not None:
-                    self.pscene.remove_node(self._shadow_nodes[i])
-                self._shadow_nodes[i] = self.pscene.add(pyrender.Mesh([sprim]))
+        prim = pyrender.Primitive(positions=self.body.vertices(frame).astype(np.float32),
+                                  normals=self.body.normals(frame).astype(np.float32),
+                                  color_0=self._vcols, indices=self._faces,
+                                  material=self._material, mode=4)
+        if self._node is not None:
+            self.pscene.remove_node(self._node)
+        self._node = self.pscene.add(pyrender.Mesh([prim]))
+        if self.shadows:
+            # a coarse stand-in, and only its faces turned to the light: every closed piece
+            # then covers its shadow once (a tenth of the triangles, no overdraw)
+            sb = self._shadow_body
+            cv = sb.vertices(frame)
+            tri = cv[sb.faces]
+            lit = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) @ self._shadow_dir > 0
+            sv = shadow_vertices(cv, self._shadow_dir, self.scene.ground + 3e-3)
+            sprim = pyrender.Primitive(positions=sv.astype(np.float32), color_0=self._shadow_rgb,
+                                       indices=sb.faces[lit].astype(np.uint32),
+                                       material=self._shadow_material, mode=4)
+            if self._shadow_node is not None:
+                self.pscene.remove_node(self._shadow_node)
+            self._shadow_node = self.pscene.add(pyrender.Mesh([sprim]))
 
     def render(self, frame: int, camera: Camera) -> np.ndarray:
         """The image of internal frame ``frame`` seen by ``camera``: (H, W, 3) uint8."""
