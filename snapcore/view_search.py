@@ -349,17 +349,17 @@ def _bin_generators(b, res):
     """
     nb = res * res
     gen = np.zeros((nb, 3))
-    h = res / 2.0
+    # (1 - 1e-9) keeps (s + 1)·h below res, so no index needs clipping
+    h, h_in = res / 2.0, res / 2.0 * (1.0 - 1e-9)
     for z in chunk_slices(b.shape[1]):
         bx, by, bz = b[:, z]
-        sg = np.sign(by)
-        sg[sg == 0] = 1.0
+        sg = np.copysign(1.0, by)
         fx, fy, fz = bx * sg, np.abs(by), bz * sg
         den = np.abs(fx)
         den += fy
         den += np.abs(fz)
         den += 1e-300  # zero vectors (skipped quads) add nothing to any bin
-        np.divide(h, den, out=den)
+        np.divide(h_in, den, out=den)
         i = fx + fz
         i *= den
         i += h
@@ -367,11 +367,8 @@ def _bin_generators(b, res):
         j *= den
         j += h
         idx = i.astype(np.intp)
-        np.minimum(idx, res - 1, out=idx)
-        jj = j.astype(np.intp)
-        np.minimum(jj, res - 1, out=jj)
         idx *= res
-        idx += jj
+        idx += j.astype(np.intp)
         gen[:, 0] += np.bincount(idx, fx, nb)
         gen[:, 1] += np.bincount(idx, fy, nb)
         gen[:, 2] += np.bincount(idx, fz, nb)
