@@ -209,10 +209,11 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
     Returns
     -------
     DataFrame
-        ``scene``, ``clip``, ``frames``, ``joints`` (all characters), ``ours_pose_s``,
-        ``ours_view_s``, ``paper_frames``, ``paper_joints``, ``paper_pose_s``,
-        ``paper_view_s``, ``note``. ``ours_view_s`` is NaN while the pipeline has no
-        view stage.
+        ``scene``, ``clip``, ``frames``, ``joints`` (all characters), ``ours_pose_s``
+        (pose stage), ``ours_view_s`` (PMA view), ``ours_motion_area_s`` and
+        ``ours_viewpoint_entropy_s`` (the baselines' views), ``paper_frames``,
+        ``paper_joints``, ``paper_pose_s``, ``paper_view_s``, ``note``. A stage the
+        pipeline did not run is NaN.
     """
     take = _require("snapcore.snapshot", "take_snapshot")
     paper = paper_table1().set_index("scene")
@@ -220,19 +221,20 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
     rows = []
     for sid in scenes or list(analogues.index):
         sc = load_analogue(sid, data_dir=data_dir)
-        pose_t, view_t = [], []
+        times = {k: [] for k in ("pose", "view", "motion_area", "viewpoint_entropy")}
         for _ in range(repeats):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 snap = take(sc)
-            t = _timings(snap)
-            pose_t.append(t.get("pose", np.nan))
-            view_t.append(t.get("view", np.nan))
+            for k, v in _timings(snap).items():
+                times[k].append(v)
         p = paper.loc[sid] if sid in paper.index else None
         rows.append({"scene": sid, "clip": "; ".join(analogues.loc[sid, "files"]),
                      "frames": sc.n_frames, "joints": sum(c.n_joints for c in sc.characters),
-                     "ours_pose_s": _median(pose_t),
-                     "ours_view_s": _median(view_t),
+                     "ours_pose_s": _median(times["pose"]),
+                     "ours_view_s": _median(times["view"]),
+                     "ours_motion_area_s": _median(times["motion_area"]),
+                     "ours_viewpoint_entropy_s": _median(times["viewpoint_entropy"]),
                      "paper_frames": None if p is None else int(p["frames"]),
                      "paper_joints": None if p is None else int(p["joints"]),
                      "paper_pose_s": None if p is None else float(p["pose_selection_s"]),
@@ -264,9 +266,11 @@ def _timings(snap) -> dict:
     pose = t.get("pose", np.nan)
     view = t.get("view")
     if view is None:
-        parts = [v for k, v in t.items() if k.startswith("view")]
+        parts = [v for k, v in t.items() if k.startswith("view_")]
         view = sum(parts) if parts else np.nan
-    return {"pose": float(pose), "view": float(view)}
+    return {"pose": float(pose), "view": float(view),
+            "motion_area": float(t.get("motion_area", np.nan)),
+            "viewpoint_entropy": float(t.get("viewpoint_entropy", np.nan))}
 
 
 def _table1(ctx: _Context) -> list[Path]:
