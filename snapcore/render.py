@@ -817,6 +817,9 @@ GRID_LINE_HALF_WIDTH = 0.006
 GRID_FADE_RADIUS = 7.0
 #: Distance (m) from the motion's centre to the sky backdrop (beyond the grid's fade).
 SKY_DISTANCE = 40.0
+#: Orthographic views flatter than this (degrees above the horizon) show a horizon at
+#: the characters' feet; steeper ones see only floor (see :func:`_sky_mesh`).
+ORTHO_HORIZON_DEG = 4.0
 #: Floor and grid colours (sRGB 0-1) and the shadow's darkening of the floor.
 FLOOR_COLOR = (0.93, 0.925, 0.915)
 GRID_COLOR = (0.74, 0.74, 0.74)
@@ -873,19 +876,37 @@ def _ground_mesh(centre_xz, height):
     return pyrender.Mesh([prim])
 
 
-def _sky_mesh(centre, back, height):
-    """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour, standing on
-    the floor (``y = height``) :data:`SKY_DISTANCE` metres behind ``centre`` as seen
-    along the camera axis ``-back``; None for views within 1° of straight up/down
-    (no horizon in the picture)."""
+def _sky_mesh(centre, cam: Camera, height):
+    """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour,
+    :data:`SKY_DISTANCE` metres behind ``centre`` as seen along the camera axis; None
+    when the picture has no horizon.
+
+    Perspective: it stands on the floor (``y = height``), so the horizon falls near eye
+    level as in a photograph. Orthographic: an infinite floor fills the whole frame of
+    any view from above, so there is no sky; but a finite backdrop would draw a horizon
+    ``SKY_DISTANCE · sin(elevation)`` above the feet, cutting through the characters in
+    almost-level views. So below :data:`ORTHO_HORIZON_DEG` of elevation the backdrop's
+    lower edge is lowered until it projects onto the floor line through ``centre``:
+    the horizon sits at the characters' feet, as it does in an exactly level view.
+    """
     pyrender = _pyrender()
     y = np.array([0.0, 1.0, 0.0])
+    back = cam.back
     hb = np.asarray(back, float) - y * (back @ y)
     if np.linalg.norm(hb) < np.sin(np.radians(1.0)):
         return None
     hb /= np.linalg.norm(hb)
     hr = np.cross(y, hb)
-    c = np.array([centre[0], height, centre[2]]) - hb * SKY_DISTANCE
+    ground_c = np.array([centre[0], height, centre[2]])
+    c = ground_c - hb * SKY_DISTANCE
+    if cam.projection == "orthographic":
+        elevation = np.degrees(np.arcsin(np.clip(back @ y, -1, 1)))
+        if not 0.0 <= elevation < ORTHO_HORIZON_DEG:
+            return None
+        # bottom edge at the height whose projection equals the floor point's: (c - ground_c
+        # + y·dh)·up = 0
+        dh = -((c - ground_c) @ cam.up) / (y @ cam.up)
+        c = c + y * dh
     w, h = 20 * SKY_DISTANCE, 20 * SKY_DISTANCE
     pos = np.array([c - hr * w, c + hr * w, c + hr * w + y * h, c - hr * w + y * h], np.float32)
     col = np.tile(np.append(_srgb_to_linear(BACKGROUND), 1.0), (4, 1)).astype(np.float32)
@@ -1001,7 +1022,7 @@ class SceneRenderer:
                 self.pscene.remove_node(self._sky_node)
                 self._sky_node = None
             b = self.scene.bounds()
-            sky = _sky_mesh((b[0] + b[1]) / 2, cam.back, self.scene.ground)
+            sky = _sky_mesh((b[0] + b[1]) / 2, cam, self.scene.ground)
             if sky is not None:
                 self._sky_node = self.pscene.add(sky)
         for n in self._light_nodes:

@@ -84,7 +84,10 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
     if take_snapshot is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            snap = take_snapshot(scene, k=k)
+            try:
+                snap = take_snapshot(scene, k=k, view=views)
+            except TypeError:  # a pipeline without the view stage
+                snap = take_snapshot(scene, k=k)
         out.update(frame=int(snap.index), frames=[int(i) for i in snap.indices],
                    entropy=[float(snap.pose.entropy.total[i]) for i in snap.indices],
                    how="selected pose")
