@@ -60,14 +60,21 @@ def _participant(ctx):
         return None, str(err)
 
 
+#: Stages shown full width (three pictures side by side need the room).
+WIDE_STAGES = (Stage.VIEW,)
+
+
 def main() -> None:
-    st.set_page_config(page_title="Action Snapshot study", page_icon="🎞️", layout="centered")
     try:
         ctx = common.load_context()
     except Exception as err:  # noqa: BLE001 - any failure here must stop the app, politely
+        st.set_page_config(page_title="Action Snapshot study", layout="centered")
         st.error(f"The study cannot start: {common.one_line(err)}")
         st.stop()
     session, problem = _participant(ctx)
+    wide = session is not None and session.stage in WIDE_STAGES
+    st.set_page_config(page_title=ctx.stimuli.study.title, page_icon="🎞️",
+                       layout="wide" if wide else "centered")
     st.session_state[common.KEY_SESSION] = session
     st.session_state[common.KEY_PROBLEM] = problem
     if problem:

@@ -87,3 +87,50 @@ def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
             "views": views,
         })
     return write_manifest(root, study, entries)
+
+
+# ----------------------------------------------------------------------------- real stimuli
+
+#: A tiny real study on two synthetic scenes (one and two characters): small images at
+#: 12 fps, so the build takes seconds. Built once per test session (tiny_demo_stimuli).
+TINY_STUDY = """\
+[study]
+id = "tiny"
+title = "Tiny demo"
+video_fps = 12
+size = [160, 120]
+
+[[scenes]]
+id = "jump"
+demo = "jump"
+
+[[scenes]]
+id = "push"
+demo = "push"
+frames = [10, 70]
+"""
+
+
+def tiny_demo_stimuli(tmp_path_factory):
+    """Build the tiny study with `snapshot stimuli build` once per session.
+
+    Returns
+    -------
+    (Path, subprocess.CompletedProcess or None)
+        The stimuli folder, and the build's process result (None when it was already
+        built earlier in the session). Runs in a subprocess so the tests' own process
+        never holds an EGL context, with relative paths as a person would type them.
+    """
+    import subprocess
+    import sys
+
+    root = tmp_path_factory.getbasetemp() / "tiny-demo"
+    out = root / "stimuli"
+    if (out / "manifest.json").exists():
+        return out, None
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "tiny.toml").write_text(TINY_STUDY)
+    snapshot = str(Path(sys.executable).with_name("snapshot"))
+    r = subprocess.run([snapshot, "stimuli", "build", "tiny.toml", "-o", "stimuli", "-q"],
+                       capture_output=True, text=True, timeout=600, cwd=root)
+    return out, r

@@ -22,10 +22,11 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from app_helpers import write_fixture_stimuli
+from app_helpers import tiny_demo_stimuli
 from conftest import need
 
 from study_app.protocol import trial_plan
+from study_app.stimuli import load_stimuli
 from study_app.store import Store
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -67,9 +68,11 @@ def artifacts():
 
 @pytest.fixture(scope="module")
 def stimuli_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("e2e") / "stimuli"
-    write_fixture_stimuli(d)
-    return d
+    """Real stimuli (the tiny two-scene study), built once per test session."""
+    out, r = tiny_demo_stimuli(tmp_path_factory)
+    if r is not None:
+        assert r.returncode == 0, r.stderr
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -175,26 +178,39 @@ def shown_frame(page) -> int:
     return int(m.group(1)) - 1
 
 
+def frame_images(stimuli_dir, scene: str):
+    """The scene's pickable frames as grey-level arrays, shape (K, H, W)."""
+    import numpy as np
+    from PIL import Image
+
+    sc = load_stimuli(stimuli_dir, verify=False).scenes[scene]
+    return np.stack([np.asarray(Image.open(f).convert("L"), dtype=float) for f in sc.frames])
+
+
 def frame_on_screen_matches(page, stimuli_dir, scene: str, frame: int) -> None:
-    """The video element shows stimulus frame ``frame``: its pixels are closer to that
-    frame's image than to its neighbours' (the fixture frames show their numbers)."""
+    """The video element shows stimulus frame ``frame``: among all the scene's frame images,
+    the one that best matches the pixels on screen looks like ``frame`` (equal up to
+    compression noise: consecutive frames of a still moment may be alike)."""
     import io
 
     import numpy as np
     from PIL import Image
 
+    refs = frame_images(stimuli_dir, scene)
     png = page.locator(".snap-video").screenshot()
-    img = Image.open(io.BytesIO(png)).convert("L")
-    ref = {}
-    for f in (frame - 1, frame, frame + 1):
-        p = stimuli_dir / scene / "frames" / f"{f:05d}.jpg"
-        if p.exists():
-            r = Image.open(p).convert("L")
-            ref[f] = np.asarray(r, dtype=float)
-    shown = np.asarray(img.resize(Image.open(stimuli_dir / scene / "frames" / "00000.jpg").size),
-                       dtype=float)
-    err = {f: float(np.abs(shown - r).mean()) for f, r in ref.items()}
-    assert min(err, key=err.get) == frame, err
+    img = Image.open(io.BytesIO(png)).convert("L").resize(refs.shape[2:0:-1])
+    err = np.abs(refs - np.asarray(img, dtype=float)).mean(axis=(1, 2))
+    assert err[frame] - err.min() < 1.0, (frame, int(err.argmin()), err.round(2).tolist())
+
+
+def moving_frame(stimuli_dir, scene: str) -> int:
+    """A frame that differs clearly from both neighbours (where an off-by-one would show)."""
+    import numpy as np
+
+    f = frame_images(stimuli_dir, scene)
+    d = np.abs(np.diff(f, axis=0)).mean(axis=(1, 2))  # change between k and k+1
+    both = np.minimum(d[:-1], d[1:])  # frame k+1 against k and k+2
+    return int(np.argmax(both)) + 1
 
 
 def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
@@ -202,7 +218,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     base, store = server
     n_before = store.progress()["participants"]
     page.goto(f"{base}/?PROLIFIC_PID=60a1b2c3d4e5f60718293a4b&STUDY_ID=st1&SESSION_ID=se1")
-    heading(page, "Fixture study")
+    heading(page, "Tiny demo")
     shot(page, artifacts, "01-consent")
     pid = agree_and_start(page)
     answer_background(page)
@@ -214,7 +230,9 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     assert part["background"] == {"age_band": "35–44", "gender": "Prefer not to say",
                                   "experience": "Some (a course or a hobby)"}
     assert part["prolific_pid"] == "60a1b2c3d4e5f60718293a4b"
-    plan = trial_plan(["walk", "jump"], part["seed"])
+    plan = trial_plan(["jump", "push"], part["seed"])
+    stim = load_stimuli(stimuli_dir)
+    n_first = stim.scenes[plan[0].scene].n_video_frames
 
     # Pose task 1: play, pause, step forward three frames and back one, confirm.
     picker_ready(page)
@@ -228,7 +246,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     page.get_by_test_id("picker-back").click()
     page.wait_for_timeout(300)
     first = shown_frame(page)
-    assert first == min(paused + 2, 23)
+    assert first == min(paused + 3, n_first - 1) - 1
     frame_on_screen_matches(page, stimuli_dir, plan[0].scene, first)
     shot(page, artifacts, "03-pose-task")
     page.get_by_test_id("picker-confirm").click()
@@ -243,11 +261,14 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
 
     # Pose task 2: scrub to a frame with the slider, confirm.
     scrub = page.get_by_test_id("picker-scrub")
-    scrub.fill("17")  # the range input's value (0-based frame)
+    target = moving_frame(stimuli_dir, plan[1].scene)
+    scrub.fill(str(target))  # the range input's value (0-based frame)
     page.wait_for_timeout(300)
     second = shown_frame(page)
-    assert second == 17
+    assert second == target
     frame_on_screen_matches(page, stimuli_dir, plan[1].scene, second)
+    with pytest.raises(AssertionError):  # the check can tell neighbours apart here
+        frame_on_screen_matches(page, stimuli_dir, plan[1].scene, second + 1)
     page.get_by_test_id("picker-confirm").click()
 
     # View tasks: pick position 2, then position 0.
@@ -270,9 +291,11 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == [0, 1, 2, 3, 4]
     assert [(r["task"], r["scene"]) for r in rows] == [(t.task, t.scene) for t in plan]
-    # the fixture video shows motion frame 2v at video frame v
-    assert (rows[0]["chosen_video_frame"], rows[0]["chosen_frame"]) == (first, 2 * first)
-    assert (rows[1]["chosen_video_frame"], rows[1]["chosen_frame"]) == (second, 2 * second)
+    # stored: the video frame on screen, and the motion frame the manifest maps it to
+    for row, v in ((rows[0], first), (rows[1], second)):
+        sc = stim.scenes[row["scene"]]
+        assert (row["chosen_video_frame"], row["chosen_frame"]) == (v, sc.video_to_motion[v])
+        assert row["algorithm_frame"] == sc.algorithm_frame and row["fps"] == sc.fps
     assert (rows[2]["chosen_position"], rows[2]["chosen_method"]) == (2, plan[2].shown_order[2])
     assert (rows[3]["chosen_position"], rows[3]["chosen_method"]) == (0, plan[3].shown_order[0])
     assert rows[2]["shown_order"] == list(plan[2].shown_order)
@@ -319,7 +342,7 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     heading(page, "Pictures 1 of 2")
     page.wait_for_selector(".snap-view img")
     seed = store.get_participant(pid)["seed"]
-    shown = trial_plan(["walk", "jump"], seed)[2].shown_order
+    shown = trial_plan(["jump", "push"], seed)[2].shown_order
     forged = next(m for m in ("ours", "viewpoint_entropy", "motion_area") if m != shown[1])
     page.locator(".snap-view").nth(1).evaluate(f"fig => {{ fig.dataset.method = '{forged}'; }}")
     page.get_by_test_id("view-choose-1").click()

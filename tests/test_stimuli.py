@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from app_helpers import fixture_study_doc, write_fixture_stimuli
+from app_helpers import fixture_study_doc, tiny_demo_stimuli, write_fixture_stimuli
 from conftest import need
 
 from snapcore.schema import validate
@@ -113,43 +113,21 @@ def test_fixture_video_decodes_to_its_frames(folder):
 
 # ----------------------------------------------------------------------------- real build
 
-#: A tiny study on two synthetic scenes (one and two characters): small images, 12 fps.
-TINY = """\
-[study]
-id = "tiny"
-title = "Tiny demo"
-video_fps = 12
-size = [160, 120]
-
-[[scenes]]
-id = "jump"
-demo = "jump"
-
-[[scenes]]
-id = "push"
-demo = "push"
-frames = [10, 70]
-"""
-
-
 @pytest.fixture(scope="module")
-def tiny_config(tmp_path_factory):
-    p = tmp_path_factory.mktemp("tiny") / "tiny.toml"
-    p.write_text(TINY)
-    return p
-
-
-@pytest.fixture(scope="module")
-def built(tiny_config):
-    """The tiny study built once through the CLI (`snapshot stimuli build`)."""
-    out = tiny_config.parent / "stimuli"
-    r = subprocess.run([SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(out), "-q"],
-                       capture_output=True, text=True, timeout=600)
-    need("must run the view stage" not in r.stderr,
-         "snapcore.snapshot.take_snapshot has no view stage yet")
-    assert r.returncode == 0, r.stderr
-    assert "2 scenes" in r.stdout
+def built(tmp_path_factory):
+    """The tiny study, built once per session through the CLI (`snapshot stimuli build`)."""
+    out, r = tiny_demo_stimuli(tmp_path_factory)
+    if r is not None:
+        need("must run the view stage" not in r.stderr,
+             "snapcore.snapshot.take_snapshot has no view stage yet")
+        assert r.returncode == 0, r.stderr
+        assert "2 scenes" in r.stdout and "manifest sha256" in r.stdout
     return out
+
+
+@pytest.fixture(scope="module")
+def tiny_config(built):
+    return built.parent / "tiny.toml"
 
 
 def test_build_writes_a_verified_folder(built, tiny_config):
