@@ -495,7 +495,7 @@ def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
     """
     from tqdm.auto import tqdm
 
-    out = Path(out_dir)
+    out = Path(out_dir).resolve()
     if out.exists() and not force:
         raise StimuliError(f"{out} already exists (use --force to rebuild it)")
     tmp = out.with_name(out.name + ".partial")
