@@ -186,6 +186,47 @@ def _view_entropy_75k(ctx: BenchContext):
     return lambda: select_view_entropy(None, 0, mesh=mesh, min_elevation_deg=None)
 
 
+# ----------------------------------------------------------------- pose selection (issue 3)
+
+
+@case("pose selection salsa pair (2x2239 frames, 2x57 joints)", target_ms=20.0,
+      note="everything: contacts (ground + partner's body), local and global terms, top-3")
+def _pose_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    import warnings
+
+    from .pose import select_pose
+
+    def work():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return select_pose(scene, k=3)
+
+    return work
+
+
+@case("  contacts salsa pair (ground + bodies)", note="part of the pose selection above")
+def _contacts_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .contacts import detect_interactions
+
+    return lambda: detect_interactions(scene)
+
+
+@case("  local term salsa pair (2 characters)", note="part of the pose selection above")
+def _local_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .pose import local_information
+
+    return lambda: [local_information(c) for c in scene.characters]
+
+
 # ----------------------------------------------------------------- rendering (issue 5)
 # Targets on two cores: 162 face-id renders of a 75k-face mesh < 5 s; a 1000-frame
 # 1280x720 video of the two-person salsa scene < 60 s. The bench repeats every case

@@ -56,6 +56,9 @@ GROUND = "ground"
 _GROUP_SIZE = 8
 #: Seconds per time block of that broad phase (a joint's swept box over the block).
 _BLOCK_S = 0.1
+#: Below this many runs still being scanned, :func:`scan_interactions` walks them one
+#: at a time (scalar steps beat a round of array code on a handful of runs).
+_FEW_RUNS = 4
 #: Elements per chunk in the exact narrow phase.
 _CHUNK = 8192
 
@@ -291,7 +294,11 @@ def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolera
     displacement : callable
         ``displacement(j, s, g) -> ndarray (n,)``: distance (m) between the joint's
         position relative to the object at frame ``g`` and at the start frame ``s``,
-        vectorised over equal-length integer arrays ``j, s, g``.
+        vectorised over equal-length integer arrays ``j, s, g``. Optional methods,
+        used when present because they avoid gathers: ``span(j, s, lo, hi)``, the same
+        for frames ``lo:hi`` of one joint; ``shifted(k, cols)``, the displacement
+        between every frame ``f`` and ``f + k`` for the joints ``cols``, shape
+        ``(F - k, len(cols))``.
     min_frames : int
         The conditions must hold on ``min_frames`` consecutive frames to start.
     tolerance : float
@@ -309,22 +316,41 @@ def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolera
     of the one at ``s``; it lasts while the joint stays near and within
     ``tolerance`` of its position at ``s``; the scan resumes at the first frame
     after it. Start frames are found for all frames at once; the propagation runs in
-    rounds, each round advancing every uninterrupted stretch of nearness (a *run*)
-    by one interaction, so the Python loop count is the largest number of
-    interactions in one run, not the number of frames.
+    rounds over all uninterrupted stretches of nearness (*runs*) together, each round
+    testing the next few frames of every run, so the Python loop count is about the
+    number of interactions in the busiest run, not the number of frames.
     """
     near = np.asarray(near, dtype=bool)
-    n_f, n_j = near.shape
+    n_f = near.shape[0]
     m = int(min_frames)
     empty = np.zeros(0, dtype=np.int64)
-    if n_f < m or not near.any():
+    # Only joints that come near at all (a handful: feet, hands): all per-joint arrays
+    # below are over these columns; ``cols`` maps them back.
+    cols = np.flatnonzero(near.any(axis=0))
+    if n_f < m or cols.size == 0:
         return empty, empty, empty
+    n_cols = near.shape[1]
+    inner = displacement
+    if cols.size < n_cols:
+        near = near[:, cols]
+
+        def displacement(j, s, g):
+            return inner(cols[j], s, g)
+
+        if hasattr(inner, "span"):
+            displacement.span = lambda j, s, lo, hi: inner.span(int(cols[j]), s, lo, hi)
+    n_j = near.shape[1]
     # Seeds: m consecutive near frames (cumulative sums) with a still relative position.
     csum = np.zeros((n_f + 1, n_j), dtype=np.int32)
     np.cumsum(near, axis=0, out=csum[1:])
     window = (csum[m:] - csum[:-m]) == m  # (F - m + 1, J)
-    ff, jj = np.nonzero(window)
-    if ff.size:
+    if hasattr(inner, "shifted"):
+        # Static objects: compare whole shifted slices instead of gathering frames.
+        for k in range(1, m):
+            window &= inner.shifted(k, cols)[: n_f - m + 1] <= tolerance
+        ff, jj = np.nonzero(window)
+    else:
+        ff, jj = np.nonzero(window)
         ok = np.ones(ff.size, dtype=bool)
         for k in range(1, m):
             idx = np.flatnonzero(ok)
@@ -347,37 +373,64 @@ def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolera
     run_j = run_j[::2]
     run_start, run_end = pos_in_row[::2], pos_in_row[1::2]  # end exclusive
     # Keep only runs that contain a seed.
-    pos = next_seed[run_start, run_j]
-    keep = pos < run_end
-    run_j, run_end, pos = run_j[keep], run_end[keep], pos[keep]
+    seed = next_seed[run_start, run_j]
+    keep = seed < run_end
+    run_j, run_end, seed = run_j[keep], run_end[keep], seed[keep]
+    look = seed + m  # next frame to test; frames before it hold by the seed condition
+    block = max(4 * m, 16)  # frames tested per run and round
     out_j, out_s, out_e = [], [], []
-    while run_j.size:
-        s = pos
-        lo = s + m  # frames before lo hold by the seed condition
-        length = run_end - lo
+    while run_j.size > _FEW_RUNS:
+        length = np.minimum(run_end - look, block)
         total = int(length.sum())
-        ext = run_end.copy()
+        ext = np.full(run_j.size, -1, dtype=np.int64)  # first failing frame, if found
         if total:
-            seg = np.repeat(np.arange(s.size), length)
+            seg = np.repeat(np.arange(run_j.size), length)
             first = np.cumsum(length) - length
-            g = np.arange(total) - np.repeat(first, length) + np.repeat(lo, length)
-            far = displacement(run_j[seg], s[seg], g) > tolerance
-            hit = np.flatnonzero(far)
-            if hit.size:
-                # first exceeding frame per run: hits are sorted, take each run's first
+            g = np.arange(total) - np.repeat(first, length) + np.repeat(look, length)
+            hit = np.flatnonzero(displacement(run_j[seg], seed[seg], g) > tolerance)
+            if hit.size:  # hits are sorted: each run's first one
                 seg_hit = seg[hit]
                 firsts = np.r_[True, seg_hit[1:] != seg_hit[:-1]]
                 ext[seg_hit[firsts]] = g[hit[firsts]]
-        out_j.append(run_j)
-        out_s.append(s)
-        out_e.append(ext - 1)
-        # Next round: runs that ended by displacement may hold another interaction.
-        cont = ext < run_end
-        run_j, run_end, ext = run_j[cont], run_end[cont], ext[cont]
-        pos = next_seed[ext, run_j]
-        keep = pos < run_end
-        run_j, run_end, pos = run_j[keep], run_end[keep], pos[keep]
-    joints = np.concatenate(out_j)
+        exhausted = (ext < 0) & (look + length >= run_end)  # held to the end of the run
+        ext[exhausted] = run_end[exhausted]
+        done = ext >= 0
+        out_j.append(run_j[done])
+        out_s.append(seed[done])
+        out_e.append(ext[done] - 1)
+        # Runs still searching look further; finished ones seek their next seed.
+        look = np.where(done, 0, look + length)
+        nxt = next_seed[np.where(done, ext, 0), run_j]
+        seed = np.where(done, nxt, seed)
+        look = np.where(done, nxt + m, look)
+        keep = seed < run_end
+        run_j, run_end, seed, look = run_j[keep], run_end[keep], seed[keep], look[keep]
+    # The last few runs (the busiest: a foot sliding on the floor for the whole clip)
+    # one at a time: a round of array code costs more than these few scalar steps.
+    for j, end, sd, lk in zip(run_j.tolist(), run_end.tolist(), seed.tolist(), look.tolist()):
+        pieces_s, pieces_e = [], []
+        while sd < end:
+            ext = end
+            while lk < end:
+                hi = min(lk + block, end)
+                if hasattr(displacement, "span"):
+                    dist = displacement.span(j, sd, lk, hi)
+                else:
+                    g = np.arange(lk, hi)
+                    dist = displacement(np.full(g.size, j), np.full(g.size, sd), g)
+                far = np.flatnonzero(dist > tolerance)
+                if far.size:
+                    ext = lk + int(far[0])
+                    break
+                lk = hi
+            pieces_s.append(sd)
+            pieces_e.append(ext - 1)
+            sd = int(next_seed[ext, j])
+            lk = sd + m
+        out_j.append(np.full(len(pieces_s), j, dtype=np.int64))
+        out_s.append(np.array(pieces_s, dtype=np.int64))
+        out_e.append(np.array(pieces_e, dtype=np.int64))
+    joints = cols[np.concatenate(out_j)]
     starts = np.concatenate(out_s)
     ends = np.concatenate(out_e)
     order = np.lexsort((starts, joints))
@@ -387,29 +440,47 @@ def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolera
 # ----------------------------------------------------------------------- objects
 
 
-def _static_displacement(x: np.ndarray):
-    """Relative displacement against a static object: world positions ``x (F, J, 3)``."""
+class _StaticDisplacement:
+    """Relative displacement against a static object: world positions ``x (F, J, 3)``.
 
-    def disp(j, s, g):
-        d = x[g, j] - x[s, j]
-        return np.sqrt((d * d).sum(-1))
+    Called with index arrays ``(j, s, g)``; :meth:`span` does one joint and start over
+    a range of frames with plain slices (no gathers), for the scalar path of the scan.
+    """
 
-    return disp
+    def __init__(self, x: np.ndarray):
+        self.x = x
+
+    def __call__(self, j, s, g):
+        d = self.x[g, j] - self.x[s, j]
+        return np.sqrt(np.einsum("ni,ni->n", d, d))
+
+    def span(self, j: int, s: int, lo: int, hi: int):
+        d = self.x[lo:hi, j] - self.x[s, j]
+        return np.sqrt(np.einsum("ni,ni->n", d, d))
+
+    def shifted(self, k: int, cols) -> np.ndarray:
+        """``|x[f + k, j] - x[f, j]|`` for every frame f and joint j in ``cols``,
+        shape (F - k, len(cols))."""
+        xc = self.x[:, cols]
+        d = xc[k:] - xc[:-k]
+        return np.sqrt(np.einsum("fji,fji->fj", d, d))
 
 
-def _bone_groups(n_links: int, size: int = _GROUP_SIZE) -> np.ndarray:
+def _bone_groups(n_links: int, size: int | None = None) -> np.ndarray:
     """Link indices in consecutive groups of ``size`` (the last padded), shape (G, size).
 
     Links are in BVH (depth-first) order, so consecutive links are neighbours in the
     body and a group's bounding box stays small.
     """
+    size = size or _GROUP_SIZE
     n_groups = -(-n_links // size)
     idx = np.arange(n_groups * size)
     return np.minimum(idx, n_links - 1).reshape(n_groups, size)
 
 
-def _group_padding_mask(n_links: int, size: int = _GROUP_SIZE) -> np.ndarray:
+def _group_padding_mask(n_links: int, size: int | None = None) -> np.ndarray:
     """False where :func:`_bone_groups` repeated a link to pad the last group."""
+    size = size or _GROUP_SIZE
     return (np.arange(-(-n_links // size) * size) < n_links).reshape(-1, size)
 
 
@@ -476,7 +547,7 @@ def bone_radii(character) -> np.ndarray:
 
 
 def _body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = None,
-               block: int = 3):
+               block: int = 3, boxes: dict | None = None):
     """Which joints of one character touch another's body (bones as capsules).
 
     Parameters
@@ -491,6 +562,9 @@ def _body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = N
         Capsule radius of each bone (default :func:`bone_radii`).
     block : int
         Frames per block of the broad phase.
+    boxes : dict, optional
+        Cache of :func:`_block_boxes` results keyed by ``id`` of the positions array
+        (a scene's characters are toucher and touched in turn).
 
     Returns
     -------
@@ -523,10 +597,15 @@ def _body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = N
     reach = radii + gap
     # Boxes component-first, (3, B, ...): comparisons then combine three planes instead
     # of reducing over a length-3 axis, which NumPy does slowly.
-    jlo, jhi = _block_boxes(x, block)  # (B, J, 3)
+    if boxes is None:
+        boxes = {}
+    for z in (x, y):
+        if id(z) not in boxes:
+            boxes[id(z)] = _block_boxes(z, block)
+    jlo, jhi = boxes[id(x)]  # (B, J, 3)
     jlo = np.moveaxis(jlo, -1, 0).copy()  # (3, B, J)
     jhi = np.moveaxis(jhi, -1, 0).copy()
-    ylo, yhi = _block_boxes(y, block)  # (B, Jo, 3)
+    ylo, yhi = boxes[id(y)]  # (B, Jo, 3)
     # Bone boxes arranged by group, (3, B, G, S): the last level gathers whole rows.
     g_links = _bone_groups(n_l)  # (G, S)
     la, lb = links[g_links, 0], links[g_links, 1]
@@ -596,25 +675,35 @@ def _body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = N
     return near, bone
 
 
-def _body_displacement(x: np.ndarray, other, bone: np.ndarray):
+class _BodyDisplacement:
     """Relative displacement in the frame of the bone nearest at the start frame.
 
     The position of joint j relative to bone (p → c) of ``other`` at frame g is
     ``R_p(g)^T (x_j(g) - y_p(g))``, with ``R_p`` the world rotation of the bone's
-    parent joint (the bone moves rigidly with it).
+    parent joint (the bone moves rigidly with it). Same interface as
+    :class:`_StaticDisplacement`.
     """
-    links = other.skeleton.links
-    y = other.positions
-    rot = other.rotations
 
-    def disp(j, s, g):
-        parent = links[bone[s, j], 0]
-        rel_g = np.einsum("nki,nk->ni", rot[g, parent], x[g, j] - y[g, parent])
-        rel_s = np.einsum("nki,nk->ni", rot[s, parent], x[s, j] - y[s, parent])
-        d = rel_g - rel_s
-        return np.sqrt((d * d).sum(-1))
+    def __init__(self, x: np.ndarray, other, bone: np.ndarray):
+        self.x, self.bone = x, bone
+        self.parent_of = other.skeleton.links[:, 0]
+        self.y, self.rot = other.positions, other.rotations
 
-    return disp
+    def _rel(self, frames, j, parent):
+        return np.einsum("nki,nk->ni", self.rot[frames, parent],
+                         self.x[frames, j] - self.y[frames, parent])
+
+    def __call__(self, j, s, g):
+        parent = self.parent_of[self.bone[s, j]]
+        d = self._rel(g, j, parent) - self._rel(s, j, parent)
+        return np.sqrt(np.einsum("ni,ni->n", d, d))
+
+    def span(self, j: int, s: int, lo: int, hi: int):
+        p = int(self.parent_of[self.bone[s, j]])
+        start = self.rot[s, p].T @ (self.x[s, j] - self.y[s, p])
+        rel = np.einsum("nki,nk->ni", self.rot[lo:hi, p], self.x[lo:hi, j] - self.y[lo:hi, p])
+        d = rel - start
+        return np.sqrt(np.einsum("ni,ni->n", d, d))
 
 
 # ----------------------------------------------------------------------- public
@@ -702,9 +791,10 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             act[s:e + 1, j] = True
 
     radii = [bone_radii(c) for c in scene.characters] if bodies else []
+    boxes: dict = {}  # block boxes per character, shared by both directions
     for ci, c in enumerate(scene.characters):
         x = c.positions
-        static = _static_displacement(x)
+        static = _StaticDisplacement(x)
         if ground:
             near = x[..., 1] - scene.ground <= tol.ground_distance
             add(ci, GROUND, scan_interactions(near, static, min_frames=m,
@@ -714,8 +804,8 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
                 if oi == ci:
                     continue
                 near, bone = _body_near(x, other, tol.body_distance, radii=radii[oi],
-                                        block=block)
-                found = scan_interactions(near, _body_displacement(x, other, bone),
+                                        block=block, boxes=boxes)
+                found = scan_interactions(near, _BodyDisplacement(x, other, bone),
                                           min_frames=m, tolerance=tol.displacement)
                 parent = other.skeleton.links[:, 0]
                 js, ss = found[0], found[1]

@@ -343,16 +343,15 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
     Equal to ``(joint_curvature(X) * rotation_change(R)) @ limb_lengths`` (the tests
     check it), computed in chunks of frames that stay in cache: smoothing
     (:func:`savgol_matrix`), curvature, rotation change and the weighted sum per chunk.
-    Joints without a limb (``l_j = 0``) add exactly 0 and are skipped.
+    Joints without a limb (``l_j = 0``) add exactly 0; they are computed anyway, because
+    gathering the others costs more than the arithmetic on them.
     """
     n_f = character.n_frames
-    ell = limb_lengths(character.skeleton)
-    joints = np.flatnonzero(ell > 0)
+    weight = limb_lengths(character.skeleton)
     p = np.zeros(n_f)
-    if joints.size == 0 or n_f < 3:
+    if not weight.any() or n_f < 3:
         return p
-    weight = ell[joints]
-    n_j = joints.size
+    n_j = weight.size
     pos, rot = character.positions, character.local_rotations
     w = _window_frames(smooth_s, character.fps, n_f, SAVGOL_POLYORDER) if smooth_s > 0 else 0
     h = w // 2
@@ -361,8 +360,8 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
 
         mat = savgol_matrix(w, SAVGOL_POLYORDER)
         taps = mat[h]  # interior: y_i = sum_k taps_k x_{i-h+k}
-        head = mat[:h] @ pos[:w][:, joints].reshape(w, n_j * 3)  # smoothed frames 0 .. h-1
-        tail = mat[h + 1:] @ pos[n_f - w:][:, joints].reshape(w, n_j * 3)  # F-h .. F-1
+        head = mat[:h] @ pos[:w].reshape(w, n_j * 3)  # smoothed frames 0 .. h-1
+        tail = mat[h + 1:] @ pos[n_f - w:].reshape(w, n_j * 3)  # F-h .. F-1
     floor = rest_speed / character.fps
     ones3, ones9 = np.ones(3), np.ones(9)
     half_sqrt8 = 1.0 / (2.0 * math.sqrt(2.0))
@@ -375,7 +374,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
             i0, i1 = max(lo, h), min(hi, n_f - h)
             x = np.empty((hi - lo, n_j * 3))
             if i1 > i0:
-                raw = pos[i0 - h:i1 + h][:, joints].reshape(i1 - i0 + 2 * h, n_j * 3)
+                raw = pos[i0 - h:i1 + h].reshape(i1 - i0 + 2 * h, n_j * 3)
                 x[i0 - lo:i1 - lo] = sliding_window_view(raw, w, axis=0) @ taps
             if lo < h:
                 x[:min(h, hi) - lo] = head[lo:min(h, hi)]
@@ -383,7 +382,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
                 k = max(lo, n_f - h)
                 x[k - lo:] = tail[k - (n_f - h):hi - (n_f - h)]
         else:
-            x = pos[lo:hi][:, joints].reshape(hi - lo, n_j * 3)
+            x = pos[lo:hi].reshape(hi - lo, n_j * 3)
         # curvature at vertices a+1 .. b (see joint_curvature)
         e = x[1:] - x[:-1]
         length = np.sqrt((e * e).reshape(-1, 3) @ ones3).reshape(-1, n_j)
@@ -395,7 +394,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         kappa *= 0.5
         kappa[~(moving[1:] & moving[:-1])] = 0.0
         # rotation change from frame i to i+1 for i = a+1 .. b (see rotation_change)
-        r = rot[a + 1:b + 2][:, joints].reshape(b + 1 - a, n_j * 9)
+        r = rot[a + 1:b + 2].reshape(b + 1 - a, n_j * 9)
         d = r[1:] - r[:-1]
         d *= d
         s = np.sqrt(d.reshape(-1, 9) @ ones9)
