@@ -351,12 +351,15 @@ def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolera
         ff, jj = np.nonzero(window)
     else:
         ff, jj = np.nonzero(window)
-        ok = np.ones(ff.size, dtype=bool)
-        for k in range(1, m):
-            idx = np.flatnonzero(ok)
-            if idx.size == 0:
-                break
-            ok[idx] = displacement(jj[idx], ff[idx], ff[idx] + k) <= tolerance
+        if hasattr(inner, "still"):  # relative positions at the start computed once
+            ok = inner.still(cols[jj], ff, m, tolerance)
+        else:
+            ok = np.ones(ff.size, dtype=bool)
+            for k in range(1, m):
+                idx = np.flatnonzero(ok)
+                if idx.size == 0:
+                    break
+                ok[idx] = displacement(jj[idx], ff[idx], ff[idx] + k) <= tolerance
         ff, jj = ff[ok], jj[ok]
     if ff.size == 0:
         return empty, empty, empty
@@ -697,6 +700,20 @@ class _BodyDisplacement:
         parent = self.parent_of[self.bone[s, j]]
         d = self._rel(g, j, parent) - self._rel(s, j, parent)
         return np.sqrt(np.einsum("ni,ni->n", d, d))
+
+    def still(self, j, s, m: int, tolerance: float) -> np.ndarray:
+        """For start frames ``s`` of joints ``j``: all of frames ``s+1 .. s+m-1`` within
+        ``tolerance`` of the relative position at ``s``, shape (n,)."""
+        parent = self.parent_of[self.bone[s, j]]
+        start = self._rel(s, j, parent)
+        ok = np.ones(s.size, dtype=bool)
+        for k in range(1, m):
+            idx = np.flatnonzero(ok)
+            if idx.size == 0:
+                break
+            d = self._rel(s[idx] + k, j[idx], parent[idx]) - start[idx]
+            ok[idx] = np.sqrt(np.einsum("ni,ni->n", d, d)) <= tolerance
+        return ok
 
     def span(self, j: int, s: int, lo: int, hi: int):
         p = int(self.parent_of[self.bone[s, j]])

@@ -233,18 +233,19 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
                         solid_capstyle="round", zorder=2 + near)
             head = int(np.argmax(sy))
             ax.plot(sx[head], sy[head], "o", color=colour, ms=4 if bold else 3, zorder=4)
-        label = f"frame {scene.source_frame(i)}"
-        if bold:
-            label = f"#{rank[i]}  {label}"
-        ax.text(x0[k], -0.08 * height, label, ha="center", va="top", fontsize=7,
-                fontweight="bold" if bold else "normal",
+        ax.text(x0[k], -0.08 * height, f"frame {scene.source_frame(i)}", ha="center",
+                va="top", fontsize=7, fontweight="bold" if bold else "normal",
                 color="#c0392b" if bold else "0.3")
+        if bold:  # the rank above the figure, where there is room
+            top = max(float(f[1].max()) for f in figs)
+            ax.text(x0[k], top + 0.06 * height, f"#{rank[i]}", ha="center", va="bottom",
+                    fontsize=9, fontweight="bold", color="#c0392b")
         ax.text(x0[k], -0.2 * height, f"{i / ent.fps:.2f} s", ha="center", va="top",
                 fontsize=6, color="0.45")
     ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
     ax.set_aspect("equal")
     ax.set_xlim(drawn[0][2] - 0.5 * margin, cursor + 0.5 * margin)
-    ax.set_ylim(-0.3 * height, 1.12 * height)
+    ax.set_ylim(-0.3 * height, 1.25 * height)
     ax.axis("off")
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     cb = ax.figure.colorbar(sm, ax=ax, fraction=0.02, pad=0.01, shrink=0.8)
