@@ -7,13 +7,17 @@ No Streamlit, no SQL here (DESIGN: data flows one way).
 
 from __future__ import annotations
 
+from .body import PosedMesh, SceneBody, posed_mesh
 from .bvh import BVHDocument, read_bvh, write_bvh
 from .contacts import ContactTolerances, Interactions, detect_interactions
 from .errors import BVHError, SceneError, SchemaError, SnapshotError
 from .load import data_dir, load_scene
 from .pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
+from .render import render_depth, render_face_ids, render_still
 from .scene import Character, Scene, Skeleton
+from .sheets import compare_views, contact_sheet
 from .snapshot import Snapshot, take_snapshot
+from .video import render_video
 from .view import ViewSelection, pma_scores, select_view
 
 __version__ = "0.1.0"
@@ -25,20 +29,29 @@ __all__ = [
     "ContactTolerances",
     "Interactions",
     "PoseEntropy",
+    "PosedMesh",
     "PoseSelection",
     "Scene",
+    "SceneBody",
     "SceneError",
     "SchemaError",
     "Skeleton",
     "Snapshot",
     "SnapshotError",
     "ViewSelection",
+    "compare_views",
+    "contact_sheet",
     "data_dir",
     "detect_interactions",
     "load_scene",
     "pma_scores",
     "pose_entropy",
+    "posed_mesh",
     "read_bvh",
+    "render_depth",
+    "render_face_ids",
+    "render_still",
+    "render_video",
     "select_pose",
     "select_view",
     "take_snapshot",

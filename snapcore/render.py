@@ -985,7 +985,8 @@ class SceneRenderer:
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:
             b = scene.bounds()
-            self.pscene.add(_ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground))
+            self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
+            self.pscene.add(self._grid)
         self._cam_node = None
         self._last_cam = None
         self._light_nodes = []
@@ -1025,6 +1026,11 @@ class SceneRenderer:
             sky = _sky_mesh((b[0] + b[1]) / 2, cam, self.scene.ground)
             if sky is not None:
                 self._sky_node = self.pscene.add(sky)
+            # an almost level orthographic view sees the grid edge-on: a row of dashes
+            # along the horizon, not a floor; leave it out
+            level = (cam.projection == "orthographic"
+                     and abs(np.degrees(np.arcsin(np.clip(cam.back[1], -1, 1)))) < ORTHO_HORIZON_DEG)
+            self._grid.is_visible = not level
         for n in self._light_nodes:
             self.pscene.remove_node(n)
         self._light_nodes = []
