@@ -174,10 +174,10 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         ax.stairs(counts, edges, fill=True, color="#BBBBBB", edgecolor="#666666", lw=0.6)
         top = max(1, counts.max())
         preds = predictor_frames(info)
-        for extra in info.algorithm_frames:
-            if extra != info.algorithm_frame:
-                ax.axvline(extra, color=PREDICTOR_STYLES["algorithm"][0], lw=0.8, ls=(0, (2, 2)),
-                           alpha=0.7)
+        others = [f for f in info.algorithm_frames if f != info.algorithm_frame]
+        for k, extra in enumerate(others):
+            ax.axvline(extra, color=PREDICTOR_STYLES["algorithm"][0], lw=0.8, ls=(0, (2, 2)),
+                       alpha=0.7, label="the algorithm's other top-k picks" if k == 0 else None)
         for name, f in preds.items():
             if name != "algorithm" and not show_baselines:
                 continue
@@ -198,7 +198,12 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
                                                    lambda s, i=info: s * i.fps + i.frame_offset))
         sec.tick_params(labelsize=6)
     if axes:
-        handles, labels = axes[0].get_legend_handles_labels()
+        handles, labels = [], []
+        for ax in axes:  # every style that appears anywhere, once
+            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
         fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
                    frameon=False)
     fig.suptitle("Chosen frames per animation (top axis: seconds); ▼ = the algorithm's pick",

@@ -86,7 +86,7 @@ def load_scene_for_entry(entry: dict, base: Path | None = None):
 
     In order: ``source.scene_file`` (the scene manifest the stimuli builder wrote beside
     the stimuli, window included), a ``demo`` name (rebuilt with
-    :func:`snapcore.synth.synth_scene`; the builder deletes its demo files), ``files``
+    :func:`snapcore.synth.synth_scene` when the scene file cannot be read), ``files``
     (BVH paths) or ``manifest`` (a scene manifest), with the entry's ``fps``/``scale``
     overrides. Relative paths are tried against the stimuli folder, its parent and the
     motion data folder (``SNAPSHOT_DATA``). The frame window is applied by the caller
@@ -99,10 +99,14 @@ def load_scene_for_entry(entry: dict, base: Path | None = None):
     bases = [base, base.parent if base is not None else None]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unit fitting etc. was reported when stimuli were built
-        if src.get("scene_file") and not src.get("demo"):
+        if src.get("scene_file"):
             path = _resolve(src["scene_file"], bases)
             if path.exists():
-                return load_scene(path)
+                try:
+                    return load_scene(path)
+                except (ValueError, OSError):
+                    if not src.get("demo"):  # older builds deleted the demo BVHs it names
+                        raise
         if src.get("demo"):
             from snapcore import synth
 
