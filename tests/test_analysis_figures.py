@@ -55,11 +55,16 @@ def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
     """Fig. 6 of the dance is drawn (not blank); Table 1 times two clips beside the paper."""
     pytest.importorskip("snapcore.snapshot")
     pytest.importorskip("snapcore.entropy_plot")
-    res = fg.make_figures(tmp_path, names=["fig6"], progress=False, data_dir=motions_dir)
+    res = fg.make_figures(tmp_path, names=["fig6", "fig11"], progress=False, data_dir=motions_dir)
     paths, reason = res["fig6"]
     assert not reason, reason
     png = [p for p in paths if p.suffix == ".png"][0]
     assert _png_std(png) > 10
+    # Fig. 11 needs the view stage (and OpenGL for the viewpoint-entropy baseline).
+    paths, reason = res["fig11"]
+    if "view" not in reason:
+        assert not reason, reason
+        assert _png_std([p for p in paths if p.suffix == ".png"][0]) > 10
     t = fg.measure_table1(repeats=1, data_dir=motions_dir, scenes=["running", "basketball_shooting"])
     assert list(t["scene"]) == ["running", "basketball_shooting"]
     assert (t["ours_pose_s"] > 0).all()
