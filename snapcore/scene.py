@@ -306,10 +306,30 @@ class Scene:
             fps=self.fps,
             ground=self.ground * scale + float(np.asarray(offset, dtype=float)[1]),
             name=self.name,
-            props=list(self.props),
+            props=[_transform_prop(p, yaw_matrix(yaw_deg), scale, offset) for p in self.props],
             frame_offset=self.frame_offset,
             meta=dict(self.meta),
         )
+
+
+def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset) -> dict:
+    """A prop moved like its scene: points rotated, scaled, translated; sizes scaled.
+
+    Boxes stay axis-aligned (props are static and a yaw of a box is not modelled), so
+    only their centre moves and their size scales; callers rotating boxed scenes by
+    other than multiples of 90 degrees should re-declare them.
+    """
+    out = dict(prop)
+    off = np.asarray(offset, dtype=float)
+    for key in ("center", "a", "b"):
+        if key in prop:
+            out[key] = (r @ np.asarray(prop[key], dtype=float) * scale + off).tolist()
+    if "radius" in prop:
+        out["radius"] = float(prop["radius"]) * scale
+    if "size" in prop:
+        size = np.abs(r) @ np.asarray(prop["size"], dtype=float) * scale  # swaps x/z at 90°
+        out["size"] = size.tolist()
+    return out
 
 
 # --------------------------------------------------------------------------- building

@@ -258,3 +258,19 @@ def test_info_json(motions_dir):
     assert 1.4 < c["height_m"] < 2.0
     lo, hi = np.array(s["bounds_m"]["min"]), np.array(s["bounds_m"]["max"])
     assert 1.2 < hi[1] - lo[1] < 2.0  # a walking adult's vertical extent
+
+
+def test_transformed_scene_moves_props_with_it(tmp_path):
+    """Scene.transformed rotates, scales and translates props like the characters."""
+    p = _write_chain(tmp_path)
+    scene = load_scene(p, scale=1.0)
+    scene.props = [{"name": "ball", "type": "sphere", "center": [1.0, 0.0, 0.0], "radius": 0.1},
+                   {"name": "bar", "type": "capsule", "a": [0.0, 1.0, 0.0], "b": [0.0, 1.0, 2.0],
+                    "radius": 0.05}]
+    moved = scene.transformed(yaw_deg=90, scale=2.0, offset=(0.0, 0.0, 1.0))
+    ball, bar = moved.props
+    # Yaw 90° about +Y maps +X to -Z and +Z to +X; then ×2; then +1 in z.
+    np.testing.assert_allclose(ball["center"], [0.0, 0.0, -1.0], atol=1e-12)
+    assert ball["radius"] == pytest.approx(0.2)
+    np.testing.assert_allclose(bar["b"], [4.0, 2.0, 1.0], atol=1e-12)
+    assert scene.props[0]["center"] == [1.0, 0.0, 0.0]  # the original is untouched
