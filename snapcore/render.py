@@ -61,6 +61,7 @@ __all__ = [
     "render_still",
     "render_mesh",
     "gl_renderer",
+    "release_renderer",
     "save_png",
     "FACE_ID_RESOLUTION",
     "FRAME_MARGIN",
@@ -121,6 +122,23 @@ def _pyrender():
             return gl_enable(cap)
 
         prr.glEnable = _gl_enable
+        # EGL displays are shared by every context in the process: pyrender's
+        # delete_context() terminates the display, which would invalidate the other
+        # threads' contexts. Destroy the context only.
+        try:
+            from pyrender.platforms import egl as _egl
+        except ImportError:  # another platform (OSMesa): nothing shared to protect
+            _egl = None
+
+        def _delete_context(self):
+            from OpenGL.EGL import eglDestroyContext
+
+            if self._egl_display is not None and self._egl_context is not None:
+                eglDestroyContext(self._egl_display, self._egl_context)
+            self._egl_context = None
+
+        if _egl is not None:
+            _egl.EGLPlatform.delete_context = _delete_context
         prr.Renderer._read_main_framebuffer = _read_colour_only(
             prr.Renderer._read_main_framebuffer)
         _PYRENDER = pyrender
@@ -262,6 +280,35 @@ def _read_colour_only(read_both):
     return read
 
 
+#: Every thread's renderer, held here (not only in thread-local storage) so that a
+#: finished thread's renderer is never freed by the garbage collector: pyrender's
+#: ``__del__`` would make that context current on whichever thread collects it, possibly
+#: in the middle of that thread's own frame. Dead threads' renderers are freed by the
+#: next thread that creates one (see :func:`_sweep_dead`).
+_RENDERERS: dict = {}
+_RENDERERS_LOCK = threading.Lock()
+
+
+def _free(r) -> None:
+    """Delete a renderer's GL objects and its context (the display stays up)."""
+    try:
+        r._platform.make_current()
+        r._renderer.delete()
+        r._platform.delete_context()
+    except Exception:  # a context that is already gone: nothing left to free
+        pass
+    r._renderer = None
+    r._platform = None
+
+
+def _sweep_dead() -> None:
+    with _RENDERERS_LOCK:
+        dead = [t for t in _RENDERERS if not t.is_alive()]
+        victims = [_RENDERERS.pop(t) for t in dead]
+    for r in victims:
+        _free(r)
+
+
 def gl_renderer(width: int, height: int):
     """This thread's pyrender ``OffscreenRenderer``, resized to ``width`` × ``height``.
 
@@ -273,6 +320,7 @@ def gl_renderer(width: int, height: int):
         raise RenderError(f"image size must be 1..8192 pixels a side, got {width}x{height}")
     r = getattr(_THREAD, "renderer", None)
     if r is None:
+        _sweep_dead()
         try:
             r = pyrender.OffscreenRenderer(width, height)
         except Exception as err:
@@ -283,8 +331,21 @@ def gl_renderer(width: int, height: int):
 
         r._renderer._program_cache = ShaderProgramCache(shader_dir=_shader_dir())
         _THREAD.renderer = r
+        with _RENDERERS_LOCK:
+            _RENDERERS[threading.current_thread()] = r
     r.viewport_width, r.viewport_height = width, height
     return r
+
+
+def release_renderer() -> None:
+    """Free this thread's offscreen renderer and its EGL context (e.g. before a worker
+    thread ends); the next render on this thread makes a new one."""
+    r = getattr(_THREAD, "renderer", None)
+    if r is not None:
+        _THREAD.renderer = None
+        with _RENDERERS_LOCK:
+            _RENDERERS.pop(threading.current_thread(), None)
+        _free(r)
 
 
 # --------------------------------------------------------------------------- cameras

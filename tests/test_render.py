@@ -303,3 +303,68 @@ def test_camera_project_matches_fit(walk):
     cam = Camera(np.array([0, 0, 5.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
                  np.array([0, 0, 1.0]), (100, 50), "orthographic", half_height=1.0)
     np.testing.assert_allclose(cam.project([[0, 0, 0], [2, 1, 0]]), [[50, 25], [100, 0]])
+
+
+def test_level_orthographic_view_puts_the_horizon_at_the_feet(walk):
+    """Seen exactly level, the floor is a line: the sky (background colour) ends and the
+    floor colour begins at the row where the camera projects the floor (y = ground),
+    computed here by hand; the lowest body pixels touch that row."""
+    from snapcore.body import scene_body
+    from snapcore.render import BACKGROUND, FLOOR_COLOR
+
+    size = (160, 200)
+    frame = 0
+    view = np.array([1.0, 0.0, 0.0])
+    verts = scene_body(walk).vertices(frame)
+    cam = fit_camera(verts, view, size=size)
+    img = render_still(walk, frame, camera=cam, size=size, shadows=False).astype(int)
+    _, u, _ = view_basis(view)
+    row = (1 - ((np.array([0, walk.ground, 0]) - cam.position) @ u) / cam.half_height) * 100
+    sky = np.round(np.asarray(BACKGROUND) * 255)
+    floor = np.round(np.asarray(FLOOR_COLOR) * 255)
+    col = img[:, 3]  # a column far from the character
+    is_sky = np.abs(col - sky).sum(axis=1) <= 3
+    is_floor = np.abs(col - floor).sum(axis=1) <= 3
+    first_floor = np.flatnonzero(is_floor)[0]
+    assert abs(first_floor - row) <= 1.5
+    assert is_sky[: int(row) - 1].all() and is_floor[int(row) + 2:].all()
+    body = np.abs(img - sky).sum(axis=2) > 12
+    body &= np.abs(img - floor).sum(axis=2) > 12
+    lowest = np.flatnonzero(body.any(axis=1)).max()
+    assert abs(lowest - row) <= 4  # the feet stand on the floor line (their soles ~2 cm)
+
+
+def test_release_renderer_makes_a_fresh_context():
+    from snapcore.render import gl_renderer, release_renderer
+
+    a = gl_renderer(32, 32)
+    release_renderer()
+    b = gl_renderer(32, 32)
+    assert a is not b
+    m = _subdivided_cube(2)
+    assert render_face_ids(m.vertices, m.faces, [0, 0, 1], resolution=32).max() > 0
+
+
+def test_many_threads_render_and_finish_without_breaking_the_others(walk):
+    """Worker threads each get a context, finish, and are cleaned up by later threads;
+    the main thread's renderer keeps working throughout (EGL displays are shared)."""
+    import gc
+
+    m = _subdivided_cube(2)
+    expect = render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48)
+    out = []
+
+    def worker():
+        out.append(render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48))
+
+    for _ in range(2):
+        ts = [threading.Thread(target=worker) for _ in range(3)]
+        for t in ts:
+            t.start()
+        for t in ts:
+            t.join()
+        gc.collect()
+        np.testing.assert_array_equal(
+            render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48), expect)
+    assert len(out) == 6 and all(np.array_equal(o, expect) for o in out)
+    assert render_still(walk, 3, size=(64, 48)).std() > 3
