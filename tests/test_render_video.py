@@ -168,3 +168,18 @@ def test_cli_sheet_frames_and_views(walk_bvh, tmp_path):
                                  "--views", "top=0,1,0", "--size", "96x120"])
     assert r.exit_code == 0, r.output
     assert Image.open(b).size[0] == 3 * 96 + 4 * 8
+
+
+def test_readme_images_command(motions_dir, tmp_path):
+    """`python -m snapcore.readme_images OUT` writes the contact sheet (three panels)
+    and the three-view comparison of the README."""
+    from PIL import Image
+
+    from snapcore.readme_images import PANEL, main
+    from snapcore.sheets import PANEL_GAP
+
+    assert main([str(tmp_path)]) == 0
+    sheet = Image.open(tmp_path / "contact_sheet.png")
+    views = Image.open(tmp_path / "three_views.png")
+    assert sheet.size[0] == 3 * PANEL[0] + 4 * PANEL_GAP
+    assert views.size[0] == 3 * PANEL[0] + 4 * PANEL_GAP  # ours, viewpoint entropy, motion area
