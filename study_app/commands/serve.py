@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from pathlib import Path
 
 import click
@@ -88,6 +89,10 @@ def study(config, stimuli_dir, db, port, address, build, quiet):
     if study_cfg is not None and stim.study.id != study_cfg.id:
         raise StimuliError(f"{folder} holds the stimuli of study '{stim.study.id}', "
                            f"not '{study_cfg.id}' ({config})")
+    if study_cfg is not None and stim.manifest["study"] != study_cfg.to_dict():
+        warnings.warn(f"{folder} was built from another version of {config}; serving it as "
+                      f"built (rebuild: snapshot stimuli build {config} -o {folder} --force)",
+                      stacklevel=1)
     store = Store(db)
     url = store.url
     store.close()
