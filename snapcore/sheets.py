@@ -16,15 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .render import (
-    Camera,
-    RenderError,
-    SceneRenderer,
-    _check_size,
-    default_view,
-    fit_camera,
-    view_basis,
-)
+from .camera import Camera, RenderError, _check_size, default_view, fit_camera, view_basis
+from .render import SceneRenderer
 
 __all__ = ["contact_sheet", "compare_views", "common_cameras", "tile_panels", "PANEL_GAP",
            "CAPTION_HEIGHT"]

@@ -24,14 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .render import (
-    RenderError,
-    SceneRenderer,
-    _check_size,
-    default_view,
-    fit_camera,
-    motion_points,
-)
+from .camera import RenderError, _check_size, default_view, fit_camera, motion_points
+from .render import SceneRenderer
 
 __all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET"]
 
