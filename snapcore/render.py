@@ -181,7 +181,7 @@ def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) ->
     normal points to (back faces are culled, so grazing back faces can never win a
     depth tie at a silhouette); the nearest front face wins the depth test. Ids are exact: no
     multisampling, no filtering, no lighting. Measured on 2 cores: 162 views of a
-    75k-face mesh at 256² in well under 5 s (``snapshot bench --only face-id``).
+    75k-face mesh at 256² in well under 5 s (``snapshot bench --only "face ids"``: ~2 s).
     """
     views = np.asarray(views, float)
     single = views.ndim == 1
@@ -638,7 +638,7 @@ class SceneRenderer:
         return np.ascontiguousarray(color)
 
 
-def render_still(scene, frame: int, view=None, *, size=(800, 600), projection="orthographic",
+def render_still(scene, frame: int, view=None, *, size=None, projection="orthographic",
                  fit="frame", ground=True, shadows=True, camera=None, renderer=None) -> np.ndarray:
     """One frame of a scene as an image.
 
@@ -649,14 +649,14 @@ def render_still(scene, frame: int, view=None, *, size=(800, 600), projection="o
         Internal frame (``source frame - scene.frame_offset``).
     view : array of shape (3,), optional
         From the scene towards the camera; default :func:`default_view`.
-    size : (int, int)
-        Width and height, pixels.
+    size : (int, int), optional
+        Width and height, pixels (default: the renderer's, else 800 × 600).
     projection : {"orthographic", "perspective"}
     fit : {"frame", "motion"}
         Frame this pose tightly, or the whole motion (the same framing for every frame,
         as in videos).
     ground, shadows : bool
-        Draw the floor grid / the key light's shadows.
+        Draw the floor grid / the bodies' shadows (ignored with ``renderer``: its own).
     camera : Camera, optional
         Use this camera instead of fitting one (``view``, ``projection``, ``fit`` ignored).
     renderer : SceneRenderer, optional
@@ -666,6 +666,8 @@ def render_still(scene, frame: int, view=None, *, size=(800, 600), projection="o
     -------
     ndarray of uint8, shape (H, W, 3)
     """
+    if size is None:
+        size = renderer.size if renderer is not None else (800, 600)
     size = _check_size(size)
     frame = int(frame)
     if not 0 <= frame < scene.n_frames:
