@@ -62,13 +62,14 @@ def _optional(module: str, name: str):
         return None
 
 
-def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
+def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = True) -> dict:
     """What the pipeline picks for a scene, as far as the installed modules go.
 
     Uses :func:`snapcore.snapshot.take_snapshot` (pose entropy; its ``view`` and
     ``baselines`` once the view stage fills them), falling back to
     :func:`snapcore.view.select_view` for views it lacks, and to the middle frame /
-    no views when neither module is available.
+    no views when neither module is available. ``views=False`` skips the view stage,
+    ``baselines=False`` the two baseline views.
 
     Returns
     -------
@@ -85,7 +86,7 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                snap = take_snapshot(scene, k=k, view=views)
+                snap = take_snapshot(scene, k=k, view=views, baselines=baselines)
             except TypeError:  # a pipeline without the view stage
                 snap = take_snapshot(scene, k=k)
         out.update(frame=int(snap.index), frames=[int(i) for i in snap.indices],
@@ -96,9 +97,9 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
     found = {}
     if snap is not None and getattr(snap, "view", None) is not None:
         found["ours"] = snap.view
-    baselines = (getattr(snap, "baselines", None) or {}) if snap is not None else {}
+    base = (getattr(snap, "baselines", None) or {}) if snap is not None else {}
     for key, label in (("viewpoint_entropy", "viewpoint entropy"), ("motion_area", "motion area")):
-        b = baselines.get(key)
+        b = base.get(key)
         if isinstance(b, dict):
             b = b.get("view")
         if b is not None:
@@ -109,7 +110,7 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True) -> dict:
             warnings.simplefilter("ignore")
             if "ours" not in found:
                 found["ours"] = select_view(scene).view
-            if "motion area" not in found:
+            if baselines and "motion area" not in found:
                 found["motion area"] = select_view(scene, method="motion_area").view
     order = ("ours", "viewpoint entropy", "motion area")
     out["views"] = {n: np.asarray(found[n], float) / np.linalg.norm(found[n])
@@ -125,7 +126,7 @@ def _view_option(text, scene, *, default="auto"):
     if text == "default":
         return default_view(scene), "default 3/4 view"
     if text == "auto":
-        views = pipeline_picks(scene)["views"]
+        views = pipeline_picks(scene, baselines=False)["views"]
         if "ours" in views:
             return views["ours"], "selected view (projected motion area)"
         return default_view(scene), "default 3/4 view (no view selection available)"
