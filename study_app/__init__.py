@@ -1,5 +1,6 @@
 """The user study: stimuli, the Streamlit app, and the store of participants' answers."""
 
-from .store import Store, StoreError, read_export, write_export
+from .export import read_export, write_export
+from .store import Store, StoreError
 
 __all__ = ["Store", "StoreError", "read_export", "write_export"]

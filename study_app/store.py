@@ -49,8 +49,6 @@ back into typed rows (it parses ``shown_order`` back into a list).
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import os
@@ -63,8 +61,23 @@ from pathlib import Path
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
-from snapcore.errors import SchemaError, SnapshotError
+from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
+
+from .export import (  # noqa: F401  (re-exported: the store's public file functions)
+    BACKGROUND_FIELDS,
+    EXPORT_FORMATS,
+    StoreError,
+    _background_value,
+    export_columns,
+    export_format,
+    participants_columns,
+    read_export,
+    validate_rows,
+    write_events,
+    write_export,
+    write_participants,
+)
 
 __all__ = [
     "Store", "StoreError", "default_url", "mask_url", "normalize_url",
@@ -87,13 +100,11 @@ MAX_SEED = 2**63 - 1
 #: A bare path with one of these suffixes is accepted as a SQLite database.
 SQLITE_SUFFIXES = (".db", ".sqlite", ".sqlite3")
 #: Export formats by file suffix.
-EXPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".json": "jsonl"}
 #: Fields of a response row that the caller gives (the store fills the others).
 TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
                 "chosen_video_frame", "algorithm_frame", "fps", "n_frames", "chosen_method",
                 "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s")
 #: Background answers joined into every export row.
-BACKGROUND_FIELDS = ("age_band", "gender", "experience")
 #: Retries of a write that lost a race on the (participant, trial) unique key.
 _DUPLICATE_RETRIES = 3
 PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id",
@@ -101,10 +112,6 @@ PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id"
 
 _ID = sa.String(64)
 _TEXT = sa.String(200)
-
-
-class StoreError(SnapshotError):
-    """The store cannot do what was asked: bad database URL, unknown participant, bad row."""
 
 
 # ----------------------------------------------------------------------------- schema
@@ -744,14 +751,6 @@ def _participant_dict(row) -> dict:
     }
 
 
-def _background_value(value):
-    if value is None or isinstance(value, str):
-        return value
-    if isinstance(value, list):
-        return "; ".join(value)
-    return json.dumps(value)
-
-
 def _export_row(r) -> dict:
     out = {}
     for name in export_columns():
@@ -766,168 +765,3 @@ def _export_row(r) -> dict:
         else:
             out[name] = r[name]
     return out
-
-
-# ----------------------------------------------------------------------------- files
-def export_columns() -> list[str]:
-    """Export columns, in ``response.schema.json`` order."""
-    return list(load_schema("response")["properties"])
-
-
-def participants_columns() -> list[str]:
-    """Columns of the participants export (:func:`write_participants`)."""
-    return ["participant_id", "study_id", "seed", "created_at", "completed_at",
-            "completion_code", "prolific_pid", "prolific_study_id", "prolific_session_id",
-            "simulated", "app_version", "manifest_sha256", *BACKGROUND_FIELDS, "background",
-            "n_responses"]
-
-
-def validate_rows(rows, *, source: str = "export") -> None:
-    """Check every row against ``response.schema.json``.
-
-    Raises
-    ------
-    SchemaError
-        Naming the row (1-based), its participant and trial, and the field.
-    """
-    for i, row in enumerate(rows, start=1):
-        where = (f"{source}: row {i} (participant {row.get('participant_id')!r}, "
-                 f"trial {row.get('trial_index')!r})")
-        validate(row, "response", source=where)
-
-
-def export_format(path, fmt: str | None = None) -> str:
-    """``"csv"`` or ``"jsonl"``: ``fmt`` if given, else from the file suffix."""
-    if fmt is not None:
-        if fmt not in ("csv", "jsonl"):
-            raise StoreError(f"unknown export format {fmt!r} (expected csv or jsonl)")
-        return fmt
-    suffix = Path(str(path)).suffix.lower()
-    if suffix not in EXPORT_FORMATS:
-        raise StoreError(f"{path}: cannot tell the format from the suffix "
-                         f"(use {', '.join(EXPORT_FORMATS)} or --format)")
-    return EXPORT_FORMATS[suffix]
-
-
-def _csv_cell(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, dict)):
-        return json.dumps(value)
-    return str(value)
-
-
-def _render(rows, columns, fmt: str) -> str:
-    buf = io.StringIO()
-    if fmt == "csv":
-        writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(columns)
-        for row in rows:
-            writer.writerow([_csv_cell(row.get(c)) for c in columns])
-    else:
-        for row in rows:
-            buf.write(json.dumps({c: row.get(c) for c in columns}, allow_nan=False) + "\n")
-    return buf.getvalue()
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write via a temp file + rename, so a failed export never leaves half a file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8", newline="")
-        os.replace(tmp, path)
-    except OSError as err:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass  # the folder itself is unusable: there is no temp file to remove
-        raise StoreError(f"cannot write {path}: {err.strerror or err}") from None
-
-
-def write_export(rows, path, *, fmt: str | None = None) -> int:
-    """Validate ``rows`` and write them to ``path`` (CSV or JSON lines); return the count.
-
-    ``path`` ``"-"`` writes to stdout. Nothing is written if any row is invalid.
-    """
-    fmt = export_format(path, fmt) if str(path) != "-" else (fmt or "csv")
-    validate_rows(rows, source=str(path))
-    text = _render(rows, export_columns(), fmt)
-    if str(path) == "-":
-        import sys
-
-        sys.stdout.write(text)
-    else:
-        _write_atomic(Path(path), text)
-    return len(rows)
-
-
-def write_participants(records, path, *, fmt: str | None = None) -> int:
-    """Write :meth:`Store.participants` records (background flattened) to CSV/JSON lines."""
-    fmt = export_format(path, fmt)
-    rows = []
-    for rec in records:
-        bg = rec.get("background") or {}
-        rows.append({**rec, **{k: _background_value(bg.get(k)) for k in BACKGROUND_FIELDS}})
-    _write_atomic(Path(path), _render(rows, participants_columns(), fmt))
-    return len(rows)
-
-
-def write_events(records, path) -> int:
-    """Write :meth:`Store.events` records as JSON lines; return the count."""
-    _write_atomic(Path(path), "".join(json.dumps(e, allow_nan=False) + "\n" for e in records))
-    return len(records)
-
-
-def _typed(name: str, text: str, spec: dict):
-    """One CSV cell back to the type the schema gives ``name``."""
-    types = spec.get("type", "string")
-    types = types if isinstance(types, list) else [types]
-    if text == "":
-        return None if "null" in types else text
-    if "array" in types:
-        return json.loads(text)
-    if "boolean" in types:
-        if text not in ("true", "false"):
-            raise SchemaError(f"{name}: expected true/false, got {text!r}")
-        return text == "true"
-    if "integer" in types:
-        return int(text)
-    if "number" in types:
-        return float(text)
-    return text
-
-
-def read_export(path, *, fmt: str | None = None, validate: bool = True) -> list[dict]:
-    """Read a file written by :func:`write_export` back into typed rows.
-
-    CSV cells are turned back into the schema's types (``shown_order`` parsed from its
-    JSON string, ``true``/``false`` to bool, empty cell to None, numbers to int/float).
-    """
-    path = Path(path)
-    fmt = export_format(path, fmt)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise StoreError(f"cannot read {path}: {err.strerror or err}") from None
-    props = load_schema("response")["properties"]
-    rows = []
-    if fmt == "jsonl":
-        for lineno, line in enumerate(text.splitlines(), start=1):
-            if line.strip():
-                try:
-                    rows.append(json.loads(line))
-                except json.JSONDecodeError as err:
-                    raise SchemaError(f"{path}:{lineno}: not valid JSON ({err.msg})") from None
-    else:
-        for lineno, rec in enumerate(csv.DictReader(io.StringIO(text, newline="")), start=2):
-            try:
-                rows.append({k: _typed(k, v, props.get(k, {})) for k, v in rec.items()})
-            except (ValueError, SchemaError) as err:
-                raise SchemaError(f"{path}:{lineno}: {err}") from None
-    if validate:
-        validate_rows(rows, source=str(path))
-    return rows
-

@@ -37,7 +37,8 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
 
     Example: snapshot export --db sqlite:///var/study.db -o responses.csv
     """
-    from ..store import Store, write_events, write_export, write_participants
+    from ..export import write_events, write_export, write_participants
+    from ..store import Store
 
     with Store(db_url, create=False) as store:
         rows = store.export_rows(include_simulated=include_simulated)

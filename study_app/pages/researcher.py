@@ -125,7 +125,7 @@ def frame_histogram_figure(rows: list[dict], sc):
 
 
 def _downloads(ctx) -> None:
-    from study_app.store import write_export
+    from study_app.export import write_export
 
     st.subheader("Export")
     rows = ctx.store.export_rows()
