@@ -51,6 +51,8 @@ class BenchCase:
     func: Callable[[BenchContext], Callable[[], object] | None]
     target_ms: float | None
     note: str
+    max_repeats: int | None = None
+    warmup: bool = True
 
 
 @dataclass
@@ -74,12 +76,17 @@ class BenchResult:
 CASES: list[BenchCase] = []
 
 
-def case(name: str, *, target_ms: float | None = None, note: str = ""):
+def case(name: str, *, target_ms: float | None = None, note: str = "",
+         max_repeats: int | None = None, warmup: bool = True):
     """Register a benchmark case (decorator). The function returns the timed callable,
-    or None to skip (e.g. data missing)."""
+    or None to skip (e.g. data missing).
+
+    ``max_repeats`` caps the timed runs of a long case (a 40 s video is timed once);
+    ``warmup=False`` skips its untimed first run.
+    """
 
     def deco(func):
-        CASES.append(BenchCase(name, func, target_ms, note))
+        CASES.append(BenchCase(name, func, target_ms, note, max_repeats, warmup))
         return func
 
     return deco
@@ -98,13 +105,15 @@ def run_cases(ctx: BenchContext, *, repeats: int = 7, only: str | None = None,
         if work is None:
             results.append(BenchResult(c.name, None, None, 0, c.target_ms, c.note or "no data"))
             continue
-        work()  # warm-up: imports, caches, JIT of BLAS paths
+        if c.warmup:
+            work()  # warm-up: imports, caches, first-touch of buffers
+        n = repeats if c.max_repeats is None else min(repeats, c.max_repeats)
         times = []
-        for _ in range(repeats):
+        for _ in range(n):
             t0 = time.perf_counter()
             work()
             times.append((time.perf_counter() - t0) * 1000.0)
-        results.append(BenchResult(c.name, min(times), statistics.median(times), repeats,
+        results.append(BenchResult(c.name, min(times), statistics.median(times), n,
                                    c.target_ms, c.note))
     return results
 
