@@ -52,9 +52,12 @@ __all__ = [
 #: Object name of the ground plane in events.
 GROUND = "ground"
 
-#: Below this many runs still being scanned, :func:`scan_interactions` walks them one
-#: at a time (scalar steps beat a round of array code on a handful of runs).
-_FEW_RUNS = 4
+#: Below this many runs still being scanned, :func:`scan_interactions` finishes them
+#: from one window of entries and walks their chains one at a time (a round of array
+#: code for a handful of runs costs more than those scalar steps).
+_FEW_RUNS = 8
+#: Targets tested one by one on Python floats after a start in those last runs.
+_SHORT = 12
 
 #: Which joints touch another character's body, and the nearest bone (the capsule
 #: geometry lives in :mod:`snapcore.capsules`; the name is kept for callers).
@@ -307,8 +310,8 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     parts = []
     for near in nears:
         cols = np.flatnonzero(near.any(axis=0))
-        jj, ff = np.nonzero(near[:, cols].T)  # joint-major, frames ascending
-        parts.append((cols.take(jj), ff))
+        jj, ff = np.divmod(np.flatnonzero(near[:, cols].T.copy()), near.shape[0])
+        parts.append((cols.take(jj), ff))  # joint-major, frames ascending
     sizes = [jl.size for jl, _ in parts]
     n = sum(sizes)
     if n == 0:
@@ -328,7 +331,7 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     for k in range(1, m):
         if cand.size == 0:
             break
-        cand = cand[dist(cand, cand + k) <= tol]
+        cand = cand[dist.ahead(cand, k) <= tol]
     if cand.size == 0:
         return found
     nxt = np.full(n + 1, n, dtype=np.int64)  # nxt[i]: first seed entry >= i
@@ -363,22 +366,27 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
         look[done] = seed.take(done) + m
         keep = seed < run_stop
         seed, run_stop, look = seed[keep], run_stop[keep], look[keep]
-    # The last few runs one at a time: scalar steps beat a round of array code here.
+    # The last few runs (the busiest: a foot sliding on the floor for the whole clip)
+    # one at a time, a round of array code costing more than these scalar steps. Most
+    # of their interactions are short: the first targets are tested one by one on
+    # Python floats, longer ones in growing slices.
     tail_s, tail_e = [], []
-    for sd, lk, end in zip(seed.tolist(), look.tolist(), run_stop.tolist()):
+    for sd, end in zip(seed.tolist(), run_stop.tolist()):
+        ahead = dist.values(sd, end)  # per entry from sd: (x, y, z, reference) or None
         while sd < end:
-            ext, w = end, width
-            while lk < end:
-                hi = min(lk + w, end)
-                far = np.flatnonzero(dist.span(sd, lk, hi) > tol)
-                if far.size:
-                    ext = lk + int(far[0])
-                    break
-                lk, w = hi, 2 * w  # long interactions: fewer, longer steps
+            ext = dist.first_far(ahead, sd, sd + m, min(sd + m + _SHORT, end), tol)
+            if ext < 0:  # not yet: walk on in slices
+                lk, ext, w = sd + m + _SHORT, end, width
+                while lk < end:
+                    hi = min(lk + w, end)
+                    far = np.flatnonzero(dist.span(sd, lk, hi) > tol)
+                    if far.size:
+                        ext = lk + int(far[0])
+                        break
+                    lk, w = hi, 2 * w
             tail_s.append(sd)
             tail_e.append(ext - 1)
             sd = int(nxt[ext])
-            lk = sd + m
     out_s.append(np.array(tail_s, dtype=np.int64))
     out_e.append(np.array(tail_e, dtype=np.int64))
     starts = np.concatenate(out_s)
@@ -432,6 +440,51 @@ class _Distances:
         d = self.rel.take(g, axis=1)
         d -= self.rel.take(s, axis=1)
         return self._fix(_norm(d), s, g)
+
+    def ahead(self, s: np.ndarray, k: int) -> np.ndarray:
+        """Distances from entries ``s`` to entries ``s + k``."""
+        if self.rel is None:
+            return self._ask(s, s + k)
+        if 4 * s.size < self.rel.shape[1]:
+            return self(s, s + k)
+        # Most entries: shifted slices instead of gathers.
+        d = _norm(self.rel[:, k:] - self.rel[:, :-k]).take(s)
+        if self.ref is not None:
+            bad = np.flatnonzero((self.ref[k:] != self.ref[:-k]).take(s))
+            if bad.size:
+                d[bad] = self._ask(s.take(bad), s.take(bad) + k)
+        return d
+
+    def values(self, lo: int, hi: int):
+        """Relative positions and references of entries ``lo .. hi - 1`` as Python
+        lists (x, y, z, reference; reference None without references), or None when
+        the displacements offer no relative positions."""
+        if self.rel is None:
+            return None
+        x, y, z = self.rel[:, lo:hi].tolist()
+        return x, y, z, (self.ref[lo:hi].tolist() if self.ref is not None else None), lo
+
+    def first_far(self, vals, s: int, lo: int, hi: int, tol: float) -> int:
+        """First entry of ``lo .. hi - 1`` farther than ``tol`` from entry ``s`` (same
+        run), tested one by one on the lists of :meth:`values`; -1 if none."""
+        if vals is None:
+            if hi <= lo:
+                return -1
+            far = np.flatnonzero(self.span(s, lo, hi) > tol)
+            return lo + int(far[0]) if far.size else -1
+        x, y, z, ref, base = vals
+        i = s - base
+        sx, sy, sz = x[i], y[i], z[i]
+        r = ref[i] if ref is not None else None
+        for t in range(lo - base, hi - base):
+            if ref is not None and ref[t] != r:
+                if self._ask(np.array([s]), np.array([t + base]))[0] > tol:
+                    return t + base
+                continue
+            dx, dy, dz = x[t] - sx, y[t] - sy, z[t] - sz
+            if math.sqrt(dx * dx + dy * dy + dz * dz) > tol:
+                return t + base
+        return -1
 
     def span(self, s: int, lo: int, hi: int) -> np.ndarray:
         """Distances from entry ``s`` to entries ``lo .. hi - 1``."""
@@ -493,20 +546,26 @@ class _BodyDisplacement:
         self.parent_of = other.skeleton.links[:, 0]
         self.y, self.rot = other.positions, other.rotations
 
-    def _rel(self, frames, j, parent):
-        return np.einsum("nki,nk->ni", self.rot[frames, parent],
-                         self.x[frames, j] - self.y[frames, parent])
+    def _rel(self, frames, j, parent) -> np.ndarray:
+        """``R_p^T (x_j - y_p)`` at ``frames``, component-first (3, n)."""
+        rows = frames * self.y.shape[1] + parent
+        r = self.rot.reshape(-1, 9).take(rows, axis=0).T  # r[3k + i] = R[k, i]
+        v = (self.x.reshape(-1, 3).take(frames * self.x.shape[1] + j, axis=0)
+             - self.y.reshape(-1, 3).take(rows, axis=0)).T
+        out = r[0:3] * v[0]
+        out += r[3:6] * v[1]
+        out += r[6:9] * v[2]
+        return out
 
     def __call__(self, j, s, g):
-        parent = self.parent_of[self.bone[s, j]]
-        d = self._rel(g, j, parent) - self._rel(s, j, parent)
-        return np.sqrt(np.einsum("ni,ni->n", d, d))
+        parent = self.parent_of.take(self.bone[s, j])
+        return _norm(self._rel(g, j, parent) - self._rel(s, j, parent))
 
     def reference(self, j, f):
         return self.parent_of.take(self.bone[f, j])
 
     def relative(self, j, f):
-        return np.ascontiguousarray(self._rel(f, j, self.reference(j, f)).T)
+        return self._rel(f, j, self.reference(j, f))
 
 
 # ----------------------------------------------------------------------- public
