@@ -27,7 +27,7 @@ BODY_BLOCK_S = 0.1
 #: so consecutive bones are neighbours in the body and a group's box stays small.
 _GROUP_SIZE = 8
 #: Rows (joint block x bone) per chunk of the narrow phase of :func:`body_near`.
-_CHUNK_ROWS = 1024
+_CHUNK_ROWS = 4096
 #: Slack (m) of the cheap squared-distance filter before the exact distance: far above
 #: its rounding error (~1e-16 m^2 for bodies of metres), far below any tolerance.
 _FILTER_SLACK = 1e-6
@@ -129,18 +129,24 @@ def _swept(z: np.ndarray, block: int):
         repeats the last frame): the narrow phase gathers whole rows.
     """
     n_f, n_j = z.shape[:2]
-    n_b = -(-n_f // block)
+    n_full, n_b = n_f // block, -(-n_f // block)
+    flat = z.reshape(n_f, n_j * 3)
+    lo, hi = np.empty((n_b, n_j * 3)), np.empty((n_b, n_j * 3))
+    if n_full:  # elementwise over the frames of the blocks: reductions over a short
+        main = flat[:n_full * block].reshape(n_full, block, n_j * 3)  # axis are slower
+        lo[:n_full], hi[:n_full] = main[:, 0], main[:, 0]
+        for k in range(1, block):
+            np.minimum(lo[:n_full], main[:, k], out=lo[:n_full])
+            np.maximum(hi[:n_full], main[:, k], out=hi[:n_full])
+    if n_b > n_full:
+        np.min(flat[n_full * block:], axis=0, out=lo[n_full])
+        np.max(flat[n_full * block:], axis=0, out=hi[n_full])
     rows = np.empty((3, n_j, n_b * block))
     rows[:, :, :n_f] = z.transpose(2, 1, 0)
     rows[:, :, n_f:] = rows[:, :, n_f - 1:n_f]
-    rows = rows.reshape(3, n_j, n_b, block)
-    # Box extremes over the block: elementwise over the block's frames (a reduction
-    # over a short last axis is ten times slower).
-    lo, hi = rows[..., 0].copy(), rows[..., 0].copy()
-    for k in range(1, block):
-        np.minimum(lo, rows[..., k], out=lo)
-        np.maximum(hi, rows[..., k], out=hi)
-    return lo, hi, rows.reshape(3, n_j * n_b, block)
+    return (np.ascontiguousarray(lo.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
+            np.ascontiguousarray(hi.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
+            rows.reshape(3, n_j * n_b, block))
 
 
 def _overlap(alo, ahi, blo, bhi) -> np.ndarray:
@@ -257,20 +263,22 @@ def body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = No
     jb3 = cand.take(n2.take(r3))  # j * B + b
     # Narrow phase, rows of ``block`` frames, in chunks whose temporaries stay in cache:
     # a cheap filter, then the exact distance of the few within reach.
-    found = [_within_reach(xrows, yrows, links, reach, jb3[s:s + _CHUNK_ROWS],
-                           link3[s:s + _CHUNK_ROWS], n_b)
-             for s in range(0, jb3.size, _CHUNK_ROWS)]
-    pts = [np.concatenate([f[i] for f in found], axis=1) for i in range(3)]  # p, a, b
-    idx = np.concatenate([f[3] + s * block for f, s in  # row * block + frame in block
-                          zip(found, range(0, jb3.size, _CHUNK_ROWS))])
-    d = _segment_distance_planes(*pts)
+    idx = np.concatenate([  # row * block + frame in block
+        _within_reach(xrows, yrows, links, reach, jb3[s:s + _CHUNK_ROWS],
+                      link3[s:s + _CHUNK_ROWS], n_b) + s * block
+        for s in range(0, jb3.size, _CHUNK_ROWS)])
     row, k = np.divmod(idx, block)
-    lk = link3.take(row)
+    lk, jb = link3.take(row), jb3.take(row)
+    b = jb % n_b
+    d = _segment_distance_planes(  # the points, gathered from the flattened rows
+        xrows.reshape(3, -1).take(jb * block + k, axis=1),
+        yrows.reshape(3, -1).take((links[:, 0].take(lk) * n_b + b) * block + k, axis=1),
+        yrows.reshape(3, -1).take((links[:, 1].take(lk) * n_b + b) * block + k, axis=1))
     d -= radii.take(lk)
     hit = np.flatnonzero(d <= gap)
     if hit.size == 0:
         return near, bone
-    d, lk, k, jb = d.take(hit), lk.take(hit), k.take(hit), jb3.take(row.take(hit))
+    d, lk, k, jb = d.take(hit), lk.take(hit), k.take(hit), jb.take(hit)
     j, b = np.divmod(jb, n_b)
     f = b * block + k
     ok = f < n_f  # not a repeat of the last frame
@@ -287,13 +295,12 @@ def body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = No
     return near, bone
 
 
-def _within_reach(xrows, yrows, links, reach, jb, link, n_b):
+def _within_reach(xrows, yrows, links, reach, jb, link, n_b) -> np.ndarray:
     """The frames of (joint row, bone) pairs where the joint may be within reach.
 
     A squared distance without branches, ``|ap|^2 - t (2 ap.ab - t |ab|^2)`` with t
     clipped to [0, 1], against the reach grown by :data:`_FILTER_SLACK`. Returns the
-    points ``p, a, b`` (each (3, m)) of the frames that pass and their index
-    ``row * block + frame in block`` (rows counted from 0 in this chunk's ``jb``).
+    flat indices ``row * block + frame in block`` that pass (rows of this chunk).
     """
     b = jb % n_b
     p = _rows(xrows, jb)  # (3, n, block)
@@ -312,9 +319,7 @@ def _within_reach(xrows, yrows, links, reach, jb, link, n_b):
     d2 -= num
     lim = reach.take(link) * (1.0 + _FILTER_SLACK)  # reach > 0 (bones that touch)
     lim *= lim
-    idx = np.flatnonzero(d2 <= lim[:, None])
-    return (*(np.stack([v[c].reshape(-1).take(idx) for c in range(3)]) for v in (p, ya, yb)),
-            idx)
+    return np.flatnonzero(d2 <= lim[:, None])
 
 
 def _rows(rows: np.ndarray, index: np.ndarray) -> np.ndarray:

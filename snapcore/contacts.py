@@ -56,8 +56,11 @@ GROUND = "ground"
 #: from one window of entries and walks their chains one at a time (a round of array
 #: code for a handful of runs costs more than those scalar steps).
 _FEW_RUNS = 8
-#: Targets tested one by one on Python floats after a start in those last runs.
-_SHORT = 12
+#: Entries after the first ``min_frames`` tested at once for every start in those
+#: last runs (longer interactions are walked on in slices).
+_BAND = 24
+#: A coordinate beyond any tolerance (m): stands for "the run has ended".
+_FAR = 1e150
 
 #: Which joints touch another character's body, and the nearest bone (the capsule
 #: geometry lives in :mod:`snapcore.capsules`; the name is kept for callers).
@@ -366,17 +369,20 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
         look[done] = seed.take(done) + m
         keep = seed < run_stop
         seed, run_stop, look = seed[keep], run_stop[keep], look[keep]
-    # The last few runs (the busiest: a foot sliding on the floor for the whole clip)
-    # one at a time, a round of array code costing more than these scalar steps. Most
-    # of their interactions are short: the first targets are tested one by one on
-    # Python floats, longer ones in growing slices.
+    # The last few runs (the busiest: a foot sliding on the floor for the whole clip),
+    # where a round of array code would finish one short interaction per run: where
+    # every entry of them would end as a start, within a band of the next entries,
+    # all at once; then their chains one at a time, walking on past the band where an
+    # interaction is longer.
     tail_s, tail_e = [], []
-    for sd, end in zip(seed.tolist(), run_stop.tolist()):
-        ahead = dist.values(sd, end)  # per entry from sd: (x, y, z, reference) or None
+    ends = dist.band_ends(seed, run_stop, m, _BAND, tol).tolist()
+    at = np.cumsum(np.r_[0, run_stop - seed]).tolist()  # each run's rows in ``ends``
+    for r, (sd, end) in enumerate(zip(seed.tolist(), run_stop.tolist())):
+        base = at[r] - sd
         while sd < end:
-            ext = dist.first_far(ahead, sd, sd + m, min(sd + m + _SHORT, end), tol)
-            if ext < 0:  # not yet: walk on in slices
-                lk, ext, w = sd + m + _SHORT, end, width
+            ext = ends[base + sd]
+            if ext < 0:  # not within the band: walk on in growing slices
+                lk, ext, w = sd + m + _BAND, end, width
                 while lk < end:
                     hi = min(lk + w, end)
                     far = np.flatnonzero(dist.span(sd, lk, hi) > tol)
@@ -455,36 +461,61 @@ class _Distances:
                 d[bad] = self._ask(s.take(bad), s.take(bad) + k)
         return d
 
-    def values(self, lo: int, hi: int):
-        """Relative positions and references of entries ``lo .. hi - 1`` as Python
-        lists (x, y, z, reference; reference None without references), or None when
-        the displacements offer no relative positions."""
-        if self.rel is None:
-            return None
-        x, y, z = self.rel[:, lo:hi].tolist()
-        return x, y, z, (self.ref[lo:hi].tolist() if self.ref is not None else None), lo
+    def band_ends(self, starts, stops, m: int, band: int, tol: float) -> np.ndarray:
+        """Where an interaction starting at each entry of some runs would end.
 
-    def first_far(self, vals, s: int, lo: int, hi: int, tol: float) -> int:
-        """First entry of ``lo .. hi - 1`` farther than ``tol`` from entry ``s`` (same
-        run), tested one by one on the lists of :meth:`values`; -1 if none."""
-        if vals is None:
-            if hi <= lo:
-                return -1
-            far = np.flatnonzero(self.span(s, lo, hi) > tol)
-            return lo + int(far[0]) if far.size else -1
-        x, y, z, ref, base = vals
-        i = s - base
-        sx, sy, sz = x[i], y[i], z[i]
-        r = ref[i] if ref is not None else None
-        for t in range(lo - base, hi - base):
-            if ref is not None and ref[t] != r:
-                if self._ask(np.array([s]), np.array([t + base]))[0] > tol:
-                    return t + base
-                continue
-            dx, dy, dz = x[t] - sx, y[t] - sy, z[t] - sz
-            if math.sqrt(dx * dx + dy * dy + dz * dz) > tol:
-                return t + base
-        return -1
+        For every entry ``i`` of ``starts[r] .. stops[r] - 1`` of each run r (runs
+        concatenated): the first entry of ``i + m .. i + m + band - 1`` farther than
+        ``tol`` from ``i``, or ``stops[r]`` when the run ends first; -1 if neither.
+        """
+        lengths = stops - starts
+        total = int(lengths.sum())
+        if total == 0:
+            return np.zeros(0, dtype=np.int64)
+        gap = m + band  # columns after each run standing for its end
+        first = np.cumsum(np.r_[0, lengths[:-1] + gap])  # each run's first column
+        col = np.arange(total) + np.repeat(first - np.cumsum(np.r_[0, lengths[:-1]]), lengths)
+        entry = np.arange(total) + np.repeat(starts - np.cumsum(np.r_[0, lengths[:-1]]), lengths)
+        n_cols = int(first[-1] + lengths[-1] + gap)
+        if self.rel is None:  # ask the displacements for each offset in the band
+            far = np.ones((total, band), dtype=bool)
+            stop_of = np.repeat(stops, lengths)
+            for k in range(band):
+                t = entry + m + k
+                inside = np.flatnonzero(t < stop_of)
+                far[inside, k] = self._ask(entry.take(inside), t.take(inside)) > tol
+        else:
+            from numpy.lib.stride_tricks import sliding_window_view
+
+            # The runs side by side with far-away columns between them (beyond every
+            # tolerance: the end of the run), so the band is a view, not a gather.
+            buf = np.full((3, n_cols), _FAR)
+            buf[:, col] = self.rel.take(entry, axis=1)
+            d = sliding_window_view(buf, band, axis=1)[:, m:m + n_cols - gap] - buf[:, :n_cols - gap, None]
+            d *= d
+            d2 = d[0] + d[1]
+            d2 += d[2]
+            far = (np.sqrt(d2, out=d2) > tol)[col]  # (total, band)
+            if self.ref is not None:
+                ref = self.ref.take(entry)
+                row0 = np.cumsum(np.r_[0, lengths[:-1]])  # each run's first row
+                varies = np.flatnonzero(np.minimum.reduceat(ref, row0)
+                                        != np.maximum.reduceat(ref, row0))
+                if varies.size:  # a joint slid to another bone: ask where references differ
+                    stop_of = np.repeat(stops, lengths)
+                    for r in varies.tolist():
+                        rows = np.arange(row0[r], row0[r] + lengths[r])
+                        t = entry.take(rows)[:, None] + m + np.arange(band)
+                        ok = t < stop_of.take(rows)[:, None]
+                        bad = ok & (self.ref.take(np.minimum(t, self.ref.size - 1)) != ref.take(rows)[:, None])
+                        i, k = np.nonzero(bad)
+                        if i.size:
+                            far[rows[i], k] = self._ask(entry.take(rows[i]), t[i, k]) > tol
+        k = far.argmax(axis=1)
+        ends = entry + m + k
+        np.minimum(ends, np.repeat(stops, lengths), out=ends)
+        ends[~far[np.arange(total), k]] = -1
+        return ends
 
     def span(self, s: int, lo: int, hi: int) -> np.ndarray:
         """Distances from entry ``s`` to entries ``lo .. hi - 1``."""
@@ -665,7 +696,7 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             nears.append(prop_distance(x, prop) <= tol.prop_distance)
             displacements.append(static)
     events: list[Event] = []
-    spans: list[list] = [[] for _ in scene.characters]  # (joints, starts, ends) per character
+    active = [np.zeros((n_f, c.n_joints), dtype=bool) for c in scene.characters]
     for (ci, name, touched), (js, ss, es) in zip(problems, _scan(nears, displacements, m,
                                                                  tol.displacement)):
         if merge:
@@ -675,24 +706,11 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             bone, other = touched
             names = other.joint_names
             parts = [names[p] for p in other.skeleton.links[bone[ss, js], 0].tolist()]
-        events.extend(_events(ci, name, js, ss, es, parts))
-        spans[ci].append((js, ss, es))
-    active = [_active(n_f, c.n_joints, spans[ci]) for ci, c in enumerate(scene.characters)]
+        act = active[ci]
+        for j, s, e, part in zip(js.tolist(), ss.tolist(), es.tolist(), parts):
+            events.append(Event(ci, j, name, s, e, part))
+            act[s:e + 1, j] = True
     rank = {name: i for i, name in enumerate(objects)}
     events.sort(key=lambda e: (e.character, rank.get(e.object, 0), e.joint, e.start))
     timings = {"contacts": time.perf_counter() - t0}
     return Interactions(events, active, objects, n_f, float(scene.fps), tol, timings)
-
-
-def _events(ci: int, name: str, js, ss, es, parts) -> list[Event]:
-    return [Event(ci, j, name, s, e, part)
-            for j, s, e, part in zip(js.tolist(), ss.tolist(), es.tolist(), parts)]
-
-
-def _active(n_f: int, n_j: int, spans: list) -> np.ndarray:
-    """Frames (F, J) inside any of the interactions ``spans`` (joints, starts, ends)."""
-    count = np.zeros((n_f + 1) * n_j, dtype=np.int32)
-    for js, ss, es in spans:
-        np.add.at(count, ss * n_j + js, 1)
-        np.add.at(count, (es + 1) * n_j + js, -1)
-    return np.cumsum(count.reshape(n_f + 1, n_j)[:n_f], axis=0) > 0
