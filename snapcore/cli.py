@@ -89,6 +89,9 @@ def cli():
     """
     if not os.environ.get("SNAPSHOT_DEBUG"):
         warnings.showwarning = _one_line_warning
+    from ._memory import tune_allocator
+
+    tune_allocator()  # reuse freed NumPy temporaries instead of page-faulting fresh ones
 
 
 def main(argv=None) -> int:
