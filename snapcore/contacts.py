@@ -61,6 +61,9 @@ _FEW_RUNS = 8
 _BAND = 24
 #: A coordinate beyond any tolerance (m): stands for "the run has ended".
 _FAR = 1e150
+#: Relative margin below the displacement tolerance within which a path length proves
+#: a seed without testing it (far above the rounding of the sums, 1e-13 m).
+_PATH_MARGIN = 1e-6
 
 #: Which joints touch another character's body, and the nearest bone (the capsule
 #: geometry lives in :mod:`snapcore.capsules`; the name is kept for callers).
@@ -345,27 +348,22 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     seed, run_stop = seed[keep], run_stop[keep]
     look = seed + m  # next entry to test; the seed condition covers those before it
     width = max(4 * m, 16)  # entries tested per run and round
+    offsets = np.arange(width)
     out_s, out_e = [], []  # first and last entry of each interaction
     while seed.size > _FEW_RUNS:
-        length = np.minimum(run_stop - look, width)
-        total = int(length.sum())
-        ext = np.full(seed.size, -1, dtype=np.int64)  # first failing entry, if found
-        if total:
-            seg = np.repeat(np.arange(seed.size), length)
-            target = np.arange(total) + np.repeat(look - (np.cumsum(length) - length), length)
-            hit = np.flatnonzero(dist(seed.take(seg), target) > tol)
-            if hit.size:  # sorted: each run's first hit first
-                seg_hit = seg.take(hit)
-                firsts = np.flatnonzero(np.r_[True, seg_hit[1:] != seg_hit[:-1]])
-                ext[seg_hit.take(firsts)] = target.take(hit.take(firsts))
-        exhausted = (ext < 0) & (look + length >= run_stop)  # held to the end of the run
-        ext[exhausted] = run_stop[exhausted]
-        done = np.flatnonzero(ext >= 0)
+        target = look[:, None] + offsets  # (runs, width)
+        beyond = target >= run_stop[:, None]  # past the run: where it ends
+        np.minimum(target, n - 1, out=target)
+        far = dist.far(seed, target, beyond, tol)
+        far |= beyond
+        k = far.argmax(axis=1)
+        done = np.flatnonzero(far.reshape(-1).take(k + offsets.size * np.arange(seed.size)))
+        ext = look.take(done) + k.take(done)  # first entry not in the interaction
         out_s.append(seed.take(done))
-        out_e.append(ext.take(done) - 1)
+        out_e.append(ext - 1)
         # Finished runs seek their next seed, the others look further.
-        look += length
-        seed[done] = nxt.take(ext.take(done))
+        look += width
+        seed[done] = nxt.take(ext)
         look[done] = seed.take(done) + m
         keep = seed < run_stop
         seed, run_stop, look = seed[keep], run_stop[keep], look[keep]
@@ -418,7 +416,7 @@ class _Distances:
     def __init__(self, displacements, sizes, prob, joint, frame):
         self.displacements, self.prob, self.joint, self.frame = displacements, prob, joint, frame
         self.offsets = np.cumsum([0] + list(sizes))
-        self.rel = self.ref = None
+        self.rel = self.ref = self.path = self.changes = None
         if all(hasattr(d, "relative") for d in displacements):
             bounds = list(zip(self.offsets[:-1], self.offsets[1:]))
             self.rel = np.concatenate([d.relative(joint[a:b], frame[a:b])
@@ -431,11 +429,16 @@ class _Distances:
 
     def _ask(self, s: np.ndarray, g: np.ndarray) -> np.ndarray:
         """Distances from the displacements themselves (entries ``s``, ``g``)."""
-        out = np.empty(s.size)
+        if s.size == 0:
+            return np.zeros(0)
         prob = self.prob.take(s)
+        if prob.min() == prob.max():  # the usual case: one problem
+            p = int(prob[0])
+            return self.displacements[p](self.joint.take(s), self.frame.take(s), self.frame.take(g))
+        out = np.empty(s.size)
         for p in np.unique(prob).tolist():
-            sel = np.flatnonzero(prob == p) if len(self.displacements) > 1 else slice(None)
-            ss, gg = s[sel], g[sel]
+            sel = np.flatnonzero(prob == p)
+            ss, gg = s.take(sel), g.take(sel)
             out[sel] = self.displacements[p](self.joint.take(ss), self.frame.take(ss),
                                              self.frame.take(gg))
         return out
@@ -446,6 +449,40 @@ class _Distances:
         d = self.rel.take(g, axis=1)
         d -= self.rel.take(s, axis=1)
         return self._fix(_norm(d), s, g)
+
+    def far(self, s: np.ndarray, t: np.ndarray, skip: np.ndarray, tol: float) -> np.ndarray:
+        """``distance(s[r], t[r, c]) > tol`` for entries ``s (R,)``, ``t (R, W)``; pairs
+        where ``skip`` is set may be anything (not asked of the displacements)."""
+        if self.rel is None:
+            out = np.ones(t.shape, dtype=bool)
+            r, c = np.nonzero(~skip)
+            out[r, c] = self._ask(s.take(r), t[r, c]) > tol
+            return out
+        d = self.rel.take(t, axis=1)  # (3, R, W)
+        d -= self.rel.take(s, axis=1)[:, :, None]
+        d = _norm(d)
+        if self.ref is not None:
+            r, c = np.nonzero((self.ref.take(t) != self.ref.take(s)[:, None]) & ~skip)
+            if r.size:
+                d[r, c] = self._ask(s.take(r), t[r, c])
+        return d > tol
+
+    def within_path(self, s: np.ndarray, k: int, tol: float) -> np.ndarray:
+        """Entries ``s`` whose next ``k`` entries are certainly within ``tol`` of them:
+        the path through them is shorter (triangle inequality), all in one reference
+        frame. ``s + k`` must lie in the same run. False where unsure."""
+        if self.rel is None or s.size == 0:
+            return np.zeros(s.size, dtype=bool)
+        if self.path is None:
+            step = _norm(self.rel[:, 1:] - self.rel[:, :-1])
+            self.path = np.concatenate([[0.0], np.cumsum(step)])  # path length to entry i
+            if self.ref is not None:  # reference changes up to entry i
+                self.changes = np.concatenate([[0], np.cumsum(self.ref[1:] != self.ref[:-1])])
+        # The margin covers rounding in the sums (1e-13 of metres over a whole scene).
+        sure = self.path.take(s + k) - self.path.take(s) <= tol * (1.0 - _PATH_MARGIN)
+        if self.ref is not None:
+            sure &= self.changes.take(s + k) == self.changes.take(s)
+        return sure
 
     def ahead(self, s: np.ndarray, k: int) -> np.ndarray:
         """Distances from entries ``s`` to entries ``s + k``."""
@@ -589,8 +626,10 @@ class _BodyDisplacement:
         return out
 
     def __call__(self, j, s, g):
-        parent = self.parent_of.take(self.bone[s, j])
-        return _norm(self._rel(g, j, parent) - self._rel(s, j, parent))
+        n = np.size(j)
+        parent = np.tile(self.parent_of.take(self.bone[s, j]), 2)
+        rel = self._rel(np.concatenate([g, s]), np.tile(j, 2), parent)  # both frames at once
+        return _norm(rel[:, :n] - rel[:, n:])
 
     def reference(self, j, f):
         return self.parent_of.take(self.bone[f, j])
