@@ -362,8 +362,12 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
     p = np.zeros(n_f)
     if not weight.any() or n_f < 3:
         return p
-    n_j = weight.size
     pos, rot = character.positions, character.local_rotations
+    limbs = np.flatnonzero(weight > 0)
+    skip = limbs.size < 0.9 * weight.size  # joints without a limb add exactly 0
+    if skip:
+        pos, weight = pos.take(limbs, axis=1), weight.take(limbs)
+    n_j = weight.size
     w = _window_frames(smooth_s, character.fps, n_f, SAVGOL_POLYORDER) if smooth_s > 0 else 0
     h = w // 2
     if w:
@@ -407,7 +411,8 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         chord *= moving[1:] & moving[:-1]
         # rotation change from frame i to i+1 for i = a+1 .. b (see rotation_change),
         # as half the angle: arcsin(|dR| / (2 sqrt 2))
-        r = rot[a + 1:b + 2].reshape(b + 1 - a, n_j * 9)
+        r = rot[a + 1:b + 2]
+        r = (r.take(limbs, axis=1) if skip else r).reshape(b + 1 - a, n_j * 9)
         d = r[1:] - r[:-1]
         d *= d
         s = np.sqrt(d.reshape(-1, 9) @ ones9)
