@@ -334,10 +334,7 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     dist = _Distances(displacements, sizes, prob, joint, frame)
     # Seeds: m near frames in a row with every relative position within tolerance.
     cand = np.flatnonzero(stop - np.arange(n) >= m)
-    for k in range(1, m):
-        if cand.size == 0:
-            break
-        cand = cand[dist.ahead(cand, k) <= tol]
+    cand = cand[dist.still(cand, m, tol)]
     if cand.size == 0:
         return found
     nxt = np.full(n + 1, n, dtype=np.int64)  # nxt[i]: first seed entry >= i
@@ -443,13 +440,6 @@ class _Distances:
                                              self.frame.take(gg))
         return out
 
-    def __call__(self, s: np.ndarray, g: np.ndarray) -> np.ndarray:
-        if self.rel is None:
-            return self._ask(s, g)
-        d = self.rel.take(g, axis=1)
-        d -= self.rel.take(s, axis=1)
-        return self._fix(_norm(d), s, g)
-
     def far(self, s: np.ndarray, t: np.ndarray, skip: np.ndarray, tol: float) -> np.ndarray:
         """``distance(s[r], t[r, c]) > tol`` for entries ``s (R,)``, ``t (R, W)``; pairs
         where ``skip`` is set may be anything (not asked of the displacements)."""
@@ -484,19 +474,30 @@ class _Distances:
             sure &= self.changes.take(s + k) == self.changes.take(s)
         return sure
 
-    def ahead(self, s: np.ndarray, k: int) -> np.ndarray:
-        """Distances from entries ``s`` to entries ``s + k``."""
+    def still(self, s: np.ndarray, m: int, tol: float) -> np.ndarray:
+        """Entries ``s`` whose next ``m - 1`` entries (in their run) all lie within
+        ``tol`` of them, shape (len(s),) of bool."""
+        ok = np.ones(s.size, dtype=bool)
         if self.rel is None:
-            return self._ask(s, s + k)
-        if 4 * s.size < self.rel.shape[1]:
-            return self(s, s + k)
-        # Most entries: shifted slices instead of gathers.
-        d = _norm(self.rel[:, k:] - self.rel[:, :-k]).take(s)
-        if self.ref is not None:
-            bad = np.flatnonzero((self.ref[k:] != self.ref[:-k]).take(s))
-            if bad.size:
-                d[bad] = self._ask(s.take(bad), s.take(bad) + k)
-        return d
+            for k in range(1, m):
+                idx = np.flatnonzero(ok)
+                ok[idx] = self._ask(s.take(idx), s.take(idx) + k) <= tol
+            return ok
+        n = self.rel.shape[1]
+        within, bad = [], []
+        for k in range(1, m):  # shifted slices, no gathers
+            within.append(_norm(self.rel[:, k:] - self.rel[:, :-k]).take(s) <= tol)
+            if self.ref is not None:  # pairs in different reference frames
+                bad.append(np.flatnonzero((self.ref[k:] != self.ref[:n - k]).take(s)))
+        if bad and sum(b.size for b in bad):  # ask those all at once
+            i = np.concatenate(bad)
+            k = np.repeat(np.arange(1, m), [b.size for b in bad])
+            asked = self._ask(s.take(i), s.take(i) + k) <= tol
+            for kk, b, a in zip(range(1, m), bad, np.split(asked, np.cumsum([b.size for b in bad])[:-1])):
+                within[kk - 1][b] = a
+        for w in within:
+            ok &= w
+        return ok
 
     def band_ends(self, starts, stops, m: int, band: int, tol: float) -> np.ndarray:
         """Where an interaction starting at each entry of some runs would end.
@@ -564,13 +565,6 @@ class _Distances:
             bad = np.flatnonzero(self.ref[lo:hi] != self.ref[s])
             if bad.size:
                 d[bad] = self._ask(np.full(bad.size, s), bad + lo)
-        return d
-
-    def _fix(self, d, s, g):
-        if self.ref is not None:
-            bad = np.flatnonzero(self.ref.take(s) != self.ref.take(g))
-            if bad.size:
-                d[bad] = self._ask(s.take(bad), g.take(bad))
         return d
 
 
