@@ -265,7 +265,9 @@ def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOO
         length = np.sqrt((e * e).reshape(-1, 3) @ ones).reshape(-1, n_j)
         moving = length >= floor
         e = e.reshape(-1, n_j, 3)
-        e /= np.where(moving, length, 1.0)[..., None]  # unit tangents
+        # the same division, but by a contiguous array (a broadcast over a last axis of
+        # 3 runs element by element)
+        e /= np.repeat(np.where(moving, length, 1.0), 3).reshape(e.shape)  # unit tangents
         dt = e[1:] - e[:-1]
         chord = np.sqrt((dt * dt).reshape(-1, 3) @ ones).reshape(-1, n_j)
         chord *= 0.5
@@ -404,7 +406,9 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         length = np.sqrt(np.square(e).reshape(-1, 3) @ ones3).reshape(-1, n_j)
         moving = length >= floor
         e = e.reshape(-1, n_j, 3)
-        e /= np.where(moving, length, 1.0)[..., None]
+        # the same division, but by a contiguous array (a broadcast over a last axis of
+        # 3 runs element by element)
+        e /= np.repeat(np.where(moving, length, 1.0), 3).reshape(e.shape)
         dt = e[1:] - e[:-1]
         dt *= dt
         chord = np.sqrt(dt.reshape(-1, 3) @ ones3).reshape(-1, n_j)
