@@ -61,9 +61,6 @@ _FEW_RUNS = 8
 _BAND = 24
 #: A coordinate beyond any tolerance (m): stands for "the run has ended".
 _FAR = 1e150
-#: Relative margin below the displacement tolerance within which a path length proves
-#: a seed without testing it (far above the rounding of the sums, 1e-13 m).
-_PATH_MARGIN = 1e-6
 
 #: Which joints touch another character's body, and the nearest bone (the capsule
 #: geometry lives in :mod:`snapcore.capsules`; the name is kept for callers).
@@ -304,12 +301,15 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     joint, then frame); an uninterrupted stretch of nearness of one joint is a *run*
     of consecutive entries. Seeds (start frames) are found for all entries at once.
     The propagation runs in rounds over all runs of all problems together, each round
-    testing the next frames after every run's current start; a run whose interaction
-    ended seeks its next seed. The Python loop count is about the number of
-    interactions in the busiest run, not the number of frames; the last few runs (a
-    foot sliding on the floor for the whole clip, say) are walked one at a time.
-    Relative positions come once per entry (``relative``) where the displacements
-    offer them, so the tests are differences of contiguous slices.
+    testing a window of the next entries after every run's current start; a run whose
+    interaction ended seeks its next seed. The Python loop count is about the number
+    of interactions in the busiest runs, not the number of frames. The last few runs
+    (a foot sliding on the floor for the whole clip, say) hold many short
+    interactions in a row: for them, where an interaction starting at each of their
+    entries would end is found at once within a band of entries, and their chains are
+    then followed in Python. Relative positions come once per entry (``relative``)
+    where the displacements offer them, so the tests are differences of slices and
+    gathers of one array.
     """
     empty = np.zeros(0, dtype=np.int64)
     found = [(empty, empty, empty)] * len(nears)
@@ -413,7 +413,7 @@ class _Distances:
     def __init__(self, displacements, sizes, prob, joint, frame):
         self.displacements, self.prob, self.joint, self.frame = displacements, prob, joint, frame
         self.offsets = np.cumsum([0] + list(sizes))
-        self.rel = self.ref = self.path = self.changes = None
+        self.rel = self.ref = None
         if all(hasattr(d, "relative") for d in displacements):
             bounds = list(zip(self.offsets[:-1], self.offsets[1:]))
             self.rel = np.concatenate([d.relative(joint[a:b], frame[a:b])
@@ -456,23 +456,6 @@ class _Distances:
             if r.size:
                 d[r, c] = self._ask(s.take(r), t[r, c])
         return d > tol
-
-    def within_path(self, s: np.ndarray, k: int, tol: float) -> np.ndarray:
-        """Entries ``s`` whose next ``k`` entries are certainly within ``tol`` of them:
-        the path through them is shorter (triangle inequality), all in one reference
-        frame. ``s + k`` must lie in the same run. False where unsure."""
-        if self.rel is None or s.size == 0:
-            return np.zeros(s.size, dtype=bool)
-        if self.path is None:
-            step = _norm(self.rel[:, 1:] - self.rel[:, :-1])
-            self.path = np.concatenate([[0.0], np.cumsum(step)])  # path length to entry i
-            if self.ref is not None:  # reference changes up to entry i
-                self.changes = np.concatenate([[0], np.cumsum(self.ref[1:] != self.ref[:-1])])
-        # The margin covers rounding in the sums (1e-13 of metres over a whole scene).
-        sure = self.path.take(s + k) - self.path.take(s) <= tol * (1.0 - _PATH_MARGIN)
-        if self.ref is not None:
-            sure &= self.changes.take(s + k) == self.changes.take(s)
-        return sure
 
     def still(self, s: np.ndarray, m: int, tol: float) -> np.ndarray:
         """Entries ``s`` whose next ``m - 1`` entries (in their run) all lie within
