@@ -726,8 +726,9 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
         for j, s, e, part in zip(js.tolist(), ss.tolist(), es.tolist(), parts):
             events.append(_event(ci, j, name, s, e, part))
             act[s:e + 1, j] = True
-    rank = {name: i for i, name in enumerate(objects)}
-    events.sort(key=lambda e: (e.character, rank.get(e.object, 0), e.joint, e.start))
+    if len(set(objects)) < len(objects):  # else already in order: problems were made
+        rank = {name: i for i, name in enumerate(objects)}  # by character and object
+        events.sort(key=lambda e: (e.character, rank.get(e.object, 0), e.joint, e.start))
     timings = {"contacts": time.perf_counter() - t0}
     return Interactions(events, active, objects, n_f, float(scene.fps), tol, timings)
 
