@@ -28,8 +28,9 @@ BODY_BLOCK_S = 0.1
 _GROUP_SIZE = 8
 #: Rows (joint block x bone) per chunk of the narrow phase of :func:`body_near`.
 _CHUNK_ROWS = 4096
-#: Slack (m) of the cheap squared-distance filter before the exact distance: far above
-#: its rounding error (~1e-16 m^2 for bodies of metres), far below any tolerance.
+#: Relative slack of the reach in the cheap squared-distance filter before the exact
+#: distance: far above the filter's rounding (~1e-15 of the squared body size), far
+#: below any tolerance; the exact distance decides.
 _FILTER_SLACK = 1e-6
 
 
