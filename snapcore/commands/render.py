@@ -48,6 +48,18 @@ def _note(text: str) -> None:
     click.echo(text, err=True)
 
 
+def _frame_option(scene, frame, *, views: bool):
+    """Internal frame of ``--frame`` (source numbering), else the selected pose.
+
+    Returns ``(index, picks)``; ``picks`` is the pipeline's result when it ran, else None.
+    """
+    if frame is not None:
+        return _internal(scene, frame), None
+    picks = pipeline_picks(scene, views=views)
+    _note(f"frame {int(scene.source_frame(picks['frame']))} ({picks['how']})")
+    return picks["frame"], picks
+
+
 def _optional(module: str, name: str):
     """``snapcore.<module>.<name>`` or None when that module is absent or broken (other
     parts of the suite are optional here: the picture falls back to a default)."""
@@ -170,12 +182,7 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
 
     w, h = parse_size(size)
     scene = scene_from_options(paths, fps, scale)
-    if frame is None:
-        picks = pipeline_picks(scene, views=False)
-        i = picks["frame"]
-        _note(f"frame {int(scene.source_frame(i))} ({picks['how']})")
-    else:
-        i = _internal(scene, frame)
+    i, _ = _frame_option(scene, frame, views=False)
     v, how = _view_option(view, scene)
     _note(f"view {np.round(v, 3).tolist()} ({how})")
     img = render_still(scene, i, v, size=(w, h), projection="perspective" if perspective
@@ -316,12 +323,7 @@ def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare
                   shadows=not (no_shadows or no_ground))
     picks = None
     if views_text or compare:
-        if frame is None:
-            picks = pipeline_picks(scene, views=compare)
-            i = picks["frame"]
-            _note(f"frame {int(scene.source_frame(i))} ({picks['how']})")
-        else:
-            i = _internal(scene, frame)
+        i, picks = _frame_option(scene, frame, views=compare)
         if views_text:
             views = dict(_parse_named_view(t) for t in views_text)
         else:
