@@ -192,7 +192,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
     end_site: list[bool] = []
     name_line: dict[str, int] = {}
 
-    def joint(parent: int, keyword_line: int) -> None:
+    def joint(parent: int) -> None:
         name, line = tk.next("a joint name")
         if name in ("{", "}", "OFFSET", "CHANNELS"):
             raise BVHError(f"expected a joint name, found '{name}'", path=path, line=line)
@@ -210,7 +210,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
         tk.expect("{")
         tk.expect("OFFSET")
         offsets.append(tuple(tk.number(f"OFFSET {ax} of joint '{name}'") for ax in "xyz"))
-        chan_line = tk.expect("CHANNELS")
+        tk.expect("CHANNELS")
         n_tok, n_line = tk.next("the channel count")
         try:
             n = int(n_tok)
@@ -238,7 +238,6 @@ def _parse_hierarchy(lines: list[str], path: str | None):
             if c in chans:
                 raise BVHError(f"channel '{c}' repeated in joint '{name}'", path=path, line=c_line)
             chans.append(c)
-        del chan_line
         channels.append(tuple(chans))
         n_end = 0
         while True:
@@ -246,7 +245,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
             if tok == "}":
                 return
             if tok == "JOINT":
-                joint(index, line)
+                joint(index)
             elif tok == "End":
                 tk.expect("Site")
                 tk.expect("{")
@@ -276,10 +275,10 @@ def _parse_hierarchy(lines: list[str], path: str | None):
     tok, line = tk.next("'ROOT'")
     if tok != "ROOT":
         raise BVHError(f"expected 'ROOT', found '{tok}'", path=path, line=line)
-    joint(-1, line)
+    joint(-1)
     while tk.peek() == "ROOT":
-        _, line = tk.next("'ROOT'")
-        joint(-1, line)
+        tk.next("'ROOT'")
+        joint(-1)
     if tk.peek() is not None:
         tok, line = tk.next("end of hierarchy")
         raise BVHError(f"expected 'MOTION' after the hierarchy, found '{tok}'", path=path, line=line)
