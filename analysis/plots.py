@@ -47,6 +47,13 @@ def _plt():
     return plt
 
 
+def _figure_axes(ax, figsize):
+    """``(figure, axes)``: the given axes and its figure, or a new constrained figure."""
+    if ax is not None:
+        return ax.figure, ax
+    return _plt().subplots(figsize=figsize, layout="constrained")
+
+
 def _grid(n: int, *, ncols: int = 3, size=(4.2, 2.9)):
     plt = _plt()
     ncols = max(1, min(ncols, n))
@@ -87,14 +94,10 @@ def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
     labels : dict, optional
         Scene id → display name.
     """
-    plt = _plt()
     labels = labels or {}
     scenes = list(dict.fromkeys(table["scene"]))
     methods = list(dict.fromkeys(table["method"]))
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(max(6.0, 1.5 * len(scenes) + 2), 3.8), layout="constrained")
-    else:
-        fig = ax.figure
+    fig, ax = _figure_axes(ax, (max(6.0, 1.5 * len(scenes) + 2), 3.8))
     width = 0.8 / len(methods)
     x = np.arange(len(scenes))
     for j, m in enumerate(methods):
@@ -128,14 +131,10 @@ def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
 
 def plot_strengths(strengths: pd.DataFrame, *, labels: dict | None = None, ax=None):
     """Luce strengths (choice probability when all three are shown) with bootstrap CIs."""
-    plt = _plt()
     labels = labels or {}
     scenes = list(dict.fromkeys(strengths["scene"]))
     methods = list(dict.fromkeys(strengths["method"]))
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(scenes) + 2), 3.6), layout="constrained")
-    else:
-        fig = ax.figure
+    fig, ax = _figure_axes(ax, (max(6.0, 1.3 * len(scenes) + 2), 3.6))
     y = np.arange(len(scenes))[::-1]
     for j, m in enumerate(methods):
         t = strengths[strengths["method"] == m].set_index("scene").reindex(scenes)
@@ -268,11 +267,7 @@ def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | N
 
     ``n_needed`` (e.g. :func:`analysis.power.sample_size`'s ``n_stable``) is marked.
     """
-    plt = _plt()
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
-    else:
-        fig = ax.figure
+    fig, ax = _figure_axes(ax, (6, 3.6))
     ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS["ours"],
             label="ours beats the baseline (exact binomial, corrected level)")
     ax.plot(curve["n"], curve["power_chisquare"], color="#555555", ls="--",
