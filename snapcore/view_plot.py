@@ -41,6 +41,12 @@ _TITLES = {
 MAP_SIZE = (360, 180)
 
 
+def _check_projection(projection: str) -> None:
+    """Refuse an unknown map projection before any work is done."""
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+
+
 def _pyplot():
     import matplotlib
 
@@ -103,8 +109,7 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
     -------
     Figure
     """
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+    _check_projection(projection)
     plt = _pyplot()
     if ax is None:
         fig = plt.figure(figsize=(8, 4.4))
@@ -210,8 +215,7 @@ def plot_views(scene, *, frame: int, window_s: float | None = None, n_views: int
     -------
     Figure
     """
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+    _check_projection(projection)
     plt = _pyplot()
     if maps is None:
         maps = view_maps(scene, frame=frame, window_s=window_s, n_views=n_views, entropy=entropy)
