@@ -15,7 +15,6 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..errors import SnapshotError
 from .common import parse_vector, scene_arguments, scene_from_options
 
 __all__ = ["render", "video", "sheet", "parse_size", "pipeline_picks"]
@@ -60,73 +59,36 @@ def _frame_option(scene, frame, *, views: bool):
     return picks["frame"], picks
 
 
-def _optional(module: str, name: str):
-    """``snapcore.<module>.<name>`` or None when that module is absent or broken (other
-    parts of the suite are optional here: the picture falls back to a default)."""
-    import importlib
-
-    try:
-        return getattr(importlib.import_module(f"snapcore.{module}"), name)
-    except ImportError:
-        return None
-    except Exception as err:  # a module that fails to import must not break pictures
-        _note(f"note: snapcore.{module} unavailable ({type(err).__name__}: {err})")
-        return None
-
-
 def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = True) -> dict:
-    """What the pipeline picks for a scene, as far as the installed modules go.
+    """What the pipeline (:func:`snapcore.snapshot.take_snapshot`) picks for a scene.
 
-    Uses :func:`snapcore.snapshot.take_snapshot` (pose entropy; its ``view`` and
-    ``baselines`` once the view stage fills them), falling back to
-    :func:`snapcore.view.select_view` for views it lacks, and to the middle frame /
-    no views when neither module is available. ``views=False`` skips the view stage,
-    ``baselines=False`` the two baseline views.
+    ``views=False`` skips the view stage, ``baselines=False`` the two baseline views
+    (viewpoint entropy renders the body: the slow part). The pipeline's warnings (a
+    static clip, a skipped baseline) are silenced: pictures only need the picks.
 
     Returns
     -------
     dict
         ``frame`` (internal), ``frames`` (top-k, internal), ``entropy`` (total pose
-        entropy of each of ``frames`` or None), ``views`` (``{"ours": v, "viewpoint
-        entropy": v, "motion area": v}`` as available), ``how`` (one line).
+        entropy of each of ``frames``), ``views`` (``{"ours": v, "viewpoint entropy": v,
+        "motion area": v}`` as computed, unit vectors), ``how`` (one line).
     """
-    out = {"frame": scene.n_frames // 2, "frames": [scene.n_frames // 2], "entropy": None,
-           "views": {}, "how": "middle frame"}
-    take_snapshot = _optional("snapshot", "take_snapshot")
-    snap = None
-    if take_snapshot is not None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                snap = take_snapshot(scene, k=k, view=views, baselines=baselines)
-            except TypeError:  # a pipeline without the view stage
-                snap = take_snapshot(scene, k=k)
-        out.update(frame=int(snap.index), frames=[int(i) for i in snap.indices],
-                   entropy=[float(snap.pose.entropy.total[i]) for i in snap.indices],
-                   how="selected pose")
+    from ..snapshot import take_snapshot
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
+    out = {"frame": int(snap.index), "frames": [int(i) for i in snap.indices],
+           "entropy": [float(snap.pose.entropy.total[i]) for i in snap.indices],
+           "views": {}, "how": "selected pose"}
     if not views:
         return out
-    found = {}
-    if snap is not None and getattr(snap, "view", None) is not None:
-        found["ours"] = snap.view
-    base = (getattr(snap, "baselines", None) or {}) if snap is not None else {}
+    found = {"ours": snap.view}
     for key, label in (("viewpoint_entropy", "viewpoint entropy"), ("motion_area", "motion area")):
-        b = base.get(key)
-        if isinstance(b, dict):
-            b = b.get("view")
-        if b is not None:
-            found[label] = b
-    select_view = _optional("view", "select_view")
-    if select_view is not None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            if "ours" not in found:
-                found["ours"] = select_view(scene).view
-            if baselines and "motion area" not in found:
-                found["motion area"] = select_view(scene, method="motion_area").view
-    order = ("ours", "viewpoint entropy", "motion area")
-    out["views"] = {n: np.asarray(found[n], float) / np.linalg.norm(found[n])
-                    for n in order if n in found}
+        base = (snap.baselines or {}).get(key)
+        if base is not None:
+            found[label] = base["view"]
+    out["views"] = {n: np.asarray(v, float) / np.linalg.norm(v) for n, v in found.items()}
     return out
 
 
@@ -138,10 +100,8 @@ def _view_option(text, scene, *, default="auto"):
     if text == "default":
         return default_view(scene), "default 3/4 view"
     if text == "auto":
-        views = pipeline_picks(scene, baselines=False)["views"]
-        if "ours" in views:
-            return views["ours"], "selected view (projected motion area)"
-        return default_view(scene), "default 3/4 view (no view selection available)"
+        view = pipeline_picks(scene, baselines=False)["views"]["ours"]
+        return view, "selected view (projected motion area)"
     return parse_vector(text, "--view"), "given view"
 
 
@@ -328,9 +288,6 @@ def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare
             views = dict(_parse_named_view(t) for t in views_text)
         else:
             views = (picks or pipeline_picks(scene))["views"]
-            if not views:
-                raise SnapshotError("--compare needs view selection (snapcore.view), which "
-                                    "is not available; give --views NAME=x,y,z instead")
         img = compare_views(scene, i, views, title=title, **common)
     else:
         entropy = None
@@ -338,9 +295,6 @@ def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare
             frames = [_internal(scene, f, "--frames") for f in _parse_frames(frames_text)]
         else:
             picks = pipeline_picks(scene, k=top, views=False)
-            if picks["entropy"] is None:
-                raise SnapshotError("--top needs pose selection (snapcore.snapshot); give "
-                                    "--frames A,B,C instead")
             frames, entropy = picks["frames"], picks["entropy"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
