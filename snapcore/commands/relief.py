@@ -28,33 +28,18 @@ def parse_size(text: str) -> tuple[float, float]:
     return vals[0], vals[1]
 
 
-def _field(obj, name):
-    if isinstance(obj, dict):
-        return obj.get(name)
-    return getattr(obj, name, None)
-
-
 def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     """The selected pose (source frame number) and view of ``scene`` from the pipeline.
 
-    Uses :func:`snapcore.snapshot.take_snapshot` (pose entropy + Projected Motion Area).
+    Uses :func:`snapcore.snapshot.take_snapshot` (pose entropy + Projected Motion Area;
+    the baselines are not needed here and are skipped: viewpoint entropy renders).
     Returns ``(source_frame or None, view or None)`` for what was asked.
     """
-    try:
-        from ..snapshot import take_snapshot
-    except ImportError as err:
-        raise click.UsageError(
-            "automatic pose/view selection is not available in this installation "
-            f"({err}); give --frame N and --view x,y,z"
-        ) from None
-    snap = take_snapshot(scene)
-    frame = _field(snap, "frame") if need_frame else None
-    view = None
-    if need_view:
-        view = _field(snap, "view")
-        if view is None:
-            raise click.UsageError("the snapshot has no selected view yet; give --view x,y,z")
-        view = np.asarray(view, float)
+    from ..snapshot import take_snapshot
+
+    snap = take_snapshot(scene, view=need_view, baselines=False)
+    frame = int(snap.frame) if need_frame else None
+    view = np.asarray(snap.view, float) if need_view else None
     return frame, view
 
 
