@@ -586,12 +586,9 @@ def write_demo(folder: str | os.PathLike, *, fps: float = 30.0, seed: int = 0) -
     list of Path
         The manifests, in :data:`DEMO_SCENES` order.
     """
-    from .schema import validate
+    import tomllib
 
-    try:
-        import tomllib
-    except ImportError:  # pragma: no cover - Python < 3.11
-        tomllib = None
+    from .schema import validate
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     manifests = []
@@ -605,8 +602,7 @@ def write_demo(folder: str | os.PathLike, *, fps: float = 30.0, seed: int = 0) -
         for doc, (file, _) in zip(docs, chars):
             write_bvh(doc, out / file)
         text = _toml_manifest(name, fps, chars)
-        if tomllib is not None:
-            validate(tomllib.loads(text), "scene", source=str(out / f"{name}.toml"))
+        validate(tomllib.loads(text), "scene", source=str(out / f"{name}.toml"))
         path = out / f"{name}.toml"
         path.write_text(text, encoding="utf-8")
         manifests.append(path)

@@ -24,12 +24,9 @@ def bench(repeats, only, as_json, threads):
     """
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[var] = str(threads)
-    try:  # NumPy may already be loaded: limit its BLAS pool at run time too
-        from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_limits
 
-        threadpool_limits(threads)
-    except ImportError:
-        pass
+    threadpool_limits(threads)  # NumPy may already be loaded: limit its BLAS pool now too
     from ..bench import BenchContext, run_cases
     from ..load import data_dir
 

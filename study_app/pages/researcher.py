@@ -69,22 +69,14 @@ def _live(ctx) -> None:
 
 
 def vote_frame(rows: list[dict], order):
-    """Votes per scene and method (analysis.votes when present, else a crosstab)."""
-    import pandas as pd
+    """Votes per scene and method (:mod:`analysis.votes`)."""
+    from analysis.load import tidy_responses, view_choices
+    from analysis.votes import vote_counts, vote_table
 
-    try:
-        from analysis.load import tidy_responses, view_choices
-        from analysis.votes import vote_counts, vote_table
-
-        counts = vote_counts(view_choices(tidy_responses(rows, validate=False)), order=order)
-        table = vote_table(counts)
-        return table.pivot(index="scene", columns="method", values="votes").reindex(
-            index=counts.index, columns=counts.columns)
-    except ImportError:
-        df = pd.DataFrame([r for r in rows if r["task"] == "view"])
-        if df.empty:
-            return df
-        return pd.crosstab(df["scene"], df["chosen_method"])
+    counts = vote_counts(view_choices(tidy_responses(rows, validate=False)), order=order)
+    table = vote_table(counts)
+    return table.pivot(index="scene", columns="method", values="votes").reindex(
+        index=counts.index, columns=counts.columns)
 
 
 def frame_histogram_figure(rows: list[dict], sc):
@@ -102,17 +94,13 @@ def frame_histogram_figure(rows: list[dict], sc):
         return None
     bins = int(np.clip(round(sc.n_frames / (0.25 * sc.fps)), 10, 60))
     edges = np.linspace(sc.frame_offset - 0.5, sc.frame_offset + sc.n_frames - 0.5, bins + 1)
-    try:
-        import pandas as pd
+    import pandas as pd
 
-        from analysis.frames import SceneFrames, frame_histogram
+    from analysis.frames import SceneFrames, frame_histogram
 
-        info = SceneFrames(scene=sc.id, fps=sc.fps, n_frames=sc.n_frames,
-                           algorithm_frame=sc.algorithm_frame, frame_offset=sc.frame_offset)
-        counts, edges = frame_histogram(pd.DataFrame({"scene": sc.id, "chosen_frame": chosen}),
-                                        info)
-    except ImportError:
-        counts, edges = np.histogram(chosen, bins=edges)
+    info = SceneFrames(scene=sc.id, fps=sc.fps, n_frames=sc.n_frames,
+                       algorithm_frame=sc.algorithm_frame, frame_offset=sc.frame_offset)
+    counts, edges = frame_histogram(pd.DataFrame({"scene": sc.id, "chosen_frame": chosen}), info)
     fig, ax = plt.subplots(figsize=(7, 1.8))
     ax.bar(edges[:-1], counts, width=np.diff(edges), align="edge", color="#7a9cc6")
     ax.axvline(sc.algorithm_frame, color="#c0392b", lw=2, label="algorithm")
