@@ -330,17 +330,17 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     from snapcore.snapshot import take_snapshot
 
     snap = take_snapshot(scene, **(options or {}))
-    d = snap.to_dict() if hasattr(snap, "to_dict") else dict(snap)
-    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d.get("frames", [d["frame"]])]}
+    d = snap.to_dict()
+    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d["frames"]]}
     base = d.get("baselines") or {}
     missing = [m for m in ("view", "viewpoint_entropy", "motion_area")
                if (d if m == "view" else base).get(m) is None]
     if missing:
         raise StimuliError(f"scene {scene.name}: the selection gave no {', '.join(missing)} "
-                           "view (snapcore.snapshot.take_snapshot must run the view stage)")
+                           "view (a baseline was skipped: see the warning above)")
     picks["view"] = _unit(d["view"])
     for m in ("viewpoint_entropy", "motion_area"):
-        picks[m] = _unit(base[m]["view"] if isinstance(base[m], dict) else base[m])
+        picks[m] = _unit(base[m]["view"])
     timings = {k: float(v) for k, v in (d.get("timings_s") or {}).items()}
     return picks, timings
 
