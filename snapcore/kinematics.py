@@ -20,6 +20,7 @@ __all__ = [
     "quat_mul",
     "quat_rotate",
     "quat_to_matrix",
+    "matrix_to_quat",
 ]
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
@@ -109,6 +110,20 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     m[..., 2, 1] = 2 * (yz + wx)
     m[..., 2, 2] = 1 - 2 * (xx + yy)
     return m
+
+
+def matrix_to_quat(m: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` to unit quaternions ``(..., 4)`` ``(w, x, y, z)``.
+
+    SciPy's conversion (Markley's method: accurate for every angle, and it projects a
+    slightly non-orthogonal matrix onto the nearest rotation); the sign is SciPy's
+    choice, ``q`` and ``-q`` being the same rotation.
+    """
+    from scipy.spatial.transform import Rotation
+
+    m = np.asarray(m, dtype=float)
+    q = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()  # (x, y, z, w)
+    return np.roll(q, 1, axis=-1).reshape(m.shape[:-2] + (4,))
 
 
 def euler_to_quat(order: str, angles: np.ndarray) -> np.ndarray:

@@ -33,6 +33,7 @@ from functools import lru_cache
 import numpy as np
 
 from .contacts import DEFAULT_TOLERANCES, ContactTolerances, Interactions, detect_interactions
+from .kinematics import matrix_to_quat
 
 __all__ = [
     "SMOOTH_S",
@@ -357,15 +358,20 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
     Equal to ``(joint_curvature(X) * rotation_change(R)) @ limb_lengths`` (the tests
     check it), computed in chunks of frames that stay in cache: smoothing
     (:func:`savgol_matrix`), curvature, rotation change and the weighted sum per chunk.
-    Joints without a limb (``l_j = 0``) add exactly 0; they are computed anyway, because
-    gathering the others costs more than the arithmetic on them.
+    The rotation change is measured on ``character.local_quaternions`` (four numbers
+    per joint instead of nine; converted from the matrices when a character lacks
+    them). Joints without a limb (``l_j = 0``) add exactly 0: they are left out when
+    they are more than a tenth of the joints, else computed anyway (the gather would
+    cost more than the arithmetic on them).
     """
     n_f = character.n_frames
     weight = limb_lengths(character.skeleton)
     p = np.zeros(n_f)
     if not weight.any() or n_f < 3:
         return p
-    pos, rot = character.positions, character.local_rotations
+    pos, quat = character.positions, character.local_quaternions
+    if quat is None:  # a character built without them
+        quat = matrix_to_quat(character.local_rotations)
     limbs = np.flatnonzero(weight > 0)
     skip = limbs.size < 0.9 * weight.size  # joints without a limb add exactly 0
     if skip:
@@ -381,8 +387,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         head = mat[:h] @ pos[:w].reshape(w, n_j * 3)  # smoothed frames 0 .. h-1
         tail = mat[h + 1:] @ pos[n_f - w:].reshape(w, n_j * 3)  # F-h .. F-1
     floor = rest_speed / character.fps
-    ones3, ones9 = np.ones(3), np.ones(9)
-    half_sqrt8 = 1.0 / (2.0 * math.sqrt(2.0))
+    ones3, ones4 = np.ones(3), np.ones(4)
     step = _chunk_frames(n_j * 9)
     for a in range(0, n_f - 2, step):
         b = min(a + step, n_f - 2)  # vertices a+1 .. b use smoothed frames a .. b+1
@@ -415,18 +420,23 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         chord = np.sqrt(dt.reshape(-1, 3) @ ones3).reshape(-1, n_j)
         chord *= moving[1:] & moving[:-1]
         # rotation change from frame i to i+1 for i = a+1 .. b (see rotation_change),
-        # as half the angle: arcsin(|dR| / (2 sqrt 2))
-        r = rot[a + 1:b + 2]
-        r = (r.take(limbs, axis=1) if skip else r).reshape(b + 1 - a, n_j * 9)
-        d = r[1:] - r[:-1]
+        # on quaternions: |q_i - q_i+1| = 2 sin(theta / 4) for the nearer of +-q_i+1
+        # (|q - q'|^2 + |q + q'|^2 = 4), so theta / 4 = arcsin(|dq| / 2), accurate
+        # for the small angles between frames
+        q = quat[a + 1:b + 2]
+        q = (q.take(limbs, axis=1) if skip else q).reshape(b + 1 - a, n_j * 4)
+        d = q[1:] - q[:-1]
         d *= d
-        s = np.sqrt(d.reshape(-1, 9) @ ones9)
-        s *= half_sqrt8
+        s2 = d.reshape(-1, 4) @ ones4
+        np.minimum(s2, 4.0 - s2, out=s2)
+        s = np.sqrt(s2, out=s2)
+        s *= 0.5
         np.minimum(s, 1.0, out=s)
-        half_dm = np.arcsin(s, out=s).reshape(b - a, n_j)
-        # kappa * dm = (chord / 2) * (2 half_dm): the factors of two cancel exactly
-        chord *= half_dm
+        quarter_dm = np.arcsin(s, out=s).reshape(b - a, n_j)
+        # kappa * dm = (chord / 2) * (4 quarter_dm): the factor 2 is applied at the end
+        chord *= quarter_dm
         p[a + 1:b + 1] = chord @ weight
+    p *= 2.0
     return p
 
 

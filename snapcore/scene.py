@@ -6,7 +6,9 @@ kinematics for all frames, computed once at construction:
 
 - ``positions`` ``(F, J, 3)`` world joint positions in metres,
 - ``rotations`` ``(F, J, 3, 3)`` world joint rotations,
-- ``local_rotations`` ``(F, J, 3, 3)`` rotations relative to the parent.
+- ``local_rotations`` ``(F, J, 3, 3)`` rotations relative to the parent,
+- ``local_quaternions`` ``(F, J, 4)`` the same as unit quaternions (what FK computes;
+  pose selection measures rotation changes on these: four numbers per joint, not nine).
 
 Joints include BVH end sites (flag ``end_site``) because they carry the length of the
 last link of each chain (hands, feet, head).
@@ -32,7 +34,13 @@ import numpy as np
 
 from .bvh import BVHDocument
 from .errors import SceneError
-from .kinematics import channel_layout, forward_kinematics, local_transforms, quat_to_matrix
+from .kinematics import (
+    channel_layout,
+    forward_kinematics,
+    local_transforms,
+    quat_mul,
+    quat_to_matrix,
+)
 
 __all__ = [
     "Skeleton",
@@ -141,6 +149,10 @@ class Character:
         Metres per unit of the source file.
     source : BVHDocument or None
         The file content this character was built from (file units), for writing back.
+    local_quaternions : ndarray of shape (F, J, 4) or None
+        ``local_rotations`` as unit quaternions ``(w, x, y, z)``, when the builder has
+        them (FK does); None otherwise (:func:`snapcore.pose.local_information` then
+        converts the matrices).
     """
 
     name: str
@@ -152,6 +164,7 @@ class Character:
     scale: float = 1.0
     source: BVHDocument | None = None
     meta: dict = field(default_factory=dict)
+    local_quaternions: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -188,6 +201,9 @@ class Character:
             scale=self.scale,
             source=self.source,
             meta=dict(self.meta),
+            local_quaternions=(None if self.local_quaternions is None else
+                               _rotate_root_quaternions(self.local_quaternions, self.parents,
+                                                        yaw_deg)),
         )
 
     def rescaled(self, scale: float) -> Character:
@@ -204,6 +220,7 @@ class Character:
             scale=float(scale),
             source=self.source,
             meta=dict(self.meta),
+            local_quaternions=self.local_quaternions,
         )
 
     def frames(self, start: int, stop: int) -> Character:
@@ -218,6 +235,8 @@ class Character:
             scale=self.scale,
             source=self.source,
             meta=dict(self.meta),
+            local_quaternions=(None if self.local_quaternions is None
+                               else self.local_quaternions[start:stop]),
         )
 
 
@@ -225,6 +244,15 @@ def _rotate_roots(local_rot, parents, r):
     out = local_rot.copy()
     roots = np.flatnonzero(np.asarray(parents) < 0)
     out[:, roots] = r @ local_rot[:, roots]
+    return out
+
+
+def _rotate_root_quaternions(local_q, parents, yaw_deg: float):
+    """:func:`_rotate_roots` on quaternions: roots turned by ``yaw_deg`` about +Y."""
+    half = np.radians(yaw_deg) / 2.0
+    out = local_q.copy()
+    roots = np.flatnonzero(np.asarray(parents) < 0)
+    out[:, roots] = quat_mul(np.array([np.cos(half), 0.0, np.sin(half), 0.0]), local_q[:, roots])
     return out
 
 
@@ -376,6 +404,7 @@ def character_from_bvh(doc: BVHDocument, *, scale: float, name: str | None = Non
         fps=float(fps),
         scale=float(scale),
         source=doc,
+        local_quaternions=quat_local,
     )
 
 

@@ -264,7 +264,7 @@ def test_contacts_do_not_depend_on_the_frame_rate(motions_dir):
     starting and ending within two 60-fps frames of each other."""
     scene = _load(motions_dir / "walk_run" / "02_01.bvh")
     half = scene.characters[0].frames(0, scene.n_frames)
-    for name in ("positions", "rotations", "local_rotations"):
+    for name in ("positions", "rotations", "local_rotations", "local_quaternions"):
         setattr(half, name, getattr(half, name)[::2])
     half.fps = scene.fps / 2
     scene60 = Scene([half], fps=half.fps, ground=scene.ground)

@@ -174,7 +174,7 @@ def test_static_clip_gives_a_defined_result_with_a_warning(motions_dir):
     """A clip that does not move: every term is 0 (not NaN), frame 0 is chosen, warned."""
     c = _load(motions_dir / "walk_run" / "02_01.bvh").characters[0].frames(100, 101)
     n = 60
-    for name in ("positions", "rotations", "local_rotations"):
+    for name in ("positions", "rotations", "local_rotations", "local_quaternions"):
         setattr(c, name, np.repeat(getattr(c, name), n, axis=0))
     scene = Scene([c], fps=c.fps, ground=float(c.positions[..., 1].min()))
     with pytest.warns(UserWarning) as caught:
@@ -494,3 +494,15 @@ def test_fast_events_equal_reference_events(motions_dir):
         for ci in range(scene.n_characters):
             got = sorted((e.joint, e.object, e.start, e.end) for e in fast.for_character(ci))
             assert got == sorted(ref[ci])
+
+
+def test_local_term_needs_no_quaternions(motions_dir):
+    """A character built without quaternions (only matrices) gets the same local term:
+    the matrices are converted, and the result equals the loaded character's."""
+    import dataclasses
+
+    c = _load(motions_dir / "walk_run" / "131_01.bvh").characters[0]
+    bare = dataclasses.replace(c, local_quaternions=None)
+    np.testing.assert_allclose(local_information(bare), local_information(c), rtol=1e-12,
+                               atol=1e-15)
+    assert local_information(c).max() > 0

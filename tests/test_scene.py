@@ -274,3 +274,22 @@ def test_transformed_scene_moves_props_with_it(tmp_path):
     assert ball["radius"] == pytest.approx(0.2)
     np.testing.assert_allclose(bar["b"], [4.0, 2.0, 1.0], atol=1e-12)
     assert scene.props[0]["center"] == [1.0, 0.0, 0.0]  # the original is untouched
+
+
+def test_local_quaternions_are_the_local_rotations(motions_dir):
+    """The quaternions FK keeps are the local rotation matrices, after loading, a yaw
+    (roots turned), a rescale and a slice; and matrix_to_quat inverts quat_to_matrix
+    up to the sign of q."""
+    from snapcore.kinematics import matrix_to_quat, quat_to_matrix
+
+    c = load_scene(motions_dir / "walk_run" / "02_01.bvh").characters[0]
+    variants = {"loaded": c, "yawed": c.transformed(yaw_deg=37.0, offset=(1.0, 0.0, -2.0)),
+                "rescaled": c.rescaled(c.scale * 2.0), "sliced": c.frames(10, 50)}
+    for label, v in variants.items():
+        assert v.local_quaternions is not None, label
+        assert v.local_quaternions.shape == v.local_rotations.shape[:2] + (4,), label
+        np.testing.assert_allclose(quat_to_matrix(v.local_quaternions), v.local_rotations,
+                                   atol=1e-12, err_msg=label)
+    q = matrix_to_quat(c.local_rotations)
+    same = np.abs(np.einsum("fjk,fjk->fj", q, c.local_quaternions))  # |q . q'| = 1 if equal
+    np.testing.assert_allclose(same, 1.0, atol=1e-12)
