@@ -27,7 +27,7 @@ people captured in one world frame keep their distances (hands that touch still 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -338,6 +338,15 @@ class Scene:
             frame_offset=self.frame_offset,
             meta=dict(self.meta),
         )
+
+    def frames(self, start: int, stop: int) -> Scene:
+        """The scene's internal frames ``start:stop`` (source numbering kept)."""
+        start, stop, _ = slice(start, stop).indices(self.n_frames)
+        if stop <= start:
+            raise SceneError(f"frames {start}:{stop} of a {self.n_frames}-frame scene are empty")
+        return replace(self, characters=[c.frames(start, stop) for c in self.characters],
+                       props=[dict(p) for p in self.props], frame_offset=self.frame_offset + start,
+                       meta=dict(self.meta))
 
 
 def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset) -> dict:

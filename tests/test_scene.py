@@ -293,3 +293,15 @@ def test_local_quaternions_are_the_local_rotations(motions_dir):
     q = matrix_to_quat(c.local_rotations)
     same = np.abs(np.einsum("fjk,fjk->fj", q, c.local_quaternions))  # |q . q'| = 1 if equal
     np.testing.assert_allclose(same, 1.0, atol=1e-12)
+
+
+def test_scene_frames_keep_source_numbering(motions_dir):
+    """Scene.frames crops every character alike and keeps source frame numbers."""
+    scene = load_scene(motions_dir / "walk_run" / "02_01.bvh")
+    part = scene.frames(10, 60)
+    assert part.n_frames == 50
+    assert part.source_frame(0) == scene.source_frame(10)
+    np.testing.assert_array_equal(part.characters[0].positions, scene.characters[0].positions[10:60])
+    assert scene.frames(0, 10 ** 6).n_frames == scene.n_frames  # clipped like a slice
+    with pytest.raises(SceneError, match="empty"):
+        scene.frames(5, 5)
