@@ -112,10 +112,11 @@ class _Context:
 
     def snapshot(self, sid):
         if sid not in self.snapshots:
-            take = _require("snapcore.snapshot", "take_snapshot")
+            from snapcore.snapshot import take_snapshot
+
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                self.snapshots[sid] = take(self.scene(sid))
+                self.snapshots[sid] = take_snapshot(self.scene(sid))
         return self.snapshots[sid]
 
     def log(self, text):
@@ -123,20 +124,6 @@ class _Context:
             import click
 
             click.echo(text, err=True)
-
-
-def _require(module: str, name: str):
-    """``module.name``, or :class:`FigureUnavailable` saying which piece is missing."""
-    import importlib
-
-    try:
-        mod = importlib.import_module(module)
-    except ImportError as err:
-        raise FigureUnavailable(f"{module} is not available ({err})") from None
-    fn = getattr(mod, name, None)
-    if fn is None:
-        raise FigureUnavailable(f"{module}.{name} does not exist (yet)")
-    return fn
 
 
 def _labels() -> dict:
@@ -215,7 +202,8 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
         ``paper_joints``, ``paper_pose_s``, ``paper_view_s``, ``note``. A stage the
         pipeline did not run is NaN.
     """
-    take = _require("snapcore.snapshot", "take_snapshot")
+    from snapcore.snapshot import take_snapshot as take
+
     paper = paper_table1().set_index("scene")
     analogues = paper_analogues().set_index("scene")
     rows = []
@@ -290,7 +278,8 @@ def _figure_paths(fig, stem) -> list[Path]:
 
 
 def _fig5(ctx: _Context) -> list[Path]:
-    plot_strip = _require("snapcore.entropy_plot", "plot_strip")
+    from snapcore.entropy_plot import plot_strip
+
     from .plots import _plt
 
     labels = _labels()
@@ -317,7 +306,8 @@ def _fig5(ctx: _Context) -> list[Path]:
 
 
 def _fig6(ctx: _Context) -> list[Path]:
-    plot_curves = _require("snapcore.entropy_plot", "plot_curves")
+    from snapcore.entropy_plot import plot_curves
+
     snap = ctx.snapshot(FEATURE_SCENE)
     fig = plot_curves(snap)
     fig.set_size_inches(10, 4.5)
@@ -344,35 +334,25 @@ VIEW_PANELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint ent
 def snapshot_views(snap) -> dict:
     """The three methods' view directions of a snapshot: method → unit vector (3,).
 
-    Raises :class:`FigureUnavailable` when the pipeline did not run the view stage.
+    ``snap`` is a :class:`snapcore.snapshot.Snapshot` or its dict
+    (``data_schema/snapshot.schema.json``: ``view``, ``baselines.<method>.view``).
+    Raises :class:`FigureUnavailable` naming the views it lacks (a snapshot taken
+    without the view stage or without the baselines).
     """
-    d = snap.to_dict() if hasattr(snap, "to_dict") else dict(snap)
+    d = snap.to_dict() if hasattr(snap, "to_dict") else snap
     base = d.get("baselines") or {}
-    out = {}
-    if d.get("view") is not None:
-        out["ours"] = d["view"]
-    for m in ("viewpoint_entropy", "motion_area"):
-        v = base.get(m)
-        if isinstance(v, dict):
-            v = v.get("view", v.get("direction"))
-        if v is not None:
-            out[m] = v
-    missing = [m for m in VIEW_PANELS if m not in out]
+    found = {"ours": d.get("view")}
+    found.update({m: (base.get(m) or {}).get("view") for m in ("viewpoint_entropy", "motion_area")})
+    missing = [m for m, v in found.items() if v is None]
     if missing:
-        raise FigureUnavailable(f"take_snapshot gave no {', '.join(missing)} view (the view "
-                                "stage is not in the pipeline yet)")
-    return {m: np.asarray(out[m], dtype=float) for m in VIEW_PANELS}
-
-
-def _compare_views():
-    try:
-        return _require("snapcore.render", "compare_views")
-    except FigureUnavailable:
-        return _require("snapcore.sheets", "compare_views")
+        raise FigureUnavailable(f"the snapshot has no {', '.join(missing)} view (take it with "
+                                "the view stage and the baselines)")
+    return {m: np.asarray(v, dtype=float) for m, v in found.items()}
 
 
 def _fig8_10(ctx: _Context) -> list[Path]:
-    compare = _compare_views()
+    from snapcore.sheets import compare_views
+
     from .plots import _plt
 
     labels = _labels()
@@ -384,7 +364,7 @@ def _fig8_10(ctx: _Context) -> list[Path]:
             skipped.append(f"{sid} ({err})")
             continue
         views = snapshot_views(snap)
-        img = compare(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
+        img = compare_views(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
                       title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}")
         images.append(np.asarray(img))
         names.append(sid)
@@ -409,7 +389,8 @@ def _fig8_10(ctx: _Context) -> list[Path]:
 
 
 def _fig11(ctx: _Context) -> list[Path]:
-    relief_figure = _require("snapcore.relief_scene", "relief_comparison_figure")
+    from snapcore.relief_scene import relief_comparison_figure as relief_figure
+
     snap = ctx.snapshot(FEATURE_SCENE)
     views = snapshot_views(snap)
     fig = relief_figure(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},

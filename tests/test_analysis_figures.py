@@ -40,15 +40,20 @@ def test_missing_data_is_a_reason_not_a_crash(tmp_path):
         or "not available" in res["fig6"][1]
 
 
-def test_snapshot_views_reads_both_baseline_shapes():
-    """Baselines as vectors or as {"view": ...} dicts; a snapshot without views is refused."""
-    doc = {"view": [1, 0, 0], "baselines": {"viewpoint_entropy": {"view": [0, 1, 0]},
-                                            "motion_area": [0, 0, 1]}}
+def test_snapshot_views_reads_the_snapshot_schema():
+    """The three views of a snapshot dict shaped as data_schema/snapshot.schema.json says;
+    a snapshot without the view stage or without a baseline is refused, naming what lacks."""
+    doc = {"view": [1, 0, 0], "baselines": {"viewpoint_entropy": {"view": [0, 1, 0], "score": 2.0},
+                                            "motion_area": {"view": [0, 0, 1], "score": 0.5}}}
     v = fg.snapshot_views(doc)
     assert list(v) == ["ours", "viewpoint_entropy", "motion_area"]
     np.testing.assert_array_equal(v["viewpoint_entropy"], [0, 1, 0])
+    np.testing.assert_array_equal(v["motion_area"], [0, 0, 1])
     with pytest.raises(fg.FigureUnavailable, match="no ours, viewpoint_entropy, motion_area"):
         fg.snapshot_views({"frame": 3})
+    del doc["baselines"]["motion_area"]
+    with pytest.raises(fg.FigureUnavailable, match="no motion_area view"):
+        fg.snapshot_views(doc)
 
 
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
