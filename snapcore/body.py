@@ -67,6 +67,9 @@ __all__ = [
     "DEFAULT_ROLE",
     "CHARACTER_COLORS",
     "REFERENCE_STATURE_M",
+    "TESSELLATION",
+    "TESSELLATION_COARSE",
+    "TESSELLATION_FINE",
 ]
 
 #: Stature (m) the radii of :data:`ROLE_RADII` are given for; radii scale with
@@ -122,6 +125,10 @@ MIN_BONE_M = 1e-4
 TESSELLATION = ((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1)))
 #: Coarse tessellation for stand-ins whose facets never show (e.g. shadows on the floor).
 TESSELLATION_COARSE = ((0.08, (10, 2)), (0.035, (8, 2)), (0.018, (6, 1)), (0.0, (4, 1)))
+#: Fine tessellation for surfaces that are read as geometry, not as shaded pictures:
+#: a relief carves the depth itself, where the flat facets of :data:`TESSELLATION`
+#: would show as ridges in raking light (~5x the faces).
+TESSELLATION_FINE = ((0.08, (40, 10)), (0.035, (28, 7)), (0.018, (16, 4)), (0.0, (10, 2)))
 
 #: Base colours of characters 0, 1, 2... (RGB 0-1, Tableau 10): distinct for two people.
 CHARACTER_COLORS = (
@@ -371,8 +378,10 @@ class CharacterBody:
     character : Character
     color : tuple of 3 floats, optional
         Base RGB colour in 0-1 (default: ``CHARACTER_COLORS[0]``).
-    coarse : bool
-        Use :data:`TESSELLATION_COARSE` (~4× fewer faces), for stand-ins such as shadows.
+    tessellation : tuple, optional
+        ``(min radius, (around, rings))`` rows, thickest first: :data:`TESSELLATION`
+        (default), :data:`TESSELLATION_COARSE` (~4x fewer faces, for stand-ins such as
+        shadows) or :data:`TESSELLATION_FINE` (for reliefs).
 
     Attributes
     ----------
@@ -392,7 +401,7 @@ class CharacterBody:
         :func:`joint_roles` of the skeleton.
     """
 
-    def __init__(self, character, *, color=None, coarse=False):
+    def __init__(self, character, *, color=None, tessellation=TESSELLATION):
         self.character = character
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
@@ -410,7 +419,7 @@ class CharacterBody:
         self.size = height / REFERENCE_STATURE_M
         base = np.asarray(color if color is not None else CHARACTER_COLORS[0], float)
         self.color = base
-        self._table = TESSELLATION_COARSE if coarse else TESSELLATION
+        self._table = tessellation
         self._build(base)
 
     # ---- orientation cues measured from the motion
@@ -580,8 +589,8 @@ class SceneBody:
     scene : Scene
     colors : sequence of RGB tuples, optional
         One base colour per character (default :data:`CHARACTER_COLORS` in order).
-    coarse : bool
-        Coarser tessellation (:class:`CharacterBody`).
+    tessellation : tuple, optional
+        Faces per piece (:class:`CharacterBody`).
 
     Examples
     --------
@@ -591,11 +600,11 @@ class SceneBody:
     >>> tm = body.trimesh(120)                   # trimesh.Trimesh with face colours
     """
 
-    def __init__(self, scene, *, colors=None, coarse=False):
+    def __init__(self, scene, *, colors=None, tessellation=TESSELLATION):
         self.scene = scene
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self.characters = [
-            CharacterBody(ch, color=colors[i % len(colors)], coarse=coarse)
+            CharacterBody(ch, color=colors[i % len(colors)], tessellation=tessellation)
             for i, ch in enumerate(scene.characters)
         ]
         offs = np.cumsum([0] + [b.n_vertices for b in self.characters])

@@ -18,6 +18,7 @@ from .relief import Relief, ReliefError, ReliefParams, height_from_depth, relief
 
 __all__ = [
     "frame_extent",
+    "relief_body",
     "height_field_from_scene",
     "relief_from_scene",
     "relief_comparison_figure",
@@ -68,6 +69,20 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
     return metres_per_mm * w / 2.0, metres_per_mm * d / 2.0
 
 
+def relief_body(scene, frame: int):
+    """The body mesh a relief carves: every character at internal ``frame``, finely
+    tessellated (:data:`snapcore.body.TESSELLATION_FINE`: a relief is read as geometry,
+    and the facets of the rendering body would stand out as ridges in raking light).
+
+    Returns
+    -------
+    snapcore.body.PosedMesh
+    """
+    from .body import TESSELLATION_FINE, SceneBody
+
+    return SceneBody(scene, tessellation=TESSELLATION_FINE).pose(_check_frame(scene, frame))
+
+
 def height_field_from_scene(
     scene, frame: int, view, *, params: ReliefParams | None = None, up=None
 ):
@@ -91,12 +106,10 @@ def height_field_from_scene(
         ``depth`` in metres (NaN = background), ``pixel_size`` in metres, with the shape
         ``params.shape()``.
     """
-    from .body import posed_mesh
     from .render import render_depth
 
     p = params or ReliefParams()
-    f = _check_frame(scene, frame)
-    mesh = posed_mesh(scene, f)
+    mesh = relief_body(scene, frame)
     extent = frame_extent(mesh.vertices, view, size_mm=p.size_mm, margin=p.margin, up=up)
     ny, nx = p.shape()
     return render_depth(mesh.vertices, mesh.faces, view, resolution=(nx, ny), extent=extent, up=up)

@@ -518,9 +518,9 @@ class SceneRenderer:
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
-            from .body import SceneBody
+            from .body import TESSELLATION_COARSE, SceneBody
 
-            self._shadow_body = SceneBody(scene, coarse=True)
+            self._shadow_body = SceneBody(scene, tessellation=TESSELLATION_COARSE)
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:

@@ -232,3 +232,33 @@ def test_frame_out_of_range_is_an_error(walk):
 
     with pytest.raises(SceneError, match="outside"):
         SceneBody(walk).pose(walk.n_frames)
+
+
+def _facet_depth(body) -> float:
+    """Deepest face centre below the ideal round capsule (m), over round bones."""
+    sk = body.character.skeleton
+    centre = body.local_vertices[body.faces].mean(axis=1)  # (M, 3), carrying joint's frame
+    piece = body.piece[body.faces[:, 0]]
+    worst = 0.0
+    for i, pc in enumerate(body.pieces):
+        if pc["kind"] != "bone" or pc["radii"][0] != pc["radii"][1]:
+            continue  # elliptical torso pieces: not a round capsule
+        c = centre[piece == i]
+        off = np.asarray(sk.offsets[pc["child"]], float)
+        t = np.clip(c @ off / (off @ off), 0.0, 1.0)
+        axis_dist = np.linalg.norm(c - t[:, None] * off, axis=1)
+        worst = max(worst, float((pc["radii"][0] - axis_dist).max()))
+    return worst
+
+
+def test_fine_tessellation_hugs_the_capsules(walk):
+    """Reliefs carve the body's depth, so facets would show as ridges: the fine
+    tessellation keeps every face within 1.5 mm of the round capsule it stands for, at
+    least three times closer than the default one."""
+    from snapcore.body import TESSELLATION, TESSELLATION_FINE, CharacterBody
+
+    ch = walk.characters[0]
+    fine = _facet_depth(CharacterBody(ch, tessellation=TESSELLATION_FINE))
+    default = _facet_depth(CharacterBody(ch, tessellation=TESSELLATION))
+    assert 0 < fine < 1.5e-3
+    assert fine < default / 3

@@ -417,13 +417,12 @@ def salsa(motions_dir):
 
 def test_scene_height_field_holds_both_characters(salsa):
     """The depth render of a two-person pose sees faces of both characters, framed to the footprint."""
-    from snapcore.body import posed_mesh
-    from snapcore.relief_scene import height_field_from_scene
+    from snapcore.relief_scene import height_field_from_scene, relief_body
 
     params = ReliefParams(size_mm=(120, 80), resolution=120)
     dm = height_field_from_scene(salsa, 900, (0.3, 0.2, 1.0), params=params)
     assert dm.depth.shape == (80, 120)
-    seen = np.unique(posed_mesh(salsa, 900).face_character[dm.face_ids[dm.mask] - 1])
+    seen = np.unique(relief_body(salsa, 900).face_character[dm.face_ids[dm.mask] - 1])
     assert seen.tolist() == [0, 1]
     # the flat border (margin 5% of the shorter side = 4 mm = 4 px at 1 px/mm) stays
     # background, and the figure touches it on at least one side (the binding dimension)
