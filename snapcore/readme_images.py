@@ -6,7 +6,9 @@ Writes into ``docs/images/`` (or OUT_DIR), from the real CMU modern-dance clip
 - ``contact_sheet.png`` — the three most informative poses (pose entropy), side by side,
   seen from the selected view (the paper's Fig. 5 strip);
 - ``three_views.png`` — the selected pose from ours (projected motion area), viewpoint
-  entropy and motion area, same panel size and scale (the paper's Fig. 8-10).
+  entropy and motion area, same panel size and scale (the paper's Fig. 8-10);
+- ``relief.png`` — the raking-light preview of the bas-relief of that pose from our
+  view (``snapshot relief``'s default; the paper's Fig. 11-12).
 
 Everything comes from the pipeline (:func:`snapcore.snapshot.take_snapshot`); a view a
 module cannot give yet is left out (and said so on stderr).
@@ -27,9 +29,10 @@ PANEL = (420, 480)
 
 
 def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) -> list[Path]:
-    """Render the README's contact sheet and three-view comparison; returns the paths."""
+    """Render the README's contact sheet, three-view comparison and relief; returns the paths."""
     from .commands.render import pipeline_picks
     from .load import data_dir, load_scene
+    from .relief_scene import relief_from_scene
     from .render import save_png
     from .sheets import compare_views, contact_sheet
 
@@ -55,10 +58,12 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     cmp = compare_views(scene, frame, {labels[k]: v for k, v in views.items()}, size=panel,
                         title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "
                               "the selected pose from each method's view")
-    paths = [out / "contact_sheet.png", out / "three_views.png"]
+    paths = [out / "contact_sheet.png", out / "three_views.png", out / "relief.png"]
     save_png(sheet, paths[0])
     save_png(cmp, paths[1])
-    return paths
+    if sheet_view is not None:
+        relief_from_scene(scene, frame, sheet_view).write_preview(paths[2])
+    return [p for p in paths if p.exists()]
 
 
 def main(argv=None) -> int:
