@@ -43,6 +43,7 @@ __all__ = [
     "prolific_params",
     "PROLIFIC_KEYS",
     "EVENT_KINDS",
+    "SHOWN_EVENT",
     "MAX_EVENTS_PER_TRIAL",
 ]
 
@@ -55,6 +56,9 @@ _PROLIFIC_VALUE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _PID = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
 #: Picker interactions worth keeping (plays, pauses, seeks, frame steps, scrubbing).
 EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select")
+#: The event the server stores when a trial is first shown: its response time counts
+#: from there, across reloads and tabs (never sent by the browser).
+SHOWN_EVENT = "shown"
 #: A cap on stored events per trial, so a runaway client cannot flood the store.
 MAX_EVENTS_PER_TRIAL = 500
 #: Longest plausible response time (s) stored; longer ones (a tab left open) are clipped.
@@ -197,6 +201,20 @@ class ParticipantSession:
     @property
     def completion_code(self) -> str | None:
         return self.participant.get("completion_code")
+
+    def trial_shown_at(self, trial_index: int) -> float:
+        """When the trial was first shown to this participant, in any browser session
+        (seconds since the epoch).
+
+        The first call stores a :data:`SHOWN_EVENT`; later calls (after a reload, in a
+        second tab, days later) read the earliest one back, so reloading the page does
+        not restart the response time.
+        """
+        at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
+        if at is None:
+            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT)
+            at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
+        return at.timestamp()
 
     # -- answers -----------------------------------------------------------------------
     def submit_background(self, answers: dict) -> bool:

@@ -654,6 +654,17 @@ class Store:
                                            for r in rows])
         return len(rows)
 
+    def first_event_at(self, pid: str, trial_index: int | None, kind: str) -> datetime | None:
+        """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC),
+        or None if there is none."""
+        self._checked_event(trial_index, kind, None)
+        cond = [events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
+                events.c.trial_index.is_(None) if trial_index is None
+                else events.c.trial_index == trial_index]
+        with self._transaction(write=False) as conn:
+            value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(*cond)).scalar()
+        return None if value is None else datetime.fromisoformat(_iso(value))
+
     def events(self, pid: str | None = None) -> list[dict]:
         """Stored events (all, or one participant's), oldest first."""
         query = sa.select(events).order_by(events.c.id)

@@ -219,6 +219,26 @@ def test_invalid_answers_write_nothing(store, stimuli):
     assert store.answered_trials(s.participant_id) == {0, 1}
 
 
+def test_trial_clock_survives_a_reload(store, stimuli):
+    """The moment a trial was first shown is stored: a resumed session (a reload, a
+    second tab) gets the same moment, so the response time does not restart; the next
+    trial gets its own; the browser cannot send that event itself."""
+    import time
+
+    s = ParticipantSession.start(store, stimuli)
+    s.submit_background(BACKGROUND)
+    before = time.time()
+    t0 = s.trial_shown_at(0)
+    assert before - 1.0 <= t0 <= time.time() + 1.0
+    time.sleep(0.05)
+    again = ParticipantSession.resume(store, stimuli, s.participant_id)
+    assert again.trial_shown_at(0) == t0
+    assert again.trial_shown_at(1) >= t0 + 0.04
+    s.submit_pose(0, 5, response_time_s=1, events=[{"kind": "shown", "t": 0}])
+    kinds = [(e["kind"], e["trial_index"]) for e in store.events(s.participant_id)]
+    assert kinds == [("shown", 0), ("shown", 1)]
+
+
 def test_picker_events_are_sanitised(store, stimuli):
     """Known event kinds are kept with numeric fields only; junk entries are dropped."""
     s = ParticipantSession.start(store, stimuli)

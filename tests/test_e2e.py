@@ -303,7 +303,11 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     assert all(r["prolific_pid"] == "60a1b2c3d4e5f60718293a4b" for r in rows)
     assert all(r["response_time_s"] > 0 for r in rows)
     kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
-    assert kinds[:2] == ["play", "pause"] and kinds.count("step") == 4 and kinds[-1] == "select"
+    # the server's "shown" (the response time counts from it), then the picker's log
+    assert kinds[:3] == ["shown", "play", "pause"] and kinds.count("step") == 4 \
+        and kinds[-1] == "select"
+    shown = [e["trial_index"] for e in store.events(pid) if e["kind"] == "shown"]
+    assert shown == [t.index for t in plan]  # each trial once, though pages rerun
     part = store.get_participant(pid)
     assert part["completion_code"] == code and part["completed_at"] is not None
     assert store.progress()["participants"] == n_before + 1
@@ -333,7 +337,9 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     alert.wait_for()
     assert "outside this video" in alert.inner_text()
     shot(page, artifacts, "09-out-of-range-frame")
-    assert store.answered_trials(pid) == set() and store.events(pid) == []
+    # no answer and no picker log; only that the trial was shown
+    assert store.answered_trials(pid) == set()
+    assert [e["kind"] for e in store.events(pid)] == ["shown"]
 
     for _ in range(2):  # honest answers to reach the view tasks
         picker_ready(page)

@@ -353,6 +353,26 @@ def test_events(store):
     assert len(store.events()) == 5
 
 
+def test_first_event_at(store):
+    """The earliest event of a kind per trial, as an aware UTC time, on each backend."""
+    from datetime import UTC, datetime, timedelta
+
+    pid = new_participant(store)
+    assert store.first_event_at(pid, 0, "shown") is None
+    before = datetime.now(UTC)
+    store.record_event(pid, 0, "shown")
+    first = store.first_event_at(pid, 0, "shown")
+    store.record_event(pid, 0, "shown")  # a second tab: the first one still counts
+    store.record_event(pid, 1, "shown")
+    assert store.first_event_at(pid, 0, "shown") == first
+    assert first.tzinfo is not None
+    assert before - timedelta(seconds=1) <= first <= datetime.now(UTC)
+    assert store.first_event_at(pid, 1, "shown") >= first
+    assert store.first_event_at(pid, None, "shown") is None
+    with pytest.raises(StoreError, match="unknown participant|participant id"):
+        store.first_event_at(tampered(pid) + "!", 0, "shown")
+
+
 def test_progress_counts(store):
     real = [new_participant(store) for _ in range(3)]
     sim = new_participant(store, simulated=True)

@@ -148,9 +148,13 @@ def next_attempt(trial) -> None:
 
 
 def trial_clock(session, trial) -> float:
-    """When this trial was first shown to this participant in this browser session (s)."""
+    """When this trial was first shown to this participant, in any browser session
+    (seconds since the epoch; stored, so a reload does not restart the clock)."""
     shown = st.session_state.setdefault(KEY_TRIAL_SHOWN, {})
-    return shown.setdefault((session.participant_id, trial.index), time.time())
+    key = (session.participant_id, trial.index)
+    if key not in shown:  # one query per trial and browser session, not per rerun
+        shown[key] = session.trial_shown_at(trial.index)
+    return shown[key]
 
 
 def elapsed_s(session, trial) -> float:
