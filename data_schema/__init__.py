@@ -1,7 +1,8 @@
 """JSON Schemas for every file the suite reads or writes.
 
 Each ``<name>.schema.json`` here describes one document type (scene manifest, snapshot
-CLI output, stimuli manifest, study config, response/export row). Validation lives in
+CLI output, stimuli manifest, study config, and the three export files: response rows,
+participants, interaction events). Validation lives in
 ``snapcore.schema``; this package only locates the files so they ship with the wheel.
 """
 

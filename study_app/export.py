@@ -48,11 +48,9 @@ def export_columns() -> list[str]:
 
 
 def participants_columns() -> list[str]:
-    """Columns of the participants export (:func:`write_participants`)."""
-    return ["participant_id", "study_id", "seed", "created_at", "completed_at",
-            "completion_code", "prolific_pid", "prolific_study_id", "prolific_session_id",
-            "simulated", "app_version", "manifest_sha256", *BACKGROUND_FIELDS, "background",
-            "n_responses"]
+    """Columns of the participants export (:func:`write_participants`), in
+    ``participant.schema.json`` order."""
+    return list(load_schema("participant")["properties"])
 
 
 def validate_rows(rows, *, source: str = "export") -> None:
@@ -137,19 +135,31 @@ def write_export(rows, path, *, fmt: str | None = None) -> int:
     return len(rows)
 
 
+def _validate_each(rows, name: str, source) -> None:
+    """Check every row against ``<name>.schema.json``, naming the row and participant."""
+    for i, row in enumerate(rows, start=1):
+        validate(row, name, source=f"{source}: row {i} (participant {row.get('participant_id')!r})")
+
+
 def write_participants(records, path, *, fmt: str | None = None) -> int:
-    """Write :meth:`Store.participants` records (background flattened) to CSV/JSON lines."""
+    """Validate and write :meth:`Store.participants` records (background flattened) to
+    CSV/JSON lines (``data_schema/participant.schema.json``); return the count."""
     fmt = export_format(path, fmt)
     rows = []
     for rec in records:
         bg = rec.get("background") or {}
         rows.append({**rec, **{k: _background_value(bg.get(k)) for k in BACKGROUND_FIELDS}})
-    _write_atomic(Path(path), _render(rows, participants_columns(), fmt))
+    columns = participants_columns()
+    _validate_each([{c: r.get(c) for c in columns} for r in rows], "participant", path)
+    _write_atomic(Path(path), _render(rows, columns, fmt))
     return len(rows)
 
 
 def write_events(records, path) -> int:
-    """Write :meth:`Store.events` records as JSON lines; return the count."""
+    """Validate and write :meth:`Store.events` records as JSON lines
+    (``data_schema/event.schema.json``); return the count."""
+    records = list(records)
+    _validate_each(records, "event", path)
     _write_atomic(Path(path), "".join(json.dumps(e, allow_nan=False) + "\n" for e in records))
     return len(records)
 

@@ -558,6 +558,34 @@ def test_cli_export(sqlite_url, tmp_path):
     assert len(lines) == 7 and all(json.loads(x)["trial_index"] >= 0 for x in lines)
 
 
+def test_participant_and_event_exports_follow_their_schemas(store, tmp_path):
+    """Every line of the participants and events exports validates against
+    participant.schema.json / event.schema.json (checked here with jsonschema directly);
+    a record that does not is refused, naming the row and field, and no file is left."""
+    import jsonschema
+
+    from data_schema import schema_path
+    from study_app.export import write_events, write_participants
+
+    pid = new_participant(store)
+    store.set_background(pid, {"age_band": "18-24", "gender": "x", "experience": ["a", "b"]})
+    store.record_events(pid, 0, [("shown", {}), ("step", {"frame": 3, "by": 1, "t": 0.5})])
+    store.record_event(pid, None, "page", {})
+    parts, evs = tmp_path / "participants.jsonl", tmp_path / "events.jsonl"
+    assert write_participants(store.participants(), parts) == 1
+    assert write_events(store.events(), evs) == 3
+    for path, name in ((parts, "participant"), (evs, "event")):
+        schema = json.loads(schema_path(name).read_text())
+        for line in path.read_text().splitlines():
+            jsonschema.validate(json.loads(line), schema)
+    row = json.loads(parts.read_text())
+    assert row["experience"] == "a; b" and row["background"]["experience"] == ["a", "b"]
+    bad = [{**store.events()[0], "trial_index": -2}]
+    with pytest.raises(SchemaError, match=r"row 1 .*trial_index"):
+        write_events(bad, tmp_path / "bad.jsonl")
+    assert not (tmp_path / "bad.jsonl").exists()
+
+
 def test_cli_unwritable_output(sqlite_url, tmp_path):
     with Store(sqlite_url) as s:
         populate(s)
