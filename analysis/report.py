@@ -368,7 +368,7 @@ def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
             f"{len(counts)} scenes · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
     html_report(sections, out / "report.html", title=title, meta=meta, labels=labels)
     summary["source"] = source
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
+    _write_summary(out, summary)
     return summary
 
 
@@ -455,8 +455,32 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     summary.update({"source": _source_name(source), "participants": int(df["participant_id"].nunique()),
                     "simulated_participants": n_sim, "responses": len(df),
                     "failed_attention": len(failed)})
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
+    _write_summary(out, summary)
     return summary
+
+
+def _plain(value):
+    """``value`` as plain JSON: NumPy scalars as Python numbers, NaN and inf as None
+    (an undefined statistic, e.g. Fleiss' kappa when no scene has two votes; strict
+    JSON has no NaN), tuples as lists."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def _write_summary(out: Path, summary: dict) -> None:
+    """Write ``summary.json`` after checking it against data_schema/analysis_summary.schema.json."""
+    from snapcore.schema import validate
+
+    doc = _plain(summary)
+    validate(doc, "analysis_summary", source="snapshot analyze summary.json")
+    (out / "summary.json").write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
 
 
 def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:

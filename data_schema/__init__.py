@@ -1,9 +1,12 @@
 """JSON Schemas for every file the suite reads or writes.
 
-Each ``<name>.schema.json`` here describes one document type (scene manifest, snapshot
-CLI output, stimuli manifest, study config, and the three export files: response rows,
-participants, interaction events). Validation lives in
-``snapcore.schema``; this package only locates the files so they ship with the wheel.
+Each ``<name>.schema.json`` here describes one document type: what the suite reads
+(scene manifest, study config, stimuli manifest), what its commands print or write
+(``snapshot select``/``info``/``bench``/``relief --json``, the video frame map, the
+analysis ``summary.json``) and the three export files (response rows, participants,
+interaction events). Every writer validates its document before it goes out.
+Validation lives in ``snapcore.schema``; this package only locates the files so they
+ship with the wheel.
 """
 
 from __future__ import annotations

@@ -13,7 +13,8 @@ __all__ = ["bench"]
 @click.option("--repeats", "-n", type=click.IntRange(1, 1000), default=7, show_default=True,
               help="Timed runs per case (after one warm-up).")
 @click.option("--only", default=None, help="Run only cases whose name contains this text.")
-@click.option("--json", "as_json", is_flag=True, help="Print results as JSON.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print results as JSON (data_schema/bench.schema.json).")
 @click.option("--threads", type=click.IntRange(1, 64), default=1, show_default=True,
               help="BLAS threads (1 = the 'one core' the targets are set for).")
 def bench(repeats, only, as_json, threads):
@@ -33,10 +34,17 @@ def bench(repeats, only, as_json, threads):
     ctx = BenchContext(data=data_dir())
     results = run_cases(ctx, repeats=repeats, only=only,
                         progress=None if as_json else lambda n: click.echo(f"  running {n}...", err=True))
+    if not results:
+        from ..errors import SnapshotError
+
+        raise SnapshotError(f"--only {only!r}: no benchmark case has that in its name")
     if as_json:
+        from ..schema import validate
         from .common import echo_json
 
-        echo_json([r.__dict__ | {"status": r.status} for r in results])
+        doc = [r.__dict__ | {"status": r.status} for r in results]
+        validate(doc, "bench", source="snapshot bench output")
+        echo_json(doc)
         return
     w = max(len(r.name) for r in results) if results else 10
     click.echo(f"{'case':<{w}}  {'min ms':>9}  {'median ms':>9}  {'target':>8}  status")

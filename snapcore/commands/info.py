@@ -38,7 +38,8 @@ def scene_summary(scene) -> dict:
 
 @click.command()
 @scene_arguments
-@click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print machine-readable JSON (data_schema/info.schema.json).")
 def info(paths, fps, scale, as_json):
     """Summarise a scene: characters, joints, frames, fps, duration, height, bounds.
 
@@ -47,6 +48,9 @@ def info(paths, fps, scale, as_json):
     """
     scene = scene_from_options(paths, fps, scale)
     s = scene_summary(scene)
+    from ..schema import validate
+
+    validate(s, "info", source="snapshot info output")
     if as_json:
         echo_json(s)
         return

@@ -105,7 +105,8 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     default=None,
     help="Shaded preview PNG (default: beside the STL, same name with .png).",
 )
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print a JSON summary (data_schema/relief.schema.json).")
 @click.option("--quiet", "-q", is_flag=True, help="Print nothing but errors.")
 def relief(
     paths,
@@ -188,6 +189,9 @@ def relief(
         "scene_pixel_m": rel.meta["pixel_size_m"],
         "characters": len(scene.characters),
     }
+    from ..schema import validate
+
+    validate(summary, "relief", source="snapshot relief output")
     if as_json:
         echo_json(summary)
     elif not quiet:

@@ -170,10 +170,13 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
               help="Direction from the scene to the camera. Default: 'default' = a neutral "
                    "3/4 front view; 'auto' = the selected view.")
 @click.option("--frames", "frame_range", default=None, metavar="A:B",
-              help="Only source frames A..B (inclusive).")
+              help="Only the span of source frames A..B (inclusive), resampled to the "
+                   "video's rate by nearest frame: at a lower rate the last frame shown "
+                   "may fall a little before B (see --frame-map).")
 @click.option("--frame-numbers", is_flag=True, help="Print source frame number and time.")
 @click.option("--frame-map", type=click.Path(dir_okay=False), default=None,
-              help="Also write the video-frame → source-frame map as JSON.")
+              help="Also write the video-frame → source-frame map as JSON "
+                   "(data_schema/frame_map.schema.json).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @_render_options
 def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_numbers,
@@ -216,6 +219,9 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
     if frame_map:
         doc = {"video": str(output), "fps": float(video_fps), "size": [w, h],
                "motion_fps": float(scene.fps), "source_frames": [int(x) for x in fmap]}
+        from ..schema import validate
+
+        validate(doc, "frame_map", source="snapshot video frame map")
         Path(frame_map).write_text(json.dumps(doc) + "\n")
     click.echo(f"{output}: {len(fmap)} frames at {video_fps:g} fps "
                f"(source frames {int(fmap[0])}..{int(fmap[-1])})")
