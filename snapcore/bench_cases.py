@@ -1,4 +1,5 @@
-"""Benchmark cases for ``snapshot bench``, one section per pipeline stage.
+"""Benchmark cases for ``snapshot bench``, one section per pipeline stage, in the order
+data flows (motion, pose, view, rendering, relief): the table reads like the pipeline.
 
 Targets come from the issues (one core): parse + FK of a 2,000-frame two-person scene
 under 150 ms; pose selection under 20 ms; PMA + refinement under 30 ms; viewpoint
@@ -47,74 +48,6 @@ def _parse_fk_boxing(ctx: BenchContext):
     return work
 
 
-# ----------------------------------------------------------------- relief (issue 6)
-
-
-def _relief_height_field(ctx: BenchContext, resolution: int):
-    """Salsa pair at source frame 900 seen from the front-right as a depth map (metres),
-    or, without motion data or GL, a dome with bumps (synthetic, same size)."""
-    import numpy as np
-
-    from .relief import ReliefParams, height_from_depth
-
-    scene = ctx.salsa()
-    if scene is not None:
-        try:
-            from .relief_scene import height_field_from_scene
-
-            dm = height_field_from_scene(scene, 900 - scene.frame_offset, (0.3, 0.2, 1.0),
-                                         params=ReliefParams(resolution=resolution))
-            h, m = height_from_depth(dm.depth)
-            return h, m, dm.pixel_size, "salsa pair, frame 900"
-        except Exception:  # no GL here: fall back to the synthetic field  # noqa: BLE001
-            pass
-    n = resolution
-    yy, xx = (np.mgrid[0:n, 0:n] - n / 2 + 0.5) / (n / 2)
-    r = np.hypot(xx, yy)
-    m = r < 0.8
-    h = np.sqrt(np.clip(0.64 - r * r, 0, None)) + 0.01 * np.sin(40 * xx) * np.sin(40 * yy)
-    return np.where(m, h, 0.0), m, 2.0 / n, "synthetic dome"
-
-
-@case("relief 1024x1024 height field -> STL", target_ms=2000.0,
-      note="compress (CBF + masked Poisson), mesh, binary STL written")
-def _relief_1024(ctx: BenchContext):
-    import os
-    import tempfile
-
-    from .relief import ReliefParams, relief_from_height_field
-
-    h, m, px, _ = _relief_height_field(ctx, 1024)
-    params = ReliefParams(resolution=1024)
-    fd, path = tempfile.mkstemp(suffix=".stl")
-    os.close(fd)
-
-    def work():
-        rel = relief_from_height_field(h, m, pixel=px, params=params)
-        rel.write_stl(path)
-        return rel
-
-    return work
-
-
-@case("relief 1024x1024 height field -> STL (linear)", note="plain linear compression, for comparison")
-def _relief_1024_linear(ctx: BenchContext):
-    import os
-    import tempfile
-
-    from .relief import ReliefParams, relief_from_height_field
-
-    h, m, px, _ = _relief_height_field(ctx, 1024)
-    params = ReliefParams(resolution=1024, method="linear")
-    fd, path = tempfile.mkstemp(suffix=".stl")
-    os.close(fd)
-
-    def work():
-        relief_from_height_field(h, m, pixel=px, params=params).write_stl(path)
-
-    return work
-
-
 # ----------------------------------------------------------------- synth (demo data)
 
 
@@ -132,58 +65,6 @@ def _synth_push(ctx: BenchContext):
     from .synth import synth_scene
 
     return lambda: synth_scene("push")
-
-
-# ----------------------------------------------------------------- view selection
-
-
-@case("view PMA salsa pair (2562 views + refinement)", target_ms=30.0,
-      note="2x2239 frames x 56 links: 500k swept triangles, bound, refine, certificate")
-def _view_pma_salsa(ctx: BenchContext):
-    scene = ctx.salsa()
-    if scene is None:
-        return None
-    from .view import select_view
-
-    return lambda: select_view(scene)
-
-
-@case("view motion area salsa pair (triangles shared)",
-      note="the Kwon & Lee baseline on the PMA run's triangles")
-def _view_ma_salsa(ctx: BenchContext):
-    scene = ctx.salsa()
-    if scene is None:
-        return None
-    from .view import motion_triangles, select_view
-
-    tri = motion_triangles(scene)
-    return lambda: select_view(scene, method="motion_area", triangles=tri)
-
-
-@case("viewpoint entropy 162 views, 75.5k-face body", target_ms=5000.0,
-      note="the Bandai dancer's posed body subdivided to the paper's Dancing face count; "
-           "face-id renders at 256² + entropies")
-def _view_entropy_75k(ctx: BenchContext):
-    p = ctx.path("dance/dataset-1_dance-short_normal_001.bvh")
-    if p is None:
-        return None
-    from types import SimpleNamespace
-
-    import numpy as np
-    import trimesh
-
-    from .body import posed_mesh
-    from .load import load_scene
-    from .viewpoint_entropy import select_view_entropy
-
-    m = posed_mesh(load_scene(p), 900)
-    v, f = trimesh.remesh.subdivide(m.vertices, m.faces)
-    v, f = trimesh.remesh.subdivide(v, f)
-    extra = max(0, (75537 - len(f)) // 3)  # each subdivided face adds three
-    if extra:
-        v, f = trimesh.remesh.subdivide(v, f, face_index=np.arange(extra))
-    mesh = SimpleNamespace(vertices=v, faces=f)
-    return lambda: select_view_entropy(None, 0, mesh=mesh, min_elevation_deg=None)
 
 
 # ----------------------------------------------------------------- pose selection (issue 3)
@@ -259,6 +140,58 @@ def _local_salsa(ctx: BenchContext):
 def _pose_salsa_whole(ctx: BenchContext):
     scene = _pose_scene(ctx, None)
     return None if scene is None else _select(scene)
+
+
+# ----------------------------------------------------------------- view selection
+
+
+@case("view PMA salsa pair (2562 views + refinement)", target_ms=30.0,
+      note="2x2239 frames x 56 links: 500k swept triangles, bound, refine, certificate")
+def _view_pma_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .view import select_view
+
+    return lambda: select_view(scene)
+
+
+@case("view motion area salsa pair (triangles shared)",
+      note="the Kwon & Lee baseline on the PMA run's triangles")
+def _view_ma_salsa(ctx: BenchContext):
+    scene = ctx.salsa()
+    if scene is None:
+        return None
+    from .view import motion_triangles, select_view
+
+    tri = motion_triangles(scene)
+    return lambda: select_view(scene, method="motion_area", triangles=tri)
+
+
+@case("viewpoint entropy 162 views, 75.5k-face body", target_ms=5000.0,
+      note="the Bandai dancer's posed body subdivided to the paper's Dancing face count; "
+           "face-id renders at 256² + entropies")
+def _view_entropy_75k(ctx: BenchContext):
+    p = ctx.path("dance/dataset-1_dance-short_normal_001.bvh")
+    if p is None:
+        return None
+    from types import SimpleNamespace
+
+    import numpy as np
+    import trimesh
+
+    from .body import posed_mesh
+    from .load import load_scene
+    from .viewpoint_entropy import select_view_entropy
+
+    m = posed_mesh(load_scene(p), 900)
+    v, f = trimesh.remesh.subdivide(m.vertices, m.faces)
+    v, f = trimesh.remesh.subdivide(v, f)
+    extra = max(0, (75537 - len(f)) // 3)  # each subdivided face adds three
+    if extra:
+        v, f = trimesh.remesh.subdivide(v, f, face_index=np.arange(extra))
+    mesh = SimpleNamespace(vertices=v, faces=f)
+    return lambda: select_view_entropy(None, 0, mesh=mesh, min_elevation_deg=None)
 
 
 # ----------------------------------------------------------------- rendering (issue 5)
@@ -355,3 +288,71 @@ def _video_salsa_100(ctx: BenchContext):
       note="timed once, no warm-up (~35-40 s)", max_repeats=1, warmup=False)
 def _video_salsa_1000(ctx: BenchContext):
     return _video_case(ctx, 1000)
+
+
+# ----------------------------------------------------------------- relief (issue 6)
+
+
+def _relief_height_field(ctx: BenchContext, resolution: int):
+    """Salsa pair at source frame 900 seen from the front-right as a depth map (metres),
+    or, without motion data or GL, a dome with bumps (synthetic, same size)."""
+    import numpy as np
+
+    from .relief import ReliefParams, height_from_depth
+
+    scene = ctx.salsa()
+    if scene is not None:
+        try:
+            from .relief_scene import height_field_from_scene
+
+            dm = height_field_from_scene(scene, 900 - scene.frame_offset, (0.3, 0.2, 1.0),
+                                         params=ReliefParams(resolution=resolution))
+            h, m = height_from_depth(dm.depth)
+            return h, m, dm.pixel_size, "salsa pair, frame 900"
+        except Exception:  # no GL here: fall back to the synthetic field  # noqa: BLE001
+            pass
+    n = resolution
+    yy, xx = (np.mgrid[0:n, 0:n] - n / 2 + 0.5) / (n / 2)
+    r = np.hypot(xx, yy)
+    m = r < 0.8
+    h = np.sqrt(np.clip(0.64 - r * r, 0, None)) + 0.01 * np.sin(40 * xx) * np.sin(40 * yy)
+    return np.where(m, h, 0.0), m, 2.0 / n, "synthetic dome"
+
+
+@case("relief 1024x1024 height field -> STL", target_ms=2000.0,
+      note="compress (CBF + masked Poisson), mesh, binary STL written")
+def _relief_1024(ctx: BenchContext):
+    import os
+    import tempfile
+
+    from .relief import ReliefParams, relief_from_height_field
+
+    h, m, px, _ = _relief_height_field(ctx, 1024)
+    params = ReliefParams(resolution=1024)
+    fd, path = tempfile.mkstemp(suffix=".stl")
+    os.close(fd)
+
+    def work():
+        rel = relief_from_height_field(h, m, pixel=px, params=params)
+        rel.write_stl(path)
+        return rel
+
+    return work
+
+
+@case("relief 1024x1024 height field -> STL (linear)", note="plain linear compression, for comparison")
+def _relief_1024_linear(ctx: BenchContext):
+    import os
+    import tempfile
+
+    from .relief import ReliefParams, relief_from_height_field
+
+    h, m, px, _ = _relief_height_field(ctx, 1024)
+    params = ReliefParams(resolution=1024, method="linear")
+    fd, path = tempfile.mkstemp(suffix=".stl")
+    os.close(fd)
+
+    def work():
+        relief_from_height_field(h, m, pixel=px, params=params).write_stl(path)
+
+    return work
