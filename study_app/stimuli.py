@@ -410,8 +410,12 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
                   "motion_area": picks["motion_area"]}
     frame = int(picks["frame"]) - scene.frame_offset
     # Same size and the same framing rule for all three (the pose fitted tightly with
-    # the same margin from each direction), so no view wins by being bigger.
-    renderer = SceneRenderer(scene, size=size)
+    # the same margin from each direction), so no view wins by being bigger. No floor
+    # and no shadows: a tightly framed orthographic view shows the floor grid from
+    # above, nothing of it near the horizon and the grid through the legs from below
+    # (the methods may pick views down to 10 degrees under the horizon), so the
+    # background alone would tell the three methods apart.
+    renderer = SceneRenderer(scene, size=size, ground=False, shadows=False)
     views = {}
     for m in METHODS:
         p = out / f"view_{m}.png"

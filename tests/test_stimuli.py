@@ -204,3 +204,27 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
     r = CliRunner().invoke(serve.study, ["--config", str(tiny_config), "--stimuli",
                                          str(tmp_path / "none"), "--db", db])
     assert r.exit_code != 0 and "snapshot stimuli build" in str(r.exception)
+
+
+def test_view_stills_share_one_background(tmp_path):
+    """The three candidate views of a view task are drawn on the same plain background,
+    whatever their elevation (from below the floor, level, from above), so the floor
+    cannot give a method away; each still shows the figure."""
+    import imageio.v3 as iio
+
+    from snapcore import synth
+    from snapcore.render import BACKGROUND
+    from study_app.stimuli import METHODS, write_views
+
+    scene = synth.synth_scene("walk", fps=30)
+    dirs = [np.array(v, float) / np.linalg.norm(v) for v in ((1, -0.16, 0.2), (1, 0, 0.3),
+                                                             (0.6, 0.6, 0.5))]
+    picks = {"frame": scene.frame_offset + 20, "view": dirs[0],
+             "viewpoint_entropy": dirs[1], "motion_area": dirs[2]}
+    views = write_views(scene, picks, tmp_path, size=(96, 128))
+    bg = np.round(np.asarray(BACKGROUND) * 255)
+    for m in METHODS:
+        img = iio.imread(views[m]["file"])[..., :3].astype(float)
+        border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
+        assert np.abs(border - bg).max() <= 2, m  # plain background all round
+        assert (np.abs(img - bg).max(axis=-1) > 30).mean() > 0.05, m  # the figure is there
