@@ -30,6 +30,27 @@ __all__ = ["load_scene", "data_dir", "resolve_data_path", "MANIFEST_SUFFIXES", "
 MANIFEST_SUFFIXES = (".toml", ".json")
 
 
+#: Statures (in file units) of characters loaded together that differ by more than
+#: this factor are taken for files in different units: a child and an adult differ by
+#: less than 1.8x; the shared motion files' units differ by 20x and more.
+MAX_STATURE_RATIO = 2.0
+
+
+def _warn_unit_mismatch(probes, statures) -> None:
+    """Warn when characters that will share one scale look like different units."""
+    s = np.asarray(statures, float)
+    if s.size < 2 or not np.all(np.isfinite(s) & (s > 0)):
+        return
+    if s.max() / s.min() > MAX_STATURE_RATIO:
+        hi, lo = int(np.argmax(s)), int(np.argmin(s))
+        warnings.warn(
+            f"characters '{probes[hi].name}' and '{probes[lo].name}' differ {s.max() / s.min():.0f}x "
+            "in size in their files' units: the files probably use different units, but one "
+            "scale is shared; give each character its own `scale` in a scene manifest",
+            stacklevel=4,
+        )
+
+
 def data_dir(required: bool = False) -> Path | None:
     """Folder of the real motion data.
 
@@ -148,6 +169,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
     how = "given"
     if scene_scale is None and not all("scale" in e for e in entries):
         statures = [stature_units(p.skeleton, p.positions) for p in probes]
+        _warn_unit_mismatch(probes, statures)
         scene_scale, how = infer_scale(statures)
         if how == "fitted":
             warnings.warn(

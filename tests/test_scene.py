@@ -305,3 +305,16 @@ def test_scene_frames_keep_source_numbering(motions_dir):
     assert scene.frames(0, 10 ** 6).n_frames == scene.n_frames  # clipped like a slice
     with pytest.raises(SceneError, match="empty"):
         scene.frames(5, 5)
+
+
+def test_files_in_different_units_are_flagged(motions_dir):
+    """A CMU walk (~0.056 m per unit) loaded with a salsa dancer (~1.3 m per unit) would
+    share one scale and come out 3 m and 0.13 m tall: a warning says so and names both.
+    Characters in the same unit (the salsa pair) load without it."""
+    walk, salsa = motions_dir / "walk_run" / "02_01.bvh", motions_dir / "two_person" / "61_01_scaled.bvh"
+    with pytest.warns(UserWarning, match=r"'02_01' and '61_01_scaled' differ 2\dx in size"):
+        load_scene([walk, salsa], fps=60)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_scene([motions_dir / "two_person" / "60_01_scaled.bvh", salsa], fps=60)
+    assert not [w for w in caught if "different units" in str(w.message)]
