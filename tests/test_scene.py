@@ -307,6 +307,7 @@ def test_scene_frames_keep_source_numbering(motions_dir):
         scene.frames(5, 5)
 
 
+@pytest.mark.filterwarnings("ignore:characters have different frame counts")
 def test_files_in_different_units_are_flagged(motions_dir):
     """A CMU walk (~0.056 m per unit) loaded with a salsa dancer (~1.3 m per unit) would
     share one scale and come out 3 m and 0.13 m tall: a warning says so and names both.
