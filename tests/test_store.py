@@ -548,12 +548,15 @@ def test_cli_export(sqlite_url, tmp_path):
     rows = read_export(out)
     assert {(r["participant_id"], r["trial_index"]) for r in rows} == \
         {k for k in sent if k[0] != sim}
+    n_sim = sum(1 for k in sent if k[0] == sim)
+    assert f"note: {n_sim} responses of simulated participants were left out" in err
     import csv
     table = list(csv.DictReader(parts.open()))
     assert len(table) == 2 and {t["n_responses"] for t in table} == {"3"}
     code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(tmp_path / "all.json"),
                            "--include-simulated", "--events", str(tmp_path / "ev.jsonl"))
     assert code == 0, err
+    assert "left out" not in err
     lines = (tmp_path / "all.json").read_text().splitlines()
     assert len(lines) == 7 and all(json.loads(x)["trial_index"] >= 0 for x in lines)
 

@@ -54,6 +54,8 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
             n_events = write_events([e for e in store.events() if e["participant_id"] in keep],
                                     events_path)
         url = store.url
+        n_simulated_only = 0 if include_simulated else \
+            store.progress(include_simulated=True)["responses"] - len(rows)
     if not quiet:
         who = len({r["participant_id"] for r in rows})
         msg = f"exported {n} responses of {who} participants from {url} to {output}"
@@ -62,3 +64,6 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
         if n_events is not None:
             msg += f"; {n_events} events to {events_path}"
         click.echo(msg, err=True)
+        if n_simulated_only:
+            click.echo(f"note: {n_simulated_only} responses of simulated participants were left "
+                       "out (add --include-simulated)", err=True)
