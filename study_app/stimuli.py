@@ -24,6 +24,7 @@ import hashlib
 import json
 import shutil
 import time
+import warnings
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -510,7 +511,11 @@ def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
     bar = tqdm(study.scenes, desc="stimuli", unit="scene", disable=quiet)
     for sc in bar:
         bar.set_postfix_str(sc["id"])
-        entries.append(_build_scene(study, sc, tmp))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            entries.append(_build_scene(study, sc, tmp))
+        for w in caught:  # say which scene a warning is about
+            warnings.warn(f"scene {sc['id']}: {w.message}", w.category, stacklevel=2)
     write_manifest(tmp, study, entries)
     shutil.rmtree(tmp / ".demo", ignore_errors=True)
     if out.exists():

@@ -228,3 +228,16 @@ def test_view_stills_share_one_background(tmp_path):
         border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
         assert np.abs(border - bg).max() <= 2, m  # plain background all round
         assert (np.abs(img - bg).max(axis=-1) > 30).mean() > 0.05, m  # the figure is there
+
+
+def test_build_warnings_name_their_scene(tmp_path):
+    """A warning raised while one scene is built (the demo punch has no contact events,
+    so its global term is constant) says which scene it is about."""
+    (tmp_path / "one.toml").write_text('[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
+                                       'size = [96, 72]\n\n[[scenes]]\nid = "punch"\n'
+                                       'demo = "punch"\n')
+    snapshot = str(Path(sys.executable).with_name("snapshot"))
+    r = subprocess.run([snapshot, "stimuli", "build", "one.toml", "-o", "stim", "-q"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "warning: scene punch: global pose entropy" in r.stderr
