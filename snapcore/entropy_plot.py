@@ -69,10 +69,15 @@ def plot_curves(snapshot, *, axes=None):
         for ax in (ax_terms, ax_total):
             ax.axvline(t[i], color="#c0392b", lw=0.8, ls="--", alpha=0.8, zorder=0)
         ax_total.plot(t[i], ent.total[i], "o", color="#c0392b", ms=5, zorder=3)
-        ax_total.annotate(f"#{rank}  frame {snapshot.scene.source_frame(i)}",
-                          (t[i], ent.total[i]), xytext=(4, 4 - 9 * (rank - 1)),
-                          textcoords="offset points",
-                          fontsize=8, color="#c0392b")
+        # one row per rank at the top, beside the peak's dashed line: close peaks
+        # (0.3 s apart at the default separation) do not print over each other
+        late = t.size > 1 and t[i] > t[0] + 0.75 * (t[-1] - t[0])
+        ax_total.text(t[i], top * (1.14 - 0.11 * (rank - 1)),
+                      f"#{rank} frame {snapshot.scene.source_frame(i)}"
+                      + (" " if late else ""), ha="right" if late else "left",
+                      va="center", fontsize=8, color="#c0392b", zorder=4,
+                      bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
+                            "alpha": 0.8})
     ax_total.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
     for ax in (ax_terms, ax_total):
         ax.grid(alpha=0.25)
@@ -233,7 +238,7 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
                         solid_capstyle="round", zorder=2 + near)
             head = int(np.argmax(sy))
             ax.plot(sx[head], sy[head], "o", color=colour, ms=4 if bold else 3, zorder=4)
-        ax.text(x0[k], -0.08 * height, f"frame {scene.source_frame(i)}", ha="center",
+        ax.text(x0[k], -0.08 * height, f"{scene.source_frame(i)}", ha="center",
                 va="top", fontsize=7, fontweight="bold" if bold else "normal",
                 color="#c0392b" if bold else "0.3")
         if bold:  # the rank above the figure, where there is room
@@ -242,6 +247,11 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
                     fontsize=9, fontweight="bold", color="#c0392b")
         ax.text(x0[k], -0.2 * height, f"{i / ent.fps:.2f} s", ha="center", va="top",
                 fontsize=6, color="0.45")
+    # what the numbers under the poses are (short, so close poses' labels fit)
+    ax.text(drawn[0][2] - 0.5 * margin, -0.08 * height, "frame ", ha="right", va="top",
+            fontsize=7, color="0.3")
+    ax.text(drawn[0][2] - 0.5 * margin, -0.2 * height, "time ", ha="right", va="top",
+            fontsize=6, color="0.45")
     ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
     ax.set_aspect("equal")
     ax.set_xlim(drawn[0][2] - 0.5 * margin, cursor + 0.5 * margin)
