@@ -56,11 +56,13 @@ def paper_analogues() -> pd.DataFrame:
     -------
     DataFrame
         ``scene``, ``files`` (list of paths relative to the motion data folder),
-        ``fps`` (override or NaN), ``note``.
+        ``fps`` (override or NaN), ``caveat`` (how the stand-in differs from the paper's
+        animation, said in every figure title; "" if nothing), ``note``.
     """
     with (files("analysis") / "data" / "paper_analogues.csv").open("r", encoding="utf-8") as fh:
         t = pd.read_csv(fh)
     t["files"] = t["files"].str.split(";")
+    t["caveat"] = t["caveat"].fillna("")
     return t
 
 
@@ -322,8 +324,10 @@ def _fig6(ctx: _Context) -> list[Path]:
 
 
 def _clip_name(sid: str) -> str:
-    t = paper_analogues().set_index("scene")
-    return " + ".join(Path(f).stem for f in t.loc[sid, "files"])
+    """The stand-in clip's name for titles, with its caveat (e.g. "one boxer only")."""
+    row = paper_analogues().set_index("scene").loc[sid]
+    name = " + ".join(Path(f).stem for f in row["files"])
+    return f"{name}, {row['caveat']}" if row["caveat"] else name
 
 
 #: Panel names of the three methods' views (the paper's Fig. 8, 9, 10).
