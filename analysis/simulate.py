@@ -59,7 +59,7 @@ _ATTENTION = {"options": ["A red square", "A purple circle", "A green triangle",
                           "I am not sure"], "answer": "A purple circle"}
 _BACKGROUND = {"age_band": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older"],
                "gender": ["Woman", "Man", "Non-binary", "Prefer not to say"],
-               "experience": ["None", "Some (a course or a hobby)",
+               "experience": ["No experience", "Some (a course or a hobby)",
                               "Experienced (animation, 3D or art is part of my work or studies)"]}
 
 

@@ -55,7 +55,7 @@ DEFAULT_BACKGROUND = {
     "age_bands": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older", "Prefer not to say"],
     "genders": ["Woman", "Man", "Non-binary", "Prefer to self-describe", "Prefer not to say"],
     "experience": [
-        "None",
+        "No experience",
         "Some (a course or a hobby)",
         "Experienced (animation, 3D or art is part of my work or studies)",
         "Professional (animator, 3D artist, illustrator, sculptor)",

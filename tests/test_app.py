@@ -30,7 +30,7 @@ from streamlit.testing.v1 import AppTest  # noqa: E402
 
 APP = "../study_app/app.py"
 TIMEOUT = 30
-BACKGROUND = {"age_band": "25–34", "gender": "Woman", "experience": "None"}
+BACKGROUND = {"age_band": "25–34", "gender": "Woman", "experience": "No experience"}
 
 
 @pytest.fixture(scope="module")

@@ -31,7 +31,7 @@ from study_app.session import (
 from study_app.stimuli import load_stimuli
 from study_app.store import Store
 
-BACKGROUND = {"age_band": "18–24", "gender": "Man", "experience": "None"}
+BACKGROUND = {"age_band": "18–24", "gender": "Man", "experience": "No experience"}
 
 
 # ----------------------------------------------------------------------------- protocol
