@@ -216,7 +216,8 @@ def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study
 @click.option("--comparisons", type=click.IntRange(1), default=12, show_default=True,
               help="Tests Holm-corrected together (the paper's design: 6 scenes x 2 baselines).")
 @click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Write the table (CSV/Markdown/LaTeX) and the power curve (PNG/PDF) here.")
+              help="Write the result here: the table (CSV/Markdown/LaTeX), or with --ours "
+                   "and --baseline the power curve (PNG/PDF).")
 def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
     """Participants needed to show that ours is preferred to a baseline.
 
