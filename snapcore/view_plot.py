@@ -125,7 +125,7 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
         ax.plot([f_lon * scale] * 2, [-math.pi / 2 * scale, math.pi / 2 * scale], ls="--",
                 color="white", lw=0.9, alpha=0.8)
         ax.text(f_lon * scale, 0.62 * math.pi / 2 * scale, " front", color="white", fontsize=8)
-    # hollow antipodes first, then the picks, ours last (on top)
+    # hollow antipodes first, then the picks
     order = [m for m in ("viewpoint_entropy", "motion_area", "pma") if (picks or {}).get(m) is not None]
     for name in order:
         if name in symmetric:
@@ -133,10 +133,11 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
             x, y = lon_lat(-np.asarray(picks[name], float))
             ax.plot(x * scale, y * scale, marker=marker, ms=15 if marker == "*" else 10,
                     mfc="none", mec=colour, mew=1.5, ls="none", zorder=4)
-    for z, name in enumerate(order):
+    # the big star underneath, the smaller markers on it: picks at the same place all show
+    for z, name in enumerate(sorted(order, key=lambda m: MARKERS[m][0] != "*")):
         marker, colour, label = MARKERS[name]
         x, y = lon_lat(np.asarray(picks[name], float))
-        ax.plot(x * scale, y * scale, marker=marker, ms=15 if marker == "*" else 9, color=colour,
+        ax.plot(x * scale, y * scale, marker=marker, ms=15 if marker == "*" else 8, color=colour,
                 mec="white", mew=1.0, ls="none", label=label, zorder=5 + z)
     if projection == "equirect":
         ax.set_xlim(-180, 180)
@@ -149,7 +150,7 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
     ax.grid(True, color="white", alpha=0.25, lw=0.5)
     ax.tick_params(labelsize=7)
     if title:
-        ax.set_title(title, fontsize=10)
+        ax.set_title(title, fontsize=10, pad=14)  # clear of the map's top latitude label
     return fig
 
 
@@ -233,8 +234,9 @@ def plot_views(scene, *, frame: int, window_s: float | None = None, n_views: int
     fig.suptitle(f"{scene.name}: view scores over the sphere (PMA and motion area: {span}; "
                  f"entropy: body at {when})", fontsize=10)
     handles, labels = fig.axes[0].get_legend_handles_labels()
-    handles.append(plt.Line2D([], [], marker="*", ms=11, mfc="none", mec="#555555", ls="none"))
-    labels.append("antipode (same PMA / motion area)")
+    handles.append(plt.Line2D([], [], marker="*", ms=11, mfc="none", mec=MARKERS["pma"][1],
+                              mew=1.5, ls="none"))
+    labels.append("hollow: the antipode (same PMA / motion area)")
     fig.tight_layout(rect=(0, 0.035, 1, 1))
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
     return fig
