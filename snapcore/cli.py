@@ -6,8 +6,12 @@ Streamlit or matplotlib, and snapcore never imports study_app or analysis.
 
 Errors: every :class:`~snapcore.errors.SnapshotError` (bad BVH, bad manifest, bad
 database URL...) and every ``OSError`` becomes one line on stderr, ``error: <file>:<line>:
-<what>``, with exit code 2 and no traceback. Warnings become one ``warning:`` line each.
-``SNAPSHOT_DEBUG=1`` shows the traceback for developers.
+<what>``, with exit code 2 and no traceback. So does every click usage error (a bad
+option value, an unknown option or command, a missing argument, a ``click.BadParameter``
+raised by a command): ``error: <click's message>`` instead of click's four-line usage
+block. ``snapshot`` with no arguments still prints the help; ``--help`` and ``--version``
+are click's. Warnings become one ``warning:`` line each. ``SNAPSHOT_DEBUG=1`` shows the
+traceback for developers.
 """
 
 from __future__ import annotations
@@ -26,6 +30,27 @@ __all__ = ["main", "cli", "EXIT_BAD_INPUT"]
 #: Exit status for bad input or a failed request (click uses 2 for usage errors too).
 EXIT_BAD_INPUT = 2
 ENTRY_POINT_GROUP = "action_snapshot.commands"
+
+
+class _OneLineError(click.ClickException):
+    """A click error (bad option value, unknown option or command, missing argument...)
+    shown as one ``error: <click's message>`` line instead of click's usage block."""
+
+    def __init__(self, err: click.ClickException):
+        text = " ".join(ln.strip() for ln in err.format_message().splitlines() if ln.strip())
+        super().__init__(text)
+        usage = isinstance(err, (click.UsageError, click.FileError))
+        self.exit_code = EXIT_BAD_INPUT if usage else err.exit_code
+
+    def show(self, file=None):
+        click.echo(f"error: {self.format_message()}", file=file, err=True)
+
+
+def _one_line(err: click.ClickException) -> click.ClickException:
+    """``err`` as a one-line error; ``snapshot`` alone (help for no arguments) stays as is."""
+    if isinstance(err, (click.exceptions.NoArgsIsHelpError, _OneLineError)):
+        return err
+    return _OneLineError(err)
 
 
 def _commands() -> dict:
@@ -55,9 +80,20 @@ class _LazyGroup(click.Group):
 
             return unavailable
 
+    def parse_args(self, ctx, args):
+        # errors in the group's own options (`snapshot --bogus`)
+        try:
+            return super().parse_args(ctx, args)
+        except click.ClickException as err:
+            raise _one_line(err) from None
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except click.ClickException as err:
+            # an unknown command, a subcommand's bad option or missing argument, a
+            # click.BadParameter raised by a command: one line, exit code 2
+            raise _one_line(err) from None
         except SnapshotError as err:
             if os.environ.get("SNAPSHOT_DEBUG"):
                 raise

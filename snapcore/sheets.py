@@ -190,8 +190,8 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
 
 
 def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
-                  projection="orthographic", title=None, labels=True, ground=True,
-                  shadows=True, captions: dict | None = None) -> np.ndarray:
+                  projection="orthographic", columns=None, title=None, labels=True,
+                  ground=True, shadows=True, captions: dict | None = None) -> np.ndarray:
     """One pose from several directions, side by side (the paper's Fig. 8-10).
 
     Parameters
@@ -205,6 +205,8 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
     size : (int, int)
         Size of each panel, pixels (the same for all).
     projection : {"orthographic", "perspective"}
+    columns : int, optional
+        Panels per row (default one row).
     title : str, optional
     labels : bool
         Caption each panel with its label and direction.
@@ -247,4 +249,4 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
     if title is None and labels:
         title = (f"{scene.name}: frame {int(scene.source_frame(frame))} "
                  f"({frame / scene.fps:.2f} s)")
-    return tile_panels(panels, caps, title=title)
+    return tile_panels(panels, caps, columns=columns, title=title)

@@ -7,9 +7,23 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .common import echo_json, parse_vector, scene_arguments, scene_from_options
+from .common import (
+    POSITIVE,
+    echo_json,
+    output_callback,
+    scene_arguments,
+    scene_from_options,
+    vector_callback,
+)
 
 __all__ = ["relief", "parse_size", "default_pose_and_view"]
+
+
+def _size_callback(ctx, param, value):
+    try:
+        return parse_size(value)
+    except click.BadParameter as err:  # name the option as click does for its own errors
+        raise click.BadParameter(err.message, param=param) from None
 
 
 def parse_size(text: str) -> tuple[float, float]:
@@ -43,6 +57,18 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     return frame, view
 
 
+def _check_frame(scene, frame: int) -> int:
+    """The internal frame of source ``frame``, or a one-line error naming --frame."""
+    internal = frame - scene.frame_offset
+    if not 0 <= internal < scene.n_frames:
+        raise click.BadParameter(
+            f"frame {frame} is outside the scene: source frames {scene.frame_offset}.."
+            f"{scene.frame_offset + scene.n_frames - 1}",
+            param_hint="--frame",
+        )
+    return internal
+
+
 @click.command()
 @scene_arguments
 @click.option(
@@ -58,6 +84,7 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     "view_text",
     default=None,
     metavar="X,Y,Z",
+    callback=vector_callback,
     help="View direction from the scene towards the viewer (world, Y up). "
     "Default: the view selected by Projected Motion Area.",
 )
@@ -67,7 +94,8 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     type=click.Path(dir_okay=False),
     default="relief.stl",
     show_default=True,
-    help="STL file to write (binary, millimetres).",
+    callback=output_callback(".stl"),
+    help="STL file to write (.stl; binary, millimetres).",
 )
 @click.option(
     "--size",
@@ -75,17 +103,18 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     default="100",
     show_default=True,
     metavar="W[xD]",
+    callback=_size_callback,
     help="Footprint in mm (one number: square).",
 )
 @click.option(
     "--depth",
-    type=float,
+    type=POSITIVE,
     default=4.0,
     show_default=True,
     help="Relief depth in mm above the plate.",
 )
 @click.option(
-    "--base", type=float, default=2.0, show_default=True, help="Base plate thickness in mm."
+    "--base", type=POSITIVE, default=2.0, show_default=True, help="Base plate thickness in mm."
 )
 @click.option(
     "--resolution",
@@ -103,7 +132,8 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     "--preview",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Shaded preview PNG (default: beside the STL, same name with .png).",
+    callback=output_callback(".png", what="relief writes its preview as"),
+    help="Shaded preview PNG (.png; default: beside the STL, same name with .png).",
 )
 @click.option("--json", "as_json", is_flag=True,
               help="Print a JSON summary (data_schema/relief.schema.json).")
@@ -139,8 +169,12 @@ def relief(
     from ..relief import ReliefParams
     from ..relief_scene import relief_from_scene
 
-    size = parse_size(size_text)
-    view = parse_vector(view_text, "--view") if view_text is not None else None
+    size = size_text  # parsed by _size_callback
+    view = view_text  # a unit vector or None (vector_callback)
+    out = Path(output)
+    png = Path(preview) if preview else out.with_suffix(".png")
+    if png.resolve() == out.resolve():  # the suffix checks rule it out; never lose the STL
+        raise click.UsageError(f"--preview {preview}: must differ from -o/--output {output}")
     params = ReliefParams(
         size_mm=size,
         depth_mm=depth,
@@ -149,6 +183,8 @@ def relief(
         method="linear" if linear else "compressed",
     )
     scene = scene_from_options(paths, fps, scale)
+    if frame is not None:
+        _check_frame(scene, frame)  # before the pipeline picks the view
     picked = []
     if frame is None or view is None:
         auto_frame, auto_view = default_pose_and_view(
@@ -160,18 +196,9 @@ def relief(
         if view is None:
             view = auto_view / np.linalg.norm(auto_view)
             picked.append("view")
-    internal = frame - scene.frame_offset
-    if not 0 <= internal < scene.n_frames:
-        raise click.BadParameter(
-            f"frame {frame} is outside the scene: source frames {scene.frame_offset}.."
-            f"{scene.frame_offset + scene.n_frames - 1}",
-            param_hint="--frame",
-        )
+    internal = _check_frame(scene, frame)
     rel = relief_from_scene(scene, internal, view, params=params)
-    out = Path(output)
-    out.parent.mkdir(parents=True, exist_ok=True)
     rel.write_stl(out)
-    png = Path(preview) if preview else out.with_suffix(".png")
     rel.write_preview(png)
     summary = {
         "stl": str(out),

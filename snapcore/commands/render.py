@@ -15,7 +15,16 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .common import parse_vector, scene_arguments, scene_from_options
+from .common import (
+    POSITIVE,
+    FiniteFloatRange,
+    output_callback,
+    parse_vector,
+    refuse_inputs,
+    scene_arguments,
+    scene_from_options,
+    view_callback,
+)
 
 __all__ = ["render", "video", "sheet", "parse_size", "pipeline_picks"]
 
@@ -92,17 +101,41 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
     return out
 
 
-def _view_option(text, scene, *, default="auto"):
-    """Resolve a --view value: 'x,y,z', 'auto' (the selected view) or 'default' (3/4)."""
+def _view_option(value, scene, *, default="auto"):
+    """Resolve a --view value: a unit vector (parsed by :func:`.common.view_callback`),
+    'auto' (the selected view) or 'default' (3/4)."""
     from ..render import default_view
 
-    text = default if text is None else text
-    if text == "default":
+    value = default if value is None else value
+    if isinstance(value, str) and value == "default":
         return default_view(scene), "default 3/4 view"
-    if text == "auto":
+    if isinstance(value, str) and value == "auto":
         view = pipeline_picks(scene, baselines=False)["views"]["ours"]
         return view, "selected view (projected motion area)"
-    return parse_vector(text, "--view"), "given view"
+    if isinstance(value, str):
+        value = parse_vector(value, "--view")
+    return np.asarray(value, float), "given view"
+
+
+def _size_callback(ctx, param, value):
+    try:
+        return parse_size(value)
+    except click.BadParameter as err:  # name the option as click does for its own errors
+        raise click.BadParameter(err.message, param=param) from None
+
+
+def _frame_range_callback(ctx, param, value):
+    """``--frames A:B`` → ``(A, B)`` source frames (checked against the scene later)."""
+    if value is None:
+        return None
+    try:
+        a, b = (int(t) for t in value.split(":"))
+    except ValueError:
+        raise click.BadParameter(f"expected A:B source frames, got '{value}'",
+                                 param=param) from None
+    if b < a:
+        raise click.BadParameter(f"B must not be before A, got '{value}'", param=param)
+    return a, b
 
 
 def _render_options(f):
@@ -121,13 +154,13 @@ def _render_options(f):
 @scene_arguments
 @click.option("--frame", type=int, default=None, metavar="N",
               help="Source frame number (as in the BVH file). Default: the selected pose.")
-@click.option("--view", default=None, metavar="x,y,z|auto|default",
+@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
               help="Direction from the scene to the camera (Y up), 'auto' = the selected "
                    "view (projected motion area) [default], 'default' = a 3/4 front view.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              help="PNG file to write.")
+              callback=output_callback(".png"), help="PNG file to write (.png).")
 @click.option("--size", default="1280x720", show_default=True, metavar="WxH",
-              help="Image size in pixels.")
+              callback=_size_callback, help="Image size in pixels.")
 @click.option("--fit", type=click.Choice(["frame", "motion"]), default="frame", show_default=True,
               help="Frame the pose tightly, or the whole motion (as videos do).")
 @_render_options
@@ -140,7 +173,7 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
     """
     from ..render import render_still, save_png
 
-    w, h = parse_size(size)
+    w, h = size
     scene = scene_from_options(paths, fps, scale)
     i, _ = _frame_option(scene, frame, views=False)
     v, how = _view_option(view, scene)
@@ -155,28 +188,31 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
 @click.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              help="MP4 file to write (H.264, yuv420p, faststart).")
-@click.option("--fps", "video_fps", type=click.FloatRange(min=1, max=240), default=24.0,
+              callback=output_callback(".mp4"),
+              help="MP4 file to write (.mp4; H.264, yuv420p, faststart).")
+@click.option("--fps", "video_fps", type=FiniteFloatRange(min=1, max=240), default=24.0,
               show_default=True,
               help="Frame rate of the VIDEO; the motion is resampled (nearest frame).")
-@click.option("--motion-fps", "fps", type=float, default=None,
+@click.option("--motion-fps", "fps", type=POSITIVE, default=None,
               help="Frame rate override for the MOTION (what --fps means in the other "
                    "commands; some headers are wrong, e.g. CMU salsa is 60).")
-@click.option("--scale", type=float, default=None,
+@click.option("--scale", type=POSITIVE, default=None,
               help="Metres per file unit (default: inferred from the characters' stature).")
 @click.option("--size", default="1280x720", show_default=True, metavar="WxH",
-              help="Video size in pixels (even numbers).")
-@click.option("--view", default=None, metavar="x,y,z|auto|default",
+              callback=_size_callback, help="Video size in pixels (even numbers).")
+@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
               help="Direction from the scene to the camera. Default: 'default' = a neutral "
                    "3/4 front view; 'auto' = the selected view.")
 @click.option("--frames", "frame_range", default=None, metavar="A:B",
+              callback=_frame_range_callback,
               help="Only the span of source frames A..B (inclusive), resampled to the "
                    "video's rate by nearest frame: at a lower rate the last frame shown "
                    "may fall a little before B (see --frame-map).")
 @click.option("--frame-numbers", is_flag=True, help="Print source frame number and time.")
 @click.option("--frame-map", type=click.Path(dir_okay=False), default=None,
-              help="Also write the video-frame → source-frame map as JSON "
-                   "(data_schema/frame_map.schema.json).")
+              callback=output_callback(".json", what="the frame map is written as"),
+              help="Also write the video-frame → source-frame map as JSON (.json; "
+                   "data_schema/frame_map.schema.json).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @_render_options
 def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_numbers,
@@ -194,21 +230,16 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
     """
     from ..video import render_video
 
-    w, h = parse_size(size)
+    w, h = size
     if w % 2 or h % 2:
         raise click.BadParameter(f"video width and height must be even, got {w}x{h}",
                                  param_hint="--size")
+    refuse_inputs(paths, **{"--frame-map": frame_map})
     scene = scene_from_options(paths, fps, scale)
     rng = None
     if frame_range:
-        try:
-            a, b = (int(t) for t in frame_range.split(":"))
-        except ValueError:
-            raise click.BadParameter(f"expected A:B source frames, got '{frame_range}'",
-                                     param_hint="--frames") from None
+        a, b = frame_range
         rng = (_internal(scene, a, "--frames"), _internal(scene, b, "--frames") + 1)
-        if rng[1] <= rng[0]:
-            raise click.BadParameter("B must not be before A", param_hint="--frames")
     v, how = _view_option(view, scene, default="default")
     if not quiet:
         _note(f"view {np.round(v, 3).tolist()} ({how})")
@@ -242,17 +273,29 @@ def _parse_named_view(text: str) -> tuple[str, np.ndarray]:
     return name.strip(), parse_vector(vec, "--views")
 
 
+def _named_views_callback(ctx, param, values):
+    try:
+        return [_parse_named_view(t) for t in values]
+    except click.BadParameter as err:
+        raise click.BadParameter(err.message, param=param) from None
+
+
+def _frames_callback(ctx, param, value):
+    return None if value is None else _parse_frames(value)
+
+
 @click.command()
 @scene_arguments
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              help="PNG file to write.")
-@click.option("--frames", "frames_text", default=None, metavar="A,B,C",
+              callback=output_callback(".png"), help="PNG file to write (.png).")
+@click.option("--frames", "frames", default=None, metavar="A,B,C", callback=_frames_callback,
               help="Contact sheet of these source frames (default: the top poses).")
 @click.option("--top", type=click.IntRange(min=1, max=12), default=3, show_default=True,
               help="Contact sheet of the K most informative poses (pose entropy).")
-@click.option("--view", default=None, metavar="x,y,z|auto|default",
+@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
               help="View of the contact sheet (default: 'auto' = the selected view).")
-@click.option("--views", "views_text", multiple=True, metavar="NAME=x,y,z",
+@click.option("--views", "named_views", multiple=True, metavar="NAME=x,y,z",
+              callback=_named_views_callback,
               help="Compare views instead: one panel per NAME=x,y,z (repeat the option).")
 @click.option("--compare", is_flag=True,
               help="Compare the three methods' views (ours / viewpoint entropy / motion "
@@ -260,12 +303,12 @@ def _parse_named_view(text: str) -> tuple[str, np.ndarray]:
 @click.option("--frame", type=int, default=None, metavar="N",
               help="Source frame for --views/--compare (default: the selected pose).")
 @click.option("--size", default="480x540", show_default=True, metavar="WxH",
-              help="Size of each panel in pixels.")
+              callback=_size_callback, help="Size of each panel in pixels.")
 @click.option("--columns", type=click.IntRange(min=1), default=None,
               help="Panels per row (default: one row).")
 @click.option("--title", default=None, help="Title line above the panels.")
 @_render_options
-def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare, frame, size,
+def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, frame, size,
           columns, title, perspective, no_ground, no_shadows):
     """Composite pictures: a contact sheet of poses, or one pose from several views.
 
@@ -282,30 +325,29 @@ def sheet(paths, fps, scale, output, frames_text, top, view, views_text, compare
     from ..render import save_png
     from ..sheets import compare_views, contact_sheet
 
-    w, h = parse_size(size)
+    w, h = size
     proj = "perspective" if perspective else "orthographic"
     scene = scene_from_options(paths, fps, scale)
     common = dict(size=(w, h), projection=proj, ground=not no_ground,
-                  shadows=not (no_shadows or no_ground))
+                  shadows=not (no_shadows or no_ground), columns=columns)
     picks = None
-    if views_text or compare:
+    if named_views or compare:
         i, picks = _frame_option(scene, frame, views=compare)
-        if views_text:
-            views = dict(_parse_named_view(t) for t in views_text)
+        if named_views:
+            views = dict(named_views)
         else:
             views = (picks or pipeline_picks(scene))["views"]
         img = compare_views(scene, i, views, title=title, **common)
     else:
         entropy = None
-        if frames_text:
-            frames = [_internal(scene, f, "--frames") for f in _parse_frames(frames_text)]
+        if frames:
+            frames = [_internal(scene, f, "--frames") for f in frames]
         else:
             picks = pipeline_picks(scene, k=top, views=False)
             frames, entropy = picks["frames"], picks["entropy"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
-        img = contact_sheet(scene, frames, view=v, entropy=entropy, columns=columns,
-                            title=title, **common)
+        img = contact_sheet(scene, frames, view=v, entropy=entropy, title=title, **common)
     save_png(img, output)
     click.echo(output)
 

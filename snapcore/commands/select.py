@@ -7,7 +7,14 @@ from pathlib import Path
 import click
 
 from ..pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
-from .common import echo_json, scene_arguments, scene_from_options
+from .common import (
+    FiniteFloatRange,
+    echo_json,
+    output_callback,
+    refuse_inputs,
+    scene_arguments,
+    scene_from_options,
+)
 
 __all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "format_snapshot"]
 
@@ -17,18 +24,18 @@ def pose_options(f):
     opts = [
         click.option("-k", "k", type=click.IntRange(min=1), default=3, show_default=True,
                      help="How many distinct top poses to report."),
-        click.option("--min-separation", "min_separation", type=click.FloatRange(min=0.0),
+        click.option("--min-separation", "min_separation", type=FiniteFloatRange(min=0.0),
                      default=MIN_SEPARATION_S, show_default=True, metavar="SECONDS",
                      help="Minimum time between two reported poses."),
-        click.option("--w-local", type=click.FloatRange(min=0.0), default=1.0, show_default=True,
+        click.option("--w-local", type=FiniteFloatRange(min=0.0), default=1.0, show_default=True,
                      help="Weight of the local term (joint curvature x limb x rotation)."),
-        click.option("--w-global", type=click.FloatRange(min=0.0), default=1.0,
+        click.option("--w-global", type=FiniteFloatRange(min=0.0), default=1.0,
                      show_default=True, help="Weight of the global term (interaction events)."),
         click.option("--events", type=click.Choice(EVENT_MODES), default="transitions",
                      show_default=True,
                      help="Global-term events: onset/release of an interaction, or its whole "
                           "duration."),
-        click.option("--smooth", type=click.FloatRange(min=0.0), default=SMOOTH_S,
+        click.option("--smooth", type=FiniteFloatRange(min=0.0), default=SMOOTH_S,
                      show_default=True, metavar="SECONDS",
                      help="Savitzky-Golay window for the joint trajectories (0: none)."),
     ]
@@ -106,7 +113,7 @@ def _format_view(doc: dict) -> list[str]:
 @click.command()
 @scene_arguments
 @pose_options
-@click.option("--window", "window", type=click.FloatRange(min=0.0), default=None,
+@click.option("--window", "window", type=FiniteFloatRange(min=0.0), default=None,
               metavar="SECONDS",
               help="Score the view over the selected pose ± SECONDS (pose-specific view); "
                    "default: the whole sequence.")
@@ -117,7 +124,8 @@ def _format_view(doc: dict) -> list[str]:
 @click.option("--json", "as_json", is_flag=True,
               help="Print the snapshot as JSON (data_schema/snapshot.schema.json).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), default=None,
-              help="Also write the JSON document to this file.")
+              callback=output_callback(),
+              help="Also write the JSON document to this file (not one of the inputs).")
 def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, window,
            no_baselines, no_view, as_json, output):
     """Select the most informative pose and view of a scene (paper sections 3.1-3.2).
@@ -133,6 +141,7 @@ def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smoo
     Example:
       snapshot select two_person/60_01_scaled.bvh two_person/61_01_scaled.bvh --fps 60
     """
+    refuse_inputs(paths, **{"-o/--output": output})
     scene = scene_from_options(paths, fps, scale)
     snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth,
                                  view=not no_view, window=window, baselines=not no_baselines)
@@ -156,6 +165,7 @@ def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smoo
 @scene_arguments
 @pose_options
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), required=True,
+              callback=output_callback(".png", ".pdf", ".svg"),
               help="Image file to write (.png, .pdf, .svg).")
 @click.option("--strip", type=click.IntRange(min=0), default=8, show_default=True,
               help="Evenly spaced poses in the film strip besides the top-k (0: top-k only).")

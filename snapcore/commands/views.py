@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import scene_arguments, scene_from_options
+from .common import FiniteFloatRange, output_callback, scene_arguments, scene_from_options
 
 __all__ = ["plot_views"]
 
@@ -14,10 +14,11 @@ __all__ = ["plot_views"]
 @click.command("plot-views")
 @scene_arguments
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), required=True,
+              callback=output_callback(".png", ".pdf", ".svg"),
               help="Image file to write (.png, .pdf, .svg).")
 @click.option("--frame", type=click.IntRange(min=0), default=None,
               help="Source frame of the pose (default: the pose-entropy pick).")
-@click.option("--window", "window", type=click.FloatRange(min=0.0), default=None,
+@click.option("--window", "window", type=FiniteFloatRange(min=0.0), default=None,
               metavar="SECONDS",
               help="Score PMA and motion area over the pose ± SECONDS (default: whole sequence).")
 @click.option("--projection", type=click.Choice(["mollweide", "equirect"]), default="mollweide",

@@ -62,8 +62,11 @@ def study(config, stimuli_dir, db, port, address, build, quiet):
     database must answer. With no options it serves the demo study on
     http://127.0.0.1:8501, building its stimuli into var/stimuli/demo the first time.
 
-    Participants open the printed address (with Prolific, append
-    ?PROLIFIC_PID={%PROLIFIC_PID%}&STUDY_ID={%STUDY_ID%}&SESSION_ID={%SESSION_ID%}).
+    Participants open the printed address; with Prolific, append
+
+    \b
+      ?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}
+
     The researcher page is at /researcher and opens with the token in
     $SNAPSHOT_ADMIN_TOKEN (without it the page stays empty).
     """
