@@ -87,6 +87,9 @@ def format_snapshot(doc: dict) -> list[str]:
     keys = [k for k in ("contacts", "local", "global", "select", "pose", "view", "motion_area",
                         "viewpoint_entropy", "total") if k in t]
     lines.append("timings     " + ", ".join(f"{k} {1000 * t[k]:.1f} ms" for k in keys))
+    # one cold run: imports, caches and first-touched memory count here, not in
+    # `snapshot bench` (warm, repeated), whose numbers the README quotes
+    lines.append("            (one first run, set-up included; `snapshot bench` times warm runs)")
     return lines
 
 
