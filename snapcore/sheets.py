@@ -19,8 +19,8 @@ import numpy as np
 from .camera import Camera, RenderError, _check_size, default_view, fit_camera, view_basis
 from .render import SceneRenderer
 
-__all__ = ["contact_sheet", "compare_views", "common_cameras", "tile_panels", "PANEL_GAP",
-           "CAPTION_HEIGHT"]
+__all__ = ["contact_sheet", "compare_views", "common_cameras", "floor_aligned", "tile_panels",
+           "PANEL_GAP", "CAPTION_HEIGHT"]
 
 #: Pixels between panels.
 PANEL_GAP = 8
@@ -60,6 +60,36 @@ def common_cameras(points_per_panel, views, *, size, projection="orthographic",
     return [Camera(t + c.back * d, c.right, c.up, c.back, c.size, c.projection, c.half_height,
                    c.yfov, max(c.znear + d - di, 0.02), c.zfar + d - di)
             for c, t, di in zip(cams, targets, dists)]
+
+
+def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) -> list[Camera]:
+    """Orthographic cameras of one view moved up or down so that every panel's floor
+    point (``feet[i]``, on the floor under panel i's pose) falls on the same image row.
+
+    A contact sheet of a jump then shows the floor as one line across the panels and
+    the jump as height above it; each panel stays centred left-right on its own pose.
+    The half-height grows where the aligned poses need more room, so all panels keep
+    one scale. Perspective cameras are returned unchanged.
+    """
+    if not cams or cams[0].projection != "orthographic":
+        return cams
+    from .camera import FRAME_MARGIN
+
+    up = cams[0].up
+    fill = max(1.0 - 2.0 * (FRAME_MARGIN if margin is None else margin), 0.05)
+    # each pose's vertical extent measured from its own floor point
+    rel = [np.asarray(p, float).reshape(-1, 3) @ up - float(np.asarray(f, float) @ up)
+           for p, f in zip(points_per_panel, feet)]
+    lo = min(float(r.min()) for r in rel)
+    hi = max(float(r.max()) for r in rel)
+    hh = max(max(c.half_height for c in cams), (hi - lo) / 2 / fill)
+    out = []
+    for c, f in zip(cams, feet):
+        # image centre at the same height above each panel's floor point
+        shift = (float(np.asarray(f, float) @ up) + (lo + hi) / 2) - float(c.position @ up)
+        out.append(Camera(c.position + up * shift, c.right, c.up, c.back, c.size, c.projection,
+                          hh, c.yfov, c.znear, c.zfar))
+    return out
 
 
 def _target(cam: Camera, pts) -> np.ndarray:
@@ -135,7 +165,8 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
 def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
                   projection="orthographic", columns=None, title=None, labels=True,
                   ground=True, shadows=True) -> np.ndarray:
-    """Poses of a clip side by side, one view, one scale (the paper's Fig. 5 strip).
+    """Poses of a clip side by side, one view, one scale, the floor on one row across
+    the panels (the paper's Fig. 5 strip).
 
     Parameters
     ----------
@@ -176,6 +207,12 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
     pts = [sr.body.vertices(f) for f in frames]
     cams = common_cameras(pts, [view] * len(frames), size=size, projection=projection)
+    # the floor on one row across the panels: under each pose's mean root position
+    feet = [np.array([*np.mean([c.positions[f, 0] for c in scene.characters], axis=0)])
+            for f in frames]
+    for ft in feet:
+        ft[1] = scene.ground
+    cams = floor_aligned(cams, pts, feet)
     panels = [sr.render(f, c) for f, c in zip(frames, cams)]
     captions = None
     if labels:

@@ -183,3 +183,35 @@ def test_readme_images_command(motions_dir, tmp_path):
     views = Image.open(tmp_path / "three_views.png")
     assert sheet.size[0] == 3 * PANEL[0] + 4 * PANEL_GAP
     assert views.size[0] == 3 * PANEL[0] + 4 * PANEL_GAP  # ours, viewpoint entropy, motion area
+
+
+def test_contact_sheet_puts_the_floor_on_one_row():
+    """Panels of a jump at one scale, each moved so the floor point under its pose is on
+    the same image row (the airborne pose then stands higher than the crouch), and every
+    pose still inside its panel."""
+    from snapcore.body import scene_body
+    from snapcore.sheets import common_cameras, floor_aligned
+
+    scene = synth.synth_scene("jump", fps=30)
+    body = scene_body(scene)
+    frames = [5, 30, 45]  # standing, crouched, in the air
+    view = np.array([1.0, 0.3, 0.2]) / np.linalg.norm([1.0, 0.3, 0.2])
+    pts = [body.vertices(f) for f in frames]
+    cams = common_cameras(pts, [view] * 3, size=(160, 200))
+    feet = []
+    for f in frames:
+        foot = scene.characters[0].positions[f, 0].copy()
+        foot[1] = scene.ground
+        feet.append(foot)
+    aligned = floor_aligned(cams, pts, feet)
+    # image-plane height of each floor point relative to its camera centre: equal
+    rows = [float((ft - c.position) @ c.up) for ft, c in zip(feet, aligned)]
+    assert max(rows) - min(rows) < 1e-9
+    assert len({c.half_height for c in aligned}) == 1  # one scale
+    assert aligned[0].half_height >= max(c.half_height for c in cams) - 1e-12
+    for p, c in zip(pts, aligned):  # every vertex inside its panel
+        y = (p - c.position) @ c.up
+        assert np.abs(y).max() <= c.half_height
+    # before aligning, the floor rows differed (the test would pass vacuously otherwise)
+    before = [float((ft - c.position) @ c.up) for ft, c in zip(feet, cams)]
+    assert max(before) - min(before) > 0.05
