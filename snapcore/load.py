@@ -209,6 +209,9 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
     start, stop = spec.get("frames", (0, None))
     if start or stop is not None:
         n = chars[0].n_frames
+        if stop is not None and stop > n:
+            warnings.warn(f"{source or 'scene'}: frames [{start}, {stop}) runs past the motion's "
+                          f"{n} frames; keeping [{start}, {n})", stacklevel=3)
         stop = n if stop is None else min(stop, n)
         if not 0 <= start < stop:
             raise SceneError(f"{source or 'scene'}: frames [{start}, {stop}) is empty (the motion has {n} frames)")

@@ -319,3 +319,13 @@ def test_files_in_different_units_are_flagged(motions_dir):
         warnings.simplefilter("always")
         load_scene([motions_dir / "two_person" / "60_01_scaled.bvh", salsa], fps=60)
     assert not [w for w in caught if "different units" in str(w.message)]
+
+
+def test_manifest_frame_range_past_the_end_warns(tmp_path):
+    """frames = [1, 50] on a 5-frame motion keeps [1, 5) and says so (no silent clamp)."""
+    _write_chain(tmp_path, "a.bvh")
+    (tmp_path / "s.toml").write_text('frames = [1, 50]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n',
+                                     encoding="utf-8")
+    with pytest.warns(UserWarning, match=r"frames \[1, 50\) runs past the motion's 5 frames"):
+        scene = load_scene(tmp_path / "s.toml")
+    assert scene.n_frames == 4 and scene.frame_offset == 1
