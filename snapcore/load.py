@@ -205,7 +205,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
             stacklevel=3,
         )
         chars = [c.frames(0, n) for c in chars]
-    offset = 0
+    offset, why_cut = 0, ""
     start, stop = spec.get("frames", (0, None))
     if start or stop is not None:
         n = chars[0].n_frames
@@ -217,12 +217,15 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
             raise SceneError(f"{source or 'scene'}: frames [{start}, {stop}) is empty (the motion has {n} frames)")
         chars = [c.frames(start, stop) for c in chars]
         offset = start
+        why_cut = "the scene manifest's frames range starts there"
     drop = drop_tpose if drop_tpose is not None else spec.get("drop_tpose", True)
     if drop and offset == 0:
         cut = tpose_lead_in([c.positions for c in chars], chars[0].fps)
         if cut:
             chars = [c.frames(cut, None) for c in chars]
             offset = cut
+            why_cut = ("they are an added T-pose and the blend out of it "
+                       "(drop_tpose = false in a scene manifest keeps them)")
     if chars[0].n_frames < 1:
         raise SceneError(f"{source or docs[0].path}: no frames left to analyse")
     g = ground if ground is not None else spec.get("ground")
@@ -236,5 +239,6 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,
-        meta={"source": source or [str(d.path) for d in docs], "unit": how},
+        meta={"source": source or [str(d.path) for d in docs], "unit": how,
+              **({"cut": why_cut} if offset else {})},
     )

@@ -318,6 +318,25 @@ class Scene:
         """Source-file frame number of internal frame(s) ``i``."""
         return np.asarray(i) + self.frame_offset
 
+    def internal_frame(self, source_frame: int) -> int:
+        """Internal index of source-file frame ``source_frame``.
+
+        Raises
+        ------
+        SceneError
+            The frame is not in the scene: the message gives the source frames it keeps
+            and, for a frame before them, why those were cut (``meta["cut"]``).
+        """
+        i = int(source_frame) - self.frame_offset
+        if not 0 <= i < self.n_frames:
+            first, last = self.frame_offset, self.frame_offset + self.n_frames - 1
+            why = ""
+            if i < 0 and self.meta.get("cut"):
+                why = f"; frames before {first} were cut: {self.meta['cut']}"
+            raise SceneError(f"frame {source_frame} is not in this scene, which keeps source "
+                             f"frames {first}..{last}{why}")
+        return i
+
     def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), scale: float = 1.0):
         """The whole scene rotated about +Y, scaled about the origin, then translated."""
         chars = []

@@ -528,7 +528,7 @@ def test_cli_rejects_frame_outside_scene(motions_dir, tmp_path):
         tmp_path / "x.stl",
     )
     assert r.exit_code == 2
-    assert "outside the scene" in r.output
+    assert "frame 99999 is not in this scene" in r.output
     assert not (tmp_path / "x.stl").exists()
 
 

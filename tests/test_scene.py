@@ -329,3 +329,24 @@ def test_manifest_frame_range_past_the_end_warns(tmp_path):
     with pytest.warns(UserWarning, match=r"frames \[1, 50\) runs past the motion's 5 frames"):
         scene = load_scene(tmp_path / "s.toml")
     assert scene.n_frames == 4 and scene.frame_offset == 1
+
+
+def test_a_frame_that_was_cut_says_why(motions_dir, tmp_path):
+    """Asking for a source frame the scene does not keep names the frames it keeps and why
+    earlier ones were cut: the salsa files' added T-pose, or a manifest's frames range."""
+    pair = [motions_dir / "two_person" / f for f in ("60_01_scaled.bvh", "61_01_scaled.bvh")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = load_scene(pair, fps=60)
+    first = scene.frame_offset
+    assert first > 0 and scene.internal_frame(first) == 0
+    with pytest.raises(SceneError, match=rf"keeps source frames {first}\.\..*added T-pose"):
+        scene.internal_frame(0)
+    last = first + scene.n_frames - 1
+    with pytest.raises(SceneError, match=rf"keeps source frames {first}\.\.{last}$"):
+        scene.internal_frame(last + 1)  # after the end: nothing was cut there
+    _write_chain(tmp_path, "a.bvh")
+    (tmp_path / "s.toml").write_text('frames = [2, 5]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n',
+                                     encoding="utf-8")
+    with pytest.raises(SceneError, match="manifest's frames range"):
+        load_scene(tmp_path / "s.toml").internal_frame(1)

@@ -21,7 +21,7 @@ from ..load import load_scene
 
 __all__ = ["scene_arguments", "scene_from_options", "echo_json", "parse_vector",
            "PositiveFloat", "POSITIVE", "FiniteFloatRange", "check_output", "output_callback",
-           "refuse_inputs", "vector_callback", "view_callback"]
+           "refuse_inputs", "vector_callback", "view_callback", "internal_frame"]
 
 
 class PositiveFloat(click.ParamType):
@@ -192,3 +192,15 @@ def view_callback(ctx, param, value):
     if value is None or value in ("auto", "default"):
         return value
     return _vector(value, param)
+
+
+def internal_frame(scene, source_frame: int, option: str = "--frame") -> int:
+    """The scene's internal index of a source frame given on the command line; a frame
+    the scene does not keep is a one-line error naming ``option`` and saying why
+    (:meth:`snapcore.scene.Scene.internal_frame`)."""
+    from ..errors import SceneError
+
+    try:
+        return scene.internal_frame(source_frame)
+    except SceneError as err:
+        raise click.BadParameter(str(err), param_hint=option) from None

@@ -10,6 +10,7 @@ import numpy as np
 from .common import (
     POSITIVE,
     echo_json,
+    internal_frame,
     output_callback,
     scene_arguments,
     scene_from_options,
@@ -55,18 +56,6 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     frame = int(snap.frame) if need_frame else None
     view = np.asarray(snap.view, float) if need_view else None
     return frame, view
-
-
-def _check_frame(scene, frame: int) -> int:
-    """The internal frame of source ``frame``, or a one-line error naming --frame."""
-    internal = frame - scene.frame_offset
-    if not 0 <= internal < scene.n_frames:
-        raise click.BadParameter(
-            f"frame {frame} is outside the scene: source frames {scene.frame_offset}.."
-            f"{scene.frame_offset + scene.n_frames - 1}",
-            param_hint="--frame",
-        )
-    return internal
 
 
 @click.command()
@@ -184,7 +173,7 @@ def relief(
     )
     scene = scene_from_options(paths, fps, scale)
     if frame is not None:
-        _check_frame(scene, frame)  # before the pipeline picks the view
+        internal_frame(scene, frame)  # before the pipeline picks the view
     picked = []
     if frame is None or view is None:
         auto_frame, auto_view = default_pose_and_view(
@@ -196,7 +185,7 @@ def relief(
         if view is None:
             view = auto_view / np.linalg.norm(auto_view)
             picked.append("view")
-    internal = _check_frame(scene, frame)
+    internal = internal_frame(scene, frame)
     rel = relief_from_scene(scene, internal, view, params=params)
     rel.write_stl(out)
     rel.write_preview(png)

@@ -18,6 +18,7 @@ import numpy as np
 from .common import (
     POSITIVE,
     FiniteFloatRange,
+    internal_frame,
     output_callback,
     parse_vector,
     refuse_inputs,
@@ -42,16 +43,6 @@ def parse_size(text: str, name: str = "--size") -> tuple[int, int]:
     return w, h
 
 
-def _internal(scene, source_frame: int, name: str = "--frame") -> int:
-    i = int(source_frame) - scene.frame_offset
-    if not 0 <= i < scene.n_frames:
-        first = scene.frame_offset
-        raise click.BadParameter(
-            f"frame {source_frame} is not in this scene (source frames {first}.."
-            f"{first + scene.n_frames - 1})", param_hint=name)
-    return i
-
-
 def _note(text: str) -> None:
     click.echo(text, err=True)
 
@@ -62,7 +53,7 @@ def _frame_option(scene, frame, *, views: bool):
     Returns ``(index, picks)``; ``picks`` is the pipeline's result when it ran, else None.
     """
     if frame is not None:
-        return _internal(scene, frame), None
+        return internal_frame(scene, frame), None
     picks = pipeline_picks(scene, views=views)
     _note(f"frame {int(scene.source_frame(picks['frame']))} ({picks['how']})")
     return picks["frame"], picks
@@ -239,7 +230,7 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
     rng = None
     if frame_range:
         a, b = frame_range
-        rng = (_internal(scene, a, "--frames"), _internal(scene, b, "--frames") + 1)
+        rng = (internal_frame(scene, a, "--frames"), internal_frame(scene, b, "--frames") + 1)
     v, how = _view_option(view, scene, default="default")
     if not quiet:
         _note(f"view {np.round(v, 3).tolist()} ({how})")
@@ -341,7 +332,7 @@ def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, fr
     else:
         entropy = None
         if frames:
-            frames = [_internal(scene, f, "--frames") for f in frames]
+            frames = [internal_frame(scene, f, "--frames") for f in frames]
         else:
             picks = pipeline_picks(scene, k=top, views=False)
             frames, entropy = picks["frames"], picks["entropy"]
