@@ -164,7 +164,7 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
 
 def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
                   projection="orthographic", columns=None, title=None, labels=True,
-                  ground=True, shadows=True) -> np.ndarray:
+                  ranked=True, ground=True, shadows=True) -> np.ndarray:
     """Poses of a clip side by side, one view, one scale, the floor on one row across
     the panels (the paper's Fig. 5 strip).
 
@@ -186,6 +186,9 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     title : str, optional
     labels : bool
         Caption each panel with ``#rank``, source frame number, time and entropy.
+    ranked : bool
+        ``frames`` are ranked (best first) and captions start with ``#1``, ``#2``...;
+        False for frames picked by hand (no rank shown).
     ground, shadows : bool
 
     Returns
@@ -218,7 +221,7 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     if labels:
         captions = []
         for k, f in enumerate(frames):
-            first = f"#{k + 1}   frame {int(scene.source_frame(f))}"
+            first = (f"#{k + 1}   " if ranked else "") + f"frame {int(scene.source_frame(f))}"
             second = f"{f / scene.fps:.2f} s"
             if entropy is not None:
                 second += f"   entropy {float(entropy[k]):.3g}"

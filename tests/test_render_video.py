@@ -215,3 +215,18 @@ def test_contact_sheet_puts_the_floor_on_one_row():
     # before aligning, the floor rows differed (the test would pass vacuously otherwise)
     before = [float((ft - c.position) @ c.up) for ft, c in zip(feet, cams)]
     assert max(before) - min(before) > 0.05
+
+
+def test_hand_picked_frames_are_not_captioned_as_ranked(walk, monkeypatch):
+    """Captions start with #1, #2... for the top-k poses, but not for frames picked by
+    hand (a rank there would claim an order nobody computed)."""
+    import snapcore.sheets as sheets
+
+    seen = []
+    monkeypatch.setattr(sheets, "tile_panels",
+                        lambda panels, captions, **kw: seen.append(captions) or panels[0])
+    sheets.contact_sheet(walk, [5, 25], size=(64, 80))
+    sheets.contact_sheet(walk, [5, 25], size=(64, 80), ranked=False)
+    first = walk.source_frame(5)
+    assert [c[0] for c in seen[0]][0] == f"#1   frame {first}"
+    assert [c[0] for c in seen[1]][0] == f"frame {first}"

@@ -245,7 +245,7 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
 
         validate(doc, "frame_map", source="snapshot video frame map")
         Path(frame_map).write_text(json.dumps(doc) + "\n")
-    click.echo(f"{output}: {len(fmap)} frames at {video_fps:g} fps "
+    click.echo(f"{output}: {len(fmap)} frame{'s' if len(fmap) != 1 else ''} at {video_fps:g} fps "
                f"(source frames {int(fmap[0])}..{int(fmap[-1])})")
 
 
@@ -338,7 +338,8 @@ def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, fr
             frames, entropy = picks["frames"], picks["entropy"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
-        img = contact_sheet(scene, frames, view=v, entropy=entropy, title=title, **common)
+        img = contact_sheet(scene, frames, view=v, entropy=entropy, title=title,
+                            ranked=entropy is not None, **common)  # --frames: no ranks
     save_png(img, output)
     click.echo(output)
 
