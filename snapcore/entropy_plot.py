@@ -61,18 +61,18 @@ def plot_curves(snapshot, *, axes=None):
     ax_terms.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
     w_l, w_g = ent.weights
     ax_total.plot(t, ent.total, color=_TERM_COLOURS["total"], lw=1.1,
-                  label=f"total =\n{w_l:g} local + {w_g:g} global")
+                  label=f"total $H$\n($w_{{local}}$ = {w_l:g}, $w_{{global}}$ = {w_g:g})")
     top = max(float(ent.total.max()), 1e-9)
-    ax_total.set_ylim(-0.03 * top, 1.22 * top)
+    ax_total.set_ylim(-0.03 * top, 1.45 * top)  # room above the curve for the peak labels
     ax_total.set_ylabel("pose entropy $H$")
     for rank, i in enumerate(snapshot.indices, start=1):
         for ax in (ax_terms, ax_total):
             ax.axvline(t[i], color="#c0392b", lw=0.8, ls="--", alpha=0.8, zorder=0)
         ax_total.plot(t[i], ent.total[i], "o", color="#c0392b", ms=5, zorder=3)
-        # one row per rank at the top, beside the peak's dashed line: close peaks
-        # (0.3 s apart at the default separation) do not print over each other
+        # one row per rank above the curve, beside the peak's dashed line: close peaks
+        # (0.3 s apart at the default separation) do not print over each other or the curve
         late = t.size > 1 and t[i] > t[0] + 0.75 * (t[-1] - t[0])
-        ax_total.text(t[i], top * (1.14 - 0.11 * (rank - 1)),
+        ax_total.text(t[i], top * (1.37 - 0.11 * (rank - 1)),
                       f"#{rank} frame {snapshot.scene.source_frame(i)}"
                       + (" " if late else ""), ha="right" if late else "left",
                       va="center", fontsize=8, color="#c0392b", zorder=4,
