@@ -515,6 +515,7 @@ class SceneRenderer:
         n = len(self.body.characters)
         self._node = None
         self._shadow_node = None
+        self._below = False  # camera under the floor (set with the camera)
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
@@ -570,7 +571,11 @@ class SceneRenderer:
             # along the horizon, not a floor; leave it out
             level = (cam.projection == "orthographic"
                      and abs(np.degrees(np.arcsin(np.clip(cam.back[1], -1, 1)))) < ORTHO_HORIZON_DEG)
-            self._grid.is_visible = not level
+            # a camera under the floor would see its underside hide the feet; drawn, the
+            # grid and the shadows cut through the legs instead: leave them out
+            self._below = (cam.back[1] < 0 if cam.projection == "orthographic"
+                           else cam.position[1] < self.scene.ground)
+            self._grid.is_visible = not (level or self._below)
         for n in self._light_nodes:
             self.pscene.remove_node(n)
         self._light_nodes = []
@@ -620,6 +625,7 @@ class SceneRenderer:
             if self._shadow_node is not None:
                 self.pscene.remove_node(self._shadow_node)
             self._shadow_node = self.pscene.add(pyrender.Mesh([sprim]))
+            self._shadow_node.mesh.is_visible = not self._below
 
     def render(self, frame: int, camera: Camera) -> np.ndarray:
         """The image of internal frame ``frame`` seen by ``camera``: (H, W, 3) uint8."""

@@ -368,3 +368,24 @@ def test_many_threads_render_and_finish_without_breaking_the_others(walk):
             render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48), expect)
     assert len(out) == 6 and all(np.array_equal(o, expect) for o in out)
     assert render_still(walk, 3, size=(64, 48)).std() > 3
+
+
+def test_a_camera_under_the_floor_draws_no_grid_or_shadows(walk):
+    """Seen from 9 degrees below the floor, the floor would hide the feet: neither its
+    grid nor the shadows are drawn through the legs. With the floor on, the only pixels
+    that differ from the background are the figure's (the same ones as with the floor
+    off); from above, the grid and shadows are there."""
+    from snapcore.render import BACKGROUND, FLOOR_COLOR, render_still
+
+    def figure_mask(img, colour):
+        return np.abs(img.astype(float) - np.round(np.asarray(colour) * 255)).max(axis=-1) > 3
+
+    below = np.array([1.0, -0.16, 0.3]) / np.linalg.norm([1.0, -0.16, 0.3])
+    with_floor = render_still(walk, 20, below, size=(96, 128))
+    without = render_still(walk, 20, below, size=(96, 128), ground=False)
+    a, b = figure_mask(with_floor, FLOOR_COLOR), figure_mask(without, BACKGROUND)
+    assert 0.05 < b.mean() and (a != b).mean() < 0.002
+    above = np.array([1.0, 0.5, 0.3]) / np.linalg.norm([1.0, 0.5, 0.3])
+    a = figure_mask(render_still(walk, 20, above, size=(96, 128)), FLOOR_COLOR)
+    b = figure_mask(render_still(walk, 20, above, size=(96, 128), ground=False), BACKGROUND)
+    assert (a & ~b).mean() > 0.01  # grid lines and shadow around the figure
