@@ -108,7 +108,11 @@ class _LazyGroup(click.Group):
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    click.echo(f"warning: {message}", err=True)
+    # through tqdm, so a warning raised under a progress bar gets a line of its own and
+    # the bar is redrawn below it (a plain write would splice it into the bar)
+    from tqdm import tqdm
+
+    tqdm.write(f"warning: {message}", file=sys.stderr)
 
 
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
