@@ -34,6 +34,26 @@ def _rejects(doc, name: str) -> None:
         _valid(doc, name)
 
 
+#: A change that removes the item (see :func:`_rejects_changes`).
+_DELETE = object()
+
+
+def _rejects_changes(doc, name: str, *changes) -> None:
+    """The schema refuses ``doc`` with each change made alone: ``(path, value)`` sets the
+    item at ``path`` (keys and indices) to ``value``, or removes it for :data:`_DELETE`."""
+    for path, value in changes:
+        bad = copy.deepcopy(doc)
+        *head, last = path
+        target = bad
+        for key in head:
+            target = target[key]
+        if value is _DELETE:
+            del target[last]
+        else:
+            target[last] = value
+        _rejects(bad, name)
+
+
 def _run(args):
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
@@ -71,15 +91,10 @@ def test_info_json_follows_schema(walk_bvh):
     _valid(doc, "info")
     assert doc["frame_offset"] == 1 and doc["n_characters"] == len(doc["characters"]) == 1
     assert doc["characters"][0]["unit"] == "cmu"
-    bad = copy.deepcopy(doc)
-    del bad["frame_offset"]
-    _rejects(bad, "info")
-    bad = copy.deepcopy(doc)
-    bad["characters"][0]["n_joints"] = "38"
-    _rejects(bad, "info")
-    bad = copy.deepcopy(doc)
-    bad["bounds_m"]["min"] = [0.0, 0.0]
-    _rejects(bad, "info")
+    _rejects_changes(doc, "info",
+                     (("frame_offset",), _DELETE),
+                     (("characters", 0, "n_joints"), "38"),
+                     (("bounds_m", "min"), [0.0, 0.0]))
 
 
 def test_info_units_cover_every_known_unit():
@@ -120,15 +135,10 @@ def test_bench_json_follows_schema(bench_env):
     doc = json.loads(_run(["bench", "--only", "synth walk", "--json", "-n", "1"]).stdout)
     _valid(doc, "bench")
     assert len(doc) == 1 and doc[0]["repeats"] == 1 and doc[0]["status"] in ("ok", "SLOW")
-    bad = copy.deepcopy(doc)
-    del bad[0]["median_ms"]
-    _rejects(bad, "bench")
-    bad = copy.deepcopy(doc)
-    bad[0]["min_ms"] = None  # a case that ran has times
-    _rejects(bad, "bench")
-    bad = copy.deepcopy(doc)
-    bad[0]["status"] = "fine"
-    _rejects(bad, "bench")
+    _rejects_changes(doc, "bench",
+                     ((0, "median_ms"), _DELETE),
+                     ((0, "min_ms"), None),  # a case that ran has times
+                     ((0, "status"), "fine"))
 
 
 def test_bench_only_matching_nothing_is_an_error(bench_env):
@@ -150,9 +160,8 @@ def test_bench_json_skipped_case_follows_schema(bench_env, tmp_path):
     doc = json.loads(_run(["bench", "--only", "parse+FK Boxing", "--json", "-n", "1"]).stdout)
     _valid(doc, "bench")
     assert [(r["status"], r["min_ms"], r["repeats"]) for r in doc] == [("skipped", None, 0)]
-    bad = copy.deepcopy(doc)
-    bad[0]["min_ms"] = 1.0
-    _rejects(bad, "bench")
+    _rejects_changes(doc, "bench",
+                     ((0, "min_ms"), 1.0))
 
 
 # ----------------------------------------------------------------- snapshot relief
@@ -167,15 +176,10 @@ def test_relief_json_follows_schema(walk_bvh, tmp_path):
     assert doc["selected"] == ["frame", "view"] and doc["frame"] >= 1  # source numbering
     assert doc["grid"] == [11, 16] and doc["size_mm"] == [120.0, 80.0]
     assert doc["stl"] == str(stl) and stl.exists() and (tmp_path / "walk.png").exists()
-    bad = copy.deepcopy(doc)
-    bad["method"] = "poisson"
-    _rejects(bad, "relief")
-    bad = copy.deepcopy(doc)
-    bad["grid"] = [11.5, 16]
-    _rejects(bad, "relief")
-    bad = copy.deepcopy(doc)
-    del bad["n_triangles"]
-    _rejects(bad, "relief")
+    _rejects_changes(doc, "relief",
+                     (("method",), "poisson"),
+                     (("grid",), [11.5, 16]),
+                     (("n_triangles",), _DELETE))
 
 
 # ----------------------------------------------------------------- snapshot video --frame-map
@@ -191,15 +195,10 @@ def test_video_frame_map_follows_schema(walk_bvh, tmp_path):
     _valid(doc, "frame_map")
     assert doc["source_frames"][0] == 5 and doc["source_frames"][-1] <= 35
     assert doc["size"] == [64, 48] and doc["fps"] == 30 and doc["motion_fps"] == 120
-    bad = copy.deepcopy(doc)
-    bad["source_frames"] = []
-    _rejects(bad, "frame_map")
-    bad = copy.deepcopy(doc)
-    bad["size"] = [64, 47]  # videos have even sizes
-    _rejects(bad, "frame_map")
-    bad = copy.deepcopy(doc)
-    bad["source_frames"][0] = 5.5
-    _rejects(bad, "frame_map")
+    _rejects_changes(doc, "frame_map",
+                     (("source_frames",), []),
+                     (("size",), [64, 47]),  # videos have even sizes
+                     (("source_frames", 0), 5.5))
 
 
 # ----------------------------------------------------------------- snapshot analyze summary.json
@@ -212,15 +211,10 @@ def test_analysis_summary_of_paper_table2_follows_schema(tmp_path):
     doc = json.loads((out / "summary.json").read_text())
     _valid(doc, "analysis_summary")
     assert "participants" not in doc and len(doc["pairwise"]) == 12
-    bad = copy.deepcopy(doc)
-    del bad["fleiss_kappa"]  # the vote part comes whole
-    _rejects(bad, "analysis_summary")
-    bad = copy.deepcopy(doc)
-    bad["votes"]["dancing"]["ours"] = 52.5
-    _rejects(bad, "analysis_summary")
-    bad = copy.deepcopy(doc)
-    bad["pairwise"][0]["p_value"] = 1.5
-    _rejects(bad, "analysis_summary")
+    _rejects_changes(doc, "analysis_summary",
+                     (("fleiss_kappa",), _DELETE),  # the vote part comes whole
+                     (("votes", "dancing", "ours"), 52.5),
+                     (("pairwise", 0, "p_value"), 1.5))
 
 
 def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
@@ -235,15 +229,10 @@ def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
     _valid(doc, "analysis_summary")
     assert doc["participants"] == doc["simulated_participants"] == 12
     assert {"claims", "frames", "frame_verdict"} <= set(doc)
-    bad = copy.deepcopy(doc)
-    del bad["responses"]
-    _rejects(bad, "analysis_summary")
-    bad = copy.deepcopy(doc)
-    bad["frames"][0]["hit_0.5s"] = "50%"
-    _rejects(bad, "analysis_summary")
-    bad = copy.deepcopy(doc)
-    bad["participants"] = -1
-    _rejects(bad, "analysis_summary")
+    _rejects_changes(doc, "analysis_summary",
+                     (("responses",), _DELETE),
+                     (("frames", 0, "hit_0.5s"), "50%"),
+                     (("participants",), -1))
 
 
 def test_analysis_summary_is_validated_before_writing(tmp_path):
