@@ -113,6 +113,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     from tqdm import tqdm
 
     tqdm.write(f"warning: {message}", file=sys.stderr)
+    sys.stderr.flush()  # in order with what the command prints next
 
 
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
