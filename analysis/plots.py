@@ -196,15 +196,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         sec = ax.secondary_xaxis("top", functions=(lambda f, i=info: (f - i.frame_offset) / i.fps,
                                                    lambda s, i=info: s * i.fps + i.frame_offset))
         sec.tick_params(labelsize=6)
-    if axes:
-        handles, labels = [], []
-        for ax in axes:  # every style that appears anywhere, once
-            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                if lab not in labels:
-                    handles.append(h)
-                    labels.append(lab)
-        fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
-                   frameon=False)
+    _shared_legend(fig, axes)
     fig.suptitle("Chosen frames per animation (top axis: seconds); ▼ = the algorithm's pick",
                  fontsize=10)
     return fig
@@ -248,15 +240,7 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
         ax.set_xlabel("|chosen − predicted| (s)", fontsize=8)
         ax.set_ylabel("fraction of participants", fontsize=8)
         ax.tick_params(labelsize=7)
-    if axes:
-        handles, labels = [], []
-        for ax in axes:
-            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                if lab not in labels:
-                    handles.append(h)
-                    labels.append(lab)
-        fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
-                   frameon=False)
+    _shared_legend(fig, axes)
     fig.suptitle("How close are people to each predictor? (dotted: ±0.25, 0.5, 1 s)", fontsize=10)
     return fig
 
@@ -284,3 +268,17 @@ def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | N
     if title:
         ax.set_title(title, fontsize=9)
     return fig
+
+
+def _shared_legend(fig, axes) -> None:
+    """One legend under the panels: every style that appears in any of ``axes``, once."""
+    if not axes:
+        return
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
+               frameon=False)
