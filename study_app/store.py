@@ -227,15 +227,22 @@ def _utcnow() -> datetime:
     return datetime.now(UTC)
 
 
-def _iso(value) -> str | None:
-    """A stored timestamp as ISO 8601 in UTC (SQLite gives naive UTC datetimes back)."""
+def _utc(value) -> datetime | None:
+    """A stored timestamp as an aware UTC datetime (SQLite gives naive UTC ones back,
+    sometimes as text)."""
     if value is None:
         return None
     if isinstance(value, str):
         value = datetime.fromisoformat(value)
     if value.tzinfo is None:
         value = value.replace(tzinfo=UTC)
-    return value.astimezone(UTC).isoformat(timespec="microseconds")
+    return value.astimezone(UTC)
+
+
+def _iso(value) -> str | None:
+    """A stored timestamp as ISO 8601 in UTC."""
+    value = _utc(value)
+    return None if value is None else value.isoformat(timespec="microseconds")
 
 
 # ----------------------------------------------------------------------------- the store
@@ -663,7 +670,7 @@ class Store:
                 else events.c.trial_index == trial_index]
         with self._transaction(write=False) as conn:
             value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(*cond)).scalar()
-        return None if value is None else datetime.fromisoformat(_iso(value))
+        return _utc(value)
 
     def events(self, pid: str | None = None) -> list[dict]:
         """Stored events (all, or one participant's), oldest first."""
