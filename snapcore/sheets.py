@@ -211,9 +211,8 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     pts = [sr.body.vertices(f) for f in frames]
     cams = common_cameras(pts, [view] * len(frames), size=size, projection=projection)
     # the floor on one row across the panels: under each pose's mean root position
-    feet = [np.array([*np.mean([c.positions[f, 0] for c in scene.characters], axis=0)])
-            for f in frames]
-    for ft in feet:
+    feet = [np.mean([c.positions[f, 0] for c in scene.characters], axis=0) for f in frames]
+    for ft in feet:  # fresh arrays from np.mean: set their height in place
         ft[1] = scene.ground
     cams = floor_aligned(cams, pts, feet)
     panels = [sr.render(f, c) for f, c in zip(frames, cams)]
