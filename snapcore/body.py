@@ -661,11 +661,13 @@ class SceneBody:
 _BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def scene_body(scene) -> SceneBody:
-    """The (cached) default :class:`SceneBody` of ``scene``: built once per scene object."""
-    body = _BODIES.get(scene)
+def scene_body(scene, tessellation=TESSELLATION) -> SceneBody:
+    """The (cached) :class:`SceneBody` of ``scene`` at ``tessellation`` (default colours):
+    built once per scene object and tessellation."""
+    bodies = _BODIES.setdefault(scene, {})
+    body = bodies.get(tessellation)
     if body is None:
-        body = _BODIES[scene] = SceneBody(scene)
+        body = bodies[tessellation] = SceneBody(scene, tessellation=tessellation)
     return body
 
 

@@ -78,9 +78,9 @@ def relief_body(scene, frame: int):
     -------
     snapcore.body.PosedMesh
     """
-    from .body import TESSELLATION_FINE, SceneBody
+    from .body import TESSELLATION_FINE, scene_body
 
-    return SceneBody(scene, tessellation=TESSELLATION_FINE).pose(_check_frame(scene, frame))
+    return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
 
 
 def height_field_from_scene(

@@ -201,6 +201,11 @@ def test_two_characters_get_distinct_colours(push):
     tm = scene_trimesh(push, 10)
     assert len(tm.faces) == len(m.faces) and tm.visual.face_colors.shape == (len(m.faces), 4)
     assert scene_body(push) is scene_body(push)  # built once per scene
+    from snapcore.body import TESSELLATION_FINE
+
+    fine = scene_body(push, TESSELLATION_FINE)  # once per scene and tessellation
+    assert fine is scene_body(push, TESSELLATION_FINE) and fine is not scene_body(push)
+    assert fine.n_vertices > scene_body(push).n_vertices
 
 
 def test_body_scales_with_stature(walk):
