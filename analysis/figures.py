@@ -6,16 +6,16 @@ animations) by the snapcore modules that own the method:
 
 ========  ============================================================================
 fig5      pose entropy over each clip, the selected frames marked (Fig. 5);
-          ``snapcore.entropy_plot``
-fig6      local and global pose entropy of the dance (Fig. 6); ``snapcore.entropy_plot``
+          ``snapcore.render.entropy_plot``
+fig6      local and global pose entropy of the dance (Fig. 6); ``snapcore.render.entropy_plot``
 fig8-10   the selected pose from ours / viewpoint entropy / motion area (Fig. 8–10);
-          ``compare_views`` of ``snapcore.render`` (or ``snapcore.sheets``)
+          ``compare_views`` of ``snapcore.render.renderer`` (or ``snapcore.render.composites``)
 fig11     reliefs of the dance pose from the three views (Fig. 11);
-          ``snapcore.relief_scene.relief_comparison_figure``
+          ``snapcore.relief.scene.relief_comparison_figure``
 fig13     chosen-frame histograms (Fig. 13) from study responses, or — labelled as
           such — from simulated participants on the paper's design
 table1    our pose / view selection times beside the paper's (Table 1), measured by
-          running ``snapcore.snapshot.take_snapshot`` on the clips
+          running ``snapcore.pipeline.take_snapshot`` on the clips
 table2    the paper's votes with our statistics (Table 2)
 ========  ============================================================================
 
@@ -114,7 +114,7 @@ class _Context:
 
     def snapshot(self, sid):
         if sid not in self.snapshots:
-            from snapcore.snapshot import take_snapshot
+            from snapcore.pipeline import take_snapshot
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -192,7 +192,7 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
                    scenes=None) -> pd.DataFrame:
     """Time our pose and view selection on the paper-analogue clips (Table 1).
 
-    Runs ``snapcore.snapshot.take_snapshot`` ``repeats`` times per clip and takes the
+    Runs ``snapcore.pipeline.take_snapshot`` ``repeats`` times per clip and takes the
     median of each step's time from its ``timings_s``.
 
     Returns
@@ -204,7 +204,7 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
         ``paper_joints``, ``paper_pose_s``, ``paper_view_s``, ``note``. A stage the
         pipeline did not run is NaN.
     """
-    from snapcore.snapshot import take_snapshot as take
+    from snapcore.pipeline import take_snapshot as take
 
     paper = paper_table1().set_index("scene")
     analogues = paper_analogues().set_index("scene")
@@ -280,7 +280,7 @@ def _figure_paths(fig, stem) -> list[Path]:
 
 
 def _fig5(ctx: _Context) -> list[Path]:
-    from snapcore.entropy_plot import plot_strip
+    from snapcore.render.entropy_plot import plot_strip
 
     from .plots import _plt
 
@@ -308,7 +308,7 @@ def _fig5(ctx: _Context) -> list[Path]:
 
 
 def _fig6(ctx: _Context) -> list[Path]:
-    from snapcore.entropy_plot import plot_curves
+    from snapcore.render.entropy_plot import plot_curves
 
     snap = ctx.snapshot(FEATURE_SCENE)
     fig = plot_curves(snap)
@@ -338,7 +338,7 @@ VIEW_PANELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint ent
 def snapshot_views(snap) -> dict:
     """The three methods' view directions of a snapshot: method → unit vector (3,).
 
-    ``snap`` is a :class:`snapcore.snapshot.Snapshot` or its dict
+    ``snap`` is a :class:`snapcore.pipeline.Snapshot` or its dict
     (``data_schema/snapshot.schema.json``: ``view``, ``baselines.<method>.view``).
     Raises :class:`FigureUnavailable` naming the views it lacks (a snapshot taken
     without the view stage or without the baselines).
@@ -355,7 +355,7 @@ def snapshot_views(snap) -> dict:
 
 
 def _fig8_10(ctx: _Context) -> list[Path]:
-    from snapcore.sheets import compare_views
+    from snapcore.render.composites import compare_views
 
     from .plots import _plt
 
@@ -383,7 +383,7 @@ def _fig8_10(ctx: _Context) -> list[Path]:
         ax.set_axis_off()
     fig.suptitle("Fig. 8-10: the selected pose from the view of each method", fontsize=11)
     paths = _figure_paths(fig, ctx.out / "fig8-10_views")
-    from snapcore.render import save_png
+    from snapcore.render.renderer import save_png
 
     for sid, img in zip(names, images, strict=True):
         path = ctx.out / f"fig8-10_{sid}.png"
@@ -393,7 +393,7 @@ def _fig8_10(ctx: _Context) -> list[Path]:
 
 
 def _fig11(ctx: _Context) -> list[Path]:
-    from snapcore.relief_scene import relief_comparison_figure as relief_figure
+    from snapcore.relief.scene import relief_comparison_figure as relief_figure
 
     snap = ctx.snapshot(FEATURE_SCENE)
     views = snapshot_views(snap)

@@ -70,7 +70,7 @@ def _first(d: dict, *keys) -> float:
 
 
 def _resolve(name: str, bases) -> Path:
-    from snapcore.load import resolve_data_path
+    from snapcore.motion.load import resolve_data_path
 
     p = Path(name).expanduser()
     if p.is_absolute():
@@ -86,7 +86,7 @@ def load_scene_for_entry(entry: dict, base: Path | None = None):
 
     In order: ``source.scene_file`` (the scene manifest the stimuli builder wrote beside
     the stimuli, window included), a ``demo`` name (rebuilt with
-    :func:`snapcore.synth.synth_scene` when the scene file cannot be read), ``files``
+    :func:`snapcore.motion.synth.synth_scene` when the scene file cannot be read), ``files``
     (BVH paths) or ``manifest`` (a scene manifest), with the entry's ``fps``/``scale``
     overrides. Relative paths are tried against the stimuli folder, its parent and the
     motion data folder (``SNAPSHOT_DATA``). The frame window is applied by the caller
@@ -108,7 +108,7 @@ def load_scene_for_entry(entry: dict, base: Path | None = None):
                     if not src.get("demo"):  # older builds deleted the demo BVHs it names
                         raise
         if src.get("demo"):
-            from snapcore import synth
+            from snapcore.motion import synth
 
             return synth.synth_scene(src["demo"], **({"fps": fps} if fps else {}))
         if src.get("files"):

@@ -7,18 +7,19 @@ No Streamlit, no SQL here (DESIGN: data flows one way).
 
 from __future__ import annotations
 
-from .body import PosedMesh, SceneBody, posed_mesh
-from .bvh import BVHDocument, read_bvh, write_bvh
-from .contacts import ContactTolerances, Interactions, detect_interactions
-from .errors import BVHError, SceneError, SchemaError, SnapshotError
-from .load import data_dir, load_scene
-from .pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
-from .render import render_depth, render_face_ids, render_still
-from .scene import Character, Scene, Skeleton
-from .sheets import compare_views, contact_sheet
-from .snapshot import Snapshot, take_snapshot
-from .video import render_video
-from .view import ViewSelection, pma_scores, select_view
+from snapcore.errors import BVHError, SceneError, SchemaError, SnapshotError
+from snapcore.motion.bvh import BVHDocument, read_bvh, write_bvh
+from snapcore.motion.load import data_dir, load_scene
+from snapcore.motion.scene import Character, Scene, Skeleton
+from snapcore.pipeline import Snapshot, ViewParams, take_snapshot
+from snapcore.render.body import PosedMesh, SceneBody, posed_mesh
+from snapcore.render.composites import compare_views, contact_sheet
+from snapcore.render.renderer import render_depth, render_face_ids, render_still
+from snapcore.render.video import render_video
+from snapcore.select.contacts import ContactTolerances, Interactions, detect_interactions
+from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
+from snapcore.select.view import ViewSelection, pma_scores, select_view
 
 __version__ = "0.1.0"
 
@@ -38,6 +39,9 @@ __all__ = [
     "Skeleton",
     "Snapshot",
     "SnapshotError",
+    "ViewMethod",
+    "VIEW_METHODS",
+    "ViewParams",
     "ViewSelection",
     "compare_views",
     "contact_sheet",

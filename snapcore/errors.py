@@ -7,7 +7,7 @@ callers that only know the standard library still catch bad input.
 
 from __future__ import annotations
 
-__all__ = ["SnapshotError", "BVHError", "SceneError", "SchemaError"]
+__all__ = ["SnapshotError", "BVHError", "SceneError", "SchemaError", "RenderError"]
 
 
 class SnapshotError(ValueError):
@@ -46,3 +46,7 @@ class SchemaError(SnapshotError):
 
     The message names the file and the JSON path of the offending field.
     """
+
+
+class RenderError(SnapshotError):
+    """A render that cannot be made (no GL context, bad size, bad view)."""

@@ -15,8 +15,7 @@ from pathlib import Path
 import jsonschema
 
 from data_schema import schema_path
-
-from .errors import SchemaError
+from snapcore.errors import SchemaError
 
 __all__ = ["load_schema", "validate", "read_document", "field_path"]
 

@@ -24,7 +24,7 @@ _REPO = str(Path(__file__).resolve().parents[1])
 if _REPO not in sys.path:
     sys.path.insert(0, _REPO)
 
-from study_app.pages import (  # noqa: E402
+from study_app.screens import (  # noqa: E402
     attention,
     background,
     common,

@@ -15,7 +15,7 @@ not match its files (:func:`load_stimuli`), before any participant starts.
 The builder runs one function per stage, so each can be tested and replaced alone:
 :func:`load_study_scene` → :func:`select_scene` → :func:`write_video` →
 :func:`write_frames` → :func:`write_views` → :func:`write_manifest`. Rendering uses
-``snapcore.render`` (EGL, offline: see PLATFORM-NOTES, renderers do not cross threads).
+``snapcore.render.renderer`` (EGL, offline: see PLATFORM-NOTES, renderers do not cross threads).
 """
 
 from __future__ import annotations
@@ -260,7 +260,7 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     (Scene, dict)
         The scene and the manifest document that produced it.
     """
-    from snapcore.load import data_dir, load_scene, resolve_data_path
+    from snapcore.motion.load import data_dir, load_scene, resolve_data_path
     from snapcore.schema import read_document
 
     work = Path(work_dir)
@@ -303,7 +303,7 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
 
 def _demo_scene_document(name: str, folder: Path) -> dict:
     """The scene manifest of synthetic demo scene ``name`` (written once into ``folder``)."""
-    from snapcore import synth
+    from snapcore.motion import synth
     from snapcore.schema import read_document
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -328,7 +328,7 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
         ``viewpoint_entropy`` and ``motion_area`` (unit vectors, world frame).
         ``timings``: seconds per stage of the selection.
     """
-    from snapcore.snapshot import take_snapshot
+    from snapcore.pipeline import take_snapshot
 
     snap = take_snapshot(scene, **(options or {}))
     d = snap.to_dict()
@@ -359,7 +359,7 @@ def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], v
     characters' facing, slightly above): not from any of the three candidate views,
     so the video does not make one of them look familiar in the view task.
     """
-    from snapcore.video import render_video
+    from snapcore.render.video import render_video
 
     vmap = render_video(scene, path, fps=fps, size=size, view=view, progress=progress)
     return [int(m) for m in np.asarray(vmap, dtype=int)]
@@ -403,7 +403,7 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     dict
         ``{method: {"file": Path, "direction": [x, y, z]}}`` for :data:`METHODS`.
     """
-    from snapcore.render import SceneRenderer, render_still, save_png
+    from snapcore.render.renderer import SceneRenderer, render_still, save_png
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)

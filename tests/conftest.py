@@ -12,7 +12,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # before anything imports Ope
 
 import pytest  # noqa: E402
 
-from snapcore.load import data_dir  # noqa: E402
+from snapcore.motion.load import data_dir  # noqa: E402
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 

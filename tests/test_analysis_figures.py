@@ -58,8 +58,8 @@ def test_snapshot_views_reads_the_snapshot_schema():
 
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
     """Fig. 6 of the dance is drawn (not blank); Table 1 times two clips beside the paper."""
-    pytest.importorskip("snapcore.snapshot")
-    pytest.importorskip("snapcore.entropy_plot")
+    pytest.importorskip("snapcore.pipeline")
+    pytest.importorskip("snapcore.render.entropy_plot")
     res = fg.make_figures(tmp_path, names=["fig6", "fig11"], progress=False, data_dir=motions_dir)
     paths, reason = res["fig6"]
     assert not reason, reason

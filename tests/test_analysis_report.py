@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from analysis import load as ld
 from analysis import simulate as sim
-from snapcore.cli import cli
+from snapcore.cli.main import cli
 
 
 def _rows(n=20, seed=3, **kw):

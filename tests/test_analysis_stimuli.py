@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from analysis import frames as fr
 from analysis import simulate as sim
 from analysis import stimuli as st
-from snapcore.cli import cli
+from snapcore.cli.main import cli
 
 
 def _manifest(scenes):
@@ -30,7 +30,7 @@ def _manifest(scenes):
 
 
 def _walk_entry(**kw):
-    from snapcore import synth
+    from snapcore.motion import synth
 
     sc = synth.synth_scene("walk")
     e = {"id": "walk", "title": "Synthetic walk", "source": {"demo": "walk"}, "fps": sc.fps,

@@ -7,18 +7,17 @@ import warnings
 import numpy as np
 import pytest
 
-from snapcore import load_scene, synth
-from snapcore.body import (
+from snapcore import load_scene
+from snapcore.motion import synth
+from snapcore.motion.anatomy import ROLE_RADII, joint_roles, joint_sides
+from snapcore.motion.scene import Character, Scene, Skeleton
+from snapcore.render.body import (
     CHARACTER_COLORS,
-    ROLE_RADII,
     SceneBody,
-    joint_roles,
-    joint_sides,
     posed_mesh,
     scene_body,
     scene_trimesh,
 )
-from snapcore.scene import Character, Scene, Skeleton
 
 
 @pytest.fixture(scope="module")
@@ -201,7 +200,7 @@ def test_two_characters_get_distinct_colours(push):
     tm = scene_trimesh(push, 10)
     assert len(tm.faces) == len(m.faces) and tm.visual.face_colors.shape == (len(m.faces), 4)
     assert scene_body(push) is scene_body(push)  # built once per scene
-    from snapcore.body import TESSELLATION_FINE
+    from snapcore.render.body import TESSELLATION_FINE
 
     fine = scene_body(push, TESSELLATION_FINE)  # once per scene and tessellation
     assert fine is scene_body(push, TESSELLATION_FINE) and fine is not scene_body(push)
@@ -228,8 +227,8 @@ def test_unknown_skeleton_gets_default_radius():
     scene = Scene([ch], fps=30.0)
     b = SceneBody(scene).characters[0]
     assert [p["kind"] for p in b.pieces] == ["bone"] * 3
-    k = ch.height / 1.75
-    assert all(abs(p["radii"][0] - ROLE_RADII["other"][0] * k) < 1e-12 for p in b.pieces)
+    # radii are fractions of stature: an unnamed bone is 0.040 m on a 1.75 m figure
+    assert all(abs(p["radii"][0] - 0.040 / 1.75 * ch.height) < 1e-12 for p in b.pieces)
 
 
 def test_frame_out_of_range_is_an_error(walk):
@@ -260,7 +259,7 @@ def test_fine_tessellation_hugs_the_capsules(walk):
     """Reliefs carve the body's depth, so facets would show as ridges: the fine
     tessellation keeps every face within 1.5 mm of the round capsule it stands for, at
     least three times closer than the default one."""
-    from snapcore.body import TESSELLATION, TESSELLATION_FINE, CharacterBody
+    from snapcore.render.body import TESSELLATION, TESSELLATION_FINE, CharacterBody
 
     ch = walk.characters[0]
     fine = _facet_depth(CharacterBody(ch, tessellation=TESSELLATION_FINE))

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from snapcore.bvh import BVHError, format_bvh, parse_bvh, read_bvh, write_bvh
+from snapcore.motion.bvh import BVHError, format_bvh, parse_bvh, read_bvh, write_bvh
 
 GOOD = """HIERARCHY
 ROOT Hips
@@ -158,7 +158,7 @@ def test_cli_reports_malformed_files_in_one_line(tmp_path):
     # One process for all cases keeps this fast; each file is a separate invocation.
     code = (
         "import sys\n"
-        "from snapcore.cli import main\n"
+        "from snapcore.cli.main import main\n"
         "for p in sys.argv[1:]:\n"
         "    rc = main(['info', p])\n"
         "    print('RC', rc, flush=True)\n"
@@ -182,7 +182,7 @@ def test_cli_missing_file_and_binary(tmp_path):
     binary = tmp_path / "junk.bvh"
     binary.write_bytes(bytes(range(256)) * 4)
     for p in (tmp_path / "nope.bvh", binary):
-        r = subprocess.run([sys.executable, "-m", "snapcore.cli", "info", str(p)],
+        r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "info", str(p)],
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 2
         assert r.stderr.count("\n") == 1 and r.stderr.startswith("error: ")

@@ -3,9 +3,9 @@ no traceback, refused before any work, and nothing already stored is lost.
 
 The commands run for real, outside the test process, so the tests see exactly what a
 user sees on the terminal. To stay fast, the many refused command lines share ONE
-subprocess that calls :func:`snapcore.cli.main` (the console script's entry point) once
+subprocess that calls :func:`snapcore.cli.main.main` (the console script's entry point) once
 per case, each in its own folder, with its stdout and stderr split by markers; a few
-cases that used to print a traceback also run alone as ``python -m snapcore.cli``.
+cases that used to print a traceback also run alone as ``python -m snapcore.cli.main``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from snapcore.cli import cli
+from snapcore.cli.main import cli
 
 #: Placeholder for the path of the real clip in the case tables.
 W = "{walk}"
@@ -155,7 +155,7 @@ class Run:
 
 _DRIVER = r"""
 import json, os, sys, traceback
-from snapcore.cli import main
+from snapcore.cli.main import main
 for cid, folder, args in json.load(sys.stdin):
     os.chdir(folder)
     try:
@@ -208,7 +208,7 @@ def runs(walk, tmp_path_factory) -> dict:
 
 def _alone(*args, cwd) -> Run:
     """One command in its own process, as a user runs it."""
-    r = subprocess.run([sys.executable, "-m", "snapcore.cli", *map(str, args)], cwd=cwd,
+    r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", *map(str, args)], cwd=cwd,
                        env=_env(), capture_output=True, text=True, timeout=120)
     return Run(r.returncode, r.stdout, r.stderr, Path(cwd))
 
@@ -345,7 +345,7 @@ def test_bad_vector_is_refused_before_pose_selection(runs, cid):
 def test_sheet_columns_apply_to_view_comparisons(walk, tmp_path):
     from PIL import Image
 
-    from snapcore.sheets import PANEL_GAP
+    from snapcore.render.composites import PANEL_GAP
 
     def size(name, *args):
         out = tmp_path / name

@@ -1,4 +1,4 @@
-"""Interaction events (snapcore.contacts): the seed-and-propagate rule, geometry, and
+"""Interaction events (snapcore.select.contacts): the seed-and-propagate rule, geometry, and
 real data checked against independent measurements (steps from heel heights, the
 distance between partners' hands)."""
 
@@ -11,21 +11,20 @@ import warnings
 import numpy as np
 import pytest
 
-from snapcore import load_scene, synth
-from snapcore.contacts import (
+from snapcore import load_scene
+from snapcore.errors import SceneError
+from snapcore.motion import synth
+from snapcore.motion.scene import Scene
+from snapcore.select.capsules import body_near, bone_radii, segment_distance
+from snapcore.select.contacts import (
     DEFAULT_TOLERANCES,
     GROUND,
     ContactTolerances,
-    _body_near,
-    bone_radii,
     detect_interactions,
     merge_adjacent,
     prop_distance,
     scan_interactions,
-    segment_distance,
 )
-from snapcore.errors import SceneError
-from snapcore.scene import Scene
 
 HAND = re.compile(r"(hand|thumb|index|mid|ring|pinky)", re.I)
 SALSA_PAIRS = [("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
@@ -160,7 +159,7 @@ def test_body_broad_phase_equals_testing_every_bone(motions_dir):
     sub = b.frames(300, 900)
     assert want_near.sum() > 100  # the pair does touch in this stretch
     for block in (1, 3, 6, 7):
-        near, bone = _body_near(x, sub, 0.03, block=block)
+        near, bone = body_near(x, sub, 0.03, block=block)
         np.testing.assert_array_equal(near, want_near)
         np.testing.assert_array_equal(bone, want_bone)
 

@@ -16,7 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 from data_schema import SCHEMA_DIR, schema_path
-from snapcore.cli import cli
+from snapcore.cli.main import cli
 
 OUTPUT_SCHEMAS = ("info", "bench", "relief", "frame_map", "analysis_summary")
 
@@ -98,8 +98,8 @@ def test_info_json_follows_schema(walk_bvh):
 
 
 def test_info_units_cover_every_known_unit():
-    """The schema's unit enum follows snapcore.scene.KNOWN_UNITS (+ fitted, given)."""
-    from snapcore.scene import KNOWN_UNITS
+    """The schema's unit enum follows snapcore.motion.scene.KNOWN_UNITS (+ fitted, given)."""
+    from snapcore.motion.scene import KNOWN_UNITS
 
     enum = _schema("info")["properties"]["characters"]["items"]["properties"]["unit"]["enum"]
     assert set(enum) == set(KNOWN_UNITS) | {"fitted", "given"}
@@ -107,7 +107,7 @@ def test_info_units_cover_every_known_unit():
 
 def test_writer_with_a_broken_document_fails_in_one_line(walk_bvh, monkeypatch):
     """A bug that changes the output's shape stops the command with `error:`, no JSON."""
-    from snapcore.commands import info as info_cmd
+    from snapcore.cli import info as info_cmd
 
     real = info_cmd.scene_summary
     monkeypatch.setattr(info_cmd, "scene_summary", lambda scene: real(scene) | {"n_frames": -1})
@@ -145,7 +145,7 @@ def test_bench_only_matching_nothing_is_an_error(bench_env):
     """A mistyped --only does not pass silently: one line, exit code 2, nothing run."""
     from click.testing import CliRunner
 
-    from snapcore.cli import cli
+    from snapcore.cli.main import cli
 
     result = CliRunner().invoke(cli, ["bench", "--only", "no such case", "--json"])
     assert result.exit_code == 2

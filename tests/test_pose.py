@@ -18,9 +18,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from snapcore import load_scene, synth
-from snapcore.contacts import DEFAULT_TOLERANCES, bone_radii
-from snapcore.pose import (
+from snapcore import load_scene
+from snapcore.motion import synth
+from snapcore.motion.scene import Character, Scene, Skeleton
+from snapcore.select.contacts import DEFAULT_TOLERANCES, bone_radii
+from snapcore.select.pose import (
     REST_SPEED,
     SAVGOL_POLYORDER,
     SMOOTH_S,
@@ -36,7 +38,6 @@ from snapcore.pose import (
     smooth_positions,
     top_peaks,
 )
-from snapcore.scene import Character, Scene, Skeleton
 
 SALSA_PAIRS = [("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
                ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh")]

@@ -1,4 +1,4 @@
-"""Bas-relief: Poisson solvers, compression, watertight STL, previews (snapcore.relief)."""
+"""Bas-relief: Poisson solvers, compression, watertight STL, previews (snapcore.relief.height_field)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from snapcore.poisson import poisson_solve, poisson_solve_attached, poisson_solve_masked
-from snapcore.relief import (
+from snapcore.relief.height_field import (
     Relief,
     ReliefError,
     ReliefParams,
@@ -22,13 +21,14 @@ from snapcore.relief import (
     linear_height_field,
     relief_from_height_field,
 )
-from snapcore.relief_mesh import (
+from snapcore.relief.mesh import (
     PREVIEW_AMBIENT,
     relief_mesh,
     relief_stl_array,
     shade_relief,
     stl_array,
 )
+from snapcore.relief.poisson import poisson_solve, poisson_solve_attached, poisson_solve_masked
 
 # ----------------------------------------------------------------- synthetic scenes
 
@@ -417,7 +417,7 @@ def salsa(motions_dir):
 
 def test_scene_height_field_holds_both_characters(salsa):
     """The depth render of a two-person pose sees faces of both characters, framed to the footprint."""
-    from snapcore.relief_scene import height_field_from_scene, relief_body
+    from snapcore.relief.scene import height_field_from_scene, relief_body
 
     params = ReliefParams(size_mm=(120, 80), resolution=120)
     dm = height_field_from_scene(salsa, 900, (0.3, 0.2, 1.0), params=params)
@@ -435,7 +435,7 @@ def test_scene_height_field_holds_both_characters(salsa):
 def _run_cli(*args):
     from click.testing import CliRunner
 
-    from snapcore.cli import cli
+    from snapcore.cli.main import cli
 
     return CliRunner().invoke(cli, ["relief", *map(str, args)], catch_exceptions=False)
 
@@ -447,7 +447,7 @@ def test_cli_writes_watertight_stl_and_preview(salsa, motions_dir, tmp_path):
     import trimesh
     from PIL import Image
 
-    from snapcore.relief_scene import relief_from_scene
+    from snapcore.relief.scene import relief_from_scene
 
     out = tmp_path / "pair.stl"
     r = _run_cli(
@@ -496,7 +496,7 @@ def test_cli_default_pose_is_the_selected_one(salsa, motions_dir, tmp_path):
     """Without --frame the relief carves the pose that take_snapshot selects (source numbering)."""
     import json
 
-    snapshot = pytest.importorskip("snapcore.snapshot")
+    snapshot = pytest.importorskip("snapcore.pipeline")
     r = _run_cli(
         motions_dir / "two_person/60_01_scaled.bvh",
         motions_dir / "two_person/61_01_scaled.bvh",
@@ -540,7 +540,7 @@ def test_compressed_body_relief_keeps_more_detail_than_linear(salsa):
     not detail; linear keeps it at full height). Measured ratio 3.5 here (256 px; 2.8-4.0
     over three views), 2.2-2.9 at 512 px.
     """
-    from snapcore.relief_scene import height_field_from_scene
+    from snapcore.relief.scene import height_field_from_scene
 
     dm = height_field_from_scene(salsa, 900, (0.3, 0.2, 1.0), params=ReliefParams(resolution=256))
     h, m = height_from_depth(dm.depth)
@@ -553,7 +553,7 @@ def test_compressed_body_relief_keeps_more_detail_than_linear(salsa):
 
 def test_comparison_figure_has_one_panel_per_view(salsa, tmp_path):
     """The Fig. 11 figure carves the same pose from each named view (plus a linear row on request)."""
-    from snapcore.relief_scene import relief_comparison_figure
+    from snapcore.relief.scene import relief_comparison_figure
 
     views = {"ours": (0, 0.15, 1), "viewpoint entropy": (1, 0.15, 0)}
     fig = relief_comparison_figure(

@@ -8,19 +8,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from snapcore import synth
-from snapcore.render import (
-    Camera,
-    RenderError,
+from snapcore.errors import RenderError
+from snapcore.motion import synth
+from snapcore.render.camera import Camera, default_view, fit_camera, motion_points, view_basis
+from snapcore.render.renderer import (
     SceneRenderer,
-    default_view,
     face_id_camera,
-    fit_camera,
-    motion_points,
     render_depth,
     render_face_ids,
     render_still,
-    view_basis,
 )
 
 pytestmark = pytest.mark.timeout(300)
@@ -214,8 +210,8 @@ def test_still_shows_the_body_where_the_camera_projects_it(walk):
     """The still's silhouette (pixels unlike the plain background, no floor) covers the
     projected joints and fills the projected bounding box of the body, computed here by
     hand from the camera basis."""
-    from snapcore.body import scene_body
-    from snapcore.render import BACKGROUND
+    from snapcore.render.body import scene_body
+    from snapcore.render.renderer import BACKGROUND
 
     size = (200, 160)
     frame = 12
@@ -240,7 +236,7 @@ def test_still_shows_the_body_where_the_camera_projects_it(walk):
 
 def test_still_of_two_people_shows_both_colours():
     """The push scene: both characters' colours appear in the picture."""
-    from snapcore.body import CHARACTER_COLORS
+    from snapcore.render.body import CHARACTER_COLORS
 
     scene = synth.synth_scene("push", fps=30)
     img = render_still(scene, 20, size=(240, 180)).astype(float) / 255
@@ -257,7 +253,7 @@ def test_motion_framing_is_the_same_for_every_frame(walk):
     pts = motion_points(walk)
     view = default_view(walk)
     cam = fit_camera(pts, view, size=(320, 180))
-    from snapcore.body import scene_body
+    from snapcore.render.body import scene_body
 
     allv = scene_body(walk).vertices(np.arange(walk.n_frames)).reshape(-1, 3)
     p = cam.project(allv)
@@ -309,8 +305,8 @@ def test_level_orthographic_view_puts_the_horizon_at_the_feet(walk):
     """Seen exactly level, the floor is a line: the sky (background colour) ends and the
     floor colour begins at the row where the camera projects the floor (y = ground),
     computed here by hand; the lowest body pixels touch that row."""
-    from snapcore.body import scene_body
-    from snapcore.render import BACKGROUND, FLOOR_COLOR
+    from snapcore.render.body import scene_body
+    from snapcore.render.renderer import BACKGROUND, FLOOR_COLOR
 
     size = (160, 200)
     frame = 0
@@ -335,7 +331,7 @@ def test_level_orthographic_view_puts_the_horizon_at_the_feet(walk):
 
 
 def test_release_renderer_makes_a_fresh_context():
-    from snapcore.render import gl_renderer, release_renderer
+    from snapcore.render.gl import gl_renderer, release_renderer
 
     a = gl_renderer(32, 32)
     release_renderer()
@@ -375,7 +371,7 @@ def test_a_camera_under_the_floor_draws_no_grid_or_shadows(walk):
     grid nor the shadows are drawn through the legs. With the floor on, the only pixels
     that differ from the background are the figure's (the same ones as with the floor
     off); from above, the grid and shadows are there."""
-    from snapcore.render import BACKGROUND, FLOOR_COLOR, render_still
+    from snapcore.render.renderer import BACKGROUND, FLOOR_COLOR, render_still
 
     def figure_mask(img, colour):
         return np.abs(img.astype(float) - np.round(np.asarray(colour) * 255)).max(axis=-1) > 3

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from snapcore import synth
-from snapcore.cli import cli
-from snapcore.render import RenderError
-from snapcore.video import render_video, video_frame_map
+from snapcore.cli.main import cli
+from snapcore.errors import RenderError
+from snapcore.motion import synth
+from snapcore.render.video import render_video, video_frame_map
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -94,8 +94,8 @@ def test_contact_sheet_and_view_comparison_layout(walk):
     """Panels of the asked size side by side (plus gaps and captions); one scale in every
     comparison panel, so the same pose seen from +Z and -Z has mirror silhouettes of
     equal area."""
-    from snapcore.render import BACKGROUND
-    from snapcore.sheets import PANEL_GAP, compare_views, contact_sheet
+    from snapcore.render.composites import PANEL_GAP, compare_views, contact_sheet
+    from snapcore.render.renderer import BACKGROUND
 
     img = contact_sheet(walk, [0, 30, 60], size=(120, 140), entropy=[1.0, 2.0, 3.0])
     assert img.shape[1] == 3 * 120 + 4 * PANEL_GAP and img.shape[0] > 140
@@ -116,7 +116,7 @@ def test_contact_sheet_and_view_comparison_layout(walk):
 
 @pytest.fixture(scope="module")
 def walk_bvh(tmp_path_factory):
-    from snapcore.bvh import write_bvh
+    from snapcore.motion.bvh import write_bvh
 
     p = tmp_path_factory.mktemp("bvh") / "walk.bvh"
     write_bvh(synth.humanoid_document("walk", seconds=2.0, fps=30), p)
@@ -146,7 +146,7 @@ def test_cli_video_writes_mp4_and_frame_map(walk_bvh, tmp_path):
     r = CliRunner().invoke(cli, ["video", str(walk_bvh), "-o", str(out), "--fps", "10", "--size",
                                  "128x96", "--quiet", "--frame-map", str(fm), "--view", "0,0,1"])
     assert r.exit_code == 0, r.output
-    from snapcore.bvh import read_bvh
+    from snapcore.motion.bvh import read_bvh
 
     doc = json.loads(fm.read_text())
     meta, n, _ = _probe(out)
@@ -171,12 +171,12 @@ def test_cli_sheet_frames_and_views(walk_bvh, tmp_path):
 
 
 def test_readme_images_command(motions_dir, tmp_path):
-    """`python -m snapcore.readme_images OUT` writes the contact sheet (three panels)
+    """`python -m snapcore.cli.readme_images OUT` writes the contact sheet (three panels)
     and the three-view comparison of the README."""
     from PIL import Image
 
-    from snapcore.readme_images import PANEL, main
-    from snapcore.sheets import PANEL_GAP
+    from snapcore.cli.readme_images import PANEL, main
+    from snapcore.render.composites import PANEL_GAP
 
     assert main([str(tmp_path)]) == 0
     sheet = Image.open(tmp_path / "contact_sheet.png")
@@ -189,8 +189,8 @@ def test_contact_sheet_puts_the_floor_on_one_row():
     """Panels of a jump at one scale, each moved so the floor point under its pose is on
     the same image row (the airborne pose then stands higher than the crouch), and every
     pose still inside its panel."""
-    from snapcore.body import scene_body
-    from snapcore.sheets import common_cameras, floor_aligned
+    from snapcore.render.body import scene_body
+    from snapcore.render.composites import common_cameras, floor_aligned
 
     scene = synth.synth_scene("jump", fps=30)
     body = scene_body(scene)
@@ -220,7 +220,7 @@ def test_contact_sheet_puts_the_floor_on_one_row():
 def test_hand_picked_frames_are_not_captioned_as_ranked(walk, monkeypatch):
     """Captions start with #1, #2... for the top-k poses, but not for frames picked by
     hand (a rank there would claim an order nobody computed)."""
-    import snapcore.sheets as sheets
+    import snapcore.render.composites as sheets
 
     seen = []
     monkeypatch.setattr(sheets, "tile_panels",

@@ -13,9 +13,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from snapcore import load_scene
-from snapcore.bvh import BVHDocument, parse_bvh, write_bvh
 from snapcore.errors import SceneError, SchemaError
-from snapcore.scene import KNOWN_UNITS, character_from_bvh
+from snapcore.motion.bvh import BVHDocument, parse_bvh, write_bvh
+from snapcore.motion.scene import KNOWN_UNITS, character_from_bvh
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 
@@ -245,7 +245,7 @@ def test_one_frame_motion_loads(tmp_path):
 
 def test_info_json(motions_dir):
     """`snapshot info --json` reports frames, fps, duration, height and bounds in metres."""
-    r = subprocess.run([sys.executable, "-m", "snapcore.cli", "info", "--json",
+    r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "info", "--json",
                         str(motions_dir / "walk_run/02_01.bvh")], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 0, r.stderr
@@ -280,7 +280,7 @@ def test_local_quaternions_are_the_local_rotations(motions_dir):
     """The quaternions FK keeps are the local rotation matrices, after loading, a yaw
     (roots turned), a rescale and a slice; and matrix_to_quat inverts quat_to_matrix
     up to the sign of q."""
-    from snapcore.kinematics import matrix_to_quat, quat_to_matrix
+    from snapcore.motion.kinematics import matrix_to_quat, quat_to_matrix
 
     c = load_scene(motions_dir / "walk_run" / "02_01.bvh").characters[0]
     variants = {"loaded": c, "yawed": c.transformed(yaw_deg=37.0, offset=(1.0, 0.0, -2.0)),

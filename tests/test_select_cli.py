@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from snapcore import load_scene, synth
-from snapcore.cli import cli
+from snapcore import load_scene
+from snapcore.cli.main import cli
+from snapcore.motion import synth
+from snapcore.pipeline import VIEW_FIELDS, Snapshot, take_snapshot
 from snapcore.schema import validate
-from snapcore.snapshot import VIEW_FIELDS, Snapshot, take_snapshot
+from snapcore.select.methods import ViewMethod
 
 
 def _run(args):
@@ -89,7 +91,7 @@ def test_select_errors_are_one_line(tmp_path):
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
     for target in (tmp_path / "missing.bvh", bad):
-        r = subprocess.run([sys.executable, "-m", "snapcore.cli", "select", str(target)],
+        r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "select", str(target)],
                            capture_output=True, text=True, timeout=120)
         assert r.returncode == 2
         lines = r.stderr.strip().splitlines()
@@ -115,22 +117,27 @@ def test_plot_entropy_writes_a_figure(tmp_path):
 
 
 def test_snapshot_to_dict_includes_view_fields_when_set():
-    """The view stage's fields are absent until set, then serialised (arrays as lists)."""
+    """The view fields are absent without the view stage; with it, they serialise the typed
+    selections (arrays as lists, plain JSON types) and ``views`` names all three methods."""
     scene = synth.synth_scene("kick", fps=30)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         snap = take_snapshot(scene, k=1, view=False)
     doc = snap.to_dict()
     assert not set(VIEW_FIELDS) & set(doc)
+    assert snap.views == {}
     validate(doc, "snapshot")
-    snap.view = np.array([0.0, 0.0, 1.0])
-    snap.view_refined = np.array([0.6, 0.0, 0.8])
-    snap.baselines = {"motion_area": {"view": np.array([1.0, 0.0, 0.0]),
-                                      "score": np.float64(2.5)}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = take_snapshot(scene, k=1, n_views=162)
     doc = snap.to_dict()
-    assert doc["view"] == [0.0, 0.0, 1.0] and doc["view_refined"] == [0.6, 0.0, 0.8]
-    assert doc["baselines"]["motion_area"] == {"view": [1.0, 0.0, 0.0], "score": 2.5}
-    assert type(doc["baselines"]["motion_area"]["score"]) is float
+    validate(doc, "snapshot")
+    assert set(VIEW_FIELDS) <= set(doc)
+    assert set(snap.views) == set(ViewMethod)
+    assert doc["view"] == snap.view_selection.view.tolist()
+    for m in (ViewMethod.MOTION_AREA, ViewMethod.VIEWPOINT_ENTROPY):
+        assert doc["baselines"][m.value]["view"] == snap.views[m].tolist()
+        assert type(doc["baselines"][m.value]["score"]) is float
     json.dumps(doc, allow_nan=False)  # plain JSON types throughout
     assert isinstance(snap, Snapshot) and snap.frames == [snap.frame]
 

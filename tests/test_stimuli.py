@@ -119,7 +119,7 @@ def built(tmp_path_factory):
     out, r = tiny_demo_stimuli(tmp_path_factory)
     if r is not None:
         need("must run the view stage" not in r.stderr,
-             "snapcore.snapshot.take_snapshot has no view stage yet")
+             "snapcore.pipeline.take_snapshot has no view stage yet")
         assert r.returncode == 0, r.stderr
         assert "2 scenes" in r.stdout and "manifest sha256" in r.stdout
     return out
@@ -164,8 +164,8 @@ def test_build_writes_a_verified_folder(built, tiny_config):
 
 def test_build_records_the_selection(built):
     """The manifest's picks and view directions are those take_snapshot gives for the scene."""
-    from snapcore.load import load_scene
-    from snapcore.snapshot import take_snapshot
+    from snapcore.motion.load import load_scene
+    from snapcore.pipeline import take_snapshot
 
     s = load_stimuli(built)
     sc = s.scenes["push"]
@@ -212,8 +212,8 @@ def test_view_stills_share_one_background(tmp_path):
     cannot give a method away; each still shows the figure."""
     import imageio.v3 as iio
 
-    from snapcore import synth
-    from snapcore.render import BACKGROUND
+    from snapcore.motion import synth
+    from snapcore.render.renderer import BACKGROUND
     from study_app.stimuli import METHODS, write_views
 
     scene = synth.synth_scene("walk", fps=30)

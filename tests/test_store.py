@@ -24,7 +24,7 @@ from click.testing import CliRunner
 from pg import PG_PASSWORD, pg_server, pg_url  # noqa: F401 - fixtures, requested by name
 
 import study_app
-from snapcore.cli import cli
+from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
 from study_app.store import (
@@ -630,7 +630,7 @@ def test_cli_broken_url(url, expect, tmp_path):
 
 def test_cli_broken_url_real_process(tmp_path):
     """The same through the real console entry point (no test runner in between)."""
-    proc = subprocess.run([sys.executable, "-m", "snapcore.cli", "export", "--db",
+    proc = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "export", "--db",
                            "postgresql://me:topsecret@127.0.0.1:1/x", "-o",
                            str(tmp_path / "r.csv")], capture_output=True, text=True)
     assert proc.returncode == 2

@@ -1,4 +1,4 @@
-"""Tests of the procedural humanoid (snapcore.synth): file format, units, and the
+"""Tests of the procedural humanoid (snapcore.motion.synth): file format, units, and the
 analytic ground truth the other modules test against (contacts, events, planes)."""
 
 from __future__ import annotations
@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapcore import load_scene, synth
-from snapcore.bvh import format_bvh, parse_bvh
+from snapcore import load_scene
+from snapcore.motion import synth
+from snapcore.motion.bvh import format_bvh, parse_bvh
 from snapcore.schema import read_document
 
 FPS = 30.0
@@ -301,7 +302,7 @@ def test_keyframe_curves_match_scipy_pchip():
     keys, flat runs included) and holds the end values outside the keys."""
     from scipy.interpolate import PchipInterpolator
 
-    from snapcore.synth_rig import pchip as _keys
+    from snapcore.motion.synth_rig import pchip as _keys
 
     rng = np.random.default_rng(1)
     for _ in range(50):

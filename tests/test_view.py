@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from snapcore import load_scene
-from snapcore.facing import (
+from snapcore.motion.anatomy import left_right_pairs
+from snapcore.motion.facing import (
     SIDE_RULES,
     character_facing,
     choose_side,
-    joint_roles,
     scene_facing,
 )
-from snapcore.scene import Character, Scene, Skeleton, yaw_matrix
-from snapcore.view import (
+from snapcore.motion.scene import Character, Scene, Skeleton, yaw_matrix
+from snapcore.select.view import (
     MA_FLOOR_M2,
     ViewError,
     motion_triangles,
@@ -328,7 +328,7 @@ def test_jumping_jacks_are_seen_from_the_front(facing_deg):
 
 def test_jumping_jacks_from_synth_are_seen_from_the_front():
     """The synthetic humanoid's jumping jacks (frontal plane) facing 30°: front view."""
-    synth = pytest.importorskip("snapcore.synth")
+    synth = pytest.importorskip("snapcore.motion.synth")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = synth.synth_scene("jumping_jacks", facing_deg=30.0)
@@ -382,8 +382,8 @@ def test_profile_tie_break_is_rotation_invariant_and_faces_screen_right():
 def test_joint_roles_across_namings(motions_dir, rel, names):
     """Hips and upper arms are found in the CMU, 3ds Max, Daz, Bandai and boxing namings."""
     c = load(motions_dir / rel).characters[0]
-    roles = joint_roles(c.joint_names)
-    got = tuple(c.joint_names[roles[k]] for k in ("left_hip", "right_hip", "left_shoulder", "right_shoulder"))
+    pairs = left_right_pairs(c.joint_names, c.parents)
+    got = tuple(c.joint_names[j] for k in ("hip", "shoulder") for j in pairs[k])
     assert got == names
 
 
@@ -391,8 +391,8 @@ def test_facing_of_a_figure_facing_plus_z():
     """(left - right) × up: left hip at +X gives +Z; no named hips gives zero facing."""
     scene = jumping_jacks(0.0, frames=5)
     c = scene.characters[0]
-    np.testing.assert_allclose(character_facing(c.positions, c.joint_names), [[0, 0, 1]] * 5, atol=1e-12)
-    np.testing.assert_allclose(character_facing(c.positions, [f"j{i}" for i in range(c.n_joints)]), 0.0)
+    np.testing.assert_allclose(character_facing(c.positions, c.joint_names, c.parents), [[0, 0, 1]] * 5, atol=1e-12)
+    np.testing.assert_allclose(character_facing(c.positions, [f"j{i}" for i in range(c.n_joints)], c.parents), 0.0)
     np.testing.assert_allclose(scene_facing(scene.transformed(yaw_deg=90)), [1, 0, 0], atol=1e-12)
 
 
@@ -479,7 +479,7 @@ def test_select_json_reports_view_baselines_and_window(motions_dir):
 
     from click.testing import CliRunner
 
-    from snapcore.commands.select import select
+    from snapcore.cli.select import select
 
     path = motions_dir / "walk_run/02_03.bvh"
     res = CliRunner().invoke(select, [str(path), "--json", "--window", "0.25"])
@@ -517,7 +517,7 @@ def test_select_without_view_or_baselines(motions_dir):
 
     from click.testing import CliRunner
 
-    from snapcore.commands.select import select
+    from snapcore.cli.select import select
 
     path = str(motions_dir / "walk_run/dataset-2_run_normal_001.bvh")
     doc = json.loads(CliRunner().invoke(select, [path, "--json", "--no-baselines"]).output)
@@ -534,7 +534,7 @@ def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
     from click.testing import CliRunner
     from PIL import Image
 
-    from snapcore.commands.views import plot_views
+    from snapcore.cli.views import plot_views
 
     out = tmp_path / f"views_{projection}.png"
     args = [str(motions_dir / "walk_run/02_03.bvh"), "-o", str(out), "--projection", projection,
@@ -554,7 +554,7 @@ def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
 
 def test_view_maps_picks_are_the_maxima(motions_dir):
     """The maps' exact scores peak at the picks (PMA, motion area) or contain them (entropy)."""
-    from snapcore.view_plot import view_maps
+    from snapcore.render.view_plot import view_maps
 
     scene = load(motions_dir / "walk_run/02_03.bvh")
     maps = view_maps(scene, frame=80, entropy=False)
@@ -567,9 +567,10 @@ def test_joint_roles_on_other_namings():
     names = ["mixamorig:Hips", "mixamorig:LeftUpLeg", "mixamorig:RightUpLeg",
              "mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:RightShoulder",
              "mixamorig:RightArm", "LHipJoint"]
-    assert joint_roles(names) == {"left_hip": 1, "right_hip": 2, "left_shoulder": 4,
-                                  "right_shoulder": 6}
-    assert joint_roles(["pelvis", "thigh_l", "thigh_r", "upperarm_l", "upperarm_r"]) == {
-        "left_hip": 1, "right_hip": 2, "left_shoulder": 3, "right_shoulder": 4}
-    assert joint_roles(["Hips", "Spine", "Head"]) == {"left_hip": None, "right_hip": None,
-                                                      "left_shoulder": None, "right_shoulder": None}
+    def pairs(names):
+        return left_right_pairs(names, [-1] * len(names))
+
+    assert pairs(names) == {"hip": (1, 2), "shoulder": (4, 6)}
+    assert pairs(["pelvis", "thigh_l", "thigh_r", "upperarm_l", "upperarm_r"]) == {
+        "hip": (1, 2), "shoulder": (3, 4)}
+    assert pairs(["Hips", "Spine", "Head"]) == {"hip": None, "shoulder": None}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from snapcore import load_scene
-from snapcore.viewpoint_entropy import (
+from snapcore.render.viewpoint_entropy import (
     VE_RESOLUTION,
     EntropyError,
     select_view_entropy,
@@ -71,7 +71,7 @@ DIAG = h(1 - 3 * DIAG_FACE, *[DIAG_FACE / 2] * 6)
 
 def test_cube_entropy_along_an_axis_and_a_diagonal():
     """Face-id renders of a cube match the hand-computed entropies (1.25 and 2.48 bits)."""
-    render = pytest.importorskip("snapcore.render")
+    render = pytest.importorskip("snapcore.render.renderer")
     v, f = unit_cube()
     views = np.array([[0, 0, 1.0], [1.0, 0, 0], [1, 1, 1.0] / np.sqrt(3), [-1, 1, -1.0] / np.sqrt(3)])
     ids = render.render_face_ids(v, f, views, resolution=512)
@@ -83,7 +83,7 @@ def test_cube_entropy_along_an_axis_and_a_diagonal():
 
 def test_cube_baseline_picks_a_corner_view():
     """Over 162 views the cube's entropy peaks where three faces show (near a diagonal)."""
-    pytest.importorskip("snapcore.render")
+    pytest.importorskip("snapcore.render.renderer")
     v, f = unit_cube()
     sel = select_view_entropy(None, 0, mesh=SimpleNamespace(vertices=v, faces=f))
     assert np.all(np.abs(sel.view) > 0.35)  # all three face normals are seen
@@ -100,7 +100,7 @@ def test_cube_baseline_picks_a_corner_view():
 def test_body_baseline_on_a_real_clip(motions_dir):
     """The posed body of a walk: a finite best view, more faces seen than a face-on view of
     a cube, entropy within [0, log2(pixels)]."""
-    pytest.importorskip("snapcore.body")
+    pytest.importorskip("snapcore.render.body")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = load_scene(motions_dir / "walk_run/02_01.bvh")

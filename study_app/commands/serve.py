@@ -12,7 +12,7 @@ import click
 __all__ = ["study", "DEMO_CONFIG", "PAPER_CONFIG", "default_stimuli_dir", "streamlit_command"]
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
-#: The embedded demo: synthetic scenes from snapcore.synth, no data needed.
+#: The embedded demo: synthetic scenes from snapcore.motion.synth, no data needed.
 DEMO_CONFIG = CONFIGS / "demo.toml"
 #: The paper's six analogues on the real motions (SNAPSHOT_DATA).
 PAPER_CONFIG = CONFIGS / "paper.toml"

@@ -1,0 +1,63 @@
+"""The benchmark behind ``snapshot bench``: repeatable timings of every hot path.
+
+The cases live in :mod:`snapcore.bench.cases`, registered in
+:mod:`snapcore.bench.registry`. Every case is
+run ``repeats`` times after one warm-up; the table shows min and median wall time in
+milliseconds and the target where the issue sets one. Timings use one thread of
+BLAS (set before NumPy loads, in :func:`run`'s caller) so numbers are "on one core".
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass
+
+from snapcore.bench import cases  # noqa: F401  (registers every case)
+from snapcore.bench.registry import CASES, BenchContext
+
+__all__ = ["BenchResult", "run_cases"]
+
+
+@dataclass
+class BenchResult:
+    name: str
+    min_ms: float | None
+    median_ms: float | None
+    repeats: int
+    target_ms: float | None
+    note: str
+
+    @property
+    def status(self) -> str:
+        if self.min_ms is None:
+            return "skipped"
+        if self.target_ms is None:
+            return ""
+        return "ok" if self.median_ms <= self.target_ms else "SLOW"
+
+
+def run_cases(ctx: BenchContext, *, repeats: int = 7, only: str | None = None,
+              progress=None) -> list[BenchResult]:
+    """Run every registered case (or those whose name contains ``only``)."""
+    results = []
+    chosen = [c for c in CASES if only is None or only in c.name]
+    for c in chosen:
+        if progress:
+            progress(c.name)
+        work = c.func(ctx)
+        if work is None:
+            results.append(BenchResult(c.name, None, None, 0, c.target_ms, c.note or "no data"))
+            continue
+        if c.warmup:
+            work()  # warm-up: imports, caches, first-touch of buffers
+        n = repeats if c.max_repeats is None else min(repeats, c.max_repeats)
+        times = []
+        for _ in range(n):
+            t0 = time.perf_counter()
+            work()
+            times.append((time.perf_counter() - t0) * 1000.0)
+        results.append(BenchResult(c.name, min(times), statistics.median(times), n,
+                                   c.target_ms, c.note))
+    return results
+

@@ -1,0 +1,193 @@
+"""``snapshot select`` and ``snapshot plot-entropy``: the pose of a scene, and why."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from snapcore.cli.common import (
+    FiniteFloatRange,
+    echo_json,
+    output_callback,
+    refuse_inputs,
+    scene_arguments,
+    scene_from_options,
+)
+from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
+
+__all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "format_snapshot"]
+
+
+def pose_options(f):
+    """Decorate a command with the pose-selection options."""
+    opts = [
+        click.option("-k", "k", type=click.IntRange(min=1), default=3, show_default=True,
+                     help="How many distinct top poses to report."),
+        click.option("--min-separation", "min_separation", type=FiniteFloatRange(min=0.0),
+                     default=MIN_SEPARATION_S, show_default=True, metavar="SECONDS",
+                     help="Minimum time between two reported poses."),
+        click.option("--w-local", type=FiniteFloatRange(min=0.0), default=1.0, show_default=True,
+                     help="Weight of the local term (joint curvature x limb x rotation)."),
+        click.option("--w-global", type=FiniteFloatRange(min=0.0), default=1.0,
+                     show_default=True, help="Weight of the global term (interaction events)."),
+        click.option("--events", type=click.Choice(EVENT_MODES), default="transitions",
+                     show_default=True,
+                     help="Global-term events: onset/release of an interaction, or its whole "
+                          "duration."),
+        click.option("--smooth", type=FiniteFloatRange(min=0.0), default=SMOOTH_S,
+                     show_default=True, metavar="SECONDS",
+                     help="Savitzky-Golay window for the joint trajectories (0: none)."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+def snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth, *,
+                          view=False, window=None, baselines=True):
+    """Run :func:`snapcore.pipeline.take_snapshot` with the command's options
+    (the view stage only with ``view=True``)."""
+    from snapcore.pipeline import take_snapshot
+
+    return take_snapshot(scene, k=k, min_separation_s=min_separation, w_local=w_local,
+                         w_global=w_global, events=events, smooth_s=smooth, view=view,
+                         window_s=window, baselines=baselines)
+
+
+def format_snapshot(doc: dict) -> list[str]:
+    """Human-readable lines for a snapshot document (``Snapshot.to_dict()``)."""
+    fps = doc["fps"]
+    first, last = doc["frame_offset"], doc["frame_offset"] + doc["n_frames"] - 1
+    lines = [
+        f"scene       {doc['scene']} ({len(doc['characters'])} character"
+        f"{'s' if len(doc['characters']) != 1 else ''}: {', '.join(doc['characters'])})",
+        f"frames      {doc['n_frames']} at {fps:g} fps = {doc['duration_s']:.2f} s "
+        f"(source frames {first}..{last})",
+    ]
+    top = doc["peaks"][0]
+    lines.append(f"pose        frame {doc['frame']}  (t = {doc['time_s']:.2f} s)  "
+                 f"entropy {top['total']:.3f} = local {top['local']:.3f} + "
+                 f"global {top['global']:.3f}")
+    lines.append(f"top {len(doc['peaks'])}       rank   frame   time_s   total   local  global")
+    for r, p in enumerate(doc["peaks"], start=1):
+        lines.append(f"            {r:>4}  {p['frame']:>6}  {p['time_s']:>7.2f}  {p['total']:>6.3f}  "
+                     f"{p['local']:>6.3f}  {p['global']:>6.3f}")
+    counts = doc.get("event_counts") or {}
+    if counts:
+        parts = []
+        for ch, objs in counts.items():
+            inner = ", ".join(f"{o} {n}" for o, n in objs.items())
+            parts.append(f"{ch}: {inner}")
+        lines.append("events      " + "; ".join(parts) + "  (interactions per object)")
+    else:
+        lines.append("events      none detected")
+    lines += _format_view(doc)
+    t = doc["timings_s"]
+    keys = [k for k in ("contacts", "local", "global", "select", "pose", "view", "motion_area",
+                        "viewpoint_entropy", "total") if k in t]
+    lines.append("timings     " + ", ".join(f"{k} {1000 * t[k]:.1f} ms" for k in keys))
+    # one cold run: imports, caches and first-touched memory count here, not in
+    # `snapshot bench` (warm, repeated), whose numbers the README quotes
+    lines.append("            (one first run, set-up included; `snapshot bench` times warm runs)")
+    return lines
+
+
+def _format_view(doc: dict) -> list[str]:
+    """Summary lines of the view stage (none when it did not run)."""
+    if "view" not in doc:
+        return []
+
+    def vec(v):
+        return "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+
+    pma, win = doc.get("pma", {}), doc.get("window", {})
+    span = (f"frames {win.get('start_frame')}..{win.get('end_frame')}"
+            + (f" (pose ± {win['half_width_s']:g} s)" if win.get("mode") == "pose" else ""))
+    lines = [f"view        {vec(doc['view'])}  PMA {pma.get('score', 0):.1f} "
+             f"(mean ratio {pma.get('mean_ratio', 0):.3f}), {span}",
+             f"            {pma.get('facing_note', '')}"]
+    for i, (name, b) in enumerate((doc.get("baselines") or {}).items()):
+        lines.append(f"{'baselines' if i == 0 else '':<12}{vec(b['view'])}  {name} "
+                     f"{b['score']:.4g} {b.get('units', '')}")
+    return lines
+
+
+@click.command()
+@scene_arguments
+@pose_options
+@click.option("--window", "window", type=FiniteFloatRange(min=0.0), default=None,
+              metavar="SECONDS",
+              help="Score the view over the selected pose ± SECONDS (pose-specific view); "
+                   "default: the whole sequence.")
+@click.option("--no-baselines", is_flag=True,
+              help="Skip the motion-area and viewpoint-entropy baseline views (faster: no "
+                   "rendering).")
+@click.option("--no-view", is_flag=True, help="Select the pose only (no view stage).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the snapshot as JSON (data_schema/snapshot.schema.json).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), default=None,
+              callback=output_callback(),
+              help="Also write the JSON document to this file (not one of the inputs).")
+def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, window,
+           no_baselines, no_view, as_json, output):
+    """Select the most informative pose and view of a scene (paper sections 3.1-3.2).
+
+    PATH is one or more BVH files (several = one multi-character scene sharing a
+    world frame) or a scene manifest (.toml/.json). Frame numbers are the source
+    file's, 0-based. Without --json a summary is printed: the pose, the top-k table,
+    interaction events per character and object, the view (Projected Motion Area,
+    refined) with the two baseline views, and timings. Views are unit vectors from
+    the scene centre to the camera (world frame, Y up).
+
+    \b
+    Example:
+      snapshot select two_person/60_01_scaled.bvh two_person/61_01_scaled.bvh --fps 60
+    """
+    refuse_inputs(paths, **{"-o/--output": output})
+    scene = scene_from_options(paths, fps, scale)
+    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth,
+                                 view=not no_view, window=window, baselines=not no_baselines)
+    doc = snap.to_dict()
+    from snapcore.schema import validate
+
+    validate(doc, "snapshot", source="snapshot select output")
+    if output:
+        import json
+
+        Path(output).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n",
+                                encoding="utf-8")
+    if as_json:
+        echo_json(doc)
+        return
+    for line in format_snapshot(doc):
+        click.echo(line)
+
+
+@click.command("plot-entropy")
+@scene_arguments
+@pose_options
+@click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), required=True,
+              callback=output_callback(".png", ".pdf", ".svg"),
+              help="Image file to write (.png, .pdf, .svg).")
+@click.option("--strip", type=click.IntRange(min=0), default=8, show_default=True,
+              help="Evenly spaced poses in the film strip besides the top-k (0: top-k only).")
+@click.option("--dpi", type=click.IntRange(min=30), default=120, show_default=True)
+def plot_entropy(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, output,
+                 strip, dpi):
+    """Plot pose entropy over time with events and the chosen poses (paper Fig. 5-6).
+
+    Top: local, global and total pose entropy over time, the top-k peaks marked;
+    interaction events as ticks per character and object (onset and release).
+    Bottom: a film strip of stick figures seen from the side, coloured by entropy,
+    the top-k poses drawn bold.
+    """
+    scene = scene_from_options(paths, fps, scale)
+    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth)
+    from snapcore.render.entropy_plot import plot_entropy as draw
+
+    fig = draw(snap, strip=strip)
+    out = Path(output)
+    fig.savefig(out, dpi=dpi)
+    click.echo(f"wrote {out}  (pose: frame {snap.frame}, top {len(snap.frames)}: "
+               f"{', '.join(str(f) for f in snap.frames)})")

@@ -1,5 +1,0 @@
-"""Subcommands of ``snapshot`` that live in snapcore, one module per command family.
-
-Each module is thin: parse options, call the library, print. Shared option helpers are
-in :mod:`snapcore.commands.common`.
-"""

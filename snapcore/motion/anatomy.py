@@ -1,0 +1,218 @@
+"""Anatomy of a skeleton: joint names → side, body role, bone radius; the reference stature.
+
+One table for every part of the suite that must know what a joint *is*: the body mesh
+(capsule radii by role), contact detection (bones as capsules), the facing direction
+(hips and upper arms), the default camera and, next, retargeting a body onto a
+skeleton. Roles are read from joint names, case-insensitively, after removing a
+``namespace:`` prefix (``mixamorig:LeftUpLeg``) and the side marker. The patterns cover
+CMU cgspeed names (``Hips``, ``LeftUpLeg``, ``LeftLeg``, ``LeftFoot``, ``Spine1``,
+``LeftShoulder`` = clavicle, ``LeftArm``...), Daz/Poser names (``hip``, ``abdomen``,
+``chest``, ``lCollar``, ``lShldr``, ``lThigh``, ``lShin``...), Bandai names
+(``UpperLeg_L``, ``LowerArm_R``...), the older CMU/assimp and 3ds Max names
+(``LeftCollar``, ``LeftShoulder`` = upper arm, ``LeftElbow``, ``LeftHip`` = thigh...)
+and the synthetic humanoid. Unknown names get :data:`DEFAULT_ROLE`.
+
+Lengths that scale with the person are given as fractions of the stature (the way
+anthropometric tables are written, e.g. Drillis & Contini's segment lengths), so a
+body or a tolerance for a character of height ``H`` is ``fraction × H``; quantities
+that are defined for a typical adult (contact distances, rest speeds, the unit fitted
+to a file whose unit is unknown) use :data:`REFERENCE_STATURE_M`.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+__all__ = [
+    "REFERENCE_STATURE_M",
+    "ROLE_RADII",
+    "DEFAULT_ROLE",
+    "HIDDEN_ROLES",
+    "TORSO_ROLES",
+    "per_stature",
+    "joint_sides",
+    "joint_roles",
+    "bone_role",
+    "left_right_pairs",
+]
+
+#: Stature (m) of the reference adult: tolerances given "for a 1.70 m person" scale by
+#: ``stature / REFERENCE_STATURE_M``, and a file whose unit cannot be recognised is
+#: scaled so its people are this tall (the mean adult stature, both sexes).
+REFERENCE_STATURE_M = 1.70
+
+#: Stature (m) of the figure on which the body's radii below were measured.
+_MEASURED_ON_M = 1.75
+
+
+def per_stature(*metres: float) -> tuple[float, ...]:
+    """Lengths measured on the 1.75 m reference figure, as fractions of its stature."""
+    return tuple(m / _MEASURED_ON_M for m in metres)
+
+
+#: Bone radii as fractions of the stature, by the role of the bone's parent joint:
+#: ``(lateral, depth)`` semi-axes of the cross-section. Lateral ≠ depth only on the
+#: torso (hips are wider than deep). Roughly the anthropometric girths of an adult
+#: (thigh circumference ~0.50 m → radius ~0.08 m; forearm ~0.25 m → ~0.04 m) slimmed a
+#: little so limbs stay readable when they cross the torso.
+ROLE_RADII: dict[str, tuple[float, float]] = {
+    "pelvis": per_stature(0.085, 0.085),  # pelvis → hip joint: CMU LHipJoint, Daz buttock
+    "spine": per_stature(0.125, 0.095),  # lower back / abdomen
+    "chest": per_stature(0.140, 0.100),  # thorax up to the shoulders
+    "neck": per_stature(0.050, 0.050),
+    "head": per_stature(0.085, 0.100),  # drawn as an ellipsoid by the body mesh
+    "clavicle": per_stature(0.050, 0.050),
+    "upperarm": per_stature(0.046, 0.046),
+    "forearm": per_stature(0.038, 0.038),
+    "hand": per_stature(0.030, 0.030),  # palm bones (hand → knuckles)
+    "finger": per_stature(0.010, 0.010),
+    "thigh": per_stature(0.072, 0.072),
+    "shin": per_stature(0.050, 0.050),
+    "foot": per_stature(0.042, 0.042),
+    "toe": per_stature(0.032, 0.032),
+    "other": per_stature(0.040, 0.040),
+}
+#: Role given to joint names no pattern recognises.
+DEFAULT_ROLE = "other"
+#: Roles whose bones are not part of the body surface: a floor-level root's bone up to
+#: the hips (Bandai ``joint_Root``), eyes and jaw bones inside the head (Daz ``leftEye``).
+HIDDEN_ROLES = ("hidden",)
+#: Torso roles: elliptical cross-sections, oriented by the measured left-right axis.
+TORSO_ROLES = ("spine", "chest")
+
+# Patterns on the lower-cased joint name with its side marker removed, first match wins.
+_ROLE_PATTERNS = (
+    ("hidden", r"root|eye|jaw|tongue|nose|ear$"),
+    ("hand", r"fingerbase|handbase|palm|metacarp|carpal"),
+    ("finger", r"thumb|index|middle|mid\d|ring|pinky|little|finger|digit"),
+    ("head", r"head"),
+    ("neck", r"neck"),
+    ("hand", r"hand|wrist"),
+    ("forearm", r"forearm|lowerarm|lowarm|elbow"),
+    ("upperarm", r"upperarm|uparm|shldr|^arm"),
+    ("clavicle", r"collar|clavicle|shoulder"),
+    ("pelvis", r"hipjoint|buttock|pelvis"),
+    ("thigh", r"upleg|upperleg|thigh"),
+    ("shin", r"lowerleg|lowleg|shin|knee|calf|^leg"),
+    ("foot", r"foot|ankle|heel"),
+    ("toe", r"toe"),
+    ("chest", r"chest|thorax|upperback|ribcage|spine[1-9]"),
+    ("spine", r"spine|abdomen|lowerback|waist|torso|belly|^ab$|^abs$"),
+    ("pelvis", r"hips?$"),
+)
+_SIDE_PATTERNS = (
+    # (side, regex on the original name); the match is stripped from the name
+    ("L", re.compile(r"^left[_ .]?", re.I)),
+    ("R", re.compile(r"^right[_ .]?", re.I)),
+    ("L", re.compile(r"[_ .]l(eft)?$", re.I)),
+    ("R", re.compile(r"[_ .]r(ight)?$", re.I)),
+    ("L", re.compile(r"^[lL](?=[A-Z_])")),  # lCollar, LHipJoint, LThumb (not LowerBack)
+    ("R", re.compile(r"^[rR](?=[A-Z_])")),
+    ("L", re.compile(r"^l(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
+    ("R", re.compile(r"^r(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
+)
+
+
+def _split_side(name: str) -> tuple[str, str]:
+    """(side ``'L'``/``'R'``/``''``, base name lower-cased without the side marker)."""
+    base = re.sub(r"_end$", "", str(name).rsplit(":", 1)[-1], flags=re.I)
+    for side, pat in _SIDE_PATTERNS:
+        m = pat.search(base)
+        if m:
+            rest = (base[: m.start()] + base[m.end():]).strip("_ .")
+            return side, rest.lower()
+    return "", base.lower()
+
+
+def joint_sides(names) -> list[str]:
+    """Side of each joint from its name: ``'L'``, ``'R'`` or ``''`` (centre)."""
+    return [_split_side(n)[0] for n in names]
+
+
+def joint_roles(names, parents) -> list[str]:
+    """Body role of each joint, read from its name (case-insensitive).
+
+    Parameters
+    ----------
+    names : sequence of str, length J
+    parents : array of int, shape (J,)
+        Parent index of each joint, -1 for roots.
+
+    Returns
+    -------
+    list of str
+        Keys of :data:`ROLE_RADII` or ``"hidden"``. Context resolves the ambiguous
+        names: ``Shoulder`` is the upper arm when its parent is a collar (older CMU,
+        assimp) and the clavicle otherwise (CMU cgspeed, Bandai); a sided ``Hip``
+        (``LeftHip``) is the thigh while ``hip``/``Hips`` is the pelvis; a ``Root``
+        joint is the pelvis unless it has a child that is (Bandai's floor-level root);
+        end sites take the role of their parent.
+    """
+    parents = np.asarray(parents)
+    roles: list[str] = []
+    for j, name in enumerate(names):
+        side, base = _split_side(name)
+        role = DEFAULT_ROLE
+        for r, pat in _ROLE_PATTERNS:
+            if re.search(pat, base):
+                role = r
+                break
+        p = int(parents[j])
+        if role == "pelvis" and side and re.fullmatch(r"hips?", base):
+            role = "thigh"  # LeftHip, RightHip (older CMU / assimp)
+        if role == "clavicle" and "shoulder" in base and p >= 0 and roles[p] == "clavicle":
+            role = "upperarm"  # LeftCollar → LeftShoulder → LeftElbow
+        if re.search(r"_end$", name, re.I) and p >= 0:
+            role = roles[p]
+        roles.append(role)
+    # a root called "Root" is the pelvis unless one of its children is
+    for j, name in enumerate(names):
+        if roles[j] == "hidden" and "root" in name.lower():
+            kids = [k for k in range(len(names)) if parents[k] == j]
+            if not any(roles[k] == "pelvis" for k in kids):
+                roles[j] = "pelvis"
+    return roles
+
+
+def bone_role(parent_role: str, child_role: str) -> str:
+    """Role that sizes the bone from a joint of ``parent_role`` to one of ``child_role``.
+
+    A bone takes its parent joint's role, except where the parent joint starts two
+    kinds of bone: the pelvis's bone up the spine is torso (``spine``), not a hip
+    connector, and the spine's bones to the shoulders and neck are ``chest``.
+    """
+    if parent_role == "pelvis" and child_role in ("spine", "chest", "neck"):
+        return "spine"
+    if parent_role == "spine" and child_role in ("clavicle", "upperarm", "neck"):
+        return "chest"
+    return parent_role
+
+
+def left_right_pairs(names, parents) -> dict[str, tuple[int, int] | None]:
+    """The left/right hip and shoulder joints that give a character's left-right axis.
+
+    Parameters
+    ----------
+    names : sequence of str, length J
+    parents : array of int, shape (J,)
+
+    Returns
+    -------
+    dict
+        ``hip``: the first ``(left, right)`` pair of thigh joints (``LeftUpLeg``,
+        ``lThigh``, ``UpperLeg_L``, ``LeftHip``); ``shoulder``: the first pair of upper
+        arms, or of clavicles where no upper arm is named. None where a side is missing.
+    """
+    roles, sides = joint_roles(names, parents), joint_sides(names)
+
+    def pair(*wanted):
+        for role in wanted:
+            left = [j for j, (r, s) in enumerate(zip(roles, sides)) if r == role and s == "L"]
+            right = [j for j, (r, s) in enumerate(zip(roles, sides)) if r == role and s == "R"]
+            if left and right:
+                return left[0], right[0]
+        return None
+
+    return {"hip": pair("thigh"), "shoulder": pair("upperarm", "clavicle")}

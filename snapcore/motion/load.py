@@ -1,0 +1,250 @@
+"""Loading scenes: BVH files or a scene manifest → :class:`~snapcore.motion.scene.Scene`.
+
+This is the I/O edge of the motion core. ``load_scene`` accepts
+
+- one or more BVH paths (several files = one multi-character scene sharing a world
+  frame, e.g. a two-person capture), or
+- one scene manifest (``.toml`` or ``.json``, schema ``data_schema/scene.schema.json``)
+  naming files with per-character offset, yaw, fps and scale, the ground height and
+  optional props.
+
+Real data lives outside the repository; :func:`data_dir` finds it (``SNAPSHOT_DATA``,
+else ``../shared/motions`` beside the checkout or the working directory).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from snapcore.errors import SceneError
+from snapcore.motion.bvh import read_bvh
+from snapcore.motion.scene import (
+    Scene,
+    character_from_bvh,
+    infer_scale,
+    stature_units,
+    tpose_lead_in,
+)
+from snapcore.schema import read_document
+
+__all__ = ["load_scene", "data_dir", "resolve_data_path", "MANIFEST_SUFFIXES", "infer_ground"]
+
+MANIFEST_SUFFIXES = (".toml", ".json")
+
+
+#: Statures (in file units) of characters loaded together that differ by more than
+#: this factor are taken for files in different units: a child and an adult differ by
+#: less than 1.8x; the shared motion files' units differ by 20x and more.
+MAX_STATURE_RATIO = 2.0
+
+
+def _warn_unit_mismatch(probes, statures) -> None:
+    """Warn when characters that will share one scale look like different units."""
+    s = np.asarray(statures, float)
+    if s.size < 2 or not np.all(np.isfinite(s) & (s > 0)):
+        return
+    if s.max() / s.min() > MAX_STATURE_RATIO:
+        hi, lo = int(np.argmax(s)), int(np.argmin(s))
+        warnings.warn(
+            f"characters '{probes[hi].name}' and '{probes[lo].name}' differ {s.max() / s.min():.0f}x "
+            "in size in their files' units: the files probably use different units, but one "
+            "scale is shared; give each character its own `scale` in a scene manifest",
+            stacklevel=4,
+        )
+
+
+def data_dir(required: bool = False) -> Path | None:
+    """Folder of the real motion data.
+
+    ``$SNAPSHOT_DATA`` if set, else the first existing of ``<repo>/../shared/motions`` and
+    ``./../shared/motions``. Returns None (or raises :class:`SceneError` if
+    ``required``) when there is none.
+    """
+    env = os.environ.get("SNAPSHOT_DATA")
+    candidates = [Path(env)] if env else []
+    here = Path(__file__).resolve().parent.parent
+    candidates += [here.parent / "shared" / "motions", Path.cwd().parent / "shared" / "motions"]
+    for c in candidates:
+        if c.is_dir():
+            return c
+    if required:
+        raise SceneError(
+            "no motion data folder: set SNAPSHOT_DATA to the folder holding the BVH files "
+            "(e.g. ../shared/motions)"
+        )
+    return None
+
+
+def resolve_data_path(name: str | Path, base: Path | None = None) -> Path:
+    """Resolve a file named in a manifest: as given, relative to ``base``, then to the data dir."""
+    p = Path(name).expanduser()
+    if p.is_absolute():
+        return p
+    tried = []
+    if base is not None:
+        tried.append(base / p)
+    d = data_dir()
+    if d is not None:
+        tried.append(d / p)
+    tried.append(p)
+    for t in tried:
+        if t.exists():
+            return t
+    return tried[0]
+
+
+def infer_ground(positions: list[np.ndarray]) -> float:
+    """Ground height (metres): 5th percentile over frames of the lowest joint.
+
+    A percentile, not the minimum, so one noisy frame (a foot through the floor) does
+    not move the floor; frames in the air do not lift it either.
+    """
+    lowest = np.min([x[..., 1].min(axis=1) for x in positions], axis=0)  # (F,)
+    return float(np.percentile(lowest, 5))
+
+
+def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | None = None,
+               ground: float | None = None, drop_tpose: bool | None = None,
+               name: str | None = None) -> Scene:
+    """Load a scene from BVH files or a scene manifest.
+
+    Parameters
+    ----------
+    paths_or_manifest : str, path-like, or sequence of them
+        BVH file(s), or a single ``.toml``/``.json`` scene manifest.
+    fps : float, optional
+        Frame rate override for every character (beats the files and the manifest).
+    scale : float, optional
+        Metres per file unit for every character; inferred from stature when absent.
+    ground : float, optional
+        Ground height in metres; inferred from the lowest joints when absent.
+    drop_tpose : bool, optional
+        Drop an added T-pose first frame (default True, or the manifest's value).
+    name : str, optional
+        Scene name (default: the manifest's name or the first file's stem).
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    BVHError, SchemaError, SceneError
+        With a one-line message naming the file and what is wrong.
+    """
+    if isinstance(paths_or_manifest, (str, os.PathLike)):
+        items = [paths_or_manifest]
+    else:
+        items = list(paths_or_manifest)
+    if not items:
+        raise SceneError("no input files given")
+    paths = [Path(p) for p in items]
+    manifests = [p for p in paths if p.suffix.lower() in MANIFEST_SUFFIXES]
+    if manifests:
+        if len(paths) > 1:
+            raise SceneError(f"{manifests[0]}: give either one scene manifest or BVH files, not both")
+        spec = read_document(manifests[0], "scene")
+        base = manifests[0].resolve().parent
+    else:
+        spec = {"characters": [{"file": str(p)} for p in paths]}
+        base = None
+    return _build(spec, base, fps=fps, scale=scale, ground=ground, drop_tpose=drop_tpose,
+                  name=name, source=str(manifests[0]) if manifests else None)
+
+
+def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene:
+    entries = spec["characters"]
+    docs = []
+    for e in entries:
+        path = resolve_data_path(e["file"], base)
+        if not path.exists():
+            where = f"{source}: " if source else ""
+            raise SceneError(f"{where}{e['file']}: no such file")
+        docs.append(read_bvh(path))
+    # Forward kinematics once, in file units; positions scale linearly afterwards.
+    probes = [character_from_bvh(d, scale=1.0, name=e.get("name"),
+                                 fps=fps or e.get("fps") or spec.get("fps"))
+              for d, e in zip(docs, entries)]
+    # One scale for the scene unless given per character: people captured together
+    # must keep their distances.
+    scene_scale = scale or spec.get("scale")
+    how = "given"
+    if scene_scale is None and not all("scale" in e for e in entries):
+        statures = [stature_units(p.skeleton, p.positions) for p in probes]
+        _warn_unit_mismatch(probes, statures)
+        scene_scale, how = infer_scale(statures)
+        if how == "fitted":
+            warnings.warn(
+                f"no standard unit makes these characters adult-sized; scaled to a mean "
+                f"stature of 1.70 m ({scene_scale:.4g} m per unit). Pass --scale to override.",
+                stacklevel=3,
+            )
+    chars = []
+    used_names: set[str] = set()
+    for probe, e in zip(probes, entries):
+        c = probe.rescaled(scale or e.get("scale") or scene_scale)
+        c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
+        if c.name in used_names:
+            c.name = f"{c.name}_{len(chars)}"
+        used_names.add(c.name)
+        if e.get("yaw") or e.get("offset"):
+            c = c.transformed(yaw_deg=e.get("yaw", 0.0), offset=e.get("offset", (0.0, 0.0, 0.0)))
+        chars.append(c)
+    rates = {round(c.fps, 6) for c in chars}
+    if len(rates) != 1:
+        raise SceneError(
+            "characters have different frame rates ("
+            + ", ".join(f"{c.name}: {c.fps:g}" for c in chars)
+            + "); set one fps in the manifest or with --fps"
+        )
+    counts = {c.n_frames for c in chars}
+    if len(counts) != 1:
+        n = min(counts)
+        warnings.warn(
+            "characters have different frame counts ("
+            + ", ".join(f"{c.name}: {c.n_frames}" for c in chars)
+            + f"); keeping the first {n} frames of each",
+            stacklevel=3,
+        )
+        chars = [c.frames(0, n) for c in chars]
+    offset, why_cut = 0, ""
+    start, stop = spec.get("frames", (0, None))
+    if start or stop is not None:
+        n = chars[0].n_frames
+        if stop is not None and stop > n:
+            warnings.warn(f"{source or 'scene'}: frames [{start}, {stop}) runs past the motion's "
+                          f"{n} frames; keeping [{start}, {n})", stacklevel=3)
+        stop = n if stop is None else min(stop, n)
+        if not 0 <= start < stop:
+            raise SceneError(f"{source or 'scene'}: frames [{start}, {stop}) is empty (the motion has {n} frames)")
+        chars = [c.frames(start, stop) for c in chars]
+        offset = start
+        why_cut = "the scene manifest's frames range starts there"
+    drop = drop_tpose if drop_tpose is not None else spec.get("drop_tpose", True)
+    if drop and offset == 0:
+        cut = tpose_lead_in([c.positions for c in chars], chars[0].fps)
+        if cut:
+            chars = [c.frames(cut, None) for c in chars]
+            offset = cut
+            why_cut = ("they are an added T-pose and the blend out of it "
+                       "(drop_tpose = false in a scene manifest keeps them)")
+    if chars[0].n_frames < 1:
+        raise SceneError(f"{source or docs[0].path}: no frames left to analyse")
+    g = ground if ground is not None else spec.get("ground")
+    if g is None:
+        g = infer_ground([c.positions for c in chars])
+    scene_name = name or spec.get("name") or chars[0].name
+    return Scene(
+        characters=chars,
+        fps=chars[0].fps,
+        ground=float(g),
+        name=scene_name,
+        props=list(spec.get("props", [])),
+        frame_offset=offset,
+        meta={"source": source or [str(d.path) for d in docs], "unit": how,
+              **({"cut": why_cut} if offset else {})},
+    )

@@ -1,0 +1,353 @@
+"""The pipeline: Scene → Snapshot (the pose and the view of one still image).
+
+:func:`take_snapshot` runs the stages on a scene and returns a :class:`Snapshot`: the
+pose selection, the view selection (Projected Motion Area) and the two baseline views
+(motion area, and viewpoint entropy, which renders the posed body: this module is the
+one place where selection meets rendering). :meth:`Snapshot.to_dict` is the JSON
+document ``snapshot select --json`` prints (schema ``data_schema/snapshot.schema.json``).
+Like every output, a Snapshot reports frames in the *source* numbering
+(``scene.source_frame(i) = i + frame_offset``): ``Snapshot.frame``/``frames`` and every
+frame number in ``to_dict``; the per-frame arrays start at source frame
+``frame_offset``. ``Snapshot.index``/``indices`` (and ``Snapshot.pose``, a
+:class:`~snapcore.select.pose.PoseSelection`) hold internal indices into the scene's
+arrays. :attr:`Snapshot.views` gives the three methods' directions by
+:class:`~snapcore.select.methods.ViewMethod`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from snapcore.errors import SnapshotError
+from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
+from snapcore.select.methods import ViewMethod
+from snapcore.select.pose import MIN_SEPARATION_S, PoseSelection, select_pose
+from snapcore.select.view import (
+    MA_FLOOR_M2,
+    ViewSelection,
+    motion_triangles,
+    select_view,
+    window_frames,
+)
+
+__all__ = ["Snapshot", "ViewParams", "take_snapshot", "SNAPSHOT_FORMAT", "VIEW_FIELDS"]
+
+#: Value of the ``format`` field of the JSON document (bump on breaking changes).
+SNAPSHOT_FORMAT = "action-snapshot/snapshot@1"
+#: Optional fields filled by later stages, in the order ``to_dict`` writes them.
+VIEW_FIELDS = ("view", "view_refined", "baselines", "pma", "window")
+#: Decimals kept for per-frame entropy values in the JSON (they are in [0, 2]).
+_DECIMALS = 6
+
+
+@dataclass(frozen=True)
+class ViewParams:
+    """Options of the view stage.
+
+    Attributes
+    ----------
+    window_s : float or None
+        Score the view over the selected pose ± this many seconds (pose-specific
+        view); None: the whole sequence.
+    baselines : bool
+        Also compute the motion-area and viewpoint-entropy views.
+    n_views : int
+        Samples of the view sphere (2562: icosphere, ~4° apart).
+    refine : bool
+        Refine the best sample exactly (L1 fixed point, METHOD.md §2).
+    floor_m2 : float
+        Quads sweeping less than this area (m²) do not vote (:data:`MA_FLOOR_M2`).
+    """
+
+    window_s: float | None = None
+    baselines: bool = True
+    n_views: int = 2562
+    refine: bool = True
+    floor_m2: float = MA_FLOOR_M2
+
+
+@dataclass(eq=False)
+class Snapshot:
+    """What one still image of a scene shows: the pose(s) and, once chosen, the view.
+
+    Attributes
+    ----------
+    scene : Scene
+        The analysed scene (not serialised).
+    pose : PoseSelection
+        Selected frame, top-k frames (internal indices), pose entropy, events.
+    options : dict
+        The options the stages ran with (JSON-ready).
+    timings_s : dict
+        Seconds per stage: ``contacts``, ``local``, ``global``, ``select``,
+        ``pose`` (the whole pose stage), ``total``; later stages add their own.
+    view_params : ViewParams or None
+        The view stage's options (None: the stage did not run).
+    view_selection : ViewSelection or None
+        Our view (Projected Motion Area).
+    motion_area : ViewSelection or None
+        The motion-area baseline view (Kwon & Lee).
+    viewpoint_entropy : EntropySelection or None
+        The viewpoint-entropy baseline view of the selected pose (Vázquez et al.).
+    """
+
+    scene: Any
+    pose: PoseSelection
+    options: dict = field(default_factory=dict)
+    timings_s: dict = field(default_factory=dict)
+    view_params: ViewParams | None = None
+    view_selection: ViewSelection | None = None
+    motion_area: ViewSelection | None = None
+    viewpoint_entropy: EntropySelection | None = None
+
+    @property
+    def views(self) -> dict[ViewMethod, np.ndarray]:
+        """The view directions that were computed, by method: unit vectors (3,)."""
+        found = {ViewMethod.OURS: self.view_selection,
+                 ViewMethod.VIEWPOINT_ENTROPY: self.viewpoint_entropy,
+                 ViewMethod.MOTION_AREA: self.motion_area}
+        return {m: np.asarray(sel.view, dtype=float) for m, sel in found.items() if sel is not None}
+
+    @property
+    def view(self) -> np.ndarray | None:
+        """Our view (PMA): unit vector from the scene centre to the camera, or None."""
+        return None if self.view_selection is None else self.view_selection.view
+
+    @property
+    def view_refined(self) -> np.ndarray | None:
+        """The refined view (None without refinement or without the view stage)."""
+        return self.view if self.view_params is not None and self.view_params.refine else None
+
+    @property
+    def pma(self) -> dict | None:
+        """Projected-motion-area details of the view stage (JSON-ready)."""
+        sel = self.view_selection
+        if sel is None:
+            return None
+        return {
+            "score": sel.score,
+            "mean_ratio": sel.mean_ratio,
+            "view_grid": sel.view_grid,
+            "score_grid": sel.score_grid,
+            "n_views": int(sel.views.shape[0]),
+            "n_quads": sel.n_quads,
+            "n_skipped": sel.n_skipped,
+            "floor_m2": float(self.view_params.floor_m2),
+            "iterations": sel.iterations,
+            "certified": sel.certified,
+            "facing": sel.facing,
+            "side_rule": sel.side_rule,
+            "facing_note": sel.facing_note,
+        }
+
+    @property
+    def window(self) -> dict | None:
+        """The time window the view was computed over (source frame numbers)."""
+        sel = self.view_selection
+        if sel is None:
+            return None
+        src, w = self.scene.source_frame, sel.window_s
+        return {
+            "mode": "sequence" if w is None else "pose",
+            "half_width_s": None if w is None else float(w),
+            "frame": None if w is None else int(src(self.pose.frame)),
+            "start_frame": int(src(sel.frames[0])),
+            "end_frame": int(src(sel.frames[1] - 1)),
+        }
+
+    @property
+    def baselines(self) -> dict | None:
+        """The baseline views with their scores (JSON-ready); None when not run."""
+        if self.view_params is None or not self.view_params.baselines:
+            return None
+        out = {}
+        if (ma := self.motion_area) is not None:
+            out[ViewMethod.MOTION_AREA.value] = {"view": ma.view, "score": ma.score, "units": "m2",
+                                                 "side_rule": ma.side_rule, "certified": ma.certified}
+        if (ve := self.viewpoint_entropy) is not None:
+            out[ViewMethod.VIEWPOINT_ENTROPY.value] = {
+                "view": ve.view, "score": ve.score, "units": "bits",
+                "frame": int(self.scene.source_frame(ve.frame)), "n_views": int(ve.views.shape[0]),
+                "resolution": ve.resolution, "n_faces": ve.n_faces}
+        return out
+
+    @property
+    def frame(self) -> int:
+        """The selected pose as a SOURCE frame number (like ``to_dict()["frame"]``)."""
+        return int(self.scene.source_frame(self.pose.frame))
+
+    @property
+    def frames(self) -> list[int]:
+        """The top-k poses as SOURCE frame numbers, best first."""
+        return [int(self.scene.source_frame(i)) for i in self.pose.frames]
+
+    @property
+    def index(self) -> int:
+        """The selected pose as an internal index into the scene's arrays."""
+        return int(self.pose.frame)
+
+    @property
+    def indices(self) -> list[int]:
+        """The top-k poses as internal indices, best first."""
+        return [int(i) for i in self.pose.frames]
+
+    def to_dict(self) -> dict:
+        """The JSON document (``data_schema/snapshot.schema.json``); source frame numbers."""
+        scene = self.scene
+        ent = self.pose.entropy
+        fps = float(scene.fps)
+
+        def src(i) -> int:
+            return int(scene.source_frame(int(i)))
+
+        def rnd(a) -> list[float]:
+            return np.round(np.asarray(a, dtype=float), _DECIMALS).tolist()
+
+        peaks = [
+            {
+                "frame": src(i),
+                "time_s": round(i / fps, 6),
+                "total": float(ent.total[i]),
+                "local": float(ent.local[i]),
+                "global": float(ent.global_[i]),
+            }
+            for i in self.pose.frames
+        ]
+        counts = {}
+        for e in ent.interactions.events:
+            ch = scene.characters[e.character].name
+            counts.setdefault(ch, {})
+            counts[ch][e.object] = counts[ch].get(e.object, 0) + 1
+        doc = {
+            "format": SNAPSHOT_FORMAT,
+            "scene": scene.name,
+            "characters": [c.name for c in scene.characters],
+            "fps": fps,
+            "n_frames": int(scene.n_frames),
+            "frame_offset": int(scene.frame_offset),
+            "duration_s": float(scene.duration),
+            "frame": src(self.pose.frame),
+            "time_s": round(self.pose.frame / fps, 6),
+            "frames": [src(i) for i in self.pose.frames],
+            "peaks": peaks,
+            "pose_entropy": {
+                "first_frame": src(0),
+                "weights": {"local": ent.weights[0], "global": ent.weights[1]},
+                "events_mode": ent.events_mode,
+                "local": rnd(ent.local),
+                "global": rnd(ent.global_),
+                "total": rnd(ent.total),
+            },
+            "events": ent.interactions.records(scene),
+            "event_counts": counts,
+            "options": _jsonable(self.options),
+            "timings_s": {k: float(v) for k, v in self.timings_s.items()},
+        }
+        for name in VIEW_FIELDS:
+            value = getattr(self, name)
+            if value is not None:
+                doc[name] = _jsonable(value)
+        return doc
+
+
+def _jsonable(value):
+    """NumPy arrays and scalars → lists and Python numbers, recursively."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
+                  view: bool = True, window_s: float | None = None, baselines: bool = True,
+                  n_views: int = 2562, **pose_options) -> Snapshot:
+    """Run the pipeline on ``scene``: select the pose, then the view.
+
+    Parameters
+    ----------
+    scene : Scene
+    k : int
+        Number of distinct top poses to keep.
+    min_separation_s : float
+        Minimum time (s) between them.
+    view : bool
+        Run the view stage : PMA view of the whole
+        sequence or of ``window_s``, and the baselines.
+    window_s : float, optional
+        Score the view over the selected pose ± this many seconds (pose-specific view).
+    baselines : bool
+        Also compute the motion-area and viewpoint-entropy views.
+    n_views : int
+        Samples of the view sphere.
+    **pose_options
+        Passed to :func:`snapcore.select.pose.select_pose` (``w_local``, ``w_global``,
+        ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``).
+
+    Returns
+    -------
+    Snapshot
+    """
+    t0 = time.perf_counter()
+    sel = select_pose(scene, k=k, min_separation_s=min_separation_s, **pose_options)
+    t1 = time.perf_counter()
+    options = {"k": int(k), "min_separation_s": float(min_separation_s)}
+    for name, value in pose_options.items():
+        if name in ("tolerances", "interactions"):
+            continue
+        options[name] = value
+    tol = sel.entropy.interactions.tolerances
+    options["contact_tolerances"] = {
+        "ground_distance_m": tol.ground_distance,
+        "body_distance_m": tol.body_distance,
+        "prop_distance_m": tol.prop_distance,
+        "displacement_m": tol.displacement,
+        "min_duration_s": tol.min_duration,
+    }
+    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "select")}
+    timings["pose"] = t1 - t0
+    snap = Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
+    if view:
+        params = ViewParams(window_s=window_s, baselines=bool(baselines), n_views=int(n_views))
+        options.update(window_s=window_s, baselines=params.baselines, n_views=params.n_views)
+        _view_stage(snap, params)
+    timings["total"] = time.perf_counter() - t0
+    return snap
+
+
+def _view_stage(snap: Snapshot, params: ViewParams) -> None:
+    """Fill the view fields of ``snap`` for its selected pose, adding their timings.
+
+    A baseline that cannot run (no OpenGL for the face-id renders) is left out with a
+    warning rather than failing the whole selection.
+    """
+    scene, frame, timings = snap.scene, snap.pose.frame, snap.timings_s
+    t0 = time.perf_counter()
+    frames = window_frames(scene, frame if params.window_s is not None else None, params.window_s)
+    tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)
+    common = dict(frame=frame, window_s=params.window_s, n_views=params.n_views,
+                  refine=params.refine, floor=params.floor_m2, triangles=tri)
+    snap.view_params = params
+    snap.view_selection = select_view(scene, **common)
+    timings["view"] = time.perf_counter() - t0
+    if not params.baselines:
+        return
+    t1 = time.perf_counter()
+    snap.motion_area = select_view(scene, method="motion_area", **common)
+    t2 = time.perf_counter()
+    timings["motion_area"] = t2 - t1
+    try:
+        snap.viewpoint_entropy = select_view_entropy(scene, frame)
+    except (SnapshotError, RuntimeError) as err:
+        warnings.warn(f"viewpoint-entropy baseline skipped: {err}", stacklevel=3)
+    else:
+        timings["viewpoint_entropy"] = time.perf_counter() - t2

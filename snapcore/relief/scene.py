@@ -1,0 +1,248 @@
+"""From a scene to a relief: the posed body seen along a view, carved, and the Fig. 11 figure.
+
+The edge of :mod:`snapcore.relief.height_field` that touches motion data: :func:`height_field_from_scene`
+renders the merged body mesh of every character at one frame as an orthographic depth
+map framed to the print footprint (:func:`snapcore.render.renderer.render_depth`),
+:func:`relief_from_scene` turns it into a :class:`~snapcore.relief.height_field.Relief`, and
+:func:`relief_comparison_figure` shows one pose carved from several views side by side,
+like the paper's Fig. 11 (one relief per method's view).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from snapcore.relief.height_field import (
+    Relief,
+    ReliefError,
+    ReliefParams,
+    height_from_depth,
+    relief_from_height_field,
+)
+
+__all__ = [
+    "frame_extent",
+    "relief_body",
+    "height_field_from_scene",
+    "relief_from_scene",
+    "relief_comparison_figure",
+]
+
+
+def _check_frame(scene, frame) -> int:
+    f = int(frame)
+    if not 0 <= f < scene.n_frames:
+        raise ReliefError(
+            f"frame {scene.source_frame(f) if hasattr(scene, 'source_frame') else f} is outside the "
+            f"scene (source frames {scene.frame_offset}..{scene.frame_offset + scene.n_frames - 1})"
+        )
+    return f
+
+
+def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None):
+    """Half width and half height (metres) of an image with the footprint's aspect that holds the mesh.
+
+    Parameters
+    ----------
+    vertices : ndarray of shape (N, 3)
+        Posed mesh, metres.
+    view : array of shape (3,)
+        From the scene towards the viewer.
+    size_mm : (float, float)
+        Footprint ``(W, D)``; the image gets aspect ``W : D``.
+    margin : float
+        Flat border on every side as a share of the footprint's shorter side.
+    up : array of shape (3,), optional
+        Up hint (see :func:`snapcore.render.camera.view_basis`).
+
+    Returns
+    -------
+    (float, float)
+        ``(half_width, half_height)`` in metres: the mesh's projected bounding box fits
+        inside the footprint less the margin, scaled uniformly (no stretching).
+    """
+    from snapcore.render.camera import view_basis
+
+    right, upv, _ = view_basis(view, up)
+    v = np.asarray(vertices, float)
+    bw = float(np.ptp(v @ right))
+    bh = float(np.ptp(v @ upv))
+    w, d = (float(s) for s in size_mm)
+    border = 2.0 * margin * min(w, d)
+    metres_per_mm = max(bw / (w - border), bh / (d - border), 1e-9)
+    return metres_per_mm * w / 2.0, metres_per_mm * d / 2.0
+
+
+def relief_body(scene, frame: int):
+    """The body mesh a relief carves: every character at internal ``frame``, finely
+    tessellated (:data:`snapcore.render.body.TESSELLATION_FINE`: a relief is read as geometry,
+    and the facets of the rendering body would stand out as ridges in raking light).
+
+    Returns
+    -------
+    snapcore.render.body.PosedMesh
+    """
+    from snapcore.render.body import TESSELLATION_FINE, scene_body
+
+    return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
+
+
+def height_field_from_scene(
+    scene, frame: int, view, *, params: ReliefParams | None = None, up=None
+):
+    """Orthographic depth render of all characters' body meshes at one frame.
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Internal frame index (source frame minus ``scene.frame_offset``).
+    view : array of shape (3,)
+        Unit vector from the scene centre towards the viewer (the snapshot's view).
+    params : ReliefParams, optional
+        ``size_mm`` (aspect), ``resolution`` and ``margin`` are used.
+    up : array of shape (3,), optional
+        Up hint for the image (default world +Y; see :func:`snapcore.render.camera.view_basis`).
+
+    Returns
+    -------
+    snapcore.render.renderer.DepthMap
+        ``depth`` in metres (NaN = background), ``pixel_size`` in metres, with the shape
+        ``params.shape()``.
+    """
+    from snapcore.render.renderer import render_depth
+
+    p = params or ReliefParams()
+    mesh = relief_body(scene, frame)
+    extent = frame_extent(mesh.vertices, view, size_mm=p.size_mm, margin=p.margin, up=up)
+    ny, nx = p.shape()
+    return render_depth(mesh.vertices, mesh.faces, view, resolution=(nx, ny), extent=extent, up=up)
+
+
+def relief_from_scene(
+    scene, frame: int, view, *, params: ReliefParams | None = None, up=None
+) -> Relief:
+    """The bas-relief of the scene's pose at ``frame`` seen along ``view``.
+
+    Parameters
+    ----------
+    scene : Scene
+        One or more characters (all are carved together).
+    frame : int
+        Internal frame index.
+    view : array of shape (3,)
+        From the scene centre towards the viewer.
+    params : ReliefParams, optional
+        Print box and compression settings (default :class:`ReliefParams`).
+    up : array of shape (3,), optional
+        Up hint for the image.
+
+    Returns
+    -------
+    Relief
+        ``meta`` holds ``frame`` (source numbering), ``view``, ``pixel_size_m``,
+        ``scene`` and ``method``.
+    """
+    p = params or ReliefParams()
+    dm = height_field_from_scene(scene, frame, view, params=p, up=up)
+    height, mask = height_from_depth(dm.depth)
+    v = np.asarray(view, float)
+    meta = {
+        "scene": getattr(scene, "name", None),
+        "frame": int(scene.source_frame(int(frame))),
+        "view": (v / np.linalg.norm(v)).tolist(),
+        "pixel_size_m": float(dm.pixel_size),
+        "method": p.method,
+        "size_mm": list(p.size_mm),
+        "depth_mm": p.depth_mm,
+        "base_mm": p.base_mm,
+    }
+    return relief_from_height_field(height, mask, pixel=dm.pixel_size, params=p, meta=meta)
+
+
+def relief_comparison_figure(
+    scene,
+    frame: int,
+    views: dict,
+    *,
+    params: ReliefParams | None = None,
+    with_linear: bool = False,
+    up=None,
+    title: str | None = None,
+    panel_inches: float = 3.2,
+):
+    """One pose carved from several views side by side (the paper's Fig. 11).
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Internal frame index (titles show the source frame number).
+    views : dict of str -> array of shape (3,)
+        Panel name (e.g. the method: "ours (PMA)", "viewpoint entropy", "motion area")
+        → view direction from the scene centre towards the viewer. Order is kept.
+    params : ReliefParams, optional
+        Relief settings (default :class:`ReliefParams` at 384 px for speed of figures).
+    with_linear : bool
+        Add a second row with the plain linear-compression relief of each view.
+    up : array of shape (3,), optional
+        Up hint for every panel.
+    title : str, optional
+        Figure title (default: scene name and source frame).
+    panel_inches : float
+        Width of one panel in inches.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Shaded previews (raking light, as :func:`snapcore.relief.mesh.shade_relief`),
+        one column per view; each panel is titled with its name and view vector.
+        The reliefs are in ``fig.reliefs`` (dict name → :class:`Relief`, and
+        ``name + " (linear)"`` for the second row).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    if not views:
+        raise ReliefError("relief_comparison_figure: no views given")
+    p = params or ReliefParams(resolution=384)
+    rows = [p] + ([replace(p, method="linear")] if with_linear else [])
+    w, d = p.size_mm
+    title_inches = 0.55 if with_linear else 0.4  # room for 2-3 title lines above each panel
+    fig, axes = plt.subplots(
+        len(rows),
+        len(views),
+        squeeze=False,
+        figsize=(
+            panel_inches * len(views),
+            len(rows) * (panel_inches * d / w + title_inches) + 0.4,
+        ),
+    )
+    reliefs = {}
+    for r, rp in enumerate(rows):
+        for c, (name, view) in enumerate(views.items()):
+            rel = relief_from_scene(scene, frame, view, params=rp, up=up)
+            reliefs[name if r == 0 else f"{name} (linear)"] = rel
+            ax = axes[r, c]
+            ax.imshow(rel.shaded(), cmap="gray", vmin=0, vmax=1, interpolation="lanczos")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            vv = np.asarray(rel.meta["view"])
+            label = f"{name}\nview ({vv[0]:+.2f}, {vv[1]:+.2f}, {vv[2]:+.2f})"
+            if with_linear:
+                label += "\nlinear" if r else "\ncompressed"
+            ax.set_title(label, fontsize=9)
+    src = scene.source_frame(int(frame))
+    fig.suptitle(
+        title
+        or f"{getattr(scene, 'name', '') or 'scene'} — frame {src}: "
+        f"{w:g} × {d:g} × {p.depth_mm:g} mm reliefs",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    fig.reliefs = reliefs
+    return fig

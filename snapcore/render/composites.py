@@ -1,0 +1,298 @@
+"""Composite figures: a contact sheet of poses and views side by side.
+
+- :func:`contact_sheet` — the top-k poses of a clip in a row (the paper's Fig. 5 strip):
+  one panel per frame, all from one view and at one scale, labelled with the source
+  frame number, the time and (optionally) the pose entropy.
+- :func:`compare_views` — one pose seen from several directions (the paper's Fig. 8-10:
+  ours / viewpoint entropy / motion area), labelled, same panel size and the same scale
+  (metres per pixel) in every panel, each centred on the pose, so no view looks better
+  by being bigger.
+
+Both return an (H, W, 3) uint8 image; :func:`snapcore.render.renderer.save_png` writes it.
+Frames are *internal* indices; labels show ``scene.source_frame``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from snapcore.errors import RenderError
+from snapcore.render.camera import (
+    Camera,
+    check_size,
+    default_view,
+    fit_camera,
+    view_basis,
+)
+from snapcore.render.renderer import SceneRenderer
+
+__all__ = ["contact_sheet", "compare_views", "common_cameras", "floor_aligned", "tile_panels",
+           "PANEL_GAP", "CAPTION_HEIGHT"]
+
+#: Pixels between panels.
+PANEL_GAP = 8
+#: Caption strip under each panel, as a fraction of the panel height.
+CAPTION_HEIGHT = 0.11
+_PAPER = (255, 255, 255)
+_INK = (35, 35, 35)
+
+
+def common_cameras(points_per_panel, views, *, size, projection="orthographic",
+                   margin=None) -> list[Camera]:
+    """One camera per panel, all at the same scale, each centred on its own points.
+
+    Parameters
+    ----------
+    points_per_panel : list of array of shape (P_i, 3)
+    views : list of array of shape (3,)
+    size : (int, int)
+    projection : {"orthographic", "perspective"}
+        Orthographic panels share metres per pixel; perspective panels share the
+        camera distance (the largest any panel needs).
+
+    Returns
+    -------
+    list of Camera
+    """
+    kw = {} if margin is None else {"margin": margin}
+    cams = [fit_camera(p, v, size=size, projection=projection, **kw)
+            for p, v in zip(points_per_panel, views)]
+    if projection == "orthographic":
+        hh = max(c.half_height for c in cams)
+        return [fit_camera(p, v, size=size, projection=projection, half_height=hh, **kw)
+                for p, v in zip(points_per_panel, views)]
+    targets = [_target(c, p) for c, p in zip(cams, points_per_panel)]
+    dists = [float(np.linalg.norm(c.position - t)) for c, t in zip(cams, targets)]
+    d = max(dists)
+    return [Camera(t + c.back * d, c.right, c.up, c.back, c.size, c.projection, c.half_height,
+                   c.yfov, max(c.znear + d - di, 0.02), c.zfar + d - di)
+            for c, t, di in zip(cams, targets, dists)]
+
+
+def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) -> list[Camera]:
+    """Orthographic cameras of one view moved up or down so that every panel's floor
+    point (``feet[i]``, on the floor under panel i's pose) falls on the same image row.
+
+    A contact sheet of a jump then shows the floor as one line across the panels and
+    the jump as height above it; each panel stays centred left-right on its own pose.
+    The half-height grows where the aligned poses need more room, so all panels keep
+    one scale. Perspective cameras are returned unchanged.
+    """
+    if not cams or cams[0].projection != "orthographic":
+        return cams
+    from snapcore.render.camera import FRAME_MARGIN
+
+    up = cams[0].up
+    fill = max(1.0 - 2.0 * (FRAME_MARGIN if margin is None else margin), 0.05)
+    # each pose's vertical extent measured from its own floor point
+    rel = [np.asarray(p, float).reshape(-1, 3) @ up - float(np.asarray(f, float) @ up)
+           for p, f in zip(points_per_panel, feet)]
+    lo = min(float(r.min()) for r in rel)
+    hi = max(float(r.max()) for r in rel)
+    hh = max(max(c.half_height for c in cams), (hi - lo) / 2 / fill)
+    out = []
+    for c, f in zip(cams, feet):
+        # image centre at the same height above each panel's floor point
+        shift = (float(np.asarray(f, float) @ up) + (lo + hi) / 2) - float(c.position @ up)
+        out.append(Camera(c.position + up * shift, c.right, c.up, c.back, c.size, c.projection,
+                          hh, c.yfov, c.znear, c.zfar))
+    return out
+
+
+def _target(cam: Camera, pts) -> np.ndarray:
+    """The point a fitted camera looks at (centre of the points along its axis)."""
+    p = np.asarray(pts, float).reshape(-1, 3)
+    z = p @ cam.back
+    zc = (z.min() + z.max()) / 2
+    return cam.position - cam.back * (cam.position @ cam.back - zc)
+
+
+def _font(px: int):
+    from PIL import ImageFont
+
+    return ImageFont.load_default(size=max(int(px), 8))
+
+
+def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarray:
+    """Lay out equally sized (H, W, 3) uint8 panels in a grid with captions under each.
+
+    Parameters
+    ----------
+    panels : list of ndarray (H, W, 3)
+    captions : list of str or list of list of str, optional
+        One caption per panel (several lines allowed as a list).
+    columns : int, optional
+        Panels per row (default: all in one row).
+    title : str, optional
+        A line above the grid.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H_total, W_total, 3)
+    """
+    from PIL import Image, ImageDraw
+
+    if not panels:
+        raise RenderError("no panels to lay out")
+    h, w = panels[0].shape[:2]
+    if any(p.shape[:2] != (h, w) for p in panels):
+        raise RenderError("panels must all have the same size")
+    n = len(panels)
+    cols = n if columns is None else max(1, min(int(columns), n))
+    rows = -(-n // cols)
+    cap_h = int(round(h * CAPTION_HEIGHT)) if captions is not None else 0
+    lines = []
+    if captions is not None:
+        lines = [c if isinstance(c, (list, tuple)) else [c] for c in captions]
+        cap_h = max(cap_h, int(round(h * 0.055 * max(len(x) for x in lines) + h * 0.035)))
+    title_h = int(round(h * 0.10)) if title else 0
+    gap = PANEL_GAP
+    W = cols * w + (cols + 1) * gap
+    H = title_h + rows * (h + cap_h) + (rows + 1) * gap
+    sheet = Image.new("RGB", (W, H), _PAPER)
+    draw = ImageDraw.Draw(sheet)
+    fpx = max(int(h * 0.045), 11)
+    font = _font(fpx)
+    if title:
+        tf = _font(int(fpx * 1.2))
+        draw.text((gap, gap + title_h // 2), title, fill=_INK, font=tf, anchor="lm")
+    for i, p in enumerate(panels):
+        r, c = divmod(i, cols)
+        x = gap + c * (w + gap)
+        y = title_h + gap + r * (h + cap_h + gap)
+        sheet.paste(Image.fromarray(np.asarray(p, np.uint8)), (x, y))
+        if lines:
+            for k, text in enumerate(lines[i]):
+                f = _font(int(fpx * 1.1)) if k == 0 else font
+                draw.text((x + w // 2, y + h + int(fpx * 0.4) + k * int(fpx * 1.35)), str(text),
+                          fill=_INK if k == 0 else (90, 90, 90), font=f, anchor="ma")
+    return np.asarray(sheet)
+
+
+def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
+                  projection="orthographic", columns=None, title=None, labels=True,
+                  ranked=True, ground=True, shadows=True) -> np.ndarray:
+    """Poses of a clip side by side, one view, one scale, the floor on one row across
+    the panels (the paper's Fig. 5 strip).
+
+    Parameters
+    ----------
+    scene : Scene
+    frames : sequence of int
+        Internal frames, in display order (e.g. the top-k poses, best first).
+    view : array of shape (3,), optional
+        From the scene to the camera; default :func:`snapcore.render.camera.default_view`.
+    entropy : sequence of float, optional
+        A value per frame (same order as ``frames``) shown in the caption, e.g. the
+        pose entropy of each pose.
+    size : (int, int)
+        Size of each panel, pixels.
+    projection : {"orthographic", "perspective"}
+    columns : int, optional
+        Panels per row (default one row).
+    title : str, optional
+    labels : bool
+        Caption each panel with ``#rank``, source frame number, time and entropy.
+    ranked : bool
+        ``frames`` are ranked (best first) and captions start with ``#1``, ``#2``...;
+        False for frames picked by hand (no rank shown).
+    ground, shadows : bool
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+    """
+    size = check_size(size)
+    frames = [int(f) for f in np.asarray(frames).reshape(-1)]
+    if not frames:
+        raise RenderError("contact_sheet needs at least one frame")
+    bad = [f for f in frames if not 0 <= f < scene.n_frames]
+    if bad:
+        raise RenderError(f"frames {bad} are outside the internal frames 0..{scene.n_frames - 1}")
+    if entropy is not None and len(entropy) != len(frames):
+        raise RenderError(f"entropy has {len(entropy)} values for {len(frames)} frames")
+    if view is None:
+        view = default_view(scene)
+    view_basis(view)  # validates
+    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
+    pts = [sr.body.vertices(f) for f in frames]
+    cams = common_cameras(pts, [view] * len(frames), size=size, projection=projection)
+    # the floor on one row across the panels: under each pose's mean root position
+    feet = [np.mean([c.positions[f, 0] for c in scene.characters], axis=0) for f in frames]
+    for ft in feet:  # fresh arrays from np.mean: set their height in place
+        ft[1] = scene.ground
+    cams = floor_aligned(cams, pts, feet)
+    panels = [sr.render(f, c) for f, c in zip(frames, cams)]
+    captions = None
+    if labels:
+        captions = []
+        for k, f in enumerate(frames):
+            first = (f"#{k + 1}   " if ranked else "") + f"frame {int(scene.source_frame(f))}"
+            second = f"{f / scene.fps:.2f} s"
+            if entropy is not None:
+                second += f"   entropy {float(entropy[k]):.3g}"
+            captions.append([first, second])
+    return tile_panels(panels, captions, columns=columns, title=title)
+
+
+def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
+                  projection="orthographic", columns=None, title=None, labels=True,
+                  ground=True, shadows=True, captions: dict | None = None) -> np.ndarray:
+    """One pose from several directions, side by side (the paper's Fig. 8-10).
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Internal frame.
+    views : dict of str to array of shape (3,)
+        Panel label → view direction (scene to camera), in display order, e.g.
+        ``{"ours": v1, "viewpoint entropy": v2, "motion area": v3}``.
+    size : (int, int)
+        Size of each panel, pixels (the same for all).
+    projection : {"orthographic", "perspective"}
+    columns : int, optional
+        Panels per row (default one row).
+    title : str, optional
+    labels : bool
+        Caption each panel with its label and direction.
+    ground, shadows : bool
+    captions : dict of str to str, optional
+        Extra caption line per label (e.g. a score).
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+
+    Notes
+    -----
+    Same framing in every panel: one scale for all panels (the largest any single view
+    needs to fit the pose with the standard margin), each centred on the pose.
+    """
+    size = check_size(size)
+    frame = int(frame)
+    if not 0 <= frame < scene.n_frames:
+        raise RenderError(f"frame {frame} is outside the internal frames 0..{scene.n_frames - 1}")
+    if not views:
+        raise RenderError("compare_views needs at least one view")
+    names = list(views)
+    dirs = []
+    for name in names:
+        r, u, b = view_basis(views[name])
+        dirs.append(b)
+    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
+    pts = sr.body.vertices(frame)
+    cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
+    panels = [sr.render(frame, c) for c in cams]
+    caps = None
+    if labels:
+        caps = []
+        for name, d in zip(names, dirs):
+            line2 = f"view ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f})"
+            if captions and name in captions:
+                line2 = f"{captions[name]}   {line2}"
+            caps.append([str(name), line2])
+    if title is None and labels:
+        title = (f"{scene.name}: frame {int(scene.source_frame(frame))} "
+                 f"({frame / scene.fps:.2f} s)")
+    return tile_panels(panels, caps, columns=columns, title=title)

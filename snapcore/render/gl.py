@@ -1,0 +1,286 @@
+"""The offscreen OpenGL context: pyrender on Mesa EGL, one renderer per thread.
+
+Measured on two cores: Mesa's EGL (llvmpipe) renders a 20k-face scene at 640×480 at
+~25 fps where OSMesa manages ~2 (../shared/PLATFORM-NOTES.md), so ``PYOPENGL_PLATFORM``
+defaults to ``egl`` here, before OpenGL loads. Everything that touches pyrender's
+internals lives in this module, applied once in :func:`load_pyrender`:
+
+- the NumPy-2 shim (pyrender 0.1.45 uses ``np.infty``);
+- a per-thread switch that keeps multisampling off during the face-id pass;
+- a colour-only framebuffer read (pyrender always reads and linearises depth too);
+- EGL context deletion that leaves the process-wide display up (pyrender terminates
+  it, which breaks every other thread's context);
+- cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names.
+
+Threads: an EGL context works only on the thread that created it, and a pyrender mesh
+stays bound to its first context. :func:`gl_renderer` keeps one renderer per thread.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # before anything imports OpenGL
+
+import threading  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from snapcore.errors import RenderError  # noqa: E402
+
+__all__ = ["gl_renderer", "release_renderer"]
+
+_PYRENDER = None
+NO_MSAA = threading.local()
+_THREAD = threading.local()
+
+
+def load_pyrender():
+    """Import pyrender once, with the NumPy-2 shim and the multisample switch."""
+    global _PYRENDER
+    if _PYRENDER is None:
+        if not hasattr(np, "infty"):
+            np.infty = np.inf  # noqa: NPY201 -- pyrender 0.1.45 uses np.infty, gone in NumPy 2
+        try:
+            import pyrender
+            import pyrender.renderer as prr
+            from OpenGL.GL import GL_MULTISAMPLE, glDisable
+        except Exception as err:  # ImportError, or a GL loader error naming the library
+            raise RenderError(
+                f"cannot load pyrender/OpenGL ({err}); headless rendering needs Mesa EGL "
+                "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) and "
+                "PYOPENGL_PLATFORM=egl") from err
+        gl_enable = prr.glEnable
+
+        def _gl_enable(cap):
+            # pyrender turns multisampling on in every colour pass; an id pass must not
+            # blend neighbouring faces' ids at edges, so it can switch that off per thread.
+            if cap == GL_MULTISAMPLE and getattr(NO_MSAA, "on", False):
+                return glDisable(cap)
+            return gl_enable(cap)
+
+        prr.glEnable = _gl_enable
+        # EGL displays are shared by every context in the process: pyrender's
+        # delete_context() terminates the display, which would invalidate the other
+        # threads' contexts. Destroy the context only.
+        try:
+            from pyrender.platforms import egl as _egl
+        except ImportError:  # another platform (OSMesa): nothing shared to protect
+            _egl = None
+
+        def _delete_context(self):
+            from OpenGL.EGL import eglDestroyContext
+
+            if self._egl_display is not None and self._egl_context is not None:
+                eglDestroyContext(self._egl_display, self._egl_context)
+            self._egl_context = None
+
+        if _egl is not None:
+            _egl.EGLPlatform.delete_context = _delete_context
+        prr.Renderer._read_main_framebuffer = _read_colour_only(
+            prr.Renderer._read_main_framebuffer)
+        _PYRENDER = pyrender
+    return _PYRENDER
+
+
+# Shaders. pyrender's physically based shader costs ~1 µs per pixel on llvmpipe (a
+# 1280×720 frame took ~0.6 s); these replace it with Lambert diffuse + a soft
+# Blinn-Phong highlight under the same uniform names pyrender sets (so pyrender's
+# renderer drives them unchanged), ~5× cheaper. Primitives without normals are drawn
+# unlit in their vertex colour (the floor grid and the shadows). Colours are linear; output is
+# gamma-encoded (1/2.2) like pyrender's. The flat pair serves the exact id pass.
+_VERT = """#version 330 core
+layout(location = 0) in vec3 position;
+#ifdef NORMAL_LOC
+layout(location = NORMAL_LOC) in vec3 normal;
+#endif
+#ifdef COLOR_0_LOC
+layout(location = COLOR_0_LOC) in vec4 color_0;
+#endif
+layout(location = INST_M_LOC) in mat4 inst_m;
+uniform mat4 M;
+uniform mat4 V;
+uniform mat4 P;
+out vec3 frag_position;
+out vec3 frag_normal;
+out vec4 vcolor;
+void main() {
+    mat4 MI = M * inst_m;
+    vec4 wp = MI * vec4(position, 1.0);
+    gl_Position = P * V * wp;
+    frag_position = wp.xyz;
+#ifdef NORMAL_LOC
+    frag_normal = mat3(MI) * normal;
+#else
+    frag_normal = vec3(0.0, 1.0, 0.0);
+#endif
+#ifdef COLOR_0_LOC
+    vcolor = color_0;
+#else
+    vcolor = vec4(1.0);
+#endif
+}
+"""
+_MESH_FRAG = """#version 330 core
+struct DirectionalLight { vec3 direction; vec3 color; float intensity; };
+struct Material { vec4 base_color_factor; float roughness_factor; };
+uniform Material material;
+uniform DirectionalLight directional_lights[MAX_DIRECTIONAL_LIGHTS];
+uniform int n_directional_lights;
+uniform vec3 ambient_light;
+uniform vec3 cam_pos;
+in vec3 frag_position;
+in vec3 frag_normal;
+in vec4 vcolor;
+out vec4 frag_color;
+void main() {
+    vec3 base = material.base_color_factor.rgb * vcolor.rgb;
+#ifndef NORMAL_LOC
+    // no normals: unlit geometry (floor grid, shadows), drawn in its own colour
+    frag_color = vec4(pow(clamp(base, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+    return;
+#endif
+    vec3 n = normalize(frag_normal);
+    if (!gl_FrontFacing) n = -n;
+    vec3 e = normalize(cam_pos - frag_position);
+    float shine = 1.0 - material.roughness_factor;
+    vec3 c = ambient_light * base;
+    for (int i = 0; i < n_directional_lights; i++) {
+        vec3 l = -directional_lights[i].direction;
+        float d = max(dot(n, l), 0.0);
+        vec3 h = normalize(l + e);
+        float s = shine * 0.5 * pow(max(dot(n, h), 0.0), 24.0) * step(0.0, d);
+        c += directional_lights[i].color * directional_lights[i].intensity * 0.32
+             * (base * d + vec3(s));
+    }
+    frag_color = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+}
+"""
+_FLAT_FRAG = """#version 330 core
+// snapcore uses pyrender's FLAT pass for face ids only: the colour is the triangle's
+// index within its draw call + 1 as 24-bit RGB (exact through an 8-bit unorm target).
+out vec4 frag_color;
+void main() {
+    int id = gl_PrimitiveID + 1;
+    frag_color = vec4(float(id & 255), float((id >> 8) & 255), float((id >> 16) & 255),
+                      255.0) / 255.0;
+}
+"""
+_SHADER_DIR = None
+
+
+def _shader_dir() -> str:
+    """A folder holding the shaders above (written once per process)."""
+    global _SHADER_DIR
+    if _SHADER_DIR is None:
+        import atexit
+        import shutil
+        import tempfile
+
+        d = tempfile.mkdtemp(prefix="snapcore-shaders-")
+        atexit.register(shutil.rmtree, d, True)
+        for name, text in (("mesh.vert", _VERT), ("mesh.frag", _MESH_FRAG),
+                           ("flat.vert", _VERT), ("flat.frag", _FLAT_FRAG)):
+            with open(os.path.join(d, name), "w") as fh:
+                fh.write(text)
+        _SHADER_DIR = d
+    return _SHADER_DIR
+
+
+def _read_colour_only(read_both):
+    """Wrap pyrender's framebuffer read: our passes never use its depth image, whose read
+    and linearisation cost ~5 ms a frame at 1280×720 — read (and flip) colour only."""
+    import ctypes  # noqa: F401  (PyOpenGL needs it loaded for glReadPixels)
+
+    from OpenGL.GL import (
+        GL_COLOR_BUFFER_BIT,
+        GL_DRAW_FRAMEBUFFER,
+        GL_LINEAR,
+        GL_READ_FRAMEBUFFER,
+        GL_RGB,
+        GL_UNSIGNED_BYTE,
+        glBindFramebuffer,
+        glBlitFramebuffer,
+        glReadPixels,
+    )
+
+    def read(self, scene, flags):
+        if flags & 1:  # RenderFlags.DEPTH_ONLY: leave pyrender's path alone
+            return read_both(self, scene, flags)
+        w, h = self._main_fb_dims
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, self._main_fb)
+        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_LINEAR)
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, self._main_fb)
+        buf = glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE)
+        return np.frombuffer(buf, np.uint8).reshape(h, w, 3)[::-1], None
+
+    return read
+
+
+#: Every thread's renderer, held here (not only in thread-local storage) so that a
+#: finished thread's renderer is never freed by the garbage collector: pyrender's
+#: ``__del__`` would make that context current on whichever thread collects it, possibly
+#: in the middle of that thread's own frame. Dead threads' renderers are freed by the
+#: next thread that creates one (see :func:`_sweep_dead`).
+_RENDERERS: dict = {}
+_RENDERERS_LOCK = threading.Lock()
+
+
+def _free(r) -> None:
+    """Delete a renderer's GL objects and its context (the display stays up)."""
+    try:
+        r._platform.make_current()
+        r._renderer.delete()
+        r._platform.delete_context()
+    except Exception:  # a context that is already gone: nothing left to free
+        pass
+    r._renderer = None
+    r._platform = None
+
+
+def _sweep_dead() -> None:
+    with _RENDERERS_LOCK:
+        dead = [t for t in _RENDERERS if not t.is_alive()]
+        victims = [_RENDERERS.pop(t) for t in dead]
+    for r in victims:
+        _free(r)
+
+
+def gl_renderer(width: int, height: int):
+    """This thread's pyrender ``OffscreenRenderer``, resized to ``width`` × ``height``.
+
+    One EGL context per thread (contexts are thread-bound); created on first use.
+    """
+    pyrender = load_pyrender()
+    width, height = int(width), int(height)
+    if width < 1 or height < 1 or width > 8192 or height > 8192:
+        raise RenderError(f"image size must be 1..8192 pixels a side, got {width}x{height}")
+    r = getattr(_THREAD, "renderer", None)
+    if r is None:
+        _sweep_dead()
+        try:
+            r = pyrender.OffscreenRenderer(width, height)
+        except Exception as err:
+            raise RenderError(
+                f"cannot create an offscreen OpenGL context ({type(err).__name__}: {err}); "
+                "is Mesa EGL installed and PYOPENGL_PLATFORM=egl?") from err
+        from pyrender.shader_program import ShaderProgramCache
+
+        r._renderer._program_cache = ShaderProgramCache(shader_dir=_shader_dir())
+        _THREAD.renderer = r
+        with _RENDERERS_LOCK:
+            _RENDERERS[threading.current_thread()] = r
+    r.viewport_width, r.viewport_height = width, height
+    return r
+
+
+def release_renderer() -> None:
+    """Free this thread's offscreen renderer and its EGL context (e.g. before a worker
+    thread ends); the next render on this thread makes a new one."""
+    r = getattr(_THREAD, "renderer", None)
+    if r is not None:
+        _THREAD.renderer = None
+        with _RENDERERS_LOCK:
+            _RENDERERS.pop(threading.current_thread(), None)
+        _free(r)

@@ -1,0 +1,205 @@
+"""Viewpoint entropy (Vázquez et al. 2001): the mesh-visibility baseline view.
+
+The paper compares its view with the viewpoint-entropy view (its Fig. 9, via the view
+descriptors of Secord et al. 2011). For the posed body mesh at the selected frame and a
+view ``v`` (orthographic, the mesh's bounding sphere framed identically for every view)
+
+    H(v) = - Σ_{i=0}^{N_faces} (A_i / A_t) log2(A_i / A_t)
+
+where ``A_i`` is the visible projected area of face ``i``, ``A_0`` the background and
+``A_t`` the image area. Areas are pixel counts of a face-id render
+(:func:`snapcore.render.renderer.render_face_ids`, no multisampling, back faces culled).
+
+Resolution: the number of faces a view "sees" depends strongly on the image size
+(3.2k faces per view at 256² vs 8.9k at 512² for a 77k-face mesh,
+../shared/PLATFORM-NOTES.md), so the baseline fixes one: :data:`VE_RESOLUTION` = 256²
+(the renderer's :data:`~snapcore.render.renderer.FACE_ID_RESOLUTION`), on 162 icosphere views.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from snapcore.errors import SnapshotError
+from snapcore.render.body import posed_mesh
+from snapcore.render.renderer import render_face_ids
+from snapcore.select.view import view_sphere
+
+__all__ = [
+    "EntropyError",
+    "VE_RESOLUTION",
+    "VE_VIEWS",
+    "MIN_ELEVATION_DEG",
+    "EntropySelection",
+    "viewpoint_entropy",
+    "select_view_entropy",
+]
+
+#: Square face-id image side (pixels) of the baseline: fixed, see the module notes.
+VE_RESOLUTION = 256
+#: Sample views of the baseline (an icosphere, ~17° apart), as in the paper's setting.
+VE_VIEWS = 162
+#: Lowest camera elevation the baseline may pick (degrees below the horizon): the same
+#: limit the PMA view keeps (:data:`snapcore.motion.facing.ABOVE_DEG`), so neither method is
+#: shown looking up through the floor. ``min_elevation_deg=None`` searches all views.
+MIN_ELEVATION_DEG = -10.0
+#: Views × faces per block of the per-view face histograms (bounded memory).
+_HIST_BLOCK = 4_000_000
+
+
+class EntropyError(SnapshotError):
+    """A viewpoint-entropy request that cannot be met (bad id buffers, empty mesh)."""
+
+
+def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray:
+    """Viewpoint entropy of face-id images, one value per view (bits).
+
+    Parameters
+    ----------
+    face_ids : int array of shape (V, H, W) or (H, W)
+        ``0`` = background, ``k + 1`` = face ``k`` (the convention of
+        :func:`snapcore.render.renderer.render_face_ids`).
+    n_faces : int, optional
+        Number of faces of the mesh (default: the largest id seen).
+
+    Returns
+    -------
+    ndarray of shape (V,) (or a float for one image)
+        ``H = -Σ_i p_i log2 p_i`` over the background and every visible face, with
+        ``p_i = A_i / A_t`` the fraction of the image's pixels showing ``i``. Between 0
+        (empty image) and ``log2(H·W)``.
+
+    Notes
+    -----
+    Per-view histograms come from one ``bincount`` per block of views (ids offset by
+    the view's index), not from a loop over faces.
+    """
+    ids = np.asarray(face_ids)
+    single = ids.ndim == 2
+    h, _ = _entropy_visible(ids[None] if single else ids, n_faces)
+    return float(h[0]) if single else h
+
+
+def _entropy_visible(ids, n_faces):
+    """Entropy (bits) and number of visible faces per view of ids (V, H, W)."""
+    if ids.ndim != 3 or not np.issubdtype(ids.dtype, np.integer):
+        raise EntropyError(f"face ids must be an integer array (V, H, W), got {ids.dtype} {ids.shape}")
+    if ids.size and ids.min() < 0:
+        raise EntropyError("face ids must be >= 0 (0 = background)")
+    n_bins = (int(ids.max()) if n_faces is None else int(n_faces)) + 1
+    if ids.size and ids.max() >= n_bins:
+        raise EntropyError(f"face id {int(ids.max()) - 1} is not below n_faces={n_faces}")
+    v, h, w = ids.shape
+    flat = ids.reshape(v, h * w).astype(np.int64)
+    entropy = np.empty(v)
+    visible = np.empty(v, dtype=np.int64)
+    step = max(1, _HIST_BLOCK // max(n_bins, h * w))
+    for i in range(0, v, step):
+        blk = flat[i:i + step]
+        keys = blk + (np.arange(blk.shape[0]) * n_bins)[:, None]
+        counts = np.bincount(keys.ravel(), minlength=blk.shape[0] * n_bins).reshape(-1, n_bins)
+        p = counts / float(h * w)
+        safe = np.where(p > 0, p, 1.0)
+        entropy[i:i + step] = -(p * np.log2(safe)).sum(axis=1)
+        visible[i:i + step] = np.count_nonzero(counts[:, 1:], axis=1)
+    return entropy, visible
+
+
+@dataclass
+class EntropySelection:
+    """The viewpoint-entropy view of one frame.
+
+    Attributes
+    ----------
+    view : ndarray of shape (3,)
+        Unit vector from the mesh centre to the camera with the highest entropy.
+    score : float
+        Its entropy, bits.
+    views : ndarray of shape (V, 3)
+        All sample views.
+    scores : ndarray of shape (V,)
+        Entropy of every view (bits; NaN for views below ``min_elevation_deg``, which
+        were not rendered unless ``score_all``).
+    frame : int
+        Internal frame of the posed mesh.
+    n_faces : int
+        Faces of the posed mesh.
+    resolution : int
+        Face-id image side, pixels.
+    visible_faces : ndarray of shape (V,)
+        Faces with at least one pixel, per view (0 where not rendered).
+    """
+
+    view: np.ndarray
+    score: float
+    views: np.ndarray
+    scores: np.ndarray
+    frame: int
+    n_faces: int
+    resolution: int
+    visible_faces: np.ndarray
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (internal frame; callers convert with ``source_frame``)."""
+        return {
+            "view": [float(x) for x in self.view],
+            "score": float(self.score),
+            "n_views": int(self.views.shape[0]),
+            "n_faces": int(self.n_faces),
+            "resolution": int(self.resolution),
+        }
+
+
+def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
+                        resolution: int = VE_RESOLUTION,
+                        min_elevation_deg: float | None = MIN_ELEVATION_DEG,
+                        score_all: bool = False, mesh=None) -> EntropySelection:
+    """The view of maximal viewpoint entropy of the posed body at ``frame``.
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Internal frame (the selected pose).
+    n_views : int
+        Sample views (:func:`snapcore.select.view.view_sphere`; 162 by default).
+    resolution : int
+        Face-id image side in pixels (:data:`VE_RESOLUTION`; keep it fixed when
+        comparing: entropy grows with it).
+    min_elevation_deg : float or None
+        The pick is not more than this far below the horizon
+        (:data:`MIN_ELEVATION_DEG`); None allows the whole sphere.
+    score_all : bool
+        Render and score the views below ``min_elevation_deg`` too (for maps); by
+        default they are skipped (NaN scores).
+    mesh : object with ``vertices`` (N, 3) and ``faces`` (M, 3), optional
+        The mesh to use instead of :func:`snapcore.render.body.posed_mesh` of the scene.
+
+    Returns
+    -------
+    EntropySelection
+        Ties go to the first view in the sphere's order (deterministic).
+    """
+    if mesh is None:
+        if not 0 <= int(frame) < scene.n_frames:
+            raise EntropyError(f"frame {frame} is outside 0..{scene.n_frames - 1}")
+        mesh = posed_mesh(scene, int(frame))
+    vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    if len(faces) == 0:
+        raise EntropyError("the posed mesh has no faces")
+    views = view_sphere(n_views)
+    allowed = np.ones(len(views), dtype=bool)
+    if min_elevation_deg is not None:
+        allowed = views[:, 1] >= math.sin(math.radians(min_elevation_deg)) - 1e-12
+    keep = np.ones(len(views), dtype=bool) if score_all else allowed
+    ids = render_face_ids(vertices, faces, views[keep], resolution=resolution)
+    scores = np.full(len(views), np.nan)
+    visible = np.zeros(len(views), dtype=np.int64)
+    scores[keep], visible[keep] = _entropy_visible(ids, len(faces))
+    best = int(np.nanargmax(np.where(allowed, scores, np.nan)))
+    return EntropySelection(view=views[best].copy(), score=float(scores[best]), views=views,
+                            scores=scores, frame=int(frame), n_faces=int(len(faces)),
+                            resolution=int(resolution), visible_faces=visible)

@@ -1,0 +1,45 @@
+"""The view methods the suite compares: one vocabulary for the pipeline, study and analysis.
+
+The study shows the selected pose from three views and asks which is best; the
+analysis counts the votes; the figures label the panels. All three name the methods
+with :class:`ViewMethod`, whose values are the identifiers stored in the database,
+the stimulus manifest and the ``baselines`` keys of ``snapshot select --json``.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+__all__ = ["ViewMethod", "VIEW_METHODS"]
+
+
+class ViewMethod(StrEnum):
+    """A view-selection method; the value is its stored identifier.
+
+    ``OURS`` is the paper's Projected Motion Area (§3.2), ``VIEWPOINT_ENTROPY`` the
+    baseline of Vázquez et al. (2001) on the posed body mesh, ``MOTION_AREA`` the
+    baseline of Kwon & Lee (2008).
+    """
+
+    OURS = "ours"
+    VIEWPOINT_ENTROPY = "viewpoint_entropy"
+    MOTION_AREA = "motion_area"
+
+    @property
+    def label(self) -> str:
+        """Short human label: ``"ours"``, ``"viewpoint entropy"``, ``"motion area"``."""
+        return _LABELS[self]
+
+    @property
+    def figure(self) -> str:
+        """The paper figure that shows this method's view (Figs. 8-10)."""
+        return _FIGURES[self]
+
+
+_LABELS = {ViewMethod.OURS: "ours", ViewMethod.VIEWPOINT_ENTROPY: "viewpoint entropy",
+           ViewMethod.MOTION_AREA: "motion area"}
+_FIGURES = {ViewMethod.OURS: "Fig. 8", ViewMethod.VIEWPOINT_ENTROPY: "Fig. 9",
+            ViewMethod.MOTION_AREA: "Fig. 10"}
+
+#: The three methods in the paper's order (ours first, then the baselines).
+VIEW_METHODS: tuple[ViewMethod, ...] = tuple(ViewMethod)

@@ -1,0 +1,27 @@
+"""Consent: what the study is, what is recorded; agreeing creates the participant."""
+
+from __future__ import annotations
+
+import streamlit as st
+
+from study_app.screens import common
+from study_app.session import ParticipantSession
+
+
+def render() -> None:
+    ctx = common.load_context()
+    study = ctx.stimuli.study
+    st.title(study.title)
+    if study.description:
+        st.markdown(study.description)
+    st.markdown(study.consent)
+    agree = st.checkbox("I have read the information above and agree to take part.",
+                        key=common.KEY_CONSENT_AGREE)
+    if st.button("Start the study", key=common.KEY_CONSENT_START, type="primary",
+                 disabled=not agree):
+        # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
+        query = {k: st.query_params.get(k) for k in st.query_params.keys()}
+        session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
+        # The id goes in the URL: a reload, or the same link later, resumes here.
+        st.query_params[common.QUERY_PID] = session.participant_id
+        st.rerun()

@@ -1,0 +1,17 @@
+"""Shown for a participant link that is malformed, unknown or from another study."""
+
+from __future__ import annotations
+
+import streamlit as st
+
+from study_app.screens import common
+
+
+def render() -> None:
+    st.header("This link does not work")
+    st.error(st.session_state.get(common.KEY_PROBLEM) or "Unknown participant.")
+    st.write("Nothing was recorded. If you were given a personal link, please use it "
+             "exactly as you received it.")
+    if st.button("Start a new session", key=common.KEY_RESTART):
+        del st.query_params[common.QUERY_PID]
+        st.rerun()

@@ -1,0 +1,130 @@
+"""Researcher page: live progress, votes, frame histograms, export download.
+
+Behind a token: the page compares what is typed with ``$SNAPSHOT_ADMIN_TOKEN``
+(constant-time). Without the variable, or without the right token, it shows nothing
+but the token field. Tables come from :mod:`analysis` (``analysis.votes``,
+``analysis.frames``) when it is installed, else from plain counts.
+"""
+
+from __future__ import annotations
+
+import hmac
+import os
+import tempfile
+from pathlib import Path
+
+import streamlit as st
+
+from study_app.screens import common
+
+#: Seconds between refreshes of the live panels.
+REFRESH_S = 10
+
+
+def _token_ok() -> bool:
+    expected = os.environ.get(common.ENV_ADMIN_TOKEN, "")
+    st.header("Researcher")
+    if not expected:
+        st.info(f"This page is disabled. Start the app with {common.ENV_ADMIN_TOKEN} set to "
+                "open it.")
+        return False
+    given = st.text_input("Access token", type="password", key=common.KEY_ADMIN_TOKEN)
+    if not given:
+        return False
+    if not hmac.compare_digest(given.encode(), expected.encode()):
+        st.error("Wrong token.")
+        return False
+    return True
+
+
+def render() -> None:
+    if not _token_ok():
+        return
+    ctx = common.load_context()
+    st.caption(f"Study **{ctx.stimuli.study.id}** · database {ctx.store.url} · stimuli "
+               f"{ctx.stimuli.folder.name} (manifest {ctx.stimuli.sha256[:12]}…)")
+    _live(ctx)
+    _downloads(ctx)
+
+
+@st.fragment(run_every=REFRESH_S)
+def _live(ctx) -> None:
+    p = ctx.store.progress()
+    c = st.columns(4)
+    c[0].metric("Participants", p["participants"])
+    c[1].metric("Completed", p["completed"])
+    c[2].metric("Responses", p["responses"])
+    c[3].metric("Simulated", p.get("simulated", 0))
+    rows = ctx.store.export_rows()
+    if not rows:
+        st.write("No responses yet.")
+        return
+    st.subheader("Votes per method (view tasks)")
+    st.dataframe(vote_frame(rows, ctx.stimuli.scene_ids), width="stretch")
+    st.subheader("Chosen frames (pose tasks)")
+    for scene in ctx.stimuli.scene_ids:
+        fig = frame_histogram_figure(rows, ctx.stimuli.scenes[scene])
+        if fig is not None:
+            st.pyplot(fig, clear_figure=True)
+
+
+def vote_frame(rows: list[dict], order):
+    """Votes per scene and method (:mod:`analysis.votes`)."""
+    from analysis.load import tidy_responses, view_choices
+    from analysis.votes import vote_counts, vote_table
+
+    counts = vote_counts(view_choices(tidy_responses(rows, validate=False)), order=order)
+    table = vote_table(counts)
+    return table.pivot(index="scene", columns="method", values="votes").reindex(
+        index=counts.index, columns=counts.columns)
+
+
+def frame_histogram_figure(rows: list[dict], sc):
+    """Histogram of one scene's chosen motion frames, the algorithm's pick marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    chosen = np.array([r["chosen_frame"] for r in rows
+                       if r["task"] == "pose" and r["scene"] == sc.id
+                       and r["chosen_frame"] is not None], dtype=float)
+    if chosen.size == 0:
+        return None
+    bins = int(np.clip(round(sc.n_frames / (0.25 * sc.fps)), 10, 60))
+    edges = np.linspace(sc.frame_offset - 0.5, sc.frame_offset + sc.n_frames - 0.5, bins + 1)
+    import pandas as pd
+
+    from analysis.frames import SceneFrames, frame_histogram
+
+    info = SceneFrames(scene=sc.id, fps=sc.fps, n_frames=sc.n_frames,
+                       algorithm_frame=sc.algorithm_frame, frame_offset=sc.frame_offset)
+    counts, edges = frame_histogram(pd.DataFrame({"scene": sc.id, "chosen_frame": chosen}), info)
+    fig, ax = plt.subplots(figsize=(7, 1.8))
+    ax.bar(edges[:-1], counts, width=np.diff(edges), align="edge", color="#7a9cc6")
+    ax.axvline(sc.algorithm_frame, color="#c0392b", lw=2, label="algorithm")
+    ax.set_title(f"{sc.id}: {chosen.size} choices", fontsize=9)
+    ax.set_xlabel("motion frame (source numbering)", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def _downloads(ctx) -> None:
+    from study_app.export import write_export
+
+    st.subheader("Export")
+    rows = ctx.store.export_rows()
+    with tempfile.TemporaryDirectory() as tmp:
+        for fmt, mime in (("csv", "text/csv"), ("jsonl", "application/x-ndjson")):
+            path = Path(tmp) / f"responses.{fmt}"
+            write_export(rows, path)
+            st.download_button(f"Download responses ({fmt.upper()}, {len(rows)} rows)",
+                               path.read_bytes(), file_name=f"{ctx.stimuli.study.id}-responses.{fmt}",
+                               mime=mime, key=f"{common.KEY_DOWNLOAD}.{fmt}")
+
+
+if __name__ == "__main__":  # run as the page script by st.navigation (see app.py)
+    render()

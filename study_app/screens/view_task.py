@@ -1,0 +1,32 @@
+"""View task: three views of the selected pose in seeded positions; pick the clearest."""
+
+from __future__ import annotations
+
+import streamlit as st
+
+from study_app.screens import common
+from study_app.picker import view_chooser
+from study_app.session import InvalidAnswer
+
+
+def render() -> None:
+    session = common.current_session()
+    trial = session.current_trial
+    views = [t for t in session.plan if t.task == "view"]
+    k = views.index(trial) + 1
+    st.header(f"Pictures {k} of {len(views)}")
+    st.markdown("Here is one moment of an animation, seen from three directions. **Which "
+                "picture shows best what the figure is doing?** Click **Choose** under it.")
+    common.show_flash()
+    common.trial_clock(session, trial)
+    answer = view_chooser(session.view_choices(trial), trial=trial.index,
+                          key=common.widget_key(common.KEY_CHOOSER, trial))
+    if answer is None:
+        return
+    try:
+        session.submit_view(answer.get("trial"), answer.get("position"), answer.get("method"),
+                            response_time_s=common.elapsed_s(session, trial))
+    except InvalidAnswer as err:
+        common.next_attempt(trial)
+        common.flash("error", str(err))
+    st.rerun()
