@@ -297,6 +297,16 @@ def _header_value(lines, i, key, path) -> tuple[str, int]:
     return line[len(key) :].strip(), i
 
 
+def _header_number(lines, start: int, label: str, cast, what: str, path):
+    """``(number, text, line index)`` of the header line ``label`` at or after ``start``."""
+    value, i = _header_value(lines, start, label, path)
+    try:
+        return cast(value), value, i
+    except ValueError:
+        raise BVHError(f"expected {what} after '{label}', found '{value}'", path=path,
+                       line=i + 1) from None
+
+
 def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
     """Parse BVH text. See :func:`read_bvh`; ``path`` is only used in messages."""
     lines = text.splitlines()
@@ -307,22 +317,10 @@ def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
         raise BVHError("no 'MOTION' section after the hierarchy", path=path, line=len(lines))
     names, parents, offsets, channels, end_site = _parse_hierarchy(lines[:m], path)
 
-    value, i = _header_value(lines, m + 1, "Frames:", path)
-    try:
-        n_frames = int(value)
-    except ValueError:
-        raise BVHError(
-            f"expected an integer frame count after 'Frames:', found '{value}'", path=path, line=i + 1
-        ) from None
+    n_frames, value, i = _header_number(lines, m + 1, "Frames:", int, "an integer frame count", path)
     if n_frames <= 0:
         raise BVHError(f"the motion has {n_frames} frames; expected at least 1", path=path, line=i + 1)
-    value, i = _header_value(lines, i + 1, "Frame Time:", path)
-    try:
-        frame_time = float(value)
-    except ValueError:
-        raise BVHError(
-            f"expected a number after 'Frame Time:', found '{value}'", path=path, line=i + 1
-        ) from None
+    frame_time, value, i = _header_number(lines, i + 1, "Frame Time:", float, "a number", path)
     if not np.isfinite(frame_time) or frame_time <= 0:
         raise BVHError(
             f"frame time must be a positive number of seconds, found {value}", path=path, line=i + 1
