@@ -144,6 +144,8 @@ class PoseSelection:
     min_separation_s : float
     timings_s : dict
         Seconds: ``contacts``, ``local``, ``global``, ``select``, ``total``.
+    method : str
+        The selector that ran (:data:`snapcore.pose_methods.POSE_METHODS`).
     """
 
     frame: int
@@ -151,6 +153,7 @@ class PoseSelection:
     entropy: PoseEntropy
     min_separation_s: float
     timings_s: dict = field(default_factory=dict)
+    method: str = "paper"
 
 
 # ----------------------------------------------------------------------- local term
@@ -625,20 +628,27 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
                        events_mode=events, fps=float(scene.fps), timings_s=timings)
 
 
-def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                **options) -> PoseSelection:
+def select_pose(scene, *, method: str | None = None, k: int = 3,
+                min_separation_s: float = MIN_SEPARATION_S, **options) -> PoseSelection:
     """The most informative pose of ``scene`` and the top-k distinct runners-up.
 
     Parameters
     ----------
     scene : Scene
+    method : str, optional
+        The selector (:data:`snapcore.pose_methods.POSE_METHODS`); default
+        :data:`snapcore.pose_methods.DEFAULT_POSE_METHOD` (``"story"``, story
+        information). ``"paper"`` is the paper's pose entropy documented here, unchanged;
+        the others run in :func:`snapcore.pose_methods.run_pose_method`.
     k : int
         How many distinct peaks to return (at least 1).
     min_separation_s : float
         Minimum time (s) between two returned poses.
     **options
-        Passed to :func:`pose_entropy` (``w_local``, ``w_global``, ``events``,
-        ``smooth_s``, ``rest_speed``, ``tolerances``, ``interactions``).
+        ``paper``: passed to :func:`pose_entropy` (``w_local``, ``w_global``,
+        ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``, ``interactions``);
+        ``story``: ``story`` (a :class:`~snapcore.story.StoryParameters`); ``random``:
+        ``seed``.
 
     Returns
     -------
@@ -655,6 +665,12 @@ def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S
         raise ValueError(f"k must be a positive integer, got {k}")
     if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
         raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
+    from .pose_methods import DEFAULT_POSE_METHOD, run_pose_method
+
+    method = DEFAULT_POSE_METHOD if method is None else method
+    if method != "paper":
+        return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s,
+                               **options)
     t0 = time.perf_counter()
     entropy = pose_entropy(scene, **options)
     t1 = time.perf_counter()

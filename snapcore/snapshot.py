@@ -127,6 +127,7 @@ class Snapshot:
             "frame": src(self.pose.frame),
             "time_s": round(self.pose.frame / fps, 6),
             "frames": [src(i) for i in self.pose.frames],
+            "pose_method": self.pose.method,
             "peaks": peaks,
             "pose_entropy": {
                 "first_frame": src(0),
@@ -161,14 +162,17 @@ def _jsonable(value):
     return value
 
 
-def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                  view: bool = True, window_s: float | None = None, baselines: bool = True,
+def take_snapshot(scene, *, pose_method: str | None = None, k: int = 3,
+                  min_separation_s: float = MIN_SEPARATION_S, view: bool = True, window_s: float | None = None, baselines: bool = True,
                   n_views: int = 2562, **pose_options) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
     scene : Scene
+    pose_method : str, optional
+        The pose selector (:data:`snapcore.pose_methods.POSE_METHODS`); default
+        ``"story"``; ``"paper"`` for the paper's pose entropy.
     k : int
         Number of distinct top poses to keep.
     min_separation_s : float
@@ -191,22 +195,31 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
     Snapshot
     """
     t0 = time.perf_counter()
-    sel = select_pose(scene, k=k, min_separation_s=min_separation_s, **pose_options)
+    sel = select_pose(scene, method=pose_method, k=k, min_separation_s=min_separation_s,
+                      **pose_options)
     t1 = time.perf_counter()
-    options = {"k": int(k), "min_separation_s": float(min_separation_s)}
+    options = {"pose_method": sel.method, "k": int(k), "min_separation_s": float(min_separation_s)}
     for name, value in pose_options.items():
-        if name in ("tolerances", "interactions"):
+        if name in ("tolerances", "interactions", "story"):
             continue
         options[name] = value
     tol = sel.entropy.interactions.tolerances
-    options["contact_tolerances"] = {
-        "ground_distance_m": tol.ground_distance,
-        "body_distance_m": tol.body_distance,
-        "prop_distance_m": tol.prop_distance,
-        "displacement_m": tol.displacement,
-        "min_duration_s": tol.min_duration,
-    }
-    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "select")}
+    if sel.method == "paper":
+        options["contact_tolerances"] = {
+            "ground_distance_m": tol.ground_distance,
+            "body_distance_m": tol.body_distance,
+            "prop_distance_m": tol.prop_distance,
+            "displacement_m": tol.displacement,
+            "min_duration_s": tol.min_duration,
+        }
+    elif sel.method == "story":  # every ingredient of the run, for the record
+        from dataclasses import asdict
+
+        from .story import DEFAULT_STORY
+
+        options["story"] = asdict(pose_options.get("story") or DEFAULT_STORY)
+    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "story", "select")
+               if key in sel.timings_s}
     timings["pose"] = t1 - t0
     fields = {}
     if view:
