@@ -42,7 +42,7 @@ def story_interactions(scene, info):
     its joint is the contactor's lowest-numbered joint of the foot or hand when there is
     one (named in the JSON), else its first joint.
     """
-    from .contacts import GROUND, DEFAULT_TOLERANCES, Event, Interactions
+    from .contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
 
     events = []
     active = []
