@@ -1,0 +1,78 @@
+"""`snapshot select --json` gives the recorded frames, views and scores on every shared clip.
+
+The reference documents in ``tests/regression/select_outputs.json`` were recorded by
+``tests/regression/record_select.py`` on the commit they name, before snapcore was
+regrouped into layers; a refactoring that changes no result keeps them to the last bit
+(JSON keeps a float's shortest round-trip repr, so equality is exact).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+REFERENCE = json.loads((HERE / "regression" / "select_outputs.json").read_text())
+
+pytestmark = pytest.mark.slow
+
+
+def _diff(a, b, path="") -> list[str]:
+    """Paths where two JSON values differ (floats compared exactly, NaN == NaN)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = [f"{path}.{k}: missing" for k in a.keys() ^ b.keys()]
+        for k in a.keys() & b.keys():
+            out += _diff(a[k], b[k], f"{path}.{k}")
+        return out
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            return [f"{path}: length {len(a)} != {len(b)}"]
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _diff(x, y, f"{path}[{i}]")]
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return []
+    return [] if a == b else [f"{path}: {a!r} != {b!r}"]
+
+
+@pytest.fixture(scope="module")
+def outputs(motions_dir):
+    """Run every recorded case through the installed CLI, two at a time."""
+    exe = Path(sys.executable).with_name("snapshot")
+
+    def run(case):
+        cmd = [str(exe), "select", *[str(motions_dir / p) for p in case["paths"]],
+               *case["args"], "--json", "--pose-method", "paper"]
+        if "--pose-method" not in _select_help(exe):
+            cmd = cmd[:-2]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        assert res.returncode == 0, res.stderr
+        return json.loads(res.stdout)
+
+    names = list(REFERENCE["cases"])
+    with ThreadPoolExecutor(2) as pool:
+        docs = list(pool.map(run, [REFERENCE["cases"][n] for n in names]))
+    return dict(zip(names, docs))
+
+
+_HELP: dict[str, str] = {}
+
+
+def _select_help(exe) -> str:
+    if "help" not in _HELP:
+        _HELP["help"] = subprocess.run([str(exe), "select", "--help"], capture_output=True,
+                                       text=True).stdout
+    return _HELP["help"]
+
+
+@pytest.mark.parametrize("name", list(REFERENCE["cases"]))
+def test_select_matches_recording(outputs, name):
+    """Frames, top-k, pose-entropy curves, events, views and baseline scores are unchanged."""
+    want = REFERENCE["cases"][name]["output"]
+    got = {k: outputs[name][k] for k in want}
+    diffs = _diff(want, got)
+    assert not diffs, f"{name} differs from commit {REFERENCE['commit'][:10]}: " + "; ".join(diffs[:8])
