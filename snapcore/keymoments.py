@@ -180,8 +180,8 @@ def _read_json(p: Path, text: str) -> list[KeyMoments]:
         doc = json.loads(text)
     except json.JSONDecodeError as err:
         raise KeymomentsError(f"{p}:{err.lineno}: json: {err.msg}") from None
-    from .schema import validate
     from .errors import SchemaError
+    from .schema import validate
 
     try:
         validate(doc, "keymoments", source=str(p))

@@ -78,6 +78,9 @@ _KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot
               ("foot", "R"))
 #: Event-information models.
 EVENT_MODELS = ("surprisal", "entropy")
+#: A term whose range over the clip is below this many bits is constant: rounding in
+#: the smoothing of a still clip leaves ~1e-28 bits, which min-max would blow up.
+ZERO_BITS = 1e-9
 
 
 @dataclass(frozen=True)
@@ -630,6 +633,9 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
                 event_bits += contact_state_entropy(lc.state)
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
+    for bits in (pose_bits, event_bits):
+        if float(bits.max() - bits.min()) <= ZERO_BITS:
+            bits[:] = 0.0
     with warnings.catch_warnings():
         # a term that is switched off is constant by design: no warning for it
         if p.w_pose == 0 or p.w_event == 0:
