@@ -59,9 +59,9 @@ def story_interactions(scene, info):
 
 
 def _representative(character, joints) -> int:
-    from .body import joint_roles
+    from .story import _roles_sides
 
-    roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
+    roles = _roles_sides(character)[0]
     for want in ("foot", "hand", "head", "pelvis"):
         for j in joints:
             if roles[int(j)] == want:

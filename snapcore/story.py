@@ -47,6 +47,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -73,6 +74,12 @@ REFERENCE_STATURE_M = 1.70
 #: Roles (from :func:`snapcore.body.joint_roles`) that make up a leg and an arm.
 _LEG_ROLES = frozenset({"thigh", "shin", "foot", "toe"})
 _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
+#: Roles whose joints can bear weight: the distal parts of the limbs and the trunk. A
+#: thigh or upper arm is never a limb's lowest point while its knee or elbow is not,
+#: and finger joints lie within a few cm of the hand joint (leaving them out makes the
+#: contacts several times cheaper on skeletons with 30 finger joints).
+_CONTACT_ROLES = frozenset({"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine",
+                            "chest", "head"})
 #: Key joints of the pose descriptor: (role, side), the first joint of each found.
 _KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
               ("foot", "R"))
@@ -242,20 +249,17 @@ def limb_groups(character) -> tuple[list[str], list[np.ndarray]]:
     names : list of str
         ``legL``, ``legR``, ``armL``, ``armR``, ``trunk`` (those present).
     joints : list of ndarray of int
-        Joint indices of each. Hidden joints (a floor-level ``joint_Root``, eyes) belong
-        to none: they never touch anything. A sided pelvis joint (``LHipJoint``) goes
-        with its leg; an unsided joint of an arm or leg role (rare naming) goes to the
-        trunk.
+        Joint indices of each: the joints that can bear weight (shin, foot and toe;
+        forearm and hand; pelvis, spine, chest, head). Hidden joints (a floor-level
+        ``joint_Root``, eyes), fingers, thighs and upper arms belong to none. An
+        unsided joint of an arm or leg role (rare naming) goes to the trunk.
     """
-    from .body import joint_roles, joint_sides
-
-    roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
-    sides = joint_sides(character.joint_names)
+    roles, sides = _roles_sides(character)
     groups: dict[str, list[int]] = {}
     for j, (role, side) in enumerate(zip(roles, sides)):
-        if role == "hidden":
+        if role not in _CONTACT_ROLES:
             continue
-        if side and (role in _LEG_ROLES or role == "pelvis"):
+        if side and role in _LEG_ROLES:
             key = "leg" + side
         elif side and role in _ARM_ROLES:
             key = "arm" + side
@@ -406,10 +410,7 @@ def key_joints(character) -> np.ndarray:
     Falls back to the root and every end joint (a joint without children) when fewer
     than four are found by role.
     """
-    from .body import joint_roles, joint_sides
-
-    roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
-    sides = joint_sides(character.joint_names)
+    roles, sides = _roles_sides(character)
     out = []
     for role, side in _KEY_ROLES:
         for j, (r, s) in enumerate(zip(roles, sides)):
@@ -583,6 +584,19 @@ def temporal_support(values: np.ndarray, *, fps: float, support_s: float) -> np.
     k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
     k /= k.sum()
     return np.convolve(v, k)[r:r + v.size]
+
+
+def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Body role and side of each joint, read from the names (cached per skeleton)."""
+    return _roles_sides_of(tuple(character.joint_names),
+                           tuple(np.asarray(character.parents).tolist()))
+
+
+@lru_cache(maxsize=64)
+def _roles_sides_of(names: tuple, parents: tuple):
+    from .body import joint_roles, joint_sides
+
+    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
 
 
 def _stature(character) -> float:
