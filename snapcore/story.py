@@ -384,9 +384,14 @@ def debounced_contacts(character, *, ground: float, fps: float,
     if used.size == 0 or n_f < 2:
         return LimbContacts(names, joints, state)
     x = smooth_positions(character.positions[:, used], fps=fps, smooth_s=p.smooth_s)
-    h = (x[..., 1] - ground) / scale
-    v = np.sqrt(np.square(np.gradient(x, axis=0)).sum(-1)) * (fps / scale)
-    score = np.maximum(h / p.support_height, v / p.support_speed)  # (F, U)
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, U)
+    g = np.gradient(xc, axis=1)  # metres per frame
+    g *= g
+    v = np.sqrt(g[0] + g[1] + g[2])
+    v *= fps / (scale * p.support_speed)
+    h = xc[1] - ground
+    h /= scale * p.support_height
+    score = np.maximum(h, v)  # (F, U)
     col = {int(j): k for k, j in enumerate(used.tolist())}
     limb_score = np.stack([score[:, [col[int(j)] for j in js]].min(axis=1) for js in joints],
                           axis=1)  # (F, L)
@@ -448,11 +453,16 @@ def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0
     kj = key_joints(character)
     stature = _stature(character)
     x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
-    heights = (x[..., 1] - ground) / stature
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, K): reductions over 3 unrolled
     a, b = np.triu_indices(kj.size, 1)
-    d = x[:, a] - x[:, b]
-    dist = np.sqrt(np.square(d).sum(-1)) / stature
-    return np.concatenate([heights, dist], axis=1)
+    d = xc[:, :, a] - xc[:, :, b]  # (3, F, P)
+    d *= d
+    dist = np.sqrt(d[0] + d[1] + d[2])
+    out = np.empty((x.shape[0], kj.size + a.size))
+    out[:, :kj.size] = xc[1] - ground
+    out[:, kj.size:] = dist
+    out /= stature
+    return out
 
 
 def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
