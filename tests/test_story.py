@@ -105,12 +105,14 @@ def test_parameters_are_checked():
 
 
 def test_limb_groups_one_contactor_per_leg():
-    """The synthetic humanoid's foot and toe joints belong to one leg contactor."""
+    """The synthetic humanoid's knee, foot and toe joints make one leg contactor; the
+    thigh (never lower than the knee) and the other leg's joints are not in it."""
     scene = synth.synth_scene("walk", fps=30)
     names, joints = limb_groups(scene.characters[0])
     c = scene.characters[0]
     left = joints[names.index("legL")]
-    assert {c.joint_names[j] for j in left} >= {"LeftFoot", "LeftToeBase", "LeftUpLeg"}
+    assert {c.joint_names[j] for j in left} >= {"LeftLeg", "LeftFoot", "LeftToeBase"}
+    assert "LeftUpLeg" not in {c.joint_names[j] for j in left}
     assert not {c.joint_names[j] for j in joints[names.index("legR")]} & {"LeftFoot"}
 
 
