@@ -118,7 +118,7 @@ class _Context:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                self.snapshots[sid] = take_snapshot(self.scene(sid))
+                self.snapshots[sid] = take_snapshot(self.scene(sid), pose_method="paper")
         return self.snapshots[sid]
 
     def log(self, text):
@@ -215,7 +215,7 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
         for _ in range(repeats):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                snap = take(sc)
+                snap = take(sc, pose_method="paper")
             for k, v in _timings(snap).items():
                 times[k].append(v)
         p = paper.loc[sid] if sid in paper.index else None

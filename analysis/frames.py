@@ -91,6 +91,9 @@ class SceneFrames:
         Motion-derived baselines, name → source frame (``fastest``, ...).
     label : str or None
         Display name.
+    selector_frames : dict
+        Every pose selector's top-k source frames, name → list (``story``, ``paper``,
+        ``stretch``...; from the stimuli manifest's ``picks.by_method``), may be empty.
     """
 
     scene: str
@@ -101,6 +104,7 @@ class SceneFrames:
     algorithm_frames: tuple = ()
     baseline_frames: dict = field(default_factory=dict)
     label: str | None = None
+    selector_frames: dict = field(default_factory=dict)
 
     @property
     def frames(self) -> np.ndarray:
@@ -230,6 +234,9 @@ def baselines_from_stimuli(manifest, *, loader=None) -> dict:
         sid = entry["id"]
         picks = entry.get("picks") or {}
         info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
+        if picks.get("by_method"):
+            info["selector_frames"] = {m: [int(f) for f in fs]
+                                       for m, fs in picks["by_method"].items() if fs}
         if entry.get("title"):
             info["label"] = entry["title"]
         try:
@@ -327,6 +334,69 @@ def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
             row[f"hit_{t:g}s_low"] = row[f"hit_{t:g}s_high"] = np.nan
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float = 0.5
+                       ) -> pd.DataFrame:
+    """How well every pose selector's top pick agrees with the people's chosen frames.
+
+    Parameters
+    ----------
+    pose : DataFrame
+        Pose-task rows (``scene``, ``chosen_frame``).
+    scenes : dict
+        scene → :class:`SceneFrames` with ``selector_frames``.
+    tolerance_s : float
+        A choice agrees with a pick within ±``tolerance_s`` seconds.
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``selector``, ``frame`` (its top pick), ``n`` (choices), ``hit``
+        (fraction of choices within the tolerance), ``hit_low``/``hit_high`` (Wilson 95%),
+        ``median_abs_error_s``; then rows with ``scene == "ALL"``: the mean hit rate and
+        the median distance over every choice, per selector. Empty when no scene has
+        selector picks.
+    """
+    rows, pooled = [], {}
+    for scene, info in scenes.items():
+        if not info.selector_frames:
+            continue
+        c = pose.loc[pose["scene"] == scene, "chosen_frame"].to_numpy(dtype=float)
+        if c.size == 0:
+            continue
+        for name, fs in info.selector_frames.items():
+            d = np.abs(c - fs[0]) / info.fps
+            k = int((d <= tolerance_s + 1e-9).sum())
+            lo, hi = wilson_interval(k, c.size)
+            rows.append({"scene": scene, "selector": name, "frame": int(fs[0]), "n": int(c.size),
+                         "hit": k / c.size, "hit_low": float(lo), "hit_high": float(hi),
+                         "median_abs_error_s": float(np.median(d))})
+            pooled.setdefault(name, []).append(d)
+    for name, ds in pooled.items():
+        d = np.concatenate(ds)
+        k = int((d <= tolerance_s + 1e-9).sum())
+        lo, hi = wilson_interval(k, d.size)
+        rows.append({"scene": "ALL", "selector": name, "frame": -1, "n": int(d.size),
+                     "hit": k / d.size, "hit_low": float(lo), "hit_high": float(hi),
+                     "median_abs_error_s": float(np.median(d))})
+    return pd.DataFrame(rows, columns=["scene", "selector", "frame", "n", "hit", "hit_low",
+                                       "hit_high", "median_abs_error_s"])
+
+
+def selector_timeline_document(pose: pd.DataFrame, scenes: dict) -> dict | None:
+    """The scenes with selector picks in the layout of a key-moment evaluation document
+    (no intervals), for :func:`snapcore.render.keymoments_plot.plot_keymoment_timelines`."""
+    sc = [(s, i) for s, i in scenes.items() if i.selector_frames]
+    if not sc:
+        return None
+    methods = list(dict.fromkeys(m for _, i in sc for m in i.selector_frames))
+    return {"widen_s": 0.0, "methods": methods,
+            "scenes": [{"scene": s, "fps": i.fps, "first_frame": i.frame_offset,
+                        "last_frame": i.frame_offset + i.n_frames - 1, "intervals": []}
+                       for s, i in sc],
+            "rows": [{"scene": s, "method": m, "frames": fs} for s, i in sc
+                     for m, fs in i.selector_frames.items()]}
 
 
 def _sign_flip_p(d, *, n_permutations, rng):

@@ -332,7 +332,36 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
     summary = {"frames": algo[["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s",
                                "hit_1s"]].to_dict(orient="records"),
                "frame_verdict": verdict}
+    sections += _selector_section(pose, out, scenes=scenes)
     return sections, summary
+
+
+def _selector_section(pose, out, *, scenes):
+    """Every pose selector against the people's choices (when the manifest has them)."""
+    agree = fr.selector_agreement(pose, scenes)
+    if agree.empty:
+        return []
+    write_table(agree, out / "tables" / "selector_agreement",
+                caption="Each pose selector's top pick against the people's chosen frames: "
+                        "share of choices within ±0.5 s (Wilson 95%) and median distance.")
+    overall = agree[agree["scene"] == "ALL"].sort_values(["hit", "median_abs_error_s"],
+                                                          ascending=[False, True])
+    best = overall.iloc[0]
+    text = (f"Across scenes, the selector whose pick agrees with people best is "
+            f"{best['selector']}: {100 * best['hit']:.0f}% of choices within ±0.5 s "
+            f"(median distance {best['median_abs_error_s']:.2f} s).")
+    parts = [text, overall.round(3)]
+    doc = fr.selector_timeline_document(pose, scenes)
+    if doc is not None:
+        from snapcore.render.keymoments_plot import plot_keymoment_timelines
+
+        from .plots import save_figure
+
+        extra = {s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist()
+                 for s in scenes}
+        parts.insert(0, save_figure(plot_keymoment_timelines(doc, extra=extra),
+                                    out / "figures" / "selector_timeline")[0])
+    return [("Poses: which selector agrees with people?", parts)]
 
 
 _METHODS_TEXT = (

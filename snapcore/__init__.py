@@ -18,7 +18,8 @@ from snapcore.render.renderer import render_depth, render_face_ids, render_still
 from snapcore.render.video import render_video
 from snapcore.select.contacts import ContactTolerances, Interactions, detect_interactions
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
-from snapcore.select.pose import PoseEntropy, PoseSelection, pose_entropy, select_pose
+from snapcore.select.pose import PoseEntropy, PoseSelection, pose_entropy
+from snapcore.select.pose_methods import POSE_METHODS, select_pose
 from snapcore.select.view import ViewSelection, pma_scores, select_view
 
 __version__ = "0.1.0"
@@ -31,6 +32,7 @@ __all__ = [
     "Interactions",
     "PoseEntropy",
     "PosedMesh",
+    "POSE_METHODS",
     "PoseSelection",
     "Scene",
     "SceneBody",

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,9 @@ import numpy as np
 from snapcore.errors import SnapshotError
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.methods import ViewMethod
-from snapcore.select.pose import MIN_SEPARATION_S, PoseSelection, select_pose
+from snapcore.select.pose import MIN_SEPARATION_S, PoseSelection
+from snapcore.select.pose_methods import select_pose
+from snapcore.select.story import DEFAULT_STORY
 from snapcore.select.view import (
     MA_FLOOR_M2,
     ViewSelection,
@@ -234,6 +236,7 @@ class Snapshot:
             "frame": src(self.pose.frame),
             "time_s": round(self.pose.frame / fps, 6),
             "frames": [src(i) for i in self.pose.frames],
+            "pose_method": self.pose.method,
             "peaks": peaks,
             "pose_entropy": {
                 "first_frame": src(0),
@@ -268,14 +271,18 @@ def _jsonable(value):
     return value
 
 
-def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                  view: bool = True, window_s: float | None = None, baselines: bool = True,
+def take_snapshot(scene, *, pose_method: str | None = None, k: int = 3,
+                  min_separation_s: float = MIN_SEPARATION_S, view: bool = True,
+                  window_s: float | None = None, baselines: bool = True,
                   n_views: int = 2562, **pose_options) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
     scene : Scene
+    pose_method : str, optional
+        The pose selector (:data:`snapcore.select.pose_methods.POSE_METHODS`); default
+        ``"story"``; ``"paper"`` for the paper's pose entropy.
     k : int
         Number of distinct top poses to keep.
     min_separation_s : float
@@ -290,7 +297,7 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
     n_views : int
         Samples of the view sphere.
     **pose_options
-        Passed to :func:`snapcore.select.pose.select_pose` (``w_local``, ``w_global``,
+        Passed to :func:`snapcore.select.pose_methods.select_pose` (``w_local``, ``w_global``,
         ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``).
 
     Returns
@@ -298,22 +305,27 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
     Snapshot
     """
     t0 = time.perf_counter()
-    sel = select_pose(scene, k=k, min_separation_s=min_separation_s, **pose_options)
+    sel = select_pose(scene, method=pose_method, k=k, min_separation_s=min_separation_s,
+                      **pose_options)
     t1 = time.perf_counter()
-    options = {"k": int(k), "min_separation_s": float(min_separation_s)}
+    options = {"pose_method": sel.method, "k": int(k), "min_separation_s": float(min_separation_s)}
     for name, value in pose_options.items():
-        if name in ("tolerances", "interactions"):
+        if name in ("tolerances", "interactions", "story"):
             continue
         options[name] = value
     tol = sel.entropy.interactions.tolerances
-    options["contact_tolerances"] = {
-        "ground_distance_m": tol.ground_distance,
-        "body_distance_m": tol.body_distance,
-        "prop_distance_m": tol.prop_distance,
-        "displacement_m": tol.displacement,
-        "min_duration_s": tol.min_duration,
-    }
-    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "select")}
+    if sel.method == "paper":
+        options["contact_tolerances"] = {
+            "ground_distance_m": tol.ground_distance,
+            "body_distance_m": tol.body_distance,
+            "prop_distance_m": tol.prop_distance,
+            "displacement_m": tol.displacement,
+            "min_duration_s": tol.min_duration,
+        }
+    elif sel.method == "story":  # every ingredient of the run, for the record
+        options["story"] = asdict(pose_options.get("story") or DEFAULT_STORY)
+    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "story", "select")
+               if key in sel.timings_s}
     timings["pose"] = t1 - t0
     snap = Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
     if view:

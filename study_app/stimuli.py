@@ -324,7 +324,9 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     Returns
     -------
     (picks, timings) : tuple of dict
-        ``picks``: ``frame`` and ``frames`` (source numbering), ``view`` (ours),
+        ``picks``: ``frame`` and ``frames`` (source numbering) of the config's pose
+        method (``selection.pose_method``, named in ``pose_method``), every selector's
+        top-3 in ``by_method``, ``view`` (ours),
         ``viewpoint_entropy`` and ``motion_area`` (unit vectors, world frame).
         ``timings``: seconds per stage of the selection.
     """
@@ -332,7 +334,8 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
 
     snap = take_snapshot(scene, **(options or {}))
     d = snap.to_dict()
-    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d["frames"]]}
+    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d["frames"]],
+             "pose_method": d["pose_method"], "by_method": _picks_by_method(scene)}
     base = d.get("baselines") or {}
     missing = [m for m in ("view", "viewpoint_entropy", "motion_area")
                if (d if m == "view" else base).get(m) is None]
@@ -344,6 +347,23 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
         picks[m] = _unit(base[m]["view"])
     timings = {k: float(v) for k, v in (d.get("timings_s") or {}).items()}
     return picks, timings
+
+
+def _picks_by_method(scene, k: int = 3) -> dict:
+    """Every pose selector's top-k frames (source numbering), for the analysis to
+    compare with what people choose."""
+    import warnings
+
+    from snapcore import select_pose
+    from snapcore.select.pose_methods import POSE_METHODS
+
+    out = {}
+    for m in POSE_METHODS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sel = select_pose(scene, method=m, k=k)
+        out[m] = [int(scene.source_frame(f)) for f in sel.frames]
+    return out
 
 
 def _unit(v) -> list[float]:

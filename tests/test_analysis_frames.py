@@ -152,3 +152,28 @@ def test_disagreeing_rows_warn():
     with pytest.warns(UserWarning, match="disagree on algorithm_frame"):
         s = fr.scene_frames_from_rows(pose)
     assert s["a"].algorithm_frame == 10
+
+
+def test_selector_agreement_and_timeline(tmp_path):
+    """Every selector's top pick against people's choices: hit rate within ±0.5 s and
+    median distance per scene and over all; the report section writes the table and the
+    timeline figure."""
+    from analysis.report import _selector_section
+
+    info = fr.SceneFrames(scene="kick", fps=10.0, n_frames=100, algorithm_frame=50,
+                          selector_frames={"story": [50, 20], "middle": [49], "paper": [90]})
+    pose = pd.DataFrame({"scene": "kick", "participant_id": ["a", "b", "c", "d"],
+                         "chosen_frame": [48, 52, 56, 80]})
+    agree = fr.selector_agreement(pose, {"kick": info})
+    row = agree[(agree["scene"] == "kick") & (agree["selector"] == "story")].iloc[0]
+    # |48-50|, |52-50| <= 5 frames (0.5 s); 56 and 80 are not
+    assert row["hit"] == 0.5 and row["median_abs_error_s"] == pytest.approx(0.4)
+    paper = agree[(agree["scene"] == "ALL") & (agree["selector"] == "paper")].iloc[0]
+    assert paper["hit"] == 0 and paper["n"] == 4
+    (tmp_path / "tables").mkdir()
+    (tmp_path / "figures").mkdir()
+    sections = _selector_section(pose, tmp_path, scenes={"kick": info})
+    # ties on hit rate go to the smaller median distance: story (0.4 s) over middle (0.5 s)
+    assert sections and "best is story" in sections[0][1][1]
+    assert (tmp_path / "figures" / "selector_timeline.png").exists()
+    assert list((tmp_path / "tables").glob("selector_agreement.*"))

@@ -34,10 +34,10 @@ from snapcore.select.pose import (
     minmax,
     pose_entropy,
     rotation_change,
-    select_pose,
     smooth_positions,
     top_peaks,
 )
+from snapcore.select.pose_methods import select_pose
 
 SALSA_PAIRS = [("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
                ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh")]
@@ -179,7 +179,7 @@ def test_static_clip_gives_a_defined_result_with_a_warning(motions_dir):
         setattr(c, name, np.repeat(getattr(c, name), n, axis=0))
     scene = Scene([c], fps=c.fps, ground=float(c.positions[..., 1].min()))
     with pytest.warns(UserWarning) as caught:
-        sel = select_pose(scene, k=3)
+        sel = select_pose(scene, method="paper", k=3)
     messages = " | ".join(str(w.message) for w in caught)
     assert "static" in messages and "constant" in messages
     ent = sel.entropy
@@ -203,7 +203,7 @@ def test_one_sharp_reversal_is_where_the_pose_entropy_peaks():
     c = _chain_character(root, _spin(n, 0.02), fps=fps)
     scene = Scene([c], fps=fps, ground=-5.0)
     with pytest.warns(UserWarning, match="global"):  # no events anywhere
-        sel = select_pose(scene, k=2)
+        sel = select_pose(scene, method="paper", k=2)
     assert sel.frame == turn
     assert np.argmax(sel.entropy.local) == turn
 
@@ -261,8 +261,8 @@ def test_top_peaks_are_distinct_local_maxima():
 def test_weights_steer_the_choice(motions_dir):
     """w_global = 0 picks the local maximum; w_local = 0 the global maximum."""
     scene = _load(motions_dir / "dance" / "05_06.bvh")
-    only_local = _quiet(select_pose, scene, w_global=0.0)
-    only_global = _quiet(select_pose, scene, w_local=0.0)
+    only_local = _quiet(select_pose, scene, method="paper", w_global=0.0)
+    only_global = _quiet(select_pose, scene, method="paper", w_local=0.0)
     assert only_local.frame == int(np.argmax(only_local.entropy.local))
     assert only_global.frame == int(np.argmax(only_global.entropy.global_))
     assert only_local.frame != only_global.frame
@@ -296,10 +296,10 @@ def test_choice_is_invariant_to_yaw_translation_and_units(motions_dir):
     """Rotating the scene about the vertical, moving it, or changing its unit (metres
     to centimetres to inches) leaves the selected frames unchanged."""
     for scene in _invariance_scenes(motions_dir):
-        base = _quiet(select_pose, scene)
+        base = _quiet(select_pose, scene, method="paper")
         for kw in ({"yaw_deg": 37.0}, {"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
                    {"scale": 100.0}, {"scale": 1 / 0.0254, "yaw_deg": 90.0}):
-            moved = _quiet(select_pose, scene.transformed(**kw))
+            moved = _quiet(select_pose, scene.transformed(**kw), method="paper")
             assert moved.frames == base.frames, (scene.name, kw)
             np.testing.assert_allclose(moved.entropy.total, base.entropy.total, atol=1e-6)
 
@@ -473,7 +473,7 @@ def test_fast_equals_loop_reference_on_every_shared_clip(motions_dir, all_bvh):
     checked = 0
     for label, paths, fps in _shared_scenes(motions_dir):
         scene = _load(paths, fps=fps)
-        sel = _quiet(select_pose, scene, k=3)
+        sel = _quiet(select_pose, scene, method="paper", k=3)
         local, glob, total, frames = reference_pose_entropy(scene)
         ent = sel.entropy
         np.testing.assert_allclose(ent.local, local, atol=1e-9, err_msg=label)

@@ -28,13 +28,15 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
     """--json: schema-valid; frames, peaks and events are source frame numbers
     (02_03 has an added T-pose frame, so internal i is source i + 1)."""
     path = motions_dir / "walk_run" / "02_03.bvh"
-    result = _run(["select", str(path), "--json", "-k", "2", "--no-view"])
+    result = _run(["select", str(path), "--json", "-k", "2", "--no-view", "--pose-method",
+                   "paper"])
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     validate(doc, "snapshot")
+    assert doc["pose_method"] == "paper"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(load_scene(path), k=2, view=False)
+        snap = take_snapshot(load_scene(path), pose_method="paper", k=2, view=False)
     assert doc["frame_offset"] == 1 and doc["n_frames"] == 173 and doc["fps"] == 120
     assert doc["frame"] == snap.index + 1 == snap.frame
     assert doc["frames"] == [i + 1 for i in snap.indices] and len(doc["frames"]) == 2
@@ -54,11 +56,13 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
 def test_select_options_reach_the_method(motions_dir):
     """--w-global 0 selects the local maximum; --events state changes the global term."""
     path = str(motions_dir / "dance" / "05_06.bvh")
-    doc = json.loads(_run(["select", path, "--json", "--no-view", "--w-global", "0"]).stdout)
+    paper = ["--pose-method", "paper"]
+    doc = json.loads(_run(["select", path, "--json", "--no-view", "--w-global", "0", *paper]).stdout)
     local = np.array(doc["pose_entropy"]["local"])
     assert doc["frame"] == int(np.argmax(local)) + doc["frame_offset"]
-    trans = json.loads(_run(["select", path, "--json", "--no-view"]).stdout)
-    state = json.loads(_run(["select", path, "--json", "--no-view", "--events", "state"]).stdout)
+    trans = json.loads(_run(["select", path, "--json", "--no-view", *paper]).stdout)
+    state = json.loads(_run(["select", path, "--json", "--no-view", "--events", "state",
+                             *paper]).stdout)
     assert state["pose_entropy"]["events_mode"] == "state"
     assert state["pose_entropy"]["global"] != trans["pose_entropy"]["global"]
     sep = json.loads(_run(["select", path, "--json", "--no-view", "-k", "3",

@@ -232,7 +232,7 @@ def test_view_stills_share_one_background(tmp_path):
 
 def test_build_warnings_name_their_scene(tmp_path):
     """A warning raised while one scene is built (the demo punch has no contact events,
-    so its global term is constant) says which scene it is about."""
+    so the default story selector's event term is constant) says which scene it is about."""
     (tmp_path / "one.toml").write_text('[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
                                        'size = [96, 72]\n\n[[scenes]]\nid = "punch"\n'
                                        'demo = "punch"\n')
@@ -240,4 +240,4 @@ def test_build_warnings_name_their_scene(tmp_path):
     r = subprocess.run([snapshot, "stimuli", "build", "one.toml", "-o", "stim", "-q"],
                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert "warning: scene punch: global pose entropy" in r.stderr
+    assert "warning: scene punch: story event information" in r.stderr

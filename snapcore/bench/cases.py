@@ -94,17 +94,25 @@ def _pose_scene(ctx: BenchContext, n_frames: int | None = POSE_FRAMES):
     return ctx.cache[key]
 
 
-def _select(scene):
+def _select(scene, method="paper"):
     import warnings
 
-    from snapcore.select.pose import select_pose
+    from snapcore.select.pose_methods import select_pose
 
     def work():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the salsa unit is fitted, which warns
-            return select_pose(scene, k=3)
+            return select_pose(scene, method=method, k=3)
 
     return work
+
+
+@case(f"pose selection (story, the default) salsa pair ({POSE_FRAMES} frames)", target_ms=20.0,
+      note="snapcore.select.story: pose surprisal + debounced limb contacts + event surprisal, "
+           "temporal support, top-3")
+def _story_salsa(ctx: BenchContext):
+    scene = _pose_scene(ctx)
+    return None if scene is None else _select(scene, "story")
 
 
 @case(f"pose selection salsa pair ({POSE_FRAMES} frames, 2x57 joints)", target_ms=20.0,

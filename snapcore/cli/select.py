@@ -21,7 +21,16 @@ __all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "f
 
 def pose_options(f):
     """Decorate a command with the pose-selection options."""
+    from snapcore.select.pose_methods import DEFAULT_POSE_METHOD, POSE_METHODS
+
     opts = [
+        click.option("--pose-method", "pose_method", type=click.Choice(POSE_METHODS),
+                     default=DEFAULT_POSE_METHOD, show_default=True,
+                     help="Pose selector: 'story' (story information: pose surprisal + "
+                          "debounced contact events), 'paper' (the paper's pose entropy; "
+                          "use it to reproduce the paper), or a baseline (stretch, fastest, "
+                          "middle, random, salient). --w-local/--w-global/--events/--smooth "
+                          "apply to 'paper' only."),
         click.option("-k", "k", type=click.IntRange(min=1), default=3, show_default=True,
                      help="How many distinct top poses to report."),
         click.option("--min-separation", "min_separation", type=FiniteFloatRange(min=0.0),
@@ -44,15 +53,25 @@ def pose_options(f):
     return f
 
 
-def snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth, *,
-                          view=False, window=None, baselines=True):
+def snapshot_from_options(scene, pose_method, k, min_separation, w_local, w_global, events,
+                          smooth, *, view=False, window=None, baselines=True):
     """Run :func:`snapcore.pipeline.take_snapshot` with the command's options
-    (the view stage only with ``view=True``)."""
+    (the view stage only with ``view=True``). The paper's options are passed to the
+    ``paper`` method only; set to anything but their defaults with another method they
+    are refused (one line, exit 2)."""
     from snapcore.pipeline import take_snapshot
 
-    return take_snapshot(scene, k=k, min_separation_s=min_separation, w_local=w_local,
-                         w_global=w_global, events=events, smooth_s=smooth, view=view,
-                         window_s=window, baselines=baselines)
+    paper = {"w_local": w_local, "w_global": w_global, "events": events, "smooth_s": smooth}
+    if pose_method != "paper":
+        defaults = {"w_local": 1.0, "w_global": 1.0, "events": "transitions", "smooth_s": SMOOTH_S}
+        changed = [k for k, v in paper.items() if v != defaults[k]]
+        if changed:
+            flags = ", ".join("--" + k.replace("_s", "").replace("_", "-") for k in changed)
+            raise click.BadParameter(f"{flags} apply to --pose-method paper only, not "
+                                     f"{pose_method}", param_hint="--pose-method")
+        paper = {}
+    return take_snapshot(scene, pose_method=pose_method, k=k, min_separation_s=min_separation,
+                         view=view, window_s=window, baselines=baselines, **paper)
 
 
 def format_snapshot(doc: dict) -> list[str]:
@@ -66,6 +85,9 @@ def format_snapshot(doc: dict) -> list[str]:
         f"(source frames {first}..{last})",
     ]
     top = doc["peaks"][0]
+    lines.append(f"method      {doc.get('pose_method', 'paper')}"
+                 + ("  (the paper's pose entropy)" if doc.get("pose_method") == "paper" else
+                    "  (--pose-method paper: the paper's pose entropy)"))
     lines.append(f"pose        frame {doc['frame']}  (t = {doc['time_s']:.2f} s)  "
                  f"entropy {top['total']:.3f} = local {top['local']:.3f} + "
                  f"global {top['global']:.3f}")
@@ -129,13 +151,16 @@ def _format_view(doc: dict) -> list[str]:
 @click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), default=None,
               callback=output_callback(),
               help="Also write the JSON document to this file (not one of the inputs).")
-def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, window,
-           no_baselines, no_view, as_json, output):
+def select(paths, fps, scale, pose_method, k, min_separation, w_local, w_global, events, smooth,
+           window, no_baselines, no_view, as_json, output):
     """Select the most informative pose and view of a scene (paper sections 3.1-3.2).
 
     PATH is one or more BVH files (several = one multi-character scene sharing a
     world frame) or a scene manifest (.toml/.json). Frame numbers are the source
-    file's, 0-based. Without --json a summary is printed: the pose, the top-k table,
+    file's, 0-based. The pose comes from --pose-method (default 'story', story
+    information; '--pose-method paper' gives the paper's pose entropy, as the paper's
+    figures and study do); the JSON names it in "pose_method". Without --json a
+    summary is printed: the pose, the top-k table,
     interaction events per character and object, the view (Projected Motion Area,
     refined) with the two baseline views, and timings. Views are unit vectors from
     the scene centre to the camera (world frame, Y up).
@@ -146,8 +171,9 @@ def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smoo
     """
     refuse_inputs(paths, **{"-o/--output": output})
     scene = scene_from_options(paths, fps, scale)
-    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth,
-                                 view=not no_view, window=window, baselines=not no_baselines)
+    snap = snapshot_from_options(scene, pose_method, k, min_separation, w_local, w_global, events,
+                                 smooth, view=not no_view, window=window,
+                                 baselines=not no_baselines)
     doc = snap.to_dict()
     from snapcore.schema import validate
 
@@ -173,8 +199,8 @@ def select(paths, fps, scale, k, min_separation, w_local, w_global, events, smoo
 @click.option("--strip", type=click.IntRange(min=0), default=8, show_default=True,
               help="Evenly spaced poses in the film strip besides the top-k (0: top-k only).")
 @click.option("--dpi", type=click.IntRange(min=30), default=120, show_default=True)
-def plot_entropy(paths, fps, scale, k, min_separation, w_local, w_global, events, smooth, output,
-                 strip, dpi):
+def plot_entropy(paths, fps, scale, pose_method, k, min_separation, w_local, w_global, events,
+                 smooth, output, strip, dpi):
     """Plot pose entropy over time with events and the chosen poses (paper Fig. 5-6).
 
     Top: local, global and total pose entropy over time, the top-k peaks marked;
@@ -183,7 +209,8 @@ def plot_entropy(paths, fps, scale, k, min_separation, w_local, w_global, events
     the top-k poses drawn bold.
     """
     scene = scene_from_options(paths, fps, scale)
-    snap = snapshot_from_options(scene, k, min_separation, w_local, w_global, events, smooth)
+    snap = snapshot_from_options(scene, pose_method, k, min_separation, w_local, w_global, events,
+                                 smooth)
     from snapcore.render.entropy_plot import plot_entropy as draw
 
     fig = draw(snap, strip=strip)

@@ -53,9 +53,13 @@ def plot_curves(snapshot, *, axes=None):
     ax_terms, ax_total = axes
     ent = snapshot.pose.entropy
     t = np.arange(ent.n_frames) / ent.fps
-    ax_terms.plot(t, ent.local, color=_TERM_COLOURS["local"], lw=1.0, label="local $H^*_{local}$")
+    # the story selector fills the same fields with its pose and (debounced) event terms
+    story = getattr(snapshot.pose, "method", "paper") == "story"
+    names = (("pose $I^*_{pose}$", "events $I^*_{event}$ (debounced)", "story information")
+             if story else ("local $H^*_{local}$", "global $H^*_{global}$", "pose entropy $H$"))
+    ax_terms.plot(t, ent.local, color=_TERM_COLOURS["local"], lw=1.0, label=names[0])
     ax_terms.plot(t, ent.global_, color=_TERM_COLOURS["global"], lw=1.0, alpha=0.9,
-                  label="global $H^*_{global}$")
+                  label=names[1])
     ax_terms.set_ylabel("normalised\nentropy")
     ax_terms.set_ylim(-0.03, 1.08)
     ax_terms.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
@@ -64,7 +68,7 @@ def plot_curves(snapshot, *, axes=None):
                   label=f"total $H$\n($w_{{local}}$ = {w_l:g}, $w_{{global}}$ = {w_g:g})")
     top = max(float(ent.total.max()), 1e-9)
     ax_total.set_ylim(-0.03 * top, 1.45 * top)  # room above the curve for the peak labels
-    ax_total.set_ylabel("pose entropy $H$")
+    ax_total.set_ylabel(names[2])
     for rank, i in enumerate(snapshot.indices, start=1):
         for ax in (ax_terms, ax_total):
             ax.axvline(t[i], color="#c0392b", lw=0.8, ls="--", alpha=0.8, zorder=0)

@@ -9,8 +9,9 @@
 """
 
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
-from snapcore.select.pose import PoseSelection, select_pose
+from snapcore.select.pose import PoseSelection
+from snapcore.select.pose_methods import POSE_METHODS, select_pose
 from snapcore.select.view import ViewSelection, select_view
 
-__all__ = ["PoseSelection", "VIEW_METHODS", "ViewMethod", "ViewSelection", "select_pose",
+__all__ = ["POSE_METHODS", "PoseSelection", "VIEW_METHODS", "ViewMethod", "ViewSelection", "select_pose",
            "select_view"]

@@ -61,7 +61,7 @@ __all__ = [
     "minmax",
     "top_peaks",
     "pose_entropy",
-    "select_pose",
+    "select_pose_paper",
 ]
 
 #: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
@@ -149,6 +149,8 @@ class PoseSelection:
     min_separation_s : float
     timings_s : dict
         Seconds: ``contacts``, ``local``, ``global``, ``select``, ``total``.
+    method : str
+        The selector that ran (:data:`snapcore.select.pose_methods.POSE_METHODS`).
     """
 
     frame: int
@@ -156,6 +158,7 @@ class PoseSelection:
     entropy: PoseEntropy
     min_separation_s: float
     timings_s: dict = field(default_factory=dict)
+    method: str = "paper"
 
 
 # ----------------------------------------------------------------------- local term
@@ -630,9 +633,12 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
                        events_mode=events, fps=float(scene.fps), timings_s=timings)
 
 
-def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                **options) -> PoseSelection:
-    """The most informative pose of ``scene`` and the top-k distinct runners-up.
+def select_pose_paper(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
+                      **options) -> PoseSelection:
+    """The paper's most informative pose of ``scene`` and the top-k distinct runners-up.
+
+    This is the ``paper`` method of :func:`snapcore.select.pose_methods.select_pose`
+    (which checks ``k`` and ``min_separation_s``): the top-k peaks of :func:`pose_entropy`.
 
     Parameters
     ----------
@@ -656,10 +662,6 @@ def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S
         When the total entropy is constant (e.g. a static clip): the first frame is
         returned, a defined but arbitrary choice.
     """
-    if int(k) != k or k < 1:
-        raise ValueError(f"k must be a positive integer, got {k}")
-    if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
-        raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
     t0 = time.perf_counter()
     entropy = pose_entropy(scene, **options)
     t1 = time.perf_counter()
@@ -669,7 +671,7 @@ def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S
     frames = top_peaks(total, int(k), min_separation=sep)
     if constant:
         warnings.warn("pose entropy is the same at every frame (static clip?); "
-                      "choosing the first frame", stacklevel=2)
+                      "choosing the first frame", stacklevel=3)
     t2 = time.perf_counter()
     timings = dict(entropy.timings_s)
     timings["select"] = t2 - t1

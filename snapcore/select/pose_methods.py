@@ -1,0 +1,216 @@
+"""Named pose selectors behind one interface (``select_pose(scene, method=...)``).
+
+Methods, each returning the same :class:`~snapcore.select.pose.PoseSelection`:
+
+- ``story`` (the default): story information, :mod:`snapcore.select.story`;
+- ``paper``: the paper's pose entropy as METHOD §1 reads it, :mod:`snapcore.select.pose`,
+  unchanged (what the paper's figures and study conditions use);
+- baselines from :mod:`snapcore.select.pose_baselines`: ``stretch``, ``fastest``, ``middle``,
+  ``random`` (seeded), ``salient``.
+
+For methods other than ``paper`` the selection's ``entropy`` field holds the method's
+per-frame score in the :class:`~snapcore.select.pose.PoseEntropy` layout so every consumer
+(the JSON document, the plots) works unchanged: ``total`` is the score, ``local`` and
+``global_`` its two terms for ``story`` (pose and event information) and the
+normalised score and zeros for the baselines; ``interactions`` holds the debounced
+limb contacts for ``story`` and none for the baselines.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
+from snapcore.select.pose import (
+    MIN_SEPARATION_S,
+    PoseEntropy,
+    PoseSelection,
+    minmax,
+    select_pose_paper,
+    top_peaks,
+)
+from snapcore.select.pose_baselines import (
+    middle_frames,
+    random_frames,
+    salient_frames,
+    speed_score,
+    stretch_score,
+)
+from snapcore.select.story import DEFAULT_STORY, _roles_sides, story_information
+
+__all__ = ["POSE_METHODS", "DEFAULT_POSE_METHOD", "PAPER_OPTIONS", "select_pose",
+           "run_pose_method", "story_interactions"]
+
+#: Every selector, the default first.
+POSE_METHODS = ("story", "paper", "stretch", "fastest", "middle", "random", "salient")
+#: What ``select_pose`` and ``snapshot select`` use unless told otherwise.
+DEFAULT_POSE_METHOD = "story"
+#: Options that only the ``paper`` method takes.
+PAPER_OPTIONS = ("w_local", "w_global", "events", "smooth_s", "rest_speed", "tolerances",
+                 "interactions")
+
+
+def story_interactions(scene, info):
+    """The story selector's debounced limb contacts as an ``Interactions`` record.
+
+    One :class:`~snapcore.select.contacts.Event` per contact of a contactor with the ground;
+    its joint is the contactor's lowest-numbered joint of the foot or hand when there is
+    one (named in the JSON), else its first joint.
+    """
+    events = []
+    active = []
+    for ci, (c, lc) in enumerate(zip(scene.characters, info.contacts)):
+        act = np.zeros((scene.n_frames, c.n_joints), dtype=bool)
+        for li, js in enumerate(lc.joints):
+            j = int(_representative(c, js))
+            for s, e in lc.intervals(li):
+                events.append(Event(ci, j, GROUND, int(s), int(e)))
+                act[s:e + 1, js] = True
+        active.append(act)
+    return Interactions(events, active, [GROUND], scene.n_frames, float(scene.fps),
+                        DEFAULT_TOLERANCES)
+
+
+def _representative(character, joints) -> int:
+    roles = _roles_sides(character)[0]
+    for want in ("foot", "hand", "head", "pelvis"):
+        for j in joints:
+            if roles[int(j)] == want:
+                return int(j)
+    return int(joints[0])
+
+
+def _empty_interactions(scene):
+    return Interactions([], [np.zeros((scene.n_frames, c.n_joints), dtype=bool)
+                             for c in scene.characters], [], scene.n_frames, float(scene.fps),
+                        DEFAULT_TOLERANCES)
+
+
+def _selection(scene, method, frames, *, total, local, glob, interactions, k, sep_s,
+               timings, weights=(1.0, 0.0)):
+    ent = PoseEntropy(local=local, global_=glob, total=total,
+                      local_by_character=local[None, :].copy(),
+                      global_by_character=glob[None, :].copy(),
+                      information=np.zeros((scene.n_characters, scene.n_frames)),
+                      interactions=interactions, weights=weights, events_mode="transitions",
+                      fps=float(scene.fps), timings_s=dict(timings))
+    return PoseSelection(frame=int(frames[0]), frames=[int(f) for f in frames[:k]],
+                         entropy=ent, min_separation_s=float(sep_s), timings_s=timings,
+                         method=method)
+
+
+def select_pose(scene, *, method: str | None = None, k: int = 3,
+                min_separation_s: float = MIN_SEPARATION_S, **options) -> PoseSelection:
+    """The most informative pose of ``scene`` by a named selector, and the top-k runners-up.
+
+    Parameters
+    ----------
+    scene : Scene
+    method : str, optional
+        One of :data:`POSE_METHODS`; default :data:`DEFAULT_POSE_METHOD` (``"story"``,
+        story information). ``"paper"`` is the paper's pose entropy
+        (:func:`snapcore.select.pose.select_pose_paper`), unchanged.
+    k : int
+        How many distinct peaks to return (at least 1).
+    min_separation_s : float
+        Minimum time (s) between two returned poses.
+    **options
+        ``paper``: passed to :func:`~snapcore.select.pose.pose_entropy` (``w_local``,
+        ``w_global``, ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``,
+        ``interactions``); ``story``: ``story`` (a
+        :class:`~snapcore.select.story.StoryParameters`); ``random``: ``seed``.
+
+    Returns
+    -------
+    PoseSelection
+        Frames are internal indices; report ``scene.source_frame(frame)``.
+
+    Warns
+    -----
+    UserWarning
+        When the method's score is constant (e.g. a static clip): the first frame is
+        returned, a defined but arbitrary choice.
+    """
+    if int(k) != k or k < 1:
+        raise ValueError(f"k must be a positive integer, got {k}")
+    if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
+        raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
+    method = DEFAULT_POSE_METHOD if method is None else method
+    if method == "paper":
+        return select_pose_paper(scene, k=int(k), min_separation_s=min_separation_s, **options)
+    return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s, **options)
+
+
+def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float = 0.3,
+                    story=None, seed: int = 0, **options):
+    """Run the named selector (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    method : str
+        One of :data:`POSE_METHODS` other than ``paper`` (which
+        :func:`select_pose` runs through :func:`~snapcore.select.pose.select_pose_paper`).
+    k : int
+    min_separation_s : float
+    story : StoryParameters, optional
+        For ``story``.
+    seed : int
+        For ``random``.
+    **options
+        Paper-only options (:data:`PAPER_OPTIONS`) are refused with a ``ValueError``.
+
+    Returns
+    -------
+    PoseSelection
+    """
+    if method not in POSE_METHODS or method == "paper":
+        raise ValueError(f"method must be one of {', '.join(POSE_METHODS)}, got {method!r}")
+    if options:
+        raise ValueError(f"option(s) {', '.join(sorted(options))} apply to the 'paper' pose "
+                         f"method only, not {method!r}")
+    t0 = time.perf_counter()
+    n_f, fps = scene.n_frames, float(scene.fps)
+    sep = int(round(min_separation_s * fps))
+    zeros = np.zeros(n_f)
+    if method == "story":
+        params = DEFAULT_STORY if story is None else story
+        info = story_information(scene, params)
+        total = info.total
+        frames = top_peaks(total, int(k), min_separation=sep)
+        if not float(total.max()) > float(total.min()):
+            warnings.warn("story information is the same at every frame (static clip?); "
+                          "choosing the first frame", stacklevel=3)
+        t1 = time.perf_counter()
+        timings = {"story": info.timings_s["story"], "select": t1 - t0 - info.timings_s["story"],
+                   "total": t1 - t0}
+        return _selection(scene, method, frames, total=total, local=info.pose, glob=info.event,
+                          interactions=story_interactions(scene, info), k=k,
+                          sep_s=min_separation_s, timings=timings,
+                          weights=(params.w_pose, params.w_event))
+    if method in ("stretch", "fastest"):
+        raw = stretch_score(scene) if method == "stretch" else speed_score(scene)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            score = minmax(raw)
+        if not float(raw.max()) > float(raw.min()):
+            warnings.warn(f"the {method} score is the same at every frame (static clip?); "
+                          "choosing the first frame", stacklevel=3)
+        frames = top_peaks(score, int(k), min_separation=sep)
+    else:
+        if method == "middle":
+            frames = middle_frames(n_f, int(k))
+        elif method == "random":
+            frames = random_frames(n_f, int(k), seed=seed, min_separation=sep)
+        else:
+            frames = salient_frames(scene, int(k))
+        score = zeros.copy()
+        score[frames] = np.linspace(1.0, 0.5, len(frames)) if len(frames) > 1 else 1.0
+    t1 = time.perf_counter()
+    timings = {"select": t1 - t0, "total": t1 - t0}
+    return _selection(scene, method, frames, total=score, local=score, glob=zeros,
+                      interactions=_empty_interactions(scene), k=k, sep_s=min_separation_s,
+                      timings=timings)

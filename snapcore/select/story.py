@@ -1,0 +1,673 @@
+"""Story information: the default pose selector, a repair of pose entropy (paper §3.1).
+
+The paper's pose entropy (:mod:`snapcore.pose`, method ``paper``) often lands on a
+footfall beside the action: contact events flicker (dozens of onsets and releases per
+clip, every ankle, toe and toe-end joint its own event), each event frame gets the
+normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
+hold ~37 % of the time (feet) instead of rare ones. This module keeps the paper's
+structure -- the information of a frame is a local (pose) term plus a global (event)
+term, each min-max normalised and summed with weights (eq. 8-9), the pose is the argmax
+-- and measures both terms as *surprisal* (self-information, eq. 1: ``I = -log2 P``):
+
+1. **Pose information** (the local term; "extreme poses" of §3.1.1): the surprisal of
+   the frame's pose under a Gaussian model of all the clip's poses,
+   ``I_pose(i) = 1/2 (x_i - mu)^T S^-1 (x_i - mu) / ln 2`` bits (the log-normaliser is
+   the same for every frame and dropped). ``x_i`` describes the pose by quantities that
+   do not change under yaw, translation or a change of unit: the heights above the
+   ground of six key joints (head, pelvis, hands, feet) and their pairwise distances,
+   divided by the character's stature. ``S`` is the sample covariance shrunk towards
+   a multiple of the identity and widened by the capture noise (well posed for short
+   clips).
+2. **Event information** (the global term, §3.1.2): contacts with the ground are
+   *debounced* per limb -- one leg (foot and toes, a kneeling knee), one arm or the
+   trunk is one contact, whatever of its joints touch -- with hysteresis on height and
+   speed and minimum durations for a contact and for a gap. Each onset and each
+   release is an event; an event of a kind (limb, onset or release) that happens
+   ``n`` times in ``F`` frames carries ``-log2(n / F)`` bits (rare events, a two-foot
+   take-off, carry most). Its information is given *temporal support* on the side where
+   the limb is free: a release credits the frames after it (the swing, the flight it
+   opens), an onset the frames before it (the approach it closes), with a half-Gaussian
+   of width ``event_support_s``.
+3. **Combination**: both terms min-max normalised (eq. 9), weighted, summed, then
+   averaged over a Gaussian window of ``support_s`` with nothing outside the clip (a
+   frame whose surroundings the clip does not show has less support). The pose is the
+   argmax; the top-k are distinct peaks (:func:`snapcore.pose.top_peaks`).
+
+Every ingredient can be switched off or replaced for ablation through
+:class:`StoryParameters`. Everything is vectorised over frames and joints; the Python
+loops run over characters and limbs (at most five per character).
+
+References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
+the motion); Roberts, Mantiuk et al. 2019 (*Salient Poses*); Shannon's self-information.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
+
+import numpy as np
+
+__all__ = [
+    "StoryParameters",
+    "DEFAULT_STORY",
+    "StoryInformation",
+    "LimbContacts",
+    "limb_groups",
+    "hysteresis",
+    "enforce_min_durations",
+    "debounced_contacts",
+    "key_joints",
+    "pose_descriptor",
+    "pose_surprisal",
+    "event_surprisal",
+    "contact_state_entropy",
+    "temporal_support",
+    "story_information",
+]
+
+#: Stature (m) the length thresholds are given for; they scale with the character.
+REFERENCE_STATURE_M = 1.70
+#: Roles (from :func:`snapcore.body.joint_roles`) that make up a leg and an arm.
+_LEG_ROLES = frozenset({"thigh", "shin", "foot", "toe"})
+_ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
+#: Roles whose joints can bear weight: the distal parts of the limbs and the trunk. A
+#: thigh or upper arm is never a limb's lowest point while its knee or elbow is not,
+#: and finger joints lie within a few cm of the hand joint (leaving them out makes the
+#: contacts several times cheaper on skeletons with 30 finger joints).
+_CONTACT_ROLES = frozenset({"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine",
+                            "chest", "head"})
+#: Key joints of the pose descriptor: (role, side), the first joint of each found.
+_KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
+              ("foot", "R"))
+#: Event-information models.
+EVENT_MODELS = ("surprisal", "entropy")
+#: A term whose range over the clip is below this many bits is constant: rounding in
+#: the smoothing of a still clip leaves ~1e-28 bits, which min-max would blow up.
+ZERO_BITS = 1e-9
+
+
+@dataclass(frozen=True)
+class StoryParameters:
+    """Every choice of the story selector, with the switches used for ablation.
+
+    Lengths are metres for a person of :data:`REFERENCE_STATURE_M` and scale with the
+    character's stature; durations are seconds and do not depend on the frame rate.
+
+    Attributes
+    ----------
+    w_pose, w_event : float
+        Weights of the normalised pose and event terms (eq. 9); 0 switches a term off.
+    smooth_s : float
+        Savitzky-Golay window (s) for the joint trajectories (capture jitter).
+    support_height, release_height : float
+        Hysteresis on height above the ground (m): a limb comes into contact when one
+        of its joints is at most ``support_height`` up *and* slower than
+        ``support_speed``; it leaves when every joint is above ``release_height`` or
+        faster than ``release_speed``. Joints are bone centres: a standing ankle is
+        7-12 cm up, a toe end 0-5 cm.
+    support_speed, release_speed : float
+        The same on joint speed (m/s): a planted foot moves < 0.5 m/s, a swinging one
+        2-5 m/s.
+    min_contact_s, min_gap_s : float
+        Minimum durations (s): gaps shorter than ``min_gap_s`` inside a contact are
+        closed first (a heel lifting while the toes stay down), then contacts shorter
+        than ``min_contact_s`` are dropped (a swing foot brushing the floor).
+    debounce : bool
+        False: no hysteresis (release thresholds equal the support ones) and no
+        minimum durations -- the flickering contacts of the failure analysis.
+    per_limb : bool
+        False: every joint is its own contactor (the paper's per-joint events).
+    event_model : {"surprisal", "entropy"}
+        ``"surprisal"``: an event of a kind seen ``n`` times carries ``-log2(n/F)``
+        bits. ``"entropy"``: the paper's ``-p log2 p`` of the contactor's contact
+        probability (eq. 6-7), for comparison.
+    event_support_s : float
+        Width (s) of the half-Gaussian that spreads an event's information over the
+        frames where the limb is free; 0: the event frame only.
+    sided_support : bool
+        False: spread symmetrically around the event.
+    shrinkage : float
+        Weight in [0, 1] of ``tr(S)/d * I`` in the pose covariance (0: sample
+        covariance; 1: isotropic).
+    noise : float
+        Capture noise (m), added as ``noise^2 I`` (in stature units) to the covariance.
+    support_s : float
+        Width (s) of the Gaussian that averages the total over time; 0: none.
+    """
+
+    w_pose: float = 1.0
+    w_event: float = 1.0
+    smooth_s: float = 0.05
+    support_height: float = 0.10
+    release_height: float = 0.15
+    support_speed: float = 0.8
+    release_speed: float = 1.5
+    min_contact_s: float = 0.1
+    min_gap_s: float = 0.1
+    debounce: bool = True
+    per_limb: bool = True
+    event_model: str = "surprisal"
+    event_support_s: float = 0.2
+    sided_support: bool = True
+    shrinkage: float = 0.5
+    noise: float = 0.02
+    support_s: float = 0.1
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or isinstance(v, str):
+                continue
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, "
+                                 f"got {v}")
+        if self.event_model not in EVENT_MODELS:
+            raise ValueError(f"StoryParameters.event_model must be one of "
+                             f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}")
+        if not self.shrinkage <= 1:
+            raise ValueError(f"StoryParameters.shrinkage must be in [0, 1], got {self.shrinkage}")
+        if self.release_height < self.support_height or self.release_speed < self.support_speed:
+            raise ValueError("StoryParameters: release thresholds must not be below the "
+                             "support thresholds (hysteresis)")
+        if self.w_pose + self.w_event <= 0:
+            raise ValueError("StoryParameters: at least one of w_pose, w_event must be > 0")
+
+    def with_(self, **changes) -> StoryParameters:
+        """A copy with ``changes`` (for ablation)."""
+        return replace(self, **changes)
+
+
+#: The defaults of ``snapshot select``.
+DEFAULT_STORY = StoryParameters()
+
+
+@dataclass
+class LimbContacts:
+    """Debounced ground contacts of one character.
+
+    Attributes
+    ----------
+    names : list of str
+        Contactor names (``"legL"``, ``"armR"``, ``"trunk"``, or joint names when
+        ``per_limb`` is off).
+    joints : list of ndarray of int
+        The joints of each contactor.
+    state : ndarray of bool, shape (L, F)
+        In contact with the ground.
+    """
+
+    names: list[str]
+    joints: list[np.ndarray]
+    state: np.ndarray
+
+    def intervals(self, limb: int) -> list[tuple[int, int]]:
+        """Contacts of contactor ``limb`` as ``(start, end)`` frames, ``end`` inclusive."""
+        s, e = _runs(self.state[limb])
+        return list(zip(s.tolist(), (e - 1).tolist()))
+
+
+@dataclass
+class StoryInformation:
+    """Per-frame story information of a scene.
+
+    Attributes
+    ----------
+    pose_bits, event_bits : ndarray of shape (F,)
+        The two terms before normalisation (bits), summed over characters.
+    pose, event : ndarray of shape (F,)
+        The terms min-max normalised to [0, 1].
+    total : ndarray of shape (F,)
+        ``w_pose * pose + w_event * event``, after temporal support.
+    contacts : list of LimbContacts
+        Per character.
+    params : StoryParameters
+    timings_s : dict
+    """
+
+    pose_bits: np.ndarray
+    event_bits: np.ndarray
+    pose: np.ndarray
+    event: np.ndarray
+    total: np.ndarray
+    contacts: list[LimbContacts]
+    params: StoryParameters
+    timings_s: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------- contacts
+
+
+def limb_groups(character) -> tuple[list[str], list[np.ndarray]]:
+    """Contactors of a character: each leg, each arm and the trunk, by joint roles.
+
+    Returns
+    -------
+    names : list of str
+        ``legL``, ``legR``, ``armL``, ``armR``, ``trunk`` (those present).
+    joints : list of ndarray of int
+        Joint indices of each: the joints that can bear weight (shin, foot and toe;
+        forearm and hand; pelvis, spine, chest, head). Hidden joints (a floor-level
+        ``joint_Root``, eyes), fingers, thighs and upper arms belong to none. An
+        unsided joint of an arm or leg role (rare naming) goes to the trunk.
+    """
+    roles, sides = _roles_sides(character)
+    groups: dict[str, list[int]] = {}
+    for j, (role, side) in enumerate(zip(roles, sides)):
+        if role not in _CONTACT_ROLES:
+            continue
+        if side and role in _LEG_ROLES:
+            key = "leg" + side
+        elif side and role in _ARM_ROLES:
+            key = "arm" + side
+        else:
+            key = "trunk"
+        groups.setdefault(key, []).append(j)
+    order = ["legL", "legR", "armL", "armR", "trunk"]
+    names = [n for n in order if n in groups]
+    return names, [np.asarray(groups[n], dtype=np.int64) for n in names]
+
+
+def hysteresis(score: np.ndarray, on: float, off: float) -> np.ndarray:
+    """Two-threshold switch along the first axis.
+
+    Parameters
+    ----------
+    score : ndarray of shape (F, ...)
+        Low means "in contact".
+    on, off : float
+        The state switches on where ``score <= on`` and off where ``score > off``
+        (``off >= on``); in between it keeps its previous value. It starts off.
+
+    Returns
+    -------
+    ndarray of bool, the shape of ``score``
+
+    Notes
+    -----
+    Vectorised: the state at frame i is the one set by the last frame ``<= i`` where
+    the score was outside the band, found with a running maximum of indices.
+    """
+    s = np.asarray(score, dtype=float)
+    n = s.shape[0]
+    decided = (s <= on) | (s > off)
+    idx = np.where(decided, np.arange(n).reshape((n,) + (1,) * (s.ndim - 1)), -1)
+    last = np.maximum.accumulate(idx, axis=0)
+    val = np.take_along_axis(s <= on, np.maximum(last, 0), axis=0)
+    return val & (last >= 0)
+
+
+def _runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops (exclusive) of the True runs of a 1-D bool array."""
+    d = np.diff(np.r_[0, np.asarray(b, dtype=np.int8), 0])
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def _set_runs(b: np.ndarray, starts, stops, value: bool) -> None:
+    """``b[s:e] = value`` for every run, without a Python loop over the runs."""
+    lengths = stops - starts
+    if lengths.size == 0 or lengths.sum() == 0:
+        return
+    idx = np.repeat(starts - np.cumsum(np.r_[0, lengths[:-1]]), lengths) + np.arange(lengths.sum())
+    b[idx] = value
+
+
+def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.ndarray:
+    """Close short gaps, then drop short contacts, of a 1-D contact signal.
+
+    Parameters
+    ----------
+    state : ndarray of bool, shape (F,)
+    min_on, min_off : int
+        Minimum contact and gap lengths (frames).
+
+    Returns
+    -------
+    ndarray of bool, shape (F,)
+        Gaps inside the clip shorter than ``min_off`` are filled (a gap touching a clip
+        edge is left: what lies beyond is unknown); then contacts shorter than
+        ``min_on`` are removed. Afterwards no contact is shorter than ``min_on`` and no
+        interior gap shorter than ``min_off`` unless removing a short contact opened
+        it next to a clip edge.
+    """
+    b = np.asarray(state, dtype=bool).copy()
+    n = b.size
+    s, e = _runs(~b)
+    short = (e - s < min_off) & (s > 0) & (e < n)
+    _set_runs(b, s[short], e[short], True)
+    s, e = _runs(b)
+    short = e - s < min_on
+    _set_runs(b, s[short], e[short], False)
+    return b
+
+
+def debounced_contacts(character, *, ground: float, fps: float,
+                       params: StoryParameters = DEFAULT_STORY) -> LimbContacts:
+    """Ground contacts of one character, one per limb, debounced.
+
+    Parameters
+    ----------
+    character : Character
+    ground : float
+        Height of the ground plane (m, world Y).
+    fps : float
+    params : StoryParameters
+
+    Returns
+    -------
+    LimbContacts
+
+    Notes
+    -----
+    For joint j: ``s_j = max(h_j / h_on, v_j / v_on)`` with ``h_j`` its height above the
+    ground and ``v_j`` its speed (smoothed trajectories), both in units of the
+    character's stature over :data:`REFERENCE_STATURE_M`; ``s_j <= 1`` means the joint
+    can bear weight. A limb's score is the minimum over its joints (any joint of the
+    foot will do), and :func:`hysteresis` switches it on at 1 and off above
+    ``min(h_off / h_on, v_off / v_on)``. Then :func:`enforce_min_durations`.
+    """
+    from snapcore.select.pose import smooth_positions
+
+    p = params
+    scale = _stature(character) / REFERENCE_STATURE_M
+    if p.per_limb:
+        names, joints = limb_groups(character)
+    else:
+        names = list(character.joint_names)
+        joints = [np.array([j]) for j in range(character.n_joints)]
+    used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)
+    n_f = character.n_frames
+    state = np.zeros((len(names), n_f), dtype=bool)
+    if used.size == 0 or n_f < 2:
+        return LimbContacts(names, joints, state)
+    x = smooth_positions(character.positions[:, used], fps=fps, smooth_s=p.smooth_s)
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, U)
+    g = np.gradient(xc, axis=1)  # metres per frame
+    g *= g
+    v = np.sqrt(g[0] + g[1] + g[2])
+    v *= fps / (scale * p.support_speed)
+    h = xc[1] - ground
+    h /= scale * p.support_height
+    score = np.maximum(h, v)  # (F, U)
+    col = {int(j): k for k, j in enumerate(used.tolist())}
+    limb_score = np.stack([score[:, [col[int(j)] for j in js]].min(axis=1) for js in joints],
+                          axis=1)  # (F, L)
+    off = min(p.release_height / p.support_height, p.release_speed / p.support_speed)
+    if not p.debounce:
+        off = 1.0
+    on = hysteresis(limb_score, 1.0, off).T
+    if p.debounce:
+        m_on = max(1, int(round(p.min_contact_s * fps)))
+        m_off = max(1, int(round(p.min_gap_s * fps)))
+        on = np.stack([enforce_min_durations(row, m_on, m_off) for row in on])
+    return LimbContacts(names, joints, on)
+
+
+# ----------------------------------------------------------------------- pose term
+
+
+def key_joints(character) -> np.ndarray:
+    """Head, pelvis, left/right hand and foot joints (those found), shape (K,).
+
+    Falls back to the root and every end joint (a joint without children) when fewer
+    than four are found by role.
+    """
+    roles, sides = _roles_sides(character)
+    out = []
+    for role, side in _KEY_ROLES:
+        for j, (r, s) in enumerate(zip(roles, sides)):
+            if r == role and s == side:
+                out.append(j)
+                break
+    if len(out) < 4:
+        parents = np.asarray(character.parents)
+        leaves = np.setdiff1d(np.arange(parents.size), parents[parents >= 0])
+        out = sorted({int(np.flatnonzero(parents < 0)[0]), *leaves.tolist()})
+    return np.asarray(out, dtype=np.int64)
+
+
+def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05
+                    ) -> np.ndarray:
+    """Pose of every frame as quantities invariant to yaw, translation and unit.
+
+    Parameters
+    ----------
+    character : Character
+    ground : float
+        Ground height (m).
+    fps : float
+    smooth_s : float
+        Savitzky-Golay window (s) of the trajectories.
+
+    Returns
+    -------
+    ndarray of shape (F, K + K (K - 1) / 2)
+        Heights of the K :func:`key_joints` above the ground, then their pairwise
+        distances, all divided by the character's stature (dimensionless).
+    """
+    from snapcore.select.pose import smooth_positions
+
+    kj = key_joints(character)
+    stature = _stature(character)
+    x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, K): reductions over 3 unrolled
+    a, b = np.triu_indices(kj.size, 1)
+    d = xc[:, :, a] - xc[:, :, b]  # (3, F, P)
+    d *= d
+    dist = np.sqrt(d[0] + d[1] + d[2])
+    out = np.empty((x.shape[0], kj.size + a.size))
+    out[:, :kj.size] = xc[1] - ground
+    out[:, kj.size:] = dist
+    out /= stature
+    return out
+
+
+def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
+                   ) -> np.ndarray:
+    """Self-information (bits) of each frame's pose under a Gaussian of the clip's poses.
+
+    Parameters
+    ----------
+    features : ndarray of shape (F, D)
+        Pose descriptors (:func:`pose_descriptor`).
+    shrinkage : float
+        In [0, 1]: covariance ``(1 - a) S + a tr(S)/D I`` (Ledoit-Wolf style
+        regularisation: a short clip cannot estimate D(D+1)/2 covariances).
+    noise : float
+        Standard deviation of capture noise in descriptor units, added as
+        ``noise^2 I``: differences below it carry no information, and a static clip
+        has a defined, constant surprisal of 0.
+
+    Returns
+    -------
+    ndarray of shape (F,)
+        ``I(i) = 1/2 (x_i - mu)^T C^-1 (x_i - mu) / ln 2``, the Gaussian's ``-log2 p``
+        up to a constant that is the same for every frame.
+    """
+    x = np.asarray(features, dtype=float)
+    n_f, d = x.shape
+    z = x - x.mean(axis=0)
+    cov = (z.T @ z) / max(n_f - 1, 1)
+    cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise ** 2) * np.eye(d)
+    # Cholesky: C = L L^T, m^2 = |L^-1 z|^2 (stable, no explicit inverse)
+    chol = np.linalg.cholesky(cov)
+    w = np.linalg.solve(chol, z.T)
+    return 0.5 * np.square(w).sum(axis=0) / math.log(2.0)
+
+
+# ----------------------------------------------------------------------- event term
+
+
+def _half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
+    """Kernel (peak 1 at offset 0) over offsets -r..r and r; one-sided: offsets >= 0."""
+    if sigma_frames <= 0:
+        return np.ones(1), 0
+    r = int(math.ceil(3 * sigma_frames))
+    off = np.arange(-r, r + 1)
+    k = np.exp(-0.5 * (off / sigma_frames) ** 2)
+    if sided:
+        k = np.where(off >= 0, k, 0.0)
+    return k, r
+
+
+def event_surprisal(state: np.ndarray, *, fps: float, support_s: float = 0.2,
+                    sided: bool = True) -> np.ndarray:
+    """Information (bits) of the contact events, with temporal support, shape (F,).
+
+    Parameters
+    ----------
+    state : ndarray of bool, shape (L, F)
+        Debounced contacts per contactor.
+    fps : float
+    support_s : float
+        Width (s) of the spreading kernel; 0: only the event frame.
+    sided : bool
+        Release events credit the frames after them, onsets the frames before them
+        (where the limb is free); False: both sides.
+
+    Notes
+    -----
+    Onset of contactor l at frame t: ``state[l, t]`` and not ``state[l, t-1]``; release
+    at t: the first free frame. A contact running at a clip edge has no onset or release
+    there (the clip cut it). For each (contactor, kind) with ``n`` events in ``F``
+    frames, ``P = n / F`` is the probability that a frame carries such an event and
+    each one carries ``-log2 P`` bits. Events of one frame add; the spread signal is
+    ``sum_e I_e K(i - t_e)`` with ``K`` a (half-)Gaussian of peak 1.
+    """
+    st = np.asarray(state, dtype=bool)
+    n_l, n_f = st.shape
+    onset = np.zeros(n_f)
+    release = np.zeros(n_f)
+    if n_f < 2 or n_l == 0:
+        return onset
+    d = np.diff(st.astype(np.int8), axis=1)  # (L, F-1): +1 onset at t+1, -1 release at t+1
+    for kind, out in ((1, onset), (-1, release)):
+        hit = d == kind
+        n = hit.sum(axis=1)  # events per contactor
+        bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
+        out[1:] += (hit * bits[:, None]).sum(axis=0)
+    kernel, r = _half_gaussian(support_s * fps, sided)
+    if r == 0:
+        return onset + release
+    # np.convolve(x, k)[i + r] = sum_t x[t] k[i - t + r]: kernel index r + (i - t), so the
+    # "after" kernel (offsets >= 0) credits frames i >= t, its mirror frames i <= t
+    after = np.convolve(release, kernel)[r:r + n_f]
+    before = np.convolve(onset, kernel[::-1])[r:r + n_f]
+    return after + before
+
+
+def contact_state_entropy(state: np.ndarray) -> np.ndarray:
+    """The paper's event entropy on debounced contacts, for ablation, shape (F,).
+
+    ``-p_l log2 p_l`` (``p_l``: fraction of frames contactor l touches, eq. 6) at each
+    onset and release frame of l (eq. 7, transitions mode).
+    """
+    st = np.asarray(state, dtype=bool)
+    n_l, n_f = st.shape
+    out = np.zeros(n_f)
+    if n_f < 2 or n_l == 0:
+        return out
+    p = st.mean(axis=1)
+    h = np.where(p > 0, -p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+    mark = np.diff(st.astype(np.int8), axis=1) != 0
+    out[1:] = (mark * h[:, None]).sum(axis=0)
+    return out
+
+
+# ----------------------------------------------------------------------- combination
+
+
+def temporal_support(values: np.ndarray, *, fps: float, support_s: float) -> np.ndarray:
+    """Gaussian-weighted average over ``support_s`` seconds, zero beyond the clip, (F,).
+
+    Near a clip edge part of the window lies outside the clip, where there is no
+    information: a pose the clip shows only one side of gets less support.
+    """
+    v = np.asarray(values, dtype=float)
+    sigma = support_s * fps
+    if sigma <= 0 or v.size == 0:
+        return v.copy()
+    r = int(math.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    return np.convolve(v, k)[r:r + v.size]
+
+
+def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Body role and side of each joint, read from the names (cached per skeleton)."""
+    return _roles_sides_of(tuple(character.joint_names),
+                           tuple(np.asarray(character.parents).tolist()))
+
+
+@lru_cache(maxsize=64)
+def _roles_sides_of(names: tuple, parents: tuple):
+    from snapcore.motion.anatomy import joint_roles, joint_sides
+
+    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
+
+
+def _stature(character) -> float:
+    h = float(character.height)
+    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
+
+
+def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryInformation:
+    """Per-frame story information of ``scene`` (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    params : StoryParameters
+
+    Returns
+    -------
+    StoryInformation
+
+    Warns
+    -----
+    UserWarning
+        When a term is constant over the clip (a static clip, no contact events): it
+        contributes 0 (:func:`snapcore.pose.minmax`).
+    """
+    from snapcore.select.pose import minmax
+
+    p = params
+    t0 = time.perf_counter()
+    n_f, fps = scene.n_frames, float(scene.fps)
+    pose_bits = np.zeros(n_f)
+    event_bits = np.zeros(n_f)
+    contacts = []
+    t_pose = t_event = 0.0
+    for c in scene.characters:
+        ta = time.perf_counter()
+        if p.w_pose > 0:
+            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s)
+            pose_bits += pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
+        tb = time.perf_counter()
+        lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
+        contacts.append(lc)
+        if p.w_event > 0:
+            if p.event_model == "surprisal":
+                event_bits += event_surprisal(lc.state, fps=fps, support_s=p.event_support_s,
+                                              sided=p.sided_support)
+            else:
+                event_bits += contact_state_entropy(lc.state)
+        t_pose += tb - ta
+        t_event += time.perf_counter() - tb
+    for bits in (pose_bits, event_bits):
+        if float(bits.max() - bits.min()) <= ZERO_BITS:
+            bits[:] = 0.0
+    with warnings.catch_warnings():
+        # a term that is switched off is constant by design: no warning for it
+        if p.w_pose == 0 or p.w_event == 0:
+            warnings.simplefilter("ignore")
+        pose = minmax(pose_bits, name="story pose information") if p.w_pose > 0 else pose_bits * 0
+        event = (minmax(event_bits, name="story event information (no contact events)")
+                 if p.w_event > 0 else event_bits * 0)
+    total = temporal_support(p.w_pose * pose + p.w_event * event, fps=fps, support_s=p.support_s)
+    timings = {"pose_term": t_pose, "contacts_events": t_event,
+               "story": time.perf_counter() - t0}
+    return StoryInformation(pose_bits, event_bits, pose, event, total, contacts, p, timings)
