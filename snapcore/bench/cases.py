@@ -8,7 +8,21 @@ entropy (162 views, 75k faces) under 5 s; relief 1024² to STL under 2 s.
 
 from __future__ import annotations
 
+from snapcore._memory import tune_allocator
 from snapcore.bench.registry import BenchContext, case
+from snapcore.motion.load import load_scene
+from snapcore.motion.synth import humanoid_document, synth_scene
+from snapcore.relief.height_field import ReliefParams, height_from_depth, relief_from_height_field
+from snapcore.relief.scene import height_field_from_scene
+from snapcore.render.body import posed_mesh
+from snapcore.render.camera import default_view, fit_camera, motion_points
+from snapcore.render.renderer import SceneRenderer, render_depth, render_face_ids
+from snapcore.render.video import render_video
+from snapcore.render.viewpoint_entropy import select_view_entropy
+from snapcore.select.contacts import detect_interactions
+from snapcore.select.pose import local_information
+from snapcore.select.pose_methods import select_pose
+from snapcore.select.view import motion_triangles, select_view
 
 # ----------------------------------------------------------------- motion core
 
@@ -21,7 +35,6 @@ def _parse_fk_pair(ctx: BenchContext):
         return None
     import warnings
 
-    from snapcore.motion.load import load_scene
 
     def work():
         with warnings.catch_warnings():
@@ -38,7 +51,6 @@ def _parse_fk_boxing(ctx: BenchContext):
         return None
     import warnings
 
-    from snapcore.motion.load import load_scene
 
     def work():
         with warnings.catch_warnings():
@@ -54,16 +66,12 @@ def _parse_fk_boxing(ctx: BenchContext):
 @case("synth walk document (3 s at 30 fps)", target_ms=50.0,
       note="procedural humanoid: keyframes, leg IK, Euler conversion")
 def _synth_walk(ctx: BenchContext):
-    from snapcore.motion.synth import humanoid_document
-
     return lambda: humanoid_document("walk")
 
 
 @case("synth push scene (2 characters, 3 s at 30 fps)", target_ms=50.0,
       note="two documents (pusher's arms solved onto the other's chest) + FK")
 def _synth_push(ctx: BenchContext):
-    from snapcore.motion.synth import synth_scene
-
     return lambda: synth_scene("push")
 
 
@@ -82,8 +90,6 @@ def _pose_scene(ctx: BenchContext, n_frames: int | None = POSE_FRAMES):
     """The salsa pair (its first ``n_frames``; None: all), with the allocator tuned as
     the ``snapshot`` command does (:func:`snapcore._memory.tune_allocator`; a no-op
     when already done)."""
-    from snapcore._memory import tune_allocator
-
     tune_allocator()
     scene = ctx.salsa()
     if scene is None or n_frames is None:
@@ -97,7 +103,6 @@ def _pose_scene(ctx: BenchContext, n_frames: int | None = POSE_FRAMES):
 def _select(scene, method="paper"):
     import warnings
 
-    from snapcore.select.pose_methods import select_pose
 
     def work():
         with warnings.catch_warnings():
@@ -128,7 +133,6 @@ def _contacts_salsa(ctx: BenchContext):
     scene = _pose_scene(ctx)
     if scene is None:
         return None
-    from snapcore.select.contacts import detect_interactions
 
     return lambda: detect_interactions(scene)
 
@@ -138,7 +142,6 @@ def _local_salsa(ctx: BenchContext):
     scene = _pose_scene(ctx)
     if scene is None:
         return None
-    from snapcore.select.pose import local_information
 
     return lambda: [local_information(c) for c in scene.characters]
 
@@ -159,7 +162,6 @@ def _view_pma_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
         return None
-    from snapcore.select.view import select_view
 
     return lambda: select_view(scene)
 
@@ -170,7 +172,6 @@ def _view_ma_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
         return None
-    from snapcore.select.view import motion_triangles, select_view
 
     tri = motion_triangles(scene)
     return lambda: select_view(scene, method="motion_area", triangles=tri)
@@ -188,9 +189,6 @@ def _view_entropy_75k(ctx: BenchContext):
     import numpy as np
     import trimesh
 
-    from snapcore.motion.load import load_scene
-    from snapcore.render.body import posed_mesh
-    from snapcore.render.viewpoint_entropy import select_view_entropy
 
     m = posed_mesh(load_scene(p), 900)
     v, f = trimesh.remesh.subdivide(m.vertices, m.faces)
@@ -217,7 +215,6 @@ def _salsa_75k_mesh(ctx: BenchContext):
     import numpy as np
     import trimesh
 
-    from snapcore.render.body import posed_mesh
 
     m = posed_mesh(scene, 900)
     v, f = trimesh.remesh.subdivide(m.vertices, m.faces)  # x4
@@ -234,7 +231,6 @@ def _render_face_ids_75k(ctx: BenchContext):
         return None
     import trimesh
 
-    from snapcore.render.renderer import render_face_ids
 
     views = trimesh.creation.icosphere(subdivisions=2).vertices  # 162 directions
     return lambda: render_face_ids(mesh[0], mesh[1], views, resolution=256)
@@ -245,8 +241,6 @@ def _render_depth_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
         return None
-    from snapcore.render.body import posed_mesh
-    from snapcore.render.renderer import render_depth
 
     m = posed_mesh(scene, 900)
     return lambda: render_depth(m.vertices, m.faces, [0.3, 0.2, 1.0], resolution=1024)
@@ -258,8 +252,6 @@ def _render_still_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
         return None
-    from snapcore.render.camera import default_view, fit_camera, motion_points
-    from snapcore.render.renderer import SceneRenderer
 
     sr = SceneRenderer(scene, size=(1280, 720))
     cam = fit_camera(motion_points(scene, body=sr.body), default_view(scene), size=(1280, 720))
@@ -279,7 +271,6 @@ def _video_case(ctx: BenchContext, n_frames: int):
     import tempfile
     from pathlib import Path
 
-    from snapcore.render.video import render_video
 
     out = Path(tempfile.mkdtemp(prefix="snapcore-bench-")) / "salsa.mp4"
     # the motion is 60 fps: a 60 fps video of n motion frames has n video frames
@@ -307,13 +298,10 @@ def _relief_height_field(ctx: BenchContext, resolution: int):
     or, without motion data or GL, a dome with bumps (synthetic, same size)."""
     import numpy as np
 
-    from snapcore.relief.height_field import ReliefParams, height_from_depth
 
     scene = ctx.salsa()
     if scene is not None:
         try:
-            from snapcore.relief.scene import height_field_from_scene
-
             dm = height_field_from_scene(scene, 900 - scene.frame_offset, (0.3, 0.2, 1.0),
                                          params=ReliefParams(resolution=resolution))
             h, m = height_from_depth(dm.depth)
@@ -334,7 +322,6 @@ def _relief_1024(ctx: BenchContext):
     import os
     import tempfile
 
-    from snapcore.relief.height_field import ReliefParams, relief_from_height_field
 
     h, m, px, _ = _relief_height_field(ctx, 1024)
     params = ReliefParams(resolution=1024)
@@ -354,7 +341,6 @@ def _relief_1024_linear(ctx: BenchContext):
     import os
     import tempfile
 
-    from snapcore.relief.height_field import ReliefParams, relief_from_height_field
 
     h, m, px, _ = _relief_height_field(ctx, 1024)
     params = ReliefParams(resolution=1024, method="linear")

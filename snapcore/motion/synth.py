@@ -61,6 +61,7 @@ from snapcore.motion.synth_rig import (
     unit,
     zxy,
 )
+from snapcore.schema import validate
 
 __all__ = [
     "MOTIONS",
@@ -588,7 +589,6 @@ def write_demo(folder: str | os.PathLike, *, fps: float = 30.0, seed: int = 0) -
     """
     import tomllib
 
-    from snapcore.schema import validate
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     manifests = []

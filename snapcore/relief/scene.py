@@ -21,6 +21,9 @@ from snapcore.relief.height_field import (
     height_from_depth,
     relief_from_height_field,
 )
+from snapcore.render.body import TESSELLATION_FINE, scene_body
+from snapcore.render.camera import view_basis
+from snapcore.render.renderer import render_depth
 
 __all__ = [
     "frame_extent",
@@ -63,8 +66,6 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
         ``(half_width, half_height)`` in metres: the mesh's projected bounding box fits
         inside the footprint less the margin, scaled uniformly (no stretching).
     """
-    from snapcore.render.camera import view_basis
-
     right, upv, _ = view_basis(view, up)
     v = np.asarray(vertices, float)
     bw = float(np.ptp(v @ right))
@@ -84,8 +85,6 @@ def relief_body(scene, frame: int):
     -------
     snapcore.render.body.PosedMesh
     """
-    from snapcore.render.body import TESSELLATION_FINE, scene_body
-
     return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
 
 
@@ -112,8 +111,6 @@ def height_field_from_scene(
         ``depth`` in metres (NaN = background), ``pixel_size`` in metres, with the shape
         ``params.shape()``.
     """
-    from snapcore.render.renderer import render_depth
-
     p = params or ReliefParams()
     mesh = relief_body(scene, frame)
     extent = frame_extent(mesh.vertices, view, size_mm=p.size_mm, margin=p.margin, up=up)

@@ -19,6 +19,8 @@ import numpy as np
 
 from snapcore.errors import RenderError
 from snapcore.motion.facing import scene_facing
+from snapcore.render.body import scene_body
+from snapcore.render.gl import load_pyrender
 
 __all__ = [
     "RenderError",
@@ -131,8 +133,6 @@ class Camera:
         return 2.0 * self.half_height / self.size[1]
 
     def pyrender_camera(self):
-        from snapcore.render.gl import load_pyrender
-
         pyrender = load_pyrender()
         if self.projection == "orthographic":
             return pyrender.OrthographicCamera(xmag=self.half_height * self.aspect,
@@ -251,8 +251,6 @@ def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarra
     -------
     ndarray of shape (P, 3)
     """
-    from snapcore.render.body import scene_body
-
     body = body or scene_body(scene)
     if frames is None:
         frames = np.arange(scene.n_frames)

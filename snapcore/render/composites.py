@@ -18,6 +18,7 @@ import numpy as np
 
 from snapcore.errors import RenderError
 from snapcore.render.camera import (
+    FRAME_MARGIN,
     Camera,
     check_size,
     default_view,
@@ -80,7 +81,6 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
     """
     if not cams or cams[0].projection != "orthographic":
         return cams
-    from snapcore.render.camera import FRAME_MARGIN
 
     up = cams[0].up
     fill = max(1.0 - 2.0 * (FRAME_MARGIN if margin is None else margin), 0.05)

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from snapcore.motion.facing import character_facing
+
 __all__ = ["plot_entropy", "plot_curves", "plot_events", "plot_strip", "side_axis",
            "STRIP_CMAP"]
 
@@ -148,7 +150,6 @@ def side_axis(scene, frame: int) -> np.ndarray:
         d = np.array([d[0], 0.0, d[2]])
         if np.linalg.norm(d) > 0.15:
             return d / np.linalg.norm(d)
-    from snapcore.motion.facing import character_facing
 
     half = max(1, int(0.125 * scene.fps))
     a, b = max(0, frame - half), min(scene.n_frames, frame + half + 1)

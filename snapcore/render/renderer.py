@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import RenderError
+from snapcore.render.body import TESSELLATION_COARSE, SceneBody, scene_body
 from snapcore.render.camera import (
     POLE_COS,
     Camera,
@@ -481,8 +482,6 @@ class SceneRenderer:
     """
 
     def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None):
-        from snapcore.render.body import scene_body
-
         pyrender = load_pyrender()
         self.scene = scene
         self.size = check_size(size)
@@ -507,8 +506,6 @@ class SceneRenderer:
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
-            from snapcore.render.body import TESSELLATION_COARSE, SceneBody
-
             self._shadow_body = SceneBody(scene, tessellation=TESSELLATION_COARSE)
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)

@@ -22,6 +22,9 @@ import math
 
 import numpy as np
 
+from snapcore.render.viewpoint_entropy import select_view_entropy
+from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
+
 __all__ = ["plot_views", "sphere_heatmap", "view_maps", "lon_lat", "PROJECTIONS", "MARKERS"]
 
 #: Map projections: matplotlib's Mollweide, or plain longitude/latitude axes.
@@ -175,8 +178,6 @@ def view_maps(scene, *, frame: int, window_s: float | None = None, n_views: int 
     dict
         Method → ``{"views", "scores", "pick", "score", "facing"}``.
     """
-    from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
-
     frames = window_frames(scene, frame if window_s is not None else None, window_s)
     tri = motion_triangles(scene, frames=frames)
     out = {}
@@ -186,8 +187,6 @@ def view_maps(scene, *, frame: int, window_s: float | None = None, n_views: int 
         out[method] = {"views": sel.views, "scores": pma_scores(sel.views, tri, weighting=method),
                        "pick": sel.view, "score": sel.score, "facing": sel.facing}
     if entropy:
-        from snapcore.render.viewpoint_entropy import select_view_entropy
-
         ve = select_view_entropy(scene, frame, score_all=True)
         out["viewpoint_entropy"] = {"views": ve.views, "scores": ve.scores, "pick": ve.view,
                                     "score": ve.score, "facing": out["pma"]["facing"]}

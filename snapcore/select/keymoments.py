@@ -31,7 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import SchemaError, SnapshotError
+from snapcore.motion.load import load_scene
+from snapcore.schema import validate
+from snapcore.select.pose_methods import select_pose
 
 __all__ = [
     "HIT_WIDEN_S",
@@ -180,8 +183,6 @@ def _read_json(p: Path, text: str) -> list[KeyMoments]:
         doc = json.loads(text)
     except json.JSONDecodeError as err:
         raise KeymomentsError(f"{p}:{err.lineno}: json: {err.msg}") from None
-    from snapcore.errors import SchemaError
-    from snapcore.schema import validate
 
     try:
         validate(doc, "keymoments", source=str(p))
@@ -343,8 +344,6 @@ def run_keymoments(entries: list[KeyMoments], *, data, methods, k: int = 3,
     """
     import warnings
 
-    from snapcore.motion.load import load_scene
-    from snapcore.select.pose_methods import select_pose
 
     base = Path(data)
     scenes, rows = [], []

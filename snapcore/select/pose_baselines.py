@@ -2,7 +2,7 @@
 
 Each is a pure function of a scene returning a per-frame score ``(F,)`` (higher is
 better) or the frames themselves; :mod:`snapcore.select.pose_methods` turns them into the
-same :class:`~snapcore.pose.PoseSelection` as the paper's pose entropy and the story
+same :class:`~snapcore.select.pose.PoseSelection` as the paper's pose entropy and the story
 selector, so they can be compared on annotated key moments (``snapshot keymoments``).
 
 - ``stretch``: the most stretched pose, the mean distance of the joints from their
@@ -19,6 +19,9 @@ selector, so they can be compared on annotated key moments (``snapshot keymoment
 from __future__ import annotations
 
 import numpy as np
+
+from snapcore.motion.anatomy import joint_roles
+from snapcore.select.pose import smooth_positions
 
 __all__ = [
     "stretch_score",
@@ -37,8 +40,6 @@ SALIENT_MAX_CANDIDATES = 400
 
 def _visible(character) -> np.ndarray:
     """Joints that belong to the body (not hidden helper joints such as a floor root)."""
-    from snapcore.motion.anatomy import joint_roles
-
     roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
     keep = np.array([r != "hidden" for r in roles])
     return np.flatnonzero(keep) if keep.any() else np.arange(character.n_joints)
@@ -64,8 +65,6 @@ def stretch_score(scene) -> np.ndarray:
 
 def speed_score(scene, *, smooth_s: float = 0.1) -> np.ndarray:
     """Mean joint speed in statures per second (smoothed trajectories), shape (F,)."""
-    from snapcore.select.pose import smooth_positions
-
     out = np.zeros(scene.n_frames)
     if scene.n_frames < 2:
         return out

@@ -1,6 +1,6 @@
 """Story information: the default pose selector, a repair of pose entropy (paper §3.1).
 
-The paper's pose entropy (:mod:`snapcore.pose`, method ``paper``) often lands on a
+The paper's pose entropy (:mod:`snapcore.select.pose`, method ``paper``) often lands on a
 footfall beside the action: contact events flicker (dozens of onsets and releases per
 clip, every ankle, toe and toe-end joint its own event), each event frame gets the
 normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
@@ -31,7 +31,7 @@ term, each min-max normalised and summed with weights (eq. 8-9), the pose is the
 3. **Combination**: both terms min-max normalised (eq. 9), weighted, summed, then
    averaged over a Gaussian window of ``support_s`` with nothing outside the clip (a
    frame whose surroundings the clip does not show has less support). The pose is the
-   argmax; the top-k are distinct peaks (:func:`snapcore.pose.top_peaks`).
+   argmax; the top-k are distinct peaks (:func:`snapcore.select.pose.top_peaks`).
 
 Every ingredient can be switched off or replaced for ablation through
 :class:`StoryParameters`. Everything is vectorised over frames and joints; the Python
@@ -51,6 +51,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, joint_roles, joint_sides
+from snapcore.select.pose import minmax, smooth_positions
+
 __all__ = [
     "StoryParameters",
     "DEFAULT_STORY",
@@ -69,9 +72,7 @@ __all__ = [
     "story_information",
 ]
 
-#: Stature (m) the length thresholds are given for; they scale with the character.
-REFERENCE_STATURE_M = 1.70
-#: Roles (from :func:`snapcore.body.joint_roles`) that make up a leg and an arm.
+#: Roles (from :func:`snapcore.motion.anatomy.joint_roles`) that make up a leg and an arm.
 _LEG_ROLES = frozenset({"thigh", "shin", "foot", "toe"})
 _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
 #: Roles whose joints can bear weight: the distal parts of the limbs and the trunk. A
@@ -369,8 +370,6 @@ def debounced_contacts(character, *, ground: float, fps: float,
     foot will do), and :func:`hysteresis` switches it on at 1 and off above
     ``min(h_off / h_on, v_off / v_on)``. Then :func:`enforce_min_durations`.
     """
-    from snapcore.select.pose import smooth_positions
-
     p = params
     scale = _stature(character) / REFERENCE_STATURE_M
     if p.per_limb:
@@ -448,8 +447,6 @@ def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0
         Heights of the K :func:`key_joints` above the ground, then their pairwise
         distances, all divided by the character's stature (dimensionless).
     """
-    from snapcore.select.pose import smooth_positions
-
     kj = key_joints(character)
     stature = _stature(character)
     x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
@@ -604,8 +601,6 @@ def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 @lru_cache(maxsize=64)
 def _roles_sides_of(names: tuple, parents: tuple):
-    from snapcore.motion.anatomy import joint_roles, joint_sides
-
     return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
 
 
@@ -630,10 +625,8 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
     -----
     UserWarning
         When a term is constant over the clip (a static clip, no contact events): it
-        contributes 0 (:func:`snapcore.pose.minmax`).
+        contributes 0 (:func:`snapcore.select.pose.minmax`).
     """
-    from snapcore.select.pose import minmax
-
     p = params
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
