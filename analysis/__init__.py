@@ -23,7 +23,6 @@ from .frames import (
     scene_frames_from_rows,
 )
 from .load import (
-    METHODS,
     LoadError,
     attention_summary,
     load_responses,
@@ -60,7 +59,6 @@ from .votes import (
 
 __all__ = [
     "FIGURES",
-    "METHODS",
     "LoadError",
     "ObserverModel",
     "SceneFrames",

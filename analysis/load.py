@@ -39,8 +39,6 @@ from snapcore.errors import SnapshotError
 
 __all__ = [
     "LoadError",
-    "METHODS",
-    "BASELINE_METHODS",
     "RESPONSE_FIELDS",
     "load_responses",
     "read_export",
@@ -52,11 +50,6 @@ __all__ = [
     "PAPER_SCENES",
     "ordered_scenes",
 ]
-
-#: The view-task methods, in the paper's order (Fig. 8, 9, 10 = Table 2's rows).
-METHODS = ("ours", "viewpoint_entropy", "motion_area")
-#: The methods ours is compared against.
-BASELINE_METHODS = METHODS[1:]
 
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
 PAPER_SCENES = ("dancing", "running", "soccer_kicking", "basketball_shooting",

@@ -36,7 +36,7 @@ from datetime import UTC, datetime
 import numpy as np
 import pandas as pd
 
-from .load import METHODS
+from snapcore.select.methods import VIEW_METHODS
 
 __all__ = [
     "ObserverModel",
@@ -87,7 +87,7 @@ class ObserverModel:
     spread_s: float = 0.5
     lapse: float = 0.1
     algorithm_weight: float = 0.7
-    strengths: dict = field(default_factory=lambda: {m: 1.0 for m in METHODS})
+    strengths: dict = field(default_factory=lambda: {m: 1.0 for m in VIEW_METHODS})
     attention_pass: float = 0.95
     pose_time_s: float = 12.0
     view_time_s: float = 5.0
@@ -104,9 +104,9 @@ class ObserverModel:
 
 def _check_strengths(s: dict, what: str) -> None:
     bad = {m: v for m, v in s.items() if not (np.isfinite(v) and v > 0)}
-    if bad or set(s) != set(METHODS):
-        raise ValueError(f"{what}: expected a positive strength for each of {list(METHODS)}, "
-                         f"got {s}")
+    if bad or set(s) != set(VIEW_METHODS):
+        raise ValueError(f"{what}: expected a positive strength for each of "
+                         f"{[str(m) for m in VIEW_METHODS]}, got {s}")
 
 
 @dataclass(frozen=True)
@@ -166,7 +166,7 @@ def paper_design() -> list[SimScene]:
     out = []
     for sid, title, n, a, extra in spec:
         shares = counts.loc[sid] / counts.loc[sid].sum()
-        strengths = {m: max(float(shares[m]), 0.01) for m in METHODS}
+        strengths = {m: max(float(shares[m]), 0.01) for m in VIEW_METHODS}
         out.append(SimScene(scene=sid, fps=30.0, n_frames=n, algorithm_frame=a,
                             salient_frames=extra, strengths=strengths, title=title))
     return out
@@ -204,7 +204,7 @@ def _pose_choice(rng, s: SimScene, model: ObserverModel) -> int:
 
 
 def _view_choice(rng, strengths: dict) -> tuple[tuple, int, str]:
-    shown = tuple(METHODS[i] for i in rng.permutation(len(METHODS)))
+    shown = tuple(VIEW_METHODS[i] for i in rng.permutation(len(VIEW_METHODS)))
     w = np.array([strengths[m] for m in shown], dtype=float)
     pos = int(rng.choice(len(shown), p=w / w.sum()))
     return shown, pos, shown[pos]

@@ -33,7 +33,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .load import METHODS, ordered_scenes
+from snapcore.select.methods import VIEW_METHODS
+
+from .load import ordered_scenes
 
 __all__ = [
     "ALPHA",
@@ -85,12 +87,12 @@ def paper_counts() -> pd.DataFrame:
     """The paper's Table 2 as wide counts (scenes × methods), in the paper's order."""
     t = paper_table2()
     wide = t.pivot(index="scene", columns="method", values="votes")
-    wide = wide.loc[list(dict.fromkeys(t["scene"])), list(METHODS)]
+    wide = wide.loc[list(dict.fromkeys(t["scene"])), list(VIEW_METHODS)]
     wide.columns.name = None
     return wide.astype(int)
 
 
-def vote_counts(choices: pd.DataFrame, *, methods=METHODS, order=None) -> pd.DataFrame:
+def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> pd.DataFrame:
     """View-task choices → wide counts (scenes × ``methods``).
 
     Parameters
@@ -100,7 +102,7 @@ def vote_counts(choices: pd.DataFrame, *, methods=METHODS, order=None) -> pd.Dat
     order : sequence of str, optional
         Preferred scene order (see :func:`analysis.load.ordered_scenes`).
     """
-    methods = list(methods)
+    methods = [str(m) for m in methods]
     unknown = set(choices["chosen_method"].dropna()) - set(methods)
     if unknown:
         raise ValueError(f"chosen_method: unknown method(s) {sorted(unknown)}; expected {methods}")
@@ -371,7 +373,7 @@ def _fit_shares(n_items, data, alpha, initial=None):
     return w / w.sum(), theta
 
 
-def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000,
+def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int = 1000,
                    seed: int = 0, confidence: float = 0.95, pooled: bool = True,
                    luce_alpha: float = LUCE_ALPHA, order=None) -> pd.DataFrame:
     """Luce (Plackett–Luce top-1 / Bradley–Terry) method strengths with bootstrap CIs.
@@ -406,7 +408,7 @@ def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000
     iterative Luce spectral ranking (``choix.ilsr_top1``; Maystre & Grossglauser 2015).
     When all methods are always shown, the ML strengths equal the vote shares.
     """
-    methods = list(methods)
+    methods = [str(m) for m in methods]
     index = {m: i for i, m in enumerate(methods)}
     rng = np.random.default_rng(seed)
     shown_col = choices["shown_order"] if "shown_order" in choices else [None] * len(choices)

@@ -33,8 +33,9 @@ import numpy as np
 
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
+from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
-from .protocol import METHODS, Study, study_from_dict
+from .protocol import Study, study_from_dict
 
 __all__ = [
     "MANIFEST_NAME",
@@ -331,19 +332,20 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     from snapcore.pipeline import take_snapshot
 
     snap = take_snapshot(scene, **(options or {}))
-    d = snap.to_dict()
-    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d["frames"]]}
-    base = d.get("baselines") or {}
-    missing = [m for m in ("view", "viewpoint_entropy", "motion_area")
-               if (d if m == "view" else base).get(m) is None]
+    views = snap.views
+    missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
         raise StimuliError(f"scene {scene.name}: the selection gave no {', '.join(missing)} "
                            "view (a baseline was skipped: see the warning above)")
-    picks["view"] = _unit(d["view"])
-    for m in ("viewpoint_entropy", "motion_area"):
-        picks[m] = _unit(base[m]["view"])
-    timings = {k: float(v) for k, v in (d.get("timings_s") or {}).items()}
+    picks = {"frame": snap.frame, "frames": snap.frames}
+    picks.update({_PICK_KEYS[m]: _unit(views[m]) for m in VIEW_METHODS})
+    timings = {k: float(v) for k, v in snap.timings_s.items()}
     return picks, timings
+
+
+#: The manifest's ``picks`` key of each method's view (ours is ``view``, as in
+#: ``snapshot select --json``; the baselines by their method name).
+_PICK_KEYS = {m: "view" if m is ViewMethod.OURS else m.value for m in VIEW_METHODS}
 
 
 def _unit(v) -> list[float]:
@@ -401,14 +403,14 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     Returns
     -------
     dict
-        ``{method: {"file": Path, "direction": [x, y, z]}}`` for :data:`METHODS`.
+        ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
+        :data:`~snapcore.select.methods.VIEW_METHODS`.
     """
     from snapcore.render.renderer import SceneRenderer, render_still, save_png
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
-    directions = {"ours": picks["view"], "viewpoint_entropy": picks["viewpoint_entropy"],
-                  "motion_area": picks["motion_area"]}
+    directions = {m: picks[_PICK_KEYS[m]] for m in VIEW_METHODS}
     frame = int(picks["frame"]) - scene.frame_offset
     # Same size and the same framing rule for all three (the pose fitted tightly with
     # the same margin from each direction), so no view wins by being bigger. No floor
@@ -418,11 +420,11 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     # background alone would tell the three methods apart.
     renderer = SceneRenderer(scene, size=size, ground=False, shadows=False)
     views = {}
-    for m in METHODS:
+    for m in VIEW_METHODS:
         p = out / f"view_{m}.png"
         save_png(render_still(scene, frame, directions[m], size=size, fit="frame",
                               renderer=renderer), p)
-        views[m] = {"file": p, "direction": directions[m]}
+        views[m.value] = {"file": p, "direction": directions[m]}
     return views
 
 

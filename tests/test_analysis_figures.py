@@ -3,10 +3,13 @@ and a clear skip reason when an ingredient is missing."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from analysis import figures as fg
+from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
 
 def _png_std(path) -> float:
@@ -40,20 +43,27 @@ def test_missing_data_is_a_reason_not_a_crash(tmp_path):
         or "not available" in res["fig6"][1]
 
 
-def test_snapshot_views_reads_the_snapshot_schema():
-    """The three views of a snapshot dict shaped as data_schema/snapshot.schema.json says;
-    a snapshot without the view stage or without a baseline is refused, naming what lacks."""
-    doc = {"view": [1, 0, 0], "baselines": {"viewpoint_entropy": {"view": [0, 1, 0], "score": 2.0},
-                                            "motion_area": {"view": [0, 0, 1], "score": 0.5}}}
-    v = fg.snapshot_views(doc)
-    assert list(v) == ["ours", "viewpoint_entropy", "motion_area"]
-    np.testing.assert_array_equal(v["viewpoint_entropy"], [0, 1, 0])
-    np.testing.assert_array_equal(v["motion_area"], [0, 0, 1])
+def test_snapshot_views_reads_the_typed_views():
+    """The three views come from Snapshot.views in the paper's order (whatever order the
+    snapshot holds them in); a snapshot without the view stage or without a baseline is
+    refused, naming what it lacks."""
+    views = {ViewMethod.MOTION_AREA: np.array([0.0, 0, 1]), ViewMethod.OURS: np.array([1.0, 0, 0]),
+             ViewMethod.VIEWPOINT_ENTROPY: np.array([0.0, 1, 0])}
+    v = fg.snapshot_views(SimpleNamespace(views=views))
+    assert list(v) == list(VIEW_METHODS) == ["ours", "viewpoint_entropy", "motion_area"]
+    np.testing.assert_array_equal(v[ViewMethod.VIEWPOINT_ENTROPY], [0, 1, 0])
+    np.testing.assert_array_equal(v[ViewMethod.MOTION_AREA], [0, 0, 1])
     with pytest.raises(fg.FigureUnavailable, match="no ours, viewpoint_entropy, motion_area"):
-        fg.snapshot_views({"frame": 3})
-    del doc["baselines"]["motion_area"]
+        fg.snapshot_views(SimpleNamespace(views={}))
+    del views[ViewMethod.MOTION_AREA]
     with pytest.raises(fg.FigureUnavailable, match="no motion_area view"):
-        fg.snapshot_views(doc)
+        fg.snapshot_views(SimpleNamespace(views=views))
+
+
+def test_view_panels_are_named_by_the_method_vocabulary():
+    """Figure panels and legends use ViewMethod.panel: the label and the paper figure."""
+    assert [m.panel for m in VIEW_METHODS] == ["ours: PMA (Fig. 8)", "viewpoint entropy (Fig. 9)",
+                                               "motion area (Fig. 10)"]
 
 
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):

@@ -27,6 +27,7 @@ import study_app
 from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
+from snapcore.select.methods import VIEW_METHODS
 from study_app.store import (
     SQLITE_BUSY_TIMEOUT_MS,
     Store,
@@ -40,7 +41,7 @@ from study_app.store import (
 )
 
 SHA = "ab" * 32
-METHODS = ["ours", "viewpoint_entropy", "motion_area"]
+METHODS = [str(m) for m in VIEW_METHODS]
 
 
 # ----------------------------------------------------------------------------- fixtures
