@@ -74,11 +74,35 @@ def test_bad_row_is_named(tmp_path):
     recs[3]["task"] = "dance"
     f = tmp_path / "bad.jsonl"
     f.write_text("".join(json.dumps(r) + "\n" for r in recs))
-    with pytest.raises(ld.LoadError, match=r"bad.jsonl: row 4: task"):
+    with pytest.raises(ld.LoadError, match=r"bad.jsonl: row 4 \(participant .*, trial \d+\): task"):
         ld.load_responses(f, include_simulated=True)
     (tmp_path / "x.txt").write_text("")
-    with pytest.raises(ld.LoadError, match="unknown export format"):
+    with pytest.raises(ld.LoadError, match="cannot tell the format from the suffix"):
         ld.load_responses(tmp_path / "x.txt")
+
+
+def test_analysis_reads_exports_with_the_study_codec(tmp_path):
+    """One codec: what study_app.export writes, analysis loads unchanged (CSV, JSON lines,
+    a .json list); a bad CSV cell is named by file, line and column."""
+    from study_app.export import write_export
+
+    rows = [{k: (list(v) if isinstance(v, tuple) else v) for k, v in r.items()}
+            for r in _rows(3).replace({np.nan: None}).to_dict(orient="records")]
+    for name in ("r.csv", "r.jsonl"):
+        write_export(rows, tmp_path / name)
+    (tmp_path / "r.json").write_text(json.dumps(rows))
+    frames = [ld.load_responses(tmp_path / n, include_simulated=True)
+              for n in ("r.csv", "r.jsonl", "r.json")]
+    direct = ld.load_responses(rows, include_simulated=True)
+    for df in frames:
+        pd.testing.assert_frame_equal(df, direct)
+    text = (tmp_path / "r.csv").read_text().splitlines()
+    head = text[0].split(",")
+    cells = text[2].split(",")
+    cells[head.index("trial_index")] = "1.5"
+    (tmp_path / "bad.csv").write_text("\n".join([text[0], text[1], ",".join(cells)]) + "\n")
+    with pytest.raises(ld.LoadError, match=r"bad.csv:3: trial_index: not an integer"):
+        ld.load_responses(tmp_path / "bad.csv")
 
 
 def test_observer_model_frames():
