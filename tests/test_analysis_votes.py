@@ -124,12 +124,23 @@ def test_wilson_matches_scipy():
     assert ((table["ci_low"] <= table["share"]) & (table["share"] <= table["ci_high"])).all()
 
 
-def test_binomial_p_equals_scipy_for_all_k():
-    """The vectorised exact p equals scipy.stats.binomtest(k, n, 0.5).pvalue for every k, n <= 40."""
-    for n in range(0, 41):
-        for k in range(0, n + 1):
-            ref = stats.binomtest(k, n, 0.5).pvalue if n else 1.0
-            assert float(vt.binomial_two_sided_p(k, n)) == pytest.approx(ref, rel=1e-9, abs=1e-300)
+def test_wilson_known_answers():
+    """Wilson 95% intervals of Newcombe (1998, Stat. Med. 17:857, Table I, method 3), also
+    R: prop.test(81, 263, correct = FALSE)$conf.int -> 0.2553 0.3662."""
+    for (k, n), want in {(81, 263): (0.2553, 0.3662), (15, 148): (0.0624, 0.1605),
+                         (0, 20): (0.0, 0.1611), (1, 29): (0.0061, 0.1718)}.items():
+        lo, hi = vt.wilson_interval(k, n)
+        assert (float(lo), float(hi)) == pytest.approx(want, abs=5e-5), (k, n)
+    lo, hi = vt.wilson_interval([0, 3], [0, 7])  # vectorised; n = 0 gives (0, 1)
+    assert lo[0] == 0 and hi[0] == 1 and 0 < lo[1] < 3 / 7 < hi[1] < 1
+
+
+def test_pairwise_p_known_answer():
+    """7 votes to 3: p = 2 P[X >= 7], X ~ Bin(10, 1/2) = 2 (120 + 45 + 10 + 1) / 1024 = 0.34375
+    (R: binom.test(7, 10)$p.value); no votes for either gives p = 1."""
+    counts = pd.DataFrame({"ours": [7, 0], "motion_area": [3, 0]}, index=["a", "b"])
+    pair = vt.ours_vs_baselines(counts, family="scene")
+    assert pair["p_value"].tolist() == pytest.approx([0.34375, 1.0], rel=1e-12)
 
 
 def test_fleiss_kappa_published_example():
