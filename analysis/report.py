@@ -67,13 +67,14 @@ def format_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def to_markdown(df: pd.DataFrame) -> str:
-    """A GitHub-flavoured Markdown pipe table of ``df`` (formatted cells)."""
+    """A GitHub-flavoured Markdown pipe table of ``df`` (formatted cells, ``|`` escaped):
+    :meth:`pandas.DataFrame.to_markdown` (tabulate's ``pipe`` format)."""
     f = format_table(df)
+    align = ["right" if _is_numeric(f[c]) else "left" for c in f.columns]
     esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
-    lines = ["| " + " | ".join(esc(c) for c in f.columns) + " |",
-             "|" + "|".join("---" for _ in f.columns) + "|"]
-    lines += ["| " + " | ".join(esc(v) for v in row) + " |" for row in f.itertuples(index=False)]
-    return "\n".join(lines) + "\n"
+    f = f.map(esc).rename(columns=esc)
+    return f.to_markdown(index=False, tablefmt="pipe", disable_numparse=True,
+                         colalign=align) + "\n"
 
 
 _LATEX_ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
@@ -87,20 +88,21 @@ def _latex_escape(s: str) -> str:
 
 
 def to_latex(df: pd.DataFrame, *, caption: str = "", label: str = "") -> str:
-    """A ``booktabs`` LaTeX table of ``df`` (formatted cells, special characters escaped)."""
+    """A ``booktabs`` LaTeX table of ``df`` (formatted cells, special characters escaped),
+    written by :meth:`pandas.io.formats.style.Styler.to_latex`: numeric columns
+    right-aligned, the caption above the table."""
     f = format_table(df)
-    num = [all(_is_number(v) for v in f[c] if v != "") for c in f.columns]
-    spec = "".join("r" if n else "l" for n in num)
-    out = ["\\begin{table}[ht]", "\\centering", "\\small", f"\\begin{{tabular}}{{{spec}}}",
-           "\\toprule", " & ".join(_latex_escape(c) for c in f.columns) + " \\\\", "\\midrule"]
-    out += [" & ".join(_latex_escape(v) for v in row) + " \\\\" for row in f.itertuples(index=False)]
-    out += ["\\bottomrule", "\\end{tabular}"]
-    if caption:
-        out.append(f"\\caption{{{_latex_escape(caption)}}}")
-    if label:
-        out.append(f"\\label{{{label}}}")
-    out.append("\\end{table}")
-    return "\n".join(out) + "\n"
+    spec = "".join("r" if _is_numeric(f[c]) else "l" for c in f.columns)
+    f = f.map(_latex_escape).rename(columns=_latex_escape)
+    styler = f.style.hide(axis="index").set_table_styles([{"selector": "small", "props": ":;"}])
+    return styler.to_latex(column_format=spec, position="ht", position_float="centering",
+                           hrules=True, caption=_latex_escape(caption) if caption else None,
+                           label=label or None)
+
+
+def _is_numeric(cells) -> bool:
+    """Whether a column of formatted cells holds only numbers (and blanks)."""
+    return all(_is_number(v) for v in cells if v != "")
 
 
 def _is_number(s: str) -> bool:

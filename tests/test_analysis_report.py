@@ -105,6 +105,27 @@ def test_analysis_reads_exports_with_the_study_codec(tmp_path):
         ld.load_responses(tmp_path / "bad.csv")
 
 
+def test_tables_as_markdown_and_latex():
+    """Markdown: a pipe table whose cells read back as the formatted cells (| escaped,
+    numbers right-aligned); LaTeX: booktabs, one row per line, specials escaped."""
+    from analysis.report import format_table, to_latex, to_markdown
+
+    df = pd.DataFrame({"scene": ["a|b", "c_d"], "p_value": [1e-5, 0.5], "n": [3, 4],
+                       "significant": [True, False]})
+    md = to_markdown(df).splitlines()
+    assert md[1] == "|:--------|----------:|----:|:--------------|"
+    cells = [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+             for line in md[2:]]
+    assert cells == format_table(df).values.tolist() == [["a|b", "1e-05", "3", "yes"],
+                                                          ["c_d", "0.500", "4", "no"]]
+    tex = to_latex(df, caption="Votes & 5% (α)", label="tab:t").splitlines()
+    assert tex[:4] == ["\\begin{table}[ht]", "\\centering",
+                       "\\caption{Votes \\& 5\\% ($\\alpha$)}", "\\small"]
+    body = tex[tex.index("\\midrule") + 1:tex.index("\\bottomrule")]
+    assert body == ["a\\textbar{}b & 1e-05 & 3 & yes \\\\", "c\\_d & 0.500 & 4 & no \\\\"]
+    assert "\\begin{tabular}{lrrl}" in tex and "\\label{tab:t}" in tex
+
+
 def test_observer_model_frames():
     """Without lapses the chosen frames scatter around the pick with the given spread."""
     design = [sim.SimScene("a", 100.0, 2000, 1000)]
