@@ -11,7 +11,7 @@ from snapcore.errors import BVHError, SceneError, SchemaError, SnapshotError
 from snapcore.motion.bvh import BVHDocument, read_bvh, write_bvh
 from snapcore.motion.load import data_dir, load_scene
 from snapcore.motion.scene import Character, Scene, Skeleton
-from snapcore.pipeline import Snapshot, ViewParams, take_snapshot
+from snapcore.pipeline import PoseParams, Snapshot, ViewParams, take_snapshot
 from snapcore.render.body import PosedMesh, SceneBody, posed_mesh
 from snapcore.render.composites import compare_views, contact_sheet
 from snapcore.render.renderer import render_depth, render_face_ids, render_still
@@ -41,6 +41,7 @@ __all__ = [
     "SnapshotError",
     "ViewMethod",
     "VIEW_METHODS",
+    "PoseParams",
     "ViewParams",
     "ViewSelection",
     "compare_views",

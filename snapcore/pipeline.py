@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,7 @@ import numpy as np
 from snapcore.errors import SnapshotError
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.methods import ViewMethod
-from snapcore.select.pose import MIN_SEPARATION_S, PoseSelection, select_pose
+from snapcore.select.pose import PoseParams, PoseSelection, select_pose
 from snapcore.select.view import (
     MA_FLOOR_M2,
     ViewSelection,
@@ -35,7 +35,7 @@ from snapcore.select.view import (
     window_frames,
 )
 
-__all__ = ["Snapshot", "ViewParams", "take_snapshot", "SNAPSHOT_FORMAT", "VIEW_FIELDS"]
+__all__ = ["Snapshot", "PoseParams", "ViewParams", "take_snapshot", "SNAPSHOT_FORMAT", "VIEW_FIELDS"]
 
 #: Value of the ``format`` field of the JSON document (bump on breaking changes).
 SNAPSHOT_FORMAT = "action-snapshot/snapshot@1"
@@ -268,18 +268,16 @@ def _jsonable(value):
     return value
 
 
-def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                  view: bool = True, window_s: float | None = None, baselines: bool = True,
-                  n_views: int = 2562, **pose_options) -> Snapshot:
+def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = True,
+                  window_s: float | None = None, baselines: bool = True, n_views: int = 2562,
+                  **pose_options) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
     scene : Scene
-    k : int
-        Number of distinct top poses to keep.
-    min_separation_s : float
-        Minimum time (s) between them.
+    pose_params : PoseParams, optional
+        The pose stage's options (default: ``PoseParams()``).
     view : bool
         Run the view stage : PMA view of the whole
         sequence or of ``window_s``, and the baselines.
@@ -290,21 +288,35 @@ def take_snapshot(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION
     n_views : int
         Samples of the view sphere.
     **pose_options
-        Passed to :func:`snapcore.select.pose.select_pose` (``w_local``, ``w_global``,
-        ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``).
+        Fields of :class:`~snapcore.select.pose.PoseParams` that override
+        ``pose_params`` (``k``, ``min_separation_s``, ``w_local``, ``w_global``,
+        ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``): so a study config's
+        ``selection`` table passes them by name.
 
     Returns
     -------
     Snapshot
+        ``options`` records every pose parameter (the tolerances as
+        ``contact_tolerances``) and, with the view stage, ``window_s``, ``baselines``
+        and ``n_views``.
+
+    Raises
+    ------
+    TypeError
+        An option that is not a field of PoseParams.
     """
+    known = {f.name for f in fields(PoseParams)}
+    unknown = sorted(set(pose_options) - known)
+    if unknown:
+        raise TypeError(f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
+                        f"are {', '.join(sorted(known))})")
+    params = replace(pose_params or PoseParams(), **pose_options)
     t0 = time.perf_counter()
-    sel = select_pose(scene, k=k, min_separation_s=min_separation_s, **pose_options)
+    sel = select_pose(scene, **params.kwargs())
     t1 = time.perf_counter()
-    options = {"k": int(k), "min_separation_s": float(min_separation_s)}
-    for name, value in pose_options.items():
-        if name in ("tolerances", "interactions"):
-            continue
-        options[name] = value
+    options = params.kwargs()
+    del options["tolerances"]
+    options.update(k=int(params.k), min_separation_s=float(params.min_separation_s))
     tol = sel.entropy.interactions.tolerances
     options["contact_tolerances"] = {
         "ground_distance_m": tol.ground_distance,

@@ -507,3 +507,21 @@ def test_local_term_needs_no_quaternions(motions_dir):
     np.testing.assert_allclose(local_information(bare), local_information(c), rtol=1e-12,
                                atol=1e-15)
     assert local_information(c).max() > 0
+
+
+def test_pose_params_are_the_pose_options():
+    """take_snapshot(scene, PoseParams(...)) equals the keyword form; Snapshot.options
+    records every pose parameter; an unknown option is a TypeError naming it."""
+    from snapcore.pipeline import PoseParams, take_snapshot
+
+    scene = synth.synth_scene("walk", fps=30)
+    a = take_snapshot(scene, PoseParams(k=2, w_local=0.5, smooth_s=0.0), view=False)
+    b = take_snapshot(scene, k=2, w_local=0.5, smooth_s=0.0, view=False)
+    c = take_snapshot(scene, PoseParams(k=5, w_local=0.5), k=2, smooth_s=0.0, view=False)
+    assert a.frames == b.frames == c.frames and len(a.frames) == 2
+    np.testing.assert_array_equal(a.pose.entropy.total, b.pose.entropy.total)
+    fields = set(PoseParams().kwargs()) - {"tolerances"}
+    assert fields | {"contact_tolerances"} == set(a.options)
+    assert a.options["w_local"] == 0.5 and a.options["k"] == 2
+    with pytest.raises(TypeError, match="top_k"):
+        take_snapshot(scene, top_k=3, view=False)

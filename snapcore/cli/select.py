@@ -14,7 +14,7 @@ from snapcore.cli.common import (
     scene_arguments,
     scene_from_options,
 )
-from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
+from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S, PoseParams
 
 __all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "format_snapshot"]
 
@@ -50,9 +50,9 @@ def snapshot_from_options(scene, k, min_separation, w_local, w_global, events, s
     (the view stage only with ``view=True``)."""
     from snapcore.pipeline import take_snapshot
 
-    return take_snapshot(scene, k=k, min_separation_s=min_separation, w_local=w_local,
-                         w_global=w_global, events=events, smooth_s=smooth, view=view,
-                         window_s=window, baselines=baselines)
+    params = PoseParams(k=k, min_separation_s=min_separation, w_local=w_local,
+                        w_global=w_global, events=events, smooth_s=smooth)
+    return take_snapshot(scene, params, view=view, window_s=window, baselines=baselines)
 
 
 def format_snapshot(doc: dict) -> list[str]:

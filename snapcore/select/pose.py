@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import lru_cache
 
 import numpy as np
@@ -50,6 +50,7 @@ __all__ = [
     "ZERO_INFORMATION",
     "PoseEntropy",
     "PoseSelection",
+    "PoseParams",
     "savgol_matrix",
     "smooth_positions",
     "joint_curvature",
@@ -628,6 +629,44 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
                        global_by_character=h_global, information=info,
                        interactions=interactions, weights=(float(w_local), float(w_global)),
                        events_mode=events, fps=float(scene.fps), timings_s=timings)
+
+
+@dataclass(frozen=True)
+class PoseParams:
+    """Options of the pose stage, as one value: :func:`select_pose`'s keyword arguments.
+
+    Attributes
+    ----------
+    k : int
+        How many distinct peaks to return (at least 1).
+    min_separation_s : float
+        Minimum time (s) between two returned poses.
+    w_local, w_global : float
+        Weights of the normalised terms (eq. 9).
+    events : {"transitions", "state"}
+        What counts as an event in the global term (:func:`global_entropy`).
+    smooth_s : float
+        Savitzky-Golay window (s) for the trajectories; 0 for none.
+    rest_speed : float
+        Rest threshold (m/s) for a 1.70 m person (:func:`pose_entropy`).
+    tolerances : ContactTolerances
+        For :func:`snapcore.select.contacts.detect_interactions`.
+
+    Values are checked where they are used (:func:`select_pose`, :func:`pose_entropy`).
+    """
+
+    k: int = 3
+    min_separation_s: float = MIN_SEPARATION_S
+    w_local: float = 1.0
+    w_global: float = 1.0
+    events: str = "transitions"
+    smooth_s: float = SMOOTH_S
+    rest_speed: float = REST_SPEED
+    tolerances: ContactTolerances = DEFAULT_TOLERANCES
+
+    def kwargs(self) -> dict:
+        """The fields as keyword arguments of :func:`select_pose` (not deep-copied)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 def select_pose(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
