@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from .figures import FIGURES, make_figures, measure_table1, paper_analogues, paper_table1
 from .frames import (
-    SceneFrames,
     baselines_from_stimuli,
     closeness_tests,
     frame_distances,
@@ -35,7 +34,6 @@ from .power import power_chisquare, power_curve, power_pairwise, power_table, sa
 from .report import analyze, analyze_counts, write_table
 from .simulate import (
     ObserverModel,
-    SimScene,
     paper_design,
     simulate_participants,
     simulate_vote_counts,
@@ -61,8 +59,6 @@ __all__ = [
     "FIGURES",
     "LoadError",
     "ObserverModel",
-    "SceneFrames",
-    "SimScene",
     "analyze",
     "analyze_counts",
     "attention_summary",

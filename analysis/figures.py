@@ -182,7 +182,7 @@ def _fig13(ctx: _Context) -> list[Path]:
     if pose.empty:
         raise FigureUnavailable("no pose-task responses")
     scenes = fr.scene_frames_from_rows(
-        pose, extra={s: {"label": labels.get(s)} for s in pose["scene"].unique()})
+        pose, extra={s: {"title": labels.get(s)} for s in pose["scene"].unique()})
     fig = plot_frame_histograms(pose, scenes)
     if title:
         fig.suptitle(title + "\n▼ = the algorithm's pick", fontsize=9, color="#B00000")

@@ -165,7 +165,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
     pose : DataFrame
         Pose-task rows.
     scenes : dict
-        scene id → :class:`analysis.frames.SceneFrames`.
+        scene id → :class:`study_app.scenes.StudyScene`.
     show_baselines : bool
         Mark the baseline frames (middle, fastest, farthest from the mean pose) too.
     """
@@ -190,7 +190,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         ax.plot([info.algorithm_frame], [top * 1.05], marker="v", color=PREDICTOR_STYLES["algorithm"][0],
                 ms=8, clip_on=False)
         n = int((pose["scene"] == sid).sum())
-        ax.set_title(f"{info.label or sid}  (n = {n})", fontsize=9)
+        ax.set_title(f"{info.title or sid}  (n = {n})", fontsize=9)
         ax.set_xlim(edges[0], edges[-1])
         ax.set_ylim(0, top * 1.12)
         ax.set_xlabel(f"motion frame ({info.fps:g} fps)", fontsize=8)
@@ -240,7 +240,7 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
             ax.axvline(t, color="grey", lw=0.5, ls=":")
         ax.set_xlim(0, max(1.5, xmax * 1.05))
         ax.set_ylim(0, 1)
-        ax.set_title(scenes[sid].label or sid, fontsize=9)
+        ax.set_title(scenes[sid].title or sid, fontsize=9)
         ax.set_xlabel("|chosen − predicted| (s)", fontsize=8)
         ax.set_ylabel("fraction of participants", fontsize=8)
         ax.tick_params(labelsize=7)

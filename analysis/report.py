@@ -312,17 +312,17 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
     f_err = save_figure(plot_error_distributions(dist, scenes, hits=hits),
                         figs / "frame_distances")[0]
     algo = hits[hits["predictor"] == "algorithm"]
-    lines = [f"{scenes[r['scene']].label or r['scene']}: median |chosen − algorithm| = "
+    lines = [f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
              f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
              f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
              for r in algo.to_dict(orient="records")]
     better = tests[tests["significant"]]
     worse = tests[~tests["significant"]]
     verdict = (f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
-               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(better["scene"], better["baseline"], strict=True)) or "none")
                + ". Not significantly closer than: "
-               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(worse["scene"], worse["baseline"], strict=True)) or "none") + ".")
     missing = [s for s, i in scenes.items() if not i.baseline_frames]
     note = ("The fastest-frame and farthest-from-mean-pose baselines need the motion; "
@@ -421,7 +421,7 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
         t = paper_table2()
         labels = dict(zip(t["scene"], t["scene_label"], strict=True))
     for sid, info in extra.items():
-        info.setdefault("label", labels.get(sid))
+        info.setdefault("title", labels.get(sid))
     sections, summary = [], {}
     views = view_choices(df)
     if not views.empty:
@@ -432,7 +432,7 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
         summary.update(summ)
     pose = pose_choices(df)
     if not pose.empty:
-        extra = {sid: {**extra.get(sid, {}), "label": extra.get(sid, {}).get("label")
+        extra = {sid: {**extra.get(sid, {}), "title": extra.get(sid, {}).get("title")
                        or labels.get(sid)} for sid in ordered_scenes(pose["scene"], order)}
         scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
         s, summ = _frame_section(pose, out, scenes=scenes, n_permutations=n_permutations,

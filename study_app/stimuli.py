@@ -36,6 +36,7 @@ from snapcore.schema import validate
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
 from .protocol import Study, study_from_dict
+from .scenes import StudyScene
 
 __all__ = [
     "MANIFEST_NAME",
@@ -87,38 +88,29 @@ def sha256_file(path: str | Path) -> str:
 # --------------------------------------------------------------------------- loading
 
 
-@dataclass(frozen=True)
-class SceneStimulus:
-    """One scene's stimuli, paths resolved.
+@dataclass(frozen=True, kw_only=True)
+class SceneStimulus(StudyScene):
+    """One scene's stimuli, paths resolved: the :class:`~study_app.scenes.StudyScene`
+    (id, timing, the algorithm's picks, title) and its files.
 
     Attributes
     ----------
-    id : str
-    fps : float
-        Motion frame rate.
-    n_frames, frame_offset : int
-        Motion frames in the scene and the source number of its first frame.
     video : Path
     video_fps : float
     video_to_motion : tuple of int
         Motion frame (source numbering) shown at each video frame.
     frames : tuple of Path
         One image per video frame.
-    algorithm_frame : int
-        The algorithm's pose (source numbering).
     views : dict of str to Path
         Candidate view image per method.
+    entry : dict
+        The scene's entry in the manifest.
     """
 
-    id: str
-    fps: float
-    n_frames: int
-    frame_offset: int
     video: Path
     video_fps: float
     video_to_motion: tuple[int, ...]
     frames: tuple[Path, ...]
-    algorithm_frame: int
     views: dict
     entry: dict
 
@@ -233,10 +225,12 @@ def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
     scenes = {}
     for e in manifest["scenes"]:
         scenes[e["id"]] = SceneStimulus(
-            id=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
-            frame_offset=int(e["frame_offset"]), video=root / e["video"],
+            scene=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
+            frame_offset=int(e["frame_offset"]), algorithm_frame=int(e["picks"]["frame"]),
+            algorithm_frames=tuple(int(f) for f in e["picks"].get("frames", ())),
+            title=e.get("title"), video=root / e["video"],
             video_fps=float(e["video_fps"]), video_to_motion=tuple(e["video_to_motion"]),
-            frames=tuple(root / f for f in e["frames"]), algorithm_frame=int(e["picks"]["frame"]),
+            frames=tuple(root / f for f in e["frames"]),
             views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
         )
     return Stimuli(folder=root, manifest=manifest, sha256=sha256_file(root / MANIFEST_NAME),

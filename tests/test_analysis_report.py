@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from analysis import load as ld
 from analysis import simulate as sim
 from snapcore.cli.main import cli
+from study_app.scenes import StudyScene
 
 
 def _rows(n=20, seed=3, **kw):
@@ -128,7 +129,7 @@ def test_tables_as_markdown_and_latex():
 
 def test_observer_model_frames():
     """Without lapses the chosen frames scatter around the pick with the given spread."""
-    design = [sim.SimScene("a", 100.0, 2000, 1000)]
+    design = [StudyScene("a", 100.0, 2000, 1000)]
     model = sim.ObserverModel(spread_s=0.5, lapse=0.0)
     rows = sim.simulated_rows(sim.simulate_participants(design, 2000, seed=1, model=model))
     f = rows.loc[rows["task"] == "pose", "chosen_frame"].to_numpy(float)

@@ -12,6 +12,7 @@ from scipy import stats
 from analysis import simulate as sim
 from analysis import votes as vt
 from snapcore.select.methods import VIEW_METHODS
+from study_app.scenes import StudyScene
 
 # The paper's Table 2 as printed (../shared/METHOD.md §5 and the paper's text), typed here
 # independently of analysis/data/paper_table2.csv: ours, viewpoint entropy, motion area.
@@ -199,7 +200,7 @@ def test_simulated_strengths_recovered_within_ci():
     which the coverage test below checks over many seeds.
     """
     true = {"ours": 0.5, "viewpoint_entropy": 0.2, "motion_area": 0.3}
-    design = [sim.SimScene("scene_a", 30.0, 120, 60, strengths=true)]
+    design = [StudyScene("scene_a", 30.0, 120, 60, strengths=true)]
     people = sim.simulate_participants(design, 400, seed=0)
     rows = sim.simulated_rows(people)
     views = rows[rows["task"] == "view"]
