@@ -2,8 +2,9 @@
 
 Behind a token: the page compares what is typed with ``$SNAPSHOT_ADMIN_TOKEN``
 (constant-time). Without the variable, or without the right token, it shows nothing
-but the token field. Tables come from :mod:`analysis` (``analysis.votes``,
-``analysis.frames``) when it is installed, else from plain counts.
+but the token field. Tables and histograms come from :mod:`analysis`
+(``analysis.votes``, ``analysis.frames``): the UI layer sits above the analysis, which
+reads the store (see :mod:`study_app`).
 """
 
 from __future__ import annotations
