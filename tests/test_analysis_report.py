@@ -233,7 +233,7 @@ def test_power_cli(tmp_path):
     assert power_pairwise(n, 0.52, 0.40) >= 0.8 > power_pairwise(n - 1, 0.52, 0.40)
     _check_figures(tmp_path, ["power_curve"])
     res = CliRunner().invoke(cli, ["power"])
-    assert res.exit_code == 0 and "| difference |" in res.output
+    assert res.exit_code == 0 and re.search(r"^\|\s+difference\s+\|", res.output, re.M)
     res = CliRunner().invoke(cli, ["power", "--ours", "0.7", "--baseline", "0.5"])
     assert res.exit_code == 2 and "at most 1" in res.output
 
