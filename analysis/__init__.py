@@ -7,13 +7,19 @@ algorithm's pick and simple baselines (:mod:`analysis.frames`), simulate partici
 everything as CSV/Markdown/LaTeX tables, figures and an HTML report
 (:mod:`analysis.report`, ``snapshot analyze``). Plotting (matplotlib) is imported only
 when a figure is drawn.
+
+Direction: analysis reads the study's data through the study logic — the store
+(:mod:`study_app.store`), export files (:mod:`study_app.export`, the one codec of
+export rows), the stimulus manifest and the scene record
+(:class:`study_app.scenes.StudyScene`) — and never imports the study's UI; the
+researcher screen (:mod:`study_app.screens.researcher`) imports analysis to show its
+results. ``tests/test_architecture.py`` holds the layer table that enforces this.
 """
 
 from __future__ import annotations
 
 from .figures import FIGURES, make_figures, measure_table1, paper_analogues, paper_table1
 from .frames import (
-    SceneFrames,
     baselines_from_stimuli,
     closeness_tests,
     frame_distances,
@@ -23,7 +29,6 @@ from .frames import (
     scene_frames_from_rows,
 )
 from .load import (
-    METHODS,
     LoadError,
     attention_summary,
     load_responses,
@@ -36,7 +41,6 @@ from .power import power_chisquare, power_curve, power_pairwise, power_table, sa
 from .report import analyze, analyze_counts, write_table
 from .simulate import (
     ObserverModel,
-    SimScene,
     paper_design,
     simulate_participants,
     simulate_vote_counts,
@@ -60,11 +64,8 @@ from .votes import (
 
 __all__ = [
     "FIGURES",
-    "METHODS",
     "LoadError",
     "ObserverModel",
-    "SceneFrames",
-    "SimScene",
     "analyze",
     "analyze_counts",
     "attention_summary",

@@ -26,22 +26,22 @@ def _parse_strengths(text: str | None) -> dict | None:
     """``"ours=0.5,viewpoint_entropy=0.2,motion_area=0.3"`` → dict (checked)."""
     if not text:
         return None
-    from .load import METHODS
+    from snapcore.select.methods import VIEW_METHODS
 
     out = {}
     for part in text.split(","):
         name, _, value = part.partition("=")
         name = name.strip()
-        if name not in METHODS:
-            raise click.BadParameter(f"unknown method '{name}' (expected {', '.join(METHODS)})",
+        if name not in VIEW_METHODS:
+            raise click.BadParameter(f"unknown method '{name}' (expected {', '.join(VIEW_METHODS)})",
                                      param_hint="--strengths")
         try:
             out[name] = float(value)
         except ValueError:
             raise click.BadParameter(f"'{part}' is not method=number",
                                      param_hint="--strengths") from None
-    if set(out) != set(METHODS) or any(not v > 0 for v in out.values()):
-        raise click.BadParameter(f"give a positive strength for each of {', '.join(METHODS)}",
+    if set(out) != set(VIEW_METHODS) or any(not v > 0 for v in out.values()):
+        raise click.BadParameter(f"give a positive strength for each of {', '.join(VIEW_METHODS)}",
                                  param_hint="--strengths")
     return out
 

@@ -35,8 +35,9 @@ import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
+from snapcore.select.methods import VIEW_METHODS
 
-__all__ = ["FIGURES", "FigureUnavailable", "VIEW_PANELS", "paper_analogues", "load_analogue",
+__all__ = ["FIGURES", "FigureUnavailable", "paper_analogues", "load_analogue",
            "paper_table1", "make_figures", "measure_table1", "snapshot_views"]
 
 #: Every figure/table ``snapshot figures`` can make, in the order it makes them.
@@ -181,7 +182,7 @@ def _fig13(ctx: _Context) -> list[Path]:
     if pose.empty:
         raise FigureUnavailable("no pose-task responses")
     scenes = fr.scene_frames_from_rows(
-        pose, extra={s: {"label": labels.get(s)} for s in pose["scene"].unique()})
+        pose, extra={s: {"title": labels.get(s)} for s in pose["scene"].unique()})
     fig = plot_frame_histograms(pose, scenes)
     if title:
         fig.suptitle(title + "\n▼ = the algorithm's pick", fontsize=9, color="#B00000")
@@ -330,28 +331,31 @@ def _clip_name(sid: str) -> str:
     return f"{name}, {row['caveat']}" if row["caveat"] else name
 
 
-#: Panel names of the three methods' views (the paper's Fig. 8, 9, 10).
-VIEW_PANELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint entropy (Fig. 9)",
-               "motion_area": "motion area (Fig. 10)"}
-
-
 def snapshot_views(snap) -> dict:
-    """The three methods' view directions of a snapshot: method → unit vector (3,).
+    """The three methods' view directions of a snapshot, in the paper's order.
 
-    ``snap`` is a :class:`snapcore.pipeline.Snapshot` or its dict
-    (``data_schema/snapshot.schema.json``: ``view``, ``baselines.<method>.view``).
-    Raises :class:`FigureUnavailable` naming the views it lacks (a snapshot taken
-    without the view stage or without the baselines).
+    Parameters
+    ----------
+    snap : snapcore.pipeline.Snapshot
+        A snapshot taken with the view stage and the baselines.
+
+    Returns
+    -------
+    dict of ViewMethod to ndarray of shape (3,)
+        :attr:`Snapshot.views` for each of :data:`~snapcore.select.methods.VIEW_METHODS`.
+
+    Raises
+    ------
+    FigureUnavailable
+        Naming the views the snapshot lacks (taken without the view stage or without
+        the baselines).
     """
-    d = snap.to_dict() if hasattr(snap, "to_dict") else snap
-    base = d.get("baselines") or {}
-    found = {"ours": d.get("view")}
-    found.update({m: (base.get(m) or {}).get("view") for m in ("viewpoint_entropy", "motion_area")})
-    missing = [m for m, v in found.items() if v is None]
+    views = snap.views
+    missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
         raise FigureUnavailable(f"the snapshot has no {', '.join(missing)} view (take it with "
                                 "the view stage and the baselines)")
-    return {m: np.asarray(v, dtype=float) for m, v in found.items()}
+    return {m: views[m] for m in VIEW_METHODS}
 
 
 def _fig8_10(ctx: _Context) -> list[Path]:
@@ -368,7 +372,7 @@ def _fig8_10(ctx: _Context) -> list[Path]:
             skipped.append(f"{sid} ({err})")
             continue
         views = snapshot_views(snap)
-        img = compare_views(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
+        img = compare_views(snap.scene, snap.index, {m.panel: v for m, v in views.items()},
                       title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}")
         images.append(np.asarray(img))
         names.append(sid)
@@ -397,7 +401,7 @@ def _fig11(ctx: _Context) -> list[Path]:
 
     snap = ctx.snapshot(FEATURE_SCENE)
     views = snapshot_views(snap)
-    fig = relief_figure(snap.scene, snap.index, {VIEW_PANELS[m]: v for m, v in views.items()},
+    fig = relief_figure(snap.scene, snap.index, {m.panel: v for m, v in views.items()},
                         title=f"Fig. 11: reliefs of the dance pose (frame {snap.frame}, "
                               f"{_clip_name(FEATURE_SCENE)}) from each method's view")
     return _figure_paths(fig, ctx.out / "fig11_reliefs")

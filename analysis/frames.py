@@ -35,10 +35,11 @@ from __future__ import annotations
 
 import itertools
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+
+from study_app.scenes import StudyScene
 
 from .load import ordered_scenes
 from .votes import holm_adjust, wilson_interval
@@ -48,7 +49,6 @@ __all__ = [
     "N_PERMUTATIONS",
     "EXACT_MAX_N",
     "DETERMINISTIC_BASELINES",
-    "SceneFrames",
     "scene_frames_from_rows",
     "motion_baselines",
     "baselines_from_stimuli",
@@ -69,49 +69,6 @@ EXACT_MAX_N = 16
 DETERMINISTIC_BASELINES = ("middle", "fastest", "farthest_from_mean")
 
 
-@dataclass(frozen=True)
-class SceneFrames:
-    """What the frame analysis needs to know about one scene.
-
-    Attributes
-    ----------
-    scene : str
-        Scene id (as in the rows).
-    fps : float
-        Motion frames per second.
-    n_frames : int
-        Motion length in frames.
-    algorithm_frame : int
-        The algorithm's pick, source numbering.
-    frame_offset : int
-        Source number of the clip's first frame.
-    algorithm_frames : tuple of int
-        All of the algorithm's picks (top-k) to mark on histograms (may be empty).
-    baseline_frames : dict
-        Motion-derived baselines, name → source frame (``fastest``, ...).
-    label : str or None
-        Display name.
-    selector_frames : dict
-        Every pose selector's top-k source frames, name → list (``story``, ``paper``,
-        ``stretch``...; from the stimuli manifest's ``picks.by_method``), may be empty.
-    """
-
-    scene: str
-    fps: float
-    n_frames: int
-    algorithm_frame: int
-    frame_offset: int = 0
-    algorithm_frames: tuple = ()
-    baseline_frames: dict = field(default_factory=dict)
-    label: str | None = None
-    selector_frames: dict = field(default_factory=dict)
-
-    @property
-    def frames(self) -> np.ndarray:
-        """Every source frame of the clip, shape ``(n_frames,)``."""
-        return np.arange(self.frame_offset, self.frame_offset + self.n_frames)
-
-
 def _mode(values, name, scene):
     v = pd.Series(values).dropna()
     if v.empty:
@@ -125,15 +82,15 @@ def _mode(values, name, scene):
 
 def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
                            order=None) -> dict:
-    """Per-scene :class:`SceneFrames` from pose-task rows (fps, n_frames, algorithm_frame).
+    """Per-scene :class:`~study_app.scenes.StudyScene` from pose-task rows (fps, n_frames, algorithm_frame).
 
     Parameters
     ----------
     pose : DataFrame
         Pose-task rows (:func:`analysis.load.pose_choices`).
     extra : dict, optional
-        scene → dict of further :class:`SceneFrames` fields (``frame_offset``,
-        ``algorithm_frames``, ``baseline_frames``, ``label``), e.g. from the stimuli
+        scene → dict of further :class:`~study_app.scenes.StudyScene` fields (``frame_offset``,
+        ``algorithm_frames``, ``baseline_frames``, ``title``), e.g. from the stimuli
         manifest.
     order : sequence of str, optional
         Preferred scene order (:func:`analysis.load.ordered_scenes`).
@@ -150,7 +107,7 @@ def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
                           "left out of the frame analysis", stacklevel=2)
             continue
         kw = dict(extra.get(scene, {}))
-        out[scene] = SceneFrames(scene=scene, fps=float(fps), n_frames=int(n),
+        out[scene] = StudyScene(scene=scene, fps=float(fps), n_frames=int(n),
                                  algorithm_frame=int(a), **kw)
     return out
 
@@ -221,7 +178,7 @@ def baselines_from_stimuli(manifest, *, loader=None) -> dict:
     Returns
     -------
     dict
-        scene id → ``{"frame_offset", "baseline_frames", "algorithm_frames", "label"}``
+        scene id → ``{"frame_offset", "baseline_frames", "algorithm_frames", "title"}``
         (the ``extra`` argument of :func:`scene_frames_from_rows`). Scenes whose motion
         cannot be loaded are left out with a warning.
     """
@@ -238,7 +195,7 @@ def baselines_from_stimuli(manifest, *, loader=None) -> dict:
             info["selector_frames"] = {m: [int(f) for f in fs]
                                        for m, fs in picks["by_method"].items() if fs}
         if entry.get("title"):
-            info["label"] = entry["title"]
+            info["title"] = entry["title"]
         try:
             sc = loader(entry, base)
         except (ValueError, OSError) as err:
@@ -257,7 +214,7 @@ def baselines_from_stimuli(manifest, *, loader=None) -> dict:
 # ----------------------------------------------------------------- distances and hits
 
 
-def predictor_frames(info: SceneFrames) -> dict:
+def predictor_frames(info: StudyScene) -> dict:
     """Name → predicted source frame for the deterministic predictors of a scene."""
     out = {"algorithm": info.algorithm_frame,
            "middle": info.frame_offset + (info.n_frames - 1) // 2}
@@ -294,7 +251,7 @@ def frame_distances(pose: pd.DataFrame, scenes: dict) -> pd.DataFrame:
 
 def _uniform_distance_matrix(c, info):
     """|c_i − f| / fps for every choice i and every clip frame f, shape (n, n_frames)."""
-    return np.abs(c[:, None] - info.frames[None, :]) / info.fps
+    return np.abs(c[:, None] - info.source_frames[None, :]) / info.fps
 
 
 def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
@@ -345,7 +302,7 @@ def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float =
     pose : DataFrame
         Pose-task rows (``scene``, ``chosen_frame``).
     scenes : dict
-        scene → :class:`SceneFrames` with ``selector_frames``.
+        scene → :class:`~study_app.scenes.StudyScene` with ``selector_frames``.
     tolerance_s : float
         A choice agrees with a pick within ±``tolerance_s`` seconds.
 
@@ -460,7 +417,7 @@ def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_permutations: int = N
     return out
 
 
-def frame_histogram(pose: pd.DataFrame, info: SceneFrames, *, bins: int | None = None):
+def frame_histogram(pose: pd.DataFrame, info: StudyScene, *, bins: int | None = None):
     """Histogram of one scene's chosen frames over the whole clip.
 
     Parameters

@@ -6,11 +6,14 @@ Sources (all give the same frame):
   ``postgresql+psycopg://...``), read through ``study_app.store.Store(url).export_rows``;
 - an export file written by ``snapshot export``: CSV (``shown_order`` as a JSON string,
   empty cells = null) or JSON lines (``.jsonl``/``.ndjson``; a ``.json`` file holding a
-  list of rows is accepted too);
+  list of rows is accepted too), read by the study's own codec,
+  :func:`study_app.export.read_export`;
 - rows already in memory (a list of dicts or a DataFrame).
 
-Every row follows ``data_schema/response.schema.json``; rows are validated and a bad
-row raises :class:`LoadError` naming the file, the line and the field. Simulated
+Every row follows ``data_schema/response.schema.json``; rows are validated
+(:func:`study_app.export.validate_rows`) and a bad row raises :class:`LoadError` naming
+the file, the row and the field. Column types come from the schema
+(:func:`study_app.export.export_types`). Simulated
 participants (``simulated`` true, written by ``snapshot simulate``) are dropped unless
 ``include_simulated=True``.
 
@@ -28,22 +31,18 @@ schema's fields plus derived ones:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable, Mapping
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
+from study_app.export import export_columns, export_types, read_export, validate_rows
+from study_app.store import Store
 
 __all__ = [
     "LoadError",
-    "METHODS",
-    "BASELINE_METHODS",
-    "RESPONSE_FIELDS",
     "load_responses",
-    "read_export",
     "rows_from_store",
     "tidy_responses",
     "pose_choices",
@@ -53,30 +52,9 @@ __all__ = [
     "ordered_scenes",
 ]
 
-#: The view-task methods, in the paper's order (Fig. 8, 9, 10 = Table 2's rows).
-METHODS = ("ours", "viewpoint_entropy", "motion_area")
-#: The methods ours is compared against.
-BASELINE_METHODS = METHODS[1:]
-
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
 PAPER_SCENES = ("dancing", "running", "soccer_kicking", "basketball_shooting",
                 "two_person_arguing", "two_person_boxing")
-
-_INT_FIELDS = ("trial_index", "chosen_frame", "chosen_video_frame", "algorithm_frame",
-               "n_frames", "chosen_position")
-_FLOAT_FIELDS = ("fps", "response_time_s")
-_BOOL_FIELDS = ("correct", "simulated")
-_STR_FIELDS = ("participant_id", "study_id", "task", "scene", "stimulus_id", "chosen_method",
-               "chosen_value", "created_at", "app_version", "manifest_sha256", "age_band",
-               "gender", "experience", "prolific_pid")
-#: Every field of an export row, in the schema's order.
-RESPONSE_FIELDS = ("participant_id", "study_id", "trial_index", "task", "scene", "stimulus_id",
-                   "chosen_frame", "chosen_video_frame", "algorithm_frame", "fps", "n_frames",
-                   "chosen_method", "chosen_position", "shown_order", "chosen_value", "correct",
-                   "response_time_s", "created_at", "app_version", "manifest_sha256",
-                   "simulated", "age_band", "gender", "experience", "prolific_pid")
-_TRUE = {"true", "1", "yes", "t"}
-_FALSE = {"false", "0", "no", "f"}
 
 
 class LoadError(SnapshotError):
@@ -88,104 +66,7 @@ class LoadError(SnapshotError):
 
 def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
     """Export rows from the study store at ``url`` (None: the store's default URL)."""
-    try:
-        from study_app.store import Store
-    except ImportError as err:  # the store module is another package's; say so plainly
-        raise LoadError(f"cannot read the study store: study_app.store unavailable ({err})") from err
     return Store(url).export_rows(include_simulated=include_simulated)
-
-
-def _coerce_csv_value(field: str, text: str, where: str):
-    """One CSV cell (a string) → the JSON value the schema expects."""
-    if text == "":
-        return None
-    try:
-        if field in _INT_FIELDS:
-            value = float(text)
-            if not value.is_integer():
-                raise ValueError(f"not an integer: {text!r}")
-            return int(value)
-        if field in _FLOAT_FIELDS:
-            return float(text)
-        if field in _BOOL_FIELDS:
-            low = text.strip().lower()
-            if low in _TRUE:
-                return True
-            if low in _FALSE:
-                return False
-            raise ValueError(f"not a boolean: {text!r}")
-        if field == "shown_order":
-            value = json.loads(text)
-            if not isinstance(value, list):
-                raise ValueError(f"expected a JSON list, got {text!r}")
-            return value
-    except (ValueError, json.JSONDecodeError) as err:
-        raise LoadError(f"{where}: {field}: {err}") from None
-    return text
-
-
-def read_export(path: str | Path) -> list[dict]:
-    """Read the rows of an export file (CSV, JSON lines or a JSON list), unvalidated.
-
-    Parameters
-    ----------
-    path : str or Path
-        ``.csv``; ``.jsonl``/``.ndjson``; or ``.json`` (a list of rows, or JSON lines).
-
-    Returns
-    -------
-    list of dict
-        One dict per row with JSON types (CSV cells converted by field).
-    """
-    p = Path(path)
-    if not p.exists():
-        raise LoadError(f"{p}: no such file")
-    suffix = p.suffix.lower()
-    if suffix == ".csv":
-        try:
-            raw = pd.read_csv(p, dtype=str, keep_default_na=False, na_values=[])
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
-            raise LoadError(f"{p}: not a readable CSV file ({err})") from err
-        rows = []
-        for i, rec in enumerate(raw.to_dict(orient="records")):
-            where = f"{p}:{i + 2}"  # line 1 is the header
-            rows.append({k: _coerce_csv_value(k, v, where) for k, v in rec.items()})
-        return rows
-    if suffix in (".jsonl", ".ndjson", ".json"):
-        text = p.read_text(encoding="utf-8")
-        stripped = text.lstrip()
-        if suffix == ".json" and stripped.startswith("["):
-            try:
-                doc = json.loads(text)
-            except json.JSONDecodeError as err:
-                raise LoadError(f"{p}:{err.lineno}: not valid JSON ({err.msg})") from err
-            return list(doc)
-        rows = []
-        for lineno, line in enumerate(text.splitlines(), start=1):
-            if not line.strip():
-                continue
-            try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError as err:
-                raise LoadError(f"{p}:{lineno}: not valid JSON ({err.msg})") from err
-        return rows
-    raise LoadError(f"{p}: unknown export format '{suffix}' (expected .csv, .jsonl or .json)")
-
-
-def _validate_rows(rows: list[dict], source: str) -> None:
-    """Check every row against ``response.schema.json``; the first bad one raises."""
-    import jsonschema
-
-    from snapcore.schema import field_path, load_schema
-
-    validator = jsonschema.Draft202012Validator(load_schema("response"))
-    for i, row in enumerate(rows):
-        if not isinstance(row, Mapping):
-            raise LoadError(f"{source}: row {i + 1}: expected an object, got {type(row).__name__}")
-        error = jsonschema.exceptions.best_match(validator.iter_errors(dict(row)))
-        if error is not None:
-            raise LoadError(f"{source}: row {i + 1}: {field_path(error.absolute_path)}: "
-                            f"{error.message}")
 
 
 # ----------------------------------------------------------------- tidy frames
@@ -220,11 +101,15 @@ def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated:
             if isinstance(r.get(k), pd.Timestamp):
                 r[k] = r[k].isoformat()
     if validate:
-        _validate_rows(records, source)
-    df = pd.DataFrame.from_records(records, columns=list(RESPONSE_FIELDS))
-    for c in _INT_FIELDS:
+        try:
+            validate_rows(records, source=source)
+        except SnapshotError as err:
+            raise LoadError(str(err)) from err
+    types = export_types()
+    df = pd.DataFrame.from_records(records, columns=export_columns())
+    for c in (c for c, t in types.items() if t == "integer"):
         df[c] = pd.array(df[c].to_numpy(dtype=object), dtype="Int64")
-    for c in _FLOAT_FIELDS:
+    for c in (c for c, t in types.items() if t == "number"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
     df["correct"] = pd.array(df["correct"].to_numpy(dtype=object), dtype="boolean")
     df["simulated"] = df["simulated"].fillna(False).astype(bool)
@@ -271,7 +156,10 @@ def load_responses(source, *, include_simulated: bool = False,
         rows = rows_from_store(text, include_simulated=include_simulated)
         return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
                               source=text.split("@")[-1])
-    rows = read_export(text)
+    try:
+        rows = read_export(text, validate=False)  # tidy_responses validates, if asked
+    except SnapshotError as err:
+        raise LoadError(str(err)) from err
     return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
                           source=text)
 

@@ -13,8 +13,9 @@ import math
 import numpy as np
 import pandas as pd
 
+from snapcore.select.methods import ViewMethod
+
 __all__ = [
-    "METHOD_LABELS",
     "METHOD_COLORS",
     "PREDICTOR_STYLES",
     "plot_votes",
@@ -25,17 +26,20 @@ __all__ = [
     "save_figure",
 ]
 
-#: Display names of the view methods (the paper's figure numbers in brackets).
-METHOD_LABELS = {"ours": "ours: PMA (Fig. 8)", "viewpoint_entropy": "viewpoint entropy (Fig. 9)",
-                 "motion_area": "motion area (Fig. 10)"}
 #: One colour per method, the same in every figure (colour-blind safe, Okabe–Ito).
-METHOD_COLORS = {"ours": "#D55E00", "viewpoint_entropy": "#0072B2", "motion_area": "#009E73"}
+METHOD_COLORS = {ViewMethod.OURS: "#D55E00", ViewMethod.VIEWPOINT_ENTROPY: "#0072B2",
+                 ViewMethod.MOTION_AREA: "#009E73"}
 #: How each frame predictor is marked: (colour, line style, label).
 PREDICTOR_STYLES = {"algorithm": ("#D55E00", "-", "algorithm's pick"),
                     "middle": ("#555555", ":", "middle frame"),
                     "fastest": ("#0072B2", "--", "fastest frame"),
                     "farthest_from_mean": ("#009E73", "-.", "farthest from mean pose"),
                     "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame")}
+
+
+def _method_label(method) -> str:
+    """A method's legend entry: its panel title (:attr:`ViewMethod.panel`), or the name."""
+    return ViewMethod(method).panel if method in set(ViewMethod) else str(method)
 
 
 def _plt():
@@ -105,7 +109,7 @@ def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
         share = t["share"].to_numpy(dtype=float)
         err = np.vstack([share - t["ci_low"].to_numpy(float), t["ci_high"].to_numpy(float) - share])
         xs = x + (j - (len(methods) - 1) / 2) * width
-        ax.bar(xs, share, width, color=METHOD_COLORS.get(m), label=METHOD_LABELS.get(m, m))
+        ax.bar(xs, share, width, color=METHOD_COLORS.get(m), label=_method_label(m))
         ax.errorbar(xs, share, yerr=err, fmt="none", ecolor="black", elinewidth=0.8, capsize=2)
         for xi, v, hi in zip(xs, t["votes"], t["ci_high"].to_numpy(float), strict=True):
             ax.text(xi, hi + 0.01, f"{int(v)}", ha="center", va="bottom", fontsize=7)
@@ -142,7 +146,7 @@ def plot_strengths(strengths: pd.DataFrame, *, labels: dict | None = None, ax=No
         yy = y + (j - 1) * 0.22
         ax.errorbar(s, yy, xerr=np.vstack([s - t["ci_low"].to_numpy(float),
                                            t["ci_high"].to_numpy(float) - s]),
-                    fmt="o", color=METHOD_COLORS.get(m), label=METHOD_LABELS.get(m, m),
+                    fmt="o", color=METHOD_COLORS.get(m), label=_method_label(m),
                     ms=4, capsize=2)
     ax.set_yticks(y, [labels.get(s, s) for s in scenes])
     ax.axvline(1 / max(1, len(methods)), color="grey", lw=0.8, ls=":")
@@ -161,7 +165,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
     pose : DataFrame
         Pose-task rows.
     scenes : dict
-        scene id → :class:`analysis.frames.SceneFrames`.
+        scene id → :class:`study_app.scenes.StudyScene`.
     show_baselines : bool
         Mark the baseline frames (middle, fastest, farthest from the mean pose) too.
     """
@@ -186,7 +190,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         ax.plot([info.algorithm_frame], [top * 1.05], marker="v", color=PREDICTOR_STYLES["algorithm"][0],
                 ms=8, clip_on=False)
         n = int((pose["scene"] == sid).sum())
-        ax.set_title(f"{info.label or sid}  (n = {n})", fontsize=9)
+        ax.set_title(f"{info.title or sid}  (n = {n})", fontsize=9)
         ax.set_xlim(edges[0], edges[-1])
         ax.set_ylim(0, top * 1.12)
         ax.set_xlabel(f"motion frame ({info.fps:g} fps)", fontsize=8)
@@ -236,7 +240,7 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
             ax.axvline(t, color="grey", lw=0.5, ls=":")
         ax.set_xlim(0, max(1.5, xmax * 1.05))
         ax.set_ylim(0, 1)
-        ax.set_title(scenes[sid].label or sid, fontsize=9)
+        ax.set_title(scenes[sid].title or sid, fontsize=9)
         ax.set_xlabel("|chosen − predicted| (s)", fontsize=8)
         ax.set_ylabel("fraction of participants", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -252,15 +256,15 @@ def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | N
     ``n_needed`` (e.g. :func:`analysis.power.sample_size`'s ``n_stable``) is marked.
     """
     fig, ax = _figure_axes(ax, (6, 3.6))
-    ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS["ours"],
+    ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS[ViewMethod.OURS],
             label="ours beats the baseline (exact binomial, corrected level)")
     ax.plot(curve["n"], curve["power_chisquare"], color="#555555", ls="--",
             label="some preference among the three (chi-square, uncorrected)")
     ax.axhline(target, color="grey", lw=0.8, ls=":")
     if n_needed is not None:
-        ax.axvline(n_needed, color=METHOD_COLORS["ours"], lw=0.8, ls=":")
+        ax.axvline(n_needed, color=METHOD_COLORS[ViewMethod.OURS], lw=0.8, ls=":")
         ax.annotate(f"{n_needed} participants", (n_needed, target), xytext=(6, -14),
-                    textcoords="offset points", fontsize=8, color=METHOD_COLORS["ours"])
+                    textcoords="offset points", fontsize=8, color=METHOD_COLORS[ViewMethod.OURS])
     ax.set_ylim(0, 1)
     ax.set_xlabel("participants (votes per scene)")
     ax.set_ylabel("power")

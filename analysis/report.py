@@ -67,13 +67,14 @@ def format_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def to_markdown(df: pd.DataFrame) -> str:
-    """A GitHub-flavoured Markdown pipe table of ``df`` (formatted cells)."""
+    """A GitHub-flavoured Markdown pipe table of ``df`` (formatted cells, ``|`` escaped):
+    :meth:`pandas.DataFrame.to_markdown` (tabulate's ``pipe`` format)."""
     f = format_table(df)
+    align = ["right" if _is_numeric(f[c]) else "left" for c in f.columns]
     esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
-    lines = ["| " + " | ".join(esc(c) for c in f.columns) + " |",
-             "|" + "|".join("---" for _ in f.columns) + "|"]
-    lines += ["| " + " | ".join(esc(v) for v in row) + " |" for row in f.itertuples(index=False)]
-    return "\n".join(lines) + "\n"
+    f = f.map(esc).rename(columns=esc)
+    return f.to_markdown(index=False, tablefmt="pipe", disable_numparse=True,
+                         colalign=align) + "\n"
 
 
 _LATEX_ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
@@ -87,20 +88,21 @@ def _latex_escape(s: str) -> str:
 
 
 def to_latex(df: pd.DataFrame, *, caption: str = "", label: str = "") -> str:
-    """A ``booktabs`` LaTeX table of ``df`` (formatted cells, special characters escaped)."""
+    """A ``booktabs`` LaTeX table of ``df`` (formatted cells, special characters escaped),
+    written by :meth:`pandas.io.formats.style.Styler.to_latex`: numeric columns
+    right-aligned, the caption above the table."""
     f = format_table(df)
-    num = [all(_is_number(v) for v in f[c] if v != "") for c in f.columns]
-    spec = "".join("r" if n else "l" for n in num)
-    out = ["\\begin{table}[ht]", "\\centering", "\\small", f"\\begin{{tabular}}{{{spec}}}",
-           "\\toprule", " & ".join(_latex_escape(c) for c in f.columns) + " \\\\", "\\midrule"]
-    out += [" & ".join(_latex_escape(v) for v in row) + " \\\\" for row in f.itertuples(index=False)]
-    out += ["\\bottomrule", "\\end{tabular}"]
-    if caption:
-        out.append(f"\\caption{{{_latex_escape(caption)}}}")
-    if label:
-        out.append(f"\\label{{{label}}}")
-    out.append("\\end{table}")
-    return "\n".join(out) + "\n"
+    spec = "".join("r" if _is_numeric(f[c]) else "l" for c in f.columns)
+    f = f.map(_latex_escape).rename(columns=_latex_escape)
+    styler = f.style.hide(axis="index").set_table_styles([{"selector": "small", "props": ":;"}])
+    return styler.to_latex(column_format=spec, position="ht", position_float="centering",
+                           hrules=True, caption=_latex_escape(caption) if caption else None,
+                           label=label or None)
+
+
+def _is_numeric(cells) -> bool:
+    """Whether a column of formatted cells holds only numbers (and blanks)."""
+    return all(_is_number(v) for v in cells if v != "")
 
 
 def _is_number(s: str) -> bool:
@@ -310,17 +312,17 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
     f_err = save_figure(plot_error_distributions(dist, scenes, hits=hits),
                         figs / "frame_distances")[0]
     algo = hits[hits["predictor"] == "algorithm"]
-    lines = [f"{scenes[r['scene']].label or r['scene']}: median |chosen − algorithm| = "
+    lines = [f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
              f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
              f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
              for r in algo.to_dict(orient="records")]
     better = tests[tests["significant"]]
     worse = tests[~tests["significant"]]
     verdict = (f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
-               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(better["scene"], better["baseline"], strict=True)) or "none")
                + ". Not significantly closer than: "
-               + (", ".join(f"{b} in {scenes[s].label or s}" for s, b in
+               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(worse["scene"], worse["baseline"], strict=True)) or "none") + ".")
     missing = [s for s, i in scenes.items() if not i.baseline_frames]
     note = ("The fastest-frame and farthest-from-mean-pose baselines need the motion; "
@@ -448,7 +450,7 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
         t = paper_table2()
         labels = dict(zip(t["scene"], t["scene_label"], strict=True))
     for sid, info in extra.items():
-        info.setdefault("label", labels.get(sid))
+        info.setdefault("title", labels.get(sid))
     sections, summary = [], {}
     views = view_choices(df)
     if not views.empty:
@@ -459,7 +461,7 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
         summary.update(summ)
     pose = pose_choices(df)
     if not pose.empty:
-        extra = {sid: {**extra.get(sid, {}), "label": extra.get(sid, {}).get("label")
+        extra = {sid: {**extra.get(sid, {}), "title": extra.get(sid, {}).get("title")
                        or labels.get(sid)} for sid in ordered_scenes(pose["scene"], order)}
         scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
         s, summ = _frame_section(pose, out, scenes=scenes, n_permutations=n_permutations,

@@ -9,12 +9,12 @@ The observer model (:class:`ObserverModel`), one participant at a time:
 - **Pose task** (per scene): with probability ``lapse`` the observer picks a frame
   uniformly at random from the clip; otherwise they pick one of the scene's *salient
   moments* — the algorithm's pick with probability ``algorithm_weight``, else one of
-  the other salient frames (``SimScene.salient_frames``: the top-k entropy peaks of the
+  the other salient frames (``StudyScene.salient_frames``: the top-k entropy peaks of the
   manifest, or moments the paper's text names) uniformly — and land
   ``round(N(0, spread_s) · fps)`` frames from it, clipped to the clip.
 - **View task** (per scene): the three methods' views appear in a random left-to-right
   order; the observer chooses by Luce's choice axiom, ``P(m) = s_m / Σ_shown s_j``,
-  from the scene's method strengths (``SimScene.strengths``, else the model's).
+  from the scene's method strengths (``StudyScene.strengths``, else the model's).
 - **Attention check**: answered right with probability ``attention_pass``, else a
   random wrong option.
 - Response times: log-normal with medians ``pose_time_s`` / ``view_time_s`` and log-SD
@@ -36,11 +36,11 @@ from datetime import UTC, datetime
 import numpy as np
 import pandas as pd
 
-from .load import METHODS
+from snapcore.select.methods import VIEW_METHODS
+from study_app.scenes import StudyScene
 
 __all__ = [
     "ObserverModel",
-    "SimScene",
     "paper_design",
     "design_from_stimuli",
     "simulate_participants",
@@ -87,7 +87,7 @@ class ObserverModel:
     spread_s: float = 0.5
     lapse: float = 0.1
     algorithm_weight: float = 0.7
-    strengths: dict = field(default_factory=lambda: {m: 1.0 for m in METHODS})
+    strengths: dict = field(default_factory=lambda: {m: 1.0 for m in VIEW_METHODS})
     attention_pass: float = 0.95
     pose_time_s: float = 12.0
     view_time_s: float = 5.0
@@ -104,46 +104,12 @@ class ObserverModel:
 
 def _check_strengths(s: dict, what: str) -> None:
     bad = {m: v for m, v in s.items() if not (np.isfinite(v) and v > 0)}
-    if bad or set(s) != set(METHODS):
-        raise ValueError(f"{what}: expected a positive strength for each of {list(METHODS)}, "
-                         f"got {s}")
+    if bad or set(s) != set(VIEW_METHODS):
+        raise ValueError(f"{what}: expected a positive strength for each of "
+                         f"{[str(m) for m in VIEW_METHODS]}, got {s}")
 
 
-@dataclass(frozen=True)
-class SimScene:
-    """One scene of a simulated study.
-
-    Attributes
-    ----------
-    scene : str
-        Scene id.
-    fps : float
-        Motion frames per second.
-    n_frames : int
-        Motion length in frames.
-    algorithm_frame : int
-        The algorithm's pick (source numbering).
-    frame_offset : int
-        Source number of the first frame.
-    salient_frames : tuple of int
-        Other salient moments observers may aim at (source numbering).
-    strengths : dict or None
-        Luce strengths of the methods for this scene (None: the model's).
-    title : str or None
-        Display name.
-    """
-
-    scene: str
-    fps: float
-    n_frames: int
-    algorithm_frame: int
-    frame_offset: int = 0
-    salient_frames: tuple = ()
-    strengths: dict | None = None
-    title: str | None = None
-
-
-def paper_design() -> list[SimScene]:
+def paper_design() -> list[StudyScene]:
     """A study shaped like the paper's: its six animations, Table 2 shares as strengths.
 
     Frame counts are the paper's Table 1; the motion rate is *assumed* 30 fps (the paper
@@ -166,33 +132,39 @@ def paper_design() -> list[SimScene]:
     out = []
     for sid, title, n, a, extra in spec:
         shares = counts.loc[sid] / counts.loc[sid].sum()
-        strengths = {m: max(float(shares[m]), 0.01) for m in METHODS}
-        out.append(SimScene(scene=sid, fps=30.0, n_frames=n, algorithm_frame=a,
+        strengths = {m: max(float(shares[m]), 0.01) for m in VIEW_METHODS}
+        out.append(StudyScene(scene=sid, fps=30.0, n_frames=n, algorithm_frame=a,
                             salient_frames=extra, strengths=strengths, title=title))
     return out
 
 
-def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[SimScene]:
+def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[StudyScene]:
     """Scenes of a stimuli manifest as a simulation design (top-k picks as salient moments)."""
     from .stimuli import stimuli_scenes
 
     t = stimuli_scenes(manifest)
-    return [SimScene(scene=r.scene, fps=r.fps, n_frames=r.n_frames,
+    return [StudyScene(scene=r.scene, fps=r.fps, n_frames=r.n_frames,
                      algorithm_frame=r.algorithm_frame, frame_offset=r.frame_offset,
                      salient_frames=tuple(f for f in r.algorithm_frames if f != r.algorithm_frame),
                      strengths=strengths, title=r.title) for r in t.itertuples()]
 
 
+#: The scene fields a simulated study depends on (hashed by :func:`design_sha256`).
+_DESIGN_FIELDS = ("scene", "fps", "n_frames", "algorithm_frame", "frame_offset",
+                  "salient_frames", "strengths", "title")
+
+
 def design_sha256(design, model: ObserverModel) -> str:
     """A stable sha256 of a design + model (the store's ``manifest_sha256`` for them)."""
-    doc = {"design": [asdict(s) for s in design], "model": asdict(model)}
+    doc = {"design": [{k: getattr(s, k) for k in _DESIGN_FIELDS} for s in design],
+           "model": asdict(model)}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 
 # ----------------------------------------------------------------- the observer
 
 
-def _pose_choice(rng, s: SimScene, model: ObserverModel) -> int:
+def _pose_choice(rng, s: StudyScene, model: ObserverModel) -> int:
     lo, hi = s.frame_offset, s.frame_offset + s.n_frames - 1
     if rng.random() < model.lapse:
         return int(rng.integers(lo, hi + 1))
@@ -204,7 +176,7 @@ def _pose_choice(rng, s: SimScene, model: ObserverModel) -> int:
 
 
 def _view_choice(rng, strengths: dict) -> tuple[tuple, int, str]:
-    shown = tuple(METHODS[i] for i in rng.permutation(len(METHODS)))
+    shown = tuple(VIEW_METHODS[i] for i in rng.permutation(len(VIEW_METHODS)))
     w = np.array([strengths[m] for m in shown], dtype=float)
     pos = int(rng.choice(len(shown), p=w / w.sum()))
     return shown, pos, shown[pos]
@@ -216,7 +188,7 @@ def simulate_participants(design, n: int, *, seed: int = 0, model: ObserverModel
 
     Parameters
     ----------
-    design : sequence of SimScene
+    design : sequence of StudyScene
         The study's scenes.
     n : int
         Number of participants.

@@ -10,7 +10,7 @@ it uses which methods were on screen.
 Choices of method made here, stated once:
 
 - Per-method vote shares get **Wilson score** 95% intervals (no continuity
-  correction; identical to ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``).
+  correction): ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``.
 - "No preference" is Pearson's chi-square goodness-of-fit test against equal shares.
 - Ours vs each baseline is the **exact two-sided binomial test** of ours' share among the
   votes cast for the two (conditional on ``ours + baseline`` votes; null share 1/2), with
@@ -33,7 +33,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .load import METHODS, ordered_scenes
+from snapcore.select.methods import VIEW_METHODS
+
+from .load import ordered_scenes
 
 __all__ = [
     "ALPHA",
@@ -44,7 +46,6 @@ __all__ = [
     "vote_counts",
     "choices_from_counts",
     "wilson_interval",
-    "binomial_two_sided_p",
     "holm_adjust",
     "vote_table",
     "chisquare_no_preference",
@@ -85,12 +86,12 @@ def paper_counts() -> pd.DataFrame:
     """The paper's Table 2 as wide counts (scenes × methods), in the paper's order."""
     t = paper_table2()
     wide = t.pivot(index="scene", columns="method", values="votes")
-    wide = wide.loc[list(dict.fromkeys(t["scene"])), list(METHODS)]
+    wide = wide.loc[list(dict.fromkeys(t["scene"])), list(VIEW_METHODS)]
     wide.columns.name = None
     return wide.astype(int)
 
 
-def vote_counts(choices: pd.DataFrame, *, methods=METHODS, order=None) -> pd.DataFrame:
+def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> pd.DataFrame:
     """View-task choices → wide counts (scenes × ``methods``).
 
     Parameters
@@ -100,7 +101,7 @@ def vote_counts(choices: pd.DataFrame, *, methods=METHODS, order=None) -> pd.Dat
     order : sequence of str, optional
         Preferred scene order (see :func:`analysis.load.ordered_scenes`).
     """
-    methods = list(methods)
+    methods = [str(m) for m in methods]
     unknown = set(choices["chosen_method"].dropna()) - set(methods)
     if unknown:
         raise ValueError(f"chosen_method: unknown method(s) {sorted(unknown)}; expected {methods}")
@@ -148,37 +149,17 @@ def wilson_interval(k, n, *, confidence: float = 0.95):
 
     Notes
     -----
-    ``(p + z²/2n ± z sqrt(p(1-p)/n + z²/4n²)) / (1 + z²/n)`` with ``p = k/n`` and
-    ``z`` the two-sided normal quantile (Wilson 1927), without continuity correction.
+    ``scipy.stats.binomtest(k, n).proportion_ci(confidence, method="wilson")`` per
+    element: ``(p + z²/2n ± z sqrt(p(1-p)/n + z²/4n²)) / (1 + z²/n)`` with ``p = k/n``
+    and ``z`` the two-sided normal quantile (Wilson 1927), without continuity correction.
     """
-    k = np.asarray(k, dtype=float)
-    n = np.asarray(n, dtype=float)
-    z = stats.norm.ppf(0.5 + confidence / 2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        p = k / n
-        denom = 1 + z**2 / n
-        centre = (p + z**2 / (2 * n)) / denom
-        half = z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / denom
-    # k = 0 and k = n have exact end points 0 and 1 (the formula gives them up to rounding).
-    low = np.where((n > 0) & (k > 0), np.clip(centre - half, 0, 1), 0.0)
-    high = np.where((n > 0) & (k < n), np.clip(centre + half, 0, 1), 1.0)
+    k, n = np.broadcast_arrays(np.asarray(k, dtype=int), np.asarray(n, dtype=int))
+    low, high = np.zeros(k.shape), np.ones(k.shape)
+    for i in np.ndindex(k.shape):
+        if n[i] > 0:
+            ci = stats.binomtest(int(k[i]), int(n[i])).proportion_ci(confidence, method="wilson")
+            low[i], high[i] = ci.low, ci.high
     return low, high
-
-
-def binomial_two_sided_p(k, n):
-    """Exact two-sided binomial p-value against a share of 1/2, vectorised.
-
-    For the symmetric null the "minimum likelihood" two-sided p (what
-    ``scipy.stats.binomtest(k, n, 0.5).pvalue`` computes) is twice the smaller tail,
-    capped at 1: ``min(1, 2 min(P[X <= k], P[X >= k]))``, ``X ~ Binomial(n, 1/2)``.
-    ``n = 0`` gives 1.
-    """
-    k = np.asarray(k, dtype=float)
-    n = np.asarray(n, dtype=float)
-    lower = stats.binom.cdf(k, n, 0.5)
-    upper = stats.binom.sf(k - 1, n, 0.5)
-    p = np.minimum(1.0, 2.0 * np.minimum(lower, upper))
-    return np.where(n > 0, p, 1.0)
 
 
 def holm_adjust(pvalues) -> np.ndarray:
@@ -301,15 +282,15 @@ def ours_vs_baselines(counts: pd.DataFrame, *, reference: str = "ours", baseline
             k, j = int(row[reference]), int(row[b])
             n = k + j
             if n > 0:
-                ci = stats.binomtest(k, n, 0.5).proportion_ci(confidence, method="exact")
-                lo, hi = ci.low, ci.high
+                test = stats.binomtest(k, n, 0.5)
+                ci = test.proportion_ci(confidence, method="exact")
+                lo, hi, p = ci.low, ci.high, test.pvalue
             else:
-                lo, hi = 0.0, 1.0
+                lo, hi, p = 0.0, 1.0, 1.0
             rows.append({"scene": scene, "baseline": b, "reference_votes": k, "baseline_votes": j,
                          "n_pair": n, "share_reference": k / n if n else np.nan,
-                         "ci_low": lo, "ci_high": hi})
+                         "ci_low": lo, "ci_high": hi, "p_value": p})
     out = pd.DataFrame(rows)
-    out["p_value"] = binomial_two_sided_p(out["reference_votes"], out["n_pair"])
     if family == "all":
         out["p_holm"] = holm_adjust(out["p_value"])
     else:
@@ -371,7 +352,7 @@ def _fit_shares(n_items, data, alpha, initial=None):
     return w / w.sum(), theta
 
 
-def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000,
+def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int = 1000,
                    seed: int = 0, confidence: float = 0.95, pooled: bool = True,
                    luce_alpha: float = LUCE_ALPHA, order=None) -> pd.DataFrame:
     """Luce (Plackett–Luce top-1 / Bradley–Terry) method strengths with bootstrap CIs.
@@ -406,7 +387,7 @@ def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000
     iterative Luce spectral ranking (``choix.ilsr_top1``; Maystre & Grossglauser 2015).
     When all methods are always shown, the ML strengths equal the vote shares.
     """
-    methods = list(methods)
+    methods = [str(m) for m in methods]
     index = {m: i for i, m in enumerate(methods)}
     rng = np.random.default_rng(seed)
     shown_col = choices["shown_order"] if "shown_order" in choices else [None] * len(choices)

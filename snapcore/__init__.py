@@ -19,7 +19,7 @@ from snapcore.render.video import render_video
 from snapcore.select.contacts import ContactTolerances, Interactions, detect_interactions
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
 from snapcore.select.pose import PoseEntropy, PoseSelection, pose_entropy
-from snapcore.select.pose_methods import POSE_METHODS, select_pose
+from snapcore.select.pose_methods import POSE_METHODS, PoseParams, select_pose
 from snapcore.select.view import ViewSelection, pma_scores, select_view
 
 __version__ = "0.1.0"
@@ -43,6 +43,7 @@ __all__ = [
     "SnapshotError",
     "ViewMethod",
     "VIEW_METHODS",
+    "PoseParams",
     "ViewParams",
     "ViewSelection",
     "compare_views",

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -26,8 +26,8 @@ import numpy as np
 from snapcore.errors import SnapshotError
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.methods import ViewMethod
-from snapcore.select.pose import MIN_SEPARATION_S, PoseSelection
-from snapcore.select.pose_methods import select_pose
+from snapcore.select.pose import PoseSelection
+from snapcore.select.pose_methods import PoseParams, select_pose
 from snapcore.select.story import DEFAULT_STORY
 from snapcore.select.view import (
     MA_FLOOR_M2,
@@ -271,22 +271,16 @@ def _jsonable(value):
     return value
 
 
-def take_snapshot(scene, *, pose_method: str | None = None, k: int = 3,
-                  min_separation_s: float = MIN_SEPARATION_S, view: bool = True,
-                  window_s: float | None = None, baselines: bool = True,
-                  n_views: int = 2562, **pose_options) -> Snapshot:
+def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = True,
+                  window_s: float | None = None, baselines: bool = True, n_views: int = 2562,
+                  **pose_options) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
     scene : Scene
-    pose_method : str, optional
-        The pose selector (:data:`snapcore.select.pose_methods.POSE_METHODS`); default
-        ``"story"``; ``"paper"`` for the paper's pose entropy.
-    k : int
-        Number of distinct top poses to keep.
-    min_separation_s : float
-        Minimum time (s) between them.
+    pose_params : PoseParams, optional
+        The pose stage's options (default: ``PoseParams()``).
     view : bool
         Run the view stage : PMA view of the whole
         sequence or of ``window_s``, and the baselines.
@@ -297,22 +291,37 @@ def take_snapshot(scene, *, pose_method: str | None = None, k: int = 3,
     n_views : int
         Samples of the view sphere.
     **pose_options
-        Passed to :func:`snapcore.select.pose_methods.select_pose` (``w_local``, ``w_global``,
-        ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``).
+        Fields of :class:`~snapcore.select.pose_methods.PoseParams` that override
+        ``pose_params`` (``pose_method``, ``k``, ``min_separation_s``, the paper's
+        ``w_local``, ``w_global``, ``events``, ``smooth_s``, ``rest_speed``,
+        ``tolerances``, ``story``, ``seed``): so a study config's ``selection`` table
+        passes them by name.
 
     Returns
     -------
     Snapshot
+        ``options`` records every pose parameter (the tolerances as
+        ``contact_tolerances``) and, with the view stage, ``window_s``, ``baselines``
+        and ``n_views``.
+
+    Raises
+    ------
+    TypeError
+        An option that is not a field of PoseParams.
     """
+    known = {f.name for f in fields(PoseParams)}
+    unknown = sorted(set(pose_options) - known)
+    if unknown:
+        raise TypeError(f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
+                        f"are {', '.join(sorted(known))})")
+    params = replace(pose_params or PoseParams(), **pose_options)
     t0 = time.perf_counter()
-    sel = select_pose(scene, method=pose_method, k=k, min_separation_s=min_separation_s,
-                      **pose_options)
+    sel = select_pose(scene, **params.kwargs())
     t1 = time.perf_counter()
-    options = {"pose_method": sel.method, "k": int(k), "min_separation_s": float(min_separation_s)}
-    for name, value in pose_options.items():
-        if name in ("tolerances", "interactions", "story"):
-            continue
-        options[name] = value
+    options = {"pose_method": sel.method, "k": int(params.k),
+               "min_separation_s": float(params.min_separation_s)}
+    options.update({name: value for name, value in params.kwargs().items()
+                    if name not in ("method", "k", "min_separation_s", "tolerances", "story")})
     tol = sel.entropy.interactions.tolerances
     if sel.method == "paper":
         options["contact_tolerances"] = {
@@ -323,7 +332,7 @@ def take_snapshot(scene, *, pose_method: str | None = None, k: int = 3,
             "min_duration_s": tol.min_duration,
         }
     elif sel.method == "story":  # every ingredient of the run, for the record
-        options["story"] = asdict(pose_options.get("story") or DEFAULT_STORY)
+        options["story"] = asdict(params.story or DEFAULT_STORY)
     timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "story", "select")
                if key in sel.timings_s}
     timings["pose"] = t1 - t0

@@ -5,6 +5,10 @@ rows into files and files back into rows. Rows follow ``data_schema/response.sch
 in CSV, ``shown_order`` is a JSON array string (``["ours", "motion_area",
 "viewpoint_entropy"]``), booleans are ``true``/``false`` and ``None`` is an empty cell.
 :func:`read_export` reads either format back into typed rows.
+
+This is the one codec of export rows: the study writes with it and the analysis
+(:mod:`analysis.load`) reads with it; both take each column's type from the schema
+(:func:`export_types`), never from a hand-written list.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import load_schema, validate
 
 __all__ = [
-    "StoreError", "export_columns", "validate_rows", "write_export", "read_export",
+    "StoreError", "export_columns", "export_types", "validate_rows", "write_export", "read_export",
     "export_format", "participants_columns", "write_participants", "write_events",
     "EXPORT_FORMATS", "BACKGROUND_FIELDS",
 ]
@@ -45,6 +49,17 @@ def _background_value(value):
 def export_columns() -> list[str]:
     """Export columns, in ``response.schema.json`` order."""
     return list(load_schema("response")["properties"])
+
+
+def export_types() -> dict[str, str]:
+    """Export column → its JSON type in ``response.schema.json`` (``"integer"``,
+    ``"number"``, ``"boolean"``, ``"array"`` or ``"string"``; ``"null"`` left out)."""
+    out = {}
+    for name, spec in load_schema("response")["properties"].items():
+        types = spec.get("type", "string")
+        types = [t for t in (types if isinstance(types, list) else [types]) if t != "null"]
+        out[name] = types[0] if types else "string"
+    return out
 
 
 def participants_columns() -> list[str]:
@@ -165,19 +180,40 @@ def write_events(records, path) -> int:
 
 
 def _typed(name: str, text: str, spec: dict):
-    """One CSV cell back to the type the schema gives ``name``."""
+    """:func:`_typed_cell`, naming the column in the error."""
+    try:
+        return _typed_cell(name, text, spec)
+    except SchemaError:
+        raise
+    except ValueError as err:  # float("x"), json.loads("[") ...
+        raise SchemaError(f"{name}: {err}") from None
+
+
+def _typed_cell(name: str, text: str, spec: dict):
+    """One CSV cell back to the type the schema gives ``name``.
+
+    Integers are also read from integer-valued decimals (``"20.0"``, as pandas writes a
+    column with gaps) and booleans case-insensitively (``True``, as pandas writes them);
+    anything else that is not of the column's type raises :class:`SchemaError`.
+    """
     types = spec.get("type", "string")
     types = types if isinstance(types, list) else [types]
     if text == "":
         return None if "null" in types else text
     if "array" in types:
-        return json.loads(text)
+        value = json.loads(text)
+        if not isinstance(value, list):
+            raise SchemaError(f"{name}: expected a JSON list, got {text!r}")
+        return value
     if "boolean" in types:
-        if text not in ("true", "false"):
+        if text.lower() not in ("true", "false"):
             raise SchemaError(f"{name}: expected true/false, got {text!r}")
-        return text == "true"
+        return text.lower() == "true"
     if "integer" in types:
-        return int(text)
+        value = float(text)
+        if not value.is_integer():
+            raise SchemaError(f"{name}: not an integer: {text!r}")
+        return int(value)
     if "number" in types:
         return float(text)
     return text
@@ -186,8 +222,30 @@ def _typed(name: str, text: str, spec: dict):
 def read_export(path, *, fmt: str | None = None, validate: bool = True) -> list[dict]:
     """Read a file written by :func:`write_export` back into typed rows.
 
-    CSV cells are turned back into the schema's types (``shown_order`` parsed from its
-    JSON string, ``true``/``false`` to bool, empty cell to None, numbers to int/float).
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``; ``.jsonl``/``.ndjson``/``.json`` JSON lines (a ``.json`` file holding
+        one JSON list of rows is read too).
+    fmt : {"csv", "jsonl"}, optional
+        The format, if the suffix does not tell it.
+    validate : bool
+        Check every row against ``response.schema.json`` (:func:`validate_rows`).
+
+    Returns
+    -------
+    list of dict
+        One dict per row with JSON types: CSV cells are turned back into the schema's
+        types (``shown_order`` parsed from its JSON string, ``true``/``false`` to bool,
+        empty cell to None, numbers to int/float).
+
+    Raises
+    ------
+    StoreError
+        The file cannot be read or its format is unknown.
+    SchemaError
+        A line or cell that cannot be parsed, or (``validate``) a row off the schema;
+        the message names the file and the line or row.
     """
     path = Path(path)
     fmt = export_format(path, fmt)
@@ -197,7 +255,12 @@ def read_export(path, *, fmt: str | None = None, validate: bool = True) -> list[
         raise StoreError(f"cannot read {path}: {err.strerror or err}") from None
     props = load_schema("response")["properties"]
     rows = []
-    if fmt == "jsonl":
+    if fmt == "jsonl" and path.suffix.lower() == ".json" and text.lstrip().startswith("["):
+        try:
+            rows = list(json.loads(text))
+        except json.JSONDecodeError as err:
+            raise SchemaError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+    elif fmt == "jsonl":
         for lineno, line in enumerate(text.splitlines(), start=1):
             if line.strip():
                 try:

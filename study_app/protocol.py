@@ -25,9 +25,9 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.schema import read_document, validate
+from snapcore.select.methods import VIEW_METHODS
 
 __all__ = [
-    "METHODS",
     "TASKS",
     "DEFAULT_BACKGROUND",
     "DEFAULT_ATTENTION",
@@ -45,8 +45,6 @@ __all__ = [
     "redirect_url",
 ]
 
-#: The three view-selection methods shown in every view task (paper Fig. 8–10, Table 2).
-METHODS = ("ours", "viewpoint_entropy", "motion_area")
 #: Trial kinds, in the order the plan puts them.
 TASKS = ("pose", "view", "attention")
 
@@ -236,7 +234,7 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
     )
 
 
-def trial_plan(scene_ids, seed: int, *, methods=METHODS, attention: bool = True) -> list[Trial]:
+def trial_plan(scene_ids, seed: int, *, methods=VIEW_METHODS, attention: bool = True) -> list[Trial]:
     """The ordered trials of one participant.
 
     Parameters
@@ -245,8 +243,9 @@ def trial_plan(scene_ids, seed: int, *, methods=METHODS, attention: bool = True)
         Scenes of the study (the order given does not matter beyond determinism).
     seed : int
         The participant's seed (stored with the participant): one seed, one plan.
-    methods : sequence of str
-        Methods whose views each view task shows.
+    methods : sequence of ViewMethod
+        Methods whose views each view task shows (default: the three of
+        :data:`snapcore.select.methods.VIEW_METHODS`, the paper's Fig. 8–10 and Table 2).
     attention : bool
         Append the attention check.
 
@@ -335,7 +334,7 @@ def check_view_choice(trial: Trial, position, method) -> tuple[int, str]:
     p = _as_int(position, "the chosen position")
     if not 0 <= p < len(trial.shown_order):
         raise AnswerError(f"position {p} does not exist (0 to {len(trial.shown_order) - 1})")
-    if method not in METHODS:
+    if method not in VIEW_METHODS:
         raise AnswerError(f"unknown method label {method!r}")
     if trial.shown_order[p] != method:
         raise AnswerError(f"the label {method!r} does not match the view shown at position {p}")

@@ -33,8 +33,10 @@ import numpy as np
 
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
+from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
-from .protocol import METHODS, Study, study_from_dict
+from .protocol import Study, study_from_dict
+from .scenes import StudyScene
 
 __all__ = [
     "MANIFEST_NAME",
@@ -86,38 +88,29 @@ def sha256_file(path: str | Path) -> str:
 # --------------------------------------------------------------------------- loading
 
 
-@dataclass(frozen=True)
-class SceneStimulus:
-    """One scene's stimuli, paths resolved.
+@dataclass(frozen=True, kw_only=True)
+class SceneStimulus(StudyScene):
+    """One scene's stimuli, paths resolved: the :class:`~study_app.scenes.StudyScene`
+    (id, timing, the algorithm's picks, title) and its files.
 
     Attributes
     ----------
-    id : str
-    fps : float
-        Motion frame rate.
-    n_frames, frame_offset : int
-        Motion frames in the scene and the source number of its first frame.
     video : Path
     video_fps : float
     video_to_motion : tuple of int
         Motion frame (source numbering) shown at each video frame.
     frames : tuple of Path
         One image per video frame.
-    algorithm_frame : int
-        The algorithm's pose (source numbering).
     views : dict of str to Path
         Candidate view image per method.
+    entry : dict
+        The scene's entry in the manifest.
     """
 
-    id: str
-    fps: float
-    n_frames: int
-    frame_offset: int
     video: Path
     video_fps: float
     video_to_motion: tuple[int, ...]
     frames: tuple[Path, ...]
-    algorithm_frame: int
     views: dict
     entry: dict
 
@@ -232,10 +225,12 @@ def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
     scenes = {}
     for e in manifest["scenes"]:
         scenes[e["id"]] = SceneStimulus(
-            id=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
-            frame_offset=int(e["frame_offset"]), video=root / e["video"],
+            scene=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
+            frame_offset=int(e["frame_offset"]), algorithm_frame=int(e["picks"]["frame"]),
+            algorithm_frames=tuple(int(f) for f in e["picks"].get("frames", ())),
+            title=e.get("title"), video=root / e["video"],
             video_fps=float(e["video_fps"]), video_to_motion=tuple(e["video_to_motion"]),
-            frames=tuple(root / f for f in e["frames"]), algorithm_frame=int(e["picks"]["frame"]),
+            frames=tuple(root / f for f in e["frames"]),
             views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
         )
     return Stimuli(folder=root, manifest=manifest, sha256=sha256_file(root / MANIFEST_NAME),
@@ -333,19 +328,15 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     from snapcore.pipeline import take_snapshot
 
     snap = take_snapshot(scene, **(options or {}))
-    d = snap.to_dict()
-    picks = {"frame": int(d["frame"]), "frames": [int(f) for f in d["frames"]],
-             "pose_method": d["pose_method"], "by_method": _picks_by_method(scene)}
-    base = d.get("baselines") or {}
-    missing = [m for m in ("view", "viewpoint_entropy", "motion_area")
-               if (d if m == "view" else base).get(m) is None]
+    views = snap.views
+    missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
         raise StimuliError(f"scene {scene.name}: the selection gave no {', '.join(missing)} "
                            "view (a baseline was skipped: see the warning above)")
-    picks["view"] = _unit(d["view"])
-    for m in ("viewpoint_entropy", "motion_area"):
-        picks[m] = _unit(base[m]["view"])
-    timings = {k: float(v) for k, v in (d.get("timings_s") or {}).items()}
+    picks = {"frame": snap.frame, "frames": snap.frames, "pose_method": snap.pose.method,
+             "by_method": _picks_by_method(scene)}
+    picks.update({_PICK_KEYS[m]: _unit(views[m]) for m in VIEW_METHODS})
+    timings = {k: float(v) for k, v in snap.timings_s.items()}
     return picks, timings
 
 
@@ -364,6 +355,11 @@ def _picks_by_method(scene, k: int = 3) -> dict:
             sel = select_pose(scene, method=m, k=k)
         out[m] = [int(scene.source_frame(f)) for f in sel.frames]
     return out
+
+
+#: The manifest's ``picks`` key of each method's view (ours is ``view``, as in
+#: ``snapshot select --json``; the baselines by their method name).
+_PICK_KEYS = {m: "view" if m is ViewMethod.OURS else m.value for m in VIEW_METHODS}
 
 
 def _unit(v) -> list[float]:
@@ -421,14 +417,14 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     Returns
     -------
     dict
-        ``{method: {"file": Path, "direction": [x, y, z]}}`` for :data:`METHODS`.
+        ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
+        :data:`~snapcore.select.methods.VIEW_METHODS`.
     """
     from snapcore.render.renderer import SceneRenderer, render_still, save_png
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
-    directions = {"ours": picks["view"], "viewpoint_entropy": picks["viewpoint_entropy"],
-                  "motion_area": picks["motion_area"]}
+    directions = {m: picks[_PICK_KEYS[m]] for m in VIEW_METHODS}
     frame = int(picks["frame"]) - scene.frame_offset
     # Same size and the same framing rule for all three (the pose fitted tightly with
     # the same margin from each direction), so no view wins by being bigger. No floor
@@ -438,11 +434,11 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     # background alone would tell the three methods apart.
     renderer = SceneRenderer(scene, size=size, ground=False, shadows=False)
     views = {}
-    for m in METHODS:
+    for m in VIEW_METHODS:
         p = out / f"view_{m}.png"
         save_png(render_still(scene, frame, directions[m], size=size, fit="frame",
                               renderer=renderer), p)
-        views[m] = {"file": p, "direction": directions[m]}
+        views[m.value] = {"file": p, "direction": directions[m]}
     return views
 
 

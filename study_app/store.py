@@ -41,10 +41,9 @@ Export format
 -------------
 :meth:`Store.export_rows` gives one dict per response with exactly the fields of
 ``data_schema/response.schema.json`` (absent optional fields are ``None``).
-:func:`write_export` writes them as CSV or JSON lines; in CSV, ``shown_order`` is a
-JSON array string (``["ours", "motion_area", "viewpoint_entropy"]``), booleans are
-``true``/``false`` and ``None`` is an empty cell. :func:`read_export` reads either format
-back into typed rows (it parses ``shown_order`` back into a list).
+:func:`study_app.export.write_export` writes them as CSV or JSON lines and
+:func:`study_app.export.read_export` reads them back (the file codec lives there, not
+here; :class:`~study_app.export.StoreError` too).
 """
 
 from __future__ import annotations
@@ -64,26 +63,9 @@ from sqlalchemy import exc as sa_exc
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
 
-from .export import (  # noqa: F401  (re-exported: the store's public file functions)
-    BACKGROUND_FIELDS,
-    EXPORT_FORMATS,
-    StoreError,
-    _background_value,
-    export_columns,
-    export_format,
-    participants_columns,
-    read_export,
-    validate_rows,
-    write_events,
-    write_export,
-    write_participants,
-)
+from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
 
-__all__ = [
-    "Store", "StoreError", "default_url", "mask_url", "normalize_url",
-    "export_columns", "validate_rows", "write_export", "read_export", "export_format",
-    "participants_columns", "write_participants", "write_events", "EXPORT_FORMATS", "SQLITE_BUSY_TIMEOUT_MS",
-]
+__all__ = ["Store", "default_url", "mask_url", "normalize_url", "SQLITE_BUSY_TIMEOUT_MS"]
 
 #: How long (ms) a SQLite writer waits for another writer's lock before giving up.
 SQLITE_BUSY_TIMEOUT_MS = 30_000

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from study_app.protocol import METHODS, study_from_dict
+from snapcore.select.methods import VIEW_METHODS
+from study_app.protocol import study_from_dict
 from study_app.stimuli import write_manifest
 
 #: Motion frames per fixture scene and the motion/video rates: 48 motion frames at
@@ -72,7 +73,7 @@ def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
             Image.fromarray(f).save(p, quality=90)
             paths.append(p)
         views = {}
-        for k, m in enumerate(METHODS):
+        for k, m in enumerate(VIEW_METHODS):
             p = d / f"view_{m}.png"
             Image.fromarray(_digits_image("ABC"[k], study.size, COLOURS[m])).save(p)
             views[m] = {"file": p, "direction": [0.0, 0.0, 1.0]}

@@ -3,10 +3,13 @@ and a clear skip reason when an ingredient is missing."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from analysis import figures as fg
+from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
 
 def _png_std(path) -> float:
@@ -35,25 +38,33 @@ def test_missing_data_is_a_reason_not_a_crash(tmp_path):
     res = fg.make_figures(tmp_path, names=["table2", "fig6"], progress=False,
                           data_dir=tmp_path / "nowhere")
     assert res["table2"][0] and not res["table2"][1]
-    assert res["fig6"][0] == []
-    assert "no such" in res["fig6"][1] or "missing" in res["fig6"][1] \
-        or "not available" in res["fig6"][1]
+    paths, reason = res["fig6"]
+    assert paths == []
+    # fig6 is the dance: the reason names the missing clip where it was looked for
+    assert reason == f"motion file(s) missing: {tmp_path / 'nowhere' / 'dance' / '05_06.bvh'}"
 
 
-def test_snapshot_views_reads_the_snapshot_schema():
-    """The three views of a snapshot dict shaped as data_schema/snapshot.schema.json says;
-    a snapshot without the view stage or without a baseline is refused, naming what lacks."""
-    doc = {"view": [1, 0, 0], "baselines": {"viewpoint_entropy": {"view": [0, 1, 0], "score": 2.0},
-                                            "motion_area": {"view": [0, 0, 1], "score": 0.5}}}
-    v = fg.snapshot_views(doc)
-    assert list(v) == ["ours", "viewpoint_entropy", "motion_area"]
-    np.testing.assert_array_equal(v["viewpoint_entropy"], [0, 1, 0])
-    np.testing.assert_array_equal(v["motion_area"], [0, 0, 1])
+def test_snapshot_views_reads_the_typed_views():
+    """The three views come from Snapshot.views in the paper's order (whatever order the
+    snapshot holds them in); a snapshot without the view stage or without a baseline is
+    refused, naming what it lacks."""
+    views = {ViewMethod.MOTION_AREA: np.array([0.0, 0, 1]), ViewMethod.OURS: np.array([1.0, 0, 0]),
+             ViewMethod.VIEWPOINT_ENTROPY: np.array([0.0, 1, 0])}
+    v = fg.snapshot_views(SimpleNamespace(views=views))
+    assert list(v) == list(VIEW_METHODS) == ["ours", "viewpoint_entropy", "motion_area"]
+    np.testing.assert_array_equal(v[ViewMethod.VIEWPOINT_ENTROPY], [0, 1, 0])
+    np.testing.assert_array_equal(v[ViewMethod.MOTION_AREA], [0, 0, 1])
     with pytest.raises(fg.FigureUnavailable, match="no ours, viewpoint_entropy, motion_area"):
-        fg.snapshot_views({"frame": 3})
-    del doc["baselines"]["motion_area"]
+        fg.snapshot_views(SimpleNamespace(views={}))
+    del views[ViewMethod.MOTION_AREA]
     with pytest.raises(fg.FigureUnavailable, match="no motion_area view"):
-        fg.snapshot_views(doc)
+        fg.snapshot_views(SimpleNamespace(views=views))
+
+
+def test_view_panels_are_named_by_the_method_vocabulary():
+    """Figure panels and legends use ViewMethod.panel: the label and the paper figure."""
+    assert [m.panel for m in VIEW_METHODS] == ["ours: PMA (Fig. 8)", "viewpoint entropy (Fig. 9)",
+                                               "motion area (Fig. 10)"]
 
 
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
@@ -65,11 +76,11 @@ def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
     assert not reason, reason
     png = [p for p in paths if p.suffix == ".png"][0]
     assert _png_std(png) > 10
-    # Fig. 11 needs the view stage (and OpenGL for the viewpoint-entropy baseline).
+    # Fig. 11 (the view stage with both baselines, and OpenGL) is made, not skipped.
     paths, reason = res["fig11"]
-    if "view" not in reason:
-        assert not reason, reason
-        assert _png_std([p for p in paths if p.suffix == ".png"][0]) > 10
+    assert not reason, reason
+    assert {p.suffix for p in paths} == {".png", ".pdf"}
+    assert _png_std([p for p in paths if p.suffix == ".png"][0]) > 10
     t = fg.measure_table1(repeats=1, data_dir=motions_dir, scenes=["running", "basketball_shooting"])
     assert list(t["scene"]) == ["running", "basketball_shooting"]
     assert (t["ours_pose_s"] > 0).all()

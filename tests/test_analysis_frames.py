@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from analysis import frames as fr
+from study_app.scenes import StudyScene
 
 
 def _pose(scene, chosen, *, algorithm, fps, n_frames):
@@ -160,7 +161,7 @@ def test_selector_agreement_and_timeline(tmp_path):
     timeline figure."""
     from analysis.report import _selector_section
 
-    info = fr.SceneFrames(scene="kick", fps=10.0, n_frames=100, algorithm_frame=50,
+    info = StudyScene(scene="kick", fps=10.0, n_frames=100, algorithm_frame=50,
                           selector_frames={"story": [50, 20], "middle": [49], "paper": [90]})
     pose = pd.DataFrame({"scene": "kick", "participant_id": ["a", "b", "c", "d"],
                          "chosen_frame": [48, 52, 56, 80]})

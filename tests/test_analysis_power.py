@@ -8,7 +8,15 @@ from scipy import stats
 
 from analysis import power as pw
 from analysis import simulate as sim
-from analysis import votes as vt
+
+
+def test_vectorised_p_equals_scipy_for_all_k():
+    """The power search's vectorised p equals scipy.stats.binomtest(k, m, 0.5).pvalue for
+    every k <= m <= 40 (m = 0 gives 1)."""
+    for m in range(0, 41):
+        for k in range(0, m + 1):
+            ref = stats.binomtest(k, m, 0.5).pvalue if m else 1.0
+            assert float(pw._two_sided_p_half(k, m)) == pytest.approx(ref, rel=1e-9, abs=1e-300)
 
 
 def test_critical_region_matches_brute_force():
@@ -39,7 +47,7 @@ def test_power_equals_brute_force_sum():
 def test_power_matches_simulation():
     """Exact power at n = 100 agrees with 20,000 simulated studies (numpy multinomial)."""
     c = sim.simulate_vote_counts(100, [0.45, 0.25, 0.30], n_sims=20000, seed=3)
-    p = vt.binomial_two_sided_p(c[:, 0], c[:, 0] + c[:, 1])
+    p = pw._two_sided_p_half(c[:, 0], c[:, 0] + c[:, 1])
     rate = np.mean((p <= 0.05) & (c[:, 0] > c[:, 1]))
     exact = float(pw.power_pairwise(100, 0.45, 0.25))
     assert rate == pytest.approx(exact, abs=4 * np.sqrt(exact * (1 - exact) / 20000))

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from analysis import load as ld
 from analysis import simulate as sim
 from snapcore.cli.main import cli
+from study_app.scenes import StudyScene
 
 
 def _rows(n=20, seed=3, **kw):
@@ -74,16 +75,61 @@ def test_bad_row_is_named(tmp_path):
     recs[3]["task"] = "dance"
     f = tmp_path / "bad.jsonl"
     f.write_text("".join(json.dumps(r) + "\n" for r in recs))
-    with pytest.raises(ld.LoadError, match=r"bad.jsonl: row 4: task"):
+    with pytest.raises(ld.LoadError, match=r"bad.jsonl: row 4 \(participant .*, trial \d+\): task"):
         ld.load_responses(f, include_simulated=True)
     (tmp_path / "x.txt").write_text("")
-    with pytest.raises(ld.LoadError, match="unknown export format"):
+    with pytest.raises(ld.LoadError, match="cannot tell the format from the suffix"):
         ld.load_responses(tmp_path / "x.txt")
+
+
+def test_analysis_reads_exports_with_the_study_codec(tmp_path):
+    """One codec: what study_app.export writes, analysis loads unchanged (CSV, JSON lines,
+    a .json list); a bad CSV cell is named by file, line and column."""
+    from study_app.export import write_export
+
+    rows = [{k: (list(v) if isinstance(v, tuple) else v) for k, v in r.items()}
+            for r in _rows(3).replace({np.nan: None}).to_dict(orient="records")]
+    for name in ("r.csv", "r.jsonl"):
+        write_export(rows, tmp_path / name)
+    (tmp_path / "r.json").write_text(json.dumps(rows))
+    frames = [ld.load_responses(tmp_path / n, include_simulated=True)
+              for n in ("r.csv", "r.jsonl", "r.json")]
+    direct = ld.load_responses(rows, include_simulated=True)
+    for df in frames:
+        pd.testing.assert_frame_equal(df, direct)
+    text = (tmp_path / "r.csv").read_text().splitlines()
+    head = text[0].split(",")
+    cells = text[2].split(",")
+    cells[head.index("trial_index")] = "1.5"
+    (tmp_path / "bad.csv").write_text("\n".join([text[0], text[1], ",".join(cells)]) + "\n")
+    with pytest.raises(ld.LoadError, match=r"bad.csv:3: trial_index: not an integer"):
+        ld.load_responses(tmp_path / "bad.csv")
+
+
+def test_tables_as_markdown_and_latex():
+    """Markdown: a pipe table whose cells read back as the formatted cells (| escaped,
+    numbers right-aligned); LaTeX: booktabs, one row per line, specials escaped."""
+    from analysis.report import format_table, to_latex, to_markdown
+
+    df = pd.DataFrame({"scene": ["a|b", "c_d"], "p_value": [1e-5, 0.5], "n": [3, 4],
+                       "significant": [True, False]})
+    md = to_markdown(df).splitlines()
+    assert md[1] == "|:--------|----------:|----:|:--------------|"
+    cells = [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+             for line in md[2:]]
+    assert cells == format_table(df).values.tolist() == [["a|b", "1e-05", "3", "yes"],
+                                                          ["c_d", "0.500", "4", "no"]]
+    tex = to_latex(df, caption="Votes & 5% (α)", label="tab:t").splitlines()
+    assert tex[:4] == ["\\begin{table}[ht]", "\\centering",
+                       "\\caption{Votes \\& 5\\% ($\\alpha$)}", "\\small"]
+    body = tex[tex.index("\\midrule") + 1:tex.index("\\bottomrule")]
+    assert body == ["a\\textbar{}b & 1e-05 & 3 & yes \\\\", "c\\_d & 0.500 & 4 & no \\\\"]
+    assert "\\begin{tabular}{lrrl}" in tex and "\\label{tab:t}" in tex
 
 
 def test_observer_model_frames():
     """Without lapses the chosen frames scatter around the pick with the given spread."""
-    design = [sim.SimScene("a", 100.0, 2000, 1000)]
+    design = [StudyScene("a", 100.0, 2000, 1000)]
     model = sim.ObserverModel(spread_s=0.5, lapse=0.0)
     rows = sim.simulated_rows(sim.simulate_participants(design, 2000, seed=1, model=model))
     f = rows.loc[rows["task"] == "pose", "chosen_frame"].to_numpy(float)
@@ -187,7 +233,7 @@ def test_power_cli(tmp_path):
     assert power_pairwise(n, 0.52, 0.40) >= 0.8 > power_pairwise(n - 1, 0.52, 0.40)
     _check_figures(tmp_path, ["power_curve"])
     res = CliRunner().invoke(cli, ["power"])
-    assert res.exit_code == 0 and "| difference |" in res.output
+    assert res.exit_code == 0 and re.search(r"^\|\s+difference\s+\|", res.output, re.M)
     res = CliRunner().invoke(cli, ["power", "--ours", "0.7", "--baseline", "0.5"])
     assert res.exit_code == 2 and "at most 1" in res.output
 

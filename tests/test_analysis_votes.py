@@ -11,6 +11,8 @@ from scipy import stats
 
 from analysis import simulate as sim
 from analysis import votes as vt
+from snapcore.select.methods import VIEW_METHODS
+from study_app.scenes import StudyScene
 
 # The paper's Table 2 as printed (../shared/METHOD.md §5 and the paper's text), typed here
 # independently of analysis/data/paper_table2.csv: ours, viewpoint entropy, motion area.
@@ -123,12 +125,23 @@ def test_wilson_matches_scipy():
     assert ((table["ci_low"] <= table["share"]) & (table["share"] <= table["ci_high"])).all()
 
 
-def test_binomial_p_equals_scipy_for_all_k():
-    """The vectorised exact p equals scipy.stats.binomtest(k, n, 0.5).pvalue for every k, n <= 40."""
-    for n in range(0, 41):
-        for k in range(0, n + 1):
-            ref = stats.binomtest(k, n, 0.5).pvalue if n else 1.0
-            assert float(vt.binomial_two_sided_p(k, n)) == pytest.approx(ref, rel=1e-9, abs=1e-300)
+def test_wilson_known_answers():
+    """Wilson 95% intervals of Newcombe (1998, Stat. Med. 17:857, Table I, method 3), also
+    R: prop.test(81, 263, correct = FALSE)$conf.int -> 0.2553 0.3662."""
+    for (k, n), want in {(81, 263): (0.2553, 0.3662), (15, 148): (0.0624, 0.1605),
+                         (0, 20): (0.0, 0.1611), (1, 29): (0.0061, 0.1718)}.items():
+        lo, hi = vt.wilson_interval(k, n)
+        assert (float(lo), float(hi)) == pytest.approx(want, abs=5e-5), (k, n)
+    lo, hi = vt.wilson_interval([0, 3], [0, 7])  # vectorised; n = 0 gives (0, 1)
+    assert lo[0] == 0 and hi[0] == 1 and 0 < lo[1] < 3 / 7 < hi[1] < 1
+
+
+def test_pairwise_p_known_answer():
+    """7 votes to 3: p = 2 P[X >= 7], X ~ Bin(10, 1/2) = 2 (120 + 45 + 10 + 1) / 1024 = 0.34375
+    (R: binom.test(7, 10)$p.value); no votes for either gives p = 1."""
+    counts = pd.DataFrame({"ours": [7, 0], "motion_area": [3, 0]}, index=["a", "b"])
+    pair = vt.ours_vs_baselines(counts, family="scene")
+    assert pair["p_value"].tolist() == pytest.approx([0.34375, 1.0], rel=1e-12)
 
 
 def test_fleiss_kappa_published_example():
@@ -151,10 +164,10 @@ def test_luce_strengths_equal_shares_when_all_shown():
     st = vt.luce_strengths(vt.choices_from_counts(counts), n_boot=50, seed=1)
     for scene, row in PAPER.items():
         got = st[st["scene"] == scene].set_index("method")["strength"]
-        np.testing.assert_allclose(got.loc[list(vt.METHODS)], np.array(row) / 100, atol=2e-3)
+        np.testing.assert_allclose(got.loc[list(VIEW_METHODS)], np.array(row) / 100, atol=2e-3)
     pooled = st[st["scene"] == "all"].set_index("method")["strength"]
     total = np.sum(list(PAPER.values()), axis=0) / 600
-    np.testing.assert_allclose(pooled.loc[list(vt.METHODS)], total, atol=2e-3)
+    np.testing.assert_allclose(pooled.loc[list(VIEW_METHODS)], total, atol=2e-3)
     assert ((st["ci_low"] <= st["strength"] + 1e-9) & (st["strength"] <= st["ci_high"] + 1e-9)).all()
 
 
@@ -169,11 +182,11 @@ def test_luce_uses_shown_subsets():
         shown = tuple(rng.choice(3, size=2, replace=False))
         p = true[list(shown)] / true[list(shown)].sum()
         win = shown[rng.choice(2, p=p)]
-        rows.append({"scene": "s", "chosen_method": vt.METHODS[win],
-                     "shown_order": tuple(vt.METHODS[i] for i in shown)})
+        rows.append({"scene": "s", "chosen_method": VIEW_METHODS[win],
+                     "shown_order": tuple(VIEW_METHODS[i] for i in shown)})
     st = vt.luce_strengths(pd.DataFrame(rows), n_boot=0, pooled=False)
-    data = [(vt.METHODS.index(r["chosen_method"]),
-             tuple(vt.METHODS.index(m) for m in r["shown_order"] if m != r["chosen_method"]))
+    data = [(VIEW_METHODS.index(r["chosen_method"]),
+             tuple(VIEW_METHODS.index(m) for m in r["shown_order"] if m != r["chosen_method"]))
             for r in rows]
     theta = choix.opt_top1(3, data)
     ref = np.exp(theta) / np.exp(theta).sum()
@@ -187,7 +200,7 @@ def test_simulated_strengths_recovered_within_ci():
     which the coverage test below checks over many seeds.
     """
     true = {"ours": 0.5, "viewpoint_entropy": 0.2, "motion_area": 0.3}
-    design = [sim.SimScene("scene_a", 30.0, 120, 60, strengths=true)]
+    design = [StudyScene("scene_a", 30.0, 120, 60, strengths=true)]
     people = sim.simulate_participants(design, 400, seed=0)
     rows = sim.simulated_rows(people)
     views = rows[rows["task"] == "view"]
@@ -203,7 +216,7 @@ def test_strength_interval_coverage_over_seeds():
     counts = sim.simulate_vote_counts(200, true, n_sims=30, seed=5)
     covered = np.zeros(3)
     for i, c in enumerate(counts):
-        df = vt.choices_from_counts(pd.DataFrame([c], columns=list(vt.METHODS), index=["s"]))
+        df = vt.choices_from_counts(pd.DataFrame([c], columns=list(VIEW_METHODS), index=["s"]))
         st = vt.luce_strengths(df, n_boot=150, seed=i, pooled=False)
         covered += ((st["ci_low"] <= true) & (true <= st["ci_high"])).to_numpy()
     # Binomial(30, 0.95): P(X <= 23) < 0.01, so >= 24 is the honest bar.
@@ -213,7 +226,7 @@ def test_strength_interval_coverage_over_seeds():
 def test_chisquare_false_positive_rate_under_no_preference():
     """Equal strengths, 100 voters, 400 simulated studies: chi-square rejects 2.5-8% at 0.05."""
     counts = sim.simulate_vote_counts(100, [1, 1, 1], n_sims=400, seed=2024)
-    table = pd.DataFrame(counts, columns=list(vt.METHODS), index=[f"s{i}" for i in range(400)])
+    table = pd.DataFrame(counts, columns=list(VIEW_METHODS), index=[f"s{i}" for i in range(400)])
     rate = vt.chisquare_no_preference(table)["significant"].mean()
     assert 0.025 <= rate <= 0.08, rate
     # The exact binomial test of ours vs one baseline is conservative: at most ~5%.

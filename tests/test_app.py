@@ -22,6 +22,7 @@ from app_helpers import (
 
 from study_app.picker import FRAME_PICKER, VIEW_CHOOSER
 from study_app.protocol import trial_plan
+from study_app.screens import common
 from study_app.store import Store
 
 pytest.importorskip("streamlit.testing.v1")
@@ -45,9 +46,9 @@ def stimuli_dir(tmp_path_factory):
 @pytest.fixture
 def store(stimuli_dir, tmp_path, monkeypatch):
     url = f"sqlite:///{tmp_path / 'study.db'}"
-    monkeypatch.setenv("SNAPSHOT_STIMULI", str(stimuli_dir))
-    monkeypatch.setenv("SNAPSHOT_DB", url)
-    monkeypatch.delenv("SNAPSHOT_ADMIN_TOKEN", raising=False)
+    monkeypatch.setenv(common.ENV_STIMULI, str(stimuli_dir))
+    monkeypatch.setenv(common.ENV_DB, url)
+    monkeypatch.delenv(common.ENV_ADMIN_TOKEN, raising=False)
     s = Store(url)
     yield s
     s.close()
@@ -86,13 +87,13 @@ def texts(at: AppTest) -> str:
 
 
 def consent_and_background(at: AppTest) -> str:
-    at.checkbox(key="consent.agree").check().run()
-    at.button(key="consent.start").click().run()
-    pid = at.query_params["pid"]
+    at.checkbox(key=common.KEY_CONSENT_AGREE).check().run()
+    at.button(key=common.KEY_CONSENT_START).click().run()
+    pid = at.query_params[common.QUERY_PID]
     pid = pid[0] if isinstance(pid, list) else pid
-    at.selectbox(key="background.age_band").select(BACKGROUND["age_band"])
-    at.radio(key="background.gender").set_value(BACKGROUND["gender"])
-    at.radio(key="background.experience").set_value(BACKGROUND["experience"])
+    at.selectbox(key=common.KEY_BG_AGE).select(BACKGROUND["age_band"])
+    at.radio(key=common.KEY_BG_GENDER).set_value(BACKGROUND["gender"])
+    at.radio(key=common.KEY_BG_EXPERIENCE).set_value(BACKGROUND["experience"])
     at.button[0].click().run()  # the form's submit button
     return pid
 
@@ -106,7 +107,7 @@ def test_whole_session_stores_every_answer(store):
     """Consent → background → pose → view → attention → done; the stored rows match the clicks."""
     at = new_app(PROLIFIC_PID="5f1e2d3c4b5a69788796a5b4", STUDY_ID="S1", SESSION_ID="X9")
     assert not at.exception
-    assert "I have read" in at.checkbox(key="consent.agree").label
+    assert "I have read" in at.checkbox(key=common.KEY_CONSENT_AGREE).label
     assert progress_value(at) == 0
     assert store.progress()["participants"] == 0  # nothing stored before consent
     pid = consent_and_background(at)
@@ -142,8 +143,8 @@ def test_whole_session_stores_every_answer(store):
                               {"trial": trial.index, "position": position,
                                "method": trial.shown_order[position]})
         else:
-            at.radio(key="attention.choice").set_value("A purple circle")
-            at.button(key="attention.submit").click().run()
+            at.radio(key=common.KEY_ATTENTION_CHOICE).set_value("A purple circle")
+            at.button(key=common.KEY_ATTENTION_SUBMIT).click().run()
     assert not at.exception
     assert "Thank you" in texts(at)
     assert progress_value(at) == 100
@@ -202,9 +203,9 @@ def test_tampered_participant_id_is_refused_and_writes_nothing(store):
         assert "link" in texts(at).lower() and "not" in texts(at).lower()
         assert not at.get("bidi_component")
     assert store.progress()["participants"] == 0
-    at.button(key="invalid.restart").click().run()  # start over: back to consent
-    assert "pid" not in at.query_params
-    assert at.checkbox(key="consent.agree")
+    at.button(key=common.KEY_RESTART).click().run()  # start over: back to consent
+    assert common.QUERY_PID not in at.query_params
+    assert at.checkbox(key=common.KEY_CONSENT_AGREE)
 
 
 def test_out_of_range_frame_and_forged_label_write_nothing(store):
@@ -241,7 +242,7 @@ def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     """picker = "frames": a slider over the extracted frames answers the pose task."""
     d = tmp_path / "frames-stimuli"
     write_fixture_stimuli(d, fixture_study_doc(picker="frames"))
-    monkeypatch.setenv("SNAPSHOT_STIMULI", str(d))
+    monkeypatch.setenv(common.ENV_STIMULI, str(d))
     at = new_app()
     pid = consent_and_background(at)
     assert not at.get("bidi_component")
@@ -249,7 +250,7 @@ def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     assert (slider.min, slider.max) == (1, 24)
     slider.set_value(7).run()
     assert len(at.image) == 1  # the frame is shown
-    at.button(key="pose.confirm.0.0").click().run()
+    at.button(key=f"{common.KEY_FRAME_CONFIRM}.0.0").click().run()
     (row,) = store.responses(pid)
     assert row["chosen_video_frame"] == 6 and row["chosen_frame"] == 12  # 1-based slider
 
@@ -268,14 +269,14 @@ def test_altered_stimuli_refused_before_anyone_starts(store, stimuli_dir, tmp_pa
     shutil.copytree(stimuli_dir, bad)
     with open(bad / "walk" / "view_ours.png", "ab") as f:
         f.write(b"\0")
-    monkeypatch.setenv("SNAPSHOT_STIMULI", str(bad))
+    monkeypatch.setenv(common.ENV_STIMULI, str(bad))
     at = new_app()
     assert "walk/view_ours.png has been altered" in at.error[0].value
     assert not at.checkbox
     gone = tmp_path / "missing"
     shutil.copytree(stimuli_dir, gone)
     (gone / "jump" / "frames" / "00003.jpg").unlink()
-    monkeypatch.setenv("SNAPSHOT_STIMULI", str(gone))
+    monkeypatch.setenv(common.ENV_STIMULI, str(gone))
     at = new_app()
     assert "jump/frames/00003.jpg is missing" in at.error[0].value
     assert store.progress()["participants"] == 0
@@ -294,13 +295,13 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
 
     a = researcher()
     assert "disabled" in a.info[0].value and not a.get("metric") and not a.dataframe
-    monkeypatch.setenv("SNAPSHOT_ADMIN_TOKEN", "s3cret-token")
+    monkeypatch.setenv(common.ENV_ADMIN_TOKEN, "s3cret-token")
     a = researcher()
     assert not a.get("metric")
-    a.text_input(key="researcher.token").input("wrong").run()
+    a.text_input(key=common.KEY_ADMIN_TOKEN).input("wrong").run()
     assert "Wrong token" in a.error[0].value and not a.get("metric")
     assert not a.get("download_button")
-    a.text_input(key="researcher.token").input("s3cret-token").run()
+    a.text_input(key=common.KEY_ADMIN_TOKEN).input("s3cret-token").run()
     assert not a.exception
     metrics = {m.label: m.value for m in a.get("metric")}
     assert metrics["Participants"] == "1" and metrics["Responses"] == "1"

@@ -8,8 +8,8 @@ import pytest
 from app_helpers import fixture_study_doc, write_fixture_stimuli
 
 from snapcore.errors import SchemaError
+from snapcore.select.methods import VIEW_METHODS
 from study_app.protocol import (
-    METHODS,
     AnswerError,
     StudyError,
     Trial,
@@ -47,7 +47,7 @@ def test_trial_plan_is_a_seeded_permutation():
     assert sorted(t.scene for t in plan if t.task == "pose") == scenes
     assert sorted(t.scene for t in plan if t.task == "view") == scenes
     for t in plan[4:8]:
-        assert sorted(t.shown_order) == sorted(METHODS)
+        assert sorted(t.shown_order) == sorted(VIEW_METHODS)
         assert t.stimulus_id == f"{t.scene}/view"
 
 
@@ -57,8 +57,8 @@ def test_trial_orders_vary_between_participants():
     plans = [trial_plan(scenes, seed) for seed in range(300)]
     pose_orders = {tuple(t.scene for t in p[:3]) for p in plans}
     assert pose_orders == set(itertools.permutations(scenes))  # all 3! = 6 orders
-    positions = {(m, t.shown_order.index(m)) for p in plans for t in p[3:6] for m in METHODS}
-    assert positions == {(m, k) for m in METHODS for k in range(3)}
+    positions = {(m, t.shown_order.index(m)) for p in plans for t in p[3:6] for m in VIEW_METHODS}
+    assert positions == {(m, k) for m in VIEW_METHODS for k in range(3)}
 
 
 def test_check_video_frame_converts_and_refuses():
@@ -213,7 +213,7 @@ def test_invalid_answers_write_nothing(store, stimuli):
     s.submit_pose(0, 1, response_time_s=1)
     s.submit_pose(1, 1, response_time_s=1)
     view = s.plan[2]
-    wrong = next(m for m in METHODS if m != view.shown_order[1])
+    wrong = next(m for m in VIEW_METHODS if m != view.shown_order[1])
     with pytest.raises(InvalidAnswer, match="does not match"):
         s.submit_view(2, 1, wrong, response_time_s=1)
     assert store.answered_trials(s.participant_id) == {0, 1}

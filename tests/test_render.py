@@ -331,12 +331,19 @@ def test_level_orthographic_view_puts_the_horizon_at_the_feet(walk):
 
 
 def test_release_renderer_makes_a_fresh_context():
-    from snapcore.render.gl import gl_renderer, release_renderer
+    """release_renderer frees this thread's context (the old renderer holds no GL
+    platform, the registry forgets it); the next call makes a live one that renders."""
+    import threading
+
+    from snapcore.render.gl import _RENDERERS, gl_renderer, release_renderer
 
     a = gl_renderer(32, 32)
+    assert _RENDERERS[threading.current_thread()] is a and a._platform is not None
     release_renderer()
+    assert a._platform is None and a._renderer is None  # its context was deleted
+    assert threading.current_thread() not in _RENDERERS
     b = gl_renderer(32, 32)
-    assert a is not b
+    assert b._platform is not None and _RENDERERS[threading.current_thread()] is b
     m = _subdivided_cube(2)
     assert render_face_ids(m.vertices, m.faces, [0, 0, 1], resolution=32).max() > 0
 

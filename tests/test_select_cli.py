@@ -105,19 +105,29 @@ def test_select_errors_are_one_line(tmp_path):
 
 
 def test_plot_entropy_writes_a_figure(tmp_path):
-    """plot-entropy on a synthetic two-person scene writes a non-trivial PNG."""
+    """plot-entropy writes the library's figure of the scene's snapshot: the same pixels as
+    plot_entropy(take_snapshot(scene, k=2), strip=4) at the command's dpi, whose bottom
+    curve is the pose entropy and whose reported frames are the top-2 picks."""
+    from PIL import Image
+
+    from snapcore.pipeline import take_snapshot
+    from snapcore.render.entropy_plot import plot_entropy
+
     folder = tmp_path / "demo"
     written = synth.write_demo(folder)
     manifest = next(p for p in written if p.name.startswith("push") and p.suffix == ".toml")
     out = tmp_path / "push.png"
     r = _run(["plot-entropy", str(manifest), "-o", str(out), "-k", "2", "--strip", "4"])
     assert r.exit_code == 0, r.output
-    from PIL import Image
-
-    img = np.asarray(Image.open(out).convert("L"), dtype=float)
-    assert img.shape[0] > 500 and img.shape[1] > 1000
-    assert img.std() > 10  # not a blank canvas
-    assert "wrote" in r.stdout
+    snap = take_snapshot(load_scene(manifest), k=2, view=False)
+    fig = plot_entropy(snap, strip=4)
+    total = [ln for ln in fig.axes[1].lines if ln.get_label().startswith("total")]
+    np.testing.assert_array_equal(total[0].get_ydata(), snap.pose.entropy.total)
+    fig.savefig(tmp_path / "direct.png", dpi=120)
+    got = np.asarray(Image.open(out).convert("RGB"))
+    want = np.asarray(Image.open(tmp_path / "direct.png").convert("RGB"))
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert f"top 2: {snap.frames[0]}, {snap.frames[1]}" in r.stdout
 
 
 def test_snapshot_to_dict_includes_view_fields_when_set():

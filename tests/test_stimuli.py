@@ -214,7 +214,8 @@ def test_view_stills_share_one_background(tmp_path):
 
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
-    from study_app.stimuli import METHODS, write_views
+    from snapcore.select.methods import VIEW_METHODS
+    from study_app.stimuli import write_views
 
     scene = synth.synth_scene("walk", fps=30)
     dirs = [np.array(v, float) / np.linalg.norm(v) for v in ((1, -0.16, 0.2), (1, 0, 0.3),
@@ -223,7 +224,7 @@ def test_view_stills_share_one_background(tmp_path):
              "viewpoint_entropy": dirs[1], "motion_area": dirs[2]}
     views = write_views(scene, picks, tmp_path, size=(96, 128))
     bg = np.round(np.asarray(BACKGROUND) * 255)
-    for m in METHODS:
+    for m in VIEW_METHODS:
         img = iio.imread(views[m]["file"])[..., :3].astype(float)
         border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
         assert np.abs(border - bg).max() <= 2, m  # plain background all round

@@ -27,20 +27,12 @@ import study_app
 from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
-from study_app.store import (
-    SQLITE_BUSY_TIMEOUT_MS,
-    Store,
-    StoreError,
-    default_url,
-    export_columns,
-    mask_url,
-    normalize_url,
-    read_export,
-    write_export,
-)
+from snapcore.select.methods import VIEW_METHODS
+from study_app.export import StoreError, export_columns, read_export, write_export
+from study_app.store import SQLITE_BUSY_TIMEOUT_MS, Store, default_url, mask_url, normalize_url
 
 SHA = "ab" * 32
-METHODS = ["ours", "viewpoint_entropy", "motion_area"]
+METHODS = [str(m) for m in VIEW_METHODS]
 
 
 # ----------------------------------------------------------------------------- fixtures

@@ -15,6 +15,7 @@ from snapcore.cli.common import (
     scene_from_options,
 )
 from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
+from snapcore.select.pose_methods import PoseParams
 
 __all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "format_snapshot"]
 
@@ -69,9 +70,8 @@ def snapshot_from_options(scene, pose_method, k, min_separation, w_local, w_glob
             flags = ", ".join("--" + k.replace("_s", "").replace("_", "-") for k in changed)
             raise click.BadParameter(f"{flags} apply to --pose-method paper only, not "
                                      f"{pose_method}", param_hint="--pose-method")
-        paper = {}
-    return take_snapshot(scene, pose_method=pose_method, k=k, min_separation_s=min_separation,
-                         view=view, window_s=window, baselines=baselines, **paper)
+    params = PoseParams(pose_method=pose_method, k=k, min_separation_s=min_separation, **paper)
+    return take_snapshot(scene, params, view=view, window_s=window, baselines=baselines)
 
 
 def format_snapshot(doc: dict) -> list[str]:

@@ -35,6 +35,13 @@ class ViewMethod(StrEnum):
         """The paper figure that shows this method's view (Figs. 8-10)."""
         return _FIGURES[self]
 
+    @property
+    def panel(self) -> str:
+        """Panel title of the method's view in figures: ``"ours: PMA (Fig. 8)"``,
+        ``"viewpoint entropy (Fig. 9)"``, ``"motion area (Fig. 10)"``."""
+        name = f"{self.label}: PMA" if self is ViewMethod.OURS else self.label
+        return f"{name} ({self.figure})"
+
 
 _LABELS = {ViewMethod.OURS: "ours", ViewMethod.VIEWPOINT_ENTROPY: "viewpoint entropy",
            ViewMethod.MOTION_AREA: "motion area"}

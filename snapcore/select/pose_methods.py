@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
 from snapcore.select.pose import (
     MIN_SEPARATION_S,
+    REST_SPEED,
+    SMOOTH_S,
     PoseEntropy,
     PoseSelection,
     minmax,
@@ -39,9 +42,9 @@ from snapcore.select.pose_baselines import (
     speed_score,
     stretch_score,
 )
-from snapcore.select.story import DEFAULT_STORY, _roles_sides, story_information
+from snapcore.select.story import DEFAULT_STORY, StoryParameters, _roles_sides, story_information
 
-__all__ = ["POSE_METHODS", "DEFAULT_POSE_METHOD", "PAPER_OPTIONS", "select_pose",
+__all__ = ["POSE_METHODS", "DEFAULT_POSE_METHOD", "PAPER_OPTIONS", "PoseParams", "select_pose",
            "run_pose_method", "story_interactions"]
 
 #: Every selector, the default first.
@@ -51,6 +54,76 @@ DEFAULT_POSE_METHOD = "story"
 #: Options that only the ``paper`` method takes.
 PAPER_OPTIONS = ("w_local", "w_global", "events", "smooth_s", "rest_speed", "tolerances",
                  "interactions")
+
+
+@dataclass(frozen=True)
+class PoseParams:
+    """Options of the pose stage, as one value (:func:`select_pose`'s arguments).
+
+    Attributes
+    ----------
+    pose_method : str or None
+        The selector, one of :data:`POSE_METHODS` (None: :data:`DEFAULT_POSE_METHOD`).
+    k : int
+        How many distinct peaks to return (at least 1).
+    min_separation_s : float
+        Minimum time (s) between two returned poses.
+    w_local, w_global : float
+        ``paper`` only: weights of the normalised terms (eq. 9).
+    events : {"transitions", "state"}
+        ``paper`` only: what counts as an event in the global term.
+    smooth_s : float
+        ``paper`` only: Savitzky-Golay window (s) for the trajectories; 0 for none.
+    rest_speed : float
+        ``paper`` only: rest threshold (m/s) for a person of the reference stature.
+    tolerances : ContactTolerances
+        ``paper`` only: for :func:`snapcore.select.contacts.detect_interactions`.
+    story : StoryParameters or None
+        ``story`` only (None: :data:`~snapcore.select.story.DEFAULT_STORY`).
+    seed : int
+        ``random`` only.
+
+    Values are checked where they are used (:func:`select_pose`); a paper-only option
+    changed from its default with another method is a ``ValueError`` (:meth:`kwargs`).
+    """
+
+    pose_method: str | None = None
+    k: int = 3
+    min_separation_s: float = MIN_SEPARATION_S
+    w_local: float = 1.0
+    w_global: float = 1.0
+    events: str = "transitions"
+    smooth_s: float = SMOOTH_S
+    rest_speed: float = REST_SPEED
+    tolerances: object = DEFAULT_TOLERANCES  # a ContactTolerances
+    story: StoryParameters | None = None
+    seed: int = 0
+
+    @property
+    def method(self) -> str:
+        """The selector that runs (the default resolved)."""
+        return DEFAULT_POSE_METHOD if self.pose_method is None else self.pose_method
+
+    def kwargs(self) -> dict:
+        """Keyword arguments of :func:`select_pose`: the method, ``k``,
+        ``min_separation_s`` and the options of that method only."""
+        out = {"method": self.method, "k": self.k, "min_separation_s": self.min_separation_s}
+        changed = [name for name in PAPER_OPTIONS if name != "interactions"
+                   and getattr(self, name) != getattr(_DEFAULT_PARAMS, name)]
+        if changed and self.method != "paper":
+            raise ValueError(f"option(s) {', '.join(changed)} apply to the 'paper' pose "
+                             f"method only, not {self.method!r}")
+        if self.method == "paper":
+            out.update({name: getattr(self, name) for name in PAPER_OPTIONS
+                        if name != "interactions"})
+        elif self.method == "story" and self.story is not None:
+            out["story"] = self.story
+        elif self.method == "random":
+            out["seed"] = self.seed
+        return out
+
+
+_DEFAULT_PARAMS = PoseParams()
 
 
 def story_interactions(scene, info):

@@ -32,7 +32,7 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     Frames are motion frames in source numbering; times are ISO 8601 in UTC. In CSV,
     `shown_order` (the method shown at each screen position, left to right) is a JSON
     array string such as ["ours", "motion_area", "viewpoint_entropy"], booleans are
-    true/false and missing values are empty cells (study_app.store.read_export parses
+    true/false and missing values are empty cells (study_app.export.read_export parses
     it back).
 
     Example: snapshot export --db sqlite:///var/study.db -o responses.csv

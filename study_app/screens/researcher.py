@@ -2,8 +2,9 @@
 
 Behind a token: the page compares what is typed with ``$SNAPSHOT_ADMIN_TOKEN``
 (constant-time). Without the variable, or without the right token, it shows nothing
-but the token field. Tables come from :mod:`analysis` (``analysis.votes``,
-``analysis.frames``) when it is installed, else from plain counts.
+but the token field. Tables and histograms come from :mod:`analysis`
+(``analysis.votes``, ``analysis.frames``): the UI layer sits above the analysis, which
+reads the store (see :mod:`study_app`).
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def frame_histogram_figure(rows: list[dict], sc):
     import numpy as np
 
     chosen = np.array([r["chosen_frame"] for r in rows
-                       if r["task"] == "pose" and r["scene"] == sc.id
+                       if r["task"] == "pose" and r["scene"] == sc.scene
                        and r["chosen_frame"] is not None], dtype=float)
     if chosen.size == 0:
         return None
@@ -96,15 +97,13 @@ def frame_histogram_figure(rows: list[dict], sc):
     edges = np.linspace(sc.frame_offset - 0.5, sc.frame_offset + sc.n_frames - 0.5, bins + 1)
     import pandas as pd
 
-    from analysis.frames import SceneFrames, frame_histogram
+    from analysis.frames import frame_histogram
 
-    info = SceneFrames(scene=sc.id, fps=sc.fps, n_frames=sc.n_frames,
-                       algorithm_frame=sc.algorithm_frame, frame_offset=sc.frame_offset)
-    counts, edges = frame_histogram(pd.DataFrame({"scene": sc.id, "chosen_frame": chosen}), info)
+    counts, edges = frame_histogram(pd.DataFrame({"scene": sc.scene, "chosen_frame": chosen}), sc)
     fig, ax = plt.subplots(figsize=(7, 1.8))
     ax.bar(edges[:-1], counts, width=np.diff(edges), align="edge", color="#7a9cc6")
     ax.axvline(sc.algorithm_frame, color="#c0392b", lw=2, label="algorithm")
-    ax.set_title(f"{sc.id}: {chosen.size} choices", fontsize=9)
+    ax.set_title(f"{sc.scene}: {chosen.size} choices", fontsize=9)
     ax.set_xlabel("motion frame (source numbering)", fontsize=8)
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, loc="upper right")
