@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from snapcore.render.viewpoint_entropy import select_view_entropy
+from snapcore.select.methods import ViewMethod
 from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
 
 __all__ = ["plot_views", "sphere_heatmap", "view_maps", "lon_lat", "PROJECTIONS", "MARKERS"]
@@ -31,9 +32,9 @@ __all__ = ["plot_views", "sphere_heatmap", "view_maps", "lon_lat", "PROJECTIONS"
 PROJECTIONS = ("mollweide", "equirect")
 #: Marker, colour and label of each method's pick.
 MARKERS = {
-    "pma": ("*", "#d62728", "PMA (ours)"),
-    "motion_area": ("^", "#1f77b4", "motion area"),
-    "viewpoint_entropy": ("o", "#2ca02c", "viewpoint entropy"),
+    "pma": ("*", "#d62728", f"PMA ({ViewMethod.OURS.label})"),
+    "motion_area": ("^", "#1f77b4", ViewMethod.MOTION_AREA.label),
+    "viewpoint_entropy": ("o", "#2ca02c", ViewMethod.VIEWPOINT_ENTROPY.label),
 }
 _TITLES = {
     "pma": "Projected Motion Area (sum of per-quad ratios)",
