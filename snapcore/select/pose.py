@@ -637,30 +637,11 @@ def select_pose_paper(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARA
                       **options) -> PoseSelection:
     """The paper's most informative pose of ``scene`` and the top-k distinct runners-up.
 
-    This is the ``paper`` method of :func:`snapcore.select.pose_methods.select_pose`
-    (which checks ``k`` and ``min_separation_s``): the top-k peaks of :func:`pose_entropy`.
-
-    Parameters
-    ----------
-    scene : Scene
-    k : int
-        How many distinct peaks to return (at least 1).
-    min_separation_s : float
-        Minimum time (s) between two returned poses.
-    **options
-        Passed to :func:`pose_entropy` (``w_local``, ``w_global``, ``events``,
-        ``smooth_s``, ``rest_speed``, ``tolerances``, ``interactions``).
-
-    Returns
-    -------
-    PoseSelection
-        Frames are internal indices; report ``scene.source_frame(frame)``.
-
-    Warns
-    -----
-    UserWarning
-        When the total entropy is constant (e.g. a static clip): the first frame is
-        returned, a defined but arbitrary choice.
+    This is the ``paper`` method of :func:`snapcore.select.pose_methods.select_pose`,
+    which checks ``k`` and ``min_separation_s`` and documents the result: the top-k peaks
+    of :func:`pose_entropy`, to which ``**options`` are passed (``w_local``,
+    ``w_global``, ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``,
+    ``interactions``). A constant entropy (a static clip) warns and gives the first frame.
     """
     t0 = time.perf_counter()
     entropy = pose_entropy(scene, **options)
