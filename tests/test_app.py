@@ -289,7 +289,7 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
 
     def researcher():
         a = AppTest.from_file(APP, default_timeout=TIMEOUT)
-        a.switch_page("pages/researcher.py")
+        a.switch_page("screens/researcher.py")
         return a.run()
 
     a = researcher()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.pages import common
+from study_app.screens import common
 
 
 def render() -> None:

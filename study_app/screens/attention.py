@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.pages import common
+from study_app.screens import common
 from study_app.session import InvalidAnswer
 
 
@@ -22,8 +22,9 @@ def render() -> None:
             st.warning("Please choose one of the options.")
             return
         try:
-            session.submit_attention(trial.index, choice,
-                                     response_time_s=common.elapsed_s(session, trial))
+            stored = session.submit_attention(trial.index, choice,
+                                              response_time_s=common.elapsed_s(session, trial))
+            common.answer_outcome(stored)
         except InvalidAnswer as err:
             st.warning(str(err))
             return
