@@ -134,7 +134,8 @@ def main() -> None:
         stage = session.stage if session else Stage.CONSENT
         render, title = STAGE_PAGES[stage]
         flow = st.Page(render, title=title, url_path=FLOW_PATH, default=True)
-    admin = st.Page(researcher.render, title="Researcher", url_path=RESEARCHER_PATH)
+    # A file page (the module runs itself), so it has an address of its own.
+    admin = st.Page(Path(researcher.__file__), title="Researcher", url_path=RESEARCHER_PATH)
     # The explicit list is the whole app: any other address shows the default page.
     page = st.navigation([flow, admin], position="hidden")
     common.page_style()

@@ -567,7 +567,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
     if dupes:
         which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
-        text = (f"scene {sc['id']}: nearly the same picture from {which} "
+        text = (f"nearly the same picture from {which} "
                 f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})")
         if study.near_duplicate == "error":
             raise StimuliError(text + "; set study.near_duplicate = \"warn\" to build anyway")

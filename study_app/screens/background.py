@@ -11,7 +11,6 @@ import streamlit as st
 from study_app.screens import common
 from study_app.session import InvalidAnswer
 
-
 #: The gender choice that opens a text box (its text is stored as ``gender_self``).
 SELF_DESCRIBE = "Prefer to self-describe"
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.screens import common
 from study_app.picker import frame_picker
+from study_app.screens import common
 from study_app.session import WATCHED_ENOUGH, InvalidAnswer
-
 
 #: Instructions for the video player, and for the frame slider (the fallback when the
 #: browser cannot play the video, or the study's ``picker = "frames"``): each names

@@ -124,3 +124,7 @@ def _downloads(ctx) -> None:
             st.download_button(f"Download responses ({fmt.upper()}, {len(rows)} rows)",
                                path.read_bytes(), file_name=f"{ctx.stimuli.study.id}-responses.{fmt}",
                                mime=mime, key=f"{common.KEY_DOWNLOAD}.{fmt}")
+
+
+if __name__ == "__main__":  # run as the page script by st.navigation (see app.py)
+    render()

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.screens import common
 from study_app.picker import view_chooser
+from study_app.screens import common
 from study_app.session import InvalidAnswer
 
 
