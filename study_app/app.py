@@ -139,6 +139,8 @@ def main() -> None:
     # The explicit list is the whole app: any other address shows the default page.
     page = st.navigation([flow, admin], position="hidden")
     common.page_style()
+    if session is not None and page.url_path != RESEARCHER_PATH:
+        common.stale_tab_notice(session)
     if page.url_path != RESEARCHER_PATH and not problem:
         n_trials = 2 * len(ctx.stimuli.scene_ids) + 1
         done_steps, total = session.progress() if session else (0, 2 + n_trials)

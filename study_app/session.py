@@ -277,6 +277,20 @@ class ParticipantSession:
         t = self.current_trial
         return Stage.DONE if t is None else Stage(t.task)
 
+    @property
+    def step_key(self):
+        """The step on screen: ``"background"``, a trial index, or ``"done"``."""
+        if self.participant.get("background") is None:
+            return "background"
+        t = self.current_trial
+        return "done" if t is None else t.index
+
+    def is_done(self, step) -> bool:
+        """Whether a step (:attr:`step_key` value) has been answered."""
+        if step == "background":
+            return self.participant.get("background") is not None
+        return isinstance(step, int) and step in self.answered
+
     def progress(self) -> tuple[int, int]:
         """``(steps done, steps in all)``: consent, background, then each trial."""
         total = 2 + len(self.plan)

@@ -54,6 +54,7 @@ __all__ = [
     "write_manifest",
     "app_version",
     "candidate_angles",
+    "check_near_duplicates",
 ]
 
 MANIFEST_NAME = "manifest.json"
@@ -375,6 +376,31 @@ def candidate_angles(picks: dict, *, threshold_deg: float) -> tuple[dict, list]:
     return angles, [list(p) for p in near_duplicate_views(angles, threshold_deg)]
 
 
+def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dict, list]:
+    """The candidates' pairwise angles and near-duplicates, acted on as the study says.
+
+    ``study.near_duplicate == "warn"`` warns (the build goes on; the manifest records the
+    pairs and the analysis reports them); ``"error"`` raises :class:`StimuliError`.
+
+    Returns
+    -------
+    (angles, pairs)
+        As :func:`candidate_angles`.
+    """
+    angles, dupes = candidate_angles(picks, threshold_deg=study.near_duplicate_deg)
+    if dupes:
+        report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
+        which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
+        text = (f"nearly the same picture from {which} "
+                f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})")
+        if study.near_duplicate == "error":
+            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
+                               "\"warn\" to build anyway")
+        warnings.warn(text + ": votes may split between them (the analysis reports it)",
+                      stacklevel=3)
+    return angles, dupes
+
+
 def _unit(v) -> list[float]:
     a = np.asarray(v, dtype=float).reshape(3)
     return (a / np.linalg.norm(a)).tolist()
@@ -563,16 +589,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     scene, doc = load_study_scene(study, sc, folder)
     t1 = time.perf_counter()
     picks, timings = select_scene(scene, study.selection)
-    angles, dupes = candidate_angles(picks, threshold_deg=study.near_duplicate_deg)
-    report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
-    if dupes:
-        which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
-        text = (f"nearly the same picture from {which} "
-                f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})")
-        if study.near_duplicate == "error":
-            raise StimuliError(text + "; set study.near_duplicate = \"warn\" to build anyway")
-        warnings.warn(text + ": votes may split between them (the analysis reports it)",
-                      stacklevel=2)
+    angles, dupes = check_near_duplicates(study, sc["id"], picks)
     t2 = time.perf_counter()
     vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size,
                        webm=folder / "video.webm")

@@ -35,7 +35,7 @@ def render() -> None:
         if self_described and self_described.strip():
             answers["gender_self"] = self_described.strip()
         try:
-            session.submit_background(answers)
+            common.answer_outcome(session.submit_background(answers))
         except InvalidAnswer as err:
             # Shown at the top on the next run, where it is seen without scrolling.
             common.flash("warning", str(err))

@@ -22,7 +22,7 @@ __all__ = [
     "KEY_PROBLEM",
     "KEY_PARTICIPANT_ID",
     "KEY_BG_GENDER_SELF",
-    "KEY_STALE_TAB",
+    "KEY_ON_SCREEN",
     "KEY_TRIAL_SHOWN",
     "KEY_ATTEMPT",
     "KEY_FLASH",
@@ -58,6 +58,8 @@ __all__ = [
     "page_style",
     "resume_link",
     "answer_outcome",
+    "stale_tab_notice",
+    "answered_here",
 ]
 
 #: URL query parameter carrying the participant id.
@@ -69,9 +71,9 @@ KEY_SESSION = "snapshot.session"
 #: The participant id this browser tab started or resumed: Back to the study link
 #: (an address without ``pid``) resumes them instead of showing the consent page.
 KEY_PARTICIPANT_ID = "snapshot.participant_id"
-#: Widget key of the stale-tab notice's acknowledgement (unused by the logic; kept
-#: distinct from the flash so both can show).
-KEY_STALE_TAB = "snapshot.stale_tab"
+#: (participant id, step) this browser tab showed on its previous run; a step that
+#: moved on without this tab answering was answered in another tab or browser.
+KEY_ON_SCREEN = "snapshot.on_screen"
 #: Why the participant id in the URL was refused (shown by the invalid-link page).
 KEY_PROBLEM = "snapshot.problem"
 #: {(participant id, trial index): wall-clock time the trial was first shown}.
@@ -213,11 +215,35 @@ def resume_link(session) -> None:
     st.code(resume_url(base, session.participant_id), language=None)
 
 
+STALE_TAB_TEXT = ("This question had already been answered in another window or tab, so "
+                  "the answer given here was not saved. Here is the next step.")
+
+
 def answer_outcome(stored: bool) -> None:
-    """Tell a tab whose answer was not saved because another tab answered first."""
-    if not stored:
-        flash("warning", "This question had already been answered in another window or tab, "
-              "so the answer you just gave was not saved. Here is the next step.")
+    """After a submit: remember this tab answered; tell it if its answer came second."""
+    if stored:
+        answered_here()
+    else:
+        flash("warning", STALE_TAB_TEXT)
+
+
+def answered_here() -> None:
+    """This tab moved the participant on itself (no stale-tab notice on the next run)."""
+    st.session_state[KEY_ON_SCREEN] = None
+
+
+def stale_tab_notice(session) -> None:
+    """Warn when the step this tab showed moved on without this tab answering it.
+
+    A second tab (or browser) answered first; whatever this tab sent for the old step —
+    a click the new page never reads — was dropped, and it must not move on silently.
+    """
+    step = session.step_key
+    shown = st.session_state.get(KEY_ON_SCREEN)
+    if shown is not None and shown[0] == session.participant_id and shown[1] != step \
+            and session.is_done(shown[1]):
+        flash("warning", STALE_TAB_TEXT)
+    st.session_state[KEY_ON_SCREEN] = (session.participant_id, step)
 
 
 def one_line(err: BaseException) -> str:
