@@ -381,13 +381,17 @@ def completed_participants(df: pd.DataFrame) -> set:
     return set(df.loc[df["task"] == "attention", "participant_id"])
 
 
-def default_stimuli(df: pd.DataFrame) -> Path | None:
+#: Where ``snapshot study`` keeps each study's stimuli by default (``<id>/manifest.json``).
+DEFAULT_STIMULI_ROOT = Path(__file__).resolve().parents[1] / "var" / "stimuli"
+
+
+def default_stimuli(df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT) -> Path | None:
     """The stimuli folder ``snapshot study`` serves by default for the data's study
-    (``<repo>/var/stimuli/<study id>``), if there is exactly one study and it exists."""
+    (``<root>/<study id>``), if there is exactly one study and its manifest exists."""
     ids = sorted(df["study_id"].dropna().unique())
     if len(ids) != 1:
         return None
-    folder = Path(__file__).resolve().parents[1] / "var" / "stimuli" / str(ids[0])
+    folder = Path(root) / str(ids[0])
     return folder if (folder / "manifest.json").is_file() else None
 
 

@@ -439,8 +439,8 @@ def luce_strengths(choices: pd.DataFrame, *, methods=METHODS, n_boot: int = 1000
             k = np.bincount([index[chosen[i]] for i in flat], minlength=len(methods))
             n_flat = len(flat)
             lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
-            hi[k == 0] = 1 - q ** (1 / n_flat)
-            lo[k == n_flat] = q ** (1 / n_flat)
+            lo[k == 0], hi[k == 0] = 0.0, 1 - q ** (1 / n_flat)
+            lo[k == n_flat], hi[k == n_flat] = q ** (1 / n_flat), 1.0
         for m, i in index.items():
             rows.append({"scene": scene, "method": m, "n": len(flat), "strength": share[i],
                          "log_strength": theta[i] - theta.mean(), "ci_low": lo[i],
