@@ -311,7 +311,11 @@ class ParticipantSession:
         """
         at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
         if at is None:
-            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT)
+            # The rules the answer will be held to, stored with the moment they start.
+            study = self.stimuli.study
+            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT,
+                                    {"min_answer_s": study.min_answer_s,
+                                     "require_watch": study.require_watch})
             at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
         return at.timestamp()
 

@@ -307,3 +307,42 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
     metrics = {m.label: m.value for m in a.get("metric")}
     assert metrics["Participants"] == "1" and metrics["Responses"] == "1"
     assert len(a.get("download_button")) == 2
+
+
+def test_background_self_describe_and_missing_answers(store):
+    """"Prefer to self-describe" opens a text box whose text is stored; every missing
+    answer is named in one message at the top of the page."""
+    at = new_app()
+    at.checkbox(key="consent.agree").check().run()
+    at.button(key="consent.start").click().run()
+    pid = at.query_params["pid"]
+    pid = pid[0] if isinstance(pid, list) else pid
+    at.button(key="background.submit").click().run()
+    (warning,) = at.warning
+    assert warning.value == "Please answer the questions about your age, gender and experience."
+    main = list(at.main)
+    assert main.index(warning) < main.index(at.selectbox(key="background.age_band"))  # on top
+    assert not at.text_input
+    at.radio(key="background.gender").set_value("Prefer to self-describe").run()
+    at.text_input(key="background.gender_self").input("agender").run()
+    at.button(key="background.submit").click().run()
+    assert at.warning[0].value == "Please answer the questions about your age and experience."
+    at.selectbox(key="background.age_band").select(BACKGROUND["age_band"])
+    at.radio(key="background.experience").set_value(BACKGROUND["experience"])
+    at.button(key="background.submit").click().run()
+    assert store.get_participant(pid)["background"] == {
+        "age_band": "25–34", "gender": "Prefer to self-describe", "experience": "No experience",
+        "gender_self": "agender"}
+
+
+def test_fallback_text_matches_its_controls(store):
+    """The player's instructions name Play and the arrow keys; the slider fallback's
+    instructions name the slider, not controls it does not have."""
+    at = new_app()
+    consent_and_background(at)
+    text = " ".join(m.value for m in at.markdown)
+    assert "**Play**" in text and "arrow keys" in text and "slider" not in text
+    at = send_trigger(at, FRAME_PICKER, "error", {"trial": 0, "message": "no H.264"})
+    text = " ".join(m.value for m in at.markdown)
+    assert "**Frame** slider" in text
+    assert "Play" not in text and "arrow" not in text and "space bar" not in text

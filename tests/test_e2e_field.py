@@ -347,8 +347,10 @@ def test_prolific_participant_back_reload_double_clicks(server, browser, artifac
     selects = [e for e in store.events(pid) if e["kind"] == "select"]
     assert [e["trial_index"] for e in selects] == [0, 1]
     assert all(e["payload"]["watched"] >= 0.9 for e in selects)
-    shown = [e["trial_index"] for e in store.events(pid) if e["kind"] == "shown"]
-    assert shown == [t.index for t in plan]
+    shown = [e for e in store.events(pid) if e["kind"] == "shown"]
+    assert [e["trial_index"] for e in shown] == [t.index for t in plan]
+    # the minimum time each answer was held to is stored with the trial's start
+    assert all(e["payload"] == {"min_answer_s": 1.0, "require_watch": True} for e in shown)
 
 
 # ----------------------------------------------------------------------------- item 1 (link)
