@@ -174,8 +174,14 @@ def picker_ready(page):
 
 def watch_through(page, timeout_ms: int = 30_000) -> None:
     """Play the animation to its end (Confirm opens only after that) and wait for it."""
+    settle(page)  # the player of this trial, not the one of the run before
     page.get_by_test_id("picker-play").click()
     page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=timeout_ms)
+    page.wait_for_selector(".snap-picker video", timeout=timeout_ms)
+    deadline = time.monotonic() + timeout_ms / 1000
+    while not page.locator(".snap-picker video").evaluate("v => v.paused"):  # at the end
+        assert time.monotonic() < deadline, "the animation did not stop at its end"
+        page.wait_for_timeout(100)
 
 
 def shown_frame(page) -> int:
@@ -286,6 +292,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     shot(page, artifacts, "05-view-task")
     page.get_by_test_id("view-choose-2").click()
     heading(page, "Pictures 2 of 2")
+    settle(page)  # the previous trial's chooser is gone
     page.wait_for_selector(".snap-view img", timeout=30_000)
     page.get_by_test_id("view-choose-0").click()
 
@@ -353,11 +360,11 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     assert store.answered_trials(pid) == set()
     assert "select" not in [e["kind"] for e in store.events(pid)]
 
-    for _ in range(2):  # honest answers to reach the view tasks
+    for title in ("Animation 2 of 2", "Pictures 1 of 2"):  # honest answers
         picker_ready(page)
         watch_through(page)
         page.get_by_test_id("picker-confirm").click()
-        page.wait_for_timeout(300)
+        heading(page, title)
     heading(page, "Pictures 1 of 2")
     page.wait_for_selector(".snap-view img")
     # The page knows positions only; send one that does not exist.

@@ -178,6 +178,7 @@ def confirm_pose(page, *, double: bool = False) -> int:
 
 
 def choose_view(page, position: int, *, double: bool = False) -> None:
+    settle(page)  # the previous trial's chooser is gone
     page.wait_for_selector(".snap-views[data-ready='1']", timeout=30_000)
     b = page.get_by_test_id(f"view-choose-{position}")
     b.dblclick() if double else b.click()
@@ -414,6 +415,7 @@ def test_odd_prolific_ids_refused(server, browser, value):
     assert "PROLIFIC_PID" in text and "not a valid Prolific value" in text
     assert page.get_by_text("I have read the information").count() == 0
     assert page.get_by_role("button", name="Start the study").count() == 0
+    assert page.get_by_role("button", name="Start a new session").count() == 0
     if value.startswith("<"):
         shot(page, "1366x768-07-invalid-link")
     page.context.close()
@@ -433,13 +435,14 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     background(page)
     heading(page, "Animation 1 of 2")
     picker_ready(page)
-    page.wait_for_timeout(300)
+    settle(page)
+    page.wait_for_timeout(500)
+    picker = page.locator(".snap-picker")
     start = shown_frame(page)
     for _ in range(6):
         page.keyboard.press("ArrowRight")  # no click into the player first
     page.keyboard.press("ArrowLeft")
-    page.wait_for_timeout(300)
-    assert shown_frame(page) == start + 5
+    until(picker, f"r => r.dataset.frame === '{start + 5}'", 10)
     page.keyboard.press(" ")  # Space plays
     video = page.get_by_test_id("picker-video")
     page.wait_for_timeout(300)
@@ -450,17 +453,28 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     assert page.get_by_test_id("picker-hint").is_visible()
     page.keyboard.press(" ")  # ... until it was played from the start (Space replays)
     page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=30_000)
+    until(video, "v => v.ended || v.paused")
     for _ in range(3):
         page.keyboard.press("ArrowLeft")
-    page.wait_for_timeout(1500)  # the log goes out in batches
     here = shown_frame(page)
-    kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
-    assert {"play", "ended", "step"} <= set(kinds), kinds
+
+    def kinds():
+        return [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
+
+    deadline = time.monotonic() + 20
+    while kinds().count("step") < 10:  # the log goes out in batches, as it happens
+        assert time.monotonic() < deadline, kinds()
+        time.sleep(0.2)
+    assert {"play", "ended", "step"} <= set(kinds()) and "select" not in kinds()
     page.reload()
     heading(page, "Animation 1 of 2")
     picker_ready(page)
-    page.wait_for_timeout(500)
-    assert shown_frame(page) == here  # the position is restored
+    until(page.locator(".snap-picker"), f"r => r.dataset.frame === '{here}'", 10)  # restored
+    page.set_viewport_size({"width": 1280, "height": 720})  # item 11 at the smaller size
+    page.wait_for_timeout(400)
+    for el in ("picker-video", "picker-play", "picker-confirm"):
+        b = box(page.get_by_test_id(el))
+        assert b["y"] >= 0 and b["y"] + b["height"] <= 720, (el, b)
     confirm = page.get_by_test_id("picker-confirm")
     page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=10_000)
     confirm.focus()
@@ -468,8 +482,7 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     heading(page, "Animation 2 of 2")
     (row,) = store.responses(pid)
     assert row["chosen_video_frame"] == here
-    kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
-    assert kinds.count("step") == 10 and kinds[-1] == "select"  # nothing lost on reload
+    assert kinds().count("step") == 10 and kinds()[-1] == "select"  # nothing lost on reload
     page.context.close()
 
 
