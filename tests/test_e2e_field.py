@@ -215,7 +215,9 @@ def until(locator, js: str, timeout_s: float = 30.0) -> None:
     """Wait until ``js`` (a function of the element) is true; locators pierce shadow DOM."""
     deadline = time.monotonic() + timeout_s
     while not locator.evaluate(js):
-        assert time.monotonic() < deadline, f"timed out waiting for {js}"
+        if time.monotonic() > deadline:
+            state = locator.evaluate("e => JSON.stringify(e.dataset || {})")
+            raise AssertionError(f"timed out waiting for {js} (element data: {state})")
         time.sleep(0.1)
 
 
@@ -408,7 +410,8 @@ def test_odd_prolific_ids_refused(server, browser, value):
 
     base, store, log_path, _ = server
     n_before = len(store.participants())
-    page = new_page(browser)
+    w, h = (390, 844) if value.startswith("1'") else (1366, 768)
+    page = new_page(browser, w, h)
     page.goto(f"{base}/?PROLIFIC_PID={quote(value)}&STUDY_ID=x1&SESSION_ID=y1")
     heading(page, "This link does not work")
     text = page.locator("[data-testid=stAlert]").first.inner_text()
@@ -416,8 +419,8 @@ def test_odd_prolific_ids_refused(server, browser, value):
     assert page.get_by_text("I have read the information").count() == 0
     assert page.get_by_role("button", name="Start the study").count() == 0
     assert page.get_by_role("button", name="Start a new session").count() == 0
-    if value.startswith("<"):
-        shot(page, "1366x768-07-invalid-link")
+    if value.startswith(("<", "1'")):
+        shot(page, f"{w}x{h}-07-invalid-link")
     page.context.close()
     assert len(store.participants()) == n_before
     assert "refused a study link with malformed Prolific parameters" in log_path.read_text()

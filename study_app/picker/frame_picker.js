@@ -127,7 +127,9 @@ function buildPicker(root, data) {
   // The displayed frame, as the compositor reports it.
   if ("requestVideoFrameCallback" in HTMLVideoElement.prototype) {
     const onFrame = (now, meta) => {
-      if (!state.seeking && state.pendingSeek === null) show(meta.mediaTime * fps);
+      // Only while playing: a paused player shows the frame it was sent to, and a late
+      // callback for the first decoded frame must not undo a restored position.
+      if (!video.paused && !state.seeking && state.pendingSeek === null) show(meta.mediaTime * fps);
       video.requestVideoFrameCallback(onFrame);
     };
     video.requestVideoFrameCallback(onFrame);
