@@ -32,6 +32,7 @@ __all__ = [
     "KEY_BG_AGE",
     "KEY_BG_GENDER",
     "KEY_BG_EXPERIENCE",
+    "KEY_BG_FORM",
     "KEY_BG_SUBMIT",
     "KEY_ATTENTION_CHOICE",
     "KEY_ATTENTION_SUBMIT",
@@ -87,6 +88,7 @@ KEY_FRAMES_FALLBACK = "snapshot.frames_fallback"
 #: Widget keys (AppTest drives widgets by these).
 KEY_CONSENT_AGREE = "consent.agree"
 KEY_CONSENT_START = "consent.start"
+KEY_BG_FORM = "background.form"
 KEY_BG_SUBMIT = "background.submit"
 KEY_BG_AGE = "background.age_band"
 KEY_BG_GENDER = "background.gender"

@@ -9,8 +9,7 @@ from study_app.screens import common
 from study_app.session import WATCHED_ENOUGH, InvalidAnswer
 
 #: Instructions for the video player, and for the frame slider (the fallback when the
-#: browser cannot play the video, or the study's ``picker = "frames"``): each names
-#: only the controls the participant actually has.
+#: browser cannot play the video, or the study's ``picker = "frames"``).
 PLAYER_TEXT = (
     "Watch the animation (press **Play** or the space bar; you can replay it){watch}. Then "
     "find the **one moment that best shows what the figure is doing** — pause there, use "
@@ -27,11 +26,13 @@ def render() -> None:
     session = common.current_session()
     trial = session.current_trial
     sc = session.stimuli.scenes[trial.scene]
-    study = session.stimuli.study
     n_pose = sum(t.task == "pose" for t in session.plan)
     st.header(f"Animation {trial.index + 1} of {n_pose}")
-    use_frames = (study.picker == "frames"
+    study = session.stimuli.study
+    use_frames = (session.stimuli.study.picker == "frames"
                   or st.session_state.get(common.KEY_FRAMES_FALLBACK, False))
+    # The instructions name only the controls the participant has (the slider when the
+    # browser cannot play the video).
     st.markdown(SLIDER_TEXT if use_frames
                 else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else ""))
     common.show_flash()
