@@ -1,7 +1,7 @@
 # Action Snapshot — the two commands: `make study` and `make test` (plus `make bench`).
 # Both work on a brand-new Debian machine: they create .venv, install the project, and
 # install the system packages the code needs (Mesa EGL for headless rendering, Chromium
-# for the browser test, PostgreSQL for the store test) only when they are missing.
+# and Firefox ESR for the browser tests, PostgreSQL for the store test) only when they are missing.
 
 PYTHON    ?= python3
 VENV      := .venv
@@ -36,6 +36,7 @@ $(STAMP): pyproject.toml
 SYS_PKGS = $(strip \
   $(if $(shell ldconfig -p | grep -q 'libEGL_mesa.so.0' && echo y),,libegl1 libegl-mesa0 libgl1-mesa-dri) \
   $(if $(wildcard /usr/bin/chromium),,chromium) \
+  $(if $(wildcard /usr/bin/firefox-esr),,firefox-esr) \
   $(if $(wildcard /usr/lib/postgresql/*/bin/initdb),,postgresql))
 
 sysdeps:

@@ -57,12 +57,16 @@ def _parse_strengths(text: str | None) -> dict | None:
 @click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False), default="results",
               show_default=True, help="Output folder (tables/, figures/, report.html).")
 @click.option("--stimuli", type=click.Path(), default=None,
-              help="Stimuli manifest (or its folder): scene titles, top-k picks, and the motion "
-                   "for the fastest / farthest-from-mean-pose baselines.")
+              help="Stimuli manifest (or its folder): scene titles, top-k picks, the motion "
+                   "for the fastest / farthest-from-mean-pose baselines and near-duplicate "
+                   "candidates. Default: var/stimuli/<study id> when it exists.")
 @click.option("--include-simulated", is_flag=True,
               help="Analyse simulated participants too (excluded by default).")
 @click.option("--exclude-failed-attention", is_flag=True,
               help="Drop participants who failed the attention check.")
+@click.option("--include-incomplete", is_flag=True,
+              help="Analyse participants who started but did not finish too (by default "
+                   "only completed participants count).")
 @click.option("--boot", "n_boot", type=click.IntRange(0), default=1000, show_default=True,
               help="Bootstrap resamples for the strengths' intervals.")
 @click.option("--seed", type=int, default=0, show_default=True,
@@ -71,7 +75,7 @@ def _parse_strengths(text: str | None) -> dict | None:
               show_default=True, help="Significance level (family-wise, Holm).")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the output folder.")
 def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
-            exclude_failed_attention, n_boot, seed, alpha, quiet):
+            exclude_failed_attention, include_incomplete, n_boot, seed, alpha, quiet):
     """Analyse the study: tables (CSV, Markdown, LaTeX), figures (PNG, PDF) and a
     one-page HTML report in OUT.
 
@@ -106,10 +110,14 @@ def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
         source = input_path if input_path is not None else _store_url(db)
         summary = report.analyze(source, out_dir, include_simulated=include_simulated,
                                  stimuli=stimuli, exclude_failed_attention=exclude_failed_attention,
-                                 n_boot=n_boot, seed=seed, alpha=alpha)
+                                 n_boot=n_boot, seed=seed, alpha=alpha,
+                                 completed_only=not include_incomplete)
     if not quiet:
         if "participants" in summary:
             click.echo(f"{summary['participants']} participants"
+                       + (f" analysed of {summary['started_participants']} started"
+                          if summary.get("started_participants", summary["participants"])
+                          != summary["participants"] else "")
                        + (f" ({summary['simulated_participants']} simulated)"
                           if summary.get("simulated_participants") else "")
                        + f", {summary['responses']} responses")

@@ -53,7 +53,10 @@ def _fmt(col: str, v) -> str:
         v = float(v)
         if col.startswith("p_") or col == "p":
             return "<1e-300" if v < 1e-300 else (f"{v:.2g}" if v < 0.001 else f"{v:.3f}")
-        if v.is_integer() and abs(v) < 1e6 and col in ("predicted_frame", "n"):
+        # Frames and counts are whole numbers even when a column holds NaN (float dtype):
+        # "54", not "54.000".
+        if v.is_integer() and abs(v) < 1e6 and (col in ("predicted_frame", "n", "votes")
+                                                or col.endswith("frame") or col.startswith("n_")):
             return str(int(v))
         return f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
     if isinstance(v, tuple | list):
@@ -403,10 +406,30 @@ def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
     return summary
 
 
+def completed_participants(df: pd.DataFrame) -> set:
+    """Participants who finished the study: they answered its last trial, the attention
+    check (every plan ends with it, ``study_app.protocol.trial_plan``)."""
+    return set(df.loc[df["task"] == "attention", "participant_id"])
+
+
+#: Where ``snapshot study`` keeps each study's stimuli by default (``<id>/manifest.json``).
+DEFAULT_STIMULI_ROOT = Path(__file__).resolve().parents[1] / "var" / "stimuli"
+
+
+def default_stimuli(df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT) -> Path | None:
+    """The stimuli folder ``snapshot study`` serves by default for the data's study
+    (``<root>/<study id>``), if there is exactly one study and its manifest exists."""
+    ids = sorted(df["study_id"].dropna().unique())
+    if len(ids) != 1:
+        return None
+    folder = Path(root) / str(ids[0])
+    return folder if (folder / "manifest.json").is_file() else None
+
+
 def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
             exclude_failed_attention: bool = False, n_boot: int = DEFAULT_BOOT, seed: int = 0,
             n_permutations: int = fr.N_PERMUTATIONS, alpha: float = vt.ALPHA,
-            title: str | None = None) -> dict:
+            title: str | None = None, completed_only: bool = True) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
     Parameters
@@ -418,10 +441,14 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     include_simulated : bool
         Analyse simulated participants too (they are excluded by default).
     stimuli : str, Path or dict, optional
-        The stimuli manifest: scene titles, top-k picks, and the motion for the fastest /
-        farthest-from-mean baselines.
+        The stimuli manifest: scene titles, top-k picks, the motion for the fastest /
+        farthest-from-mean baselines, and near-duplicate candidate views. Default: the
+        study's stimuli folder ``var/stimuli/<study id>`` when it exists.
     exclude_failed_attention : bool
         Drop participants who failed an attention check.
+    completed_only : bool
+        Analyse the answers of participants who finished only (the default); False
+        keeps those who started and left. The participants table reports both.
     """
     from snapcore.errors import SnapshotError
 
@@ -434,9 +461,20 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                                " (simulated participants are excluded; add --include-simulated)"))
     att = attention_summary(df)
     failed = set(att.loc[~att["passed"], "participant_id"])
+    parts = _participants_table(df, att)
+    started = int(df["participant_id"].nunique())
+    done = completed_participants(df)
+    if completed_only:
+        df = df[df["participant_id"].isin(done)]
+        if df.empty:
+            raise SnapshotError(f"{_source_name(source)}: no participant has finished the study "
+                                "(add --include-incomplete to analyse those who started)")
     if exclude_failed_attention and failed:
         df = df[~df["participant_id"].isin(failed)]
     order, extra, labels = None, {}, {}
+    if stimuli is None:
+        stimuli = default_stimuli(df)
+    dupes = pd.DataFrame()
     if stimuli is not None:
         from .stimuli import stimuli_scenes
 
@@ -444,6 +482,9 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
         order = list(st["scene"])
         labels = dict(zip(st["scene"], st["title"], strict=True))
         extra = fr.baselines_from_stimuli(stimuli)
+        from .stimuli import near_duplicate_scenes
+
+        dupes = near_duplicate_scenes(stimuli)
     if not labels:
         from .votes import paper_table2
 
@@ -459,6 +500,9 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                                 alpha=alpha, choices=views)
         sections += s
         summary.update(summ)
+        if not dupes.empty:
+            sections += _duplicate_section(counts, dupes, out, labels=labels, alpha=alpha)
+            summary["near_duplicate_scenes"] = sorted(set(dupes["scene"]))
     pose = pose_choices(df)
     if not pose.empty:
         extra = {sid: {**extra.get(sid, {}), "title": extra.get(sid, {}).get("title")
@@ -468,13 +512,15 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                                  seed=seed, alpha=alpha)
         sections += s
         summary.update(summ)
-    parts = _participants_table(df, att)
-    write_table(parts, out / "tables" / "participants", caption="Participants and responses.")
+    write_table(parts, out / "tables" / "participants",
+                caption="Participants (started and completed) and their responses.")
     sections.insert(0, ("Participants", [parts]))
     sections.append(("Methods", [_METHODS_TEXT]))
     n_sim = int(df.loc[df["simulated"], "participant_id"].nunique())
     meta = (f"source: {html.escape(_source_name(source))} · "
             f"{df['participant_id'].nunique()} participants"
+            + (f" (completed; {started} started)" if completed_only else
+               f" (started, {len(done)} completed)")
             + (f" ({n_sim} SIMULATED)" if n_sim else "")
             + f" · {len(df)} responses"
             + (f" · {len(failed)} failed the attention check"
@@ -485,7 +531,8 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                 meta=meta, labels=labels)
     summary.update({"source": _source_name(source), "participants": int(df["participant_id"].nunique()),
                     "simulated_participants": n_sim, "responses": len(df),
-                    "failed_attention": len(failed)})
+                    "failed_attention": len(failed), "started_participants": started,
+                    "completed_participants": len(done)})
     _write_summary(out, summary)
     return summary
 
@@ -514,12 +561,39 @@ def _write_summary(out: Path, summary: dict) -> None:
     (out / "summary.json").write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
 
 
+def _duplicate_section(counts, dupes, out, *, labels, alpha):
+    """Near-duplicate candidates: which scenes, and the votes with each pair as one option."""
+    pairs = {}
+    for r in dupes.itertuples():
+        pairs.setdefault(r.scene, []).append((r.method_a, r.method_b))
+    merged = vt.merge_near_duplicates(counts, pairs)
+    write_table(dupes, out / "tables" / "near_duplicates",
+                caption="Candidate views that are nearly the same picture (angle between their "
+                        "directions; over 90° means a near mirror image).")
+    write_table(merged, out / "tables" / "votes_duplicates_merged",
+                caption="Sensitivity analysis: near-duplicate candidates counted as one option; "
+                        "chi-square against equal votes per distinct picture.")
+    keep = [s for s in counts.index if s not in pairs]
+    text = [f"In {len(pairs)} scene(s) two candidates are nearly the same picture "
+            f"({', '.join(labels.get(s, s) for s in pairs)}); votes may split between them."]
+    items = [dupes, *text, merged]
+    if keep and len(keep) < len(counts):
+        claims = vt.claim_summary(vt.ours_vs_baselines(counts.loc[keep], alpha=alpha),
+                                  alpha=alpha, labels=labels)
+        items += ["Without those scenes:"] + [f"<div class='claim'>{html.escape(c)}</div>"
+                                              for c in claims]
+    return [("Near-duplicate candidates: sensitivity analysis", items)]
+
+
 def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:
     g = df.groupby("simulated")
     rows = []
+    done = completed_participants(df)
     for sim, part in g:
         rows.append({"participants": "simulated" if sim else "real",
                      "n": int(part["participant_id"].nunique()),
+                     "started": int(part["participant_id"].nunique()),
+                     "completed": len(set(part["participant_id"]) & done),
                      "responses": len(part),
                      "pose_choices": int((part["task"] == "pose").sum()),
                      "view_choices": int((part["task"] == "view").sum()),

@@ -17,7 +17,11 @@ import pandas as pd
 
 from .load import LoadError
 
-__all__ = ["read_stimuli", "stimuli_scenes", "load_scene_for_entry"]
+__all__ = ["read_stimuli", "stimuli_scenes", "load_scene_for_entry", "near_duplicate_scenes",
+           "DEFAULT_NEAR_DUPLICATE_DEG"]
+
+#: Threshold (degrees) for manifests that do not name one (the study config's default).
+DEFAULT_NEAR_DUPLICATE_DEG = 15.0
 
 
 def read_stimuli(manifest) -> tuple[dict, Path | None]:
@@ -60,6 +64,41 @@ def stimuli_scenes(manifest) -> pd.DataFrame:
                      "pose_s": _first(t, "select_pose", "pose"),
                      "view_s": _first(t, "select_view", "view")})
     return pd.DataFrame(rows)
+
+
+def near_duplicate_scenes(manifest) -> pd.DataFrame:
+    """Scenes whose candidate views are nearly the same picture.
+
+    The angles come from the manifest's ``view_angles`` when the builder recorded them,
+    else from the picks' view directions; the threshold is the study's
+    ``near_duplicate_deg`` (a pair under it, or over 180 minus it — a mirror image — is
+    a near-duplicate).
+
+    Returns
+    -------
+    DataFrame
+        One row per near-duplicate pair: ``scene``, ``method_a``, ``method_b``,
+        ``angle_deg``; empty (with those columns) when there is none.
+    """
+    from snapcore.select.view import near_duplicate_views, view_angles_deg
+
+    doc, _ = read_stimuli(manifest)
+    thr = float((doc.get("study") or {}).get("study", {}).get("near_duplicate_deg",
+                                                              DEFAULT_NEAR_DUPLICATE_DEG))
+    rows = []
+    for e in doc.get("scenes", []):
+        angles = e.get("view_angles")
+        if not angles:
+            picks = e.get("picks") or {}
+            dirs = {"ours": picks.get("view"), "viewpoint_entropy": picks.get("viewpoint_entropy"),
+                    "motion_area": picks.get("motion_area")}
+            if any(v is None for v in dirs.values()):
+                continue
+            angles = view_angles_deg(dirs)
+        for a, b in near_duplicate_views(angles, thr):
+            rows.append({"scene": e["id"], "method_a": a, "method_b": b,
+                         "angle_deg": float(angles[f"{a}|{b}"])})
+    return pd.DataFrame(rows, columns=["scene", "method_a", "method_b", "angle_deg"])
 
 
 def _first(d: dict, *keys) -> float:

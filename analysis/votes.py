@@ -46,6 +46,7 @@ __all__ = [
     "vote_counts",
     "choices_from_counts",
     "wilson_interval",
+    "merge_near_duplicates",
     "holm_adjust",
     "vote_table",
     "chisquare_no_preference",
@@ -411,6 +412,16 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
                                       initial=theta)
         lo, hi = (np.quantile(boots, [q, 1 - q], axis=0) if n_boot > 0
                   else (np.full(len(methods), np.nan),) * 2)
+        if n_boot > 0 and flat:
+            # A method chosen by none (or by all) of n: every resample repeats that, so
+            # the percentile interval collapses to [0, 0] (or [1, 1]) as if the share
+            # were known exactly. Use the exact Clopper-Pearson end instead:
+            # 1 - (q)^(1/n) for k = 0 (and q^(1/n) for k = n).
+            k = np.bincount([index[chosen[i]] for i in flat], minlength=len(methods))
+            n_flat = len(flat)
+            lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+            lo[k == 0], hi[k == 0] = 0.0, 1 - q ** (1 / n_flat)
+            lo[k == n_flat], hi[k == n_flat] = q ** (1 / n_flat), 1.0
         for m, i in index.items():
             rows.append({"scene": scene, "method": m, "n": len(flat), "strength": share[i],
                          "log_strength": theta[i] - theta.mean(), "ci_low": lo[i],
@@ -424,6 +435,47 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
 
 
 # ----------------------------------------------------------------- agreement
+
+
+def merge_near_duplicates(counts: pd.DataFrame, duplicates: dict) -> pd.DataFrame:
+    """Votes with near-duplicate candidates counted as one option (a sensitivity analysis).
+
+    When two candidates of a scene are nearly the same picture, a participant who likes
+    that picture may click either, so their votes split. Counting the pair as one option
+    asks whether the conclusions survive that.
+
+    Parameters
+    ----------
+    counts : DataFrame
+        :func:`vote_counts` (scenes × methods).
+    duplicates : dict of str to list of (str, str)
+        Per scene, the pairs of methods whose views are near-duplicates
+        (:func:`analysis.stimuli.near_duplicate_scenes`).
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``option`` (a method, or ``"a = b"`` for a merged pair), ``votes``,
+        ``n`` (votes in the scene), ``options`` (distinct pictures in the scene),
+        ``chisquare_p`` (goodness of fit against equal votes per distinct picture; NaN
+        with a single option). Scenes without duplicates keep their three options.
+    """
+    rows = []
+    for scene, row in counts.iterrows():
+        groups = {m: [m] for m in counts.columns}
+        for a, b in duplicates.get(scene, ()):
+            if a in groups and b in groups and groups[a] is not groups[b]:
+                merged = groups[a] + [m for m in groups[b] if m not in groups[a]]
+                for m in merged:
+                    groups[m] = merged
+        options = list({id(g): g for g in groups.values()}.values())
+        votes = [int(sum(int(row[m]) for m in g)) for g in options]
+        n = int(sum(votes))
+        p = (stats.chisquare(votes).pvalue if len(votes) > 1 and n > 0 else float("nan"))
+        for g, v in zip(options, votes, strict=True):
+            rows.append({"scene": scene, "option": " = ".join(g), "votes": v, "n": n,
+                         "options": len(options), "chisquare_p": float(p)})
+    return pd.DataFrame(rows)
 
 
 def fleiss_kappa(counts: pd.DataFrame) -> pd.DataFrame:

@@ -2,9 +2,14 @@
 
 Each run: load the verified stimuli and the store once per server process (a missing
 or altered stimulus file stops the app here, before anyone starts), find the
-participant from the ``pid`` in the URL, ask :class:`~study_app.session.ParticipantSession`
-which step they are on, and show that step's page. Navigation is hidden: participants
-cannot skip steps, only the researcher page has its own address (``/researcher``).
+participant — from the ``pid`` in the URL, else the one this browser tab already
+started, else the one registered for the URL's ``PROLIFIC_PID`` — ask
+:class:`~study_app.session.ParticipantSession` which step they are on, and show that
+step's page. Navigation is hidden and explicit: the study's own flow (every step at one
+address, so Back/Forward never land on an earlier step without the participant) and
+the researcher page (``/researcher``) are the only pages, whatever URL comes first;
+the page modules live in ``study_app/screens/`` (a ``pages/`` folder beside this script
+would be listed by Streamlit itself).
 
 Configuration comes from the environment (``snapshot study`` sets it):
 ``SNAPSHOT_STIMULI`` (stimuli folder), ``SNAPSHOT_DB`` (database URL),
@@ -13,6 +18,7 @@ Configuration comes from the environment (``snapshot study`` sets it):
 
 from __future__ import annotations
 
+import logging
 import sys
 from pathlib import Path
 
@@ -35,29 +41,74 @@ from study_app.screens import (  # noqa: E402
     researcher,
     view_task,
 )
-from study_app.session import ParticipantSession, Stage, UnknownParticipant  # noqa: E402
+from study_app.session import (  # noqa: E402
+    ParticipantSession,
+    Stage,
+    UnknownParticipant,
+    describe_value,
+    prolific_problems,
+)
 
-#: The page shown at each stage: (render function, title, url path).
+#: The page shown at each stage: (render function, title).
 STAGE_PAGES = {
-    Stage.CONSENT: (consent.render, "Welcome", "welcome"),
-    Stage.BACKGROUND: (background.render, "About you", "about-you"),
-    Stage.POSE: (pose_task.render, "Animation", "animation"),
-    Stage.VIEW: (view_task.render, "Pictures", "pictures"),
-    Stage.ATTENTION: (attention.render, "One more question", "question"),
-    Stage.DONE: (done.render, "Thank you", "done"),
+    Stage.CONSENT: (consent.render, "Welcome"),
+    Stage.BACKGROUND: (background.render, "About you"),
+    Stage.POSE: (pose_task.render, "Animation"),
+    Stage.VIEW: (view_task.render, "Pictures"),
+    Stage.ATTENTION: (attention.render, "One more question"),
+    Stage.DONE: (done.render, "Thank you"),
 }
+#: One address for every step of the flow: a step change is not a new history entry,
+#: so Back leaves the study page instead of stepping to a stale earlier step.
+FLOW_PATH = "study"
 RESEARCHER_PATH = "researcher"
+log = logging.getLogger("study_app")
+
+
+def _query() -> dict:
+    """The URL's query: one value per key, or the list when a key is repeated."""
+    return {k: (v[0] if len(v) == 1 else v)
+            for k in st.query_params.keys() if (v := st.query_params.get_all(k))}
 
 
 def _participant(ctx):
-    """(session or None, problem text or None) for the id in the URL."""
-    pid = st.query_params.get(common.QUERY_PID)
-    if not pid:
-        return None, None
-    try:
-        return ParticipantSession.resume(ctx.store, ctx.stimuli, pid), None
-    except UnknownParticipant as err:
-        return None, str(err)
+    """(session or None, problem text or None) for this run.
+
+    The participant is, in order: the ``pid`` of the URL; the one this browser tab
+    started (Back to the study link before the id was added); the one registered for
+    the URL's ``PROLIFIC_PID`` (the same study link opened again, in any browser). The
+    last two put the ``pid`` back into the URL, so a reload keeps them.
+    """
+    query = _query()
+    problems = prolific_problems(query)
+    if problems:
+        # Refused before anything is stored, and logged for the researcher.
+        log.warning("refused a study link with malformed Prolific parameters: %s",
+                    ", ".join(f"{k}={describe_value(query.get(k))}"
+                              for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
+        return None, " ".join(problems) + " Please open the study again from Prolific."
+    pid = query.get(common.QUERY_PID)
+    if pid:
+        try:
+            session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
+        except UnknownParticipant as err:
+            log.warning("refused participant link pid=%s: %s", describe_value(pid), err)
+            return None, str(err)
+        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
+        return session, None
+    session = None
+    remembered = st.session_state.get(common.KEY_PARTICIPANT_ID)
+    if remembered:
+        try:
+            session = ParticipantSession.resume(ctx.store, ctx.stimuli, remembered)
+        except UnknownParticipant:
+            session = None
+    if session is None:
+        session = ParticipantSession.for_prolific(ctx.store, ctx.stimuli, query)
+    if session is not None:
+        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
+        st.query_params[common.QUERY_PID] = session.participant_id
+    return session, None
 
 
 #: Stages shown full width (three pictures side by side need the room).
@@ -78,19 +129,26 @@ def main() -> None:
     st.session_state[common.KEY_SESSION] = session
     st.session_state[common.KEY_PROBLEM] = problem
     if problem:
-        flow = st.Page(invalid.render, title="Link not valid", url_path="link", default=True)
+        flow = st.Page(invalid.render, title="Link not valid", url_path=FLOW_PATH, default=True)
     else:
         stage = session.stage if session else Stage.CONSENT
-        render, title, path = STAGE_PAGES[stage]
-        flow = st.Page(render, title=title, url_path=path, default=True)
+        render, title = STAGE_PAGES[stage]
+        flow = st.Page(render, title=title, url_path=FLOW_PATH, default=True)
     # A file page (the module runs itself), so it has an address of its own.
     admin = st.Page(Path(researcher.__file__), title="Researcher", url_path=RESEARCHER_PATH)
+    # The explicit list is the whole app: any other address shows the default page.
     page = st.navigation([flow, admin], position="hidden")
+    common.page_style()
+    if session is not None and page.url_path != RESEARCHER_PATH:
+        common.stale_tab_notice(session)
     if page.url_path != RESEARCHER_PATH and not problem:
         n_trials = 2 * len(ctx.stimuli.scene_ids) + 1
         done_steps, total = session.progress() if session else (0, 2 + n_trials)
         st.progress(done_steps / total, text=f"Progress: {done_steps} of {total} steps")
     page.run()
+    if page.url_path != RESEARCHER_PATH and session is not None \
+            and session.stage is not Stage.DONE:
+        common.resume_link(session)
 
 
 main()

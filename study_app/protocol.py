@@ -43,6 +43,9 @@ __all__ = [
     "check_view_choice",
     "check_attention_answer",
     "redirect_url",
+    "estimated_minutes",
+    "consent_text",
+    "NEAR_DUPLICATE_ACTIONS",
 ]
 
 #: Trial kinds, in the order the plan puts them.
@@ -74,7 +77,7 @@ You are invited to take part in a research study about how people see human moti
 **What you will do.** You will watch short animations of moving figures and, for each,
 pick the moment that best tells what the figure is doing. Then you will see still
 images of such moments from three viewpoints and pick the one that shows the action
-best. A few questions about you come first. It takes about 10 minutes.
+best. A few questions about you come first. It takes about {minutes} minutes.
 
 **Your data.** We record your answers, how long each took, and how you used the video
 player (play, pause, seek). We do not record your name, e-mail or IP address. Answers
@@ -83,6 +86,17 @@ are stored under a random identifier and analysed only in aggregate.
 **Your rights.** Taking part is voluntary. You may stop at any time by closing the page;
 you can come back later with the same link and continue where you left off.
 """
+
+
+#: What the stimuli build does when two candidate views of a scene are nearly the same
+#: picture: "warn" (build, warn, and let the analysis report it) or "error" (stop).
+NEAR_DUPLICATE_ACTIONS = ("warn", "error")
+#: Seconds a participant needs per study step beyond watching (estimates for the consent
+#: page's duration: reading the consent and background, choosing a view, the check).
+_SECONDS_CONSENT, _SECONDS_BACKGROUND, _SECONDS_VIEW, _SECONDS_ATTENTION = 60, 45, 15, 15
+#: A pose task takes about this many times the animation (watch, replay, step) plus
+#: a fixed overhead in seconds.
+_POSE_WATCH_FACTOR, _SECONDS_POSE = 3.0, 20
 
 
 class StudyError(SnapshotError):
@@ -109,6 +123,15 @@ class Study:
     completion_code, redirect_url : str or None
     consent : str
         Markdown shown on the consent page.
+    min_answer_s : float
+        Seconds a trial must have been on screen before an answer to it is accepted
+        (a double click cannot answer the next trial unseen).
+    require_watch : bool
+        The pose task's Confirm stays off until the animation was played through once.
+    near_duplicate_deg : float
+        Candidate views closer than this angle (degrees) count as the same picture.
+    near_duplicate : str
+        What the stimuli build does about them (:data:`NEAR_DUPLICATE_ACTIONS`).
     background : dict of str to list of str
         Choices for ``age_bands``, ``genders``, ``experience``.
     attention : dict
@@ -130,6 +153,10 @@ class Study:
     completion_code: str | None = None
     redirect_url: str | None = None
     consent: str = DEFAULT_CONSENT
+    min_answer_s: float = 1.0
+    require_watch: bool = True
+    near_duplicate_deg: float = 15.0
+    near_duplicate: str = "warn"
     background: dict = field(default_factory=lambda: dict(DEFAULT_BACKGROUND))
     attention: dict = field(default_factory=lambda: dict(DEFAULT_ATTENTION))
     selection: dict = field(default_factory=dict)
@@ -145,7 +172,10 @@ class Study:
         """The config as a document that :func:`study_from_dict` reads back (for manifests)."""
         study = {"id": self.id, "title": self.title, "description": self.description,
                  "video_fps": self.video_fps, "size": list(self.size), "picker": self.picker,
-                 "consent": self.consent}
+                 "consent": self.consent, "min_answer_s": self.min_answer_s,
+                 "require_watch": self.require_watch,
+                 "near_duplicate_deg": self.near_duplicate_deg,
+                 "near_duplicate": self.near_duplicate}
         if self.completion_code:
             study["completion_code"] = self.completion_code
         if self.redirect_url:
@@ -226,6 +256,10 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
         completion_code=s.get("completion_code") or None,
         redirect_url=s.get("redirect_url") or None,
         consent=s.get("consent") or DEFAULT_CONSENT,
+        min_answer_s=float(s.get("min_answer_s", 1.0)),
+        require_watch=bool(s.get("require_watch", True)),
+        near_duplicate_deg=float(s.get("near_duplicate_deg", 15.0)),
+        near_duplicate=s.get("near_duplicate", "warn"),
         background=background,
         attention=attention,
         selection=dict(doc.get("selection") or {}),
@@ -314,12 +348,13 @@ def check_video_frame(video_frame, video_to_motion) -> tuple[int, int]:
     return v, int(video_to_motion[v])
 
 
-def check_view_choice(trial: Trial, position, method) -> tuple[int, str]:
-    """Check a view-task answer against what the plan showed.
+def check_view_choice(trial: Trial, position, method=None) -> tuple[int, str]:
+    """Check a view-task answer against what the plan showed; map the position to its method.
 
-    The browser reports both the position clicked and the method label it displayed
-    there; both must agree with the participant's seeded screen order, so a stale page
-    or a forged label is refused instead of being counted for the wrong method.
+    Participants' pages carry positions only (they must not reveal which method made
+    which picture), so the method comes from the participant's seeded screen order.
+    A caller that also claims a ``method`` (a simulation, an import) must name the one
+    shown at that position, or the answer is refused instead of miscounted.
 
     Returns
     -------
@@ -334,6 +369,8 @@ def check_view_choice(trial: Trial, position, method) -> tuple[int, str]:
     p = _as_int(position, "the chosen position")
     if not 0 <= p < len(trial.shown_order):
         raise AnswerError(f"position {p} does not exist (0 to {len(trial.shown_order) - 1})")
+    if method is None:
+        return p, trial.shown_order[p]
     if method not in VIEW_METHODS:
         raise AnswerError(f"unknown method label {method!r}")
     if trial.shown_order[p] != method:
@@ -353,3 +390,32 @@ def redirect_url(study: Study, code: str) -> str | None:
     if not study.redirect_url:
         return None
     return study.redirect_url.replace("{code}", code)
+
+
+def estimated_minutes(video_seconds, *, attention: bool = True) -> int:
+    """How long the study takes a participant, in whole minutes (at least 1).
+
+    Parameters
+    ----------
+    video_seconds : sequence of float
+        Duration (s) of each scene's animation; every scene gives one pose and one
+        view task.
+    attention : bool
+        Whether the plan ends with the attention check.
+
+    Notes
+    -----
+    A pose task is taken as ``3 ×`` its animation (watch, replay, step to the moment)
+    plus 20 s; a view task 15 s; consent 60 s, background 45 s, attention check 15 s.
+    Rounded up, so the consent page never promises less than it takes.
+    """
+    secs = [float(v) for v in video_seconds]
+    total = (_SECONDS_CONSENT + _SECONDS_BACKGROUND + (_SECONDS_ATTENTION if attention else 0)
+             + sum(_POSE_WATCH_FACTOR * v + _SECONDS_POSE for v in secs)
+             + _SECONDS_VIEW * len(secs))
+    return max(1, math.ceil(total / 60))
+
+
+def consent_text(study: Study, minutes: int) -> str:
+    """The consent Markdown with ``{minutes}`` replaced by the study's estimated duration."""
+    return study.consent.replace("{minutes}", str(int(minutes)))

@@ -39,6 +39,11 @@ __all__ = [
     "SessionError",
     "UnknownParticipant",
     "InvalidAnswer",
+    "TooEarly",
+    "prolific_problems",
+    "resume_url",
+    "describe_value",
+    "WATCHED_ENOUGH",
     "ParticipantSession",
     "prolific_params",
     "PROLIFIC_KEYS",
@@ -56,6 +61,10 @@ _PROLIFIC_VALUE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _PID = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
 #: Picker interactions worth keeping (plays, pauses, seeks, frame steps, scrubbing).
 EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select")
+#: Share of the animation that must have been played (the video's played ranges) for
+#: "watched through once": a little under 1, as the last frame's interval and a
+#: dropped frame at the start are not counted as played by every browser.
+WATCHED_ENOUGH = 0.9
 #: The event the server stores when a trial is first shown: its response time counts
 #: from there, across reloads and tabs (never sent by the browser).
 SHOWN_EVENT = "shown"
@@ -65,6 +74,13 @@ MAX_EVENTS_PER_TRIAL = 500
 MAX_RESPONSE_TIME_S = 24 * 3600.0
 #: Background questions: answer key → the study's choices key.
 BACKGROUND_FIELDS = {"age_band": "age_bands", "gender": "genders", "experience": "experience"}
+#: How the participant-facing messages name each background question.
+BACKGROUND_NAMES = {"age_band": "age", "gender": "gender", "experience": "experience"}
+
+
+def _join(words: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 class Stage(StrEnum):
@@ -88,6 +104,55 @@ class UnknownParticipant(SessionError):
 
 class InvalidAnswer(SessionError):
     """An answer that does not fit the current trial (nothing was written)."""
+
+
+class TooEarly(InvalidAnswer):
+    """An answer that came before its trial was on screen for the study's minimum time
+    (e.g. the second click of a double click landing on the next trial)."""
+
+
+def prolific_problems(query: dict) -> list[str]:
+    """What is wrong with the Prolific parameters of a URL query (empty when nothing is).
+
+    A present but malformed ``PROLIFIC_PID``, ``STUDY_ID`` or ``SESSION_ID`` (too long,
+    characters a Prolific id never has, given twice) must stop the participant on the
+    first page: storing the participant without it would lose who they are.
+
+    Returns
+    -------
+    list of str
+        One participant-facing sentence per malformed parameter.
+    """
+    out = []
+    for k in PROLIFIC_KEYS:
+        if k not in query:
+            continue
+        v = query.get(k)
+        if isinstance(v, list) and len(v) == 1:
+            v = v[0]
+        if not isinstance(v, str) or not _PROLIFIC_VALUE.match(v):
+            out.append(f"The study link's {k} is not a valid Prolific value (expected up to 64 "
+                       "letters, digits, '-' or '_').")
+    return out
+
+
+def resume_url(base_url: str, participant_id: str) -> str:
+    """The participant's personal link: the app's address with only ``?pid=``."""
+    from urllib.parse import urlencode, urlsplit, urlunsplit
+
+    parts = urlsplit(base_url or "/")
+    path = parts.path
+    for suffix in ("/study", "/researcher"):  # the page's own address, not the app's
+        if path.endswith(suffix):
+            path = path[: -len(suffix)]
+    return urlunsplit((parts.scheme, parts.netloc, path.rstrip("/") + "/",
+                       urlencode({"pid": participant_id}), ""))
+
+
+def describe_value(value, limit: int = 80) -> str:
+    """A safe one-line rendering of a value from the URL for the researcher's log."""
+    text = ascii(value)
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
 
 
 def prolific_params(query: dict) -> dict:
@@ -138,10 +203,30 @@ class ParticipantSession:
         """
         if seed is None:
             seed = secrets.randbits(62)
+        params = prolific_params(prolific or {})
+        if params.get("PROLIFIC_PID") and not simulated:
+            # One Prolific id, one participant: a second browser resumes the first record.
+            pid, _ = store.participant_for_prolific(
+                stimuli.study.id, stimuli.sha256, app_version=app_version(), seed=int(seed),
+                prolific=params)
+            return cls.resume(store, stimuli, pid)
         pid = store.create_participant(
             stimuli.study.id, stimuli.sha256, app_version=app_version(), seed=int(seed),
-            prolific=prolific_params(prolific or {}) or None, simulated=simulated)
+            prolific=params or None, simulated=simulated)
         return cls.resume(store, stimuli, pid)
+
+    @classmethod
+    def for_prolific(cls, store, stimuli: Stimuli, query: dict) -> ParticipantSession | None:
+        """The session already registered for the URL's ``PROLIFIC_PID``, or None.
+
+        A Prolific participant who returns with the study link (no ``pid``), from any
+        browser, resumes where they were instead of consenting again.
+        """
+        ppid = prolific_params(query).get("PROLIFIC_PID")
+        if not ppid:
+            return None
+        pid = store.find_prolific(stimuli.study.id, ppid)
+        return None if pid is None else cls.resume(store, stimuli, pid)
 
     @classmethod
     def resume(cls, store, stimuli: Stimuli, participant_id) -> ParticipantSession:
@@ -192,6 +277,20 @@ class ParticipantSession:
         t = self.current_trial
         return Stage.DONE if t is None else Stage(t.task)
 
+    @property
+    def step_key(self):
+        """The step on screen: ``"background"``, a trial index, or ``"done"``."""
+        if self.participant.get("background") is None:
+            return "background"
+        t = self.current_trial
+        return "done" if t is None else t.index
+
+    def is_done(self, step) -> bool:
+        """Whether a step (:attr:`step_key` value) has been answered."""
+        if step == "background":
+            return self.participant.get("background") is not None
+        return isinstance(step, int) and step in self.answered
+
     def progress(self) -> tuple[int, int]:
         """``(steps done, steps in all)``: consent, background, then each trial."""
         total = 2 + len(self.plan)
@@ -212,19 +311,29 @@ class ParticipantSession:
         """
         at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
         if at is None:
-            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT)
+            # The rules the answer will be held to, stored with the moment they start.
+            study = self.stimuli.study
+            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT,
+                                    {"min_answer_s": study.min_answer_s,
+                                     "require_watch": study.require_watch})
             at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
         return at.timestamp()
 
     # -- answers -----------------------------------------------------------------------
     def submit_background(self, answers: dict) -> bool:
         """Store the background answers; each must be one of the study's choices."""
-        clean = {}
+        clean, missing = {}, []
         for key, choices_key in BACKGROUND_FIELDS.items():
             value = answers.get(key)
             if value not in self.stimuli.study.background[choices_key]:
-                raise InvalidAnswer(f"Please answer the question about your {key.replace('_', ' ')}.")
+                missing.append(BACKGROUND_NAMES[key])
             clean[key] = value
+        if missing:
+            raise InvalidAnswer("Please answer the question" + ("s" if len(missing) > 1 else "")
+                                + " about your " + _join(missing) + ".")
+        extra = answers.get("gender_self")
+        if isinstance(extra, str) and extra.strip():
+            clean["gender_self"] = extra.strip()[:100]
         stored = self.store.set_background(self.participant_id, clean)
         self.participant = {**self.participant, "background": clean} if stored else \
             self.store.get_participant(self.participant_id)
@@ -246,11 +355,16 @@ class ParticipantSession:
             raise InvalidAnswer("Please answer the questions in order; this page was out of date.")
         return trial
 
-    @staticmethod
-    def _time(response_time_s) -> float:
+    def _time(self, response_time_s) -> float:
         t = float(response_time_s)
         if not math.isfinite(t) or t < 0:
             raise InvalidAnswer("The response time is not valid.")
+        if t < self.stimuli.study.min_answer_s:
+            # Too soon after the trial appeared to be about it: typically the second
+            # click of a double click, landing on the next trial's button.
+            raise TooEarly("That click came before this question was on screen long enough "
+                           "to be an answer to it; nothing was saved. Please take a look "
+                           "and answer again.")
         return min(t, MAX_RESPONSE_TIME_S)
 
     def _record(self, row: dict) -> bool:
@@ -259,17 +373,27 @@ class ParticipantSession:
         return bool(stored)
 
     def submit_pose(self, trial_index: int, video_frame, *, response_time_s: float,
-                    events=()) -> bool:
+                    events=(), watched: float | None = None) -> bool:
         """Answer a pose task with the confirmed frame of the video.
 
         The video frame is checked against the scene's frame map and converted to the
         motion frame (source numbering). Returns True if stored, False if this trial was
         already answered (nothing changes).
 
+        Parameters
+        ----------
+        watched : float, optional
+            Share of the animation played in the video player (0-1, the largest the
+            player reported in this or an earlier page load of the trial). With the
+            study's ``require_watch`` it must reach :data:`WATCHED_ENOUGH`; None means
+            the participant used the frame slider, where nothing plays.
+
         Raises
         ------
         InvalidAnswer
-            Wrong or out-of-order trial, or a frame outside the video. Nothing is written.
+            Wrong or out-of-order trial, a frame outside the video, an answer too soon
+            after the trial appeared (:class:`TooEarly`) or before the animation was
+            watched through. Nothing is written.
         """
         trial = self._trial_for(trial_index, "pose")
         if trial is None:
@@ -279,23 +403,74 @@ class ParticipantSession:
             v, m = check_video_frame(video_frame, sc.video_to_motion)
         except AnswerError as err:
             raise InvalidAnswer(f"That frame cannot be stored: {err}.") from None
+        if watched is not None:
+            if isinstance(watched, bool) or not isinstance(watched, (int, float)) \
+                    or not 0 <= watched <= 1:
+                raise InvalidAnswer("The player reported an invalid viewing time.")
+            watched = max(float(watched), self.watched(trial.index))
+            if self.stimuli.study.require_watch and watched < WATCHED_ENOUGH:
+                raise InvalidAnswer("Please watch the whole animation once before choosing "
+                                    "a frame.")
         row = {"trial_index": trial.index, "task": "pose", "scene": trial.scene,
                "stimulus_id": trial.stimulus_id, "chosen_frame": m, "chosen_video_frame": v,
                "algorithm_frame": sc.algorithm_frame, "fps": sc.fps, "n_frames": sc.n_frames,
                "response_time_s": self._time(response_time_s)}
         stored = self._record(row)
         if stored:
+            # The picker's "select" entry carries how much was watched.
             self._record_events(trial.index, events, n_video_frames=sc.n_video_frames)
         return stored
 
-    def submit_view(self, trial_index: int, position, method, *, response_time_s: float) -> bool:
-        """Answer a view task: the screen position clicked and the label shown there.
+    def record_picker_events(self, trial_index, events) -> int:
+        """Store a batch of the picker's log while the trial is open (sent as it happens,
+        so a reload loses nothing); return how many were stored.
+
+        Batches for a trial that is answered, not a pose task or not the current one
+        are ignored (0), as are entries beyond :data:`MAX_EVENTS_PER_TRIAL` a trial.
+        """
+        t = self.current_trial
+        if t is None or t.task != "pose" or trial_index != t.index \
+                or isinstance(trial_index, bool):
+            return 0
+        room = MAX_EVENTS_PER_TRIAL - sum(
+            1 for e in self.store.events(self.participant_id) if e["trial_index"] == t.index)
+        if room <= 0:
+            return 0
+        sc = self.stimuli.scenes[t.scene]
+        return self._record_events(t.index, list(events or [])[:room],
+                                   n_video_frames=sc.n_video_frames)
+
+    def picker_state(self, trial_index: int) -> tuple[int, float]:
+        """``(frame, watched)`` to restore the player at: the last frame the stored log
+        shows (0 before any) and the largest share watched so far."""
+        frame, watched = 0, 0.0
+        for e in self.store.events(self.participant_id):
+            if e["trial_index"] != trial_index or e["kind"] == SHOWN_EVENT:
+                continue
+            p = e["payload"] or {}
+            if isinstance(p.get("frame"), int):
+                frame = p["frame"]
+            if isinstance(p.get("watched"), (int, float)):
+                watched = max(watched, float(p["watched"]))
+        return frame, watched
+
+    def watched(self, trial_index: int) -> float:
+        """The largest share of the trial's animation the stored log says was watched."""
+        return self.picker_state(trial_index)[1]
+
+    def submit_view(self, trial_index: int, position, method=None, *,
+                    response_time_s: float) -> bool:
+        """Answer a view task: the screen position clicked.
+
+        The method is looked up in the participant's seeded screen order (the page never
+        knows it); a caller that names one must name the method shown there.
 
         Raises
         ------
         InvalidAnswer
-            Wrong trial, a position that does not exist, or a method label that is not
-            what the participant's seeded order put at that position. Nothing is written.
+            Wrong trial, a position that does not exist, a method that is not what the
+            participant's seeded order put at that position, or an answer too soon
+            after the trial appeared (:class:`TooEarly`). Nothing is written.
         """
         trial = self._trial_for(trial_index, "view")
         if trial is None:
@@ -342,6 +517,9 @@ class ParticipantSession:
                     payload[key] = f
             if ev.get("by") in (-1, 1) and not isinstance(ev.get("by"), bool):
                 payload["by"] = ev["by"]
+            w = ev.get("watched")
+            if isinstance(w, (int, float)) and not isinstance(w, bool) and 0 <= w <= 1:
+                payload["watched"] = round(float(w), 3)
             items.append((ev["kind"], payload))
         return self.store.record_events(self.participant_id, trial_index, items) if items else 0
 
@@ -358,7 +536,8 @@ class ParticipantSession:
         return redirect_url(self.stimuli.study, code)
 
     def view_choices(self, trial: Trial) -> list[tuple[str, object]]:
-        """``[(method, image path), ...]`` in the participant's screen order."""
+        """``[(method, image path), ...]`` in the participant's screen order (server side
+        only: the page gets the images by position)."""
         sc = self.stimuli.scenes[trial.scene]
         return [(m, sc.views[m]) for m in trial.shown_order]
 

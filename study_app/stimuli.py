@@ -3,6 +3,7 @@
 A stimuli folder holds, per scene of the study::
 
     <scene>/video.mp4           the whole animation, H.264, ``video_fps`` (24 by default)
+    <scene>/video.webm          the same frames as WebM/VP9 (browsers without H.264)
     <scene>/frames/00000.jpg    one image per video frame: the frames a participant picks from
     <scene>/view_<method>.png   the selected pose seen from each method's view direction
     <scene>/scene.json          the scene manifest that was loaded (provenance)
@@ -54,6 +55,8 @@ __all__ = [
     "write_views",
     "write_manifest",
     "app_version",
+    "candidate_angles",
+    "check_near_duplicates",
 ]
 
 MANIFEST_NAME = "manifest.json"
@@ -96,6 +99,8 @@ class SceneStimulus(StudyScene):
     Attributes
     ----------
     video : Path
+    video_webm : Path or None
+        The WebM/VP9 copy (None in folders built before it existed).
     video_fps : float
     video_to_motion : tuple of int
         Motion frame (source numbering) shown at each video frame.
@@ -113,6 +118,12 @@ class SceneStimulus(StudyScene):
     frames: tuple[Path, ...]
     views: dict
     entry: dict
+    video_webm: Path | None = None
+
+    @property
+    def videos(self) -> list[Path]:
+        """The video's encodings in the order a browser should try them."""
+        return [self.video] + ([self.video_webm] if self.video_webm else [])
 
     @property
     def n_video_frames(self) -> int:
@@ -153,7 +164,8 @@ class Stimuli:
 
 
 def _referenced_files(entry: dict) -> list[str]:
-    files = [entry["video"], *entry["frames"]]
+    files = [entry["video"], *([entry["video_webm"]] if "video_webm" in entry else []),
+             *entry["frames"]]
     files += [v["file"] for v in entry["views"].values()]
     return files
 
@@ -232,6 +244,7 @@ def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
             video_fps=float(e["video_fps"]), video_to_motion=tuple(e["video_to_motion"]),
             frames=tuple(root / f for f in e["frames"]),
             views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
+            video_webm=root / e["video_webm"] if e.get("video_webm") else None,
         )
     return Stimuli(folder=root, manifest=manifest, sha256=sha256_file(root / MANIFEST_NAME),
                    study=study, scenes=scenes)
@@ -362,14 +375,57 @@ def _picks_by_method(scene, k: int = 3) -> dict:
 _PICK_KEYS = {m: "view" if m is ViewMethod.OURS else m.value for m in VIEW_METHODS}
 
 
+def candidate_angles(picks: dict, *, threshold_deg: float) -> tuple[dict, list]:
+    """Angles between the three candidate views and the pairs that are near-duplicates.
+
+    Returns
+    -------
+    (angles, pairs) : (dict of str to float, list of [str, str])
+        ``{"ours|viewpoint_entropy": degrees, ...}`` and the pairs that are under
+        ``threshold_deg`` apart or over ``180 - threshold_deg`` (mirror images).
+    """
+    from snapcore.select.view import near_duplicate_views, view_angles_deg
+
+    angles = view_angles_deg({m.value: picks[_PICK_KEYS[m]] for m in VIEW_METHODS})
+    angles = {k: round(v, 2) for k, v in angles.items()}
+    return angles, [list(p) for p in near_duplicate_views(angles, threshold_deg)]
+
+
+def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dict, list]:
+    """The candidates' pairwise angles and near-duplicates, acted on as the study says.
+
+    ``study.near_duplicate == "warn"`` warns (the build goes on; the manifest records the
+    pairs and the analysis reports them); ``"error"`` raises :class:`StimuliError`.
+
+    Returns
+    -------
+    (angles, pairs)
+        As :func:`candidate_angles`.
+    """
+    angles, dupes = candidate_angles(picks, threshold_deg=study.near_duplicate_deg)
+    if dupes:
+        report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
+        which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
+        text = (f"nearly the same picture from {which} "
+                f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})")
+        if study.near_duplicate == "error":
+            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
+                               "\"warn\" to build anyway")
+        warnings.warn(text + ": votes may split between them (the analysis reports it)",
+                      stacklevel=3)
+    return angles, dupes
+
+
 def _unit(v) -> list[float]:
     a = np.asarray(v, dtype=float).reshape(3)
     return (a / np.linalg.norm(a)).tolist()
 
 
 def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], view=None,
-                progress: bool = False) -> list[int]:
+                progress: bool = False, webm: str | Path | None = None) -> list[int]:
     """Stage 3: the animation video; returns the motion frame (source numbering) per video frame.
+
+    ``webm``: also write the same frames as WebM/VP9 there (for browsers without H.264).
 
     ``view=None`` films from the renderer's neutral default (3/4 front of the
     characters' facing, slightly above): not from any of the three candidate views,
@@ -377,7 +433,7 @@ def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], v
     """
     from snapcore.render.video import render_video
 
-    vmap = render_video(scene, path, fps=fps, size=size, view=view, progress=progress)
+    vmap = render_video(scene, path, fps=fps, size=size, view=view, progress=progress, webm=webm)
     return [int(m) for m in np.asarray(vmap, dtype=int)]
 
 
@@ -473,6 +529,8 @@ def write_manifest(folder: str | Path, study: Study, scenes: list[dict]) -> Path
     for e in scenes:
         e = dict(e)
         e["video"] = rel(e["video"])
+        if e.get("video_webm") is not None:
+            e["video_webm"] = rel(e["video_webm"])
         e["frames"] = [rel(f) for f in e["frames"]]
         e["views"] = {m: {**v, "file": rel(v["file"])} for m, v in e["views"].items()}
         if "scene_file" in e:
@@ -546,8 +604,10 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     scene, doc = load_study_scene(study, sc, folder)
     t1 = time.perf_counter()
     picks, timings = select_scene(scene, study.selection)
+    angles, dupes = check_near_duplicates(study, sc["id"], picks)
     t2 = time.perf_counter()
-    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size)
+    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size,
+                       webm=folder / "video.webm")
     frames = write_frames(folder / "video.mp4", folder / "frames")
     if len(frames) != len(vmap):
         raise StimuliError(f"scene {sc['id']}: the video decodes to {len(frames)} frames but the "
@@ -565,12 +625,15 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "n_frames": int(scene.n_frames),
         "frame_offset": int(scene.frame_offset),
         "video": folder / "video.mp4",
+        "video_webm": folder / "video.webm",
         "video_fps": float(study.video_fps),
         "size": list(study.size),
         "video_to_motion": vmap,
         "frames": frames,
         "picks": picks,
         "views": views,
+        "view_angles": angles,
+        "near_duplicates": dupes,
         "timings_s": {"load": t1 - t0, "select": t2 - t1, "video": t3 - t2, "views": t4 - t3,
                       **{f"select_{k}": v for k, v in timings.items()}},
     }

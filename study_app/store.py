@@ -53,6 +53,7 @@ import math
 import os
 import re
 import secrets
+import warnings
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -154,6 +155,10 @@ events = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
 )
 sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
+#: One Prolific id, one participant per study: a returning participant resumes their
+#: record from any browser (NULLs, i.e. no Prolific id, do not collide).
+PROLIFIC_INDEX = sa.Index("uq_participants_study_prolific", participants.c.study_id,
+                          participants.c.prolific_pid, unique=True)
 
 
 # ----------------------------------------------------------------------------- URLs
@@ -265,6 +270,8 @@ class Store:
                            if not sa.inspect(conn).has_table(t)]
             if create and missing:
                 self._create_tables()
+            elif create:
+                self._create_indexes()
             elif missing:
                 raise StoreError(f"database {self.url} has no study tables "
                                  f"({', '.join(missing)} missing): wrong database?")
@@ -323,6 +330,17 @@ class Store:
             # Two processes creating the same tables at once (PostgreSQL): the loser
             # retries and now finds them.
             metadata.create_all(self.engine, checkfirst=True)
+
+    def _create_indexes(self) -> None:
+        """Add indexes a database made by an older version lacks (never drops anything)."""
+        try:
+            with self._transaction(write=True) as conn:
+                PROLIFIC_INDEX.create(conn, checkfirst=True)
+        except StoreError as err:
+            # e.g. an old database already holding one Prolific id twice: serve it, and
+            # let participant_for_prolific's lookup keep new duplicates out.
+            warnings.warn(f"database {self.url}: cannot add the one-participant-per-Prolific-id "
+                          f"index ({err})", stacklevel=3)
 
     def close(self) -> None:
         """Release every pooled connection."""
@@ -384,6 +402,18 @@ class Store:
         simulated : bool
             True for simulated observers (excluded from exports unless asked).
         """
+        self._check_new(study_id, manifest_sha256, app_version, seed)
+        values = self._prolific_values(prolific)
+        pid = secrets.token_urlsafe(16)
+        with self._transaction(write=True) as conn:
+            conn.execute(participants.insert().values(
+                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
+                manifest_sha256=manifest_sha256, simulated=bool(simulated),
+                created_at=_utcnow(), **values))
+        return pid
+
+    @staticmethod
+    def _check_new(study_id, manifest_sha256, app_version, seed) -> None:
         if not isinstance(study_id, str) or not study_id or len(study_id) > 200:
             raise StoreError(f"study_id must be a non-empty string, got {study_id!r}")
         if not isinstance(manifest_sha256, str) or not re.fullmatch(r"[0-9a-f]{64}",
@@ -394,6 +424,9 @@ class Store:
             raise StoreError(f"app_version must be a non-empty string, got {app_version!r}")
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
             raise StoreError(f"seed must be an integer in [0, 2**63), got {seed!r}")
+
+    @staticmethod
+    def _prolific_values(prolific: dict | None) -> dict:
         values = {v: None for v in PROLIFIC_KEYS.values()}
         for key, value in (prolific or {}).items():
             if key not in PROLIFIC_KEYS:
@@ -401,13 +434,63 @@ class Store:
                                  f"(expected {', '.join(PROLIFIC_KEYS)})")
             if value not in (None, ""):
                 values[PROLIFIC_KEYS[key]] = str(value)[:200]
-        pid = secrets.token_urlsafe(16)
-        with self._transaction(write=True) as conn:
-            conn.execute(participants.insert().values(
-                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
-                manifest_sha256=manifest_sha256, simulated=bool(simulated),
-                created_at=_utcnow(), **values))
-        return pid
+        return values
+
+    def find_prolific(self, study_id: str, prolific_pid: str) -> str | None:
+        """The participant id registered for a Prolific id in a study, or None."""
+        with self._transaction(write=False) as conn:
+            return conn.execute(sa.select(participants.c.participant_id).where(
+                participants.c.study_id == study_id,
+                participants.c.prolific_pid == str(prolific_pid))
+                .order_by(participants.c.created_at)).scalars().first()
+
+    def participant_for_prolific(self, study_id: str, manifest_sha256: str, *,
+                                 app_version: str, seed: int, prolific: dict) -> tuple[str, bool]:
+        """The participant of a Prolific id in this study, registered if new.
+
+        One Prolific id is one participant per study: the same study link opened again,
+        in any browser, finds the first record instead of starting a second one.
+
+        Parameters
+        ----------
+        study_id, manifest_sha256, app_version, seed
+            As :meth:`create_participant` (used only when the id is new).
+        prolific : dict
+            Must hold ``PROLIFIC_PID``; ``STUDY_ID``/``SESSION_ID`` are stored if given.
+
+        Returns
+        -------
+        (participant_id, created) : tuple of (str, bool)
+        """
+        ppid = (prolific or {}).get("PROLIFIC_PID")
+        if not ppid:
+            raise StoreError("participant_for_prolific needs a PROLIFIC_PID")
+        self._check_new(study_id, manifest_sha256, app_version, seed)
+        values = self._prolific_values(prolific)
+        for attempt in range(_DUPLICATE_RETRIES + 1):
+            try:
+                # Look-up and insert in one write transaction: on SQLite it holds the
+                # write lock (BEGIN IMMEDIATE), so two browsers cannot both insert; on
+                # PostgreSQL the unique index refuses the loser, who retries and finds
+                # the winner's row.
+                with self._transaction(write=True) as conn:
+                    found = conn.execute(sa.select(participants.c.participant_id).where(
+                        participants.c.study_id == study_id,
+                        participants.c.prolific_pid == values["prolific_pid"])
+                        .order_by(participants.c.created_at)).scalars().first()
+                    if found is not None:
+                        return found, False
+                    pid = secrets.token_urlsafe(16)
+                    conn.execute(participants.insert().values(
+                        participant_id=pid, study_id=study_id, seed=seed,
+                        app_version=app_version, manifest_sha256=manifest_sha256,
+                        simulated=False, created_at=_utcnow(), **values))
+                    return pid, True
+            except StoreError as err:
+                if not isinstance(err.__cause__, sa_exc.IntegrityError) \
+                        or attempt == _DUPLICATE_RETRIES:
+                    raise
+        raise AssertionError("unreachable")  # pragma: no cover
 
     def get_participant(self, pid: str) -> dict | None:
         """The participant's record as a dict, or None if the id is unknown or malformed.

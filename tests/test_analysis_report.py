@@ -246,3 +246,78 @@ def test_figures_cli_table2_and_fig13(tmp_path):
     assert (tmp_path / "table2.tex").exists()
     res = CliRunner().invoke(cli, ["figures", "--only", "fig99", "-o", str(tmp_path)])
     assert res.exit_code == 2 and "unknown figure" in res.output
+
+
+def test_frames_print_as_whole_numbers():
+    """Frame numbers and counts print as 54, not 54.000 (even in float columns)."""
+    from analysis.report import format_table
+
+    t = format_table(pd.DataFrame({"algorithm_frame": [54.0, np.nan], "votes": [3.0, 1.0],
+                                   "share": [0.5, 0.25]}))
+    assert list(t["algorithm_frame"]) == ["54", ""] and list(t["votes"]) == ["3", "1"]
+    assert list(t["share"]) == ["0.500", "0.250"]
+
+
+def test_completed_participants_only_by_default(tmp_path):
+    """Participants who left before the end are counted as started, not analysed; with
+    include-incomplete they are; the participants table shows both counts."""
+    from analysis.report import analyze
+
+    rows = _rows(12, seed=4)
+    left = rows["participant_id"].unique()[:2]
+    # two participants left after their first three answers (no attention check)
+    rows = rows[~rows["participant_id"].isin(left) | (rows["trial_index"] < 3)]
+    s = analyze(rows, tmp_path / "a", include_simulated=True, n_boot=10)
+    assert (s["participants"], s["started_participants"], s["completed_participants"]) == (10, 12, 10)
+    assert sum(s["votes"]["dancing"].values()) <= 10
+    parts = pd.read_csv(tmp_path / "a" / "tables" / "participants.csv")
+    assert (parts["started"].sum(), parts["completed"].sum()) == (12, 10)
+    s = analyze(rows, tmp_path / "b", include_simulated=True, n_boot=10, completed_only=False)
+    assert s["participants"] == 12
+
+
+def _near_duplicate_manifest(scenes) -> dict:
+    """A minimal manifest: in the first scene ours and motion area are 3.5° apart."""
+    entries = []
+    for k, sc in enumerate(scenes):
+        a = np.radians(3.5 if k == 0 else 60.0)
+        entries.append({"id": sc, "fps": 30.0, "n_frames": 300, "frame_offset": 0,
+                        "picks": {"frame": 100, "view": [1.0, 0.0, 0.0],
+                                  "viewpoint_entropy": [0.0, 0.0, 1.0],
+                                  "motion_area": [float(np.cos(a)), float(np.sin(a)), 0.0]}})
+    return {"study": {"study": {"id": "paper", "near_duplicate_deg": 15}}, "scenes": entries}
+
+
+def test_near_duplicate_scenes_reported_with_sensitivity(tmp_path):
+    """With a stimuli manifest whose candidates nearly coincide, the report names the
+    scene, counts the pair as one option, and restates the claims without it."""
+    from analysis.report import analyze
+    from analysis.stimuli import near_duplicate_scenes
+
+    rows = _rows(20, seed=5)
+    scenes = list(dict.fromkeys(rows["scene"]))
+    manifest = _near_duplicate_manifest(scenes)
+    d = near_duplicate_scenes(manifest)
+    assert list(d["scene"]) == [scenes[0]] and d["angle_deg"].iloc[0] == pytest.approx(3.5)
+    s = analyze(rows, tmp_path / "r", include_simulated=True, n_boot=50, stimuli=manifest)
+    assert s["near_duplicate_scenes"] == [scenes[0]]
+    merged = pd.read_csv(tmp_path / "r" / "tables" / "votes_duplicates_merged.csv")
+    assert "ours = motion_area" in set(merged.loc[merged["scene"] == scenes[0], "option"])
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert "Near-duplicate candidates: sensitivity analysis" in html and "Without those scenes" in html
+
+
+def test_analyze_uses_the_study_stimuli_by_default(tmp_path, monkeypatch):
+    """Without --stimuli, the study's stimuli folder (var/stimuli/<study id>) is used."""
+    from analysis import report
+
+    rows = _rows(20, seed=6)
+    (study,) = rows["study_id"].unique()
+    assert report.default_stimuli(rows, root=tmp_path) is None  # not built: nothing
+    (tmp_path / study).mkdir()
+    (tmp_path / study / "manifest.json").write_text("{}")
+    assert report.default_stimuli(rows, root=tmp_path) == tmp_path / study
+    manifest = _near_duplicate_manifest(list(dict.fromkeys(rows["scene"])))
+    monkeypatch.setattr(report, "default_stimuli", lambda df: manifest)
+    s = report.analyze(rows, tmp_path / "o", include_simulated=True, n_boot=50)
+    assert s["near_duplicate_scenes"]  # the default manifest was read

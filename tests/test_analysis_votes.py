@@ -242,3 +242,35 @@ def test_bad_input_named():
         vt.ours_vs_baselines(vt.paper_counts(), family="each")
     with pytest.raises(ValueError, match="reference"):
         vt.ours_vs_baselines(vt.paper_counts(), reference="mine")
+
+
+def test_zero_votes_get_a_real_interval():
+    """A method nobody chose gets the exact upper end 1 - 0.025^(1/n), not [0, 0]."""
+    counts = pd.DataFrame({"ours": [10], "viewpoint_entropy": [0], "motion_area": [5]},
+                          index=pd.Index(["s"], name="scene"))
+    st = vt.luce_strengths(vt.choices_from_counts(counts), n_boot=50, seed=1)
+    zero = st[st["method"] == "viewpoint_entropy"].iloc[0]
+    # scipy: Clopper-Pearson interval of 0 of 15
+    exact = stats.binomtest(0, 15).proportion_ci(confidence_level=0.95, method="exact")
+    assert zero["ci_low"] == 0 and zero["ci_high"] == pytest.approx(exact.high)
+    assert zero["ci_high"] > 0.2
+    all_votes = vt.luce_strengths(vt.choices_from_counts(counts.assign(
+        viewpoint_entropy=0, motion_area=0)), n_boot=20, seed=1)
+    ours = all_votes[all_votes["method"] == "ours"].iloc[0]
+    assert ours["ci_high"] == 1 and ours["ci_low"] == pytest.approx(
+        stats.binomtest(10, 10).proportion_ci(method="exact").low)
+
+
+def test_near_duplicates_merged_into_one_option():
+    """Sensitivity analysis: a near-duplicate pair's votes are one option, tested against
+    equal votes per distinct picture (scipy chisquare)."""
+    counts = pd.DataFrame({"ours": [10, 7], "viewpoint_entropy": [5, 6], "motion_area": [9, 8]},
+                          index=pd.Index(["dup", "fine"], name="scene"))
+    m = vt.merge_near_duplicates(counts, {"dup": [("ours", "motion_area")]})
+    dup = m[m["scene"] == "dup"].set_index("option")
+    assert dup["votes"].to_dict() == {"ours = motion_area": 19, "viewpoint_entropy": 5}
+    assert (dup["options"] == 2).all() and (dup["n"] == 24).all()
+    assert dup["chisquare_p"].iloc[0] == pytest.approx(stats.chisquare([19, 5]).pvalue)
+    fine = m[m["scene"] == "fine"]
+    assert list(fine["option"]) == list(vt.METHODS) and (fine["options"] == 3).all()
+    assert fine["chisquare_p"].iloc[0] == pytest.approx(stats.chisquare([7, 6, 8]).pvalue)

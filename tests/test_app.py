@@ -37,9 +37,11 @@ BACKGROUND = {"age_band": "25–34", "gender": "Woman", "experience": "No experi
 @pytest.fixture(scope="module")
 def stimuli_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("stimuli") / "fixture"
+    # AppTest answers within milliseconds and plays no video: no minimum answer time
+    # and no watching requirement here (the browser tests check both).
     write_fixture_stimuli(d, fixture_study_doc(
         redirect_url="https://app.prolific.com/submissions/complete?cc={code}",
-        completion_code="C0DE42"))
+        completion_code="C0DE42", min_answer_s=0, require_watch=False))
     return d
 
 
@@ -94,7 +96,7 @@ def consent_and_background(at: AppTest) -> str:
     at.selectbox(key=common.KEY_BG_AGE).select(BACKGROUND["age_band"])
     at.radio(key=common.KEY_BG_GENDER).set_value(BACKGROUND["gender"])
     at.radio(key=common.KEY_BG_EXPERIENCE).set_value(BACKGROUND["experience"])
-    at.button[0].click().run()  # the form's submit button
+    at.button(key=common.KEY_BG_SUBMIT).click().run()
     return pid
 
 
@@ -124,7 +126,7 @@ def test_whole_session_stores_every_answer(store):
             picker = component(at, FRAME_PICKER)
             data = json.loads(picker.proto.json)
             assert data["trial"] == trial.index and data["n_frames"] == 24
-            assert data["fps"] == 24.0 and data["src"].endswith(".mp4")
+            assert data["fps"] == 24.0 and data["sources"][0]["src"].endswith(".mp4")
             video_frame = 3 + 5 * trial.index
             picks[trial.scene] = video_frame
             events = [{"kind": "play", "t": 0.5, "frame": 0},
@@ -135,13 +137,12 @@ def test_whole_session_stores_every_answer(store):
         elif trial.task == "view":
             chooser = component(at, VIEW_CHOOSER)
             data = json.loads(chooser.proto.json)
-            # The page shows the methods in the participant's seeded order.
-            assert [v["method"] for v in data["views"]] == list(trial.shown_order)
+            # The page gets pictures by position only: no method names.
+            assert all(set(v) == {"src", "label"} for v in data["views"])
             position = trial.index % 3
             chosen[trial.scene] = (position, trial.shown_order[position])
             at = send_trigger(at, VIEW_CHOOSER, "choice",
-                              {"trial": trial.index, "position": position,
-                               "method": trial.shown_order[position]})
+                              {"trial": trial.index, "position": position})
         else:
             at.radio(key=common.KEY_ATTENTION_CHOICE).set_value("A purple circle")
             at.button(key=common.KEY_ATTENTION_SUBMIT).click().run()
@@ -208,8 +209,9 @@ def test_tampered_participant_id_is_refused_and_writes_nothing(store):
     assert at.checkbox(key=common.KEY_CONSENT_AGREE)
 
 
-def test_out_of_range_frame_and_forged_label_write_nothing(store):
-    """Bad answers from a browser are refused with a message; the trial stays open."""
+def test_out_of_range_frame_and_forged_position_write_nothing(store):
+    """Bad answers from a browser are refused with a message; the trial stays open; a
+    method named by the browser is never believed (the server maps the position)."""
     at = new_app()
     pid = consent_and_background(at)
     plan = trial_plan(["walk", "jump"], store.get_participant(pid)["seed"])
@@ -228,20 +230,20 @@ def test_out_of_range_frame_and_forged_label_write_nothing(store):
     view = plan[2]
     wrong = next(m for m in ("ours", "motion_area", "viewpoint_entropy")
                  if m != view.shown_order[0])
-    for position, method in ((0, wrong), (0, "best_method"), (3, view.shown_order[0])):
-        at = send_trigger(at, VIEW_CHOOSER, "choice",
-                          {"trial": 2, "position": position, "method": method})
-        assert at.error, f"no message for {position, method}"
+    for position in (3, -1, 1.5, "0", None, True):
+        at = send_trigger(at, VIEW_CHOOSER, "choice", {"trial": 2, "position": position})
+        assert at.error, f"no message for position {position!r}"
     assert store.answered_trials(pid) == {0, 1}
+    # a forged method label in the payload is ignored: position 0 shows shown_order[0]
     at = send_trigger(at, VIEW_CHOOSER, "choice",
-                      {"trial": 2, "position": 0, "method": view.shown_order[0]})
+                      {"trial": 2, "position": 0, "method": wrong})
     assert store.responses(pid)[-1]["chosen_method"] == view.shown_order[0]
 
 
 def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     """picker = "frames": a slider over the extracted frames answers the pose task."""
     d = tmp_path / "frames-stimuli"
-    write_fixture_stimuli(d, fixture_study_doc(picker="frames"))
+    write_fixture_stimuli(d, fixture_study_doc(picker="frames", min_answer_s=0))
     monkeypatch.setenv(common.ENV_STIMULI, str(d))
     at = new_app()
     pid = consent_and_background(at)
@@ -306,3 +308,42 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
     metrics = {m.label: m.value for m in a.get("metric")}
     assert metrics["Participants"] == "1" and metrics["Responses"] == "1"
     assert len(a.get("download_button")) == 2
+
+
+def test_background_self_describe_and_missing_answers(store):
+    """"Prefer to self-describe" opens a text box whose text is stored; every missing
+    answer is named in one message at the top of the page."""
+    at = new_app()
+    at.checkbox(key="consent.agree").check().run()
+    at.button(key="consent.start").click().run()
+    pid = at.query_params["pid"]
+    pid = pid[0] if isinstance(pid, list) else pid
+    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    (warning,) = at.warning
+    assert warning.value == "Please answer the questions about your age, gender and experience."
+    main = list(at.main)
+    assert main.index(warning) < main.index(at.selectbox(key="background.age_band"))  # on top
+    assert not at.text_input
+    at.radio(key="background.gender").set_value("Prefer to self-describe").run()
+    at.text_input(key="background.gender_self").input("agender").run()
+    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    assert at.warning[0].value == "Please answer the questions about your age and experience."
+    at.selectbox(key="background.age_band").select(BACKGROUND["age_band"])
+    at.radio(key="background.experience").set_value(BACKGROUND["experience"])
+    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    assert store.get_participant(pid)["background"] == {
+        "age_band": "25–34", "gender": "Prefer to self-describe", "experience": "No experience",
+        "gender_self": "agender"}
+
+
+def test_fallback_text_matches_its_controls(store):
+    """The player's instructions name Play and the arrow keys; the slider fallback's
+    instructions name the slider, not controls it does not have."""
+    at = new_app()
+    consent_and_background(at)
+    text = " ".join(m.value for m in at.markdown)
+    assert "**Play**" in text and "arrow keys" in text and "slider" not in text
+    at = send_trigger(at, FRAME_PICKER, "error", {"trial": 0, "message": "no H.264"})
+    text = " ".join(m.value for m in at.markdown)
+    assert "**Frame** slider" in text
+    assert "Play" not in text and "arrow" not in text and "space bar" not in text

@@ -16,6 +16,8 @@ from study_app.protocol import (
     check_attention_answer,
     check_video_frame,
     check_view_choice,
+    consent_text,
+    estimated_minutes,
     load_study,
     redirect_url,
     study_from_dict,
@@ -25,8 +27,12 @@ from study_app.session import (
     InvalidAnswer,
     ParticipantSession,
     Stage,
+    TooEarly,
     UnknownParticipant,
+    describe_value,
     prolific_params,
+    prolific_problems,
+    resume_url,
 )
 from study_app.stimuli import load_stimuli
 from study_app.store import Store
@@ -250,3 +256,131 @@ def test_picker_events_are_sanitised(store, stimuli):
     got = [(e["kind"], e["payload"]) for e in store.events(s.participant_id)]
     assert got == [("play", {"t": 0.25, "frame": 0}), ("step", {"frame": 5, "by": 1}),
                    ("seek", {"from": 3})]
+
+
+# ----------------------------------------------------------------------------- the field study (issue 14)
+
+
+def test_one_prolific_id_is_one_participant(store, stimuli):
+    """The same PROLIFIC_PID consenting twice (two browsers) resumes the first record."""
+    q = {"PROLIFIC_PID": "60a1b2c3d4e5f60718293a4b", "STUDY_ID": "st", "SESSION_ID": "s1"}
+    a = ParticipantSession.start(store, stimuli, prolific=q)
+    b = ParticipantSession.start(store, stimuli, prolific={**q, "SESSION_ID": "s2"})
+    assert a.participant_id == b.participant_id and a.seed == b.seed
+    assert ParticipantSession.for_prolific(store, stimuli, q).participant_id == a.participant_id
+    assert ParticipantSession.for_prolific(store, stimuli, {"PROLIFIC_PID": "abc123"}) is None
+    assert [p["prolific_pid"] for p in store.participants()] == [q["PROLIFIC_PID"]]
+    # without a Prolific id every consent is a new participant
+    assert ParticipantSession.start(store, stimuli).participant_id != a.participant_id
+
+
+def test_malformed_prolific_parameters_are_named():
+    """Odd PROLIFIC_PID / STUDY_ID / SESSION_ID values are problems, not silently dropped."""
+    ok = {"PROLIFIC_PID": "60a1b2c3d4e5f60718293a4b", "STUDY_ID": "x", "SESSION_ID": "y"}
+    assert prolific_problems(ok) == [] and prolific_problems({}) == []
+    for bad in ("a" * 65, "Ünïcødé", "<script>alert(1)</script>", "1' OR '1'='1", "", ["a", "b"]):
+        (msg,) = prolific_problems({**ok, "PROLIFIC_PID": bad})
+        assert "PROLIFIC_PID" in msg and "not a valid Prolific value" in msg
+    assert len(prolific_problems({"STUDY_ID": "a b", "SESSION_ID": "é"})) == 2
+    assert describe_value("<script>") == "'<script>'"
+    assert describe_value("é" * 100).endswith("(402 characters)")  # ascii-escaped
+
+
+def test_answers_too_soon_are_refused(store, stimuli):
+    """An answer sooner than min_answer_s after its trial appeared writes nothing."""
+    s = ParticipantSession.start(store, stimuli, seed=3)
+    s.submit_background(BACKGROUND)
+    assert stimuli.study.min_answer_s == 1.0  # the default
+    with pytest.raises(TooEarly, match="on screen long enough"):
+        s.submit_pose(0, 2, response_time_s=0.455)
+    assert store.answered_trials(s.participant_id) == set()
+    assert s.submit_pose(0, 2, response_time_s=1.2)
+
+
+def test_watching_is_required_and_stored(store, stimuli):
+    """require_watch (default on): a confirm before the animation was watched is refused;
+    the share watched is stored with the choice; a stored log counts after a reload."""
+    s = ParticipantSession.start(store, stimuli, seed=4)
+    s.submit_background(BACKGROUND)
+    with pytest.raises(InvalidAnswer, match="watch the whole animation"):
+        s.submit_pose(0, 3, response_time_s=5, watched=0.5,
+                      events=[{"kind": "select", "frame": 3, "watched": 0.5}])
+    assert store.answered_trials(s.participant_id) == set()
+    # the player's log arrives in batches while the trial is open ...
+    assert s.record_picker_events(0, [{"kind": "play", "t": 0.1, "frame": 0, "watched": 0},
+                                      {"kind": "ended", "t": 1.1, "frame": 23, "watched": 1},
+                                      {"kind": "step", "t": 2, "frame": 7, "by": -1}]) == 3
+    assert s.picker_state(0) == (7, 1.0)  # where to restore the player after a reload
+    assert s.record_picker_events(1, [{"kind": "play"}]) == 0  # not the open trial
+    # ... and a reloaded player that reports less still counts what was watched before
+    assert s.submit_pose(0, 7, response_time_s=5, watched=0.2,
+                         events=[{"kind": "select", "frame": 7, "watched": 0.2}])
+    kinds = [e["kind"] for e in store.events(s.participant_id)]
+    assert kinds == ["play", "ended", "step", "select"]
+    assert s.record_picker_events(0, [{"kind": "play"}]) == 0  # answered: ignored
+
+
+def test_view_answer_is_mapped_from_the_position(store, stimuli):
+    """The page sends a position; the stored method is the one the plan put there."""
+    s = ParticipantSession.start(store, stimuli, seed=5)
+    s.submit_background(BACKGROUND)
+    s.submit_pose(0, 1, response_time_s=2)
+    s.submit_pose(1, 1, response_time_s=2)
+    assert s.submit_view(2, 1, response_time_s=2)
+    row = store.responses(s.participant_id)[-1]
+    assert (row["chosen_position"], row["chosen_method"]) == (1, s.plan[2].shown_order[1])
+    assert check_view_choice(s.plan[2], 0) == (0, s.plan[2].shown_order[0])
+
+
+def test_background_names_every_missing_answer(store, stimuli):
+    """All missing background answers are named at once; a self-description is kept."""
+    s = ParticipantSession.start(store, stimuli, seed=6)
+    with pytest.raises(InvalidAnswer, match=r"questions about your age, gender and experience\."):
+        s.submit_background({})
+    with pytest.raises(InvalidAnswer, match=r"question about your experience\.$"):
+        s.submit_background({"age_band": "18–24", "gender": "Man"})
+    s.submit_background({**BACKGROUND, "gender": "Prefer to self-describe",
+                         "gender_self": "  genderfluid "})
+    assert store.get_participant(s.participant_id)["background"]["gender_self"] == "genderfluid"
+
+
+def test_estimated_minutes_follow_the_stimuli():
+    """The consent page's duration is computed from the animations' lengths."""
+    assert estimated_minutes([]) == 2  # consent, background, attention check: 120 s
+    # two 3 s animations: 120 + 2 * (9 + 20) + 2 * 15 = 208 s → 4 minutes (rounded up)
+    assert estimated_minutes([3.0, 3.0]) == 4
+    assert estimated_minutes([60.0] * 6) > estimated_minutes([3.0] * 6)
+    study = study_from_dict(fixture_study_doc())
+    assert "about 7 minutes" in consent_text(study, 7) and "{minutes}" not in consent_text(study, 7)
+
+
+def test_new_study_options_are_validated_by_the_schema():
+    """min_answer_s, require_watch, near_duplicate(_deg): defaults, and bad values refused."""
+    s = study_from_dict(fixture_study_doc())
+    assert (s.min_answer_s, s.require_watch, s.near_duplicate_deg, s.near_duplicate) == \
+        (1.0, True, 15.0, "warn")
+    s = study_from_dict(fixture_study_doc(min_answer_s=0.5, require_watch=False,
+                                          near_duplicate_deg=20, near_duplicate="error"))
+    assert study_from_dict(s.to_dict()) == s  # the manifest keeps them
+    for bad in ({"min_answer_s": -1}, {"min_answer_s": "1"}, {"require_watch": "yes"},
+                {"near_duplicate": "drop"}, {"near_duplicate_deg": 200}):
+        with pytest.raises(SchemaError, match=next(iter(bad))):
+            study_from_dict(fixture_study_doc(**bad))
+
+
+def test_bundled_configs_show_participants_no_paper_jargon():
+    """Participant-facing text of the bundled studies has no section numbers or
+    "demonstration of" (it was shown on the consent page)."""
+    from study_app.commands.serve import DEMO_CONFIG, PAPER_CONFIG
+
+    for path in (DEMO_CONFIG, PAPER_CONFIG):
+        st = load_study(path)
+        for text in (st.title, st.description, st.consent):
+            assert "§" not in text and "demonstration of" not in text.lower(), (path, text)
+
+
+def test_resume_url_is_the_app_address_with_the_id():
+    """The personal link: the app's root with ?pid=, whatever page the URL names."""
+    assert resume_url("http://h:8501/", "abc") == "http://h:8501/?pid=abc"
+    assert resume_url("http://h:8501/study", "abc") == "http://h:8501/?pid=abc"
+    assert resume_url("https://x.org/app/study", "abc") == "https://x.org/app/?pid=abc"

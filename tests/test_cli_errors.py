@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -371,3 +372,13 @@ def test_study_help_shows_prolific_placeholders_with_double_braces(runs):
     assert r.rc == 0, r.output
     url = "?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}"
     assert any(line.strip() == url for line in r.stdout.splitlines()), r.stdout
+
+
+def test_readme_shows_export_table_options_with_their_paths():
+    """README: --participants and --events take a path, as `snapshot export` wants."""
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    for opt in ("--participants", "--events"):
+        uses = [readme[m.start():m.start() + 40] for m in re.finditer(re.escape(opt), readme)]
+        assert uses and all(re.match(rf"{opt} (PATH|\S+\.(csv|jsonl))", u) for u in uses), uses

@@ -2,7 +2,7 @@
 
 One participant goes through every page like a person (including the frame picker's
 play/pause/step buttons), reloads in the middle and resumes; then the database is
-checked row by row. Tampering (unknown id, out-of-range frame, forged method label) is
+checked row by row. Tampering (unknown id, out-of-range frame, forged view position) is
 done the way a participant could — through the URL or the page's DOM — and must store
 nothing. A screenshot of every page goes to ``var/test-artifacts/e2e/``.
 
@@ -172,6 +172,18 @@ def picker_ready(page):
     return page.get_by_test_id("picker-frame")
 
 
+def watch_through(page, timeout_ms: int = 30_000) -> None:
+    """Play the animation to its end (Confirm opens only after that) and wait for it."""
+    settle(page)  # the player of this trial, not the one of the run before
+    page.get_by_test_id("picker-play").click()
+    page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=timeout_ms)
+    page.wait_for_selector(".snap-picker video", timeout=timeout_ms)
+    deadline = time.monotonic() + timeout_ms / 1000
+    while not page.locator(".snap-picker video").evaluate("v => v.paused"):  # at the end
+        assert time.monotonic() < deadline, "the animation did not stop at its end"
+        page.wait_for_timeout(100)
+
+
 def shown_frame(page) -> int:
     """The 0-based video frame the picker says is on screen ("Frame k / n" is 1-based)."""
     m = re.match(r"Frame (\d+) / (\d+)", page.get_by_test_id("picker-frame").inner_text())
@@ -234,8 +246,10 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     stim = load_stimuli(stimuli_dir)
     n_first = stim.scenes[plan[0].scene].n_video_frames
 
-    # Pose task 1: play, pause, step forward three frames and back one, confirm.
+    # Pose task 1: watch it through once, play, pause, step forward three frames and
+    # back one, confirm.
     picker_ready(page)
+    watch_through(page)
     page.get_by_test_id("picker-play").click()
     page.wait_for_timeout(400)
     page.get_by_test_id("picker-play").click()  # pause
@@ -259,7 +273,8 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     picker_ready(page)
     shot(page, artifacts, "04-pose-task-after-reload")
 
-    # Pose task 2: scrub to a frame with the slider, confirm.
+    # Pose task 2: watch, scrub to a frame with the slider, confirm.
+    watch_through(page)
     scrub = page.get_by_test_id("picker-scrub")
     target = moving_frame(stimuli_dir, plan[1].scene)
     scrub.fill(str(target))  # the range input's value (0-based frame)
@@ -277,10 +292,12 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     shot(page, artifacts, "05-view-task")
     page.get_by_test_id("view-choose-2").click()
     heading(page, "Pictures 2 of 2")
+    settle(page)  # the previous trial's chooser is gone
     page.wait_for_selector(".snap-view img", timeout=30_000)
     page.get_by_test_id("view-choose-0").click()
 
     heading(page, "One more question")
+    page.wait_for_timeout(1000)  # answers count only after the study's min_answer_s
     page.get_by_test_id("stRadioGroup").get_by_text("A purple circle").click()
     shot(page, artifacts, "06-attention")
     page.get_by_role("button", name="Continue").click()
@@ -303,9 +320,10 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     assert all(r["prolific_pid"] == "60a1b2c3d4e5f60718293a4b" for r in rows)
     assert all(r["response_time_s"] > 0 for r in rows)
     kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0]
-    # the server's "shown" (the response time counts from it), then the picker's log
-    assert kinds[:3] == ["shown", "play", "pause"] and kinds.count("step") == 4 \
-        and kinds[-1] == "select"
+    # the server's "shown" (the response time counts from it), then the picker's log:
+    # the play-through, then play, pause, four steps, the choice
+    assert kinds[:4] == ["shown", "play", "ended", "play"] and "pause" in kinds \
+        and kinds.count("step") == 4 and kinds[-1] == "select"
     shown = [e["trial_index"] for e in store.events(pid) if e["kind"] == "shown"]
     assert shown == [t.index for t in plan]  # each trial once, though pages rerun
     part = store.get_participant(pid)
@@ -314,7 +332,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
 
 
 def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
-    """Unknown id in the URL, an out-of-range frame and a forged label: message, no rows."""
+    """Unknown id in the URL, an out-of-range frame and a forged position: message, no rows."""
     base, store = server
     n_before = store.progress()["participants"]
     page.goto(f"{base}/?pid=AAAAAAAAAAAAAAAAAAAAAA")
@@ -330,6 +348,7 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     heading(page, "Animation 1 of 2")
     picker = page.locator(".snap-picker")
     picker_ready(page)
+    watch_through(page)
     # What a participant could do in the developer tools: send a frame past the end.
     picker.evaluate("root => { root._snap.frame = 999; }")
     page.get_by_test_id("picker-confirm").click()
@@ -337,25 +356,24 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     alert.wait_for()
     assert "outside this video" in alert.inner_text()
     shot(page, artifacts, "09-out-of-range-frame")
-    # no answer and no picker log; only that the trial was shown
+    # no answer and no choice logged (the play-through log was sent as it happened)
     assert store.answered_trials(pid) == set()
-    assert [e["kind"] for e in store.events(pid)] == ["shown"]
+    assert "select" not in [e["kind"] for e in store.events(pid)]
 
-    for _ in range(2):  # honest answers to reach the view tasks
+    for title in ("Animation 2 of 2", "Pictures 1 of 2"):  # honest answers
         picker_ready(page)
+        watch_through(page)
         page.get_by_test_id("picker-confirm").click()
-        page.wait_for_timeout(300)
+        heading(page, title)
     heading(page, "Pictures 1 of 2")
     page.wait_for_selector(".snap-view img")
-    seed = store.get_participant(pid)["seed"]
-    shown = trial_plan(["jump", "push"], seed)[2].shown_order
-    forged = next(m for m in ("ours", "viewpoint_entropy", "motion_area") if m != shown[1])
-    page.locator(".snap-view").nth(1).evaluate(f"fig => {{ fig.dataset.method = '{forged}'; }}")
-    page.get_by_test_id("view-choose-1").click()
+    # The page knows positions only; send one that does not exist.
+    page.locator(".snap-views").evaluate(
+        "root => root._api.setTriggerValue('choice', {trial: 2, position: 7})")
     alert = page.locator("[data-testid=stAlert]")
     alert.wait_for()
-    assert "does not match" in alert.inner_text()
-    shot(page, artifacts, "10-forged-label")
+    assert "position 7 does not exist" in alert.inner_text()
+    shot(page, artifacts, "10-forged-position")
     assert store.answered_trials(pid) == {0, 1}
     assert store.progress()["participants"] == n_before + 1
 

@@ -230,3 +230,18 @@ def test_hand_picked_frames_are_not_captioned_as_ranked(walk, monkeypatch):
     first = walk.source_frame(5)
     assert [c[0] for c in seen[0]][0] == f"#1   frame {first}"
     assert [c[0] for c in seen[1]][0] == f"frame {first}"
+
+
+def test_webm_copy_has_the_same_frames(walk, tmp_path):
+    """webm=: a VP9 WebM beside the MP4 with the same frame count, size and rate, and
+    pictures that match the MP4's (browsers without H.264 play it instead)."""
+    mp4, webm = tmp_path / "walk.mp4", tmp_path / "walk.webm"
+    fmap = render_video(walk, mp4, fps=12, size=(160, 96), progress=False, webm=webm)
+    m_meta, m_n, m_frames = _probe(mp4)
+    w_meta, w_n, w_frames = _probe(webm)
+    assert w_meta["codec"].startswith("vp9") and webm.read_bytes()[:4] == b"\x1a\x45\xdf\xa3"
+    assert w_n == m_n == len(fmap) and w_meta["size"] == (160, 96)
+    assert abs(w_meta["fps"] - 12) < 1e-6
+    for k in (0, m_n // 2, m_n - 1):  # same pictures up to compression noise
+        diff = np.abs(m_frames[k].astype(float) - w_frames[k].astype(float)).mean()
+        assert diff < 4, (k, diff)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -232,13 +233,47 @@ def test_view_stills_share_one_background(tmp_path):
 
 
 def test_build_warnings_name_their_scene(tmp_path):
-    """A warning raised while one scene is built (the demo punch has no contact events,
-    so the default story selector's event term is constant) says which scene it is about."""
+    """A warning raised while one scene is built says which scene it is about; the angle
+    between every pair of candidates is reported; a scene without contacts (the demo
+    punch) builds without the alarming "constant global pose entropy" warning."""
     (tmp_path / "one.toml").write_text('[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
-                                       'size = [96, 72]\n\n[[scenes]]\nid = "punch"\n'
-                                       'demo = "punch"\n')
+                                       'size = [96, 72]\nnear_duplicate_deg = 90\n\n'
+                                       '[[scenes]]\nid = "punch"\ndemo = "punch"\n')
     snapshot = str(Path(sys.executable).with_name("snapshot"))
     r = subprocess.run([snapshot, "stimuli", "build", "one.toml", "-o", "stim", "-q"],
                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert "warning: scene punch: story event information" in r.stderr
+    # a 90° threshold makes every pair a near-duplicate: the warning names the scene
+    assert "warning: scene punch: nearly the same picture from" in r.stderr
+    assert "global pose entropy" not in r.stderr and "constant" not in r.stderr
+    assert re.search(r"punch: ours/viewpoint_entropy \d+\.\d°, ours/motion_area \d+\.\d°, "
+                     r"viewpoint_entropy/motion_area \d+\.\d°  NEAR-DUPLICATE", r.stdout), r.stdout
+    entry = json.loads((tmp_path / "stim" / "manifest.json").read_text())["scenes"][0]
+    assert set(entry["view_angles"]) == {"ours|viewpoint_entropy", "ours|motion_area",
+                                         "viewpoint_entropy|motion_area"}
+    assert len(entry["near_duplicates"]) == 3
+    # the WebM/VP9 copy is listed and hashed beside the MP4
+    assert entry["video_webm"] == "punch/video.webm"
+    assert "punch/video.webm" in json.loads((tmp_path / "stim" / "manifest.json").read_text())["files"]
+
+
+def test_near_duplicate_error_stops_the_build():
+    """near_duplicate = "error": a pair under the threshold (or a mirror image) stops the
+    build with the angles named; "warn" warns and records them."""
+    import warnings
+
+    from study_app.protocol import study_from_dict
+    from study_app.stimuli import StimuliError, check_near_duplicates
+
+    picks = {"view": [1.0, 0.0, 0.0], "viewpoint_entropy": [0.0, 0.0, 1.0],
+             "motion_area": [-0.99, 0.0, 0.1411]}  # ~171.9° from ours: a mirror image
+    doc = {"study": {"id": "s", "title": "S", "near_duplicate": "error"},
+           "scenes": [{"id": "a", "demo": "walk"}]}
+    with pytest.raises(StimuliError, match=r"ours and motion_area \(171\.9° apart\)"):
+        check_near_duplicates(study_from_dict(doc), "a", picks)
+    doc["study"]["near_duplicate"] = "warn"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        angles, dupes = check_near_duplicates(study_from_dict(doc), "a", picks)
+    assert dupes == [["ours", "motion_area"]] and angles["ours|viewpoint_entropy"] == 90.0
+    assert len(caught) == 1 and "votes may split" in str(caught[0].message)

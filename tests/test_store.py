@@ -648,3 +648,42 @@ def test_cli_export_postgres(request, tmp_path):
 
 def test_store_error_is_snapshot_error():
     assert issubclass(StoreError, SnapshotError)
+
+
+def test_one_participant_per_prolific_id_under_concurrency(store_url):
+    """Eight threads on two Store objects register the same Prolific id: one participant,
+    every caller gets its id; the database itself refuses a second row (unique index)."""
+    a, b = Store(store_url), Store(store_url)
+    prolific = {"PROLIFIC_PID": "60a1b2c3d4e5f60718293a4b", "STUDY_ID": "s", "SESSION_ID": "x"}
+
+    def register(k):
+        s = (a, b)[k % 2]
+        return s.participant_for_prolific("demo", SHA, app_version="0.1.0", seed=k,
+                                          prolific=prolific)
+
+    with ThreadPoolExecutor(8) as pool:
+        got = list(pool.map(register, range(8)))
+    assert len({pid for pid, _ in got}) == 1 and sum(created for _, created in got) == 1
+    assert a.find_prolific("demo", prolific["PROLIFIC_PID"]) == got[0][0]
+    assert a.find_prolific("other-study", prolific["PROLIFIC_PID"]) is None
+    with pytest.raises(StoreError):  # the index, not only the look-up, keeps it unique
+        a.create_participant("demo", SHA, app_version="0.1.0", seed=1, prolific=prolific)
+    # no Prolific id: as many participants as consents (NULLs do not collide)
+    new_participant(a)
+    new_participant(a)
+    assert len(a.participants()) == 3
+    a.close()
+    b.close()
+
+
+def test_old_database_gets_the_prolific_index(sqlite_url):
+    """A database made before the index existed gets it when the app opens it."""
+    s = Store(sqlite_url)
+    with s.engine.begin() as conn:
+        conn.exec_driver_sql("DROP INDEX uq_participants_study_prolific")
+    s.close()
+    s = Store(sqlite_url)
+    with s.engine.connect() as conn:
+        names = {i["name"] for i in sa.inspect(conn).get_indexes("participants")}
+    assert "uq_participants_study_prolific" in names
+    s.close()

@@ -608,3 +608,20 @@ def test_joint_roles_on_other_namings():
     assert pairs(["pelvis", "thigh_l", "thigh_r", "upperarm_l", "upperarm_r"]) == {
         "hip": (1, 2), "shoulder": (3, 4)}
     assert pairs(["Hips", "Spine", "Head"]) == {"hip": None, "shoulder": None}
+
+
+def test_view_angles_and_near_duplicates_known_answers():
+    """Angles between candidate directions, and near-duplicates: close, or a mirror image."""
+    from snapcore.select.view import near_duplicate_views, view_angles_deg
+
+    c = math.radians(10.0)
+    dirs = {"a": [1, 0, 0], "b": [math.cos(c), 0, math.sin(c)], "c": [0, 0, 5],
+            "d": [-1, 0.05, 0]}
+    ang = view_angles_deg(dirs)
+    assert ang["a|b"] == pytest.approx(10.0) and ang["a|c"] == pytest.approx(90.0)
+    assert ang["a|d"] == pytest.approx(180 - math.degrees(math.atan(0.05)))
+    assert list(ang) == ["a|b", "a|c", "a|d", "b|c", "b|d", "c|d"]
+    assert near_duplicate_views(ang, 15.0) == [("a", "b"), ("a", "d"), ("b", "d")]
+    assert near_duplicate_views(ang, 5.0) == [("a", "d")]
+    with pytest.raises(ValueError, match="zero vector"):
+        view_angles_deg({"a": [0, 0, 0], "b": [1, 0, 0]})

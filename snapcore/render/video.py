@@ -1,4 +1,9 @@
-"""Videos of a scene: H.264 MP4s that play in Chrome and Firefox.
+"""Videos of a scene: H.264 MP4s, and optionally the same frames as WebM/VP9.
+
+H.264 plays in Chrome and in most Firefox builds; a Firefox without an H.264 decoder
+(Debian's Firefox ESR without system ffmpeg) plays only the WebM/VP9 copy, which
+:func:`render_video` encodes from the same rendered frames (``webm=``) with the
+``libvpx-vp9`` encoder of the bundled ffmpeg.
 
 :func:`render_video` renders every video frame with one :class:`~snapcore.render.renderer.SceneRenderer`
 (one fixed camera that frames the whole motion, so characters do not jump around) and
@@ -28,12 +33,15 @@ from snapcore.errors import RenderError
 from snapcore.render.camera import check_size, default_view, fit_camera, motion_points
 from snapcore.render.renderer import SceneRenderer
 
-__all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET"]
+__all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET",
+           "VP9_CRF"]
 
 #: x264 constant-rate factor: 23 is ffmpeg's default, visually clean for flat renders.
 VIDEO_CRF = 23
 #: x264 preset: "veryfast" keeps encoding well below rendering time on two cores.
 VIDEO_PRESET = "veryfast"
+#: libvpx-vp9 constant quality (0-63; 32 looks like x264's 23 on flat renders).
+VP9_CRF = 32
 
 
 def video_frame_map(n_frames: int, motion_fps: float, video_fps: float, *, start: int = 0,
@@ -90,7 +98,7 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
                  projection: str = "orthographic", frame_numbers: bool = False,
                  progress: bool = True, frame_range=None, ground: bool = True,
                  shadows: bool = True, crf: int = VIDEO_CRF, preset: str = VIDEO_PRESET,
-                 camera=None) -> np.ndarray:
+                 camera=None, webm=None) -> np.ndarray:
     """Render a scene to an H.264 MP4.
 
     Parameters
@@ -120,6 +128,9 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
     camera : Camera, optional
         Use this camera (its size must equal ``size``) instead of fitting one to the
         motion along ``view``.
+    webm : str or Path, optional
+        Also write the same frames as WebM/VP9 here (same frame count and rate), for
+        browsers without H.264.
 
     Returns
     -------
@@ -160,6 +171,16 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
         output_params=["-preset", preset, "-crf", str(int(crf)), "-g", str(max(int(round(fps)), 1)),
                        "-movflags", "+faststart"])
     writer.send(None)  # start ffmpeg
+    writers = [writer]
+    if webm is not None:
+        vp9 = imageio_ffmpeg.write_frames(
+            str(webm), (w, h), pix_fmt_in="rgb24", pix_fmt_out="yuv420p", fps=float(fps),
+            codec="libvpx-vp9", quality=None, macro_block_size=2, ffmpeg_log_level="error",
+            output_params=["-b:v", "0", "-crf", str(VP9_CRF), "-deadline", "realtime",
+                           "-cpu-used", "8", "-row-mt", "1",
+                           "-g", str(max(int(round(fps)), 1))])
+        vp9.send(None)
+        writers.append(vp9)
     q: queue.Queue = queue.Queue(maxsize=6)
     failure: list[BaseException] = []
 
@@ -169,7 +190,8 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
                 item = q.get()
                 if item is None:
                     return
-                writer.send(item)
+                for wr in writers:
+                    wr.send(item)
         except BaseException as err:  # surfaced on the rendering thread
             failure.append(err)
             while q.get() is not None:  # drain so the renderer never blocks
@@ -193,11 +215,12 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
         q.put(None)
         feeder.join()
         bar.close()
-        try:
-            writer.close()
-        except Exception as err:
-            if not failure:
-                failure.append(err)
+        for wr in writers:
+            try:
+                wr.close()
+            except Exception as err:
+                if not failure:
+                    failure.append(err)
     if failure:
         raise RenderError(f"encoding {path} failed: {failure[0]}") from failure[0]
     return np.asarray(scene.source_frame(frames), dtype=np.int64)

@@ -625,7 +625,13 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
         warnings.warn("no joint moves along a curve (static clip?): the local term is 0",
                       stacklevel=2)
     local = minmax(h_local.sum(axis=0), name="local pose entropy")
-    glob = minmax(h_global.sum(axis=0), name="global pose entropy (interaction events)")
+    if h_global.any():
+        glob = minmax(h_global.sum(axis=0), name="global pose entropy (interaction events)")
+    else:
+        # No interaction event carries information (one figure walking, a punch into
+        # the air): the global term is 0 by construction, which is expected, not a
+        # symptom worth a warning.
+        glob = np.zeros(n_f)
     total = w_local * local + w_global * glob
     return PoseEntropy(local=local, global_=glob, total=total, local_by_character=h_local,
                        global_by_character=h_global, information=info,

@@ -46,6 +46,8 @@ from snapcore.select.sphere import (
 )
 
 __all__ = [
+    "view_angles_deg",
+    "near_duplicate_views",
     "MA_FLOOR_M2",
     "ICOSPHERE_COUNTS",
     "WEIGHTINGS",
@@ -585,3 +587,58 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
 
 
 # --------------------------------------------------------------- snapshot stage
+
+
+def view_angles_deg(directions: dict) -> dict:
+    """Angle between every pair of view directions, in degrees.
+
+    Parameters
+    ----------
+    directions : dict of str to array of shape (3,)
+        View directions by name (e.g. method), not necessarily unit length.
+
+    Returns
+    -------
+    dict of str to float
+        ``{"a|b": angle}`` for each pair in the dict's order, in [0, 180].
+    """
+    names = list(directions)
+    unit = {}
+    for n in names:
+        v = np.asarray(directions[n], dtype=float).reshape(3)
+        norm = np.linalg.norm(v)
+        if not norm > 0:
+            raise ValueError(f"directions[{n!r}] is a zero vector")
+        unit[n] = v / norm
+    out = {}
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            c = float(np.clip(unit[a] @ unit[b], -1.0, 1.0))
+            out[f"{a}|{b}"] = float(np.degrees(np.arccos(c)))
+    return out
+
+
+def near_duplicate_views(angles: dict, threshold_deg: float) -> list[tuple[str, str]]:
+    """Pairs of views that show nearly the same picture.
+
+    Two orthographic views closer than ``threshold_deg`` look alike, and so do two
+    nearly opposite ones (over ``180 - threshold_deg``): the second is close to the
+    first's mirror image, with the same silhouette.
+
+    Parameters
+    ----------
+    angles : dict of str to float
+        :func:`view_angles_deg` output (degrees).
+    threshold_deg : float
+        In [0, 90].
+
+    Returns
+    -------
+    list of (str, str)
+        The pairs, in the order of ``angles``.
+    """
+    if not 0 <= threshold_deg <= 90:
+        raise ValueError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
+    return [tuple(k.split("|", 1)) for k, a in angles.items()
+            if a < threshold_deg or a > 180.0 - threshold_deg]
+

@@ -41,6 +41,12 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     s = load_stimuli(manifest.parent)
     n_files = len(s.manifest["files"])
     click.echo(f"{manifest}: {len(s.scenes)} scenes, {n_files} files, manifest sha256 {s.sha256}")
+    # The angle between every pair of candidate views: near-duplicates split votes.
+    for e in s.manifest["scenes"]:
+        angles = e.get("view_angles") or {}
+        flag = "  NEAR-DUPLICATE" if e.get("near_duplicates") else ""
+        click.echo(f"  {e['id']}: " + ", ".join(f"{k.replace('|', '/')} {v:.1f}°"
+                                                 for k, v in angles.items()) + flag)
 
 
 @stimuli.command("verify")

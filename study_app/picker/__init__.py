@@ -5,12 +5,14 @@ and CSS read from this folder, no build step, mounted in the app page (not an if
 Each reports one *trigger* value per answer, so a trial costs one round trip:
 
 - :func:`frame_picker` — the video with play/pause, step ±1 frame, a scrub bar and the
-  frame number; returns ``{"trial", "frame", "events"}`` when the participant confirms
-  (``frame`` = the 0-based video frame on screen, read with
-  ``requestVideoFrameCallback``), or ``{"trial", "error"}`` if the browser cannot play
-  the video.
-- :func:`view_chooser` — the candidate views side by side; returns
-  ``{"trial", "position", "method"}`` for the one clicked.
+  frame number; returns ``{"trial", "frame", "events", "watched"}`` when the participant
+  confirms (``frame`` = the 0-based video frame on screen, read with
+  ``requestVideoFrameCallback``), ``{"trial", "log"}`` for a batch of its interaction
+  log (sent as it happens), or ``{"trial", "error"}`` if the browser cannot play the
+  video.
+- :func:`view_chooser` — the candidate views side by side, by position only (which
+  method made which picture never reaches the browser); returns
+  ``{"trial", "position"}`` for the one clicked.
 
 Media reach the browser through Streamlit's media file manager (the mechanism behind
 ``st.video``/``st.image``), which serves them with HTTP range requests, so seeking works.
@@ -33,7 +35,7 @@ DEFAULT_LABELS = {
     "play": "Play", "pause": "Pause", "back": "Previous frame", "forward": "Next frame",
     "frame": "Frame", "confirm": "Confirm this frame", "saving": "Saving…",
     "scrub": "Position in the animation", "video_error": "The video cannot be played",
-    "choose": "Choose",
+    "choose": "Choose", "watch_first": "Watch the whole animation once to choose a frame.",
 }
 _MIME = {".mp4": "video/mp4", ".webm": "video/webm", ".png": "image/png", ".jpg": "image/jpeg",
          ".jpeg": "image/jpeg"}
@@ -72,14 +74,17 @@ def media_url(path: str | Path, *, where: str) -> str:
     return Runtime.instance().media_file_mgr.add(str(p), mime, coordinates)
 
 
-def frame_picker(video: str | Path, *, fps: float, n_frames: int, trial: int, key: str,
-                 start_frame: int = 0, labels: dict | None = None, height: int | None = None):
+def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,
+                 start_frame: int = 0, watched: float = 0.0, require_watch: bool = False,
+                 watch_min: float = 0.9, min_answer_s: float = 0.0,
+                 labels: dict | None = None, height: int | None = None):
     """Mount the frame picker; return the confirm payload of this run, else None.
 
     Parameters
     ----------
-    video : path
-        The stimulus video (H.264 MP4).
+    video : path or list of path
+        The stimulus video, or its encodings in order of preference (H.264 MP4, then
+        WebM/VP9 for browsers without H.264); the browser plays the first it can.
     fps : float
         Its frame rate (frames per second).
     n_frames : int
@@ -89,50 +94,70 @@ def frame_picker(video: str | Path, *, fps: float, n_frames: int, trial: int, ke
     key : str
         Streamlit element key (one per trial keeps trials apart).
     start_frame : int
-        Frame shown first.
+        Frame shown first (e.g. where the participant was before a reload).
+    watched : float
+        Share of the animation already watched (restored after a reload).
+    require_watch : bool
+        Confirm stays off until ``watch_min`` of the animation was played.
+    min_answer_s : float
+        Confirm stays off this many seconds after the player appears.
     labels : dict, optional
         Overrides of :data:`DEFAULT_LABELS`.
 
     Returns
     -------
     dict or None
-        ``{"trial", "frame", "events"}`` on confirm, ``{"trial", "error"}`` if the video
-        cannot be played, None otherwise.
+        ``{"trial", "frame", "events", "watched"}`` on confirm, ``{"trial", "log"}``
+        for a batch of the interaction log, ``{"trial", "error"}`` if the video cannot
+        be played, None otherwise.
     """
     picker, _ = _components()
-    data = {"src": media_url(video, where=f"video.{key}"), "fps": float(fps),
+    videos = [video] if isinstance(video, (str, Path)) else list(video)
+    sources = [{"src": media_url(v, where=f"video.{key}.{i}"),
+                "type": _MIME.get(Path(v).suffix.lower(), "")} for i, v in enumerate(videos)]
+    data = {"sources": sources, "fps": float(fps),
             "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
+            "watched": float(watched), "require_watch": bool(require_watch),
+            "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
             "labels": {**DEFAULT_LABELS, **(labels or {})}}
     result = picker(key=key, data=data, on_confirm_change=_noop, on_error_change=_noop,
-                    height=height or "content")
+                    on_log_change=_noop, height=height or "content")
     if result.get("confirm"):
         return dict(result["confirm"])
+    if result.get("log"):
+        return {"trial": (result["log"] or {}).get("trial"),
+                "log": (result["log"] or {}).get("events") or []}
     if result.get("error"):
         return {"trial": (result["error"] or {}).get("trial"),
                 "error": (result["error"] or {}).get("message", "")}
     return None
 
 
-def view_chooser(views: list[tuple[str, str | Path]], *, trial: int, key: str,
-                 captions: list[str] | None = None, labels: dict | None = None):
-    """Mount the view chooser; return ``{"trial", "position", "method"}`` when one is chosen.
+def view_chooser(images: list[str | Path], *, trial: int, key: str,
+                 captions: list[str] | None = None, min_answer_s: float = 0.0,
+                 labels: dict | None = None):
+    """Mount the view chooser; return ``{"trial", "position"}`` when one is chosen.
 
     Parameters
     ----------
-    views : list of (method, image path)
-        In screen order, left to right.
+    images : list of path
+        The candidate pictures in screen order, left to right. Only the pictures go to
+        the browser: the caller maps the chosen position back to what it showed there.
     trial : int
         Trial index, echoed back.
     key : str
         Streamlit element key.
     captions : list of str, optional
         What participants see under each image (default "View A", "View B", ...).
+    min_answer_s : float
+        The Choose buttons stay off this long after every picture has loaded.
     """
     _, chooser = _components()
-    captions = captions or [f"View {chr(65 + i)}" for i in range(len(views))]
+    captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
     data = {"trial": int(trial), "labels": {**DEFAULT_LABELS, **(labels or {})},
-            "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "method": m,
-                       "label": captions[i]} for i, (m, p) in enumerate(views)]}
+            "min_answer_s": float(min_answer_s),
+            "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
+                      for i, p in enumerate(images)]}
     result = chooser(key=key, data=data, on_choice_change=_noop)
     return dict(result["choice"]) if result.get("choice") else None
 

@@ -1,10 +1,23 @@
 // Frame-accurate video frame picker (Streamlit components v2, no build step).
 //
-// data: {src, fps, n_frames, trial, start_frame, labels}
-// Sends one trigger, "confirm": {trial, frame, events}, where frame is the 0-based
-// video frame on screen when the participant pressed Confirm and events is the log of
-// plays, pauses, seeks and steps ({kind, t: seconds since shown, frame}).
-// Sends "error": {trial, message} if the browser cannot play the video.
+// data: {sources: [{src, type}], fps, n_frames, trial, start_frame, watched,
+//        require_watch, watch_min, min_answer_s, labels}
+// Triggers:
+//   "log": {trial, events}      the log of plays, pauses, seeks and steps ({kind, t:
+//                               seconds since mounted, frame, watched}), sent in small
+//                               batches as it happens, so a reload loses nothing;
+//   "confirm": {trial, frame, events, watched}  frame is the 0-based video frame on
+//                               screen when the participant pressed Confirm, events the
+//                               entries not sent yet, watched the share of the
+//                               animation played (0-1);
+//   "error": {trial, message}   the browser can play none of the sources.
+//
+// Confirm stays off until the video is ready, has been on screen min_answer_s seconds
+// and, with require_watch, was played through once (its played ranges cover watch_min
+// of the duration; a restored `watched` from before a reload counts).
+// Keys work as soon as the page shows the player (no click into it first): ← / → step
+// one frame, Space plays/pauses — except on a focused button or the slider, which keep
+// their own keys (Space on Confirm confirms).
 //
 // Frame accuracy: the frame on screen is read from requestVideoFrameCallback's
 // mediaTime (the presentation time of the composited frame), frame = round(t * fps);
@@ -30,7 +43,8 @@ function buildPicker(root, data) {
       <span class="snap-frame" data-testid="picker-frame" aria-live="polite"></span>
       <button type="button" data-testid="picker-confirm" class="snap-confirm" disabled>
         ${L.confirm || "Confirm this frame"}</button>
-    </div>`;
+    </div>
+    <div class="snap-hint" data-testid="picker-hint" hidden>${L.watch_first || "Watch the whole animation once to choose a frame."}</div>`;
   const video = root.querySelector("video");
   const scrub = root.querySelector(".snap-scrub");
   const label = root.querySelector(".snap-frame");
@@ -39,14 +53,52 @@ function buildPicker(root, data) {
   const fwd = root.querySelector("[data-testid=picker-forward]");
   const confirm = root.querySelector("[data-testid=picker-confirm]");
   const errorBox = root.querySelector(".snap-error");
+  const hint = root.querySelector(".snap-hint");
 
   const t0 = performance.now();
   const state = { frame: Math.min(Math.max(data.start_frame || 0, 0), n - 1), events: [],
-                  sent: false, ready: false, seeking: false, pendingSeek: null };
+                  sent: false, ready: false, seeking: false, pendingSeek: null,
+                  watched: Math.min(Math.max(Number(data.watched) || 0, 0), 1), logged: 0 };
   root._snap = state;
+  const minAnswerMs = 1000 * (Number(data.min_answer_s) || 0);
+  const watchMin = Number(data.watch_min) || 0.9;
+  // Share of the animation played so far: the browser's own played ranges, so scrubbing
+  // or stepping does not count as watching.
+  const playedShare = () => {
+    const d = video.duration;
+    if (!(d > 0) || !isFinite(d)) return 0;
+    let s = 0;
+    for (let i = 0; i < video.played.length; i++) s += video.played.end(i) - video.played.start(i);
+    return Math.min(s / d, 1);
+  };
+  const updateWatched = () => {
+    state.watched = Math.max(state.watched, playedShare());
+    root.dataset.watched = state.watched.toFixed(3);
+  };
+  const canConfirm = () => state.ready && !state.sent
+    && performance.now() - t0 >= minAnswerMs
+    && (!data.require_watch || state.watched >= watchMin);
+  const refreshConfirm = () => {
+    updateWatched();
+    confirm.disabled = !canConfirm();
+    hint.hidden = !(data.require_watch && state.ready && state.watched < watchMin);
+  };
+  let flushTimer = null;
+  const flush = () => {
+    flushTimer = null;
+    if (state.sent) return;
+    const batch = state.events.slice(state.logged);
+    if (!batch.length) return;
+    state.logged = state.events.length;
+    root._api.setTriggerValue("log", { trial: data.trial, events: batch });
+  };
   const log = (kind, extra) => {
     if (state.events.length < 500) {
-      state.events.push({ kind, t: (performance.now() - t0) / 1000, frame: state.frame, ...extra });
+      updateWatched();
+      state.events.push({ kind, t: (performance.now() - t0) / 1000, frame: state.frame,
+                          watched: state.watched, ...extra });
+      // Batched: one round trip per burst of clicks, not per click.
+      if (flushTimer === null) flushTimer = setTimeout(flush, 800);
     }
   };
   const clamp = (f) => Math.min(Math.max(Math.round(f), 0), n - 1);
@@ -75,7 +127,9 @@ function buildPicker(root, data) {
   // The displayed frame, as the compositor reports it.
   if ("requestVideoFrameCallback" in HTMLVideoElement.prototype) {
     const onFrame = (now, meta) => {
-      if (!state.seeking && state.pendingSeek === null) show(meta.mediaTime * fps);
+      // Only while playing: a paused player shows the frame it was sent to, and a late
+      // callback for the first decoded frame must not undo a restored position.
+      if (!video.paused && !state.seeking && state.pendingSeek === null) show(meta.mediaTime * fps);
       video.requestVideoFrameCallback(onFrame);
     };
     video.requestVideoFrameCallback(onFrame);
@@ -86,19 +140,27 @@ function buildPicker(root, data) {
 
   video.addEventListener("loadeddata", () => {
     state.ready = true;
-    confirm.disabled = false;
     root.dataset.ready = "1";
     seek(state.frame);
+    refreshConfirm();
   });
+  // Re-check what Confirm may do while the clock and the playback run.
+  const ticker = setInterval(() => {
+    if (!root.isConnected) { clearInterval(ticker); return; }
+    refreshConfirm();
+  }, 250);
   video.addEventListener("play", () => { play.textContent = L.pause || "Pause"; log("play"); });
-  video.addEventListener("pause", () => { play.textContent = L.play || "Play"; });
-  video.addEventListener("ended", () => { show(n - 1); log("ended"); });
-  video.addEventListener("error", () => {
-    const msg = (video.error && video.error.message) || "this browser cannot play the video";
+  video.addEventListener("pause", () => { play.textContent = L.play || "Play"; refreshConfirm(); });
+  video.addEventListener("ended", () => { show(n - 1); log("ended"); refreshConfirm(); });
+  const fail = (msg) => {
+    if (root.dataset.error) return;
     errorBox.textContent = `${L.video_error || "The video cannot be played"}: ${msg}`;
     errorBox.hidden = false;
     root.dataset.error = msg;
     root._api.setTriggerValue("error", { trial: data.trial, message: msg });
+  };
+  video.addEventListener("error", () => {
+    fail((video.error && video.error.message) || "this browser cannot play the video");
   });
 
   play.addEventListener("click", () => {
@@ -129,29 +191,62 @@ function buildPicker(root, data) {
     log("seek", { from: scrubFrom === null ? undefined : scrubFrom });
     scrubFrom = null;
   });
-  root.addEventListener("keydown", (e) => {
-    if (e.target === scrub) return; // the range input handles its own arrows
+  // Keys anywhere on the page (the instructions promise them without a click into the
+  // player). The real target is read through shadow roots: a focused button or the
+  // slider keeps its own keys, so Space on Confirm confirms instead of playing.
+  root._onKey = (e) => {
+    if (!root.isConnected || e.defaultPrevented || e.altKey || e.ctrlKey || e.metaKey) return;
+    const target = (e.composedPath && e.composedPath()[0]) || e.target;
+    const tag = (target && target.tagName) || "";
+    if (/^(INPUT|TEXTAREA|SELECT)$/.test(tag) || (target && target.isContentEditable)) return;
+    if (tag === "BUTTON" && (e.key === " " || e.key === "Enter")) return;
     if (e.key === "ArrowLeft") { step(-1); e.preventDefault(); }
     else if (e.key === "ArrowRight") { step(1); e.preventDefault(); }
     else if (e.key === " ") { play.click(); e.preventDefault(); }
-  });
+  };
   confirm.addEventListener("click", () => {
-    if (state.sent || !state.ready) return;
+    if (!canConfirm()) return;
     if (!video.paused) { video.pause(); }
     state.sent = true;
     confirm.disabled = true;
     confirm.textContent = L.saving || "Saving…";
     log("select");
-    root._api.setTriggerValue("confirm", { trial: data.trial, frame: state.frame, events: state.events });
+    if (flushTimer !== null) { clearTimeout(flushTimer); flushTimer = null; }
+    root._api.setTriggerValue("confirm", { trial: data.trial, frame: state.frame,
+                                           events: state.events.slice(state.logged),
+                                           watched: state.watched });
   });
 
   show(state.frame);
-  video.src = data.src;
+  // Every source the page offers (H.264 MP4 for most browsers, WebM/VP9 for those
+  // without H.264, e.g. Debian's Firefox ESR); the browser plays the first it can.
+  const sources = data.sources || [{ src: data.src, type: "video/mp4" }];
+  sources.forEach((s, i) => {
+    const el = document.createElement("source");
+    el.src = s.src;
+    if (s.type) el.type = s.type;
+    // Errors of <source> children do not reach the video element: the last one
+    // failing means none could be played.
+    if (i === sources.length - 1) {
+      el.addEventListener("error", () => fail("this browser can play none of the video formats"));
+    }
+    video.appendChild(el);
+  });
+  video.load();
+}
+
+// One page-wide key handler, dispatching to the picker on screen now.
+if (!window.__snapPickerKeys) {
+  window.__snapPickerKeys = true;
+  document.addEventListener("keydown", (e) => {
+    const root = window.__snapPicker;
+    if (root && root.isConnected && root._onKey) root._onKey(e);
+  });
 }
 
 export default function (component) {
   const { data, parentElement } = component;
-  const key = `${data.trial}|${data.src}`;
+  const key = `${data.trial}|${(data.sources || []).map((s) => s.src).join("|")}`;
   let root = parentElement.querySelector(".snap-picker");
   if (!root || root.dataset.key !== key) {
     if (root) root.remove();
@@ -164,6 +259,7 @@ export default function (component) {
     root._api = component;
     buildPicker(root, data);
   }
+  window.__snapPicker = root;
   // Reruns re-invoke this function: keep the mounted player (and its position), but
   // send through the newest callbacks.
   root._api = component;

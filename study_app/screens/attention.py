@@ -22,8 +22,9 @@ def render() -> None:
             st.warning("Please choose one of the options.")
             return
         try:
-            session.submit_attention(trial.index, choice,
-                                     response_time_s=common.elapsed_s(session, trial))
+            stored = session.submit_attention(trial.index, choice,
+                                              response_time_s=common.elapsed_s(session, trial))
+            common.answer_outcome(stored)
         except InvalidAnswer as err:
             st.warning(str(err))
             return

@@ -20,6 +20,9 @@ __all__ = [
     "QUERY_PID",
     "KEY_SESSION",
     "KEY_PROBLEM",
+    "KEY_PARTICIPANT_ID",
+    "KEY_BG_GENDER_SELF",
+    "KEY_ON_SCREEN",
     "KEY_TRIAL_SHOWN",
     "KEY_ATTEMPT",
     "KEY_FLASH",
@@ -30,6 +33,7 @@ __all__ = [
     "KEY_BG_GENDER",
     "KEY_BG_EXPERIENCE",
     "KEY_BG_FORM",
+    "KEY_BG_SUBMIT",
     "KEY_ATTENTION_CHOICE",
     "KEY_ATTENTION_SUBMIT",
     "KEY_PICKER",
@@ -52,6 +56,11 @@ __all__ = [
     "flash",
     "show_flash",
     "widget_key",
+    "page_style",
+    "resume_link",
+    "answer_outcome",
+    "stale_tab_notice",
+    "answered_here",
 ]
 
 #: URL query parameter carrying the participant id.
@@ -60,6 +69,12 @@ QUERY_PID = "pid"
 # -- session-state keys (one place, named) --------------------------------------------
 #: The run's ParticipantSession (or None before consent), set by app.py.
 KEY_SESSION = "snapshot.session"
+#: The participant id this browser tab started or resumed: Back to the study link
+#: (an address without ``pid``) resumes them instead of showing the consent page.
+KEY_PARTICIPANT_ID = "snapshot.participant_id"
+#: (participant id, step) this browser tab showed on its previous run; a step that
+#: moved on without this tab answering was answered in another tab or browser.
+KEY_ON_SCREEN = "snapshot.on_screen"
 #: Why the participant id in the URL was refused (shown by the invalid-link page).
 KEY_PROBLEM = "snapshot.problem"
 #: {(participant id, trial index): wall-clock time the trial was first shown}.
@@ -74,9 +89,11 @@ KEY_FRAMES_FALLBACK = "snapshot.frames_fallback"
 KEY_CONSENT_AGREE = "consent.agree"
 KEY_CONSENT_START = "consent.start"
 KEY_BG_FORM = "background.form"
+KEY_BG_SUBMIT = "background.submit"
 KEY_BG_AGE = "background.age_band"
 KEY_BG_GENDER = "background.gender"
 KEY_BG_EXPERIENCE = "background.experience"
+KEY_BG_GENDER_SELF = "background.gender_self"
 KEY_ATTENTION_CHOICE = "attention.choice"
 KEY_ATTENTION_SUBMIT = "attention.submit"
 KEY_PICKER = "pose.picker"
@@ -172,6 +189,63 @@ def show_flash() -> None:
     item = st.session_state.pop(KEY_FLASH, None)
     if item:
         getattr(st, item[0])(item[1])
+
+
+#: Page CSS: Streamlit's default top padding (6rem) pushed the player's controls below
+#: the fold at 1280×720; the header bar it makes room for is hidden anyway.
+PAGE_CSS = """
+<style>
+.stMainBlockContainer, .block-container { padding-top: 2.5rem; padding-bottom: 2rem; }
+</style>
+"""
+
+
+def page_style() -> None:
+    """Apply the study's page CSS (once per run, before the page renders)."""
+    st.html(PAGE_CSS)
+
+
+def resume_link(session) -> None:
+    """The participant's personal link, shown so they can copy it (the consent page
+    tells them to come back with it; the address bar alone is easy to lose)."""
+    from study_app.session import resume_url
+
+    base = st.context.url or ""
+    st.divider()
+    st.caption("Your personal link: to pause and continue later (in this or another "
+               "browser), copy it and open it again.")
+    st.code(resume_url(base, session.participant_id), language=None)
+
+
+STALE_TAB_TEXT = ("This question had already been answered in another window or tab, so "
+                  "the answer given here was not saved. Here is the next step.")
+
+
+def answer_outcome(stored: bool) -> None:
+    """After a submit: remember this tab answered; tell it if its answer came second."""
+    if stored:
+        answered_here()
+    else:
+        flash("warning", STALE_TAB_TEXT)
+
+
+def answered_here() -> None:
+    """This tab moved the participant on itself (no stale-tab notice on the next run)."""
+    st.session_state[KEY_ON_SCREEN] = None
+
+
+def stale_tab_notice(session) -> None:
+    """Warn when the step this tab showed moved on without this tab answering it.
+
+    A second tab (or browser) answered first; whatever this tab sent for the old step —
+    a click the new page never reads — was dropped, and it must not move on silently.
+    """
+    step = session.step_key
+    shown = st.session_state.get(KEY_ON_SCREEN)
+    if shown is not None and shown[0] == session.participant_id and shown[1] != step \
+            and session.is_done(shown[1]):
+        flash("warning", STALE_TAB_TEXT)
+    st.session_state[KEY_ON_SCREEN] = (session.participant_id, step)
 
 
 def one_line(err: BaseException) -> str:

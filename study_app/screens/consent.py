@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
+from study_app.protocol import consent_text, estimated_minutes
 from study_app.screens import common
 from study_app.session import ParticipantSession
 
@@ -14,7 +15,10 @@ def render() -> None:
     st.title(study.title)
     if study.description:
         st.markdown(study.description)
-    st.markdown(study.consent)
+    # The duration follows from the stimuli actually served (their animations' lengths).
+    minutes = estimated_minutes([sc.n_video_frames / sc.video_fps
+                                 for sc in ctx.stimuli.scenes.values()])
+    st.markdown(consent_text(study, minutes))
     agree = st.checkbox("I have read the information above and agree to take part.",
                         key=common.KEY_CONSENT_AGREE)
     if st.button("Start the study", key=common.KEY_CONSENT_START, type="primary",
@@ -24,4 +28,5 @@ def render() -> None:
         session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
         # The id goes in the URL: a reload, or the same link later, resumes here.
         st.query_params[common.QUERY_PID] = session.participant_id
+        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
         st.rerun()

@@ -12,6 +12,10 @@ def render() -> None:
     st.error(st.session_state.get(common.KEY_PROBLEM) or "Unknown participant.")
     st.write("Nothing was recorded. If you were given a personal link, please use it "
              "exactly as you received it.")
-    if st.button("Start a new session", key=common.KEY_RESTART):
+    # Only a bad personal id can be dropped for a fresh start; a malformed Prolific
+    # link must be opened again from Prolific (starting without it would lose who
+    # the participant is).
+    if common.QUERY_PID in st.query_params and st.button("Start a new session",
+                                                         key=common.KEY_RESTART):
         del st.query_params[common.QUERY_PID]
         st.rerun()

@@ -6,7 +6,20 @@ import streamlit as st
 
 from study_app.picker import frame_picker
 from study_app.screens import common
-from study_app.session import InvalidAnswer
+from study_app.session import WATCHED_ENOUGH, InvalidAnswer
+
+#: Instructions for the video player, and for the frame slider (the fallback when the
+#: browser cannot play the video, or the study's ``picker = "frames"``).
+PLAYER_TEXT = (
+    "Watch the animation (press **Play** or the space bar; you can replay it){watch}. Then "
+    "find the **one moment that best shows what the figure is doing** — pause there, use "
+    "the **◀ 1 / 1 ▶** buttons (or the ← → arrow keys) to step frame by frame — and press "
+    "**Confirm this frame**.")
+WATCH_TEXT = " — **Confirm** opens once you have seen it to the end"
+SLIDER_TEXT = (
+    "Move the **Frame** slider to go through the animation picture by picture. Find the "
+    "**one moment that best shows what the figure is doing** and press **Confirm this "
+    "frame**.")
 
 
 def render() -> None:
@@ -15,30 +28,41 @@ def render() -> None:
     sc = session.stimuli.scenes[trial.scene]
     n_pose = sum(t.task == "pose" for t in session.plan)
     st.header(f"Animation {trial.index + 1} of {n_pose}")
-    st.markdown(
-        "Watch the animation (press **Play**; you can replay it). Then find the **one "
-        "moment that best shows what the figure is doing** — pause there, use the "
-        "**◀ 1 / 1 ▶** buttons (or the arrow keys) to step frame by frame — and press "
-        "**Confirm this frame**.")
-    common.show_flash()
-    common.trial_clock(session, trial)
+    study = session.stimuli.study
     use_frames = (session.stimuli.study.picker == "frames"
                   or st.session_state.get(common.KEY_FRAMES_FALLBACK, False))
+    # The instructions name only the controls the participant has (the slider when the
+    # browser cannot play the video).
+    st.markdown(SLIDER_TEXT if use_frames
+                else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else ""))
+    common.show_flash()
+    common.trial_clock(session, trial)
     if use_frames:
         answer = _frames_picker(sc, trial)
     else:
-        answer = frame_picker(sc.video, fps=sc.video_fps, n_frames=sc.n_video_frames,
-                              trial=trial.index, key=common.widget_key(common.KEY_PICKER, trial))
+        # Where the participant was (frame, share watched) before a reload.
+        frame, watched = session.picker_state(trial.index)
+        answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
+                              trial=trial.index, key=common.widget_key(common.KEY_PICKER, trial),
+                              start_frame=frame, watched=watched,
+                              require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
+                              min_answer_s=study.min_answer_s)
         if answer and "error" in answer:
             # This browser cannot play the video: offer the frames instead.
             st.session_state[common.KEY_FRAMES_FALLBACK] = True
             st.rerun()
+        if answer and "log" in answer:
+            # A batch of the player's log, stored as it happens; the player stays.
+            session.record_picker_events(answer.get("trial"), answer["log"])
+            return
     if answer is None:
         return
     try:
-        session.submit_pose(answer.get("trial"), answer.get("frame"),
-                            response_time_s=common.elapsed_s(session, trial),
-                            events=answer.get("events") or ())
+        stored = session.submit_pose(answer.get("trial"), answer.get("frame"),
+                                     response_time_s=common.elapsed_s(session, trial),
+                                     events=answer.get("events") or (),
+                                     watched=answer.get("watched"))
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))

@@ -19,13 +19,16 @@ def render() -> None:
                 "picture shows best what the figure is doing?** Click **Choose** under it.")
     common.show_flash()
     common.trial_clock(session, trial)
-    answer = view_chooser(session.view_choices(trial), trial=trial.index,
-                          key=common.widget_key(common.KEY_CHOOSER, trial))
+    # Pictures only: the position → method map stays here (submit_view applies it).
+    answer = view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
+                          key=common.widget_key(common.KEY_CHOOSER, trial),
+                          min_answer_s=session.stimuli.study.min_answer_s)
     if answer is None:
         return
     try:
-        session.submit_view(answer.get("trial"), answer.get("position"), answer.get("method"),
-                            response_time_s=common.elapsed_s(session, trial))
+        stored = session.submit_view(answer.get("trial"), answer.get("position"),
+                                     response_time_s=common.elapsed_s(session, trial))
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))
