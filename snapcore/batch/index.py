@@ -34,6 +34,8 @@ COLUMNS = (
 TIMING_COLUMNS = ("t_load_s", "t_select_s", "t_render_s", "t_total_s")
 _INT = ("characters", "n_frames", "frame")
 _FLOAT = ("fps", "duration_s", "time_s", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
+#: Text columns that are never null: an empty cell is the empty string (a top folder).
+_TEXT = ("path", "folder", "name", "kind", "status", "content_hash", "options_hash")
 
 
 def atomic_write(path, data: bytes | str) -> None:
@@ -81,7 +83,7 @@ def write_index(path, rows) -> None:
 
 def _parse(column: str, text: str):
     if text == "":
-        return None
+        return "" if column in _TEXT else None
     if column in _INT:
         return int(text)
     if column in _FLOAT:

@@ -22,8 +22,11 @@ carrying the report.
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -77,6 +80,43 @@ class BatchInterrupted(KeyboardInterrupt):
     def __init__(self, report: BatchReport):
         super().__init__("batch interrupted")
         self.report = report
+
+
+class _CtrlC:
+    """Ctrl-C that waits while a result is being stored: the scene's outputs and its
+    row go in together, so the index written on the way out lists exactly the scenes
+    whose outputs are complete. Elsewhere (waiting for workers) it stops at once."""
+
+    def __init__(self):
+        self.storing = False
+        self.pending = False
+        self.previous = None
+
+    def _handler(self, signum, frame):
+        if self.storing:
+            self.pending = True
+        else:
+            raise KeyboardInterrupt
+
+    def __enter__(self):
+        # signal handlers can only be set from the main thread; elsewhere Ctrl-C is not ours
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+
+    @contextmanager
+    def storing_result(self):
+        self.storing = True
+        try:
+            yield
+        finally:
+            self.storing = False
+        if self.pending:
+            raise KeyboardInterrupt
 
 
 def output_paths(key: str) -> dict[str, str]:
@@ -206,6 +246,12 @@ def _dask(tasks: list[SceneTask], scheduler: str) -> Iterator[SceneResult]:
         client.close()
 
 
+def _executor(tasks, jobs, scheduler) -> Iterator[SceneResult]:
+    """The results of ``tasks`` from the chosen executor (none started for no task)."""
+    if tasks:
+        yield from _dask(tasks, scheduler) if scheduler else _local(tasks, jobs)
+
+
 def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: int = 1,
               scheduler: str | None = None, force: bool = False, retry_errors: bool = False,
               progress: Callable[[int], Callable[[dict], None]] | None = None,
@@ -263,13 +309,15 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
         write_gallery(out, report.rows, title=title, size=options.size)
 
     try:
-        if tasks:
-            results = _dask(tasks, scheduler) if scheduler else _local(tasks, jobs)
+        with _CtrlC() as ctrl_c, closing(_executor(tasks, jobs, scheduler)) as results:
+            # closing(): on Ctrl-C the executor's clean-up (stop the workers, cancel
+            # what is queued) runs now, not whenever the generator is collected
             for result in results:
-                row = _store(out, result)
-                report.rows.append(row)
-                report.workers.append(result.worker)
-                report.done += 1
+                with ctrl_c.storing_result():
+                    row = _store(out, result)
+                    report.rows.append(row)
+                    report.workers.append(result.worker)
+                    report.done += 1
                 if tick:
                     tick(row)
                 if time.perf_counter() - last > INDEX_EVERY_S:
