@@ -30,12 +30,15 @@ display:flex;gap:12px;align-items:center;flex-wrap:wrap;z-index:1}
 header h1{font-size:18px;margin:0 12px 0 0}
 #grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(190px,1fr));gap:12px;padding:16px}
 .card{background:#fff;border:1px solid #ddd;border-radius:6px;overflow:hidden;cursor:pointer;
-padding:0;text-align:left;font:inherit;color:inherit}
+padding:0;text-align:left;font:inherit;color:inherit;display:flex;flex-direction:column;
+justify-content:flex-start}
 .card:focus,.card:hover{outline:2px solid #3a6ea5}
 .card img{width:100%;aspect-ratio:var(--ratio);object-fit:contain;background:#e8e8e4;display:block}
 .card .cap{padding:6px 8px}.card .name{font-weight:600;word-break:break-all}
 .card .meta{color:#666;font-size:12px}
-.card.error{border-color:#c33}.card .err{color:#a22;font-size:12px;padding:8px;word-break:break-word}
+.card.error{border-color:#c33}
+.card .err{color:#a22;font-size:12px;padding:8px;word-break:break-word;aspect-ratio:var(--ratio);
+box-sizing:border-box;width:100%;background:#fbeeee}
 dialog{max-width:min(1200px,95vw);width:95vw;border:0;border-radius:8px;padding:16px}
 dialog img{max-width:100%;display:block;margin:8px 0;background:#e8e8e4}
 dialog table{border-collapse:collapse;margin:8px 0}dialog td{padding:2px 10px 2px 0;vertical-align:top}

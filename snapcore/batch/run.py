@@ -31,7 +31,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from snapcore.batch.discover import BatchError, SceneSource, content_hash
-from snapcore.batch.index import INDEX_NAME, atomic_write, read_index, validate_row, write_index
+from snapcore.batch.index import (
+    COLUMNS,
+    INDEX_NAME,
+    atomic_write,
+    read_index,
+    validate_row,
+    write_index,
+)
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
 __all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "run_batch", "output_paths",
@@ -172,7 +179,7 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
 
 def _store(out: Path, result: SceneResult) -> dict:
     """Write a result's outputs (atomically) and return its complete index row."""
-    row = dict(result.row)
+    row = {c: result.row.get(c) for c in COLUMNS}  # every column, as read back from the CSV
     paths = output_paths(row["path"])
     for what, rel in paths.items():
         target = out / rel
