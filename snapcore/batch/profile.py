@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -26,6 +27,12 @@ from snapcore.batch.index import atomic_write
 from snapcore.batch.run import run_batch
 
 __all__ = ["profile_batch", "format_profile"]
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its finished children (workers, commands)."""
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def _snapshot_exe() -> str:
@@ -40,6 +47,7 @@ def _loop(scenes, options, n: int) -> dict:
     common += [] if options.scale is None else ["--scale", repr(options.scale)]
     size = f"{options.size[0]}x{options.size[1]}"
     times = []
+    cpu0 = _cpu_s()
     with tempfile.TemporaryDirectory() as tmp:
         for s in scenes[:n]:
             t0 = time.perf_counter()
@@ -53,17 +61,20 @@ def _loop(scenes, options, n: int) -> dict:
                             "--view", view, "--size", size, "-o", str(Path(tmp) / "t.png")],
                            check=True, capture_output=True)
             times.append(time.perf_counter() - t0)
-    return {"scenes": len(times), "elapsed_s": sum(times),
-            "per_scene_s": sum(times) / len(times) if times else None}
+    n = len(times)
+    return {"scenes": n, "elapsed_s": sum(times), "per_scene_s": sum(times) / n if n else None,
+            "cpu_per_scene_s": (_cpu_s() - cpu0) / n if n else None}
 
 
 def _batch(scenes, out, options, jobs: int, quiet: bool) -> dict:
     if not quiet:
         print(f"profile: batch --jobs {jobs} ...", file=sys.stderr, flush=True)
+    cpu0 = _cpu_s()
     r = run_batch(scenes, out, options, jobs=jobs, force=True)
     return {"jobs": jobs, "scenes": r.done, "ok": r.done - r.errors, "errors": r.errors,
             "elapsed_s": r.elapsed_s, "scenes_per_s": r.done / r.elapsed_s,
-            "per_scene_s": r.elapsed_s / r.done, "rows": r.rows}
+            "per_scene_s": r.elapsed_s / r.done, "cpu_per_scene_s": (_cpu_s() - cpu0) / r.done,
+            "rows": r.rows}
 
 
 def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
@@ -86,7 +97,9 @@ def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
     -------
     dict
         ``batch`` (one entry per job count: scenes, elapsed_s, scenes_per_s,
-        per_scene_s), ``speedup`` (jobs vs 1), ``loop`` (scenes, per_scene_s),
+        per_scene_s, cpu_per_scene_s: CPU seconds of all processes involved, which a
+        busy shared machine does not inflate), ``speedup`` (jobs vs 1), ``loop``
+        (scenes, per_scene_s, cpu_per_scene_s),
         ``loop_vs_batch`` (loop's seconds per scene over the 1-process batch's, on the
         same scenes), ``cpus``.
     """
@@ -115,16 +128,17 @@ def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
 def format_profile(result: dict) -> list[str]:
     """The measurement as a Markdown table (what the README shows)."""
     lines = [f"{result['scenes']} scenes, {result['cpus']} CPUs", "",
-             "| run | scenes | wall s | scenes/s | s per scene |",
-             "|---|---:|---:|---:|---:|"]
+             "| run | scenes | wall s | scenes/s | wall s per scene | CPU s per scene |",
+             "|---|---:|---:|---:|---:|---:|"]
     for b in result["batch"]:
         lines.append(f"| `batch --jobs {b['jobs']}` | {b['scenes']} | {b['elapsed_s']:.1f} | "
-                     f"{b['scenes_per_s']:.3f} | {b['per_scene_s']:.2f} |")
+                     f"{b['scenes_per_s']:.3f} | {b['per_scene_s']:.2f} | "
+                     f"{b['cpu_per_scene_s']:.2f} |")
     lp = result.get("loop")
     if lp and lp["scenes"]:
         lines.append(f"| loop: `select` + `render` per scene | {lp['scenes']} | "
                      f"{lp['elapsed_s']:.1f} | {lp['scenes'] / lp['elapsed_s']:.3f} | "
-                     f"{lp['per_scene_s']:.2f} |")
+                     f"{lp['per_scene_s']:.2f} | {lp['cpu_per_scene_s']:.2f} |")
         lines += ["", f"--jobs {result['batch'][1]['jobs']} vs --jobs 1: "
                       f"{result['speedup']:.2f}x the throughput",
                   f"separate calls vs the batch on the same {lp['scenes']} scenes "

@@ -202,7 +202,7 @@ def _local(tasks: list[SceneTask], jobs: int) -> Iterator[SceneResult]:
 
     size = tasks[0].options.size
     if jobs == 1:
-        init_worker(size, ignore_sigint=False, blas_threads=None)
+        init_worker(size, ignore_sigint=False, threads=None)
         for t in tasks:
             yield run_scene(t)
         return

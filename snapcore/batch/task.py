@@ -113,7 +113,7 @@ class SceneResult:
     worker: dict = field(default_factory=dict)
 
 
-def init_worker(size=(320, 360), *, ignore_sigint: bool = True, blas_threads: int | None = 1):
+def init_worker(size=(320, 360), *, ignore_sigint: bool = True, threads: int | None = 1):
     """Set up a worker process: the GL renderer, created once, and the signals.
 
     Parameters
@@ -124,16 +124,19 @@ def init_worker(size=(320, 360), *, ignore_sigint: bool = True, blas_threads: in
         Ignore Ctrl-C here: the terminal sends it to every process of the group, and
         the parent, not each worker, decides what to do with it (write the index of
         what finished, then stop the workers).
-    blas_threads : int or None
-        BLAS threads per worker (None: leave as is). N workers on N cores each running
-        a multi-threaded BLAS would fight over the cores.
+    threads : int or None
+        BLAS and Mesa llvmpipe (software GL) threads per worker (None: leave as is). N
+        workers on N cores, each running a BLAS and a rasteriser with a thread per core,
+        would fight over the cores; one process per core is the parallelism here.
     """
     if ignore_sigint:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if blas_threads is not None:
+    if threads is not None:
         from threadpoolctl import threadpool_limits
 
-        threadpool_limits(blas_threads)
+        threadpool_limits(threads)
+        # read by Mesa when the GL context is created, just below
+        os.environ.setdefault("LP_NUM_THREADS", str(threads))
     try:
         from snapcore.render.gl import gl_renderer
 
