@@ -105,9 +105,9 @@ def _progress(quiet: bool):
 @click.option("--title", default="Action Snapshot gallery", show_default=True,
               help="Title of the gallery page.")
 @click.option("--profile", is_flag=True,
-              help="Measure instead: the batch with --jobs 1 and 2 into OUT/profile/, and a "
-                   "loop of separate `snapshot select` + `snapshot render` calls; prints a "
-                   "table and writes OUT/profile.json.")
+              help="Measure instead: the batch with --jobs 1 and --jobs N (N = --jobs, at "
+                   "least 2) into OUT/profile/, and a loop of separate `snapshot select` + "
+                   "`snapshot render` calls; prints a table and writes OUT/profile.json.")
 @click.option("--profile-loop", type=click.IntRange(min=0), default=3, show_default=True,
               metavar="N", help="Scenes in the --profile loop of separate calls.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
