@@ -224,9 +224,18 @@ def test_a_rerun_does_no_work_and_an_edit_redoes_one_scene(local_run, library, t
 
 @pytest.mark.slow
 def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, library,
-                                                                     tmp_path):
+                                                                     tmp_path, monkeypatch):
     """--jobs 2: the index equals the in-process run apart from timings, and each
-    worker process made exactly one GL renderer for all its scenes."""
+    worker process made exactly one GL renderer for all its scenes. The caller's main
+    module is not run in the workers (here one that would fail, as a Streamlit page
+    left as __main__ by an earlier test once did)."""
+    import types
+
+    script = tmp_path / "page.py"
+    script.write_text("raise SystemExit('the caller\'s main module ran in a worker')\n")
+    fake_main = types.ModuleType("__main__")
+    fake_main.__file__ = str(script)
+    monkeypatch.setitem(sys.modules, "__main__", fake_main)
     src, _ = local_run
     report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2)
     assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == \
@@ -252,7 +261,7 @@ def _dask_cluster(tmp_path, n_workers=2):
     address = json.loads(sched_file.read_text())["address"]
     for i in range(n_workers):
         procs.append(subprocess.Popen(
-            [dask, "worker", address, "--nthreads", "1", "--nworkers", "1", "--no-dashboard",
+            [dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
              "--host", "127.0.0.1", "--name", f"w{i}", "--memory-limit", "0",
              "--local-directory", str(tmp_path / f"w{i}")],
             stdout=logs[i + 1], stderr=subprocess.STDOUT))

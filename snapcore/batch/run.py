@@ -196,6 +196,27 @@ def _store(out: Path, result: SceneResult) -> dict:
     return row
 
 
+@contextmanager
+def _plain_main():
+    """Start worker processes without the caller's ``__main__``.
+
+    A spawned child re-runs the parent's main module before it does anything (so that
+    functions defined there can be unpickled). The task functions live in snapcore, so
+    that is never needed, and it is harmful when the main module is not a script
+    guarded by ``if __name__ == "__main__"``: a Streamlit page or a notebook would run
+    again in every worker. An empty stand-in during the start avoids that.
+    """
+    import sys
+    import types
+
+    real = sys.modules["__main__"]
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        yield
+    finally:
+        sys.modules["__main__"] = real
+
+
 def _local(tasks: list[SceneTask], jobs: int) -> Iterator[SceneResult]:
     """Results as they finish, from this process (``jobs=1``) or ``jobs`` processes."""
     from snapcore.batch.task import init_worker
@@ -211,7 +232,8 @@ def _local(tasks: list[SceneTask], jobs: int) -> Iterator[SceneResult]:
 
     ex = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
                              initializer=init_worker, initargs=(size,))
-    futures = {ex.submit(run_scene, t): t for t in tasks}
+    with _plain_main():  # every worker is started by the first submit
+        futures = {ex.submit(run_scene, t): t for t in tasks}
     try:
         for f in as_completed(futures):
             try:
