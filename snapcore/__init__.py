@@ -7,20 +7,43 @@ No Streamlit, no SQL here (DESIGN: data flows one way).
 
 from __future__ import annotations
 
-from snapcore.errors import BVHError, SceneError, SchemaError, SnapshotError
-from snapcore.motion.bvh import BVHDocument, read_bvh, write_bvh
-from snapcore.motion.load import data_dir, load_scene
-from snapcore.motion.scene import Character, Scene, Skeleton
-from snapcore.pipeline import Snapshot, ViewParams, take_snapshot
-from snapcore.render.body import PosedMesh, SceneBody, posed_mesh
-from snapcore.render.composites import compare_views, contact_sheet
-from snapcore.render.renderer import render_depth, render_face_ids, render_still
-from snapcore.render.video import render_video
-from snapcore.select.contacts import ContactTolerances, Interactions, detect_interactions
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
-from snapcore.select.pose import PoseEntropy, PoseSelection, pose_entropy
-from snapcore.select.pose_methods import POSE_METHODS, PoseParams, select_pose
-from snapcore.select.view import ViewSelection, pma_scores, select_view
+from importlib import import_module
+
+# The public names and the module each lives in. They are imported on first use
+# (PEP 562), not here: `import snapcore.anything` runs this file, and importing every
+# layer up front (trimesh, scipy, pyrender) cost seconds on every `snapshot` call,
+# including a `snapshot batch` re-run that has nothing to do.
+_WHERE = {
+    "snapcore.errors": ("BVHError", "SceneError", "SchemaError", "SnapshotError"),
+    "snapcore.motion.bvh": ("BVHDocument", "read_bvh", "write_bvh"),
+    "snapcore.motion.load": ("data_dir", "load_scene"),
+    "snapcore.motion.scene": ("Character", "Scene", "Skeleton"),
+    "snapcore.pipeline": ("Snapshot", "ViewParams", "take_snapshot"),
+    "snapcore.render.body": ("PosedMesh", "SceneBody", "posed_mesh"),
+    "snapcore.render.composites": ("compare_views", "contact_sheet"),
+    "snapcore.render.renderer": ("render_depth", "render_face_ids", "render_still"),
+    "snapcore.render.video": ("render_video",),
+    "snapcore.select.contacts": ("ContactTolerances", "Interactions", "detect_interactions"),
+    "snapcore.select.methods": ("VIEW_METHODS", "ViewMethod"),
+    "snapcore.select.pose": ("PoseEntropy", "PoseSelection", "pose_entropy"),
+    "snapcore.select.pose_methods": ("POSE_METHODS", "PoseParams", "select_pose"),
+    "snapcore.select.view": ("ViewSelection", "pma_scores", "select_view"),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'snapcore' has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(__all__)
+
 
 __version__ = "0.1.0"
 

@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import secrets
 import warnings
@@ -64,12 +63,21 @@ from sqlalchemy import exc as sa_exc
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
 
+from .database import (
+    PROLIFIC_INDEX,
+    configure_sqlite,
+    default_url,
+    events,
+    mask_url,
+    metadata,
+    normalize_url,
+    participants,
+    responses,
+)
 from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
 
-__all__ = ["Store", "default_url", "mask_url", "normalize_url", "SQLITE_BUSY_TIMEOUT_MS"]
+__all__ = ["Store", "default_url", "mask_url", "normalize_url"]
 
-#: How long (ms) a SQLite writer waits for another writer's lock before giving up.
-SQLITE_BUSY_TIMEOUT_MS = 30_000
 #: Seconds to wait for a database server to answer the first connection.
 CONNECT_TIMEOUT_S = 10
 #: Participant ids are ``secrets.token_urlsafe(16)``: 22 characters of [A-Za-z0-9_-].
@@ -80,8 +88,6 @@ COMPLETION_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"
 COMPLETION_CODE_LENGTH = 8
 #: Seeds are stored as signed 64-bit integers.
 MAX_SEED = 2**63 - 1
-#: A bare path with one of these suffixes is accepted as a SQLite database.
-SQLITE_SUFFIXES = (".db", ".sqlite", ".sqlite3")
 #: Export formats by file suffix.
 #: Fields of a response row that the caller gives (the store fills the others).
 TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
@@ -92,117 +98,6 @@ TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
 _DUPLICATE_RETRIES = 3
 PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id",
                  "SESSION_ID": "prolific_session_id"}
-
-_ID = sa.String(64)
-_TEXT = sa.String(200)
-
-
-# ----------------------------------------------------------------------------- schema
-metadata = sa.MetaData()
-
-participants = sa.Table(
-    "participants", metadata,
-    sa.Column("participant_id", _ID, primary_key=True),
-    sa.Column("study_id", _TEXT, nullable=False),
-    sa.Column("seed", sa.BigInteger, nullable=False),
-    sa.Column("prolific_pid", _TEXT),
-    sa.Column("prolific_study_id", _TEXT),
-    sa.Column("prolific_session_id", _TEXT),
-    sa.Column("background", sa.JSON),
-    sa.Column("app_version", _TEXT, nullable=False),
-    sa.Column("manifest_sha256", sa.String(64), nullable=False),
-    sa.Column("simulated", sa.Boolean, nullable=False, default=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
-    sa.Column("completed_at", sa.DateTime(timezone=True)),
-    sa.Column("completion_code", sa.String(64)),
-)
-
-responses = sa.Table(
-    "responses", metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
-              nullable=False),
-    sa.Column("trial_index", sa.Integer, nullable=False),
-    sa.Column("task", sa.String(16), nullable=False),
-    sa.Column("scene", _TEXT, nullable=False),
-    sa.Column("stimulus_id", _TEXT, nullable=False),
-    sa.Column("chosen_frame", sa.Integer),
-    sa.Column("chosen_video_frame", sa.Integer),
-    sa.Column("algorithm_frame", sa.Integer),
-    sa.Column("fps", sa.Float),
-    sa.Column("n_frames", sa.Integer),
-    sa.Column("chosen_method", sa.String(32)),
-    sa.Column("chosen_position", sa.Integer),
-    sa.Column("shown_order", sa.JSON),
-    sa.Column("chosen_value", sa.Text),
-    sa.Column("correct", sa.Boolean),
-    sa.Column("response_time_s", sa.Float, nullable=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
-    sa.Column("app_version", _TEXT, nullable=False),
-    sa.Column("manifest_sha256", sa.String(64), nullable=False),
-    # The guarantee that a re-sent answer cannot become a second row.
-    sa.UniqueConstraint("participant_id", "trial_index", name="uq_responses_participant_trial"),
-)
-
-events = sa.Table(
-    "events", metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
-              nullable=False),
-    sa.Column("trial_index", sa.Integer),
-    sa.Column("kind", sa.String(32), nullable=False),
-    sa.Column("payload", sa.JSON),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
-)
-sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
-#: One Prolific id, one participant per study: a returning participant resumes their
-#: record from any browser (NULLs, i.e. no Prolific id, do not collide).
-PROLIFIC_INDEX = sa.Index("uq_participants_study_prolific", participants.c.study_id,
-                          participants.c.prolific_pid, unique=True)
-
-
-# ----------------------------------------------------------------------------- URLs
-def default_url() -> str:
-    """``$SNAPSHOT_DB`` if set, else SQLite at ``<repo>/var/study.db`` (repo = parent of study_app)."""
-    env = os.environ.get("SNAPSHOT_DB", "").strip()
-    if env:
-        return env
-    path = Path(__file__).resolve().parent.parent / "var" / "study.db"
-    return f"sqlite:///{path}"
-
-
-_PASSWORD_RE = re.compile(r"(://[^:/@\s]*:)[^@\s]*@")
-
-
-def mask_url(url) -> str:
-    """The URL with its password replaced by ``***`` (works on unparsable strings too)."""
-    try:
-        return sa.engine.make_url(url).render_as_string(hide_password=True)
-    except Exception:  # noqa: BLE001 - any unparsable text: mask by pattern
-        return _PASSWORD_RE.sub(r"\1***@", str(url))
-
-
-def normalize_url(url: str | None) -> sa.engine.URL:
-    """Parse a database URL; ``None`` → :func:`default_url`; ``postgresql://`` → psycopg.
-
-    A bare file path ending in ``.db``, ``.sqlite`` or ``.sqlite3`` is taken as a SQLite
-    database file.
-    """
-    text = default_url() if url is None else str(url).strip()
-    if not text:
-        raise StoreError("empty database URL")
-    if "://" not in text and Path(text).suffix.lower() in SQLITE_SUFFIXES:
-        text = f"sqlite:///{Path(text).expanduser().resolve()}"
-    try:
-        parsed = sa.engine.make_url(text)
-    except sa_exc.ArgumentError:
-        raise StoreError(f"{mask_url(text)}: not a database URL "
-                         "(expected e.g. sqlite:///path/study.db or "
-                         "postgresql+psycopg://user@host/db)") from None
-    if parsed.drivername in ("postgresql", "postgres"):
-        parsed = parsed.set(drivername="postgresql+psycopg")
-    return parsed
-
 
 def _one_line(err: BaseException) -> str:
     orig = getattr(err, "orig", None) or err
@@ -320,7 +215,7 @@ class Store:
         except (sa_exc.ArgumentError, TypeError) as err:
             raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
         if self.dialect == "sqlite":
-            _configure_sqlite(engine)
+            configure_sqlite(engine)
         return engine
 
     def _create_tables(self) -> None:
@@ -796,29 +691,6 @@ class Store:
                 "responses": int(sum(by_task.values())),
                 "by_task": {k: int(v) for k, v in sorted(by_task.items())},
                 "simulated": int(n_sim)}
-
-
-def _configure_sqlite(engine: sa.engine.Engine) -> None:
-    """WAL, busy timeout, foreign keys; ``BEGIN IMMEDIATE`` for write transactions."""
-
-    @sa.event.listens_for(engine, "connect")
-    def _on_connect(dbapi_conn, _record):
-        # Let SQLAlchemy's "begin" event emit BEGIN itself (pysqlite would defer it).
-        dbapi_conn.isolation_level = None
-        cur = dbapi_conn.cursor()
-        cur.execute(f"PRAGMA busy_timeout = {SQLITE_BUSY_TIMEOUT_MS}")
-        cur.execute("PRAGMA foreign_keys = ON")
-        cur.execute("PRAGMA journal_mode = WAL")
-        # synchronous stays FULL (the default): a committed answer survives power loss.
-        cur.close()
-
-    @sa.event.listens_for(engine, "begin")
-    def _on_begin(conn):
-        # A deferred transaction that reads and then writes cannot wait for a
-        # concurrent writer (SQLITE_BUSY at once); IMMEDIATE takes the write lock first
-        # and waits on the busy timeout.
-        immediate = conn.get_execution_options().get("snapshot_write", False)
-        conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
 
 
 def _participant_dict(row) -> dict:

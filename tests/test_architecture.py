@@ -30,6 +30,7 @@ LAYERS = {
     "snapcore.relief": 4,
     "snapcore.pipeline": 5,
     "snapcore.bench": 6,
+    "snapcore.batch": 6,  # a library of scenes: pipeline and renders per scene, under the CLI
     "snapcore.cli": 7,
     "snapcore": 8,  # the package itself: the public API, imported by nothing inside
     "study_app": 9,  # study logic: protocol, store, export, stimuli, session, commands

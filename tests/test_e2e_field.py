@@ -44,7 +44,8 @@ from test_e2e import (
     watch_through,
 )
 
-from study_app.protocol import METHODS, estimated_minutes, trial_plan
+from snapcore.select.methods import VIEW_METHODS
+from study_app.protocol import estimated_minutes, trial_plan
 from study_app.stimuli import load_stimuli
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -535,7 +536,7 @@ def test_candidates_same_size_no_methods_in_page(server, browser, artifacts):
         if (w, h) == (390, 844):
             shot(page, "390x844-04b-view-task-sizes")
     html += all_html(page)
-    for word in (*METHODS, "data-method", "view_ours", "entropy", "motion_area"):
+    for word in (*VIEW_METHODS, "data-method", "view_ours", "entropy", "motion_area"):
         assert word not in html, word
     assert store.answered_trials(pid) == {0, 1}
     page.context.close()

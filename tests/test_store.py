@@ -28,8 +28,9 @@ from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
 from snapcore.select.methods import VIEW_METHODS
+from study_app.database import SQLITE_BUSY_TIMEOUT_MS
 from study_app.export import StoreError, export_columns, read_export, write_export
-from study_app.store import SQLITE_BUSY_TIMEOUT_MS, Store, default_url, mask_url, normalize_url
+from study_app.store import Store, default_url, mask_url, normalize_url
 
 SHA = "ab" * 32
 METHODS = [str(m) for m in VIEW_METHODS]

@@ -29,7 +29,6 @@ from snapcore.motion.scene import (
     stature_units,
     tpose_lead_in,
 )
-from snapcore.schema import read_document
 
 __all__ = ["load_scene", "data_dir", "resolve_data_path", "MANIFEST_SUFFIXES", "infer_ground"]
 
@@ -147,6 +146,10 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
     if manifests:
         if len(paths) > 1:
             raise SceneError(f"{manifests[0]}: give either one scene manifest or BVH files, not both")
+        # imported here: jsonschema is only needed for manifests, and finding files
+        # (resolve_data_path, e.g. a `snapshot batch` re-run) should not pay for it
+        from snapcore.schema import read_document
+
         spec = read_document(manifests[0], "scene")
         base = manifests[0].resolve().parent
     else:

@@ -8,10 +8,20 @@
 - :mod:`~snapcore.select.methods` names the view methods the study compares.
 """
 
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
-from snapcore.select.pose import PoseSelection
-from snapcore.select.pose_methods import POSE_METHODS, select_pose
-from snapcore.select.view import ViewSelection, select_view
+from importlib import import_module
+
+# Imported on first use (PEP 562): `snapcore.select.pose` is needed by every command's
+# option parsing, the view search's trimesh only by the commands that search views.
+_WHERE = {"PoseSelection": "pose", "select_pose": "pose_methods", "POSE_METHODS": "pose_methods", "VIEW_METHODS": "methods",
+          "ViewMethod": "methods", "ViewSelection": "view", "select_view": "view"}
 
 __all__ = ["POSE_METHODS", "PoseSelection", "VIEW_METHODS", "ViewMethod", "ViewSelection", "select_pose",
            "select_view"]
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module 'snapcore.select' has no attribute {name!r}")
+    value = getattr(import_module(f"snapcore.select.{_WHERE[name]}"), name)
+    globals()[name] = value
+    return value

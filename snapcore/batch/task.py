@@ -1,0 +1,282 @@
+"""The one task of a batch: a scene's file(s) in, its snapshot, thumbnail and sheet out.
+
+:func:`run_scene` is the function every executor runs, in this process (``--jobs 1``),
+in worker processes (``--jobs N``) or on Dask workers (``--scheduler``): the same code
+path everywhere, so a cluster run gives the same index as a local one. It never raises
+for a bad scene: the failure becomes the row's one-line ``error`` and the rest of the
+library goes on. It writes nothing either: the outputs come back as bytes in the
+:class:`SceneResult` and the process that owns the output folder writes them (so
+workers need no shared output folder and a killed worker leaves no half files).
+
+Rendering: an EGL context works only on the thread that created it
+(../shared/PLATFORM-NOTES.md § Threads), and :func:`snapcore.render.gl.gl_renderer`
+keeps one per thread. :func:`init_worker` creates it once when a worker process starts;
+every scene of that worker then reuses it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import signal
+import time
+import warnings
+from dataclasses import asdict, dataclass, field
+
+from snapcore.batch.discover import SceneSource
+from snapcore.errors import BVHError, SceneError, SnapshotError
+
+__all__ = ["BatchOptions", "SceneTask", "SceneResult", "run_scene", "init_worker",
+           "error_result", "GLTF_UNSUPPORTED", "OUTPUT_FORMAT"]
+
+#: Bumped when the outputs of a scene change meaning: part of every options hash, so a
+#: new format redoes the library instead of mixing old and new outputs.
+OUTPUT_FORMAT = "action-snapshot/batch@1"
+#: The error of a glTF file while the loader cannot read glTF (it reads it as BVH and
+#: fails): once :func:`snapcore.motion.load.load_scene` reads glTF, this is never used.
+GLTF_UNSUPPORTED = "glTF input is not supported by this build"
+#: Longest error text kept in the index (characters).
+MAX_ERROR = 400
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How every scene of a batch is processed (the same for all of them).
+
+    Attributes
+    ----------
+    snapshot : dict
+        Keyword arguments of :func:`snapcore.pipeline.take_snapshot` (``k``,
+        ``min_separation_s``, ``w_local``, ``window_s``, ``baselines``...); the view
+        stage always runs (the thumbnail shows the chosen view).
+    fps : float or None
+        Frame-rate override for every scene (None: each file's or manifest's own).
+    scale : float or None
+        Metres per file unit for every scene (None: inferred per scene).
+    size : (int, int)
+        Thumbnail width and height, pixels.
+    sheet : bool
+        Also render the top-k contact sheet.
+    sheet_size : (int, int)
+        Size of each contact-sheet panel, pixels.
+    """
+
+    snapshot: dict = field(default_factory=dict)
+    fps: float | None = None
+    scale: float | None = None
+    size: tuple[int, int] = (320, 360)
+    sheet: bool = False
+    sheet_size: tuple[int, int] = (320, 360)
+
+    def to_dict(self) -> dict:
+        """JSON-ready options (what the options hash covers)."""
+        d = asdict(self)
+        d["size"], d["sheet_size"] = list(self.size), list(self.sheet_size)
+        return d
+
+    def key(self) -> str:
+        """SHA-256 (hex) of the options and :data:`OUTPUT_FORMAT`: a scene done with
+        the same content hash and the same key is not redone."""
+        doc = {"format": OUTPUT_FORMAT, **self.to_dict()}
+        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class SceneTask:
+    """One scene to process: where it is, how, and the hashes its row will carry."""
+
+    scene: SceneSource
+    options: BatchOptions
+    content_hash: str
+    options_hash: str
+
+
+@dataclass
+class SceneResult:
+    """What :func:`run_scene` returns.
+
+    Attributes
+    ----------
+    row : dict
+        The scene's index row without output paths (see :mod:`snapcore.batch.index`).
+    outputs : dict of str to bytes
+        ``"json"`` (the ``select --json`` document), ``"thumb"`` (PNG), ``"sheet"``
+        (PNG, with ``--sheet``); empty for a failed scene.
+    worker : dict
+        ``pid`` and ``renderer`` (id of the thread's GL renderer) of whoever ran it.
+    """
+
+    row: dict
+    outputs: dict = field(default_factory=dict)
+    worker: dict = field(default_factory=dict)
+
+
+def init_worker(size=(320, 360), *, ignore_sigint: bool = True, threads: int | None = 1):
+    """Set up a worker process: the GL renderer, created once, and the signals.
+
+    Parameters
+    ----------
+    size : (int, int)
+        A size to create the renderer at (every render resizes it as needed).
+    ignore_sigint : bool
+        Ignore Ctrl-C here: the terminal sends it to every process of the group, and
+        the parent, not each worker, decides what to do with it (write the index of
+        what finished, then stop the workers).
+    threads : int or None
+        BLAS and Mesa llvmpipe (software GL) threads per worker (None: leave as is). N
+        workers on N cores, each running a BLAS and a rasteriser with a thread per core,
+        would fight over the cores; one process per core is the parallelism here.
+    """
+    if ignore_sigint:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(threads)
+        # read by Mesa when the GL context is created, just below
+        os.environ.setdefault("LP_NUM_THREADS", str(threads))
+    try:
+        from snapcore.render.gl import gl_renderer
+
+        gl_renderer(*size)
+    except SnapshotError:
+        # no GL here: each scene then fails with the renderer's own one-line reason
+        pass
+
+
+def _one_line(err: BaseException, scene: SceneSource) -> str:
+    """The error as one line, the scene's absolute path shortened to its key."""
+    text = str(err) if isinstance(err, SnapshotError) else f"{type(err).__name__}: {err}"
+    line = (text.strip().splitlines() or [type(err).__name__])[0]
+    line = line.replace(scene.path, scene.key)
+    return line if len(line) <= MAX_ERROR else line[: MAX_ERROR - 1] + "…"
+
+
+def _load(task: SceneTask):
+    from snapcore.motion.load import load_scene
+
+    s, opts = task.scene, task.options
+    if s.kind == "unknown":
+        raise SceneError(f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
+                         "scene manifest .toml/.json)")
+    try:
+        return load_scene([s.path], fps=opts.fps, scale=opts.scale)
+    except BVHError as err:
+        if s.kind == "gltf":  # read as BVH: this build has no glTF reader
+            raise SceneError(f"{s.key}: {GLTF_UNSUPPORTED}") from err
+        raise
+
+
+def _png(image) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(image).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _base_row(task: SceneTask) -> dict:
+    s = task.scene
+    return {"path": s.key, "folder": s.folder, "name": s.key.rsplit("/", 1)[-1],
+            "kind": s.kind, "content_hash": task.content_hash,
+            "options_hash": task.options_hash, "status": "error", "error": None,
+            "warnings": None}
+
+
+def error_result(task: SceneTask, err: BaseException) -> SceneResult:
+    """The result of a scene whose task could not run at all (a worker that died)."""
+    row = _base_row(task)
+    row["error"] = _one_line(err, task.scene)
+    return SceneResult(row=row)
+
+
+def run_scene(task: SceneTask) -> SceneResult:
+    """Process one scene: load, select pose and view, render thumbnail (and sheet).
+
+    Parameters
+    ----------
+    task : SceneTask
+
+    Returns
+    -------
+    SceneResult
+        ``row["status"]`` is ``"ok"``, or ``"error"`` with ``row["error"]`` one line
+        (a malformed file, a scene that cannot be analysed); never raises for those.
+        Timings (seconds): ``t_load_s``, ``t_select_s`` (the pipeline), ``t_render_s``
+        (thumbnail and sheet), ``t_total_s``.
+    """
+    opts = task.options
+    row = _base_row(task)
+    outputs: dict[str, bytes] = {}
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            scene = _load(task)
+            t1 = time.perf_counter()
+            outputs["json"], row_fields, snap = _select(scene, opts)
+            t2 = time.perf_counter()
+            outputs.update(_render(scene, snap, opts))
+            t3 = time.perf_counter()
+        except Exception as err:  # one bad scene must not stop a library of thousands
+            row["error"] = _one_line(err, task.scene)
+            outputs = {}
+        else:
+            row.update(row_fields, status="ok", t_load_s=t1 - t0, t_select_s=t2 - t1,
+                       t_render_s=t3 - t2)
+    row["t_total_s"] = time.perf_counter() - t0
+    notes = list(dict.fromkeys(str(w.message).splitlines()[0] for w in caught))
+    if notes:
+        row["warnings"] = " | ".join(n.replace(task.scene.path, task.scene.key) for n in notes)
+    return SceneResult(row=row, outputs=outputs, worker=_worker(opts))
+
+
+def _select(scene, opts: BatchOptions):
+    """The snapshot document (bytes) and the index fields it gives."""
+    from snapcore.pipeline import take_snapshot
+    from snapcore.schema import validate
+
+    snap = take_snapshot(scene, view=True, **opts.snapshot)
+    doc = snap.to_dict()
+    validate(doc, "snapshot", source=f"{scene.name} snapshot")
+    data = (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
+    fields = {
+        "characters": len(doc["characters"]),
+        "n_frames": doc["n_frames"],
+        "fps": doc["fps"],
+        "duration_s": round(doc["duration_s"], 6),
+        "frame": doc["frame"],
+        "time_s": doc["time_s"],
+        "top_frames": ";".join(str(f) for f in doc["frames"]),
+        "view_x": round(float(doc["view"][0]), 6),
+        "view_y": round(float(doc["view"][1]), 6),
+        "view_z": round(float(doc["view"][2]), 6),
+    }
+    return data, fields, snap
+
+
+def _render(scene, snap, opts: BatchOptions) -> dict[str, bytes]:
+    """Thumbnail of the chosen pose from the chosen view (and the top-k sheet)."""
+    from snapcore.render.renderer import render_still
+
+    out = {"thumb": _png(render_still(scene, snap.index, snap.view, size=opts.size))}
+    if opts.sheet:
+        from snapcore.render.composites import contact_sheet
+
+        entropy = [float(snap.pose.entropy.total[i]) for i in snap.indices]
+        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, entropy=entropy,
+                                          size=opts.sheet_size, title=scene.name))
+    return out
+
+
+def _worker(opts: BatchOptions) -> dict:
+    """Who ran the task: the process and the id of its thread's GL renderer."""
+    try:
+        from snapcore.render.gl import gl_renderer
+
+        renderer = id(gl_renderer(*opts.size))
+    except SnapshotError:
+        renderer = None
+    return {"pid": os.getpid(), "renderer": renderer}

@@ -1,0 +1,169 @@
+"""``snapshot batch``: a whole motion library → snapshots, thumbnails, an index, a gallery."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from snapcore.cli.common import POSITIVE, FiniteFloatRange
+from snapcore.cli.render import parse_size
+from snapcore.cli.select import pose_options
+
+__all__ = ["batch", "snapshot_kwargs"]
+
+#: ``snapshot select`` option names → :func:`snapcore.pipeline.take_snapshot` keywords
+#: (an option not listed here is passed on under its own name).
+_SNAPSHOT_KW = {"min_separation": "min_separation_s", "smooth": "smooth_s"}
+
+
+def snapshot_kwargs(pose: dict, *, window=None, baselines=True) -> dict:
+    """The pipeline's keyword arguments from the pose options of ``snapshot select``."""
+    kw = {_SNAPSHOT_KW.get(k, k): v for k, v in pose.items()}
+    kw.update(window_s=window, baselines=bool(baselines))
+    return kw
+
+
+def _size(ctx, param, value):
+    try:
+        return parse_size(value, "/".join(param.opts))
+    except click.BadParameter as err:
+        raise click.BadParameter(err.message, param=param) from None
+
+
+def _scheduler(ctx, param, value):
+    if value is not None and "://" not in value:
+        raise click.BadParameter(f"expected an address like tcp://HOST:8786, got '{value}'",
+                                 param=param)
+    return value
+
+
+def _out_folder(ctx, param, value):
+    p = Path(value)
+    if p.exists() and not p.is_dir():
+        raise click.BadParameter(f"{value}: is a file, expected a folder", param=param)
+    if not p.exists() and not p.parent.resolve().is_dir():
+        raise click.BadParameter(f"{value}: folder {p.parent} does not exist", param=param)
+    return p
+
+
+def _progress(quiet: bool):
+    """A tqdm bar in scenes/s with ETA; returns the factory :func:`run_batch` wants."""
+    from tqdm import tqdm
+
+    bars = []
+
+    def start(total: int):
+        bar = tqdm(total=total, unit="scenes", desc="batch", disable=quiet or total == 0,
+                   file=sys.stderr, dynamic_ncols=True)
+        bars.append(bar)
+        errors = [0]
+
+        def tick(row):
+            if row["status"] != "ok":
+                errors[0] += 1
+                bar.set_postfix(errors=errors[0], refresh=False)
+            bar.update(1)
+
+        return tick
+
+    def close():
+        for b in bars:
+            b.close()
+
+    return start, close
+
+
+@click.command()
+@click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
+@click.option("-o", "--output", "out", required=True, callback=_out_folder, metavar="OUT/",
+              help="Output folder: index.csv, index.html and scenes/ (created).")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Worker processes on this machine (one GL renderer each).")
+@click.option("--scheduler", default=None, metavar="tcp://HOST:8786", callback=_scheduler,
+              help="Run on this Dask distributed cluster instead (workers need the library "
+                   "at the same path; start them with --nthreads 1).")
+@click.option("--sheet", is_flag=True, help="Also render each scene's top-k contact sheet.")
+@click.option("--size", default="320x360", show_default=True, metavar="WxH", callback=_size,
+              help="Thumbnail size in pixels.")
+@click.option("--sheet-size", default="320x360", show_default=True, metavar="WxH",
+              callback=_size, help="Size of each contact-sheet panel in pixels.")
+@click.option("--fps", type=POSITIVE, default=None,
+              help="Frame rate override for EVERY scene (per-scene rates go in scene "
+                   "manifests).")
+@click.option("--scale", type=POSITIVE, default=None,
+              help="Metres per file unit for every scene (default: inferred per scene).")
+@pose_options
+@click.option("--window", type=FiniteFloatRange(min=0.0), default=None, metavar="SECONDS",
+              help="Score the view over the selected pose ± SECONDS (default: whole sequence).")
+@click.option("--no-baselines", is_flag=True,
+              help="Skip the motion-area and viewpoint-entropy baselines in the JSON (faster).")
+@click.option("--force", is_flag=True, help="Redo every scene, even those already done.")
+@click.option("--retry-errors", is_flag=True,
+              help="Redo the scenes that failed before (e.g. after installing a reader).")
+@click.option("--title", default="Action Snapshot gallery", show_default=True,
+              help="Title of the gallery page.")
+@click.option("--profile", is_flag=True,
+              help="Measure instead: the batch with --jobs 1 and --jobs N (N = --jobs, at "
+                   "least 2) into OUT/profile/, and a loop of separate `snapshot select` + "
+                   "`snapshot render` calls; prints a table and writes OUT/profile.json.")
+@click.option("--profile-loop", type=click.IntRange(min=0), default=3, show_default=True,
+              metavar="N", help="Scenes in the --profile loop of separate calls.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, window,
+          no_baselines, force, retry_errors, title, profile, profile_loop, quiet, **pose):
+    """Snapshot a whole motion library: per scene the `select --json` document and a
+    thumbnail of the chosen pose from the chosen view; an index and a gallery.
+
+    SOURCE is a folder (walked recursively), a glob ('lib/**/*.bvh', quoted), a list
+    file (.txt: one path per line) or a file. BVH and glTF files are scenes, and so
+    are scene manifests (.toml/.json) for multi-character scenes; files a manifest
+    names are not also run alone.
+
+    \b
+    OUT/index.csv   one row per scene (data_schema/batch_index.schema.json)
+    OUT/index.html  the gallery: open it in a browser, no server needed
+    OUT/scenes/     <path>.json, <path>.png and, with --sheet, <path>.sheet.png
+
+    A re-run skips scenes whose files and options are unchanged (--force redoes them).
+    A file that cannot be read is a row with its error; the rest go on. Ctrl-C stops
+    and writes the index of what finished.
+
+    \b
+    Examples:
+      snapshot batch "$SNAPSHOT_DATA" -o gallery/ --jobs 2 --sheet
+      snapshot batch lib/ -o gallery/ --scheduler tcp://scheduler:8786
+    """
+    from snapcore.batch import BatchInterrupted, BatchOptions, discover, run_batch
+    from snapcore.batch.discover import BatchError
+
+    found = discover(sources, exclude=[out])
+    if not found.scenes:
+        raise BatchError(f"no scenes (BVH, glTF or scene manifests) in {', '.join(sources)}")
+    options = BatchOptions(snapshot=snapshot_kwargs(pose, window=window,
+                                                    baselines=not no_baselines),
+                           fps=fps, scale=scale, size=size, sheet=sheet, sheet_size=sheet_size)
+    if profile:
+        from snapcore.batch.profile import format_profile, profile_batch
+
+        result = profile_batch(found.scenes, out, options, loop=profile_loop,
+                               jobs=max(jobs, 2), quiet=quiet)
+        for line in format_profile(result):
+            click.echo(line)
+        return
+    start, close = _progress(quiet)
+    try:
+        report = run_batch(found.scenes, out, options, jobs=jobs, scheduler=scheduler,
+                           force=force, retry_errors=retry_errors, progress=start, title=title)
+    except BatchInterrupted as stop:
+        close()
+        r = stop.report
+        click.echo(f"interrupted: {out / 'index.csv'} lists the {len(r.rows)} scenes that "
+                   f"finished ({r.done} in this run)", err=True)
+        sys.exit(130)
+    close()
+    rate = f", {report.done / report.elapsed_s:.2f} scenes/s" if report.done else ""
+    click.echo(f"{len(report.rows)} scenes: {report.done} processed{rate}, {report.reused} "
+               f"already done, {report.errors} with errors; index {out / 'index.csv'}, "
+               f"gallery {out / 'index.html'}")

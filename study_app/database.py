@@ -1,0 +1,159 @@
+"""The study database: its tables and its address (SQLAlchemy Core).
+
+The schema of the three tables (participants, responses, events) and the parsing of a
+database URL; the queries are all in :mod:`study_app.store`, which documents the
+tables and how they are written.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import sqlalchemy as sa
+from sqlalchemy import exc as sa_exc
+
+from .export import StoreError
+
+__all__ = ["metadata", "participants", "responses", "events", "PROLIFIC_INDEX",
+           "default_url", "mask_url", "normalize_url", "configure_sqlite",
+           "SQLITE_BUSY_TIMEOUT_MS"]
+
+#: How long (ms) a SQLite writer waits for another writer's lock before giving up.
+SQLITE_BUSY_TIMEOUT_MS = 30_000
+#: A bare path with one of these suffixes is accepted as a SQLite database.
+SQLITE_SUFFIXES = (".db", ".sqlite", ".sqlite3")
+
+_ID = sa.String(64)
+_TEXT = sa.String(200)
+
+
+# ----------------------------------------------------------------------------- schema
+metadata = sa.MetaData()
+
+participants = sa.Table(
+    "participants", metadata,
+    sa.Column("participant_id", _ID, primary_key=True),
+    sa.Column("study_id", _TEXT, nullable=False),
+    sa.Column("seed", sa.BigInteger, nullable=False),
+    sa.Column("prolific_pid", _TEXT),
+    sa.Column("prolific_study_id", _TEXT),
+    sa.Column("prolific_session_id", _TEXT),
+    sa.Column("background", sa.JSON),
+    sa.Column("app_version", _TEXT, nullable=False),
+    sa.Column("manifest_sha256", sa.String(64), nullable=False),
+    sa.Column("simulated", sa.Boolean, nullable=False, default=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("completed_at", sa.DateTime(timezone=True)),
+    sa.Column("completion_code", sa.String(64)),
+)
+
+responses = sa.Table(
+    "responses", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
+              nullable=False),
+    sa.Column("trial_index", sa.Integer, nullable=False),
+    sa.Column("task", sa.String(16), nullable=False),
+    sa.Column("scene", _TEXT, nullable=False),
+    sa.Column("stimulus_id", _TEXT, nullable=False),
+    sa.Column("chosen_frame", sa.Integer),
+    sa.Column("chosen_video_frame", sa.Integer),
+    sa.Column("algorithm_frame", sa.Integer),
+    sa.Column("fps", sa.Float),
+    sa.Column("n_frames", sa.Integer),
+    sa.Column("chosen_method", sa.String(32)),
+    sa.Column("chosen_position", sa.Integer),
+    sa.Column("shown_order", sa.JSON),
+    sa.Column("chosen_value", sa.Text),
+    sa.Column("correct", sa.Boolean),
+    sa.Column("response_time_s", sa.Float, nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("app_version", _TEXT, nullable=False),
+    sa.Column("manifest_sha256", sa.String(64), nullable=False),
+    # The guarantee that a re-sent answer cannot become a second row.
+    sa.UniqueConstraint("participant_id", "trial_index", name="uq_responses_participant_trial"),
+)
+
+events = sa.Table(
+    "events", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
+              nullable=False),
+    sa.Column("trial_index", sa.Integer),
+    sa.Column("kind", sa.String(32), nullable=False),
+    sa.Column("payload", sa.JSON),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
+#: One Prolific id, one participant per study: a returning participant resumes their
+#: record from any browser (NULLs, i.e. no Prolific id, do not collide).
+PROLIFIC_INDEX = sa.Index("uq_participants_study_prolific", participants.c.study_id,
+                          participants.c.prolific_pid, unique=True)
+
+
+# ----------------------------------------------------------------------------- URLs
+def default_url() -> str:
+    """``$SNAPSHOT_DB`` if set, else SQLite at ``<repo>/var/study.db`` (repo = parent of study_app)."""
+    env = os.environ.get("SNAPSHOT_DB", "").strip()
+    if env:
+        return env
+    path = Path(__file__).resolve().parent.parent / "var" / "study.db"
+    return f"sqlite:///{path}"
+
+
+_PASSWORD_RE = re.compile(r"(://[^:/@\s]*:)[^@\s]*@")
+
+
+def mask_url(url) -> str:
+    """The URL with its password replaced by ``***`` (works on unparsable strings too)."""
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except Exception:  # noqa: BLE001 - any unparsable text: mask by pattern
+        return _PASSWORD_RE.sub(r"\1***@", str(url))
+
+
+def normalize_url(url: str | None) -> sa.engine.URL:
+    """Parse a database URL; ``None`` → :func:`default_url`; ``postgresql://`` → psycopg.
+
+    A bare file path ending in ``.db``, ``.sqlite`` or ``.sqlite3`` is taken as a SQLite
+    database file.
+    """
+    text = default_url() if url is None else str(url).strip()
+    if not text:
+        raise StoreError("empty database URL")
+    if "://" not in text and Path(text).suffix.lower() in SQLITE_SUFFIXES:
+        text = f"sqlite:///{Path(text).expanduser().resolve()}"
+    try:
+        parsed = sa.engine.make_url(text)
+    except sa_exc.ArgumentError:
+        raise StoreError(f"{mask_url(text)}: not a database URL "
+                         "(expected e.g. sqlite:///path/study.db or "
+                         "postgresql+psycopg://user@host/db)") from None
+    if parsed.drivername in ("postgresql", "postgres"):
+        parsed = parsed.set(drivername="postgresql+psycopg")
+    return parsed
+
+
+def configure_sqlite(engine: sa.engine.Engine) -> None:
+    """WAL, busy timeout, foreign keys; ``BEGIN IMMEDIATE`` for write transactions."""
+
+    @sa.event.listens_for(engine, "connect")
+    def _on_connect(dbapi_conn, _record):
+        # Let SQLAlchemy's "begin" event emit BEGIN itself (pysqlite would defer it).
+        dbapi_conn.isolation_level = None
+        cur = dbapi_conn.cursor()
+        cur.execute(f"PRAGMA busy_timeout = {SQLITE_BUSY_TIMEOUT_MS}")
+        cur.execute("PRAGMA foreign_keys = ON")
+        cur.execute("PRAGMA journal_mode = WAL")
+        # synchronous stays FULL (the default): a committed answer survives power loss.
+        cur.close()
+
+    @sa.event.listens_for(engine, "begin")
+    def _on_begin(conn):
+        # A deferred transaction that reads and then writes cannot wait for a
+        # concurrent writer (SQLITE_BUSY at once); IMMEDIATE takes the write lock first
+        # and waits on the busy timeout.
+        immediate = conn.get_execution_options().get("snapshot_write", False)
+        conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
