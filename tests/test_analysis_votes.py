@@ -272,5 +272,5 @@ def test_near_duplicates_merged_into_one_option():
     assert (dup["options"] == 2).all() and (dup["n"] == 24).all()
     assert dup["chisquare_p"].iloc[0] == pytest.approx(stats.chisquare([19, 5]).pvalue)
     fine = m[m["scene"] == "fine"]
-    assert list(fine["option"]) == list(vt.METHODS) and (fine["options"] == 3).all()
+    assert list(fine["option"]) == [m.value for m in VIEW_METHODS] and (fine["options"] == 3).all()
     assert fine["chisquare_p"].iloc[0] == pytest.approx(stats.chisquare([7, 6, 8]).pvalue)
