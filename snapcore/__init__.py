@@ -12,7 +12,8 @@ from snapcore.motion.bvh import BVHDocument, read_bvh, write_bvh
 from snapcore.motion.load import data_dir, load_scene
 from snapcore.motion.scene import Character, Scene, Skeleton
 from snapcore.pipeline import Snapshot, ViewParams, take_snapshot
-from snapcore.render.body import PosedMesh, SceneBody, posed_mesh
+from snapcore.render.bodies import posed_mesh
+from snapcore.render.body import PosedMesh, SceneBody
 from snapcore.render.composites import compare_views, contact_sheet
 from snapcore.render.renderer import render_depth, render_face_ids, render_still
 from snapcore.render.video import render_video

@@ -78,13 +78,16 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
 def relief_body(scene, frame: int):
     """The body mesh a relief carves: every character at internal ``frame``, finely
     tessellated (:data:`snapcore.render.body.TESSELLATION_FINE`: a relief is read as geometry,
-    and the facets of the rendering body would stand out as ridges in raking light).
+    and the facets of the rendering body would stand out as ridges in raking light), in the
+    scene's body kind (:func:`snapcore.render.bodies.scene_body`: by default the human
+    mesh, smooth as it is).
 
     Returns
     -------
     snapcore.render.body.PosedMesh
     """
-    from snapcore.render.body import TESSELLATION_FINE, scene_body
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.body import TESSELLATION_FINE
 
     return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
 

@@ -242,7 +242,7 @@ def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarra
     frames : array of int, optional
         Internal frames to cover (default: all, subsampled to ``max_frames``).
     body : SceneBody, optional
-        Defaults to :func:`snapcore.render.body.scene_body`.
+        Defaults to :func:`snapcore.render.bodies.scene_body`.
     max_frames : int
         Frames are subsampled evenly to at most this many (the extremes of a motion
         last longer than 1/120 of it, and the joint extremes are added exactly).
@@ -251,7 +251,7 @@ def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarra
     -------
     ndarray of shape (P, 3)
     """
-    from snapcore.render.body import scene_body
+    from snapcore.render.bodies import scene_body
 
     body = body or scene_body(scene)
     if frames is None:

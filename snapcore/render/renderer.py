@@ -477,11 +477,11 @@ class SceneRenderer:
         Draw each body's shadow on the floor (a planar projection along a mostly
         overhead light: cheap, exact, and it shows where feet touch the floor).
     body : SceneBody, optional
-        Default :func:`snapcore.render.body.scene_body`.
+        Default :func:`snapcore.render.bodies.scene_body` (the scene's body kind).
     """
 
     def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None):
-        from snapcore.render.body import scene_body
+        from snapcore.render.bodies import scene_body
 
         pyrender = load_pyrender()
         self.scene = scene
@@ -507,9 +507,11 @@ class SceneRenderer:
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
-            from snapcore.render.body import TESSELLATION_COARSE, SceneBody
+            from snapcore.render.body import TESSELLATION_COARSE
 
-            self._shadow_body = SceneBody(scene, tessellation=TESSELLATION_COARSE)
+            # a coarse mannequin, or the same skinned body (posed once per frame for both)
+            self._shadow_body = scene_body(scene, TESSELLATION_COARSE,
+                                           kind=getattr(self.body, "kind", None))
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:
