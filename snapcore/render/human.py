@@ -46,13 +46,37 @@ from snapcore.motion.skinning import blend_skin, face_incidence, vertex_normals
 from snapcore.render.human_asset import HumanAsset, human_asset
 
 __all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices", "rest_positions",
-           "motion_offsets",
+           "motion_offsets", "LANDMARK_BONES", "landmark_weights",
            "LEFT_LIGHTEN", "RIGHT_DARKEN"]
 
 #: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
 LEFT_LIGHTEN = 0.22
 RIGHT_DARKEN = 0.12
 _SIDES = {"L": "Left", "R": "Right"}
+#: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
+LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
+    f"{limb}_{s}": f"{side}{bone}" for s, side in _SIDES.items() for limb, bone in (
+        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
+        ("elbow", "ForeArm"), ("wrist", "Hand"))}
+#: Nearest rest vertices whose skin weights a landmark borrows.
+LANDMARK_NEIGHBOURS = 8
+
+
+def landmark_weights(asset: HumanAsset, points: np.ndarray, k: int = LANDMARK_NEIGHBOURS):
+    """Skin weights for points inside the body: the inverse-distance blend of the weights
+    of their ``k`` nearest rest vertices, so a joint moves as the surface around it does.
+
+    Returns a sparse (P, B) matrix for :func:`snapcore.motion.skinning.blend_skin`.
+    """
+    from scipy import sparse
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(asset.vertices).query(np.asarray(points, float), k=k)
+    w = 1.0 / np.maximum(d, 1e-9)
+    w /= w.sum(axis=1, keepdims=True)
+    rows = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(len(w)), k), i.ravel())),
+                             shape=(len(w), asset.vertices.shape[0]))
+    return (rows @ asset.weights).tocsr()
 
 
 class RetargetError(SceneError):
@@ -175,6 +199,7 @@ class _Group:
     rig_head: np.ndarray
     rig_tip: np.ndarray
     rest_dir: np.ndarray | None = None  # skeleton rest direction of an untracked group
+    at_tip: bool = False  # anchored at its tip, rig proportions from there (clavicles)
 
 
 class Retarget:
@@ -218,14 +243,18 @@ class Retarget:
         self.align = np.stack([left, up, np.cross(left, up)], axis=1)
         #: the rest skeleton's up direction (pelvis → neck): a lying rest pose (Bandai) too
         self.rest_up = up
-        rig = asset
+        self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
+        self._calibrate()
+
+    @staticmethod
+    def _leg_ratio(lm, rest, rig) -> float:
+        """The skeleton's thigh + shank over the rig's (both legs' mean)."""
         rig_leg = sum(np.linalg.norm(rig.tails[rig.bone(b)] - rig.heads[rig.bone(b)])
                       for b in ("LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg")) / 2
         sk_leg = np.mean([np.linalg.norm(rest[lm[f"knee_{s}"]] - rest[lm[f"hip_{s}"]])
                           + np.linalg.norm(rest[lm[f"ankle_{s}"]] - rest[lm[f"knee_{s}"]])
                           for s in "LR"])
-        self.k = float(sk_leg / rig_leg)  # girth scale: the legs' length ratio
-        self._calibrate()
+        return float(sk_leg / rig_leg)
 
     # ---- construction
     def _groups(self, lm, rest, offsets, sk, rig) -> list[_Group]:
@@ -256,7 +285,14 @@ class Retarget:
                 j = int(sk.parents[j])
             neck_chain = [lm["neck"], *reversed(path)]
             tp = _chain_points(spine, rest, fractions(np.array(torso_rig)))
-            np_ = _chain_points(neck_chain, rest, fractions(np.array(neck_rig)))
+            # The neck bends where the rig's does: its upper bone starts at the rig's
+            # distance (x k) above the neck's base, not half-way up a neck that may be
+            # twice the rig's (CMU's reaches the skull base); the skin at the base of
+            # the neck then turns about the same point on both.
+            seg = np.linalg.norm(np.diff(rest[neck_chain], axis=0), axis=1).sum()
+            rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * self._leg_ratio(lm, rest, rig)
+            mid = min(rig_up / seg, 0.5) if seg > 0 else 0.5
+            np_ = _chain_points(neck_chain, rest, [0.0, mid, 1.0])
         else:  # no neck joint: the rig's neck spreads over the top of the chain
             allp = np.array(torso_rig + neck_rig[1:])
             pts = _chain_points(spine, rest, fractions(allp))
@@ -296,8 +332,11 @@ class Retarget:
                 groups.append(_Group([foot, toe], at(j["ankle"]), at(fk[0]) if fk else None,
                                      j["ankle"], head(foot), tail(toe)))
             sh_parent = j["clavicle"] if j["clavicle"] is not None else int(sk.parents[j["shoulder"]])
+            # The clavicle is anchored at the shoulder joint and keeps the rig's length
+            # inwards: skeletons put their clavicle joint anywhere from the sternum to the
+            # neck base (CMU), and the skin around the neck must not follow that joint.
             groups.append(_Group([f"{side}Shoulder"], at(sh_parent), at(j["shoulder"]), sh_parent,
-                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder")))
+                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder"), at_tip=True))
             groups.append(_Group([f"{side}Arm"], at(j["shoulder"]), at(j["elbow"]), j["shoulder"],
                                  head(f"{side}Arm"), tail(f"{side}Arm")))
             groups.append(_Group([f"{side}ForeArm"], at(j["elbow"]), at(j["wrist"]), j["elbow"],
@@ -348,14 +387,16 @@ class Retarget:
         self._tip_b = np.array([g_all[i].tip.b for i in tracked], dtype=np.int64)
         self._tip_t = np.array([g_all[i].tip.alpha for i in tracked])
         self._ref = np.array([g.ref for g in g_all])
-        self._rig_head = np.array([g.rig_head for g in g_all])
+        self._at_tip = np.array([g.at_tip for g in g_all])
+        self._rig_origin = np.array([g.rig_tip if g.at_tip else g.rig_head for g in g_all])
 
     @staticmethod
     def _point(pos: np.ndarray, p: _Point) -> np.ndarray:
         return (1.0 - p.alpha) * pos[:, p.a] + p.alpha * pos[:, p.b]
 
     # ---- posing
-    def group_matrices(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    def group_matrices(self, positions: np.ndarray, rotations: np.ndarray, *,
+                       stretch: bool = False):
         """Each group's transform (rig rest space → world) for poses: (F, G, 3, 4).
 
         Parameters
@@ -364,6 +405,10 @@ class Retarget:
             World joint positions, metres.
         rotations : ndarray of shape (F, J, 3, 3)
             World joint rotations relative to the rest pose.
+        stretch : bool
+            Also return ``(k - s) · axis`` (F, G, 3), per group: what
+            :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
+            so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
         t = self._head_t[None, :, None]
         h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
@@ -380,14 +425,60 @@ class Retarget:
             sw = swing_matrices(a, np.where(ok[..., None], d, a))
             w[:, self._tracked] = sw @ w[:, self._tracked]
             length[:, self._tracked] = np.where(ok, dist / self.rig_len[self._tracked], self.k)
+            if self._at_tip.any():  # anchored at the tip: rig length, placed from the tip
+                at = self._at_tip[self._tracked]
+                h = h.copy()
+                h[:, self._tracked[at]] = tip[:, at]
+                length[:, self._tracked[at]] = self.k
         scale = np.stack([np.full((f, g), self.k), length, np.full((f, g), self.k)], axis=-1)
         lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
-        trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_head)
-        return np.concatenate([lin, trans[..., None]], axis=-1)
+        trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
+        m = np.concatenate([lin, trans[..., None]], axis=-1)
+        if stretch:
+            return m, (self.k - length)[..., None] * w[..., 1]
+        return m
 
     def bone_matrices(self, positions, rotations) -> np.ndarray:
         """Skinning matrices of the rig's bones: (F, B, 3, 4)."""
         return self.group_matrices(positions, rotations)[:, self.bone_group]
+
+    def stretch_weights(self, points: np.ndarray, weights):
+        """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
+
+        A bone stretched by ``s`` along its axis would carry points below its head (or
+        past its tail) out by ``s`` times their distance too — a neck twice the rig's
+        length would push the skin of the shoulders 10 cm up its axis. Along the axis
+        only the span [head, tail] stretches; beyond it, the distance ``c`` (negative
+        below the head) scales by ``k`` like the girth: ``x' = M x + (k - s) c axis``.
+        """
+        from scipy import sparse
+
+        w = sparse.csr_matrix(weights)
+        rows = np.repeat(np.arange(w.shape[0]), np.diff(w.indptr))
+        g = self.bone_group[w.indices]
+        u = np.einsum("ni,ni->n", self.frames_rig[g][:, :, 1],
+                      np.asarray(points, float)[rows] - self._rig_origin[g])
+        c = np.minimum(u, 0.0) + np.maximum(u - self.rig_len[g], 0.0)
+        c[self._at_tip[g]] = 0.0  # anchored groups do not stretch
+        return sparse.csr_matrix((w.data * c, w.indices, w.indptr), shape=w.shape)
+
+    def skin_points(self, points, weights, stretch_w, positions, rotations) -> np.ndarray:
+        """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
+
+        Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
+        :meth:`stretch_weights`; frames in chunks to bound memory.
+        """
+        f = positions.shape[0]
+        out = np.empty((f, len(points), 3))
+        step = max(1, int(2**25 // max(1, 24 * len(points))))
+        for a in range(0, f, step):
+            b = min(f, a + step)
+            m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
+            out[a:b] = blend_skin(points, weights, m[:, self.bone_group])
+            sb = st[:, self.bone_group]  # (chunk, B, 3)
+            corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
+            out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
+        return out
 
 
 class HumanBody:
@@ -436,10 +527,14 @@ class HumanBody:
     def _incidence(self):
         return face_incidence(self.faces, self.n_vertices)
 
+    @cached_property
+    def _stretch(self):
+        return self.retarget.stretch_weights(self.asset.vertices, self.asset.weights)
+
     def skin(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
         """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3)."""
-        m = self.retarget.bone_matrices(positions, rotations)
-        return blend_skin(self.asset.vertices, self.asset.weights, m)
+        return self.retarget.skin_points(self.asset.vertices, self.asset.weights, self._stretch,
+                                         positions, rotations)
 
     def vertices(self, frame) -> np.ndarray:
         """World vertices (metres) at internal frame(s): (V, 3) or (K, V, 3)."""
@@ -457,3 +552,30 @@ class HumanBody:
     def normals(self, frame) -> np.ndarray:
         """World unit vertex normals at internal frame(s): (V, 3) or (K, V, 3)."""
         return vertex_normals(self.vertices(frame), self.faces, self._incidence)
+
+    def landmarks(self, frames=None) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """The rig's joints after skinning, beside the skeleton's joints they stand for.
+
+        Each landmark is its rig bone's head (:data:`LANDMARK_BONES`), skinned with the
+        weights of the surface around it (:func:`landmark_weights`) — where the body
+        puts the joint, not where the retargeting aims it.
+
+        Returns
+        -------
+        names : list of str
+            Landmark names (``pelvis``, ``knee_L``...).
+        body : ndarray of shape (F, L, 3)
+            Skinned landmark positions, metres.
+        skeleton : ndarray of shape (F, L, 3)
+            The skeleton's joints, metres.
+        """
+        c = self.character
+        frames = np.arange(c.n_frames) if frames is None else np.asarray(frames)
+        names = list(LANDMARK_BONES)
+        a = self.asset
+        pts = np.array([a.heads[a.bone(LANDMARK_BONES[n])] for n in names])
+        w = landmark_weights(a, pts)
+        body = self.retarget.skin_points(pts, w, self.retarget.stretch_weights(pts, w),
+                                         c.positions[frames], c.rotations[frames])
+        joints = [self.retarget.landmarks[n] for n in names]
+        return names, body, c.positions[frames][:, joints]
