@@ -16,8 +16,8 @@ gets its mesh from :func:`scene_body`. The *body kind* is a scene setting,
 (``vertices``/``normals``/``pose``/``trimesh``, merged ``faces`` and colours), so the
 renderer, camera, relief and viewpoint entropy need not know which kinds they draw.
 Skinned bodies ignore the tessellation (their mesh is what it is); the shadow pass and
-the stills then share one body object, and its memo of the last posed frame saves the
-second skinning.
+the stills then share one body object, and its block of posed frames
+(:mod:`snapcore.render.skinned`) saves the second skinning.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from snapcore.render.body import (
     PosedMesh,
 )
 from snapcore.render.human import HumanBody, RetargetError
+from snapcore.render.skinned import FrameBlocks
 
 __all__ = ["BODY_KINDS", "DEFAULT_BODY", "body_kind", "with_body", "SkinnedBody",
            "MixedSceneBody", "character_body", "scene_body", "posed_mesh", "scene_trimesh"]
@@ -60,7 +61,7 @@ def with_body(scene, kind: str | None):
     return scene
 
 
-class SkinnedBody:
+class SkinnedBody(FrameBlocks):
     """A glTF character's own skinned mesh, posable like a ``CharacterBody``.
 
     Parameters
@@ -74,15 +75,11 @@ class SkinnedBody:
     kind = "gltf"
 
     def __init__(self, character, *, color=CHARACTER_COLORS[0]):
-        from snapcore.motion.skinning import face_incidence
-
         self.character = character
         self.mesh = character.meta["mesh"]
         self.faces = self.mesh.faces
         rgba = np.append(np.clip(np.asarray(color, float), 0, 1), 1.0)
         self.face_colors = np.tile(np.round(rgba * 255).astype(np.uint8), (len(self.faces), 1))
-        self._incidence = face_incidence(self.faces, self.mesh.n_vertices)
-        self._memo = None
 
     @property
     def n_vertices(self) -> int:
@@ -92,21 +89,8 @@ class SkinnedBody:
     def n_faces(self) -> int:
         return int(self.faces.shape[0])
 
-    def vertices(self, frame) -> np.ndarray:
-        """World vertices (metres) at internal frame(s): (V, 3) or (K, V, 3)."""
-        key = np.asarray(frame)
-        if self._memo is not None and self._memo[0].shape == key.shape and np.array_equal(
-                self._memo[0], key):
-            return self._memo[1]
-        v = self.mesh.vertices(self.character, key)
-        self._memo = (key.copy(), v)
-        return v
-
-    def normals(self, frame) -> np.ndarray:
-        """World unit vertex normals at internal frame(s): (V, 3) or (K, V, 3)."""
-        from snapcore.motion.skinning import vertex_normals
-
-        return vertex_normals(self.vertices(frame), self.faces, self._incidence)
+    def _pose(self, frames: np.ndarray) -> np.ndarray:
+        return self.mesh.vertices(self.character, frames).astype(np.float32)
 
 
 def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLORS[0],

@@ -42,8 +42,9 @@ import numpy as np
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
 from snapcore.motion.kinematics import quat_to_matrix
-from snapcore.motion.skinning import blend_skin, face_incidence, vertex_normals
+from snapcore.motion.skinning import blend_skin
 from snapcore.render.human_asset import HumanAsset, human_asset
+from snapcore.render.skinned import FrameBlocks
 
 __all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices", "rest_positions",
            "motion_offsets", "LANDMARK_BONES", "landmark_weights",
@@ -58,6 +59,9 @@ LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
     f"{limb}_{s}": f"{side}{bone}" for s, side in _SIDES.items() for limb, bone in (
         ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
         ("elbow", "ForeArm"), ("wrist", "Hand"))}
+#: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
+#: pipeline is float32 anyway.
+DRAW_DTYPE = np.float32
 #: Nearest rest vertices whose skin weights a landmark borrows.
 LANDMARK_NEIGHBOURS = 8
 
@@ -462,26 +466,27 @@ class Retarget:
         c[self._at_tip[g]] = 0.0  # anchored groups do not stretch
         return sparse.csr_matrix((w.data * c, w.indices, w.indptr), shape=w.shape)
 
-    def skin_points(self, points, weights, stretch_w, positions, rotations) -> np.ndarray:
+    def skin_points(self, points, weights, stretch_w, positions, rotations, *,
+                    dtype=np.float64) -> np.ndarray:
         """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
 
         Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
         :meth:`stretch_weights`; frames in chunks to bound memory.
         """
         f = positions.shape[0]
-        out = np.empty((f, len(points), 3))
+        out = np.empty((f, len(points), 3), dtype=dtype)
         step = max(1, int(2**25 // max(1, 24 * len(points))))
         for a in range(0, f, step):
             b = min(f, a + step)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
-            out[a:b] = blend_skin(points, weights, m[:, self.bone_group])
-            sb = st[:, self.bone_group]  # (chunk, B, 3)
+            out[a:b] = blend_skin(points, weights, m[:, self.bone_group], dtype=dtype)
+            sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
             corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
             out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
         return out
 
 
-class HumanBody:
+class HumanBody(FrameBlocks):
     """The human mesh on one character, posable at any frame (like ``CharacterBody``).
 
     Parameters
@@ -513,7 +518,6 @@ class HumanBody:
         self.face_colors = np.round(np.append(self.vertex_rgb[self.faces].mean(axis=1),
                                               np.ones((len(self.faces), 1)), axis=1)
                                     * 255).astype(np.uint8)
-        self._memo: tuple | None = None
 
     @property
     def n_vertices(self) -> int:
@@ -524,34 +528,22 @@ class HumanBody:
         return int(self.faces.shape[0])
 
     @cached_property
-    def _incidence(self):
-        return face_incidence(self.faces, self.n_vertices)
-
-    @cached_property
     def _stretch(self):
         return self.retarget.stretch_weights(self.asset.vertices, self.asset.weights)
 
-    def skin(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-        """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3)."""
+    def skin(self, positions: np.ndarray, rotations: np.ndarray, *,
+             dtype=np.float64) -> np.ndarray:
+        """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3).
+
+        ``dtype=np.float32`` is what drawing uses (:meth:`vertices`): half the memory
+        traffic, errors ~1e-7 m.
+        """
         return self.retarget.skin_points(self.asset.vertices, self.asset.weights, self._stretch,
-                                         positions, rotations)
+                                         positions, rotations, dtype=dtype)
 
-    def vertices(self, frame) -> np.ndarray:
-        """World vertices (metres) at internal frame(s): (V, 3) or (K, V, 3)."""
-        key = np.asarray(frame)
-        if self._memo is not None and self._memo[0].shape == key.shape and np.array_equal(
-                self._memo[0], key):
-            return self._memo[1]
+    def _pose(self, frames: np.ndarray) -> np.ndarray:
         c = self.character
-        idx = np.atleast_1d(key)
-        v = self.skin(c.positions[idx], c.rotations[idx])
-        v = v[0] if key.ndim == 0 else v
-        self._memo = (key.copy(), v)  # the renderer asks for vertices, then normals
-        return v
-
-    def normals(self, frame) -> np.ndarray:
-        """World unit vertex normals at internal frame(s): (V, 3) or (K, V, 3)."""
-        return vertex_normals(self.vertices(frame), self.faces, self._incidence)
+        return self.skin(c.positions[frames], c.rotations[frames], dtype=DRAW_DTYPE)
 
     def landmarks(self, frames=None) -> tuple[list[str], np.ndarray, np.ndarray]:
         """The rig's joints after skinning, beside the skeleton's joints they stand for.
