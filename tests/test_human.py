@@ -51,7 +51,9 @@ def retargeted(all_bvh):
 
 def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
     """On every shared clip, in every frame, each skinned rig joint (the bone head moved
-    with the surface around it) is within 3 cm of the skeleton joint it stands for."""
+    with the surface around it) is within 3 cm of the skeleton joint it stands for (for the
+    neck: the point of the skeleton's pelvis → head chain where the body's neck starts,
+    since skeletons' "neck" joints sit anywhere from mid-chest (CMU) to the neck)."""
     worst = {}
     for name, body in retargeted:
         names, got, want = body.landmarks()

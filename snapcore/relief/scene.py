@@ -87,9 +87,39 @@ def relief_body(scene, frame: int):
     snapcore.render.body.PosedMesh
     """
     from snapcore.render.bodies import scene_body
-    from snapcore.render.body import TESSELLATION_FINE
+    from snapcore.render.body import TESSELLATION_FINE, CharacterBody
 
-    return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
+    body = scene_body(scene, TESSELLATION_FINE)
+    frame = _check_frame(scene, frame)
+    if all(isinstance(b, CharacterBody) for b in body.characters):
+        return body.pose(frame)
+    return _smoothed(body, frame)
+
+
+def _smoothed(body, frame: int):
+    """The posed bodies with skinned meshes Loop-subdivided once (4x the faces): their
+    flat facets would otherwise show as ridges in the relief's raking light, as the
+    mannequin's would without :data:`~snapcore.render.body.TESSELLATION_FINE`."""
+    import trimesh
+
+    from snapcore.motion.skinning import vertex_normals
+    from snapcore.render.body import CharacterBody, PosedMesh
+
+    verts, faces, cols, who = [], [], [], []
+    n0 = 0
+    for i, b in enumerate(body.characters):
+        v = np.asarray(b.vertices(frame), float)
+        f, c = b.faces, b.face_colors
+        if not isinstance(b, CharacterBody):
+            v, f = trimesh.remesh.subdivide_loop(v, f, iterations=1)
+            c = np.repeat(b.face_colors[:1], len(f), axis=0)
+        verts.append(v)
+        faces.append(np.asarray(f) + n0)
+        cols.append(c)
+        who.append(np.full(len(f), i))
+        n0 += len(v)
+    v, f = np.vstack(verts), np.vstack(faces)
+    return PosedMesh(v, f, np.vstack(cols), vertex_normals(v, f), np.concatenate(who))
 
 
 def height_field_from_scene(

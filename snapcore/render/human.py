@@ -194,6 +194,12 @@ def _chain_points(chain, rest, fractions) -> list[_Point]:
     return out
 
 
+def _points_at(chain, rest, arcs) -> list[_Point]:
+    """Points at arc lengths ``arcs`` (metres) along the joint chain (rest positions)."""
+    total = np.linalg.norm(np.diff(rest[list(chain)], axis=0), axis=1).sum()
+    return _chain_points(chain, rest, [a / total if total > 0 else 0.0 for a in arcs])
+
+
 @dataclass
 class _Group:
     bones: list[str]  # rig bones moved by this group's transform
@@ -281,26 +287,34 @@ class Retarget:
             seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
             return np.concatenate([[0.0], np.cumsum(seg)]) / seg.sum()
 
-        spine = lm["spine"]
-        if lm["neck"] is not None:
-            path, j = [], lm["head"]
-            while j != lm["neck"]:
-                path.append(j)
-                j = int(sk.parents[j])
-            neck_chain = [lm["neck"], *reversed(path)]
-            tp = _chain_points(spine, rest, fractions(np.array(torso_rig)))
-            # The neck bends where the rig's does: its upper bone starts at the rig's
-            # distance (x k) above the neck's base, not half-way up a neck that may be
-            # twice the rig's (CMU's reaches the skull base); the skin at the base of
-            # the neck then turns about the same point on both.
-            seg = np.linalg.norm(np.diff(rest[neck_chain], axis=0), axis=1).sum()
-            rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * self._leg_ratio(lm, rest, rig)
-            mid = min(rig_up / seg, 0.5) if seg > 0 else 0.5
-            np_ = _chain_points(neck_chain, rest, [0.0, mid, 1.0])
-        else:  # no neck joint: the rig's neck spreads over the top of the chain
-            allp = np.array(torso_rig + neck_rig[1:])
-            pts = _chain_points(spine, rest, fractions(allp))
-            tp, np_ = pts[:5], pts[4:]
+        # The whole chain pelvis → head joint. Where the neck starts on it is not taken
+        # from the skeleton's "neck" joint: CMU's sits 7 cm BELOW its shoulders (mid-chest),
+        # Daz's and the boxer's near them. The body's neck starts the rig's height above the
+        # shoulders (x k), kept between that joint and half a rig neck below the head, and
+        # the torso's four bones share the chain below that point as on the rig.
+        chain, j = [], lm["head"]
+        while j != lm["pelvis"]:
+            chain.append(j)
+            j = int(sk.parents[j])
+        chain = [lm["pelvis"], *reversed(chain)]
+        k = self._leg_ratio(lm, rest, rig)
+        up = _unit(rest[lm["spine"][-1]] - rest[lm["pelvis"]])
+        height = (rest[chain] - rest[lm["pelvis"]]) @ up
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(rest[chain], axis=0), axis=1))])
+        shoulders = np.mean([rest[lm[f"shoulder_{s}"]] for s in "LR"], axis=0)
+        rig_sh = np.mean([head("LeftArm"), head("RightArm")], axis=0)
+        rig_neck = np.linalg.norm(neck_rig[2] - neck_rig[0])
+        target = (shoulders - rest[lm["pelvis"]]) @ up + (neck_rig[0] - rig_sh)[1] * k
+        lo = height[chain.index(lm["neck"])] if lm["neck"] is not None else 0.0
+        target = float(np.clip(target, lo, height[-1] - 0.5 * rig_neck * k))
+        s_base = float(np.interp(target, np.maximum.accumulate(height), arc))
+        self.neck_base = _points_at(chain, rest, [s_base])[0]
+        tp = _points_at(chain, rest, fractions(np.array(torso_rig)) * s_base)
+        # the neck bends where the rig's does: its upper bone starts the rig's distance
+        # (x k) above the base, so the skin at the base turns about the same point
+        rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * k
+        np_ = _points_at(chain, rest, [s_base, min(s_base + rig_up, (s_base + arc[-1]) / 2),
+                                       arc[-1]])
         torso_bones = ["Hips", "LowerBack", "Spine", "Spine1"]
         for i, b in enumerate(torso_bones):
             groups.append(_Group([b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1]))
@@ -559,7 +573,9 @@ class HumanBody(FrameBlocks):
         body : ndarray of shape (F, L, 3)
             Skinned landmark positions, metres.
         skeleton : ndarray of shape (F, L, 3)
-            The skeleton's joints, metres.
+            The skeleton's joints, metres; for ``neck``, the point of the skeleton's
+            pelvis → head chain where the body's neck starts (:attr:`Retarget.neck_base`:
+            skeletons' own "neck" joints sit anywhere from mid-chest to the neck).
         """
         c = self.character
         frames = np.arange(c.n_frames) if frames is None else np.asarray(frames)
@@ -569,5 +585,8 @@ class HumanBody(FrameBlocks):
         w = landmark_weights(a, pts)
         body = self.retarget.skin_points(pts, w, self.retarget.stretch_weights(pts, w),
                                          c.positions[frames], c.rotations[frames])
-        joints = [self.retarget.landmarks[n] for n in names]
-        return names, body, c.positions[frames][:, joints]
+        pos = c.positions[frames]
+        r = self.retarget
+        skel = np.stack([r._point(pos, r.neck_base) if n == "neck" else pos[:, r.landmarks[n]]
+                         for n in names], axis=1)
+        return names, body, skel
