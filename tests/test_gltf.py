@@ -394,3 +394,37 @@ def test_bad_gltf_is_one_line_naming_the_file_exit_2(bad_runs, case):
     assert rc == 2
     assert len(lines) == 1 and str(path) in lines[0] and message in lines[0], err
     assert "Traceback" not in err
+
+
+def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
+    """A scene manifest with a BVH dancer and the glTF Fox: one scene, the Fox sampled at
+    the BVH's rate, its animation chosen by name, read in centimetres (it is 80 "m" tall
+    in its file), standing on the floor with its paws (mesh), not its joints."""
+    manifest = tmp_path / "mixed.json"
+    manifest.write_text(json.dumps({"name": "mixed", "characters": [
+        {"file": str(motions_dir / "dance" / "05_06.bvh")},
+        {"file": str(motions_dir / "gltf" / "Fox.glb"), "animation": "Run", "offset": [2, 0, 0]},
+    ]}))
+    import warnings
+
+    from snapcore.motion.load import load_scene
+
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        scene = load_scene(manifest, ground=0.0)
+    dancer, fox = scene.characters
+    assert fox.fps == dancer.fps == 120.0
+    assert fox.meta["animation"] == "Run" and fox.meta["unit"] == "cm"
+    assert any("read in cm" in str(w.message) for w in rec)
+    assert scene.n_frames == min(dancer.n_frames, fox.n_frames)
+    # the fox is fox-sized: 0.5-1 m tall, and its mesh carries the offset
+    v = fox.meta["mesh"].vertices(fox, 0)
+    assert 0.5 < np.ptp(v[:, 1]) < 1.0 and 1.5 < v[:, 0].mean() < 2.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        alone = load_scene(motions_dir / "gltf" / "Fox.glb", animation="Walk")
+    f = alone.characters[0]
+    # the ground is where the mesh's lowest points (the paws) are, below every joint
+    low = f.meta["mesh"].vertices(f, np.arange(alone.n_frames))[..., 1].min(axis=1)
+    assert abs(np.percentile(low, 5) - alone.ground) < 1e-9
+    assert f.positions[..., 1].min() > alone.ground + 0.005
