@@ -507,11 +507,13 @@ class SceneRenderer:
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
-            from snapcore.render.body import TESSELLATION_COARSE
+            from snapcore.render.bodies import MixedSceneBody, shadow_body
+            from snapcore.render.body import TESSELLATION_COARSE, SceneBody
 
-            # a coarse mannequin, or the same skinned body (posed once per frame for both)
-            self._shadow_body = scene_body(scene, TESSELLATION_COARSE,
-                                           kind=getattr(self.body, "kind", None))
+            # a coarse mannequin, or a glTF character's own mesh (posed once for both)
+            self._shadow_body = (shadow_body(self.body, TESSELLATION_COARSE)
+                                 if isinstance(self.body, MixedSceneBody)
+                                 else SceneBody(scene, tessellation=TESSELLATION_COARSE))
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:
