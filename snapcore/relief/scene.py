@@ -97,20 +97,23 @@ def relief_body(scene, frame: int):
 
 
 def _smoothed(body, frame: int):
-    """The posed bodies with skinned meshes Loop-subdivided once (4x the faces): their
+    """The posed bodies with the human meshes Loop-subdivided once (4x the faces): their
     flat facets would otherwise show as ridges in the relief's raking light, as the
-    mannequin's would without :data:`~snapcore.render.body.TESSELLATION_FINE`."""
+    mannequin's would without :data:`~snapcore.render.body.TESSELLATION_FINE`. glTF
+    meshes are carved as they are (a low-poly fox is faceted by design, and its
+    unwelded triangles would come apart under subdivision)."""
     import trimesh
 
     from snapcore.motion.skinning import vertex_normals
-    from snapcore.render.body import CharacterBody, PosedMesh
+    from snapcore.render.body import PosedMesh
+    from snapcore.render.human import HumanBody
 
     verts, faces, cols, who = [], [], [], []
     n0 = 0
     for i, b in enumerate(body.characters):
         v = np.asarray(b.vertices(frame), float)
         f, c = b.faces, b.face_colors
-        if not isinstance(b, CharacterBody):
+        if isinstance(b, HumanBody):  # a closed, smooth mesh; glTF ones may be unwelded
             v, f = trimesh.remesh.subdivide_loop(v, f, iterations=1)
             c = np.repeat(b.face_colors[:1], len(f), axis=0)
         verts.append(v)
