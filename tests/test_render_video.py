@@ -189,7 +189,7 @@ def test_contact_sheet_puts_the_floor_on_one_row():
     """Panels of a jump at one scale, each moved so the floor point under its pose is on
     the same image row (the airborne pose then stands higher than the crouch), and every
     pose still inside its panel."""
-    from snapcore.render.body import scene_body
+    from snapcore.render.bodies import scene_body  # the body the renderer draws
     from snapcore.render.composites import common_cameras, floor_aligned
 
     scene = synth.synth_scene("jump", fps=30)

@@ -285,7 +285,8 @@ def _video_salsa_100(ctx: BenchContext):
 
 
 @case("render: video 1280x720 two salsa dancers, 1000 frames", target_ms=60000.0,
-      note="timed once, no warm-up (~35-40 s)", max_repeats=1, warmup=False)
+      note="human bodies (the default since issue 15); timed once, no warm-up",
+      max_repeats=1, warmup=False)
 def _video_salsa_1000(ctx: BenchContext):
     return _video_case(ctx, 1000)
 

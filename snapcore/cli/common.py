@@ -58,8 +58,24 @@ class FiniteFloatRange(click.FloatRange):
         return super().convert(v, param, ctx)
 
 
+def _stash(ctx, param, value):
+    """Keep ``--body``/``--animation`` for :func:`scene_from_options` (not passed to the
+    command function: every command gets them without changing its signature)."""
+    ctx.meta[f"snapshot.{param.name}"] = value
+    return value
+
+
 def scene_arguments(f):
-    """Decorate a command with ``PATH...`` plus ``--fps`` and ``--scale``."""
+    """Decorate a command with ``PATH...`` plus ``--fps``, ``--scale``, ``--body`` and
+    ``--animation``."""
+    f = click.option("--animation", default=None, metavar="NAME", expose_value=False,
+                     callback=_stash,
+                     help="glTF/GLB characters: the animation to play (name or index; "
+                          "default the first; `snapshot info` lists them).")(f)
+    f = click.option("--body", type=click.Choice(["human", "mannequin"]), default=None,
+                     expose_value=False, callback=_stash,
+                     help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
+                          "characters wear their own) or the capsule 'mannequin'.")(f)
     f = click.option("--scale", type=POSITIVE, default=None,
                      help="Metres per file unit (default: inferred from the characters' stature).")(f)
     f = click.option("--fps", type=POSITIVE, default=None,
@@ -70,8 +86,16 @@ def scene_arguments(f):
 
 
 def scene_from_options(paths, fps=None, scale=None):
-    """Load the scene named by a command's PATH arguments and options."""
-    return load_scene(list(paths), fps=fps, scale=scale)
+    """Load the scene named by a command's PATH arguments and options (``--animation``
+    and ``--body`` are read from the click context when a command is running)."""
+    ctx = click.get_current_context(silent=True)
+    meta = ctx.meta if ctx is not None else {}
+    scene = load_scene(list(paths), fps=fps, scale=scale,
+                       animation=meta.get("snapshot.animation"))
+    body = meta.get("snapshot.body")
+    if body is not None:
+        scene.meta["body"] = body  # read by snapcore.render.bodies.body_kind
+    return scene
 
 
 def _default(o):

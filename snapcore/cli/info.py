@@ -29,7 +29,9 @@ def scene_summary(scene) -> dict:
                 "height_m": c.height,
                 "scale_m_per_unit": c.scale,
                 "unit": c.meta.get("unit", "given"),
-                "source": c.source.path if c.source is not None else None,
+                "source": c.source.path if c.source is not None else c.meta.get("path"),
+                "animation": c.meta.get("animation"),
+                "animations": list(c.meta.get("animations", [])),
             }
             for c in scene.characters
         ],
@@ -43,8 +45,8 @@ def scene_summary(scene) -> dict:
 def info(paths, fps, scale, as_json):
     """Summarise a scene: characters, joints, frames, fps, duration, height, bounds.
 
-    PATH is one or more BVH files (several = one multi-character scene) or one scene
-    manifest (.toml/.json).
+    PATH is one or more BVH or glTF/GLB files (several = one multi-character scene) or
+    one scene manifest (.toml/.json). For glTF characters it lists the animations.
     """
     scene = scene_from_options(paths, fps, scale)
     s = scene_summary(scene)
@@ -65,3 +67,6 @@ def info(paths, fps, scale, as_json):
     for c in s["characters"]:
         click.echo(f"character   {c['name']}: {c['n_joints']} joints ({c['n_end_sites']} end sites), "
                    f"height {c['height_m']:.2f} m, {c['scale_m_per_unit']:.4g} m/unit ({c['unit']})")
+        if c["animations"]:
+            click.echo(f"animations  {', '.join(c['animations'])} (playing {c['animation']}; "
+                       "--animation NAME picks one)")

@@ -36,6 +36,9 @@ __all__ = [
     "joint_roles",
     "bone_role",
     "left_right_pairs",
+    "LIMB_ROLES",
+    "REQUIRED_LANDMARKS",
+    "body_landmarks",
 ]
 
 #: Stature (m) of the reference adult: tolerances given "for a 1.70 m person" scale by
@@ -216,3 +219,87 @@ def left_right_pairs(names, parents) -> dict[str, tuple[int, int] | None]:
         return None
 
     return {"hip": pair("thigh"), "shoulder": pair("upperarm", "clavicle")}
+
+
+#: Limb joints looked up per side by :func:`body_landmarks`: landmark name → role.
+LIMB_ROLES = {
+    "clavicle": "clavicle",
+    "shoulder": "upperarm",
+    "elbow": "forearm",
+    "wrist": "hand",
+    "hip": "thigh",
+    "knee": "shin",
+    "ankle": "foot",
+    "toe": "toe",
+}
+#: Landmarks a skeleton must have to carry a human body (retargeting).
+REQUIRED_LANDMARKS = ("pelvis", "head", *(f"{n}_{s}" for s in "LR" for n in (
+    "shoulder", "elbow", "wrist", "hip", "knee", "ankle")))
+
+
+def body_landmarks(names, parents) -> dict[str, int | None]:
+    """The joints a human body is fitted to, found by role and side.
+
+    Parameters
+    ----------
+    names : sequence of str, length J
+    parents : array of int, shape (J,)
+
+    Returns
+    -------
+    dict
+        Joint index (or None when the skeleton has none) for ``pelvis`` (the first
+        unsided pelvis joint: ``Hips``, ``hip``), ``neck`` (the first neck joint on the
+        way from the head down to the pelvis: the base of the neck), ``head`` (the first
+        head joint that is not an end site), ``spine`` (a tuple: the joints from the
+        pelvis up to ``neck``, or to ``head`` when there is no neck, both ends
+        included) and, for side ``s`` in ``L``/``R``, ``<limb>_s`` for every limb of
+        :data:`LIMB_ROLES` (``hip_L`` is the left thigh joint, ``wrist_R`` the first
+        right hand joint...). A limb joint is searched among the descendants of the one
+        before it (the knee below the hip...), so a stray joint of the same role
+        elsewhere is not taken.
+    """
+    parents = np.asarray(parents)
+    roles, sides = joint_roles(names, parents), joint_sides(names)
+    end = [bool(re.search(r"_end$", str(n), re.I)) for n in names]
+    n = len(names)
+
+    def ancestors(j):
+        out = []
+        while j >= 0:
+            out.append(j)
+            j = int(parents[j])
+        return out
+
+    def first(role, side="", below=None):
+        for j in range(n):
+            if roles[j] == role and sides[j] == side and not end[j] and (
+                    below is None or below in ancestors(j)):
+                return j
+        return None
+
+    out: dict = {"pelvis": first("pelvis"), "head": first("head")}
+    neck = None
+    if out["head"] is not None:
+        for j in ancestors(out["head"])[1:]:
+            if roles[j] == "neck":
+                neck = j  # keeps the lowest neck joint on the way down
+    out["neck"] = neck
+    top = neck if neck is not None else out["head"]
+    spine = ()
+    if out["pelvis"] is not None and top is not None and out["pelvis"] in ancestors(top):
+        chain = ancestors(top)
+        spine = tuple(reversed(chain[: chain.index(out["pelvis"]) + 1]))
+    out["spine"] = spine
+    for side in "LR":
+        prev = None
+        for limb in ("clavicle", "shoulder", "elbow", "wrist"):
+            j = first(LIMB_ROLES[limb], side, prev)
+            out[f"{limb}_{side}"] = j
+            prev = j if j is not None else prev
+        prev = None
+        for limb in ("hip", "knee", "ankle", "toe"):
+            j = first(LIMB_ROLES[limb], side, prev)
+            out[f"{limb}_{side}"] = j
+            prev = j if j is not None else prev
+    return out

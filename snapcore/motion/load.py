@@ -1,9 +1,10 @@
-"""Loading scenes: BVH files or a scene manifest → :class:`~snapcore.motion.scene.Scene`.
+"""Loading scenes: BVH/glTF files or a scene manifest → :class:`~snapcore.motion.scene.Scene`.
 
 This is the I/O edge of the motion core. ``load_scene`` accepts
 
-- one or more BVH paths (several files = one multi-character scene sharing a world
-  frame, e.g. a two-person capture), or
+- one or more BVH or skinned glTF/GLB paths (several files = one multi-character scene
+  sharing a world frame, e.g. a two-person capture; glTF characters carry their own
+  mesh, :mod:`snapcore.motion.gltf`), or
 - one scene manifest (``.toml`` or ``.json``, schema ``data_schema/scene.schema.json``)
   naming files with per-character offset, yaw, fps and scale, the ground height and
   optional props.
@@ -22,6 +23,13 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.bvh import read_bvh
+from snapcore.motion.gltf import (
+    GLTF_SUFFIXES,
+    MAX_HEIGHT_M,
+    gltf_unit,
+    lowest_points,
+    read_gltf,
+)
 from snapcore.motion.scene import (
     Scene,
     character_from_bvh,
@@ -108,7 +116,7 @@ def infer_ground(positions: list[np.ndarray]) -> float:
 
 def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | None = None,
                ground: float | None = None, drop_tpose: bool | None = None,
-               name: str | None = None) -> Scene:
+               name: str | None = None, animation: str | None = None) -> Scene:
     """Load a scene from BVH files or a scene manifest.
 
     Parameters
@@ -125,6 +133,9 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
         Drop an added T-pose first frame (default True, or the manifest's value).
     name : str, optional
         Scene name (default: the manifest's name or the first file's stem).
+    animation : str, optional
+        The animation of every glTF character (name or index; default each entry's
+        ``animation``, else the file's first).
 
     Returns
     -------
@@ -132,7 +143,7 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
 
     Raises
     ------
-    BVHError, SchemaError, SceneError
+    BVHError, GLTFError, SchemaError, SceneError
         With a one-line message naming the file and what is wrong.
     """
     if isinstance(paths_or_manifest, (str, os.PathLike)):
@@ -156,29 +167,45 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
         spec = {"characters": [{"file": str(p)} for p in paths]}
         base = None
     return _build(spec, base, fps=fps, scale=scale, ground=ground, drop_tpose=drop_tpose,
-                  name=name, source=str(manifests[0]) if manifests else None)
+                  name=name, source=str(manifests[0]) if manifests else None,
+                  animation=animation)
 
 
-def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene:
+def _is_gltf(path) -> bool:
+    return Path(path).suffix.lower() in GLTF_SUFFIXES
+
+
+def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animation) -> Scene:
     entries = spec["characters"]
-    docs = []
+    docs, paths = [], []
     for e in entries:
         path = resolve_data_path(e["file"], base)
         if not path.exists():
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
-        docs.append(read_bvh(path))
+        paths.append(path)
+        docs.append(None if _is_gltf(path) else read_bvh(path))
     # Forward kinematics once, in file units; positions scale linearly afterwards.
-    probes = [character_from_bvh(d, scale=1.0, name=e.get("name"),
-                                 fps=fps or e.get("fps") or spec.get("fps"))
-              for d, e in zip(docs, entries)]
+    bvh_fps = [d.fps for d in docs if d is not None]
+    probes = []
+    for d, e, path in zip(docs, entries, paths):
+        rate = fps or e.get("fps") or spec.get("fps")
+        if d is None:  # glTF: sampled at the BVH characters' rate when mixed with them
+            probes.append(read_gltf(path, animation=animation or e.get("animation"),
+                                    fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
+                                    name=e.get("name")))
+        else:
+            probes.append(character_from_bvh(d, scale=1.0, name=e.get("name"), fps=rate))
+    is_gltf = [d is None for d in docs]
     # One scale for the scene unless given per character: people captured together
-    # must keep their distances.
+    # must keep their distances. glTF is in metres (its own rule, gltf_unit).
     scene_scale = scale or spec.get("scale")
     how = "given"
-    if scene_scale is None and not all("scale" in e for e in entries):
-        statures = [stature_units(p.skeleton, p.positions) for p in probes]
-        _warn_unit_mismatch(probes, statures)
+    bvh_probes = [p for p, g in zip(probes, is_gltf) if not g]
+    if scene_scale is None and bvh_probes and not all(
+            "scale" in e for e, g in zip(entries, is_gltf) if not g):
+        statures = [stature_units(p.skeleton, p.positions) for p in bvh_probes]
+        _warn_unit_mismatch(bvh_probes, statures)
         scene_scale, how = infer_scale(statures)
         if how == "fitted":
             warnings.warn(
@@ -188,9 +215,18 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
             )
     chars = []
     used_names: set[str] = set()
-    for probe, e in zip(probes, entries):
-        c = probe.rescaled(scale or e.get("scale") or scene_scale)
-        c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
+    for probe, e, g in zip(probes, entries, is_gltf):
+        if g and not (scale or e.get("scale") or spec.get("scale")):
+            metres, unit = gltf_unit(probe)
+            c = probe.rescaled(metres)
+            c.meta["unit"] = unit
+            if unit != "m":
+                warnings.warn(f"{probe.meta['path']}: read in {unit}, not in metres as glTF "
+                              f"specifies: in metres '{probe.name}' would be taller than "
+                              f"{MAX_HEIGHT_M:g} m. Pass --scale to override.", stacklevel=3)
+        else:
+            c = probe.rescaled(scale or e.get("scale") or scene_scale)
+            c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
         if c.name in used_names:
             c.name = f"{c.name}_{len(chars)}"
         used_names.add(c.name)
@@ -229,17 +265,20 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
         why_cut = "the scene manifest's frames range starts there"
     drop = drop_tpose if drop_tpose is not None else spec.get("drop_tpose", True)
     if drop and offset == 0:
-        cut = tpose_lead_in([c.positions for c in chars], chars[0].fps)
+        # glTF animations have no added T-pose; only BVH characters are checked
+        cut = tpose_lead_in([c.positions for c, g in zip(chars, is_gltf) if not g], chars[0].fps)
         if cut:
             chars = [c.frames(cut, None) for c in chars]
             offset = cut
             why_cut = ("they are an added T-pose and the blend out of it "
                        "(drop_tpose = false in a scene manifest keeps them)")
     if chars[0].n_frames < 1:
-        raise SceneError(f"{source or docs[0].path}: no frames left to analyse")
+        raise SceneError(f"{source or paths[0]}: no frames left to analyse")
     g = ground if ground is not None else spec.get("ground")
     if g is None:
-        g = infer_ground([c.positions for c in chars])
+        # a glTF character stands on its mesh (soles, paws), not on its joints
+        g = infer_ground([lowest_points(c) if gl else c.positions
+                          for c, gl in zip(chars, is_gltf)])
     scene_name = name or spec.get("name") or chars[0].name
     return Scene(
         characters=chars,
@@ -248,6 +287,6 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source) -> Scene
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,
-        meta={"source": source or [str(d.path) for d in docs], "unit": how,
+        meta={"source": source or [str(p) for p in paths], "unit": how,
               **({"cut": why_cut} if offset else {})},
     )

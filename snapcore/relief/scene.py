@@ -21,7 +21,7 @@ from snapcore.relief.height_field import (
     height_from_depth,
     relief_from_height_field,
 )
-from snapcore.render.body import TESSELLATION_FINE, scene_body
+from snapcore.render.body import TESSELLATION_FINE
 from snapcore.render.camera import view_basis
 from snapcore.render.renderer import render_depth
 
@@ -79,13 +79,51 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
 def relief_body(scene, frame: int):
     """The body mesh a relief carves: every character at internal ``frame``, finely
     tessellated (:data:`snapcore.render.body.TESSELLATION_FINE`: a relief is read as geometry,
-    and the facets of the rendering body would stand out as ridges in raking light).
+    and the facets of the rendering body would stand out as ridges in raking light), in the
+    scene's body kind (:func:`snapcore.render.bodies.scene_body`: by default the human
+    mesh, smooth as it is).
 
     Returns
     -------
     snapcore.render.body.PosedMesh
     """
-    return scene_body(scene, TESSELLATION_FINE).pose(_check_frame(scene, frame))
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.body import CharacterBody
+
+    body = scene_body(scene, TESSELLATION_FINE)
+    frame = _check_frame(scene, frame)
+    if all(isinstance(b, CharacterBody) for b in body.characters):
+        return body.pose(frame)
+    return _smoothed(body, frame)
+
+
+def _smoothed(body, frame: int):
+    """The posed bodies with the human meshes Loop-subdivided once (4x the faces): their
+    flat facets would otherwise show as ridges in the relief's raking light, as the
+    mannequin's would without :data:`~snapcore.render.body.TESSELLATION_FINE`. glTF
+    meshes are carved as they are (a low-poly fox is faceted by design, and its
+    unwelded triangles would come apart under subdivision)."""
+    import trimesh
+
+    from snapcore.motion.skinning import vertex_normals
+    from snapcore.render.body import PosedMesh
+    from snapcore.render.human import HumanBody
+
+    verts, faces, cols, who = [], [], [], []
+    n0 = 0
+    for i, b in enumerate(body.characters):
+        v = np.asarray(b.vertices(frame), float)
+        f, c = b.faces, b.face_colors
+        if isinstance(b, HumanBody):  # a closed, smooth mesh; glTF ones may be unwelded
+            v, f = trimesh.remesh.subdivide_loop(v, f, iterations=1)
+            c = np.repeat(b.face_colors[:1], len(f), axis=0)
+        verts.append(v)
+        faces.append(np.asarray(f) + n0)
+        cols.append(c)
+        who.append(np.full(len(f), i))
+        n0 += len(v)
+    v, f = np.vstack(verts), np.vstack(faces)
+    return PosedMesh(v, f, np.vstack(cols), vertex_normals(v, f), np.concatenate(who))
 
 
 def height_field_from_scene(

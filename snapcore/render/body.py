@@ -464,6 +464,8 @@ class SceneBody:
     >>> tm = body.trimesh(120)                   # trimesh.Trimesh with face colours
     """
 
+    kind = "mannequin"
+
     def __init__(self, scene, *, colors=None, tessellation=TESSELLATION):
         self.scene = scene
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)

@@ -19,7 +19,6 @@ import numpy as np
 
 from snapcore.errors import RenderError
 from snapcore.motion.facing import scene_facing
-from snapcore.render.body import scene_body
 from snapcore.render.gl import load_pyrender
 
 __all__ = [
@@ -242,7 +241,7 @@ def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarra
     frames : array of int, optional
         Internal frames to cover (default: all, subsampled to ``max_frames``).
     body : SceneBody, optional
-        Defaults to :func:`snapcore.render.body.scene_body`.
+        Defaults to :func:`snapcore.render.bodies.scene_body`.
     max_frames : int
         Frames are subsampled evenly to at most this many (the extremes of a motion
         last longer than 1/120 of it, and the joint extremes are added exactly).
@@ -251,6 +250,8 @@ def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarra
     -------
     ndarray of shape (P, 3)
     """
+    from snapcore.render.bodies import scene_body
+
     body = body or scene_body(scene)
     if frames is None:
         frames = np.arange(scene.n_frames)

@@ -38,7 +38,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import RenderError
-from snapcore.render.body import TESSELLATION_COARSE, SceneBody, scene_body
 from snapcore.render.camera import (
     POLE_COS,
     Camera,
@@ -478,10 +477,12 @@ class SceneRenderer:
         Draw each body's shadow on the floor (a planar projection along a mostly
         overhead light: cheap, exact, and it shows where feet touch the floor).
     body : SceneBody, optional
-        Default :func:`snapcore.render.body.scene_body`.
+        Default :func:`snapcore.render.bodies.scene_body` (the scene's body kind).
     """
 
     def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None):
+        from snapcore.render.bodies import scene_body
+
         pyrender = load_pyrender()
         self.scene = scene
         self.size = check_size(size)
@@ -506,7 +507,13 @@ class SceneRenderer:
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
-            self._shadow_body = SceneBody(scene, tessellation=TESSELLATION_COARSE)
+            from snapcore.render.bodies import MixedSceneBody, shadow_body
+            from snapcore.render.body import TESSELLATION_COARSE, SceneBody
+
+            # a coarse mannequin, or a glTF character's own mesh (posed once for both)
+            self._shadow_body = (shadow_body(self.body, TESSELLATION_COARSE)
+                                 if isinstance(self.body, MixedSceneBody)
+                                 else SceneBody(scene, tessellation=TESSELLATION_COARSE))
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import SnapshotError
-from snapcore.render.body import posed_mesh
+from snapcore.render.bodies import posed_mesh
 from snapcore.render.renderer import render_face_ids
 from snapcore.select.view import view_sphere
 
@@ -176,7 +176,8 @@ def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
         Render and score the views below ``min_elevation_deg`` too (for maps); by
         default they are skipped (NaN scores).
     mesh : object with ``vertices`` (N, 3) and ``faces`` (M, 3), optional
-        The mesh to use instead of :func:`snapcore.render.body.posed_mesh` of the scene.
+        The mesh to use instead of :func:`snapcore.render.bodies.posed_mesh` of the scene
+        (the scene's body kind: the human body by default).
 
     Returns
     -------

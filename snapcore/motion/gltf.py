@@ -1,0 +1,523 @@
+"""Skinned, animated glTF 2.0 characters (``.glb``/``.gltf``) → :class:`Character`.
+
+A glTF file is read into one character: its joints are the union of the joints of
+every skin in the file (BrainStem has 59 skins over one skeleton), ordered parents
+first; the joint hierarchy is the node hierarchy restricted to them. One animation
+(``animation=`` name or index; default the first) is sampled at ``fps`` (default
+:data:`DEFAULT_FPS`) from its first to its last key time, every node's local
+translation/rotation/scale by its channel's interpolation
+(:mod:`snapcore.motion.gltf_sample`), then world transforms are composed down the node
+tree for all frames at once (a loop over nodes, never over frames).
+
+The character carries its own skinned mesh, :class:`SkinnedMesh` in
+``character.meta["mesh"]``: bind-pose vertices, faces, sparse weights over *slots*
+(one per (skin, joint) pair, with that skin's inverse bind matrix — optional in the
+spec, identity when absent) and the character joint of each slot. Posing it is
+:func:`snapcore.motion.skinning.blend_skin` with ``M_k = G_joint(k) · IBM_k``, where the
+joint's world transform ``G = [scale · s · R | p]`` is rebuilt from the character's
+``positions``/``rotations`` — so a character moved, turned or rescaled by a scene
+manifest carries its mesh along. Meshes without a skin that hang below a joint node are
+attached rigidly to it (a slot whose "inverse bind matrix" is the mesh's rest pose
+relative to that joint).
+
+Units: glTF is in metres (spec §3.4); the file unit is taken as given (scale 1) unless a
+scene manifest or ``--scale`` says otherwise. Y is up, as in the rest of the suite.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import sparse
+
+from snapcore.errors import GLTFError
+from snapcore.motion.gltf_access import Buffers
+from snapcore.motion.gltf_sample import INTERPOLATIONS, quat_normalize, sample_curve
+from snapcore.motion.kinematics import matrix_to_quat
+from snapcore.motion.scene import Character, Skeleton
+from snapcore.motion.skinning import blend_skin, weight_matrix
+
+__all__ = ["read_gltf", "gltf_animations", "SkinnedMesh", "node_world_matrices",
+           "lowest_points", "gltf_unit", "GLTF_SUFFIXES", "DEFAULT_FPS", "MAX_HEIGHT_M"]
+
+GLTF_SUFFIXES = (".glb", ".gltf")
+#: Sampling rate (frames per second) of glTF animations when none is given.
+DEFAULT_FPS = 30.0
+#: A glTF character taller than this (metres) is taken to be written in centimetres (or
+#: millimetres): the spec says metres, but exporters often write cm (the Fox sample is
+#: 80 "metres" tall).
+MAX_HEIGHT_M = 4.0
+#: glTF primitive modes: 4 triangles, 5 triangle strip, 6 triangle fan.
+_TRIANGLE_MODES = (4, 5, 6)
+
+
+@dataclass(eq=False)
+class SkinnedMesh:
+    """A character's own skinned mesh.
+
+    Attributes
+    ----------
+    rest : ndarray of shape (V, 3)
+        Bind-pose vertices (file units, the space inverse bind matrices map from).
+    faces : ndarray of int, shape (M, 3)
+    weights : scipy.sparse.csr_matrix of shape (V, K)
+        Skin weights over K slots, rows summing to 1.
+    slot_joint : ndarray of int, shape (K,)
+        Character joint index of each slot.
+    inverse_bind : ndarray of shape (K, 4, 4)
+        Inverse bind matrix of each slot.
+    joint_scale : ndarray of shape (J,)
+        Each joint's world scale in the file (the rotations are pure; glTF nodes may
+        scale), a constant per joint.
+    """
+
+    rest: np.ndarray
+    faces: np.ndarray
+    weights: sparse.csr_matrix
+    slot_joint: np.ndarray
+    inverse_bind: np.ndarray
+    joint_scale: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.rest.shape[0])
+
+    def matrices(self, character, frames) -> np.ndarray:
+        """Skinning matrices of every slot at ``frames``: (F, K, 3, 4) (or (K, 3, 4))."""
+        rot = character.rotations[frames][..., self.slot_joint, :, :]
+        pos = character.positions[frames][..., self.slot_joint, :]
+        s = (character.scale * self.joint_scale[self.slot_joint])[:, None, None]
+        g = np.concatenate([rot * s, pos[..., None]], axis=-1)  # (..., K, 3, 4)
+        return g[..., :3] @ self.inverse_bind[:, :3, :] + np.concatenate(
+            [np.zeros(g.shape[:-1] + (3,)), g[..., 3:]], axis=-1)
+
+    def vertices(self, character, frames) -> np.ndarray:
+        """World vertices (metres) at ``frames``: (V, 3) for one frame, (F, V, 3) for many."""
+        return blend_skin(self.rest, self.weights, self.matrices(character, frames))
+
+
+# --------------------------------------------------------------------------- nodes
+
+
+def _local_trs(node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A node's rest translation (3,), rotation (4,) xyzw, scale (3,)."""
+    if node.matrix is not None:
+        m = np.asarray(node.matrix, float).reshape(4, 4).T  # column-major
+        t = m[:3, 3]
+        lin = m[:3, :3]
+        s = np.linalg.norm(lin, axis=0)
+        r = lin / np.where(s > 0, s, 1.0)
+        if np.linalg.det(r) < 0:
+            s[0], r[:, 0] = -s[0], -r[:, 0]
+        from scipy.spatial.transform import Rotation
+
+        return t, Rotation.from_matrix(r).as_quat(), s
+    t = np.asarray(node.translation if node.translation is not None else (0, 0, 0), float)
+    q = np.asarray(node.rotation if node.rotation is not None else (0, 0, 0, 1), float)
+    s = np.asarray(node.scale if node.scale is not None else (1, 1, 1), float)
+    return t, quat_normalize(q), s
+
+
+def _trs_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """4 x 4 matrices ``T · R · S`` from (..., 3), (..., 4) xyzw, (..., 3)."""
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    r = np.empty(q.shape[:-1] + (3, 3))
+    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    r[..., 0, 1] = 2 * (x * y - w * z)
+    r[..., 0, 2] = 2 * (x * z + w * y)
+    r[..., 1, 0] = 2 * (x * y + w * z)
+    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    r[..., 1, 2] = 2 * (y * z - w * x)
+    r[..., 2, 0] = 2 * (x * z - w * y)
+    r[..., 2, 1] = 2 * (y * z + w * x)
+    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    m = np.zeros(q.shape[:-1] + (4, 4))
+    m[..., :3, :3] = r * s[..., None, :]
+    m[..., :3, 3] = t
+    m[..., 3, 3] = 1.0
+    return m
+
+
+def _node_parents(gltf, buffers: Buffers) -> np.ndarray:
+    n = len(gltf.nodes or [])
+    parent = np.full(n, -1, dtype=int)
+    for i, node in enumerate(gltf.nodes or []):
+        for c in node.children or []:
+            if not 0 <= c < n:
+                raise buffers.error(f"node {i} has child {c}, which does not exist")
+            if parent[c] >= 0:
+                raise buffers.error(f"node {c} has two parents ({parent[c]} and {i})")
+            parent[c] = i
+    return parent
+
+
+def _topological(parent: np.ndarray, buffers: Buffers) -> list[int]:
+    """Node indices with every parent before its children (refusing cycles)."""
+    depth = np.full(parent.size, -1)
+    for i in range(parent.size):
+        chain, j = [], i
+        while j >= 0 and depth[j] < 0:
+            if j in chain:
+                raise buffers.error(f"the node hierarchy has a cycle through node {j}")
+            chain.append(j)
+            j = parent[j]
+        base = -1 if j < 0 else depth[j]
+        for k, node in enumerate(reversed(chain)):
+            depth[node] = base + 1 + k
+    return sorted(range(parent.size), key=lambda i: (depth[i], i))
+
+
+def node_world_matrices(local: np.ndarray, parent: np.ndarray, order) -> np.ndarray:
+    """World matrices of every node: (F, N, 4, 4) from local (F, N, 4, 4), parents first."""
+    world = np.empty_like(local)
+    for i in order:
+        p = parent[i]
+        world[:, i] = local[:, i] if p < 0 else world[:, p] @ local[:, i]
+    return world
+
+
+# --------------------------------------------------------------------------- animation
+
+
+def gltf_animations(gltf) -> list[str]:
+    """Names of a document's animations (``animation_<i>`` for unnamed ones)."""
+    return [a.name or f"animation_{i}" for i, a in enumerate(gltf.animations or [])]
+
+
+def _pick_animation(gltf, animation, buffers: Buffers):
+    names = gltf_animations(gltf)
+    if animation is None:
+        return (0, names[0]) if names else (None, None)
+    if not names:
+        raise buffers.error(f"has no animations (asked for '{animation}')")
+    if str(animation) in names:
+        return names.index(str(animation)), str(animation)
+    if str(animation).isdigit() and int(animation) < len(names):
+        return int(animation), names[int(animation)]
+    raise buffers.error(f"no animation '{animation}' (it has: {', '.join(names)})")
+
+
+def _sample_animation(gltf, index, buffers: Buffers, rest_trs, fps: float, name: str):
+    """Local T, R (xyzw), S of every node at the sample times: (F, N, 3|4|3)."""
+    n = len(rest_trs[0])
+    if index is None:
+        return [x[None] for x in rest_trs]
+    anim = gltf.animations[index]
+    curves = []
+    for c, ch in enumerate(anim.channels or []):
+        path = ch.target.path
+        if ch.target.node is None or path == "weights":
+            continue  # morph weights do not move joints; a channel with no node is ignored
+        if not 0 <= ch.target.node < n:
+            raise buffers.error(f"animation '{name}' channel {c} targets node "
+                                f"{ch.target.node}, which does not exist")
+        if path not in ("translation", "rotation", "scale"):
+            raise buffers.error(f"animation '{name}' channel {c}: unknown target path {path!r}")
+        if not 0 <= ch.sampler < len(anim.samplers or []):
+            raise buffers.error(f"animation '{name}' channel {c}: sampler {ch.sampler} does not exist")
+        smp = anim.samplers[ch.sampler]
+        interp = smp.interpolation or "LINEAR"
+        if interp not in INTERPOLATIONS:
+            raise buffers.error(f"animation '{name}' sampler {ch.sampler}: unknown interpolation "
+                                f"'{interp}' (glTF 2.0 has {', '.join(INTERPOLATIONS)})")
+        times = buffers.floats(smp.input, f"animation '{name}' sampler {ch.sampler} input")
+        values = buffers.floats(smp.output, f"animation '{name}' sampler {ch.sampler} output")
+        curves.append((ch.target.node, path, times, values.reshape(values.shape[0], -1), interp))
+    if not curves:
+        return [x[None] for x in rest_trs]
+    t0 = min(float(c[2][0]) for c in curves if c[2].size)
+    t1 = max(float(c[2][-1]) for c in curves if c[2].size)
+    count = int(np.floor((t1 - t0) * fps + 1e-6)) + 1
+    t = t0 + np.arange(count) / fps
+    out = [np.repeat(x[None], count, axis=0) for x in rest_trs]
+    slot = {"translation": 0, "rotation": 1, "scale": 2}
+    for node, path, times, values, interp in curves:
+        try:
+            v = sample_curve(times, values, interp, t, rotation=path == "rotation")
+        except ValueError as err:
+            raise buffers.error(f"animation '{name}' {path} of node {node}: {err}") from None
+        width = 4 if path == "rotation" else 3
+        if v.shape[1] != width:
+            raise buffers.error(f"animation '{name}' {path} of node {node} has {v.shape[1]} "
+                                f"components, expected {width}")
+        out[slot[path]][:, node] = v
+    return out
+
+
+# --------------------------------------------------------------------------- meshes
+
+
+def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
+    if mode == 4:
+        return indices.reshape(-1, 3)
+    if mode == 5:  # strip: alternate winding
+        k = np.arange(indices.size - 2)
+        tri = np.stack([indices[k], indices[k + 1], indices[k + 2]], axis=1)
+        odd = k % 2 == 1
+        tri[odd] = tri[odd][:, [1, 0, 2]]
+        return tri
+    k = np.arange(1, indices.size - 1)  # fan
+    return np.stack([np.full(k.size, indices[0]), indices[k], indices[k + 1]], axis=1)
+
+
+def _primitive_arrays(gltf, buffers: Buffers, mi: int):
+    """(positions, faces, [(joints, weights), ...]) of every triangle primitive of mesh mi."""
+    meshes = gltf.meshes or []
+    if not 0 <= mi < len(meshes):
+        raise buffers.error(f"mesh {mi} does not exist")
+    out = []
+    for pi, prim in enumerate(meshes[mi].primitives or []):
+        mode = 4 if prim.mode is None else prim.mode
+        if mode not in _TRIANGLE_MODES:
+            continue  # points and lines have no surface
+        attrs = prim.attributes
+        if attrs.POSITION is None:
+            raise buffers.error(f"mesh {mi} primitive {pi} has no POSITION")
+        pos = buffers.floats(attrs.POSITION, f"mesh {mi} primitive {pi} POSITION")
+        if prim.indices is not None:
+            idx = np.asarray(buffers.accessor(prim.indices), dtype=np.int64).ravel()
+        else:
+            idx = np.arange(pos.shape[0])
+        if idx.size and (idx.min() < 0 or idx.max() >= pos.shape[0]):
+            raise buffers.error(f"mesh {mi} primitive {pi}: indices past its {pos.shape[0]} vertices")
+        faces = _triangles(idx, mode)
+        influences = []
+        for k in range(4):
+            j = getattr(attrs, f"JOINTS_{k}", None)
+            w = getattr(attrs, f"WEIGHTS_{k}", None)
+            if j is None or w is None:
+                break
+            influences.append((np.asarray(buffers.accessor(j), dtype=np.int64),
+                               buffers.floats(w, f"mesh {mi} primitive {pi} WEIGHTS_{k}")))
+        out.append((pos, faces, influences))
+    return out
+
+
+def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_scale) -> SkinnedMesh:
+    rest_v, faces, bones, wts = [], [], [], []
+    ibms, slot_joint = [], []
+    n_v = 0
+    for ni, node in enumerate(gltf.nodes or []):
+        if node.mesh is None:
+            continue
+        prims = _primitive_arrays(gltf, buffers, node.mesh)
+        if node.skin is not None:
+            skins = gltf.skins or []
+            if not 0 <= node.skin < len(skins):
+                raise buffers.error(f"node {ni} uses skin {node.skin}, which does not exist")
+            skin = skins[node.skin]
+            sj = [joint_index[j] for j in skin.joints]
+            if skin.inverseBindMatrices is not None:
+                ibm = buffers.floats(skin.inverseBindMatrices, f"skin {node.skin} inverseBindMatrices")
+                if ibm.shape != (len(sj), 4, 4):
+                    raise buffers.error(f"skin {node.skin}: {ibm.shape[0]} inverse bind matrices "
+                                        f"for {len(sj)} joints")
+            else:
+                ibm = np.repeat(np.eye(4)[None], len(sj), axis=0)  # spec: identity when absent
+            base = len(slot_joint)
+            slot_joint += sj
+            ibms.append(ibm)
+            for pos, f, infl in prims:
+                if not infl:
+                    raise buffers.error(f"mesh {node.mesh} is skinned but has no JOINTS_0/WEIGHTS_0")
+                jj = np.concatenate([j for j, _ in infl], axis=1)
+                ww = np.concatenate([w for _, w in infl], axis=1)
+                if np.any(jj[ww != 0] >= len(sj)):
+                    raise buffers.error(f"mesh {node.mesh}: a joint index is past skin "
+                                        f"{node.skin}'s {len(sj)} joints")
+                rest_v.append(pos)
+                faces.append(f + n_v)
+                bones.append(np.where(ww != 0, jj, 0) + base)
+                wts.append(ww)
+                n_v += pos.shape[0]
+            continue
+        # an unskinned mesh below a joint moves rigidly with that joint
+        a = parent[ni]
+        while a >= 0 and a not in joint_index:
+            a = parent[a]
+        if a < 0:
+            warnings.warn(f"{buffers.path}: mesh of node {ni} is attached to no joint; left out",
+                          stacklevel=4)
+            continue
+        slot = len(slot_joint)
+        slot_joint.append(joint_index[a])
+        # vertex in mesh space → world at rest → joint space at rest
+        ibms.append((np.linalg.inv(rest_world[a]) @ rest_world[ni])[None])
+        for pos, f, _ in prims:
+            rest_v.append(pos)
+            faces.append(f + n_v)
+            bones.append(np.full((pos.shape[0], 1), slot))
+            wts.append(np.ones((pos.shape[0], 1)))
+            n_v += pos.shape[0]
+    if not rest_v:
+        raise buffers.error("has no triangle mesh attached to its skeleton")
+    width = max(b.shape[1] for b in bones)
+    pad = [(np.pad(b, ((0, 0), (0, width - b.shape[1]))), np.pad(w, ((0, 0), (0, width - w.shape[1]))))
+           for b, w in zip(bones, wts)]
+    # skins that share joints and bind poses (BrainStem: 59 skins, one skeleton) share slots
+    ibm = np.concatenate(ibms, axis=0)
+    key = np.concatenate([np.asarray(slot_joint, float)[:, None], ibm.reshape(-1, 16).round(9)], 1)
+    _, first, remap = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    slot_joint, ibm = np.asarray(slot_joint, dtype=np.int64)[first], ibm[first]
+    weights = weight_matrix(remap.ravel()[np.vstack([b for b, _ in pad])],
+                            np.vstack([w for _, w in pad]), len(first))
+    if np.any(np.asarray(weights.sum(axis=1)).ravel() == 0):
+        warnings.warn(f"{buffers.path}: some vertices have no skin weight; they stay at the origin",
+                      stacklevel=4)
+    return SkinnedMesh(rest=np.vstack(rest_v), faces=np.vstack(faces).astype(np.int64),
+                       weights=weights, slot_joint=slot_joint, inverse_bind=ibm,
+                       joint_scale=world_scale)
+
+
+# --------------------------------------------------------------------------- reader
+
+
+def _load(path: Path):
+    import pygltflib
+
+    if not path.is_file():
+        raise GLTFError("no such file", path=str(path))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            g = pygltflib.GLTF2().load(str(path))
+    except Exception as err:  # pygltflib raises struct, JSON, Unicode, Key... errors alike
+        raise GLTFError(f"not a readable glTF/GLB file ({type(err).__name__}: {err})",
+                        path=str(path)) from err
+    if g is None or not isinstance(g.nodes, list):
+        raise GLTFError("not a readable glTF/GLB file (no JSON document)", path=str(path))
+    if g.asset is not None and g.asset.version and not str(g.asset.version).startswith("2"):
+        raise GLTFError(f"glTF version {g.asset.version} is not supported (2.0 is)", path=str(path))
+    return g
+
+
+def read_gltf(path, *, animation: str | int | None = None, fps: float | None = None,
+              name: str | None = None) -> Character:
+    """Read a skinned glTF 2.0 / GLB file as a :class:`Character` carrying its mesh.
+
+    Parameters
+    ----------
+    path : str or path-like
+    animation : str or int, optional
+        Animation name (or index); default the first. A file without animations gives
+        one frame, the rest pose.
+    fps : float, optional
+        Sampling rate, frames per second (default :data:`DEFAULT_FPS`).
+    name : str, optional
+        Character name (default: the file's stem).
+
+    Returns
+    -------
+    Character
+        Positions (F, J, 3) and rotations in the file's unit (``scale`` 1), ``meta``
+        with ``mesh`` (:class:`SkinnedMesh`), ``animation`` (the chosen name),
+        ``animations`` (all names) and ``format`` ``"gltf"``.
+
+    Raises
+    ------
+    GLTFError
+        One line naming the file and what is wrong: unreadable or truncated file, no
+        skin, a missing buffer, an unknown interpolation or animation.
+    """
+    path = Path(path)
+    g = _load(path)
+    buffers = Buffers(g, path)
+    fps = float(fps or DEFAULT_FPS)
+    nodes = g.nodes or []
+    if not g.skins:
+        raise buffers.error("has no skin: only skinned characters can be read")
+    parent = _node_parents(g, buffers)
+    order = _topological(parent, buffers)
+    joint_set = set()
+    for si, skin in enumerate(g.skins):
+        for j in skin.joints or []:
+            if not 0 <= j < len(nodes):
+                raise buffers.error(f"skin {si} names joint node {j}, which does not exist")
+            joint_set.add(j)
+    if not joint_set:
+        raise buffers.error("its skins have no joints")
+    joints = [i for i in order if i in joint_set]
+    joint_index = {node: k for k, node in enumerate(joints)}
+    jparent = []
+    for node in joints:
+        a = parent[node]
+        while a >= 0 and a not in joint_index:
+            a = parent[a]
+        jparent.append(joint_index[a] if a >= 0 else -1)
+    jparent = np.asarray(jparent, dtype=int)
+
+    rest = [np.array(x) for x in zip(*[_local_trs(n) for n in nodes])]  # T, R, S: (N, ·)
+    a_idx, a_name = _pick_animation(g, animation, buffers)
+    t, r, s = _sample_animation(g, a_idx, buffers, rest, fps, a_name)
+    world = node_world_matrices(_trs_matrix(t, r, s), parent, order)  # (F, N, 4, 4)
+    rest_world = node_world_matrices(_trs_matrix(*rest)[None], parent, order)[0]
+
+    jw = world[:, joints]  # (F, J, 4, 4)
+    lin = jw[..., :3, :3]
+    # pure rotations by polar decomposition (glTF nodes may scale); the scale is kept apart
+    u, sv, vt = np.linalg.svd(lin)
+    rot = u @ vt
+    flip = np.linalg.det(rot) < 0
+    if np.any(flip):
+        u[flip, :, -1] *= -1
+        rot = u @ vt
+    scale_fj = np.cbrt(np.abs(np.linalg.det(lin)))  # (F, J) isotropic world scale
+    joint_scale = np.median(scale_fj, axis=0)
+    if np.any(np.abs(scale_fj / np.where(joint_scale > 0, joint_scale, 1) - 1) > 1e-3) or np.any(
+            sv.max(-1) > sv.min(-1) * (1 + 1e-3)):
+        warnings.warn(f"{path}: joints scale non-uniformly or over time; the mesh follows their "
+                      "median uniform scale", stacklevel=2)
+    pos = jw[..., :3, 3]
+    par_rot = np.where((jparent >= 0)[None, :, None, None], rot[:, np.maximum(jparent, 0)],
+                       np.eye(3))
+    local_rot = np.swapaxes(par_rot, -1, -2) @ rot
+    rel = pos - np.where((jparent >= 0)[None, :, None], pos[:, np.maximum(jparent, 0)], 0.0)
+    offsets = np.median(np.einsum("fjki,fjk->fji", par_rot, rel), axis=0)
+    skeleton = Skeleton(names=tuple(nodes[i].name or f"node_{i}" for i in joints), parents=jparent,
+                        offsets=offsets, end_site=np.zeros(len(joints), dtype=bool))
+    mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale)
+    return Character(
+        name=name or path.stem,
+        skeleton=skeleton,
+        positions=pos,
+        rotations=rot,
+        local_rotations=local_rot,
+        fps=fps,
+        scale=1.0,
+        source=None,
+        meta={"format": "gltf", "path": str(path), "mesh": mesh, "animation": a_name,
+              "animations": gltf_animations(g)},
+        local_quaternions=matrix_to_quat(local_rot),
+    )
+
+
+def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np.ndarray:
+    """World positions of the mesh vertices that can touch the floor, at every frame.
+
+    The vertices that are among the ``per_frame`` lowest in any of (up to)
+    ``max_frames`` sampled frames, skinned at all frames: (F, n, 3), metres. Cheap
+    where skinning the whole mesh at every frame is not (BrainStem: 34k vertices).
+    """
+    mesh = character.meta["mesh"]
+    f = np.unique(np.linspace(0, character.n_frames - 1,
+                              min(character.n_frames, max_frames)).round().astype(int))
+    v = mesh.vertices(character, f)  # (S, V, 3)
+    k = min(per_frame, v.shape[1])
+    low = np.unique(np.argpartition(v[..., 1], k - 1, axis=1)[:, :k])
+    sub = SkinnedMesh(mesh.rest[low], mesh.faces[:0], mesh.weights[low], mesh.slot_joint,
+                      mesh.inverse_bind, mesh.joint_scale)
+    return sub.vertices(character, np.arange(character.n_frames))
+
+
+def gltf_unit(character) -> tuple[float, str]:
+    """Metres per unit of a glTF character: 1 (``"m"``, as the spec says) unless its
+    mesh is taller than :data:`MAX_HEIGHT_M`, then centimetres or millimetres."""
+    mesh = character.meta["mesh"]
+    height = float(np.ptp(mesh.vertices(character, 0)[:, 1]))
+    for unit, metres in (("m", 1.0), ("cm", 0.01), ("mm", 0.001)):
+        if height * metres <= MAX_HEIGHT_M:
+            return metres, unit
+    return 0.001, "mm"

@@ -1,0 +1,592 @@
+"""A human body on any humanoid skeleton: the MakeHuman mesh retargeted and skinned.
+
+The body (:mod:`snapcore.render.human_asset`: 13,380 vertices, 26,756 triangles, a
+31-bone CMU-style rig in an A-pose) is fitted to a motion-capture skeleton by joint
+*roles* (:func:`snapcore.motion.anatomy.body_landmarks`), so CMU cgspeed, Daz/Poser,
+3ds Max, Bandai and assimp skeletons all carry it without name tables.
+
+Retargeting
+-----------
+Rig bones move in *groups* (a bone, or a rigid piece such as the hand with its fingers,
+or foot and toe on a skeleton without toes). Each group has a head and, where the
+skeleton has one, a tip on the skeleton: a joint, or a point along the spine's chain of
+joints at the same fraction of its length as on the rig (the rig's spine has four
+bones, a BVH spine two to four). Calibrated once on the skeleton's rest pose (BVH:
+offsets with identity rotations):
+
+- ``G`` turns the rig's frame (left +X, up +Y, facing +Z) onto the rest skeleton's
+  (left-right hip axis, pelvis → neck);
+- ``Q_g = swing(G y_g → s_g) · G`` turns the group's rig axis ``y_g`` onto the
+  skeleton's rest direction ``s_g`` by the smallest rotation (an A-pose arm onto a
+  T-pose arm), keeping the twist.
+
+At frame ``f`` the group's frame is ``W = swing(a → d) · R_ref(f) · Q_g · A_g``: the
+rotation of its reference joint (the joint at its head) carries the twist, and a small
+swing puts its axis exactly on the skeleton's current head → tip direction ``d``
+(``a`` is where the reference rotation alone puts it). Lengths: along the axis, the
+skeleton's head-tip distance over the rig's; across it, ``k`` = the skeleton's
+thigh + shank over the rig's (so a taller person is also broader); untracked groups
+(head, hands) scale by ``k`` all round. A rig point ``x`` then moves to
+``h(f) + W diag(k, s, k) A_g^T (x - head_g)``: every bone head lands on its skeleton
+joint, and linear blend skinning (:func:`snapcore.motion.skinning.blend_skin`)
+deforms the mesh between them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from snapcore.errors import SceneError
+from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
+from snapcore.motion.kinematics import quat_to_matrix
+from snapcore.motion.skinning import blend_skin
+from snapcore.render.human_asset import HumanAsset, human_asset
+from snapcore.render.skinned import FrameBlocks
+
+__all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices", "rest_positions",
+           "motion_offsets", "LANDMARK_BONES", "landmark_weights",
+           "LEFT_LIGHTEN", "RIGHT_DARKEN"]
+
+#: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
+LEFT_LIGHTEN = 0.22
+RIGHT_DARKEN = 0.12
+_SIDES = {"L": "Left", "R": "Right"}
+#: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
+LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
+    f"{limb}_{s}": f"{side}{bone}" for s, side in _SIDES.items() for limb, bone in (
+        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
+        ("elbow", "ForeArm"), ("wrist", "Hand"))}
+#: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
+#: pipeline is float32 anyway.
+DRAW_DTYPE = np.float32
+#: Nearest rest vertices whose skin weights a landmark borrows.
+LANDMARK_NEIGHBOURS = 8
+
+
+def landmark_weights(asset: HumanAsset, points: np.ndarray, k: int = LANDMARK_NEIGHBOURS):
+    """Skin weights for points inside the body: the inverse-distance blend of the weights
+    of their ``k`` nearest rest vertices, so a joint moves as the surface around it does.
+
+    Returns a sparse (P, B) matrix for :func:`snapcore.motion.skinning.blend_skin`.
+    """
+    from scipy import sparse
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(asset.vertices).query(np.asarray(points, float), k=k)
+    w = 1.0 / np.maximum(d, 1e-9)
+    w /= w.sum(axis=1, keepdims=True)
+    rows = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(len(w)), k), i.ravel())),
+                             shape=(len(w), asset.vertices.shape[0]))
+    return (rows @ asset.weights).tocsr()
+
+
+class RetargetError(SceneError):
+    """A skeleton the human body cannot be fitted to (a required joint is missing).
+
+    Attributes
+    ----------
+    missing : list of str
+        Landmarks not found (``hip_L``, ``head``...).
+    unmapped : list of str
+        The skeleton's joints whose role no name pattern recognised.
+    """
+
+    def __init__(self, character: str, missing, unmapped):
+        self.missing = list(missing)
+        self.unmapped = list(unmapped)
+        names = ", ".join(self.unmapped) if self.unmapped else "none"
+        super().__init__(f"character '{character}': no joint for {', '.join(self.missing)} "
+                         f"(joints with no known role: {names})")
+
+
+def rest_positions(parents, offsets) -> np.ndarray:
+    """Joint positions of a skeleton in its rest pose (identity rotations), (J, 3)."""
+    parents = np.asarray(parents)
+    out = np.zeros((len(parents), 3))
+    for j, p in enumerate(parents):
+        out[j] = offsets[j] + (out[p] if p >= 0 else 0.0)
+    return out
+
+
+def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
+    """Each joint's offset from its parent in the parent's frame, as the motion has it.
+
+    The median over (up to ``max_frames``) frames of ``R_parent^T (p_joint - p_parent)``:
+    the header offset for most BVH files, but the position channels' value where every
+    joint has them (Bandai: the header offsets are not the bones). Roots get their
+    median position. Shape (J, 3), metres.
+    """
+    c = character
+    f = np.unique(np.linspace(0, c.n_frames - 1, min(c.n_frames, max_frames)).round().astype(int))
+    parents = np.asarray(c.skeleton.parents)
+    pos, rot = c.positions[f], c.rotations[f]
+    has = parents >= 0
+    pp = np.maximum(parents, 0)
+    rel = np.einsum("fjki,fjk->fji", rot[:, pp], pos - pos[:, pp])
+    out = np.median(rel, axis=0)
+    out[~has] = np.median(pos[:, ~has], axis=0)
+    return out
+
+
+def _unit(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 1e-12, n, 1.0)
+
+
+def swing_matrices(a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Smallest rotations taking unit vectors ``a`` to ``d``: (..., 3) → (..., 3, 3).
+
+    The half-way quaternion ``(1 + a·d, a × d)`` normalised; for opposite vectors (no
+    unique smallest rotation) a half turn about an axis perpendicular to ``a``.
+    """
+    a, d = _unit(np.asarray(a, float)), _unit(np.asarray(d, float))
+    w = 1.0 + np.sum(a * d, axis=-1, keepdims=True)
+    xyz = np.cross(a, d)
+    opposite = w[..., 0] < 1e-9
+    if np.any(opposite):
+        helper = np.where(np.abs(a[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        perp = _unit(np.cross(a, helper))
+        xyz = np.where(opposite[..., None], perp, xyz)
+        w = np.where(opposite[..., None], 0.0, w)
+    q = np.concatenate([w, xyz], axis=-1)
+    return quat_to_matrix(q / np.linalg.norm(q, axis=-1, keepdims=True))
+
+
+def _frame(axis: np.ndarray) -> np.ndarray:
+    """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``."""
+    y = _unit(axis)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = _unit(np.cross(y, helper))
+    return np.stack([x, y, np.cross(x, y)], axis=1)
+
+
+@dataclass(frozen=True)
+class _Point:
+    """A point on the skeleton: ``(1 - alpha) p[a] + alpha p[b]``."""
+
+    a: int
+    b: int
+    alpha: float = 0.0
+
+
+def _chain_points(chain, rest, fractions) -> list[_Point]:
+    """Points at arc-length ``fractions`` along the joint chain (rest positions)."""
+    chain = list(chain)
+    if len(chain) == 1:
+        return [_Point(chain[0], chain[0]) for _ in fractions]
+    seg = np.linalg.norm(np.diff(rest[chain], axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    total = cum[-1]
+    out = []
+    for fr in fractions:
+        s = np.clip(fr, 0.0, 1.0) * total
+        i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(chain) - 2))
+        alpha = (s - cum[i]) / seg[i] if seg[i] > 0 else 0.0
+        if alpha >= 1.0 - 1e-9:
+            out.append(_Point(chain[i + 1], chain[i + 1]))
+        elif alpha <= 1e-9:
+            out.append(_Point(chain[i], chain[i]))
+        else:
+            out.append(_Point(chain[i], chain[i + 1], float(alpha)))
+    return out
+
+
+def _points_at(chain, rest, arcs) -> list[_Point]:
+    """Points at arc lengths ``arcs`` (metres) along the joint chain (rest positions)."""
+    total = np.linalg.norm(np.diff(rest[list(chain)], axis=0), axis=1).sum()
+    return _chain_points(chain, rest, [a / total if total > 0 else 0.0 for a in arcs])
+
+
+@dataclass
+class _Group:
+    bones: list[str]  # rig bones moved by this group's transform
+    head: _Point
+    tip: _Point | None  # None: untracked (direction from the reference joint only)
+    ref: int  # skeleton joint whose rotation carries the group
+    rig_head: np.ndarray
+    rig_tip: np.ndarray
+    rest_dir: np.ndarray | None = None  # skeleton rest direction of an untracked group
+    at_tip: bool = False  # anchored at its tip, rig proportions from there (clavicles)
+
+
+class Retarget:
+    """The fit of the human rig to one skeleton: per-bone transforms for any pose.
+
+    Parameters
+    ----------
+    character : Character
+        A humanoid skeleton (BVH-style: rotations relative to the rest pose of its
+        offsets).
+    asset : HumanAsset, optional
+        Default :func:`human_asset`.
+
+    Raises
+    ------
+    RetargetError
+        A required landmark (:data:`snapcore.motion.anatomy.REQUIRED_LANDMARKS`) is
+        missing.
+    """
+
+    def __init__(self, character, asset: HumanAsset | None = None):
+        self.asset = asset = asset or human_asset()
+        sk = character.skeleton
+        names, parents = sk.names, np.asarray(sk.parents)
+        lm = body_landmarks(names, parents)
+        missing = [k for k in REQUIRED_LANDMARKS if lm[k] is None]
+        if missing or len(lm["spine"]) < 2:
+            roles = joint_roles(names, parents)
+            unmapped = [n for n, r in zip(names, roles) if r == "other"]
+            raise RetargetError(character.name, missing or ["spine (pelvis → neck)"], unmapped)
+        self.landmarks = lm
+        self.offsets = motion_offsets(character)
+        rest = rest_positions(parents, self.offsets)
+        self.rest = rest
+        self.groups = self._groups(lm, rest, self.offsets, sk, asset)
+        # global alignment: rig (left +X, up +Y, facing +Z) → the rest skeleton
+        left = rest[lm["hip_L"]] - rest[lm["hip_R"]]
+        up = rest[lm["spine"][-1]] - rest[lm["pelvis"]]
+        up = _unit(up - left * (left @ up) / (left @ left))
+        left = _unit(left)
+        self.align = np.stack([left, up, np.cross(left, up)], axis=1)
+        #: the rest skeleton's up direction (pelvis → neck): a lying rest pose (Bandai) too
+        self.rest_up = up
+        self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
+        self._calibrate()
+
+    @staticmethod
+    def _leg_ratio(lm, rest, rig) -> float:
+        """The skeleton's thigh + shank over the rig's (both legs' mean)."""
+        rig_leg = sum(np.linalg.norm(rig.tails[rig.bone(b)] - rig.heads[rig.bone(b)])
+                      for b in ("LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg")) / 2
+        sk_leg = np.mean([np.linalg.norm(rest[lm[f"knee_{s}"]] - rest[lm[f"hip_{s}"]])
+                          + np.linalg.norm(rest[lm[f"ankle_{s}"]] - rest[lm[f"knee_{s}"]])
+                          for s in "LR"])
+        return float(sk_leg / rig_leg)
+
+    # ---- construction
+    def _groups(self, lm, rest, offsets, sk, rig) -> list[_Group]:
+        def head(b):
+            return rig.heads[rig.bone(b)]
+
+        def tail(b):
+            return rig.tails[rig.bone(b)]
+
+        def at(j):
+            return _Point(j, j)
+
+        children = sk.children
+        groups: list[_Group] = []
+        # torso and neck: rig points at the same arc-length fractions of the skeleton chain
+        torso_rig = [head("Hips"), head("LowerBack"), head("Spine"), head("Spine1"), head("Neck")]
+        neck_rig = [head("Neck"), head("Neck1"), head("Head")]
+
+        def fractions(points):
+            seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+            return np.concatenate([[0.0], np.cumsum(seg)]) / seg.sum()
+
+        # The whole chain pelvis → head joint. Where the neck starts on it is not taken
+        # from the skeleton's "neck" joint: CMU's sits 7 cm BELOW its shoulders (mid-chest),
+        # Daz's and the boxer's near them. The body's neck starts the rig's height above the
+        # shoulders (x k), kept between that joint and half a rig neck below the head, and
+        # the torso's four bones share the chain below that point as on the rig.
+        chain, j = [], lm["head"]
+        while j != lm["pelvis"]:
+            chain.append(j)
+            j = int(sk.parents[j])
+        chain = [lm["pelvis"], *reversed(chain)]
+        k = self._leg_ratio(lm, rest, rig)
+        up = _unit(rest[lm["spine"][-1]] - rest[lm["pelvis"]])
+        height = (rest[chain] - rest[lm["pelvis"]]) @ up
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(rest[chain], axis=0), axis=1))])
+        shoulders = np.mean([rest[lm[f"shoulder_{s}"]] for s in "LR"], axis=0)
+        rig_sh = np.mean([head("LeftArm"), head("RightArm")], axis=0)
+        rig_neck = np.linalg.norm(neck_rig[2] - neck_rig[0])
+        target = (shoulders - rest[lm["pelvis"]]) @ up + (neck_rig[0] - rig_sh)[1] * k
+        lo = height[chain.index(lm["neck"])] if lm["neck"] is not None else 0.0
+        target = float(np.clip(target, lo, height[-1] - 0.5 * rig_neck * k))
+        s_base = float(np.interp(target, np.maximum.accumulate(height), arc))
+        self.neck_base = _points_at(chain, rest, [s_base])[0]
+        tp = _points_at(chain, rest, fractions(np.array(torso_rig)) * s_base)
+        # the neck bends where the rig's does: its upper bone starts the rig's distance
+        # (x k) above the base, so the skin at the base turns about the same point
+        rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * k
+        np_ = _points_at(chain, rest, [s_base, min(s_base + rig_up, (s_base + arc[-1]) / 2),
+                                       arc[-1]])
+        torso_bones = ["Hips", "LowerBack", "Spine", "Spine1"]
+        for i, b in enumerate(torso_bones):
+            groups.append(_Group([b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1]))
+        for i, b in enumerate(["Neck", "Neck1"]):
+            groups.append(_Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1]))
+        hd = lm["head"]
+        roles = joint_roles(sk.names, sk.parents)
+        # the head's own continuation (Head_End, Head1), not an eye or a jaw
+        kids = [c for c in children[hd] if roles[c] == "head" and np.linalg.norm(offsets[c]) > 1e-9]
+        hdir = (rest[kids[0]] - rest[hd]) if kids else (rest[hd] - rest[lm["spine"][-1]])
+        groups.append(_Group(["Head"], at(hd), None, hd, head("Head"), tail("Head"),
+                             _unit(hdir) if np.linalg.norm(hdir) > 1e-9 else None))
+        for s, side in _SIDES.items():
+            short = s  # LHipJoint, LThumb
+            j = {n: lm[f"{n}_{s}"] for n in ("clavicle", "shoulder", "elbow", "wrist",
+                                              "hip", "knee", "ankle", "toe")}
+            groups.append(_Group([f"{short}HipJoint"], at(lm["pelvis"]), at(j["hip"]), lm["pelvis"],
+                                 head(f"{short}HipJoint"), tail(f"{short}HipJoint")))
+            groups.append(_Group([f"{side}UpLeg"], at(j["hip"]), at(j["knee"]), j["hip"],
+                                 head(f"{side}UpLeg"), tail(f"{side}UpLeg")))
+            groups.append(_Group([f"{side}Leg"], at(j["knee"]), at(j["ankle"]), j["knee"],
+                                 head(f"{side}Leg"), tail(f"{side}Leg")))
+            foot, toe = f"{side}Foot", f"{side}ToeBase"
+            if j["toe"] is not None:
+                groups.append(_Group([foot], at(j["ankle"]), at(j["toe"]), j["ankle"],
+                                     head(foot), tail(foot)))
+                tk = [c for c in children[j["toe"]] if np.linalg.norm(offsets[c]) > 1e-9]
+                groups.append(_Group([toe], at(j["toe"]), at(tk[0]) if tk else None, j["toe"],
+                                     head(toe), tail(toe),
+                                     None if tk else _unit(rest[j["toe"]] - rest[j["ankle"]])))
+            else:  # foot and toes one piece, from the ankle to the foot's end
+                fk = [c for c in children[j["ankle"]] if np.linalg.norm(offsets[c]) > 1e-9]
+                groups.append(_Group([foot, toe], at(j["ankle"]), at(fk[0]) if fk else None,
+                                     j["ankle"], head(foot), tail(toe)))
+            sh_parent = j["clavicle"] if j["clavicle"] is not None else int(sk.parents[j["shoulder"]])
+            # The clavicle is anchored at the shoulder joint and keeps the rig's length
+            # inwards: skeletons put their clavicle joint anywhere from the sternum to the
+            # neck base (CMU), and the skin around the neck must not follow that joint.
+            groups.append(_Group([f"{side}Shoulder"], at(sh_parent), at(j["shoulder"]), sh_parent,
+                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder"), at_tip=True))
+            groups.append(_Group([f"{side}Arm"], at(j["shoulder"]), at(j["elbow"]), j["shoulder"],
+                                 head(f"{side}Arm"), tail(f"{side}Arm")))
+            groups.append(_Group([f"{side}ForeArm"], at(j["elbow"]), at(j["wrist"]), j["elbow"],
+                                 head(f"{side}ForeArm"), tail(f"{side}ForeArm")))
+            # the hand with its fingers: one rigid piece turned by the wrist
+            wr = j["wrist"]
+            hk = [c for c in children[wr] if np.linalg.norm(offsets[c]) > 1e-9]
+            hdir = (rest[hk].mean(axis=0) - rest[wr]) if hk else (rest[wr] - rest[j["elbow"]])
+            groups.append(_Group([f"{side}Hand", f"{side}FingerBase", f"{side}HandFinger1",
+                                  f"{short}Thumb"], at(wr), None, wr, head(f"{side}Hand"),
+                                 tail(f"{side}FingerBase"), _unit(hdir)))
+        covered = [b for g in groups for b in g.bones]
+        assert sorted(covered) == sorted(rig.bone_names), "every rig bone in one group"
+        return groups
+
+    def _calibrate(self):
+        rest, g_all = self.rest, self.groups
+        n = len(g_all)
+        self.frames_rig = np.empty((n, 3, 3))  # A_g
+        self.base = np.empty((n, 3, 3))  # Q_g A_g
+        self.rig_len = np.empty(n)
+        self.axis_local = np.empty((n, 3))  # Q_g A_g e_y: the axis in the ref joint's frame
+        for i, g in enumerate(g_all):
+            axis = g.rig_tip - g.rig_head
+            a_g = _frame(axis)
+            self.rig_len[i] = np.linalg.norm(axis)
+            if g.tip is not None:
+                s_dir = self._point(rest[None], g.tip)[0] - self._point(rest[None], g.head)[0]
+            else:
+                s_dir = g.rest_dir if g.rest_dir is not None else self.align @ a_g[:, 1]
+            if np.linalg.norm(s_dir) < 1e-9:  # a zero-length link: keep the rig's direction
+                s_dir = self.align @ a_g[:, 1]
+            q = swing_matrices(self.align @ a_g[:, 1], _unit(s_dir)) @ self.align
+            self.frames_rig[i] = a_g
+            self.base[i] = q @ a_g
+            self.axis_local[i] = self.base[i][:, 1]
+        names = self.asset.bone_names
+        self.bone_group = np.empty(len(names), dtype=np.int64)
+        for i, g in enumerate(g_all):
+            for b in g.bones:
+                self.bone_group[names.index(b)] = i
+        self._head_a = np.array([g.head.a for g in g_all])
+        self._head_b = np.array([g.head.b for g in g_all])
+        self._head_t = np.array([g.head.alpha for g in g_all])
+        tracked = [i for i, g in enumerate(g_all) if g.tip is not None]
+        self._tracked = np.array(tracked, dtype=np.int64)
+        self._tip_a = np.array([g_all[i].tip.a for i in tracked], dtype=np.int64)
+        self._tip_b = np.array([g_all[i].tip.b for i in tracked], dtype=np.int64)
+        self._tip_t = np.array([g_all[i].tip.alpha for i in tracked])
+        self._ref = np.array([g.ref for g in g_all])
+        self._at_tip = np.array([g.at_tip for g in g_all])
+        self._rig_origin = np.array([g.rig_tip if g.at_tip else g.rig_head for g in g_all])
+
+    @staticmethod
+    def _point(pos: np.ndarray, p: _Point) -> np.ndarray:
+        return (1.0 - p.alpha) * pos[:, p.a] + p.alpha * pos[:, p.b]
+
+    # ---- posing
+    def group_matrices(self, positions: np.ndarray, rotations: np.ndarray, *,
+                       stretch: bool = False):
+        """Each group's transform (rig rest space → world) for poses: (F, G, 3, 4).
+
+        Parameters
+        ----------
+        positions : ndarray of shape (F, J, 3)
+            World joint positions, metres.
+        rotations : ndarray of shape (F, J, 3, 3)
+            World joint rotations relative to the rest pose.
+        stretch : bool
+            Also return ``(k - s) · axis`` (F, G, 3), per group: what
+            :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
+            so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
+        """
+        t = self._head_t[None, :, None]
+        h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
+        w = rotations[:, self._ref] @ self.base  # (F, G, 3, 3)
+        f, g = h.shape[:2]
+        length = np.full((f, g), self.k)
+        if self._tracked.size:
+            tt = self._tip_t[None, :, None]
+            tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
+            d = tip - h[:, self._tracked]
+            dist = np.linalg.norm(d, axis=-1)
+            a = w[:, self._tracked][..., 1]  # current axis from the reference rotation
+            ok = dist > 1e-9
+            sw = swing_matrices(a, np.where(ok[..., None], d, a))
+            w[:, self._tracked] = sw @ w[:, self._tracked]
+            length[:, self._tracked] = np.where(ok, dist / self.rig_len[self._tracked], self.k)
+            if self._at_tip.any():  # anchored at the tip: rig length, placed from the tip
+                at = self._at_tip[self._tracked]
+                h = h.copy()
+                h[:, self._tracked[at]] = tip[:, at]
+                length[:, self._tracked[at]] = self.k
+        scale = np.stack([np.full((f, g), self.k), length, np.full((f, g), self.k)], axis=-1)
+        lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
+        trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
+        m = np.concatenate([lin, trans[..., None]], axis=-1)
+        if stretch:
+            return m, (self.k - length)[..., None] * w[..., 1]
+        return m
+
+    def bone_matrices(self, positions, rotations) -> np.ndarray:
+        """Skinning matrices of the rig's bones: (F, B, 3, 4)."""
+        return self.group_matrices(positions, rotations)[:, self.bone_group]
+
+    def stretch_weights(self, points: np.ndarray, weights):
+        """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
+
+        A bone stretched by ``s`` along its axis would carry points below its head (or
+        past its tail) out by ``s`` times their distance too — a neck twice the rig's
+        length would push the skin of the shoulders 10 cm up its axis. Along the axis
+        only the span [head, tail] stretches; beyond it, the distance ``c`` (negative
+        below the head) scales by ``k`` like the girth: ``x' = M x + (k - s) c axis``.
+        """
+        from scipy import sparse
+
+        w = sparse.csr_matrix(weights)
+        rows = np.repeat(np.arange(w.shape[0]), np.diff(w.indptr))
+        g = self.bone_group[w.indices]
+        u = np.einsum("ni,ni->n", self.frames_rig[g][:, :, 1],
+                      np.asarray(points, float)[rows] - self._rig_origin[g])
+        c = np.minimum(u, 0.0) + np.maximum(u - self.rig_len[g], 0.0)
+        c[self._at_tip[g]] = 0.0  # anchored groups do not stretch
+        return sparse.csr_matrix((w.data * c, w.indices, w.indptr), shape=w.shape)
+
+    def skin_points(self, points, weights, stretch_w, positions, rotations, *,
+                    dtype=np.float64) -> np.ndarray:
+        """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
+
+        Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
+        :meth:`stretch_weights`; frames in chunks to bound memory.
+        """
+        f = positions.shape[0]
+        out = np.empty((f, len(points), 3), dtype=dtype)
+        step = max(1, int(2**25 // max(1, 24 * len(points))))
+        for a in range(0, f, step):
+            b = min(f, a + step)
+            m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
+            out[a:b] = blend_skin(points, weights, m[:, self.bone_group], dtype=dtype)
+            sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
+            corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
+            out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
+        return out
+
+
+class HumanBody(FrameBlocks):
+    """The human mesh on one character, posable at any frame (like ``CharacterBody``).
+
+    Parameters
+    ----------
+    character : Character
+    color : tuple of 3 floats
+        Base RGB in 0-1; left limbs lighter, right limbs darker.
+
+    Raises
+    ------
+    RetargetError
+        The skeleton lacks a required joint.
+    """
+
+    kind = "human"
+
+    def __init__(self, character, *, color=(0.306, 0.475, 0.655)):
+        self.character = character
+        self.asset = asset = human_asset()
+        self.retarget = Retarget(character, asset)
+        self.faces = asset.faces
+        sides = joint_sides(asset.bone_names)
+        w = asset.weights
+        left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
+        right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
+        base = np.asarray(color, float)
+        rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (1 - RIGHT_DARKEN * right[:, None])
+        self.vertex_rgb = np.clip(rgb, 0, 1)
+        self.face_colors = np.round(np.append(self.vertex_rgb[self.faces].mean(axis=1),
+                                              np.ones((len(self.faces), 1)), axis=1)
+                                    * 255).astype(np.uint8)
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.asset.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @cached_property
+    def _stretch(self):
+        return self.retarget.stretch_weights(self.asset.vertices, self.asset.weights)
+
+    def skin(self, positions: np.ndarray, rotations: np.ndarray, *,
+             dtype=np.float64) -> np.ndarray:
+        """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3).
+
+        ``dtype=np.float32`` is what drawing uses (:meth:`vertices`): half the memory
+        traffic, errors ~1e-7 m.
+        """
+        return self.retarget.skin_points(self.asset.vertices, self.asset.weights, self._stretch,
+                                         positions, rotations, dtype=dtype)
+
+    def _pose(self, frames: np.ndarray) -> np.ndarray:
+        c = self.character
+        return self.skin(c.positions[frames], c.rotations[frames], dtype=DRAW_DTYPE)
+
+    def landmarks(self, frames=None) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """The rig's joints after skinning, beside the skeleton's joints they stand for.
+
+        Each landmark is its rig bone's head (:data:`LANDMARK_BONES`), skinned with the
+        weights of the surface around it (:func:`landmark_weights`) — where the body
+        puts the joint, not where the retargeting aims it.
+
+        Returns
+        -------
+        names : list of str
+            Landmark names (``pelvis``, ``knee_L``...).
+        body : ndarray of shape (F, L, 3)
+            Skinned landmark positions, metres.
+        skeleton : ndarray of shape (F, L, 3)
+            The skeleton's joints, metres; for ``neck``, the point of the skeleton's
+            pelvis → head chain where the body's neck starts (:attr:`Retarget.neck_base`:
+            skeletons' own "neck" joints sit anywhere from mid-chest to the neck).
+        """
+        c = self.character
+        frames = np.arange(c.n_frames) if frames is None else np.asarray(frames)
+        names = list(LANDMARK_BONES)
+        a = self.asset
+        pts = np.array([a.heads[a.bone(LANDMARK_BONES[n])] for n in names])
+        w = landmark_weights(a, pts)
+        body = self.retarget.skin_points(pts, w, self.retarget.stretch_weights(pts, w),
+                                         c.positions[frames], c.rotations[frames])
+        pos = c.positions[frames]
+        r = self.retarget
+        skel = np.stack([r._point(pos, r.neck_base) if n == "neck" else pos[:, r.landmarks[n]]
+                         for n in names], axis=1)
+        return names, body, skel

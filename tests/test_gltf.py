@@ -1,0 +1,430 @@
+"""glTF 2.0 characters: interpolation, accessors, skinning and node transforms, checked by hand.
+
+The two-bone file is written here byte by byte (JSON + a base64 data URI), so every
+expected value is computed from numbers the test chose, not from the reader.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from snapcore.errors import GLTFError
+from snapcore.motion.gltf import read_gltf
+from snapcore.motion.gltf_sample import sample_curve, slerp
+
+# ----------------------------------------------------------------- interpolation
+
+
+def test_linear_and_step_match_hand_values():
+    """LINEAR is the straight line between keys, STEP holds the last key; ends clamp."""
+    times = np.array([0.0, 1.0, 3.0])
+    values = np.array([[0.0, 0.0, 0.0], [2.0, 4.0, -2.0], [6.0, 4.0, 0.0]])
+    t = np.array([-1.0, 0.25, 1.0, 2.0, 2.999, 5.0])
+    lin = sample_curve(times, values, "LINEAR", t)
+    np.testing.assert_allclose(lin, [[0, 0, 0], [0.5, 1, -0.5], [2, 4, -2], [4, 4, -1],
+                                     [2 + 4 * 0.9995, 4, -2 + 2 * 0.9995], [6, 4, 0]], atol=1e-12)
+    step = sample_curve(times, values, "STEP", t)
+    np.testing.assert_allclose(step, [[0, 0, 0], [0, 0, 0], [2, 4, -2], [2, 4, -2],
+                                      [2, 4, -2], [6, 4, 0]], atol=1e-12)
+
+
+def test_cubicspline_is_the_hermite_curve():
+    """CUBICSPLINE (glTF Appendix C) at s = 0.5 of a 2 s interval, computed by hand."""
+    times = np.array([1.0, 3.0])
+    # per key: in-tangent, value, out-tangent
+    values = np.array([[9.0], [1.0], [2.0],    # key 0: v = 1, out-tangent b0 = 2
+                       [-4.0], [5.0], [9.0]])  # key 1: in-tangent a1 = -4, v = 5
+    # s = 0.5, dt = 2: h00 = 0.5, h10 = 0.125, h01 = 0.5, h11 = -0.125
+    # p = 0.5*1 + 0.125*2*2 + 0.5*5 + (-0.125)*2*(-4) = 0.5 + 0.5 + 2.5 + 1.0
+    got = sample_curve(times, values, "CUBICSPLINE", np.array([2.0, 1.0, 3.0]))
+    np.testing.assert_allclose(got[:, 0], [4.5, 1.0, 5.0], atol=1e-12)
+
+
+def test_linear_rotations_are_slerped_the_short_way():
+    """Half-way between 0° and 90° about Z is 45°; a key stored as -q still turns 45°."""
+    q0 = np.array([0.0, 0.0, 0.0, 1.0])  # glTF order x, y, z, w
+    q1 = np.array([0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
+    half = np.array([0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)])
+    np.testing.assert_allclose(slerp(q0[None], q1[None], np.array([0.5]))[0], half, atol=1e-12)
+    got = sample_curve(np.array([0.0, 1.0]), np.stack([q0, -q1]), "LINEAR", np.array([0.5]),
+                       rotation=True)[0]
+    assert abs(abs(got @ half) - 1.0) < 1e-12
+    # a third of the way: 30°, not the 1/3 chord (slerp keeps the angular speed)
+    third = sample_curve(np.array([0.0, 1.0]), np.stack([q0, q1]), "LINEAR", np.array([1 / 3]),
+                         rotation=True)[0]
+    np.testing.assert_allclose(third, [0, 0, np.sin(np.pi / 12), np.cos(np.pi / 12)], atol=1e-12)
+
+
+def test_unknown_interpolation_is_refused():
+    with pytest.raises(ValueError, match="unknown interpolation 'SMOOTH'"):
+        sample_curve(np.array([0.0, 1.0]), np.zeros((2, 3)), "SMOOTH", np.array([0.5]))
+
+
+# ----------------------------------------------------------------- a hand-made file
+
+
+def _two_bone_document(*, ibm=True, interpolation="LINEAR") -> dict:
+    """Joint 0 at the origin, joint 1 one metre up (Y); joint 1 turns 90° about Z in 1 s.
+
+    Mesh A (skin 0, joints [0, 1]): three vertices, interleaved (position float32 x3,
+    joints uint8 x4, weights normalised uint8 x4; stride 20):
+      v0 (0.5, 0.5, 0) all on joint 0; v1 (1, 1, 0) all on joint 1;
+      v2 (1, 1, 0) with weights 128/255 on joint 0 and 127/255 on joint 1, its position
+      stored as (9, 9, 9) and corrected by a sparse accessor.
+    Mesh B (skin 1, joints [1] only): one triangle at (0, 2, 0), (1, 2, 0), (0, 2, 1)
+    on that skin's joint 0 (= node 1).
+    The root translates by (0, 0, 2) with STEP at t = 1.
+    """
+    buf = bytearray()
+
+    def add(data: bytes) -> tuple[int, int]:
+        while len(buf) % 4:
+            buf.append(0)
+        off = len(buf)
+        buf.extend(data)
+        return off, len(data)
+
+    verts = [((0.5, 0.5, 0.0), (0, 0, 0, 0), (255, 0, 0, 0)),
+             ((1.0, 1.0, 0.0), (1, 0, 0, 0), (255, 0, 0, 0)),
+             ((9.0, 9.0, 9.0), (0, 1, 0, 0), (128, 127, 0, 0))]
+    inter = b"".join(struct.pack("<3f4B4B", *p, *j, *w) for p, j, w in verts)
+    o_int, n_int = add(inter)
+    o_idx, n_idx = add(struct.pack("<3H", 0, 1, 2))
+    o_spi, n_spi = add(struct.pack("<B", 2))  # sparse index: vertex 2
+    o_spv, n_spv = add(struct.pack("<3f", 1.0, 1.0, 0.0))
+    bpos = [(0.0, 2.0, 0.0), (1.0, 2.0, 0.0), (0.0, 2.0, 1.0)]
+    o_bp, n_bp = add(b"".join(struct.pack("<3f", *p) for p in bpos))
+    o_bj, n_bj = add(struct.pack("<12B", *([0, 0, 0, 0] * 3)))
+    o_bw, n_bw = add(struct.pack("<12f", *([1.0, 0, 0, 0] * 3)))
+    o_bi, n_bi = add(struct.pack("<3H", 0, 1, 2))
+    # inverse bind matrices (column-major): joint 0 at the origin, joint 1 at y = 1
+    eye = np.eye(4)
+    down = np.eye(4)
+    down[1, 3] = -1.0
+    o_ibm, n_ibm = add(np.stack([eye, down]).transpose(0, 2, 1).astype("<f4").tobytes())
+    o_ibm1, n_ibm1 = add(down.T.astype("<f4").tobytes())
+    o_t, n_t = add(struct.pack("<2f", 0.0, 1.0))
+    s45 = np.sin(np.pi / 4)
+    o_rot, n_rot = add(struct.pack("<8f", 0, 0, 0, 1, 0, 0, s45, s45))
+    o_tr, n_tr = add(struct.pack("<6f", 0, 0, 0, 0, 0, 2))
+
+    views = [
+        {"buffer": 0, "byteOffset": o_int, "byteLength": n_int, "byteStride": 20},
+        {"buffer": 0, "byteOffset": o_idx, "byteLength": n_idx},
+        {"buffer": 0, "byteOffset": o_spi, "byteLength": n_spi},
+        {"buffer": 0, "byteOffset": o_spv, "byteLength": n_spv},
+        {"buffer": 0, "byteOffset": o_bp, "byteLength": n_bp},
+        {"buffer": 0, "byteOffset": o_bj, "byteLength": n_bj},
+        {"buffer": 0, "byteOffset": o_bw, "byteLength": n_bw},
+        {"buffer": 0, "byteOffset": o_bi, "byteLength": n_bi},
+        {"buffer": 0, "byteOffset": o_ibm, "byteLength": n_ibm},
+        {"buffer": 0, "byteOffset": o_ibm1, "byteLength": n_ibm1},
+        {"buffer": 0, "byteOffset": o_t, "byteLength": n_t},
+        {"buffer": 0, "byteOffset": o_rot, "byteLength": n_rot},
+        {"buffer": 0, "byteOffset": o_tr, "byteLength": n_tr},
+    ]
+    acc = [
+        {"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+         "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5121},
+                    "values": {"bufferView": 3}}},                                   # 0
+        {"bufferView": 0, "byteOffset": 12, "componentType": 5121, "count": 3, "type": "VEC4"},
+        {"bufferView": 0, "byteOffset": 16, "componentType": 5121, "count": 3, "type": "VEC4",
+         "normalized": True},                                                        # 2
+        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},      # 3
+        {"bufferView": 4, "componentType": 5126, "count": 3, "type": "VEC3"},        # 4
+        {"bufferView": 5, "componentType": 5121, "count": 3, "type": "VEC4"},        # 5
+        {"bufferView": 6, "componentType": 5126, "count": 3, "type": "VEC4"},        # 6
+        {"bufferView": 7, "componentType": 5123, "count": 3, "type": "SCALAR"},      # 7
+        {"bufferView": 8, "componentType": 5126, "count": 2, "type": "MAT4"},        # 8
+        {"bufferView": 9, "componentType": 5126, "count": 1, "type": "MAT4"},        # 9
+        {"bufferView": 10, "componentType": 5126, "count": 2, "type": "SCALAR",
+         "min": [0.0], "max": [1.0]},                                                # 10
+        {"bufferView": 11, "componentType": 5126, "count": 2, "type": "VEC4"},       # 11
+        {"bufferView": 12, "componentType": 5126, "count": 2, "type": "VEC3"},       # 12
+    ]
+    skin0 = {"joints": [0, 1]}
+    skin1 = {"joints": [1]}
+    if ibm:
+        skin0["inverseBindMatrices"] = 8
+        skin1["inverseBindMatrices"] = 9
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 2, 3]}],
+        "nodes": [
+            {"name": "root", "children": [1]},
+            {"name": "arm", "translation": [0.0, 1.0, 0.0]},
+            {"name": "meshA", "mesh": 0, "skin": 0},
+            {"name": "meshB", "mesh": 1, "skin": 1},
+        ],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2},
+                             "indices": 3}]},
+            {"primitives": [{"attributes": {"POSITION": 4, "JOINTS_0": 5, "WEIGHTS_0": 6},
+                             "indices": 7}]},
+        ],
+        "skins": [skin0, skin1],
+        "animations": [{"name": "raise", "samplers": [
+            {"input": 10, "output": 11, "interpolation": interpolation},
+            {"input": 10, "output": 12, "interpolation": "STEP"}],
+            "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}},
+                         {"sampler": 1, "target": {"node": 0, "path": "translation"}}]}],
+        "accessors": acc,
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(buf), "uri": "data:application/octet-stream;base64,"
+                     + base64.b64encode(bytes(buf)).decode()}],
+    }
+
+
+def _write(tmp_path: Path, doc: dict, name="two_bone.gltf") -> Path:
+    p = tmp_path / name
+    p.write_text(json.dumps(doc))
+    return p
+
+
+def test_two_bone_file_gives_hand_computed_vertices(tmp_path):
+    """Interleaved, normalised-uint8, sparse accessors; two skins; LINEAR/STEP channels."""
+    c = read_gltf(_write(tmp_path, _two_bone_document()), fps=4.0)  # t = 0, .25, .5, .75, 1
+    assert c.n_frames == 5 and c.joint_names == ("root", "arm")
+    mesh = c.meta["mesh"]
+    v = mesh.vertices(c, np.arange(5))  # (5, 6, 3): mesh A's 3 vertices, then mesh B's
+    w0, w1 = 128 / 255, 127 / 255
+    # bind pose (t = 0): the mesh as stored, the sparse vertex corrected
+    np.testing.assert_allclose(v[0], [[0.5, 0.5, 0], [1, 1, 0], [1, 1, 0],
+                                      [0, 2, 0], [1, 2, 0], [0, 2, 1]], atol=1e-6)
+    # t = 0.5: the arm has turned 45° about Z around (0, 1, 0); the root has not moved yet
+    c45, s45 = np.cos(np.pi / 4), np.sin(np.pi / 4)
+    arm = np.array([c45, 1 + s45, 0.0])  # (1, 0, 0) from the arm joint, turned 45°
+    np.testing.assert_allclose(v[2, 0], [0.5, 0.5, 0], atol=1e-6)
+    np.testing.assert_allclose(v[2, 1], arm, atol=1e-6)
+    np.testing.assert_allclose(v[2, 2], w0 * np.array([1, 1, 0]) + w1 * arm, atol=1e-6)
+    # mesh B's (1, 2, 0) is (1, 1, 0) from the arm joint: turned 45° → (c - s, 1 + s + c)
+    np.testing.assert_allclose(v[2, 4], [c45 - s45, 1 + s45 + c45, 0], atol=1e-6)
+    # t = 1: 90°, and the STEP translation of the root by (0, 0, 2) has happened
+    np.testing.assert_allclose(v[4, 1], [0, 2, 2], atol=1e-6)
+    np.testing.assert_allclose(v[4, 2], w0 * np.array([1, 1, 2]) + w1 * np.array([0, 2, 2]),
+                               atol=1e-6)
+    np.testing.assert_allclose(v[3, 1, 2], 0.0, atol=1e-6)  # STEP: nothing before t = 1
+    np.testing.assert_allclose(c.positions[4], [[0, 0, 2], [0, 1, 2]], atol=1e-6)
+
+
+def test_accessors_read_interleaved_normalised_and_sparse_data(tmp_path):
+    """The stride-20 view gives each attribute; uint8 weights normalise to k/255; the
+    sparse accessor replaces vertex 2's stored (9, 9, 9)."""
+    import pygltflib
+
+    from snapcore.motion.gltf_access import Buffers
+
+    p = _write(tmp_path, _two_bone_document())
+    b = Buffers(pygltflib.GLTF2().load(str(p)), p)
+    np.testing.assert_array_equal(b.accessor(0), [[0.5, 0.5, 0], [1, 1, 0], [1, 1, 0]])
+    np.testing.assert_array_equal(b.accessor(1)[:, :2], [[0, 0], [1, 0], [0, 1]])
+    np.testing.assert_allclose(b.accessor(2)[:, :2], [[1, 0], [1, 0], [128 / 255, 127 / 255]])
+    np.testing.assert_array_equal(b.accessor(8)[1], [[1, 0, 0, 0], [0, 1, 0, -1], [0, 0, 1, 0],
+                                                     [0, 0, 0, 1]])  # column-major → rows
+
+
+def test_missing_inverse_bind_matrices_mean_identity(tmp_path):
+    """Without inverseBindMatrices the vertices are in joint space (spec: identity)."""
+    c = read_gltf(_write(tmp_path, _two_bone_document(ibm=False)), fps=4.0)
+    v = c.meta["mesh"].vertices(c, 0)
+    # v1 (1, 1, 0) on the arm joint at (0, 1, 0) with no inverse bind: (1, 2, 0)
+    np.testing.assert_allclose(v[1], [1, 2, 0], atol=1e-6)
+    np.testing.assert_allclose(v[0], [0.5, 0.5, 0], atol=1e-6)  # the root is at the origin
+
+
+def test_bind_pose_skinning_gives_the_bind_mesh(motions_dir):
+    """Posed at the bind pose (joint world = inverse of its inverse bind matrix), every
+    vertex of CesiumMan's skinned mesh is where the file stores it (1e-6 m)."""
+    from dataclasses import replace
+
+    c = read_gltf(motions_dir / "gltf" / "CesiumMan.glb")
+    mesh = c.meta["mesh"]
+    bind = np.linalg.inv(mesh.inverse_bind)  # (K, 4, 4): joint world at bind
+    pos = c.positions[:1].copy()
+    rot = c.rotations[:1].copy()
+    pos[0, mesh.slot_joint] = bind[:, :3, 3]
+    rot[0, mesh.slot_joint] = bind[:, :3, :3] / mesh.joint_scale[mesh.slot_joint, None, None]
+    at_bind = replace(c, positions=pos, rotations=rot)
+    np.testing.assert_allclose(mesh.vertices(at_bind, 0), mesh.rest, atol=1e-6)
+
+
+def test_cesium_man_joints_match_an_independent_scipy_composition(motions_dir):
+    """World positions of CesiumMan's skin joints at several times = node transforms
+    composed here with SciPy (Slerp, np.interp, Rotation), not by the reader (1e-6 m)."""
+    import pygltflib
+    from scipy.spatial.transform import Rotation, Slerp
+
+    path = motions_dir / "gltf" / "CesiumMan.glb"
+    g = pygltflib.GLTF2().load(str(path))
+    blob = g.binary_blob()
+
+    def read(i):
+        a = g.accessors[i]
+        bv = g.bufferViews[a.bufferView]
+        n = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a.type]
+        assert a.componentType == 5126 and not bv.byteStride or bv.byteStride == 4 * n
+        start = (bv.byteOffset or 0) + (a.byteOffset or 0)
+        return np.frombuffer(blob, "<f4", a.count * n, start).reshape(a.count, n).astype(float)
+
+    fps = 30.0
+    c = read_gltf(path, fps=fps)
+    anim = g.animations[0]
+    t0 = min(read(s.input)[0, 0] for s in anim.samplers)
+    frames = np.array([0, 7, 23, 40, c.n_frames - 1])
+    times = t0 + frames / fps
+    parent = {ch: i for i, n in enumerate(g.nodes) for ch in (n.children or [])}
+
+    def local(node, t):
+        n = g.nodes[node]
+        if n.matrix is not None:
+            return np.asarray(n.matrix, float).reshape(4, 4).T
+        tr = np.array(n.translation or [0, 0, 0], float)
+        rq = np.array(n.rotation or [0, 0, 0, 1], float)
+        sc = np.array(n.scale or [1, 1, 1], float)
+        for ch in anim.channels:
+            if ch.target.node != node:
+                continue
+            s = anim.samplers[ch.sampler]
+            kt, kv = read(s.input)[:, 0], read(s.output)
+            tt = np.clip(t, kt[0], kt[-1])
+            if ch.target.path == "rotation":
+                rq = Slerp(kt, Rotation.from_quat(kv))(tt).as_quat()
+            elif ch.target.path == "translation":
+                tr = np.array([np.interp(tt, kt, kv[:, k]) for k in range(3)])
+            else:
+                sc = np.array([np.interp(tt, kt, kv[:, k]) for k in range(3)])
+        m = np.eye(4)
+        m[:3, :3] = Rotation.from_quat(rq).as_matrix() * sc
+        m[:3, 3] = tr
+        return m
+
+    def world(node, t):
+        m = local(node, t)
+        while node in parent:
+            node = parent[node]
+            m = local(node, t) @ m
+        return m
+
+    joints = g.skins[0].joints
+    names = [g.nodes[j].name for j in joints]
+    for f, t in zip(frames, times):
+        want = np.array([world(j, t)[:3, 3] for j in joints])
+        got = c.positions[f, [c.joint_names.index(n) for n in names]]
+        np.testing.assert_allclose(got, want, atol=1e-6, err_msg=f"frame {f}, t = {t:.4f} s")
+
+
+# ----------------------------------------------------------------- errors
+
+
+def _glb(doc: dict, binary: bytes) -> bytes:
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    body = (struct.pack("<II", len(js), 0x4E4F534A) + js
+            + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+BAD_CASES = {
+    "no_skin": "has no skin",
+    "missing_buffer": "file 'gone.bin' not found",
+    "truncated": "not a readable glTF/GLB file",
+    "short_buffer": "buffer 0 is truncated",
+    "interpolation": "unknown interpolation 'SMOOTH'",
+}
+
+
+def _bad_file(tmp_path: Path, case: str) -> Path:
+    doc = _two_bone_document()
+    if case == "no_skin":
+        for n in doc["nodes"]:
+            n.pop("skin", None)
+        doc.pop("skins")
+    elif case == "missing_buffer":
+        doc["buffers"][0]["uri"] = "gone.bin"
+    elif case in ("truncated", "short_buffer"):
+        raw = base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1])
+        data = _glb(doc, raw)
+        p = tmp_path / f"{case}.glb"
+        # cut inside the JSON chunk, or only the end of the binary chunk
+        p.write_bytes(data[:150] if case == "truncated" else data[: len(data) - 64])
+        return p
+    elif case == "interpolation":
+        doc = _two_bone_document(interpolation="SMOOTH")
+    return _write(tmp_path, doc, f"{case}.gltf")
+
+
+@pytest.fixture(scope="module")
+def bad_runs(tmp_path_factory):
+    """`snapshot info` on every bad file, in ONE subprocess (the CLI's start-up is slow)."""
+    d = tmp_path_factory.mktemp("bad_gltf")
+    paths = {case: _bad_file(d, case) for case in BAD_CASES}
+    code = ("import contextlib, io, json, sys\n"
+            "from snapcore.cli.main import main\n"
+            "for p in sys.argv[1:]:\n"
+            "    err = io.StringIO()\n"
+            "    with contextlib.redirect_stderr(err):\n"
+            "        rc = main(['info', p])\n"
+            "    print(json.dumps([p, rc, err.getvalue()]))\n")
+    res = subprocess.run([sys.executable, "-c", code, *map(str, paths.values())],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    out = {p: (rc, err) for p, rc, err in map(json.loads, res.stdout.splitlines())}
+    return {case: (p, *out[str(p)]) for case, p in paths.items()}
+
+
+@pytest.mark.parametrize("case", list(BAD_CASES))
+def test_bad_gltf_is_one_line_naming_the_file_exit_2(bad_runs, case):
+    """Malformed or unsupported glTF → GLTFError; `snapshot info` prints one line naming
+    the file and the problem, exit code 2, no traceback."""
+    path, rc, err = bad_runs[case]
+    message = BAD_CASES[case]
+    with pytest.raises(GLTFError, match=message):
+        read_gltf(path)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2
+    assert len(lines) == 1 and str(path) in lines[0] and message in lines[0], err
+    assert "Traceback" not in err
+
+
+def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
+    """A scene manifest with a BVH dancer and the glTF Fox: one scene, the Fox sampled at
+    the BVH's rate, its animation chosen by name, read in centimetres (it is 80 "m" tall
+    in its file), standing on the floor with its paws (mesh), not its joints."""
+    manifest = tmp_path / "mixed.json"
+    manifest.write_text(json.dumps({"name": "mixed", "characters": [
+        {"file": str(motions_dir / "dance" / "05_06.bvh")},
+        {"file": str(motions_dir / "gltf" / "Fox.glb"), "animation": "Run", "offset": [2, 0, 0]},
+    ]}))
+    import warnings
+
+    from snapcore.motion.load import load_scene
+
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        scene = load_scene(manifest, ground=0.0)
+    dancer, fox = scene.characters
+    assert fox.fps == dancer.fps == 120.0
+    assert fox.meta["animation"] == "Run" and fox.meta["unit"] == "cm"
+    assert any("read in cm" in str(w.message) for w in rec)
+    assert scene.n_frames == min(dancer.n_frames, fox.n_frames)
+    # the fox is fox-sized: 0.5-1 m tall, and its mesh carries the offset
+    v = fox.meta["mesh"].vertices(fox, 0)
+    assert 0.5 < np.ptp(v[:, 1]) < 1.0 and 1.5 < v[:, 0].mean() < 2.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        alone = load_scene(motions_dir / "gltf" / "Fox.glb", animation="Walk")
+    f = alone.characters[0]
+    # the ground is where the mesh's lowest points (the paws) are, below every joint
+    low = f.meta["mesh"].vertices(f, np.arange(alone.n_frames))[..., 1].min(axis=1)
+    assert abs(np.percentile(low, 5) - alone.ground) < 1e-9
+    assert f.positions[..., 1].min() > alone.ground + 0.005
