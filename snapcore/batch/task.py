@@ -26,17 +26,14 @@ import warnings
 from dataclasses import asdict, dataclass, field
 
 from snapcore.batch.discover import SceneSource
-from snapcore.errors import BVHError, SceneError, SnapshotError
+from snapcore.errors import SceneError, SnapshotError
 
 __all__ = ["BatchOptions", "SceneTask", "SceneResult", "run_scene", "init_worker",
-           "error_result", "GLTF_UNSUPPORTED", "OUTPUT_FORMAT"]
+           "error_result", "OUTPUT_FORMAT"]
 
 #: Bumped when the outputs of a scene change meaning: part of every options hash, so a
 #: new format redoes the library instead of mixing old and new outputs.
 OUTPUT_FORMAT = "action-snapshot/batch@1"
-#: The error of a glTF file while the loader cannot read glTF (it reads it as BVH and
-#: fails): once :func:`snapcore.motion.load.load_scene` reads glTF, this is never used.
-GLTF_UNSUPPORTED = "glTF input is not supported by this build"
 #: Longest error text kept in the index (characters).
 MAX_ERROR = 400
 
@@ -161,12 +158,7 @@ def _load(task: SceneTask):
     if s.kind == "unknown":
         raise SceneError(f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
                          "scene manifest .toml/.json)")
-    try:
-        return load_scene([s.path], fps=opts.fps, scale=opts.scale)
-    except BVHError as err:
-        if s.kind == "gltf":  # read as BVH: this build has no glTF reader
-            raise SceneError(f"{s.key}: {GLTF_UNSUPPORTED}") from err
-        raise
+    return load_scene([s.path], fps=opts.fps, scale=opts.scale)
 
 
 def _png(image) -> bytes:

@@ -29,9 +29,12 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import sparse
+
+if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
+    from scipy import sparse
 
 from snapcore.errors import GLTFError
 from snapcore.motion.gltf_access import Buffers
@@ -385,8 +388,11 @@ def _load(path: Path):
             warnings.simplefilter("ignore")
             g = pygltflib.GLTF2().load(str(path))
     except Exception as err:  # pygltflib raises struct, JSON, Unicode, Key... errors alike
-        raise GLTFError(f"not a readable glTF/GLB file ({type(err).__name__}: {err})",
-                        path=str(path)) from err
+        # Attribute and type errors come from inside pygltflib on a damaged GLB container
+        # (a header with no JSON chunk): its own wording would name its internals.
+        detail = ("a damaged GLB container" if isinstance(err, (AttributeError, TypeError))
+                  else f"{type(err).__name__}: {err}")
+        raise GLTFError(f"not a readable glTF/GLB file ({detail})", path=str(path)) from err
     if g is None or not isinstance(g.nodes, list):
         raise GLTFError("not a readable glTF/GLB file (no JSON document)", path=str(path))
     if g.asset is not None and g.asset.version and not str(g.asset.version).startswith("2"):

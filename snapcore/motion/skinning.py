@@ -16,8 +16,12 @@ frames; chunks only bound the memory of the (V, F, 12) intermediate).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from scipy import sparse
+
+if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
+    from scipy import sparse
 
 __all__ = ["weight_matrix", "blend_skin", "vertex_normals", "face_incidence", "CHUNK_BYTES",
            "DENSE_MAX_BONES"]
@@ -48,6 +52,8 @@ def weight_matrix(bones: np.ndarray, weights: np.ndarray, n_bones: int, *,
     -------
     scipy.sparse.csr_matrix of shape (V, K)
     """
+    import scipy.sparse as sparse  # only when skinning: a light `import snapcore.motion`
+
     bones = np.asarray(bones, dtype=np.int64)
     w = np.asarray(weights, dtype=np.float64)
     if bones.shape != w.shape or bones.ndim != 2:
@@ -87,6 +93,8 @@ def blend_skin(rest: np.ndarray, weights: sparse.csr_matrix, matrices: np.ndarra
     ndarray of shape (V, 3) or (F, V, 3)
         Skinned vertices, in the units and frame of the matrices' output.
     """
+    import scipy.sparse as sparse  # only when skinning: a light `import snapcore.motion`
+
     m = np.asarray(matrices, dtype=dtype)
     single = m.ndim == 3
     if single:
@@ -122,6 +130,8 @@ def blend_skin(rest: np.ndarray, weights: sparse.csr_matrix, matrices: np.ndarra
 
 def face_incidence(faces: np.ndarray, n_vertices: int) -> sparse.csr_matrix:
     """Sparse (V, M) matrix with a 1 where vertex ``v`` is a corner of face ``m``."""
+    import scipy.sparse as sparse  # only when skinning: a light `import snapcore.motion`
+
     faces = np.asarray(faces, dtype=np.int64)
     m = faces.shape[0]
     return sparse.csr_matrix((np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(m), 3))),
