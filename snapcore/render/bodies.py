@@ -33,6 +33,7 @@ from snapcore.render.body import (
     TESSELLATION,
     CharacterBody,
     PosedMesh,
+    SceneBody,
 )
 from snapcore.render.human import HumanBody, RetargetError
 from snapcore.render.skinned import FrameBlocks
@@ -107,7 +108,7 @@ def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLOR
     return CharacterBody(character, color=color, tessellation=tessellation)
 
 
-class MixedSceneBody:
+class MixedSceneBody(SceneBody):
     """The bodies of every character of a scene, merged into one mesh.
 
     Parameters
@@ -124,54 +125,12 @@ class MixedSceneBody:
     """
 
     def __init__(self, scene, *, kind=None, colors=None, tessellation=TESSELLATION, bodies=None):
-        self.scene = scene
         self.kind = kind or body_kind(scene)
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
-        self.characters = bodies if bodies is not None else [
+        self._merge(scene, bodies if bodies is not None else [
             character_body(ch, kind=self.kind, color=colors[i % len(colors)],
                            tessellation=tessellation)
-            for i, ch in enumerate(scene.characters)]
-        offs = np.cumsum([0] + [b.n_vertices for b in self.characters])
-        self.vertex_offsets = offs  # character i owns vertices offs[i]:offs[i+1]
-        self.face_offsets = np.cumsum([0] + [b.n_faces for b in self.characters])
-        self.faces = np.vstack([b.faces + o for b, o in zip(self.characters, offs[:-1])])
-        self.face_colors = np.vstack([b.face_colors for b in self.characters])
-        self.face_character = np.concatenate(
-            [np.full(b.n_faces, i) for i, b in enumerate(self.characters)])
-
-    @property
-    def n_vertices(self) -> int:
-        return int(self.vertex_offsets[-1])
-
-    @property
-    def n_faces(self) -> int:
-        return int(self.faces.shape[0])
-
-    def _check(self, frame):
-        f = np.asarray(frame)
-        n = self.scene.n_frames
-        if f.size and (f.min() < 0 or f.max() >= n):
-            raise SceneError(f"frame {frame} is outside the scene's internal frames 0..{n - 1}")
-
-    def vertices(self, frame) -> np.ndarray:
-        """Merged world vertices at internal frame(s): (N, 3), or (K, N, 3) for K frames."""
-        self._check(frame)
-        return np.concatenate([b.vertices(frame) for b in self.characters], axis=-2)
-
-    def normals(self, frame) -> np.ndarray:
-        """Merged world vertex normals at internal frame(s): (N, 3) or (K, N, 3)."""
-        self._check(frame)
-        return np.concatenate([b.normals(frame) for b in self.characters], axis=-2)
-
-    def pose(self, frame: int) -> PosedMesh:
-        """The merged mesh of all characters at internal frame ``frame``."""
-        frame = int(frame)
-        return PosedMesh(self.vertices(frame), self.faces, self.face_colors,
-                         self.normals(frame), self.face_character)
-
-    def trimesh(self, frame: int):
-        """``self.pose(frame).trimesh()``: a :class:`trimesh.Trimesh` with face colours."""
-        return self.pose(frame).trimesh()
+            for i, ch in enumerate(scene.characters)])
 
 
 _BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

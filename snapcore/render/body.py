@@ -467,12 +467,17 @@ class SceneBody:
     kind = "mannequin"
 
     def __init__(self, scene, *, colors=None, tessellation=TESSELLATION):
-        self.scene = scene
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
-        self.characters = [
+        self._merge(scene, [
             CharacterBody(ch, color=colors[i % len(colors)], tessellation=tessellation)
             for i, ch in enumerate(scene.characters)
-        ]
+        ])
+
+    def _merge(self, scene, bodies) -> None:
+        """Merge per-character bodies (anything with ``vertices``, ``normals``, ``faces``,
+        ``face_colors``, ``n_vertices``, ``n_faces``) into this scene's one mesh."""
+        self.scene = scene
+        self.characters = list(bodies)
         offs = np.cumsum([0] + [b.n_vertices for b in self.characters])
         self.vertex_offsets = offs  # character i owns vertices offs[i]:offs[i+1]
         foffs = np.cumsum([0] + [b.n_faces for b in self.characters])
