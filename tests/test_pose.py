@@ -562,7 +562,8 @@ def test_pose_params_are_the_pose_options():
     assert fields | {"pose_method", "contact_tolerances"} == set(a.options)
     assert a.options["w_local"] == 0.5 and a.options["k"] == 2
     assert a.options["pose_method"] == "paper"
-    # the paper's options are not passed to another selector
-    assert "w_local" not in PoseParams(w_local=0.5).kwargs()
+    # the paper's options are refused for another selector, not silently dropped
+    with pytest.raises(ValueError, match="w_local apply to the 'paper' pose method only"):
+        PoseParams(w_local=0.5).kwargs()
     with pytest.raises(TypeError, match="top_k"):
         take_snapshot(scene, top_k=3, view=False)
