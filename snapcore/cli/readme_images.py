@@ -53,7 +53,7 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     sheet_view = views.get("ours")
     sheet = contact_sheet(scene, picks["frames"], view=sheet_view, entropy=picks["entropy"],
                           size=panel, title=f"CMU {name}: the three most informative poses "
-                                            "(pose entropy), selected view")
+                                            "(story information), selected view")
     frame = picks["frame"]
     labels = {ViewMethod.OURS.label: "ours (projected motion area)"}
     cmp = compare_views(scene, frame, {labels.get(k, k): v for k, v in views.items()}, size=panel,
