@@ -51,6 +51,40 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def start_study(stimuli, db: str, log_path) -> tuple[subprocess.Popen, str]:
+    """Start `snapshot study` on a free port, its output in ``log_path``; wait until it
+    answers /_stcore/health. Returns (process, base url); fails the test with the log."""
+    port = free_port()
+    with open(log_path, "w") as log:  # the child keeps its own handle
+        proc = subprocess.Popen([SNAPSHOT, "study", "--stimuli", str(stimuli), "--db", db,
+                                 "--port", str(port)],
+                                env={**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN},
+                                stdout=log, stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + SERVER_START_S
+    while True:
+        try:
+            with urllib.request.urlopen(f"{base}/_stcore/health", timeout=2) as r:
+                if r.read() == b"ok":
+                    return proc, base
+        except OSError:
+            pass
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"server did not start:\n{Path(log_path).read_text()}")
+        time.sleep(0.25)
+
+
+def stop_process(proc: subprocess.Popen, timeout_s: float = 15) -> None:
+    """Terminate a child process, killing it when it does not stop within ``timeout_s``."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
 @pytest.fixture(scope="module")
 def playwright_api():
     sync = pytest.importorskip("playwright.sync_api")
@@ -79,35 +113,12 @@ def stimuli_dir(tmp_path_factory):
 def server(stimuli_dir, tmp_path_factory, playwright_api):
     """`snapshot study` serving the stimuli on a free port; yields (base url, store)."""
     db = f"sqlite:///{tmp_path_factory.mktemp('e2e-db') / 'study.db'}"
-    port = free_port()
-    env = {**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN}
-    log = open(tmp_path_factory.mktemp("e2e-log") / "server.log", "w+")  # noqa: SIM115
-    proc = subprocess.Popen([SNAPSHOT, "study", "--stimuli", str(stimuli_dir), "--db", db,
-                             "--port", str(port)], env=env, stdout=log, stderr=subprocess.STDOUT)
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + SERVER_START_S
-    while True:
-        try:
-            with urllib.request.urlopen(f"{base}/_stcore/health", timeout=2) as r:
-                if r.read() == b"ok":
-                    break
-        except OSError:
-            pass
-        if proc.poll() is not None or time.monotonic() > deadline:
-            log.seek(0)
-            proc.kill()
-            pytest.fail(f"server did not start:\n{log.read()}")
-        time.sleep(0.25)
+    log_path = tmp_path_factory.mktemp("e2e-log") / "server.log"
+    proc, base = start_study(stimuli_dir, db, log_path)
     store = Store(db)
     yield base, store
     store.close()
-    proc.terminate()
-    try:
-        proc.wait(timeout=15)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-    log.close()
+    stop_process(proc)
 
 
 @pytest.fixture(scope="module")

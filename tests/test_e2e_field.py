@@ -23,7 +23,6 @@ import shutil
 import subprocess
 import tempfile
 import time
-import urllib.request
 from pathlib import Path
 
 import pytest
@@ -33,14 +32,14 @@ from test_e2e import (
     CHROMIUM,
     CHROMIUM_ARGS,
     REPO,
-    SERVER_START_S,
-    SNAPSHOT,
     TOKEN,
     free_port,
     heading,
     picker_ready,
     settle,
     shown_frame,
+    start_study,
+    stop_process,
     watch_through,
 )
 
@@ -87,35 +86,12 @@ def server(tmp_path_factory, playwright_api):
     if r is not None:
         assert r.returncode == 0, r.stderr
     db = f"sqlite:///{tmp_path_factory.mktemp('field-db') / 'study.db'}"
-    port = free_port()
     log_path = tmp_path_factory.mktemp("field-log") / "server.log"
-    log = open(log_path, "w+")  # noqa: SIM115
-    proc = subprocess.Popen([SNAPSHOT, "study", "--stimuli", str(stimuli), "--db", db,
-                             "--port", str(port)], env={**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN},
-                            stdout=log, stderr=subprocess.STDOUT)
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + SERVER_START_S
-    while True:
-        try:
-            with urllib.request.urlopen(f"{base}/_stcore/health", timeout=2) as resp:
-                if resp.read() == b"ok":
-                    break
-        except OSError:
-            pass
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"server did not start:\n{log_path.read_text()}")
-        time.sleep(0.25)
+    proc, base = start_study(stimuli, db, log_path)
     store = Store(db)
     yield base, store, log_path, stimuli
     store.close()
-    proc.terminate()
-    try:
-        proc.wait(timeout=15)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-    log.close()
+    stop_process(proc)
 
 
 @pytest.fixture(scope="module")
@@ -689,12 +665,7 @@ def test_firefox_esr_plays_webm(server, artifacts):
     finally:
         if ff is not None:
             ff.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop_process(proc)
         shutil.rmtree(profile, ignore_errors=True)
     (row,) = store.responses(pid)
     assert row["task"] == "pose" and row["chosen_video_frame"] == frame
