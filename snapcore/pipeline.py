@@ -315,12 +315,13 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
         raise TypeError(f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
                         f"are {', '.join(sorted(known))})")
     params = replace(pose_params or PoseParams(), **pose_options)
+    kwargs = params.kwargs()
     t0 = time.perf_counter()
-    sel = select_pose(scene, **params.kwargs())
+    sel = select_pose(scene, **kwargs)
     t1 = time.perf_counter()
     options = {"pose_method": sel.method, "k": int(params.k),
                "min_separation_s": float(params.min_separation_s)}
-    options.update({name: value for name, value in params.kwargs().items()
+    options.update({name: value for name, value in kwargs.items()
                     if name not in ("method", "k", "min_separation_s", "tolerances", "story")})
     tol = sel.entropy.interactions.tolerances
     if sel.method == "paper":
@@ -338,9 +339,11 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
     timings["pose"] = t1 - t0
     snap = Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
     if view:
-        params = ViewParams(window_s=window_s, baselines=bool(baselines), n_views=int(n_views))
-        options.update(window_s=window_s, baselines=params.baselines, n_views=params.n_views)
-        _view_stage(snap, params)
+        view_params = ViewParams(window_s=window_s, baselines=bool(baselines),
+                                 n_views=int(n_views))
+        options.update(window_s=window_s, baselines=view_params.baselines,
+                       n_views=view_params.n_views)
+        _view_stage(snap, view_params)
     timings["total"] = time.perf_counter() - t0
     return snap
 
