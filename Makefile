@@ -1,7 +1,7 @@
 # Action Snapshot — the two commands: `make study` and `make test` (plus `make bench`).
 # Both work on a brand-new Debian machine: they create .venv, install the project, and
 # install the system packages the code needs (Mesa EGL for headless rendering, Chromium
-# and Firefox ESR for the browser tests, PostgreSQL for the store test) only when they are missing.
+# and Firefox ESR for the browser tests, PostgreSQL for the store test, nginx for the replicas) only when they are missing.
 
 PYTHON    ?= python3
 VENV      := .venv
@@ -40,7 +40,8 @@ SYS_PKGS = $(strip \
   $(if $(shell ldconfig -p | grep -q 'libEGL_mesa.so.0' && echo y),,libegl1 libegl-mesa0 libgl1-mesa-dri) \
   $(if $(wildcard /usr/bin/chromium),,chromium) \
   $(if $(wildcard /usr/bin/firefox-esr),,firefox-esr) \
-  $(if $(wildcard /usr/lib/postgresql/*/bin/initdb),,postgresql))
+  $(if $(wildcard /usr/lib/postgresql/*/bin/initdb),,postgresql) \
+  $(if $(wildcard /usr/sbin/nginx),,nginx))
 
 sysdeps:
 	@if [ -n "$(SYS_PKGS)" ]; then \

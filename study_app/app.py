@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import time
 from pathlib import Path
 
 import streamlit as st
@@ -48,6 +49,7 @@ from study_app.session import (  # noqa: E402
     describe_value,
     prolific_problems,
 )
+from study_app.timing import record_run  # noqa: E402
 
 #: The page shown at each stage: (render function, title).
 STAGE_PAGES = {
@@ -151,4 +153,16 @@ def main() -> None:
         common.resume_link(session)
 
 
-main()
+def _timed_main() -> None:
+    """Run :func:`main`, recording how long this script run took (st.rerun and
+    st.stop end a run with an exception: they are timed too)."""
+    t0 = time.perf_counter()
+    try:
+        main()
+    finally:
+        session = st.session_state.get(common.KEY_SESSION)
+        stage = session.stage.value if session is not None else "none"
+        record_run(time.perf_counter() - t0, stage=stage)
+
+
+_timed_main()

@@ -1,0 +1,293 @@
+"""A Streamlit client at the protocol level: one websocket, protobuf messages, no browser.
+
+It speaks what the Streamlit frontend speaks on ``ws://HOST/_stcore/stream``: a
+``BackMsg.rerun_script`` carrying the page's query string and the state of every widget
+the page shows, answered by ``ForwardMsg`` deltas until ``script_finished``. The messages
+are the classes of the installed ``streamlit`` package, so the client follows the
+server's own version of the protocol. Widgets are found in the deltas by the ``key`` the
+app gives them (Streamlit ends each element id with ``-<key>``), and set the way the
+browser sets them: a checkbox as ``bool_value``, a radio or selectbox as the chosen
+option's text (``string_value``), a button as ``trigger_value``, and a components-v2
+widget (the frame picker, the view chooser) as a JSON list of ``{"event", "value"}``
+on its trigger aggregator ``$$STREAMLIT_INTERNAL_KEY_<id>__events``.
+
+Many clients share one asyncio loop, so one process drives hundreds of participants
+and the server is what gets measured.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl, urlsplit
+
+__all__ = ["Element", "Page", "StreamlitClient", "ProtocolError", "trigger_id"]
+
+#: Element types that are widgets, by the oneof name of ``Element.type``.
+WIDGET_TYPES = ("button", "checkbox", "radio", "selectbox", "text_input", "slider",
+                "bidi_component")
+#: Element types whose text the client keeps (what the participant reads).
+TEXT_TYPES = ("heading", "markdown", "alert", "code", "exception")
+
+
+class ProtocolError(RuntimeError):
+    """The server closed the connection or answered something the client cannot follow."""
+
+
+def trigger_id(element_id: str) -> str:
+    """The trigger aggregator widget id of a components-v2 element (where its events go)."""
+    return f"$$STREAMLIT_INTERNAL_KEY_{element_id}__events"
+
+
+@dataclass
+class Element:
+    """One element of the page as the server sent it.
+
+    Attributes
+    ----------
+    kind : str
+        The element type (``"button"``, ``"radio"``, ``"bidi_component"``, ``"markdown"``...).
+    id : str
+        The widget id ('' for non-widgets).
+    key : str
+        The app's ``key=`` of the widget (the id's suffix), '' without one.
+    options : list of str
+        Options of a radio or selectbox.
+    data : dict or None
+        The JSON data of a components-v2 element.
+    text : str
+        Text of a heading, markdown, alert or code block.
+    disabled : bool
+    """
+
+    kind: str
+    id: str = ""
+    key: str = ""
+    options: list = field(default_factory=list)
+    data: dict | None = None
+    text: str = ""
+    disabled: bool = False
+
+
+@dataclass
+class Page:
+    """What one interaction left on screen: its elements, in the order they came."""
+
+    elements: list = field(default_factory=list)
+
+    def widget(self, key_prefix: str) -> Element | None:
+        """The first widget whose key is ``key_prefix`` or starts with ``key_prefix.``."""
+        for e in self.elements:
+            if e.key == key_prefix or e.key.startswith(key_prefix + "."):
+                return e
+        return None
+
+    def texts(self, kind: str | None = None) -> list[str]:
+        return [e.text for e in self.elements if e.text and (kind is None or e.kind == kind)]
+
+    def has_text(self, needle: str) -> bool:
+        return any(needle in t for t in self.texts())
+
+
+def _element(el) -> Element:
+    kind = el.WhichOneof("type") or ""
+    out = Element(kind=kind)
+    if kind in WIDGET_TYPES:
+        proto = getattr(el, kind)
+        out.id = proto.id
+        # Streamlit's ids are "$$ID-<hash>-<user key>" (the key may itself hold '-').
+        parts = proto.id.split("-", 2)
+        out.key = parts[2] if len(parts) == 3 and proto.id.startswith("$$ID") else ""
+        out.disabled = bool(getattr(proto, "disabled", False))
+        if kind in ("radio", "selectbox"):
+            out.options = list(proto.options)
+        if kind == "bidi_component" and proto.WhichOneof("data") == "json":
+            out.data = json.loads(proto.json)
+        elif kind == "bidi_component" and proto.WhichOneof("data") == "mixed":
+            out.data = json.loads(proto.mixed.json)
+        if kind == "button":
+            out.text = proto.label
+    elif kind == "heading":
+        out.text = el.heading.body
+    elif kind == "markdown":
+        out.text = el.markdown.body
+    elif kind == "alert":
+        out.text = el.alert.body
+    elif kind == "code":
+        out.text = el.code.code_text
+    elif kind == "exception":
+        out.text = f"{el.exception.type}: {el.exception.message}"
+    return out
+
+
+class StreamlitClient:
+    """One browser tab's conversation with a Streamlit server.
+
+    Parameters
+    ----------
+    url : str
+        The app's address, ``http://host:port/`` (the websocket is ``/_stcore/stream``).
+    query : str
+        The query string the tab was opened with (e.g. the Prolific parameters).
+    cookies : dict, optional
+        Cookies sent with the websocket upgrade (e.g. the replica-routing cookie that
+        nginx set on the page load).
+    timeout_s : float
+        Longest wait for one interaction's script runs to finish.
+    """
+
+    def __init__(self, url: str, *, query: str = "", cookies: dict | None = None,
+                 timeout_s: float = 60.0):
+        parts = urlsplit(url)
+        scheme = "wss" if parts.scheme == "https" else "ws"
+        path = parts.path.rstrip("/")
+        self.http_url = f"{parts.scheme}://{parts.netloc}{path}/"
+        self.ws_url = f"{scheme}://{parts.netloc}{path}/_stcore/stream"
+        self.origin = f"{parts.scheme}://{parts.netloc}"
+        self.query = query
+        self.cookies = dict(cookies or {})
+        self.timeout_s = timeout_s
+        self.ws = None
+        #: Current value of every stateful widget, by widget id (sent with every rerun,
+        #: as the browser does).
+        self.values: dict[str, tuple[str, object]] = {}
+        self.page = Page()
+        self.script_runs = 0
+
+    # -- connection ------------------------------------------------------------------
+    async def connect(self) -> None:
+        import websockets
+
+        headers = {"Origin": self.origin}
+        if self.cookies:
+            headers["Cookie"] = "; ".join(f"{k}={v}" for k, v in self.cookies.items())
+        self.ws = await websockets.connect(
+            self.ws_url, subprotocols=["streamlit"], additional_headers=headers,
+            max_size=None, open_timeout=self.timeout_s, ping_interval=None)
+
+    async def close(self) -> None:
+        if self.ws is not None:
+            await self.ws.close()
+            self.ws = None
+
+    async def reload(self, query: str | None = None) -> Page:
+        """Close the tab's connection and open the page again (a browser reload).
+
+        A new connection is a new Streamlit session: widget values are gone, and the
+        app finds the participant from the ``pid`` in the URL.
+        """
+        await self.close()
+        if query is not None:
+            self.query = query
+        self.values = {}
+        await self.connect()
+        return await self.rerun()
+
+    # -- interactions ----------------------------------------------------------------
+    async def rerun(self, *, triggers: list | None = None, history: bool = False,
+                    wait: bool = True) -> Page:
+        """Send one rerun (the stateful widget values plus ``triggers``) and read the
+        page until the last script run finishes.
+
+        Parameters
+        ----------
+        triggers : list of WidgetState, optional
+            One-shot values (a button click, a component event).
+        history : bool
+            The rerun is a Back/Forward navigation of the browser.
+        wait : bool
+            Read the answer (False: send only, as the first click of a double click).
+        """
+        from streamlit.proto.BackMsg_pb2 import BackMsg
+        from streamlit.proto.WidgetStates_pb2 import WidgetState
+
+        msg = BackMsg()
+        cs = msg.rerun_script
+        cs.query_string = self.query
+        cs.is_history_navigation = history
+        for wid, (kind, value) in self.values.items():
+            w = WidgetState(id=wid)
+            setattr(w, kind, value)
+            cs.widget_states.widgets.append(w)
+        for w in triggers or ():
+            cs.widget_states.widgets.append(w)
+        if self.ws is None:
+            raise ProtocolError("not connected")
+        await self.ws.send(msg.SerializeToString())
+        if not wait:
+            return self.page
+        return await asyncio.wait_for(self._read_until_finished(), self.timeout_s)
+
+    async def _read_until_finished(self) -> Page:
+        import websockets
+        from streamlit.proto.ForwardMsg_pb2 import ForwardMsg
+
+        elements: dict[tuple, Element] = {}
+        while True:
+            try:
+                raw = await self.ws.recv()
+            except websockets.ConnectionClosed as err:
+                raise ProtocolError(f"connection closed ({err.code})") from err
+            fm = ForwardMsg()
+            fm.ParseFromString(raw)
+            kind = fm.WhichOneof("type")
+            if kind == "new_session":
+                elements = {}  # a new script run starts drawing the page again
+            elif kind == "delta" and fm.delta.WhichOneof("type") == "new_element":
+                path = tuple(fm.metadata.delta_path)
+                elements[path] = _element(fm.delta.new_element)
+            elif kind == "page_info_changed":
+                # The app changed its URL (st.query_params): the tab's address now.
+                self.query = fm.page_info_changed.query_string
+            elif kind == "script_finished":
+                self.script_runs += 1
+                status = fm.script_finished
+                if status == ForwardMsg.FINISHED_SUCCESSFULLY:
+                    self.page = Page([elements[p] for p in sorted(elements)])
+                    self._forget_gone_widgets()
+                    return self.page
+                if status == ForwardMsg.FINISHED_WITH_COMPILE_ERROR:
+                    raise ProtocolError("the app script failed to compile")
+                # FINISHED_EARLY_FOR_RERUN: st.rerun() or a newer request; keep reading.
+
+    def _forget_gone_widgets(self) -> None:
+        # The browser drops the state of widgets that are no longer on the page.
+        ids = {e.id for e in self.page.elements if e.id}
+        self.values = {k: v for k, v in self.values.items() if k in ids}
+
+    # -- widget helpers (one user action each) ---------------------------------------
+    def set_value(self, element: Element, value) -> None:
+        """Set a stateful widget's value as the browser would (sent with the next rerun)."""
+        if element.kind == "checkbox":
+            self.values[element.id] = ("bool_value", bool(value))
+        elif element.kind in ("radio", "selectbox", "text_input"):
+            self.values[element.id] = ("string_value", str(value))
+        else:
+            raise ProtocolError(f"cannot set a {element.kind} widget")
+
+    @staticmethod
+    def click(element: Element):
+        """A button click (a one-shot trigger)."""
+        from streamlit.proto.WidgetStates_pb2 import WidgetState
+
+        return WidgetState(id=element.id, trigger_value=True)
+
+    @staticmethod
+    def component_event(element: Element, event: str, value) -> object:
+        """A components-v2 event (``setTriggerValue(event, value)`` in the browser)."""
+        from streamlit.proto.WidgetStates_pb2 import WidgetState
+
+        return WidgetState(id=trigger_id(element.id),
+                           json_trigger_value=json.dumps([{"event": event, "value": value}]))
+
+    def query_params(self) -> dict:
+        return dict(parse_qsl(self.query))
+
+
+async def timed(coro) -> tuple[float, object]:
+    """``(seconds, result)`` of awaiting ``coro``."""
+    t0 = time.perf_counter()
+    out = await coro
+    return time.perf_counter() - t0, out
