@@ -91,6 +91,12 @@ def page_kind(page: Page) -> str:
     return "unknown"
 
 
+def _attention_index(result: ParticipantResult) -> int:
+    """The attention check's trial index: the trial after the last one answered so far
+    (the page does not show its index; the plan puts it after the pose and view trials)."""
+    return max(result.answers, default=-1) + 1
+
+
 class _Run:
     """The participant's state while running (kept small: hundreds run at once)."""
 
@@ -196,7 +202,9 @@ class _Run:
             choice = self.rng.choice(w.options)
             await self.think()
             self.c.set_value(w, choice)
+            d = {"task": "attention", "value": choice}
             page = await self.act("attention_choice")
+            self.r.answers[_attention_index(self.r)] = d
             await self.think(0.25)
             b = page.widget(K_ATT_SUBMIT)
             return await self.submit("attention_submit", b, self.c.click(b))
