@@ -325,3 +325,19 @@ def _matches(sent: dict, row: dict) -> bool:
 def result_dicts(results) -> list[dict]:
     """The per-participant results as plain dicts (for ``--details``)."""
     return [asdict(r) for r in results]
+
+
+def warm_up(url: str, *, timeout_s: float = 120.0) -> None:
+    """Open the study once and leave (no participant is created), so the server's
+    one-off start work (verifying the stimuli) is not measured as the launch."""
+    from .client import StreamlitClient
+
+    async def go():
+        c = StreamlitClient(url, timeout_s=timeout_s)
+        await c.connect()
+        try:
+            await c.rerun()
+        finally:
+            await c.close()
+
+    asyncio.run(go())
