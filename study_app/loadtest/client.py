@@ -136,10 +136,13 @@ class StreamlitClient:
         nginx set on the page load).
     timeout_s : float
         Longest wait for one interaction's script runs to finish.
+    load_page : bool
+        Fetch the page's HTML before opening the websocket, as a browser does, keeping
+        the cookies it sets (nginx's replica-routing cookie comes this way).
     """
 
     def __init__(self, url: str, *, query: str = "", cookies: dict | None = None,
-                 timeout_s: float = 60.0):
+                 timeout_s: float = 60.0, load_page: bool = True):
         parts = urlsplit(url)
         scheme = "wss" if parts.scheme == "https" else "ws"
         path = parts.path.rstrip("/")
@@ -149,6 +152,7 @@ class StreamlitClient:
         self.query = query
         self.cookies = dict(cookies or {})
         self.timeout_s = timeout_s
+        self.load_page = load_page
         self.ws = None
         #: Current value of every stateful widget, by widget id (sent with every rerun,
         #: as the browser does).
@@ -157,9 +161,25 @@ class StreamlitClient:
         self.script_runs = 0
 
     # -- connection ------------------------------------------------------------------
+    def _get_page(self) -> None:
+        import urllib.request
+        from http.cookies import SimpleCookie
+
+        req = urllib.request.Request(self.http_url + ("?" + self.query if self.query else ""))
+        if self.cookies:
+            req.add_header("Cookie", "; ".join(f"{k}={v}" for k, v in self.cookies.items()))
+        with urllib.request.urlopen(req, timeout=self.timeout_s) as r:
+            r.read()
+            for header in r.headers.get_all("Set-Cookie") or []:
+                for name, morsel in SimpleCookie(header).items():
+                    self.cookies[name] = morsel.value
+
     async def connect(self) -> None:
+        """Open the page (HTML, when ``load_page``) and its websocket."""
         import websockets
 
+        if self.load_page:
+            await asyncio.to_thread(self._get_page)
         headers = {"Origin": self.origin}
         if self.cookies:
             headers["Cookie"] = "; ".join(f"{k}={v}" for k, v in self.cookies.items())

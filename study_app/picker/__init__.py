@@ -53,6 +53,18 @@ def _components():
     return picker, chooser
 
 
+@cache
+def _media_bytes(path: str) -> bytes:
+    """A stimulus file's bytes, read once per server process.
+
+    Streamlit's media manager reads and hashes a file given by path on every call,
+    holding its one process-wide lock; with every participant's page registering its
+    videos and pictures on every script run, threads queued on that lock under load.
+    Stimuli never change while the app runs (they are verified once at start-up).
+    """
+    return Path(path).read_bytes()
+
+
 def media_url(path: str | Path, *, where: str) -> str:
     """A URL the browser can fetch ``path`` from (served by the running Streamlit app).
 
@@ -71,7 +83,8 @@ def media_url(path: str | Path, *, where: str) -> str:
     mime = _MIME.get(p.suffix.lower(), "application/octet-stream")
     ctx = get_script_run_ctx()
     coordinates = f"snapshot.{where}" if ctx is None else f"snapshot.{ctx.page_script_hash}.{where}"
-    return Runtime.instance().media_file_mgr.add(str(p), mime, coordinates)
+    return Runtime.instance().media_file_mgr.add(_media_bytes(str(p.resolve())), mime,
+                                                 coordinates)
 
 
 def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,

@@ -1,0 +1,120 @@
+"""Replicas behind nginx on one PostgreSQL: a replica dying mid-launch loses nothing.
+
+``snapshot serve --replicas 2`` (its own PostgreSQL under the run folder, two Streamlit
+processes, nginx with the generated config) serves the tiny study; ten simulated
+participants (the protocol-level load-test driver) go through it, and one replica is
+killed (SIGKILL, as a crash) while they are mid-study. Its participants' connections
+drop; they reconnect through nginx, land on the other replica and resume from the pid
+in their URL. The database must then hold every participant once, every answer they
+sent exactly once and as sent, and their completion codes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from app_helpers import tiny_demo_stimuli
+from conftest import need
+
+from study_app.loadtest.run import run_load
+from study_app.replicas import NGINX, find_pg_bin
+from study_app.store import Store
+
+pytestmark = [pytest.mark.slow]
+
+SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
+#: Seconds for the set (initdb, two servers, nginx) to come up.
+START_S = 90
+N_PARTICIPANTS = 10
+#: Seconds into the run when replica 0 is killed (everyone has arrived, nobody is done).
+KILL_AT_S = 6.0
+
+
+@pytest.fixture(scope="module")
+def stimuli_dir(tmp_path_factory):
+    out, r = tiny_demo_stimuli(tmp_path_factory)
+    if r is not None:
+        assert r.returncode == 0, r.stderr
+    return out
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def replica_set(stimuli_dir, tmp_path):
+    """`snapshot serve --replicas 2` running; yields its state (url, pids, db url)."""
+    need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
+    need(find_pg_bin() is not None, "PostgreSQL server binaries not found")
+    run_dir = tmp_path / "replicas"
+    log = tmp_path / "serve.log"
+    with open(log, "w") as f:
+        proc = subprocess.Popen([SNAPSHOT, "serve", "--replicas", "2", "--stimuli",
+                                 str(stimuli_dir), "--port", str(_free_port()),
+                                 "--run-dir", str(run_dir)], stdout=f, stderr=subprocess.STDOUT)
+    state_file = run_dir / "state.json"
+    deadline = time.monotonic() + START_S
+    while not state_file.exists():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"the replica set did not start:\n{log.read_text()}")
+        time.sleep(0.2)
+    state = json.loads(state_file.read_text())
+    yield state
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def test_a_replica_killed_mid_run_loses_and_duplicates_no_answer(replica_set):
+    """Every participant finishes and every answer is stored once, though a replica died."""
+    victim = replica_set["replicas"][0]["pid"]
+    killed_at = []
+
+    def kill_one(elapsed_s):
+        if not killed_at and elapsed_s >= KILL_AT_S:
+            os.kill(victim, signal.SIGKILL)
+            killed_at.append(elapsed_s)
+
+    report, results = run_load(replica_set["url"], N_PARTICIPANTS, ramp_s=2.0, think_s=2.0,
+                               seed=16, timeout_s=30.0, db_url=replica_set["db_url"],
+                               timings=[replica_set["timings"]], during=kill_one)
+    assert killed_at, "the run ended before the replica was killed"
+    # Someone was on the killed replica mid-study, reconnected and went on elsewhere.
+    moved = [r for r in results if r.reconnects]
+    assert moved, "no participant was on the killed replica (routing not spread?)"
+    assert all(r.completion_code for r in results), [r.errors for r in results]
+    db = report["database"]
+    assert db["ok"], db["problems"]
+    # Straight from the database too: 10 participants, 5 trials each, no duplicate row.
+    store = Store(replica_set["db_url"])
+    try:
+        ours = {r.prolific_pid for r in results}
+        parts = [p for p in store.participants() if p["prolific_pid"] in ours]
+        assert len(parts) == N_PARTICIPANTS
+        assert all(p["completion_code"] for p in parts)
+        for p in parts:
+            rows = store.responses(p["participant_id"])
+            trials = [row["trial_index"] for row in rows]
+            assert sorted(trials) == list(range(5)), (p["participant_id"], trials)
+    finally:
+        store.close()
+    # Both replicas served script runs (the routing spreads participants).
+    pids = {json.loads(line)["pid"] for line in
+            Path(replica_set["timings"]).read_text().splitlines() if line.strip()}
+    assert len(pids) == 2
