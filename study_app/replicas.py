@@ -46,6 +46,7 @@ from pathlib import Path
 from snapcore.errors import SnapshotError
 
 from .commands.serve import streamlit_command
+from .loadtest.run import warm_up
 from .timing import ENV_TIMINGS
 
 __all__ = ["ReplicaError", "Postgres", "nginx_config", "ReplicaSet", "find_pg_bin",
@@ -124,6 +125,11 @@ class Postgres:
         self.root.mkdir(parents=True, exist_ok=True)
         if self.as_root:
             shutil.chown(self.root, user="postgres", group="postgres")
+            blocked = [p for p in self.root.parents if not os.stat(p).st_mode & 0o001]
+            if blocked:
+                raise ReplicaError(f"PostgreSQL runs as the postgres user, who cannot enter "
+                                   f"{blocked[0]} (mode {oct(os.stat(blocked[0]).st_mode)[-3:]})"
+                                   ": choose a --run-dir it can reach")
         data = self.root / "data"
         if not (data / "PG_VERSION").exists():
             pw = self.root / "password"
@@ -344,6 +350,9 @@ class ReplicaSet:
             for i, (p, proc) in enumerate(zip(self.replica_ports, self.replicas, strict=True)):
                 wait_healthy(f"http://127.0.0.1:{p}", proc=proc,
                              log=self.root / f"replica-{i}.log")
+                # Open the app once: each process verifies the stimuli on its first
+                # script run (seconds), which must not be a participant's first page.
+                warm_up(f"http://127.0.0.1:{p}")
             # nginx creates its temp and cache folders itself, owned by its workers.
             (self.root / "nginx-tmp").mkdir(exist_ok=True)
             conf = self.root / "nginx.conf"

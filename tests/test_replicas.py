@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -34,7 +36,7 @@ SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
 START_S = 90
 N_PARTICIPANTS = 10
 #: Seconds into the run when replica 0 is killed (everyone has arrived, nobody is done).
-KILL_AT_S = 6.0
+KILL_AT_S = 10.0
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +60,10 @@ def replica_set(stimuli_dir, tmp_path):
     """`snapshot serve --replicas 2` running; yields its state (url, pids, db url)."""
     need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
     need(find_pg_bin() is not None, "PostgreSQL server binaries not found")
-    run_dir = tmp_path / "replicas"
+    # As root, PostgreSQL runs as the postgres user, who cannot enter pytest's private
+    # (0700) temp folders: the set's folder is a world-traversable one of its own.
+    run_dir = Path(tempfile.mkdtemp(prefix="snapshot-replicas-"))
+    run_dir.chmod(0o755)
     log = tmp_path / "serve.log"
     with open(log, "w") as f:
         proc = subprocess.Popen([SNAPSHOT, "serve", "--replicas", "2", "--stimuli",
@@ -79,6 +84,7 @@ def replica_set(stimuli_dir, tmp_path):
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
+    shutil.rmtree(run_dir, ignore_errors=True)
 
 
 def test_a_replica_killed_mid_run_loses_and_duplicates_no_answer(replica_set):

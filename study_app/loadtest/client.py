@@ -235,7 +235,12 @@ class StreamlitClient:
             cs.widget_states.widgets.append(w)
         if self.ws is None:
             raise ProtocolError("not connected")
-        await self.ws.send(msg.SerializeToString())
+        import websockets
+
+        try:
+            await self.ws.send(msg.SerializeToString())
+        except websockets.ConnectionClosed as err:
+            raise ProtocolError(f"connection closed ({_close_code(err)})") from err
         if not wait:
             return self.page
         return await asyncio.wait_for(self._read_until_finished(), self.timeout_s)
@@ -249,7 +254,7 @@ class StreamlitClient:
             try:
                 raw = await self.ws.recv()
             except websockets.ConnectionClosed as err:
-                raise ProtocolError(f"connection closed ({err.code})") from err
+                raise ProtocolError(f"connection closed ({_close_code(err)})") from err
             fm = ForwardMsg()
             fm.ParseFromString(raw)
             kind = fm.WhichOneof("type")
@@ -304,6 +309,11 @@ class StreamlitClient:
 
     def query_params(self) -> dict:
         return dict(parse_qsl(self.query))
+
+
+def _close_code(err) -> str:
+    frame = err.rcvd or err.sent
+    return "no close frame" if frame is None else str(frame.code)
 
 
 async def timed(coro) -> tuple[float, object]:

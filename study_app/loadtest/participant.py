@@ -127,8 +127,14 @@ class _Run:
     async def open(self) -> Page:
         loop = asyncio.get_running_loop()
         t0 = loop.time()
-        await self.c.connect()
-        page = await self.c.rerun()
+        try:
+            await self.c.connect()
+            page = await self.c.rerun()
+        except (TimeoutError, ProtocolError, OSError) as err:
+            # The server went away while the page loaded: the browser retries.
+            self.r.errors.append(f"open: {type(err).__name__}: {err}")
+            page = await self.reconnect(self)
+            self.r.reconnects += 1
         self.r.add("open", loop.time() - t0)
         return page
 
@@ -283,7 +289,11 @@ async def run_participant(url: str, index: int, *, seed: int, think_s: float,
         else:
             result.errors.append("did not finish within the step limit")
     except Exception as err:  # noqa: BLE001 - one participant's failure is data, not a crash
-        result.errors.append(f"fatal: {type(err).__name__}: {err}")
+        import traceback
+
+        where = traceback.extract_tb(err.__traceback__)
+        at = " <- ".join(f"{f.name}:{f.lineno}" for f in reversed(where[-4:]))
+        result.errors.append(f"fatal: {type(err).__name__}: {err} (at {at})")
     finally:
         result.participant_id = client.query_params().get("pid")
         result.finished = loop.time()
