@@ -143,15 +143,16 @@ def loadtest(url, participants, ramp, think, seed, reload_share, back_share, dou
         parts = urlsplit(url)
         if parts.hostname in ("127.0.0.1", "localhost", "::1"):
             pids = server_pids_for_port(parts.port or 80)
+    from study_app.loadtest.run import run_load, warm_up
+
+    # The server's one-off start work (verifying the stimuli) is not the launch.
+    warm_up(url, timeout_s=timeout_s)
     if driver == "browser":
         from study_app.loadtest.browser import run_browsers
 
         report, _ = run_browsers(url, participants, ramp_s=ramp, think_s=think, seed=seed,
                                  server_pids=pids, timings=timings, db_url=db_url)
     else:
-        from study_app.loadtest.run import run_load, warm_up
-
-        warm_up(url, timeout_s=timeout_s)
         report, _ = run_load(url, participants, ramp_s=ramp, think_s=think, seed=seed,
                              reload=reload_share, back=back_share, double_click=double_share,
                              server_pids=pids, timings=timings, db_url=db_url,
