@@ -1,0 +1,161 @@
+"""`snapshot loadtest` against a real `snapshot study` server: both drivers, the report
+schema, the database afterwards, and bad input in one line.
+
+The protocol driver's participants include ones who reload, go Back to the study link
+and double-click answers; whatever they do, the database must hold each participant
+once and each answer they sent exactly once, as sent. The browser driver (headless
+Chromium) goes through the same server and must agree.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import pytest
+from app_helpers import tiny_demo_stimuli
+from click.testing import CliRunner
+from test_e2e import CHROMIUM, start_study, stop_process
+
+from data_schema import schema_path
+from snapcore.cli.main import cli
+from study_app.store import Store
+
+pytestmark = [pytest.mark.slow]
+
+SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
+#: The tiny study: two scenes, so 2 pose + 2 view trials + the attention check.
+N_TRIALS = 5
+
+
+def _schema() -> dict:
+    return json.loads(schema_path("loadtest").read_text(encoding="utf-8"))
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    """`snapshot study` on the tiny stimuli writing its script-run timings; yields
+    (base url, database url, timings file)."""
+    stimuli, r = tiny_demo_stimuli(tmp_path_factory)
+    if r is not None:
+        assert r.returncode == 0, r.stderr
+    folder = tmp_path_factory.mktemp("loadtest")
+    db = f"sqlite:///{folder / 'study.db'}"
+    timings = folder / "timings.jsonl"
+    old = os.environ.get("SNAPSHOT_TIMINGS")
+    os.environ["SNAPSHOT_TIMINGS"] = str(timings)  # start_study passes os.environ on
+    try:
+        proc, base = start_study(stimuli, db, folder / "server.log")
+    finally:
+        if old is None:
+            os.environ.pop("SNAPSHOT_TIMINGS", None)
+        else:
+            os.environ["SNAPSHOT_TIMINGS"] = old
+    yield base, db, timings
+    stop_process(proc)
+
+
+def _run(args, tmp_path) -> tuple[subprocess.CompletedProcess, dict]:
+    out = tmp_path / "report.json"
+    r = subprocess.run([SNAPSHOT, "loadtest", *args, "--json", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    report = json.loads(out.read_text())
+    jsonschema.validate(report, _schema(), cls=jsonschema.Draft202012Validator)
+    return r, report
+
+
+def _assert_stored_once(db: str, results_prolific: set[str]) -> None:
+    """Straight from the database: each participant once, each trial answered once."""
+    store = Store(db)
+    try:
+        parts = [p for p in store.participants() if p["prolific_pid"] in results_prolific]
+        assert len(parts) == len(results_prolific)
+        for p in parts:
+            assert p["completion_code"]
+            trials = [row["trial_index"] for row in store.responses(p["participant_id"])]
+            assert sorted(trials) == list(range(N_TRIALS))
+    finally:
+        store.close()
+
+
+def _prolific_ids(db: str, session_prefix: str) -> set[str]:
+    store = Store(db)
+    try:
+        return {p["prolific_pid"] for p in store.participants()
+                if (p.get("prolific_session_id") or "").startswith(session_prefix)}
+    finally:
+        store.close()
+
+
+def test_protocol_driver_every_answer_stored_once(study, tmp_path):
+    """Four participants (reloading, going Back, double-clicking) all finish; every
+    answer is stored once as sent; the report follows its schema."""
+    base, db, timings = study
+    _, report = _run(["--url", base, "-n", "4", "--ramp", "1", "--think", "1.5",
+                      "--seed", "7", "--reload", "1", "--back", "1", "--double-click", "1",
+                      "--db", db, "--timings", str(timings)], tmp_path)
+    assert report["completed"] == 4 and report["errors"]["count"] == 0
+    db_check = report["database"]
+    assert db_check["ok"], db_check["problems"]
+    assert db_check["answers_stored_once"] == db_check["answers_sent"] == 4 * N_TRIALS
+    # The odd behaviours happened (seeded), and the server's own timings were read.
+    for action in ("reload", "back", "double_click", "pose_confirm", "view_choose"):
+        assert report["latency"][action]["n"] > 0, action
+    assert report["server_script_runs"]["n"] > 0
+    assert report["server"]["processes"] == 1  # found by the URL's port
+    _assert_stored_once(db, _prolific_ids(db, "s"))
+
+
+@pytest.mark.browser
+def test_browser_driver_agrees(study, tmp_path):
+    """Two participants in headless Chromium: same report shape, same database check."""
+    pytest.importorskip("playwright.async_api")
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"no Chromium at {CHROMIUM}")
+    base, db, _ = study
+    _, report = _run(["--url", base, "-n", "2", "--ramp", "1", "--think", "1", "--seed", "8",
+                      "--driver", "browser", "--db", db], tmp_path)
+    assert report["completed"] == 2
+    assert report["database"]["ok"], report["database"]["problems"]
+    assert report["database"]["answers_stored_once"] == 2 * N_TRIALS
+    assert report["latency"]["pose_confirm"]["n"] == 2 * 2
+    _assert_stored_once(db, _prolific_ids(db, "b"))
+
+
+def test_report_schema_rejects_a_report_without_latency():
+    """The schema is not empty: a report missing its latencies is refused."""
+    doc = {"config": {"url": "x", "participants": 1, "ramp_s": 0, "think_s": 0, "seed": 0,
+                      "driver": "protocol"}, "elapsed_s": 1, "participants": 1,
+           "completed": 1, "reconnects": 0, "errors": {"count": 0, "first": []},
+           "server": {}}
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(doc, _schema(), cls=jsonschema.Draft202012Validator)
+    doc["latency"] = {"all": {"n": 0, "p50": None, "p95": None, "max": None}}
+    jsonschema.validate(doc, _schema(), cls=jsonschema.Draft202012Validator)
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--url", "http://127.0.0.1:9"], "cannot reach the study"),
+    (["--url", "not a url"], "cannot reach the study"),
+])
+def test_unreachable_study_is_one_line_exit_2(args, says):
+    """An address where no study answers: one line, exit code 2, no traceback."""
+    r = CliRunner().invoke(cli, ["loadtest", *args, "-n", "1"])
+    assert r.exit_code == 2, r.output
+    assert says in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
+def test_broken_database_url_is_one_line_exit_2(study):
+    """A database that cannot be opened: one line, exit code 2, before any participant."""
+    base, _, _ = study
+    r = CliRunner().invoke(cli, ["loadtest", "--url", base, "-n", "1",
+                                 "--db", "postgresql+psycopg://nobody@127.0.0.1:9/none"])
+    assert r.exit_code == 2, r.output
+    assert "cannot open database" in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1
