@@ -13,10 +13,18 @@ export SNAPSHOT_DATA ?= $(abspath ../shared/motions)
 PYTEST_ARGS ?=
 PORT      ?= 8501
 
-.PHONY: study test bench install sysdeps lint clean demo
+.PHONY: study test bench install sysdeps lint clean demo serve-replicas
 
 study: install sysdeps
 	$(VENV)/bin/snapshot study --port $(PORT)
+
+# The study on N Streamlit replicas behind nginx, on a PostgreSQL of its own under
+# var/replicas/ (participants: http://127.0.0.1:$(REPLICA_PORT)/). Ctrl-C stops it all.
+N            ?= 2
+REPLICA_PORT ?= 8600
+serve-replicas: install sysdeps
+	@test -f var/stimuli/demo/manifest.json || $(VENV)/bin/snapshot stimuli build study_app/configs/demo.toml -o var/stimuli/demo -q
+	$(VENV)/bin/snapshot serve --replicas $(N) --port $(REPLICA_PORT)
 
 test: install sysdeps
 	$(PY) -m pytest $(PYTEST_ARGS)

@@ -24,6 +24,7 @@ __all__ = [
     "KEY_BG_GENDER_SELF",
     "KEY_ON_SCREEN",
     "KEY_TRIAL_SHOWN",
+    "KEY_PICKER_START",
     "KEY_ATTEMPT",
     "KEY_FLASH",
     "KEY_FRAMES_FALLBACK",
@@ -79,6 +80,9 @@ KEY_ON_SCREEN = "snapshot.on_screen"
 KEY_PROBLEM = "snapshot.problem"
 #: {(participant id, trial index): wall-clock time the trial was first shown}.
 KEY_TRIAL_SHOWN = "snapshot.trial_shown"
+#: {(participant id, player widget key): (frame, share watched)} the player starts
+#: from in this browser session (read from the stored log once per mount).
+KEY_PICKER_START = "snapshot.picker_start"
 #: {trial index: attempt number}; a rejected answer remounts the widget fresh.
 KEY_ATTEMPT = "snapshot.attempt"
 #: A message to show once on the next run (kind, text).

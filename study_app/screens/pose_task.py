@@ -40,8 +40,15 @@ def render() -> None:
     if use_frames:
         answer = _frames_picker(sc, trial)
     else:
-        # Where the participant was (frame, share watched) before a reload.
-        frame, watched = session.picker_state(trial.index)
+        # Where the participant was (frame, share watched) before a reload: read once
+        # per trial and browser session (the player keeps its own state after that),
+        # not on every rerun of the page. Keyed by the player's widget key, so a player
+        # remounted after a refused answer starts where the log says.
+        starts = st.session_state.setdefault(common.KEY_PICKER_START, {})
+        key = (session.participant_id, common.widget_key(common.KEY_PICKER, trial))
+        if key not in starts:
+            starts[key] = session.picker_state(trial.index)
+        frame, watched = starts[key]
         answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
                               trial=trial.index, key=common.widget_key(common.KEY_PICKER, trial),
                               start_frame=frame, watched=watched,
