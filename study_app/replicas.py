@@ -111,9 +111,8 @@ class Postgres:
         r = subprocess.run(cmd, cwd=self.root, capture_output=True, text=True,
                            timeout=START_TIMEOUT_S)
         if r.returncode != 0:
-            log = self.root / "server.log"
-            tail = log.read_text(errors="replace")[-1500:] if log.exists() else ""
-            raise ReplicaError(f"{args[0]} failed: {(r.stderr or r.stdout).strip()} {tail}")
+            out = " | ".join(x.strip() for x in (r.stderr or r.stdout).splitlines() if x.strip())
+            raise ReplicaError(f"{args[0]} failed: {out} {_tail(self.root / 'server.log')}")
         return r
 
     @property
@@ -281,6 +280,14 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _tail(path: Path | None, n: int = 600) -> str:
+    """The end of a log file on one line (errors are shown in one line)."""
+    if path is None or not Path(path).exists():
+        return ""
+    text = Path(path).read_text(errors="replace")[-n:]
+    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
 def wait_healthy(url: str, *, proc: subprocess.Popen | None = None,
                  timeout_s: float = START_TIMEOUT_S, log: Path | None = None) -> None:
     """Wait until ``url``/_stcore/health answers ok (raise ReplicaError on timeout)."""
@@ -295,8 +302,7 @@ def wait_healthy(url: str, *, proc: subprocess.Popen | None = None,
         if proc is not None and proc.poll() is not None:
             break
         time.sleep(0.2)
-    tail = log.read_text(errors="replace")[-1500:] if log and log.exists() else ""
-    raise ReplicaError(f"{url} did not become healthy: {tail}")
+    raise ReplicaError(f"{url} did not become healthy: {_tail(log)}")
 
 
 @dataclass
@@ -365,7 +371,8 @@ class ReplicaSet:
                    str(self.root / "nginx-error.log")]
             check = subprocess.run([*cmd, "-t"], capture_output=True, text=True)
             if check.returncode != 0:
-                raise ReplicaError(f"nginx rejected {conf}: {check.stderr.strip()}")
+                raise ReplicaError(f"nginx rejected {conf}: "
+                                   + " | ".join(check.stderr.strip().splitlines()))
             self.nginx = subprocess.Popen(cmd, stdout=subprocess.DEVNULL,
                                           stderr=subprocess.DEVNULL)
             wait_healthy(self.url, proc=self.nginx, log=self.root / "nginx-error.log")

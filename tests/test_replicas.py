@@ -124,3 +124,43 @@ def test_a_replica_killed_mid_run_loses_and_duplicates_no_answer(replica_set):
     pids = {json.loads(line)["pid"] for line in
             Path(replica_set["timings"]).read_text().splitlines() if line.strip()}
     assert len(pids) == 2
+
+
+def test_serve_with_a_broken_database_url_is_one_line_exit_2(stimuli_dir):
+    """`snapshot serve --db` with a database that cannot be opened: one line, exit 2,
+    before any process starts."""
+    from click.testing import CliRunner
+
+    from snapcore.cli.main import cli
+
+    r = CliRunner().invoke(cli, ["serve", "--stimuli", str(stimuli_dir), "--db",
+                                 "postgresql+psycopg://nobody@127.0.0.1:9/none"])
+    assert r.exit_code == 2, r.output
+    assert "cannot open database" in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
+def test_nginx_config_routes_by_cookie_upgrades_websockets_and_is_valid(tmp_path):
+    """The generated config passes `nginx -t`, routes by the participant's cookie (not
+    the client IP), upgrades the websocket, and caches the stimuli."""
+    from study_app.replicas import ROUTE_COOKIE, nginx_config
+
+    need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
+    (tmp_path / "nginx-tmp").mkdir()
+    conf = tmp_path / "nginx.conf"
+    text = nginx_config(tmp_path, port=_free_port(), replica_ports=[18001, 18002, 18003],
+                        worker_user="nobody nogroup" if os.geteuid() == 0 else None)
+    conf.write_text(text)
+    r = subprocess.run([NGINX, "-t", "-p", str(tmp_path), "-c", str(conf), "-e",
+                        str(tmp_path / "error.log")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert f"map $cookie_{ROUTE_COOKIE} $route_key" in text
+    assert "hash $route_key consistent;" in text and "ip_hash" not in text
+    assert text.count("server 127.0.0.1:1800") == 3
+    assert "proxy_set_header Upgrade $http_upgrade;" in text
+    assert "proxy_set_header Connection $connection_upgrade;" in text
+    assert "proxy_cache media;" in text
+    # Everything nginx writes stays in the folder.
+    for line in text.splitlines():
+        if line.strip().startswith(("pid ", "error_log ", "access_log ", "proxy_temp_path ")):
+            assert str(tmp_path.resolve()) in line, line

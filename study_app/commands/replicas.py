@@ -54,6 +54,10 @@ def serve(n, config, stimuli_dir, db, port, run_dir):
         raise StimuliError(f"no stimuli at {stimuli_dir}: build them with `snapshot stimuli "
                            f"build` (or run `snapshot study` once for the demo)")
     stim = load_stimuli(stimuli_dir)  # verified file by file before anyone is served
+    if db is not None:
+        from study_app.store import Store
+
+        Store(db).close()  # a wrong URL stops here, in one line, before any process starts
     rs = ReplicaSet(root=run_dir, n=n, port=port, stimuli=stimuli_dir.resolve(), db_url=db)
     rs.start()
     click.echo(f"study '{stim.study.id}' on {n} replica(s) "
