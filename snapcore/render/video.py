@@ -205,7 +205,7 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
         for f in frames:
             if failure:
                 break
-            img = sr.render(int(f), camera)
+            img = sr.render(int(f), camera, crop=True)
             if frame_numbers:
                 src = int(scene.source_frame(int(f)))
                 img = draw_label(img, f"frame {src}   {f / scene.fps:6.2f} s")
