@@ -65,6 +65,7 @@ from snapcore.schema import load_schema, validate
 
 from .database import (
     PROLIFIC_INDEX,
+    STUDY_TABLES,
     configure_sqlite,
     default_url,
     events,
@@ -163,13 +164,14 @@ class Store:
                 conn.exec_driver_sql("SELECT 1")
                 missing = [t for t in metadata.tables
                            if not sa.inspect(conn).has_table(t)]
-            if create and missing:
-                self._create_tables()
-            elif create:
-                self._create_indexes()
-            elif missing:
+            if not create and any(t in STUDY_TABLES for t in missing):
                 raise StoreError(f"database {self.url} has no study tables "
                                  f"({', '.join(missing)} missing): wrong database?")
+            if missing:
+                # A new database, or one made before the withdrawals/secrets tables.
+                self._create_tables()
+            if create:
+                self._create_indexes()
         except sa_exc.SQLAlchemyError as err:
             self.engine.dispose()
             raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
