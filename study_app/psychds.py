@@ -31,6 +31,7 @@ import shutil
 from datetime import UTC, datetime
 from pathlib import Path
 
+from snapcore.errors import SchemaError
 from snapcore.schema import load_schema
 
 from .export import StoreError, _write_atomic, write_events, write_export, write_participants
@@ -62,25 +63,28 @@ def data_file_name(study_id: str, description: str | None = None) -> str:
     return "_".join(parts) + "_data.csv"
 
 
-def variable_measured(*, pseudonymised: bool = True) -> list[dict]:
+def variable_measured() -> list[dict]:
     """The ``variableMeasured`` list: every column of the data files, described.
 
     One ``PropertyValue`` per column name, in the order responses, participants,
-    events; a name shared by several files (``participant_id``) is listed once, with
-    the first schema's description.
+    events, with the description its schema gives it; a name shared by several files
+    (``participant_id``) is listed once, with the first schema's description.
+
+    Raises
+    ------
+    SchemaError
+        A column without a description in its schema (Psych-DS needs each described).
     """
     out, seen = [], set()
     for schema_name in _TABLES.values():
-        schema = load_schema(schema_name)
-        for name, spec in schema["properties"].items():
+        for name, spec in load_schema(schema_name)["properties"].items():
             if name in seen:
                 continue
+            if not spec.get("description"):
+                raise SchemaError(f"data_schema/{schema_name}.schema.json: {name} has no "
+                                  "description (the Psych-DS variableMeasured needs one)")
             seen.add(name)
-            text = spec.get("description") or f"{name.replace('_', ' ')} ({schema['title']})."
-            if pseudonymised and name in ("participant_id", "prolific_pid",
-                                          "prolific_session_id", "completion_code"):
-                text += " Pseudonymised: p- and 16 hex digits of a keyed hash."
-            out.append({"@type": "PropertyValue", "name": name, "description": text})
+            out.append({"@type": "PropertyValue", "name": name, "description": spec["description"]})
     return out
 
 
@@ -177,7 +181,7 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         "description": description,
         "keywords": ["motion perception", "key poses", "viewpoint selection", "user study"],
         "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
-        "variableMeasured": variable_measured(pseudonymised=pseudonymise),
+        "variableMeasured": variable_measured(),
     }
     _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
     files.insert(0, DESCRIPTION_NAME)
