@@ -324,7 +324,8 @@ def restore(backup_file, url) -> BackupResult:
     if kind == "pg_dump" and target.get_backend_name() != "postgresql":
         raise StoreError(f"{path} is a pg_dump archive: it restores only into PostgreSQL, "
                          f"not {target.get_backend_name()}")
-    store = Store(url, create=kind != "pg_dump")
+    # The tables are made here (empty) for either kind: pg_restore --clean replaces them.
+    store = Store(url)
     try:
         counts = table_counts(store.engine)
         held = {t: n for t, n in counts.items() if n}

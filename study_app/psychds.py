@@ -35,6 +35,7 @@ from snapcore.errors import SchemaError
 from snapcore.schema import load_schema
 
 from .export import StoreError, _write_atomic, write_events, write_export, write_participants
+from .protocol import Study, study_from_dict
 from .pseudonym import Pseudonymiser
 
 __all__ = ["DESCRIPTION_NAME", "data_file_name", "variable_measured", "write_psych_ds"]
@@ -88,14 +89,18 @@ def variable_measured() -> list[dict]:
     return out
 
 
-def _manifest(stimuli_dir) -> tuple[Path, dict] | None:
+def _manifest(stimuli_dir) -> tuple[Path, Study] | None:
+    """The stimulus manifest's path and the study it was built from."""
     if stimuli_dir is None:
         return None
     from .stimuli import MANIFEST_NAME
 
     path = Path(stimuli_dir) / MANIFEST_NAME
     try:
-        return path, json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(doc, dict) or not isinstance(doc.get("study"), dict):
+            raise StoreError(f"{path}: not a stimulus manifest (no study)")
+        return path, study_from_dict(doc["study"], source=f"{path}: study")
     except OSError as err:
         raise StoreError(f"cannot read the stimulus manifest {path}: "
                          f"{err.strerror or err}") from None
@@ -146,7 +151,7 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
     study_of = {p["participant_id"]: p["study_id"] for p in people}
     studies = sorted({p["study_id"] for p in people})
     if manifest is not None:
-        studies = sorted(set(studies) | {manifest[1]["study"]["id"]})
+        studies = sorted(set(studies) | {manifest[1].id})
     (root / "data").mkdir(parents=True, exist_ok=True)
     files = []
     for sid in studies:
@@ -162,10 +167,10 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         (root / "materials").mkdir(exist_ok=True)
         shutil.copyfile(manifest[0], root / "materials" / manifest[0].name)
         files.append(f"materials/{manifest[0].name}")
-    study_doc = manifest[1]["study"] if manifest is not None else {}
-    title = study_doc.get("title") or f"Action Snapshot study {', '.join(studies) or '(empty)'}"
+    study = manifest[1] if manifest is not None else None
+    title = study.title if study else f"Action Snapshot study {', '.join(studies) or '(empty)'}"
     description = (
-        (study_doc.get("description", "").strip() + " " if study_doc.get("description") else "")
+        (study.description.strip() + " " if study and study.description else "")
         + "Responses of an Action Snapshot user study: for each animation, participants picked "
         "the frame that best tells the action (pose task) and the clearest of three views of "
         "the selected pose (view task), plus one attention check. data/ holds one CSV per "
