@@ -337,6 +337,7 @@ def backup_under_load(url, out: Path, method: str):
     log: dict[str, list] = {}
     lock = threading.Lock()
     stop = threading.Event()
+    created = threading.Barrier(N_WRITERS)
     errors = []
 
     def writer(k: int):
@@ -345,6 +346,7 @@ def backup_under_load(url, out: Path, method: str):
                                            prolific={"PROLIFIC_PID": f"LOADpid{k:04d}"})
             with lock:
                 log[pid] = []
+            created.wait(timeout=60)   # all 20 write at once from here on
             b = 0
             while not stop.is_set():
                 rows = [pose(BATCH * b + i, frame=k) for i in range(BATCH)]
@@ -361,19 +363,21 @@ def backup_under_load(url, out: Path, method: str):
     for t in threads:
         t.start()
 
-    def least() -> int:
+    def written() -> int:
+        """Batches committed so far (0 until every participant exists). SQLite's busy
+        wait is not fair, so some writers may lag: count all batches, not each's."""
         with lock:
-            return min((len(v) for v in log.values()), default=0) if len(log) == N_WRITERS else 0
+            return sum(len(v) for v in log.values()) if len(log) == N_WRITERS else 0
 
     deadline = time.monotonic() + 60
-    while least() < 1 and time.monotonic() < deadline and not errors:
-        time.sleep(0.01)
+    while written() < 2 * N_WRITERS and time.monotonic() < deadline and not errors:
+        time.sleep(0.005)
     t0 = time.monotonic()
     result = backup(url, out, method=method)
     t1 = time.monotonic()
-    done_at_t1 = least()
-    while least() < done_at_t1 + 1 and time.monotonic() < deadline and not errors:
-        time.sleep(0.01)
+    at_t1 = written()
+    while written() < at_t1 + N_WRITERS and time.monotonic() < deadline and not errors:
+        time.sleep(0.005)
     stop.set()
     for t in threads:
         t.join()
