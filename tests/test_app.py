@@ -152,6 +152,8 @@ def test_whole_session_stores_every_answer(store):
     assert [c.value for c in at.code] == ["C0DE42"]  # the study's fixed completion code
     (link,) = at.get("link_button")
     assert link.proto.url == "https://app.prolific.com/submissions/complete?cc=C0DE42"
+    # How to withdraw after the end: whom to write to, with which id.
+    assert any("withdraw" in c.value and pid in c.value for c in at.caption)
 
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == list(range(len(plan)))
