@@ -21,6 +21,10 @@ Tables
     in, the raw chosen value, response time, timestamp, app version, manifest hash.
 ``events``
     Interaction events (plays, pauses, seeks, steps...) with a JSON payload.
+``withdrawals``, ``study_secrets``
+    Who withdrew (:mod:`study_app.withdraw`) and the per-study pseudonym keys
+    (:mod:`study_app.pseudonym`); those modules hold their queries. Opening a database
+    made before them adds them.
 
 Safety
 ------
@@ -164,9 +168,10 @@ class Store:
                 conn.exec_driver_sql("SELECT 1")
                 missing = [t for t in metadata.tables
                            if not sa.inspect(conn).has_table(t)]
-            if not create and any(t in STUDY_TABLES for t in missing):
+            lacking = [t for t in STUDY_TABLES if t in missing]
+            if not create and lacking:
                 raise StoreError(f"database {self.url} has no study tables "
-                                 f"({', '.join(missing)} missing): wrong database?")
+                                 f"({', '.join(lacking)} missing): wrong database?")
             if missing:
                 # A new database, or one made before the withdrawals/secrets tables.
                 self._create_tables()
