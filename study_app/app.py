@@ -46,6 +46,7 @@ from study_app.session import (  # noqa: E402
     ParticipantSession,
     Stage,
     UnknownParticipant,
+    Withdrawn,
     describe_value,
     prolific_problems,
 )
@@ -82,6 +83,7 @@ def _participant(ctx):
     last two put the ``pid`` back into the URL, so a reload keeps them.
     """
     query = _query()
+    st.session_state[common.KEY_WITHDRAWN] = False
     problems = prolific_problems(query)
     if problems:
         # Refused before anything is stored, and logged for the researcher.
@@ -95,6 +97,7 @@ def _participant(ctx):
             session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
         except UnknownParticipant as err:
             log.warning("refused participant link pid=%s: %s", describe_value(pid), err)
+            st.session_state[common.KEY_WITHDRAWN] = isinstance(err, Withdrawn)
             return None, str(err)
         st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
         return session, None
@@ -106,7 +109,11 @@ def _participant(ctx):
         except UnknownParticipant:
             session = None
     if session is None:
-        session = ParticipantSession.for_prolific(ctx.store, ctx.stimuli, query)
+        try:
+            session = ParticipantSession.for_prolific(ctx.store, ctx.stimuli, query)
+        except Withdrawn as err:
+            st.session_state[common.KEY_WITHDRAWN] = True
+            return None, str(err)
     if session is not None:
         st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
         st.query_params[common.QUERY_PID] = session.participant_id

@@ -1,8 +1,10 @@
 """The study database: its tables and its address (SQLAlchemy Core).
 
-The schema of the three tables (participants, responses, events) and the parsing of a
-database URL; the queries are all in :mod:`study_app.store`, which documents the
-tables and how they are written.
+The schema of the study tables (participants, responses, events), of the two tables of
+open-data housekeeping (withdrawals, study_secrets) and the parsing of a database URL.
+The queries are in :mod:`study_app.store`, which documents the study tables and how
+they are written; :mod:`study_app.withdraw` and :mod:`study_app.pseudonym` query
+their own table.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from sqlalchemy import exc as sa_exc
 
 from .export import StoreError
 
-__all__ = ["metadata", "participants", "responses", "events", "PROLIFIC_INDEX",
+__all__ = ["metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
+           "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "SQLITE_BUSY_TIMEOUT_MS"]
 
@@ -87,6 +90,34 @@ events = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
 )
 sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
+#: A participant who withdrew: their rows are gone, this says when, who asked and how.
+#: It keeps the ids (the link id, so that the link can say the data were withdrawn; the
+#: Prolific id, so that a returning Prolific participant is not enrolled again) and
+#: nothing they answered. No foreign key: the participant's row no longer exists.
+withdrawals = sa.Table(
+    "withdrawals", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("participant_id", _ID, nullable=False, unique=True),
+    sa.Column("study_id", _TEXT, nullable=False),
+    sa.Column("prolific_pid", _TEXT),
+    sa.Column("requested_by", sa.String(16), nullable=False),
+    sa.Column("withdrawn_at", sa.DateTime(timezone=True), nullable=False),
+)
+sa.Index("ix_withdrawals_prolific", withdrawals.c.study_id, withdrawals.c.prolific_pid)
+
+#: The per-study key of the pseudonyms in exports (study_app.pseudonym). Backed up with
+#: the rest (a restored database pseudonymises exactly as before), never exported.
+study_secrets = sa.Table(
+    "study_secrets", metadata,
+    sa.Column("study_id", _TEXT, primary_key=True),
+    sa.Column("secret", sa.String(64), nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+#: The tables a study database must have; the others are added to an older database
+#: when it is opened (never dropped or altered).
+STUDY_TABLES = ("participants", "responses", "events")
+
 #: One Prolific id, one participant per study: a returning participant resumes their
 #: record from any browser (NULLs, i.e. no Prolific id, do not collide).
 PROLIFIC_INDEX = sa.Index("uq_participants_study_prolific", participants.c.study_id,

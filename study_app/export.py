@@ -25,7 +25,7 @@ from snapcore.schema import load_schema, validate
 
 __all__ = [
     "StoreError", "export_columns", "export_types", "validate_rows", "write_export", "read_export",
-    "export_format", "participants_columns", "write_participants", "write_events",
+    "export_format", "participants_columns", "write_participants", "events_columns", "write_events",
     "EXPORT_FORMATS", "BACKGROUND_FIELDS",
 ]
 
@@ -170,12 +170,21 @@ def write_participants(records, path, *, fmt: str | None = None) -> int:
     return len(rows)
 
 
-def write_events(records, path) -> int:
-    """Validate and write :meth:`Store.events` records as JSON lines
-    (``data_schema/event.schema.json``); return the count."""
+def events_columns() -> list[str]:
+    """Columns of the events export (:func:`write_events`), in ``event.schema.json`` order."""
+    return list(load_schema("event")["properties"])
+
+
+def write_events(records, path, *, fmt: str = "jsonl") -> int:
+    """Validate and write :meth:`Store.events` records (``data_schema/event.schema.json``)
+    as JSON lines, or as CSV (``fmt="csv"``: the payload cell is its JSON object as a
+    string); return the count."""
     records = list(records)
     _validate_each(records, "event", path)
-    _write_atomic(Path(path), "".join(json.dumps(e, allow_nan=False) + "\n" for e in records))
+    if fmt == "csv":
+        _write_atomic(Path(path), _render(records, events_columns(), "csv"))
+    else:
+        _write_atomic(Path(path), "".join(json.dumps(e, allow_nan=False) + "\n" for e in records))
     return len(records)
 
 

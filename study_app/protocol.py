@@ -45,6 +45,7 @@ __all__ = [
     "redirect_url",
     "estimated_minutes",
     "consent_text",
+    "DEFAULT_CONTACT",
     "NEAR_DUPLICATE_ACTIONS",
 ]
 
@@ -85,7 +86,13 @@ are stored under a random identifier and analysed only in aggregate.
 
 **Your rights.** Taking part is voluntary. You may stop at any time by closing the page;
 you can come back later with the same link and continue where you left off.
+
+**Withdrawing.** You can withdraw at any time, also after you finish, without giving a
+reason: write to {contact} with your personal link (shown at the bottom of every page)
+or your Prolific ID, and all your answers are deleted. Shared data carry no Prolific ID.
 """
+#: How the consent text names the contact when the config gives none.
+DEFAULT_CONTACT = "the researchers (on Prolific: through Prolific's messages)"
 
 
 #: What the stimuli build does when two candidate views of a scene are nearly the same
@@ -123,6 +130,9 @@ class Study:
     completion_code, redirect_url : str or None
     consent : str
         Markdown shown on the consent page.
+    contact : str or None
+        Who participants write to, e.g. to withdraw (replaces ``{contact}`` in the
+        consent text; :data:`DEFAULT_CONTACT` without it).
     min_answer_s : float
         Seconds a trial must have been on screen before an answer to it is accepted
         (a double click cannot answer the next trial unseen).
@@ -153,6 +163,7 @@ class Study:
     completion_code: str | None = None
     redirect_url: str | None = None
     consent: str = DEFAULT_CONSENT
+    contact: str | None = None
     min_answer_s: float = 1.0
     require_watch: bool = True
     near_duplicate_deg: float = 15.0
@@ -180,6 +191,8 @@ class Study:
             study["completion_code"] = self.completion_code
         if self.redirect_url:
             study["redirect_url"] = self.redirect_url
+        if self.contact:
+            study["contact"] = self.contact
         return {"study": study, "background": dict(self.background),
                 "attention": dict(self.attention), "selection": dict(self.selection),
                 "scenes": [dict(s) for s in self.scenes]}
@@ -256,6 +269,7 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
         completion_code=s.get("completion_code") or None,
         redirect_url=s.get("redirect_url") or None,
         consent=s.get("consent") or DEFAULT_CONSENT,
+        contact=s.get("contact") or None,
         min_answer_s=float(s.get("min_answer_s", 1.0)),
         require_watch=bool(s.get("require_watch", True)),
         near_duplicate_deg=float(s.get("near_duplicate_deg", 15.0)),
@@ -417,5 +431,7 @@ def estimated_minutes(video_seconds, *, attention: bool = True) -> int:
 
 
 def consent_text(study: Study, minutes: int) -> str:
-    """The consent Markdown with ``{minutes}`` replaced by the study's estimated duration."""
-    return study.consent.replace("{minutes}", str(int(minutes)))
+    """The consent Markdown with ``{minutes}`` replaced by the study's estimated duration
+    and ``{contact}`` by whom to write to (to withdraw, :attr:`Study.contact`)."""
+    return (study.consent.replace("{minutes}", str(int(minutes)))
+            .replace("{contact}", study.contact or DEFAULT_CONTACT))

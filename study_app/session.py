@@ -33,11 +33,13 @@ from .protocol import (
     trial_plan,
 )
 from .stimuli import Stimuli, app_version
+from .withdraw import withdrawal_of
 
 __all__ = [
     "Stage",
     "SessionError",
     "UnknownParticipant",
+    "Withdrawn",
     "InvalidAnswer",
     "TooEarly",
     "prolific_problems",
@@ -100,6 +102,15 @@ class SessionError(SnapshotError):
 
 class UnknownParticipant(SessionError):
     """A participant id (from the URL) that is malformed, unknown or from another study."""
+
+
+class Withdrawn(UnknownParticipant):
+    """A participant link (or Prolific id) whose data were withdrawn and deleted."""
+
+    def __init__(self, when):
+        super().__init__(f"Your data were withdrawn from this study on {when:%d %B %Y} and "
+                         "deleted, as you asked. Nothing more is recorded from this link. "
+                         "Thank you for your interest in the study.")
 
 
 class InvalidAnswer(SessionError):
@@ -220,13 +231,20 @@ class ParticipantSession:
         """The session already registered for the URL's ``PROLIFIC_PID``, or None.
 
         A Prolific participant who returns with the study link (no ``pid``), from any
-        browser, resumes where they were instead of consenting again.
+        browser, resumes where they were instead of consenting again; one who withdrew
+        gets :class:`Withdrawn`.
         """
         ppid = prolific_params(query).get("PROLIFIC_PID")
         if not ppid:
             return None
         pid = store.find_prolific(stimuli.study.id, ppid)
-        return None if pid is None else cls.resume(store, stimuli, pid)
+        if pid is None:
+            # A Prolific participant who withdrew is not enrolled again by the study link.
+            gone = withdrawal_of(store, prolific_pid=ppid, study_id=stimuli.study.id)
+            if gone is not None:
+                raise Withdrawn(gone.withdrawn_at)
+            return None
+        return cls.resume(store, stimuli, pid)
 
     @classmethod
     def resume(cls, store, stimuli: Stimuli, participant_id) -> ParticipantSession:
@@ -234,6 +252,8 @@ class ParticipantSession:
 
         Raises
         ------
+        Withdrawn
+            The participant withdrew: their data were deleted.
         UnknownParticipant
             The id is malformed or unknown, belongs to another study, or the participant
             started with different stimuli (answers would not be comparable).
@@ -243,6 +263,9 @@ class ParticipantSession:
                                      "link you were given, or start a new session.")
         part = store.get_participant(participant_id)
         if part is None:
+            gone = withdrawal_of(store, participant_id=participant_id)
+            if gone is not None:
+                raise Withdrawn(gone.withdrawn_at)
             raise UnknownParticipant("This participant link is not known to this study. "
                                      "Please use the link you were given, or start a new session.")
         if part["study_id"] != stimuli.study.id:

@@ -21,6 +21,10 @@ Tables
     in, the raw chosen value, response time, timestamp, app version, manifest hash.
 ``events``
     Interaction events (plays, pauses, seeks, steps...) with a JSON payload.
+``withdrawals``, ``study_secrets``
+    Who withdrew (:mod:`study_app.withdraw`) and the per-study pseudonym keys
+    (:mod:`study_app.pseudonym`); those modules hold their queries. Opening a database
+    made before them adds them.
 
 Safety
 ------
@@ -66,6 +70,7 @@ from snapcore.schema import load_schema, validate
 
 from .database import (
     PROLIFIC_INDEX,
+    STUDY_TABLES,
     configure_sqlite,
     default_url,
     events,
@@ -169,13 +174,15 @@ class Store:
                 conn.exec_driver_sql("SELECT 1")
                 missing = [t for t in metadata.tables
                            if not sa.inspect(conn).has_table(t)]
-            if create and missing:
-                self._create_tables()
-            elif create:
-                self._create_indexes()
-            elif missing:
+            lacking = [t for t in STUDY_TABLES if t in missing]
+            if not create and lacking:
                 raise StoreError(f"database {self.url} has no study tables "
-                                 f"({', '.join(missing)} missing): wrong database?")
+                                 f"({', '.join(lacking)} missing): wrong database?")
+            if missing:
+                # A new database, or one made before the withdrawals/secrets tables.
+                self._create_tables()
+            if create:
+                self._create_indexes()
         except sa_exc.SQLAlchemyError as err:
             self.engine.dispose()
             raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None

@@ -152,6 +152,8 @@ def test_whole_session_stores_every_answer(store):
     assert [c.value for c in at.code] == ["C0DE42"]  # the study's fixed completion code
     (link,) = at.get("link_button")
     assert link.proto.url == "https://app.prolific.com/submissions/complete?cc=C0DE42"
+    # How to withdraw after the end: whom to write to, with which id.
+    assert any("withdraw" in c.value and pid in c.value for c in at.caption)
 
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == list(range(len(plan)))
@@ -308,6 +310,45 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
     metrics = {m.label: m.value for m in a.get("metric")}
     assert metrics["Participants"] == "1" and metrics["Responses"] == "1"
     assert len(a.get("download_button")) == 2
+
+
+def test_researcher_page_withdraws_a_participant(store, monkeypatch):
+    """The researcher page deletes a participant after a confirmation and records it as
+    "page"; their personal link and their Prolific study link then say so, and nothing
+    new is stored for them."""
+    ppid = "5f1e2d3c4b5a69788796c0c0"
+    at = new_app(PROLIFIC_PID=ppid)
+    pid = consent_and_background(at)
+    send_trigger(at, FRAME_PICKER, "confirm", {"trial": 0, "frame": 5, "events": []})
+    other = consent_and_background(new_app())
+    assert store.progress()["responses"] == 1
+    monkeypatch.setenv(common.ENV_ADMIN_TOKEN, "s3cret-token")
+    a = AppTest.from_file(APP, default_timeout=TIMEOUT)
+    a.switch_page("screens/researcher.py")
+    a.run()
+    a.text_input(key=common.KEY_ADMIN_TOKEN).input("s3cret-token").run()
+    a.text_input(key=common.KEY_WITHDRAW_ID).input(pid).run()
+    assert any(pid in w.value and "1 responses" in w.value for w in a.warning)
+    assert a.button(key=common.KEY_WITHDRAW_BUTTON).disabled   # not before the confirmation
+    assert store.get_participant(pid) is not None
+    a.checkbox(key=f"{common.KEY_WITHDRAW_CONFIRM}.{pid}").check().run()
+    a.button(key=common.KEY_WITHDRAW_BUTTON).click().run()
+    assert not a.exception
+    assert any(f"Withdrew participant {pid}" in m.value for m in a.success)
+    with store.engine.connect() as conn:
+        left = {t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t} WHERE participant_id = ?",
+                                        (pid,)).scalar()
+                for t in ("participants", "responses", "events")}
+        record = conn.exec_driver_sql("SELECT requested_by, prolific_pid FROM withdrawals "
+                                      "WHERE participant_id = ?", (pid,)).all()
+    assert left == {"participants": 0, "responses": 0, "events": 0}
+    assert record == [("page", ppid)]
+    assert [p["participant_id"] for p in store.participants()] == [other]
+    for link in ({"pid": pid}, {"PROLIFIC_PID": ppid}):
+        back = new_app(**link)
+        assert back.header[0].value == "Your data were withdrawn", link
+        assert "withdrawn" in back.info[0].value and not back.checkbox
+    assert [p["participant_id"] for p in store.participants()] == [other]
 
 
 def test_background_self_describe_and_missing_answers(store):

@@ -8,6 +8,7 @@ is tested in a browser in tests/test_batch_gallery.py.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -18,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from batch_helpers import make_library
 from conftest import need
@@ -26,6 +28,7 @@ from snapcore.batch import BatchOptions, discover, run_batch
 from snapcore.batch.discover import BatchError, content_hash
 from snapcore.batch.index import COLUMNS, TIMING_COLUMNS, read_index, write_index
 from snapcore.batch.run import plan_batch
+from snapcore.batch.task import SceneTask, run_scene
 from snapcore.cli.batch import snapshot_kwargs
 from snapcore.cli.select import pose_options
 from snapcore.motion import synth
@@ -383,3 +386,54 @@ def test_a_damaged_copy_of_the_real_folder(motions_dir, tmp_path):
     assert "truncated" in status["walk_run/02_03_truncated.bvh"][1]
     assert status["walk_run/picture.bvh"] == ("error", "walk_run/picture.bvh: not a text "
                                                        "file (contains NUL bytes)")
+
+
+def test_a_subset_run_keeps_the_other_rows_and_prune_drops_them(local_run, library, tmp_path):
+    """A run over one folder of the library updates that folder's rows and keeps the
+    rest of the index (and their outputs); --prune makes the index exactly this run's
+    scenes and deletes the outputs of the rows it drops."""
+    src, _ = local_run
+    out = tmp_path / "out"
+    shutil.copytree(src, out)
+    first = read_index(out / "index.csv")
+    walks = discover([library / "walks"]).scenes  # keys relative to that SOURCE...
+    assert [s.key for s in walks] == ["walk.bvh"]
+    walks = [s for s in discover([library]).scenes if s.folder == "walks"]  # ...or the root
+    again = run_batch(walks, out, FAST)
+    assert (again.done, again.reused) == (0, 1)
+    assert strip_timings(read_index(out / "index.csv")) == strip_timings(first)
+    pruned = run_batch(walks, out, FAST, prune=True)
+    assert [r["path"] for r in pruned.rows] == ["walks/walk.bvh"]
+    assert [r["path"] for r in read_index(out / "index.csv")] == ["walks/walk.bvh"]
+    assert not (out / "scenes" / "jumps" / "jump.bvh.png").exists()
+    assert not (out / "scenes" / "duo" / "duo.toml.json").exists()
+    assert (out / "scenes" / "walks" / "walk.bvh.png").is_file()
+
+
+def test_the_body_option_reaches_the_thumbnail(library):
+    """--body mannequin draws capsules: the thumbnail is the one `render_still` gives
+    for the scene set to wear the mannequin, and not the human body's."""
+    from PIL import Image
+
+    from snapcore.motion.load import load_scene
+    from snapcore.render.renderer import render_still
+
+    walk = next(s for s in discover([library]).scenes if s.key == "walks/walk.bvh")
+    opts = {b: BatchOptions(**{**FAST.__dict__, "sheet": False, "body": b})
+            for b in ("mannequin", "human")}
+    assert opts["mannequin"].key() != opts["human"].key()
+    thumbs = {}
+    for b, o in opts.items():
+        task = SceneTask(scene=walk, options=o, content_hash="0" * 64, options_hash=o.key())
+        result = run_scene(task)
+        assert result.row["status"] == "ok", result.row["error"]
+        thumbs[b] = np.asarray(Image.open(io.BytesIO(result.outputs["thumb"])).convert("RGB"))
+    doc = json.loads(run_scene(SceneTask(scene=walk, options=opts["mannequin"],
+                                         content_hash="0" * 64,
+                                         options_hash="0" * 64)).outputs["json"])
+    scene = load_scene([walk.path])
+    scene.meta["body"] = "mannequin"
+    expected = render_still(scene, scene.internal_frame(doc["frame"]), np.asarray(doc["view"]),
+                            size=FAST.size)
+    assert np.abs(thumbs["mannequin"].astype(int) - expected[..., :3]).max() <= 1
+    assert np.abs(thumbs["human"].astype(int) - thumbs["mannequin"]).mean() > 1.0

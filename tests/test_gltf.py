@@ -428,3 +428,37 @@ def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
     low = f.meta["mesh"].vertices(f, np.arange(alone.n_frames))[..., 1].min(axis=1)
     assert abs(np.percentile(low, 5) - alone.ground) < 1e-9
     assert f.positions[..., 1].min() > alone.ground + 0.005
+
+
+@pytest.mark.slow
+def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
+    """`snapshot stimuli build` on the glTF Fox: a verified folder whose video has one
+    frame per 1/video_fps of the clip, and whose three candidate views show the Fox's
+    own mesh (many pixels differ from the empty background) from different directions."""
+    import os
+
+    from PIL import Image
+
+    from study_app.stimuli import load_stimuli
+
+    config = tmp_path / "fox.toml"
+    config.write_text(
+        '[study]\nid = "fox"\ntitle = "Fox"\ndescription = "A fox."\nvideo_fps = 12\n'
+        'size = [160, 120]\npicker = "video"\n\n'
+        '[[scenes]]\nid = "fox"\ntitle = "Fox"\nfiles = ["gltf/Fox.glb"]\n', encoding="utf-8")
+    out = tmp_path / "stimuli"
+    env = {**os.environ, "SNAPSHOT_DATA": str(motions_dir)}
+    snapshot = str(Path(sys.executable).with_name("snapshot"))
+    r = subprocess.run([snapshot, "stimuli", "build", str(config), "-o", str(out), "-q"],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([snapshot, "stimuli", "verify", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    sc = load_stimuli(out).scenes["fox"]
+    assert sc.entry["source"]["files"][0].endswith("Fox.glb")
+    assert abs(sc.n_video_frames - sc.n_frames / sc.fps * 12) <= 1
+    images = [np.asarray(Image.open(p).convert("RGB"), int) for p in sc.views.values()]
+    for im in images:
+        corner = im[0, 0]
+        assert (np.abs(im - corner).max(axis=-1) > 40).sum() > 500  # the fox is drawn
+    assert np.abs(images[0] - images[1]).mean() > 1 or np.abs(images[0] - images[2]).mean() > 1

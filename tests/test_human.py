@@ -162,3 +162,37 @@ def test_viewpoint_entropy_runs_on_the_two_human_bodies(motions_dir):
     assert sel.n_faces == 2 * 26756
     assert np.isfinite(sel.score) and abs(np.linalg.norm(sel.view) - 1) < 1e-9
     assert np.nanmax(sel.visible_faces) > 2000
+
+
+def test_the_reduced_body_follows_the_full_one(motions_dir):
+    """Videos draw the reduced human body: about a third of the triangles, and in every
+    frame of a cartwheel (CMU 05_06) each of its vertices stays where the full body puts
+    the surface point it came from (the closest point of the full rest mesh, carried by
+    that triangle's skinned corners), within 1 cm: its transferred skin weights move it
+    with the surface around it."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    from snapcore.render.human import HumanBody
+    from snapcore.render.human_asset import REDUCED_FACES, human_asset
+
+    full, reduced = human_asset("full"), human_asset("reduced")
+    assert abs(len(reduced.faces) - REDUCED_FACES) <= 0.02 * REDUCED_FACES
+    assert len(reduced.faces) < 0.4 * len(full.faces)
+    # the surface point of the full rest mesh under each reduced vertex: nearest of the
+    # 8 triangles with the nearest centroids, as barycentric coordinates
+    tri = full.vertices[full.faces]
+    _, cand = cKDTree(tri.mean(axis=1)).query(reduced.vertices, k=8)
+    pts = np.repeat(reduced.vertices, 8, axis=0)
+    close = trimesh.triangles.closest_point(tri[cand.ravel()], pts)
+    best = np.argmin(np.linalg.norm(close - pts, axis=1).reshape(-1, 8), axis=1)
+    rows = np.arange(len(best))
+    owner = cand[rows, best]
+    bary = trimesh.triangles.points_to_barycentric(tri[owner], close.reshape(-1, 8, 3)[rows, best])
+    ch = _quiet_load(motions_dir / "dance" / "05_06.bvh").characters[0]
+    a, b = HumanBody(ch), HumanBody(ch, detail="reduced")
+    worst = 0.0
+    for f in (0, 169, 300, 470, 700):
+        want = np.einsum("nk,nkd->nd", bary, a.vertices(f)[full.faces[owner]].astype(float))
+        worst = max(worst, float(np.linalg.norm(b.vertices(f) - want, axis=1).max()))
+    assert worst < 0.01, f"{worst * 100:.2f} cm"

@@ -10,14 +10,9 @@ import trimesh
 
 from snapcore.errors import RenderError
 from snapcore.motion import synth
+from snapcore.render.buffers import face_id_camera, render_depth, render_face_ids
 from snapcore.render.camera import Camera, default_view, fit_camera, motion_points, view_basis
-from snapcore.render.renderer import (
-    SceneRenderer,
-    face_id_camera,
-    render_depth,
-    render_face_ids,
-    render_still,
-)
+from snapcore.render.renderer import SceneRenderer, render_still
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -395,3 +390,29 @@ def test_a_camera_under_the_floor_draws_no_grid_or_shadows(walk):
     a = figure_mask(render_still(walk, 20, above, size=(96, 128)), FLOOR_COLOR)
     b = figure_mask(render_still(walk, 20, above, size=(96, 128), ground=False), BACKGROUND)
     assert (a & ~b).mean() > 0.01  # grid lines and shadow around the figure
+
+
+def test_a_cropped_render_is_the_full_render(walk):
+    """Videos render only the rectangle the bodies cover and paste it into the picture
+    without them: every frame must look like the full render (up to rasterisation
+    rounding at a few edge pixels), for a view from above, a level view with a
+    horizon, and after the camera changes; a perspective camera is never cropped."""
+    from snapcore.render.renderer import CROP_MAX_AREA
+
+    sr = SceneRenderer(walk, size=(640, 360))
+    pts = motion_points(walk)
+    cams = [fit_camera(pts, v, size=(640, 360)) for v in ([1.0, 0.8, 2.0], [0.3, 0.02, 1.0])]
+    for cam in cams:
+        for f in (0, walk.n_frames // 2, walk.n_frames - 1):
+            full = sr.render(f, cam).astype(int)
+            window = sr._crop_window(cam, [sr.body.vertices(f)])
+            assert window is not None  # one walker fills far less than the frame
+            x0, y0, cw, ch = window
+            assert cw * ch <= CROP_MAX_AREA * 640 * 360
+            cropped = sr.render(f, cam, crop=True).astype(int)
+            diff = np.abs(full - cropped).max(axis=-1)
+            assert (diff > 8).sum() <= 20, (f, (diff > 8).sum())
+            # the body really is in the picture, not only in the background
+            assert (np.abs(full - sr._background_image().astype(int)).max(-1) > 30).sum() > 500
+    persp = fit_camera(pts, [1.0, 0.8, 2.0], size=(640, 360), projection="perspective")
+    assert sr._crop_window(persp, [sr.body.vertices(0)]) is None

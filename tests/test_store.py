@@ -535,8 +535,9 @@ def test_cli_export(sqlite_url, tmp_path):
         sent, sim = populate(s)
     out, parts = tmp_path / "out" / "responses.csv", tmp_path / "participants.csv"
     out.parent.mkdir()
+    # --identifiers: the raw ids, to match the rows sent (pseudonyms: tests/test_open_data.py)
     code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out),
-                           "--participants", str(parts))
+                           "--participants", str(parts), "--identifiers")
     assert code == 0, err
     rows = read_export(out)
     assert {(r["participant_id"], r["trial_index"]) for r in rows} == \

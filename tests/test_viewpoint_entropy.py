@@ -71,7 +71,7 @@ DIAG = h(1 - 3 * DIAG_FACE, *[DIAG_FACE / 2] * 6)
 
 def test_cube_entropy_along_an_axis_and_a_diagonal():
     """Face-id renders of a cube match the hand-computed entropies (1.25 and 2.48 bits)."""
-    render = pytest.importorskip("snapcore.render.renderer")
+    render = pytest.importorskip("snapcore.render.buffers")
     v, f = unit_cube()
     views = np.array([[0, 0, 1.0], [1.0, 0, 0], [1, 1, 1.0] / np.sqrt(3), [-1, 1, -1.0] / np.sqrt(3)])
     ids = render.render_face_ids(v, f, views, resolution=512)

@@ -41,7 +41,8 @@ from snapcore.batch.index import (
 )
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
-__all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "run_batch", "output_paths",
+__all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "prune_outputs", "run_batch",
+           "output_paths",
            "SCENES_DIR", "INDEX_EVERY_S"]
 
 SCENES_DIR = "scenes"
@@ -61,7 +62,8 @@ class BatchReport:
     done : int
         Scenes processed in this run (successes and errors).
     reused : int
-        Scenes skipped because an earlier run had done them with the same options.
+        Scenes of this run skipped because an earlier run had done them with the same
+        options (rows of other scenes kept from the index are not counted).
     errors : int
         Rows with status ``error`` (this run or kept).
     elapsed_s : float
@@ -147,12 +149,18 @@ def _previous(out: Path) -> dict[str, dict]:
 
 
 def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
-               force: bool = False, retry_errors: bool = False) -> tuple[list[SceneTask], list[dict]]:
+               force: bool = False, retry_errors: bool = False,
+               prune: bool = False) -> tuple[list[SceneTask], list[dict]]:
     """Split scenes into tasks to run and rows to keep from the previous index.
 
-    A previous row is kept when its content hash and options hash match and it is
-    finished: ``ok`` with its outputs still there, or ``error`` (the same file with the
-    same options fails the same way) unless ``retry_errors``. ``force`` keeps nothing.
+    A previous row of one of ``scenes`` is kept when its content hash and options hash
+    match and it is finished: ``ok`` with its outputs still there, or ``error`` (the same
+    file with the same options fails the same way) unless ``retry_errors``. ``force``
+    redoes them all.
+
+    Rows of scenes that are not in ``scenes`` are kept too (a run over one folder of a
+    library leaves the rest of its index alone), unless ``prune``: then the index
+    becomes exactly this run's scenes (see :func:`prune_outputs` for their files).
 
     Returns
     -------
@@ -160,9 +168,14 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
     kept : list of dict
     """
     out = Path(out)
-    prev = {} if force else _previous(out)
+    scenes = list(scenes)
+    prev = _previous(out)
+    keys = {s.key for s in scenes}
+    tasks = []
+    kept = [] if prune else [r for k, r in prev.items() if k not in keys]
+    if force:
+        prev = {}
     opt_hash = options.key()
-    tasks, kept = [], []
     for s in scenes:
         h = content_hash(s)
         row = prev.get(s.key)
@@ -175,6 +188,23 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
                 continue
         tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash))
     return tasks, kept
+
+
+def prune_outputs(out, keep: Iterable[str]) -> list[str]:
+    """Delete the outputs of the previous index's scenes whose key is not in ``keep``.
+
+    Returns
+    -------
+    list of str
+        The keys whose rows (and files) are gone.
+    """
+    out = Path(out)
+    keep = set(keep)
+    gone = sorted(k for k in _previous(out) if k not in keep)
+    for key in gone:
+        for rel in output_paths(key).values():
+            (out / rel).unlink(missing_ok=True)
+    return gone
 
 
 def _store(out: Path, result: SceneResult) -> dict:
@@ -283,7 +313,7 @@ def _executor(tasks, jobs, scheduler) -> Iterator[SceneResult]:
 
 def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: int = 1,
               scheduler: str | None = None, force: bool = False, retry_errors: bool = False,
-              progress: Callable[[int], Callable[[dict], None]] | None = None,
+              prune: bool = False, progress: Callable[[int], Callable[[dict], None]] | None = None,
               title: str = "Action Snapshot gallery") -> BatchReport:
     """Process a library's scenes into ``out``: outputs, index and gallery.
 
@@ -302,6 +332,9 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
         Redo every scene.
     retry_errors : bool
         Redo scenes that failed before (e.g. after installing a reader).
+    prune : bool
+        Drop the rows (and outputs) of earlier scenes that are not among ``scenes``
+        (default: keep them, so a run over part of a library updates only that part).
     progress : callable, optional
         ``progress(n_tasks)`` returns a callback called with each finished row.
     title : str
@@ -324,11 +357,17 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    tasks, kept = plan_batch(scenes, out, options, force=force, retry_errors=retry_errors)
-    report = BatchReport(rows=list(kept), reused=len(kept))
+    if prune:
+        prune_outputs(out, (s.key for s in scenes))
+    tasks, kept = plan_batch(scenes, out, options, force=force, retry_errors=retry_errors,
+                             prune=prune)
+    keys = {s.key for s in scenes}
+    report = BatchReport(rows=list(kept), reused=sum(r["path"] in keys for r in kept))
+    index = out / INDEX_NAME
+    if prune:
+        write_index(index, report.rows)  # no row left behind whose outputs are gone
     tick = progress(len(tasks)) if progress else None
     t0 = last = time.perf_counter()
-    index = out / INDEX_NAME
 
     def finish():
         report.rows.sort(key=lambda r: r["path"])

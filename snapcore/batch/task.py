@@ -58,6 +58,12 @@ class BatchOptions:
         Also render the top-k contact sheet.
     sheet_size : (int, int)
         Size of each contact-sheet panel, pixels.
+    body : {"human", "mannequin"} or None
+        Body drawn on skeletons (glTF characters wear their own with "human"); it also
+        changes the viewpoint-entropy baseline, which renders the body. None: the
+        default of :mod:`snapcore.render.bodies`.
+    animation : str or None
+        glTF characters: the animation to play, by name or index (None: the first).
     """
 
     snapshot: dict = field(default_factory=dict)
@@ -66,6 +72,8 @@ class BatchOptions:
     size: tuple[int, int] = (320, 360)
     sheet: bool = False
     sheet_size: tuple[int, int] = (320, 360)
+    body: str | None = None
+    animation: str | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready options (what the options hash covers)."""
@@ -158,7 +166,10 @@ def _load(task: SceneTask):
     if s.kind == "unknown":
         raise SceneError(f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
                          "scene manifest .toml/.json)")
-    return load_scene([s.path], fps=opts.fps, scale=opts.scale)
+    scene = load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
+    if opts.body is not None:
+        scene.meta["body"] = opts.body  # read by snapcore.render.bodies.body_kind
+    return scene
 
 
 def _png(image) -> bytes:

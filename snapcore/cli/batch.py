@@ -94,12 +94,22 @@ def _progress(quiet: bool):
                    "manifests).")
 @click.option("--scale", type=POSITIVE, default=None,
               help="Metres per file unit for every scene (default: inferred per scene).")
+@click.option("--body", type=click.Choice(["human", "mannequin"]), default=None,
+              help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
+                   "characters wear their own) or the capsule 'mannequin' (faster).")
+@click.option("--animation", default=None, metavar="NAME",
+              help="glTF/GLB characters: the animation to play (name or index; default the "
+                   "first).")
 @pose_options
 @click.option("--window", type=FiniteFloatRange(min=0.0), default=None, metavar="SECONDS",
               help="Score the view over the selected pose ± SECONDS (default: whole sequence).")
 @click.option("--no-baselines", is_flag=True,
               help="Skip the motion-area and viewpoint-entropy baselines in the JSON (faster).")
 @click.option("--force", is_flag=True, help="Redo every scene, even those already done.")
+@click.option("--prune", is_flag=True,
+              help="Drop from the index (and OUT/scenes/) the scenes of earlier runs that "
+                   "are not among this run's SOURCEs (default: keep them, so a run over one "
+                   "folder updates only that folder's rows).")
 @click.option("--retry-errors", is_flag=True,
               help="Redo the scenes that failed before (e.g. after installing a reader).")
 @click.option("--title", default="Action Snapshot gallery", show_default=True,
@@ -111,8 +121,9 @@ def _progress(quiet: bool):
 @click.option("--profile-loop", type=click.IntRange(min=0), default=3, show_default=True,
               metavar="N", help="Scenes in the --profile loop of separate calls.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, window,
-          no_baselines, force, retry_errors, title, profile, profile_loop, quiet, **pose):
+def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, body, animation,
+          window, no_baselines, force, prune, retry_errors, title, profile, profile_loop, quiet,
+          **pose):
     """Snapshot a whole motion library: per scene the `select --json` document and a
     thumbnail of the chosen pose from the chosen view; an index and a gallery.
 
@@ -127,6 +138,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, wi
     OUT/scenes/     <path>.json, <path>.png and, with --sheet, <path>.sheet.png
 
     A re-run skips scenes whose files and options are unchanged (--force redoes them).
+    Rows of scenes an earlier run did and this one does not cover stay in the index
+    (--prune drops them).
     A file that cannot be read is a row with its error; the rest go on. Ctrl-C stops
     and writes the index of what finished.
 
@@ -143,7 +156,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, wi
         raise BatchError(f"no scenes (BVH, glTF or scene manifests) in {', '.join(sources)}")
     options = BatchOptions(snapshot=snapshot_kwargs(pose, window=window,
                                                     baselines=not no_baselines),
-                           fps=fps, scale=scale, size=size, sheet=sheet, sheet_size=sheet_size)
+                           fps=fps, scale=scale, size=size, sheet=sheet, sheet_size=sheet_size,
+                           body=body, animation=animation)
     if profile:
         from snapcore.batch.profile import format_profile, profile_batch
 
@@ -155,7 +169,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, wi
     start, close = _progress(quiet)
     try:
         report = run_batch(found.scenes, out, options, jobs=jobs, scheduler=scheduler,
-                           force=force, retry_errors=retry_errors, progress=start, title=title)
+                           force=force, retry_errors=retry_errors, prune=prune,
+                           progress=start, title=title)
     except BatchInterrupted as stop:
         close()
         r = stop.report
@@ -164,6 +179,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, wi
         sys.exit(130)
     close()
     rate = f", {report.done / report.elapsed_s:.2f} scenes/s" if report.done else ""
-    click.echo(f"{len(report.rows)} scenes: {report.done} processed{rate}, {report.reused} "
-               f"already done, {report.errors} with errors; index {out / 'index.csv'}, "
-               f"gallery {out / 'index.html'}")
+    others = len(report.rows) - report.done - report.reused
+    kept = f" (+{others} kept from earlier runs; --prune drops them)" if others else ""
+    click.echo(f"{report.done + report.reused} scenes: {report.done} processed{rate}, "
+               f"{report.reused} already done, {report.errors} with errors{kept}; index "
+               f"{out / 'index.csv'}, gallery {out / 'index.html'}")

@@ -2,7 +2,7 @@
 
 The edge of :mod:`snapcore.relief.height_field` that touches motion data: :func:`height_field_from_scene`
 renders the merged body mesh of every character at one frame as an orthographic depth
-map framed to the print footprint (:func:`snapcore.render.renderer.render_depth`),
+map framed to the print footprint (:func:`snapcore.render.buffers.render_depth`),
 :func:`relief_from_scene` turns it into a :class:`~snapcore.relief.height_field.Relief`, and
 :func:`relief_comparison_figure` shows one pose carved from several views side by side,
 like the paper's Fig. 11 (one relief per method's view).
@@ -22,8 +22,8 @@ from snapcore.relief.height_field import (
     relief_from_height_field,
 )
 from snapcore.render.body import TESSELLATION_FINE
+from snapcore.render.buffers import render_depth
 from snapcore.render.camera import view_basis
-from snapcore.render.renderer import render_depth
 
 __all__ = [
     "frame_extent",
@@ -145,7 +145,7 @@ def height_field_from_scene(
 
     Returns
     -------
-    snapcore.render.renderer.DepthMap
+    snapcore.render.buffers.DepthMap
         ``depth`` in metres (NaN = background), ``pixel_size`` in metres, with the shape
         ``params.shape()``.
     """

@@ -14,6 +14,7 @@
   diagnostic plots of the selection.
 """
 
-from snapcore.render.renderer import render_depth, render_face_ids, render_still
+from snapcore.render.buffers import render_depth, render_face_ids
+from snapcore.render.renderer import render_still
 
 __all__ = ["render_depth", "render_face_ids", "render_still"]

@@ -96,13 +96,14 @@ class SkinnedBody(FrameBlocks):
 
 
 def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLORS[0],
-                   tessellation=TESSELLATION):
-    """The body one character wears (see the module notes for the rules)."""
+                   tessellation=TESSELLATION, detail: str = "full"):
+    """The body one character wears (see the module notes for the rules); ``detail``
+    picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`)."""
     if kind == "human":
         if "mesh" in character.meta:
             return SkinnedBody(character, color=color)
         try:
-            return HumanBody(character, color=color)
+            return HumanBody(character, color=color, detail=detail)
         except RetargetError as err:
             warnings.warn(f"{err}; it wears the mannequin instead", stacklevel=3)
     return CharacterBody(character, color=color, tessellation=tessellation)
@@ -122,31 +123,36 @@ class MixedSceneBody(SceneBody):
         Faces of mannequin pieces (skinned bodies ignore it).
     bodies : list, optional
         Reuse these per-character bodies (one per character) instead of building them.
+    detail : {"full", "reduced"}
+        Level of detail of human meshes ("reduced": for videos).
     """
 
-    def __init__(self, scene, *, kind=None, colors=None, tessellation=TESSELLATION, bodies=None):
+    def __init__(self, scene, *, kind=None, colors=None, tessellation=TESSELLATION, bodies=None,
+                 detail="full"):
         self.kind = kind or body_kind(scene)
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self._merge(scene, bodies if bodies is not None else [
             character_body(ch, kind=self.kind, color=colors[i % len(colors)],
-                           tessellation=tessellation)
+                           tessellation=tessellation, detail=detail)
             for i, ch in enumerate(scene.characters)])
 
 
 _BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None) -> MixedSceneBody:
-    """The (cached) body of ``scene``: built once per scene, kind and tessellation.
+def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None,
+               detail: str = "full") -> MixedSceneBody:
+    """The (cached) body of ``scene``: built once per scene, kind, tessellation and
+    level of detail (``detail="reduced"``: the human mesh videos draw).
 
     Skinned bodies are shared between tessellations (only mannequin pieces differ), so
     the renderer's coarse shadow body reuses the posed human mesh.
     """
     kind = kind or body_kind(scene)
     bodies = _BODIES.setdefault(scene, {})
-    body = bodies.get((kind, tessellation))
+    body = bodies.get((kind, tessellation, detail))
     if body is None:
-        other = next((b for (k, _), b in bodies.items() if k == kind), None)
+        other = next((b for (k, _, d), b in bodies.items() if k == kind and d == detail), None)
         reuse = None
         if other is not None:
             colors = list(CHARACTER_COLORS)
@@ -154,8 +160,8 @@ def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None) -> 
                      CharacterBody(b.character, color=colors[i % len(colors)],
                                    tessellation=tessellation)
                      for i, b in enumerate(other.characters)]
-        body = bodies[(kind, tessellation)] = MixedSceneBody(
-            scene, kind=kind, tessellation=tessellation, bodies=reuse)
+        body = bodies[(kind, tessellation, detail)] = MixedSceneBody(
+            scene, kind=kind, tessellation=tessellation, bodies=reuse, detail=detail)
     return body
 
 

@@ -43,7 +43,7 @@ from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
 from snapcore.motion.kinematics import quat_to_matrix
 from snapcore.motion.skinning import blend_skin
-from snapcore.render.human_asset import HumanAsset, human_asset
+from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.skinned import FrameBlocks
 
 __all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices", "rest_positions",
@@ -67,20 +67,9 @@ LANDMARK_NEIGHBOURS = 8
 
 
 def landmark_weights(asset: HumanAsset, points: np.ndarray, k: int = LANDMARK_NEIGHBOURS):
-    """Skin weights for points inside the body: the inverse-distance blend of the weights
-    of their ``k`` nearest rest vertices, so a joint moves as the surface around it does.
-
-    Returns a sparse (P, B) matrix for :func:`snapcore.motion.skinning.blend_skin`.
-    """
-    from scipy import sparse
-    from scipy.spatial import cKDTree
-
-    d, i = cKDTree(asset.vertices).query(np.asarray(points, float), k=k)
-    w = 1.0 / np.maximum(d, 1e-9)
-    w /= w.sum(axis=1, keepdims=True)
-    rows = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(len(w)), k), i.ravel())),
-                             shape=(len(w), asset.vertices.shape[0]))
-    return (rows @ asset.weights).tocsr()
+    """Skin weights for joints inside the body (:func:`surface_weights` of the
+    ``k`` nearest rest vertices), so a joint moves as the surface around it does."""
+    return surface_weights(asset, points, k)
 
 
 class RetargetError(SceneError):
@@ -514,6 +503,9 @@ class HumanBody(FrameBlocks):
     character : Character
     color : tuple of 3 floats
         Base RGB in 0-1; left limbs lighter, right limbs darker.
+    detail : {"full", "reduced"}
+        The mesh drawn (:func:`snapcore.render.human_asset.human_asset`): the reduced one
+        is for videos.
 
     Raises
     ------
@@ -523,9 +515,10 @@ class HumanBody(FrameBlocks):
 
     kind = "human"
 
-    def __init__(self, character, *, color=(0.306, 0.475, 0.655)):
+    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full"):
         self.character = character
-        self.asset = asset = human_asset()
+        self.detail = detail
+        self.asset = asset = human_asset(detail)
         self.retarget = Retarget(character, asset)
         self.faces = asset.faces
         sides = joint_sides(asset.bone_names)

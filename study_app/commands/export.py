@@ -1,8 +1,11 @@
-"""``snapshot export``: the study's responses as CSV or JSON lines, validated."""
+"""``snapshot export``: the study's responses as CSV or JSON lines, or a Psych-DS dataset,
+validated and pseudonymised."""
 
 from __future__ import annotations
 
 import click
+
+from snapcore.errors import SnapshotError
 
 __all__ = ["export"]
 
@@ -11,7 +14,7 @@ __all__ = ["export"]
 @click.option("--db", "db_url", metavar="URL", default=None,
               help="Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) "
                    "or a .db file. Default: $SNAPSHOT_DB, else var/study.db in the project.")
-@click.option("-o", "--output", required=True, metavar="PATH",
+@click.option("-o", "--output", default=None, metavar="PATH",
               help="Output file: .csv, or .jsonl/.json (JSON lines); '-' for stdout.")
 @click.option("--format", "fmt", type=click.Choice(["csv", "jsonl"]), default=None,
               help="Output format (default: from the output suffix; csv for stdout).")
@@ -24,10 +27,29 @@ __all__ = ["export"]
 @click.option("--events", "events_path", metavar="PATH", default=None,
               type=click.Path(dir_okay=False),
               help="Also write the interaction events (plays, seeks...) as JSON lines.")
+@click.option("--psych-ds", "psych_ds", metavar="DIR", default=None,
+              type=click.Path(file_okay=False),
+              help="Also (or instead of -o) write a Psych-DS dataset to this new folder: "
+                   "dataset_description.json, data/study-<id>_data.csv (+ participants, "
+                   "events), materials/manifest.json.")
+@click.option("--stimuli", "stimuli_dir", metavar="DIR", default=None,
+              type=click.Path(file_okay=False, exists=True),
+              help="With --psych-ds: the stimuli folder whose manifest goes to materials/ "
+                   "(default: $SNAPSHOT_STIMULI when set).")
+@click.option("--identifiers", is_flag=True,
+              help="Write the raw participant, Prolific and session ids instead of "
+                   "pseudonyms (personal data: keep such files private).")
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
-def export(db_url, output, fmt, include_simulated, participants_path, events_path, quiet):
+def export(db_url, output, fmt, include_simulated, participants_path, events_path, psych_ds,
+           stimuli_dir, identifiers, quiet):
     """Export the study responses: one row per trial, validated against
     data_schema/response.schema.json before anything is written.
+
+    Identifiers are pseudonymised by default: participant ids, Prolific ids, session
+    ids and per-participant completion codes become p- and 16 hex digits of a keyed
+    hash (HMAC-SHA256 with a secret kept in the database, never exported), the same in
+    every export, so an analysis can be re-run and files joined. --identifiers gives
+    the raw ids, with a warning.
 
     Frames are motion frames in source numbering; times are ISO 8601 in UTC. In CSV,
     `shown_order` (the method shown at each screen position, left to right) is a JSON
@@ -35,35 +57,66 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     true/false and missing values are empty cells (study_app.export.read_export parses
     it back).
 
-    Example: snapshot export --db sqlite:///var/study.db -o responses.csv
+    Examples: snapshot export --db sqlite:///var/study.db -o responses.csv
+
+    snapshot export --db var/study.db --psych-ds dataset/ --stimuli var/stimuli/demo
     """
+    import os
+
     from ..export import write_events, write_export, write_participants
+    from ..pseudonym import IDENTIFIERS_WARNING, Pseudonymiser
     from ..store import Store
 
+    if output is None and psych_ds is None:
+        raise click.UsageError("give -o/--output PATH, --psych-ds DIR, or both")
+    if output is None and (participants_path or events_path):
+        raise click.UsageError("--participants and --events go with -o/--output")
+    if identifiers:
+        click.echo(IDENTIFIERS_WARNING, err=True)
     with Store(db_url, create=False) as store:
+        anon = (lambda records: records) if identifiers else Pseudonymiser(store).records
         rows = store.export_rows(include_simulated=include_simulated)
-        n = write_export(rows, output, fmt=fmt)
-        n_part = None
-        if participants_path:
-            n_part = write_participants(
-                store.participants(include_simulated=include_simulated), participants_path)
-        n_events = None
-        if events_path:
-            keep = {r["participant_id"] for r in store.participants(
-                include_simulated=include_simulated)}
-            n_events = write_events([e for e in store.events() if e["participant_id"] in keep],
-                                    events_path)
+        n = n_part = n_events = None
+        if output is not None:
+            n = write_export(anon(rows), output, fmt=fmt)
+            if participants_path:
+                n_part = write_participants(
+                    anon(store.participants(include_simulated=include_simulated)),
+                    participants_path)
+            if events_path:
+                keep = {r["participant_id"] for r in store.participants(
+                    include_simulated=include_simulated)}
+                n_events = write_events(anon([e for e in store.events()
+                                              if e["participant_id"] in keep]), events_path)
+        dataset = None
+        if psych_ds is not None:
+            from ..psychds import write_psych_ds
+
+            stimuli_dir = stimuli_dir or os.environ.get("SNAPSHOT_STIMULI") or None
+            try:
+                dataset = write_psych_ds(store, psych_ds, stimuli_dir=stimuli_dir,
+                                         pseudonymise=not identifiers,
+                                         include_simulated=include_simulated)
+            except SnapshotError as err:
+                raise type(err)(f"--psych-ds {psych_ds}: {err}") from None
         url = store.url
         n_simulated_only = 0 if include_simulated else \
             store.progress(include_simulated=True)["responses"] - len(rows)
     if not quiet:
         who = len({r["participant_id"] for r in rows})
-        msg = f"exported {n} responses of {who} participants from {url} to {output}"
-        if n_part is not None:
-            msg += f"; {n_part} participants to {participants_path}"
-        if n_events is not None:
-            msg += f"; {n_events} events to {events_path}"
-        click.echo(msg, err=True)
+        if n is not None:
+            msg = f"exported {n} responses of {who} participants from {url} to {output}"
+            if n_part is not None:
+                msg += f"; {n_part} participants to {participants_path}"
+            if n_events is not None:
+                msg += f"; {n_events} events to {events_path}"
+            click.echo(msg, err=True)
+        if dataset is not None:
+            click.echo(f"wrote a Psych-DS dataset of {dataset['responses']} responses of "
+                       f"{dataset['participants']} participants to {psych_ds} "
+                       f"({len(dataset['files'])} files"
+                       + ("" if stimuli_dir else "; no materials/: give --stimuli DIR")
+                       + ")", err=True)
         if n_simulated_only:
             click.echo(f"note: {n_simulated_only} responses of simulated participants were left "
                        "out (add --include-simulated)", err=True)

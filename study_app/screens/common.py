@@ -20,6 +20,7 @@ __all__ = [
     "QUERY_PID",
     "KEY_SESSION",
     "KEY_PROBLEM",
+    "KEY_WITHDRAWN",
     "KEY_PARTICIPANT_ID",
     "KEY_BG_GENDER_SELF",
     "KEY_ON_SCREEN",
@@ -43,6 +44,10 @@ __all__ = [
     "KEY_FRAME_CONFIRM",
     "KEY_ADMIN_TOKEN",
     "KEY_DOWNLOAD",
+    "KEY_WITHDRAW_KIND",
+    "KEY_WITHDRAW_ID",
+    "KEY_WITHDRAW_CONFIRM",
+    "KEY_WITHDRAW_BUTTON",
     "KEY_RESTART",
     "ENV_STIMULI",
     "ENV_DB",
@@ -78,6 +83,8 @@ KEY_PARTICIPANT_ID = "snapshot.participant_id"
 KEY_ON_SCREEN = "snapshot.on_screen"
 #: Why the participant id in the URL was refused (shown by the invalid-link page).
 KEY_PROBLEM = "snapshot.problem"
+#: True when the refused link is that of a participant who withdrew.
+KEY_WITHDRAWN = "snapshot.withdrawn"
 #: {(participant id, trial index): wall-clock time the trial was first shown}.
 KEY_TRIAL_SHOWN = "snapshot.trial_shown"
 #: {(participant id, player widget key): (frame, share watched)} the player starts
@@ -106,6 +113,12 @@ KEY_FRAME_SLIDER = "pose.slider"
 KEY_FRAME_CONFIRM = "pose.confirm"
 KEY_ADMIN_TOKEN = "researcher.token"
 KEY_DOWNLOAD = "researcher.download"
+#: Withdrawal on the researcher page: which id, the id, the confirmation (its key ends
+#: with the id, so a confirmation never carries over to another id), the button.
+KEY_WITHDRAW_KIND = "researcher.withdraw.kind"
+KEY_WITHDRAW_ID = "researcher.withdraw.id"
+KEY_WITHDRAW_CONFIRM = "researcher.withdraw.confirm"
+KEY_WITHDRAW_BUTTON = "researcher.withdraw.button"
 KEY_RESTART = "invalid.restart"
 
 # -- environment (set by `snapshot study`) -------------------------------------------

@@ -1,4 +1,5 @@
-"""Shown for a participant link that is malformed, unknown or from another study."""
+"""Shown for a participant link that is malformed, unknown or from another study, or
+whose participant withdrew (their data were deleted: the page says so)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,10 @@ from study_app.screens import common
 
 
 def render() -> None:
+    if st.session_state.get(common.KEY_WITHDRAWN):
+        st.header("Your data were withdrawn")
+        st.info(st.session_state.get(common.KEY_PROBLEM))
+        return
     st.header("This link does not work")
     st.error(st.session_state.get(common.KEY_PROBLEM) or "Unknown participant.")
     st.write("Nothing was recorded. If you were given a personal link, please use it "

@@ -1,4 +1,4 @@
-"""Researcher page: live progress, votes, frame histograms, export download.
+"""Researcher page: live progress, votes, frame histograms, export download, withdrawal.
 
 Behind a token: the page compares what is typed with ``$SNAPSHOT_ADMIN_TOKEN``
 (constant-time). Without the variable, or without the right token, it shows nothing
@@ -16,7 +16,10 @@ from pathlib import Path
 
 import streamlit as st
 
+from snapcore.errors import SnapshotError
+from study_app.pseudonym import Pseudonymiser
 from study_app.screens import common
+from study_app.withdraw import withdraw, withdrawal_plan
 
 #: Seconds between refreshes of the live panels.
 REFRESH_S = 10
@@ -46,6 +49,7 @@ def render() -> None:
                f"{ctx.stimuli.folder.name} (manifest {ctx.stimuli.sha256[:12]}…)")
     _live(ctx)
     _downloads(ctx)
+    _withdrawal(ctx)
 
 
 @st.fragment(run_every=REFRESH_S)
@@ -115,7 +119,8 @@ def _downloads(ctx) -> None:
     from study_app.export import write_export
 
     st.subheader("Export")
-    rows = ctx.store.export_rows()
+    # Pseudonymised, as every export (the raw ids only from `snapshot export --identifiers`).
+    rows = Pseudonymiser(ctx.store).records(ctx.store.export_rows())
     with tempfile.TemporaryDirectory() as tmp:
         for fmt, mime in (("csv", "text/csv"), ("jsonl", "application/x-ndjson")):
             path = Path(tmp) / f"responses.{fmt}"
@@ -123,6 +128,44 @@ def _downloads(ctx) -> None:
             st.download_button(f"Download responses ({fmt.upper()}, {len(rows)} rows)",
                                path.read_bytes(), file_name=f"{ctx.stimuli.study.id}-responses.{fmt}",
                                mime=mime, key=f"{common.KEY_DOWNLOAD}.{fmt}")
+
+
+#: The ids a withdrawal can be asked by: label → keyword of study_app.withdraw.withdraw.
+WITHDRAW_BY = {"Participant link id (pid=…)": "participant_id", "Prolific ID": "prolific_pid"}
+
+
+def _withdrawal(ctx) -> None:
+    """Delete a participant's data when they withdraw, after a confirmation."""
+    st.subheader("Withdraw a participant")
+    st.caption("Deletes their responses, events and background answers; only a record "
+               "that they withdrew is kept, and their link says so.")
+    label = st.radio("They gave their", list(WITHDRAW_BY), key=common.KEY_WITHDRAW_KIND,
+                     horizontal=True)
+    given = st.text_input("Id", key=common.KEY_WITHDRAW_ID).strip()
+    if not given:
+        return
+    which = {WITHDRAW_BY[label]: given, "study_id": ctx.stimuli.study.id}
+    try:
+        plan = withdrawal_plan(ctx.store, **which)
+    except SnapshotError as err:
+        st.warning(common.one_line(err))
+        return
+    for p in plan:
+        st.warning(f"Participant **{p['participant_id']}** will be deleted: "
+                   f"{p['n_responses']} responses, {p['n_events']} events"
+                   + (", background answers" if p["has_background"] else "")
+                   + ". This cannot be undone.")
+    sure = st.checkbox("Yes, delete this participant's data",
+                       key=f"{common.KEY_WITHDRAW_CONFIRM}.{given}")
+    if st.button("Withdraw", key=common.KEY_WITHDRAW_BUTTON, type="primary", disabled=not sure):
+        try:
+            done = withdraw(ctx.store, by="page", **which)
+        except SnapshotError as err:
+            st.error(common.one_line(err))
+            return
+        for w in done:
+            st.success(f"Withdrew participant {w.participant_id}: deleted {w.n_responses} "
+                       f"responses and {w.n_events} events.")
 
 
 if __name__ == "__main__":  # run as the page script by st.navigation (see app.py)

@@ -1,0 +1,389 @@
+"""Backups of the study database while the app runs, and their restore.
+
+A backup is one consistent copy: every transaction committed before it started is in
+it, none that started after it, and nothing half-written (each answer, batch of events
+or withdrawal is one transaction, and the copy is read from one snapshot).
+
+Methods (``method=``):
+
+``native``
+    SQLite: the online backup API (:meth:`sqlite3.Connection.backup`, all pages in one
+    step under one read lock; WAL lets the app keep writing meanwhile). PostgreSQL:
+    ``pg_dump --format=custom`` (one repeatable-read snapshot), when ``pg_dump`` is
+    installed (``/usr/lib/postgresql/*/bin`` or ``PATH``).
+``logical``
+    Any database: every table of :data:`study_app.database.metadata` read in one
+    read-only snapshot transaction (repeatable read on PostgreSQL) and written through
+    SQLAlchemy into a new SQLite file with the same schema.
+``auto``
+    ``native`` when it is available, else ``logical`` (PostgreSQL without ``pg_dump``,
+    or a ``pg_dump`` older than the server).
+
+The backup file is therefore a SQLite database (``snapshot export --db FILE`` reads it
+as it is) or a ``pg_dump`` archive. :func:`restore` loads either into an *empty*
+database: a SQLite backup into any database (rows copied table by table in one
+transaction, ids kept, PostgreSQL sequences moved past them), a ``pg_dump`` archive
+into PostgreSQL with ``pg_restore``. The pseudonym secrets (``study_secrets``) are part
+of the backup, so a restored database exports the same pseudonyms.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import secrets
+import shutil
+import sqlite3
+import subprocess
+import warnings
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import sqlalchemy as sa
+from sqlalchemy import exc as sa_exc
+
+from .database import STUDY_TABLES, metadata, normalize_url
+from .export import StoreError
+
+__all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "find_pg_tool", "table_counts"]
+
+#: Values of ``method``.
+BACKUP_METHODS = ("auto", "native", "logical")
+#: The first bytes of each kind of backup file.
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+_PGDUMP_MAGIC = b"PGDMP"
+#: Rows per INSERT batch when copying a table.
+_CHUNK = 1000
+#: Seconds a pg_dump / pg_restore run may take.
+_PG_TIMEOUT_S = 600
+
+
+@dataclass
+class BackupResult:
+    """What :func:`backup` or :func:`restore` did.
+
+    Attributes
+    ----------
+    path : Path
+        The backup file.
+    method : str
+        ``"sqlite-backup"``, ``"pg_dump"``, ``"logical"`` (backup) or ``"pg_restore"``,
+        ``"logical"`` (restore).
+    rows : dict of str to int
+        Rows per table in the copy (empty for ``pg_dump``/``pg_restore``, whose
+        archive is not read here).
+    """
+
+    path: Path
+    method: str
+    rows: dict = field(default_factory=dict)
+
+
+def find_pg_tool(name: str) -> Path | None:
+    """``pg_dump``/``pg_restore``: the newest ``/usr/lib/postgresql/*/bin`` one, else PATH."""
+    def version(p: str) -> list[int]:
+        return [int(t) for t in Path(p).parent.parent.name.split(".") if t.isdigit()]
+
+    for path in sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"), key=version,
+                       reverse=True):
+        if os.access(path, os.X_OK):
+            return Path(path)
+    found = shutil.which(name)
+    return Path(found) if found else None
+
+
+def _utc(value):
+    """A timestamp as an aware UTC datetime (SQLite hands naive UTC ones back): the
+    copy must not depend on the server's or the session's time zone."""
+    if isinstance(value, datetime):
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+    return value
+
+
+def _engine(url) -> sa.engine.Engine:
+    from .store import Store
+
+    # Store opens with the project's settings (SQLite pragmas, timeouts) and turns a
+    # bad URL into one line; the tables are created only where create=True.
+    return Store(url, create=False).engine
+
+
+def table_counts(engine) -> dict[str, int]:
+    """Rows per study table present in the database."""
+    with engine.connect() as conn:
+        present = set(sa.inspect(conn).get_table_names())
+        return {t.name: int(conn.execute(sa.select(sa.func.count()).select_from(t)).scalar())
+                for t in metadata.sorted_tables if t.name in present}
+
+
+def _tmp_beside(path: Path) -> Path:
+    return path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+
+
+def _check_output(output, force: bool) -> Path:
+    path = Path(output)
+    if path.exists() and not force:
+        raise StoreError(f"{path} already exists (give another name, or --force to replace it)")
+    if not path.parent.is_dir():
+        raise StoreError(f"{path}: folder {path.parent} does not exist")
+    return path
+
+
+# ----------------------------------------------------------------------------- backup
+def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupResult:
+    """Copy the database at ``url`` into the file ``output``, consistently, while it is used.
+
+    Parameters
+    ----------
+    url : str
+        Database URL (or a SQLite file path).
+    output : str or Path
+        The backup file, written atomically (a temp file renamed into place).
+    method : {"auto", "native", "logical"}
+        See the module notes.
+    force : bool
+        Replace an existing ``output``.
+
+    Raises
+    ------
+    StoreError
+        Unknown method, output exists or its folder does not, the database cannot be
+        read, or ``pg_dump`` fails (its first error line).
+    """
+    if method not in BACKUP_METHODS:
+        raise StoreError(f"unknown backup method {method!r} (expected {', '.join(BACKUP_METHODS)})")
+    path = _check_output(output, force)
+    parsed = normalize_url(url)
+    dialect = parsed.get_backend_name()
+    engine = _engine(url)
+    tmp = _tmp_beside(path)
+    try:
+        if dialect == "sqlite" and method in ("auto", "native"):
+            result = _sqlite_backup(parsed, tmp)
+        elif dialect == "postgresql" and method in ("auto", "native"):
+            tool = find_pg_tool("pg_dump")
+            result = None
+            if tool is None and method == "native":
+                raise StoreError("pg_dump is not installed (install postgresql-client, or use "
+                                 "--method logical)")
+            if tool is not None:
+                result = _pg_dump(tool, parsed, tmp, fallback=method == "auto")
+            if result is None:
+                result = _logical_backup(engine, tmp)
+        elif dialect not in ("sqlite", "postgresql") and method == "native":
+            raise StoreError(f"no native backup for {dialect} databases (use --method logical)")
+        else:
+            result = _logical_backup(engine, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        engine.dispose()
+    result.path = path
+    return result
+
+
+def _sqlite_backup(parsed, tmp: Path) -> BackupResult:
+    source = parsed.database
+    try:
+        src = sqlite3.connect(source, timeout=30)
+        dst = sqlite3.connect(tmp)
+        try:
+            # pages=-1: every page in one step, i.e. one read snapshot of the database
+            # (a multi-step copy would restart whenever the app writes in between).
+            src.backup(dst, pages=-1)
+            # The copy is a standalone file: no WAL beside it.
+            dst.execute("PRAGMA journal_mode = DELETE")
+        finally:
+            dst.close()
+            src.close()
+    except sqlite3.Error as err:
+        raise StoreError(f"cannot back up {source}: {err}") from None
+    eng = sa.create_engine(f"sqlite:///{tmp}")
+    try:
+        rows = table_counts(eng)
+    finally:
+        eng.dispose()
+    return BackupResult(tmp, "sqlite-backup", rows)
+
+
+def _libpq(parsed) -> tuple[str, dict]:
+    """A libpq connection string for the URL, and the environment with its password
+    (never on the command line, where other users could read it)."""
+    from psycopg.conninfo import make_conninfo
+
+    params = {"host": parsed.host, "port": parsed.port, "user": parsed.username,
+              "dbname": parsed.database}
+    params.update({k: v for k, v in parsed.query.items() if isinstance(v, str)})
+    env = dict(os.environ)
+    if parsed.password is not None:
+        env["PGPASSWORD"] = str(parsed.password)
+    return make_conninfo(**{k: v for k, v in params.items() if v is not None}), env
+
+
+def _first_error(text: str) -> str:
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else "failed")
+
+
+def _pg_dump(tool: Path, parsed, tmp: Path, *, fallback: bool) -> BackupResult | None:
+    conninfo, env = _libpq(parsed)
+    proc = subprocess.run([str(tool), "--format=custom", "--no-owner", "--no-privileges",
+                           f"--file={tmp}", f"--dbname={conninfo}"],
+                          capture_output=True, text=True, env=env, timeout=_PG_TIMEOUT_S)
+    if proc.returncode == 0:
+        return BackupResult(tmp, "pg_dump")
+    message = _first_error(proc.stderr)
+    if fallback and "version mismatch" in proc.stderr:
+        warnings.warn(f"{tool}: {message}; taking a logical copy instead", stacklevel=3)
+        tmp.unlink(missing_ok=True)
+        return None
+    raise StoreError(f"pg_dump failed: {message}")
+
+
+def _copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
+    rows = {}
+    for table in metadata.sorted_tables:  # parents before children (foreign keys)
+        if table.name not in names:
+            continue
+        n = 0
+        result = src_conn.execute(sa.select(table).order_by(*table.primary_key.columns))
+        while chunk := result.mappings().fetchmany(_CHUNK):
+            dst_conn.execute(table.insert(), [{k: _utc(v) for k, v in r.items()} for r in chunk])
+            n += len(chunk)
+        rows[table.name] = n
+    return rows
+
+
+def _logical_backup(engine, tmp: Path) -> BackupResult:
+    dst = sa.create_engine(f"sqlite:///{tmp}")
+    try:
+        metadata.create_all(dst)
+        src_conn = engine.connect()
+        try:
+            if engine.dialect.name == "postgresql":
+                # One snapshot for every table: a consistent copy, and it never blocks
+                # the app's writers.
+                src_conn = src_conn.execution_options(isolation_level="REPEATABLE READ",
+                                                      postgresql_readonly=True)
+            with src_conn.begin(), dst.begin() as dst_conn:
+                names = set(sa.inspect(src_conn).get_table_names())
+                rows = _copy_tables(src_conn, dst_conn, names)
+        finally:
+            src_conn.close()
+    except sa_exc.SQLAlchemyError as err:
+        raise StoreError(f"cannot copy the database: {' '.join(str(err.orig or err).split())}"
+                         ) from None
+    finally:
+        dst.dispose()
+    return BackupResult(tmp, "logical", rows)
+
+
+# ----------------------------------------------------------------------------- restore
+def _kind(path: Path) -> str:
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(_SQLITE_MAGIC))
+    except OSError as err:
+        raise StoreError(f"cannot read {path}: {err.strerror or err}") from None
+    if head.startswith(_SQLITE_MAGIC):
+        return "sqlite"
+    if head.startswith(_PGDUMP_MAGIC):
+        return "pg_dump"
+    raise StoreError(f"{path}: not a backup (neither a SQLite file nor a pg_dump archive)")
+
+
+def restore(backup_file, url) -> BackupResult:
+    """Load a backup made by :func:`backup` into the empty database at ``url``.
+
+    Parameters
+    ----------
+    backup_file : str or Path
+        A SQLite backup (restores into any database) or a ``pg_dump`` archive
+        (PostgreSQL only, with ``pg_restore``).
+    url : str
+        The target. Its study tables must be absent or empty: a restore never mixes
+        with, or replaces, data already there.
+
+    Raises
+    ------
+    StoreError
+        Not a backup, a target that holds rows, a ``pg_dump`` archive for a database
+        that is not PostgreSQL, or a failed copy (nothing is left half-restored: the
+        copy is one transaction).
+    """
+    from .store import Store
+
+    path = Path(backup_file)
+    if not path.is_file():
+        raise StoreError(f"{path}: no such backup file")
+    kind = _kind(path)
+    target = normalize_url(url)
+    if kind == "pg_dump" and target.get_backend_name() != "postgresql":
+        raise StoreError(f"{path} is a pg_dump archive: it restores only into PostgreSQL, "
+                         f"not {target.get_backend_name()}")
+    # The tables are made here (empty) for either kind: pg_restore --clean replaces them.
+    store = Store(url)
+    try:
+        counts = table_counts(store.engine)
+        held = {t: n for t, n in counts.items() if n}
+        if held:
+            raise StoreError(f"database {store.url} already holds data ("
+                             + ", ".join(f"{n} {t}" for t, n in held.items())
+                             + "); restore only into an empty database")
+        if kind == "pg_dump":
+            return _pg_restore(path, target, clean=bool(counts))
+        return _logical_restore(path, store)
+    finally:
+        store.close()
+
+
+def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
+    tool = find_pg_tool("pg_restore")
+    if tool is None:
+        raise StoreError("pg_restore is not installed (install postgresql-client)")
+    conninfo, env = _libpq(target)
+    # --clean only replaces the empty tables checked above.
+    args = [str(tool), "--no-owner", "--no-privileges", "--single-transaction",
+            "--exit-on-error", f"--dbname={conninfo}", str(path)]
+    if clean:
+        args[1:1] = ["--clean", "--if-exists"]
+    proc = subprocess.run(args, capture_output=True, text=True, env=env, timeout=_PG_TIMEOUT_S)
+    if proc.returncode != 0:
+        raise StoreError(f"pg_restore failed: {_first_error(proc.stderr)}")
+    return BackupResult(path, "pg_restore")
+
+
+def _logical_restore(path: Path, store) -> BackupResult:
+    src = sa.create_engine(f"sqlite:///{path}")
+    try:
+        with src.connect() as src_conn:
+            names = set(sa.inspect(src_conn).get_table_names())
+            missing = [t for t in STUDY_TABLES if t not in names]
+            if missing:
+                raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
+            with store._transaction(write=True) as dst_conn:
+                rows = _copy_tables(src_conn, dst_conn, names)
+                if store.dialect == "postgresql":
+                    _move_sequences(dst_conn)
+    except sa_exc.SQLAlchemyError as err:
+        raise StoreError(f"cannot read {path}: {' '.join(str(err.orig or err).split())}"
+                         ) from None
+    finally:
+        src.dispose()
+    return BackupResult(path, "logical", rows)
+
+
+def _move_sequences(conn) -> None:
+    """Set each serial id's sequence past the copied ids (they were inserted explicitly,
+    which PostgreSQL sequences do not see): the app's next insert must not collide."""
+    for table in metadata.sorted_tables:
+        for col in table.primary_key.columns:
+            if col.autoincrement is True or (isinstance(col.type, sa.Integer)
+                                             and col.autoincrement == "auto"):
+                conn.execute(sa.text(
+                    f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
+                    f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
+                    f"FROM {table.name}"))

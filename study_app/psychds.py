@@ -1,0 +1,194 @@
+"""The study's data as a Psych-DS dataset (https://psych-ds.github.io/).
+
+Layout written by :func:`write_psych_ds` (one set of data files per study in the
+database)::
+
+    DIR/
+      dataset_description.json                       schema.org Dataset (JSON-LD)
+      data/
+        study-<id>_data.csv                          one row per response
+        study-<id>_description-participants_data.csv one row per participant
+        study-<id>_description-events_data.csv       one row per interaction event
+      materials/
+        manifest.json                                the stimulus manifest they saw
+
+``dataset_description.json`` holds the fields Psych-DS requires (``@context``,
+``@type: Dataset``, ``name``, ``description``, ``variableMeasured``) and some it
+recommends (``keywords``, ``dateCreated``). ``variableMeasured`` lists every column of
+every data file as a ``PropertyValue`` whose description comes from the column's
+schema (``data_schema/response.schema.json``, ``participant.schema.json``,
+``event.schema.json``), so a column cannot be added without being described. File
+names are Psych-DS keyword names (official keywords ``study`` and ``description``;
+values only letters and digits, so a study id's ``-``, ``_`` and ``.`` are dropped).
+Identifiers are pseudonymised (:mod:`study_app.pseudonym`) unless asked otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from datetime import UTC, datetime
+from pathlib import Path
+
+from snapcore.errors import SchemaError
+from snapcore.schema import load_schema
+
+from .export import StoreError, _write_atomic, write_events, write_export, write_participants
+from .protocol import Study, study_from_dict
+from .pseudonym import Pseudonymiser
+
+__all__ = ["DESCRIPTION_NAME", "data_file_name", "variable_measured", "write_psych_ds"]
+
+DESCRIPTION_NAME = "dataset_description.json"
+#: The data files of one study: Psych-DS ``description`` keyword value → columns' schema.
+_TABLES = {None: "response", "participants": "participant", "events": "event"}
+_PSEUDONYM_NOTE = (" In this dataset every participant, Prolific and session id and every "
+                   "per-participant completion code is a pseudonym: p- and 16 hex digits of a "
+                   "keyed hash (HMAC-SHA256 with a secret the study keeps), the same in every "
+                   "file and every export of the study.")
+
+
+def data_file_name(study_id: str, description: str | None = None) -> str:
+    """The Psych-DS name of a data file: ``study-<id>[_description-<what>]_data.csv``.
+
+    Raises
+    ------
+    StoreError
+        The study id has no letter or digit to name the file by.
+    """
+    value = re.sub(r"[^A-Za-z0-9]", "", study_id)
+    if not value:
+        raise StoreError(f"study id {study_id!r} has no letters or digits for a Psych-DS file name")
+    parts = [f"study-{value}"] + ([f"description-{description}"] if description else [])
+    return "_".join(parts) + "_data.csv"
+
+
+def variable_measured() -> list[dict]:
+    """The ``variableMeasured`` list: every column of the data files, described.
+
+    One ``PropertyValue`` per column name, in the order responses, participants,
+    events, with the description its schema gives it; a name shared by several files
+    (``participant_id``) is listed once, with the first schema's description.
+
+    Raises
+    ------
+    SchemaError
+        A column without a description in its schema (Psych-DS needs each described).
+    """
+    out, seen = [], set()
+    for schema_name in _TABLES.values():
+        for name, spec in load_schema(schema_name)["properties"].items():
+            if name in seen:
+                continue
+            if not spec.get("description"):
+                raise SchemaError(f"data_schema/{schema_name}.schema.json: {name} has no "
+                                  "description (the Psych-DS variableMeasured needs one)")
+            seen.add(name)
+            out.append({"@type": "PropertyValue", "name": name, "description": spec["description"]})
+    return out
+
+
+def _manifest(stimuli_dir) -> tuple[Path, Study] | None:
+    """The stimulus manifest's path and the study it was built from."""
+    if stimuli_dir is None:
+        return None
+    from .stimuli import MANIFEST_NAME
+
+    path = Path(stimuli_dir) / MANIFEST_NAME
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(doc, dict) or not isinstance(doc.get("study"), dict):
+            raise StoreError(f"{path}: not a stimulus manifest (no study)")
+        return path, study_from_dict(doc["study"], source=f"{path}: study")
+    except OSError as err:
+        raise StoreError(f"cannot read the stimulus manifest {path}: "
+                         f"{err.strerror or err}") from None
+    except json.JSONDecodeError as err:
+        raise StoreError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
+
+
+def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True,
+                   include_simulated: bool = False, force: bool = False) -> dict:
+    """Write the store's data as a Psych-DS dataset in ``folder``.
+
+    Parameters
+    ----------
+    store : study_app.store.Store
+    folder : str or Path
+        The dataset folder: created; if it exists it must be empty (or ``force``).
+    stimuli_dir : str or Path, optional
+        The stimuli folder: its ``manifest.json`` goes to ``materials/`` and names the
+        dataset (the study's title and description).
+    pseudonymise : bool
+        Replace identifiers by pseudonyms (default). False: the raw ids.
+    include_simulated : bool
+        Keep simulated participants (left out by default).
+    force : bool
+        Write into a non-empty folder (files of the same names are replaced).
+
+    Returns
+    -------
+    dict
+        ``{"folder", "files": [relative paths], "responses", "participants", "events"}``.
+
+    Raises
+    ------
+    StoreError
+        The folder is not empty, the manifest cannot be read, or a row breaks its schema.
+    """
+    root = Path(folder)
+    if root.exists() and (not root.is_dir() or (any(root.iterdir()) and not force)):
+        raise StoreError(f"{root}: not an empty folder (choose a new one, or --force)")
+    manifest = _manifest(stimuli_dir)
+    people = store.participants(include_simulated=include_simulated)
+    keep = {p["participant_id"] for p in people}
+    rows = store.export_rows(include_simulated=include_simulated)
+    events = [e for e in store.events() if e["participant_id"] in keep]
+    if pseudonymise:
+        anon = Pseudonymiser(store)
+        rows, people, events = anon.records(rows), anon.records(people), anon.records(events)
+    study_of = {p["participant_id"]: p["study_id"] for p in people}
+    studies = sorted({p["study_id"] for p in people})
+    if manifest is not None:
+        studies = sorted(set(studies) | {manifest[1].id})
+    (root / "data").mkdir(parents=True, exist_ok=True)
+    files = []
+    for sid in studies:
+        for description, records, write in (
+                (None, [r for r in rows if r["study_id"] == sid], write_export),
+                ("participants", [p for p in people if p["study_id"] == sid], write_participants),
+                ("events", [e for e in events if study_of.get(e["participant_id"]) == sid],
+                 lambda recs, path: write_events(recs, path, fmt="csv"))):
+            rel = Path("data") / data_file_name(sid, description)
+            write(records, root / rel)
+            files.append(rel.as_posix())
+    if manifest is not None:
+        (root / "materials").mkdir(exist_ok=True)
+        shutil.copyfile(manifest[0], root / "materials" / manifest[0].name)
+        files.append(f"materials/{manifest[0].name}")
+    study = manifest[1] if manifest is not None else None
+    title = study.title if study else f"Action Snapshot study {', '.join(studies) or '(empty)'}"
+    description = (
+        (study.description.strip() + " " if study and study.description else "")
+        + "Responses of an Action Snapshot user study: for each animation, participants picked "
+        "the frame that best tells the action (pose task) and the clearest of three views of "
+        "the selected pose (view task), plus one attention check. data/ holds one CSV per "
+        "table (responses; participants with their background answers; interaction events "
+        "with the video player); materials/ the stimulus manifest (scenes, frame maps, "
+        "file checksums). Frames are 0-based in the source motion's numbering; times are "
+        "ISO 8601 in UTC; in CSV, lists and objects are JSON strings and empty cells are "
+        "missing values." + (_PSEUDONYM_NOTE if pseudonymise else ""))
+    doc = {
+        "@context": "https://schema.org/",
+        "@type": "Dataset",
+        "name": title,
+        "description": description,
+        "keywords": ["motion perception", "key poses", "viewpoint selection", "user study"],
+        "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
+        "variableMeasured": variable_measured(),
+    }
+    _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+    files.insert(0, DESCRIPTION_NAME)
+    return {"folder": root, "files": files, "responses": len(rows),
+            "participants": len(people), "events": len(events)}
