@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import pytest
+import test_e2e
 from app_helpers import tiny_demo_stimuli
 from conftest import need
 from test_e2e import (
@@ -51,6 +52,8 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 FIREFOX = "/usr/bin/firefox-esr"
 ARTIFACTS = REPO / "var" / "test-artifacts" / "field"
+#: Playwright's sync API, Chromium checked (the browser tests' fixture).
+playwright_api = test_e2e.playwright_api
 PROLIFIC = "PROLIFIC_PID={}&STUDY_ID=5f00aa11&SESSION_ID=s{}"
 SCENES = ["jump", "push"]
 #: Widths (and heights) the candidates are measured at.
@@ -60,13 +63,6 @@ SIZES = [(390, 844), (768, 1024), (1280, 720), (1366, 768)]
 def ppid(n: int) -> str:
     """A well-formed, unique Prolific id (24 hex digits)."""
     return f"{n:024x}"
-
-
-@pytest.fixture(scope="module")
-def playwright_api():
-    sync = pytest.importorskip("playwright.sync_api")
-    need(os.path.exists(CHROMIUM), f"no Chromium at {CHROMIUM}")
-    return sync
 
 
 @pytest.fixture(scope="module")

@@ -22,12 +22,16 @@ import time
 from pathlib import Path
 
 import pytest
-from app_helpers import tiny_demo_stimuli
+import test_e2e
 from conftest import need
+from test_e2e import free_port
 
 from study_app.loadtest.run import run_load
 from study_app.replicas import NGINX, find_pg_bin
 from study_app.store import Store
+
+#: The tiny demo stimuli, built once per session (the browser tests' fixture).
+stimuli_dir = test_e2e.stimuli_dir
 
 pytestmark = [pytest.mark.slow]
 
@@ -37,22 +41,6 @@ START_S = 90
 N_PARTICIPANTS = 10
 #: Seconds into the run when replica 0 is killed (everyone has arrived, nobody is done).
 KILL_AT_S = 10.0
-
-
-@pytest.fixture(scope="module")
-def stimuli_dir(tmp_path_factory):
-    out, r = tiny_demo_stimuli(tmp_path_factory)
-    if r is not None:
-        assert r.returncode == 0, r.stderr
-    return out
-
-
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture
@@ -67,7 +55,7 @@ def replica_set(stimuli_dir, tmp_path):
     log = tmp_path / "serve.log"
     with open(log, "w") as f:
         proc = subprocess.Popen([SNAPSHOT, "serve", "--replicas", "2", "--stimuli",
-                                 str(stimuli_dir), "--port", str(_free_port()),
+                                 str(stimuli_dir), "--port", str(free_port()),
                                  "--run-dir", str(run_dir)], stdout=f, stderr=subprocess.STDOUT)
     state_file = run_dir / "state.json"
     deadline = time.monotonic() + START_S
@@ -148,7 +136,7 @@ def test_nginx_config_routes_by_cookie_upgrades_websockets_and_is_valid(tmp_path
     need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
     (tmp_path / "nginx-tmp").mkdir()
     conf = tmp_path / "nginx.conf"
-    text = nginx_config(tmp_path, port=_free_port(), replica_ports=[18001, 18002, 18003],
+    text = nginx_config(tmp_path, port=free_port(), replica_ports=[18001, 18002, 18003],
                         worker_user="nobody nogroup" if os.geteuid() == 0 else None)
     conf.write_text(text)
     r = subprocess.run([NGINX, "-t", "-p", str(tmp_path), "-c", str(conf), "-e",
