@@ -21,7 +21,7 @@ import re
 import time
 
 from .participant import ParticipantResult
-from .run import ServerSampler, check_database, percentiles, summarize
+from .run import ServerSampler, build_report
 
 __all__ = ["run_browsers", "CHROMIUM", "CHROMIUM_ARGS"]
 
@@ -165,17 +165,7 @@ def run_browsers(url: str, n: int, *, ramp_s: float = 5.0, think_s: float = 1.0,
     results, elapsed = asyncio.run(main())
     wall1 = time.time()
     server = sampler.stop() if sampler else {}
-    if server and n:
-        server["rss_per_session_mb"] = round((server["rss_peak_mb"] - server["rss_start_mb"])
-                                             / n, 3)
-    report = summarize(results, elapsed_s=elapsed, server=server)
-    report["config"] = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
-                        "seed": seed, "prolific": True, "driver": "browser"}
-    if timings:
-        from study_app.timing import read_timings
-
-        runs = read_timings(timings, since=wall0, until=wall1)
-        report["server_script_runs"] = percentiles(x["ms"] / 1000.0 for x in runs)
-    if db_url:
-        report["database"] = check_database(db_url, results)
-    return report, results
+    config = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
+              "seed": seed, "prolific": True, "driver": "browser"}
+    return build_report(results, elapsed_s=elapsed, server=server, config=config,
+                        timings=timings, window=(wall0, wall1), db_url=db_url), results

@@ -25,7 +25,7 @@ from dataclasses import asdict
 
 from .participant import Behaviour, ParticipantResult, run_participant
 
-__all__ = ["run_load", "percentiles", "ServerSampler", "server_pids_for_port",
+__all__ = ["run_load", "build_report", "percentiles", "ServerSampler", "server_pids_for_port",
            "check_database", "behaviours"]
 
 
@@ -202,21 +202,48 @@ def run_load(url: str, n: int, *, ramp_s: float = 30.0, think_s: float = 2.0, se
             watcher.join()
     wall1 = time.time()
     server = sampler.stop() if sampler else {}
-    report = summarize(results, elapsed_s=elapsed, server=server)
-    report["config"] = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
-                        "seed": seed, "reload": reload, "back": back,
-                        "double_click": double_click, "prolific": prolific, "driver": "protocol"}
+    config = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
+              "seed": seed, "reload": reload, "back": back, "double_click": double_click,
+              "prolific": prolific, "driver": "protocol"}
+    return build_report(results, elapsed_s=elapsed, server=server, config=config,
+                        timings=timings, window=(wall0, wall1), db_url=db_url), results
+
+
+def build_report(results, *, elapsed_s: float, server: dict, config: dict, timings=None,
+                 window=(0.0, 0.0), db_url: str | None = None) -> dict:
+    """The load-test report of either driver: latencies, the run's settings, the
+    server's memory per session and own script-run times, and the database check.
+
+    Parameters
+    ----------
+    results : list of ParticipantResult
+    elapsed_s : float
+        Wall-clock seconds of the run.
+    server : dict
+        From :class:`ServerSampler` (empty when no server process was watched).
+    config : dict
+        The run's settings (``participants`` among them).
+    timings : path-like, optional
+        The server's script-run log (``SNAPSHOT_TIMINGS``), read over ``window``.
+    window : (float, float)
+        Start and end of the run, Unix seconds.
+    db_url : str, optional
+        Check the stored answers against what the participants sent.
+    """
+    n = config["participants"]
     if server and n:
         server["rss_per_session_mb"] = round(
             (server["rss_peak_mb"] - server["rss_start_mb"]) / n, 3)
+    report = summarize(results, elapsed_s=elapsed_s, server=server)
+    report["config"] = config
     if timings:
         from study_app.timing import read_timings
 
-        runs = read_timings(timings, since=wall0, until=wall1)
+        runs = read_timings(timings, since=window[0], until=window[1])
         report["server_script_runs"] = percentiles(r["ms"] / 1000.0 for r in runs)
     if db_url:
         report["database"] = check_database(db_url, results)
-    return report, results
+    return report
 
 
 def summarize(results, *, elapsed_s: float, server: dict) -> dict:
