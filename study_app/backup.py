@@ -43,7 +43,14 @@ from pathlib import Path
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
-from .database import STUDY_TABLES, metadata, normalize_url
+from .database import (
+    STUDY_TABLES,
+    metadata,
+    move_sequences,
+    normalize_url,
+    one_line,
+    standalone_sqlite,
+)
 from .export import StoreError
 
 __all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "find_pg_tool", "table_counts"]
@@ -194,8 +201,7 @@ def _sqlite_backup(parsed, tmp: Path) -> BackupResult:
             # pages=-1: every page in one step, i.e. one read snapshot of the database
             # (a multi-step copy would restart whenever the app writes in between).
             src.backup(dst, pages=-1)
-            # The copy is a standalone file: no WAL beside it.
-            dst.execute("PRAGMA journal_mode = DELETE")
+            standalone_sqlite(dst)
         finally:
             dst.close()
             src.close()
@@ -274,8 +280,7 @@ def _logical_backup(engine, tmp: Path) -> BackupResult:
         finally:
             src_conn.close()
     except sa_exc.SQLAlchemyError as err:
-        raise StoreError(f"cannot copy the database: {' '.join(str(err.orig or err).split())}"
-                         ) from None
+        raise StoreError(f"cannot copy the database: {one_line(err)}") from None
     finally:
         dst.dispose()
     return BackupResult(tmp, "logical", rows)
@@ -364,26 +369,12 @@ def _logical_restore(path: Path, store) -> BackupResult:
             missing = [t for t in STUDY_TABLES if t not in names]
             if missing:
                 raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
-            with store._transaction(write=True) as dst_conn:
+            with store.transaction(write=True) as dst_conn:
                 rows = _copy_tables(src_conn, dst_conn, names)
                 if store.dialect == "postgresql":
-                    _move_sequences(dst_conn)
+                    move_sequences(dst_conn)
     except sa_exc.SQLAlchemyError as err:
-        raise StoreError(f"cannot read {path}: {' '.join(str(err.orig or err).split())}"
-                         ) from None
+        raise StoreError(f"cannot read {path}: {one_line(err)}") from None
     finally:
         src.dispose()
     return BackupResult(path, "logical", rows)
-
-
-def _move_sequences(conn) -> None:
-    """Set each serial id's sequence past the copied ids (they were inserted explicitly,
-    which PostgreSQL sequences do not see): the app's next insert must not collide."""
-    for table in metadata.sorted_tables:
-        for col in table.primary_key.columns:
-            if col.autoincrement is True or (isinstance(col.type, sa.Integer)
-                                             and col.autoincrement == "auto"):
-                conn.execute(sa.text(
-                    f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
-                    f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
-                    f"FROM {table.name}"))

@@ -18,7 +18,7 @@ from sqlalchemy import exc as sa_exc
 
 from .export import StoreError
 
-__all__ = ["metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
+__all__ = ["one_line", "standalone_sqlite", "move_sequences", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "SQLITE_BUSY_TIMEOUT_MS"]
@@ -165,6 +165,34 @@ def normalize_url(url: str | None) -> sa.engine.URL:
     if parsed.drivername in ("postgresql", "postgres"):
         parsed = parsed.set(drivername="postgresql+psycopg")
     return parsed
+
+
+def one_line(err: BaseException) -> str:
+    """A database error as one line: the driver's message, without SQLAlchemy's echo of
+    the statement and its parameters."""
+    orig = getattr(err, "orig", None) or err
+    text = str(orig).split("\n[SQL:")[0]
+    return " ".join(text.split()) or type(orig).__name__
+
+
+def standalone_sqlite(dbapi_conn) -> None:
+    """Make a SQLite file a standalone copy: a rollback journal, no WAL beside it (the
+    app's databases run in WAL mode, see :func:`configure_sqlite`)."""
+    dbapi_conn.execute("PRAGMA journal_mode = DELETE")
+
+
+def move_sequences(conn) -> None:
+    """Set each serial id's PostgreSQL sequence past the ids in its table. Rows copied
+    in with explicit ids (a restore) leave the sequences behind, and the app's next
+    insert would collide."""
+    for table in metadata.sorted_tables:
+        for col in table.primary_key.columns:
+            if col.autoincrement is True or (isinstance(col.type, sa.Integer)
+                                             and col.autoincrement == "auto"):
+                conn.execute(sa.text(
+                    f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
+                    f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
+                    f"FROM {table.name}"))
 
 
 def configure_sqlite(engine: sa.engine.Engine) -> None:

@@ -72,12 +72,12 @@ def study_secret(store, study_id: str) -> str:
     insert win and the other reads the winner's secret.
     """
     query = sa.select(study_secrets.c.secret).where(study_secrets.c.study_id == study_id)
-    with store._transaction(write=False) as conn:
+    with store.transaction(write=False) as conn:
         found = conn.execute(query).scalar()
     if found is not None:
         return found
     try:
-        with store._transaction(write=True) as conn:
+        with store.transaction(write=True) as conn:
             found = conn.execute(query).scalar()
             if found is None:
                 found = secrets.token_hex(32)
@@ -87,7 +87,7 @@ def study_secret(store, study_id: str) -> str:
     except StoreError as err:
         if not isinstance(err.__cause__, sa_exc.IntegrityError):
             raise  # only a lost insert race is retried
-    with store._transaction(write=False) as conn:
+    with store.transaction(write=False) as conn:
         return conn.execute(query).scalar_one()
 
 
@@ -119,7 +119,7 @@ class Pseudonymiser:
         if record.get("study_id"):
             return record["study_id"]
         if self._study_of is None:
-            with self.store._transaction(write=False) as conn:
+            with self.store.transaction(write=False) as conn:
                 self._study_of = dict(conn.execute(sa.select(
                     participants.c.participant_id, participants.c.study_id)).all())
         return self._study_of[record["participant_id"]]

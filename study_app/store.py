@@ -77,6 +77,7 @@ from .database import (
     mask_url,
     metadata,
     normalize_url,
+    one_line,
     participants,
     responses,
 )
@@ -104,12 +105,6 @@ TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
 _DUPLICATE_RETRIES = 3
 PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id",
                  "SESSION_ID": "prolific_session_id"}
-
-def _one_line(err: BaseException) -> str:
-    orig = getattr(err, "orig", None) or err
-    text = str(orig).split("\n[SQL:")[0]
-    return " ".join(text.split()) or type(orig).__name__
-
 
 def _utcnow() -> datetime:
     return datetime.now(UTC)
@@ -185,7 +180,7 @@ class Store:
                 self._create_indexes()
         except sa_exc.SQLAlchemyError as err:
             self.engine.dispose()
-            raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
+            raise StoreError(f"cannot open database {self.url}: {one_line(err)}") from None
         except StoreError:
             self.engine.dispose()
             raise
@@ -226,7 +221,7 @@ class Store:
             raise StoreError(f"cannot open database {self.url}: its driver is not "
                              f"installed ({err})") from None
         except (sa_exc.ArgumentError, TypeError) as err:
-            raise StoreError(f"cannot open database {self.url}: {_one_line(err)}") from None
+            raise StoreError(f"cannot open database {self.url}: {one_line(err)}") from None
         if self.dialect == "sqlite":
             configure_sqlite(engine)
         return engine
@@ -242,7 +237,7 @@ class Store:
     def _create_indexes(self) -> None:
         """Add indexes a database made by an older version lacks (never drops anything)."""
         try:
-            with self._transaction(write=True) as conn:
+            with self.transaction(write=True) as conn:
                 PROLIFIC_INDEX.create(conn, checkfirst=True)
         except StoreError as err:
             # e.g. an old database already holding one Prolific id twice: serve it, and
@@ -264,7 +259,7 @@ class Store:
         return f"Store({self.url!r})"
 
     @contextmanager
-    def _transaction(self, *, write: bool):
+    def transaction(self, *, write: bool):
         """One transaction; database failures become a one-line :class:`StoreError`."""
         lock = self._write_lock if write and self._write_lock is not None else nullcontext()
         try:
@@ -274,7 +269,7 @@ class Store:
                 with conn.begin():
                     yield conn
         except sa_exc.SQLAlchemyError as err:
-            raise StoreError(f"database {self.url}: {_one_line(err)}") from err
+            raise StoreError(f"database {self.url}: {one_line(err)}") from err
 
     @staticmethod
     def _check_pid(pid) -> str:
@@ -314,7 +309,7 @@ class Store:
         self._check_new(study_id, manifest_sha256, app_version, seed)
         values = self._prolific_values(prolific)
         pid = secrets.token_urlsafe(16)
-        with self._transaction(write=True) as conn:
+        with self.transaction(write=True) as conn:
             conn.execute(participants.insert().values(
                 participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
                 manifest_sha256=manifest_sha256, simulated=bool(simulated),
@@ -347,7 +342,7 @@ class Store:
 
     def find_prolific(self, study_id: str, prolific_pid: str) -> str | None:
         """The participant id registered for a Prolific id in a study, or None."""
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             return conn.execute(sa.select(participants.c.participant_id).where(
                 participants.c.study_id == study_id,
                 participants.c.prolific_pid == str(prolific_pid))
@@ -382,7 +377,7 @@ class Store:
                 # write lock (BEGIN IMMEDIATE), so two browsers cannot both insert; on
                 # PostgreSQL the unique index refuses the loser, who retries and finds
                 # the winner's row.
-                with self._transaction(write=True) as conn:
+                with self.transaction(write=True) as conn:
                     found = conn.execute(sa.select(participants.c.participant_id).where(
                         participants.c.study_id == study_id,
                         participants.c.prolific_pid == values["prolific_pid"])
@@ -410,7 +405,7 @@ class Store:
         """
         if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
             return None
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             row = conn.execute(sa.select(participants).where(
                 participants.c.participant_id == pid)).mappings().first()
         return None if row is None else _participant_dict(row)
@@ -424,7 +419,7 @@ class Store:
                                                     participants.c.participant_id)
         if not include_simulated:
             query = query.where(participants.c.simulated.is_(False))
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             rows = conn.execute(query).mappings().all()
         return [{**_participant_dict(r), "n_responses": int(r["n_responses"])} for r in rows]
 
@@ -441,7 +436,7 @@ class Store:
                     or (isinstance(value, list) and all(isinstance(v, str) for v in value))):
                 raise StoreError(f"background answer {key!r} must be text, a number or a "
                                  f"list of text, got {value!r}")
-        with self._transaction(write=True) as conn:
+        with self.transaction(write=True) as conn:
             row = self._participant_row(conn, pid)
             if row["background"] is not None:
                 return False
@@ -462,7 +457,7 @@ class Store:
         """
         if code is not None and (not isinstance(code, str) or not code or len(code) > 64):
             raise StoreError(f"completion code must be 1-64 characters, got {code!r}")
-        with self._transaction(write=True) as conn:
+        with self.transaction(write=True) as conn:
             row = self._participant_row(conn, pid)
             if row["completed_at"] is not None:
                 return row["completion_code"]
@@ -517,7 +512,7 @@ class Store:
         attempt = 0
         while True:
             try:
-                with self._transaction(write=True) as conn:
+                with self.transaction(write=True) as conn:
                     part = self._participant_row(conn, pid)
                     stored = self._answered(conn, pid)
                     new = [r for r in checked if r["trial_index"] not in stored]
@@ -578,14 +573,14 @@ class Store:
 
     def answered_trials(self, pid: str) -> set[int]:
         """Trial indices this participant has answered (to resume at the first gap)."""
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             self._participant_row(conn, pid)
             return self._answered(conn, pid)
 
     def responses(self, pid: str) -> list[dict]:
         """This participant's stored responses (export rows), by trial index."""
         self._check_pid(pid)
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             self._participant_row(conn, pid)
             rows = conn.execute(self._export_query().where(
                 responses.c.participant_id == pid)).mappings().all()
@@ -600,7 +595,7 @@ class Store:
         any plain-JSON dict (no NaN/inf). Unknown participant → :class:`StoreError`.
         """
         row = self._checked_event(trial_index, kind, payload)
-        with self._transaction(write=True) as conn:
+        with self.transaction(write=True) as conn:
             self._participant_row(conn, pid)
             conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
 
@@ -629,7 +624,7 @@ class Store:
         if not rows:
             return 0
         now = _utcnow()
-        with self._transaction(write=True) as conn:
+        with self.transaction(write=True) as conn:
             self._participant_row(conn, pid)
             conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
                                            for r in rows])
@@ -642,7 +637,7 @@ class Store:
         cond = [events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
                 events.c.trial_index.is_(None) if trial_index is None
                 else events.c.trial_index == trial_index]
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(*cond)).scalar()
         return _utc(value)
 
@@ -651,7 +646,7 @@ class Store:
         query = sa.select(events).order_by(events.c.id)
         if pid is not None:
             query = query.where(events.c.participant_id == self._check_pid(pid))
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             rows = conn.execute(query).mappings().all()
         return [{"participant_id": r["participant_id"], "trial_index": r["trial_index"],
                  "kind": r["kind"], "payload": r["payload"], "created_at": _iso(r["created_at"])}
@@ -676,7 +671,7 @@ class Store:
         query = self._export_query()
         if not include_simulated:
             query = query.where(participants.c.simulated.is_(False))
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             rows = [_export_row(r) for r in conn.execute(query).mappings()]
         if validate:
             validate_rows(rows)
@@ -691,7 +686,7 @@ class Store:
         """
         p, r = participants, responses
         real = sa.true() if include_simulated else p.c.simulated.is_(False)
-        with self._transaction(write=False) as conn:
+        with self.transaction(write=False) as conn:
             n_part = conn.execute(sa.select(sa.func.count()).select_from(p).where(real)).scalar()
             n_done = conn.execute(sa.select(sa.func.count()).select_from(p).where(
                 real, p.c.completed_at.is_not(None))).scalar()

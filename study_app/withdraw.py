@@ -114,7 +114,7 @@ def withdrawal_plan(store, *, participant_id: str | None = None,
     StoreError
         No participant has that id (the message says if they already withdrew).
     """
-    with store._transaction(write=False) as conn:
+    with store.transaction(write=False) as conn:
         rows = _targets(conn, participant_id, prolific_pid, study_id)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
@@ -161,7 +161,7 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
         raise StoreError(f"withdrawn by must be one of {', '.join(WITHDRAWN_BY)}, got {by!r}")
     now = datetime.now(UTC)
     done = []
-    with store._transaction(write=True) as conn:
+    with store.transaction(write=True) as conn:
         rows = _targets(conn, participant_id, prolific_pid, study_id)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
@@ -189,7 +189,7 @@ def withdrawal_of(store, *, participant_id: str | None = None, prolific_pid: str
             else withdrawals.c.prolific_pid == str(prolific_pid))
     if study_id is not None:
         cond = sa.and_(cond, withdrawals.c.study_id == study_id)
-    with store._transaction(write=False) as conn:
+    with store.transaction(write=False) as conn:
         row = conn.execute(sa.select(withdrawals).where(cond)
                            .order_by(withdrawals.c.withdrawn_at)).mappings().first()
     return None if row is None else _record(row)

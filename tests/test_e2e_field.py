@@ -30,8 +30,6 @@ import test_e2e
 from app_helpers import tiny_demo_stimuli
 from conftest import need
 from test_e2e import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
     REPO,
     TOKEN,
     free_port,
@@ -54,6 +52,8 @@ FIREFOX = "/usr/bin/firefox-esr"
 ARTIFACTS = REPO / "var" / "test-artifacts" / "field"
 #: Playwright's sync API, Chromium checked (the browser tests' fixture).
 playwright_api = test_e2e.playwright_api
+#: One headless Chromium for the module (the browser tests' fixture).
+browser = test_e2e.browser
 PROLIFIC = "PROLIFIC_PID={}&STUDY_ID=5f00aa11&SESSION_ID=s{}"
 SCENES = ["jump", "push"]
 #: Widths (and heights) the candidates are measured at.
@@ -88,14 +88,6 @@ def server(tmp_path_factory, playwright_api):
     yield base, store, log_path, stimuli
     store.close()
     stop_process(proc)
-
-
-@pytest.fixture(scope="module")
-def browser(playwright_api):
-    with playwright_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
 
 
 def new_page(browser, width=1366, height=768):
