@@ -6,14 +6,15 @@ defaults to ``egl`` here, before OpenGL loads. Everything that touches pyrender'
 internals lives in this module, applied once in :func:`load_pyrender`:
 
 - the NumPy-2 shim (pyrender 0.1.45 uses ``np.infty``);
-- a per-thread switch that keeps multisampling off during the face-id pass;
 - a colour-only framebuffer read (pyrender always reads and linearises depth too);
 - EGL context deletion that leaves the process-wide display up (pyrender terminates
   it, which breaks every other thread's context);
 - cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names.
 
 Threads: an EGL context works only on the thread that created it, and a pyrender mesh
-stays bound to its first context. :func:`gl_renderer` keeps one renderer per thread.
+stays bound to its first context. :func:`gl_renderer` keeps one renderer per thread;
+the face-id pass (:mod:`snapcore.render.buffers`) draws with raw GL calls in the same
+context.
 """
 
 from __future__ import annotations
@@ -31,12 +32,11 @@ from snapcore.errors import RenderError  # noqa: E402
 __all__ = ["gl_renderer", "release_renderer"]
 
 _PYRENDER = None
-NO_MSAA = threading.local()
 _THREAD = threading.local()
 
 
 def load_pyrender():
-    """Import pyrender once, with the NumPy-2 shim and the multisample switch."""
+    """Import pyrender once, with the NumPy-2 shim and the patches below."""
     global _PYRENDER
     if _PYRENDER is None:
         if not hasattr(np, "infty"):
@@ -44,22 +44,11 @@ def load_pyrender():
         try:
             import pyrender
             import pyrender.renderer as prr
-            from OpenGL.GL import GL_MULTISAMPLE, glDisable
         except Exception as err:  # ImportError, or a GL loader error naming the library
             raise RenderError(
                 f"cannot load pyrender/OpenGL ({err}); headless rendering needs Mesa EGL "
                 "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) and "
                 "PYOPENGL_PLATFORM=egl") from err
-        gl_enable = prr.glEnable
-
-        def _gl_enable(cap):
-            # pyrender turns multisampling on in every colour pass; an id pass must not
-            # blend neighbouring faces' ids at edges, so it can switch that off per thread.
-            if cap == GL_MULTISAMPLE and getattr(NO_MSAA, "on", False):
-                return glDisable(cap)
-            return gl_enable(cap)
-
-        prr.glEnable = _gl_enable
         # EGL displays are shared by every context in the process: pyrender's
         # delete_context() terminates the display, which would invalidate the other
         # threads' contexts. Destroy the context only.
@@ -88,7 +77,8 @@ def load_pyrender():
 # Blinn-Phong highlight under the same uniform names pyrender sets (so pyrender's
 # renderer drives them unchanged), ~5× cheaper. Primitives without normals are drawn
 # unlit in their vertex colour (the floor grid and the shadows). Colours are linear; output is
-# gamma-encoded (1/2.2) like pyrender's. The flat pair serves the exact id pass.
+# gamma-encoded (1/2.2) like pyrender's. (The exact id pass has its own program:
+# :mod:`snapcore.render.buffers`.)
 _VERT = """#version 330 core
 layout(location = 0) in vec3 position;
 #ifdef NORMAL_LOC
@@ -156,16 +146,6 @@ void main() {
     frag_color = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 }
 """
-_FLAT_FRAG = """#version 330 core
-// snapcore uses pyrender's FLAT pass for face ids only: the colour is the triangle's
-// index within its draw call + 1 as 24-bit RGB (exact through an 8-bit unorm target).
-out vec4 frag_color;
-void main() {
-    int id = gl_PrimitiveID + 1;
-    frag_color = vec4(float(id & 255), float((id >> 8) & 255), float((id >> 16) & 255),
-                      255.0) / 255.0;
-}
-"""
 _SHADER_DIR = None
 
 
@@ -179,8 +159,7 @@ def _shader_dir() -> str:
 
         d = tempfile.mkdtemp(prefix="snapcore-shaders-")
         atexit.register(shutil.rmtree, d, True)
-        for name, text in (("mesh.vert", _VERT), ("mesh.frag", _MESH_FRAG),
-                           ("flat.vert", _VERT), ("flat.frag", _FLAT_FRAG)):
+        for name, text in (("mesh.vert", _VERT), ("mesh.frag", _MESH_FRAG)):
             with open(os.path.join(d, name), "w") as fh:
                 fh.write(text)
         _SHADER_DIR = d
