@@ -38,6 +38,7 @@ LAYERS = {
     "study_app.app": 11,  # the Streamlit UI: the researcher screen shows analysis results
     "study_app.screens": 11,
     "study_app.picker": 11,
+    "study_app.server": 11,  # the server process that runs the UI (and warms its imports)
 }
 
 

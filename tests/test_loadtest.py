@@ -159,3 +159,20 @@ def test_broken_database_url_is_one_line_exit_2(study):
     assert r.exit_code == 2, r.output
     assert "cannot open database" in r.output and "Traceback" not in r.output
     assert len(r.output.strip().splitlines()) == 1
+
+
+def test_server_warm_up_imports_what_the_first_runs_need():
+    """The server's warm-up thread (study_app.server) loads, before any participant
+    arrives, the modules the first player page would import inside a script run:
+    pandas and pyarrow (Streamlit scans component data for frames), SQLAlchemy, the
+    pages. Run in a fresh interpreter, so nothing was imported before."""
+    code = ("import sys; from study_app.server import warm_up; warm_up(); "
+            "print(' '.join(m for m in ('pandas', 'pyarrow', 'sqlalchemy', "
+            "'study_app.screens.pose_task', 'study_app.session') if m in sys.modules))")
+    before = subprocess.run([sys.executable, "-c", "import sys, study_app.server; "
+                             "print('pandas' in sys.modules)"],
+                            capture_output=True, text=True, check=True)
+    assert before.stdout.strip() == "False"  # importing the launcher alone loads nothing
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.split() == ["pandas", "pyarrow", "sqlalchemy",
+                                "study_app.screens.pose_task", "study_app.session"]

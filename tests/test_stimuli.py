@@ -196,7 +196,7 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
                                          "--db", db, "--port", "8599", "--build", "-q"])
     assert r.exit_code == 0, r.output
     (argv, env), = calls
-    assert argv[1:4] == ["-m", "streamlit", "run"] and argv[4].endswith("study_app/app.py")
+    assert argv[1:4] == ["-m", "study_app.server", "run"] and argv[4].endswith("study_app/app.py")
     assert argv[argv.index("--server.port") + 1] == "8599"
     assert argv[argv.index("--server.headless") + 1] == "true"
     assert env["SNAPSHOT_STIMULI"] == str(out.resolve()) and env["SNAPSHOT_DB"] == db

@@ -26,14 +26,15 @@ def default_stimuli_dir(study_id: str) -> Path:
 
 
 def streamlit_command(*, port: int, address: str) -> list[str]:
-    """The ``streamlit run`` command line for the app (headless, no telemetry, no watcher).
+    """The ``streamlit run`` command line for the app (headless, no telemetry, no watcher),
+    through :mod:`study_app.server`, which warms the app's imports while Streamlit starts.
 
     ``runner.postScriptGC`` is off: Streamlit otherwise runs a full ``gc.collect(2)``
     after every script run, which took two thirds of the server's CPU in the load test
     (tens of ms per interaction with this app's heap); Python's own generational
     collector still runs.
     """
-    return [sys.executable, "-m", "streamlit", "run", str(APP),
+    return [sys.executable, "-m", "study_app.server", "run", str(APP),
             "--server.headless", "true",
             "--server.address", address,
             "--server.port", str(port),

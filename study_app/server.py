@@ -1,0 +1,70 @@
+"""The study server process: Streamlit's own command line, with the app's imports warmed.
+
+``snapshot study`` and the replicas run ``python -m study_app.server run study_app/app.py
+...``, which is ``python -m streamlit run ...`` plus one thing: while the server starts,
+a background thread imports what the app's first script runs would otherwise import
+inside a participant's interaction. Streamlit runs the app script only when a session
+arrives, so those imports (pandas and pyarrow, which Streamlit's component data
+serialisation loads on the first player shown, SQLAlchemy, the app's own modules)
+landed on the first participants: measured on a cold server, the first pose page's run
+took 2.7 s, and at a launch every session that arrived meanwhile queued behind the
+import lock (script runs of 1.3–4.4 s at 30 participants). Imports are process-wide,
+so warming them in another thread of the same process is enough.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import threading
+import time
+
+__all__ = ["main", "warm_up"]
+
+log = logging.getLogger("study_app.server")
+
+
+def warm_up() -> float:
+    """Import what the app's script runs need; return the seconds it took."""
+    t0 = time.perf_counter()
+    from streamlit import dataframe_util
+
+    # The first call loads pandas and pyarrow (component data are scanned for frames).
+    dataframe_util.is_dataframe_like([0])
+    import sqlalchemy  # noqa: F401 - the store's engine
+
+    from study_app.screens import (  # noqa: F401 - every page the flow can show
+        attention,
+        background,
+        common,
+        consent,
+        done,
+        invalid,
+        pose_task,
+        researcher,
+        view_task,
+    )
+    from study_app.session import ParticipantSession  # noqa: F401
+    from study_app.store import Store  # noqa: F401
+
+    return time.perf_counter() - t0
+
+
+def _warm_in_background() -> None:
+    try:
+        log.info("imports warmed in %.1f s", warm_up())
+    except Exception as err:  # noqa: BLE001 - a warm-up failure must not stop the server;
+        # the app's own run then meets (and reports) the same problem.
+        log.warning("warm-up failed: %s: %s", type(err).__name__, err)
+
+
+def main() -> None:
+    """``streamlit`` with the warm-up thread started first (arguments as for streamlit)."""
+    threading.Thread(target=_warm_in_background, name="snapshot-warm-up", daemon=True).start()
+    from streamlit.web.cli import main as streamlit_main
+
+    streamlit_main(prog_name="streamlit")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
