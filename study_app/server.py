@@ -14,7 +14,9 @@ so warming them in another thread of the same process is enough.
 
 from __future__ import annotations
 
+import importlib
 import logging
+import pkgutil
 import sys
 import threading
 import time
@@ -33,17 +35,10 @@ def warm_up() -> float:
     dataframe_util.is_dataframe_like([0])
     import sqlalchemy  # noqa: F401 - the store's engine
 
-    from study_app.screens import (  # noqa: F401 - every page the flow can show
-        attention,
-        background,
-        common,
-        consent,
-        done,
-        invalid,
-        pose_task,
-        researcher,
-        view_task,
-    )
+    import study_app.screens as screens
+
+    for page in pkgutil.iter_modules(screens.__path__):  # every page the app can show
+        importlib.import_module(f"{screens.__name__}.{page.name}")
     from study_app.session import ParticipantSession  # noqa: F401
     from study_app.store import Store  # noqa: F401
 
