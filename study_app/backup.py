@@ -37,7 +37,6 @@ import sqlite3
 import subprocess
 import warnings
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 
 import sqlalchemy as sa
@@ -45,11 +44,14 @@ from sqlalchemy import exc as sa_exc
 
 from .database import (
     STUDY_TABLES,
+    copy_tables,
     metadata,
     move_sequences,
     normalize_url,
     one_line,
+    one_snapshot,
     standalone_sqlite,
+    table_counts,
 )
 from .export import StoreError
 
@@ -60,8 +62,6 @@ BACKUP_METHODS = ("auto", "native", "logical")
 #: The first bytes of each kind of backup file.
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 _PGDUMP_MAGIC = b"PGDMP"
-#: Rows per INSERT batch when copying a table.
-_CHUNK = 1000
 #: Seconds a pg_dump / pg_restore run may take.
 _PG_TIMEOUT_S = 600
 
@@ -100,28 +100,12 @@ def find_pg_tool(name: str) -> Path | None:
     return Path(found) if found else None
 
 
-def _utc(value):
-    """A timestamp as an aware UTC datetime (SQLite hands naive UTC ones back): the
-    copy must not depend on the server's or the session's time zone."""
-    if isinstance(value, datetime):
-        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
-    return value
-
-
 def _engine(url) -> sa.engine.Engine:
     from .store import Store
 
     # Store opens with the project's settings (SQLite pragmas, timeouts) and turns a
     # bad URL into one line; the tables are created only where create=True.
     return Store(url, create=False).engine
-
-
-def table_counts(engine) -> dict[str, int]:
-    """Rows per study table present in the database."""
-    with engine.connect() as conn:
-        present = set(sa.inspect(conn).get_table_names())
-        return {t.name: int(conn.execute(sa.select(sa.func.count()).select_from(t)).scalar())
-                for t in metadata.sorted_tables if t.name in present}
 
 
 def _tmp_beside(path: Path) -> Path:
@@ -249,34 +233,16 @@ def _pg_dump(tool: Path, parsed, tmp: Path, *, fallback: bool) -> BackupResult |
     raise StoreError(f"pg_dump failed: {message}")
 
 
-def _copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
-    rows = {}
-    for table in metadata.sorted_tables:  # parents before children (foreign keys)
-        if table.name not in names:
-            continue
-        n = 0
-        result = src_conn.execute(sa.select(table).order_by(*table.primary_key.columns))
-        while chunk := result.mappings().fetchmany(_CHUNK):
-            dst_conn.execute(table.insert(), [{k: _utc(v) for k, v in r.items()} for r in chunk])
-            n += len(chunk)
-        rows[table.name] = n
-    return rows
-
-
 def _logical_backup(engine, tmp: Path) -> BackupResult:
     dst = sa.create_engine(f"sqlite:///{tmp}")
     try:
         metadata.create_all(dst)
         src_conn = engine.connect()
         try:
-            if engine.dialect.name == "postgresql":
-                # One snapshot for every table: a consistent copy, and it never blocks
-                # the app's writers.
-                src_conn = src_conn.execution_options(isolation_level="REPEATABLE READ",
-                                                      postgresql_readonly=True)
+            src_conn = one_snapshot(src_conn)
             with src_conn.begin(), dst.begin() as dst_conn:
                 names = set(sa.inspect(src_conn).get_table_names())
-                rows = _copy_tables(src_conn, dst_conn, names)
+                rows = copy_tables(src_conn, dst_conn, names)
         finally:
             src_conn.close()
     except sa_exc.SQLAlchemyError as err:
@@ -370,7 +336,7 @@ def _logical_restore(path: Path, store) -> BackupResult:
             if missing:
                 raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
             with store.transaction(write=True) as dst_conn:
-                rows = _copy_tables(src_conn, dst_conn, names)
+                rows = copy_tables(src_conn, dst_conn, names)
                 if store.dialect == "postgresql":
                     move_sequences(dst_conn)
     except sa_exc.SQLAlchemyError as err:

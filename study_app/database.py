@@ -4,13 +4,15 @@ The schema of the study tables (participants, responses, events), of the two tab
 open-data housekeeping (withdrawals, study_secrets) and the parsing of a database URL.
 The queries are in :mod:`study_app.store`, which documents the study tables and how
 they are written; :mod:`study_app.withdraw` and :mod:`study_app.pseudonym` query
-their own table.
+their own table; the backup's copies (:func:`copy_tables`, :func:`table_counts`) are
+here too.
 """
 
 from __future__ import annotations
 
 import os
 import re
+from datetime import UTC, datetime
 from pathlib import Path
 
 import sqlalchemy as sa
@@ -18,7 +20,8 @@ from sqlalchemy import exc as sa_exc
 
 from .export import StoreError
 
-__all__ = ["one_line", "standalone_sqlite", "move_sequences", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
+__all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
+           "copy_tables", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "SQLITE_BUSY_TIMEOUT_MS"]
@@ -193,6 +196,52 @@ def move_sequences(conn) -> None:
                     f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
                     f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
                     f"FROM {table.name}"))
+
+
+#: Rows per INSERT batch when :func:`copy_tables` copies a table.
+COPY_CHUNK = 1000
+
+
+def _utc(value):
+    """A timestamp as an aware UTC datetime (SQLite hands naive UTC ones back): a copy
+    must not depend on the server's or the session's time zone."""
+    if isinstance(value, datetime):
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+    return value
+
+
+def table_counts(engine) -> dict[str, int]:
+    """Rows per study table present in the database."""
+    with engine.connect() as conn:
+        present = set(sa.inspect(conn).get_table_names())
+        return {t.name: int(conn.execute(sa.select(sa.func.count()).select_from(t)).scalar())
+                for t in metadata.sorted_tables if t.name in present}
+
+
+def one_snapshot(conn):
+    """``conn`` reading every table from one snapshot (PostgreSQL: a read-only
+    repeatable-read transaction, which never blocks the app's writers; SQLite's one
+    transaction is a snapshot already)."""
+    if conn.dialect.name == "postgresql":
+        return conn.execution_options(isolation_level="REPEATABLE READ",
+                                      postgresql_readonly=True)
+    return conn
+
+
+def copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
+    """Copy the study tables named in ``names`` row for row, ids included, parents before
+    children (foreign keys); return rows per table."""
+    rows = {}
+    for table in metadata.sorted_tables:
+        if table.name not in names:
+            continue
+        n = 0
+        result = src_conn.execute(sa.select(table).order_by(*table.primary_key.columns))
+        while chunk := result.mappings().fetchmany(COPY_CHUNK):
+            dst_conn.execute(table.insert(), [{k: _utc(v) for k, v in r.items()} for r in chunk])
+            n += len(chunk)
+        rows[table.name] = n
+    return rows
 
 
 def configure_sqlite(engine: sa.engine.Engine) -> None:
