@@ -28,7 +28,7 @@ import numpy as np
 
 from snapcore.errors import RenderError
 from snapcore.render.camera import Camera, view_basis
-from snapcore.render.gl import gl_renderer, load_pyrender
+from snapcore.render.gl import current_gl_context, load_pyrender
 
 __all__ = ["DepthMap", "render_face_ids", "face_id_camera", "render_depth",
            "FACE_ID_RESOLUTION"]
@@ -133,8 +133,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
     from OpenGL import GL as gl
 
     w, h = cameras[0].size
-    r = gl_renderer(w, h)
-    r._platform.make_current()
+    r = current_gl_context(w, h)
     n_views = len(cameras)
     layers = min(n_views, _LAYERS_PER_PASS)
     out = np.empty((n_views, h, w), np.int32)

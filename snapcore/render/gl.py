@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 
 from snapcore.errors import RenderError  # noqa: E402
 
-__all__ = ["gl_renderer", "release_renderer"]
+__all__ = ["gl_renderer", "current_gl_context", "release_renderer"]
 
 _PYRENDER = None
 _THREAD = threading.local()
@@ -251,6 +251,15 @@ def gl_renderer(width: int, height: int):
         with _RENDERERS_LOCK:
             _RENDERERS[threading.current_thread()] = r
     r.viewport_width, r.viewport_height = width, height
+    return r
+
+
+def current_gl_context(width: int, height: int):
+    """Make this thread's GL context current for raw GL calls (a pass that draws without
+    pyrender, e.g. the face ids of :mod:`snapcore.render.buffers`); return its renderer,
+    which identifies the context (objects compiled in it stay valid while it lives)."""
+    r = gl_renderer(width, height)
+    r._platform.make_current()
     return r
 
 
