@@ -111,6 +111,23 @@ def test_protocol_driver_every_answer_stored_once(study, tmp_path):
     _assert_stored_once(db, _prolific_ids(db, "s"))
 
 
+def test_protocol_driver_answers_refused_as_too_early_are_sent_again(study, tmp_path):
+    """Participants who click faster than the study's minimum answer time (1 s) have
+    answers refused and answer again on the same page: the driver must expect the
+    second answer on the same trial (the attention check shows no trial index), so the
+    database check holds."""
+    base, db, _ = study
+    _, report = _run(["--url", base, "-n", "2", "--ramp", "0", "--think", "0.3",
+                      "--seed", "3", "--reload", "0", "--back", "0", "--double-click", "0",
+                      "--db", db], tmp_path)
+    assert report["completed"] == 2
+    db_check = report["database"]
+    assert db_check["ok"], db_check["problems"]
+    assert db_check["answers_stored_once"] == db_check["answers_sent"] == 2 * N_TRIALS
+    # Some answers did come too early (0.15-0.45 s after the page), and were sent again.
+    assert report["latency"]["attention_submit"]["n"] > 2
+
+
 @pytest.mark.browser
 def test_browser_driver_agrees(study, tmp_path):
     """Two participants in headless Chromium: same report shape, same database check."""

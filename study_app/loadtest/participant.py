@@ -92,9 +92,12 @@ def page_kind(page: Page) -> str:
 
 
 def _attention_index(result: ParticipantResult) -> int:
-    """The attention check's trial index: the trial after the last one answered so far
-    (the page does not show its index; the plan puts it after the pose and view trials)."""
-    return max(result.answers, default=-1) + 1
+    """The attention check's trial index: the trial after the last pose or view trial
+    answered (the page does not show its index; the plan puts it after them). An answer
+    refused as too early leaves the same page on screen: the next one is for the same
+    trial, not the one after."""
+    return max((i for i, a in result.answers.items() if a["task"] != "attention"),
+               default=-1) + 1
 
 
 class _Run:
