@@ -20,6 +20,7 @@ import math
 import re
 import secrets
 from enum import StrEnum
+from functools import lru_cache
 
 from snapcore.errors import SnapshotError
 
@@ -78,6 +79,11 @@ MAX_RESPONSE_TIME_S = 24 * 3600.0
 BACKGROUND_FIELDS = {"age_band": "age_bands", "gender": "genders", "experience": "experience"}
 #: How the participant-facing messages name each background question.
 BACKGROUND_NAMES = {"age_band": "age", "gender": "gender", "experience": "experience"}
+
+
+@lru_cache(maxsize=4096)
+def _plan(scene_ids: tuple, seed: int) -> tuple[Trial, ...]:
+    return tuple(trial_plan(scene_ids, seed))
 
 
 def _join(words: list[str]) -> str:
@@ -202,7 +208,9 @@ class ParticipantSession:
         self.stimuli = stimuli
         self.participant = participant
         self.answered = set(answered)
-        self.plan: list[Trial] = trial_plan(stimuli.scene_ids, participant["seed"])
+        # The plan is a pure function of (scenes, seed): made once per participant and
+        # process, not on every script run that resumes them.
+        self.plan: list[Trial] = list(_plan(tuple(stimuli.scene_ids), int(participant["seed"])))
 
     # -- construction --------------------------------------------------------------
     @classmethod
@@ -261,7 +269,7 @@ class ParticipantSession:
         if not isinstance(participant_id, str) or not _PID.match(participant_id):
             raise UnknownParticipant("This participant link is not valid. Please use the "
                                      "link you were given, or start a new session.")
-        part = store.get_participant(participant_id)
+        part, answered = store.participant_state(participant_id)
         if part is None:
             gone = withdrawal_of(store, participant_id=participant_id)
             if gone is not None:
@@ -274,7 +282,7 @@ class ParticipantSession:
             raise UnknownParticipant("The study's materials have changed since you started, "
                                      "so this session cannot continue. Please contact the "
                                      "researchers.")
-        return cls(store, stimuli, part, store.answered_trials(participant_id))
+        return cls(store, stimuli, part, answered)
 
     # -- where the participant is ----------------------------------------------------
     @property
@@ -332,15 +340,12 @@ class ParticipantSession:
         second tab, days later) read the earliest one back, so reloading the page does
         not restart the response time.
         """
-        at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
-        if at is None:
-            # The rules the answer will be held to, stored with the moment they start.
-            study = self.stimuli.study
-            self.store.record_event(self.participant_id, trial_index, SHOWN_EVENT,
-                                    {"min_answer_s": study.min_answer_s,
-                                     "require_watch": study.require_watch})
-            at = self.store.first_event_at(self.participant_id, trial_index, SHOWN_EVENT)
-        return at.timestamp()
+        # The rules the answer will be held to, stored with the moment they start.
+        study = self.stimuli.study
+        return self.store.first_event_or_record(
+            self.participant_id, trial_index, SHOWN_EVENT,
+            {"min_answer_s": study.min_answer_s, "require_watch": study.require_watch},
+        ).timestamp()
 
     # -- answers -----------------------------------------------------------------------
     def submit_background(self, answers: dict) -> bool:

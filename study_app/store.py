@@ -571,6 +571,22 @@ class Store:
         return set(conn.execute(sa.select(responses.c.trial_index)
                                 .where(responses.c.participant_id == pid)).scalars())
 
+    def participant_state(self, pid: str) -> tuple[dict | None, set[int]]:
+        """``(record, answered trial indices)`` of a participant, read together.
+
+        What resuming a participant needs on every script run, in one transaction: the
+        record as :meth:`get_participant` (None if the id is unknown or malformed, with
+        an empty set) and the trial indices as :meth:`answered_trials`.
+        """
+        if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
+            return None, set()
+        with self.transaction(write=False) as conn:
+            row = conn.execute(sa.select(participants).where(
+                participants.c.participant_id == pid)).mappings().first()
+            if row is None:
+                return None, set()
+            return _participant_dict(row), self._answered(conn, pid)
+
     def answered_trials(self, pid: str) -> set[int]:
         """Trial indices this participant has answered (to resume at the first gap)."""
         with self.transaction(write=False) as conn:
@@ -630,13 +646,36 @@ class Store:
                                            for r in rows])
         return len(rows)
 
+    def first_event_or_record(self, pid: str, trial_index: int | None, kind: str,
+                              payload: dict | None = None) -> datetime:
+        """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC);
+        if there is none, store one now (with ``payload``) and return its time.
+
+        One read when the event exists (a reload, a second tab); else one write
+        transaction that inserts and reads back the earliest, so two tabs showing the
+        trial at once agree on the first.
+        """
+        at = self.first_event_at(pid, trial_index, kind)
+        if at is not None:
+            return at
+        row = self._checked_event(trial_index, kind, payload)
+        with self.transaction(write=True) as conn:
+            self._participant_row(conn, pid)
+            conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
+            value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(
+                *self._event_filter(pid, trial_index, kind))).scalar()
+        return _utc(value)
+
+    def _event_filter(self, pid: str, trial_index: int | None, kind: str) -> list:
+        return [events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
+                events.c.trial_index.is_(None) if trial_index is None
+                else events.c.trial_index == trial_index]
+
     def first_event_at(self, pid: str, trial_index: int | None, kind: str) -> datetime | None:
         """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC),
         or None if there is none."""
         self._checked_event(trial_index, kind, None)
-        cond = [events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
-                events.c.trial_index.is_(None) if trial_index is None
-                else events.c.trial_index == trial_index]
+        cond = self._event_filter(pid, trial_index, kind)
         with self.transaction(write=False) as conn:
             value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(*cond)).scalar()
         return _utc(value)

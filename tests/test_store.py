@@ -366,6 +366,31 @@ def test_first_event_at(store):
         store.first_event_at(tampered(pid) + "!", 0, "shown")
 
 
+def test_first_event_or_record(store):
+    """Stores the event only when there is none, with its payload; returns the earliest."""
+    pid = new_participant(store)
+    first = store.first_event_or_record(pid, 0, "shown", {"min_answer_s": 1.0})
+    assert store.first_event_or_record(pid, 0, "shown", {"min_answer_s": 9.0}) == first
+    assert store.first_event_at(pid, 0, "shown") == first
+    got = [(e["trial_index"], e["payload"]) for e in store.events(pid)]
+    assert got == [(0, {"min_answer_s": 1.0})]  # one event: the second call only read
+    assert store.first_event_or_record(pid, 1, "shown") >= first
+    assert len(store.events(pid)) == 2
+    with pytest.raises(StoreError, match="unknown participant|participant id"):
+        store.first_event_or_record(tampered(pid), 0, "shown")
+    assert len(store.events()) == 2
+
+
+def test_participant_state_is_the_record_and_the_answered_trials(store):
+    pid = new_participant(store)
+    assert store.participant_state(pid) == (store.get_participant(pid), set())
+    store.record_responses(pid, [pose_row(0), view_row(2)])
+    part, answered = store.participant_state(pid)
+    assert part == store.get_participant(pid) and answered == {0, 2}
+    assert store.participant_state(tampered(pid)) == (None, set())
+    assert store.participant_state("x; drop table participants") == (None, set())
+
+
 def test_progress_counts(store):
     real = [new_participant(store) for _ in range(3)]
     sim = new_participant(store, simulated=True)
