@@ -129,6 +129,20 @@ def _iso(value) -> str | None:
 
 
 # ----------------------------------------------------------------------------- the store
+
+# -- statements of every script run, built once -----------------------------------------
+# SQLAlchemy derives a cache key from a statement every time it is built; a statement
+# built once keeps it.
+_PARTICIPANT = sa.select(participants).where(
+    participants.c.participant_id == sa.bindparam("pid"))
+_ANSWERED = sa.select(responses.c.trial_index).where(
+    responses.c.participant_id == sa.bindparam("pid"))
+_PARTICIPANT_EVENTS = sa.select(events).where(
+    events.c.participant_id == sa.bindparam("pid")).order_by(events.c.id)
+_FIRST_EVENT = sa.select(sa.func.min(events.c.created_at)).where(
+    events.c.participant_id == sa.bindparam("pid"), events.c.kind == sa.bindparam("kind"),
+    events.c.trial_index == sa.bindparam("trial"))
+
 class Store:
     """Participants, responses and events in one SQL database.
 
@@ -278,8 +292,7 @@ class Store:
         return pid
 
     def _participant_row(self, conn, pid: str):
-        row = conn.execute(sa.select(participants).where(
-            participants.c.participant_id == self._check_pid(pid))).mappings().first()
+        row = conn.execute(_PARTICIPANT, {"pid": self._check_pid(pid)}).mappings().first()
         if row is None:
             raise StoreError(f"unknown participant id {pid!r}")
         return row
@@ -568,8 +581,7 @@ class Store:
 
     @staticmethod
     def _answered(conn, pid: str) -> set[int]:
-        return set(conn.execute(sa.select(responses.c.trial_index)
-                                .where(responses.c.participant_id == pid)).scalars())
+        return set(conn.execute(_ANSWERED, {"pid": pid}).scalars())
 
     def participant_state(self, pid: str) -> tuple[dict | None, set[int]]:
         """``(record, answered trial indices)`` of a participant, read together.
@@ -581,8 +593,7 @@ class Store:
         if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
             return None, set()
         with self.transaction(write=False) as conn:
-            row = conn.execute(sa.select(participants).where(
-                participants.c.participant_id == pid)).mappings().first()
+            row = conn.execute(_PARTICIPANT, {"pid": pid}).mappings().first()
             if row is None:
                 return None, set()
             return _participant_dict(row), self._answered(conn, pid)
@@ -662,31 +673,33 @@ class Store:
         with self.transaction(write=True) as conn:
             self._participant_row(conn, pid)
             conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
-            value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(
-                *self._event_filter(pid, trial_index, kind))).scalar()
+            value = self._first_event(conn, pid, trial_index, kind)
         return _utc(value)
 
-    def _event_filter(self, pid: str, trial_index: int | None, kind: str) -> list:
-        return [events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
-                events.c.trial_index.is_(None) if trial_index is None
-                else events.c.trial_index == trial_index]
+    def _first_event(self, conn, pid: str, trial_index: int | None, kind: str):
+        if trial_index is not None:  # the common case: one statement, built once
+            return conn.execute(_FIRST_EVENT, {"pid": self._check_pid(pid), "kind": kind,
+                                               "trial": trial_index}).scalar()
+        return conn.execute(sa.select(sa.func.min(events.c.created_at)).where(
+            events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
+            events.c.trial_index.is_(None))).scalar()
 
     def first_event_at(self, pid: str, trial_index: int | None, kind: str) -> datetime | None:
         """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC),
         or None if there is none."""
         self._checked_event(trial_index, kind, None)
-        cond = self._event_filter(pid, trial_index, kind)
         with self.transaction(write=False) as conn:
-            value = conn.execute(sa.select(sa.func.min(events.c.created_at)).where(*cond)).scalar()
+            value = self._first_event(conn, pid, trial_index, kind)
         return _utc(value)
 
     def events(self, pid: str | None = None) -> list[dict]:
         """Stored events (all, or one participant's), oldest first."""
-        query = sa.select(events).order_by(events.c.id)
-        if pid is not None:
-            query = query.where(events.c.participant_id == self._check_pid(pid))
         with self.transaction(write=False) as conn:
-            rows = conn.execute(query).mappings().all()
+            if pid is None:
+                rows = conn.execute(sa.select(events).order_by(events.c.id)).mappings().all()
+            else:
+                rows = conn.execute(_PARTICIPANT_EVENTS,
+                                    {"pid": self._check_pid(pid)}).mappings().all()
         return [{"participant_id": r["participant_id"], "trial_index": r["trial_index"],
                  "kind": r["kind"], "payload": r["payload"], "created_at": _iso(r["created_at"])}
                 for r in rows]

@@ -159,6 +159,9 @@ class StreamlitClient:
         self.values: dict[str, tuple[str, object]] = {}
         self.page = Page()
         self.script_runs = 0
+        #: The page the app is showing (its script hash, sent back with every rerun as
+        #: the browser does; empty on a fresh page load).
+        self.page_script_hash = ""
 
     # -- connection ------------------------------------------------------------------
     def _get_page(self) -> None:
@@ -202,6 +205,7 @@ class StreamlitClient:
         if query is not None:
             self.query = query
         self.values = {}
+        self.page_script_hash = ""
         await self.connect()
         return await self.rerun()
 
@@ -227,6 +231,13 @@ class StreamlitClient:
         cs = msg.rerun_script
         cs.query_string = self.query
         cs.is_history_navigation = history
+        # What the browser tells the server about the tab on every rerun: the page it
+        # shows, and its address, time zone and locale (st.context).
+        cs.page_script_hash = self.page_script_hash
+        cs.context_info.url = self.http_url
+        cs.context_info.timezone = "UTC"
+        cs.context_info.locale = "en-US"
+        cs.context_info.color_scheme = "light"
         for wid, (kind, value) in self.values.items():
             w = WidgetState(id=wid)
             setattr(w, kind, value)
@@ -260,6 +271,9 @@ class StreamlitClient:
             kind = fm.WhichOneof("type")
             if kind == "new_session":
                 elements = {}  # a new script run starts drawing the page again
+                self.page_script_hash = fm.new_session.page_script_hash or self.page_script_hash
+            elif kind == "navigation":
+                self.page_script_hash = fm.navigation.page_script_hash or self.page_script_hash
             elif kind == "delta" and fm.delta.WhichOneof("type") == "new_element":
                 path = tuple(fm.metadata.delta_path)
                 elements[path] = _element(fm.delta.new_element)

@@ -20,10 +20,10 @@ Media reach the browser through Streamlit's media file manager (the mechanism be
 
 from __future__ import annotations
 
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 
-__all__ = ["frame_picker", "view_chooser", "media_url", "FRAME_PICKER", "VIEW_CHOOSER",
+__all__ = ["frame_picker", "view_chooser", "confirmed", "chosen", "media_url", "FRAME_PICKER", "VIEW_CHOOSER",
            "DEFAULT_LABELS"]
 
 HERE = Path(__file__).resolve().parent
@@ -83,14 +83,16 @@ def media_url(path: str | Path, *, where: str) -> str:
     mime = _MIME.get(p.suffix.lower(), "application/octet-stream")
     ctx = get_script_run_ctx()
     coordinates = f"snapshot.{where}" if ctx is None else f"snapshot.{ctx.page_script_hash}.{where}"
-    return Runtime.instance().media_file_mgr.add(_media_bytes(str(p.resolve())), mime,
-                                                 coordinates)
+    # Keyed by the path as given (the stimuli's paths are absolute): resolving it on
+    # every run cost a few file-system calls per picture per run.
+    return Runtime.instance().media_file_mgr.add(_media_bytes(str(p)), mime, coordinates)
 
 
 def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,
                  start_frame: int = 0, watched: float = 0.0, require_watch: bool = False,
                  watch_min: float = 0.9, min_answer_s: float = 0.0,
-                 labels: dict | None = None, height: int | None = None):
+                 labels: dict | None = None, height: int | None = None,
+                 on_confirm=None, args: tuple = ()):
     """Mount the frame picker; return the confirm payload of this run, else None.
 
     Parameters
@@ -116,11 +118,16 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
         Confirm stays off this many seconds after the player appears.
     labels : dict, optional
         Overrides of :data:`DEFAULT_LABELS`.
+    on_confirm : callable, optional
+        Called with ``args`` when the participant confirms, before the script run that
+        follows (read the answer with :func:`confirmed`): a callback can store the
+        answer so that this very run shows the next step.
 
     Returns
     -------
     dict or None
-        ``{"trial", "frame", "events", "watched"}`` on confirm, ``{"trial", "log"}``
+        ``{"trial", "frame", "events", "watched"}`` on confirm (when no ``on_confirm``
+        handles it), ``{"trial", "log"}``
         for a batch of the interaction log, ``{"trial", "error"}`` if the video cannot
         be played, None otherwise.
     """
@@ -133,9 +140,9 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
             "watched": float(watched), "require_watch": bool(require_watch),
             "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
             "labels": {**DEFAULT_LABELS, **(labels or {})}}
-    result = picker(key=key, data=data, on_confirm_change=_noop, on_error_change=_noop,
-                    on_log_change=_noop, height=height or "content")
-    if result.get("confirm"):
+    result = picker(key=key, data=data, on_confirm_change=_bound(on_confirm, args),
+                    on_error_change=_noop, on_log_change=_noop, height=height or "content")
+    if result.get("confirm") and on_confirm is None:
         return dict(result["confirm"])
     if result.get("log"):
         return {"trial": (result["log"] or {}).get("trial"),
@@ -148,7 +155,7 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
 
 def view_chooser(images: list[str | Path], *, trial: int, key: str,
                  captions: list[str] | None = None, min_answer_s: float = 0.0,
-                 labels: dict | None = None):
+                 labels: dict | None = None, on_choice=None, args: tuple = ()):
     """Mount the view chooser; return ``{"trial", "position"}`` when one is chosen.
 
     Parameters
@@ -164,6 +171,9 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
         What participants see under each image (default "View A", "View B", ...).
     min_answer_s : float
         The Choose buttons stay off this long after every picture has loaded.
+    on_choice : callable, optional
+        Called with ``args`` when a picture is chosen, before the script run that
+        follows (read the answer with :func:`chosen`); the function then returns None.
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
@@ -171,8 +181,33 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
             "min_answer_s": float(min_answer_s),
             "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
                       for i, p in enumerate(images)]}
-    result = chooser(key=key, data=data, on_choice_change=_noop)
-    return dict(result["choice"]) if result.get("choice") else None
+    result = chooser(key=key, data=data, on_choice_change=_bound(on_choice, args))
+    return dict(result["choice"]) if result.get("choice") and on_choice is None else None
+
+
+def _bound(callback, args: tuple):
+    """A components-v2 callback (they take no arguments) calling ``callback(*args)``."""
+    return _noop if callback is None else partial(callback, *args)
+
+
+def _trigger(key: str, event: str) -> dict | None:
+    """The value a component's ``event`` trigger carries in this run (in its callback)."""
+    import streamlit as st
+
+    value = st.session_state.get(key)
+    got = value.get(event) if isinstance(value, dict) else None
+    return dict(got) if isinstance(got, dict) else None
+
+
+def confirmed(key: str) -> dict | None:
+    """In an ``on_confirm`` callback: the frame picker's confirm payload
+    (``{"trial", "frame", "events", "watched"}``), or None."""
+    return _trigger(key, "confirm")
+
+
+def chosen(key: str) -> dict | None:
+    """In an ``on_choice`` callback: the view chooser's ``{"trial", "position"}``, or None."""
+    return _trigger(key, "choice")
 
 
 def _noop():

@@ -15,17 +15,26 @@ def render() -> None:
     st.header("One more question")
     common.show_flash()
     common.trial_clock(session, trial)
-    choice = st.radio(att["question"], att["options"], index=None,
-                      key=common.KEY_ATTENTION_CHOICE)
-    if st.button("Continue", key=common.KEY_ATTENTION_SUBMIT, type="primary"):
-        if choice is None:
-            st.warning("Please choose one of the options.")
-            return
-        try:
-            stored = session.submit_attention(trial.index, choice,
-                                              response_time_s=common.elapsed_s(session, trial))
-            common.answer_outcome(stored)
-        except InvalidAnswer as err:
-            st.warning(str(err))
-            return
-        st.rerun()
+    st.radio(att["question"], att["options"], index=None, key=common.KEY_ATTENTION_CHOICE)
+    st.button("Continue", key=common.KEY_ATTENTION_SUBMIT, type="primary", on_click=_on_submit,
+              args=(session.participant_id, trial.index))
+
+
+def _on_submit(pid: str, trial_index: int) -> None:
+    """Store the answer before the run the click causes (which shows the next step)."""
+    session = common.answering_session(pid)
+    if session is None:
+        return
+    trial = session.plan[trial_index]
+    if trial.index in session.answered and common.resent_from_here(session, trial.index):
+        return  # the second send of a double click: already stored, nothing to say
+    choice = st.session_state.get(common.KEY_ATTENTION_CHOICE)
+    if choice is None:
+        common.flash("warning", "Please choose one of the options.")
+        return
+    try:
+        stored = session.submit_attention(trial.index, choice,
+                                          response_time_s=common.elapsed_s(session, trial))
+        common.answer_outcome(stored, session, trial.index)
+    except InvalidAnswer as err:
+        common.flash("warning", str(err))

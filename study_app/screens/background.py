@@ -19,25 +19,37 @@ def render() -> None:
     common.show_flash()
     # Not a form: "Prefer to self-describe" must open its text box as soon as it is
     # chosen. Every missing answer is named at the top of the page, where it is seen.
+    # The callback reads the answers from the session state by the widgets' keys.
     with st.container(key=common.KEY_BG_FORM):
-        age = st.selectbox("Your age", choices["age_bands"], index=None,
-                           placeholder="Choose an age band", key=common.KEY_BG_AGE)
+        st.selectbox("Your age", choices["age_bands"], index=None,
+                     placeholder="Choose an age band", key=common.KEY_BG_AGE)
         gender = st.radio("Your gender", choices["genders"], index=None,
                           key=common.KEY_BG_GENDER)
-        self_described = None
         if gender == SELF_DESCRIBE:
-            self_described = st.text_input("How do you describe your gender? (optional)",
-                                           max_chars=100, key=common.KEY_BG_GENDER_SELF)
-        exp = st.radio("Your experience with animation, 3D graphics or art",
-                       choices["experience"], index=None, key=common.KEY_BG_EXPERIENCE)
-        sent = st.button("Continue", type="primary", key=common.KEY_BG_SUBMIT)
-    if sent:
-        answers = {"age_band": age, "gender": gender, "experience": exp}
-        if self_described and self_described.strip():
-            answers["gender_self"] = self_described.strip()
-        try:
-            common.answer_outcome(session.submit_background(answers))
-        except InvalidAnswer as err:
-            # Shown at the top on the next run, where it is seen without scrolling.
-            common.flash("warning", str(err))
-        st.rerun()
+            st.text_input("How do you describe your gender? (optional)",
+                          max_chars=100, key=common.KEY_BG_GENDER_SELF)
+        st.radio("Your experience with animation, 3D graphics or art",
+                 choices["experience"], index=None, key=common.KEY_BG_EXPERIENCE)
+        st.button("Continue", type="primary", key=common.KEY_BG_SUBMIT, on_click=_on_submit,
+                  args=(session.participant_id,))
+
+
+def _on_submit(pid: str) -> None:
+    """Store the answers before the run the click causes (which shows the next step)."""
+    session = common.answering_session(pid)
+    if session is None:
+        return
+    if session.is_done("background") and common.resent_from_here(session, "background"):
+        return  # the second send of a double click: already stored, nothing to say
+    get = st.session_state.get
+    answers = {"age_band": get(common.KEY_BG_AGE), "gender": get(common.KEY_BG_GENDER),
+               "experience": get(common.KEY_BG_EXPERIENCE)}
+    self_described = get(common.KEY_BG_GENDER_SELF) if answers["gender"] == SELF_DESCRIBE \
+        else None
+    if isinstance(self_described, str) and self_described.strip():
+        answers["gender_self"] = self_described.strip()
+    try:
+        common.answer_outcome(session.submit_background(answers), session, "background")
+    except InvalidAnswer as err:
+        # Shown at the top of the page, where it is seen without scrolling.
+        common.flash("warning", str(err))

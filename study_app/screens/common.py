@@ -8,8 +8,10 @@ Pages are thin: they read the participant's :class:`~study_app.session.Participa
 from __future__ import annotations
 
 import os
+import threading
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import streamlit as st
@@ -27,6 +29,7 @@ __all__ = [
     "KEY_TRIAL_SHOWN",
     "KEY_PICKER_START",
     "KEY_ATTEMPT",
+    "KEY_ANSWERED_HERE",
     "KEY_FLASH",
     "KEY_FRAMES_FALLBACK",
     "KEY_CONSENT_AGREE",
@@ -54,6 +57,8 @@ __all__ = [
     "ENV_ADMIN_TOKEN",
     "AppContext",
     "load_context",
+    "answering_session",
+    "resent_from_here",
     "current_session",
     "trial_clock",
     "elapsed_s",
@@ -92,6 +97,8 @@ KEY_TRIAL_SHOWN = "snapshot.trial_shown"
 KEY_PICKER_START = "snapshot.picker_start"
 #: {trial index: attempt number}; a rejected answer remounts the widget fresh.
 KEY_ATTEMPT = "snapshot.attempt"
+#: {(participant id, step)} this browser tab answered itself (see resent_from_here).
+KEY_ANSWERED_HERE = "snapshot.answered_here"
 #: A message to show once on the next run (kind, text).
 KEY_FLASH = "snapshot.flash"
 #: True when the browser could not play a video: pose tasks use the frame slider.
@@ -141,14 +148,31 @@ class AppContext:
     store: object
 
 
-@st.cache_resource(show_spinner="Checking the study materials…")
+#: {(stimuli folder, database URL): AppContext}, one per server process. A plain dict
+#: rather than ``st.cache_resource``: Streamlit's cache inspects the function's
+#: signature on every call, and every script run asks for the context (measured: ~5% of
+#: the server's time at a 12-participant launch).
+_CONTEXTS: dict[tuple, AppContext] = {}
+_CONTEXT_LOCK = threading.Lock()
+
+
 def _load_context(stimuli_dir: str, db_url: str | None) -> AppContext:
     from study_app.stimuli import load_stimuli
     from study_app.store import Store
 
     # Verified once per server process, before anyone is served: a missing or altered
-    # file stops the app with the reason instead of serving wrong stimuli.
-    return AppContext(stimuli=load_stimuli(stimuli_dir), store=Store(db_url))
+    # file stops the app with the reason instead of serving wrong stimuli. A failure
+    # is not kept: the next run tries again.
+    key = (stimuli_dir, db_url)
+    with st.spinner("Checking the study materials…"), _CONTEXT_LOCK:
+        if key not in _CONTEXTS:
+            _CONTEXTS[key] = AppContext(stimuli=load_stimuli(stimuli_dir), store=Store(db_url))
+    return _CONTEXTS[key]
+
+
+@lru_cache(maxsize=16)
+def _absolute(folder: str) -> str:
+    return str(Path(folder).resolve())
 
 
 def load_context() -> AppContext:
@@ -160,7 +184,32 @@ def load_context() -> AppContext:
         Stimuli missing or altered, or the database unreachable (one line).
     """
     folder = os.environ.get(ENV_STIMULI) or str(DEFAULT_STIMULI)
-    return _load_context(str(Path(folder).resolve()), os.environ.get(ENV_DB) or None)
+    key = (_absolute(folder), os.environ.get(ENV_DB) or None)
+    return _CONTEXTS.get(key) or _load_context(*key)
+
+
+def answering_session(pid: str):
+    """In an answer's callback: the participant's session as the store holds it now, or
+    None when the id is no longer valid (the run that follows says why).
+
+    Answers are stored in widget callbacks, which Streamlit runs before the script run
+    the click causes, so that run already shows the next step (a run fewer per answer
+    than storing in the page and calling ``st.rerun()``). The session is read afresh:
+    another tab may have answered since this page was drawn.
+    """
+    from study_app.session import ParticipantSession, UnknownParticipant
+
+    ctx = load_context()
+    try:
+        return ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
+    except UnknownParticipant:
+        return None
+
+
+def resent_from_here(session, step) -> bool:
+    """Whether ``step`` was answered by this tab (a double click's second send, which
+    must change nothing and say nothing)."""
+    return (session.participant_id, step) in st.session_state.get(KEY_ANSWERED_HERE, set())
 
 
 def current_session():
@@ -238,17 +287,22 @@ STALE_TAB_TEXT = ("This question had already been answered in another window or 
                   "the answer given here was not saved. Here is the next step.")
 
 
-def answer_outcome(stored: bool) -> None:
-    """After a submit: remember this tab answered; tell it if its answer came second."""
+def answer_outcome(stored: bool, session=None, step=None) -> None:
+    """After a submit: remember this tab answered (``step`` of ``session``, when given);
+    tell it if its answer came second."""
     if stored:
-        answered_here()
+        answered_here(session, step)
     else:
         flash("warning", STALE_TAB_TEXT)
 
 
-def answered_here() -> None:
-    """This tab moved the participant on itself (no stale-tab notice on the next run)."""
+def answered_here(session=None, step=None) -> None:
+    """This tab moved the participant on itself (no stale-tab notice on the next run);
+    with ``session`` and ``step``, remember that this tab answered that step."""
     st.session_state[KEY_ON_SCREEN] = None
+    if session is not None:
+        done = st.session_state.setdefault(KEY_ANSWERED_HERE, set())
+        done.add((session.participant_id, step))
 
 
 def stale_tab_notice(session) -> None:

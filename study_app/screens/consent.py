@@ -21,12 +21,22 @@ def render() -> None:
     st.markdown(consent_text(study, minutes))
     agree = st.checkbox("I have read the information above and agree to take part.",
                         key=common.KEY_CONSENT_AGREE)
-    if st.button("Start the study", key=common.KEY_CONSENT_START, type="primary",
-                 disabled=not agree):
-        # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
-        query = {k: st.query_params.get(k) for k in st.query_params.keys()}
-        session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
-        # The id goes in the URL: a reload, or the same link later, resumes here.
-        st.query_params[common.QUERY_PID] = session.participant_id
-        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
-        st.rerun()
+    st.button("Start the study", key=common.KEY_CONSENT_START, type="primary",
+              disabled=not agree, on_click=_on_start)
+
+
+def _on_start() -> None:
+    """Register the participant before the run the click causes (which shows the first
+    step); a click without the box ticked (a forged one) does nothing."""
+    if st.session_state.get(common.KEY_CONSENT_AGREE) is not True:
+        return
+    if st.session_state.get(common.KEY_PARTICIPANT_ID) and \
+            common.QUERY_PID in st.query_params:
+        return  # the second send of a double click: this tab already started
+    ctx = common.load_context()
+    # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
+    query = {k: st.query_params.get(k) for k in st.query_params.keys()}
+    session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
+    # The id goes in the URL: a reload, or the same link later, resumes here.
+    st.query_params[common.QUERY_PID] = session.participant_id
+    st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id

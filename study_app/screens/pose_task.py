@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.picker import frame_picker
+from study_app.picker import confirmed, frame_picker
 from study_app.screens import common
 from study_app.session import WATCHED_ENOUGH, InvalidAnswer
 
@@ -49,11 +49,13 @@ def render() -> None:
         if key not in starts:
             starts[key] = session.picker_state(trial.index)
         frame, watched = starts[key]
+        widget = common.widget_key(common.KEY_PICKER, trial)
         answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
-                              trial=trial.index, key=common.widget_key(common.KEY_PICKER, trial),
+                              trial=trial.index, key=widget,
                               start_frame=frame, watched=watched,
                               require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
-                              min_answer_s=study.min_answer_s)
+                              min_answer_s=study.min_answer_s, on_confirm=_on_confirm,
+                              args=(session.participant_id, trial.index, widget))
         if answer and "error" in answer:
             # This browser cannot play the video: offer the frames instead.
             st.session_state[common.KEY_FRAMES_FALLBACK] = True
@@ -61,19 +63,36 @@ def render() -> None:
         if answer and "log" in answer:
             # A batch of the player's log, stored as it happens; the player stays.
             session.record_picker_events(answer.get("trial"), answer["log"])
-            return
+        return
     if answer is None:
         return
+    _submit(session, trial, answer)
+    st.rerun()
+
+
+def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
+    """The player's Confirm, stored before the run it causes (which shows the next step)."""
+    answer = confirmed(widget)
+    session = common.answering_session(pid)
+    if answer is None or session is None:
+        return
+    _submit(session, session.plan[trial_index], answer)
+
+
+def _submit(session, trial, answer: dict) -> None:
+    """Store a pose answer for ``trial`` (the trial its page showed); a refused answer
+    remounts the picker with the reason above it."""
+    if trial.index in session.answered and common.resent_from_here(session, trial.index):
+        return  # the second send of a double click: already stored, nothing to say
     try:
         stored = session.submit_pose(answer.get("trial"), answer.get("frame"),
                                      response_time_s=common.elapsed_s(session, trial),
                                      events=answer.get("events") or (),
                                      watched=answer.get("watched"))
-        common.answer_outcome(stored)
+        common.answer_outcome(stored, session, trial.index)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))
-    st.rerun()
 
 
 def _frames_picker(sc, trial):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.picker import view_chooser
+from study_app.picker import chosen, view_chooser
 from study_app.screens import common
 from study_app.session import InvalidAnswer
 
@@ -20,16 +20,25 @@ def render() -> None:
     common.show_flash()
     common.trial_clock(session, trial)
     # Pictures only: the position → method map stays here (submit_view applies it).
-    answer = view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
-                          key=common.widget_key(common.KEY_CHOOSER, trial),
-                          min_answer_s=session.stimuli.study.min_answer_s)
-    if answer is None:
+    widget = common.widget_key(common.KEY_CHOOSER, trial)
+    view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
+                 key=widget, min_answer_s=session.stimuli.study.min_answer_s,
+                 on_choice=_on_choice, args=(session.participant_id, trial.index, widget))
+
+
+def _on_choice(pid: str, trial_index: int, widget: str) -> None:
+    """The chosen picture, stored before the run it causes (which shows the next step)."""
+    answer = chosen(widget)
+    session = common.answering_session(pid)
+    if answer is None or session is None:
         return
+    trial = session.plan[trial_index]
+    if trial.index in session.answered and common.resent_from_here(session, trial.index):
+        return  # the second send of a double click: already stored, nothing to say
     try:
         stored = session.submit_view(answer.get("trial"), answer.get("position"),
                                      response_time_s=common.elapsed_s(session, trial))
-        common.answer_outcome(stored)
+        common.answer_outcome(stored, session, trial.index)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))
-    st.rerun()
