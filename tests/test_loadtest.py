@@ -193,3 +193,30 @@ def test_server_warm_up_imports_what_the_first_runs_need():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.split() == ["pandas", "pyarrow", "sqlalchemy",
                                 "study_app.screens.pose_task", "study_app.session"]
+
+
+def test_indexed_config_sections_give_what_streamlit_gives():
+    """The server's section index returns, for every configuration section, exactly what
+    Streamlit's own walk over all options returns, also after a value changes and after
+    the configuration is parsed again. Run in a fresh interpreter (it patches Streamlit)."""
+    code = """
+import json
+from streamlit import config
+from study_app.server import index_config_sections
+original = config.get_options_for_section
+sections = sorted({o.section for o in config.get_config_options().values()})
+def both():
+    return [(original(s), config.get_options_for_section(s)) for s in sections]
+index_config_sections()
+assert config.get_options_for_section is not original
+out = [a == b for a, b in both()]
+config.set_option("theme.primaryColor", "#123456")
+out += [a == b for a, b in both()]
+assert config.get_options_for_section("theme")["primaryColor"] == "#123456"
+config.get_config_options(force_reparse=True)
+out += [a == b for a, b in both()]
+print(json.dumps([len(sections), all(out)]))
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    n_sections, same = json.loads(r.stdout)
+    assert n_sections > 10 and same
