@@ -31,6 +31,12 @@ def load_schema(name: str) -> dict:
     return schema
 
 
+@cache
+def _validator(name: str) -> jsonschema.Draft202012Validator:
+    # One per schema and process: the study server validates every stored answer.
+    return jsonschema.Draft202012Validator(load_schema(name))
+
+
 def field_path(parts) -> str:
     """``['characters', 0, 'offset']`` → ``characters[0].offset``."""
     out = ""
@@ -51,8 +57,7 @@ def validate(instance, name: str, *, source: str = "document") -> None:
     source : str
         Where the document came from (a file name), for the message.
     """
-    validator = jsonschema.Draft202012Validator(load_schema(name))
-    error = jsonschema.exceptions.best_match(validator.iter_errors(instance))
+    error = jsonschema.exceptions.best_match(_validator(name).iter_errors(instance))
     if error is not None:
         raise SchemaError(f"{source}: {field_path(error.absolute_path)}: {error.message}")
 
