@@ -37,8 +37,8 @@ class RunWatch:
     """Counts the app's finished script runs as the page's own websocket delivers them.
 
     A click waits for the run *it* caused to finish, however late that run starts on a
-    loaded server, and an answer's run that ends in ``st.rerun()`` counts once, when the
-    run after it finishes. The page's script-state attribute cannot tell this: a run
+    loaded server, and a run that ends in ``st.rerun()`` (the frame-slider fallback's
+    answer) counts once, when the run after it finishes. The page's script-state attribute cannot tell this: a run
     can pass it by (running and idle drawn in one frame), and it shows idle between the
     two runs of a rerun.
     """
