@@ -53,6 +53,7 @@ __all__ = [
     "EVENT_KINDS",
     "SHOWN_EVENT",
     "MAX_EVENTS_PER_TRIAL",
+    "STALE_TAB_TEXT",
 ]
 
 #: URL parameters Prolific appends to a study link; recorded when present.
@@ -71,6 +72,10 @@ WATCHED_ENOUGH = 0.9
 #: The event the server stores when a trial is first shown: its response time counts
 #: from there, across reloads and tabs (never sent by the browser).
 SHOWN_EVENT = "shown"
+#: What a tab says when the step it showed was answered elsewhere (another tab or
+#: browser) first, so what it sent for that step was not stored.
+STALE_TAB_TEXT = ("This question had already been answered in another window or tab, so "
+                  "the answer given here was not saved. Here is the next step.")
 #: A cap on stored events per trial, so a runaway client cannot flood the store.
 MAX_EVENTS_PER_TRIAL = 500
 #: Longest plausible response time (s) stored; longer ones (a tab left open) are clipped.

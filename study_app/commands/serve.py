@@ -33,6 +33,12 @@ def streamlit_command(*, port: int, address: str) -> list[str]:
     after every script run, which took two thirds of the server's CPU in the load test
     (tens of ms per interaction with this app's heap); Python's own generational
     collector still runs.
+
+    ``runner.fastReruns`` is off: with it, a rerun request during a run (a double click's
+    second send) starts a new script thread at once while the old one finishes, so the
+    second run could resume the participant before the first one's answer was stored and
+    draw the answered step again. Off, a session's runs follow one another: a rerun
+    stops the current run at its next Streamlit call and starts after it.
     """
     return [sys.executable, "-m", "study_app.server", "run", str(APP),
             "--server.headless", "true",
@@ -42,6 +48,7 @@ def streamlit_command(*, port: int, address: str) -> list[str]:
             "--server.fileWatcherType", "none",
             "--server.runOnSave", "false",
             "--runner.postScriptGC", "false",
+            "--runner.fastReruns", "false",
             "--theme.base", "light",
             "--client.toolbarMode", "minimal"]
 

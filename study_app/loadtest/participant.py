@@ -18,6 +18,7 @@ import asyncio
 import random
 from dataclasses import dataclass, field
 
+from ..session import STALE_TAB_TEXT
 from .client import Page, ProtocolError, StreamlitClient
 
 __all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
@@ -229,6 +230,10 @@ class _Run:
             await self.c.rerun(triggers=[trigger], wait=False)
             page = await self.act(action, triggers=[trigger])
             self.r.add("double_click", loop.time() - t0)
+            if page.has_text(STALE_TAB_TEXT):
+                # The second click repeats this tab's own answer: nothing to tell.
+                self.r.errors.append(f"{action}: a double click was told its answer "
+                                     "came from another window")
             return page
         return await self.act(action, triggers=[trigger])
 

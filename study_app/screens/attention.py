@@ -26,15 +26,19 @@ def _on_submit(pid: str, trial_index: int) -> None:
     if session is None:
         return
     trial = session.plan[trial_index]
-    if trial.index in session.answered and common.resent_from_here(session, trial.index):
-        return  # the second send of a double click: already stored, nothing to say
     choice = st.session_state.get(common.KEY_ATTENTION_CHOICE)
     if choice is None:
         common.flash("warning", "Please choose one of the options.")
         return
+    if not common.claim_step(session, trial.index):
+        return  # the second send of a double click: this tab answers it, nothing to say
+    stored = False
     try:
         stored = session.submit_attention(trial.index, choice,
                                           response_time_s=common.elapsed_s(session, trial))
-        common.answer_outcome(stored, session, trial.index)
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         common.flash("warning", str(err))
+    finally:
+        if not stored:
+            common.release_step(session, trial.index)

@@ -39,8 +39,6 @@ def _on_submit(pid: str) -> None:
     session = common.answering_session(pid)
     if session is None:
         return
-    if session.is_done("background") and common.resent_from_here(session, "background"):
-        return  # the second send of a double click: already stored, nothing to say
     get = st.session_state.get
     answers = {"age_band": get(common.KEY_BG_AGE), "gender": get(common.KEY_BG_GENDER),
                "experience": get(common.KEY_BG_EXPERIENCE)}
@@ -48,8 +46,15 @@ def _on_submit(pid: str) -> None:
         else None
     if isinstance(self_described, str) and self_described.strip():
         answers["gender_self"] = self_described.strip()
+    if not common.claim_step(session, "background"):
+        return  # the second send of a double click: this tab answers it, nothing to say
+    stored = False
     try:
-        common.answer_outcome(session.submit_background(answers), session, "background")
+        stored = session.submit_background(answers)
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         # Shown at the top of the page, where it is seen without scrolling.
         common.flash("warning", str(err))
+    finally:
+        if not stored:
+            common.release_step(session, "background")

@@ -17,6 +17,7 @@ from pathlib import Path
 import streamlit as st
 
 from snapcore.errors import SnapshotError
+from study_app.session import STALE_TAB_TEXT
 
 __all__ = [
     "QUERY_PID",
@@ -58,7 +59,8 @@ __all__ = [
     "AppContext",
     "load_context",
     "answering_session",
-    "resent_from_here",
+    "claim_step",
+    "release_step",
     "current_session",
     "trial_clock",
     "elapsed_s",
@@ -97,7 +99,7 @@ KEY_TRIAL_SHOWN = "snapshot.trial_shown"
 KEY_PICKER_START = "snapshot.picker_start"
 #: {trial index: attempt number}; a rejected answer remounts the widget fresh.
 KEY_ATTEMPT = "snapshot.attempt"
-#: {(participant id, step)} this browser tab answered itself (see resent_from_here).
+#: {(participant id, step)} this browser tab answered itself (see claim_step).
 KEY_ANSWERED_HERE = "snapshot.answered_here"
 #: A message to show once on the next run (kind, text).
 KEY_FLASH = "snapshot.flash"
@@ -154,6 +156,7 @@ class AppContext:
 #: the server's time at a 12-participant launch).
 _CONTEXTS: dict[tuple, AppContext] = {}
 _CONTEXT_LOCK = threading.Lock()
+_CLAIM_LOCK = threading.Lock()
 
 
 def _load_context(stimuli_dir: str, db_url: str | None) -> AppContext:
@@ -206,10 +209,29 @@ def answering_session(pid: str):
         return None
 
 
-def resent_from_here(session, step) -> bool:
-    """Whether ``step`` was answered by this tab (a double click's second send, which
-    must change nothing and say nothing)."""
-    return (session.participant_id, step) in st.session_state.get(KEY_ANSWERED_HERE, set())
+def claim_step(session, step) -> bool:
+    """Mark ``step`` of ``session`` as answered by this tab; False when this tab already
+    did (or is doing) it: a double click's second send, which must change nothing and
+    say nothing. Its callback can run while the first one's is still storing (the
+    second send interrupts the first run), so the mark is set before storing, under a
+    lock; :func:`release_step` takes it back when nothing was stored."""
+    key = (session.participant_id, step)
+    with _CLAIM_LOCK:
+        mine = st.session_state.setdefault(KEY_ANSWERED_HERE, set())
+        if key in mine:
+            return False
+        mine.add(key)
+        return True
+
+
+def release_step(session, step) -> None:
+    """Undo :func:`claim_step` (the answer was refused or failed: the tab may answer again)."""
+    with _CLAIM_LOCK:
+        st.session_state.get(KEY_ANSWERED_HERE, set()).discard((session.participant_id, step))
+
+
+def _claimed(participant_id: str, step) -> bool:
+    return (participant_id, step) in st.session_state.get(KEY_ANSWERED_HERE, set())
 
 
 def current_session():
@@ -283,26 +305,19 @@ def resume_link(session) -> None:
     st.code(resume_url(base, session.participant_id), language=None)
 
 
-STALE_TAB_TEXT = ("This question had already been answered in another window or tab, so "
-                  "the answer given here was not saved. Here is the next step.")
 
 
-def answer_outcome(stored: bool, session=None, step=None) -> None:
-    """After a submit: remember this tab answered (``step`` of ``session``, when given);
-    tell it if its answer came second."""
+def answer_outcome(stored: bool) -> None:
+    """After a submit: remember this tab answered; tell it if its answer came second."""
     if stored:
-        answered_here(session, step)
+        answered_here()
     else:
         flash("warning", STALE_TAB_TEXT)
 
 
-def answered_here(session=None, step=None) -> None:
-    """This tab moved the participant on itself (no stale-tab notice on the next run);
-    with ``session`` and ``step``, remember that this tab answered that step."""
+def answered_here() -> None:
+    """This tab moved the participant on itself (no stale-tab notice on the next run)."""
     st.session_state[KEY_ON_SCREEN] = None
-    if session is not None:
-        done = st.session_state.setdefault(KEY_ANSWERED_HERE, set())
-        done.add((session.participant_id, step))
 
 
 def stale_tab_notice(session) -> None:
@@ -313,8 +328,11 @@ def stale_tab_notice(session) -> None:
     """
     step = session.step_key
     shown = st.session_state.get(KEY_ON_SCREEN)
+    # A step this tab answered itself is not stale, even when a run that started
+    # before the answer was stored drew that step again (a double click's second send
+    # interrupting the first one's run).
     if shown is not None and shown[0] == session.participant_id and shown[1] != step \
-            and session.is_done(shown[1]):
+            and session.is_done(shown[1]) and not _claimed(shown[0], shown[1]):
         flash("warning", STALE_TAB_TEXT)
     st.session_state[KEY_ON_SCREEN] = (session.participant_id, step)
 

@@ -82,17 +82,21 @@ def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
 def _submit(session, trial, answer: dict) -> None:
     """Store a pose answer for ``trial`` (the trial its page showed); a refused answer
     remounts the picker with the reason above it."""
-    if trial.index in session.answered and common.resent_from_here(session, trial.index):
-        return  # the second send of a double click: already stored, nothing to say
+    if not common.claim_step(session, trial.index):
+        return  # the second send of a double click: this tab answers it, nothing to say
+    stored = False
     try:
         stored = session.submit_pose(answer.get("trial"), answer.get("frame"),
                                      response_time_s=common.elapsed_s(session, trial),
                                      events=answer.get("events") or (),
                                      watched=answer.get("watched"))
-        common.answer_outcome(stored, session, trial.index)
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))
+    finally:
+        if not stored:
+            common.release_step(session, trial.index)
 
 
 def _frames_picker(sc, trial):

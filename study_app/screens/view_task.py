@@ -33,12 +33,16 @@ def _on_choice(pid: str, trial_index: int, widget: str) -> None:
     if answer is None or session is None:
         return
     trial = session.plan[trial_index]
-    if trial.index in session.answered and common.resent_from_here(session, trial.index):
-        return  # the second send of a double click: already stored, nothing to say
+    if not common.claim_step(session, trial.index):
+        return  # the second send of a double click: this tab answers it, nothing to say
+    stored = False
     try:
         stored = session.submit_view(answer.get("trial"), answer.get("position"),
                                      response_time_s=common.elapsed_s(session, trial))
-        common.answer_outcome(stored, session, trial.index)
+        common.answer_outcome(stored)
     except InvalidAnswer as err:
         common.next_attempt(trial)
         common.flash("error", str(err))
+    finally:
+        if not stored:
+            common.release_step(session, trial.index)
