@@ -52,6 +52,7 @@ from .database import (
     one_snapshot,
     standalone_sqlite,
     table_counts,
+    table_names,
 )
 from .export import StoreError
 
@@ -241,7 +242,7 @@ def _logical_backup(engine, tmp: Path) -> BackupResult:
         try:
             src_conn = one_snapshot(src_conn)
             with src_conn.begin(), dst.begin() as dst_conn:
-                names = set(sa.inspect(src_conn).get_table_names())
+                names = table_names(src_conn)
                 rows = copy_tables(src_conn, dst_conn, names)
         finally:
             src_conn.close()
@@ -331,7 +332,7 @@ def _logical_restore(path: Path, store) -> BackupResult:
     src = sa.create_engine(f"sqlite:///{path}")
     try:
         with src.connect() as src_conn:
-            names = set(sa.inspect(src_conn).get_table_names())
+            names = table_names(src_conn)
             missing = [t for t in STUDY_TABLES if t not in names]
             if missing:
                 raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")

@@ -21,7 +21,7 @@ from sqlalchemy import exc as sa_exc
 from .export import StoreError
 
 __all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
-           "copy_tables", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
+           "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "SQLITE_BUSY_TIMEOUT_MS"]
@@ -226,6 +226,11 @@ def one_snapshot(conn):
         return conn.execution_options(isolation_level="REPEATABLE READ",
                                       postgresql_readonly=True)
     return conn
+
+
+def table_names(conn) -> set[str]:
+    """The tables a database holds (a backup may predate some of the study's tables)."""
+    return set(sa.inspect(conn).get_table_names())
 
 
 def copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
