@@ -5,7 +5,6 @@ from __future__ import annotations
 import streamlit as st
 
 from study_app.screens import common
-from study_app.session import InvalidAnswer
 
 
 def render() -> None:
@@ -30,15 +29,8 @@ def _on_submit(pid: str, trial_index: int) -> None:
     if choice is None:
         common.flash("warning", "Please choose one of the options.")
         return
-    if not common.claim_step(session, trial.index):
-        return  # the second send of a double click: this tab answers it, nothing to say
-    stored = False
-    try:
-        stored = session.submit_attention(trial.index, choice,
-                                          response_time_s=common.elapsed_s(session, trial))
-        common.answer_outcome(stored)
-    except InvalidAnswer as err:
-        common.flash("warning", str(err))
-    finally:
-        if not stored:
-            common.release_step(session, trial.index)
+    common.store_answer(
+        session, trial.index,
+        lambda: session.submit_attention(trial.index, choice,
+                                         response_time_s=common.elapsed_s(session, trial)),
+        lambda err: common.flash("warning", str(err)))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import streamlit as st
 
 from study_app.screens import common
-from study_app.session import InvalidAnswer
 
 #: The gender choice that opens a text box (its text is stored as ``gender_self``).
 SELF_DESCRIBE = "Prefer to self-describe"
@@ -46,15 +45,6 @@ def _on_submit(pid: str) -> None:
         else None
     if isinstance(self_described, str) and self_described.strip():
         answers["gender_self"] = self_described.strip()
-    if not common.claim_step(session, "background"):
-        return  # the second send of a double click: this tab answers it, nothing to say
-    stored = False
-    try:
-        stored = session.submit_background(answers)
-        common.answer_outcome(stored)
-    except InvalidAnswer as err:
-        # Shown at the top of the page, where it is seen without scrolling.
-        common.flash("warning", str(err))
-    finally:
-        if not stored:
-            common.release_step(session, "background")
+    # A refusal is shown at the top of the page, where it is seen without scrolling.
+    common.store_answer(session, "background", lambda: session.submit_background(answers),
+                        lambda err: common.flash("warning", str(err)))

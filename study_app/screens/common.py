@@ -17,7 +17,7 @@ from pathlib import Path
 import streamlit as st
 
 from snapcore.errors import SnapshotError
-from study_app.session import STALE_TAB_TEXT
+from study_app.session import STALE_TAB_TEXT, InvalidAnswer
 
 __all__ = [
     "QUERY_PID",
@@ -61,6 +61,8 @@ __all__ = [
     "answering_session",
     "claim_step",
     "release_step",
+    "store_answer",
+    "retry_trial",
     "current_session",
     "trial_clock",
     "elapsed_s",
@@ -228,6 +230,30 @@ def release_step(session, step) -> None:
     """Undo :func:`claim_step` (the answer was refused or failed: the tab may answer again)."""
     with _CLAIM_LOCK:
         st.session_state.get(KEY_ANSWERED_HERE, set()).discard((session.participant_id, step))
+
+
+def store_answer(session, step, submit, refused) -> None:
+    """Store one answer of this tab: ``submit()`` (a ``ParticipantSession.submit_*``
+    call, True if stored) runs once per tab and step (see :func:`claim_step`); a
+    refusal (:class:`~study_app.session.InvalidAnswer`) goes to ``refused(err)`` and
+    frees the step for another try."""
+    if not claim_step(session, step):
+        return  # the second send of a double click: this tab answers it, nothing to say
+    stored = False
+    try:
+        stored = submit()
+        answer_outcome(stored)
+    except InvalidAnswer as err:
+        refused(err)
+    finally:
+        if not stored:
+            release_step(session, step)
+
+
+def retry_trial(trial, err) -> None:
+    """A refused trial answer: remount the trial's widget fresh, the reason above it."""
+    next_attempt(trial)
+    flash("error", str(err))
 
 
 def _claimed(participant_id: str, step) -> bool:

@@ -6,7 +6,7 @@ import streamlit as st
 
 from study_app.picker import confirmed, frame_picker
 from study_app.screens import common
-from study_app.session import WATCHED_ENOUGH, InvalidAnswer
+from study_app.session import WATCHED_ENOUGH
 
 #: Instructions for the video player, and for the frame slider (the fallback when the
 #: browser cannot play the video, or the study's ``picker = "frames"``).
@@ -82,21 +82,13 @@ def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
 def _submit(session, trial, answer: dict) -> None:
     """Store a pose answer for ``trial`` (the trial its page showed); a refused answer
     remounts the picker with the reason above it."""
-    if not common.claim_step(session, trial.index):
-        return  # the second send of a double click: this tab answers it, nothing to say
-    stored = False
-    try:
-        stored = session.submit_pose(answer.get("trial"), answer.get("frame"),
-                                     response_time_s=common.elapsed_s(session, trial),
-                                     events=answer.get("events") or (),
-                                     watched=answer.get("watched"))
-        common.answer_outcome(stored)
-    except InvalidAnswer as err:
-        common.next_attempt(trial)
-        common.flash("error", str(err))
-    finally:
-        if not stored:
-            common.release_step(session, trial.index)
+    common.store_answer(
+        session, trial.index,
+        lambda: session.submit_pose(answer.get("trial"), answer.get("frame"),
+                                    response_time_s=common.elapsed_s(session, trial),
+                                    events=answer.get("events") or (),
+                                    watched=answer.get("watched")),
+        lambda err: common.retry_trial(trial, err))
 
 
 def _frames_picker(sc, trial):

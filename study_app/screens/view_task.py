@@ -6,7 +6,6 @@ import streamlit as st
 
 from study_app.picker import chosen, view_chooser
 from study_app.screens import common
-from study_app.session import InvalidAnswer
 
 
 def render() -> None:
@@ -33,16 +32,8 @@ def _on_choice(pid: str, trial_index: int, widget: str) -> None:
     if answer is None or session is None:
         return
     trial = session.plan[trial_index]
-    if not common.claim_step(session, trial.index):
-        return  # the second send of a double click: this tab answers it, nothing to say
-    stored = False
-    try:
-        stored = session.submit_view(answer.get("trial"), answer.get("position"),
-                                     response_time_s=common.elapsed_s(session, trial))
-        common.answer_outcome(stored)
-    except InvalidAnswer as err:
-        common.next_attempt(trial)
-        common.flash("error", str(err))
-    finally:
-        if not stored:
-            common.release_step(session, trial.index)
+    common.store_answer(
+        session, trial.index,
+        lambda: session.submit_view(answer.get("trial"), answer.get("position"),
+                                    response_time_s=common.elapsed_s(session, trial)),
+        lambda err: common.retry_trial(trial, err))
