@@ -419,8 +419,7 @@ class Store:
         if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
             return None
         with self.transaction(write=False) as conn:
-            row = conn.execute(sa.select(participants).where(
-                participants.c.participant_id == pid)).mappings().first()
+            row = conn.execute(_PARTICIPANT, {"pid": pid}).mappings().first()
         return None if row is None else _participant_dict(row)
 
     def participants(self, *, include_simulated: bool = False) -> list[dict]:
