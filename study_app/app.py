@@ -163,13 +163,13 @@ def main() -> None:
 def _timed_main() -> None:
     """Run :func:`main`, recording how long this script run took (st.rerun and
     st.stop end a run with an exception: they are timed too)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     try:
         main()
     finally:
         session = st.session_state.get(common.KEY_SESSION)
         stage = session.stage.value if session is not None else "none"
-        record_run(time.perf_counter() - t0, stage=stage)
+        record_run(time.perf_counter() - t0, stage=stage, cpu_seconds=time.thread_time() - c0)
 
 
 _timed_main()

@@ -400,8 +400,8 @@ class ParticipantSession:
                            "and answer again.")
         return min(t, MAX_RESPONSE_TIME_S)
 
-    def _record(self, row: dict) -> bool:
-        stored = self.store.record_response(self.participant_id, row)
+    def _record(self, row: dict, trial_events=()) -> bool:
+        stored = self.store.record_response(self.participant_id, row, trial_events=trial_events)
         self.answered.add(row["trial_index"])
         return bool(stored)
 
@@ -448,11 +448,9 @@ class ParticipantSession:
                "stimulus_id": trial.stimulus_id, "chosen_frame": m, "chosen_video_frame": v,
                "algorithm_frame": sc.algorithm_frame, "fps": sc.fps, "n_frames": sc.n_frames,
                "response_time_s": self._time(response_time_s)}
-        stored = self._record(row)
-        if stored:
-            # The picker's "select" entry carries how much was watched.
-            self._record_events(trial.index, events, n_video_frames=sc.n_video_frames)
-        return stored
+        # The picker's log goes with the answer (its "select" entry carries how much was
+        # watched), in the same transaction.
+        return self._record(row, _picker_items(events, n_video_frames=sc.n_video_frames))
 
     def record_picker_events(self, trial_index, events) -> int:
         """Store a batch of the picker's log while the trial is open (sent as it happens,
@@ -536,24 +534,7 @@ class ParticipantSession:
 
     def _record_events(self, trial_index: int, events, *, n_video_frames: int) -> int:
         """Store the picker's interaction log in one transaction (malformed entries skipped)."""
-        items = []
-        for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
-            if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
-                continue
-            payload = {}
-            t = ev.get("t")
-            if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
-                payload["t"] = round(float(t), 3)
-            for key in ("frame", "from"):
-                f = ev.get(key)
-                if isinstance(f, int) and not isinstance(f, bool) and 0 <= f < n_video_frames:
-                    payload[key] = f
-            if ev.get("by") in (-1, 1) and not isinstance(ev.get("by"), bool):
-                payload["by"] = ev["by"]
-            w = ev.get("watched")
-            if isinstance(w, (int, float)) and not isinstance(w, bool) and 0 <= w <= 1:
-                payload["watched"] = round(float(w), 3)
-            items.append((ev["kind"], payload))
+        items = _picker_items(events, n_video_frames=n_video_frames)
         return self.store.record_events(self.participant_id, trial_index, items) if items else 0
 
     def finish(self) -> str:
@@ -574,3 +555,27 @@ class ParticipantSession:
         sc = self.stimuli.scenes[trial.scene]
         return [(m, sc.views[m]) for m in trial.shown_order]
 
+
+def _picker_items(events, *, n_video_frames: int) -> list[tuple[str, dict]]:
+    """The picker's log entries as ``(kind, payload)`` for the store: known kinds only,
+    well-formed fields only (frames inside the video), at most
+    :data:`MAX_EVENTS_PER_TRIAL`."""
+    items = []
+    for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
+        if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
+            continue
+        payload = {}
+        t = ev.get("t")
+        if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
+            payload["t"] = round(float(t), 3)
+        for key in ("frame", "from"):
+            f = ev.get(key)
+            if isinstance(f, int) and not isinstance(f, bool) and 0 <= f < n_video_frames:
+                payload[key] = f
+        if ev.get("by") in (-1, 1) and not isinstance(ev.get("by"), bool):
+            payload["by"] = ev["by"]
+        w = ev.get("watched")
+        if isinstance(w, (int, float)) and not isinstance(w, bool) and 0 <= w <= 1:
+            payload["watched"] = round(float(w), 3)
+        items.append((ev["kind"], payload))
+    return items

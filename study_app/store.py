@@ -60,6 +60,7 @@ import threading
 import warnings
 from contextlib import contextmanager, nullcontext
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 
 import sqlalchemy as sa
@@ -82,6 +83,7 @@ from .database import (
     responses,
 )
 from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
+from .group_commit import GroupCommit
 
 __all__ = ["Store", "default_url", "mask_url", "normalize_url"]
 
@@ -177,6 +179,10 @@ class Store:
         # polls with sleeps of up to 100 ms (under a 100-participant launch half of
         # the script-run time went there). Other processes still wait on busy_timeout.
         self._write_lock = threading.RLock() if self.dialect == "sqlite" else None
+        # ... and the writes that queue there share the next transaction (one BEGIN and
+        # one COMMIT for many answers under load; see study_app.group_commit).
+        self._group = (GroupCommit(partial(self.transaction, write=True))
+                       if self.dialect == "sqlite" else None)
         self.engine = self._make_engine()
         try:
             with self.engine.connect() as conn:
@@ -285,6 +291,14 @@ class Store:
         except sa_exc.SQLAlchemyError as err:
             raise StoreError(f"database {self.url}: {one_line(err)}") from err
 
+    def _write(self, work):
+        """``work(conn)`` in a committed write transaction (shared with other threads'
+        writes on SQLite); its value. ``work`` must touch nothing but ``conn``."""
+        if self._group is not None:
+            return self._group.run(work)
+        with self.transaction(write=True) as conn:
+            return work(conn)
+
     @staticmethod
     def _check_pid(pid) -> str:
         if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
@@ -322,11 +336,10 @@ class Store:
         self._check_new(study_id, manifest_sha256, app_version, seed)
         values = self._prolific_values(prolific)
         pid = secrets.token_urlsafe(16)
-        with self.transaction(write=True) as conn:
-            conn.execute(participants.insert().values(
-                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
-                manifest_sha256=manifest_sha256, simulated=bool(simulated),
-                created_at=_utcnow(), **values))
+        self._write(lambda conn: conn.execute(participants.insert().values(
+            participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
+            manifest_sha256=manifest_sha256, simulated=bool(simulated),
+            created_at=_utcnow(), **values)))
         return pid
 
     @staticmethod
@@ -390,24 +403,30 @@ class Store:
                 # write lock (BEGIN IMMEDIATE), so two browsers cannot both insert; on
                 # PostgreSQL the unique index refuses the loser, who retries and finds
                 # the winner's row.
-                with self.transaction(write=True) as conn:
-                    found = conn.execute(sa.select(participants.c.participant_id).where(
-                        participants.c.study_id == study_id,
-                        participants.c.prolific_pid == values["prolific_pid"])
-                        .order_by(participants.c.created_at)).scalars().first()
-                    if found is not None:
-                        return found, False
-                    pid = secrets.token_urlsafe(16)
-                    conn.execute(participants.insert().values(
-                        participant_id=pid, study_id=study_id, seed=seed,
-                        app_version=app_version, manifest_sha256=manifest_sha256,
-                        simulated=False, created_at=_utcnow(), **values))
-                    return pid, True
+                return self._write(partial(self._find_or_insert_prolific, study_id=study_id,
+                                           seed=seed, app_version=app_version,
+                                           manifest_sha256=manifest_sha256, values=values))
             except StoreError as err:
                 if not isinstance(err.__cause__, sa_exc.IntegrityError) \
                         or attempt == _DUPLICATE_RETRIES:
                     raise
         raise AssertionError("unreachable")  # pragma: no cover
+
+    @staticmethod
+    def _find_or_insert_prolific(conn, *, study_id, seed, app_version, manifest_sha256,
+                                 values) -> tuple[str, bool]:
+        found = conn.execute(sa.select(participants.c.participant_id).where(
+            participants.c.study_id == study_id,
+            participants.c.prolific_pid == values["prolific_pid"])
+            .order_by(participants.c.created_at)).scalars().first()
+        if found is not None:
+            return found, False
+        pid = secrets.token_urlsafe(16)
+        conn.execute(participants.insert().values(
+            participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
+            manifest_sha256=manifest_sha256, simulated=False, created_at=_utcnow(),
+            **values))
+        return pid, True
 
     def get_participant(self, pid: str) -> dict | None:
         """The participant's record as a dict, or None if the id is unknown or malformed.
@@ -448,14 +467,15 @@ class Store:
                     or (isinstance(value, list) and all(isinstance(v, str) for v in value))):
                 raise StoreError(f"background answer {key!r} must be text, a number or a "
                                  f"list of text, got {value!r}")
-        with self.transaction(write=True) as conn:
-            row = self._participant_row(conn, pid)
-            if row["background"] is not None:
+        def work(conn) -> bool:
+            if self._participant_row(conn, pid)["background"] is not None:
                 return False
             conn.execute(participants.update()
                          .where(participants.c.participant_id == pid)
                          .values(background=dict(answers)))
-        return True
+            return True
+
+        return self._write(work)
 
     def complete(self, pid: str, *, code: str | None = None) -> str:
         """Mark the participant done and return their completion code (idempotent).
@@ -469,20 +489,23 @@ class Store:
         """
         if code is not None and (not isinstance(code, str) or not code or len(code) > 64):
             raise StoreError(f"completion code must be 1-64 characters, got {code!r}")
-        with self.transaction(write=True) as conn:
+        new = code or "".join(secrets.choice(COMPLETION_ALPHABET)
+                              for _ in range(COMPLETION_CODE_LENGTH))
+
+        def work(conn) -> str:
             row = self._participant_row(conn, pid)
             if row["completed_at"] is not None:
                 return row["completion_code"]
-            new = code or "".join(secrets.choice(COMPLETION_ALPHABET)
-                                  for _ in range(COMPLETION_CODE_LENGTH))
             conn.execute(participants.update()
                          .where(participants.c.participant_id == pid)
                          .where(participants.c.completed_at.is_(None))
                          .values(completed_at=_utcnow(), completion_code=new))
-        return new
+            return new
+
+        return self._write(work)
 
     # -- responses ---------------------------------------------------------------------
-    def record_response(self, pid: str, row: dict) -> bool:
+    def record_response(self, pid: str, row: dict, *, trial_events=()) -> bool:
         """Append one trial's answer; False (and nothing changed) if that trial is stored.
 
         Parameters
@@ -496,6 +519,9 @@ class Store:
             ``n_frames``, ``chosen_method``, ``chosen_position``, ``shown_order``,
             ``chosen_value``, ``correct`` (frames in source numbering). The store adds
             participant, study, app version, manifest hash, simulated flag and time.
+        trial_events : iterable of (str, dict), optional
+            Events of this trial (as :meth:`record_events`) stored with the answer, in
+            the same transaction, if the answer is new (e.g. the picker's log).
 
         Returns
         -------
@@ -509,32 +535,44 @@ class Store:
             Unknown participant id, or a row that does not follow the schema (the
             message names the field). Nothing is written.
         """
-        return self.record_responses(pid, [row]) == 1
+        return self.record_responses(pid, [row], trial_events=trial_events) == 1
 
-    def record_responses(self, pid: str, rows: list[dict]) -> int:
+    def record_responses(self, pid: str, rows: list[dict], *, trial_events=()) -> int:
         """Append several trials of one participant in one transaction; return how many were new.
 
         Already-answered trials are skipped (their first answer stays). Every row is
-        checked before anything is written.
+        checked before anything is written. ``trial_events`` (with one row only) are
+        stored with it when it is new, as in :meth:`record_response`.
         """
         checked = [self._checked_row(r) for r in rows]
         indices = [r["trial_index"] for r in checked]
         if len(set(indices)) != len(indices):
             raise StoreError(f"participant {pid!r}: the same trial_index twice in one batch")
+        trial_events = list(trial_events)
+        if trial_events and len(checked) != 1:
+            raise StoreError("trial events go with one response at a time")
+        event_rows = [self._checked_event(indices[0], kind, payload)
+                      for kind, payload in trial_events]
+
+        def work(conn) -> int:
+            part = self._participant_row(conn, pid)
+            stored = self._answered(conn, pid)
+            new = [r for r in checked if r["trial_index"] not in stored]
+            now = _utcnow()
+            if new:
+                conn.execute(responses.insert(), [{
+                    **r, "participant_id": pid, "created_at": now,
+                    "app_version": part["app_version"],
+                    "manifest_sha256": part["manifest_sha256"]} for r in new])
+                if event_rows:
+                    conn.execute(events.insert(), [
+                        {**e, "participant_id": pid, "created_at": now} for e in event_rows])
+            return len(new)
+
         attempt = 0
         while True:
             try:
-                with self.transaction(write=True) as conn:
-                    part = self._participant_row(conn, pid)
-                    stored = self._answered(conn, pid)
-                    new = [r for r in checked if r["trial_index"] not in stored]
-                    now = _utcnow()
-                    if new:
-                        conn.execute(responses.insert(), [{
-                            **r, "participant_id": pid, "created_at": now,
-                            "app_version": part["app_version"],
-                            "manifest_sha256": part["manifest_sha256"]} for r in new])
-                    return len(new)
+                return self._write(work)
             except StoreError as err:
                 # The same participant and trial sent by two requests at once (possible
                 # on PostgreSQL, where readers do not wait): one insert hit the unique
@@ -620,10 +658,7 @@ class Store:
         ``trial_index`` None is an event outside a trial (a page view); ``payload`` is
         any plain-JSON dict (no NaN/inf). Unknown participant → :class:`StoreError`.
         """
-        row = self._checked_event(trial_index, kind, payload)
-        with self.transaction(write=True) as conn:
-            self._participant_row(conn, pid)
-            conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
+        self.record_events(pid, trial_index, [(kind, payload)])
 
     @staticmethod
     def _checked_event(trial_index, kind, payload) -> dict:
@@ -650,10 +685,13 @@ class Store:
         if not rows:
             return 0
         now = _utcnow()
-        with self.transaction(write=True) as conn:
+
+        def work(conn) -> None:
             self._participant_row(conn, pid)
             conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
                                            for r in rows])
+
+        self._write(work)
         return len(rows)
 
     def first_event_or_record(self, pid: str, trial_index: int | None, kind: str,
@@ -669,11 +707,13 @@ class Store:
         if at is not None:
             return at
         row = self._checked_event(trial_index, kind, payload)
-        with self.transaction(write=True) as conn:
+
+        def work(conn):
             self._participant_row(conn, pid)
             conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
-            value = self._first_event(conn, pid, trial_index, kind)
-        return _utc(value)
+            return self._first_event(conn, pid, trial_index, kind)
+
+        return _utc(self._write(work))
 
     def _first_event(self, conn, pid: str, trial_index: int | None, kind: str):
         if trial_index is not None:  # the common case: one statement, built once

@@ -6,7 +6,12 @@ logs ``script run 12.3 ms stage=pose`` on the ``study_app.timing`` logger (debug
 so a normal server log stays quiet) and, when ``$SNAPSHOT_TIMINGS`` names a file,
 appends one JSON line per run there::
 
-    {"t": 1764620000.123, "ms": 12.3, "stage": "pose", "pid": 4242}
+    {"t": 1764620000.123, "ms": 12.3, "cpu_ms": 9.8, "stage": "pose", "pid": 4242}
+
+``ms`` is the wall time of the run, ``cpu_ms`` the CPU time of the thread that ran it:
+under load the two differ by the time the run waited for the interpreter (Streamlit
+runs every session's script in one process), so ``cpu_ms`` is the cost of a page and
+``ms - cpu_ms`` the queueing.
 
 ``snapshot loadtest --timings FILE`` reads that file back, so an interaction's latency
 splits into the server's work and everything else (transport, queueing, Streamlit's own
@@ -45,14 +50,17 @@ def _handle():
     return _file
 
 
-def record_run(seconds: float, *, stage: str) -> None:
-    """Record one script run of ``seconds`` on the page of ``stage``."""
+def record_run(seconds: float, *, stage: str, cpu_seconds: float | None = None) -> None:
+    """Record one script run of ``seconds`` (wall time; ``cpu_seconds`` of its thread's
+    CPU time) on the page of ``stage``."""
     ms = round(seconds * 1000.0, 2)
     log.debug("script run %.1f ms stage=%s", ms, stage)
     f = _handle()
     if f is not None:
-        line = json.dumps({"t": round(time.time(), 3), "ms": ms, "stage": stage,
-                           "pid": os.getpid()}) + "\n"
+        row = {"t": round(time.time(), 3), "ms": ms, "stage": stage, "pid": os.getpid()}
+        if cpu_seconds is not None:
+            row["cpu_ms"] = round(cpu_seconds * 1000.0, 2)
+        line = json.dumps(row) + "\n"
         with _lock:
             f.write(line)
 
