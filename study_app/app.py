@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import logging
 import sys
-import time
 from pathlib import Path
 
 import streamlit as st
@@ -50,7 +49,7 @@ from study_app.session import (  # noqa: E402
     describe_value,
     prolific_problems,
 )
-from study_app.timing import record_run  # noqa: E402
+from study_app.timing import RunClock  # noqa: E402
 
 #: The page shown at each stage: (render function, title).
 STAGE_PAGES = {
@@ -161,15 +160,11 @@ def main() -> None:
 
 
 def _timed_main() -> None:
-    """Run :func:`main`, recording how long this script run took (st.rerun and
-    st.stop end a run with an exception: they are timed too)."""
-    t0, c0 = time.perf_counter(), time.thread_time()
-    try:
+    """Run :func:`main`, recording how long this script run took, with the answer
+    callbacks before it (st.rerun and st.stop end a run with an exception: they are
+    timed too)."""
+    with RunClock(common.current_stage):
         main()
-    finally:
-        session = st.session_state.get(common.KEY_SESSION)
-        stage = session.stage.value if session is not None else "none"
-        record_run(time.perf_counter() - t0, stage=stage, cpu_seconds=time.thread_time() - c0)
 
 
 _timed_main()

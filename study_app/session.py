@@ -463,13 +463,12 @@ class ParticipantSession:
         if t is None or t.task != "pose" or trial_index != t.index \
                 or isinstance(trial_index, bool):
             return 0
-        room = MAX_EVENTS_PER_TRIAL - sum(
-            1 for e in self.store.events(self.participant_id) if e["trial_index"] == t.index)
-        if room <= 0:
-            return 0
         sc = self.stimuli.scenes[t.scene]
-        return self._record_events(t.index, list(events or [])[:room],
-                                   n_video_frames=sc.n_video_frames)
+        items = _picker_items(events, n_video_frames=sc.n_video_frames)
+        if not items:
+            return 0
+        return self.store.record_events(self.participant_id, t.index, items,
+                                        limit=MAX_EVENTS_PER_TRIAL)
 
     def picker_state(self, trial_index: int) -> tuple[int, float]:
         """``(frame, watched)`` to restore the player at: the last frame the stored log
@@ -531,11 +530,6 @@ class ParticipantSession:
                "stimulus_id": trial.stimulus_id, "chosen_value": answer, "correct": correct,
                "response_time_s": self._time(response_time_s)}
         return self._record(row)
-
-    def _record_events(self, trial_index: int, events, *, n_video_frames: int) -> int:
-        """Store the picker's interaction log in one transaction (malformed entries skipped)."""
-        items = _picker_items(events, n_video_frames=n_video_frames)
-        return self.store.record_events(self.participant_id, trial_index, items) if items else 0
 
     def finish(self) -> str:
         """Mark the participant complete; return the completion code (idempotent)."""

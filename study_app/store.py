@@ -52,8 +52,6 @@ here; :class:`~study_app.export.StoreError` too).
 
 from __future__ import annotations
 
-import json
-import math
 import re
 import secrets
 import threading
@@ -65,9 +63,6 @@ from pathlib import Path
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
-
-from snapcore.errors import SchemaError
-from snapcore.schema import load_schema, validate
 
 from .database import (
     PROLIFIC_INDEX,
@@ -84,6 +79,7 @@ from .database import (
 )
 from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
 from .group_commit import GroupCommit
+from .rows import checked_event, checked_response
 
 __all__ = ["Store", "default_url", "mask_url", "normalize_url"]
 
@@ -98,10 +94,6 @@ COMPLETION_CODE_LENGTH = 8
 #: Seeds are stored as signed 64-bit integers.
 MAX_SEED = 2**63 - 1
 #: Export formats by file suffix.
-#: Fields of a response row that the caller gives (the store fills the others).
-TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
-                "chosen_video_frame", "algorithm_frame", "fps", "n_frames", "chosen_method",
-                "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s")
 #: Background answers joined into every export row.
 #: Retries of a write that lost a race on the (participant, trial) unique key.
 _DUPLICATE_RETRIES = 3
@@ -144,6 +136,9 @@ _PARTICIPANT_EVENTS = sa.select(events).where(
 _FIRST_EVENT = sa.select(sa.func.min(events.c.created_at)).where(
     events.c.participant_id == sa.bindparam("pid"), events.c.kind == sa.bindparam("kind"),
     events.c.trial_index == sa.bindparam("trial"))
+_TRIAL_EVENT_COUNT = sa.select(sa.func.count()).select_from(events).where(
+    events.c.participant_id == sa.bindparam("pid"), events.c.trial_index == sa.bindparam("trial"))
+
 
 class Store:
     """Participants, responses and events in one SQL database.
@@ -544,14 +539,14 @@ class Store:
         checked before anything is written. ``trial_events`` (with one row only) are
         stored with it when it is new, as in :meth:`record_response`.
         """
-        checked = [self._checked_row(r) for r in rows]
+        checked = [checked_response(r) for r in rows]
         indices = [r["trial_index"] for r in checked]
         if len(set(indices)) != len(indices):
             raise StoreError(f"participant {pid!r}: the same trial_index twice in one batch")
         trial_events = list(trial_events)
         if trial_events and len(checked) != 1:
             raise StoreError("trial events go with one response at a time")
-        event_rows = [self._checked_event(indices[0], kind, payload)
+        event_rows = [checked_event(indices[0], kind, payload)
                       for kind, payload in trial_events]
 
         def work(conn) -> int:
@@ -582,39 +577,6 @@ class Store:
                         or attempt == _DUPLICATE_RETRIES:
                     raise
                 attempt += 1
-
-    def _checked_row(self, row: dict) -> dict:
-        if not isinstance(row, dict):
-            raise StoreError(f"a response must be a dict, got {type(row).__name__}")
-        extra = sorted(set(row) - set(TRIAL_FIELDS))
-        if extra:
-            raise StoreError(f"response has unknown field(s) {', '.join(extra)} "
-                             f"(the store fills participant, study, version, time itself)")
-        full = {k: row.get(k) for k in TRIAL_FIELDS}
-        for key in ("fps", "response_time_s"):
-            value = full[key]
-            if isinstance(value, float) and not math.isfinite(value):
-                raise StoreError(f"response to trial {row.get('trial_index')!r}: {key}: "
-                                 f"{value} is not a finite number")
-        order, pos, method = full["shown_order"], full["chosen_position"], full["chosen_method"]
-        if isinstance(order, list) and isinstance(pos, int) and not isinstance(pos, bool) \
-                and method is not None:
-            # A forged label: the method claimed must be the one shown at that position.
-            if not 0 <= pos < len(order) or order[pos] != method:
-                raise StoreError(f"response to trial {row.get('trial_index')!r}: chosen_method "
-                                 f"{method!r} was not shown at chosen_position {pos!r} "
-                                 f"(shown_order {order!r})")
-        # Validate as a complete export row (placeholders for the store's own fields).
-        probe = {**full, "participant_id": "x" * 22, "study_id": "s",
-                 "created_at": "2000-01-01T00:00:00+00:00", "app_version": "v",
-                 "manifest_sha256": "0" * 64, "simulated": False}
-        probe = {k: v for k, v in probe.items() if v is not None
-                 or k not in load_schema("response")["required"]}
-        try:
-            validate(probe, "response", source=f"response to trial {row.get('trial_index')!r}")
-        except SchemaError as err:
-            raise StoreError(str(err)) from None
-        return full
 
     @staticmethod
     def _answered(conn, pid: str) -> set[int]:
@@ -660,39 +622,31 @@ class Store:
         """
         self.record_events(pid, trial_index, [(kind, payload)])
 
-    @staticmethod
-    def _checked_event(trial_index, kind, payload) -> dict:
-        if not isinstance(kind, str) or not 0 < len(kind) <= 32:
-            raise StoreError(f"event kind must be 1-32 characters, got {kind!r}")
-        if trial_index is not None and (isinstance(trial_index, bool)
-                                        or not isinstance(trial_index, int) or trial_index < 0):
-            raise StoreError(f"event trial_index must be an integer >= 0 or None, "
-                             f"got {trial_index!r}")
-        try:
-            payload = json.loads(json.dumps(payload if payload is not None else {},
-                                            allow_nan=False))
-        except (TypeError, ValueError) as err:
-            raise StoreError(f"event payload is not plain JSON: {err}") from None
-        return {"trial_index": trial_index, "kind": kind, "payload": payload}
-
-    def record_events(self, pid: str, trial_index: int | None, items) -> int:
+    def record_events(self, pid: str, trial_index: int | None, items, *,
+                      limit: int | None = None) -> int:
         """Append several events of one trial in one transaction; return how many.
 
         ``items``: ``(kind, payload)`` pairs, e.g. the picker's log of one trial. All are
-        checked before anything is written.
+        checked before anything is written. ``limit``: most events the trial may hold
+        (counted in the same transaction); the items beyond it are dropped.
         """
-        rows = [self._checked_event(trial_index, kind, payload) for kind, payload in items]
+        rows = [checked_event(trial_index, kind, payload) for kind, payload in items]
         if not rows:
             return 0
+        if limit is not None and trial_index is None:
+            raise StoreError("an event limit counts the events of one trial")
         now = _utcnow()
 
-        def work(conn) -> None:
+        def work(conn) -> int:
             self._participant_row(conn, pid)
-            conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
-                                           for r in rows])
+            room = len(rows) if limit is None else max(0, limit - conn.execute(
+                _TRIAL_EVENT_COUNT, {"pid": pid, "trial": trial_index}).scalar())
+            if room:
+                conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
+                                               for r in rows[:room]])
+            return min(room, len(rows))
 
-        self._write(work)
-        return len(rows)
+        return self._write(work)
 
     def first_event_or_record(self, pid: str, trial_index: int | None, kind: str,
                               payload: dict | None = None) -> datetime:
@@ -706,7 +660,7 @@ class Store:
         at = self.first_event_at(pid, trial_index, kind)
         if at is not None:
             return at
-        row = self._checked_event(trial_index, kind, payload)
+        row = checked_event(trial_index, kind, payload)
 
         def work(conn):
             self._participant_row(conn, pid)
@@ -726,7 +680,7 @@ class Store:
     def first_event_at(self, pid: str, trial_index: int | None, kind: str) -> datetime | None:
         """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC),
         or None if there is none."""
-        self._checked_event(trial_index, kind, None)
+        checked_event(trial_index, kind, None)
         with self.transaction(write=False) as conn:
             value = self._first_event(conn, pid, trial_index, kind)
         return _utc(value)

@@ -1,12 +1,18 @@
 """Server-side timing of the app's script runs: a log line each, and a JSON-lines file.
 
 Every script run (one per participant interaction, plus one per ``st.rerun()``) is timed
-by ``app.py`` from its first line to its last, and handed to :func:`record_run`. It
+by a :class:`RunClock`: from the first answer callback of the run (Streamlit runs widget
+callbacks just before the script; :func:`callback_started` marks it), else from the
+script's first line, to its last. A fragment run (only the part of a page in an
+``st.fragment``, e.g. a picker's log batch) is timed the same way, with
+``"fragment": true``; a fragment drawn inside a full run is part of that run. The clock
+hands each run to :func:`record_run`. It
 logs ``script run 12.3 ms stage=pose`` on the ``study_app.timing`` logger (debug level,
 so a normal server log stays quiet) and, when ``$SNAPSHOT_TIMINGS`` names a file,
 appends one JSON line per run there::
 
     {"t": 1764620000.123, "ms": 12.3, "cpu_ms": 9.8, "stage": "pose", "pid": 4242}
+    {"t": 1764620001.456, "ms": 3.1, "cpu_ms": 2.9, "stage": "pose", "pid": 4242, "fragment": true}
 
 ``ms`` is the wall time of the run, ``cpu_ms`` the CPU time of the thread that ran it:
 under load the two differ by the time the run waited for the interpreter (Streamlit
@@ -27,12 +33,15 @@ import os
 import threading
 import time
 
-__all__ = ["ENV_TIMINGS", "record_run", "read_timings"]
+__all__ = ["ENV_TIMINGS", "RunClock", "callback_started", "in_fragment_run", "record_run",
+           "read_timings"]
 
 #: Environment variable naming the JSON-lines file of script-run timings.
 ENV_TIMINGS = "SNAPSHOT_TIMINGS"
 log = logging.getLogger("study_app.timing")
 _lock = threading.Lock()
+#: Per script thread: the clock of the run in progress, and when its callbacks began.
+_local = threading.local()
 _file = None
 _file_path = None
 
@@ -50,16 +59,66 @@ def _handle():
     return _file
 
 
-def record_run(seconds: float, *, stage: str, cpu_seconds: float | None = None) -> None:
+def callback_started() -> None:
+    """Mark, in a widget callback, that this thread's coming run began now (its answer
+    is stored here, before the script: that time belongs to the run)."""
+    if getattr(_local, "callback", None) is None:
+        _local.callback = (time.perf_counter(), time.thread_time())
+
+
+def in_fragment_run() -> bool:
+    """True inside a fragment's own run (not a fragment drawn by a full run)."""
+    clock = getattr(_local, "clock", None)
+    return clock is not None and clock._fragment
+
+
+class RunClock:
+    """Times one script or fragment run of this thread; see the module docstring.
+
+    Parameters
+    ----------
+    stage : callable
+        Returns the stage to record (read when the run ends, after it moved on).
+    fragment : bool
+        A fragment's own run. When this thread is already inside a run (the fragment is
+        drawn by a full run), the clock records nothing.
+    """
+
+    def __init__(self, stage, *, fragment: bool = False):
+        self._stage = stage
+        self._fragment = fragment
+        self._outer = False
+
+    def __enter__(self) -> RunClock:
+        self._outer = getattr(_local, "clock", None) is None
+        if self._outer:
+            _local.clock = self
+            self._t0, self._c0 = getattr(_local, "callback", None) or (
+                time.perf_counter(), time.thread_time())
+            _local.callback = None
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not self._outer:
+            return
+        _local.clock = None
+        record_run(time.perf_counter() - self._t0, stage=self._stage(),
+                   cpu_seconds=time.thread_time() - self._c0, fragment=self._fragment)
+
+
+def record_run(seconds: float, *, stage: str, cpu_seconds: float | None = None,
+               fragment: bool = False) -> None:
     """Record one script run of ``seconds`` (wall time; ``cpu_seconds`` of its thread's
-    CPU time) on the page of ``stage``."""
+    CPU time) on the page of ``stage``; ``fragment``: a fragment's own run."""
     ms = round(seconds * 1000.0, 2)
-    log.debug("script run %.1f ms stage=%s", ms, stage)
+    log.debug("script run %.1f ms stage=%s%s", ms, stage, " (fragment)" if fragment else "")
     f = _handle()
     if f is not None:
         row = {"t": round(time.time(), 3), "ms": ms, "stage": stage, "pid": os.getpid()}
         if cpu_seconds is not None:
             row["cpu_ms"] = round(cpu_seconds * 1000.0, 2)
+        if fragment:
+            row["fragment"] = True
         line = json.dumps(row) + "\n"
         with _lock:
             f.write(line)

@@ -124,7 +124,7 @@ def test_whole_session_stores_every_answer(store):
         assert not at.exception, at.exception
         if trial.task == "pose":
             picker = component(at, FRAME_PICKER)
-            data = json.loads(picker.proto.json)
+            data = json.loads(picker.proto.json)[0]
             assert data["trial"] == trial.index and data["n_frames"] == 24
             assert data["fps"] == 24.0 and data["sources"][0]["src"].endswith(".mp4")
             video_frame = 3 + 5 * trial.index
@@ -136,7 +136,7 @@ def test_whole_session_stores_every_answer(store):
                               {"trial": trial.index, "frame": video_frame, "events": events})
         elif trial.task == "view":
             chooser = component(at, VIEW_CHOOSER)
-            data = json.loads(chooser.proto.json)
+            data = json.loads(chooser.proto.json)[0]
             # The page gets pictures by position only: no method names.
             assert all(set(v) == {"src", "label"} for v in data["views"])
             position = trial.index % 3
@@ -192,7 +192,7 @@ def test_reload_resumes_at_first_unanswered_trial(store):
     assert store.answered_trials(pid) == {0}
     again = new_app(pid=pid)  # "reload": fresh session state, same URL
     assert not again.exception
-    data = json.loads(component(again, FRAME_PICKER).proto.json)
+    data = json.loads(component(again, FRAME_PICKER).proto.json)[0]
     assert data["trial"] == 1 and plan[1].task == "pose"
     # consent, background and 1 of 5 trials: 3 of 7 steps; st.progress stores int(100 * 3/7)
     assert progress_value(again) == 42

@@ -108,7 +108,26 @@ def test_protocol_driver_every_answer_stored_once(study, tmp_path):
         assert report["latency"][action]["n"] > 0, action
     assert report["server_script_runs"]["n"] > 0
     assert report["server"]["processes"] == 1  # found by the URL's port
-    _assert_stored_once(db, _prolific_ids(db, "s"))
+    pids = _prolific_ids(db, "s")
+    _assert_stored_once(db, pids)
+    # Choosing a background answer and the player's log batches rerun only their
+    # st.fragment, as in a browser: the server timed such runs, and the log batches
+    # those runs received are in the database (play, ended, seek for every animation).
+    runs = [json.loads(line) for line in timings.read_text().splitlines()]
+    fragment_stages = {r["stage"] for r in runs if r.get("fragment")}
+    assert {"background", "pose"} <= fragment_stages, fragment_stages
+    store = Store(db)
+    try:
+        for p in store.participants():
+            if p["prolific_pid"] not in pids:
+                continue
+            pose = {r["trial_index"] for r in store.responses(p["participant_id"])
+                    if r["task"] == "pose"}
+            logged = {(e["trial_index"], e["kind"]) for e in store.events(p["participant_id"])}
+            for t in pose:
+                assert {(t, "play"), (t, "ended"), (t, "seek"), (t, "select")} <= logged, t
+    finally:
+        store.close()
 
 
 def test_protocol_driver_answers_refused_as_too_early_are_sent_again(study, tmp_path):

@@ -346,6 +346,20 @@ def test_events(store):
     assert len(store.events()) == 5
 
 
+def test_event_limit_per_trial(store):
+    """A trial holds at most ``limit`` events: a batch past it is cut, other trials and
+    participants do not count."""
+    pid, other = new_participant(store), new_participant(store)
+    store.record_events(other, 0, [("play", {})] * 4)
+    store.record_events(pid, 1, [("play", {})] * 4)
+    assert store.record_events(pid, 0, [("step", {"i": i}) for i in range(4)], limit=6) == 4
+    assert store.record_events(pid, 0, [("seek", {"i": i}) for i in range(4)], limit=6) == 2
+    assert store.record_events(pid, 0, [("play", {})], limit=6) == 0
+    mine = [(e["kind"], e["payload"]) for e in store.events(pid) if e["trial_index"] == 0]
+    assert mine == [("step", {"i": i}) for i in range(4)] + [("seek", {"i": 0}),
+                                                            ("seek", {"i": 1})]
+
+
 def test_first_event_at(store):
     """The earliest event of a kind per trial, as an aware UTC time, on each backend."""
     from datetime import UTC, datetime, timedelta

@@ -47,7 +47,7 @@ class RunWatch:
         from streamlit.proto.ForwardMsg_pb2 import ForwardMsg
 
         self._msg = ForwardMsg
-        self.finished = 0  # whole script runs finished
+        self.finished = 0  # script runs finished (whole, or of a fragment)
         self.at = time.perf_counter()  # when the last one finished
         self._changed = asyncio.Event()
         page.on("websocket", lambda ws: ws.on("framereceived", self._frame))
@@ -61,7 +61,8 @@ class RunWatch:
         except Exception:  # noqa: BLE001 - not one of the app's messages
             return
         if fm.WhichOneof("type") == "script_finished" and fm.script_finished in (
-                self._msg.FINISHED_SUCCESSFULLY, self._msg.FINISHED_WITH_COMPILE_ERROR):
+                self._msg.FINISHED_SUCCESSFULLY, self._msg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY,
+                self._msg.FINISHED_WITH_COMPILE_ERROR):
             self.finished += 1
             self.at = time.perf_counter()
             self._changed.set()

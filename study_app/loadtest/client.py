@@ -69,6 +69,9 @@ class Element:
     data: dict | None = None
     text: str = ""
     disabled: bool = False
+    #: The ``st.fragment`` that drew it ("" outside one): a change of this widget
+    #: reruns only that fragment, as in the browser.
+    fragment_id: str = ""
 
 
 @dataclass
@@ -107,6 +110,8 @@ def _element(el) -> Element:
             out.data = json.loads(proto.json)
         elif kind == "bidi_component" and proto.WhichOneof("data") == "mixed":
             out.data = json.loads(proto.mixed.json)
+        if isinstance(out.data, list) and len(out.data) == 1:
+            out.data = out.data[0]  # the study's components send [data] (study_app/picker)
         if kind == "button":
             out.text = proto.label
     elif kind == "heading":
@@ -162,6 +167,10 @@ class StreamlitClient:
         #: The page the app is showing (its script hash, sent back with every rerun as
         #: the browser does; empty on a fresh page load).
         self.page_script_hash = ""
+        #: What is on screen, by delta path (a fragment run replaces part of it).
+        self._elements: dict[tuple, Element] = {}
+        #: The fragment of the widget the participant last used ("" for the app).
+        self._fragment_id = ""
 
     # -- connection ------------------------------------------------------------------
     def _get_page(self) -> None:
@@ -206,6 +215,8 @@ class StreamlitClient:
             self.query = query
         self.values = {}
         self.page_script_hash = ""
+        self._elements = {}
+        self._fragment_id = ""
         await self.connect()
         return await self.rerun()
 
@@ -238,6 +249,9 @@ class StreamlitClient:
         cs.context_info.timezone = "UTC"
         cs.context_info.locale = "en-US"
         cs.context_info.color_scheme = "light"
+        # A change of a widget inside an st.fragment reruns only that fragment (both
+        # sends of a double click); Back/Forward reruns the app.
+        cs.fragment_id = "" if history else self._fragment_id
         for wid, (kind, value) in self.values.items():
             w = WidgetState(id=wid)
             setattr(w, kind, value)
@@ -260,7 +274,9 @@ class StreamlitClient:
         import websockets
         from streamlit.proto.ForwardMsg_pb2 import ForwardMsg
 
-        elements: dict[tuple, Element] = {}
+        elements = self._elements
+        fragments: set[str] = set()  # the fragments this run redraws (empty: the app)
+        drawn: set[tuple] = set()
         while True:
             try:
                 raw = await self.ws.recv()
@@ -270,20 +286,31 @@ class StreamlitClient:
             fm.ParseFromString(raw)
             kind = fm.WhichOneof("type")
             if kind == "new_session":
-                elements = {}  # a new script run starts drawing the page again
+                fragments = set(fm.metadata.run.fragment_ids)
+                drawn = set()
+                if not fragments:
+                    elements.clear()  # a full run draws the whole page again
                 self.page_script_hash = fm.new_session.page_script_hash or self.page_script_hash
             elif kind == "navigation":
                 self.page_script_hash = fm.navigation.page_script_hash or self.page_script_hash
             elif kind == "delta" and fm.delta.WhichOneof("type") == "new_element":
                 path = tuple(fm.metadata.delta_path)
                 elements[path] = _element(fm.delta.new_element)
+                elements[path].fragment_id = fm.delta.fragment_id
+                drawn.add(path)
             elif kind == "page_info_changed":
                 # The app changed its URL (st.query_params): the tab's address now.
                 self.query = fm.page_info_changed.query_string
             elif kind == "script_finished":
                 self.script_runs += 1
                 status = fm.script_finished
-                if status == ForwardMsg.FINISHED_SUCCESSFULLY:
+                if status == ForwardMsg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY:
+                    # What the fragment drew before and not this time is gone.
+                    for p in [p for p, e in elements.items()
+                              if e.fragment_id in fragments and p not in drawn]:
+                        del elements[p]
+                if status in (ForwardMsg.FINISHED_SUCCESSFULLY,
+                              ForwardMsg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY):
                     self.page = Page([elements[p] for p in sorted(elements)])
                     self._forget_gone_widgets()
                     return self.page
@@ -299,6 +326,7 @@ class StreamlitClient:
     # -- widget helpers (one user action each) ---------------------------------------
     def set_value(self, element: Element, value) -> None:
         """Set a stateful widget's value as the browser would (sent with the next rerun)."""
+        self._fragment_id = element.fragment_id
         if element.kind == "checkbox":
             self.values[element.id] = ("bool_value", bool(value))
         elif element.kind in ("radio", "selectbox", "text_input"):
@@ -306,18 +334,18 @@ class StreamlitClient:
         else:
             raise ProtocolError(f"cannot set a {element.kind} widget")
 
-    @staticmethod
-    def click(element: Element):
+    def click(self, element: Element):
         """A button click (a one-shot trigger)."""
         from streamlit.proto.WidgetStates_pb2 import WidgetState
 
+        self._fragment_id = element.fragment_id
         return WidgetState(id=element.id, trigger_value=True)
 
-    @staticmethod
-    def component_event(element: Element, event: str, value) -> object:
+    def component_event(self, element: Element, event: str, value) -> object:
         """A components-v2 event (``setTriggerValue(event, value)`` in the browser)."""
         from streamlit.proto.WidgetStates_pb2 import WidgetState
 
+        self._fragment_id = element.fragment_id
         return WidgetState(id=trigger_id(element.id),
                            json_trigger_value=json.dumps([{"event": event, "value": value}]))
 

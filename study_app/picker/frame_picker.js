@@ -1,7 +1,7 @@
 // Frame-accurate video frame picker (Streamlit components v2, no build step).
 //
-// data: {sources: [{src, type}], fps, n_frames, trial, start_frame, watched,
-//        require_watch, watch_min, min_answer_s, labels}
+// data: [{sources: [{src, type}], fps, n_frames, trial, start_frame, watched,
+//        require_watch, watch_min, min_answer_s, labels}]  (one-item list)
 // Triggers:
 //   "log": {trial, events}      the log of plays, pauses, seeks and steps ({kind, t:
 //                               seconds since mounted, frame, watched}), sent in small
@@ -245,7 +245,8 @@ if (!window.__snapPickerKeys) {
 }
 
 export default function (component) {
-  const { data, parentElement } = component;
+  const { parentElement } = component;
+  const data = component.data[0];  // sent as [data] (see picker/__init__.py)
   const key = `${data.trial}|${(data.sources || []).map((s) => s.src).join("|")}`;
   let root = parentElement.querySelector(".snap-picker");
   if (!root || root.dataset.key !== key) {

@@ -1,6 +1,6 @@
 // Pick one of several candidate views (Streamlit components v2, no build step).
 //
-// data: {trial, views: [{src, label}], min_answer_s, labels}
+// data: [{trial, views: [{src, label}], min_answer_s, labels}]  (one-item list)
 // Sends one trigger, "choice": {trial, position}. The page knows positions only: which
 // method made which picture stays on the server (it maps the position through the
 // participant's seeded order), so nothing in the DOM can reveal or forge a method.
@@ -8,7 +8,8 @@
 // min_answer_s seconds: a double click on the previous trial cannot answer this one.
 
 export default function (component) {
-  const { data, parentElement } = component;
+  const { parentElement } = component;
+  const data = component.data[0];  // sent as [data] (see picker/__init__.py)
   const key = `${data.trial}|${data.views.map((v) => v.src).join("|")}`;
   let root = parentElement.querySelector(".snap-views");
   if (!root || root.dataset.key !== key) {

@@ -14,9 +14,16 @@ def render() -> None:
     st.header("One more question")
     common.show_flash()
     common.trial_clock(session, trial)
-    st.radio(att["question"], att["options"], index=None, key=common.KEY_ATTENTION_CHOICE)
+    _choice(att["question"], tuple(att["options"]))
     st.button("Continue", key=common.KEY_ATTENTION_SUBMIT, type="primary", on_click=_on_submit,
               args=(session.participant_id, trial.index))
+
+
+@common.timed_fragment
+def _choice(question: str, options: tuple) -> None:
+    """The options, a fragment: choosing one reruns only them; Continue (outside) moves
+    the page on."""
+    st.radio(question, options, index=None, key=common.KEY_ATTENTION_CHOICE)
 
 
 def _on_submit(pid: str, trial_index: int) -> None:

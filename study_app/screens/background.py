@@ -17,20 +17,25 @@ def render() -> None:
     st.write("Three short questions before the tasks.")
     common.show_flash()
     # Not a form: "Prefer to self-describe" must open its text box as soon as it is
-    # chosen. Every missing answer is named at the top of the page, where it is seen.
-    # The callback reads the answers from the session state by the widgets' keys.
+    # chosen. The questions are a fragment (choosing an answer reruns only them); the
+    # button is outside it: its callback reads the answers by the widgets' keys and
+    # the whole page moves on. Every missing answer is named at the top of the page.
     with st.container(key=common.KEY_BG_FORM):
-        st.selectbox("Your age", choices["age_bands"], index=None,
-                     placeholder="Choose an age band", key=common.KEY_BG_AGE)
-        gender = st.radio("Your gender", choices["genders"], index=None,
-                          key=common.KEY_BG_GENDER)
-        if gender == SELF_DESCRIBE:
-            st.text_input("How do you describe your gender? (optional)",
-                          max_chars=100, key=common.KEY_BG_GENDER_SELF)
-        st.radio("Your experience with animation, 3D graphics or art",
-                 choices["experience"], index=None, key=common.KEY_BG_EXPERIENCE)
+        _questions(choices)
         st.button("Continue", type="primary", key=common.KEY_BG_SUBMIT, on_click=_on_submit,
                   args=(session.participant_id,))
+
+
+@common.timed_fragment
+def _questions(choices: dict) -> None:
+    st.selectbox("Your age", choices["age_bands"], index=None,
+                 placeholder="Choose an age band", key=common.KEY_BG_AGE)
+    gender = st.radio("Your gender", choices["genders"], index=None, key=common.KEY_BG_GENDER)
+    if gender == SELF_DESCRIBE:
+        st.text_input("How do you describe your gender? (optional)", max_chars=100,
+                      key=common.KEY_BG_GENDER_SELF)
+    st.radio("Your experience with animation, 3D graphics or art", choices["experience"],
+             index=None, key=common.KEY_BG_EXPERIENCE)
 
 
 def _on_submit(pid: str) -> None:

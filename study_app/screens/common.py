@@ -7,6 +7,7 @@ Pages are thin: they read the participant's :class:`~study_app.session.Participa
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 import time
@@ -18,6 +19,7 @@ import streamlit as st
 
 from snapcore.errors import SnapshotError
 from study_app.session import STALE_TAB_TEXT, InvalidAnswer
+from study_app.timing import RunClock, callback_started, in_fragment_run
 
 __all__ = [
     "QUERY_PID",
@@ -64,6 +66,9 @@ __all__ = [
     "store_answer",
     "retry_trial",
     "current_session",
+    "current_stage",
+    "timed_fragment",
+    "leave_fragment_if_moved_on",
     "trial_clock",
     "elapsed_s",
     "next_attempt",
@@ -204,6 +209,7 @@ def answering_session(pid: str):
     """
     from study_app.session import ParticipantSession, UnknownParticipant
 
+    callback_started()
     ctx = load_context()
     try:
         return ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
@@ -261,8 +267,59 @@ def _claimed(participant_id: str, step) -> bool:
 
 
 def current_session():
-    """This run's participant session (None before consent)."""
+    """This run's participant session (None before consent). In a fragment's own run it
+    is the session of the last full run."""
     return st.session_state.get(KEY_SESSION)
+
+
+def current_stage() -> str:
+    """The current session's stage name ("none" before consent), for the run timings."""
+    session = current_session()
+    return session.stage.value if session is not None else "none"
+
+
+def timed_fragment(func):
+    """``st.fragment(func)``: a part of a page whose widgets, when they change, rerun
+    only that part (not app.py, the other widgets or the page around it), its own runs
+    timed like script runs (:mod:`study_app.timing`).
+
+    For widgets whose changes only set a value or send a log batch: their runs were 10
+    of a participant's 24 full script runs. A fragment's own run knows only what the
+    last full run left in the session state; whatever must move the page on calls
+    :func:`leave_fragment_if_moved_on`.
+    """
+    @functools.wraps(func)
+    def run(*args, **kwargs):
+        with RunClock(current_stage, fragment=True):
+            return func(*args, **kwargs)
+
+    return st.fragment(run)
+
+
+def leave_fragment_if_moved_on(participant_id: str, step):
+    """The participant's session for a fragment that shows ``step``; in the fragment's
+    own run, rerun the whole app instead when the page must change.
+
+    It must when this tab stored an answer to ``step`` (a callback just did: the page
+    shows the next step), has a message for the top of the page (a refused answer), or
+    the participant moved on elsewhere (another tab answered ``step``: the full run says
+    so). The last is read from the store, since a fragment's own run does not run
+    app.py; a full run's session is current already.
+    """
+    if not in_fragment_run():
+        return current_session()
+    if _claimed(participant_id, step) or KEY_FLASH in st.session_state:
+        st.rerun(scope="app")
+    from study_app.session import ParticipantSession, UnknownParticipant
+
+    ctx = load_context()
+    try:
+        session = ParticipantSession.resume(ctx.store, ctx.stimuli, participant_id)
+    except UnknownParticipant:
+        st.rerun(scope="app")
+    if session.step_key != step:
+        st.rerun(scope="app")
+    return session
 
 
 def widget_key(base: str, trial) -> str:

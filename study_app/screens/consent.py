@@ -7,6 +7,7 @@ import streamlit as st
 from study_app.protocol import consent_text, estimated_minutes
 from study_app.screens import common
 from study_app.session import ParticipantSession
+from study_app.timing import callback_started
 
 
 def render() -> None:
@@ -28,6 +29,7 @@ def render() -> None:
 def _on_start() -> None:
     """Register the participant before the run the click causes (which shows the first
     step); a click without the box ticked (a forged one) does nothing."""
+    callback_started()
     if st.session_state.get(common.KEY_CONSENT_AGREE) is not True:
         return
     if st.session_state.get(common.KEY_PARTICIPANT_ID) and \

@@ -37,37 +37,47 @@ def render() -> None:
                 else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else ""))
     common.show_flash()
     common.trial_clock(session, trial)
-    if use_frames:
-        answer = _frames_picker(sc, trial)
-    else:
-        # Where the participant was (frame, share watched) before a reload: read once
-        # per trial and browser session (the player keeps its own state after that),
-        # not on every rerun of the page. Keyed by the player's widget key, so a player
-        # remounted after a refused answer starts where the log says.
-        starts = st.session_state.setdefault(common.KEY_PICKER_START, {})
-        key = (session.participant_id, common.widget_key(common.KEY_PICKER, trial))
-        if key not in starts:
-            starts[key] = session.picker_state(trial.index)
-        frame, watched = starts[key]
-        widget = common.widget_key(common.KEY_PICKER, trial)
-        answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
-                              trial=trial.index, key=widget,
-                              start_frame=frame, watched=watched,
-                              require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
-                              min_answer_s=study.min_answer_s, on_confirm=_on_confirm,
-                              args=(session.participant_id, trial.index, widget))
-        if answer and "error" in answer:
-            # This browser cannot play the video: offer the frames instead.
-            st.session_state[common.KEY_FRAMES_FALLBACK] = True
-            st.rerun()
-        if answer and "log" in answer:
-            # A batch of the player's log, stored as it happens; the player stays.
-            session.record_picker_events(answer.get("trial"), answer["log"])
+    if not use_frames:
+        _player(session.participant_id, trial.index)
         return
-    if answer is None:
-        return
-    _submit(session, trial, answer)
-    st.rerun()
+    answer = _frames_picker(sc, trial)
+    if answer is not None:
+        _submit(session, trial, answer)
+        st.rerun()
+
+
+@common.timed_fragment
+def _player(pid: str, trial_index: int) -> None:
+    """The video player, a fragment: its log batches (sent as the participant plays,
+    pauses, seeks) rerun only the player, which stores them; Confirm stores the answer
+    in its callback and reruns the whole page, which shows the next step."""
+    session = common.leave_fragment_if_moved_on(pid, trial_index)
+    trial = session.plan[trial_index]
+    sc = session.stimuli.scenes[trial.scene]
+    study = session.stimuli.study
+    # Where the participant was (frame, share watched) before a reload: read once per
+    # trial and browser session (the player keeps its own state after that), not on
+    # every rerun of the page. Keyed by the player's widget key, so a player remounted
+    # after a refused answer starts where the log says.
+    widget = common.widget_key(common.KEY_PICKER, trial)
+    starts = st.session_state.setdefault(common.KEY_PICKER_START, {})
+    key = (pid, widget)
+    if key not in starts:
+        starts[key] = session.picker_state(trial.index)
+    frame, watched = starts[key]
+    answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
+                          trial=trial.index, key=widget, start_frame=frame, watched=watched,
+                          require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
+                          min_answer_s=study.min_answer_s, on_confirm=_on_confirm,
+                          args=(pid, trial.index, widget))
+    if answer and "error" in answer:
+        # This browser cannot play the video: offer the frames instead (the page's
+        # instructions change too).
+        st.session_state[common.KEY_FRAMES_FALLBACK] = True
+        st.rerun(scope="app")
+    if answer and "log" in answer:
+        # A batch of the player's log, stored as it happens; the player stays.
+        session.record_picker_events(answer.get("trial"), answer["log"])
 
 
 def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
