@@ -82,6 +82,7 @@ def _participant(ctx):
     last two put the ``pid`` back into the URL, so a reload keeps them.
     """
     query = _query()
+    fresh = common.take_fresh_session(query.get(common.QUERY_PID))  # taken on every run
     st.session_state[common.KEY_WITHDRAWN] = False
     problems = prolific_problems(query)
     if problems:
@@ -91,6 +92,9 @@ def _participant(ctx):
                               for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
         return None, " ".join(problems) + " Please open the study again from Prolific."
     pid = query.get(common.QUERY_PID)
+    if fresh is not None:  # read (and updated) by this run's answer callback just now
+        st.session_state[common.KEY_PARTICIPANT_ID] = fresh.participant_id
+        return fresh, None
     if pid:
         try:
             session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)

@@ -61,6 +61,7 @@ __all__ = [
     "AppContext",
     "load_context",
     "answering_session",
+    "take_fresh_session",
     "claim_step",
     "release_step",
     "store_answer",
@@ -108,6 +109,9 @@ KEY_PICKER_START = "snapshot.picker_start"
 KEY_ATTEMPT = "snapshot.attempt"
 #: {(participant id, step)} this browser tab answered itself (see claim_step).
 KEY_ANSWERED_HERE = "snapshot.answered_here"
+#: The session an answer's callback (or a fragment) read and updated just now, for the
+#: full run that follows, which then need not read it again (see take_fresh_session).
+KEY_FRESH_SESSION = "snapshot.fresh_session"
 #: A message to show once on the next run (kind, text).
 KEY_FLASH = "snapshot.flash"
 #: True when the browser could not play a video: pose tasks use the frame slider.
@@ -212,9 +216,20 @@ def answering_session(pid: str):
     callback_started()
     ctx = load_context()
     try:
-        return ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
+        session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
     except UnknownParticipant:
         return None
+    st.session_state[KEY_FRESH_SESSION] = session  # what the answer then changes in it
+    return session
+
+
+def take_fresh_session(participant_id: str):
+    """The session of ``participant_id`` a callback or fragment of this browser session
+    read from the store (and updated with what it stored) just before this run, or
+    None; taken once. It saves the run reading the participant again."""
+    session = st.session_state.pop(KEY_FRESH_SESSION, None)
+    return session if session is not None and session.participant_id == participant_id \
+        else None
 
 
 def claim_step(session, step) -> bool:
@@ -318,6 +333,7 @@ def leave_fragment_if_moved_on(participant_id: str, step):
     except UnknownParticipant:
         st.rerun(scope="app")
     if session.step_key != step:
+        st.session_state[KEY_FRESH_SESSION] = session
         st.rerun(scope="app")
     return session
 
