@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import re
 import secrets
+from datetime import UTC, datetime
 from enum import StrEnum
 from functools import lru_cache
 
@@ -213,6 +214,8 @@ class ParticipantSession:
         self.stimuli = stimuli
         self.participant = participant
         self.answered = set(answered)
+        #: {trial index: epoch seconds} shown times this object stored or read
+        self._shown: dict[int, float] = {}
         # The plan is a pure function of (scenes, seed): made once per participant and
         # process, not on every script run that resumes them.
         self.plan: list[Trial] = list(_plan(tuple(stimuli.scene_ids), int(participant["seed"])))
@@ -345,12 +348,16 @@ class ParticipantSession:
         second tab, days later) read the earliest one back, so reloading the page does
         not restart the response time.
         """
-        # The rules the answer will be held to, stored with the moment they start.
+        if trial_index not in self._shown:
+            self._shown[trial_index] = self.store.first_event_or_record(
+                self.participant_id, trial_index, SHOWN_EVENT, self._shown_payload()
+            ).timestamp()
+        return self._shown[trial_index]
+
+    def _shown_payload(self) -> dict:
+        """The rules the answer will be held to, stored with the moment they start."""
         study = self.stimuli.study
-        return self.store.first_event_or_record(
-            self.participant_id, trial_index, SHOWN_EVENT,
-            {"min_answer_s": study.min_answer_s, "require_watch": study.require_watch},
-        ).timestamp()
+        return {"min_answer_s": study.min_answer_s, "require_watch": study.require_watch}
 
     # -- answers -----------------------------------------------------------------------
     def submit_background(self, answers: dict) -> bool:
@@ -401,7 +408,22 @@ class ParticipantSession:
         return min(t, MAX_RESPONSE_TIME_S)
 
     def _record(self, row: dict, trial_events=()) -> bool:
-        stored = self.store.record_response(self.participant_id, row, trial_events=trial_events)
+        """Store an answer with ``trial_events`` (``(kind, payload)`` of its trial) and,
+        when another trial follows, that trial's :data:`SHOWN_EVENT`, in one transaction:
+        the run after an answer shows the next trial at once, so its clock starts with
+        the answer (the few milliseconds of that run before the page shows count as
+        answering time, as they did when that run stored the event), and that run need
+        not write it."""
+        i = row["trial_index"]
+        events = [(i, kind, payload) for kind, payload in trial_events]
+        following = i + 1 if i + 1 < len(self.plan) else None
+        if following is not None:
+            events.append((following, SHOWN_EVENT, self._shown_payload()))
+        at = datetime.now(UTC)
+        stored = self.store.record_response(self.participant_id, row, with_events=events,
+                                            at=at)
+        if stored and following is not None:
+            self._shown[following] = at.timestamp()
         self.answered.add(row["trial_index"])
         return bool(stored)
 

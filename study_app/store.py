@@ -500,7 +500,8 @@ class Store:
         return self._write(work)
 
     # -- responses ---------------------------------------------------------------------
-    def record_response(self, pid: str, row: dict, *, trial_events=()) -> bool:
+    def record_response(self, pid: str, row: dict, *, with_events=(),
+                        at: datetime | None = None) -> bool:
         """Append one trial's answer; False (and nothing changed) if that trial is stored.
 
         Parameters
@@ -514,9 +515,12 @@ class Store:
             ``n_frames``, ``chosen_method``, ``chosen_position``, ``shown_order``,
             ``chosen_value``, ``correct`` (frames in source numbering). The store adds
             participant, study, app version, manifest hash, simulated flag and time.
-        trial_events : iterable of (str, dict), optional
-            Events of this trial (as :meth:`record_events`) stored with the answer, in
-            the same transaction, if the answer is new (e.g. the picker's log).
+        with_events : iterable of (int, str, dict), optional
+            ``(trial_index, kind, payload)`` events stored with the answer, in the same
+            transaction, if the answer is new (e.g. the picker's log of this trial, the
+            next trial's ``shown`` event).
+        at : datetime, optional
+            The time stored with the answer and its events (default: now, UTC).
 
         Returns
         -------
@@ -530,30 +534,32 @@ class Store:
             Unknown participant id, or a row that does not follow the schema (the
             message names the field). Nothing is written.
         """
-        return self.record_responses(pid, [row], trial_events=trial_events) == 1
+        return self.record_responses(pid, [row], with_events=with_events, at=at) == 1
 
-    def record_responses(self, pid: str, rows: list[dict], *, trial_events=()) -> int:
+    def record_responses(self, pid: str, rows: list[dict], *, with_events=(),
+                         at: datetime | None = None) -> int:
         """Append several trials of one participant in one transaction; return how many were new.
 
         Already-answered trials are skipped (their first answer stays). Every row is
-        checked before anything is written. ``trial_events`` (with one row only) are
-        stored with it when it is new, as in :meth:`record_response`.
+        checked before anything is written. ``with_events`` (with one row only) and
+        ``at`` as in :meth:`record_response`.
         """
         checked = [checked_response(r) for r in rows]
         indices = [r["trial_index"] for r in checked]
         if len(set(indices)) != len(indices):
             raise StoreError(f"participant {pid!r}: the same trial_index twice in one batch")
-        trial_events = list(trial_events)
-        if trial_events and len(checked) != 1:
-            raise StoreError("trial events go with one response at a time")
-        event_rows = [checked_event(indices[0], kind, payload)
-                      for kind, payload in trial_events]
+        with_events = list(with_events)
+        if with_events and len(checked) != 1:
+            raise StoreError("events go with one response at a time")
+        event_rows = [checked_event(t, kind, payload) for t, kind, payload in with_events]
+        if at is not None and (not isinstance(at, datetime) or at.tzinfo is None):
+            raise StoreError(f"the time of an answer must be an aware datetime, got {at!r}")
 
         def work(conn) -> int:
             part = self._participant_row(conn, pid)
             stored = self._answered(conn, pid)
             new = [r for r in checked if r["trial_index"] not in stored]
-            now = _utcnow()
+            now = at or _utcnow()
             if new:
                 conn.execute(responses.insert(), [{
                     **r, "participant_id": pid, "created_at": now,
