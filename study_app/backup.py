@@ -33,7 +33,6 @@ import glob
 import os
 import secrets
 import shutil
-import sqlite3
 import subprocess
 import warnings
 from dataclasses import dataclass, field
@@ -44,13 +43,14 @@ from sqlalchemy import exc as sa_exc
 
 from .database import (
     STUDY_TABLES,
+    copy_sqlite_online,
     copy_tables,
-    metadata,
+    create_study_tables,
     move_sequences,
     normalize_url,
     one_line,
     one_snapshot,
-    standalone_sqlite,
+    sqlite_file_engine,
     table_counts,
     table_names,
 )
@@ -179,20 +179,8 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
 
 def _sqlite_backup(parsed, tmp: Path) -> BackupResult:
     source = parsed.database
-    try:
-        src = sqlite3.connect(source, timeout=30)
-        dst = sqlite3.connect(tmp)
-        try:
-            # pages=-1: every page in one step, i.e. one read snapshot of the database
-            # (a multi-step copy would restart whenever the app writes in between).
-            src.backup(dst, pages=-1)
-            standalone_sqlite(dst)
-        finally:
-            dst.close()
-            src.close()
-    except sqlite3.Error as err:
-        raise StoreError(f"cannot back up {source}: {err}") from None
-    eng = sa.create_engine(f"sqlite:///{tmp}")
+    copy_sqlite_online(source, tmp)
+    eng = sqlite_file_engine(tmp)
     try:
         rows = table_counts(eng)
     finally:
@@ -235,9 +223,9 @@ def _pg_dump(tool: Path, parsed, tmp: Path, *, fallback: bool) -> BackupResult |
 
 
 def _logical_backup(engine, tmp: Path) -> BackupResult:
-    dst = sa.create_engine(f"sqlite:///{tmp}")
+    dst = sqlite_file_engine(tmp)
     try:
-        metadata.create_all(dst)
+        create_study_tables(dst)
         src_conn = engine.connect()
         try:
             src_conn = one_snapshot(src_conn)
@@ -329,7 +317,7 @@ def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
 
 
 def _logical_restore(path: Path, store) -> BackupResult:
-    src = sa.create_engine(f"sqlite:///{path}")
+    src = sqlite_file_engine(path)
     try:
         with src.connect() as src_conn:
             names = table_names(src_conn)
