@@ -211,16 +211,23 @@ def answering_session(pid: str):
     than storing in the page and calling ``st.rerun()``). The session is read afresh:
     another tab may have answered since this page was drawn.
     """
+    callback_started()
+    session = _read_session(pid)
+    if session is not None:
+        st.session_state[KEY_FRESH_SESSION] = session  # what the answer then changes in it
+    return session
+
+
+def _read_session(pid: str):
+    """The participant's session as the store holds it now, or None for an id that is
+    no longer valid."""
     from study_app.session import ParticipantSession, UnknownParticipant
 
-    callback_started()
     ctx = load_context()
     try:
-        session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
+        return ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
     except UnknownParticipant:
         return None
-    st.session_state[KEY_FRESH_SESSION] = session  # what the answer then changes in it
-    return session
 
 
 def take_fresh_session(participant_id: str):
@@ -325,12 +332,8 @@ def leave_fragment_if_moved_on(participant_id: str, step):
         return current_session()
     if _claimed(participant_id, step) or KEY_FLASH in st.session_state:
         st.rerun(scope="app")
-    from study_app.session import ParticipantSession, UnknownParticipant
-
-    ctx = load_context()
-    try:
-        session = ParticipantSession.resume(ctx.store, ctx.stimuli, participant_id)
-    except UnknownParticipant:
+    session = _read_session(participant_id)
+    if session is None:
         st.rerun(scope="app")
     if session.step_key != step:
         st.session_state[KEY_FRESH_SESSION] = session
