@@ -10,7 +10,12 @@ CMU cgspeed names (``Hips``, ``LeftUpLeg``, ``LeftLeg``, ``LeftFoot``, ``Spine1`
 ``chest``, ``lCollar``, ``lShldr``, ``lThigh``, ``lShin``...), Bandai names
 (``UpperLeg_L``, ``LowerArm_R``...), the older CMU/assimp and 3ds Max names
 (``LeftCollar``, ``LeftShoulder`` = upper arm, ``LeftElbow``, ``LeftHip`` = thigh...)
-and the synthetic humanoid. Unknown names get :data:`DEFAULT_ROLE`.
+and the synthetic humanoid, and the conventions of tools whose files are not among the
+shared clips (tests/test_anatomy.py): a side marker after a tool's prefix (``Bip01 L
+Thigh``, ``CC_Base_L_Thigh``, ``J_Bip_L_UpperLeg``, ``Character1_LeftArm``) or glued to
+the end (Kinect's ``HipLeft``), separators inside words (``upper_arm.L``), Unreal's
+``calf_l``/``ball_l`` and OptiTrack's ``LUArm``/``LFArm``. A skeleton with no pelvis by
+name (Kinect) gets it where the two legs meet. Unknown names get :data:`DEFAULT_ROLE`.
 
 Lengths that scale with the person are given as fractions of the stature (the way
 anthropometric tables are written, e.g. Drillis & Contini's segment lengths), so a
@@ -93,14 +98,14 @@ _ROLE_PATTERNS = (
     ("head", r"head"),
     ("neck", r"neck"),
     ("hand", r"hand|wrist"),
-    ("forearm", r"forearm|lowerarm|lowarm|elbow"),
-    ("upperarm", r"upperarm|uparm|shldr|^arm"),
+    ("forearm", r"forearm|lowerarm|lowarm|elbow|^farm$"),
+    ("upperarm", r"upperarm|uparm|shldr|^uarm$|^arm|arm$"),
     ("clavicle", r"collar|clavicle|shoulder"),
     ("pelvis", r"hipjoint|buttock|pelvis"),
     ("thigh", r"upleg|upperleg|thigh"),
-    ("shin", r"lowerleg|lowleg|shin|knee|calf|^leg"),
+    ("shin", r"lowerleg|lowleg|shin|knee|calf|^leg|leg$"),
     ("foot", r"foot|ankle|heel"),
-    ("toe", r"toe"),
+    ("toe", r"toe|ball$"),
     ("chest", r"chest|thorax|upperback|ribcage|spine[1-9]"),
     ("spine", r"spine|abdomen|lowerback|waist|torso|belly|^ab$|^abs$"),
     ("pelvis", r"hips?$"),
@@ -115,11 +120,21 @@ _SIDE_PATTERNS = (
     ("R", re.compile(r"^[rR](?=[A-Z_])")),
     ("L", re.compile(r"^l(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
     ("R", re.compile(r"^r(?=(hand|foot|arm|leg|hip|thigh|shin|shldr|collar)$)", re.I)),
+    # after a tool's prefix: Bip01 L Thigh, CC_Base_L_Thigh, J_Bip_L_UpperLeg, Character1_LeftArm
+    ("L", re.compile(r"(?<=[_ .:-])[lL](?=[_ .-])")),
+    ("R", re.compile(r"(?<=[_ .:-])[rR](?=[_ .-])")),
+    ("L", re.compile(r"(?<=[_ .:-])[lL]eft(?=[A-Z0-9_ .-])")),
+    ("R", re.compile(r"(?<=[_ .:-])[rR]ight(?=[A-Z0-9_ .-])")),
+    # glued to the end of a word: Kinect's HipLeft, ShoulderRight
+    ("L", re.compile(r"(?<=[a-z])Left$")),
+    ("R", re.compile(r"(?<=[a-z])Right$")),
 )
 
 
 def _split_side(name: str) -> tuple[str, str]:
-    """(side ``'L'``/``'R'``/``''``, base name lower-cased without the side marker)."""
+    """(side ``'L'``/``'R'``/``''``, base name lower-cased without the side marker).
+
+    Separators are kept in the base (:func:`joint_roles` drops them before matching)."""
     base = re.sub(r"_end$", "", str(name).rsplit(":", 1)[-1], flags=re.I)
     for side, pat in _SIDE_PATTERNS:
         m = pat.search(base)
@@ -157,6 +172,7 @@ def joint_roles(names, parents) -> list[str]:
     roles: list[str] = []
     for j, name in enumerate(names):
         side, base = _split_side(name)
+        base = re.sub(r"[_ .:-]", "", base)  # upper_arm, Bip01 Spine1, CC_Base_Thigh
         role = DEFAULT_ROLE
         for r, pat in _ROLE_PATTERNS:
             if re.search(pat, base):
@@ -176,7 +192,34 @@ def joint_roles(names, parents) -> list[str]:
             kids = [k for k in range(len(names)) if parents[k] == j]
             if not any(roles[k] == "pelvis" for k in kids):
                 roles[j] = "pelvis"
+    if "pelvis" not in roles:
+        # No pelvis by name (Kinect's SpineBase): it is where the two legs meet.
+        sides = joint_sides(names)
+        meet = _meeting_joint(parents, *(
+            [j for j, (r, s) in enumerate(zip(roles, sides)) if r == "thigh" and s == side]
+            for side in "LR"))
+        if meet is not None:
+            roles[meet] = "pelvis"
     return roles
+
+
+def _ancestors(parents, j: int) -> list[int]:
+    """``j``, its parent, ..., the root."""
+    out = []
+    while j >= 0:
+        out.append(j)
+        j = int(parents[j])
+    return out
+
+
+def _meeting_joint(parents, left, right) -> int | None:
+    """The nearest common ancestor of the first joints of ``left`` and ``right`` (None if
+    either is empty or they share none)."""
+    if not left or not right:
+        return None
+    up_left = _ancestors(parents, left[0])[1:]
+    shared = [j for j in _ancestors(parents, right[0])[1:] if j in up_left]
+    return shared[0] if shared else None
 
 
 def bone_role(parent_role: str, child_role: str) -> str:
@@ -265,11 +308,7 @@ def body_landmarks(names, parents) -> dict[str, int | None]:
     n = len(names)
 
     def ancestors(j):
-        out = []
-        while j >= 0:
-            out.append(j)
-            j = int(parents[j])
-        return out
+        return _ancestors(parents, j)
 
     def first(role, side="", below=None):
         for j in range(n):
@@ -300,6 +339,12 @@ def body_landmarks(names, parents) -> dict[str, int | None]:
         prev = None
         for limb in ("hip", "knee", "ankle", "toe"):
             j = first(LIMB_ROLES[limb], side, prev)
+            if j is None and limb == "toe" and out[f"ankle_{side}"] is not None:
+                # a second foot joint below the ankle is the ball of the foot (SMPL's and
+                # Kinect's "foot" below their "ankle")
+                ankle = out[f"ankle_{side}"]
+                j = next((k for k in range(n) if parents[k] == ankle and not end[k]
+                          and roles[k] == "foot"), None)
             out[f"{limb}_{side}"] = j
             prev = j if j is not None else prev
     return out

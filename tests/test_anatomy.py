@@ -1,0 +1,129 @@
+"""Joint roles from the naming conventions of tools whose files are not in ../shared.
+
+The shared clips cover CMU, Daz, 3ds Max, Bandai and one assimp export. Files from other
+tools name the same joints differently: a side marker in the middle (``Bip01 L Thigh``,
+``CC_Base_L_Thigh``, ``J_Bip_L_UpperLeg``) or glued to the end (Kinect's ``HipLeft``),
+a tool prefix (``Character1_LeftArm``), separators inside words (``upper_arm.L``) or
+abbreviations (OptiTrack's ``LUArm``). Each convention below is written from the tool's
+published joint list, applied to the procedural humanoid, and must give a body.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, left_right_pairs
+from snapcore.motion.bvh import format_bvh
+from snapcore.motion.load import load_scene
+from snapcore.motion.synth import humanoid_document
+
+#: The humanoid's joints (CMU-style names) by landmark: what each convention must name.
+SYNTH_LANDMARKS = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
+    f"{limb}_{s[0]}": f"{s}{joint}" for s in ("Left", "Right") for limb, joint in (
+        ("clavicle", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
+        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("toe", "ToeBase"))}
+
+# Convention name for each humanoid joint: centre joints, then sided ones as a template in
+# {L} (the side as the tool writes it) and the tool's words for each side.
+_CENTRE = ("Hips", "Spine", "Spine1", "Neck", "Head")
+_SIDED = ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot", "ToeBase")
+CONVENTIONS = {
+    # MotionBuilder / HumanIK with the character's name as a prefix
+    "motionbuilder": (("Character1_Hips", "Character1_Spine", "Character1_Spine1",
+                       "Character1_Neck", "Character1_Head"),
+                      ("Character1_{L}Shoulder", "Character1_{L}Arm", "Character1_{L}ForeArm",
+                       "Character1_{L}Hand", "Character1_{L}UpLeg", "Character1_{L}Leg",
+                       "Character1_{L}Foot", "Character1_{L}ToeBase"), ("Left", "Right")),
+    # Mixamo after a converter replaced the namespace colon
+    "mixamo_underscore": (("mixamorig_Hips", "mixamorig_Spine", "mixamorig_Spine1",
+                           "mixamorig_Neck", "mixamorig_Head"),
+                          ("mixamorig_{L}Shoulder", "mixamorig_{L}Arm", "mixamorig_{L}ForeArm",
+                           "mixamorig_{L}Hand", "mixamorig_{L}UpLeg", "mixamorig_{L}Leg",
+                           "mixamorig_{L}Foot", "mixamorig_{L}ToeBase"), ("Left", "Right")),
+    "unreal": (("pelvis", "spine_01", "spine_03", "neck_01", "head"),
+               ("clavicle_{L}", "upperarm_{L}", "lowerarm_{L}", "hand_{L}", "thigh_{L}",
+                "calf_{L}", "foot_{L}", "ball_{L}"), ("l", "r")),
+    "xsens_mvn": (("Pelvis", "L5", "T8", "Neck", "Head"),
+                  ("{L}Shoulder", "{L}UpperArm", "{L}ForeArm", "{L}Hand", "{L}UpperLeg",
+                   "{L}LowerLeg", "{L}Foot", "{L}Toe"), ("Left", "Right")),
+    "optitrack_motive": (("Hip", "Ab", "Chest", "Neck", "Head"),
+                         ("{L}Shoulder", "{L}UArm", "{L}FArm", "{L}Hand", "{L}Thigh", "{L}Shin",
+                          "{L}Foot", "{L}Toe"), ("L", "R")),
+    # Kinect v2 names joints, not bones, and has no pelvis joint: SpineBase is the root
+    "kinect": (("SpineBase", "SpineMid", "SpineShoulder", "Neck", "Head"),
+               ("Clavicle{L}", "Shoulder{L}", "Elbow{L}", "Wrist{L}", "Hip{L}", "Knee{L}",
+                "Ankle{L}", "Foot{L}"), ("Left", "Right")),
+    "smpl": (("pelvis", "spine1", "spine3", "neck", "head"),
+             ("{L}_collar", "{L}_shoulder", "{L}_elbow", "{L}_wrist", "{L}_hip", "{L}_knee",
+              "{L}_ankle", "{L}_foot"), ("left", "right")),
+    "blender_metarig": (("hips", "spine", "chest", "neck", "head"),
+                        ("shoulder.{L}", "upper_arm.{L}", "forearm.{L}", "hand.{L}", "thigh.{L}",
+                         "shin.{L}", "foot.{L}", "toe.{L}"), ("L", "R")),
+    "3dsmax_biped": (("Bip01_Pelvis", "Bip01_Spine", "Bip01_Spine1", "Bip01_Neck", "Bip01_Head"),
+                     ("Bip01_{L}_Clavicle", "Bip01_{L}_UpperArm", "Bip01_{L}_Forearm",
+                      "Bip01_{L}_Hand", "Bip01_{L}_Thigh", "Bip01_{L}_Calf", "Bip01_{L}_Foot",
+                      "Bip01_{L}_Toe0"), ("L", "R")),
+    "character_creator": (("CC_Base_Hip", "CC_Base_Waist", "CC_Base_Spine02",
+                           "CC_Base_NeckTwist01", "CC_Base_Head"),
+                          ("CC_Base_{L}_Clavicle", "CC_Base_{L}_Upperarm", "CC_Base_{L}_Forearm",
+                           "CC_Base_{L}_Hand", "CC_Base_{L}_Thigh", "CC_Base_{L}_Calf",
+                           "CC_Base_{L}_Foot", "CC_Base_{L}_ToeBase"), ("L", "R")),
+    "vrm": (("J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_Neck", "J_Bip_C_Head"),
+            ("J_Bip_{L}_Shoulder", "J_Bip_{L}_UpperArm", "J_Bip_{L}_LowerArm", "J_Bip_{L}_Hand",
+             "J_Bip_{L}_UpperLeg", "J_Bip_{L}_LowerLeg", "J_Bip_{L}_Foot", "J_Bip_{L}_ToeBase"),
+            ("L", "R")),
+}
+
+
+def _renaming(convention: str) -> dict[str, str]:
+    centre, sided, words = CONVENTIONS[convention]
+    out = dict(zip(_CENTRE, centre))
+    for side, word in zip(("Left", "Right"), words):
+        out |= {side + j: t.format(L=word) for j, t in zip(_SIDED, sided)}
+    return out
+
+
+def _renamed_clip(tmp_path, convention: str, motion: str = "walk", seconds: float = 1.0):
+    """The procedural humanoid written as BVH with the convention's joint names."""
+    text = format_bvh(humanoid_document(motion, seconds=seconds))
+    mapping = _renaming(convention)
+    text = re.sub(r"^(\s*(?:ROOT|JOINT) )(\S+)", lambda m: m.group(1) + mapping[m.group(2)],
+                  text, flags=re.M)
+    path = tmp_path / f"{convention}.bvh"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the synthetic file's unit is metres: not under test
+        return load_scene(path).characters[0], mapping
+
+
+@pytest.mark.parametrize("convention", sorted(CONVENTIONS))
+def test_landmarks_are_found_in_every_naming(tmp_path, convention):
+    """Every landmark is the joint the convention gives that body part, and the left-right
+    pairs are the thighs and upper arms."""
+    ch, mapping = _renamed_clip(tmp_path, convention)
+    names = ch.skeleton.names
+    lm = body_landmarks(names, ch.skeleton.parents)
+    got = {k: names[lm[k]] if lm[k] is not None else None for k in SYNTH_LANDMARKS}
+    want = {k: mapping[v] for k, v in SYNTH_LANDMARKS.items()}
+    if convention == "kinect":
+        want["pelvis"] = mapping["Hips"]  # no pelvis by name: the thighs' common parent
+    assert got == want
+    assert not [k for k in REQUIRED_LANDMARKS if lm[k] is None]
+    pairs = left_right_pairs(names, ch.skeleton.parents)
+    assert [names[j] for k in ("hip", "shoulder") for j in pairs[k]] == [
+        mapping[n] for n in ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")]
+
+
+@pytest.mark.parametrize("convention", ["kinect", "optitrack_motive", "3dsmax_biped"])
+def test_the_human_body_fits_other_namings(tmp_path, convention):
+    """The human body is retargeted (no mannequin fallback) and keeps its joints within
+    3 cm of the skeleton's, as on the shared clips."""
+    from snapcore.render.human import HumanBody
+
+    ch, _ = _renamed_clip(tmp_path, convention)
+    _, got, want = HumanBody(ch).landmarks()
+    assert np.linalg.norm(got - want, axis=-1).max() <= 0.03
