@@ -340,6 +340,8 @@ BAD_CASES = {
     "truncated": "not a readable glTF/GLB file",
     "short_buffer": "buffer 0 is truncated",
     "interpolation": "unknown interpolation 'SMOOTH'",
+    # geometry only the extension can decode: its accessors have no data of their own
+    "compressed": "requires the extension KHR_draco_mesh_compression",
 }
 
 
@@ -360,7 +362,26 @@ def _bad_file(tmp_path: Path, case: str) -> Path:
         return p
     elif case == "interpolation":
         doc = _two_bone_document(interpolation="SMOOTH")
+    elif case == "compressed":
+        doc["extensionsUsed"] = doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
     return _write(tmp_path, doc, f"{case}.gltf")
+
+
+def test_extensions_that_do_not_change_geometry_are_accepted(tmp_path):
+    """Required material/texture extensions do not move a vertex: the file still reads."""
+    doc = _two_bone_document()
+    doc["extensionsUsed"] = doc["extensionsRequired"] = [
+        "KHR_materials_pbrSpecularGlossiness", "KHR_texture_transform"]
+    assert read_gltf(_write(tmp_path, doc, "materials.gltf")).n_joints == 2
+
+
+def test_joints_with_the_same_name_stay_apart(tmp_path):
+    """glTF node names need not be unique: the character's joint names are."""
+    doc = _two_bone_document()
+    for n in doc["nodes"]:
+        n["name"] = "bone"
+    names = read_gltf(_write(tmp_path, doc, "same_names.gltf")).joint_names
+    assert len(set(names)) == len(names) == 2 and names[0] == "bone"
 
 
 @pytest.fixture(scope="module")

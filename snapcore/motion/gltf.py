@@ -55,6 +55,12 @@ DEFAULT_FPS = 30.0
 MAX_HEIGHT_M = 4.0
 #: glTF primitive modes: 4 triangles, 5 triangle strip, 6 triangle fan.
 _TRIANGLE_MODES = (4, 5, 6)
+#: Required extensions a file may list and still be read: they change how a surface looks
+#: (materials, textures, lights), not where its vertices are; mesh quantization is only
+#: integer accessors, which :mod:`snapcore.motion.gltf_access` reads. Any other required
+#: extension (Draco or meshopt compression...) holds data this reader cannot decode.
+_HARMLESS_EXTENSIONS = ("KHR_materials_", "KHR_texture_", "EXT_texture_", "KHR_lights_",
+                        "KHR_mesh_quantization")
 
 
 @dataclass(eq=False)
@@ -397,6 +403,10 @@ def _load(path: Path):
         raise GLTFError("not a readable glTF/GLB file (no JSON document)", path=str(path))
     if g.asset is not None and g.asset.version and not str(g.asset.version).startswith("2"):
         raise GLTFError(f"glTF version {g.asset.version} is not supported (2.0 is)", path=str(path))
+    unknown = [e for e in (g.extensionsRequired or []) if not str(e).startswith(_HARMLESS_EXTENSIONS)]
+    if unknown:
+        raise GLTFError(f"requires the extension {', '.join(map(str, unknown))}, which this "
+                        "reader does not decode (re-export without it)", path=str(path))
     return g
 
 
@@ -482,7 +492,8 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
     local_rot = np.swapaxes(par_rot, -1, -2) @ rot
     rel = pos - np.where((jparent >= 0)[None, :, None], pos[:, np.maximum(jparent, 0)], 0.0)
     offsets = np.median(np.einsum("fjki,fjk->fji", par_rot, rel), axis=0)
-    skeleton = Skeleton(names=tuple(nodes[i].name or f"node_{i}" for i in joints), parents=jparent,
+    skeleton = Skeleton(names=_unique_names([nodes[i].name or f"node_{i}" for i in joints]),
+                        parents=jparent,
                         offsets=offsets, end_site=np.zeros(len(joints), dtype=bool))
     mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale)
     return Character(
@@ -498,6 +509,19 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
               "animations": gltf_animations(g)},
         local_quaternions=matrix_to_quat(local_rot),
     )
+
+
+def _unique_names(names: list[str]) -> tuple[str, ...]:
+    """Node names made unique (glTF does not require it; joints are looked up by name):
+    a repeated name gets ``_2``, ``_3``... in node order."""
+    seen: dict[str, int] = {}
+    out = []
+    for n in names:
+        seen[n] = seen.get(n, 0) + 1
+        out.append(n if seen[n] == 1 else f"{n}_{seen[n]}")
+    while len(set(out)) < len(out):  # a suffixed name that was already taken
+        out = [n if out.index(n) == i else f"{n}_" for i, n in enumerate(out)]
+    return tuple(out)
 
 
 def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np.ndarray:
