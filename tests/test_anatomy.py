@@ -127,3 +127,25 @@ def test_the_human_body_fits_other_namings(tmp_path, convention):
     ch, _ = _renamed_clip(tmp_path, convention)
     _, got, want = HumanBody(ch).landmarks()
     assert np.linalg.norm(got - want, axis=-1).max() <= 0.03
+
+
+def test_mirrored_siblings_give_the_left_right_axis_when_no_limb_is_named():
+    """Joints named only by side and number (CesiumMan: ``leg_joint_L_1``) still give a
+    facing: the first mirrored sibling pair is the hips, the next under another parent
+    the shoulders. Named limbs take precedence over it."""
+    names = ("torso_1", "leg_joint_R_1", "leg_joint_L_1", "torso_2", "limb_R", "limb_L", "leg_R_2")
+    parents = np.array([-1, 0, 0, 0, 3, 3, 1])
+    assert left_right_pairs(names, parents) == {"hip": (2, 1), "shoulder": (5, 4)}
+    named = ("Hips", "RightUpLeg", "LeftUpLeg", "Spine", "limb_R", "limb_L", "RightLeg")
+    assert left_right_pairs(named, parents)["hip"] == (2, 1)
+    assert left_right_pairs(named, parents)["shoulder"] is None
+
+
+def test_cesium_man_faces_the_way_he_walks(motions_dir):
+    """CesiumMan's left leg is at +X in his first frame and he walks along +Z in place (glTF
+    characters face +Z): his facing is +Z in every frame."""
+    from snapcore.motion.facing import character_facing
+
+    c = load_scene(motions_dir / "gltf" / "CesiumMan.glb").characters[0]
+    f = character_facing(c.positions, c.joint_names, c.parents)
+    assert np.all(f @ [0.0, 0.0, 1.0] > 0.9)

@@ -250,6 +250,8 @@ def left_right_pairs(names, parents) -> dict[str, tuple[int, int] | None]:
         ``hip``: the first ``(left, right)`` pair of thigh joints (``LeftUpLeg``,
         ``lThigh``, ``UpperLeg_L``, ``LeftHip``); ``shoulder``: the first pair of upper
         arms, or of clavicles where no upper arm is named. None where a side is missing.
+        A skeleton with neither gets the first two mirrored sibling pairs
+        (``leg_joint_L_1``/``leg_joint_R_1``) from a different parent each.
     """
     roles, sides = joint_roles(names, parents), joint_sides(names)
 
@@ -261,7 +263,31 @@ def left_right_pairs(names, parents) -> dict[str, tuple[int, int] | None]:
                 return left[0], right[0]
         return None
 
-    return {"hip": pair("thigh"), "shoulder": pair("upperarm", "clavicle")}
+    out = {"hip": pair("thigh"), "shoulder": pair("upperarm", "clavicle")}
+    if out["hip"] is None and out["shoulder"] is None:
+        # No limb role by name (CesiumMan's leg_joint_L_1): the first two mirrored pairs
+        # of siblings (same parent, same name but for the side) still give the left-right
+        # axis, and the first one down the hierarchy is the hips or shoulders.
+        mirrored = _mirrored_siblings(names, parents)
+        out["hip"] = mirrored[0] if mirrored else None
+        rest = [m for m in mirrored[1:] if parents[m[0]] != parents[mirrored[0][0]]]
+        out["shoulder"] = rest[0] if rest else None
+    return out
+
+
+def _mirrored_siblings(names, parents) -> list[tuple[int, int]]:
+    """(left, right) joints with the same parent and the same name but for the side
+    marker, in the order of their left joint."""
+    split = [_split_side(n) for n in names]
+    out = []
+    for j, (side, base) in enumerate(split):
+        if side != "L":
+            continue
+        match = [k for k, (s, b) in enumerate(split)
+                 if s == "R" and b == base and parents[k] == parents[j]]
+        if match:
+            out.append((j, match[0]))
+    return out
 
 
 #: Limb joints looked up per side by :func:`body_landmarks`: landmark name → role.
