@@ -67,6 +67,12 @@ CONVENTIONS = {
                      ("Bip01_{L}_Clavicle", "Bip01_{L}_UpperArm", "Bip01_{L}_Forearm",
                       "Bip01_{L}_Hand", "Bip01_{L}_Thigh", "Bip01_{L}_Calf", "Bip01_{L}_Foot",
                       "Bip01_{L}_Toe0"), ("L", "R")),
+    # the same as 3ds Max writes it into BVH files, spaces and all
+    "3dsmax_biped_spaces": (("Bip01 Pelvis", "Bip01 Spine", "Bip01 Spine1", "Bip01 Neck",
+                             "Bip01 Head"),
+                            ("Bip01 {L} Clavicle", "Bip01 {L} UpperArm", "Bip01 {L} Forearm",
+                             "Bip01 {L} Hand", "Bip01 {L} Thigh", "Bip01 {L} Calf", "Bip01 {L} Foot",
+                             "Bip01 {L} Toe0"), ("L", "R")),
     "character_creator": (("CC_Base_Hip", "CC_Base_Waist", "CC_Base_Spine02",
                            "CC_Base_NeckTwist01", "CC_Base_Head"),
                           ("CC_Base_{L}_Clavicle", "CC_Base_{L}_Upperarm", "CC_Base_{L}_Forearm",
@@ -118,7 +124,7 @@ def test_landmarks_are_found_in_every_naming(tmp_path, convention):
         mapping[n] for n in ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")]
 
 
-@pytest.mark.parametrize("convention", ["kinect", "optitrack_motive", "3dsmax_biped"])
+@pytest.mark.parametrize("convention", ["kinect", "optitrack_motive", "3dsmax_biped_spaces"])
 def test_the_human_body_fits_other_namings(tmp_path, convention):
     """The human body is retargeted (no mannequin fallback) and keeps its joints within
     3 cm of the skeleton's, as on the shared clips."""

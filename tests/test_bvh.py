@@ -86,6 +86,21 @@ def test_crlf_and_lf_agree(tmp_path):
     assert a.names == b.names and np.array_equal(a.motion, b.motion)
 
 
+def test_byte_order_mark_is_ignored(tmp_path):
+    """Windows tools start UTF-8 files with a byte order mark; the file still reads."""
+    (tmp_path / "bom.bvh").write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    assert read_bvh(tmp_path / "bom.bvh").names == parse_bvh(GOOD).names
+
+
+def test_joint_names_may_contain_spaces():
+    """3ds Max writes its Biped's names with spaces (``JOINT Bip01 L Thigh``): the name is
+    the rest of the line, up to the brace."""
+    doc = parse_bvh(GOOD.replace("JOINT Leg", "JOINT Bip01 L Thigh").replace("ROOT Hips", "ROOT Bip01 {")
+                    .replace("ROOT Bip01 {\n{", "ROOT Bip01 {"))
+    assert doc.names == ("Bip01", "Spine", "Spine_End", "Bip01 L Thigh", "Bip01 L Thigh_End")
+    assert doc.motion.shape == (3, 12)
+
+
 def test_end_sites_are_joints():
     """End sites become channel-less joints named after their parent."""
     doc = parse_bvh(GOOD)
@@ -117,7 +132,7 @@ MALFORMED = {
     "more values than channels": (GOOD.replace("0 90 0 0 0 0 0 0 0 0 0 0", "0 90 0 0 0 0 0 0 0 0 0 0 7"),
                                   28, "13 values, more than the 12"),
     "non-numeric value": (GOOD.replace("2 90 0 20", "2 90 zero 20"), 30, "expected a number, found 'zero'"),
-    "NaN value": (GOOD.replace("2 90 0 20", "2 90 nan 20"), 30, "not a finite number"),
+    "NaN value": (GOOD.replace("2 90 0 20", "2 90 nan 20"), 30, "channel 2 is not a finite number (nan)"),
     "infinite value": (GOOD.replace("1 90 0 10", "1 90 inf 10"), 29, "not a finite number"),
     "zero frames": (GOOD.replace("Frames: 3", "Frames: 0"), 26, "0 frames"),
     "negative frame time": (GOOD.replace("Frame Time: 0.0333333", "Frame Time: -0.03"), 27,

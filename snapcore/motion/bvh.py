@@ -196,6 +196,8 @@ def _parse_hierarchy(lines: list[str], path: str | None):
         name, line = tk.next("a joint name")
         if name in ("{", "}", "OFFSET", "CHANNELS"):
             raise BVHError(f"expected a joint name, found '{name}'", path=path, line=line)
+        while tk.peek() not in (None, "{") and tk.line() == line:
+            name += " " + tk.next("")[0]  # 3ds Max: "JOINT Bip01 L Thigh"
         if name in name_line:
             raise BVHError(
                 f"duplicate joint name '{name}' (first defined on line {name_line[name]})",
@@ -309,7 +311,7 @@ def _header_number(lines, start: int, label: str, cast, what: str, path):
 
 def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
     """Parse BVH text. See :func:`read_bvh`; ``path`` is only used in messages."""
-    lines = text.splitlines()
+    lines = text.removeprefix("\ufeff").splitlines()  # a UTF-8 byte order mark (Windows tools)
     m = next((i for i, line in enumerate(lines) if line.strip() == "MOTION"), None)
     if m is None:
         # Parse the hierarchy first so a truncated one is reported as such.
@@ -375,7 +377,7 @@ def _parse_motion_block(lines, start, n_frames, n_chan, path) -> np.ndarray:
     if not finite.all():
         f, c = np.argwhere(~finite)[0]
         raise BVHError(
-            f"frame {int(f)}, channel {int(c)} is not a finite number ({motion[f, c]!r})",
+            f"frame {int(f)}, channel {int(c)} is not a finite number ({float(motion[f, c])})",
             path=path,
             line=start + rows[f] + 1,
         )
