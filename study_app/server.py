@@ -17,6 +17,11 @@ interpreter, and a server's objects are mostly its imported modules. Measured at
 100-participant launch on one process: full collections paused the server 150–240 ms
 each (8 of them), after the freeze 20–75 ms.
 
+It sends a browser that asks for a page two or more folders deep (``/pages/consent``, an
+old or mistyped link) to the study with the same query (:class:`DeepPageRedirect`):
+Streamlit would serve its page there, take ``/pages`` for the app's base path, fail to
+connect and stay blank.
+
 It also indexes Streamlit's configuration options by section (:func:`index_config_sections`):
 every script run sends the theme, and Streamlit found each of its six theme sections by
 walking all ~370 options (about 5% of the server's time at a 30-participant launch).
@@ -32,7 +37,8 @@ import sys
 import threading
 import time
 
-__all__ = ["main", "warm_up", "index_config_sections"]
+__all__ = ["main", "warm_up", "index_config_sections", "DeepPageRedirect",
+           "redirect_deep_page_paths"]
 
 log = logging.getLogger("study_app.server")
 
@@ -97,9 +103,59 @@ def index_config_sections() -> None:
     config.get_options_for_section = get_options_for_section
 
 
+class DeepPageRedirect:
+    """ASGI middleware: a page request for a path of two or more segments → 307 to the
+    app's root with the same query string.
+
+    Only browser page loads (GET/HEAD accepting ``text/html``) outside Streamlit's own
+    route prefixes are redirected; scripts, assets and the websocket pass through.
+    """
+
+    #: First path segments that are Streamlit's (or its components') routes, never pages.
+    RESERVED = frozenset({"_stcore", "static", "media", "component", "app", "auth", "oauth2callback"})
+
+    def __init__(self, app, base_path: str = ""):
+        self.app = app
+        self.root = "/" + "/".join(s for s in base_path.split("/") if s)
+        self.root += "" if self.root == "/" else "/"
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] == "http" and scope["method"] in ("GET", "HEAD"):
+            path = scope["path"][len(self.root) - 1:] if scope["path"].startswith(self.root) else ""
+            segments = [s for s in path.split("/") if s]
+            accept = dict(scope.get("headers") or ()).get(b"accept", b"")
+            if len(segments) >= 2 and segments[0] not in self.RESERVED and b"text/html" in accept:
+                query = scope.get("query_string", b"")
+                location = self.root.encode() + (b"?" + query if query else b"")
+                await send({"type": "http.response.start", "status": 307,
+                            "headers": [(b"location", location), (b"content-length", b"0")]})
+                await send({"type": "http.response.body", "body": b""})
+                return
+        await self.app(scope, receive, send)
+
+
+def redirect_deep_page_paths() -> None:
+    """Put :class:`DeepPageRedirect` in front of the app Streamlit's server creates."""
+    from streamlit import config
+    from streamlit.web.server.starlette import starlette_server
+
+    create = starlette_server.create_starlette_app
+    if getattr(create, "snapshot_redirects", False):
+        return
+
+    def create_starlette_app(runtime):
+        app = create(runtime)
+        app.add_middleware(DeepPageRedirect, base_path=config.get_option("server.baseUrlPath") or "")
+        return app
+
+    create_starlette_app.snapshot_redirects = True
+    starlette_server.create_starlette_app = create_starlette_app
+
+
 def main() -> None:
     """``streamlit`` with the warm-up thread started first (arguments as for streamlit)."""
     index_config_sections()
+    redirect_deep_page_paths()
     threading.Thread(target=_warm_in_background, name="snapshot-warm-up", daemon=True).start()
     from streamlit.web.cli import main as streamlit_main
 

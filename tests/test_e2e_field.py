@@ -209,8 +209,9 @@ def box(locator):
 
 # ----------------------------------------------------------------------------- item 14
 def test_only_flow_and_researcher_reachable(server, browser):
-    """First request /researcher on a fresh server, then /consent, /pose_task, /common:
-    no sidebar of internal modules, no blank page, no 404s; only flow and researcher."""
+    """First request /researcher on a fresh server, then /consent, /pose_task, /common and
+    a page two folders deep (/pages/consent): no sidebar of internal modules, no blank
+    page, no 404s; only flow and researcher."""
     from playwright.sync_api import expect
 
     base, store, *_ = server
@@ -222,7 +223,7 @@ def test_only_flow_and_researcher_reachable(server, browser):
     settle(page)
     assert page.locator("[data-testid=stSidebarNav]").count() == 0
     assert page.locator("[data-testid=stSidebar]").count() == 0
-    for path in ("consent", "pose_task", "common", "invalid", "done"):
+    for path in ("consent", "pose_task", "common", "invalid", "done", "pages/consent"):
         page.goto(f"{base}/{path}")
         heading(page, "Tiny demo")  # the study's first page, never a blank one
         settle(page)

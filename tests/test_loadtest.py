@@ -250,3 +250,35 @@ print(json.dumps([len(sections), all(out)]))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     n_sections, same = json.loads(r.stdout)
     assert n_sections > 10 and same
+
+
+def _get(url: str, accept: str):
+    """(status, Location header) of one GET that does not follow redirects."""
+    import urllib.error
+    import urllib.request
+
+    class NoRedirect(urllib.request.HTTPRedirectHandler):
+        def redirect_request(self, *args, **kwargs):
+            return None
+
+    opener = urllib.request.build_opener(NoRedirect)
+    try:
+        with opener.open(urllib.request.Request(url, headers={"Accept": accept}), timeout=10) as r:
+            return r.status, r.headers.get("Location")
+    except urllib.error.HTTPError as err:
+        return err.code, err.headers.get("Location")
+
+
+def test_deep_page_addresses_go_to_the_study_with_their_query(study):
+    """A participant's browser asking for a page two folders deep (an old or mistyped link:
+    /pages/consent) is sent to the study with the same query, instead of Streamlit's page
+    that takes /pages for the app's base path and stays blank. Streamlit's own routes and
+    non-page requests are untouched."""
+    base, *_ = study
+    html = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
+    assert _get(f"{base}/pages/consent?PROLIFIC_PID=p1&STUDY_ID=s", html) == (
+        307, "/?PROLIFIC_PID=p1&STUDY_ID=s")
+    assert _get(f"{base}/study/a/b", html) == (307, "/")
+    assert _get(f"{base}/study", html)[0] == 200  # one segment: a page, Streamlit's own
+    assert _get(f"{base}/_stcore/health", html)[0] == 200
+    assert _get(f"{base}/pages/consent", "*/*")[0] != 307  # a script's fetch: not a page
