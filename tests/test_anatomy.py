@@ -67,12 +67,6 @@ CONVENTIONS = {
                      ("Bip01_{L}_Clavicle", "Bip01_{L}_UpperArm", "Bip01_{L}_Forearm",
                       "Bip01_{L}_Hand", "Bip01_{L}_Thigh", "Bip01_{L}_Calf", "Bip01_{L}_Foot",
                       "Bip01_{L}_Toe0"), ("L", "R")),
-    # the same as 3ds Max writes it into BVH files, spaces and all
-    "3dsmax_biped_spaces": (("Bip01 Pelvis", "Bip01 Spine", "Bip01 Spine1", "Bip01 Neck",
-                             "Bip01 Head"),
-                            ("Bip01 {L} Clavicle", "Bip01 {L} UpperArm", "Bip01 {L} Forearm",
-                             "Bip01 {L} Hand", "Bip01 {L} Thigh", "Bip01 {L} Calf", "Bip01 {L} Foot",
-                             "Bip01 {L} Toe0"), ("L", "R")),
     "character_creator": (("CC_Base_Hip", "CC_Base_Waist", "CC_Base_Spine02",
                            "CC_Base_NeckTwist01", "CC_Base_Head"),
                           ("CC_Base_{L}_Clavicle", "CC_Base_{L}_Upperarm", "CC_Base_{L}_Forearm",
@@ -83,6 +77,11 @@ CONVENTIONS = {
              "J_Bip_{L}_UpperLeg", "J_Bip_{L}_LowerLeg", "J_Bip_{L}_Foot", "J_Bip_{L}_ToeBase"),
             ("L", "R")),
 }
+
+# the Biped as 3ds Max writes it into BVH files, spaces and all
+CONVENTIONS["3dsmax_biped_spaces"] = (
+    *(tuple(n.replace("_", " ") for n in names) for names in CONVENTIONS["3dsmax_biped"][:2]),
+    CONVENTIONS["3dsmax_biped"][2])
 
 
 def _renaming(convention: str) -> dict[str, str]:
