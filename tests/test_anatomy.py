@@ -32,18 +32,6 @@ SYNTH_LANDMARKS = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
 _CENTRE = ("Hips", "Spine", "Spine1", "Neck", "Head")
 _SIDED = ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot", "ToeBase")
 CONVENTIONS = {
-    # MotionBuilder / HumanIK with the character's name as a prefix
-    "motionbuilder": (("Character1_Hips", "Character1_Spine", "Character1_Spine1",
-                       "Character1_Neck", "Character1_Head"),
-                      ("Character1_{L}Shoulder", "Character1_{L}Arm", "Character1_{L}ForeArm",
-                       "Character1_{L}Hand", "Character1_{L}UpLeg", "Character1_{L}Leg",
-                       "Character1_{L}Foot", "Character1_{L}ToeBase"), ("Left", "Right")),
-    # Mixamo after a converter replaced the namespace colon
-    "mixamo_underscore": (("mixamorig_Hips", "mixamorig_Spine", "mixamorig_Spine1",
-                           "mixamorig_Neck", "mixamorig_Head"),
-                          ("mixamorig_{L}Shoulder", "mixamorig_{L}Arm", "mixamorig_{L}ForeArm",
-                           "mixamorig_{L}Hand", "mixamorig_{L}UpLeg", "mixamorig_{L}Leg",
-                           "mixamorig_{L}Foot", "mixamorig_{L}ToeBase"), ("Left", "Right")),
     "unreal": (("pelvis", "spine_01", "spine_03", "neck_01", "head"),
                ("clavicle_{L}", "upperarm_{L}", "lowerarm_{L}", "hand_{L}", "thigh_{L}",
                 "calf_{L}", "foot_{L}", "ball_{L}"), ("l", "r")),
@@ -78,6 +66,17 @@ CONVENTIONS = {
             ("L", "R")),
 }
 
+
+def _cmu_with_prefix(prefix: str):
+    """CMU/HumanIK names behind a tool's prefix."""
+    return (tuple(prefix + n for n in _CENTRE), tuple(prefix + "{L}" + n for n in _SIDED),
+            ("Left", "Right"))
+
+
+# MotionBuilder / HumanIK with the character's name as a prefix
+CONVENTIONS["motionbuilder"] = _cmu_with_prefix("Character1_")
+# Mixamo after a converter replaced the namespace colon
+CONVENTIONS["mixamo_underscore"] = _cmu_with_prefix("mixamorig_")
 # the Biped as 3ds Max writes it into BVH files, spaces and all
 CONVENTIONS["3dsmax_biped_spaces"] = (
     *(tuple(n.replace("_", " ") for n in names) for names in CONVENTIONS["3dsmax_biped"][:2]),
