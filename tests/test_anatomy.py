@@ -19,6 +19,7 @@ import pytest
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, left_right_pairs
 from snapcore.motion.bvh import format_bvh
 from snapcore.motion.load import load_scene
+from snapcore.motion.scene import Scene
 from snapcore.motion.synth import humanoid_document
 
 #: The humanoid's joints (CMU-style names) by landmark: what each convention must name.
@@ -153,3 +154,20 @@ def test_cesium_man_faces_the_way_he_walks(motions_dir):
     c = load_scene(motions_dir / "gltf" / "CesiumMan.glb").characters[0]
     f = character_facing(c.positions, c.joint_names, c.parents)
     assert np.all(f @ [0.0, 0.0, 1.0] > 0.9)
+
+
+@pytest.mark.parametrize("motion", ["jump", "kick"])
+def test_the_story_pick_does_not_depend_on_the_naming(tmp_path, motion):
+    """The story selector reads contacts from joint roles: the same motion under every
+    naming gives the same pick (and its contacts) as under CMU names."""
+    from snapcore.select.pose_methods import select_pose
+
+    def pick(ch):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sel = select_pose(Scene([ch], fps=ch.fps), method="story")
+        return sel.frame
+
+    want = pick(_renamed_clip(tmp_path, "motionbuilder", motion, seconds=None)[0])
+    got = {c: pick(_renamed_clip(tmp_path, c, motion, seconds=None)[0]) for c in sorted(CONVENTIONS)}
+    assert got == dict.fromkeys(got, want)
