@@ -161,6 +161,32 @@ def test_tpose_lead_in_is_cut_and_numbering_kept(motions_dir):
     assert load_scene(motions_dir / "walk_run/02_01.bvh").frame_offset == 0
 
 
+def _with_lead_in(doc, frames: int, rest: bool):
+    """``doc`` with ``frames`` copies of a first frame put in front: the rest pose (all
+    rotations zero, as exporters add it) or the clip's own first frame (someone standing
+    still before moving)."""
+    from dataclasses import replace
+
+    first = doc.motion[:1].copy()
+    if rest:
+        first[:, 3:] = 0.0  # root position kept, every rotation zero
+    return replace(doc, motion=np.vstack([np.repeat(first, frames, axis=0), doc.motion]))
+
+
+@pytest.mark.parametrize("held", [1, 12])
+def test_a_held_tpose_is_cut_but_stillness_is_not(tmp_path, held):
+    """Leading rest-pose frames, one or held for a while, followed by the snap into the
+    motion are cut; the same number of frames of the clip's own first pose are kept."""
+    from snapcore.motion.synth import humanoid_document
+
+    doc = humanoid_document("punch", fps=30.0)
+    write_bvh(_with_lead_in(doc, held, rest=True), tmp_path / "tpose.bvh")
+    write_bvh(_with_lead_in(doc, held, rest=False), tmp_path / "still.bvh")
+    tpose, still = load_scene(tmp_path / "tpose.bvh"), load_scene(tmp_path / "still.bvh")
+    assert tpose.frame_offset == held and tpose.n_frames == doc.n_frames
+    assert still.frame_offset == 0 and still.n_frames == doc.n_frames + held
+
+
 def _write_chain(tmp_path, name="c.bvh", frames=5):
     motion = np.zeros((frames, 12))
     motion[:, 1] = 1.0

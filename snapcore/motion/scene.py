@@ -523,10 +523,13 @@ def tpose_lead_in(positions: list[np.ndarray], fps: float) -> int:
     """Number of leading frames that are an added T-pose and the blend out of it.
 
     CMU cgspeed files start with one T-pose frame; the Daz-style conversions (soccer,
-    salsa) blend from it over three or four frames. Both move joints, relative to the
-    pelvis, faster than a person can (:data:`TPOSE_SPEED`); real motion never starts
-    that way. Frames are cut while any character's fastest root-relative joint exceeds
-    that speed, at most half a second.
+    salsa) blend from it over three or four frames; other exporters hold it for a while
+    first. All move joints, relative to the pelvis, faster than a person can
+    (:data:`TPOSE_SPEED`) out of it; real motion never starts that way. Frames are cut
+    while any character's fastest root-relative joint exceeds that speed (at most half
+    a second), after the frames that repeat the first one exactly (within 1 mm, at most
+    two seconds) when that snap follows them: a person standing still and then moving
+    at a human speed keeps every frame.
 
     Parameters
     ----------
@@ -545,8 +548,10 @@ def tpose_lead_in(positions: list[np.ndarray], fps: float) -> int:
             continue
         rel = x - x[:, :1]  # root-relative: a running root is not a glitch
         speed = np.linalg.norm(rel[1:] - rel[:-1], axis=2).max(axis=1) * fps  # (F-1,) m/s
-        limit = min(int(0.5 * fps), speed.size - 2)
-        k = 0
+        moved = np.linalg.norm(rel - rel[:1], axis=2).max(axis=1) > 1e-3  # (F,)
+        held = min(int(np.argmax(moved)) if moved.any() else 0, int(2 * fps))
+        k = held - 1 if held > 1 and speed[held - 1] > TPOSE_SPEED else 0
+        limit = min(k + int(0.5 * fps), speed.size - 2)
         while k < limit and speed[k] > TPOSE_SPEED:
             k += 1
         cut = max(cut, k)
