@@ -473,6 +473,37 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     page.context.close()
 
 
+def test_a_reload_right_after_clicks_loses_no_event(server, browser):
+    """Steps taken less than the log's batching delay before a reload are kept in the tab
+    and sent when the player is back: each stored once, and the player restored to the
+    frame they reached."""
+    base, store, *_ = server
+    pid = seeded(server)
+    page = new_page(browser)
+    page.goto(f"{base}/?pid={pid}")
+    heading(page, "Animation 1 of 2")
+    picker_ready(page)
+    settle(page)
+    start = shown_frame(page)
+    for _ in range(3):
+        page.keyboard.press("ArrowRight")
+    page.reload()  # at once: the 0.8 s batch of these steps has not gone out
+
+    def steps():
+        return [e for e in store.events(pid) if e["trial_index"] == 0 and e["kind"] == "step"]
+
+    heading(page, "Animation 1 of 2")
+    picker_ready(page)
+    deadline = time.monotonic() + 15
+    while len(steps()) < 3:
+        assert time.monotonic() < deadline, store.events(pid)
+        time.sleep(0.2)
+    until(page.locator(".snap-picker"), f"r => r.dataset.frame === '{start + 3}'", 10)
+    page.wait_for_timeout(1500)  # nothing is sent twice
+    assert len(steps()) == 3
+    page.context.close()
+
+
 # ----------------------------------------------------------------------------- items 8, 10, 11
 def test_candidates_same_size_no_methods_in_page(server, browser, artifacts):
     """At 390, 768, 1280 and 1366 px the three candidates have the same rendered size,

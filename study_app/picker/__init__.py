@@ -98,7 +98,7 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
                  start_frame: int = 0, watched: float = 0.0, require_watch: bool = False,
                  watch_min: float = 0.9, min_answer_s: float = 0.0,
                  labels: dict | None = None, height: int | None = None,
-                 on_confirm=None, args: tuple = ()):
+                 log_key: str = "", on_confirm=None, args: tuple = ()):
     """Mount the frame picker; return the confirm payload of this run, else None.
 
     Parameters
@@ -124,6 +124,10 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
         Confirm stays off this many seconds after the player appears.
     labels : dict, optional
         Overrides of :data:`DEFAULT_LABELS`.
+    log_key : str
+        Names this participant's player for this trial in the browser tab: log entries a
+        reload interrupts are kept under it and sent by the next player with the same
+        key. Empty: nothing is kept.
     on_confirm : callable, optional
         Called with ``args`` when the participant confirms, before the script run that
         follows (read the answer with :func:`confirmed`): a callback can store the
@@ -145,7 +149,7 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
             "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
             "watched": float(watched), "require_watch": bool(require_watch),
             "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
-            "labels": {**DEFAULT_LABELS, **(labels or {})}}
+            "labels": {**DEFAULT_LABELS, **(labels or {})}, "log_key": str(log_key)}
     result = picker(key=key, data=[data], on_confirm_change=_bound(on_confirm, args),
                     on_error_change=_noop, on_log_change=_noop, height=height or "content")
     if result.get("confirm") and on_confirm is None:

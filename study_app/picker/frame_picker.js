@@ -1,7 +1,7 @@
 // Frame-accurate video frame picker (Streamlit components v2, no build step).
 //
 // data: [{sources: [{src, type}], fps, n_frames, trial, start_frame, watched,
-//        require_watch, watch_min, min_answer_s, labels}]  (one-item list)
+//        require_watch, watch_min, min_answer_s, labels, log_key}]  (one-item list)
 // Triggers:
 //   "log": {trial, events}      the log of plays, pauses, seeks and steps ({kind, t:
 //                               seconds since mounted, frame, watched}), sent in small
@@ -11,6 +11,11 @@
 //                               entries not sent yet, watched the share of the
 //                               animation played (0-1);
 //   "error": {trial, message}   the browser can play none of the sources.
+//
+// A reload (or leaving the page) before a batch went out keeps its entries in the tab's
+// sessionStorage under log_key (participant and trial); the player mounted again for
+// that key sends them first and starts from the frame they reached. Nothing is kept
+// for a player whose answer was sent.
 //
 // Confirm stays off until the video is ready, has been on screen min_answer_s seconds
 // and, with require_watch, was played through once (its played ranges cover watch_min
@@ -60,6 +65,20 @@ function buildPicker(root, data) {
                   sent: false, ready: false, seeking: false, pendingSeek: null,
                   watched: Math.min(Math.max(Number(data.watched) || 0, 0), 1), logged: 0 };
   root._snap = state;
+  // Entries a reload interrupted (see the header), sent before anything new.
+  state.pendingKey = data.log_key ? `snap-pending-log:${data.log_key}` : null;
+  let pending = [];
+  if (state.pendingKey) {
+    try { pending = JSON.parse(sessionStorage.getItem(state.pendingKey) || "[]"); }
+    catch (e) { pending = []; }
+    sessionStorage.removeItem(state.pendingKey);
+  }
+  if (pending.length) {
+    const last = pending[pending.length - 1];
+    if (Number.isFinite(last.frame)) state.frame = Math.min(Math.max(last.frame, 0), n - 1);
+    state.watched = Math.max(state.watched, ...pending.map((e) => Number(e.watched) || 0));
+    setTimeout(() => root._api.setTriggerValue("log", { trial: data.trial, events: pending }), 0);
+  }
   const minAnswerMs = 1000 * (Number(data.min_answer_s) || 0);
   const watchMin = Number(data.watch_min) || 0.9;
   // Share of the animation played so far: the browser's own played ranges, so scrubbing
@@ -241,6 +260,24 @@ if (!window.__snapPickerKeys) {
   document.addEventListener("keydown", (e) => {
     const root = window.__snapPicker;
     if (root && root.isConnected && root._onKey) root._onKey(e);
+  });
+}
+
+// Leaving the page (a reload too) keeps the unsent entries of the picker on screen.
+if (!window.__snapPickerPagehide) {
+  window.__snapPickerPagehide = true;
+  window.addEventListener("pagehide", () => {
+    const root = window.__snapPicker;
+    const s = root && root.isConnected && root._snap;
+    if (!s || s.sent || !s.pendingKey) return;
+    const rest = s.events.slice(s.logged);
+    if (rest.length) sessionStorage.setItem(s.pendingKey, JSON.stringify(rest));
+  });
+  // Back from the browser's page cache the page is alive and its timer sends them.
+  window.addEventListener("pageshow", (e) => {
+    const root = window.__snapPicker;
+    const s = root && root._snap;
+    if (e.persisted && s && s.pendingKey) sessionStorage.removeItem(s.pendingKey);
   });
 }
 

@@ -68,7 +68,8 @@ def _player(pid: str, trial_index: int) -> None:
     answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
                           trial=trial.index, key=widget, start_frame=frame, watched=watched,
                           require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
-                          min_answer_s=study.min_answer_s, on_confirm=_on_confirm,
+                          min_answer_s=study.min_answer_s, log_key=f"{pid}:{trial.index}",
+                          on_confirm=_on_confirm,
                           args=(pid, trial.index, widget))
     if answer and "error" in answer:
         # This browser cannot play the video: offer the frames instead (the page's
