@@ -376,3 +376,55 @@ def test_a_frame_that_was_cut_says_why(motions_dir, tmp_path):
                                      encoding="utf-8")
     with pytest.raises(SceneError, match="manifest's frames range"):
         load_scene(tmp_path / "s.toml").internal_frame(1)
+
+
+def _two_root_file(tmp_path, *, prop: bool = False):
+    """Two people in one BVH file, one ROOT each (the second 1.5 m along +X), as some
+    two-person captures are exported; ``prop`` adds a third ROOT, a one-joint ball."""
+    import re
+
+    from snapcore.motion.bvh import format_bvh
+    from snapcore.motion.synth import humanoid_document
+
+    a = format_bvh(humanoid_document("punch", seconds=1.0))
+    b = format_bvh(humanoid_document("kick", seconds=1.0, facing_deg=180))
+    head_a, motion_a = a.split("MOTION\n")
+    head_b, motion_b = b.split("MOTION\n")
+    head_b = re.sub(r"(ROOT|JOINT) (\S+)", r"\1 B_\2", head_b.replace("HIERARCHY\n", ""))
+    rows_a, rows_b = motion_a.strip().split("\n"), motion_b.strip().split("\n")
+    rows = []
+    for ra, rb in zip(rows_a[2:], rows_b[2:]):
+        vb = rb.split()
+        vb[0] = f"{float(vb[0]) + 1.5:.6f}"
+        rows.append(" ".join([ra, *vb, *(["0.4 0.11 0.3 0 0 0"] if prop else [])]))
+    ball = ("ROOT Ball\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition "
+            "Zrotation Xrotation Yrotation\n  End Site\n  {\n    OFFSET 0 0.11 0\n  }\n}\n")
+    text = head_a + head_b + (ball if prop else "") + "MOTION\n" + "\n".join(rows_a[:2] + rows) + "\n"
+    path = tmp_path / "pair.bvh"
+    path.write_text(text)
+    return path, a
+
+
+@pytest.mark.parametrize("prop", [False, True])
+def test_one_character_per_root(tmp_path, prop):
+    """Each ROOT of a BVH file is a character of its own (named after the file and its
+    root), moving exactly as it would alone; a prop root (one joint) does not change the
+    unit inferred from the people."""
+    path, alone = _two_root_file(tmp_path, prop=prop)
+    scene = load_scene(path)
+    names = [c.name for c in scene.characters]
+    assert names == ["pair_Hips", "pair_B_Hips", *(["pair_Ball"] if prop else [])]
+    assert scene.meta["unit"] == "m"
+    (tmp_path / "alone.bvh").write_text(alone)
+    np.testing.assert_allclose(scene.characters[0].positions,
+                               load_scene(tmp_path / "alone.bvh").characters[0].positions)
+    assert scene.characters[1].positions[:, 0, 0].min() > 1.0  # the second person, 1.5 m away
+
+
+def test_both_people_of_a_two_root_file_wear_a_body(tmp_path):
+    """The human body is fitted to each person (it used to dress only the first tree)."""
+    from snapcore.render.bodies import scene_body
+
+    path, _ = _two_root_file(tmp_path)
+    body = scene_body(load_scene(path))
+    assert [type(b).__name__ for b in body.characters] == ["HumanBody", "HumanBody"]

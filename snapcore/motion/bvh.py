@@ -30,7 +30,8 @@ import numpy as np
 
 from snapcore.errors import BVHError
 
-__all__ = ["BVHDocument", "read_bvh", "parse_bvh", "write_bvh", "format_bvh", "CHANNEL_NAMES"]
+__all__ = ["BVHDocument", "read_bvh", "parse_bvh", "write_bvh", "format_bvh", "split_roots",
+           "CHANNEL_NAMES"]
 
 #: Channel names the format defines; anything else is an error.
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
@@ -407,6 +408,27 @@ def _raise_bad_row(data, rows, start, n_chan, path):
                     line=line,
                 ) from None
     raise BVHError("motion data could not be parsed as numbers", path=path, line=start + 1)
+
+
+def split_roots(doc: BVHDocument) -> list[BVHDocument]:
+    """One document per ``ROOT`` of ``doc`` (a file may hold several people, or props).
+
+    A root's joints, and their channels' columns, are contiguous: the hierarchy is
+    written depth-first. A document with one root comes back as ``[doc]``.
+    """
+    roots = np.flatnonzero(doc.parents < 0)
+    if roots.size <= 1:
+        return [doc]
+    starts = doc.channel_start()
+    counts = np.array([len(c) for c in doc.channels])
+    out = []
+    for a, b in zip(roots, [*roots[1:], len(doc.names)]):
+        cols = slice(int(starts[a]), int(starts[b - 1] + counts[b - 1]))
+        out.append(BVHDocument(
+            names=doc.names[a:b], parents=np.where(doc.parents[a:b] < 0, -1, doc.parents[a:b] - a),
+            offsets=doc.offsets[a:b], channels=doc.channels[a:b], end_site=doc.end_site[a:b],
+            frame_time=doc.frame_time, motion=doc.motion[:, cols], path=doc.path))
+    return out
 
 
 # --------------------------------------------------------------------------- writing

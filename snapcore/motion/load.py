@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.bvh import read_bvh
+from snapcore.motion.bvh import read_bvh, split_roots
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
@@ -47,6 +47,9 @@ MANIFEST_SUFFIXES = (".toml", ".json")
 #: this factor are taken for files in different units: a child and an adult differ by
 #: less than 1.8x; the shared motion files' units differ by 20x and more.
 MAX_STATURE_RATIO = 2.0
+#: A BVH root with fewer joints (end sites not counted) is a prop, not a person: the
+#: scene's unit is inferred from the people alone.
+MIN_PERSON_JOINTS = 5
 
 
 def _warn_unit_mismatch(probes, statures) -> None:
@@ -176,15 +179,19 @@ def _is_gltf(path) -> bool:
 
 
 def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animation) -> Scene:
-    entries = spec["characters"]
-    docs, paths = [], []
-    for e in entries:
+    docs, paths, entries = [], [], []
+    for e in spec["characters"]:
         path = resolve_data_path(e["file"], base)
         if not path.exists():
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
-        paths.append(path)
-        docs.append(None if _is_gltf(path) else read_bvh(path))
+        parts = [None] if _is_gltf(path) else split_roots(read_bvh(path))
+        for d in parts:
+            paths.append(path)
+            docs.append(d)
+            # one character per ROOT, named after the file (or the entry) and its root
+            entries.append(e if len(parts) == 1 else
+                           {**e, "name": f"{e.get('name') or path.stem}_{d.names[0]}"})
     # Forward kinematics once, in file units; positions scale linearly afterwards.
     bvh_fps = [d.fps for d in docs if d is not None]
     probes = []
@@ -204,8 +211,11 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     bvh_probes = [p for p, g in zip(probes, is_gltf) if not g]
     if scene_scale is None and bvh_probes and not all(
             "scale" in e for e, g in zip(entries, is_gltf) if not g):
-        statures = [stature_units(p.skeleton, p.positions) for p in bvh_probes]
-        _warn_unit_mismatch(bvh_probes, statures)
+        # props (a ball: a root with a joint or two) do not say what the unit is
+        people = [p for p in bvh_probes if np.sum(~p.skeleton.end_site) >= MIN_PERSON_JOINTS]
+        people = people or bvh_probes
+        statures = [stature_units(p.skeleton, p.positions) for p in people]
+        _warn_unit_mismatch(people, statures)
         scene_scale, how = infer_scale(statures)
         if how == "fitted":
             warnings.warn(
@@ -287,6 +297,6 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,
-        meta={"source": source or [str(p) for p in paths], "unit": how,
+        meta={"source": source or list(dict.fromkeys(str(p) for p in paths)), "unit": how,
               **({"cut": why_cut} if offset else {})},
     )
