@@ -413,9 +413,9 @@ def test_odd_prolific_ids_refused(server, browser, value):
 
 
 # ----------------------------------------------------------------------------- items 7, 13
-def test_reload_keeps_player_and_keys_work(server, browser):
-    """Keys work without clicking into the player; a reload keeps the frame and the log;
-    Space on a focused Confirm confirms."""
+def _at_first_pose_page(server, browser):
+    """(page, store, pid): a seeded participant's browser on the first pose page, its
+    player ready."""
     base, store, *_ = server
     pid = seeded(server)
     page = new_page(browser)
@@ -423,6 +423,13 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     heading(page, "Animation 1 of 2")
     picker_ready(page)
     settle(page)
+    return page, store, pid
+
+
+def test_reload_keeps_player_and_keys_work(server, browser):
+    """Keys work without clicking into the player; a reload keeps the frame and the log;
+    Space on a focused Confirm confirms."""
+    page, store, pid = _at_first_pose_page(server, browser)
     page.wait_for_timeout(500)
     picker = page.locator(".snap-picker")
     start = shown_frame(page)
@@ -477,13 +484,7 @@ def test_a_reload_right_after_clicks_loses_no_event(server, browser):
     """Steps taken less than the log's batching delay before a reload are kept in the tab
     and sent when the player is back: each stored once, and the player restored to the
     frame they reached."""
-    base, store, *_ = server
-    pid = seeded(server)
-    page = new_page(browser)
-    page.goto(f"{base}/?pid={pid}")
-    heading(page, "Animation 1 of 2")
-    picker_ready(page)
-    settle(page)
+    page, store, pid = _at_first_pose_page(server, browser)
     start = shown_frame(page)
     for _ in range(3):
         page.keyboard.press("ArrowRight")
