@@ -628,8 +628,9 @@ const deep = (sel) => deepAll(sel)[0] || null;
 
 
 def test_firefox_esr_plays_webm(server, artifacts):
-    """Firefox ESR without H.264 plays the WebM/VP9 source with the full player; the
-    participant answers a pose task and the database holds it."""
+    """Firefox ESR without H.264 plays the WebM/VP9 source with the full player; steps
+    taken just before a reload are stored once; the participant answers a pose task and
+    the database holds it."""
     need(os.path.exists(FIREFOX), f"no Firefox ESR at {FIREFOX}")
     pytest.importorskip("websockets")
     base, store, *_ = server
@@ -676,6 +677,15 @@ def test_firefox_esr_plays_webm(server, artifacts):
                              "deep('video source[type=\"video/webm\"]').src === deep('video').currentSrc; })()"), src
         body = ff.js("document.body.innerText")
         assert "Play" in body and "arrow keys" in body and "slider" not in body.lower()
+        # Two steps and a reload at once: the steps reach the database all the same
+        ff.js("(() => {" + DEEP + "deep('[data-testid=picker-forward]').click(); "
+              "deep('[data-testid=picker-forward]').click(); })()")
+        ff.send("browsingContext.reload", {"context": ff.ctx, "wait": "complete"})
+        ff.wait("(() => {" + DEEP + "const r = deep('.snap-picker'); return r && r.dataset.ready === '1'; })()")
+        deadline = time.monotonic() + 15
+        while [e["kind"] for e in store.events(pid)].count("step") < 2:
+            assert time.monotonic() < deadline, store.events(pid)
+            time.sleep(0.2)
         ff.js("(() => {" + DEEP + "deep('[data-testid=picker-play]').click(); })()")
         ff.wait("(() => {" + DEEP + "return !deep('[data-testid=picker-confirm]').disabled; })()", 40)
         shot_b64 = ff.send("browsingContext.captureScreenshot", {"context": ff.ctx})["data"]
@@ -693,4 +703,5 @@ def test_firefox_esr_plays_webm(server, artifacts):
     assert row["chosen_frame"] is not None
     sel = [e for e in store.events(pid) if e["kind"] == "select"]
     assert len(sel) == 1 and sel[0]["payload"]["watched"] >= 0.9
+    assert [e["kind"] for e in store.events(pid)].count("step") == 2  # once each
 
