@@ -428,3 +428,54 @@ def test_both_people_of_a_two_root_file_wear_a_body(tmp_path):
     path, _ = _two_root_file(tmp_path)
     body = scene_body(load_scene(path))
     assert [type(b).__name__ for b in body.characters] == ["HumanBody", "HumanBody"]
+
+
+#: Y up → Z up (x, y, z) → (x, -z, y): how a Z-up tool would have written the same take.
+_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+def _z_up_document(doc: BVHDocument, turn=_TO_Z_UP, *, lying: bool = False) -> BVHDocument:
+    """``doc`` as a tool whose world is ``turn`` · Y-up writes it: every offset turned,
+    every joint's rotation conjugated (R' = T R Tᵀ, so the pose is the same), the root
+    path turned. ``lying``: only the root turned instead (R' = T R), a Y-up file of the
+    same person lying down. Euler channels are rewritten in each joint's own order."""
+    from dataclasses import replace
+
+    out = doc.motion.copy()
+    starts = doc.channel_start()
+    for j, chans in enumerate(doc.channels):
+        rot = [c for c in chans if c.endswith("rotation")]
+        if not rot or (lying and doc.parents[j] >= 0):
+            continue
+        cols = [starts[j] + chans.index(c) for c in rot]
+        order = "".join(c[0] for c in rot)
+        r = Rotation.from_euler(order, doc.motion[:, cols], degrees=True).as_matrix()
+        r = turn @ r if lying else turn @ r @ turn.T
+        out[:, cols] = Rotation.from_matrix(r).as_euler(order, degrees=True)
+        pos = [starts[j] + chans.index(c) for c in ("Xposition", "Yposition", "Zposition") if c in chans]
+        if len(pos) == 3:
+            out[:, pos] = doc.motion[:, pos] @ turn.T
+    return replace(doc, offsets=doc.offsets if lying else doc.offsets @ turn.T, motion=out)
+
+
+def test_a_z_up_file_is_stood_up(tmp_path):
+    """A BVH written Z up (its skeleton stands along +Z at rest and in the motion) is read
+    as the same take Y up, with a warning; the same person lying along the floor in a
+    Y-up file is left lying."""
+    from snapcore.motion.synth import humanoid_document
+
+    doc = humanoid_document("walk", seconds=1.0)
+    write_bvh(doc, tmp_path / "y.bvh")
+    write_bvh(_z_up_document(doc), tmp_path / "z.bvh")
+    want = load_scene(tmp_path / "y.bvh").characters[0]
+    with pytest.warns(UserWarning, match="Z up"):
+        got = load_scene(tmp_path / "z.bvh").characters[0]
+    np.testing.assert_allclose(got.positions, want.positions, atol=1e-5)
+    # joint frames are relative to each file's own rest pose: the Z-up one's is turned
+    np.testing.assert_allclose(got.rotations @ _TO_Z_UP, want.rotations, atol=1e-5)
+    write_bvh(_z_up_document(humanoid_document("idle", seconds=1.0), lying=True),
+              tmp_path / "lying.bvh")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        c = load_scene(tmp_path / "lying.bvh").characters[0]
+    assert np.ptp(c.positions[..., 1]) < 1.0  # still lying along the floor

@@ -31,9 +31,11 @@ from snapcore.motion.gltf import (
     read_gltf,
 )
 from snapcore.motion.scene import (
+    Z_UP_TO_Y_UP,
     Scene,
     character_from_bvh,
     infer_scale,
+    stands_along_z,
     stature_units,
     tpose_lead_in,
 )
@@ -202,7 +204,12 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                                     fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
                                     name=e.get("name")))
         else:
-            probes.append(character_from_bvh(d, scale=1.0, name=e.get("name"), fps=rate))
+            c = character_from_bvh(d, scale=1.0, name=e.get("name"), fps=rate)
+            if stands_along_z(c.skeleton, c.positions):
+                warnings.warn(f"{path}: written Z up (its skeleton stands along +Z, at rest and "
+                              "in the motion); read turned to Y up", stacklevel=3)
+                c = c.transformed(rotation=Z_UP_TO_Y_UP)
+            probes.append(c)
     is_gltf = [d is None for d in docs]
     # One scale for the scene unless given per character: people captured together
     # must keep their distances. glTF is in metres (its own rule, gltf_unit).

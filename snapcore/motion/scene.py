@@ -33,12 +33,13 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REFERENCE_STATURE_M
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
 from snapcore.motion.bvh import BVHDocument
 from snapcore.motion.kinematics import (
     channel_layout,
     forward_kinematics,
     local_transforms,
+    matrix_to_quat,
     quat_mul,
     quat_to_matrix,
 )
@@ -50,6 +51,8 @@ __all__ = [
     "character_from_bvh",
     "infer_scale",
     "stature_units",
+    "stands_along_z",
+    "Z_UP_TO_Y_UP",
     "yaw_matrix",
     "KNOWN_UNITS",
     "TPOSE_SPEED",
@@ -186,9 +189,11 @@ class Character:
         """Estimated standing height (stature) in metres; see :func:`stature_units`."""
         return stature_units(self.skeleton, self.positions)
 
-    def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)) -> Character:
-        """A copy rotated about +Y by ``yaw_deg`` then translated by ``offset`` (metres)."""
-        r = yaw_matrix(yaw_deg)
+    def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0),
+                    rotation: np.ndarray | None = None) -> Character:
+        """A copy rotated about +Y by ``yaw_deg`` (or by the 3×3 ``rotation``) then
+        translated by ``offset`` (metres)."""
+        r = yaw_matrix(yaw_deg) if rotation is None else np.asarray(rotation, dtype=float)
         off = np.asarray(offset, dtype=float)
         return Character(
             name=self.name,
@@ -202,7 +207,8 @@ class Character:
             meta=dict(self.meta),
             local_quaternions=(None if self.local_quaternions is None else
                                _rotate_root_quaternions(self.local_quaternions, self.parents,
-                                                        yaw_deg)),
+                                                        _yaw_quaternion(yaw_deg) if rotation is None
+                                                        else matrix_to_quat(r))),
         )
 
     def rescaled(self, scale: float) -> Character:
@@ -246,12 +252,17 @@ def _rotate_roots(local_rot, parents, r):
     return out
 
 
-def _rotate_root_quaternions(local_q, parents, yaw_deg: float):
-    """:func:`_rotate_roots` on quaternions: roots turned by ``yaw_deg`` about +Y."""
+def _yaw_quaternion(yaw_deg: float) -> np.ndarray:
+    """The unit quaternion ``(w, x, y, z)`` of a turn by ``yaw_deg`` about +Y."""
     half = np.radians(yaw_deg) / 2.0
+    return np.array([np.cos(half), 0.0, np.sin(half), 0.0])
+
+
+def _rotate_root_quaternions(local_q, parents, q):
+    """:func:`_rotate_roots` on quaternions: roots turned by the unit quaternion ``q``."""
     out = local_q.copy()
     roots = np.flatnonzero(np.asarray(parents) < 0)
-    out[:, roots] = quat_mul(np.array([np.cos(half), 0.0, np.sin(half), 0.0]), local_q[:, roots])
+    out[:, roots] = quat_mul(np.asarray(q, dtype=float), local_q[:, roots])
     return out
 
 
@@ -491,6 +502,42 @@ def stature_units(skeleton: Skeleton, positions: np.ndarray) -> float:
             return float(np.mean(legs) / LEG_FRACTION)
     median_frame = positions[positions.shape[0] // 2]
     return float(np.ptp(median_frame[:, 1]))
+
+
+#: Z up → Y up, ``(x, y, z) → (x, z, -y)``: a Z-up tool's forward (-Y) becomes +Z.
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def stands_along_z(skeleton: Skeleton, positions: np.ndarray) -> bool:
+    """Whether a skeleton was written Z up (BVH is Y up by convention; a few tools write Z).
+
+    Both must hold: its rest pose stands along +Z (pelvis → head within 37° of +Z, hip →
+    ankle within 37° of -Z), and so does its motion (the median pelvis → head direction
+    has z > 0.5, more than 30° above the horizon). The rest pose is what tells a
+    Z-up file from a Y-up take of someone lying down: exporters write it standing in
+    their own up axis. A skeleton without named pelvis, head and left leg is left as it is.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    positions : ndarray of shape (F, J, 3)
+        World joint positions in the file's axes.
+    """
+    lm = body_landmarks(skeleton.names, skeleton.parents)
+    if any(lm[k] is None for k in ("pelvis", "head", "hip_L", "ankle_L")):
+        return False
+    rest = np.zeros((len(skeleton.names), 3))
+    for j, p in enumerate(skeleton.parents):
+        rest[j] = skeleton.offsets[j] + (rest[p] if p >= 0 else 0.0)
+
+    def unit(v):
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        return v / np.where(n > 0, n, 1.0)
+
+    up = unit(rest[lm["head"]] - rest[lm["pelvis"]])
+    leg = unit(rest[lm["ankle_L"]] - rest[lm["hip_L"]])
+    moving = unit(np.median(unit(positions[:, lm["head"]] - positions[:, lm["pelvis"]]), axis=0))
+    return bool(up[2] > 0.8 and leg[2] < -0.8 and moving[2] > 0.5)
 
 
 def infer_scale(statures_units) -> tuple[float, str]:
