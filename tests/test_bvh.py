@@ -101,6 +101,18 @@ def test_joint_names_may_contain_spaces():
     assert doc.motion.shape == (3, 12)
 
 
+def test_keywords_in_any_case():
+    """Keywords and channel names written in another case (``joint``, ``End site``,
+    ``XROTATION``, ``Frame time:``) read as the same document; joint names keep theirs."""
+    text = (GOOD.replace("JOINT", "Joint").replace("OFFSET", "offset").replace("CHANNELS", "Channels")
+            .replace("End Site", "end site").replace("Xrotation", "XROTATION")
+            .replace("MOTION", "Motion").replace("Frame Time:", "Frame time:")
+            .replace("ROOT Hips", "root Hips"))
+    a, b = parse_bvh(GOOD), parse_bvh(text)
+    assert b.names == a.names and b.channels == a.channels
+    assert np.array_equal(b.motion, a.motion) and b.frame_time == a.frame_time
+
+
 def test_end_sites_are_joints():
     """End sites become channel-less joints named after their parent."""
     doc = parse_bvh(GOOD)

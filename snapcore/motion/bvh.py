@@ -35,6 +35,8 @@ __all__ = ["BVHDocument", "read_bvh", "parse_bvh", "write_bvh", "format_bvh", "s
 
 #: Channel names the format defines; anything else is an error.
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+#: Channel names in any case → as the format writes them.
+_CHANNEL_CASE = {c.lower(): c for c in CHANNEL_NAMES}
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,8 +166,9 @@ class _Tokens:
         return tok
 
     def expect(self, word: str) -> int:
+        """Consume the keyword ``word`` (in any case: some exporters write ``joint``)."""
         tok, line = self.next(f"'{word}'")
-        if tok != word:
+        if tok.lower() != word.lower():
             raise BVHError(f"expected '{word}', found '{tok}'", path=self.path, line=line)
         return line
 
@@ -195,7 +198,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
 
     def joint(parent: int) -> None:
         name, line = tk.next("a joint name")
-        if name in ("{", "}", "OFFSET", "CHANNELS"):
+        if name in ("{", "}") or name.upper() in ("OFFSET", "CHANNELS"):
             raise BVHError(f"expected a joint name, found '{name}'", path=path, line=line)
         while tk.peek() not in (None, "{") and tk.line() == line:
             name += " " + tk.next("")[0]  # 3ds Max: "JOINT Bip01 L Thigh"
@@ -230,6 +233,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
         chans = []
         for _ in range(n):
             c, c_line = tk.next(f"{n} channel names for joint '{name}'")
+            c = _CHANNEL_CASE.get(c.lower(), c)  # XROTATION, xrotation
             if c not in CHANNEL_NAMES:
                 hint = " (the CHANNELS count may be too large)" if c in ("JOINT", "End", "}") else ""
                 raise BVHError(
@@ -247,9 +251,9 @@ def _parse_hierarchy(lines: list[str], path: str | None):
             tok, line = tk.next(f"'JOINT', 'End Site' or '}}' closing joint '{name}'")
             if tok == "}":
                 return
-            if tok == "JOINT":
+            if tok.upper() == "JOINT":
                 joint(index)
-            elif tok == "End":
+            elif tok.lower() == "end":
                 tk.expect("Site")
                 tk.expect("{")
                 tk.expect("OFFSET")
@@ -262,7 +266,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
                 offsets.append(off)
                 channels.append(())
                 end_site.append(True)
-            elif tok in CHANNEL_NAMES or tok == "CHANNELS":
+            elif tok.lower() in _CHANNEL_CASE or tok.upper() == "CHANNELS":
                 raise BVHError(
                     f"extra channel '{tok}' in joint '{name}': the CHANNELS count is too small",
                     path=path,
@@ -276,10 +280,10 @@ def _parse_hierarchy(lines: list[str], path: str | None):
                 )
 
     tok, line = tk.next("'ROOT'")
-    if tok != "ROOT":
+    if tok.upper() != "ROOT":
         raise BVHError(f"expected 'ROOT', found '{tok}'", path=path, line=line)
     joint(-1)
-    while tk.peek() == "ROOT":
+    while (tk.peek() or "").upper() == "ROOT":
         tk.next("'ROOT'")
         joint(-1)
     if tk.peek() is not None:
@@ -295,7 +299,7 @@ def _header_value(lines, i, key, path) -> tuple[str, int]:
     if i >= len(lines):
         raise BVHError(f"unexpected end of file: expected '{key}'", path=path, line=len(lines))
     line = lines[i].strip()
-    if not line.startswith(key):
+    if not line.lower().startswith(key.lower()):  # "Frame time:" too
         raise BVHError(f"expected '{key}', found '{line[:40]}'", path=path, line=i + 1)
     return line[len(key) :].strip(), i
 
@@ -313,7 +317,7 @@ def _header_number(lines, start: int, label: str, cast, what: str, path):
 def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
     """Parse BVH text. See :func:`read_bvh`; ``path`` is only used in messages."""
     lines = text.removeprefix("\ufeff").splitlines()  # a UTF-8 byte order mark (Windows tools)
-    m = next((i for i, line in enumerate(lines) if line.strip() == "MOTION"), None)
+    m = next((i for i, line in enumerate(lines) if line.strip().upper() == "MOTION"), None)
     if m is None:
         # Parse the hierarchy first so a truncated one is reported as such.
         _parse_hierarchy(lines, path)
