@@ -43,14 +43,12 @@ from sqlalchemy import exc as sa_exc
 
 from .database import (
     STUDY_TABLES,
-    copy_sqlite_online,
     copy_tables,
-    create_study_tables,
+    metadata,
     move_sequences,
     normalize_url,
     one_line,
     one_snapshot,
-    sqlite_file_engine,
     table_counts,
     table_names,
 )
@@ -101,12 +99,12 @@ def find_pg_tool(name: str) -> Path | None:
     return Path(found) if found else None
 
 
-def _engine(url) -> sa.engine.Engine:
+def _store(url):
     from .store import Store
 
     # Store opens with the project's settings (SQLite pragmas, timeouts) and turns a
     # bad URL into one line; the tables are created only where create=True.
-    return Store(url, create=False).engine
+    return Store(url, create=False)
 
 
 def _tmp_beside(path: Path) -> Path:
@@ -148,11 +146,12 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
     path = _check_output(output, force)
     parsed = normalize_url(url)
     dialect = parsed.get_backend_name()
-    engine = _engine(url)
+    store = _store(url)
+    engine = store.engine
     tmp = _tmp_beside(path)
     try:
         if dialect == "sqlite" and method in ("auto", "native"):
-            result = _sqlite_backup(parsed, tmp)
+            result = _sqlite_backup(store, tmp)
         elif dialect == "postgresql" and method in ("auto", "native"):
             tool = find_pg_tool("pg_dump")
             result = None
@@ -172,15 +171,14 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
         tmp.unlink(missing_ok=True)
         raise
     finally:
-        engine.dispose()
+        store.close()
     result.path = path
     return result
 
 
-def _sqlite_backup(parsed, tmp: Path) -> BackupResult:
-    source = parsed.database
-    copy_sqlite_online(source, tmp)
-    eng = sqlite_file_engine(tmp)
+def _sqlite_backup(store, tmp: Path) -> BackupResult:
+    store.copy_sqlite(tmp)
+    eng = sa.create_engine(f"sqlite:///{tmp}")
     try:
         rows = table_counts(eng)
     finally:
@@ -223,9 +221,9 @@ def _pg_dump(tool: Path, parsed, tmp: Path, *, fallback: bool) -> BackupResult |
 
 
 def _logical_backup(engine, tmp: Path) -> BackupResult:
-    dst = sqlite_file_engine(tmp)
+    dst = sa.create_engine(f"sqlite:///{tmp}")
     try:
-        create_study_tables(dst)
+        metadata.create_all(dst)
         src_conn = engine.connect()
         try:
             src_conn = one_snapshot(src_conn)
@@ -317,7 +315,7 @@ def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
 
 
 def _logical_restore(path: Path, store) -> BackupResult:
-    src = sqlite_file_engine(path)
+    src = sa.create_engine(f"sqlite:///{path}")
     try:
         with src.connect() as src_conn:
             names = table_names(src_conn)

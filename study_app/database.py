@@ -20,8 +20,7 @@ from sqlalchemy import exc as sa_exc
 
 from .export import StoreError
 
-__all__ = ["one_line", "standalone_sqlite", "sqlite_file_engine", "copy_sqlite_online",
-           "create_study_tables", "move_sequences", "table_counts", "one_snapshot",
+__all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
            "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
@@ -183,39 +182,6 @@ def standalone_sqlite(dbapi_conn) -> None:
     """Make a SQLite file a standalone copy: a rollback journal, no WAL beside it (the
     app's databases run in WAL mode, see :func:`configure_sqlite`)."""
     dbapi_conn.execute("PRAGMA journal_mode = DELETE")
-
-
-def sqlite_file_engine(path) -> sa.engine.Engine:
-    """A plain engine on a SQLite file (a backup being written or read)."""
-    return sa.create_engine(f"sqlite:///{path}")
-
-
-def copy_sqlite_online(source, dest) -> None:
-    """Copy the SQLite database ``source`` into the new file ``dest`` with SQLite's
-    online backup, while the app may write, and make the copy standalone.
-
-    Raises :class:`StoreError` (one line naming ``source``).
-    """
-    import sqlite3
-
-    try:
-        src = sqlite3.connect(source, timeout=30)
-        dst = sqlite3.connect(dest)
-        try:
-            # pages=-1: every page in one step, i.e. one read snapshot of the database
-            # (a multi-step copy would restart whenever the app writes in between).
-            src.backup(dst, pages=-1)
-            standalone_sqlite(dst)
-        finally:
-            dst.close()
-            src.close()
-    except sqlite3.Error as err:
-        raise StoreError(f"cannot back up {source}: {err}") from None
-
-
-def create_study_tables(engine) -> None:
-    """Create every table of :data:`metadata` that ``engine``'s database lacks."""
-    metadata.create_all(engine)
 
 
 def move_sequences(conn) -> None:

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import re
 import secrets
+import sqlite3
 import threading
 import warnings
 from contextlib import contextmanager, nullcontext
@@ -68,7 +69,6 @@ from .database import (
     PROLIFIC_INDEX,
     STUDY_TABLES,
     configure_sqlite,
-    create_study_tables,
     default_url,
     events,
     mask_url,
@@ -77,6 +77,7 @@ from .database import (
     one_line,
     participants,
     responses,
+    standalone_sqlite,
 )
 from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
 from .group_commit import GroupCommit
@@ -244,11 +245,11 @@ class Store:
 
     def _create_tables(self) -> None:
         try:
-            create_study_tables(self.engine)
+            metadata.create_all(self.engine, checkfirst=True)
         except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
             # Two processes creating the same tables at once (PostgreSQL): the loser
             # retries and now finds them.
-            create_study_tables(self.engine)
+            metadata.create_all(self.engine, checkfirst=True)
 
     def _create_indexes(self) -> None:
         """Add indexes a database made by an older version lacks (never drops anything)."""
@@ -264,6 +265,22 @@ class Store:
     def close(self) -> None:
         """Release every pooled connection."""
         self.engine.dispose()
+
+    def copy_sqlite(self, dest) -> None:
+        """Copy this SQLite database into the new file ``dest`` with SQLite's online
+        backup while the app may write, and make the copy standalone (a backup)."""
+        try:
+            src = sqlite3.connect(self.engine.url.database, timeout=30)
+            dst = sqlite3.connect(dest)
+            try:
+                # pages=-1: one step, one read snapshot (more steps restart on every write)
+                src.backup(dst, pages=-1)
+                standalone_sqlite(dst)
+            finally:
+                dst.close()
+                src.close()
+        except sqlite3.Error as err:
+            raise StoreError(f"cannot back up {self.engine.url.database}: {err}") from None
 
     def __enter__(self) -> Store:
         return self
