@@ -15,6 +15,7 @@ __all__ = [
     "local_transforms",
     "forward_kinematics",
     "joint_depths",
+    "rest_positions",
     "euler_to_matrix",
     "euler_to_quat",
     "quat_mul",
@@ -231,6 +232,15 @@ def forward_kinematics(parents, quat_local, trans_local):
         quat[:, idx] = quat_mul(qp, quat_local[:, idx])
         pos[:, idx] = pos[:, parents[idx]] + quat_rotate(qp, trans_local[:, idx])
     return pos, quat
+
+
+def rest_positions(parents, offsets) -> np.ndarray:
+    """Joint positions of a skeleton in its rest pose (identity rotations), (J, 3)."""
+    parents = np.asarray(parents)
+    out = np.zeros((len(parents), 3))
+    for j, p in enumerate(parents):
+        out[j] = offsets[j] + (out[p] if p >= 0 else 0.0)
+    return out
 
 
 def joint_depths(parents) -> np.ndarray:

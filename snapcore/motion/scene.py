@@ -42,6 +42,7 @@ from snapcore.motion.kinematics import (
     matrix_to_quat,
     quat_mul,
     quat_to_matrix,
+    rest_positions,
 )
 
 __all__ = [
@@ -526,9 +527,7 @@ def stands_along_z(skeleton: Skeleton, positions: np.ndarray) -> bool:
     lm = body_landmarks(skeleton.names, skeleton.parents)
     if any(lm[k] is None for k in ("pelvis", "head", "hip_L", "ankle_L")):
         return False
-    rest = np.zeros((len(skeleton.names), 3))
-    for j, p in enumerate(skeleton.parents):
-        rest[j] = skeleton.offsets[j] + (rest[p] if p >= 0 else 0.0)
+    rest = rest_positions(skeleton.parents, skeleton.offsets)
 
     def unit(v):
         n = np.linalg.norm(v, axis=-1, keepdims=True)

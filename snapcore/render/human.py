@@ -41,12 +41,12 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
-from snapcore.motion.kinematics import quat_to_matrix
+from snapcore.motion.kinematics import quat_to_matrix, rest_positions
 from snapcore.motion.skinning import blend_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.skinned import FrameBlocks
 
-__all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices", "rest_positions",
+__all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices",
            "motion_offsets", "LANDMARK_BONES", "landmark_weights",
            "LEFT_LIGHTEN", "RIGHT_DARKEN"]
 
@@ -89,15 +89,6 @@ class RetargetError(SceneError):
         names = ", ".join(self.unmapped) if self.unmapped else "none"
         super().__init__(f"character '{character}': no joint for {', '.join(self.missing)} "
                          f"(joints with no known role: {names})")
-
-
-def rest_positions(parents, offsets) -> np.ndarray:
-    """Joint positions of a skeleton in its rest pose (identity rotations), (J, 3)."""
-    parents = np.asarray(parents)
-    out = np.zeros((len(parents), 3))
-    for j, p in enumerate(parents):
-        out[j] = offsets[j] + (out[p] if p >= 0 else 0.0)
-    return out
 
 
 def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
