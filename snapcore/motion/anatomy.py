@@ -170,8 +170,10 @@ def joint_roles(names, parents) -> list[str]:
     """
     parents = np.asarray(parents)
     roles: list[str] = []
+    sides: list[str] = []
     for j, name in enumerate(names):
         side, base = _split_side(name)
+        sides.append(side)
         base = re.sub(r"[_ .:-]", "", base)  # upper_arm, Bip01 Spine1, CC_Base_Thigh
         role = DEFAULT_ROLE
         for r, pat in _ROLE_PATTERNS:
@@ -194,7 +196,6 @@ def joint_roles(names, parents) -> list[str]:
                 roles[j] = "pelvis"
     if "pelvis" not in roles:
         # No pelvis by name (Kinect's SpineBase): it is where the two legs meet.
-        sides = joint_sides(names)
         meet = _meeting_joint(parents, *(
             [j for j, (r, s) in enumerate(zip(roles, sides)) if r == "thigh" and s == side]
             for side in "LR"))

@@ -514,13 +514,15 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
 def _unique_names(names: list[str]) -> tuple[str, ...]:
     """Node names made unique (glTF does not require it; joints are looked up by name):
     a repeated name gets ``_2``, ``_3``... in node order."""
-    seen: dict[str, int] = {}
+    taken: set[str] = set()
     out = []
     for n in names:
-        seen[n] = seen.get(n, 0) + 1
-        out.append(n if seen[n] == 1 else f"{n}_{seen[n]}")
-    while len(set(out)) < len(out):  # a suffixed name that was already taken
-        out = [n if out.index(n) == i else f"{n}_" for i, n in enumerate(out)]
+        name, k = n, 1
+        while name in taken:  # also past a suffixed name some node already has
+            k += 1
+            name = f"{n}_{k}"
+        taken.add(name)
+        out.append(name)
     return tuple(out)
 
 
