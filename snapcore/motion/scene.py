@@ -592,12 +592,14 @@ def tpose_lead_in(positions: list[np.ndarray], fps: float) -> int:
     for x in positions:
         if x.shape[0] < 4:
             continue
-        rel = x - x[:, :1]  # root-relative: a running root is not a glitch
-        speed = np.linalg.norm(rel[1:] - rel[:-1], axis=2).max(axis=1) * fps  # (F-1,) m/s
-        moved = np.linalg.norm(rel - rel[:1], axis=2).max(axis=1) > 1e-3  # (F,)
-        held = min(int(np.argmax(moved)) if moved.any() else 0, int(2 * fps))
+        # Only the first 2.5 s can be cut: the rest of a long clip is not looked at.
+        head = x[:int(2 * fps) + int(0.5 * fps) + 2]
+        rel = head - head[:, :1]  # root-relative: a running root is not a glitch
+        speed = np.linalg.norm(rel[1:] - rel[:-1], axis=2).max(axis=1) * fps  # (W-1,) m/s
+        moved = np.linalg.norm(rel - rel[:1], axis=2).max(axis=1) > 1e-3  # (W,)
+        held = min(int(np.argmax(moved)) if moved.any() else len(head) - 1, int(2 * fps))
         k = held - 1 if held > 1 and speed[held - 1] > TPOSE_SPEED else 0
-        limit = min(k + int(0.5 * fps), speed.size - 2)
+        limit = min(k + int(0.5 * fps), x.shape[0] - 3)
         while k < limit and speed[k] > TPOSE_SPEED:
             k += 1
         cut = max(cut, k)
