@@ -1,133 +1,67 @@
-"""``snapshot study``: serve the user-study app (Streamlit) for one stimuli folder."""
+"""``snapshot serve``: the study on N Streamlit replicas behind nginx, on one PostgreSQL."""
 
 from __future__ import annotations
 
-import os
-import sys
-import warnings
 from pathlib import Path
 
 import click
 
-__all__ = ["study", "DEMO_CONFIG", "PAPER_CONFIG", "default_stimuli_dir", "streamlit_command"]
+__all__ = ["serve"]
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
-#: The embedded demo: synthetic scenes from snapcore.motion.synth, no data needed.
-DEMO_CONFIG = CONFIGS / "demo.toml"
-#: The paper's six analogues on the real motions (SNAPSHOT_DATA).
-PAPER_CONFIG = CONFIGS / "paper.toml"
-APP = Path(__file__).resolve().parents[1] / "app.py"
 REPO = Path(__file__).resolve().parents[2]
 
 
-def default_stimuli_dir(study_id: str) -> Path:
-    """Where a study's stimuli live unless told otherwise: ``<repo>/var/stimuli/<id>``."""
-    return REPO / "var" / "stimuli" / study_id
-
-
-def streamlit_command(*, port: int, address: str) -> list[str]:
-    """The ``streamlit run`` command line for the app (headless, no telemetry, no watcher),
-    through :mod:`study_app.server`, which warms the app's imports while Streamlit starts.
-
-    ``runner.postScriptGC`` is off: Streamlit otherwise runs a full ``gc.collect(2)``
-    after every script run, which took two thirds of the server's CPU in the load test
-    (tens of ms per interaction with this app's heap); Python's own generational
-    collector still runs.
-
-    ``runner.fastReruns`` is off: with it, a rerun request during a run (a double click's
-    second send) starts a new script thread at once while the old one finishes, so the
-    second run could resume the participant before the first one's answer was stored and
-    draw the answered step again. Off, a session's runs follow one another: a rerun
-    stops the current run at its next Streamlit call and starts after it.
-    """
-    return [sys.executable, "-m", "study_app.server", "run", str(APP),
-            "--server.headless", "true",
-            "--server.address", address,
-            "--server.port", str(port),
-            "--browser.gatherUsageStats", "false",
-            "--server.fileWatcherType", "none",
-            "--server.runOnSave", "false",
-            "--runner.postScriptGC", "false",
-            "--runner.fastReruns", "false",
-            "--theme.base", "light",
-            "--client.toolbarMode", "minimal"]
-
-
 @click.command()
+@click.option("--replicas", "n", type=click.IntRange(1, 32), default=2, show_default=True,
+              help="Streamlit processes (each uses about one core under load).")
 @click.option("--config", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Study config (TOML/JSON). Default: the embedded demo "
-                   "(study_app/configs/demo.toml), or the study of --stimuli.")
+              help="Study config (default: the embedded demo).")
 @click.option("--stimuli", "stimuli_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="Stimuli folder. Default: var/stimuli/<study id>.")
 @click.option("--db", default=None,
-              help="Database URL (SQLAlchemy), e.g. postgresql+psycopg://user@host/db. "
-                   "Default: $SNAPSHOT_DB, else SQLite at var/study.db.")
-@click.option("--port", type=click.IntRange(1, 65535), default=8501, show_default=True)
-@click.option("--address", default="127.0.0.1", show_default=True,
-              help="Interface to listen on (0.0.0.0 to serve other machines).")
-@click.option("--build/--no-build", "build", default=None,
-              help="Build missing stimuli first (default: only for the demo, which takes "
-                   "a minute; other studies: run `snapshot stimuli build`).")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar while building.")
-def study(config, stimuli_dir, db, port, address, build, quiet):
-    """Serve the user-study app in the browser (Streamlit).
+              help="Database URL for all replicas. Default: a PostgreSQL of the set's own "
+                   "under <run-dir>/pg (initdb once, data kept between runs).")
+@click.option("--port", type=click.IntRange(1024, 65535), default=8600, show_default=True,
+              help="nginx's port: the participants' address.")
+@click.option("--run-dir", type=click.Path(file_okay=False, path_type=Path),
+              default=REPO / "var" / "replicas", show_default=True,
+              help="Folder of the set: nginx.conf, logs, pid files, timings, the database.")
+def serve(n, config, stimuli_dir, db, port, run_dir):
+    """Serve the study on several processes: N Streamlit replicas behind nginx, all on
+    one PostgreSQL database, so a Prolific launch is not limited to one process.
 
-    Checks everything before serving: the stimuli folder is verified file by file
-    against its manifest (a missing or altered file stops here with its name) and the
-    database must answer. With no options it serves the demo study on
-    http://127.0.0.1:8501, building its stimuli into var/stimuli/demo the first time.
+    nginx pins each browser to a replica with a cookie (participants sharing an IP are
+    spread), upgrades the websocket, caches the stimuli, and moves the participants of
+    a replica that dies to another one, which resumes them from the pid in their URL.
+    Everything runs as the current user with files under --run-dir; Ctrl-C stops it
+    all. The stimuli are checked like `snapshot study` does.
 
-    Participants open the printed address; with Prolific, append
+    Example (the demo, two replicas, http://127.0.0.1:8600/):
 
     \b
-      ?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}
-
-    The researcher page is at /researcher and opens with the token in
-    $SNAPSHOT_ADMIN_TOKEN (without it the page stays empty).
+      snapshot serve --replicas 2 --port 8600
+      snapshot loadtest --url http://127.0.0.1:8600 -n 200 --timings var/replicas/timings.jsonl
     """
+    from study_app.commands.serve import DEMO_CONFIG, default_stimuli_dir
     from study_app.protocol import load_study
-    from study_app.stimuli import StimuliError, build_stimuli, load_stimuli
-    from study_app.store import Store
+    from study_app.replicas import ReplicaSet, main_loop
+    from study_app.stimuli import StimuliError, load_stimuli
 
-    if config is None and stimuli_dir is not None:
-        study_cfg = None  # serve the folder as built; its manifest carries the study
-    else:
-        config = config or DEMO_CONFIG
-        study_cfg = load_study(config)
-    folder = stimuli_dir or default_stimuli_dir(study_cfg.id)
-    if not (folder / "manifest.json").exists():
-        is_demo = config is not None and Path(config).resolve() == DEMO_CONFIG.resolve()
-        if not (build if build is not None else is_demo) or study_cfg is None:
-            raise StimuliError(
-                f"no stimuli at {folder}: build them with `snapshot stimuli build "
-                f"{config or 'STUDY.toml'} -o {folder}` (or pass --build)")
-        click.echo(f"building the stimuli of '{study_cfg.id}' into {folder} (once)...", err=True)
-        build_stimuli(study_cfg, folder, force=True, quiet=quiet)
-    stim = load_stimuli(folder)
-    if study_cfg is not None and stim.study.id != study_cfg.id:
-        raise StimuliError(f"{folder} holds the stimuli of study '{stim.study.id}', "
-                           f"not '{study_cfg.id}' ({config})")
-    if study_cfg is not None and stim.manifest["study"] != study_cfg.to_dict():
-        warnings.warn(f"{folder} was built from another version of {config}; serving it as "
-                      f"built (rebuild: snapshot stimuli build {config} -o {folder} --force)",
-                      stacklevel=1)
-    store = Store(db)
-    url = store.url
-    store.close()
-    env = dict(os.environ)
-    env["SNAPSHOT_STIMULI"] = str(folder.resolve())
-    if db:
-        env["SNAPSHOT_DB"] = db
-    env.setdefault("PYOPENGL_PLATFORM", "egl")
-    host = "localhost" if address in ("127.0.0.1", "0.0.0.0") else address
-    click.echo(f"study '{stim.study.id}': {len(stim.scenes)} scenes, stimuli {folder} "
-               f"(verified, manifest {stim.sha256[:12]}), database {url}", err=True)
-    click.echo(f"participants: http://{host}:{port}/   researcher: http://{host}:{port}/researcher"
-               + ("" if env.get("SNAPSHOT_ADMIN_TOKEN") else " (set SNAPSHOT_ADMIN_TOKEN to open it)"),
-               err=True)
-    cmd = streamlit_command(port=port, address=address)
-    sys.stdout.flush()
-    sys.stderr.flush()
-    # Replace this process: Ctrl-C and signals reach Streamlit directly, and the pid a
-    # caller started is the server's.
-    os.execve(cmd[0], cmd, env)
+    if stimuli_dir is None:
+        study_cfg = load_study(config or DEMO_CONFIG)
+        stimuli_dir = default_stimuli_dir(study_cfg.id)
+    if not (stimuli_dir / "manifest.json").exists():
+        raise StimuliError(f"no stimuli at {stimuli_dir}: build them with `snapshot stimuli "
+                           f"build` (or run `snapshot study` once for the demo)")
+    stim = load_stimuli(stimuli_dir)  # verified file by file before anyone is served
+    if db is not None:
+        from study_app.store import Store
+
+        Store(db).close()  # a wrong URL stops here, in one line, before any process starts
+    rs = ReplicaSet(root=run_dir, n=n, port=port, stimuli=stimuli_dir.resolve(), db_url=db)
+    rs.start()
+    click.echo(f"study '{stim.study.id}' on {n} replica(s) "
+               f"({', '.join(str(p) for p in rs.replica_ports)}) behind nginx; database "
+               f"{rs.db_url.split('@')[-1]}", err=True)
+    click.echo(f"participants: {rs.url}   state: {run_dir / 'state.json'}", err=True)
+    main_loop(rs)
