@@ -9,10 +9,10 @@ everything as CSV/Markdown/LaTeX tables, figures and an HTML report
 when a figure is drawn.
 
 Direction: analysis reads the study's data through the study logic — the store
-(:mod:`study_app.store`), export files (:mod:`study_app.export`, the one codec of
+(:mod:`study_app.data.store`), export files (:mod:`study_app.data.export`, the one codec of
 export rows), the stimulus manifest and the scene record
-(:class:`study_app.scenes.StudyScene`) — and never imports the study's UI; the
-researcher screen (:mod:`study_app.screens.researcher`) imports analysis to show its
+(:class:`study_app.design.scenes.StudyScene`) — and never imports the study's UI; the
+researcher screen (:mod:`study_app.web.screens.researcher`) imports analysis to show its
 results. ``tests/test_architecture.py`` holds the layer table that enforces this.
 """
 

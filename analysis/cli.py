@@ -132,7 +132,7 @@ def _store_url(db):
     if db is not None:
         return db
     try:
-        from study_app.store import default_url
+        from study_app.data.store import default_url
     except ImportError as err:
         raise AnalysisError(f"no --db or --input given and the study store is unavailable ({err})") from err
     return default_url()
@@ -199,7 +199,7 @@ def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study
         study_id = study_id or "paper-simulated"
         digest = sim.design_sha256(design, model)
     try:
-        from study_app.store import Store
+        from study_app.data.store import Store
     except ImportError as err:
         raise AnalysisError(f"the study store is unavailable ({err})") from err
     people = sim.simulate_participants(design, n, seed=seed, model=model, attention=attention)

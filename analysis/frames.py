@@ -39,7 +39,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from study_app.scenes import StudyScene
+from study_app.design.scenes import StudyScene
 
 from .load import ordered_scenes
 from .votes import holm_adjust, wilson_interval
@@ -82,14 +82,14 @@ def _mode(values, name, scene):
 
 def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
                            order=None) -> dict:
-    """Per-scene :class:`~study_app.scenes.StudyScene` from pose-task rows (fps, n_frames, algorithm_frame).
+    """Per-scene :class:`~study_app.design.scenes.StudyScene` from pose-task rows (fps, n_frames, algorithm_frame).
 
     Parameters
     ----------
     pose : DataFrame
         Pose-task rows (:func:`analysis.load.pose_choices`).
     extra : dict, optional
-        scene → dict of further :class:`~study_app.scenes.StudyScene` fields (``frame_offset``,
+        scene → dict of further :class:`~study_app.design.scenes.StudyScene` fields (``frame_offset``,
         ``algorithm_frames``, ``baseline_frames``, ``title``), e.g. from the stimuli
         manifest.
     order : sequence of str, optional
@@ -302,7 +302,7 @@ def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float =
     pose : DataFrame
         Pose-task rows (``scene``, ``chosen_frame``).
     scenes : dict
-        scene → :class:`~study_app.scenes.StudyScene` with ``selector_frames``.
+        scene → :class:`~study_app.design.scenes.StudyScene` with ``selector_frames``.
     tolerance_s : float
         A choice agrees with a pick within ±``tolerance_s`` seconds.
 

@@ -3,17 +3,17 @@
 Sources (all give the same frame):
 
 - the study store, by SQLAlchemy URL (``sqlite:///var/study.db``,
-  ``postgresql+psycopg://...``), read through ``study_app.store.Store(url).export_rows``;
+  ``postgresql+psycopg://...``), read through ``study_app.data.store.Store(url).export_rows``;
 - an export file written by ``snapshot export``: CSV (``shown_order`` as a JSON string,
   empty cells = null) or JSON lines (``.jsonl``/``.ndjson``; a ``.json`` file holding a
   list of rows is accepted too), read by the study's own codec,
-  :func:`study_app.export.read_export`;
+  :func:`study_app.data.export.read_export`;
 - rows already in memory (a list of dicts or a DataFrame).
 
 Every row follows ``data_schema/response.schema.json``; rows are validated
-(:func:`study_app.export.validate_rows`) and a bad row raises :class:`LoadError` naming
+(:func:`study_app.data.export.validate_rows`) and a bad row raises :class:`LoadError` naming
 the file, the row and the field. Column types come from the schema
-(:func:`study_app.export.export_types`). Simulated
+(:func:`study_app.data.export.export_types`). Simulated
 participants (``simulated`` true, written by ``snapshot simulate``) are dropped unless
 ``include_simulated=True``.
 
@@ -37,8 +37,8 @@ import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
-from study_app.export import export_columns, export_types, read_export, validate_rows
-from study_app.store import Store
+from study_app.data.export import export_columns, export_types, read_export, validate_rows
+from study_app.data.store import Store
 
 __all__ = [
     "LoadError",

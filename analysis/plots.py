@@ -165,7 +165,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
     pose : DataFrame
         Pose-task rows.
     scenes : dict
-        scene id → :class:`study_app.scenes.StudyScene`.
+        scene id → :class:`study_app.design.scenes.StudyScene`.
     show_baselines : bool
         Mark the baseline frames (middle, fastest, farthest from the mean pose) too.
     """

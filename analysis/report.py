@@ -408,7 +408,7 @@ def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
 
 def completed_participants(df: pd.DataFrame) -> set:
     """Participants who finished the study: they answered its last trial, the attention
-    check (every plan ends with it, ``study_app.protocol.trial_plan``)."""
+    check (every plan ends with it, ``study_app.design.protocol.trial_plan``)."""
     return set(df.loc[df["task"] == "attention", "participant_id"])
 
 

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from snapcore.select.methods import VIEW_METHODS
-from study_app.scenes import StudyScene
+from study_app.design.scenes import StudyScene
 
 __all__ = [
     "ObserverModel",

@@ -24,8 +24,8 @@ from enum import StrEnum
 from functools import lru_cache
 
 from snapcore.errors import SnapshotError
-
-from .protocol import (
+from study_app.data.withdraw import withdrawal_of
+from study_app.design.protocol import (
     AnswerError,
     Trial,
     check_attention_answer,
@@ -34,8 +34,7 @@ from .protocol import (
     redirect_url,
     trial_plan,
 )
-from .stimuli import Stimuli, app_version
-from .withdraw import withdrawal_of
+from study_app.design.stimuli import Stimuli, app_version
 
 __all__ = [
     "Stage",
@@ -200,7 +199,7 @@ class ParticipantSession:
 
     Parameters
     ----------
-    store : study_app.store.Store
+    store : study_app.data.store.Store
     stimuli : Stimuli
         The verified stimuli the app serves.
     participant : dict

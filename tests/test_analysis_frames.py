@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from analysis import frames as fr
-from study_app.scenes import StudyScene
+from study_app.design.scenes import StudyScene
 
 
 def _pose(scene, chosen, *, algorithm, fps, n_frames):

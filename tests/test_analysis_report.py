@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from analysis import load as ld
 from analysis import simulate as sim
 from snapcore.cli.main import cli
-from study_app.scenes import StudyScene
+from study_app.design.scenes import StudyScene
 
 
 def _rows(n=20, seed=3, **kw):
@@ -83,9 +83,9 @@ def test_bad_row_is_named(tmp_path):
 
 
 def test_analysis_reads_exports_with_the_study_codec(tmp_path):
-    """One codec: what study_app.export writes, analysis loads unchanged (CSV, JSON lines,
+    """One codec: what study_app.data.export writes, analysis loads unchanged (CSV, JSON lines,
     a .json list); a bad CSV cell is named by file, line and column."""
-    from study_app.export import write_export
+    from study_app.data.export import write_export
 
     rows = [{k: (list(v) if isinstance(v, tuple) else v) for k, v in r.items()}
             for r in _rows(3).replace({np.nan: None}).to_dict(orient="records")]
@@ -178,7 +178,7 @@ def test_simulate_store_analyze_end_to_end(tmp_path):
     res = r.invoke(cli, ["simulate", "--n", "40", "--db", url, "--seed", "5", "-q"])
     assert res.exit_code == 0, res.output
     assert "stored 40 simulated participants (520 responses" in res.output
-    from study_app.store import Store
+    from study_app.data.store import Store
 
     store = Store(url)
     assert store.export_rows() == []  # simulated participants are not real data

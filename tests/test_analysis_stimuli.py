@@ -109,7 +109,7 @@ def test_simulate_cli_with_manifest(tmp_path):
     res = CliRunner().invoke(cli, ["simulate", "--n", "6", "--db", url, "--stimuli", str(path),
                                    "--strengths", "ours=2,viewpoint_entropy=1,motion_area=1", "-q"])
     assert res.exit_code == 0, res.output
-    from study_app.store import Store
+    from study_app.data.store import Store
 
     rows = Store(url).export_rows(include_simulated=True)
     assert {r["study_id"] for r in rows} == {"stim-test"}

@@ -12,7 +12,7 @@ from scipy import stats
 from analysis import simulate as sim
 from analysis import votes as vt
 from snapcore.select.methods import VIEW_METHODS
-from study_app.scenes import StudyScene
+from study_app.design.scenes import StudyScene
 
 # The paper's Table 2 as printed (../shared/METHOD.md §5 and the paper's text), typed here
 # independently of analysis/data/paper_table2.csv: ours, viewpoint entropy, motion area.

@@ -20,16 +20,16 @@ from app_helpers import (
     write_fixture_stimuli,
 )
 
-from study_app.picker import FRAME_PICKER, VIEW_CHOOSER
-from study_app.protocol import trial_plan
-from study_app.screens import common
-from study_app.store import Store
+from study_app.data.store import Store
+from study_app.design.protocol import trial_plan
+from study_app.web.picker import FRAME_PICKER, VIEW_CHOOSER
+from study_app.web.screens import keys
 
 pytest.importorskip("streamlit.testing.v1")
 from streamlit.proto.WidgetStates_pb2 import WidgetState  # noqa: E402
 from streamlit.testing.v1 import AppTest  # noqa: E402
 
-APP = "../study_app/app.py"
+APP = "../study_app/web/app.py"
 TIMEOUT = 30
 BACKGROUND = {"age_band": "25–34", "gender": "Woman", "experience": "No experience"}
 
@@ -48,9 +48,9 @@ def stimuli_dir(tmp_path_factory):
 @pytest.fixture
 def store(stimuli_dir, tmp_path, monkeypatch):
     url = f"sqlite:///{tmp_path / 'study.db'}"
-    monkeypatch.setenv(common.ENV_STIMULI, str(stimuli_dir))
-    monkeypatch.setenv(common.ENV_DB, url)
-    monkeypatch.delenv(common.ENV_ADMIN_TOKEN, raising=False)
+    monkeypatch.setenv(keys.ENV_STIMULI, str(stimuli_dir))
+    monkeypatch.setenv(keys.ENV_DB, url)
+    monkeypatch.delenv(keys.ENV_ADMIN_TOKEN, raising=False)
     s = Store(url)
     yield s
     s.close()
@@ -89,14 +89,14 @@ def texts(at: AppTest) -> str:
 
 
 def consent_and_background(at: AppTest) -> str:
-    at.checkbox(key=common.KEY_CONSENT_AGREE).check().run()
-    at.button(key=common.KEY_CONSENT_START).click().run()
-    pid = at.query_params[common.QUERY_PID]
+    at.checkbox(key=keys.KEY_CONSENT_AGREE).check().run()
+    at.button(key=keys.KEY_CONSENT_START).click().run()
+    pid = at.query_params[keys.QUERY_PID]
     pid = pid[0] if isinstance(pid, list) else pid
-    at.selectbox(key=common.KEY_BG_AGE).select(BACKGROUND["age_band"])
-    at.radio(key=common.KEY_BG_GENDER).set_value(BACKGROUND["gender"])
-    at.radio(key=common.KEY_BG_EXPERIENCE).set_value(BACKGROUND["experience"])
-    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    at.selectbox(key=keys.KEY_BG_AGE).select(BACKGROUND["age_band"])
+    at.radio(key=keys.KEY_BG_GENDER).set_value(BACKGROUND["gender"])
+    at.radio(key=keys.KEY_BG_EXPERIENCE).set_value(BACKGROUND["experience"])
+    at.button(key=keys.KEY_BG_SUBMIT).click().run()
     return pid
 
 
@@ -109,7 +109,7 @@ def test_whole_session_stores_every_answer(store):
     """Consent → background → pose → view → attention → done; the stored rows match the clicks."""
     at = new_app(PROLIFIC_PID="5f1e2d3c4b5a69788796a5b4", STUDY_ID="S1", SESSION_ID="X9")
     assert not at.exception
-    assert "I have read" in at.checkbox(key=common.KEY_CONSENT_AGREE).label
+    assert "I have read" in at.checkbox(key=keys.KEY_CONSENT_AGREE).label
     assert progress_value(at) == 0
     assert store.progress()["participants"] == 0  # nothing stored before consent
     pid = consent_and_background(at)
@@ -144,8 +144,8 @@ def test_whole_session_stores_every_answer(store):
             at = send_trigger(at, VIEW_CHOOSER, "choice",
                               {"trial": trial.index, "position": position})
         else:
-            at.radio(key=common.KEY_ATTENTION_CHOICE).set_value("A purple circle")
-            at.button(key=common.KEY_ATTENTION_SUBMIT).click().run()
+            at.radio(key=keys.KEY_ATTENTION_CHOICE).set_value("A purple circle")
+            at.button(key=keys.KEY_ATTENTION_SUBMIT).click().run()
     assert not at.exception
     assert "Thank you" in texts(at)
     assert progress_value(at) == 100
@@ -206,9 +206,9 @@ def test_tampered_participant_id_is_refused_and_writes_nothing(store):
         assert "link" in texts(at).lower() and "not" in texts(at).lower()
         assert not at.get("bidi_component")
     assert store.progress()["participants"] == 0
-    at.button(key=common.KEY_RESTART).click().run()  # start over: back to consent
-    assert common.QUERY_PID not in at.query_params
-    assert at.checkbox(key=common.KEY_CONSENT_AGREE)
+    at.button(key=keys.KEY_RESTART).click().run()  # start over: back to consent
+    assert keys.QUERY_PID not in at.query_params
+    assert at.checkbox(key=keys.KEY_CONSENT_AGREE)
 
 
 def test_out_of_range_frame_and_forged_position_write_nothing(store):
@@ -246,7 +246,7 @@ def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     """picker = "frames": a slider over the extracted frames answers the pose task."""
     d = tmp_path / "frames-stimuli"
     write_fixture_stimuli(d, fixture_study_doc(picker="frames", min_answer_s=0))
-    monkeypatch.setenv(common.ENV_STIMULI, str(d))
+    monkeypatch.setenv(keys.ENV_STIMULI, str(d))
     at = new_app()
     pid = consent_and_background(at)
     assert not at.get("bidi_component")
@@ -254,7 +254,7 @@ def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     assert (slider.min, slider.max) == (1, 24)
     slider.set_value(7).run()
     assert len(at.image) == 1  # the frame is shown
-    at.button(key=f"{common.KEY_FRAME_CONFIRM}.0.0").click().run()
+    at.button(key=f"{keys.KEY_FRAME_CONFIRM}.0.0").click().run()
     (row,) = store.responses(pid)
     assert row["chosen_video_frame"] == 6 and row["chosen_frame"] == 12  # 1-based slider
 
@@ -273,14 +273,14 @@ def test_altered_stimuli_refused_before_anyone_starts(store, stimuli_dir, tmp_pa
     shutil.copytree(stimuli_dir, bad)
     with open(bad / "walk" / "view_ours.png", "ab") as f:
         f.write(b"\0")
-    monkeypatch.setenv(common.ENV_STIMULI, str(bad))
+    monkeypatch.setenv(keys.ENV_STIMULI, str(bad))
     at = new_app()
     assert "walk/view_ours.png has been altered" in at.error[0].value
     assert not at.checkbox
     gone = tmp_path / "missing"
     shutil.copytree(stimuli_dir, gone)
     (gone / "jump" / "frames" / "00003.jpg").unlink()
-    monkeypatch.setenv(common.ENV_STIMULI, str(gone))
+    monkeypatch.setenv(keys.ENV_STIMULI, str(gone))
     at = new_app()
     assert "jump/frames/00003.jpg is missing" in at.error[0].value
     assert store.progress()["participants"] == 0
@@ -299,13 +299,13 @@ def test_researcher_page_needs_the_token(store, monkeypatch):
 
     a = researcher()
     assert "disabled" in a.info[0].value and not a.get("metric") and not a.dataframe
-    monkeypatch.setenv(common.ENV_ADMIN_TOKEN, "s3cret-token")
+    monkeypatch.setenv(keys.ENV_ADMIN_TOKEN, "s3cret-token")
     a = researcher()
     assert not a.get("metric")
-    a.text_input(key=common.KEY_ADMIN_TOKEN).input("wrong").run()
+    a.text_input(key=keys.KEY_ADMIN_TOKEN).input("wrong").run()
     assert "Wrong token" in a.error[0].value and not a.get("metric")
     assert not a.get("download_button")
-    a.text_input(key=common.KEY_ADMIN_TOKEN).input("s3cret-token").run()
+    a.text_input(key=keys.KEY_ADMIN_TOKEN).input("s3cret-token").run()
     assert not a.exception
     metrics = {m.label: m.value for m in a.get("metric")}
     assert metrics["Participants"] == "1" and metrics["Responses"] == "1"
@@ -322,17 +322,17 @@ def test_researcher_page_withdraws_a_participant(store, monkeypatch):
     send_trigger(at, FRAME_PICKER, "confirm", {"trial": 0, "frame": 5, "events": []})
     other = consent_and_background(new_app())
     assert store.progress()["responses"] == 1
-    monkeypatch.setenv(common.ENV_ADMIN_TOKEN, "s3cret-token")
+    monkeypatch.setenv(keys.ENV_ADMIN_TOKEN, "s3cret-token")
     a = AppTest.from_file(APP, default_timeout=TIMEOUT)
     a.switch_page("screens/researcher.py")
     a.run()
-    a.text_input(key=common.KEY_ADMIN_TOKEN).input("s3cret-token").run()
-    a.text_input(key=common.KEY_WITHDRAW_ID).input(pid).run()
+    a.text_input(key=keys.KEY_ADMIN_TOKEN).input("s3cret-token").run()
+    a.text_input(key=keys.KEY_WITHDRAW_ID).input(pid).run()
     assert any(pid in w.value and "1 responses" in w.value for w in a.warning)
-    assert a.button(key=common.KEY_WITHDRAW_BUTTON).disabled   # not before the confirmation
+    assert a.button(key=keys.KEY_WITHDRAW_BUTTON).disabled   # not before the confirmation
     assert store.get_participant(pid) is not None
-    a.checkbox(key=f"{common.KEY_WITHDRAW_CONFIRM}.{pid}").check().run()
-    a.button(key=common.KEY_WITHDRAW_BUTTON).click().run()
+    a.checkbox(key=f"{keys.KEY_WITHDRAW_CONFIRM}.{pid}").check().run()
+    a.button(key=keys.KEY_WITHDRAW_BUTTON).click().run()
     assert not a.exception
     assert any(f"Withdrew participant {pid}" in m.value for m in a.success)
     with store.engine.connect() as conn:
@@ -359,7 +359,7 @@ def test_background_self_describe_and_missing_answers(store):
     at.button(key="consent.start").click().run()
     pid = at.query_params["pid"]
     pid = pid[0] if isinstance(pid, list) else pid
-    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    at.button(key=keys.KEY_BG_SUBMIT).click().run()
     (warning,) = at.warning
     assert warning.value == "Please answer the questions about your age, gender and experience."
     main = list(at.main)
@@ -367,11 +367,11 @@ def test_background_self_describe_and_missing_answers(store):
     assert not at.text_input
     at.radio(key="background.gender").set_value("Prefer to self-describe").run()
     at.text_input(key="background.gender_self").input("agender").run()
-    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    at.button(key=keys.KEY_BG_SUBMIT).click().run()
     assert at.warning[0].value == "Please answer the questions about your age and experience."
     at.selectbox(key="background.age_band").select(BACKGROUND["age_band"])
     at.radio(key="background.experience").set_value(BACKGROUND["experience"])
-    at.button(key=common.KEY_BG_SUBMIT).click().run()
+    at.button(key=keys.KEY_BG_SUBMIT).click().run()
     assert store.get_participant(pid)["background"] == {
         "age_band": "25–34", "gender": "Prefer to self-describe", "experience": "No experience",
         "gender_self": "agender"}

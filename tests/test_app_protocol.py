@@ -9,7 +9,8 @@ from app_helpers import fixture_study_doc, write_fixture_stimuli
 
 from snapcore.errors import SchemaError
 from snapcore.select.methods import VIEW_METHODS
-from study_app.protocol import (
+from study_app.data.store import Store
+from study_app.design.protocol import (
     AnswerError,
     StudyError,
     Trial,
@@ -23,6 +24,7 @@ from study_app.protocol import (
     study_from_dict,
     trial_plan,
 )
+from study_app.design.stimuli import load_stimuli
 from study_app.session import (
     InvalidAnswer,
     ParticipantSession,
@@ -34,8 +36,6 @@ from study_app.session import (
     prolific_problems,
     resume_url,
 )
-from study_app.stimuli import load_stimuli
-from study_app.store import Store
 
 BACKGROUND = {"age_band": "18–24", "gender": "Man", "experience": "No experience"}
 
@@ -116,7 +116,7 @@ def test_study_config_errors_name_the_field(tmp_path):
 
 def test_shipped_configs_are_valid():
     """The demo and paper configs load, with the paper's six scenes."""
-    from study_app.commands.serve import DEMO_CONFIG, PAPER_CONFIG
+    from study_app.design.protocol import DEMO_CONFIG, PAPER_CONFIG
 
     demo = load_study(DEMO_CONFIG)
     assert demo.id == "demo" and all("demo" in s for s in demo.scenes)
@@ -405,7 +405,7 @@ def test_new_study_options_are_validated_by_the_schema():
 def test_bundled_configs_show_participants_no_paper_jargon():
     """Participant-facing text of the bundled studies has no section numbers or
     "demonstration of" (it was shown on the consent page)."""
-    from study_app.commands.serve import DEMO_CONFIG, PAPER_CONFIG
+    from study_app.design.protocol import DEMO_CONFIG, PAPER_CONFIG
 
     for path in (DEMO_CONFIG, PAPER_CONFIG):
         st = load_study(path)

@@ -1,15 +1,18 @@
-"""The house rules: layers import only downwards, no import cycles, no oversized modules.
+"""The house rules: layers import only downwards, no import cycles, no oversized modules,
+SQL only in the study's data layer, and ARCHITECTURE.md's layer table equal to the one here.
 
 Every ``import`` in snapcore, study_app and analysis is read from the source (at module
 level and inside functions alike), resolved to the project module it names, and checked
 against the layer table below (see ARCHITECTURE.md): data flows motion → selection →
-rendering → relief/pipeline → bench/CLI → study → analysis → the app's screens, and a
-module may import only from its own layer or a lower one.
+rendering → relief/pipeline → bench/CLI → the study's design → its data → the session →
+analysis → the web UI → operations → the study's commands, and a module may import only
+from its own layer or a lower one.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -33,12 +36,14 @@ LAYERS = {
     "snapcore.batch": 6,  # a library of scenes: pipeline and renders per scene, under the CLI
     "snapcore.cli": 7,
     "snapcore": 8,  # the package itself: the public API, imported by nothing inside
-    "study_app": 9,  # study logic: protocol, store, export, stimuli, session, commands
-    "analysis": 10,  # reads the store and the stimulus manifest
-    "study_app.app": 11,  # the Streamlit UI: the researcher screen shows analysis results
-    "study_app.screens": 11,
-    "study_app.picker": 11,
-    "study_app.server": 11,  # the server process that runs the UI (and warms its imports)
+    "study_app.design": 9,  # protocol, scenes, stimuli: what a study shows
+    "study_app.data": 10,  # tables, store, export, withdrawal, pseudonyms, backup: all SQL
+    "study_app.session": 11,  # one participant's walk through the protocol
+    "analysis": 12,  # reads the store and the stimulus manifest
+    "study_app.web": 13,  # the Streamlit UI: the researcher screen shows analysis results
+    "study_app.ops": 14,  # replicas and the load test: run the web servers as processes
+    "study_app.commands": 15,  # the study's `snapshot` commands
+    "study_app": 16,  # the package itself: its public names, imported by nothing inside
 }
 
 
@@ -97,6 +102,14 @@ def test_the_layer_table_knows_every_module():
     assert all(any(m == p or m.startswith(p + ".") for p in LAYERS) for m in MODULES)
 
 
+def test_every_study_module_is_in_a_named_layer():
+    """A new module directly under ``study_app/`` must be placed in one of its layers,
+    not fall under the package's own entry (which is for ``study_app/__init__`` only)."""
+    loose = [m for m in MODULES if m.startswith("study_app.")
+             and max((p for p in LAYERS if m == p or m.startswith(p + ".")), key=len) == "study_app"]
+    assert not loose, loose
+
+
 def test_no_import_climbs_to_a_higher_layer():
     """No module imports from a layer above its own, at module level or inside a function."""
     bad = [f"{MODULES[m].relative_to(ROOT)}:{line} imports {target} "
@@ -141,3 +154,75 @@ def test_the_checker_sees_upward_and_cyclic_imports(tmp_path):
     src.write_text("def f():\n    from snapcore.pipeline import take_snapshot\n")
     assert ("snapcore.pipeline", 2) in _imports("snapcore.motion.fake", src)
     assert layer("snapcore.pipeline") > layer("snapcore.motion.fake")
+
+
+# -- SQL lives in the data layer ---------------------------------------------------------
+#: What counts as SQL in a line of source: a SQLAlchemy statement (``sa.text(...)``,
+#: ``sa.select(...)``, ... or those names imported from sqlalchemy), a database driver
+#: (``sqlite3``, ``psycopg``) imported, a raw script run, or a string literal that starts
+#: with an SQL keyword in capitals.
+SQL = re.compile(r"""
+    \b(?:sa|sqlalchemy)\.(?:text|select|insert|update|delete)\(
+  | ^\s*from\ sqlalchemy(?:\.\w+)*\ import\ .*\b(?:text|select|insert|update|delete)\b
+  | ^\s*(?:import|from)\ (?:sqlite3|psycopg)\b
+  | \.(?:exec_driver_sql|executescript)\(
+  | ["'](?:SELECT|INSERT\ INTO|UPDATE\ \w+\ SET|DELETE\ FROM|CREATE|DROP|ALTER|PRAGMA|VACUUM|BEGIN|COMMIT)\b
+""", re.X)
+DATA_LAYER = "study_app.data"
+
+
+def _sql_lines(path: Path) -> list[tuple[int, str]]:
+    return [(i, line.strip()) for i, line in enumerate(path.read_text().splitlines(), 1)
+            if SQL.search(line)]
+
+
+def test_sql_appears_only_in_the_data_layer():
+    """Every SQL statement, SQLAlchemy statement builder and database driver import is
+    under ``study_app/data/``: the rest of the project asks the store."""
+    bad = [f"{path.relative_to(ROOT)}:{i}: {line}" for m, path in MODULES.items()
+           if layer(m) != LAYERS[DATA_LAYER] for i, line in _sql_lines(path)]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_sql_pattern_finds_sql():
+    """Known answers: the store's own statements are found, and so are the kinds of SQL
+    the pattern names (the replica supervisor's old database check among them)."""
+    assert _sql_lines(ROOT / "study_app" / "data" / "store.py")
+    for line in ('rows = conn.execute(sa.select(participants.c.id))',
+                 'from sqlalchemy import delete, select',
+                 'import sqlite3',
+                 '    import psycopg',
+                 'conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (name,))',
+                 "conn.execute(f'CREATE DATABASE \"{name}\"')",
+                 'con.executescript(script)'):
+        assert SQL.search(line), line
+    for line in ('"""Select the frames (no SQL here)."""', 'select_pose(scene)',
+                 'parts.insert(0, x)', 'ax.text(0.5, 0.5, "no events")'):
+        assert not SQL.search(line), line
+
+
+# -- ARCHITECTURE.md follows this table ----------------------------------------------------
+def _documented_layers() -> dict[str, int]:
+    """ARCHITECTURE.md's layer table: every backquoted module name of the package column
+    → the layer of its row."""
+    text = (ROOT / "ARCHITECTURE.md").read_text()
+    section = text.split("## The layers", 1)[1].split("\n## ", 1)[0]
+    out = {}
+    for row in section.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) >= 4 and cells[0].isdigit():
+            for name in re.findall(r"`([\w.]+)`", cells[1]):
+                out[name] = int(cells[0])
+    return out
+
+
+def test_architecture_md_lists_the_layer_table():
+    """ARCHITECTURE.md's layer table names exactly the packages of ``LAYERS``, each in its
+    layer, and says each layer may import the layers below it."""
+    assert _documented_layers() == LAYERS
+    text = (ROOT / "ARCHITECTURE.md").read_text().split("## The layers", 1)[1].split("\n## ", 1)[0]
+    for row in text.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) >= 4 and cells[0].isdigit():
+            n = int(cells[0])
+            assert cells[3] == ("—" if n == 0 else f"0–{n - 1}"), row

@@ -25,9 +25,9 @@ import pytest
 from app_helpers import tiny_demo_stimuli
 from conftest import need
 
-from study_app.protocol import trial_plan
-from study_app.stimuli import load_stimuli
-from study_app.store import Store
+from study_app.data.store import Store
+from study_app.design.protocol import trial_plan
+from study_app.design.stimuli import load_stimuli
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

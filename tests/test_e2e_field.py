@@ -43,8 +43,8 @@ from test_e2e import (
 )
 
 from snapcore.select.methods import VIEW_METHODS
-from study_app.protocol import estimated_minutes, trial_plan
-from study_app.stimuli import load_stimuli
+from study_app.design.protocol import estimated_minutes, trial_plan
+from study_app.design.stimuli import load_stimuli
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -76,7 +76,7 @@ def artifacts():
 @pytest.fixture(scope="module")
 def server(tmp_path_factory, playwright_api):
     """A fresh `snapshot study` on the tiny stimuli: (base url, store, server log path)."""
-    from study_app.store import Store
+    from study_app.data.store import Store
 
     stimuli, r = tiny_demo_stimuli(tmp_path_factory)
     if r is not None:

@@ -460,7 +460,7 @@ def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
 
     from PIL import Image
 
-    from study_app.stimuli import load_stimuli
+    from study_app.design.stimuli import load_stimuli
 
     config = tmp_path / "fox.toml"
     config.write_text(

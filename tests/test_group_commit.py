@@ -1,5 +1,5 @@
 """Group commit: concurrent SQLite writes share transactions, and each still gets its
-own outcome (study_app.group_commit, used by the store for every study write)."""
+own outcome (study_app.data.group_commit, used by the store for every study write)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 import sqlalchemy as sa
 
-from study_app.export import StoreError
-from study_app.group_commit import GroupCommit
-from study_app.store import Store
+from study_app.data.errors import StoreError
+from study_app.data.group_commit import GroupCommit
+from study_app.data.store import Store
 
 
 class _Recorder:

@@ -23,7 +23,7 @@ from test_e2e import CHROMIUM, start_study, stop_process
 
 from data_schema import schema_path
 from snapcore.cli.main import cli
-from study_app.store import Store
+from study_app.data.store import Store
 
 pytestmark = [pytest.mark.slow]
 
@@ -198,27 +198,27 @@ def test_broken_database_url_is_one_line_exit_2(study):
 
 
 def test_server_warm_up_imports_what_the_first_runs_need():
-    """The server's warm-up thread (study_app.server) loads, before any participant
+    """The server's warm-up thread (study_app.web.server) loads, before any participant
     arrives, the modules the first player page would import inside a script run:
     pandas and pyarrow (Streamlit scans component data for frames), SQLAlchemy, the
     pages. Run in a fresh interpreter, so nothing was imported before."""
-    code = ("import sys; from study_app.server import warm_up; warm_up(); "
+    code = ("import sys; from study_app.web.server import warm_up; warm_up(); "
             "print(' '.join(m for m in ('pandas', 'pyarrow', 'sqlalchemy', "
-            "'study_app.screens.pose_task', 'study_app.session') if m in sys.modules))")
-    before = subprocess.run([sys.executable, "-c", "import sys, study_app.server; "
+            "'study_app.web.screens.pose_task', 'study_app.session') if m in sys.modules))")
+    before = subprocess.run([sys.executable, "-c", "import sys, study_app.web.server; "
                              "print('pandas' in sys.modules)"],
                             capture_output=True, text=True, check=True)
     assert before.stdout.strip() == "False"  # importing the launcher alone loads nothing
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.split() == ["pandas", "pyarrow", "sqlalchemy",
-                                "study_app.screens.pose_task", "study_app.session"]
+                                "study_app.web.screens.pose_task", "study_app.session"]
 
 
 def test_server_warm_up_hides_the_imports_from_the_garbage_collector():
     """After the warm-up, the objects the imports made are frozen (gc.freeze): full
     collections under load then walk only what the sessions made (they paused the
     server 150-240 ms each before). Run in a fresh interpreter."""
-    code = ("import gc; from study_app.server import _warm_in_background; "
+    code = ("import gc; from study_app.web.server import _warm_in_background; "
             "print(gc.get_freeze_count()); _warm_in_background(); print(gc.get_freeze_count())")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     before, after = map(int, r.stdout.split())
@@ -232,7 +232,7 @@ def test_indexed_config_sections_give_what_streamlit_gives():
     code = """
 import json
 from streamlit import config
-from study_app.server import index_config_sections
+from study_app.web.server import index_config_sections
 original = config.get_options_for_section
 sections = sorted({o.section for o in config.get_config_options().values()})
 def both():

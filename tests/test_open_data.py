@@ -29,11 +29,12 @@ from pg import pg_server, pg_url  # noqa: F401 - fixtures, requested by name
 
 from data_schema import schema_path
 from snapcore.cli.main import cli
-from study_app.backup import backup, find_pg_tool, restore
-from study_app.export import StoreError, read_export
-from study_app.protocol import DEFAULT_CONTACT, consent_text, study_from_dict
-from study_app.pseudonym import Pseudonymiser, study_secret
-from study_app.store import Store, normalize_url
+from study_app.data.backup import backup, find_pg_tool, restore
+from study_app.data.errors import StoreError
+from study_app.data.export import read_export
+from study_app.data.pseudonym import Pseudonymiser, study_secret
+from study_app.data.store import Store, normalize_url
+from study_app.design.protocol import DEFAULT_CONTACT, consent_text, study_from_dict
 
 SHA = "cd" * 32
 #: Distinctive raw identifiers, so that a grep of the exports cannot hit anything else.

@@ -26,9 +26,9 @@ import test_e2e
 from conftest import need
 from test_e2e import free_port
 
-from study_app.loadtest.run import run_load
-from study_app.replicas import NGINX, find_pg_bin
-from study_app.store import Store
+from study_app.data.store import Store
+from study_app.ops.loadtest.run import run_load
+from study_app.ops.replicas import NGINX, find_pg_bin
 
 #: The tiny demo stimuli, built once per session (the browser tests' fixture).
 stimuli_dir = test_e2e.stimuli_dir
@@ -131,7 +131,7 @@ def test_serve_with_a_broken_database_url_is_one_line_exit_2(stimuli_dir):
 def test_nginx_config_routes_by_cookie_upgrades_websockets_and_is_valid(tmp_path):
     """The generated config passes `nginx -t`, routes by the participant's cookie (not
     the client IP), upgrades the websocket, and caches the stimuli."""
-    from study_app.replicas import ROUTE_COOKIE, nginx_config
+    from study_app.ops.replicas import ROUTE_COOKIE, nginx_config
 
     need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
     (tmp_path / "nginx-tmp").mkdir()

@@ -16,7 +16,7 @@ from app_helpers import fixture_study_doc, tiny_demo_stimuli, write_fixture_stim
 from conftest import need
 
 from snapcore.schema import validate
-from study_app.stimuli import StimuliError, load_stimuli, sha256_file, verify_stimuli
+from study_app.design.stimuli import StimuliError, load_stimuli, sha256_file, verify_stimuli
 
 SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
 
@@ -196,7 +196,7 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
                                          "--db", db, "--port", "8599", "--build", "-q"])
     assert r.exit_code == 0, r.output
     (argv, env), = calls
-    assert argv[1:4] == ["-m", "study_app.server", "run"] and argv[4].endswith("study_app/app.py")
+    assert argv[1:4] == ["-m", "study_app.web.server", "run"] and argv[4].endswith("study_app/web/app.py")
     assert argv[argv.index("--server.port") + 1] == "8599"
     assert argv[argv.index("--server.headless") + 1] == "true"
     assert env["SNAPSHOT_STIMULI"] == str(out.resolve()) and env["SNAPSHOT_DB"] == db
@@ -216,7 +216,7 @@ def test_view_stills_share_one_background(tmp_path):
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
     from snapcore.select.methods import VIEW_METHODS
-    from study_app.stimuli import write_views
+    from study_app.design.stimuli import write_views
 
     scene = synth.synth_scene("walk", fps=30)
     dirs = [np.array(v, float) / np.linalg.norm(v) for v in ((1, -0.16, 0.2), (1, 0, 0.3),
@@ -262,8 +262,8 @@ def test_near_duplicate_error_stops_the_build():
     build with the angles named; "warn" warns and records them."""
     import warnings
 
-    from study_app.protocol import study_from_dict
-    from study_app.stimuli import StimuliError, check_near_duplicates
+    from study_app.design.protocol import study_from_dict
+    from study_app.design.stimuli import StimuliError, check_near_duplicates
 
     picks = {"view": [1.0, 0.0, 0.0], "viewpoint_entropy": [0.0, 0.0, 1.0],
              "motion_area": [-0.99, 0.0, 0.1411]}  # ~171.9° from ours: a mirror image

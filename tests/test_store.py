@@ -1,4 +1,4 @@
-"""The study store (study_app.store) and `snapshot export`, on SQLite and real PostgreSQL.
+"""The study store (study_app.data.store) and `snapshot export`, on SQLite and real PostgreSQL.
 
 Backend-parametrised tests run twice: on a SQLite file in a temp folder and on a fresh
 database of a throw-away PostgreSQL server (tests/pg.py; skipped locally, failed in
@@ -28,9 +28,10 @@ from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
 from snapcore.select.methods import VIEW_METHODS
-from study_app.database import SQLITE_BUSY_TIMEOUT_MS
-from study_app.export import StoreError, export_columns, read_export, write_export
-from study_app.store import Store, default_url, mask_url, normalize_url
+from study_app.data.database import SQLITE_BUSY_TIMEOUT_MS
+from study_app.data.errors import StoreError
+from study_app.data.export import export_columns, read_export, write_export
+from study_app.data.store import Store, default_url, mask_url, normalize_url
 
 SHA = "ab" * 32
 METHODS = [str(m) for m in VIEW_METHODS]
@@ -601,7 +602,7 @@ def test_participant_and_event_exports_follow_their_schemas(store, tmp_path):
     import jsonschema
 
     from data_schema import schema_path
-    from study_app.export import write_events, write_participants
+    from study_app.data.export import write_events, write_participants
 
     pid = new_participant(store)
     store.set_background(pid, {"age_band": "18-24", "gender": "x", "experience": ["a", "b"]})

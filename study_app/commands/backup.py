@@ -1,56 +1,17 @@
-"""``snapshot withdraw``, ``snapshot backup``, ``snapshot restore``: looking after the data."""
+"""``snapshot backup``, ``snapshot restore``: a copy of the study database, and back."""
 
 from __future__ import annotations
 
 import click
 
-__all__ = ["withdraw", "backup", "restore"]
+__all__ = ["backup", "restore", "DB_HELP"]
 
-_DB_HELP = ("Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) or a .db "
-            "file. Default: $SNAPSHOT_DB, else var/study.db in the project.")
-
-
-@click.command()
-@click.option("--db", "db_url", metavar="URL", default=None, help=_DB_HELP)
-@click.option("--pid", "participant_id", metavar="ID", default=None,
-              help="The participant's link id (the pid= of their personal link).")
-@click.option("--prolific-pid", "prolific_pid", metavar="ID", default=None,
-              help="Their Prolific id instead (every participant with it).")
-@click.option("--study", "study_id", metavar="ID", default=None,
-              help="Only this study's participants (when one database holds several).")
-@click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
-def withdraw(db_url, participant_id, prolific_pid, study_id, quiet):
-    """Delete one participant's data because they withdrew.
-
-    Deletes their responses, interaction events and participant row (background,
-    Prolific ids, completion code) in one transaction, and keeps only a withdrawal
-    record: when, their link id and Prolific id, and that it was done here (the
-    researcher page records "page"). Their personal link then says their data were
-    withdrawn. An unknown id is an error and changes nothing.
-
-    Examples: snapshot withdraw --db var/study.db --pid Hq3C0r1yq2cA7FZ0pB1m5w
-
-    snapshot withdraw --db postgresql+psycopg://user@host/db --prolific-pid 5f1e2d3c4b5a69788796a5b4
-    """
-    from ..store import Store
-    from ..withdraw import withdraw as withdraw_participant
-
-    if (participant_id is None) == (prolific_pid is None):
-        raise click.UsageError("give exactly one of --pid ID and --prolific-pid ID")
-    with Store(db_url, create=False) as store:
-        done = withdraw_participant(store, participant_id=participant_id,
-                                    prolific_pid=prolific_pid, study_id=study_id, by="cli")
-        url = store.url
-    if not quiet:
-        for w in done:
-            click.echo(f"withdrew participant {w.participant_id} of study {w.study_id} from {url}: "
-                       f"deleted {w.n_responses} responses, {w.n_events} events and their "
-                       f"background; withdrawal recorded at "
-                       f"{w.withdrawn_at.isoformat(timespec='seconds')}", err=True)
+DB_HELP = ("Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) or a .db "
+           "file. Default: $SNAPSHOT_DB, else var/study.db in the project.")
 
 
 @click.command()
-@click.option("--db", "db_url", metavar="URL", default=None, help=_DB_HELP)
+@click.option("--db", "db_url", metavar="URL", default=None, help=DB_HELP)
 @click.option("-o", "--output", required=True, metavar="FILE",
               type=click.Path(dir_okay=False),
               help="The backup file (a SQLite database, or a pg_dump archive).")
@@ -72,8 +33,8 @@ def backup(db_url, output, method, force, quiet):
 
     Example: snapshot backup --db var/study.db -o backups/study-2025-01-31.db
     """
-    from ..backup import backup as backup_database
-    from ..store import mask_url
+    from study_app.data.backup import backup as backup_database
+    from study_app.data.store import mask_url
 
     result = backup_database(db_url, output, method=method, force=force)
     if not quiet:
@@ -84,7 +45,7 @@ def backup(db_url, output, method, force, quiet):
 
 @click.command()
 @click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False))
-@click.option("--db", "db_url", metavar="URL", required=True, help=_DB_HELP.split(" Default")[0])
+@click.option("--db", "db_url", metavar="URL", required=True, help=DB_HELP.split(" Default")[0])
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
 def restore(backup_file, db_url, quiet):
     """Restore a backup made by snapshot backup into an empty database.
@@ -95,8 +56,8 @@ def restore(backup_file, db_url, quiet):
 
     Example: snapshot restore backups/study-2025-01-31.db --db sqlite:///var/restored.db
     """
-    from ..backup import restore as restore_database
-    from ..store import mask_url
+    from study_app.data.backup import restore as restore_database
+    from study_app.data.store import mask_url
 
     result = restore_database(backup_file, db_url)
     if not quiet:

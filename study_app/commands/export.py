@@ -54,7 +54,7 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     Frames are motion frames in source numbering; times are ISO 8601 in UTC. In CSV,
     `shown_order` (the method shown at each screen position, left to right) is a JSON
     array string such as ["ours", "motion_area", "viewpoint_entropy"], booleans are
-    true/false and missing values are empty cells (study_app.export.read_export parses
+    true/false and missing values are empty cells (study_app.data.export.read_export parses
     it back).
 
     Examples: snapshot export --db sqlite:///var/study.db -o responses.csv
@@ -63,9 +63,9 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     """
     import os
 
-    from ..export import write_events, write_export, write_participants
-    from ..pseudonym import IDENTIFIERS_WARNING, Pseudonymiser
-    from ..store import Store
+    from study_app.data.export import write_events, write_export, write_participants
+    from study_app.data.pseudonym import IDENTIFIERS_WARNING, Pseudonymiser
+    from study_app.data.store import Store
 
     if output is None and psych_ds is None:
         raise click.UsageError("give -o/--output PATH, --psych-ds DIR, or both")
@@ -90,7 +90,7 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
                                               if e["participant_id"] in keep]), events_path)
         dataset = None
         if psych_ds is not None:
-            from ..psychds import write_psych_ds
+            from study_app.data.psychds import write_psych_ds
 
             stimuli_dir = stimuli_dir or os.environ.get("SNAPSHOT_STIMULI") or None
             try:

@@ -128,7 +128,7 @@ def loadtest(url, participants, ramp, think, seed, reload_share, back_share, dou
 
     _check_reachable(url)
     if db_url:
-        from study_app.store import Store
+        from study_app.data.store import Store
 
         try:
             Store(db_url).close()
@@ -138,17 +138,17 @@ def loadtest(url, participants, ramp, think, seed, reload_share, back_share, dou
             raise LoadTestError(f"cannot open the database {db_url}: {err}") from None
     pids = list(server_pids)
     if not pids:
-        from study_app.loadtest.run import server_pids_for_port
+        from study_app.ops.loadtest.run import server_pids_for_port
 
         parts = urlsplit(url)
         if parts.hostname in ("127.0.0.1", "localhost", "::1"):
             pids = server_pids_for_port(parts.port or 80)
-    from study_app.loadtest.run import run_load, warm_up
+    from study_app.ops.loadtest.run import run_load, warm_up
 
     # The server's one-off start work (verifying the stimuli) is not the launch.
     warm_up(url, timeout_s=timeout_s)
     if driver == "browser":
-        from study_app.loadtest.browser import run_browsers
+        from study_app.ops.loadtest.browser import run_browsers
 
         report, _ = run_browsers(url, participants, ramp_s=ramp, think_s=think, seed=seed,
                                  server_pids=pids, timings=timings, db_url=db_url)

@@ -42,10 +42,9 @@ def serve(n, config, stimuli_dir, db, port, run_dir):
       snapshot serve --replicas 2 --port 8600
       snapshot loadtest --url http://127.0.0.1:8600 -n 200 --timings var/replicas/timings.jsonl
     """
-    from study_app.commands.serve import DEMO_CONFIG, default_stimuli_dir
-    from study_app.protocol import load_study
-    from study_app.replicas import ReplicaSet, main_loop
-    from study_app.stimuli import StimuliError, load_stimuli
+    from study_app.design.protocol import DEMO_CONFIG, load_study
+    from study_app.design.stimuli import StimuliError, default_stimuli_dir, load_stimuli
+    from study_app.ops.replicas import ReplicaSet, main_loop
 
     if stimuli_dir is None:
         study_cfg = load_study(config or DEMO_CONFIG)
@@ -55,7 +54,7 @@ def serve(n, config, stimuli_dir, db, port, run_dir):
                            f"build` (or run `snapshot study` once for the demo)")
     stim = load_stimuli(stimuli_dir)  # verified file by file before anyone is served
     if db is not None:
-        from study_app.store import Store
+        from study_app.data.store import Store
 
         Store(db).close()  # a wrong URL stops here, in one line, before any process starts
     rs = ReplicaSet(root=run_dir, n=n, port=port, stimuli=stimuli_dir.resolve(), db_url=db)

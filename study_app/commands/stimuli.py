@@ -33,8 +33,8 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     study_app/configs/demo.toml (synthetic scenes) or study_app/configs/paper.toml
     (the paper's six analogues, needs SNAPSHOT_DATA).
     """
-    from study_app.protocol import load_study
-    from study_app.stimuli import build_stimuli, load_stimuli
+    from study_app.design.protocol import load_study
+    from study_app.design.stimuli import build_stimuli, load_stimuli
 
     study = load_study(config)
     manifest = build_stimuli(study, out, force=force, quiet=quiet)
@@ -53,7 +53,7 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
 @click.argument("folder", type=click.Path(file_okay=False, path_type=Path))
 def verify(folder: Path):
     """Check every file of a stimuli FOLDER against its manifest (exit 2 if any differs)."""
-    from study_app.stimuli import load_stimuli
+    from study_app.design.stimuli import load_stimuli
 
     s = load_stimuli(folder)
     click.echo(f"{folder}: ok ({len(s.manifest['files'])} files, study {s.study.id}, "

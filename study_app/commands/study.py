@@ -9,48 +9,7 @@ from pathlib import Path
 
 import click
 
-__all__ = ["study", "DEMO_CONFIG", "PAPER_CONFIG", "default_stimuli_dir", "streamlit_command"]
-
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
-#: The embedded demo: synthetic scenes from snapcore.motion.synth, no data needed.
-DEMO_CONFIG = CONFIGS / "demo.toml"
-#: The paper's six analogues on the real motions (SNAPSHOT_DATA).
-PAPER_CONFIG = CONFIGS / "paper.toml"
-APP = Path(__file__).resolve().parents[1] / "app.py"
-REPO = Path(__file__).resolve().parents[2]
-
-
-def default_stimuli_dir(study_id: str) -> Path:
-    """Where a study's stimuli live unless told otherwise: ``<repo>/var/stimuli/<id>``."""
-    return REPO / "var" / "stimuli" / study_id
-
-
-def streamlit_command(*, port: int, address: str) -> list[str]:
-    """The ``streamlit run`` command line for the app (headless, no telemetry, no watcher),
-    through :mod:`study_app.server`, which warms the app's imports while Streamlit starts.
-
-    ``runner.postScriptGC`` is off: Streamlit otherwise runs a full ``gc.collect(2)``
-    after every script run, which took two thirds of the server's CPU in the load test
-    (tens of ms per interaction with this app's heap); Python's own generational
-    collector still runs.
-
-    ``runner.fastReruns`` is off: with it, a rerun request during a run (a double click's
-    second send) starts a new script thread at once while the old one finishes, so the
-    second run could resume the participant before the first one's answer was stored and
-    draw the answered step again. Off, a session's runs follow one another: a rerun
-    stops the current run at its next Streamlit call and starts after it.
-    """
-    return [sys.executable, "-m", "study_app.server", "run", str(APP),
-            "--server.headless", "true",
-            "--server.address", address,
-            "--server.port", str(port),
-            "--browser.gatherUsageStats", "false",
-            "--server.fileWatcherType", "none",
-            "--server.runOnSave", "false",
-            "--runner.postScriptGC", "false",
-            "--runner.fastReruns", "false",
-            "--theme.base", "light",
-            "--client.toolbarMode", "minimal"]
+__all__ = ["study"]
 
 
 @click.command()
@@ -85,9 +44,15 @@ def study(config, stimuli_dir, db, port, address, build, quiet):
     The researcher page is at /researcher and opens with the token in
     $SNAPSHOT_ADMIN_TOKEN (without it the page stays empty).
     """
-    from study_app.protocol import load_study
-    from study_app.stimuli import StimuliError, build_stimuli, load_stimuli
-    from study_app.store import Store
+    from study_app.data.store import Store
+    from study_app.design.protocol import DEMO_CONFIG, load_study
+    from study_app.design.stimuli import (
+        StimuliError,
+        build_stimuli,
+        default_stimuli_dir,
+        load_stimuli,
+    )
+    from study_app.web.server import streamlit_command
 
     if config is None and stimuli_dir is not None:
         study_cfg = None  # serve the folder as built; its manifest carries the study

@@ -12,7 +12,7 @@ Methods (``method=``):
     ``pg_dump --format=custom`` (one repeatable-read snapshot), when ``pg_dump`` is
     installed (``/usr/lib/postgresql/*/bin`` or ``PATH``).
 ``logical``
-    Any database: every table of :data:`study_app.database.metadata` read in one
+    Any database: every table of :data:`study_app.data.database.metadata` read in one
     read-only snapshot transaction (repeatable read on PostgreSQL) and written through
     SQLAlchemy into a new SQLite file with the same schema.
 ``auto``
@@ -52,7 +52,7 @@ from .database import (
     table_counts,
     table_names,
 )
-from .export import StoreError
+from .errors import StoreError
 
 __all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "find_pg_tool", "table_counts"]
 

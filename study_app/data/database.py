@@ -2,8 +2,8 @@
 
 The schema of the study tables (participants, responses, events), of the two tables of
 open-data housekeeping (withdrawals, study_secrets) and the parsing of a database URL.
-The queries are in :mod:`study_app.store`, which documents the study tables and how
-they are written; :mod:`study_app.withdraw` and :mod:`study_app.pseudonym` query
+The queries are in :mod:`study_app.data.store`, which documents the study tables and how
+they are written; :mod:`study_app.data.withdraw` and :mod:`study_app.data.pseudonym` query
 their own table; the backup's copies (:func:`copy_tables`, :func:`table_counts`) are
 here too.
 """
@@ -18,13 +18,13 @@ from pathlib import Path
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
-from .export import StoreError
+from .errors import StoreError
 
 __all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
            "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
-           "SQLITE_BUSY_TIMEOUT_MS"]
+           "ensure_postgres_database", "SQLITE_BUSY_TIMEOUT_MS"]
 
 #: How long (ms) a SQLite writer waits for another writer's lock before giving up.
 SQLITE_BUSY_TIMEOUT_MS = 30_000
@@ -108,7 +108,7 @@ withdrawals = sa.Table(
 )
 sa.Index("ix_withdrawals_prolific", withdrawals.c.study_id, withdrawals.c.prolific_pid)
 
-#: The per-study key of the pseudonyms in exports (study_app.pseudonym). Backed up with
+#: The per-study key of the pseudonyms in exports (study_app.data.pseudonym). Backed up with
 #: the rest (a restored database pseudonymises exactly as before), never exported.
 study_secrets = sa.Table(
     "study_secrets", metadata,
@@ -133,7 +133,7 @@ def default_url() -> str:
     env = os.environ.get("SNAPSHOT_DB", "").strip()
     if env:
         return env
-    path = Path(__file__).resolve().parent.parent / "var" / "study.db"
+    path = Path(__file__).resolve().parents[2] / "var" / "study.db"
     return f"sqlite:///{path}"
 
 
@@ -247,6 +247,26 @@ def copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
             n += len(chunk)
         rows[table.name] = n
     return rows
+
+
+def ensure_postgres_database(*, host: str, port: int, user: str, password: str,
+                             name: str) -> None:
+    """Create the database ``name`` on a PostgreSQL server unless it exists.
+
+    Parameters
+    ----------
+    host, port, user, password
+        How to reach the server (its maintenance database ``postgres``).
+    name : str
+        The database to create (the replicas' ``study``).
+    """
+    import psycopg
+
+    with psycopg.connect(host=host, port=port, user=user, password=password,
+                         dbname="postgres", autocommit=True) as conn:
+        if not conn.execute("SELECT 1 FROM pg_database WHERE datname = %s",
+                            (name,)).fetchone():
+            conn.execute(f'CREATE DATABASE "{name}"')
 
 
 def configure_sqlite(engine: sa.engine.Engine) -> None:

@@ -1,6 +1,6 @@
 """Export files of the study: CSV and JSON lines, written atomically and read back typed.
 
-No SQL here (that is :mod:`study_app.store`): these functions turn the store's export
+No SQL here (that is :mod:`study_app.data.store`): these functions turn the store's export
 rows into files and files back into rows. Rows follow ``data_schema/response.schema.json``;
 in CSV, ``shown_order`` is a JSON array string (``["ours", "motion_area",
 "viewpoint_entropy"]``), booleans are ``true``/``false`` and ``None`` is an empty cell.
@@ -20,21 +20,19 @@ import os
 import secrets
 from pathlib import Path
 
-from snapcore.errors import SchemaError, SnapshotError
+from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
 
+from .errors import StoreError
+
 __all__ = [
-    "StoreError", "export_columns", "export_types", "validate_rows", "write_export", "read_export",
+    "export_columns", "export_types", "validate_rows", "write_export", "read_export",
     "export_format", "participants_columns", "write_participants", "events_columns", "write_events",
     "EXPORT_FORMATS", "BACKGROUND_FIELDS",
 ]
 
 EXPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".json": "jsonl"}
 BACKGROUND_FIELDS = ("age_band", "gender", "experience")
-
-
-class StoreError(SnapshotError):
-    """The store cannot do what was asked: bad database URL, unknown participant, bad row."""
 
 
 def _background_value(value):

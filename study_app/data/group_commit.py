@@ -17,7 +17,7 @@ the next batch. Under load one BEGIN and one COMMIT serve many answers; alone, a
 runs its own job at once, as before.
 
 Every job still returns only after the commit that made it durable. A job that fails
-(its own :class:`~study_app.export.StoreError`, a constraint) would roll back the whole
+(its own :class:`~study_app.data.errors.StoreError`, a constraint) would roll back the whole
 batch, so the batch is then run again one job per transaction: the failing job gets its
 error, the others are stored. Jobs must therefore touch nothing but the connection (they
 may run twice when a neighbour fails).
@@ -53,7 +53,7 @@ class GroupCommit:
     begin : callable
         ``begin()`` returns a context manager yielding a connection inside one write
         transaction, committed on a clean exit and rolled back on an exception
-        (:meth:`study_app.store.Store.transaction` with ``write=True``).
+        (:meth:`study_app.data.store.Store.transaction` with ``write=True``).
     max_batch : int
         Most jobs in one transaction, so that one slow batch does not hold every
         waiting writer.

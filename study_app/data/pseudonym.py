@@ -24,7 +24,7 @@ import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
 from .database import participants, study_secrets
-from .export import StoreError
+from .errors import StoreError
 
 __all__ = ["IDENTIFIER_COLUMNS", "PSEUDONYM_PREFIX", "PSEUDONYM_RE", "IDENTIFIERS_WARNING",
            "pseudonym", "study_secret", "Pseudonymiser"]
@@ -96,7 +96,7 @@ class Pseudonymiser:
 
     Parameters
     ----------
-    store : study_app.store.Store
+    store : study_app.data.store.Store
         Where the study secrets are (and, for records without a ``study_id`` such as
         events, which study each participant belongs to).
 

@@ -20,7 +20,7 @@ schema (``data_schema/response.schema.json``, ``participant.schema.json``,
 ``event.schema.json``), so a column cannot be added without being described. File
 names are Psych-DS keyword names (official keywords ``study`` and ``description``;
 values only letters and digits, so a study id's ``-``, ``_`` and ``.`` are dropped).
-Identifiers are pseudonymised (:mod:`study_app.pseudonym`) unless asked otherwise.
+Identifiers are pseudonymised (:mod:`study_app.data.pseudonym`) unless asked otherwise.
 """
 
 from __future__ import annotations
@@ -33,9 +33,10 @@ from pathlib import Path
 
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema
+from study_app.design.protocol import Study, study_from_dict
 
-from .export import StoreError, _write_atomic, write_events, write_export, write_participants
-from .protocol import Study, study_from_dict
+from .errors import StoreError
+from .export import _write_atomic, write_events, write_export, write_participants
 from .pseudonym import Pseudonymiser
 
 __all__ = ["DESCRIPTION_NAME", "data_file_name", "variable_measured", "write_psych_ds"]
@@ -93,7 +94,7 @@ def _manifest(stimuli_dir) -> tuple[Path, Study] | None:
     """The stimulus manifest's path and the study it was built from."""
     if stimuli_dir is None:
         return None
-    from .stimuli import MANIFEST_NAME
+    from study_app.design.stimuli import MANIFEST_NAME
 
     path = Path(stimuli_dir) / MANIFEST_NAME
     try:
@@ -114,7 +115,7 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
 
     Parameters
     ----------
-    store : study_app.store.Store
+    store : study_app.data.store.Store
     folder : str or Path
         The dataset folder: created; if it exists it must be empty (or ``force``).
     stimuli_dir : str or Path, optional

@@ -1,7 +1,7 @@
 """What the store writes: the checks of a response row and of an event, before any query.
 
-A row that does not pass is refused with a :class:`~study_app.export.StoreError` naming
-the trial and the field, and nothing is written (:mod:`study_app.store`).
+A row that does not pass is refused with a :class:`~study_app.data.errors.StoreError` naming
+the trial and the field, and nothing is written (:mod:`study_app.data.store`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import math
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
 
-from .export import StoreError
+from .errors import StoreError
 
 __all__ = ["TRIAL_FIELDS", "checked_response", "checked_event"]
 
@@ -25,7 +25,7 @@ TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
 def checked_response(row: dict) -> dict:
     """The response ``row`` with every trial field (None where not given), checked: known
     fields only, finite numbers, the chosen method shown at the chosen position, and the
-    response schema. Raises :class:`~study_app.export.StoreError` naming the field."""
+    response schema. Raises :class:`~study_app.data.errors.StoreError` naming the field."""
     if not isinstance(row, dict):
         raise StoreError(f"a response must be a dict, got {type(row).__name__}")
     extra = sorted(set(row) - set(TRIAL_FIELDS))
@@ -62,7 +62,7 @@ def checked_response(row: dict) -> dict:
 def checked_event(trial_index, kind, payload) -> dict:
     """An event row ``{"trial_index", "kind", "payload"}``, checked: a 1-32 character
     kind, a trial index >= 0 or None, a plain-JSON payload (no NaN/inf). Raises
-    :class:`~study_app.export.StoreError`."""
+    :class:`~study_app.data.errors.StoreError`."""
     if not isinstance(kind, str) or not 0 < len(kind) <= 32:
         raise StoreError(f"event kind must be 1-32 characters, got {kind!r}")
     if trial_index is not None and (isinstance(trial_index, bool)

@@ -22,8 +22,8 @@ Tables
 ``events``
     Interaction events (plays, pauses, seeks, steps...) with a JSON payload.
 ``withdrawals``, ``study_secrets``
-    Who withdrew (:mod:`study_app.withdraw`) and the per-study pseudonym keys
-    (:mod:`study_app.pseudonym`); those modules hold their queries. Opening a database
+    Who withdrew (:mod:`study_app.data.withdraw`) and the per-study pseudonym keys
+    (:mod:`study_app.data.pseudonym`); those modules hold their queries. Opening a database
     made before them adds them.
 
 Safety
@@ -44,10 +44,8 @@ Timestamps are stored in UTC and returned/exported as ISO 8601 strings with an e
 Export format
 -------------
 :meth:`Store.export_rows` gives one dict per response with exactly the fields of
-``data_schema/response.schema.json`` (absent optional fields are ``None``).
-:func:`study_app.export.write_export` writes them as CSV or JSON lines and
-:func:`study_app.export.read_export` reads them back (the file codec lives there, not
-here; :class:`~study_app.export.StoreError` too).
+``data_schema/response.schema.json`` (absent optional fields are ``None``); the codec,
+:mod:`study_app.data.export`, writes them as CSV or JSON lines and reads them back.
 """
 
 from __future__ import annotations
@@ -79,7 +77,8 @@ from .database import (
     responses,
     standalone_sqlite,
 )
-from .export import BACKGROUND_FIELDS, StoreError, _background_value, export_columns, validate_rows
+from .errors import StoreError
+from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
 from .group_commit import GroupCommit
 from .rows import checked_event, checked_response
 
@@ -177,7 +176,7 @@ class Store:
         # the script-run time went there). Other processes still wait on busy_timeout.
         self._write_lock = threading.RLock() if self.dialect == "sqlite" else None
         # ... and the writes that queue there share the next transaction (one BEGIN and
-        # one COMMIT for many answers under load; see study_app.group_commit).
+        # one COMMIT for many answers under load; see study_app.data.group_commit).
         self._group = (GroupCommit(partial(self.transaction, write=True))
                        if self.dialect == "sqlite" else None)
         self.engine = self._make_engine()

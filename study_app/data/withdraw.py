@@ -21,7 +21,7 @@ from datetime import UTC, datetime
 import sqlalchemy as sa
 
 from .database import events, participants, responses, withdrawals
-from .export import StoreError
+from .errors import StoreError
 
 __all__ = ["WITHDRAWN_BY", "Withdrawal", "withdraw", "withdrawal_of", "withdrawal_plan"]
 
@@ -135,7 +135,7 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
 
     Parameters
     ----------
-    store : study_app.store.Store
+    store : study_app.data.store.Store
     participant_id : str, optional
         The participant link id (``?pid=``).
     prolific_pid : str, optional

@@ -28,6 +28,8 @@ from snapcore.schema import read_document, validate
 from snapcore.select.methods import VIEW_METHODS
 
 __all__ = [
+    "DEMO_CONFIG",
+    "PAPER_CONFIG",
     "TASKS",
     "DEFAULT_BACKGROUND",
     "DEFAULT_ATTENTION",
@@ -48,6 +50,13 @@ __all__ = [
     "DEFAULT_CONTACT",
     "NEAR_DUPLICATE_ACTIONS",
 ]
+
+#: The study configs shipped with the app (``study_app/configs/``).
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+#: The embedded demo: synthetic scenes from snapcore.motion.synth, no data needed.
+DEMO_CONFIG = CONFIGS / "demo.toml"
+#: The paper's six analogues on the real motions (SNAPSHOT_DATA).
+PAPER_CONFIG = CONFIGS / "paper.toml"
 
 #: Trial kinds, in the order the plan puts them.
 TASKS = ("pose", "view", "attention")

@@ -2,7 +2,7 @@
 
 :class:`StudyScene` holds what the app, the analysis and the simulation need to know
 about a scene: its id, the motion's rate, length and first source frame, and the
-algorithm's picks. The stimuli add their files (:class:`study_app.stimuli.SceneStimulus`
+algorithm's picks. The stimuli add their files (:class:`study_app.design.stimuli.SceneStimulus`
 is a StudyScene with the video, frame images and view images); the frame analysis
 (:mod:`analysis.frames`) adds the motion-derived baseline frames; a simulated study
 (:mod:`analysis.simulate`) adds the salient moments its observers aim at and the

@@ -41,6 +41,7 @@ from .scenes import StudyScene
 
 __all__ = [
     "MANIFEST_NAME",
+    "default_stimuli_dir",
     "StimuliError",
     "SceneStimulus",
     "Stimuli",
@@ -60,9 +61,15 @@ __all__ = [
 ]
 
 MANIFEST_NAME = "manifest.json"
+_REPO = Path(__file__).resolve().parents[2]
 #: JPEG quality of the pickable frames: visually lossless at study sizes, ~20 kB a frame.
 FRAME_JPEG_QUALITY = 88
 _HASH_CHUNK = 1 << 20
+
+
+def default_stimuli_dir(study_id: str) -> Path:
+    """Where a study's stimuli live unless told otherwise: ``<repo>/var/stimuli/<id>``."""
+    return _REPO / "var" / "stimuli" / study_id
 
 
 class StimuliError(SnapshotError):
@@ -93,7 +100,7 @@ def sha256_file(path: str | Path) -> str:
 
 @dataclass(frozen=True, kw_only=True)
 class SceneStimulus(StudyScene):
-    """One scene's stimuli, paths resolved: the :class:`~study_app.scenes.StudyScene`
+    """One scene's stimuli, paths resolved: the :class:`~study_app.design.scenes.StudyScene`
     (id, timing, the algorithm's picks, title) and its files.
 
     Attributes

@@ -1,4 +1,4 @@
-"""The study app's Streamlit entry: ``streamlit run study_app/app.py`` (or ``snapshot study``).
+"""The study app's Streamlit entry: ``streamlit run study_app/web/app.py`` (or ``snapshot study``).
 
 Each run: load the verified stimuli and the store once per server process (a missing
 or altered stimulus file stops the app here, before anyone starts), find the
@@ -8,7 +8,7 @@ started, else the one registered for the URL's ``PROLIFIC_PID`` — ask
 step's page. Navigation is hidden and explicit: the study's own flow (every step at one
 address, so Back/Forward never land on an earlier step without the participant) and
 the researcher page (``/researcher``) are the only pages, whatever URL comes first;
-the page modules live in ``study_app/screens/`` (a ``pages/`` folder beside this script
+the page modules live in ``study_app/web/screens/`` (a ``pages/`` folder beside this script
 would be listed by Streamlit itself).
 
 Configuration comes from the environment (``snapshot study`` sets it):
@@ -24,23 +24,12 @@ from pathlib import Path
 
 import streamlit as st
 
-# `streamlit run study_app/app.py` puts study_app/ (not the repo) on sys.path; make the
-# package importable when the project is not installed.
-_REPO = str(Path(__file__).resolve().parents[1])
+# `streamlit run study_app/web/app.py` puts study_app/web/ (not the repo) on sys.path; make
+# the package importable when the project is not installed.
+_REPO = str(Path(__file__).resolve().parents[2])
 if _REPO not in sys.path:
     sys.path.insert(0, _REPO)
 
-from study_app.screens import (  # noqa: E402
-    attention,
-    background,
-    common,
-    consent,
-    done,
-    invalid,
-    pose_task,
-    researcher,
-    view_task,
-)
 from study_app.session import (  # noqa: E402
     ParticipantSession,
     Stage,
@@ -49,7 +38,21 @@ from study_app.session import (  # noqa: E402
     describe_value,
     prolific_problems,
 )
-from study_app.timing import RunClock  # noqa: E402
+from study_app.web.screens import (  # noqa: E402
+    answers,
+    attention,
+    background,
+    consent,
+    context,
+    done,
+    invalid,
+    keys,
+    pose_task,
+    researcher,
+    view_task,
+    widgets,
+)
+from study_app.web.timing import RunClock  # noqa: E402
 
 #: The page shown at each stage: (render function, title).
 STAGE_PAGES = {
@@ -82,8 +85,8 @@ def _participant(ctx):
     last two put the ``pid`` back into the URL, so a reload keeps them.
     """
     query = _query()
-    fresh = common.take_fresh_session(query.get(common.QUERY_PID))  # taken on every run
-    st.session_state[common.KEY_WITHDRAWN] = False
+    fresh = context.take_fresh_session(query.get(keys.QUERY_PID))  # taken on every run
+    st.session_state[keys.KEY_WITHDRAWN] = False
     problems = prolific_problems(query)
     if problems:
         # Refused before anything is stored, and logged for the researcher.
@@ -91,21 +94,21 @@ def _participant(ctx):
                     ", ".join(f"{k}={describe_value(query.get(k))}"
                               for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
         return None, " ".join(problems) + " Please open the study again from Prolific."
-    pid = query.get(common.QUERY_PID)
+    pid = query.get(keys.QUERY_PID)
     if fresh is not None:  # read (and updated) by this run's answer callback just now
-        st.session_state[common.KEY_PARTICIPANT_ID] = fresh.participant_id
+        st.session_state[keys.KEY_PARTICIPANT_ID] = fresh.participant_id
         return fresh, None
     if pid:
         try:
             session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
         except UnknownParticipant as err:
             log.warning("refused participant link pid=%s: %s", describe_value(pid), err)
-            st.session_state[common.KEY_WITHDRAWN] = isinstance(err, Withdrawn)
+            st.session_state[keys.KEY_WITHDRAWN] = isinstance(err, Withdrawn)
             return None, str(err)
-        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
+        st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
         return session, None
     session = None
-    remembered = st.session_state.get(common.KEY_PARTICIPANT_ID)
+    remembered = st.session_state.get(keys.KEY_PARTICIPANT_ID)
     if remembered:
         try:
             session = ParticipantSession.resume(ctx.store, ctx.stimuli, remembered)
@@ -115,11 +118,11 @@ def _participant(ctx):
         try:
             session = ParticipantSession.for_prolific(ctx.store, ctx.stimuli, query)
         except Withdrawn as err:
-            st.session_state[common.KEY_WITHDRAWN] = True
+            st.session_state[keys.KEY_WITHDRAWN] = True
             return None, str(err)
     if session is not None:
-        st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
-        st.query_params[common.QUERY_PID] = session.participant_id
+        st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
+        st.query_params[keys.QUERY_PID] = session.participant_id
     return session, None
 
 
@@ -129,17 +132,17 @@ WIDE_STAGES = (Stage.VIEW,)
 
 def main() -> None:
     try:
-        ctx = common.load_context()
+        ctx = context.load_context()
     except Exception as err:  # noqa: BLE001 - any failure here must stop the app, politely
         st.set_page_config(page_title="Action Snapshot study", layout="centered")
-        st.error(f"The study cannot start: {common.one_line(err)}")
+        st.error(f"The study cannot start: {widgets.one_line(err)}")
         st.stop()
     session, problem = _participant(ctx)
     wide = session is not None and session.stage in WIDE_STAGES
     st.set_page_config(page_title=ctx.stimuli.study.title, page_icon="🎞️",
                        layout="wide" if wide else "centered")
-    st.session_state[common.KEY_SESSION] = session
-    st.session_state[common.KEY_PROBLEM] = problem
+    st.session_state[keys.KEY_SESSION] = session
+    st.session_state[keys.KEY_PROBLEM] = problem
     if problem:
         flow = st.Page(invalid.render, title="Link not valid", url_path=FLOW_PATH, default=True)
     else:
@@ -150,9 +153,9 @@ def main() -> None:
     admin = st.Page(Path(researcher.__file__), title="Researcher", url_path=RESEARCHER_PATH)
     # The explicit list is the whole app: any other address shows the default page.
     page = st.navigation([flow, admin], position="hidden")
-    common.page_style()
+    widgets.page_style()
     if session is not None and page.url_path != RESEARCHER_PATH:
-        common.stale_tab_notice(session)
+        answers.stale_tab_notice(session)
     if page.url_path != RESEARCHER_PATH and not problem:
         n_trials = 2 * len(ctx.stimuli.scene_ids) + 1
         done_steps, total = session.progress() if session else (0, 2 + n_trials)
@@ -160,14 +163,14 @@ def main() -> None:
     page.run()
     if page.url_path != RESEARCHER_PATH and session is not None \
             and session.stage is not Stage.DONE:
-        common.resume_link(session)
+        widgets.resume_link(session)
 
 
 def _timed_main() -> None:
     """Run :func:`main`, recording how long this script run took, with the answer
     callbacks before it (st.rerun and st.stop end a run with an exception: they are
     timed too)."""
-    with RunClock(common.current_stage):
+    with RunClock(context.current_stage):
         main()
 
 

@@ -1,6 +1,6 @@
 """The study server process: Streamlit's own command line, with the app's imports warmed.
 
-``snapshot study`` and the replicas run ``python -m study_app.server run study_app/app.py
+``snapshot study`` and the replicas run ``python -m study_app.web.server run study_app/web/app.py
 ...``, which is ``python -m streamlit run ...`` plus one thing: while the server starts,
 a background thread imports what the app's first script runs would otherwise import
 inside a participant's interaction. Streamlit runs the app script only when a session
@@ -36,11 +36,15 @@ import pkgutil
 import sys
 import threading
 import time
+from pathlib import Path
 
 __all__ = ["main", "warm_up", "index_config_sections", "DeepPageRedirect",
-           "redirect_deep_page_paths"]
+           "redirect_deep_page_paths", "streamlit_command", "APP"]
 
-log = logging.getLogger("study_app.server")
+log = logging.getLogger("study_app.web.server")
+
+#: The app script Streamlit runs.
+APP = Path(__file__).resolve().parent / "app.py"
 
 
 def warm_up() -> float:
@@ -52,14 +56,42 @@ def warm_up() -> float:
     dataframe_util.is_dataframe_like([0])
     import sqlalchemy  # noqa: F401 - the store's engine
 
-    import study_app.screens as screens
+    import study_app.web.screens as screens
 
     for page in pkgutil.iter_modules(screens.__path__):  # every page the app can show
         importlib.import_module(f"{screens.__name__}.{page.name}")
+    from study_app.data.store import Store  # noqa: F401
     from study_app.session import ParticipantSession  # noqa: F401
-    from study_app.store import Store  # noqa: F401
 
     return time.perf_counter() - t0
+
+
+def streamlit_command(*, port: int, address: str) -> list[str]:
+    """The ``streamlit run`` command line for the app (headless, no telemetry, no watcher),
+    through :mod:`study_app.web.server`, which warms the app's imports while Streamlit starts.
+
+    ``runner.postScriptGC`` is off: Streamlit otherwise runs a full ``gc.collect(2)``
+    after every script run, which took two thirds of the server's CPU in the load test
+    (tens of ms per interaction with this app's heap); Python's own generational
+    collector still runs.
+
+    ``runner.fastReruns`` is off: with it, a rerun request during a run (a double click's
+    second send) starts a new script thread at once while the old one finishes, so the
+    second run could resume the participant before the first one's answer was stored and
+    draw the answered step again. Off, a session's runs follow one another: a rerun
+    stops the current run at its next Streamlit call and starts after it.
+    """
+    return [sys.executable, "-m", "study_app.web.server", "run", str(APP),
+            "--server.headless", "true",
+            "--server.address", address,
+            "--server.port", str(port),
+            "--browser.gatherUsageStats", "false",
+            "--server.fileWatcherType", "none",
+            "--server.runOnSave", "false",
+            "--runner.postScriptGC", "false",
+            "--runner.fastReruns", "false",
+            "--theme.base", "light",
+            "--client.toolbarMode", "minimal"]
 
 
 def _warm_in_background() -> None:

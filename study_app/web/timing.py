@@ -7,7 +7,7 @@ script's first line, to its last. A fragment run (only the part of a page in an
 ``st.fragment``, e.g. a picker's log batch) is timed the same way, with
 ``"fragment": true``; a fragment drawn inside a full run is part of that run. The clock
 hands each run to :func:`record_run`. It
-logs ``script run 12.3 ms stage=pose`` on the ``study_app.timing`` logger (debug level,
+logs ``script run 12.3 ms stage=pose`` on the ``study_app.web.timing`` logger (debug level,
 so a normal server log stays quiet) and, when ``$SNAPSHOT_TIMINGS`` names a file,
 appends one JSON line per run there::
 
@@ -38,7 +38,7 @@ __all__ = ["ENV_TIMINGS", "RunClock", "callback_started", "in_fragment_run", "re
 
 #: Environment variable naming the JSON-lines file of script-run timings.
 ENV_TIMINGS = "SNAPSHOT_TIMINGS"
-log = logging.getLogger("study_app.timing")
+log = logging.getLogger("study_app.web.timing")
 _lock = threading.Lock()
 #: Per script thread: the clock of the run in progress, and when its callbacks began.
 _local = threading.local()

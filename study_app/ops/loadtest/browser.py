@@ -5,7 +5,7 @@ same flow (consent, background, each pose task watched through and confirmed, ea
 chosen, the attention check, the completion code), with seeded random choices, every
 click timed until the script run it caused has finished (read from the page's own
 websocket, see :class:`RunWatch`) and, for an answer, until the next step's page is
-drawn, and the same report and database check (:func:`study_app.loadtest.run.check_database`). Each participant is a
+drawn, and the same report and database check (:func:`study_app.ops.loadtest.run.check_database`). Each participant is a
 browser context (about 0.4 GB and a good share of a core), so keep N small: on a
 2-core machine 30 browsers starve the server they measure.
 
@@ -211,7 +211,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
 def run_browsers(url: str, n: int, *, ramp_s: float = 5.0, think_s: float = 1.0,
                  seed: int = 0, server_pids=(), timings=(), db_url: str | None = None):
     """Run ``n`` participants in headless Chromium; return (report, results) like
-    :func:`study_app.loadtest.run.run_load`.
+    :func:`study_app.ops.loadtest.run.run_load`.
 
     Trial indices (for the database check) come from the pages' headings: "Animation
     k of N" is pose trial k-1, "Pictures k of M" trial N+k-1, the attention check N+M.

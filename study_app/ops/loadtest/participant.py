@@ -18,7 +18,8 @@ import asyncio
 import random
 from dataclasses import dataclass, field
 
-from ..session import STALE_TAB_TEXT
+from study_app.session import STALE_TAB_TEXT
+
 from .client import Page, ProtocolError, StreamlitClient
 
 __all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
@@ -27,7 +28,7 @@ __all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "AC
 ACTIONS = ("open", "consent_agree", "consent_start", "background_field", "background_submit",
            "pose_log", "pose_confirm", "view_choose", "attention_choice", "attention_submit",
            "reload", "back", "double_click")
-#: Keys of the app's widgets (study_app.screens.common; copied, as the driver must not
+#: Keys of the app's widgets (study_app.web.screens.keys; copied, as the driver must not
 #: import the UI layer).
 K_AGREE, K_START = "consent.agree", "consent.start"
 K_AGE, K_GENDER, K_EXP = "background.age_band", "background.gender", "background.experience"

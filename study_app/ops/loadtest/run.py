@@ -237,7 +237,7 @@ def build_report(results, *, elapsed_s: float, server: dict, config: dict, timin
     report = summarize(results, elapsed_s=elapsed_s, server=server)
     report["config"] = config
     if timings:
-        from study_app.timing import read_timings
+        from study_app.web.timing import read_timings
 
         runs = read_timings(timings, since=window[0], until=window[1])
         report["server_script_runs"] = percentiles(r["ms"] / 1000.0 for r in runs)
@@ -278,7 +278,7 @@ def check_database(db_url: str, results) -> dict:
         (responses or events for a trial after the participant's last answer + 1),
         ``codes_ok`` (the completion code shown is the stored one) and ``ok``.
     """
-    from study_app.store import Store
+    from study_app.data.store import Store
 
     store = Store(db_url)
     try:

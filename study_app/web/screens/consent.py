@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.protocol import consent_text, estimated_minutes
-from study_app.screens import common
+from study_app.design.protocol import consent_text, estimated_minutes
 from study_app.session import ParticipantSession
-from study_app.timing import callback_started
+from study_app.web.screens import context, keys
+from study_app.web.timing import callback_started
 
 
 def render() -> None:
-    ctx = common.load_context()
+    ctx = context.load_context()
     study = ctx.stimuli.study
     st.title(study.title)
     if study.description:
@@ -21,8 +21,8 @@ def render() -> None:
                                  for sc in ctx.stimuli.scenes.values()])
     st.markdown(consent_text(study, minutes))
     agree = st.checkbox("I have read the information above and agree to take part.",
-                        key=common.KEY_CONSENT_AGREE)
-    st.button("Start the study", key=common.KEY_CONSENT_START, type="primary",
+                        key=keys.KEY_CONSENT_AGREE)
+    st.button("Start the study", key=keys.KEY_CONSENT_START, type="primary",
               disabled=not agree, on_click=_on_start)
 
 
@@ -30,15 +30,15 @@ def _on_start() -> None:
     """Register the participant before the run the click causes (which shows the first
     step); a click without the box ticked (a forged one) does nothing."""
     callback_started()
-    if st.session_state.get(common.KEY_CONSENT_AGREE) is not True:
+    if st.session_state.get(keys.KEY_CONSENT_AGREE) is not True:
         return
-    if st.session_state.get(common.KEY_PARTICIPANT_ID) and \
-            common.QUERY_PID in st.query_params:
+    if st.session_state.get(keys.KEY_PARTICIPANT_ID) and \
+            keys.QUERY_PID in st.query_params:
         return  # the second send of a double click: this tab already started
-    ctx = common.load_context()
+    ctx = context.load_context()
     # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
     query = {k: st.query_params.get(k) for k in st.query_params.keys()}
     session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
     # The id goes in the URL: a reload, or the same link later, resumes here.
-    st.query_params[common.QUERY_PID] = session.participant_id
-    st.session_state[common.KEY_PARTICIPANT_ID] = session.participant_id
+    st.query_params[keys.QUERY_PID] = session.participant_id
+    st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id

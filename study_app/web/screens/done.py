@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.protocol import DEFAULT_CONTACT
-from study_app.screens import common
+from study_app.design.protocol import DEFAULT_CONTACT
+from study_app.web.screens import context
 
 
 def render() -> None:
-    session = common.current_session()
+    session = context.current_session()
     code = session.finish()
     st.header("Thank you!")
     st.success("All your answers are saved. You have finished the study.")

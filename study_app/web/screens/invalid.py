@@ -5,22 +5,22 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.screens import common
+from study_app.web.screens import keys
 
 
 def render() -> None:
-    if st.session_state.get(common.KEY_WITHDRAWN):
+    if st.session_state.get(keys.KEY_WITHDRAWN):
         st.header("Your data were withdrawn")
-        st.info(st.session_state.get(common.KEY_PROBLEM))
+        st.info(st.session_state.get(keys.KEY_PROBLEM))
         return
     st.header("This link does not work")
-    st.error(st.session_state.get(common.KEY_PROBLEM) or "Unknown participant.")
+    st.error(st.session_state.get(keys.KEY_PROBLEM) or "Unknown participant.")
     st.write("Nothing was recorded. If you were given a personal link, please use it "
              "exactly as you received it.")
     # Only a bad personal id can be dropped for a fresh start; a malformed Prolific
     # link must be opened again from Prolific (starting without it would lose who
     # the participant is).
-    if common.QUERY_PID in st.query_params and st.button("Start a new session",
-                                                         key=common.KEY_RESTART):
-        del st.query_params[common.QUERY_PID]
+    if keys.QUERY_PID in st.query_params and st.button("Start a new session",
+                                                         key=keys.KEY_RESTART):
+        del st.query_params[keys.QUERY_PID]
         st.rerun()

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.picker import confirmed, frame_picker
-from study_app.screens import common
 from study_app.session import WATCHED_ENOUGH
+from study_app.web.picker import confirmed, frame_picker
+from study_app.web.screens import answers, context, keys, widgets
 
 #: Instructions for the video player, and for the frame slider (the fallback when the
 #: browser cannot play the video, or the study's ``picker = "frames"``).
@@ -23,20 +23,20 @@ SLIDER_TEXT = (
 
 
 def render() -> None:
-    session = common.current_session()
+    session = context.current_session()
     trial = session.current_trial
     sc = session.stimuli.scenes[trial.scene]
     n_pose = sum(t.task == "pose" for t in session.plan)
     st.header(f"Animation {trial.index + 1} of {n_pose}")
     study = session.stimuli.study
     use_frames = (session.stimuli.study.picker == "frames"
-                  or st.session_state.get(common.KEY_FRAMES_FALLBACK, False))
+                  or st.session_state.get(keys.KEY_FRAMES_FALLBACK, False))
     # The instructions name only the controls the participant has (the slider when the
     # browser cannot play the video).
     st.markdown(SLIDER_TEXT if use_frames
                 else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else ""))
-    common.show_flash()
-    common.trial_clock(session, trial)
+    widgets.show_flash()
+    widgets.trial_clock(session, trial)
     if not use_frames:
         _player(session.participant_id, trial.index)
         return
@@ -46,12 +46,12 @@ def render() -> None:
         st.rerun()
 
 
-@common.timed_fragment
+@widgets.timed_fragment
 def _player(pid: str, trial_index: int) -> None:
     """The video player, a fragment: its log batches (sent as the participant plays,
     pauses, seeks) rerun only the player, which stores them; Confirm stores the answer
     in its callback and reruns the whole page, which shows the next step."""
-    session = common.leave_fragment_if_moved_on(pid, trial_index)
+    session = answers.leave_fragment_if_moved_on(pid, trial_index)
     trial = session.plan[trial_index]
     sc = session.stimuli.scenes[trial.scene]
     study = session.stimuli.study
@@ -59,8 +59,8 @@ def _player(pid: str, trial_index: int) -> None:
     # trial and browser session (the player keeps its own state after that), not on
     # every rerun of the page. Keyed by the player's widget key, so a player remounted
     # after a refused answer starts where the log says.
-    widget = common.widget_key(common.KEY_PICKER, trial)
-    starts = st.session_state.setdefault(common.KEY_PICKER_START, {})
+    widget = widgets.widget_key(keys.KEY_PICKER, trial)
+    starts = st.session_state.setdefault(keys.KEY_PICKER_START, {})
     key = (pid, widget)
     if key not in starts:
         starts[key] = session.picker_state(trial.index)
@@ -74,7 +74,7 @@ def _player(pid: str, trial_index: int) -> None:
     if answer and "error" in answer:
         # This browser cannot play the video: offer the frames instead (the page's
         # instructions change too).
-        st.session_state[common.KEY_FRAMES_FALLBACK] = True
+        st.session_state[keys.KEY_FRAMES_FALLBACK] = True
         st.rerun(scope="app")
     if answer and "log" in answer:
         # A batch of the player's log, stored as it happens; the player stays.
@@ -84,7 +84,7 @@ def _player(pid: str, trial_index: int) -> None:
 def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
     """The player's Confirm, stored before the run it causes (which shows the next step)."""
     answer = confirmed(widget)
-    session = common.answering_session(pid)
+    session = context.answering_session(pid)
     if answer is None or session is None:
         return
     _submit(session, session.plan[trial_index], answer)
@@ -93,22 +93,22 @@ def _on_confirm(pid: str, trial_index: int, widget: str) -> None:
 def _submit(session, trial, answer: dict) -> None:
     """Store a pose answer for ``trial`` (the trial its page showed); a refused answer
     remounts the picker with the reason above it."""
-    common.store_answer(
+    answers.store_answer(
         session, trial.index,
         lambda: session.submit_pose(answer.get("trial"), answer.get("frame"),
-                                    response_time_s=common.elapsed_s(session, trial),
+                                    response_time_s=widgets.elapsed_s(session, trial),
                                     events=answer.get("events") or (),
                                     watched=answer.get("watched")),
-        lambda err: common.retry_trial(trial, err))
+        lambda err: answers.retry_trial(trial, err))
 
 
 def _frames_picker(sc, trial):
     """Fallback picker: a slider over the pre-extracted frames (pure Streamlit)."""
     n = sc.n_video_frames
     k = st.slider("Frame", min_value=1, max_value=n, value=1,
-                  key=common.widget_key(common.KEY_FRAME_SLIDER, trial))
+                  key=widgets.widget_key(keys.KEY_FRAME_SLIDER, trial))
     st.image(str(sc.frames[k - 1]), caption=f"Frame {k} / {n}", width="stretch")
-    if st.button("Confirm this frame", key=common.widget_key(common.KEY_FRAME_CONFIRM, trial),
+    if st.button("Confirm this frame", key=widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial),
                  type="primary"):
         return {"trial": trial.index, "frame": k - 1, "events": []}
     return None

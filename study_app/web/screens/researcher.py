@@ -17,22 +17,22 @@ from pathlib import Path
 import streamlit as st
 
 from snapcore.errors import SnapshotError
-from study_app.pseudonym import Pseudonymiser
-from study_app.screens import common
-from study_app.withdraw import withdraw, withdrawal_plan
+from study_app.data.pseudonym import Pseudonymiser
+from study_app.data.withdraw import withdraw, withdrawal_plan
+from study_app.web.screens import context, keys, widgets
 
 #: Seconds between refreshes of the live panels.
 REFRESH_S = 10
 
 
 def _token_ok() -> bool:
-    expected = os.environ.get(common.ENV_ADMIN_TOKEN, "")
+    expected = os.environ.get(keys.ENV_ADMIN_TOKEN, "")
     st.header("Researcher")
     if not expected:
-        st.info(f"This page is disabled. Start the app with {common.ENV_ADMIN_TOKEN} set to "
+        st.info(f"This page is disabled. Start the app with {keys.ENV_ADMIN_TOKEN} set to "
                 "open it.")
         return False
-    given = st.text_input("Access token", type="password", key=common.KEY_ADMIN_TOKEN)
+    given = st.text_input("Access token", type="password", key=keys.KEY_ADMIN_TOKEN)
     if not given:
         return False
     if not hmac.compare_digest(given.encode(), expected.encode()):
@@ -44,7 +44,7 @@ def _token_ok() -> bool:
 def render() -> None:
     if not _token_ok():
         return
-    ctx = common.load_context()
+    ctx = context.load_context()
     st.caption(f"Study **{ctx.stimuli.study.id}** · database {ctx.store.url} · stimuli "
                f"{ctx.stimuli.folder.name} (manifest {ctx.stimuli.sha256[:12]}…)")
     _live(ctx)
@@ -116,7 +116,7 @@ def frame_histogram_figure(rows: list[dict], sc):
 
 
 def _downloads(ctx) -> None:
-    from study_app.export import write_export
+    from study_app.data.export import write_export
 
     st.subheader("Export")
     # Pseudonymised, as every export (the raw ids only from `snapshot export --identifiers`).
@@ -127,10 +127,10 @@ def _downloads(ctx) -> None:
             write_export(rows, path)
             st.download_button(f"Download responses ({fmt.upper()}, {len(rows)} rows)",
                                path.read_bytes(), file_name=f"{ctx.stimuli.study.id}-responses.{fmt}",
-                               mime=mime, key=f"{common.KEY_DOWNLOAD}.{fmt}")
+                               mime=mime, key=f"{keys.KEY_DOWNLOAD}.{fmt}")
 
 
-#: The ids a withdrawal can be asked by: label → keyword of study_app.withdraw.withdraw.
+#: The ids a withdrawal can be asked by: label → keyword of study_app.data.withdraw.withdraw.
 WITHDRAW_BY = {"Participant link id (pid=…)": "participant_id", "Prolific ID": "prolific_pid"}
 
 
@@ -139,16 +139,16 @@ def _withdrawal(ctx) -> None:
     st.subheader("Withdraw a participant")
     st.caption("Deletes their responses, events and background answers; only a record "
                "that they withdrew is kept, and their link says so.")
-    label = st.radio("They gave their", list(WITHDRAW_BY), key=common.KEY_WITHDRAW_KIND,
+    label = st.radio("They gave their", list(WITHDRAW_BY), key=keys.KEY_WITHDRAW_KIND,
                      horizontal=True)
-    given = st.text_input("Id", key=common.KEY_WITHDRAW_ID).strip()
+    given = st.text_input("Id", key=keys.KEY_WITHDRAW_ID).strip()
     if not given:
         return
     which = {WITHDRAW_BY[label]: given, "study_id": ctx.stimuli.study.id}
     try:
         plan = withdrawal_plan(ctx.store, **which)
     except SnapshotError as err:
-        st.warning(common.one_line(err))
+        st.warning(widgets.one_line(err))
         return
     for p in plan:
         st.warning(f"Participant **{p['participant_id']}** will be deleted: "
@@ -156,12 +156,12 @@ def _withdrawal(ctx) -> None:
                    + (", background answers" if p["has_background"] else "")
                    + ". This cannot be undone.")
     sure = st.checkbox("Yes, delete this participant's data",
-                       key=f"{common.KEY_WITHDRAW_CONFIRM}.{given}")
-    if st.button("Withdraw", key=common.KEY_WITHDRAW_BUTTON, type="primary", disabled=not sure):
+                       key=f"{keys.KEY_WITHDRAW_CONFIRM}.{given}")
+    if st.button("Withdraw", key=keys.KEY_WITHDRAW_BUTTON, type="primary", disabled=not sure):
         try:
             done = withdraw(ctx.store, by="page", **which)
         except SnapshotError as err:
-            st.error(common.one_line(err))
+            st.error(widgets.one_line(err))
             return
         for w in done:
             st.success(f"Withdrew participant {w.participant_id}: deleted {w.n_responses} "

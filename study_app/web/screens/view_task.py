@@ -4,22 +4,22 @@ from __future__ import annotations
 
 import streamlit as st
 
-from study_app.picker import chosen, view_chooser
-from study_app.screens import common
+from study_app.web.picker import chosen, view_chooser
+from study_app.web.screens import answers, context, keys, widgets
 
 
 def render() -> None:
-    session = common.current_session()
+    session = context.current_session()
     trial = session.current_trial
     views = [t for t in session.plan if t.task == "view"]
     k = views.index(trial) + 1
     st.header(f"Pictures {k} of {len(views)}")
     st.markdown("Here is one moment of an animation, seen from three directions. **Which "
                 "picture shows best what the figure is doing?** Click **Choose** under it.")
-    common.show_flash()
-    common.trial_clock(session, trial)
+    widgets.show_flash()
+    widgets.trial_clock(session, trial)
     # Pictures only: the position → method map stays here (submit_view applies it).
-    widget = common.widget_key(common.KEY_CHOOSER, trial)
+    widget = widgets.widget_key(keys.KEY_CHOOSER, trial)
     view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
                  key=widget, min_answer_s=session.stimuli.study.min_answer_s,
                  on_choice=_on_choice, args=(session.participant_id, trial.index, widget))
@@ -28,12 +28,12 @@ def render() -> None:
 def _on_choice(pid: str, trial_index: int, widget: str) -> None:
     """The chosen picture, stored before the run it causes (which shows the next step)."""
     answer = chosen(widget)
-    session = common.answering_session(pid)
+    session = context.answering_session(pid)
     if answer is None or session is None:
         return
     trial = session.plan[trial_index]
-    common.store_answer(
+    answers.store_answer(
         session, trial.index,
         lambda: session.submit_view(answer.get("trial"), answer.get("position"),
-                                    response_time_s=common.elapsed_s(session, trial)),
-        lambda err: common.retry_trial(trial, err))
+                                    response_time_s=widgets.elapsed_s(session, trial)),
+        lambda err: answers.retry_trial(trial, err))

@@ -1,0 +1,9 @@
+"""What a study stores, and every SQL statement it runs: the tables and database URLs
+(:mod:`.database`), the store of participants, responses and events (:mod:`.store`, with
+:mod:`.rows` checks and :mod:`.group_commit`), withdrawal (:mod:`.withdraw`), pseudonyms
+(:mod:`.pseudonym`), backups (:mod:`.backup`), the export codec (:mod:`.export`), the
+Psych-DS dataset (:mod:`.psychds`) and the one exception (:mod:`.errors`).
+
+Imports :mod:`study_app.design` and snapcore, never the session, the UI or the commands;
+``tests/test_architecture.py`` checks that no SQL appears outside this package.
+"""

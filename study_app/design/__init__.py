@@ -1,0 +1,5 @@
+"""What a study shows: its protocol (config, trial plan, consent text), its scenes and the
+stimuli built from them (videos, frame strips, candidate views, the manifest).
+
+Builds on snapcore only; everything else in :mod:`study_app` reads from here.
+"""
