@@ -1,21 +1,24 @@
 """The user study: stimuli, the Streamlit app, and the store of participants' answers.
 
-Two layers, with :mod:`analysis` between them (``tests/test_architecture.py`` checks it):
+Layers, lowest first, with :mod:`analysis` between the logic and the UI
+(``tests/test_architecture.py`` checks it; ARCHITECTURE.md has the table):
 
-- the study logic — :mod:`~study_app.design.protocol`, :mod:`~study_app.design.scenes`,
-  :mod:`~study_app.design.stimuli`, :mod:`~study_app.data.store`, :mod:`~study_app.data.export`,
-  :mod:`~study_app.session`, :mod:`~study_app.commands` — builds on snapcore and never
-  imports :mod:`analysis`;
-- :mod:`analysis` reads what the logic produces (the store, export files through
-  :mod:`study_app.data.export`, the stimulus manifest, :class:`~study_app.design.scenes.StudyScene`);
-- the Streamlit UI — :mod:`study_app.web.app`, :mod:`study_app.web.screens`,
-  :mod:`study_app.web.picker` — sits on top: the researcher screen shows analysis results.
+- :mod:`~study_app.design` — what a study shows: protocol, scenes, stimuli;
+- :mod:`~study_app.data` — what it stores, and every SQL statement: tables, store,
+  export codec, withdrawal, pseudonyms, backups, Psych-DS;
+- :mod:`~study_app.session` — one participant's walk through the protocol;
+- :mod:`analysis` reads what the logic produces (the store, export files, the stimulus
+  manifest, :class:`~study_app.design.scenes.StudyScene`), never the session or the UI;
+- :mod:`~study_app.web` — the Streamlit UI (app, screens, picker, server, timing): the
+  researcher screen shows analysis results;
+- :mod:`~study_app.ops` — replicas and the load test, which run the web servers;
+- :mod:`~study_app.commands` — the study's ``snapshot`` commands.
 
-So data flows one way: study logic → analysis → UI.
+So data flows one way: design → data → session → analysis → UI → operations → commands.
 """
 
-from study_app.data.errors import StoreError
-from study_app.data.export import read_export, write_export
-from study_app.data.store import Store
+from .data.errors import StoreError
+from .data.export import read_export, write_export
+from .data.store import Store
 
 __all__ = ["Store", "StoreError", "read_export", "write_export"]

@@ -186,13 +186,13 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
     """`snapshot study --build` builds a missing folder, verifies it, then execs streamlit."""
     from click.testing import CliRunner
 
-    from study_app.commands import serve
+    from study_app.commands import study
 
     calls = []
-    monkeypatch.setattr(serve.os, "execve", lambda exe, argv, env: calls.append((argv, env)))
+    monkeypatch.setattr(study.os, "execve", lambda exe, argv, env: calls.append((argv, env)))
     out = tmp_path / "st"
     db = f"sqlite:///{tmp_path / 'db.sqlite'}"
-    r = CliRunner().invoke(serve.study, ["--config", str(tiny_config), "--stimuli", str(out),
+    r = CliRunner().invoke(study.study, ["--config", str(tiny_config), "--stimuli", str(out),
                                          "--db", db, "--port", "8599", "--build", "-q"])
     assert r.exit_code == 0, r.output
     (argv, env), = calls
@@ -202,7 +202,7 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
     assert env["SNAPSHOT_STIMULI"] == str(out.resolve()) and env["SNAPSHOT_DB"] == db
     assert load_stimuli(out).study.id == "tiny"
     # without --build, a study other than the demo is not built implicitly
-    r = CliRunner().invoke(serve.study, ["--config", str(tiny_config), "--stimuli",
+    r = CliRunner().invoke(study.study, ["--config", str(tiny_config), "--stimuli",
                                          str(tmp_path / "none"), "--db", db])
     assert r.exit_code != 0 and "snapshot stimuli build" in str(r.exception)
 

@@ -111,7 +111,7 @@ def _element(el) -> Element:
         elif kind == "bidi_component" and proto.WhichOneof("data") == "mixed":
             out.data = json.loads(proto.mixed.json)
         if isinstance(out.data, list) and len(out.data) == 1:
-            out.data = out.data[0]  # the study's components send [data] (study_app/picker)
+            out.data = out.data[0]  # the study's components send [data] (study_app/web/picker)
         if kind == "button":
             out.text = proto.label
     elif kind == "heading":
