@@ -52,4 +52,4 @@ def _on_submit(pid: str) -> None:
         given["gender_self"] = self_described.strip()
     # A refusal is shown at the top of the page, where it is seen without scrolling.
     answers.store_answer(session, "background", lambda: session.submit_background(given),
-                        lambda err: widgets.flash("warning", str(err)))
+                         lambda err: widgets.flash("warning", str(err)))
