@@ -8,8 +8,19 @@ The run-time at scale (2,500 clips, scenes per minute, RSS per worker) is a benc
 from __future__ import annotations
 
 import gc
+import json
+import os
+import signal
+import subprocess
+import time
 import weakref
+from pathlib import Path
 
+import pytest
+from test_batch import FAST, FAST_ARGS, SNAPSHOT
+
+from snapcore.batch import discover, run_batch
+from snapcore.batch.index import read_index
 from snapcore.motion import synth
 from snapcore.motion.bvh import write_bvh
 
@@ -31,3 +42,97 @@ def test_a_processed_scene_is_freed_with_its_bodies(tmp_path):
     del scene, snap
     gc.collect()
     assert alive() is None
+
+
+# -- a dead worker, signals to the main process -----------------------------------------
+
+
+def _small_library(root: Path, n: int, seconds: float = 1.5) -> Path:
+    root.mkdir(parents=True)
+    for i in range(n):
+        write_bvh(synth.humanoid_document(("walk", "jump", "punch")[i % 3], seconds=seconds,
+                                          seed=i), root / f"c{i}.bvh")
+    return root
+
+
+@pytest.mark.slow
+def test_a_killed_worker_leaves_no_good_scene_marked_as_an_error(tmp_path):
+    """SIGKILL to one of two workers after the first result: every scene still ends
+    ok (the scenes in flight are run again), the run says a worker died, and a re-run
+    has nothing to do. (It once gave 22 good scenes a cached BrokenProcessPool.)"""
+    import psutil
+
+    lib = _small_library(tmp_path / "lib", 6)
+    messages, killed = [], []
+
+    def progress(total):
+        def tick(row):
+            if not killed:
+                workers = [p for p in psutil.Process().children()
+                           if "resource_tracker" not in " ".join(p.cmdline())]
+                assert len(workers) == 2
+                workers[0].send_signal(signal.SIGKILL)
+                killed.append(workers[0].pid)
+        return tick
+
+    report = run_batch(discover([lib]).scenes, tmp_path / "out", FAST, jobs=2,
+                       progress=progress, notify=messages.append)
+    assert killed
+    rows = read_index(tmp_path / "out" / "index.csv")
+    assert [r["status"] for r in rows] == ["ok"] * 6, [r["error"] for r in rows]
+    assert report.done == 6 and report.errors == 0
+    assert any("worker process died (killed by signal 9)" in m for m in messages), messages
+    again = run_batch(discover([lib]).scenes, tmp_path / "out", FAST, jobs=2)
+    assert (again.done, again.reused) == (0, 6)
+
+
+def _children_of(pid: int) -> list:
+    import psutil
+
+    return psutil.Process(pid).children(recursive=True)
+
+
+def _gone(pids, within_s: float) -> bool:
+    import psutil
+
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        if not [p for p in pids if psutil.pid_exists(p)
+                and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]:
+            return True
+        time.sleep(0.2)
+    return False
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_no_worker_outlives_a_killed_main_process(tmp_path, sig):
+    """SIGTERM or SIGKILL to the main process of `--jobs 2` (not its group, as `kill
+    PID` does): its workers are gone within seconds instead of running on under PID 1;
+    SIGTERM also writes the index of what finished, like Ctrl-C."""
+    lib = _small_library(tmp_path / "lib", 6)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([SNAPSHOT, "batch", str(lib), "-o", str(out), "--jobs", "2",
+                             *FAST_ARGS], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not list((out / "scenes").glob("*.sheet.png")) and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.1)
+        workers = [p.pid for p in _children_of(proc.pid)
+                   if "resource_tracker" not in " ".join(p.cmdline())]
+        assert len(workers) == 2
+        os.kill(proc.pid, sig)
+        _, stderr = proc.communicate(timeout=60)
+        assert _gone(workers, 10), "workers still running after the main process ended"
+        if sig == signal.SIGTERM:
+            assert proc.returncode == 130 and "interrupted:" in stderr, stderr
+            assert "Traceback" not in stderr
+            rows = read_index(out / "index.csv")
+            assert rows and all((out / r["thumb"]).is_file() for r in rows)
+    finally:
+        try:  # whatever is left of the run's session (its workers too, were they there)
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

@@ -17,10 +17,12 @@ import io
 import os
 from pathlib import Path
 
-__all__ = ["COLUMNS", "TIMING_COLUMNS", "INDEX_NAME", "atomic_write", "write_index",
-           "read_index", "validate_row"]
+__all__ = ["COLUMNS", "TIMING_COLUMNS", "INDEX_NAME", "PARQUET_NAME", "atomic_write",
+           "write_index", "read_index", "write_parquet", "read_parquet", "validate_row"]
 
 INDEX_NAME = "index.csv"
+#: The same index as Parquet (same columns, order and types; null for an empty cell).
+PARQUET_NAME = "index.parquet"
 #: Column order in the CSV (the schema's properties, in a reading order).
 COLUMNS = (
     "path", "folder", "name", "kind", "status", "error", "warnings",
@@ -116,3 +118,37 @@ def read_index(path) -> list[dict]:
             except ValueError as err:
                 raise SchemaError(f"{path}:{n}: {err}") from None
     return rows
+
+
+def _arrow_schema():
+    import pyarrow as pa
+
+    def kind(c):
+        return pa.int64() if c in _INT else pa.float64() if c in _FLOAT else pa.string()
+
+    return pa.schema([pa.field(c, kind(c), nullable=c not in _TEXT) for c in COLUMNS])
+
+
+def write_parquet(path, rows) -> None:
+    """Write ``rows`` as :func:`write_index` does, as a Parquet file (for pandas, Polars,
+    DuckDB: typed columns, no parsing), sorted by path, atomically.
+
+    The columns, their order and their types are the schema's (integer columns int64,
+    number columns float64, the rest strings); a null is a null."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rows = sorted(rows, key=lambda r: r["path"])
+    table = pa.Table.from_pydict({c: [r.get(c) for r in rows] for c in COLUMNS},
+                                 schema=_arrow_schema())
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf)
+    atomic_write(path, buf.getvalue().to_pybytes())
+
+
+def read_parquet(path) -> list[dict]:
+    """The rows of an index written by :func:`write_parquet` (as :func:`read_index`
+    gives them)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(path).to_pylist()

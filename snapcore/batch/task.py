@@ -110,7 +110,8 @@ class SceneResult:
         ``"json"`` (the ``select --json`` document), ``"thumb"`` (PNG), ``"sheet"``
         (PNG, with ``--sheet``); empty for a failed scene.
     worker : dict
-        ``pid`` and ``renderer`` (id of the thread's GL renderer) of whoever ran it.
+        ``pid``, ``renderer`` (id of the thread's GL renderer) and ``lp_threads`` (Mesa
+        rasteriser threads, ``LP_NUM_THREADS``) of whoever ran it.
     """
 
     row: dict
@@ -118,7 +119,8 @@ class SceneResult:
     worker: dict = field(default_factory=dict)
 
 
-def init_worker(size=(320, 360), *, ignore_sigint: bool = True, threads: int | None = 1):
+def init_worker(size=(320, 360), ignore_sigint: bool = True, threads: int | None = 1,
+                parent: int | None = None, *, renderer: bool = True):
     """Set up a worker process: the GL renderer, created once, and the signals.
 
     Parameters
@@ -133,15 +135,26 @@ def init_worker(size=(320, 360), *, ignore_sigint: bool = True, threads: int | N
         BLAS and Mesa llvmpipe (software GL) threads per worker (None: leave as is). N
         workers on N cores, each running a BLAS and a rasteriser with a thread per core,
         would fight over the cores; one process per core is the parallelism here.
+    parent : int, optional
+        PID of the process that started this worker: the worker ends itself within a
+        second of that process's death (a main process killed with SIGKILL cannot stop
+        its workers; a worker holds hundreds of MB and a core).
+    renderer : bool
+        Create this thread's GL renderer now (False where the tasks run on other
+        threads, as on a Dask worker).
     """
     if ignore_sigint:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is not None:
+        _watch_parent(parent)
     if threads is not None:
         from threadpoolctl import threadpool_limits
 
         threadpool_limits(threads)
-        # read by Mesa when the GL context is created, just below
+        # read by Mesa when a GL context is created (just below, or on a task's thread)
         os.environ.setdefault("LP_NUM_THREADS", str(threads))
+    if not renderer:
+        return
     try:
         from snapcore.render.gl import gl_renderer
 
@@ -149,6 +162,26 @@ def init_worker(size=(320, 360), *, ignore_sigint: bool = True, threads: int | N
     except SnapshotError:
         # no GL here: each scene then fails with the renderer's own one-line reason
         pass
+
+
+def _watch_parent(parent: int, every_s: float = 0.5) -> None:
+    """End this process (exit code 3) once ``parent`` is no longer its parent.
+
+    A thread polling ``getppid`` rather than ``prctl(PR_SET_PDEATHSIG)``: the latter
+    fires when the *thread* that started the worker ends, and the pool starts workers
+    from whichever thread submits.
+    """
+    import threading
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(every_s)
+        os._exit(3)
+
+    if os.getppid() == parent:
+        threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+    else:  # already orphaned while starting
+        os._exit(3)
 
 
 def _one_line(err: BaseException, scene: SceneSource) -> str:
@@ -282,4 +315,5 @@ def _worker(opts: BatchOptions) -> dict:
         renderer = id(gl_renderer(*opts.size))
     except SnapshotError:
         renderer = None
-    return {"pid": os.getpid(), "renderer": renderer}
+    return {"pid": os.getpid(), "renderer": renderer,
+            "lp_threads": os.environ.get("LP_NUM_THREADS")}
