@@ -289,6 +289,8 @@ def test_a_dask_cluster_gives_the_same_index(local_run, library, tmp_path):
             strip_timings(read_index(src / "index.csv"), SUBSET)
         assert report.done == len(SUBSET)
         assert os.getpid() not in {w["pid"] for w in report.workers}
+        # the local pool's set-up reached the Dask workers: one Mesa rasteriser thread
+        assert {w["lp_threads"] for w in report.workers} == {"1"}
     finally:
         for p in reversed(procs):
             p.terminate()

@@ -136,3 +136,101 @@ def test_no_worker_outlives_a_killed_main_process(tmp_path, sig):
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+# -- what is a scene, and what it is called ----------------------------------------------
+
+
+def test_a_json_with_a_characters_list_is_not_taken_for_a_manifest(tmp_path):
+    """In a folder, an old gallery's rows, a `select --json` document or any JSON with a
+    `characters` list is skipped with the schema's reason; a real manifest (JSON or
+    TOML) is a scene. (Every such JSON once became an error row.)"""
+    lib = _small_library(tmp_path / "lib", 2)
+    (lib / "select.json").write_text(json.dumps(
+        {"frame": 3, "characters": [{"name": "c0", "joints": 31}]}), encoding="utf-8")
+    (lib / "gallery.json").write_text(json.dumps({"characters": []}), encoding="utf-8")
+    (lib / "pair.json").write_text(json.dumps(
+        {"name": "pair", "characters": [{"file": "c0.bvh"},
+                                        {"file": "c1.bvh", "offset": [0, 0, 1]}]}),
+        encoding="utf-8")
+    found = discover([lib])
+    assert [(s.key, s.kind) for s in found.scenes] == [("pair.json", "manifest")]
+    why = {Path(p).name: w for p, w in found.skipped}
+    assert why["select.json"].startswith("not a scene manifest (select.json: ")
+    assert why["gallery.json"].startswith("not a scene manifest (gallery.json: characters")
+    assert why["c0.bvh"] == "part of a scene manifest"
+    # named explicitly, a non-manifest is still a scene, so its error is reported
+    assert [s.kind for s in discover([lib / "select.json"]).scenes] == ["manifest"]
+
+
+def test_a_sub_folder_run_updates_its_rows_of_the_library_index(tmp_path):
+    """`snapshot batch LIB/sub -o OUT` after `snapshot batch LIB -o OUT`: the sub-folder's
+    scenes keep their keys (`sub/...`), their rows are updated in place (no copies
+    beside them), the other rows stay, and the closing line suggests no --prune. The
+    same holds for an output written before the library root was recorded."""
+    from snapcore.batch.run import LIBRARY_NAME, library_root
+
+    lib = tmp_path / "lib"
+    _small_library(lib / "walks", 2)
+    _small_library(lib / "more" / "deep", 1)
+    out = tmp_path / "out"
+    r = subprocess.run([SNAPSHOT, "batch", str(lib), "-o", str(out), *FAST_ARGS],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    keys = ["more/deep/c0.bvh", "walks/c0.bvh", "walks/c1.bvh"]
+    assert [row["path"] for row in read_index(out / "index.csv")] == keys
+    write_bvh(synth.humanoid_document("jump", seconds=1.2, seed=9), lib / "walks" / "c1.bvh")
+    r = subprocess.run([SNAPSHOT, "batch", str(lib / "walks"), "-o", str(out), *FAST_ARGS],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "1 processed" in r.stdout and "1 already done" in r.stdout, r.stdout
+    assert "--prune" not in r.stdout + r.stderr
+    rows = read_index(out / "index.csv")
+    assert [row["path"] for row in rows] == keys
+    assert rows[2]["n_frames"] < rows[1]["n_frames"]  # 1.2 s, not 1.5: the edited clip redone
+    # an output from before library.json: the root is found from the index's keys
+    (out / LIBRARY_NAME).unlink()
+    assert library_root(out, [lib / "more" / "deep"]) == lib.resolve()
+    assert library_root(tmp_path / "new", [lib / "walks"]) == (lib / "walks").resolve()
+
+
+def test_the_parquet_index_holds_the_csv_rows_with_the_schema_types(tmp_path):
+    """OUT/index.parquet has the CSV's columns in the same order, the same rows, and
+    typed columns (integers, floats, strings; nulls as nulls)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from snapcore.batch.index import COLUMNS, read_parquet
+
+    lib = _small_library(tmp_path / "lib", 1)
+    (lib / "bad.bvh").write_text("not a bvh\n", encoding="utf-8")
+    run_batch(discover([lib]).scenes, tmp_path / "out", FAST)
+    table = pq.read_table(tmp_path / "out" / "index.parquet")
+    assert tuple(table.column_names) == COLUMNS
+    assert table.schema.field("n_frames").type == pa.int64()
+    assert table.schema.field("duration_s").type == pa.float64()
+    assert table.schema.field("path").type == pa.string()
+    assert read_parquet(tmp_path / "out" / "index.parquet") == \
+        read_index(tmp_path / "out" / "index.csv")
+
+
+def test_lost_dask_workers_are_reported():
+    """The Dask executor's watch says how many workers were lost and how many are left
+    (the bar once froze for 90 s without a word)."""
+    from snapcore.batch.run import _watch_workers
+
+    class Client:
+        def __init__(self, names):
+            self.names = names
+
+        def scheduler_info(self):
+            return {"workers": {n: {} for n in self.names}}
+
+    said = []
+    now = _watch_workers(Client(["tcp://a", "tcp://b"]), {"tcp://a", "tcp://b"}, said.append)
+    assert now == {"tcp://a", "tcp://b"} and said == []
+    now = _watch_workers(Client(["tcp://b"]), now, said.append)
+    assert said == ["Dask: 1 worker(s) lost (tcp://a); their scenes run again on the "
+                    "others; 1 left"]
+    _watch_workers(Client([]), now, said.append)
+    assert "none left: waiting for a worker to join" in said[-1]

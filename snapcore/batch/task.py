@@ -229,6 +229,35 @@ def error_result(task: SceneTask, err: BaseException) -> SceneResult:
 
 
 def run_scene(task: SceneTask) -> SceneResult:
+    """Process one scene (see :func:`_run_scene`), then free what it left behind."""
+    result = _run_scene(task)
+    _release()
+    return result
+
+
+#: Set once the first scene's survivors (modules, caches) are frozen out of the collector.
+_FROZEN = []
+
+
+def _release() -> None:
+    """Free the finished scene now, not at the next full collection.
+
+    A scene and its bodies form a reference cycle (the body cache lives on the scene),
+    which only the cycle collector frees, and a full collection comes rarely: a worker's
+    RSS then swung between 285 and 410 MB over 200 scenes; collected after each scene it
+    stayed at 244 MB. The objects alive after the first scene (imported modules, caches)
+    are frozen out of the collector (:func:`gc.freeze`), so each later collection only
+    looks at one scene's objects.
+    """
+    import gc
+
+    gc.collect()
+    if not _FROZEN:
+        gc.freeze()
+        _FROZEN.append(True)
+
+
+def _run_scene(task: SceneTask) -> SceneResult:
     """Process one scene: load, select pose and view, render thumbnail (and sheet).
 
     Parameters
