@@ -138,8 +138,14 @@ def write_parquet(path, rows) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    def value(row, c):  # the CSV's values: floats to 6 decimals, NaN as null
+        v = row.get(c)
+        if isinstance(v, float):
+            return round(v, 6) if v == v else None
+        return v
+
     rows = sorted(rows, key=lambda r: r["path"])
-    table = pa.Table.from_pydict({c: [r.get(c) for r in rows] for c in COLUMNS},
+    table = pa.Table.from_pydict({c: [value(r, c) for r in rows] for c in COLUMNS},
                                  schema=_arrow_schema())
     buf = pa.BufferOutputStream()
     pq.write_table(table, buf)
