@@ -28,14 +28,15 @@ COLUMNS = (
     "path", "folder", "name", "kind", "status", "error", "warnings",
     "content_hash", "options_hash",
     "characters", "n_frames", "fps", "duration_s", "frame", "time_s", "top_frames",
+    "score", "thumb_pose",
     "view_x", "view_y", "view_z",
     "json", "thumb", "sheet",
     "t_load_s", "t_select_s", "t_render_s", "t_total_s",
 )
 #: Columns that differ between two runs of the same batch (wall-clock seconds).
 TIMING_COLUMNS = ("t_load_s", "t_select_s", "t_render_s", "t_total_s")
-_INT = ("characters", "n_frames", "frame")
-_FLOAT = ("fps", "duration_s", "time_s", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
+_INT = ("characters", "n_frames", "frame", "thumb_pose")
+_FLOAT = ("fps", "duration_s", "time_s", "score", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
 #: Text columns that are never null: an empty cell is the empty string (a top folder).
 _TEXT = ("path", "folder", "name", "kind", "status", "content_hash", "options_hash")
 

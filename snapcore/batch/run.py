@@ -46,12 +46,14 @@ from snapcore.batch.index import (
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
 __all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "prune_outputs", "run_batch",
-           "output_paths", "library_root", "LIBRARY_NAME",
+           "output_paths", "library_root", "read_choices", "LIBRARY_NAME", "CHOICES_NAME",
            "SCENES_DIR", "INDEX_EVERY_S"]
 
 SCENES_DIR = "scenes"
 #: ``OUT/library.json``: the library root the index's keys are relative to.
 LIBRARY_NAME = "library.json"
+#: ``OUT/thumb-choices.csv``: thumbnail poses chosen in the gallery (see read_choices).
+CHOICES_NAME = "thumb-choices.csv"
 #: Seconds between two rewrites of the index while a batch runs.
 INDEX_EVERY_S = 5.0
 _SUFFIX = {"json": ".json", "thumb": ".png", "sheet": ".sheet.png"}
@@ -220,18 +222,57 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
     if force:
         prev = {}
     opt_hash = options.key()
+    choices = read_choices(out)
     for s in scenes:
         h = content_hash(s)
         row = prev.get(s.key)
+        # the thumbnail's pose: a choice made in the gallery, else the one shown so far
+        pose = choices.get(s.key) or (row or {}).get("thumb_pose") or 1
         if row and row["content_hash"] == h and row["options_hash"] == opt_hash:
             outputs = [row[c] for c in ("json", "thumb", "sheet") if row[c]]
             finished = (row["status"] == "ok" and row["json"] and row["thumb"]
-                        and all((out / p).is_file() for p in outputs))
+                        and all((out / p).is_file() for p in outputs)
+                        and (row["thumb_pose"] or 1) == pose)
             if finished or (row["status"] == "error" and not retry_errors):
                 kept.append(row)
                 continue
-        tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash))
+        tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash,
+                               thumb_pose=pose))
     return tasks, kept
+
+
+def read_choices(out) -> dict[str, int]:
+    """The thumbnail choices in ``OUT/thumb-choices.csv`` (scene key → pose rank).
+
+    The gallery writes that file (one ``path,pose`` line per choice, a header line
+    first); a re-run renders each chosen pose as its scene's thumbnail and keeps the
+    choice in the index (``thumb_pose``), also through later runs.
+
+    Raises
+    ------
+    BatchError
+        A line that is not ``path,rank`` with a rank of at least 1 (file and line named).
+    """
+    import csv
+
+    path = Path(out) / CHOICES_NAME
+    if not path.is_file():
+        return {}
+    choices = {}
+    with open(path, encoding="utf-8", newline="") as fh:
+        for n, cells in enumerate(csv.reader(fh), start=1):
+            if not cells or cells == ["path", "pose"]:
+                continue
+            try:
+                key, rank = cells
+                rank = int(rank)
+                if rank < 1:
+                    raise ValueError
+            except ValueError:
+                raise BatchError(f"{path}:{n}: expected 'path,pose' with a pose rank of 1 "
+                                 f"or more, got {','.join(cells)!r}") from None
+            choices[key] = rank
+    return choices
 
 
 def prune_outputs(out, keep: Iterable[str]) -> list[str]:

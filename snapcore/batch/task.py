@@ -33,7 +33,7 @@ __all__ = ["BatchOptions", "SceneTask", "SceneResult", "run_scene", "init_worker
 
 #: Bumped when the outputs of a scene change meaning: part of every options hash, so a
 #: new format redoes the library instead of mixing old and new outputs.
-OUTPUT_FORMAT = "action-snapshot/batch@1"
+OUTPUT_FORMAT = "action-snapshot/batch@2"
 #: Longest error text kept in the index (characters).
 MAX_ERROR = 400
 
@@ -96,6 +96,8 @@ class SceneTask:
     options: BatchOptions
     content_hash: str
     options_hash: str
+    #: Rank among the top-k poses the thumbnail shows (1: the chosen pose).
+    thumb_pose: int = 1
 
 
 @dataclass
@@ -283,7 +285,9 @@ def _run_scene(task: SceneTask) -> SceneResult:
             t1 = time.perf_counter()
             outputs["json"], row_fields, snap = _select(scene, opts)
             t2 = time.perf_counter()
-            outputs.update(_render(scene, snap, opts))
+            thumb_pose = _thumb_pose(task, snap)
+            outputs.update(_render(scene, snap, opts, thumb_pose))
+            row_fields["thumb_pose"] = thumb_pose
             t3 = time.perf_counter()
         except Exception as err:  # one bad scene must not stop a library of thousands
             row["error"] = _one_line(err, task.scene)
@@ -307,7 +311,10 @@ def _select(scene, opts: BatchOptions):
     doc = snap.to_dict()
     validate(doc, "snapshot", source=f"{scene.name} snapshot")
     data = (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
+    totals = doc["pose_entropy"]["total"]
+    at = doc["frame"] - doc["pose_entropy"]["first_frame"]
     fields = {
+        "score": round(float(totals[at]), 6) if 0 <= at < len(totals) else None,
         "characters": len(doc["characters"]),
         "n_frames": doc["n_frames"],
         "fps": doc["fps"],
@@ -322,11 +329,24 @@ def _select(scene, opts: BatchOptions):
     return data, fields, snap
 
 
-def _render(scene, snap, opts: BatchOptions) -> dict[str, bytes]:
-    """Thumbnail of the chosen pose from the chosen view (and the top-k sheet)."""
+def _thumb_pose(task: SceneTask, snap) -> int:
+    """The rank the thumbnail shows: the task's choice, or 1 when the clip has fewer
+    poses than that (with a warning, kept in the row)."""
+    k = len(snap.indices)
+    if task.thumb_pose > k:
+        warnings.warn(f"thumbnail pose #{task.thumb_pose} asked for, but the clip has "
+                      f"{k} top pose(s): #1 shown", stacklevel=2)
+        return 1
+    return task.thumb_pose
+
+
+def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, bytes]:
+    """Thumbnail of the pose ranked ``thumb_pose`` (1: the chosen pose) from the chosen
+    view (and the top-k sheet)."""
     from snapcore.render.renderer import render_still
 
-    out = {"thumb": _png(render_still(scene, snap.index, snap.view, size=opts.size))}
+    frame = snap.indices[thumb_pose - 1] if thumb_pose > 1 else snap.index
+    out = {"thumb": _png(render_still(scene, frame, snap.view, size=opts.size))}
     if opts.sheet:
         from snapcore.render.composites import contact_sheet
 
