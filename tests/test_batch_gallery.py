@@ -79,7 +79,7 @@ def test_the_grid_shows_every_scene_with_its_thumbnail(page, gallery):
     assert sorted(shown(page)) == sorted(r["path"] for r in report.rows)
     assert page.inner_text("#count") == "7 of 7 scenes"
     widths = page.eval_on_selector_all(
-        ".card img:not(.flip)", "is => Promise.all(is.map(i => i.decode().then(() => i.naturalWidth)))")
+        ".card img", "is => Promise.all(is.map(i => i.decode().then(() => i.naturalWidth)))")
     assert widths == [160, 160, 160, 160]
     errors = page.eval_on_selector_all(".card.error .err", "es => es.map(e => e.textContent)")
     assert any("model.glb: not a readable glTF/GLB file" in e for e in errors), errors
@@ -214,13 +214,18 @@ def test_hovering_a_card_flips_through_its_top_poses(page, gallery):
     """With contact sheets, hovering a card shows its sheet panned pose by pose (a CSS
     animation over the sheet already made, no extra file)."""
     card = '.card[data-path="jumps/jump.bvh"]'
-    flip = page.query_selector(card + " img.flip")
-    assert flip is not None and flip.get_attribute("src").endswith("jump.bvh.sheet.png")
+    flip = page.query_selector(card + " .flip")
+    assert flip is not None and flip.get_attribute("data-sheet").endswith("jump.bvh.sheet.png")
     assert flip.evaluate("e => getComputedStyle(e).opacity") == "0"
     page.hover(card)
     page.wait_for_timeout(300)
-    style = flip.evaluate("e => [getComputedStyle(e).opacity, getComputedStyle(e).animationName]")
-    assert style == ["1", "flip"]
+    style = flip.evaluate("e => [getComputedStyle(e).opacity, getComputedStyle(e).animationName,"
+                          " getComputedStyle(e).backgroundImage]")
+    assert style[:2] == ["1", "flip"] and "jump.bvh.sheet.png" in style[2]
+    # one panel a card: the sheet is drawn as wide as its top poses side by side
+    k = len(next(r for r in gallery[1].rows if r["path"] == "jumps/jump.bvh")["top_frames"]
+            .split(";"))
+    assert flip.evaluate("e => getComputedStyle(e).backgroundSize") == f"{100 * k}% auto"
     page.screenshot(path=str(ARTIFACTS / "hover.png"))
     page.mouse.move(0, 0)
 
@@ -275,14 +280,12 @@ def test_choosing_pose_2_as_thumbnail_is_saved_and_a_rerun_renders_it(page, gall
     page.evaluate("localStorage.clear()")
 
 
-def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(gallery):
+def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(page, gallery):
     """At 390x844 (a phone): two cards a row, a header that is not sticky and takes
     less than a fifth of the screen."""
-    sync = pytest.importorskip("playwright.sync_api")
-    need(os.path.exists(CHROMIUM), f"no Chromium at {CHROMIUM}")
-    with sync.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        pg = browser.new_page(viewport={"width": 390, "height": 844}, device_scale_factor=2)
+    pg = page.context.browser.new_page(viewport={"width": 390, "height": 844},
+                                       device_scale_factor=2)
+    try:
         pg.goto((gallery[0] / "index.html").as_uri())
         pg.wait_for_selector(".card")
         lefts = pg.eval_on_selector_all(".card", "cs => cs.map(c => c.getBoundingClientRect().left)")
@@ -293,4 +296,5 @@ def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(gallery
         widths = pg.eval_on_selector_all(".card", "cs => cs.map(c => c.getBoundingClientRect().right)")
         assert max(widths) <= 390
         pg.screenshot(path=str(ARTIFACTS / "phone.png"))
-        browser.close()
+    finally:
+        pg.close()

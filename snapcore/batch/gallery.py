@@ -41,9 +41,11 @@ justify-content:flex-start;position:relative}
 .card:focus,.card:hover{outline:2px solid #3a6ea5}
 .card .pic{position:relative;width:100%;aspect-ratio:var(--ratio);background:#e8e8e4}
 .card img{width:100%;height:100%;object-fit:contain;display:block}
-.card img.flip{position:absolute;inset:0;object-fit:cover;object-position:0 50%;opacity:0}
-.card:hover img.flip,.card:focus img.flip{opacity:1;animation:flip var(--flip) steps(var(--steps)) infinite}
-@keyframes flip{from{object-position:0 50%}to{object-position:100% 50%}}
+.card .flip{position:absolute;inset:0;background-repeat:no-repeat;background-color:#fff;
+background-size:calc(var(--steps) * 100%) auto;background-position:0 55%;opacity:0}
+.card:hover .flip,.card:focus .flip{opacity:1;
+animation:flip var(--flip) steps(var(--steps),jump-none) infinite}
+@keyframes flip{from{background-position:0 55%}to{background-position:100% 55%}}
 .card .cap{padding:6px 8px}.card .name{font-weight:600;word-break:break-all}
 .card .meta{color:#666;font-size:12px}
 .card .warn{color:#8a5a00;background:#fff4d6;font-size:12px;padding:3px 8px;
@@ -101,10 +103,17 @@ function card(r) {
     pic.appendChild(img);
     const k = r.top_frames ? r.top_frames.split(';').length : 1;
     if (r.sheet && k > 1) {  // hover: the top poses one after the other, from the sheet
-      const flip = document.createElement('img');
-      flip.className = 'flip'; flip.alt = ''; flip.loading = 'lazy'; flip.src = url(r.sheet);
-      pic.style.setProperty('--steps', String(k - 1));
+      // (its k panels side by side: the sheet k cards wide shows one panel at a time)
+      const flip = document.createElement('div');
+      flip.className = 'flip'; flip.dataset.sheet = r.sheet;
+      pic.style.setProperty('--steps', String(k));
       pic.style.setProperty('--flip', `${0.7 * k}s`);
+      b.addEventListener('pointerenter', () => {  // loaded on the first hover only
+        flip.style.backgroundImage = `url("${url(r.sheet)}")`;
+      }, {once: true});
+      b.addEventListener('focus', () => {
+        flip.style.backgroundImage = `url("${url(r.sheet)}")`;
+      }, {once: true});
       pic.appendChild(flip);
     }
     const chosen = shownPose(r);
