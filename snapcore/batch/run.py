@@ -27,9 +27,9 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from snapcore.batch.discover import BatchError, SceneSource, content_hash
@@ -37,11 +37,11 @@ from snapcore.batch.index import (
     COLUMNS,
     INDEX_NAME,
     PARQUET_NAME,
-    write_parquet,
     atomic_write,
     read_index,
     validate_row,
     write_index,
+    write_parquet,
 )
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
