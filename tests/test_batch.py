@@ -241,7 +241,9 @@ def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, 
     fake_main.__file__ = str(script)
     monkeypatch.setitem(sys.modules, "__main__", fake_main)
     src, _ = local_run
-    report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2)
+    died = []
+    report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2, notify=died.append)
+    assert died == []  # no worker ran the caller's main module and died of it
     assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == \
         strip_timings(read_index(src / "index.csv"), SUBSET)
     pids = {w["pid"] for w in report.workers}

@@ -406,18 +406,15 @@ class _Pool:
         self.ex = ProcessPoolExecutor(
             max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
             initializer=init_worker, initargs=(size, True, 1, os.getpid()))
-        self.started = False
         self.procs: dict = {}
 
     def submit(self, task: SceneTask, back_to: list | None = None):
         """The future of ``task``; a pool already broken puts it back on ``back_to``."""
         try:
-            if self.started:
+            # every submit may start a worker (the pool spawns them one per submit, up to
+            # max_workers, while none is idle), so each is made without __main__
+            with _plain_main():
                 future = self.ex.submit(run_scene, task)
-            else:
-                with _plain_main():  # the workers are started by the first submit
-                    self.started = True
-                    future = self.ex.submit(run_scene, task)
             # kept: a broken executor forgets its processes, and how they ended
             self.procs.update(getattr(self.ex, "_processes", None) or {})
             return future
