@@ -146,6 +146,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
     OUT/index.parquet  the same index as Parquet
     OUT/index.html  the gallery: open it in a browser, no server needed
     OUT/scenes/     <path>.json, <path>.png and, with --sheet, <path>.sheet.png
+    OUT/library.json   the library root scene keys are relative to (sub-folder runs)
+    OUT/thumb-choices.csv  poses chosen as thumbnails in the gallery (read by a re-run)
 
     A re-run skips scenes whose files and options are unchanged (--force redoes them).
     Rows of scenes an earlier run did and this one does not cover stay in the index
