@@ -81,7 +81,7 @@ def test_a_killed_worker_leaves_no_good_scene_marked_as_an_error(tmp_path):
     rows = read_index(tmp_path / "out" / "index.csv")
     assert [r["status"] for r in rows] == ["ok"] * 6, [r["error"] for r in rows]
     assert report.done == 6 and report.errors == 0
-    assert any("worker process died (killed by signal 9)" in m for m in messages), messages
+    assert any("worker process died (killed by signal 9" in m for m in messages), messages
     again = run_batch(discover([lib]).scenes, tmp_path / "out", FAST, jobs=2)
     assert (again.done, again.reused) == (0, 6)
 

@@ -377,8 +377,8 @@ def _local(tasks: list[SceneTask], jobs: int,
                         break
             except BrokenProcessPool:
                 lost = list(running.values())
+                pool.close()  # joins every worker: their exit codes are known after it
                 code = pool.exit_codes()
-                pool.close()
                 if alone:
                     yield error_result(lost[0], RuntimeError(
                         f"the worker process died while running this scene alone ({code})"))
@@ -425,7 +425,12 @@ class _Pool:
 
     def exit_codes(self) -> str:
         """How the pool's dead workers ended, e.g. ``killed by signal 9``."""
+        for p in self.procs.values():
+            if p.exitcode is None:
+                p.join(timeout=2)
         codes = [p.exitcode for p in self.procs.values() if p.exitcode not in (None, 0)]
+        # SIGTERM is what a broken pool sends the workers that were still alive
+        codes = [c for c in codes if c != -15] or codes
         if not codes:
             return "exit code unknown"
         return ", ".join(f"killed by signal {-c}" if c < 0 else f"exit code {c}"
