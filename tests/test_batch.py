@@ -91,7 +91,7 @@ def test_discovery_takes_scenes_and_leaves_manifest_members_out(library):
     assert kinds["duo/duo.toml"] == "manifest" and kinds["model.glb"] == "gltf"
     duo = next(s for s in found.scenes if s.kind == "manifest")
     assert [Path(m).name for m in duo.members] == ["a.bvh", "b.bvh"]
-    skipped = {Path(p).name: why for p, why in found.skipped}
+    skipped = {Path(p).name: why.split(" (")[0] for p, why in found.skipped}
     assert skipped == {"a.bvh": "part of a scene manifest", "b.bvh": "part of a scene manifest",
                        "notes.json": "not a scene manifest"}
 
@@ -241,7 +241,9 @@ def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, 
     fake_main.__file__ = str(script)
     monkeypatch.setitem(sys.modules, "__main__", fake_main)
     src, _ = local_run
-    report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2)
+    died = []
+    report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2, notify=died.append)
+    assert died == []  # no worker ran the caller's main module and died of it
     assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == \
         strip_timings(read_index(src / "index.csv"), SUBSET)
     pids = {w["pid"] for w in report.workers}
@@ -289,6 +291,8 @@ def test_a_dask_cluster_gives_the_same_index(local_run, library, tmp_path):
             strip_timings(read_index(src / "index.csv"), SUBSET)
         assert report.done == len(SUBSET)
         assert os.getpid() not in {w["pid"] for w in report.workers}
+        # the local pool's set-up reached the Dask workers: one Mesa rasteriser thread
+        assert {w["lp_threads"] for w in report.workers} == {"1"}
     finally:
         for p in reversed(procs):
             p.terminate()

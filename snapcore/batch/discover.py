@@ -104,23 +104,37 @@ def _kind(path: Path) -> str | None:
     return None
 
 
-def _manifest_members(path: Path) -> tuple[str, ...] | None:
-    """Absolute paths of the files a scene manifest names; None when ``path`` is not a
-    scene manifest (it does not parse, or has no ``characters`` list)."""
+def _manifest_members(path: Path) -> tuple[tuple[str, ...] | None, str]:
+    """Absolute paths of the files a scene manifest names, or None and why ``path`` is
+    not a scene manifest.
+
+    A file found in a folder is a manifest only if it follows the scene schema
+    (``data_schema/scene.schema.json``) whole: the schema is strict (no unknown field,
+    a ``file`` for every character), so a gallery, a ``select --json`` document or any
+    other JSON that happens to have a ``characters`` list is left alone, while every
+    manifest that loads is taken. No marker field is required, so the manifests that
+    exist (the shipped salsa scenes, users' own) need no edit.
+    """
     try:
         text = path.read_text(encoding="utf-8")
         doc = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
     except (OSError, UnicodeDecodeError, ValueError):
-        return None
+        return None, "not a scene manifest (does not parse)"
     chars = doc.get("characters") if isinstance(doc, dict) else None
     if not isinstance(chars, list):
-        return None
+        return None, "not a scene manifest (no characters list)"
+    from snapcore.errors import SchemaError
+    from snapcore.schema import validate
+
+    try:
+        validate(doc, "scene", source=path.name)
+    except SchemaError as err:
+        return None, f"not a scene manifest ({err})"
     # resolved exactly as the loader will resolve them (manifest folder, then the data dir)
     from snapcore.motion.load import resolve_data_path
 
     base = path.resolve().parent
-    return tuple(str(resolve_data_path(c["file"], base).resolve())
-                 for c in chars if isinstance(c, dict) and isinstance(c.get("file"), str))
+    return tuple(str(resolve_data_path(c["file"], base).resolve()) for c in chars), ""
 
 
 def _walk(root: Path, exclude: list[Path]) -> list[Path]:
@@ -202,7 +216,7 @@ def _is_under(f: Path, folder: Path) -> bool:
         return False
 
 
-def discover(sources, *, exclude=()) -> Discovery:
+def discover(sources, *, exclude=(), root=None) -> Discovery:
     """The scenes named by ``sources``.
 
     Parameters
@@ -213,6 +227,10 @@ def discover(sources, *, exclude=()) -> Discovery:
         the list's folder) or single files.
     exclude : sequence of path-like
         Folders not to walk into (the output folder, when it lies inside a SOURCE).
+    root : path-like, optional
+        The library's root folder: files under it are keyed relative to it rather than
+        to their SOURCE, so a run over one sub-folder names its scenes as the run over
+        the whole library did (see :func:`snapcore.batch.run.library_root`).
 
     Returns
     -------
@@ -231,6 +249,7 @@ def discover(sources, *, exclude=()) -> Discovery:
     reported as an error rather than skipped. Files a manifest names are not run alone.
     """
     excl = [Path(e) for e in exclude]
+    lib = Path(root).resolve() if root is not None else None
     out = Discovery()
     by_file: dict[str, SceneSource] = {}
     for source in sources:
@@ -245,12 +264,15 @@ def discover(sources, *, exclude=()) -> Discovery:
             if kind is None:  # named by the user: loading it says what is wrong
                 kind = "unknown"
             elif kind == "manifest":
-                found = _manifest_members(f)
+                found, why = _manifest_members(f)
                 if found is None and not explicit:
-                    out.skipped.append((str(f), "not a scene manifest"))
+                    out.skipped.append((str(f), why))
                     continue
                 members = found or ()
-            key = f.relative_to(root).as_posix() if _is_under(f, root) else f.name
+            if lib is not None and _is_under(f, lib):
+                key = f.resolve().relative_to(lib).as_posix()
+            else:
+                key = f.relative_to(root).as_posix() if _is_under(f, root) else f.name
             by_file[resolved] = SceneSource(key=key, kind=kind, path=resolved, members=members)
     taken = {m for s in by_file.values() for m in s.members}
     scenes = []

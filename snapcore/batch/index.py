@@ -17,23 +17,26 @@ import io
 import os
 from pathlib import Path
 
-__all__ = ["COLUMNS", "TIMING_COLUMNS", "INDEX_NAME", "atomic_write", "write_index",
-           "read_index", "validate_row"]
+__all__ = ["COLUMNS", "TIMING_COLUMNS", "INDEX_NAME", "PARQUET_NAME", "atomic_write",
+           "write_index", "read_index", "write_parquet", "read_parquet", "validate_row"]
 
 INDEX_NAME = "index.csv"
+#: The same index as Parquet (same columns, order and types; null for an empty cell).
+PARQUET_NAME = "index.parquet"
 #: Column order in the CSV (the schema's properties, in a reading order).
 COLUMNS = (
     "path", "folder", "name", "kind", "status", "error", "warnings",
     "content_hash", "options_hash",
     "characters", "n_frames", "fps", "duration_s", "frame", "time_s", "top_frames",
+    "score", "thumb_pose",
     "view_x", "view_y", "view_z",
     "json", "thumb", "sheet",
     "t_load_s", "t_select_s", "t_render_s", "t_total_s",
 )
 #: Columns that differ between two runs of the same batch (wall-clock seconds).
 TIMING_COLUMNS = ("t_load_s", "t_select_s", "t_render_s", "t_total_s")
-_INT = ("characters", "n_frames", "frame")
-_FLOAT = ("fps", "duration_s", "time_s", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
+_INT = ("characters", "n_frames", "frame", "thumb_pose")
+_FLOAT = ("fps", "duration_s", "time_s", "score", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
 #: Text columns that are never null: an empty cell is the empty string (a top folder).
 _TEXT = ("path", "folder", "name", "kind", "status", "content_hash", "options_hash")
 
@@ -116,3 +119,43 @@ def read_index(path) -> list[dict]:
             except ValueError as err:
                 raise SchemaError(f"{path}:{n}: {err}") from None
     return rows
+
+
+def _arrow_schema():
+    import pyarrow as pa
+
+    def kind(c):
+        return pa.int64() if c in _INT else pa.float64() if c in _FLOAT else pa.string()
+
+    return pa.schema([pa.field(c, kind(c), nullable=c not in _TEXT) for c in COLUMNS])
+
+
+def write_parquet(path, rows) -> None:
+    """Write ``rows`` as :func:`write_index` does, as a Parquet file (for pandas, Polars,
+    DuckDB: typed columns, no parsing), sorted by path, atomically.
+
+    The columns, their order and their types are the schema's (integer columns int64,
+    number columns float64, the rest strings); a null is a null."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    def value(row, c):  # the CSV's values: floats to 6 decimals, NaN as null
+        v = row.get(c)
+        if isinstance(v, float):
+            return round(v, 6) if v == v else None
+        return v
+
+    rows = sorted(rows, key=lambda r: r["path"])
+    table = pa.Table.from_pydict({c: [value(r, c) for r in rows] for c in COLUMNS},
+                                 schema=_arrow_schema())
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf)
+    atomic_write(path, buf.getvalue().to_pybytes())
+
+
+def read_parquet(path) -> list[dict]:
+    """The rows of an index written by :func:`write_parquet` (as :func:`read_index`
+    gives them)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(path).to_pylist()

@@ -22,10 +22,12 @@ carrying the report.
 
 from __future__ import annotations
 
+import json
 import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,18 +36,24 @@ from snapcore.batch.discover import BatchError, SceneSource, content_hash
 from snapcore.batch.index import (
     COLUMNS,
     INDEX_NAME,
+    PARQUET_NAME,
     atomic_write,
     read_index,
     validate_row,
     write_index,
+    write_parquet,
 )
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
 __all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "prune_outputs", "run_batch",
-           "output_paths",
+           "output_paths", "library_root", "read_choices", "LIBRARY_NAME", "CHOICES_NAME",
            "SCENES_DIR", "INDEX_EVERY_S"]
 
 SCENES_DIR = "scenes"
+#: ``OUT/library.json``: the library root the index's keys are relative to.
+LIBRARY_NAME = "library.json"
+#: ``OUT/thumb-choices.csv``: thumbnail poses chosen in the gallery (see read_choices).
+CHOICES_NAME = "thumb-choices.csv"
 #: Seconds between two rewrites of the index while a batch runs.
 INDEX_EVERY_S = 5.0
 _SUFFIX = {"json": ".json", "thumb": ".png", "sheet": ".sheet.png"}
@@ -108,14 +116,17 @@ class _CtrlC:
             raise KeyboardInterrupt
 
     def __enter__(self):
-        # signal handlers can only be set from the main thread; elsewhere Ctrl-C is not ours
+        # signal handlers can only be set from the main thread; elsewhere Ctrl-C is not ours.
+        # SIGTERM (kill, a job scheduler's stop) is handled as Ctrl-C: the index of what
+        # finished is written and the workers are stopped before this process goes.
         if threading.current_thread() is threading.main_thread():
-            self.previous = signal.signal(signal.SIGINT, self._handler)
+            self.previous = {sig: signal.signal(sig, self._handler)
+                             for sig in (signal.SIGINT, signal.SIGTERM)}
         return self
 
     def __exit__(self, *exc):
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
+        for sig, handler in (self.previous or {}).items():
+            signal.signal(sig, handler)
 
     @contextmanager
     def storing_result(self):
@@ -132,6 +143,41 @@ def output_paths(key: str) -> dict[str, str]:
     """Output files of a scene, relative to OUT: ``scenes/<key>.json``, ``.png``,
     ``.sheet.png`` (the key keeps its suffix, so ``a.bvh`` and ``a.glb`` do not clash)."""
     return {what: f"{SCENES_DIR}/{key}{suffix}" for what, suffix in _SUFFIX.items()}
+
+
+def library_root(out, sources) -> Path | None:
+    """The folder the scenes of a run into ``out`` are keyed relative to.
+
+    The root recorded in ``OUT/library.json`` by an earlier run, when every SOURCE
+    lies under it: a run over ``LIB/walk_run`` into the output of a run over ``LIB``
+    then keys its scenes ``walk_run/...`` and updates their rows instead of adding
+    copies beside them. With no recorded root (a new output, or one from before this
+    file existed): a folder above the single SOURCE folder under which that folder's
+    files have the keys of rows already in the index, else that folder itself. None
+    when the SOURCEs are not one folder (globs, lists, files: keyed as they are).
+    """
+    out = Path(out)
+    dirs = [Path(s).expanduser().resolve() for s in sources]
+    try:
+        doc = json.loads((out / LIBRARY_NAME).read_text(encoding="utf-8"))
+        recorded = Path(doc["root"])
+    except (OSError, ValueError, KeyError, TypeError):
+        recorded = None
+    if recorded is not None and all(d.is_dir() and d.is_relative_to(recorded) for d in dirs):
+        return recorded
+    if len(dirs) != 1 or not dirs[0].is_dir():
+        return None
+    here = dirs[0]
+    prev = _previous(out)
+    if prev:
+        for n, child in enumerate(sorted(here.rglob("*"))):
+            if n > 500:
+                break
+            if child.is_file() and not any(p.startswith(".") for p in child.relative_to(here).parts):
+                for above in (here, *here.parents):
+                    if child.relative_to(above).as_posix() in prev:
+                        return above
+    return here
 
 
 def _previous(out: Path) -> dict[str, dict]:
@@ -176,18 +222,57 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
     if force:
         prev = {}
     opt_hash = options.key()
+    choices = read_choices(out)
     for s in scenes:
         h = content_hash(s)
         row = prev.get(s.key)
+        # the thumbnail's pose: a choice made in the gallery, else the one shown so far
+        pose = choices.get(s.key) or (row or {}).get("thumb_pose") or 1
         if row and row["content_hash"] == h and row["options_hash"] == opt_hash:
             outputs = [row[c] for c in ("json", "thumb", "sheet") if row[c]]
             finished = (row["status"] == "ok" and row["json"] and row["thumb"]
-                        and all((out / p).is_file() for p in outputs))
+                        and all((out / p).is_file() for p in outputs)
+                        and (row["thumb_pose"] or 1) == pose)
             if finished or (row["status"] == "error" and not retry_errors):
                 kept.append(row)
                 continue
-        tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash))
+        tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash,
+                               thumb_pose=pose))
     return tasks, kept
+
+
+def read_choices(out) -> dict[str, int]:
+    """The thumbnail choices in ``OUT/thumb-choices.csv`` (scene key → pose rank).
+
+    The gallery writes that file (one ``path,pose`` line per choice, a header line
+    first); a re-run renders each chosen pose as its scene's thumbnail and keeps the
+    choice in the index (``thumb_pose``), also through later runs.
+
+    Raises
+    ------
+    BatchError
+        A line that is not ``path,rank`` with a rank of at least 1 (file and line named).
+    """
+    import csv
+
+    path = Path(out) / CHOICES_NAME
+    if not path.is_file():
+        return {}
+    choices = {}
+    with open(path, encoding="utf-8", newline="") as fh:
+        for n, cells in enumerate(csv.reader(fh), start=1):
+            if not cells or cells == ["path", "pose"]:
+                continue
+            try:
+                key, rank = cells
+                rank = int(rank)
+                if rank < 1:
+                    raise ValueError
+            except ValueError:
+                raise BatchError(f"{path}:{n}: expected 'path,pose' with a pose rank of 1 "
+                                 f"or more, got {','.join(cells)!r}") from None
+            choices[key] = rank
+    return choices
 
 
 def prune_outputs(out, keep: Iterable[str]) -> list[str]:
@@ -247,8 +332,17 @@ def _plain_main():
         sys.modules["__main__"] = real
 
 
-def _local(tasks: list[SceneTask], jobs: int) -> Iterator[SceneResult]:
-    """Results as they finish, from this process (``jobs=1``) or ``jobs`` processes."""
+def _local(tasks: list[SceneTask], jobs: int,
+           notify: Callable[[str], None]) -> Iterator[SceneResult]:
+    """Results as they finish, from this process (``jobs=1``) or ``jobs`` processes.
+
+    A worker that dies (killed, out of memory, a crash in a native library) breaks a
+    ``ProcessPoolExecutor`` and fails every future it holds. So at most ``jobs`` tasks are
+    handed out at a time, and when the pool breaks, a new pool is started: the scenes
+    that were in flight are run again one at a time (a scene that kills its worker then
+    is the culprit and becomes an error row naming that), then the rest go on as before.
+    No good scene is recorded as an error because another process died.
+    """
     from snapcore.batch.task import init_worker
 
     size = tasks[0].options.size
@@ -257,47 +351,138 @@ def _local(tasks: list[SceneTask], jobs: int) -> Iterator[SceneResult]:
         for t in tasks:
             yield run_scene(t)
         return
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_COMPLETED, wait
 
-    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=init_worker, initargs=(size,))
-    with _plain_main():  # every worker is started by the first submit
-        futures = {ex.submit(run_scene, t): t for t in tasks}
+    queue = list(reversed(tasks))  # pop() from the end: the tasks' order
+    suspects: list[SceneTask] = []  # in flight when a worker died: re-run one by one
+    pool = _Pool(jobs, size)
     try:
-        for f in as_completed(futures):
+        while queue or suspects:
+            alone = bool(suspects)
+            running = {}
             try:
-                yield f.result()
-            except Exception as err:  # the worker died (BrokenProcessPool): record it
-                yield error_result(futures[f], err)
+                if alone:
+                    t = suspects.pop()
+                    running[pool.submit(t)] = t
+                while running or (queue and not alone):
+                    while not alone and queue and len(running) < jobs:
+                        t = queue.pop()
+                        running[pool.submit(t, back_to=queue)] = t
+                    done, _ = wait(running, return_when=FIRST_COMPLETED)
+                    for f in done:
+                        result = f.result()  # raises for a broken pool: f stays in running
+                        del running[f]
+                        yield result
+                    if alone:
+                        break
+            except BrokenProcessPool:
+                lost = list(running.values())
+                pool.close()  # joins every worker: their exit codes are known after it
+                code = pool.exit_codes()
+                if alone:
+                    yield error_result(lost[0], RuntimeError(
+                        f"the worker process died while running this scene alone ({code})"))
+                else:
+                    notify(f"a worker process died ({code}); {len(lost)} scene(s) it may "
+                           "have been running are run again, one at a time")
+                    suspects = list(reversed(lost))
+                pool = _Pool(jobs, size)
     finally:
-        for f in futures:
-            f.cancel()
+        pool.close()
+
+
+class _Pool:
+    """A ``ProcessPoolExecutor`` of spawned workers, each set up by
+    :func:`~snapcore.batch.task.init_worker` (one GL renderer, one thread, and a watch
+    on this process so that no worker outlives it)."""
+
+    def __init__(self, jobs: int, size):
+        import multiprocessing
+        import os
+        from concurrent.futures import ProcessPoolExecutor
+
+        from snapcore.batch.task import init_worker
+
+        self.ex = ProcessPoolExecutor(
+            max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+            initializer=init_worker, initargs=(size, True, 1, os.getpid()))
+        self.procs: dict = {}
+
+    def submit(self, task: SceneTask, back_to: list | None = None):
+        """The future of ``task``; a pool already broken puts it back on ``back_to``."""
+        try:
+            # every submit may start a worker (the pool spawns them one per submit, up to
+            # max_workers, while none is idle), so each is made without __main__
+            with _plain_main():
+                future = self.ex.submit(run_scene, task)
+            # kept: a broken executor forgets its processes, and how they ended
+            self.procs.update(getattr(self.ex, "_processes", None) or {})
+            return future
+        except BrokenProcessPool:
+            if back_to is not None:
+                back_to.append(task)
+            raise
+
+    def exit_codes(self) -> str:
+        """How the pool's dead workers ended, e.g. ``killed by signal 9``."""
+        for p in self.procs.values():
+            if p.exitcode is None:
+                p.join(timeout=2)
+        codes = [p.exitcode for p in self.procs.values() if p.exitcode not in (None, 0)]
+        # SIGTERM is what a broken pool sends the workers that were still alive
+        codes = [c for c in codes if c != -15] or codes
+        if not codes:
+            return "exit code unknown"
+        return ", ".join(f"killed by signal {-c}" if c < 0 else f"exit code {c}"
+                         for c in codes)
+
+    def close(self):
         # scenes still running are abandoned: their outputs only ever reach disk
         # through this process, so stopping a worker leaves no half-written file
-        for p in list((getattr(ex, "_processes", None) or {}).values()):
+        for p in list((getattr(self.ex, "_processes", None) or {}).values()):
             p.terminate()
-        ex.shutdown(wait=True, cancel_futures=True)
+        self.ex.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask(tasks: list[SceneTask], scheduler: str) -> Iterator[SceneResult]:
-    """Results as they finish, from the Dask cluster at ``scheduler``."""
+def _dask(tasks: list[SceneTask], scheduler: str,
+          notify: Callable[[str], None]) -> Iterator[SceneResult]:
+    """Results as they finish, from the Dask cluster at ``scheduler``.
+
+    Every worker gets the local pool's set-up (one BLAS and one Mesa rasteriser thread,
+    see :func:`~snapcore.batch.task.init_worker`) through a worker plugin, also on
+    workers that join later. Workers that leave or join are reported through
+    ``notify`` as they happen (the scheduler re-runs a lost worker's scenes elsewhere;
+    with no worker left the run waits for one).
+    """
     try:
         from distributed import Client, as_completed
     except ImportError as err:
         raise BatchError(f"--scheduler needs dask[distributed] ({err})") from err
+    from snapcore.batch.dask_setup import DaskWorkerSetup
+
     try:
         client = Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as err:
         raise BatchError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from err
     futures = []
     try:
+        client.register_plugin(DaskWorkerSetup(tasks[0].options.size), name="snapshot-setup")
         futures = client.map(run_scene, tasks, pure=False)
         by_key = {f.key: t for f, t in zip(futures, tasks)}
-        for f in as_completed(futures):
+        pending = as_completed(futures)
+        workers = set(client.scheduler_info()["workers"])
+        checked = time.monotonic()
+        while not pending.is_empty():
+            if not pending.has_ready():
+                time.sleep(0.05)
+                if time.monotonic() - checked > 2.0:
+                    workers = _watch_workers(client, workers, notify)
+                    checked = time.monotonic()
+                continue
+            f = next(pending)
             try:
                 yield f.result()
-            except Exception as err:  # a worker lost, a task that could not run
+            except Exception as err:  # a task that could not run (KilledWorker...)
                 yield error_result(by_key[f.key], err)
     finally:
         if futures:
@@ -305,16 +490,41 @@ def _dask(tasks: list[SceneTask], scheduler: str) -> Iterator[SceneResult]:
         client.close()
 
 
-def _executor(tasks, jobs, scheduler) -> Iterator[SceneResult]:
+def _watch_workers(client, before: set, notify: Callable[[str], None]) -> set:
+    """The cluster's workers now; a message when some left or joined since ``before``."""
+    try:
+        now = set(client.scheduler_info()["workers"])
+    except Exception:  # noqa: BLE001 - a scheduler that does not answer is retried later
+        return before
+    lost, joined = before - now, now - before
+    if lost:
+        left = (f"{len(now)} left" if now else
+                "none left: waiting for a worker to join (Ctrl-C stops, keeping what finished)")
+        notify(f"Dask: {len(lost)} worker(s) lost ({', '.join(sorted(lost))}); their scenes "
+               f"run again on the others; {left}")
+    if joined and before:
+        notify(f"Dask: {len(joined)} worker(s) joined; {len(now)} now")
+    return now
+
+
+def _executor(tasks, jobs, scheduler, notify) -> Iterator[SceneResult]:
     """The results of ``tasks`` from the chosen executor (none started for no task)."""
     if tasks:
-        yield from _dask(tasks, scheduler) if scheduler else _local(tasks, jobs)
+        yield from (_dask(tasks, scheduler, notify) if scheduler
+                    else _local(tasks, jobs, notify))
+
+
+def _warn(message: str) -> None:
+    import warnings
+
+    warnings.warn(message, stacklevel=2)
 
 
 def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: int = 1,
               scheduler: str | None = None, force: bool = False, retry_errors: bool = False,
               prune: bool = False, progress: Callable[[int], Callable[[dict], None]] | None = None,
-              title: str = "Action Snapshot gallery") -> BatchReport:
+              title: str = "Action Snapshot gallery", root=None,
+              notify: Callable[[str], None] | None = None) -> BatchReport:
     """Process a library's scenes into ``out``: outputs, index and gallery.
 
     Parameters
@@ -339,6 +549,13 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
         ``progress(n_tasks)`` returns a callback called with each finished row.
     title : str
         The gallery's title.
+    root : path-like, optional
+        The library root the scenes' keys are relative to (from :func:`library_root`),
+        recorded in ``OUT/library.json`` so that later runs over a sub-folder key their
+        scenes the same way.
+    notify : callable, optional
+        Called with a one-line message when the executor loses (or gains) workers
+        (default: a warning).
 
     Returns
     -------
@@ -374,10 +591,13 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
         report.errors = sum(r["status"] == "error" for r in report.rows)
         report.elapsed_s = time.perf_counter() - t0
         write_index(index, report.rows)
+        write_parquet(out / PARQUET_NAME, report.rows)
         write_gallery(out, report.rows, title=title, size=options.size)
+        if root is not None:
+            atomic_write(out / LIBRARY_NAME, json.dumps({"root": str(Path(root).resolve())}) + "\n")
 
     try:
-        with _CtrlC() as ctrl_c, closing(_executor(tasks, jobs, scheduler)) as results:
+        with _CtrlC() as ctrl_c, closing(_executor(tasks, jobs, scheduler, notify or _warn)) as results:
             # closing(): on Ctrl-C the executor's clean-up (stop the workers, cancel
             # what is queued) runs now, not whenever the generator is collected
             for result in results:

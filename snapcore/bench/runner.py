@@ -13,7 +13,7 @@ import statistics
 import time
 from dataclasses import dataclass
 
-from snapcore.bench import cases, cases_bodies  # noqa: F401  (registers every case)
+from snapcore.bench import cases, cases_bodies, library  # noqa: F401  (registers every case)
 from snapcore.bench.registry import CASES, BenchContext
 
 __all__ = ["BenchResult", "run_cases"]

@@ -48,6 +48,13 @@ def _out_folder(ctx, param, value):
     return p
 
 
+def _notify(message: str) -> None:
+    """A message during the run (workers lost), printed above the progress bar."""
+    from tqdm import tqdm
+
+    tqdm.write(message, file=sys.stderr)
+
+
 def _progress(quiet: bool):
     """A tqdm bar in scenes/s with ETA; returns the factory :func:`run_batch` wants."""
     from tqdm import tqdm
@@ -103,8 +110,10 @@ def _progress(quiet: bool):
 @pose_options
 @click.option("--window", type=FiniteFloatRange(min=0.0), default=None, metavar="SECONDS",
               help="Score the view over the selected pose ± SECONDS (default: whole sequence).")
-@click.option("--no-baselines", is_flag=True,
-              help="Skip the motion-area and viewpoint-entropy baselines in the JSON (faster).")
+@click.option("--baselines/--no-baselines", default=False, show_default=True,
+              help="Also compute the motion-area and viewpoint-entropy baselines in each "
+                   "JSON (off by default in a batch: the viewpoint-entropy baseline was 56% "
+                   "of a scene's time; `snapshot select` computes them for one clip).")
 @click.option("--force", is_flag=True, help="Redo every scene, even those already done.")
 @click.option("--prune", is_flag=True,
               help="Drop from the index (and OUT/scenes/) the scenes of earlier runs that "
@@ -122,7 +131,7 @@ def _progress(quiet: bool):
               metavar="N", help="Scenes in the --profile loop of separate calls.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, body, animation,
-          window, no_baselines, force, prune, retry_errors, title, profile, profile_loop, quiet,
+          window, baselines, force, prune, retry_errors, title, profile, profile_loop, quiet,
           **pose):
     """Snapshot a whole motion library: per scene the `select --json` document and a
     thumbnail of the chosen pose from the chosen view; an index and a gallery.
@@ -134,8 +143,11 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
 
     \b
     OUT/index.csv   one row per scene (data_schema/batch_index.schema.json)
+    OUT/index.parquet  the same index as Parquet
     OUT/index.html  the gallery: open it in a browser, no server needed
     OUT/scenes/     <path>.json, <path>.png and, with --sheet, <path>.sheet.png
+    OUT/library.json   the library root scene keys are relative to (sub-folder runs)
+    OUT/thumb-choices.csv  poses chosen as thumbnails in the gallery (read by a re-run)
 
     A re-run skips scenes whose files and options are unchanged (--force redoes them).
     Rows of scenes an earlier run did and this one does not cover stay in the index
@@ -150,12 +162,18 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
     """
     from snapcore.batch import BatchInterrupted, BatchOptions, discover, run_batch
     from snapcore.batch.discover import BatchError
+    from snapcore.batch.run import library_root
 
-    found = discover(sources, exclude=[out])
+    root = library_root(out, sources)
+    found = discover(sources, exclude=[out], root=root)
+    manifests = [(p, why) for p, why in found.skipped if why.startswith("not a scene manifest")]
+    if manifests:
+        click.echo(f"{len(manifests)} .json/.toml file(s) skipped, not scene manifests "
+                   f"(first: {manifests[0][0]}: {manifests[0][1]})", err=True)
     if not found.scenes:
         raise BatchError(f"no scenes (BVH, glTF or scene manifests) in {', '.join(sources)}")
     options = BatchOptions(snapshot=snapshot_kwargs(pose, window=window,
-                                                    baselines=not no_baselines),
+                                                    baselines=baselines),
                            fps=fps, scale=scale, size=size, sheet=sheet, sheet_size=sheet_size,
                            body=body, animation=animation)
     if profile:
@@ -170,7 +188,7 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
     try:
         report = run_batch(found.scenes, out, options, jobs=jobs, scheduler=scheduler,
                            force=force, retry_errors=retry_errors, prune=prune,
-                           progress=start, title=title)
+                           progress=start, title=title, root=root, notify=_notify)
     except BatchInterrupted as stop:
         close()
         r = stop.report
@@ -180,7 +198,8 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
     close()
     rate = f", {report.done / report.elapsed_s:.2f} scenes/s" if report.done else ""
     others = len(report.rows) - report.done - report.reused
-    kept = f" (+{others} kept from earlier runs; --prune drops them)" if others else ""
+    # no --prune hint: after a run over one folder it would delete the rest of the library
+    kept = f" (+{others} rows of other scenes kept from earlier runs)" if others else ""
     click.echo(f"{report.done + report.reused} scenes: {report.done} processed{rate}, "
                f"{report.reused} already done, {report.errors} with errors{kept}; index "
                f"{out / 'index.csv'}, gallery {out / 'index.html'}")

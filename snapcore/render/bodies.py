@@ -23,7 +23,6 @@ the stills then share one body object, and its block of posed frames
 from __future__ import annotations
 
 import warnings
-import weakref
 
 import numpy as np
 
@@ -137,7 +136,11 @@ class MixedSceneBody(SceneBody):
             for i, ch in enumerate(scene.characters)])
 
 
-_BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+def _bodies_of(scene) -> dict:
+    """The scene's body cache, kept on the scene object itself. (A module-level
+    ``WeakKeyDictionary`` keyed by scene never freed an entry: its values, the bodies,
+    hold the scene. On the scene, scene and bodies form a cycle the collector frees.)"""
+    return vars(scene).setdefault("_snapcore_bodies", {})
 
 
 def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None,
@@ -149,7 +152,7 @@ def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None,
     the renderer's coarse shadow body reuses the posed human mesh.
     """
     kind = kind or body_kind(scene)
-    bodies = _BODIES.setdefault(scene, {})
+    bodies = _bodies_of(scene)
     body = bodies.get((kind, tessellation, detail))
     if body is None:
         other = next((b for (k, _, d), b in bodies.items() if k == kind and d == detail), None)

@@ -38,7 +38,6 @@ Public API
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -522,13 +521,17 @@ class SceneBody:
         return self.pose(frame).trimesh()
 
 
-_BODIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+def _bodies_of(scene) -> dict:
+    """The scene's body cache, kept on the scene object itself. (A module-level
+    ``WeakKeyDictionary`` keyed by scene never freed an entry: its values, the bodies,
+    hold the scene. On the scene, scene and bodies form a cycle the collector frees.)"""
+    return vars(scene).setdefault("_snapcore_bodies", {})
 
 
 def scene_body(scene, tessellation=TESSELLATION) -> SceneBody:
     """The (cached) :class:`SceneBody` of ``scene`` at ``tessellation`` (default colours):
     built once per scene object and tessellation."""
-    bodies = _BODIES.setdefault(scene, {})
+    bodies = _bodies_of(scene)
     body = bodies.get(tessellation)
     if body is None:
         body = bodies[tessellation] = SceneBody(scene, tessellation=tessellation)
