@@ -330,8 +330,11 @@ class Retarget:
         else:
             tops = [c for c in far(children[hd]) if roles[c] == "head"
                     and _HEAD_TOP.search(sk.names[c])]
+            # a head-top joint is the top of the skull: the rig's highest point
+            crown = rig.vertices[np.argmax(rig.vertices[:, 1])]
             groups.append(_Group(["Head"], at(hd), at(tops[0]) if tops else None, hd,
-                                 head("Head"), tail("Head"), ("calibrated", neck1)))
+                                 head("Head"), crown if tops else tail("Head"),
+                                 ("calibrated", neck1)))
         spine1 = 3
         for s, side in _SIDES.items():
             short = s  # LHipJoint, LThumb
