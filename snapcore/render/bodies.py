@@ -71,7 +71,8 @@ class SkinnedBody(FrameBlocks):
     character : Character
         Read by :func:`snapcore.motion.gltf.read_gltf` (``meta["mesh"]``).
     color : tuple of 3 floats
-        RGB 0-1 for the whole mesh (characters are told apart by colour).
+        RGB 0-1 for the faces whose material has no colour of its own (a textured
+        or untextured white material; characters are told apart by it).
     """
 
     kind = "gltf"
@@ -80,8 +81,12 @@ class SkinnedBody(FrameBlocks):
         self.character = character
         self.mesh = character.meta["mesh"]
         self.faces = self.mesh.faces
-        rgba = np.append(np.clip(np.asarray(color, float), 0, 1), 1.0)
-        self.face_colors = np.tile(np.round(rgba * 255).astype(np.uint8), (len(self.faces), 1))
+        rgb = np.tile(np.clip(np.asarray(color, float), 0, 1), (len(self.faces), 1))
+        own = self.mesh.face_rgb
+        if own is not None:  # the file's material colours where it has them
+            rgb = np.where(np.isnan(own), rgb, own)
+        self.face_colors = np.round(np.append(rgb, np.ones((len(rgb), 1)), axis=1)
+                                    * 255).astype(np.uint8)
 
     @property
     def n_vertices(self) -> int:
