@@ -101,14 +101,15 @@ class SkinnedBody(FrameBlocks):
 
 
 def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLORS[0],
-                   tessellation=TESSELLATION, detail: str = "full"):
+                   tessellation=TESSELLATION, detail: str = "full", ground: float | None = None):
     """The body one character wears (see the module notes for the rules); ``detail``
-    picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`)."""
+    picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
+    the floor height its soles stand on (default: inferred from its joints)."""
     if kind == "human":
         if "mesh" in character.meta:
             return SkinnedBody(character, color=color)
         try:
-            return HumanBody(character, color=color, detail=detail)
+            return HumanBody(character, color=color, detail=detail, ground=ground)
         except RetargetError as err:
             warnings.warn(f"{err}; it wears the mannequin instead", stacklevel=3)
     return CharacterBody(character, color=color, tessellation=tessellation)
@@ -138,7 +139,7 @@ class MixedSceneBody(SceneBody):
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self._merge(scene, bodies if bodies is not None else [
             character_body(ch, kind=self.kind, color=colors[i % len(colors)],
-                           tessellation=tessellation, detail=detail)
+                           tessellation=tessellation, detail=detail, ground=scene.ground)
             for i, ch in enumerate(scene.characters)])
 
 

@@ -43,6 +43,7 @@ import numpy as np
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
 from snapcore.motion.kinematics import rest_positions
+from snapcore.motion.load import infer_ground
 from snapcore.motion.skinning import blend_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.segments import (
@@ -71,6 +72,15 @@ LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
 #: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
 #: pipeline is float32 anyway.
 DRAW_DTYPE = np.float32
+#: Percentile of the ankle's height over frames taken as its standing height, and the
+#: range of the foot's depth scale that puts the sole there (see Retarget._sole_scale).
+SOLE_PERCENTILE = 10.0
+SOLE_SCALE_RANGE = (0.75, 1.35)
+#: Foot planting (Retarget._plant), metres: the largest shift of a foot; the sole's
+#: height above the floor up to which it is put on the floor, and from which it is left.
+PLANT_MAX_M = 0.03
+PLANT_FULL_M = 0.02
+PLANT_FADE_M = 0.05
 #: Nearest rest vertices whose skin weights a landmark borrows.
 LANDMARK_NEIGHBOURS = 8
 
@@ -223,7 +233,8 @@ class Retarget:
         missing.
     """
 
-    def __init__(self, character, asset: HumanAsset | None = None):
+    def __init__(self, character, asset: HumanAsset | None = None, *,
+                 ground: float | None = None):
         self.asset = asset = asset or human_asset()
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
@@ -245,6 +256,8 @@ class Retarget:
         self.groups = self._groups(lm, character.positions[sample], rest, self.offsets, sk,
                                    asset)
         self._calibrate(character.positions[sample], character.rotations[sample])
+        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
+        self.sole_scale = self._sole_scale(character.positions)
 
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
@@ -437,6 +450,64 @@ class Retarget:
                 want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
                 self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
 
+    def _sole_scale(self, positions) -> np.ndarray:
+        """Per group, the scale of its depth axis (z: the foot's top → sole) that puts
+        the soles on the floor: (G,), 1 except for feet and toes.
+
+        Skeletons put the ankle joint at different heights inside the foot (CMU's lower
+        than the rig's x k: the soles sank 1.5-3 cm; Bandai's higher: they floated 1-3
+        cm). Standing, the ankle is its height above the floor: the 10th percentile
+        over frames of the ankle's height above the ground (the heel down in stance;
+        frames in the air or on the toes are higher). The foot's depth below the ankle
+        is scaled from the rig's (x k) to it, within [0.75, 1.35] (a foot no flatter or
+        deeper than that; the rest is left to the per-frame planting, :meth:`_plant`).
+        """
+        a = self.asset
+        w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
+        out = np.ones(len(self.groups))
+        self._soles = {}
+        for s, side in _SIDES.items():
+            bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
+            foot_v = w[:, bones].sum(axis=1) > 0.5
+            ankle_rig = a.heads[bones[0]][1]
+            depth = (ankle_rig - a.vertices[foot_v, 1].min()) * self.k  # rig: ankle over sole
+            h = np.percentile(positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground,
+                              SOLE_PERCENTILE)
+            scale = float(np.clip(h / depth, *SOLE_SCALE_RANGE)) if depth > 0 else 1.0
+            groups = [i for i, g in enumerate(self.groups)
+                      if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")]
+            out[groups] = scale
+            # the sole: foot vertices within 1.5 cm of its lowest, each with the group
+            # that carries most of it (for the per-frame contact in _plant)
+            sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < a.vertices[foot_v, 1].min() + 0.015))
+            owner = self.bone_group[np.argmax(w[sole], axis=1)]
+            owner = np.where(np.isin(owner, groups), owner, groups[0])
+            self._soles[s] = (a.vertices[sole], owner, np.array(groups))
+        return out
+
+    def _plant(self, m: np.ndarray) -> np.ndarray:
+        """Group matrices ``m`` (F, G, 3, 4) with each foot moved up or down onto the
+        floor where it is in contact: foot planting, as game engines do after a retarget.
+
+        A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
+        sliding into the floor), so no fixed foot keeps the soles on the floor. Per frame
+        and foot, ``r`` = the lowest sole point's height above the floor: a sole below
+        the floor is lifted onto it (by at most :data:`PLANT_MAX_M`), one up to
+        :data:`PLANT_FULL_M` above is lowered onto it, and the correction fades out
+        by :data:`PLANT_FADE_M` (a foot lifting off rises from the floor, no jump).
+        The foot and toe groups move by the same vertical shift; the skin at the ankle
+        blends it into the shank.
+        """
+        m = m.copy()
+        for s in _SIDES:
+            pts, owner, groups = self._soles[s]
+            y = np.einsum("fpj,pj->fp", m[:, owner, 1, :3], pts) + m[:, owner, 1, 3]
+            r = y.min(axis=1) - self.ground
+            fade = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
+            shift = np.clip(np.where(r < 0, -r, -r * fade), -PLANT_MAX_M, PLANT_MAX_M)
+            m[:, groups, 1, 3] += shift[:, None]
+        return m
+
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
         segment frames of poses ``positions`` (F, J, 3)."""
@@ -570,10 +641,11 @@ class Retarget:
                 h = h.copy()
                 h[:, self._tracked[at]] = tip[:, at]
                 length[:, self._tracked[at]] = self.k
-        scale = np.stack([np.full((f, g), self.k), length, np.full((f, g), self.k)], axis=-1)
+        scale = np.stack([np.full((f, g), self.k), length,
+                          np.broadcast_to(self.k * self.sole_scale, (f, g))], axis=-1)
         lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
         trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
-        m = np.concatenate([lin, trans[..., None]], axis=-1)
+        m = self._plant(np.concatenate([lin, trans[..., None]], axis=-1))
         if stretch:
             return m, (self.k - length)[..., None] * w[..., 1]
         return m
@@ -633,6 +705,9 @@ class HumanBody(FrameBlocks):
     detail : {"full", "reduced"}
         The mesh drawn (:func:`snapcore.render.human_asset.human_asset`): the reduced one
         is for videos.
+    ground : float, optional
+        The floor's height (metres; the scene's), where the soles stand; default
+        inferred from the character's joints as scenes do.
 
     Raises
     ------
@@ -642,11 +717,12 @@ class HumanBody(FrameBlocks):
 
     kind = "human"
 
-    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full"):
+    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full",
+                 ground: float | None = None):
         self.character = character
         self.detail = detail
         self.asset = asset = human_asset(detail)
-        self.retarget = Retarget(character, asset)
+        self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
         sides = joint_sides(asset.bone_names)
         w = asset.weights
