@@ -99,3 +99,72 @@ def test_a_head_top_joint_places_the_crown():
     got = r.skin_points(crown, w, r.stretch_weights(crown, w), ch.positions, ch.rotations)[:, 0]
     err = float(np.linalg.norm(got - ch.positions[:, names.index("HeadTop_End")], axis=-1).max())
     assert err <= HEAD_TOL_M, f"crown {err * 100:.1f} cm from the head-top joint"
+
+
+def _section_area(vertices, faces, origin, normal) -> float:
+    """Area (m²) of the closed loop of the mesh's section by the plane (``origin``,
+    ``normal``) that encloses ``origin`` (the innermost one, if nested)."""
+    import trimesh
+    from matplotlib.path import Path as MPath
+
+    sec = trimesh.Trimesh(vertices, faces, process=False).section(
+        plane_origin=origin, plane_normal=normal)
+    assert sec is not None
+    u = np.cross(normal, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(normal, u)
+    areas = []
+    for loop in sec.discrete:
+        q = np.stack([(loop - origin) @ u, (loop - origin) @ w], axis=1)
+        if MPath(q).contains_point((0.0, 0.0)):
+            x, y = q[:, 0], q[:, 1]
+            areas.append(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+    assert areas, "no section loop around the bone"
+    return min(areas)
+
+
+def test_a_bent_elbow_keeps_the_arms_volume():
+    """The synthetic skeleton's left arm out to the side, straight and with the elbow
+    bent 50° forward (only the joints move): the upper arm's cross-sections at 60% and
+    70% of its length keep at least 70% of their straight-arm area, and the section
+    through the elbow along the bisector of the two bones keeps at least 70% of what a
+    cylinder bent alike would show (1 / cos 25° of the straight one).
+
+    Measured (2026-12): 92% and 95%; at the elbow 112% (a cylinder: 110%); at 90°
+    135% (141%), at 120° 173% (200%)."""
+    from snapcore.motion.kinematics import rest_positions
+    from snapcore.render.human import HumanBody
+
+    base = synth_scene("idle").characters[0]
+    sk = base.skeleton
+    names, parents = sk.names, np.asarray(sk.parents)
+    rest = rest_positions(parents, sk.offsets) + np.array([0.0, 1.0, 0.0])
+    el = names.index("LeftForeArm")
+    below = [j for j in range(len(names)) if j == el or el in _ancestors(parents, j)]
+    bend = Rotation.from_euler("y", -50, degrees=True).as_matrix()  # +X towards +Z
+    pos, rot = np.stack([rest, rest]), np.broadcast_to(np.eye(3), (2, len(names), 3, 3)).copy()
+    pos[1, below] = rest[el] + (rest[below] - rest[el]) @ bend.T
+    rot[1, below] = bend @ rot[1, below]
+    ch = Character("elbow", sk, pos, rot, rot.copy(), fps=30.0)
+    body = HumanBody(ch, ground=0.0)
+    v = body.skin(pos, rot)
+    sh = rest[names.index("LeftArm")]
+    axis = (rest[el] - sh) / np.linalg.norm(rest[el] - sh)
+    for t in (0.6, 0.7):
+        o = sh + t * (rest[el] - sh)
+        kept = _section_area(v[1], body.faces, o, axis) / _section_area(v[0], body.faces, o, axis)
+        assert kept >= 0.7, f"upper arm at {t:.0%}: {kept:.0%} of its straight area"
+    bis = axis + bend @ axis
+    bis /= np.linalg.norm(bis)
+    elbow = (_section_area(v[1], body.faces, rest[el], bis)
+             / _section_area(v[0], body.faces, rest[el], axis) * np.cos(np.radians(25)))
+    assert elbow >= 0.7, f"elbow section {elbow:.0%} of a bent cylinder's"
+
+
+def _ancestors(parents, j):
+    out = []
+    j = int(parents[j])
+    while j >= 0:
+        out.append(j)
+        j = int(parents[j])
+    return out
