@@ -333,6 +333,9 @@ class Retarget:
         hd = lm["head"]
         roles = joint_roles(sk.names, sk.parents)
         neck1 = len(groups) - 1
+        # an eye-less head is calibrated against the chest: the neck's own line leans
+        # differently on every skeleton (CMU's forward), the chest's frame does not
+        spine1 = 3
         if self.eyes is not None:
             # the head placed by the eyes: its rig eye midpoint on the skeleton's, turned
             # by the eye line and the head → eyes direction
@@ -347,8 +350,7 @@ class Retarget:
             crown = rig.vertices[np.argmax(rig.vertices[:, 1])]
             groups.append(_Group(["Head"], at(hd), at(tops[0]) if tops else None, hd,
                                  head("Head"), crown if tops else tail("Head"),
-                                 ("calibrated", neck1)))
-        spine1 = 3
+                                 ("calibrated", spine1)))
         for s, side in _SIDES.items():
             short = s  # LHipJoint, LThumb
             j = {n: lm[f"{n}_{s}"] for n in ("clavicle", "shoulder", "elbow", "wrist",
