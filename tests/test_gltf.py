@@ -592,8 +592,8 @@ def test_video_takes_animation_and_body(tmp_path):
     r = CliRunner().invoke(cli, ["video", str(path), "--animation", "nope", "-o",
                                  str(tmp_path / "a.mp4")])
     assert r.exit_code == 2 and "no animation 'nope'" in r.output, r.output
-    from snapcore.motion.synth import humanoid_document
     from snapcore.motion.bvh import format_bvh
+    from snapcore.motion.synth import humanoid_document
 
     bvh = tmp_path / "walk.bvh"
     bvh.write_text(format_bvh(humanoid_document("walk", seconds=0.5)))

@@ -17,8 +17,8 @@ import numpy as np
 
 from snapcore.cli.common import (
     POSITIVE,
-    body_options,
     FiniteFloatRange,
+    body_options,
     internal_frame,
     output_callback,
     parse_vector,

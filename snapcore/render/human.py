@@ -11,25 +11,25 @@ Rig bones move in *groups* (a bone, or a rigid piece such as the hand with its f
 or foot and toe on a skeleton without toes). Each group has a head and, where the
 skeleton has one, a tip on the skeleton: a joint, or a point along the spine's chain of
 joints at the same fraction of its length as on the rig (the rig's spine has four
-bones, a BVH spine two to four). Calibrated once on the skeleton's rest pose (BVH:
-offsets with identity rotations):
+bones, a BVH spine two to four). Only lengths are read from the skeleton's rest pose.
 
-- ``G`` turns the rig's frame (left +X, up +Y, facing +Z) onto the rest skeleton's
-  (left-right hip axis, pelvis → neck);
-- ``Q_g = swing(G y_g → s_g) · G`` turns the group's rig axis ``y_g`` onto the
-  skeleton's rest direction ``s_g`` by the smallest rotation (an A-pose arm onto a
-  T-pose arm), keeping the twist.
-
-At frame ``f`` the group's frame is ``W = swing(a → d) · R_ref(f) · Q_g · A_g``: the
-rotation of its reference joint (the joint at its head) carries the twist, and a small
-swing puts its axis exactly on the skeleton's current head → tip direction ``d``
-(``a`` is where the reference rotation alone puts it). Lengths: along the axis, the
-skeleton's head-tip distance over the rig's; across it, ``k`` = the skeleton's
-thigh + shank over the rig's (so a taller person is also broader); untracked groups
-(head, hands) scale by ``k`` all round. A rig point ``x`` then moves to
-``h(f) + W diag(k, s, k) A_g^T (x - head_g)``: every bone head lands on its skeleton
-joint, and linear blend skinning (:func:`snapcore.motion.skinning.blend_skin`)
-deforms the mesh between them.
+At frame ``f`` the group's frame is ``W = F_skeleton(f) F_rig^T``: the same recipe
+(:mod:`snapcore.render.segments`: pelvis from the hip line, chest from the shoulder
+line, limbs from their bone and bend plane, feet from ankle → toe, the head from the
+eyes) applied to the skeleton's joint positions and to the rig's rest pose, so no rest
+convention enters. Lengths: along the axis, the skeleton's head-tip distance over the
+rig's; across it, ``k`` = the skeleton's thigh + shank over the rig's (so a taller
+person is also broader); untracked groups (head, hands) scale by ``k`` all round; a
+foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
+to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
+lands on its skeleton joint, feet are planted on the floor where they stand
+(:meth:`Retarget._plant`), and linear blend skinning
+(:func:`snapcore.motion.skinning.blend_skin`) deforms the mesh between them. Linear
+blend skinning is kept (not dual quaternions): the elbows that collapsed bent across
+the mesh's crease because the rig's hinge was turned away from the skeleton's bend
+plane; with the hinge in that plane an elbow bent 50° keeps 92-95% of the upper arm's
+cross-section (``tests/test_human_rigs.py``), and the skinning matrices stay affine
+(the stretch along bones needs that) at the same cost.
 """
 
 from __future__ import annotations
@@ -339,9 +339,8 @@ class Retarget:
         if self.eyes is not None:
             # the head placed by the eyes: its rig eye midpoint on the skeleton's, turned
             # by the eye line and the head → eyes direction
-            rig_eyes = self.asset_eyes(rig)
             el, er = self.eyes
-            groups.append(_Group(["Head"], _Point(el, er, 0.5), None, hd, rig_eyes.mean(axis=0),
+            groups.append(_Group(["Head"], _Point(el, er, 0.5), None, hd, rig.eyes.mean(axis=0),
                                  tail("Head"), ("eyes", neck1)))
         else:
             tops = [c for c in far(children[hd]) if roles[c] == "head"
@@ -409,14 +408,8 @@ class Retarget:
         self._neck1 = neck1
         return groups
 
-    @staticmethod
-    def asset_eyes(asset) -> np.ndarray:
-        """The rig's (left, right) eye centres, (2, 3) metres."""
-        return np.asarray(asset.eyes, float)
-
     def _calibrate(self, pos_sample, rot_sample):
         g_all = self.groups
-        n = len(g_all)
         names = self.asset.bone_names
         self.bone_group = np.empty(len(names), dtype=np.int64)
         for i, g in enumerate(g_all):
