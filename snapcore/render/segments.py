@@ -64,16 +64,24 @@ def _perp(y: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return r / n
 
 
+def _axis(y) -> np.ndarray:
+    """Unit ``y``; a zero vector (a bone of no length in some frame) becomes +Y, so the
+    frame stays a rotation."""
+    y = unit(np.asarray(y, float))
+    zero = np.linalg.norm(y, axis=-1) < 0.5
+    return np.where(zero[..., None], [0.0, 1.0, 0.0], y) if np.any(zero) else y
+
+
 def frame_x(y: np.ndarray, x_ref: np.ndarray) -> np.ndarray:
     """Frame with ``y`` along ``y`` and ``x`` towards ``x_ref``: (..., 3) → (..., 3, 3)."""
-    y = unit(np.asarray(y, float))
+    y = _axis(y)
     x = _perp(y, np.broadcast_to(np.asarray(x_ref, float), y.shape))
     return np.stack([x, y, np.cross(x, y)], axis=-1)
 
 
 def frame_z(y: np.ndarray, z_ref: np.ndarray) -> np.ndarray:
     """Frame with ``y`` along ``y`` and ``z`` towards ``z_ref``: (..., 3) → (..., 3, 3)."""
-    y = unit(np.asarray(y, float))
+    y = _axis(y)
     z = _perp(y, np.broadcast_to(np.asarray(z_ref, float), y.shape))
     return np.stack([np.cross(y, z), y, z], axis=-1)
 
