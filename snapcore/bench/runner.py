@@ -40,14 +40,18 @@ class BenchResult:
 
 def select_cases(only: str | None) -> list:
     """The cases ``--only`` names: the case whose name is exactly ``only`` (leading
-    spaces aside), else those whose name holds it as whole words (``"100 frames"`` is
-    not part of ``"1000 frames"``, nor ``"dancers, 100"``); all cases for None."""
+    spaces aside), else those whose name holds it, numbers whole (``"dancers, 100"``
+    is not part of ``"dancers, 1000 frames"``); all cases for None."""
     if only is None:
         return list(CASES)
     exact = [c for c in CASES if c.name.strip() == only.strip()]
     if exact:
         return exact
-    words = re.compile(r"(?<!\w)" + re.escape(only.strip()) + r"(?!\w)")
+    # a number in the text is a whole number ("100" is not the start of "1000"); words
+    # may be prefixes ("Boxing" names "Boxing_Toes")
+    text = only.strip()
+    words = re.compile(r"(?<![0-9])" * text[:1].isdigit() + re.escape(text)
+                       + r"(?![0-9])" * text[-1:].isdigit())
     return [c for c in CASES if words.search(c.name)]
 
 
