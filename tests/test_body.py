@@ -13,6 +13,7 @@ from snapcore.motion.anatomy import ROLE_RADII, joint_roles, joint_sides
 from snapcore.motion.scene import Character, Scene, Skeleton
 from snapcore.render.body import (
     CHARACTER_COLORS,
+    CharacterBody,
     SceneBody,
     posed_mesh,
     scene_body,
@@ -266,3 +267,39 @@ def test_fine_tessellation_hugs_the_capsules(walk):
     default = _facet_depth(CharacterBody(ch, tessellation=TESSELLATION))
     assert 0 < fine < 1.5e-3
     assert fine < default / 3
+
+
+def test_helper_joints_draw_no_blobs(walk):
+    """Reallusion CC_Base rigs carry helper joints: breast (``L_RibsTwist`` →
+    ``L_Breast`` in front of the chest) and twist bones beside the limbs. The
+    mannequin draws no piece for them: the body is the same as without them (it drew
+    chest-sized blobs)."""
+    ch = walk.characters[0]
+    sk = ch.skeleton
+    names, parents = list(sk.names), list(sk.parents)
+    offsets = [np.asarray(o, float) for o in sk.offsets]
+    extra = []  # (name, parent name, offset in the parent's frame)
+    for side, x in (("L", 1.0), ("R", -1.0)):
+        extra += [(f"CC_Base_{side}_RibsTwist", "Spine1", (0.06 * x, 0.10, 0.06)),
+                  (f"CC_Base_{side}_Breast", f"CC_Base_{side}_RibsTwist", (0.0, -0.03, 0.07)),
+                  (f"CC_Base_{side}_UpperarmTwist01",
+                   "LeftArm" if side == "L" else "RightArm", (0.14 * x, 0.0, 0.0))]
+    pos, rot = ch.positions, ch.rotations
+    new_pos, new_rot = [pos], [rot]
+    for name, parent, off in extra:
+        p = names.index(parent)
+        names.append(name)
+        parents.append(p)
+        offsets.append(np.asarray(off))
+        r = (new_rot[0] if p < rot.shape[1] else np.concatenate(new_rot, axis=1))[:, p]
+        q = np.concatenate(new_pos, axis=1)[:, p]
+        new_pos.append((q + r @ np.asarray(off))[:, None])
+        new_rot.append(r[:, None])
+    rich = Character("cc", Skeleton(tuple(names), np.array(parents), np.array(offsets),
+                                    np.zeros(len(names), bool)),
+                     np.concatenate(new_pos, axis=1), np.concatenate(new_rot, axis=1),
+                     np.concatenate(new_rot, axis=1).copy(), fps=ch.fps)
+    plain, helped = CharacterBody(ch), CharacterBody(rich)
+    assert [(p["kind"], p["joint"], p["child"]) for p in helped.pieces] == \
+        [(p["kind"], p["joint"], p["child"]) for p in plain.pieces]
+    np.testing.assert_allclose(helped.vertices(5), plain.vertices(5), atol=1e-9)

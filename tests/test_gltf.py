@@ -342,6 +342,11 @@ BAD_CASES = {
     "interpolation": "unknown interpolation 'SMOOTH'",
     # geometry only the extension can decode: its accessors have no data of their own
     "compressed": "requires the extension KHR_draco_mesh_compression",
+    # issue 26: an animation whose sampler has no key (was a traceback from min())
+    "no_keys": "sampler 0 has no key times",
+    # issue 26: garbage bytes over a mesh's positions, inside a valid GLB container
+    # (was read: exit 0 and a picture of nothing)
+    "garbage": "the binary data is damaged",
 }
 
 
@@ -364,6 +369,19 @@ def _bad_file(tmp_path: Path, case: str) -> Path:
         doc = _two_bone_document(interpolation="SMOOTH")
     elif case == "compressed":
         doc["extensionsUsed"] = doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    elif case == "no_keys":
+        doc["accessors"][10].update(count=0, min=None, max=None)
+        doc["accessors"][10] = {k: v for k, v in doc["accessors"][10].items() if v is not None}
+    elif case == "garbage":
+        # mesh B's positions carry their bounds (as the spec requires), then garbage
+        doc["accessors"][4].update(min=[0.0, 2.0, 0.0], max=[1.0, 2.0, 1.0])
+        raw = bytearray(base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1]))
+        view = doc["bufferViews"][4]
+        noise = np.random.default_rng(26).normal(0.0, 1e3, view["byteLength"] // 4)
+        raw[view["byteOffset"]:view["byteOffset"] + view["byteLength"]] = noise.astype("<f4").tobytes()
+        p = tmp_path / f"{case}.glb"
+        p.write_bytes(_glb(doc, bytes(raw)))
+        return p
     return _write(tmp_path, doc, f"{case}.gltf")
 
 
@@ -483,3 +501,104 @@ def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
         corner = im[0, 0]
         assert (np.abs(im - corner).max(axis=-1) > 40).sum() > 500  # the fox is drawn
     assert np.abs(images[0] - images[1]).mean() > 1 or np.abs(images[0] - images[2]).mean() > 1
+
+
+# ----------------------------------------------------------------- issue 26: the gaps
+
+
+def test_the_last_key_time_is_sampled(tmp_path):
+    """At 2.5 fps a 1 s animation has samples at 0, 0.4, 0.8 s and its last key at
+    1 s: the last frame is that key (the arm turned 90° about Z), not 0.8 s (72°)."""
+    c = read_gltf(_write(tmp_path, _two_bone_document()), fps=2.5)
+    assert c.n_frames == 4
+    rz90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(c.local_rotations[-1, 1], rz90, atol=1e-6)
+
+
+def test_animations_with_the_same_name_can_each_be_chosen(tmp_path):
+    """Two animations called "raise" are listed as raise and raise_2; the second (only
+    the root's step) is read by its name, and its arm does not turn."""
+    doc = _two_bone_document()
+    second = json.loads(json.dumps(doc["animations"][0]))
+    second["channels"] = second["channels"][1:]
+    doc["animations"].append(second)
+    path = _write(tmp_path, doc, "twice.gltf")
+    first = read_gltf(path, animation="raise", fps=4.0)
+    other = read_gltf(path, animation="raise_2", fps=4.0)
+    assert other.meta["animations"] == ["raise", "raise_2"] and other.meta["animation"] == "raise_2"
+    assert not np.allclose(first.local_rotations[-1, 1], np.eye(3))
+    np.testing.assert_allclose(other.local_rotations[:, 1], np.broadcast_to(np.eye(3), (5, 3, 3)),
+                               atol=1e-9)
+
+
+def _two_character_document() -> dict:
+    """The two-bone file with mesh B bound to a second skeleton: node ``arm2`` (a joint
+    of skin 1 only) under an unanimated ``root2`` 5 m along +X."""
+    doc = _two_bone_document()
+    doc["nodes"].append({"name": "root2", "translation": [5.0, 0.0, 0.0], "children": [5]})
+    doc["nodes"].append({"name": "arm2", "translation": [0.0, 1.0, 0.0]})
+    doc["scenes"][0]["nodes"].append(4)
+    doc["skins"][1]["joints"] = [5]
+    return doc
+
+
+def test_two_skinned_characters_in_one_file_are_two_characters(tmp_path):
+    """A file with two skeletons, each with its own skinned mesh, loads as two
+    characters, each wearing only its own mesh (they were merged into one); read alone
+    without saying which, it is a one-line error."""
+    import warnings
+
+    from snapcore.motion.gltf import gltf_characters
+    from snapcore.motion.load import load_scene
+
+    path = _write(tmp_path, _two_character_document(), "pair.gltf")
+    assert gltf_characters(path) == ["root", "arm2"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = load_scene(path, fps=4.0, ground=0.0)
+    a, b = scene.characters
+    assert (a.name, b.name) == ("pair_root", "pair_arm2")
+    assert a.joint_names == ("root", "arm") and b.joint_names == ("arm2",)
+    assert a.meta["mesh"].n_vertices == 3 and b.meta["mesh"].n_vertices == 3
+    # mesh B on arm2: its bind pose at y = 2 (joint at y = 1, IBM one down), 5 m along X
+    vb = b.meta["mesh"].vertices(b, 0)
+    np.testing.assert_allclose(vb, [[5.0, 2.0, 0.0], [6.0, 2.0, 0.0], [5.0, 2.0, 1.0]], atol=1e-6)
+    with pytest.raises(GLTFError, match="holds 2 skinned characters"):
+        read_gltf(path)
+
+
+def test_material_colours_are_drawn(tmp_path):
+    """Mesh A's material is red: its face is drawn red; mesh B has no material and
+    wears the character colour (glTF characters used to be one flat colour)."""
+    from snapcore.render.bodies import SkinnedBody
+
+    doc = _two_bone_document()
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.0, 0.0, 1.0]}}]
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    c = read_gltf(_write(tmp_path, doc, "red.gltf"))
+    body = SkinnedBody(c, color=(0.0, 0.0, 1.0))
+    np.testing.assert_array_equal(body.face_colors, [[255, 0, 0, 255], [0, 0, 255, 255]])
+
+
+def test_video_takes_animation_and_body(tmp_path):
+    """`snapshot video` has --animation and --body as every other command: a glTF
+    animation name it lacks is a one-line error naming it (exit 2), and a BVH clip
+    renders in the mannequin."""
+    from click.testing import CliRunner
+
+    from snapcore.cli.main import cli
+
+    path = _write(tmp_path, _two_bone_document(), "two_bone.gltf")
+    r = CliRunner().invoke(cli, ["video", str(path), "--animation", "nope", "-o",
+                                 str(tmp_path / "a.mp4")])
+    assert r.exit_code == 2 and "no animation 'nope'" in r.output, r.output
+    from snapcore.motion.bvh import format_bvh
+    from snapcore.motion.synth import humanoid_document
+
+    bvh = tmp_path / "walk.bvh"
+    bvh.write_text(format_bvh(humanoid_document("walk", seconds=0.5)))
+    out = tmp_path / "walk.mp4"
+    r = CliRunner().invoke(cli, ["video", str(bvh), "--body", "mannequin", "-o", str(out),
+                                 "--size", "64x48", "-q"])
+    assert r.exit_code == 0, r.output
+    assert out.stat().st_size > 0

@@ -13,8 +13,6 @@ from snapcore.motion.skinning import blend_skin, vertex_normals, weight_matrix
 
 #: Landmark tolerance, metres (issue 15): the body's joints stay this close to the skeleton's.
 LANDMARK_TOL_M = 0.03
-#: Stature tolerance, fraction of the skeleton's (issue 15).
-STATURE_TOL = 0.02
 
 
 def _quiet_load(path):
@@ -66,51 +64,143 @@ def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
     assert max(e for e, _, _ in worst.values()) <= LANDMARK_TOL_M, report
 
 
-def _standing_stature(body) -> float:
-    """Sole-to-crown extent (m) of the body on the skeleton's rest pose, along its up."""
-    r = body.retarget
-    j = len(r.rest)
-    v = body.skin(r.rest[None], np.broadcast_to(np.eye(3), (1, j, 3, 3)))[0]
-    return float(np.ptp(v @ r.rest_up))
+#: Facing tolerance (issue 26): the body's pelvis and chest face the skeleton's way, degrees.
+FACING_TOL_DEG = 20.0
+#: Head landmarks (eyes, head top) where the skeleton has them, metres (issue 26).
+HEAD_TOL_M = 0.02
 
 
-def test_stature_matches_the_skeleton(retargeted):
-    """Standing on the skeleton's rest pose, the body is as tall as the skeleton's
-    stature (:attr:`Character.height`) within 2%, where the rest pose is a standing pose.
+def _midline_vertices(asset, height):
+    """(front, back) rest vertices on the body's midline at ``height`` (m above the
+    rig's origin): the belly and the small of the back, the sternum and the spine."""
+    v = asset.vertices
+    near = np.where((np.abs(v[:, 0]) < 0.012) & (np.abs(v[:, 1] - height) < 0.02))[0]
+    return near[np.argmax(v[near, 2])], near[np.argmin(v[near, 2])]
 
-    Measured (2026-12, this commit): Daz/Poser salsa and soccer skeletons -3.0%, the
-    assimp boxer +0.3%, CMU cgspeed and 3ds Max skeletons -8.6 to -10.3%: their head
-    joint sits ~0.09 of the stature lower, relative to the legs, than the leg-based
-    estimate (Drillis & Contini) implies, and the body keeps every joint on the
-    skeleton (the landmark test) rather than stretch the head. Bandai's rest pose is not
-    a standing pose (its bones fold along the local X axes), so it is not measured.
-    Those clips are listed below as known; the test reports them as an expected failure
-    (xfail, with the measured numbers), and fails on any other clip off by more than 2%.
-    """
-    bad = []
+
+def _twist_deg(front, lateral, up):
+    """How far (degrees) a body's front direction ``front`` (F, 3) is from the normal of
+    the skeleton's line ``lateral`` (F, 3), on the side ``lateral x up`` (0: exactly
+    across the line, facing forward; a torso turned into profile: 90)."""
+    f = front / np.linalg.norm(front, axis=-1, keepdims=True)
+    lat = lateral / np.linalg.norm(lateral, axis=-1, keepdims=True)
+    off = np.degrees(np.arcsin(np.clip(np.abs(np.sum(f * lat, axis=-1)), 0, 1)))
+    forward = np.sum(f * np.cross(lateral, up), axis=-1) > 0
+    return np.where(forward, off, 180.0 - off)
+
+
+def _facing(body, frames):
+    """Worst (pelvis, chest) twist over ``frames``: the body's front, the skinned
+    midline vertex pair (belly - small of the back, sternum - spine), against the
+    normal of the skeleton's hip line and shoulder line."""
+    from snapcore.motion.anatomy import body_landmarks
+
+    a, ch = body.asset, body.character
+    sk = ch.skeleton
+    lm = body_landmarks(sk.names, np.asarray(sk.parents))
+    pf, pb = _midline_vertices(a, a.heads[a.bone("Hips")][1] + 0.03)
+    cf, cb = _midline_vertices(a, a.heads[a.bone("Spine1")][1] + 0.06)
+    v = body.skin(ch.positions[frames], ch.rotations[frames])
+    p = ch.positions[frames]
+    up = p[:, lm["spine"][-1]] - p[:, lm["pelvis"]]
+    pelvis = _twist_deg(v[:, pf] - v[:, pb], p[:, lm["hip_L"]] - p[:, lm["hip_R"]], up)
+    chest = _twist_deg(v[:, cf] - v[:, cb], p[:, lm["shoulder_L"]] - p[:, lm["shoulder_R"]], up)
+    return float(pelvis.max()), float(chest.max())
+
+
+def test_the_body_faces_the_skeletons_way_in_every_frame(retargeted):
+    """On every shared clip, in every frame, the body's pelvis and chest face across
+    the skeleton's hip and shoulder lines, within 20° (the Bandai torso was turned
+    85-91° into profile while every joint still sat on the skeleton)."""
+    rows = []
     for name, body in retargeted:
-        if name.startswith("dataset-"):
-            continue  # Bandai: no standing rest pose
-        h = body.character.height
-        s = _standing_stature(body)
-        if abs(s / h - 1) > STATURE_TOL:
-            bad.append(f"{name}: body {s:.3f} m, skeleton {h:.3f} m ({(s / h - 1) * 100:+.1f}%)")
-    known = {"06_15_jumpshot_excerpt.bvh", "01_01.bvh", "05_06.bvh", "02_01.bvh", "02_03.bvh",
-             "131_01.bvh", "10_01.bvh", "11_01.bvh", "60_01_scaled.bvh", "60_12_scaled.bvh",
-             "61_01_scaled.bvh", "61_12_scaled.bvh"}
-    unexpected = [b for b in bad if b.split(":")[0] not in known]
-    assert not unexpected, "\n".join(unexpected)
-    if bad:
-        pytest.xfail("stature off by more than 2% (see the docstring):\n" + "\n".join(bad))
+        pel, che = _facing(body, np.arange(body.character.n_frames))
+        rows.append((name, pel, che))
+    report = "\n".join(f"{n}: pelvis {p:.1f}°, chest {c:.1f}°" for n, p, c in rows)
+    print("\nworst twist per clip:\n" + report)
+    assert max(max(p, c) for _, p, c in rows) <= FACING_TOL_DEG, report
+
+
+def test_the_head_sits_on_the_eye_joints(retargeted):
+    """Where a skeleton has eye joints (Daz/Poser soccer and salsa), the body's eyes
+    (the MakeHuman eyeball centres, skinned with the surface around them) are within
+    2 cm of the midpoint of the skeleton's eyes in every frame; before, 6.7 cm low."""
+    from snapcore.render.human import landmark_weights
+
+    checked = 0
+    for name, body in retargeted:
+        r = body.retarget
+        if r.eyes is None:
+            continue
+        ch = body.character
+        pts = body.asset.eyes.mean(axis=0, keepdims=True)
+        w = landmark_weights(body.asset, pts)
+        got = r.skin_points(pts, w, r.stretch_weights(pts, w), ch.positions, ch.rotations)[:, 0]
+        want = ch.positions[:, list(r.eyes)].mean(axis=1)
+        err = float(np.linalg.norm(got - want, axis=-1).max())
+        assert err <= HEAD_TOL_M, f"{name}: eyes {err * 100:.1f} cm off"
+        checked += 1
+    assert checked >= 2  # soccer and salsa have eyes
+
+
+#: Soles on the floor in contact frames (issue 26), metres: the median per clip, and a
+#: bound on the worst frame (the skeletons' own ankle height varies 1-5 cm over stance
+#: frames; feet are moved by at most 3 cm, see Retarget._plant).
+SOLE_TOL_M = 0.01
+SOLE_WORST_M = 0.04
+
+
+def _contact_frames(ch, side: str, lm) -> np.ndarray:
+    """Frames where a foot stands on the floor, read from its joints alone: its end
+    joint (toe, else ankle) slower than 0.15 m/s and the ankle within 2 cm of its 10th
+    percentile height (the heel down; toe-offs and frames in the air excluded)."""
+    p = ch.positions
+    end = lm[f"toe_{side}"] if lm[f"toe_{side}"] is not None else lm[f"ankle_{side}"]
+    speed = np.linalg.norm(np.gradient(p[:, end], axis=0), axis=-1) * ch.fps
+    ankle = p[:, lm[f"ankle_{side}"], 1]
+    return np.flatnonzero((speed < 0.15) & (ankle < np.percentile(ankle, 10) + 0.02))
+
+
+def test_soles_stand_on_the_floor_in_contact_frames(all_bvh):
+    """In the frames where a foot stands (by its joints), the body's sole (the lowest
+    vertex carried mostly by the foot and toe bones) is on the scene's floor: within
+    1 cm at the median of every clip, and never more than 4 cm off (before: CMU soles
+    sank 1.5-3.1 cm at the median, Bandai's floated 1.3-2.7 cm). Prints the worst."""
+    from snapcore.motion.anatomy import body_landmarks
+    from snapcore.render.human import HumanBody
+
+    rows = []
+    for path in all_bvh:
+        scene = _quiet_load(path)
+        ch = scene.characters[0]
+        body = HumanBody(ch, ground=scene.ground)
+        a = body.asset
+        w = a.weights.toarray()
+        lm = body_landmarks(ch.skeleton.names, np.asarray(ch.skeleton.parents))
+        gaps = []
+        for s, side in (("L", "Left"), ("R", "Right")):
+            foot = np.flatnonzero(w[:, [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]]
+                                  .sum(axis=1) > 0.5)
+            frames = _contact_frames(ch, s, lm)
+            frames = frames[:: max(1, len(frames) // 150)]
+            v = body.skin(ch.positions[frames], ch.rotations[frames])
+            gaps.append(v[:, foot, 1].min(axis=1) - scene.ground)
+        gap = np.concatenate(gaps)
+        rows.append((path.name, float(np.median(gap)), float(gap[np.argmax(np.abs(gap))])))
+    report = "\n".join(f"{n}: median {m * 100:+.1f} cm, worst {w * 100:+.1f} cm"
+                       for n, m, w in rows)
+    print("\nsole height above the floor in contact frames:\n" + report)
+    assert all(abs(m) <= SOLE_TOL_M and abs(w) <= SOLE_WORST_M for _, m, w in rows), report
 
 
 def test_the_body_is_sized_to_the_skeleton(retargeted):
-    """Every body is an adult's: within 12% of the skeleton's stature (a coarse bound
-    that would catch a unit or scale error, which the 2% test above cannot on all clips)."""
+    """Every body is an adult of the skeleton's size: its rest-mesh stature scaled by
+    the leg ratio within 12% of the skeleton's (leg-based) stature estimate, a coarse
+    bound that catches a unit or scale error. Stature is not matched more closely on
+    purpose (issue 26): :attr:`Character.height` is a leg-based estimate for units and
+    scale only; the fit is judged by the landmark, head and facing tests."""
     for name, body in retargeted:
-        if name.startswith("dataset-"):
-            continue
-        s, h = _standing_stature(body), body.character.height
+        s, h = body.asset.stature * body.retarget.k, body.character.height
         assert abs(s / h - 1) < 0.12, f"{name}: {s:.3f} vs {h:.3f}"
 
 

@@ -416,3 +416,55 @@ def test_a_cropped_render_is_the_full_render(walk):
             assert (np.abs(full - sr._background_image().astype(int)).max(-1) > 30).sum() > 500
     persp = fit_camera(pts, [1.0, 0.8, 2.0], size=(640, 360), projection="perspective")
     assert sr._crop_window(persp, [sr.body.vertices(0)]) is None
+
+
+def _elevated(azimuth_deg, elevation_deg):
+    a, e = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
+
+
+def _panel_edges(img, n, size, strip=6):
+    """Per-row mean colour (H, 3) of the left and right ``strip`` columns of each of the
+    ``n`` panels of an unlabelled one-row sheet (panels at x = 8 + i (w + 8), y = 8):
+    the background beside the pose, whatever is drawn there."""
+    from snapcore.render.composites import PANEL_GAP
+
+    w, h = size
+    out = []
+    for i in range(n):
+        x = PANEL_GAP + i * (w + PANEL_GAP)
+        p = img[PANEL_GAP:PANEL_GAP + h, x:x + w].astype(float)
+        out.append(np.concatenate([p[:, :strip], p[:, -strip:]], axis=1).mean(axis=1))
+    return out
+
+
+def test_candidate_views_share_one_background(walk):
+    """Three views of one pose, 25° above, 2° above and 8° below the horizon (the view
+    selector may pick views down to 10° under it): every panel shows the floor the same
+    way, a horizon at the same row with floor colour below and sky above, no grid (it
+    showed a grid in one, a strip in one and nothing in the third). Views all well above
+    the horizon keep the grid."""
+    from snapcore.render.composites import compare_views
+    from snapcore.render.renderer import BACKGROUND, FLOOR_COLOR
+
+    size = (160, 200)
+    views = {"a": _elevated(40, 25), "b": _elevated(100, 2), "c": _elevated(-30, -8)}
+    img = compare_views(walk, 40, views, size=size, labels=False)
+    edges = _panel_edges(img, 3, size)
+    for e in edges[1:]:
+        assert np.abs(e - edges[0]).max() < 3.0  # the same background row by row
+    sky = np.abs(edges[0] - np.array(BACKGROUND) * 255).max(axis=1) < 3
+    floor = np.abs(edges[0] - np.array(FLOOR_COLOR) * 255).max(axis=1) < 3
+    assert (~(sky | floor)).sum() <= 2  # sky, floor and the anti-aliased horizon only
+    assert floor[-1] and sky[0] and floor.sum() > 5  # the horizon is in the picture
+    above = compare_views(walk, 40, {"a": _elevated(40, 25), "b": _elevated(100, 35)},
+                          size=size, labels=False)
+    from snapcore.render.composites import PANEL_GAP
+    from snapcore.render.renderer import GRID_COLOR
+
+    w, h = size
+    for i in range(2):  # grid lines in the far floor (the top quarter, above any shadow)
+        x = PANEL_GAP + i * (w + PANEL_GAP)
+        top = above[PANEL_GAP:PANEL_GAP + h // 4, x:x + w].astype(float)
+        lines = np.abs(top - np.array(GRID_COLOR) * 255).max(axis=-1) < 25
+        assert lines.sum() > 20, f"panel {i}: no grid"

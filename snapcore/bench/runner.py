@@ -9,6 +9,7 @@ BLAS (set before NumPy loads, in :func:`run`'s caller) so numbers are "on one co
 
 from __future__ import annotations
 
+import re
 import statistics
 import time
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 from snapcore.bench import cases, cases_bodies, library  # noqa: F401  (registers every case)
 from snapcore.bench.registry import CASES, BenchContext
 
-__all__ = ["BenchResult", "run_cases"]
+__all__ = ["BenchResult", "run_cases", "select_cases"]
 
 
 @dataclass
@@ -37,11 +38,28 @@ class BenchResult:
         return "ok" if self.median_ms <= self.target_ms else "SLOW"
 
 
+def select_cases(only: str | None) -> list:
+    """The cases ``--only`` names: the case whose name is exactly ``only`` (leading
+    spaces aside), else those whose name holds it, numbers whole (``"dancers, 100"``
+    is not part of ``"dancers, 1000 frames"``); all cases for None."""
+    if only is None:
+        return list(CASES)
+    exact = [c for c in CASES if c.name.strip() == only.strip()]
+    if exact:
+        return exact
+    # a number in the text is a whole number ("100" is not the start of "1000"); words
+    # may be prefixes ("Boxing" names "Boxing_Toes")
+    text = only.strip()
+    words = re.compile(r"(?<![0-9])" * text[:1].isdigit() + re.escape(text)
+                       + r"(?![0-9])" * text[-1:].isdigit())
+    return [c for c in CASES if words.search(c.name)]
+
+
 def run_cases(ctx: BenchContext, *, repeats: int = 7, only: str | None = None,
               progress=None) -> list[BenchResult]:
-    """Run every registered case (or those whose name contains ``only``)."""
+    """Run every registered case, or those :func:`select_cases` picks by ``only``."""
     results = []
-    chosen = [c for c in CASES if only is None or only in c.name]
+    chosen = select_cases(only)
     for c in chosen:
         if progress:
             progress(c.name)

@@ -65,9 +65,9 @@ def _stash(ctx, param, value):
     return value
 
 
-def scene_arguments(f):
-    """Decorate a command with ``PATH...`` plus ``--fps``, ``--scale``, ``--body`` and
-    ``--animation``."""
+def body_options(f):
+    """Decorate a command with ``--body`` and ``--animation`` (kept for
+    :func:`scene_from_options`, not passed to the command function)."""
     f = click.option("--animation", default=None, metavar="NAME", expose_value=False,
                      callback=_stash,
                      help="glTF/GLB characters: the animation to play (name or index; "
@@ -76,6 +76,13 @@ def scene_arguments(f):
                      expose_value=False, callback=_stash,
                      help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
                           "characters wear their own) or the capsule 'mannequin'.")(f)
+    return f
+
+
+def scene_arguments(f):
+    """Decorate a command with ``PATH...`` plus ``--fps``, ``--scale``, ``--body`` and
+    ``--animation``."""
+    f = body_options(f)
     f = click.option("--scale", type=POSITIVE, default=None,
                      help="Metres per file unit (default: inferred from the characters' stature).")(f)
     f = click.option("--fps", type=POSITIVE, default=None,

@@ -8,7 +8,9 @@ Writes into ``docs/images/`` (or OUT_DIR), from the real CMU modern-dance clip
 - ``three_views.png`` — the selected pose from ours (projected motion area), viewpoint
   entropy and motion area, same panel size and scale (the paper's Fig. 8-10);
 - ``relief.png`` — the raking-light preview of the bas-relief of that pose from our
-  view (``snapshot relief``'s default; the paper's Fig. 11-12).
+  view (``snapshot relief``'s default; the paper's Fig. 11-12);
+- ``body_*.png`` — the human body beside the mannequin on one skeleton of each family
+  (:data:`BODY_CLIPS`: Bandai, CMU, Daz/Poser, a glTF character), the same camera.
 
 Everything comes from the pipeline (:func:`snapcore.pipeline.take_snapshot`); a view a
 module cannot give yet is left out (and said so on stderr).
@@ -22,12 +24,27 @@ from pathlib import Path
 
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
-__all__ = ["make_readme_images", "CLIP"]
+__all__ = ["make_readme_images", "make_body_images", "CLIP", "BODY_CLIPS"]
 
 #: The clip shown in the README (relative to the motion data folder).
 CLIP = "dance/05_06.bvh"
 #: Panel size of both pictures, pixels.
 PANEL = (420, 480)
+#: The body pictures: (file name, clip files, source frame, motion fps or None, title).
+BODY_CLIPS = (
+    ("body_bandai_run.png", ("walk_run/dataset-2_run_normal_001.bvh",), 20, None,
+     "Bandai Namco run (identity rest pose), frame 20"),
+    ("body_bandai_punch.png", ("boxing_jump/dataset-1_punch_normal_001.bvh",), 60, None,
+     "Bandai Namco punch, frame 60"),
+    ("body_cmu.png", ("walk_run/131_01.bvh",), 300, None,
+     "CMU 131_01 (3ds Max naming), frame 300"),
+    ("body_daz.png", ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"), 525, 60,
+     "Daz/Poser salsa pair (eye joints), frame 525"),
+    ("body_gltf.png", ("gltf/BrainStem.glb",), 300, None,
+     "glTF BrainStem: its own skinned mesh and material colours, frame 300"),
+)
+#: Panel size of the body pictures, pixels.
+BODY_PANEL = (300, 330)
 
 
 def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) -> list[Path]:
@@ -67,9 +84,42 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     return [p for p in paths if p.exists()]
 
 
+def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
+    """Render the README's body pictures (:data:`BODY_CLIPS`): on each, the human body
+    (a glTF character's own mesh) and the mannequin, from one camera fitted to both."""
+    import numpy as np
+
+    from snapcore.motion.load import data_dir, load_scene
+    from snapcore.render.bodies import scene_body, with_body
+    from snapcore.render.camera import default_view, fit_camera
+    from snapcore.render.composites import tile_panels
+    from snapcore.render.renderer import SceneRenderer, save_png
+
+    root = data_dir(required=True)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, files, source_frame, fps, title in BODY_CLIPS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load_scene([root / f for f in files], fps=fps)
+        frame = int(source_frame) - scene.frame_offset
+        kinds = ("human", "mannequin")
+        pts = np.vstack([scene_body(with_body(scene, k)).vertices(frame) for k in kinds])
+        cam = fit_camera(pts, default_view(scene), size=panel)
+        panels = [SceneRenderer(with_body(scene, k), size=panel).render(frame, cam)
+                  for k in kinds]
+        sheet = tile_panels(panels, ["human body", "mannequin"], title=title)
+        paths.append(out / name)
+        save_png(sheet, paths[-1])
+    return paths
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     for p in make_readme_images(*(argv[:1] or [])):
+        print(p)
+    for p in make_body_images(*(argv[:1] or [])):
         print(p)
     return 0
 

@@ -18,6 +18,7 @@ import numpy as np
 from snapcore.cli.common import (
     POSITIVE,
     FiniteFloatRange,
+    body_options,
     internal_frame,
     output_callback,
     parse_vector,
@@ -204,6 +205,7 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
               help="Human bodies: the reduced mesh (a third of the triangles, the same picture "
                    "at video sizes, ~40%% faster) or the full one (close-ups).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@body_options
 @_render_options
 def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_numbers,
           frame_map, detail, quiet, perspective, no_ground, no_shadows):

@@ -43,7 +43,7 @@ from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.skinning import blend_skin, weight_matrix
 
-__all__ = ["read_gltf", "gltf_animations", "SkinnedMesh", "node_world_matrices",
+__all__ = ["read_gltf", "gltf_characters", "gltf_animations", "SkinnedMesh", "node_world_matrices",
            "lowest_points", "gltf_unit", "GLTF_SUFFIXES", "DEFAULT_FPS", "MAX_HEIGHT_M"]
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -81,6 +81,9 @@ class SkinnedMesh:
     joint_scale : ndarray of shape (J,)
         Each joint's world scale in the file (the rotations are pure; glTF nodes may
         scale), a constant per joint.
+    face_rgb : ndarray of shape (M, 3), optional
+        Each face's own colour from its material (sRGB 0-1; NaN where the material
+        gives none), None when no material has a colour.
     """
 
     rest: np.ndarray
@@ -89,6 +92,7 @@ class SkinnedMesh:
     slot_joint: np.ndarray
     inverse_bind: np.ndarray
     joint_scale: np.ndarray
+    face_rgb: np.ndarray | None = None
 
     @property
     def n_vertices(self) -> int:
@@ -192,8 +196,10 @@ def node_world_matrices(local: np.ndarray, parent: np.ndarray, order) -> np.ndar
 
 
 def gltf_animations(gltf) -> list[str]:
-    """Names of a document's animations (``animation_<i>`` for unnamed ones)."""
-    return [a.name or f"animation_{i}" for i, a in enumerate(gltf.animations or [])]
+    """Names of a document's animations (``animation_<i>`` for unnamed ones), made
+    unique as joint names are (a second ``walk`` is ``walk_2``), so each can be chosen."""
+    return list(_unique_names([a.name or f"animation_{i}"
+                               for i, a in enumerate(gltf.animations or [])]))
 
 
 def _pick_animation(gltf, animation, buffers: Buffers):
@@ -234,13 +240,18 @@ def _sample_animation(gltf, index, buffers: Buffers, rest_trs, fps: float, name:
                                 f"'{interp}' (glTF 2.0 has {', '.join(INTERPOLATIONS)})")
         times = buffers.floats(smp.input, f"animation '{name}' sampler {ch.sampler} input")
         values = buffers.floats(smp.output, f"animation '{name}' sampler {ch.sampler} output")
+        if times.size == 0:
+            raise buffers.error(f"animation '{name}' sampler {ch.sampler} has no key times "
+                                "(an animation needs at least one key)")
         curves.append((ch.target.node, path, times, values.reshape(values.shape[0], -1), interp))
     if not curves:
         return [x[None] for x in rest_trs]
     t0 = min(float(c[2][0]) for c in curves if c[2].size)
     t1 = max(float(c[2][-1]) for c in curves if c[2].size)
-    count = int(np.floor((t1 - t0) * fps + 1e-6)) + 1
-    t = t0 + np.arange(count) / fps
+    # up to and including the last key: the final sample is moved back onto it when
+    # the span is not a whole number of frames (the pose the animation ends on)
+    count = int(np.ceil((t1 - t0) * fps - 1e-6)) + 1
+    t = np.minimum(t0 + np.arange(count) / fps, t1)
     out = [np.repeat(x[None], count, axis=0) for x in rest_trs]
     slot = {"translation": 0, "rotation": 1, "scale": 2}
     for node, path, times, values, interp in curves:
@@ -272,8 +283,23 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
     return np.stack([np.full(k.size, indices[0]), indices[k], indices[k + 1]], axis=1)
 
 
+def _material_rgb(gltf, mi) -> np.ndarray | None:
+    """A primitive's own colour: its material's base colour factor (RGB 0-1, sRGB as
+    glTF stores it), or None for no material or the default white (a textured material
+    multiplies its texture by white: its colour is in the texture, not read here)."""
+    mats = gltf.materials or []
+    if mi is None or not 0 <= mi < len(mats) or mats[mi].pbrMetallicRoughness is None:
+        return None
+    f = mats[mi].pbrMetallicRoughness.baseColorFactor
+    if f is None or len(f) < 3:
+        return None
+    rgb = np.clip(np.asarray(f[:3], float), 0.0, 1.0)
+    return None if np.allclose(rgb, 1.0) or not np.all(np.isfinite(rgb)) else rgb
+
+
 def _primitive_arrays(gltf, buffers: Buffers, mi: int):
-    """(positions, faces, [(joints, weights), ...]) of every triangle primitive of mesh mi."""
+    """(positions, faces, [(joints, weights), ...], own RGB or None) of every triangle
+    primitive of mesh mi."""
     meshes = gltf.meshes or []
     if not 0 <= mi < len(meshes):
         raise buffers.error(f"mesh {mi} does not exist")
@@ -301,12 +327,13 @@ def _primitive_arrays(gltf, buffers: Buffers, mi: int):
                 break
             influences.append((np.asarray(buffers.accessor(j), dtype=np.int64),
                                buffers.floats(w, f"mesh {mi} primitive {pi} WEIGHTS_{k}")))
-        out.append((pos, faces, influences))
+        out.append((pos, faces, influences, _material_rgb(gltf, prim.material)))
     return out
 
 
-def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_scale) -> SkinnedMesh:
-    rest_v, faces, bones, wts = [], [], [], []
+def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_scale,
+                all_joints=()) -> SkinnedMesh:
+    rest_v, faces, bones, wts, colors = [], [], [], [], []
     ibms, slot_joint = [], []
     n_v = 0
     for ni, node in enumerate(gltf.nodes or []):
@@ -318,6 +345,8 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
             if not 0 <= node.skin < len(skins):
                 raise buffers.error(f"node {ni} uses skin {node.skin}, which does not exist")
             skin = skins[node.skin]
+            if not all(j in joint_index for j in skin.joints or []):
+                continue  # another character's mesh
             sj = [joint_index[j] for j in skin.joints]
             if skin.inverseBindMatrices is not None:
                 ibm = buffers.floats(skin.inverseBindMatrices, f"skin {node.skin} inverseBindMatrices")
@@ -329,7 +358,7 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
             base = len(slot_joint)
             slot_joint += sj
             ibms.append(ibm)
-            for pos, f, infl in prims:
+            for pos, f, infl, rgb in prims:
                 if not infl:
                     raise buffers.error(f"mesh {node.mesh} is skinned but has no JOINTS_0/WEIGHTS_0")
                 jj = np.concatenate([j for j, _ in infl], axis=1)
@@ -339,6 +368,7 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
                                         f"{node.skin}'s {len(sj)} joints")
                 rest_v.append(pos)
                 faces.append(f + n_v)
+                colors.append(np.broadcast_to(np.nan if rgb is None else rgb, (len(f), 3)))
                 bones.append(np.where(ww != 0, jj, 0) + base)
                 wts.append(ww)
                 n_v += pos.shape[0]
@@ -348,16 +378,21 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
         while a >= 0 and a not in joint_index:
             a = parent[a]
         if a < 0:
-            warnings.warn(f"{buffers.path}: mesh of node {ni} is attached to no joint; left out",
-                          stacklevel=4)
+            b = parent[ni]
+            while b >= 0 and b not in all_joints:
+                b = parent[b]
+            if b < 0:  # (below another character's joint: that character's piece)
+                warnings.warn(f"{buffers.path}: mesh of node {ni} is attached to no joint; "
+                              "left out", stacklevel=4)
             continue
         slot = len(slot_joint)
         slot_joint.append(joint_index[a])
         # vertex in mesh space → world at rest → joint space at rest
         ibms.append((np.linalg.inv(rest_world[a]) @ rest_world[ni])[None])
-        for pos, f, _ in prims:
+        for pos, f, _, rgb in prims:
             rest_v.append(pos)
             faces.append(f + n_v)
+            colors.append(np.broadcast_to(np.nan if rgb is None else rgb, (len(f), 3)))
             bones.append(np.full((pos.shape[0], 1), slot))
             wts.append(np.ones((pos.shape[0], 1)))
             n_v += pos.shape[0]
@@ -376,8 +411,10 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
     if np.any(np.asarray(weights.sum(axis=1)).ravel() == 0):
         warnings.warn(f"{buffers.path}: some vertices have no skin weight; they stay at the origin",
                       stacklevel=4)
+    rgb = np.vstack(colors)
     return SkinnedMesh(rest=np.vstack(rest_v), faces=np.vstack(faces).astype(np.int64),
                        weights=weights, slot_joint=slot_joint, inverse_bind=ibm,
+                       face_rgb=None if np.all(np.isnan(rgb)) else rgb,
                        joint_scale=world_scale)
 
 
@@ -410,8 +447,53 @@ def _load(path: Path):
     return g
 
 
+def _characters(gltf, parent, order, joint_set) -> list[list[int]]:
+    """The skinned characters of a document: its skin joints (nodes, parents first)
+    grouped by skeleton. Joints belong together when they hang below one topmost joint,
+    or when one skin binds them (BrainStem: 59 skins, one skeleton): two people in one
+    file are two groups, ordered by their first joint."""
+    joints = [i for i in order if i in joint_set]
+    top = {}
+    for j in joints:  # the topmost joint above j (parents come first)
+        a = parent[j]
+        while a >= 0 and a not in joint_set:
+            a = parent[a]
+        top[j] = top[a] if a >= 0 else j
+    link = {t: t for t in set(top.values())}
+
+    def find(t):
+        while link[t] != t:
+            link[t] = link[link[t]]
+            t = link[t]
+        return t
+
+    for skin in gltf.skins or []:
+        tops = [find(top[j]) for j in skin.joints or [] if j in top]
+        for t in tops[1:]:
+            link[find(t)] = find(tops[0])
+    groups: dict[int, list[int]] = {}
+    for j in joints:
+        groups.setdefault(find(top[j]), []).append(j)
+    return sorted(groups.values(), key=lambda grp: joints.index(grp[0]))
+
+
+def gltf_characters(path) -> list[str]:
+    """Names of the skinned characters of a glTF file (the topmost joint of each
+    skeleton), in the order ``read_gltf(..., character=k)`` reads them."""
+    path = Path(path)
+    g = _load(path)
+    buffers = Buffers(g, path)
+    nodes = g.nodes or []
+    if not g.skins:
+        raise buffers.error("has no skin: only skinned characters can be read")
+    parent = _node_parents(g, buffers)
+    joint_set = {j for skin in g.skins for j in skin.joints or [] if 0 <= j < len(nodes)}
+    return [nodes[grp[0]].name or f"node_{grp[0]}"
+            for grp in _characters(g, parent, _topological(parent, buffers), joint_set)]
+
+
 def read_gltf(path, *, animation: str | int | None = None, fps: float | None = None,
-              name: str | None = None) -> Character:
+              name: str | None = None, character: int | None = None) -> Character:
     """Read a skinned glTF 2.0 / GLB file as a :class:`Character` carrying its mesh.
 
     Parameters
@@ -424,6 +506,9 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
         Sampling rate, frames per second (default :data:`DEFAULT_FPS`).
     name : str, optional
         Character name (default: the file's stem).
+    character : int, optional
+        Which skinned character of the file (:func:`gltf_characters`); required when
+        it holds more than one (each skeleton with the meshes bound to it).
 
     Returns
     -------
@@ -455,7 +540,15 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
             joint_set.add(j)
     if not joint_set:
         raise buffers.error("its skins have no joints")
-    joints = [i for i in order if i in joint_set]
+    groups = _characters(g, parent, order, joint_set)
+    if character is None and len(groups) > 1:
+        names = ", ".join(nodes[grp[0]].name or f"node_{grp[0]}" for grp in groups)
+        raise buffers.error(f"holds {len(groups)} skinned characters (skeletons {names}); "
+                            "read them with load_scene, one character each")
+    k = character or 0
+    if not 0 <= k < len(groups):
+        raise buffers.error(f"has no character {k} (it has {len(groups)})")
+    joints = groups[k]
     joint_index = {node: k for k, node in enumerate(joints)}
     jparent = []
     for node in joints:
@@ -495,7 +588,8 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
     skeleton = Skeleton(names=_unique_names([nodes[i].name or f"node_{i}" for i in joints]),
                         parents=jparent,
                         offsets=offsets, end_site=np.zeros(len(joints), dtype=bool))
-    mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale)
+    mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale,
+                       joint_set)
     return Character(
         name=name or path.stem,
         skeleton=skeleton,

@@ -39,6 +39,10 @@ COMPONENT_DTYPES = {
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 
+#: Relative margin around an accessor's declared min/max before its data counts as damaged.
+BOUNDS_MARGIN = 1e-3
+
+
 def _normalise(a: np.ndarray) -> np.ndarray:
     """Normalised integers → float64 (glTF §3.11: signed clamp at -1)."""
     info = np.iinfo(a.dtype)
@@ -175,4 +179,20 @@ class Buffers:
         out = np.asarray(self.accessor(i), dtype=np.float64)
         if not np.all(np.isfinite(out)):
             raise self.error(f"{what} (accessor {i}) holds non-finite numbers")
+        a = self.gltf.accessors[i]
+        # Exporters must write the bounds of positions and key times (glTF 2.0 §5.1.1):
+        # data far outside them is damaged (garbage bytes in the binary chunk). The
+        # margin allows float32 rounding and loosely rounded bounds.
+        if a.min is not None and a.max is not None and a.componentType == 5126 and out.size:
+            lo, hi = np.asarray(a.min, float), np.asarray(a.max, float)
+            # bounds are per stored component: matrices column-major, as in the file
+            flat = (out.transpose(0, 2, 1) if out.ndim == 3 else out).reshape(out.shape[0], -1)
+            if lo.size == hi.size == flat.shape[1]:
+                tol = BOUNDS_MARGIN * (np.abs(hi - lo) + np.abs(hi) + np.abs(lo)) + 1e-6
+                bad = np.any((flat < lo - tol) | (flat > hi + tol), axis=1)
+                if np.any(bad):
+                    k = int(np.argmax(bad))
+                    raise self.error(f"{what} (accessor {i}): element {k} is {flat[k].tolist()}, "
+                                     f"outside the declared min {lo.tolist()} / max "
+                                     f"{hi.tolist()}: the binary data is damaged")
         return out

@@ -26,6 +26,7 @@ from snapcore.motion.bvh import read_bvh, split_roots
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
+    gltf_characters,
     gltf_unit,
     lowest_points,
     read_gltf,
@@ -187,7 +188,18 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         if not path.exists():
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
-        parts = [None] if _is_gltf(path) else split_roots(read_bvh(path))
+        if _is_gltf(path):
+            # one character per skeleton of the file, named after it when there are more
+            roots = gltf_characters(path)
+            parts = [None] * len(roots)
+            for k, root in enumerate(roots):
+                paths.append(path)
+                docs.append(None)
+                entries.append(e if len(roots) == 1 else
+                               {**e, "name": f"{e.get('name') or path.stem}_{root}",
+                                "_character": k})
+            continue
+        parts = split_roots(read_bvh(path))
         for d in parts:
             paths.append(path)
             docs.append(d)
@@ -202,7 +214,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         if d is None:  # glTF: sampled at the BVH characters' rate when mixed with them
             probes.append(read_gltf(path, animation=animation or e.get("animation"),
                                     fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
-                                    name=e.get("name")))
+                                    name=e.get("name"), character=e.get("_character")))
         else:
             c = character_from_bvh(d, scale=1.0, name=e.get("name"), fps=rate)
             if stands_along_z(c.skeleton, c.positions):

@@ -70,7 +70,8 @@ class SkinnedBody(FrameBlocks):
     character : Character
         Read by :func:`snapcore.motion.gltf.read_gltf` (``meta["mesh"]``).
     color : tuple of 3 floats
-        RGB 0-1 for the whole mesh (characters are told apart by colour).
+        RGB 0-1 for the faces whose material has no colour of its own (a textured
+        or untextured white material; characters are told apart by it).
     """
 
     kind = "gltf"
@@ -79,8 +80,12 @@ class SkinnedBody(FrameBlocks):
         self.character = character
         self.mesh = character.meta["mesh"]
         self.faces = self.mesh.faces
-        rgba = np.append(np.clip(np.asarray(color, float), 0, 1), 1.0)
-        self.face_colors = np.tile(np.round(rgba * 255).astype(np.uint8), (len(self.faces), 1))
+        rgb = np.tile(np.clip(np.asarray(color, float), 0, 1), (len(self.faces), 1))
+        own = self.mesh.face_rgb
+        if own is not None:  # the file's material colours where it has them
+            rgb = np.where(np.isnan(own), rgb, own)
+        self.face_colors = np.round(np.append(rgb, np.ones((len(rgb), 1)), axis=1)
+                                    * 255).astype(np.uint8)
 
     @property
     def n_vertices(self) -> int:
@@ -95,14 +100,15 @@ class SkinnedBody(FrameBlocks):
 
 
 def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLORS[0],
-                   tessellation=TESSELLATION, detail: str = "full"):
+                   tessellation=TESSELLATION, detail: str = "full", ground: float | None = None):
     """The body one character wears (see the module notes for the rules); ``detail``
-    picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`)."""
+    picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
+    the floor height its soles stand on (default: inferred from its joints)."""
     if kind == "human":
         if "mesh" in character.meta:
             return SkinnedBody(character, color=color)
         try:
-            return HumanBody(character, color=color, detail=detail)
+            return HumanBody(character, color=color, detail=detail, ground=ground)
         except RetargetError as err:
             warnings.warn(f"{err}; it wears the mannequin instead", stacklevel=3)
     return CharacterBody(character, color=color, tessellation=tessellation)
@@ -132,7 +138,7 @@ class MixedSceneBody(SceneBody):
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self._merge(scene, bodies if bodies is not None else [
             character_body(ch, kind=self.kind, color=colors[i % len(colors)],
-                           tessellation=tessellation, detail=detail)
+                           tessellation=tessellation, detail=detail, ground=scene.ground)
             for i, ch in enumerate(scene.characters)])
 
 

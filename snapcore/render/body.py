@@ -38,6 +38,7 @@ Public API
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -80,6 +81,26 @@ HEAD_SEMI_AXES = per_stature(0.080, 0.095, 0.112)
 HAND_BLOB_RADIUS, HAND_BLOB_BEYOND = per_stature(0.045, 0.045)
 #: A hand whose bone lengths below the wrist sum to less than this gets a blob.
 (HAND_BONES_MIN,) = per_stature(0.06)
+
+
+#: Names of helper joints that are no bone of their own: twist and roll bones beside a
+#: limb's, Reallusion's "share" bones at elbows and knees, breast and pectoral
+#: (Reallusion CC_Base ``L_RibsTwist`` → ``L_Breast``) and corrective joints. Drawn as
+#: bones they put blobs on the chest and lumps on the limbs.
+HELPER_JOINT = re.compile(r"twist|roll(?!er)|share|breast|bust|pector|ribs|helper|corrective", re.I)
+
+
+def helper_joints(names, parents) -> np.ndarray:
+    """(J,) bool: joints named as helpers (:data:`HELPER_JOINT`) all of whose children
+    are helpers or end sites too (so ``NeckTwist01``, with the head below it, stays)."""
+    parents = np.asarray(parents)
+    out = np.zeros(len(names), bool)
+    for j in range(len(names) - 1, -1, -1):  # children come after parents: decided first
+        kids = np.flatnonzero(parents == j)
+        if HELPER_JOINT.search(str(names[j])) and all(
+                out[c] or re.search(r"_end$", str(names[c]), re.I) for c in kids):
+            out[j] = True
+    return out
 
 
 def _by_radius(table):
@@ -343,10 +364,11 @@ class CharacterBody:
                 lateral_cache[j] = self._lateral(j, pair)
             return lateral_cache[j]
 
+        helper = helper_joints(sk.names, parents)
         for p, ch in np.asarray(sk.links).reshape(-1, 2):
             off = offsets[ch]
             length = float(np.linalg.norm(off))
-            if length < MIN_BONE_M or roles[p] in HIDDEN_ROLES + ("head",):
+            if length < MIN_BONE_M or roles[p] in HIDDEN_ROLES + ("head",) or helper[ch]:
                 continue
             if roles[ch] in HIDDEN_ROLES and not sk.end_site[ch]:
                 continue

@@ -25,7 +25,7 @@ from snapcore.render.camera import (
     fit_camera,
     view_basis,
 )
-from snapcore.render.renderer import SceneRenderer
+from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer
 
 __all__ = ["contact_sheet", "compare_views", "common_cameras", "floor_aligned", "tile_panels",
            "PANEL_GAP", "CAPTION_HEIGHT"]
@@ -96,6 +96,28 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
         shift = (float(np.asarray(f, float) @ up) + (lo + hi) / 2) - float(c.position @ up)
         out.append(Camera(c.position + up * shift, c.right, c.up, c.back, c.size, c.projection,
                           hh, c.yfov, c.znear, c.zfar))
+    return out
+
+
+def _horizon_aligned(cams: list[Camera], pts, foot) -> list[Camera]:
+    """Orthographic cameras moved along their own up so the floor point ``foot`` (where
+    the renderer's horizon passes) falls on the same image row in each: one horizon
+    across panels of different views. The half-height grows as needed to keep the pose
+    inside the margin, the same for all panels."""
+    if not cams or cams[0].projection != "orthographic":
+        return cams
+    p = np.asarray(pts, float).reshape(-1, 3)
+    foot = np.asarray(foot, float)
+    fill = max(1.0 - 2.0 * FRAME_MARGIN, 0.05)
+    # per panel: the pose's extent along the camera's up, measured from the floor point
+    rel = [(p - foot) @ c.up for c in cams]
+    lo, hi = min(float(r.min()) for r in rel), max(float(r.max()) for r in rel)
+    hh = max(max(c.half_height for c in cams), (hi - lo) / 2 / fill)
+    out = []
+    for c in cams:
+        shift = (float(foot @ c.up) + (lo + hi) / 2) - float(c.position @ c.up)
+        out.append(Camera(c.position + c.up * shift, c.right, c.up, c.back, c.size,
+                          c.projection, hh, c.yfov, c.znear, c.zfar))
     return out
 
 
@@ -280,9 +302,18 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
     for name in names:
         r, u, b = view_basis(views[name])
         dirs.append(b)
-    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
+    # One background for every panel: a view under the floor or nearly level cannot show
+    # the grid (it would cut through the legs, or be a row of dashes), so then none of
+    # them does, each showing the floor as a horizon at the feet instead.
+    low = [float(np.degrees(np.arcsin(np.clip(d[1], -1, 1)))) < ORTHO_HORIZON_DEG for d in dirs]
+    floor = "horizon" if ground and any(low) else "auto"
+    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, floor=floor)
     pts = sr.body.vertices(frame)
     cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
+    if floor == "horizon":
+        b = scene.bounds()  # the renderer's horizon passes over the motion's centre
+        cams = _horizon_aligned(cams, pts, np.array([(b[0, 0] + b[1, 0]) / 2, scene.ground,
+                                                     (b[0, 2] + b[1, 2]) / 2]))
     panels = [sr.render(frame, c) for c in cams]
     caps = None
     if labels:

