@@ -500,44 +500,27 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
         None when the skeleton does not name a head, a pelvis and both arms and legs
         (:func:`snapcore.motion.anatomy.body_landmarks`).
     """
-    names, parents = _skeleton_key(character)
-    lm = body_landmarks(names, parents)
-    need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
-            "hip_R", "ankle_L", "ankle_R")
-    if any(lm.get(k) is None for k in need):
+    geometry = _stance_geometry(*_skeleton_key(character),
+                                np.asarray(character.skeleton.offsets, dtype=float).tobytes())
+    if geometry is None:
         return None
-    par = np.asarray(parents)
-    lengths = np.linalg.norm(np.asarray(character.skeleton.offsets, dtype=float), axis=1)
-    pos = character.positions
+    idx, leg, spine, to_branch, arm = geometry
     stature = _stature(character)
-    pelvis = lm["pelvis"]
-
-    def chain(top, bottom):
-        return _chain_length(par, lengths, top, bottom)
-
-    def mean2(f):
-        v = [f(s) for s in "LR"]
-        return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
-
-    hip_w = float(np.median(np.linalg.norm(pos[:, lm["hip_L"]] - pos[:, lm["hip_R"]], axis=1))) / 2
-    sh_w = float(np.median(np.linalg.norm(pos[:, lm["shoulder_L"]] - pos[:, lm["shoulder_R"]],
-                                          axis=1))) / 2
-    ankle_h = float(np.percentile(pos[:, [lm["ankle_L"], lm["ankle_R"]], 1] - ground, 5))
+    # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch: (F, 8, 3)
+    x = character.positions[:, idx]
+    hip_w = float(np.median(np.linalg.norm(x[:, 0] - x[:, 1], axis=1))) / 2
+    sh_w = float(np.median(np.linalg.norm(x[:, 2] - x[:, 3], axis=1))) / 2
+    y = x[..., 1]
+    ankle_h = float(np.percentile(y[:, 4:6] - ground, 5))
     ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
-    leg = mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"]))
-    y = pos[..., 1]
     # the pelvis joint above the hip joints (below on some rigs): a rigid offset, whose
     # vertical part barely changes with the pelvis's tilt
-    drop = float(np.median(y[:, pelvis] - 0.5 * (y[:, lm["hip_L"]] + y[:, lm["hip_R"]])))
+    drop = float(np.median(y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])))
     pelvis_h = ankle_h + leg + drop
-    head_h = pelvis_h + chain(pelvis, lm["head"])
-    branch = _common_ancestor(par, lm["shoulder_L"], lm["shoulder_R"])
-    if branch is None or not np.isfinite(chain(pelvis, branch)):
-        branch = pelvis
+    head_h = pelvis_h + spine
     # the shoulder joints above the joint both arms hang from (the chest): nearly rigid
-    rise = float(np.median(0.5 * (y[:, lm["shoulder_L"]] + y[:, lm["shoulder_R"]]) - y[:, branch]))
-    shoulder_h = pelvis_h + chain(pelvis, branch) + rise
-    arm = mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"]))
+    rise = float(np.median(0.5 * (y[:, 2] + y[:, 3]) - y[:, 7]))
+    shoulder_h = pelvis_h + to_branch + rise
     wrist_h = shoulder_h - arm
     # hands hang beside the thighs, outside the shoulder joints by about a thigh's
     # half-thickness (measured at rest on the shared rigs: 0.03-0.05 statures)
@@ -545,6 +528,43 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     out = np.array([[0.0, head_h, 0.0], [0.0, pelvis_h, 0.0], [wrist_x, wrist_h, 0.0],
                     [-wrist_x, wrist_h, 0.0], [hip_w, ankle_h, 0.0], [-hip_w, ankle_h, 0.0]])
     return out if np.isfinite(out).all() else None
+
+
+@lru_cache(maxsize=64)
+def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
+    """The skeleton's part of :func:`neutral_stance` (cached per skeleton), or None.
+
+    Returns the joints to gather (hips L/R, shoulders L/R, ankles L/R, pelvis, the
+    shoulders' common ancestor) and the lengths (m): hip to ankle, pelvis to head,
+    pelvis to that ancestor, shoulder to wrist (means of the two sides).
+    """
+    lm = body_landmarks(names, parents)
+    need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
+            "hip_R", "ankle_L", "ankle_R")
+    if any(lm.get(k) is None for k in need):
+        return None
+    par = np.asarray(parents)
+    lengths = np.linalg.norm(np.frombuffer(offsets).reshape(-1, 3), axis=1)
+    pelvis = lm["pelvis"]
+
+    def chain(top, bottom):
+        return _chain_length(par, lengths, top, bottom)
+
+    def mean2(f):
+        v = np.array([f(s) for s in "LR"])
+        return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+
+    branch = _common_ancestor(par, lm["shoulder_L"], lm["shoulder_R"])
+    if branch is None or not np.isfinite(chain(pelvis, branch)):
+        branch = pelvis
+    idx = np.array([lm["hip_L"], lm["hip_R"], lm["shoulder_L"], lm["shoulder_R"],
+                    lm["ankle_L"], lm["ankle_R"], pelvis, branch], dtype=np.int64)
+    sizes = (mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"])),
+             chain(pelvis, lm["head"]), chain(pelvis, branch),
+             mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"])))
+    if not np.isfinite(sizes).all():
+        return None
+    return (idx, *sizes)
 
 
 def _common_ancestor(parents, a: int, b: int) -> int | None:
