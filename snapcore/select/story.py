@@ -169,6 +169,7 @@ class StoryParameters:
     stance: bool = True
     stance_spread: float = 0.1
     novelty: bool = True
+    combine: str = "bits"
 
     def __post_init__(self):
         for f in fields(self):
@@ -687,6 +688,23 @@ def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float
     return 0.5 * np.square(w).sum(axis=0) / math.log(2.0)
 
 
+def tail_surprisal(values: np.ndarray) -> np.ndarray:
+    """``-log2`` of the fraction of frames whose value is at least this frame's, (F,).
+
+    The empirical surprisal of "a pose at least this unusual" in the clip: bounded by
+    ``log2 F`` (the most unusual frame), 0 for the least unusual, and the same for any
+    monotone transform of ``values``. Ties share the larger fraction (a static clip
+    gives 0 everywhere).
+    """
+    v = np.asarray(values, dtype=float)
+    n = v.size
+    if n == 0:
+        return v.copy()
+    srt = np.sort(v)
+    at_least = n - np.searchsorted(srt, v, side="left")  # frames with value >= v_i
+    return -np.log2(at_least / n)
+
+
 # ----------------------------------------------------------------------- event term
 
 
@@ -831,7 +849,8 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
         if p.w_pose > 0:
             feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s)
             if p.novelty:
-                pose_bits += pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
+                pose_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
+                                                           noise=p.noise))
             if p.stance:
                 neutral = neutral_stance(c, ground=scene.ground)
                 if neutral is not None:
@@ -860,7 +879,12 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
         # 0 by construction: expected, not a symptom worth a warning.
         event = (minmax(event_bits, name="story event information")
                  if p.w_event > 0 and event_bits.any() else event_bits * 0)
-    total = temporal_support(p.w_pose * pose + p.w_event * event, fps=fps, support_s=p.support_s)
+    if p.combine == "bits":
+        total = temporal_support(p.w_pose * pose_bits + p.w_event * event_bits, fps=fps,
+                                 support_s=p.support_s)
+    else:
+        total = temporal_support(p.w_pose * pose + p.w_event * event, fps=fps,
+                                 support_s=p.support_s)
     timings = {"pose_term": t_pose, "contacts_events": t_event,
                "story": time.perf_counter() - t0}
     return StoryInformation(pose_bits, event_bits, pose, event, total, contacts, p, timings)

@@ -1,0 +1,151 @@
+"""The default selector (story) on generated actions whose place in the clip is known:
+a gesture filling most of the clip with rest at both ends, the same gesture early in a
+clip of rest, and a kick repeated three times; several seeds and frame rates. The top
+pick must lie on the action (the frames where the gesture or kick is within 20 % of its
+peak, widened by 0.1 s as in ``snapshot keymoments``).
+
+The clips are built here from the procedural rig (:mod:`snapcore.motion.synth_rig`): a
+person standing with breathing and sway, so that no frame is exactly still."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from snapcore.motion.scene import Scene, character_from_bvh
+from snapcore.motion.synth_rig import (
+    ANKLE_HEIGHT,
+    BALL,
+    ROOT_HEIGHT_M,
+    SIDES,
+    Pose,
+    arm_fk,
+    pchip,
+    plant_feet,
+    rx,
+    to_document,
+    zxy,
+)
+from snapcore.select.pose_methods import select_pose
+
+WIDEN_S = 0.1
+
+
+def _standing(t, rng) -> Pose:
+    """A person standing at rest: breathing, swaying, feet planted, arms hanging."""
+    n = t.size
+    pose = Pose(n)
+    breath = np.sin(2 * np.pi * t / (3.0 + rng.uniform(0, 0.6)))
+    sway = np.sin(2 * np.pi * t / (4.0 + rng.uniform(0, 1.0)) + rng.uniform(0, 2 * np.pi))
+    pose.root = np.stack([0.02 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath,
+                          0.004 * breath], axis=1)
+    pose.local["Hips"] = zxy(1.5 * sway, 1.0, 2.0 * sway)
+    pose.local["Spine"] = zxy(-1.5 * sway, 1.0 + breath, -sway)
+    plant_feet(pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]],
+               [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03])
+    for side in SIDES:
+        arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * SIDES[side], 14.0)
+    return pose
+
+
+def _scene(pose: Pose, fps: float, name: str) -> Scene:
+    doc = to_document(pose, fps, path=f"{name}.bvh")
+    c = character_from_bvh(doc, scale=1.0, name="actor", fps=fps)
+    return Scene(characters=[c], fps=float(fps), ground=0.0, name=name)
+
+
+def _gesture(fps: float, seed: int, *, seconds: float, start_s: float, end_s: float):
+    """Raise the right hand above the head and wave it, from ``start_s`` to ``end_s``
+    (rise and fall take 0.3 s each); at rest before and after.
+
+    Returns the scene and the action's frames (abduction >= 80 % of its peak)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(seconds * fps)) + 1) / fps
+    pose = _standing(t, rng)
+    peak = 160.0 + rng.uniform(-10, 10)
+    up = pchip(t, [0.0, start_s, start_s + 0.3, end_s - 0.3, end_s, seconds],
+               [0.0, 0.0, 1.0, 1.0, 0.0, 0.0])
+    wave = 12.0 * np.sin(2 * np.pi * 2.0 * (t - start_s)) * up
+    arm_fk(pose, "Right", 8.0 + (peak - 8.0) * up + wave, 10.0 * up, 14.0 + 30.0 * up)
+    action = np.flatnonzero(up >= 0.8)
+    return _scene(pose, fps, "gesture"), action
+
+
+def _kicks(fps: float, seed: int, *, seconds: float = 6.0, times=(1.2, 3.0, 4.8)):
+    """Three right front kicks (hip flexion peaks at ``times``) from a guard stance,
+    the left foot planted. Returns the scene and the frames of the kicks (hip flexion
+    >= 80 % of that kick's peak)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(seconds * fps)) + 1) / fps
+    pose = _standing(t, rng)
+    hip = np.zeros_like(t)
+    knee = np.zeros_like(t)
+    for tk in times:
+        h = 80.0 + rng.uniform(-8, 8)
+        keys = [tk - 0.6, tk - 0.25, tk, tk + 0.25, tk + 0.6]
+        inside = (t >= keys[0]) & (t <= keys[-1])
+        hip[inside] += pchip(t[inside], keys, [0.0, 45.0, h, 45.0, 0.0])
+        knee[inside] += pchip(t[inside], keys, [0.0, 100.0, 5.0, 90.0, 0.0])
+    pose.local["RightUpLeg"] = rx(-hip)
+    pose.local["RightLeg"] = rx(knee)
+    for side in SIDES:
+        arm_fk(pose, side, 20.0, 40.0, 110.0)
+    peaks = [np.flatnonzero((np.abs(t - tk) < 0.6) & (hip >= 0.8 * hip[np.abs(t - tk) < 0.6].max()))
+             for tk in times]
+    return _scene(pose, fps, "kicks"), np.concatenate(peaks)
+
+
+def _on_action(frame: int, action: np.ndarray, fps: float) -> bool:
+    return bool(np.min(np.abs(action - frame)) <= WIDEN_S * fps)
+
+
+def _top(scene) -> int:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return select_pose(scene).frame
+
+
+@pytest.mark.parametrize("fps", [30.0, 60.0, 120.0])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gesture_filling_most_of_the_clip(fps, seed):
+    """Gesture over 80 % of a 4 s clip, rest at both ends: the rest pose is the rare one
+    in this clip, the action must still win."""
+    scene, action = _gesture(fps, seed, seconds=4.0, start_s=0.4, end_s=3.6)
+    assert action.size > 0.6 * scene.n_frames
+    f = _top(scene)
+    assert _on_action(f, action, fps), (f, action.min(), action.max(), scene.n_frames)
+
+
+@pytest.mark.parametrize("fps", [30.0, 60.0, 120.0])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gesture_in_the_first_15_percent(fps, seed):
+    """The same gesture early in a 7 s clip (0.1 s to 1.05 s), rest for the remaining
+    85 %: no preference for the middle of the clip may pull the pick away."""
+    scene, action = _gesture(fps, seed, seconds=7.0, start_s=0.1, end_s=1.05)
+    assert action.max() < 0.15 * scene.n_frames
+    f = _top(scene)
+    assert _on_action(f, action, fps), (f, action.min(), action.max(), scene.n_frames)
+
+
+@pytest.mark.parametrize("fps", [30.0, 60.0, 120.0])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kick_repeated_three_times(fps, seed):
+    """Three kicks: the pick is on one of them (any counts)."""
+    scene, action = _kicks(fps, seed)
+    f = _top(scene)
+    assert _on_action(f, action, fps), (f, action.min(), action.max(), scene.n_frames)
+
+
+def test_the_rest_pose_wins_without_the_stance_term():
+    """The failure this selector repairs: with the departure from the neutral stance
+    switched off, the gesture clip's top pick is the rare rest pose (so the tests above
+    test that term)."""
+    from snapcore.select.story import DEFAULT_STORY
+
+    scene, action = _gesture(30.0, 0, seconds=4.0, start_s=0.4, end_s=3.6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        f = select_pose(scene, story=DEFAULT_STORY.with_(stance=False)).frame
+    assert not _on_action(f, action, 30.0)
