@@ -79,7 +79,7 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
         warnings.simplefilter("ignore")
         snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
     out = {"frame": int(snap.index), "frames": [int(i) for i in snap.indices],
-           "entropy": [float(snap.pose.entropy.total[i]) for i in snap.indices],
+           "entropy": [float(snap.pose.scores.total[i]) for i in snap.indices],
            "views": {}, "how": "selected pose"}
     if not views:
         return out

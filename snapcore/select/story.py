@@ -4,38 +4,56 @@ The paper's pose entropy (:mod:`snapcore.select.pose`, method ``paper``) often l
 footfall beside the action: contact events flicker (dozens of onsets and releases per
 clip, every ankle, toe and toe-end joint its own event), each event frame gets the
 normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
-hold ~37 % of the time (feet) instead of rare ones. This module keeps the paper's
-structure -- the information of a frame is a local (pose) term plus a global (event)
-term, each min-max normalised and summed with weights (eq. 8-9), the pose is the argmax
--- and measures both terms as *surprisal* (self-information, eq. 1: ``I = -log2 P``):
+hold ~37 % of the time (feet) instead of rare ones. A pose term that only measures
+rarity *within the clip* fails the other way: where a gesture fills most of a short
+clip, the performer standing at rest before and after it is the rare pose, and wins.
 
-1. **Pose information** (the local term; "extreme poses" of §3.1.1): the surprisal of
-   the frame's pose under a Gaussian model of all the clip's poses,
-   ``I_pose(i) = 1/2 (x_i - mu)^T S^-1 (x_i - mu) / ln 2`` bits (the log-normaliser is
-   the same for every frame and dropped). ``x_i`` describes the pose by quantities that
-   do not change under yaw, translation or a change of unit: the heights above the
-   ground of six key joints (head, pelvis, hands, feet) and their pairwise distances,
-   divided by the character's stature. ``S`` is the sample covariance shrunk towards
-   a multiple of the identity and widened by the capture noise (well posed for short
-   clips).
-2. **Event information** (the global term, §3.1.2): contacts with the ground are
-   *debounced* per limb -- one leg (foot and toes, a kneeling knee), one arm or the
-   trunk is one contact, whatever of its joints touch -- with hysteresis on height and
-   speed and minimum durations for a contact and for a gap. Each onset and each
-   release is an event; an event of a kind (limb, onset or release) that happens
-   ``n`` times in ``F`` frames carries ``-log2(n / F)`` bits (rare events, a two-foot
-   take-off, carry most). Its information is given *temporal support* on the side where
-   the limb is free: a release credits the frames after it (the swing, the flight it
-   opens), an onset the frames before it (the approach it closes), with a half-Gaussian
-   of width ``event_support_s``.
-3. **Combination**: both terms min-max normalised (eq. 9), weighted, summed, then
-   averaged over a Gaussian window of ``support_s`` with nothing outside the clip (a
-   frame whose surroundings the clip does not show has less support). The pose is the
-   argmax; the top-k are distinct peaks (:func:`snapcore.select.pose.top_peaks`).
+This module keeps the paper's structure -- the information of a frame is a pose term
+plus an event term, the pose is the argmax -- and measures every ingredient as
+*self-information* in bits (eq. 1: ``I = -log2 P``), so that the terms add:
 
-Every ingredient can be switched off or replaced for ablation through
-:class:`StoryParameters`. Everything is vectorised over frames and joints; the Python
-loops run over characters and limbs (at most five per character).
+1. **Departure from the neutral stance** (``stance``; "extreme poses" of §3.1.1): the
+   surprisal of the frame's pose for a person standing at rest, under an isotropic
+   Gaussian of spread ``stance_spread`` (statures) around the character's neutral
+   stance, ``I = 1/2 |x_i - n|^2 / spread^2 / ln 2``. The neutral stance
+   (:func:`neutral_stance`) is built from the skeleton's own bone lengths and rigid body
+   measurements -- standing straight, arms hanging -- never from the clip's first
+   frames (a clip may start mid-action). This is what finds the action whatever share
+   of the clip it fills: a raised hand, a bow, a kick depart from it; the rest pose
+   does not.
+2. **Novelty in the clip** (``novelty``): how unusual the pose is among the clip's own
+   poses -- the Mahalanobis distance under a Gaussian of all the clip's poses
+   (covariance shrunk towards a multiple of the identity and widened by the capture
+   noise), turned into the empirical tail surprisal ``-log2 (share of frames at least
+   as far out)``, so that it is at most ``log2 F`` bits, like one event: it separates
+   poses that depart equally (the punch from the held guard), and cannot outweigh a
+   large departure by rarity alone.
+   Both use a descriptor invariant to yaw, translation and unit (:func:`pose_descriptor`):
+   the heights above the ground of six key joints (head, pelvis, wrists, ankles) and
+   their pairwise distances, divided by the character's stature.
+3. **Event information** (``w_event``; §3.1.2): contacts with the ground are *debounced*
+   per limb (``debounce``, ``per_limb``) -- one leg (foot and toes, a kneeling knee),
+   one arm or the trunk is one contact, whatever of its joints touch -- with
+   hysteresis on height and speed and minimum durations for a contact and for a gap.
+   Each onset and each release is an event; an event of a kind (limb, onset or
+   release) that happens ``n`` times in ``F`` frames carries ``-log2(n / F)`` bits
+   (rare events, a two-foot take-off, carry most). Its information is given temporal
+   support on the side where the limb is free (``event_support_s``,
+   ``sided_support``): a release credits the frames after it (the swing, the flight),
+   an onset the frames before it (the approach).
+4. **Combination** (``combine``): the pose bits (1 + 2) weighted by ``w_pose`` plus the
+   event bits weighted by ``w_event``, then averaged over a Gaussian window of
+   ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
+   surroundings the clip does not show has less support). Averaging is linear, so the
+   supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
+   ``combine="normalised"`` min-max normalises the pose and event terms first, as the
+   paper's eq. 9 does (for ablation). The pose is the argmax; the top-k are distinct
+   peaks (:func:`snapcore.select.pose.top_peaks`).
+
+Nothing depends on a frame's position in the clip (no preference for the middle), and
+every ingredient can be switched off or replaced for ablation through
+:class:`StoryParameters` (the README's ablation table). Everything is vectorised over
+frames and joints; the Python loops run over characters and limbs.
 
 References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
 the motion); Roberts, Mantiuk et al. 2019 (*Salient Poses*); Shannon's self-information.
@@ -47,17 +65,22 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field, fields, replace
-from functools import lru_cache
 
 import numpy as np
 
 from snapcore.motion.anatomy import (
     REFERENCE_STATURE_M,
-    body_landmarks,
-    joint_roles,
-    joint_sides,
 )
 from snapcore.select.pose import minmax, smooth_positions
+from snapcore.select.stance import (
+    _roles_sides_of,
+    _stature,
+    descriptor_of,
+    key_joints,
+    neutral_stance,
+    pose_descriptor,
+    stance_departure,
+)
 
 __all__ = [
     "StoryParameters",
@@ -71,6 +94,11 @@ __all__ = [
     "key_joints",
     "pose_descriptor",
     "pose_surprisal",
+    "tail_surprisal",
+    "neutral_stance",
+    "descriptor_of",
+    "stance_departure",
+    "COMBINE_MODES",
     "event_surprisal",
     "contact_state_entropy",
     "temporal_support",
@@ -86,13 +114,8 @@ _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
 #: contacts several times cheaper on skeletons with 30 finger joints).
 _CONTACT_ROLES = frozenset({"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine",
                             "chest", "head"})
-#: Key joints of the pose descriptor: (role, side), the first joint of each found.
-_KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
-              ("foot", "R"))
-#: The same joints as landmarks (:func:`snapcore.motion.anatomy.body_landmarks`).
-_KEY_LANDMARKS = ("head", "pelvis", "wrist_L", "wrist_R", "ankle_L", "ankle_R")
-#: How far (statures) a hanging hand lies outside its shoulder joint (:func:`neutral_stance`).
-_HAND_OUTSET = 0.04
+#: How the pose and event terms are combined (:class:`StoryParameters`).
+COMBINE_MODES = ("bits", "normalised")
 #: Event-information models.
 EVENT_MODELS = ("surprisal", "entropy")
 #: A term whose range over the clip is below this many bits is constant: rounding in
@@ -147,6 +170,16 @@ class StoryParameters:
         Capture noise (m), added as ``noise^2 I`` (in stature units) to the covariance.
     support_s : float
         Width (s) of the Gaussian that averages the total over time; 0: none.
+    stance : bool
+        Count the departure from the neutral stance (:func:`stance_departure`).
+    stance_spread : float
+        Spread (statures) of a person at rest around the neutral stance; the smaller,
+        the more a departure weighs against novelty and events.
+    novelty : bool
+        Count the pose's novelty in the clip (:func:`tail_surprisal` of
+        :func:`pose_surprisal`).
+    combine : {"bits", "normalised"}
+        Add the terms in bits, or min-max normalise each first (eq. 9).
     """
 
     w_pose: float = 1.0
@@ -179,6 +212,11 @@ class StoryParameters:
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, "
                                  f"got {v}")
+        if self.combine not in COMBINE_MODES:
+            raise ValueError(f"StoryParameters.combine must be one of "
+                             f"{', '.join(COMBINE_MODES)}, got {self.combine!r}")
+        if not self.stance_spread > 0:
+            raise ValueError(f"StoryParameters.stance_spread must be > 0, got {self.stance_spread}")
         if self.event_model not in EVENT_MODELS:
             raise ValueError(f"StoryParameters.event_model must be one of "
                              f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}")
@@ -230,22 +268,24 @@ class StoryInformation:
 
     Attributes
     ----------
-    pose_bits, event_bits : ndarray of shape (F,)
-        The two terms before normalisation (bits), summed over characters.
-    pose, event : ndarray of shape (F,)
-        The terms min-max normalised to [0, 1].
+    stance_bits, novelty_bits, event_bits : ndarray of shape (F,)
+        The ingredients (bits, summed over characters), before weights and support.
+    terms : dict of str to ndarray of shape (F,)
+        The weighted, supported terms, which add up to ``total`` exactly:
+        ``stance``, ``novelty``, ``events`` (bits) with ``combine="bits"``; ``pose`` and
+        ``events`` (normalised) with ``combine="normalised"``.
     total : ndarray of shape (F,)
-        ``w_pose * pose + w_event * event``, after temporal support.
+        The score whose argmax is the pose.
     contacts : list of LimbContacts
         Per character.
     params : StoryParameters
     timings_s : dict
     """
 
-    pose_bits: np.ndarray
+    stance_bits: np.ndarray
+    novelty_bits: np.ndarray
     event_bits: np.ndarray
-    pose: np.ndarray
-    event: np.ndarray
+    terms: dict
     total: np.ndarray
     contacts: list[LimbContacts]
     params: StoryParameters
@@ -421,240 +461,6 @@ def debounced_contacts(character, *, ground: float, fps: float,
 # ----------------------------------------------------------------------- pose term
 
 
-def key_joints(character) -> np.ndarray:
-    """Head, pelvis, left/right wrist and ankle joints, shape (K,).
-
-    The joints of :func:`snapcore.motion.anatomy.body_landmarks` (``head``, ``pelvis``,
-    ``wrist_L``, ``wrist_R``, ``ankle_L``, ``ankle_R``) when the skeleton names all six;
-    else the first joint of each role (those found); with fewer than four, the root and
-    every end joint (a joint without children).
-    """
-    return _key_joints_of(*_skeleton_key(character))
-
-
-def _skeleton_key(character):
-    return tuple(character.joint_names), tuple(np.asarray(character.parents).tolist())
-
-
-@lru_cache(maxsize=64)
-def _key_joints_of(names: tuple, parents: tuple) -> np.ndarray:
-    lm = body_landmarks(names, parents)
-    full = [lm.get(k) for k in _KEY_LANDMARKS]
-    if all(j is not None for j in full):
-        out = np.asarray(full, dtype=np.int64)
-        out.flags.writeable = False
-        return out
-    roles, sides = _roles_sides_of(names, parents)
-    found = []
-    for role, side in _KEY_ROLES:
-        for j, (r, s) in enumerate(zip(roles, sides)):
-            if r == role and s == side:
-                found.append(j)
-                break
-    if len(found) < 4:
-        par = np.asarray(parents)
-        leaves = np.setdiff1d(np.arange(par.size), par[par >= 0])
-        found = sorted({int(np.flatnonzero(par < 0)[0]), *leaves.tolist()})
-    out = np.asarray(found, dtype=np.int64)
-    out.flags.writeable = False
-    return out
-
-
-def _chain_length(parents, lengths, top: int, bottom: int) -> float:
-    """Sum of the bone lengths from joint ``top`` down to its descendant ``bottom``."""
-    total, j = 0.0, int(bottom)
-    while j >= 0 and j != top:
-        total += float(lengths[j])
-        j = int(parents[j])
-    return total if j == top else float("nan")
-
-
-def neutral_stance(character, *, ground: float) -> np.ndarray | None:
-    """The character standing at rest, arms down: its key joints, shape (6, 3), metres.
-
-    Built from the skeleton's own proportions, not from any frame's pose (a clip may
-    start mid-action): the order of :func:`key_joints` (head, pelvis, left and right
-    wrist, left and right ankle), in a frame with +Y up and the left side at +X,
-    heights above ``ground``.
-
-    - Legs straight down: the ankles ``a`` above the ground, below the hips; the pelvis
-      at ``a + thigh + shin + drop``, ``drop`` the height of the pelvis joint above the
-      hip joints.
-    - Spine straight up: the head at the pelvis plus the bone lengths from the pelvis
-      to the head.
-    - Arms hanging: each wrist below its shoulder joint by the upper arm plus forearm,
-      4 % of the stature further out (beside the thigh);
-      the shoulders at the height of the joint the two arms branch from (the chest,
-      spine straight) plus the height of the shoulder joints above that joint.
-
-    Lengths are the skeleton's bone lengths (its offsets). Widths (hip to hip,
-    shoulder to shoulder), ``drop``, the shoulders' height above the chest and the
-    standing ankle height are body measurements read from the clip, as medians of
-    nearly rigid distances over all frames (not from any one frame's pose): the
-    distances between the two hip and the two shoulder joints, the vertical offsets,
-    and the 5th percentile of the ankles' height above the ground (a planted foot),
-    kept within 2-10 % of the stature.
-
-    Returns
-    -------
-    ndarray of shape (6, 3), or None
-        None when the skeleton does not name a head, a pelvis and both arms and legs
-        (:func:`snapcore.motion.anatomy.body_landmarks`).
-    """
-    geometry = _stance_geometry(*_skeleton_key(character),
-                                np.asarray(character.skeleton.offsets, dtype=float).tobytes())
-    if geometry is None:
-        return None
-    idx, leg, spine, to_branch, arm = geometry
-    stature = _stature(character)
-    # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch: (F, 8, 3)
-    x = character.positions[:, idx]
-    hip_w = float(np.median(np.linalg.norm(x[:, 0] - x[:, 1], axis=1))) / 2
-    sh_w = float(np.median(np.linalg.norm(x[:, 2] - x[:, 3], axis=1))) / 2
-    y = x[..., 1]
-    ankle_h = float(np.percentile(y[:, 4:6] - ground, 5))
-    ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
-    # the pelvis joint above the hip joints (below on some rigs): a rigid offset, whose
-    # vertical part barely changes with the pelvis's tilt
-    drop = float(np.median(y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])))
-    pelvis_h = ankle_h + leg + drop
-    head_h = pelvis_h + spine
-    # the shoulder joints above the joint both arms hang from (the chest): nearly rigid
-    rise = float(np.median(0.5 * (y[:, 2] + y[:, 3]) - y[:, 7]))
-    shoulder_h = pelvis_h + to_branch + rise
-    wrist_h = shoulder_h - arm
-    # hands hang beside the thighs, outside the shoulder joints by about a thigh's
-    # half-thickness (measured at rest on the shared rigs: 0.03-0.05 statures)
-    wrist_x = sh_w + _HAND_OUTSET * stature
-    out = np.array([[0.0, head_h, 0.0], [0.0, pelvis_h, 0.0], [wrist_x, wrist_h, 0.0],
-                    [-wrist_x, wrist_h, 0.0], [hip_w, ankle_h, 0.0], [-hip_w, ankle_h, 0.0]])
-    return out if np.isfinite(out).all() else None
-
-
-@lru_cache(maxsize=64)
-def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
-    """The skeleton's part of :func:`neutral_stance` (cached per skeleton), or None.
-
-    Returns the joints to gather (hips L/R, shoulders L/R, ankles L/R, pelvis, the
-    shoulders' common ancestor) and the lengths (m): hip to ankle, pelvis to head,
-    pelvis to that ancestor, shoulder to wrist (means of the two sides).
-    """
-    lm = body_landmarks(names, parents)
-    need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
-            "hip_R", "ankle_L", "ankle_R")
-    if any(lm.get(k) is None for k in need):
-        return None
-    par = np.asarray(parents)
-    lengths = np.linalg.norm(np.frombuffer(offsets).reshape(-1, 3), axis=1)
-    pelvis = lm["pelvis"]
-
-    def chain(top, bottom):
-        return _chain_length(par, lengths, top, bottom)
-
-    def mean2(f):
-        v = np.array([f(s) for s in "LR"])
-        return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
-
-    branch = _common_ancestor(par, lm["shoulder_L"], lm["shoulder_R"])
-    if branch is None or not np.isfinite(chain(pelvis, branch)):
-        branch = pelvis
-    idx = np.array([lm["hip_L"], lm["hip_R"], lm["shoulder_L"], lm["shoulder_R"],
-                    lm["ankle_L"], lm["ankle_R"], pelvis, branch], dtype=np.int64)
-    sizes = (mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"])),
-             chain(pelvis, lm["head"]), chain(pelvis, branch),
-             mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"])))
-    if not np.isfinite(sizes).all():
-        return None
-    return (idx, *sizes)
-
-
-def _common_ancestor(parents, a: int, b: int) -> int | None:
-    up = []
-    j = int(a)
-    while j >= 0:
-        up.append(j)
-        j = int(parents[j])
-    j = int(parents[b])
-    while j >= 0:
-        if j in up:
-            return j
-        j = int(parents[j])
-    return None
-
-
-def descriptor_of(points: np.ndarray, *, ground: float, stature: float) -> np.ndarray:
-    """:func:`pose_descriptor` of key-joint positions, shape (F, K + K (K - 1) / 2).
-
-    Parameters
-    ----------
-    points : ndarray of shape (F, K, 3)
-        Metres, Y up.
-    ground : float
-    stature : float
-        Metres.
-    """
-    x = np.asarray(points, dtype=float)
-    k = x.shape[1]
-    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, K): reductions over 3 unrolled
-    a, b = np.triu_indices(k, 1)
-    d = xc[:, :, a] - xc[:, :, b]  # (3, F, P)
-    d *= d
-    dist = np.sqrt(d[0] + d[1] + d[2])
-    out = np.empty((x.shape[0], k + a.size))
-    out[:, :k] = xc[1] - ground
-    out[:, k:] = dist
-    out /= stature
-    return out
-
-
-def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05
-                    ) -> np.ndarray:
-    """Pose of every frame as quantities invariant to yaw, translation and unit.
-
-    Parameters
-    ----------
-    character : Character
-    ground : float
-        Ground height (m).
-    fps : float
-    smooth_s : float
-        Savitzky-Golay window (s) of the trajectories.
-
-    Returns
-    -------
-    ndarray of shape (F, K + K (K - 1) / 2)
-        Heights of the K :func:`key_joints` above the ground, then their pairwise
-        distances, all divided by the character's stature (dimensionless).
-    """
-    kj = key_joints(character)
-    x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
-    return descriptor_of(x, ground=ground, stature=_stature(character))
-
-
-def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
-                     ) -> np.ndarray:
-    """Self-information (bits) of each pose for a person standing at rest, shape (F,).
-
-    Parameters
-    ----------
-    features : ndarray of shape (F, D)
-        Pose descriptors (:func:`pose_descriptor`).
-    neutral : ndarray of shape (D,)
-        The descriptor of the character's :func:`neutral_stance`.
-    spread : float
-        Standard deviation (stature units) of the isotropic Gaussian around the neutral
-        stance: how far a person "at rest" strays (sway, arms not quite straight).
-
-    Returns
-    -------
-    ndarray of shape (F,)
-        ``1/2 |x_i - n|^2 / spread^2 / ln 2``: ``-log2`` of the Gaussian's density up
-        to a constant, 0 at the neutral stance.
-    """
-    z = np.asarray(features, dtype=float) - np.asarray(neutral, dtype=float)
-    return 0.5 * np.square(z).sum(axis=1) / (spread ** 2 * math.log(2.0))
-
-
 def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
                    ) -> np.ndarray:
     """Self-information (bits) of each frame's pose under a Gaussian of the clip's poses.
@@ -809,16 +615,6 @@ def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
                            tuple(np.asarray(character.parents).tolist()))
 
 
-@lru_cache(maxsize=64)
-def _roles_sides_of(names: tuple, parents: tuple):
-    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
-
-
-def _stature(character) -> float:
-    h = float(character.height)
-    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
-
-
 def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryInformation:
     """Per-frame story information of ``scene`` (see the module docstring).
 
@@ -834,28 +630,35 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
     Warns
     -----
     UserWarning
-        When a term is constant over the clip (a static clip, no contact events): it
-        contributes 0 (:func:`snapcore.select.pose.minmax`).
+        When the pose term is constant over the clip (a static clip): the pick is then
+        arbitrary (:func:`snapcore.select.pose_methods.select_pose` warns too); and when
+        a character's skeleton does not name the joints of a neutral stance (its
+        departure is left out).
     """
     p = params
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
-    pose_bits = np.zeros(n_f)
+    stance_bits = np.zeros(n_f)
+    novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
-        if p.w_pose > 0:
+        if p.w_pose > 0 and (p.novelty or p.stance):
             feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s)
             if p.novelty:
-                pose_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
-                                                           noise=p.noise))
+                novelty_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
+                                                              noise=p.noise))
             if p.stance:
                 neutral = neutral_stance(c, ground=scene.ground)
-                if neutral is not None:
+                if neutral is None:
+                    warnings.warn(f"{c.name}: the skeleton does not name a head, pelvis, arms "
+                                  "and legs; its pose term leaves out the departure from "
+                                  "a neutral stance", stacklevel=2)
+                else:
                     nd = descriptor_of(neutral[None], ground=0.0, stature=_stature(c))[0]
-                    pose_bits += stance_departure(feats, nd, spread=p.stance_spread)
+                    stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
         contacts.append(lc)
@@ -867,24 +670,29 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
                 event_bits += contact_state_entropy(lc.state)
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
-    for bits in (pose_bits, event_bits):
+    for bits in (stance_bits, novelty_bits, event_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
-    with warnings.catch_warnings():
-        # a term that is switched off is constant by design: no warning for it
-        if p.w_pose == 0 or p.w_event == 0:
-            warnings.simplefilter("ignore")
-        pose = minmax(pose_bits, name="story pose information") if p.w_pose > 0 else pose_bits * 0
-        # No contact event at all (a punch with both feet planted) leaves the event term
-        # 0 by construction: expected, not a symptom worth a warning.
-        event = (minmax(event_bits, name="story event information")
-                 if p.w_event > 0 and event_bits.any() else event_bits * 0)
+    pose_bits = stance_bits + novelty_bits
+    if p.w_pose > 0 and not pose_bits.any():
+        warnings.warn("story pose information is constant over the clip (static clip?); "
+                      "it contributes 0", stacklevel=2)
+
+    def support(v):
+        return temporal_support(v, fps=fps, support_s=p.support_s)
+
     if p.combine == "bits":
-        total = temporal_support(p.w_pose * pose_bits + p.w_event * event_bits, fps=fps,
-                                 support_s=p.support_s)
+        terms = {"stance": support(p.w_pose * stance_bits),
+                 "novelty": support(p.w_pose * novelty_bits),
+                 "events": support(p.w_event * event_bits)}
     else:
-        total = temporal_support(p.w_pose * pose + p.w_event * event, fps=fps,
-                                 support_s=p.support_s)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # constant terms warned about above
+            pose = minmax(pose_bits)
+            event = minmax(event_bits)
+        terms = {"pose": support(p.w_pose * pose), "events": support(p.w_event * event)}
+    total = np.sum(list(terms.values()), axis=0)
     timings = {"pose_term": t_pose, "contacts_events": t_event,
                "story": time.perf_counter() - t0}
-    return StoryInformation(pose_bits, event_bits, pose, event, total, contacts, p, timings)
+    return StoryInformation(stance_bits, novelty_bits, event_bits, terms, total, contacts, p,
+                            timings)
