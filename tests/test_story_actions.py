@@ -104,7 +104,7 @@ def _on_action(frame: int, action: np.ndarray, fps: float) -> bool:
 def _top(scene) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return select_pose(scene).frame
+        return select_pose(scene).index
 
 
 @pytest.mark.parametrize("fps", [30.0, 60.0, 120.0])
@@ -147,5 +147,5 @@ def test_the_rest_pose_wins_without_the_stance_term():
     scene, action = _gesture(30.0, 0, seconds=4.0, start_s=0.4, end_s=3.6)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        f = select_pose(scene, story=DEFAULT_STORY.with_(stance=False)).frame
+        f = select_pose(scene, story=DEFAULT_STORY.with_(stance=False)).index
     assert not _on_action(f, action, 30.0)

@@ -499,13 +499,14 @@ def tail_surprisal(values: np.ndarray) -> np.ndarray:
 
     The empirical surprisal of "a pose at least this unusual" in the clip: bounded by
     ``log2 F`` (the most unusual frame), 0 for the least unusual, and the same for any
-    monotone transform of ``values``. Ties share the larger fraction (a static clip
-    gives 0 everywhere).
+    monotone transform of ``values``. Ties share the larger fraction; values that
+    span at most :data:`ZERO_BITS` are all ties (rounding noise on a static clip),
+    giving 0 everywhere.
     """
     v = np.asarray(values, dtype=float)
     n = v.size
-    if n == 0:
-        return v.copy()
+    if n == 0 or float(v.max() - v.min()) <= ZERO_BITS:
+        return np.zeros(n)
     srt = np.sort(v)
     at_least = n - np.searchsorted(srt, v, side="left")  # frames with value >= v_i
     return -np.log2(at_least / n)
