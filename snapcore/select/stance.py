@@ -28,6 +28,8 @@ _KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot
               ("foot", "R"))
 #: The key joints as landmarks (:func:`snapcore.motion.anatomy.body_landmarks`).
 _KEY_LANDMARKS = ("head", "pelvis", "wrist_L", "wrist_R", "ankle_L", "ankle_R")
+#: Frames (about; evenly spaced) on which :func:`neutral_stance` takes its medians.
+_MEASURE_FRAMES = 256
 #: How far (statures) a hanging hand lies outside its shoulder joint (:func:`neutral_stance`).
 _HAND_OUTSET = 0.04
 
@@ -111,7 +113,8 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     Lengths are the skeleton's bone lengths (its offsets). Widths (hip to hip,
     shoulder to shoulder), ``drop``, the shoulders' height above the chest and the
     standing ankle height are body measurements read from the clip, as medians of
-    nearly rigid distances over all frames (not from any one frame's pose): the
+    nearly rigid distances over the frames (about 256 evenly spaced ones; not from any
+    one frame's pose): the
     distances between the two hip and the two shoulder joints, the vertical offsets,
     and the 5th percentile of the ankles' height above the ground (a planted foot),
     kept within 2-10 % of the stature.
@@ -128,8 +131,11 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
         return None
     idx, leg, spine, to_branch, arm = geometry
     stature = _stature(character)
-    # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch: (F, 8, 3)
-    x = character.positions[:, idx]
+    # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch, on
+    # at most ~256 evenly spaced frames (medians of body measurements need no more):
+    # (F', 8, 3)
+    step = max(1, character.n_frames // _MEASURE_FRAMES)
+    x = character.positions[::step, idx]
     hip_w = float(np.median(np.linalg.norm(x[:, 0] - x[:, 1], axis=1))) / 2
     sh_w = float(np.median(np.linalg.norm(x[:, 2] - x[:, 3], axis=1))) / 2
     y = x[..., 1]
