@@ -268,8 +268,9 @@ def _render(scene, snap, opts: BatchOptions) -> dict[str, bytes]:
     if opts.sheet:
         from snapcore.render.composites import contact_sheet
 
-        entropy = [float(snap.pose.scores.total[i]) for i in snap.indices]
-        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, entropy=entropy,
+        sc = snap.pose.scores
+        captions = [sc.caption(sc.total[i]) for i in snap.indices]
+        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, captions=captions,
                                           size=opts.sheet_size, title=scene.name))
     return out
 

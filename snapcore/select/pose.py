@@ -173,6 +173,13 @@ class PoseScores:
     def n_frames(self) -> int:
         return int(self.total.shape[0])
 
+    def caption(self, value: float) -> str:
+        """A value of the total as a short caption: ``"entropy 1.1"`` for the paper,
+        ``"story 14.9 bits"``, ``"stretch 0.236 statures"``..."""
+        if self.method == "paper":
+            return f"entropy {float(value):.3g}"
+        return f"{self.method} {float(value):.3g} {self.unit}"
+
     @property
     def label(self) -> str:
         """How plots name the total: ``"pose entropy"`` for the paper, else
