@@ -149,3 +149,40 @@ def test_the_rest_pose_wins_without_the_stance_term():
         warnings.simplefilter("ignore")
         f = select_pose(scene, story=DEFAULT_STORY.with_(stance=False)).index
     assert not _on_action(f, action, 30.0)
+
+
+def test_neutral_stance_of_the_synthetic_rig():
+    """The neutral stance comes from the skeleton: on the procedural rig (its bone
+    lengths are module constants) the pelvis stands at ROOT_HEIGHT_M, the head 0.55 m
+    above it (spine, neck and head bones), the wrists hang the arm's length (0.54 m)
+    below the shoulder joints (0.41 m above the pelvis), the ankles at ANKLE_HEIGHT;
+    whatever the clip does (a kick clip gives the same stance as standing idle)."""
+    from snapcore.motion import synth
+    from snapcore.motion.synth_rig import FOREARM, UPPER_ARM
+    from snapcore.select.stance import neutral_stance
+
+    for name in ("idle", "kick"):
+        scene = synth.synth_scene(name, fps=30)
+        n = neutral_stance(scene.characters[0], ground=scene.ground)
+        head, pelvis, wrist_l, wrist_r, ankle_l, ankle_r = n
+        assert pelvis[1] == pytest.approx(ROOT_HEIGHT_M, abs=0.01), name
+        assert head[1] - pelvis[1] == pytest.approx(0.10 + 0.14 + 0.21 + 0.10, abs=0.01)
+        shoulder = pelvis[1] + 0.10 + 0.14 + 0.17
+        assert wrist_l[1] == pytest.approx(shoulder - UPPER_ARM - FOREARM, abs=0.02), name
+        assert wrist_r[1] == pytest.approx(wrist_l[1])
+        assert ankle_l[1] == pytest.approx(ANKLE_HEIGHT, abs=0.01), name
+        assert wrist_l[0] > 0 > wrist_r[0] and ankle_l[0] > 0 > ankle_r[0]
+
+
+def test_rest_departs_little_and_a_raised_hand_much():
+    """Standing at rest is within a few bits of the neutral stance; the raised hand of
+    the gesture clip departs by tens of bits."""
+    from snapcore.select.stance import _stature, descriptor_of, neutral_stance, pose_descriptor
+    from snapcore.select.story import stance_departure
+
+    scene, action = _gesture(30.0, 0, seconds=4.0, start_s=0.4, end_s=3.6)
+    c = scene.characters[0]
+    nd = descriptor_of(neutral_stance(c, ground=0.0)[None], ground=0.0, stature=_stature(c))[0]
+    bits = stance_departure(pose_descriptor(c, ground=0.0, fps=30.0), nd, spread=0.1)
+    assert bits[:5].max() < 3.0 and bits[-5:].max() < 3.0
+    assert bits[action].min() > 30.0
