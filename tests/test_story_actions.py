@@ -97,6 +97,23 @@ def _kicks(fps: float, seed: int, *, seconds: float = 6.0, times=(1.2, 3.0, 4.8)
     return _scene(pose, fps, "kicks"), np.concatenate(peaks)
 
 
+def _bow(fps: float, seed: int, *, seconds: float, start_s: float, end_s: float,
+         depth_deg: float = 30.0):
+    """A bow: the trunk flexes by ``depth_deg`` (+-5, spine, chest and neck), held 0.4 s
+    around the middle of ``start_s``..``end_s``. Returns the scene and the frames within
+    30 % of the deepest flexion."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(seconds * fps)) + 1) / fps
+    pose = _standing(t, rng)
+    mid = 0.5 * (start_s + end_s)
+    flex = pchip(t, [0.0, start_s, mid - 0.2, mid + 0.2, end_s, seconds],
+                 [0.0, 0.0, 1.0, 1.0, 0.0, 0.0]) * (depth_deg + rng.uniform(-5, 5))
+    pose.local["Spine"] = pose.local["Spine"] @ zxy(0.0, 0.6 * flex, 0.0)
+    pose.local["Spine1"] = zxy(0.0, 0.4 * flex, 0.0)
+    pose.local["Neck"] = zxy(0.0, 0.3 * flex, 0.0)
+    return _scene(pose, fps, "bow"), np.flatnonzero(flex >= 0.7 * flex.max())
+
+
 def _on_action(frame: int, action: np.ndarray, fps: float) -> bool:
     return bool(np.min(np.abs(action - frame)) <= WIDEN_S * fps)
 
@@ -134,6 +151,16 @@ def test_gesture_in_the_first_15_percent(fps, seed):
 def test_kick_repeated_three_times(fps, seed):
     """Three kicks: the pick is on one of them (any counts)."""
     scene, action = _kicks(fps, seed)
+    f = _top(scene)
+    assert _on_action(f, action, fps), (f, action.min(), action.max(), scene.n_frames)
+
+
+@pytest.mark.parametrize("fps", [30.0, 120.0])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_moderate_bow_filling_the_clip(fps, seed):
+    """A 30-degree bow over 80 % of a 3 s clip: the head barely drops (4 % of the
+    stature) but leans forward; the pick is at the deepest bow, not the rare rest."""
+    scene, action = _bow(fps, seed, seconds=3.0, start_s=0.3, end_s=2.7)
     f = _top(scene)
     assert _on_action(f, action, fps), (f, action.min(), action.max(), scene.n_frames)
 

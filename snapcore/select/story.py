@@ -28,9 +28,12 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    as far out)``, so that it is at most ``log2 F`` bits, like one event: it separates
    poses that depart equally (the punch from the held guard), and cannot outweigh a
    large departure by rarity alone.
+   Its weight ``w_novelty`` (0.5) keeps rarity alone from outweighing a departure:
+   where a shallow bow fills most of a clip the rest pose is the rare one.
    Both use a descriptor invariant to yaw, translation and unit (:func:`pose_descriptor`):
-   the heights above the ground of six key joints (head, pelvis, wrists, ankles) and
-   their pairwise distances, divided by the character's stature.
+   the heights above the ground of six key joints (head, pelvis, wrists, ankles), their
+   pairwise distances and pairwise horizontal distances (a bow's lean, a reach),
+   divided by the character's stature.
 3. **Event information** (``w_event``; §3.1.2): contacts with the ground are *debounced*
    per limb (``debounce``, ``per_limb``) -- one leg (foot and toes, a kneeling knee),
    one arm or the trunk is one contact, whatever of its joints touch -- with
@@ -133,7 +136,9 @@ class StoryParameters:
     Attributes
     ----------
     w_pose, w_event : float
-        Weights of the normalised pose and event terms (eq. 9); 0 switches a term off.
+        Weights of the pose (stance + novelty) and event terms (eq. 9's weights, on
+        bits, or on the normalised terms with ``combine="normalised"``); 0 switches a
+        term off.
     smooth_s : float
         Savitzky-Golay window (s) for the joint trajectories (capture jitter).
     support_height, release_height : float
@@ -178,6 +183,8 @@ class StoryParameters:
     novelty : bool
         Count the pose's novelty in the clip (:func:`tail_surprisal` of
         :func:`pose_surprisal`).
+    w_novelty : float
+        Weight of the novelty relative to the stance departure (both in bits).
     combine : {"bits", "normalised"}
         Add the terms in bits, or min-max normalise each first (eq. 9).
     """
@@ -202,6 +209,7 @@ class StoryParameters:
     stance: bool = True
     stance_spread: float = 0.1
     novelty: bool = True
+    w_novelty: float = 0.5
     combine: str = "bits"
 
     def __post_init__(self):
@@ -686,7 +694,7 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
 
     if p.combine == "bits":
         terms = {"stance": support(p.w_pose * stance_bits),
-                 "novelty": support(p.w_pose * novelty_bits),
+                 "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
                  "events": support(p.w_event * event_bits)}
     else:
         with warnings.catch_warnings():
