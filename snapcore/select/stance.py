@@ -210,7 +210,8 @@ def _common_ancestor(parents, a: int, b: int) -> int | None:
     return None
 
 
-def descriptor_of(points: np.ndarray, *, ground: float, stature: float) -> np.ndarray:
+def descriptor_of(points: np.ndarray, *, ground: float, stature: float,
+                  horizontal: bool = True) -> np.ndarray:
     """:func:`pose_descriptor` of key-joint positions, shape (F, K + K (K - 1)).
 
     Parameters
@@ -220,6 +221,9 @@ def descriptor_of(points: np.ndarray, *, ground: float, stature: float) -> np.nd
     ground : float
     stature : float
         Metres.
+    horizontal : bool
+        Include the pairwise horizontal distances (False: shape (F, K + K (K - 1) / 2),
+        for ablation).
     """
     x = np.asarray(points, dtype=float)
     k = x.shape[1]
@@ -229,16 +233,17 @@ def descriptor_of(points: np.ndarray, *, ground: float, stature: float) -> np.nd
     d *= d
     flat = d[0] + d[2]  # squared horizontal distance
     n_p = a.size
-    out = np.empty((x.shape[0], k + 2 * n_p))
+    out = np.empty((x.shape[0], k + (2 if horizontal else 1) * n_p))
     out[:, :k] = xc[1] - ground
     out[:, k:k + n_p] = np.sqrt(flat + d[1])
-    out[:, k + n_p:] = np.sqrt(flat)
+    if horizontal:
+        out[:, k + n_p:] = np.sqrt(flat)
     out /= stature
     return out
 
 
-def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05
-                    ) -> np.ndarray:
+def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05,
+                    horizontal: bool = True) -> np.ndarray:
     """Pose of every frame as quantities invariant to yaw, translation and unit.
 
     Parameters
@@ -249,6 +254,8 @@ def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0
     fps : float
     smooth_s : float
         Savitzky-Golay window (s) of the trajectories.
+    horizontal : bool
+        Include the horizontal distances (see :func:`descriptor_of`).
 
     Returns
     -------
@@ -262,7 +269,7 @@ def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0
     """
     kj = key_joints(character)
     x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
-    return descriptor_of(x, ground=ground, stature=_stature(character))
+    return descriptor_of(x, ground=ground, stature=_stature(character), horizontal=horizontal)
 
 
 def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float

@@ -185,6 +185,9 @@ class StoryParameters:
         :func:`pose_surprisal`).
     w_novelty : float
         Weight of the novelty relative to the stance departure (both in bits).
+    horizontal : bool
+        The pose descriptor includes the key joints' horizontal distances (a lean, a
+        reach); False: heights and 3-D distances only.
     combine : {"bits", "normalised"}
         Add the terms in bits, or min-max normalise each first (eq. 9).
     """
@@ -210,6 +213,7 @@ class StoryParameters:
     stance_spread: float = 0.1
     novelty: bool = True
     w_novelty: float = 0.5
+    horizontal: bool = True
     combine: str = "bits"
 
     def __post_init__(self):
@@ -657,7 +661,8 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
     for c in scene.characters:
         ta = time.perf_counter()
         if p.w_pose > 0 and (p.novelty or p.stance):
-            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s)
+            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s,
+                                    horizontal=p.horizontal)
             if p.novelty:
                 novelty_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
                                                               noise=p.noise))
@@ -668,7 +673,8 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
                                   "and legs; its pose term leaves out the departure from "
                                   "a neutral stance", stacklevel=2)
                 else:
-                    nd = descriptor_of(neutral[None], ground=0.0, stature=_stature(c))[0]
+                    nd = descriptor_of(neutral[None], ground=0.0, stature=_stature(c),
+                                       horizontal=p.horizontal)[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
