@@ -28,7 +28,7 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    as far out)``, so that it is at most ``log2 F`` bits, like one event: it separates
    poses that depart equally (the punch from the held guard), and cannot outweigh a
    large departure by rarity alone.
-   Its weight ``w_novelty`` (0.5) keeps rarity alone from outweighing a departure:
+   Its weight ``w_novelty`` (0.25) keeps rarity alone from outweighing a departure:
    where a shallow bow fills most of a clip the rest pose is the rare one.
    Both use a descriptor invariant to yaw, translation and unit (:func:`pose_descriptor`):
    the heights above the ground of six key joints (head, pelvis, wrists, ankles), their
@@ -210,9 +210,9 @@ class StoryParameters:
     noise: float = 0.02
     support_s: float = 0.1
     stance: bool = True
-    stance_spread: float = 0.1
+    stance_spread: float = 0.15
     novelty: bool = True
-    w_novelty: float = 0.5
+    w_novelty: float = 0.25
     horizontal: bool = True
     combine: str = "bits"
 
