@@ -58,7 +58,7 @@ def _parse_strengths(text: str | None) -> dict | None:
               show_default=True, help="Output folder (tables/, figures/, report.html).")
 @click.option("--stimuli", type=click.Path(), default=None,
               help="Stimuli manifest (or its folder): scene titles, top-k picks, the motion "
-                   "for the fastest / farthest-from-mean-pose baselines and near-duplicate "
+                   "for the fastest / most-stretched baselines (the manifest's selector picks) and near-duplicate "
                    "candidates. Default: var/stimuli/<study id> when it exists.")
 @click.option("--include-simulated", is_flag=True,
               help="Analyse simulated participants too (excluded by default).")

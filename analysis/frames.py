@@ -10,11 +10,14 @@ Predictors compared with the people's choices, per scene:
 - ``middle``: the middle frame of the clip;
 - ``uniform_random``: a frame drawn uniformly from the clip (its *expected* distance
   and hit rate, computed exactly over every frame);
-- ``fastest``: the frame where the body moves fastest (largest summed joint speed);
-- ``farthest_from_mean``: the frame whose root-relative pose is farthest from the clip's
-  mean pose. The last two need the motion: :func:`motion_baselines` computes them from
-  a :class:`snapcore.Scene`, :func:`baselines_from_stimuli` loads the scenes named by a
-  stimuli manifest; without the motion they are left out (never guessed).
+- ``fastest`` and ``stretch``: the pose selectors of the same names
+  (:mod:`snapcore.select.pose_baselines`: the mean joint speed, and the mean joint
+  distance from the joints' centroid, each over the stature) -- one definition for
+  ``snapshot keymoments``, the stimuli and this analysis. :func:`baselines_from_stimuli`
+  reads their top picks from the stimuli manifest (``picks.by_method``, recorded when
+  the stimuli were built), never reloading a motion; :func:`motion_baselines` computes
+  them on a :class:`snapcore.Scene` at hand. Without either they are left out (never
+  guessed).
 
 Distances are in seconds, ``|chosen − predictor| / fps``. Hit rates count choices within
 ±0.25, ±0.5 and ±1 s (``TOLERANCES_S``). Permutation tests ask whether the algorithm
@@ -52,6 +55,7 @@ __all__ = [
     "scene_frames_from_rows",
     "motion_baselines",
     "baselines_from_stimuli",
+    "SELECTOR_BASELINES",
     "predictor_frames",
     "frame_distances",
     "hit_rates",
@@ -66,7 +70,10 @@ N_PERMUTATIONS = 10_000
 #: Up to this many choices the sign-flip test enumerates all 2^n flips exactly.
 EXACT_MAX_N = 16
 #: Baselines that predict one frame (tested by paired sign flips).
-DETERMINISTIC_BASELINES = ("middle", "fastest", "farthest_from_mean")
+DETERMINISTIC_BASELINES = ("middle", "fastest", "stretch")
+#: The pose selectors (:data:`snapcore.select.pose_methods.POSE_METHODS`) whose top pick
+#: is a baseline here.
+SELECTOR_BASELINES = ("fastest", "stretch")
 
 
 def _mode(values, name, scene):
@@ -116,7 +123,7 @@ def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
 
 
 def motion_baselines(scene, *, window=None) -> dict:
-    """The motion-derived baseline frames of a scene, in source numbering.
+    """The selector baselines of a scene at hand, in source numbering.
 
     Parameters
     ----------
@@ -124,22 +131,19 @@ def motion_baselines(scene, *, window=None) -> dict:
         The motion shown in the stimulus.
     window : (int, int), optional
         Source frames ``[start, stop)`` the participants saw (default: the whole scene);
-        the mean pose and both argmaxes are taken inside it.
+        the argmax is taken inside it.
 
     Returns
     -------
     dict
-        ``{"fastest": int, "farthest_from_mean": int}``.
-
-    Notes
-    -----
-    - fastest: ``argmax_i Σ_{c,j} |p_{c,j}(i+1) − p_{c,j}(i−1)| / 2Δt`` (central
-      differences, one-sided at the ends), summed over every joint of every character.
-    - farthest from the mean pose: ``argmax_i Σ_{c,j} |q_{c,j}(i) − q̄_{c,j}|²`` with
-      ``q = p − p_root`` (root-relative positions in the world orientation) and ``q̄``
-      their mean over the window's frames.
-    A window of one frame returns that frame for both (with a warning).
+        ``{"fastest": int, "stretch": int}``: the frames of highest
+        :func:`snapcore.select.pose_baselines.speed_score` and
+        :func:`~snapcore.select.pose_baselines.stretch_score` (the ``fastest`` and
+        ``stretch`` selectors' scores; over the whole scene, the selectors' top picks).
+        A window of one frame returns that frame for both (with a warning).
     """
+    from snapcore.select.pose_baselines import speed_score, stretch_score
+
     source = np.arange(scene.n_frames) + int(scene.frame_offset)
     keep = np.ones(scene.n_frames, dtype=bool)
     if window is not None:
@@ -147,66 +151,53 @@ def motion_baselines(scene, *, window=None) -> dict:
     if not keep.any():
         raise ValueError(f"scene '{scene.name}': window {tuple(window)} holds no frame of the "
                          f"motion (source frames {source[0]}..{source[-1]})")
-    speeds = np.zeros(int(keep.sum()))
-    spread = np.zeros(int(keep.sum()))
-    for ch in scene.characters:
-        p = np.asarray(ch.positions, dtype=float)  # (F, J, 3)
-        if p.shape[0] >= 2:
-            v = np.gradient(p, axis=0) * scene.fps
-            speeds += np.linalg.norm(v, axis=2).sum(axis=1)[keep]
-        q = (p - p[:, :1, :])[keep]
-        spread += ((q - q.mean(axis=0)) ** 2).sum(axis=(1, 2))
     frames = source[keep]
     if frames.size == 1:
         warnings.warn(f"scene '{scene.name}': one frame; the baselines are that frame",
                       stacklevel=2)
-    return {"fastest": int(frames[int(np.argmax(speeds))]),
-            "farthest_from_mean": int(frames[int(np.argmax(spread))])}
+    return {"fastest": int(frames[int(np.argmax(speed_score(scene)[keep]))]),
+            "stretch": int(frames[int(np.argmax(stretch_score(scene)[keep]))])}
 
 
-def baselines_from_stimuli(manifest, *, loader=None) -> dict:
-    """Motion baselines and frame offsets for each scene of a stimuli manifest.
+def baselines_from_stimuli(manifest) -> dict:
+    """The selector baselines, picks and frame offsets of each scene of a stimuli manifest.
 
     Parameters
     ----------
     manifest : str, Path or dict
         The stimuli manifest (``data_schema/stimuli.schema.json``) or its path.
-    loader : callable, optional
-        ``loader(scene_entry, manifest_dir) -> snapcore.Scene``; default: load the
-        motion named in the entry with :func:`snapcore.load_scene`.
 
     Returns
     -------
     dict
-        scene id → ``{"frame_offset", "baseline_frames", "algorithm_frames", "title"}``
-        (the ``extra`` argument of :func:`scene_frames_from_rows`). Scenes whose motion
-        cannot be loaded are left out with a warning.
+        scene id → ``{"frame_offset", "algorithm_frames", "title", "selector_frames",
+        "baseline_frames"}`` (the ``extra`` argument of :func:`scene_frames_from_rows`).
+        ``baseline_frames`` holds the top pick the manifest recorded for each of
+        :data:`SELECTOR_BASELINES` (``picks.by_method``); a scene whose manifest entry
+        has none gets no baseline frames, with a warning. No motion is loaded.
     """
-    from .stimuli import load_scene_for_entry, read_stimuli
+    from .stimuli import read_stimuli
 
-    doc, base = read_stimuli(manifest)
-    loader = loader or load_scene_for_entry
+    doc, _ = read_stimuli(manifest)
     out = {}
     for entry in doc.get("scenes", []):
         sid = entry["id"]
         picks = entry.get("picks") or {}
         info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
-        if picks.get("by_method"):
-            info["selector_frames"] = {m: [int(f) for f in fs]
-                                       for m, fs in picks["by_method"].items() if fs}
+        by_method = {m: [int(f) for f in fs] for m, fs in (picks.get("by_method") or {}).items()
+                     if fs}
+        if by_method:
+            info["selector_frames"] = by_method
         if entry.get("title"):
             info["title"] = entry["title"]
-        try:
-            sc = loader(entry, base)
-        except (ValueError, OSError) as err:
-            warnings.warn(f"stimuli scene '{sid}': motion not loaded ({err}); the fastest and "
-                          "farthest-from-mean baselines are left out", stacklevel=2)
-            sc = None
-        offset = int(entry.get("frame_offset", 0))
-        info["frame_offset"] = offset
-        if sc is not None:
-            window = (offset, offset + int(entry["n_frames"])) if "n_frames" in entry else None
-            info["baseline_frames"] = motion_baselines(sc, window=window)
+        info["frame_offset"] = int(entry.get("frame_offset", 0))
+        baselines = {m: by_method[m][0] for m in SELECTOR_BASELINES if m in by_method}
+        if baselines:
+            info["baseline_frames"] = baselines
+        else:
+            warnings.warn(f"stimuli scene '{sid}': the manifest records no picks of the "
+                          f"{' and '.join(SELECTOR_BASELINES)} selectors (picks.by_method); "
+                          "those baselines are left out", stacklevel=2)
         out[sid] = info
     return out
 

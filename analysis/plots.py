@@ -33,7 +33,7 @@ METHOD_COLORS = {ViewMethod.OURS: "#D55E00", ViewMethod.VIEWPOINT_ENTROPY: "#007
 PREDICTOR_STYLES = {"algorithm": ("#D55E00", "-", "algorithm's pick"),
                     "middle": ("#555555", ":", "middle frame"),
                     "fastest": ("#0072B2", "--", "fastest frame"),
-                    "farthest_from_mean": ("#009E73", "-.", "farthest from mean pose"),
+                    "stretch": ("#009E73", "-.", "most stretched pose"),
                     "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame")}
 
 
@@ -167,7 +167,7 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
     scenes : dict
         scene id → :class:`study_app.design.scenes.StudyScene`.
     show_baselines : bool
-        Mark the baseline frames (middle, fastest, farthest from the mean pose) too.
+        Mark the baseline frames (middle, fastest, most stretched) too.
     """
     from .frames import frame_histogram, predictor_frames
 

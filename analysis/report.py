@@ -328,8 +328,9 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
                + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(worse["scene"], worse["baseline"], strict=True)) or "none") + ".")
     missing = [s for s, i in scenes.items() if not i.baseline_frames]
-    note = ("The fastest-frame and farthest-from-mean-pose baselines need the motion; "
-            f"they are missing for {', '.join(missing)} (pass --stimuli manifest.json)."
+    note = ("The fastest and most-stretched baselines are the selectors' picks recorded in "
+            f"the stimuli manifest; they are missing for {', '.join(missing)} (pass "
+            "--stimuli manifest.json)."
             if missing else "")
     sections = [("Poses: which frame do people pick? (Fig. 13)",
                  [f_hist, *lines, f"<div class='claim'>{html.escape(verdict)}</div>",
@@ -377,7 +378,7 @@ _METHODS_TEXT = (
     "Luce spectral ranking (choix.ilsr_top1), percentile bootstrap over choices. Agreement: "
     "Fleiss' kappa (scenes = items, methods = categories). Frames: distances in seconds; hit "
     "rates within ±0.25/0.5/1 s; baselines middle frame, uniform random frame (exact "
-    "expectation), fastest frame and frame farthest from the mean pose (from the motion); "
+    "expectation), the fastest and most-stretched poses (the pose selectors' picks); "
     "paired sign-flip permutation tests (one-sided, algorithm closer), exact randomisation "
     "test against a uniform frame; Holm over all frame tests.")
 
@@ -441,8 +442,8 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     include_simulated : bool
         Analyse simulated participants too (they are excluded by default).
     stimuli : str, Path or dict, optional
-        The stimuli manifest: scene titles, top-k picks, the motion for the fastest /
-        farthest-from-mean baselines, and near-duplicate candidate views. Default: the
+        The stimuli manifest: scene titles, top-k picks, the fastest and
+        stretch selectors' picks (baselines), and near-duplicate candidate views. Default: the
         study's stimuli folder ``var/stimuli/<study id>`` when it exists.
     exclude_failed_attention : bool
         Drop participants who failed an attention check.

@@ -4,8 +4,8 @@ The app's stimuli builder writes ``manifest.json``: per scene the motion's fps, 
 frame offset, the algorithm's picks (``picks.frame``, top-k ``picks.frames``), timings,
 and ``source`` — what was loaded (a demo scene name, BVH files or a scene manifest,
 fps/scale overrides, a frame window). The analysis uses it for what response rows do
-not carry: the top-k picks to mark, the scene titles, and the motion itself for the
-motion-derived baselines (fastest frame, frame farthest from the mean pose).
+not carry: the top-k picks to mark, the scene titles, and every selector's picks
+(``picks.by_method``: the fastest and stretch baselines).
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ _WHERE = {
     "snapcore.render.video": ("render_video",),
     "snapcore.select.contacts": ("ContactTolerances", "Interactions", "detect_interactions"),
     "snapcore.select.methods": ("VIEW_METHODS", "ViewMethod"),
-    "snapcore.select.pose": ("PoseEntropy", "PoseSelection", "pose_entropy"),
+    "snapcore.select.pose": ("PoseEntropy", "PoseScores", "PoseSelection", "pose_entropy"),
     "snapcore.select.pose_methods": ("POSE_METHODS", "PoseParams", "select_pose"),
     "snapcore.select.view": ("ViewSelection", "pma_scores", "select_view"),
 }
@@ -56,6 +56,7 @@ __all__ = [
     "ContactTolerances",
     "Interactions",
     "PoseEntropy",
+    "PoseScores",
     "PosedMesh",
     "POSE_METHODS",
     "PoseSelection",

@@ -40,7 +40,7 @@ from snapcore.select.view import (
 __all__ = ["Snapshot", "ViewParams", "take_snapshot", "SNAPSHOT_FORMAT", "VIEW_FIELDS"]
 
 #: Value of the ``format`` field of the JSON document (bump on breaking changes).
-SNAPSHOT_FORMAT = "action-snapshot/snapshot@1"
+SNAPSHOT_FORMAT = "action-snapshot/snapshot@2"
 #: Optional fields filled by later stages, in the order ``to_dict`` writes them.
 VIEW_FIELDS = ("view", "view_refined", "baselines", "pma", "window")
 #: Decimals kept for per-frame entropy values in the JSON (they are in [0, 2]).
@@ -157,7 +157,7 @@ class Snapshot:
         return {
             "mode": "sequence" if w is None else "pose",
             "half_width_s": None if w is None else float(w),
-            "frame": None if w is None else int(src(self.pose.frame)),
+            "frame": None if w is None else int(src(self.pose.index)),
             "start_frame": int(src(sel.frames[0])),
             "end_frame": int(src(sel.frames[1] - 1)),
         }
@@ -179,29 +179,33 @@ class Snapshot:
         return out
 
     @property
-    def frame(self) -> int:
-        """The selected pose as a SOURCE frame number (like ``to_dict()["frame"]``)."""
-        return int(self.scene.source_frame(self.pose.frame))
+    def source_frame(self) -> int:
+        """The selected pose as the file's own frame number (``to_dict()["frame"]``)."""
+        return int(self.scene.source_frame(self.pose.index))
 
     @property
-    def frames(self) -> list[int]:
-        """The top-k poses as SOURCE frame numbers, best first."""
-        return [int(self.scene.source_frame(i)) for i in self.pose.frames]
+    def source_frames(self) -> list[int]:
+        """The top-k poses as the file's own frame numbers, best first."""
+        return [int(self.scene.source_frame(i)) for i in self.pose.indices]
+
+    #: Older names of :attr:`source_frame` and :attr:`source_frames`.
+    frame = source_frame
+    frames = source_frames
 
     @property
     def index(self) -> int:
-        """The selected pose as an internal index into the scene's arrays."""
-        return int(self.pose.frame)
+        """The selected pose as an index into the scene's (cut) arrays (``pose.index``)."""
+        return int(self.pose.index)
 
     @property
     def indices(self) -> list[int]:
-        """The top-k poses as internal indices, best first."""
-        return [int(i) for i in self.pose.frames]
+        """The top-k poses as indices into the scene's arrays, best first."""
+        return [int(i) for i in self.pose.indices]
 
     def to_dict(self) -> dict:
         """The JSON document (``data_schema/snapshot.schema.json``); source frame numbers."""
         scene = self.scene
-        ent = self.pose.entropy
+        scores = self.pose.scores
         fps = float(scene.fps)
 
         def src(i) -> int:
@@ -210,18 +214,12 @@ class Snapshot:
         def rnd(a) -> list[float]:
             return np.round(np.asarray(a, dtype=float), _DECIMALS).tolist()
 
-        peaks = [
-            {
-                "frame": src(i),
-                "time_s": round(i / fps, 6),
-                "total": float(ent.total[i]),
-                "local": float(ent.local[i]),
-                "global": float(ent.global_[i]),
-            }
-            for i in self.pose.frames
-        ]
+        # each peak: its source frame, time, total and the terms that add up to it
+        peaks = [{"frame": src(i), "time_s": round(i / fps, 6), "total": float(scores.total[i]),
+                  **{name: float(v[i]) for name, v in scores.terms.items()}}
+                 for i in self.pose.indices]
         counts = {}
-        for e in ent.interactions.events:
+        for e in scores.interactions.events:
             ch = scene.characters[e.character].name
             counts.setdefault(ch, {})
             counts[ch][e.object] = counts[ch].get(e.object, 0) + 1
@@ -233,24 +231,32 @@ class Snapshot:
             "n_frames": int(scene.n_frames),
             "frame_offset": int(scene.frame_offset),
             "duration_s": float(scene.duration),
-            "frame": src(self.pose.frame),
-            "time_s": round(self.pose.frame / fps, 6),
-            "frames": [src(i) for i in self.pose.frames],
+            "frame": src(self.pose.index),
+            "time_s": round(self.pose.index / fps, 6),
+            "frames": [src(i) for i in self.pose.indices],
             "pose_method": self.pose.method,
             "peaks": peaks,
-            "pose_entropy": {
+            "pose_scores": {
+                "method": scores.method,
+                "unit": scores.unit,
+                "first_frame": src(0),
+                "terms": {name: rnd(v) for name, v in scores.terms.items()},
+                "total": rnd(scores.total),
+            },
+            "events": scores.interactions.records(scene),
+            "event_counts": counts,
+            "options": _jsonable(self.options),
+            "timings_s": {k: float(v) for k, v in self.timings_s.items()},
+        }
+        if (ent := self.pose.entropy) is not None:  # the paper's method keeps its names
+            doc["pose_entropy"] = {
                 "first_frame": src(0),
                 "weights": {"local": ent.weights[0], "global": ent.weights[1]},
                 "events_mode": ent.events_mode,
                 "local": rnd(ent.local),
                 "global": rnd(ent.global_),
                 "total": rnd(ent.total),
-            },
-            "events": ent.interactions.records(scene),
-            "event_counts": counts,
-            "options": _jsonable(self.options),
-            "timings_s": {k: float(v) for k, v in self.timings_s.items()},
-        }
+            }
         for name in VIEW_FIELDS:
             value = getattr(self, name)
             if value is not None:
@@ -323,7 +329,7 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
                "min_separation_s": float(params.min_separation_s)}
     options.update({name: value for name, value in kwargs.items()
                     if name not in ("method", "k", "min_separation_s", "tolerances", "story")})
-    tol = sel.entropy.interactions.tolerances
+    tol = sel.scores.interactions.tolerances
     if sel.method == "paper":
         options["contact_tolerances"] = {
             "ground_distance_m": tol.ground_distance,
@@ -354,7 +360,7 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     A baseline that cannot run (no OpenGL for the face-id renders) is left out with a
     warning rather than failing the whole selection.
     """
-    scene, frame, timings = snap.scene, snap.pose.frame, snap.timings_s
+    scene, frame, timings = snap.scene, snap.pose.index, snap.timings_s
     t0 = time.perf_counter()
     frames = window_frames(scene, frame if params.window_s is not None else None, params.window_s)
     tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)

@@ -97,43 +97,39 @@ def _fake_scene(positions, *, fps=10.0, offset=0):
                            name="fake", source_frame=lambda i: i + offset)
 
 
-def test_motion_baselines_known_frames():
-    """A foot that jumps between frames 36 and 37 and a hand stretched only at frame 12."""
-    F = 60
-    t = np.arange(F, dtype=float)
-    root = np.zeros((F, 3))
-    hand = np.stack([np.full(F, 0.5), np.ones(F), np.zeros(F)], axis=1)
-    hand[12, 0] = 2.0  # the pose farthest from the mean (root-relative)
-    foot = np.stack([np.zeros(F), np.zeros(F), 0.01 * t], axis=1)
-    foot[37:, 2] += 0.5  # a jump between frames 36 and 37 → largest central difference there
-    pos = np.stack([root, hand, foot], axis=1)
-    b = fr.motion_baselines(_fake_scene(pos, offset=5))
-    assert b["farthest_from_mean"] == 12 + 5  # source numbering
-    # The hand's 1.5 m spike moves 0.75 m/frame by central differences at frames 11 and 13
-    # (more than the jump's (0.5 + 0.02) / 2); argmax takes the first.
-    assert b["fastest"] == 11 + 5
-    # Without the stretched hand the jump is the fastest moment (frames 36/37 tie by
-    # central differences; np.argmax takes the first).
-    pos2 = pos.copy()
-    pos2[12, 1, 0] = 0.5
-    assert fr.motion_baselines(_fake_scene(pos2))["fastest"] == 36
-    # A window excluding frame 12 moves the farthest pose elsewhere; within it stays put.
-    assert fr.motion_baselines(_fake_scene(pos), window=(0, 20))["farthest_from_mean"] == 12
+def test_motion_baselines_are_the_selectors_picks():
+    """motion_baselines uses the fastest and stretch selectors' own scores: on a whole
+    clip it returns their top picks (source numbering), inside a window an argmax
+    within it; a window outside the clip is an error."""
+    import warnings
+
+    from snapcore.motion import synth
+    from snapcore.select.pose_methods import select_pose
+
+    scene = synth.synth_scene("jump", fps=30)
+    scene.frame_offset = 7
+    b = fr.motion_baselines(scene)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in ("fastest", "stretch"):
+            assert b[name] == select_pose(scene, method=name).index + 7, name
+    w = fr.motion_baselines(scene, window=(7, 17))
+    assert all(7 <= f < 17 for f in w.values())
     with pytest.raises(ValueError, match="window"):
-        fr.motion_baselines(_fake_scene(pos), window=(100, 200))
+        fr.motion_baselines(scene, window=(1000, 2000))
 
 
 def test_baselines_enter_hits_and_tests():
     """Motion baselines passed as extra scene info appear as predictors."""
     pose = _pose("a", [10, 11, 12], algorithm=11, fps=10.0, n_frames=60)
     scenes = fr.scene_frames_from_rows(
-        pose, extra={"a": {"baseline_frames": {"fastest": 40, "farthest_from_mean": 12}}})
+        pose, extra={"a": {"baseline_frames": {"fastest": 40, "stretch": 12}}})
     hits = fr.hit_rates(pose, scenes)
-    assert set(hits["predictor"]) == {"algorithm", "middle", "fastest", "farthest_from_mean",
+    assert set(hits["predictor"]) == {"algorithm", "middle", "fastest", "stretch",
                                       "uniform_random"}
     t = fr.closeness_tests(pose, scenes).set_index("baseline")
     assert t.loc["fastest", "p_value"] == pytest.approx(1 / 8)  # n = 3, all d > 0: 1/2^3
-    assert t.loc["farthest_from_mean", "difference_s"] == pytest.approx(
+    assert t.loc["stretch", "difference_s"] == pytest.approx(
         (np.abs([-2, -1, 0]).mean() - np.abs([-1, 0, 1]).mean()) / 10)
 
 

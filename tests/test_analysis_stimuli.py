@@ -50,50 +50,41 @@ def test_stimuli_scene_table():
     assert t["algorithm_frames"] == tuple(e["picks"]["frames"])
 
 
-def test_motion_baselines_from_manifest_demo_scene():
-    """The demo walk is rebuilt; its baselines equal motion_baselines on the same scene."""
-    e, sc = _walk_entry()
+def test_baselines_are_the_manifest_selector_picks():
+    """The fastest and stretch baselines are the top picks the manifest recorded for those
+    selectors (picks.by_method), not recomputed from a reloaded motion: a source naming
+    no loadable motion changes nothing."""
+    e, _ = _walk_entry(source={"files": ["/nowhere/gone.bvh"]})
+    e["picks"]["by_method"] = {"story": [30, 12], "fastest": [44, 3], "stretch": [9]}
     extra = fr.baselines_from_stimuli(_manifest([e]))["walk"]
-    assert extra["baseline_frames"] == fr.motion_baselines(sc)
+    assert extra["baseline_frames"] == {"fastest": 44, "stretch": 9}
+    assert extra["selector_frames"]["story"] == [30, 12]
     assert extra["algorithm_frames"] == tuple(e["picks"]["frames"])
-    # A window (the study trimmed the clip): both baselines stay inside it.
-    w = _walk_entry(n_frames=20, frame_offset=int(sc.frame_offset) + 10)[0]
-    b = fr.baselines_from_stimuli(_manifest([w]))["walk"]["baseline_frames"]
-    assert all(w["frame_offset"] <= f < w["frame_offset"] + 20 for f in b.values())
 
 
-def test_unloadable_motion_warns_and_is_left_out(tmp_path):
-    """A manifest naming a missing BVH: warning, no motion baselines, still the picks."""
-    e, _ = _walk_entry(source={"files": [str(tmp_path / "gone.bvh")]})
-    with pytest.warns(UserWarning, match="motion not loaded"):
+def test_manifest_without_selector_picks_warns_and_leaves_them_out():
+    """An older manifest without picks.by_method: a warning, no baseline frames, the
+    algorithm's picks still read."""
+    e, _ = _walk_entry()
+    with pytest.warns(UserWarning, match="left out"):
         extra = fr.baselines_from_stimuli(_manifest([e]))["walk"]
-    assert "baseline_frames" not in extra
-
-
-def test_real_clip_source_files(motions_dir):
-    """A real BVH named by a source path relative to SNAPSHOT_DATA loads and gets baselines."""
-    from snapcore import load_scene
-
-    path = "walk_run/02_01.bvh"
-    sc = load_scene(motions_dir / path)
-    e = {"id": "walk_cmu", "source": {"files": [path]}, "fps": sc.fps, "n_frames": sc.n_frames,
-         "frame_offset": int(sc.frame_offset), "picks": {"frame": int(sc.frame_offset)}}
-    b = fr.baselines_from_stimuli(_manifest([e]))["walk_cmu"]["baseline_frames"]
-    assert b == fr.motion_baselines(sc)
+    assert "baseline_frames" not in extra and extra["algorithm_frames"]
 
 
 def test_analyze_with_stimuli_adds_motion_baselines(tmp_path):
-    """analyze(..., stimuli=manifest): fastest and farthest-from-mean rows appear, titles used."""
+    """analyze(..., stimuli=manifest): the fastest and stretch rows appear, titles used."""
     from analysis.report import analyze
 
     e, sc = _walk_entry()
+    e["picks"]["by_method"] = {"fastest": [int(sc.frame_offset) + 20],
+                               "stretch": [int(sc.frame_offset) + 40]}
     doc = _manifest([e])
     design = sim.design_from_stimuli(doc)
     assert design[0].salient_frames == (e["picks"]["frames"][1],)
     rows = sim.simulated_rows(sim.simulate_participants(design, 25, seed=4))
     summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20)
     hits = __import__("pandas").read_csv(tmp_path / "tables" / "frame_hits.csv")
-    assert {"fastest", "farthest_from_mean"} <= set(hits["predictor"])
+    assert {"fastest", "stretch"} <= set(hits["predictor"])
     assert summary["participants"] == 25
     assert "Synthetic walk" in (tmp_path / "report.html").read_text()
 

@@ -166,7 +166,7 @@ def test_the_story_pick_does_not_depend_on_the_naming(tmp_path, motion):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             sel = select_pose(Scene([ch], fps=ch.fps), method="story")
-        return sel.frame
+        return sel.index
 
     want = pick(_renamed_clip(tmp_path, "motionbuilder", motion, seconds=None)[0])
     got = {c: pick(_renamed_clip(tmp_path, c, motion, seconds=None)[0]) for c in sorted(CONVENTIONS)}

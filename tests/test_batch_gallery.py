@@ -118,7 +118,7 @@ def test_clicking_a_scene_opens_its_sheet_and_json(page, gallery):
     assert page.get_attribute("#d-img", "src") == row["sheet"]
     assert f"frame {row['frame']}" in page.inner_text("#d-table")
     frame = page.frame_locator("#d-json")
-    assert '"format": "action-snapshot/snapshot@1"' in frame.locator("body").inner_text()
+    assert '"format": "action-snapshot/snapshot@2"' in frame.locator("body").inner_text()
     links = page.eval_on_selector_all("#d-links a", "as => as.map(a => a.href)")
     assert [Path(lk.removeprefix("file://")) for lk in links] == \
         [out / row["json"], out / row["thumb"], out / row["sheet"]]

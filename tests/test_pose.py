@@ -185,7 +185,7 @@ def test_static_clip_gives_a_defined_result_with_a_warning(motions_dir):
     ent = sel.entropy
     for arr in (ent.local, ent.global_, ent.total):
         assert arr.shape == (n,) and np.all(arr == 0)
-    assert sel.frame == 0 and sel.frames[0] == 0
+    assert sel.index == 0 and sel.indices[0] == 0
     # the feet rest on the floor for the whole clip: interactions, but no transitions
     assert ent.interactions.events and all(e.start == 0 and e.end == n - 1
                                            for e in ent.interactions.events)
@@ -210,7 +210,7 @@ def test_one_sharp_reversal_is_where_the_pose_entropy_peaks():
     # no events anywhere: the global term is 0, as expected, without an alarm
     assert not [w for w in caught if "global" in str(w.message)]
     assert not sel.entropy.global_.any()
-    assert sel.frame == turn
+    assert sel.index == turn
     assert np.argmax(sel.entropy.local) == turn
 
 
@@ -269,9 +269,9 @@ def test_weights_steer_the_choice(motions_dir):
     scene = _load(motions_dir / "dance" / "05_06.bvh")
     only_local = _quiet(select_pose, scene, method="paper", w_global=0.0)
     only_global = _quiet(select_pose, scene, method="paper", w_local=0.0)
-    assert only_local.frame == int(np.argmax(only_local.entropy.local))
-    assert only_global.frame == int(np.argmax(only_global.entropy.global_))
-    assert only_local.frame != only_global.frame
+    assert only_local.index == int(np.argmax(only_local.entropy.local))
+    assert only_global.index == int(np.argmax(only_global.entropy.global_))
+    assert only_local.index != only_global.index
 
 
 @pytest.mark.parametrize("fps", [30, 60, 120])
@@ -306,7 +306,7 @@ def test_choice_is_invariant_to_yaw_translation_and_units(motions_dir):
         for kw in ({"yaw_deg": 37.0}, {"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
                    {"scale": 100.0}, {"scale": 1 / 0.0254, "yaw_deg": 90.0}):
             moved = _quiet(select_pose, scene.transformed(**kw), method="paper")
-            assert moved.frames == base.frames, (scene.name, kw)
+            assert moved.indices == base.indices, (scene.name, kw)
             np.testing.assert_allclose(moved.entropy.total, base.entropy.total, atol=1e-6)
 
 
@@ -485,7 +485,7 @@ def test_fast_equals_loop_reference_on_every_shared_clip(motions_dir, all_bvh):
         np.testing.assert_allclose(ent.local, local, atol=1e-9, err_msg=label)
         np.testing.assert_allclose(ent.global_, glob, atol=1e-9, err_msg=label)
         np.testing.assert_allclose(ent.total, total, atol=1e-9, err_msg=label)
-        assert sel.frames == frames, label
+        assert sel.indices == frames, label
         checked += 1
     assert checked == len(all_bvh) + len(SALSA_PAIRS)
 
@@ -501,7 +501,7 @@ def test_synthetic_clips_pass_the_checks_without_shared_data():
         np.testing.assert_allclose(sel.entropy.local, local, atol=1e-9, err_msg=name)
         np.testing.assert_allclose(sel.entropy.global_, glob, atol=1e-9, err_msg=name)
         np.testing.assert_allclose(sel.entropy.total, total, atol=1e-9, err_msg=name)
-        assert sel.frames == frames, name
+        assert sel.indices == frames, name
         ref = reference_interactions(scene)
         for ci in range(scene.n_characters):
             got = sorted((e.joint, e.object, e.start, e.end)
@@ -515,8 +515,8 @@ def test_synthetic_clips_pass_the_checks_without_shared_data():
             np.testing.assert_allclose(moved.entropy.total, sel.entropy.total, atol=1e-6)
             # the same poses; a periodic synthetic clip ties its peaks, so their order may
             # swap, never their values
-            assert sorted(moved.frames) == sorted(sel.frames), (name, kw)
-            np.testing.assert_allclose(total[moved.frames], total[sel.frames], atol=1e-6)
+            assert sorted(moved.indices) == sorted(sel.indices), (name, kw)
+            np.testing.assert_allclose(total[moved.indices], total[sel.indices], atol=1e-6)
 
 
 def test_fast_events_equal_reference_events(motions_dir):
@@ -556,7 +556,7 @@ def test_pose_params_are_the_pose_options():
     b = take_snapshot(scene, k=2, **paper, view=False)
     c = take_snapshot(scene, PoseParams(k=5, w_local=0.5, pose_method="paper"), k=2,
                       smooth_s=0.0, view=False)
-    assert a.frames == b.frames == c.frames and len(a.frames) == 2
+    assert a.indices == b.indices == c.indices and len(a.indices) == 2
     np.testing.assert_array_equal(a.pose.entropy.total, b.pose.entropy.total)
     fields = set(PoseParams(pose_method="paper").kwargs()) - {"tolerances", "method"}
     assert fields | {"pose_method", "contact_tolerances"} == set(a.options)

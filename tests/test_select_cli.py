@@ -83,11 +83,37 @@ def test_select_human_output(motions_dir, tmp_path):
     text = result.stdout
     doc = json.loads(out.read_text())
     assert f"pose        frame {doc['frame']}" in text
-    assert "rank   frame   time_s   total   local  global" in text
+    assert "rank   frame   time_s   total   stance  novelty   events" in text
     for rank, frame in enumerate(doc["frames"], start=1):
         assert any(line.split()[:2] == [str(rank), str(frame)] for line in text.splitlines())
     assert "61_12_scaled: ground" in text and "60_12_scaled" in text
     assert "timings" in text and "2 characters" in text
+
+
+@pytest.mark.parametrize("method", ["story", "paper", "stretch", "fastest", "middle"])
+def test_printed_terms_add_up_to_the_total(motions_dir, method):
+    """`select` prints 'total = term + term ...' for every method, and the printed numbers
+    add up (to the printed rounding); the JSON's pose_scores terms add up per frame; the
+    paper keeps its entropy names and block, other methods have no pose_entropy."""
+    path = str(motions_dir / "walk_run" / "02_01.bvh")
+    r = _run(["select", path, "--no-view", "--pose-method", method])
+    assert r.exit_code == 0, r.output
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("pose "))
+    score = line.split(" s)  ", 1)[1]  # after "(t = 1.94 s)": "<what> T = a A + b B ..."
+    total = float(score.split(" = ")[0].split()[-1])
+    terms = [float(part.split()[-1]) for part in score.split(" = ")[1].split(" + ")]
+    assert abs(sum(terms) - total) <= 0.5e-3 * (len(terms) + 1), line
+    doc = json.loads(_run(["select", path, "--json", "--no-view", "--pose-method",
+                           method]).stdout)
+    sc = doc["pose_scores"]
+    assert sc["method"] == method
+    np.testing.assert_allclose(np.sum([sc["terms"][k] for k in sc["terms"]], axis=0),
+                               sc["total"], atol=1e-5)
+    if method == "paper":
+        assert "entropy" in line and set(sc["terms"]) == {"local", "global"}
+        assert "pose_entropy" in doc
+    else:
+        assert "entropy" not in line and "pose_entropy" not in doc
 
 
 def test_select_errors_are_one_line(tmp_path):
@@ -107,7 +133,7 @@ def test_select_errors_are_one_line(tmp_path):
 def test_plot_entropy_writes_a_figure(tmp_path):
     """plot-entropy writes the library's figure of the scene's snapshot: the same pixels as
     plot_entropy(take_snapshot(scene, k=2), strip=4) at the command's dpi, whose bottom
-    curve is the pose entropy and whose reported frames are the top-2 picks."""
+    curve is the pose score and whose reported frames are the (up to) top-2 picks."""
     from PIL import Image
 
     from snapcore.pipeline import take_snapshot
@@ -122,12 +148,15 @@ def test_plot_entropy_writes_a_figure(tmp_path):
     snap = take_snapshot(load_scene(manifest), k=2, view=False)
     fig = plot_entropy(snap, strip=4)
     total = [ln for ln in fig.axes[1].lines if ln.get_label().startswith("total")]
-    np.testing.assert_array_equal(total[0].get_ydata(), snap.pose.entropy.total)
+    np.testing.assert_array_equal(total[0].get_ydata(), snap.pose.scores.total)
+    assert fig.axes[1].get_ylabel() == "story score (bits)"  # named after its method
     fig.savefig(tmp_path / "direct.png", dpi=120)
     got = np.asarray(Image.open(out).convert("RGB"))
     want = np.asarray(Image.open(tmp_path / "direct.png").convert("RGB"))
     assert got.shape == want.shape and np.array_equal(got, want)
-    assert f"top 2: {snap.frames[0]}, {snap.frames[1]}" in r.stdout
+    # up to k=2 distinct peaks (the story score of the push has one hump: one pick)
+    assert 1 <= len(snap.frames) <= 2
+    assert f"top {len(snap.frames)}: {', '.join(map(str, snap.frames))}" in r.stdout
 
 
 def test_snapshot_to_dict_includes_view_fields_when_set():

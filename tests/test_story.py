@@ -124,17 +124,17 @@ def test_limb_groups_one_contactor_per_leg():
 def test_story_invariant_under_yaw_translation_and_unit(name):
     """The chosen frame does not change when the scene is turned, moved or rescaled."""
     scene = synth.synth_scene(name, fps=60)
-    base = _quiet(select_pose, scene, method="story").frame
+    base = _quiet(select_pose, scene, method="story").index
     for kw in ({"yaw_deg": 73.0}, {"offset": (3.0, 0.4, -2.0)}, {"scale": 100.0 / 2.54}):
-        assert _quiet(select_pose, scene.transformed(**kw), method="story").frame == base, kw
+        assert _quiet(select_pose, scene.transformed(**kw), method="story").index == base, kw
 
 
 def test_story_invariant_on_real_clip(motions_dir):
     """Same on a real clip (CMU 10_01): yaw, translation, metres to centimetres."""
     scene = _quiet(load_scene, motions_dir / "soccer" / "10_01.bvh")
-    base = _quiet(select_pose, scene).frames
+    base = _quiet(select_pose, scene).indices
     for kw in ({"yaw_deg": -120.0}, {"offset": (-5.0, 0.0, 7.0)}, {"scale": 100.0}):
-        assert _quiet(select_pose, scene.transformed(**kw)).frames == base, kw
+        assert _quiet(select_pose, scene.transformed(**kw)).indices == base, kw
 
 
 def test_static_clip_gives_a_defined_frame_and_warns():
@@ -145,8 +145,8 @@ def test_static_clip_gives_a_defined_frame_and_warns():
     still = Scene([c], fps=scene.fps, ground=scene.ground)
     with pytest.warns(UserWarning, match="static clip"):
         sel = select_pose(still, method="story")
-    assert sel.frame == 0 and sel.method == "story"
-    assert np.all(np.isfinite(sel.entropy.total))
+    assert sel.index == 0 and sel.method == "story"
+    assert np.all(np.isfinite(sel.scores.total)) and sel.entropy is None
 
 
 @pytest.mark.parametrize("fps", [30, 120])
@@ -154,22 +154,33 @@ def test_story_finds_synthetic_actions(fps):
     """Documented synth times: the top pick lies in the jump's flight, within the kick's
     backswing-to-impact (knee most bent 0.25 s before impact in the synth keys), and
     within 0.15 s of the punch's full extension."""
-    jump = _quiet(select_pose, synth.synth_scene("jump", fps=fps)).frame / fps
+    jump = _quiet(select_pose, synth.synth_scene("jump", fps=fps)).index / fps
     assert synth.JUMP_TAKEOFF_S <= jump <= synth.JUMP_LANDING_S
-    kick = _quiet(select_pose, synth.synth_scene("kick", fps=fps)).frame / fps
+    kick = _quiet(select_pose, synth.synth_scene("kick", fps=fps)).index / fps
     assert synth.KICK_IMPACT_S - 0.3 <= kick <= synth.KICK_IMPACT_S + 0.1
-    punch = _quiet(select_pose, synth.synth_scene("punch", fps=fps)).frame / fps
+    punch = _quiet(select_pose, synth.synth_scene("punch", fps=fps)).index / fps
     assert abs(punch - synth.PUNCH_IMPACT_S) <= 0.15
 
 
 def test_ablation_switches_change_the_ingredients():
-    """Switching debouncing off yields more contact runs on a real walk; w_event=0 leaves
-    a zero event term."""
+    """Each switch removes its ingredient: w_event=0 leaves a zero event term, w_pose=0
+    zero pose terms, stance/novelty off their own term; the terms add up to the total."""
     scene = synth.synth_scene("jump", fps=60)
+    full = _quiet(story_information, scene)
+    assert set(full.terms) == {"stance", "novelty", "events"}
+    assert all(full.terms[k].max() > 0 for k in full.terms)
+    np.testing.assert_allclose(sum(full.terms.values()), full.total, rtol=1e-12)
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(w_event=0.0))
-    assert np.all(info.event == 0)
+    assert np.all(info.terms["events"] == 0) and info.terms["stance"].max() > 0
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(w_pose=0.0))
-    assert np.all(info.pose == 0) and info.event.max() == 1
+    assert np.all(info.terms["stance"] == 0) and np.all(info.terms["novelty"] == 0)
+    assert info.terms["events"].max() > 0
+    info = _quiet(story_information, scene, DEFAULT_STORY.with_(stance=False))
+    assert np.all(info.stance_bits == 0) and info.novelty_bits.max() > 0
+    info = _quiet(story_information, scene, DEFAULT_STORY.with_(novelty=False))
+    assert np.all(info.novelty_bits == 0) and info.stance_bits.max() > 0
+    info = _quiet(story_information, scene, DEFAULT_STORY.with_(combine="normalised"))
+    assert set(info.terms) == {"pose", "events"} and info.terms["pose"].max() <= 1
 
 
 # --------------------------------------------------------------------------- contact quality
@@ -245,7 +256,7 @@ def test_salient_finds_the_corner_of_a_polyline():
     c.positions = np.repeat(c.positions[:1], n, axis=0)
     c.positions[:, :, 0] += 0.01 * tri[:, None]
     sel = select_pose(Scene([c], fps=30.0), method="salient", k=1)
-    assert sel.frame == 40
+    assert sel.index == 40
 
 
 def test_middle_and_random_baselines():
@@ -264,8 +275,8 @@ def test_every_method_returns_a_selection():
     scene = synth.synth_scene("jump", fps=30)
     for m in POSE_METHODS:
         sel = _quiet(select_pose, scene, method=m, k=3)
-        assert sel.method == m and 0 <= sel.frame < scene.n_frames
-        assert sel.frames[0] == sel.frame and len(sel.frames) <= 3
+        assert sel.method == m and 0 <= sel.index < scene.n_frames
+        assert sel.indices[0] == sel.index and len(sel.indices) <= 3
     with pytest.raises(ValueError, match="method"):
         select_pose(scene, method="best")
     with pytest.raises(ValueError, match="paper"):

@@ -350,8 +350,9 @@ def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, b
     if opts.sheet:
         from snapcore.render.composites import contact_sheet
 
-        entropy = [float(snap.pose.entropy.total[i]) for i in snap.indices]
-        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, entropy=entropy,
+        sc = snap.pose.scores
+        captions = [sc.caption(sc.total[i]) for i in snap.indices]
+        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, captions=captions,
                                           size=opts.sheet_size, title=scene.name))
     return out
 

@@ -68,10 +68,10 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     out.mkdir(parents=True, exist_ok=True)
     name = Path(clip).stem
     sheet_view = views.get("ours")
-    sheet = contact_sheet(scene, picks["frames"], view=sheet_view, entropy=picks["entropy"],
+    sheet = contact_sheet(scene, picks["indices"], view=sheet_view, captions=picks["captions"],
                           size=panel, title=f"CMU {name}: the three most informative poses "
                                             "(story information), selected view")
-    frame = picks["frame"]
+    frame = picks["index"]
     labels = {ViewMethod.OURS.label: "ours (projected motion area)"}
     cmp = compare_views(scene, frame, {labels.get(k, k): v for k, v in views.items()}, size=panel,
                         title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "

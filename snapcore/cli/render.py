@@ -56,8 +56,8 @@ def _frame_option(scene, frame, *, views: bool):
     if frame is not None:
         return internal_frame(scene, frame), None
     picks = pipeline_picks(scene, views=views)
-    _note(f"frame {int(scene.source_frame(picks['frame']))} ({picks['how']})")
-    return picks["frame"], picks
+    _note(f"frame {int(scene.source_frame(picks['index']))} ({picks['how']})")
+    return picks["index"], picks
 
 
 def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = True) -> dict:
@@ -70,8 +70,8 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
     Returns
     -------
     dict
-        ``frame`` (internal), ``frames`` (top-k, internal), ``entropy`` (total pose
-        entropy of each of ``frames``), ``views`` (``{"ours": v, "viewpoint entropy": v,
+        ``index`` (into the scene's arrays), ``indices`` (top-k), ``captions`` (each
+        pick's score in its method's terms, :meth:`PoseScores.caption`), ``views`` (``{"ours": v, "viewpoint entropy": v,
         "motion area": v}`` as computed, unit vectors), ``how`` (one line).
     """
     from snapcore.pipeline import take_snapshot
@@ -79,8 +79,9 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
-    out = {"frame": int(snap.index), "frames": [int(i) for i in snap.indices],
-           "entropy": [float(snap.pose.entropy.total[i]) for i in snap.indices],
+    sc = snap.pose.scores
+    out = {"index": int(snap.index), "indices": [int(i) for i in snap.indices],
+           "captions": [sc.caption(sc.total[i]) for i in snap.indices],
            "views": {}, "how": "selected pose"}
     if not views:
         return out
@@ -332,16 +333,16 @@ def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, fr
             views = (picks or pipeline_picks(scene))["views"]
         img = compare_views(scene, i, views, title=title, **common)
     else:
-        entropy = None
+        captions = None
         if frames:
             frames = [internal_frame(scene, f, "--frames") for f in frames]
         else:
             picks = pipeline_picks(scene, k=top, views=False)
-            frames, entropy = picks["frames"], picks["entropy"]
+            frames, captions = picks["indices"], picks["captions"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
-        img = contact_sheet(scene, frames, view=v, entropy=entropy, title=title,
-                            ranked=entropy is not None, **common)  # --frames: no ranks
+        img = contact_sheet(scene, frames, view=v, captions=captions, title=title,
+                            ranked=captions is not None, **common)  # --frames: no ranks
     save_png(img, output)
     click.echo(output)
 

@@ -88,13 +88,17 @@ def format_snapshot(doc: dict) -> list[str]:
     lines.append(f"method      {doc.get('pose_method', 'paper')}"
                  + ("  (the paper's pose entropy)" if doc.get("pose_method") == "paper" else
                     "  (--pose-method paper: the paper's pose entropy)"))
+    scores = doc["pose_scores"]
+    names = list(scores["terms"])
+    what = "entropy" if doc.get("pose_method") == "paper" else f"score ({scores['unit']})"
+    terms = " + ".join(f"{n} {top[n]:.3f}" for n in names)
     lines.append(f"pose        frame {doc['frame']}  (t = {doc['time_s']:.2f} s)  "
-                 f"entropy {top['total']:.3f} = local {top['local']:.3f} + "
-                 f"global {top['global']:.3f}")
-    lines.append(f"top {len(doc['peaks'])}       rank   frame   time_s   total   local  global")
+                 f"{what} {top['total']:.3f} = {terms}")
+    lines.append(f"top {len(doc['peaks'])}       rank   frame   time_s   total"
+                 + "".join(f"  {n:>7}" for n in names))
     for r, p in enumerate(doc["peaks"], start=1):
-        lines.append(f"            {r:>4}  {p['frame']:>6}  {p['time_s']:>7.2f}  {p['total']:>6.3f}  "
-                     f"{p['local']:>6.3f}  {p['global']:>6.3f}")
+        lines.append(f"            {r:>4}  {p['frame']:>6}  {p['time_s']:>7.2f}  {p['total']:>6.3f}"
+                     + "".join(f"  {p[n]:>7.3f}" for n in names))
     counts = doc.get("event_counts") or {}
     if counts:
         parts = []

@@ -193,7 +193,7 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
 
 def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
                   projection="orthographic", columns=None, title=None, labels=True,
-                  ranked=True, ground=True, shadows=True) -> np.ndarray:
+                  ranked=True, ground=True, shadows=True, captions=None) -> np.ndarray:
     """Poses of a clip side by side, one view, one scale, the floor on one row across
     the panels (the paper's Fig. 5 strip).
 
@@ -205,8 +205,12 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     view : array of shape (3,), optional
         From the scene to the camera; default :func:`snapcore.render.camera.default_view`.
     entropy : sequence of float, optional
-        A value per frame (same order as ``frames``) shown in the caption, e.g. the
-        pose entropy of each pose.
+        The paper's pose entropy of each frame (same order as ``frames``), shown in the
+        caption as ``entropy <value>``.
+    captions : sequence of str, optional
+        Instead of ``entropy``: a caption per frame naming its score in the pose
+        method's own terms (:meth:`snapcore.select.pose.PoseScores.caption`, e.g.
+        ``story 14.9 bits``).
     size : (int, int)
         Size of each panel, pixels.
     projection : {"orthographic", "perspective"}
@@ -233,6 +237,10 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
         raise RenderError(f"frames {bad} are outside the internal frames 0..{scene.n_frames - 1}")
     if entropy is not None and len(entropy) != len(frames):
         raise RenderError(f"entropy has {len(entropy)} values for {len(frames)} frames")
+    if captions is not None and len(captions) != len(frames):
+        raise RenderError(f"captions has {len(captions)} values for {len(frames)} frames")
+    if captions is None and entropy is not None:
+        captions = [f"entropy {float(e):.3g}" for e in entropy]
     if view is None:
         view = default_view(scene)
     view_basis(view)  # validates
@@ -245,16 +253,16 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
         ft[1] = scene.ground
     cams = floor_aligned(cams, pts, feet)
     panels = [sr.render(f, c) for f, c in zip(frames, cams)]
-    captions = None
+    lines = None
     if labels:
-        captions = []
+        lines = []
         for k, f in enumerate(frames):
             first = (f"#{k + 1}   " if ranked else "") + f"frame {int(scene.source_frame(f))}"
             second = f"{f / scene.fps:.2f} s"
-            if entropy is not None:
-                second += f"   entropy {float(entropy[k]):.3g}"
-            captions.append([first, second])
-    return tile_panels(panels, captions, columns=columns, title=title)
+            if captions is not None:
+                second += f"   {captions[k]}"
+            lines.append([first, second])
+    return tile_panels(panels, lines, columns=columns, title=title)
 
 
 def compare_views(scene, frame: int, views: dict, *, size=(480, 540),

@@ -37,7 +37,7 @@ def _pyplot():
 
 
 def plot_curves(snapshot, *, axes=None):
-    """Local and global terms (top axis) and the total (bottom axis) over time.
+    """The method's terms (top axis) and its total (bottom axis) over time.
 
     Parameters
     ----------
@@ -53,24 +53,25 @@ def plot_curves(snapshot, *, axes=None):
     if axes is None:
         fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
     ax_terms, ax_total = axes
-    ent = snapshot.pose.entropy
-    t = np.arange(ent.n_frames) / ent.fps
-    # the story selector fills the same fields with its pose and (debounced) event terms
-    story = getattr(snapshot.pose, "method", "paper") == "story"
-    names = (("pose $I^*_{pose}$", "events $I^*_{event}$ (debounced)", "story information")
-             if story else ("local $H^*_{local}$", "global $H^*_{global}$", "pose entropy $H$"))
-    ax_terms.plot(t, ent.local, color=_TERM_COLOURS["local"], lw=1.0, label=names[0])
-    ax_terms.plot(t, ent.global_, color=_TERM_COLOURS["global"], lw=1.0, alpha=0.9,
-                  label=names[1])
-    ax_terms.set_ylabel("normalised\nentropy")
-    ax_terms.set_ylim(-0.03, 1.08)
+    sc = snapshot.pose.scores
+    t = np.arange(sc.n_frames) / sc.fps
+    paper = sc.method == "paper"
+    # the paper's terms keep their entropy names; other methods' terms are named after
+    # what they hold (PoseScores.terms), in the method's own unit
+    colours = [_TERM_COLOURS["local"], _TERM_COLOURS["global"], "#27ae60", "#8e44ad"]
+    for k, (name, values) in enumerate(sc.terms.items()):
+        label = {"local": "local $w H^*_{local}$",
+                 "global": "global $w H^*_{global}$"}.get(name, name) if paper else name
+        ax_terms.plot(t, values, color=colours[k % len(colours)], lw=1.0, alpha=0.9,
+                      label=label)
+    ax_terms.set_ylabel("normalised\nentropy" if paper else f"terms\n({sc.unit})")
     ax_terms.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
-    w_l, w_g = ent.weights
-    ax_total.plot(t, ent.total, color=_TERM_COLOURS["total"], lw=1.1,
-                  label=f"total $H$\n($w_{{local}}$ = {w_l:g}, $w_{{global}}$ = {w_g:g})")
+    ax_total.plot(t, sc.total, color=_TERM_COLOURS["total"], lw=1.1,
+                  label="total = " + " + ".join(sc.terms))
+    ent = sc
     top = max(float(ent.total.max()), 1e-9)
     ax_total.set_ylim(-0.03 * top, 1.45 * top)  # room above the curve for the peak labels
-    ax_total.set_ylabel(names[2])
+    ax_total.set_ylabel(sc.label)
     for rank, i in enumerate(snapshot.indices, start=1):
         for ax in (ax_terms, ax_total):
             ax.axvline(t[i], color="#c0392b", lw=0.8, ls="--", alpha=0.8, zorder=0)
@@ -103,7 +104,7 @@ def plot_events(snapshot, *, ax=None):
     if ax is None:
         _, ax = plt.subplots(figsize=(10, 1.8))
     scene = snapshot.scene
-    inter = snapshot.pose.entropy.interactions
+    inter = snapshot.pose.scores.interactions
     fps = float(scene.fps)
     n_f = scene.n_frames
     rows: dict[tuple[int, str], list] = {}
@@ -200,7 +201,7 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
     if ax is None:
         _, ax = plt.subplots(figsize=(12, 2.6))
     scene = snapshot.scene
-    ent = snapshot.pose.entropy
+    ent = snapshot.pose.scores
     frames = _strip_frames(snapshot, strip)
     norm = colors.Normalize(vmin=0.0, vmax=max(float(ent.total.max()), 1e-9))
     cmap = plt.get_cmap(STRIP_CMAP)
@@ -258,13 +259,16 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
     ax.text(drawn[0][2] - 0.5 * margin, -0.2 * height, "time ", ha="right", va="top",
             fontsize=6, color="0.45")
     ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
-    ax.set_aspect("equal")
     ax.set_xlim(drawn[0][2] - 0.5 * margin, cursor + 0.5 * margin)
     ax.set_ylim(-0.3 * height, 1.25 * height)
+    # equal scale, with whichever range is short widened to fill the axes (limits that
+    # may move, not fixed ones): the strip spans the figure's width
+    ax.set_autoscale_on(True)
+    ax.set_aspect("equal", adjustable="datalim")
     ax.axis("off")
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     cb = ax.figure.colorbar(sm, ax=ax, fraction=0.02, pad=0.01, shrink=0.8)
-    cb.set_label("pose entropy", fontsize=8)
+    cb.set_label(ent.label, fontsize=8)
     cb.ax.tick_params(labelsize=7)
     if scene.n_characters > 1:
         from matplotlib.lines import Line2D
@@ -294,7 +298,7 @@ def plot_entropy(snapshot, *, strip: int = 8, title: str | None = None):
     plt = _pyplot()
     scene = snapshot.scene
     n_rows = max(1, len({(e.character, e.object)
-                         for e in snapshot.pose.entropy.interactions.events}))
+                         for e in snapshot.pose.scores.interactions.events}))
     ev_h = 0.45 + 0.22 * n_rows
     fig = plt.figure(figsize=(12, 6.4 + ev_h), layout="constrained")
     grid = fig.add_gridspec(4, 1, height_ratios=[1.5, 1.5, ev_h, 2.4])

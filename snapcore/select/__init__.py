@@ -2,7 +2,12 @@
 
 - :mod:`~snapcore.select.capsules` and :mod:`~snapcore.select.contacts` find interaction
   events (ground, other bodies, props);
-- :mod:`~snapcore.select.pose` scores frames (pose entropy, paper §3.1);
+- :mod:`~snapcore.select.pose_methods` runs a named pose selector: the default
+  :mod:`~snapcore.select.story` (departure from the neutral stance of
+  :mod:`~snapcore.select.stance`, novelty and debounced events, in bits), the paper's
+  pose entropy (:mod:`~snapcore.select.pose`, §3.1) or a baseline
+  (:mod:`~snapcore.select.pose_baselines`); every one reports a
+  :class:`~snapcore.select.pose.PoseScores`;
 - :mod:`~snapcore.select.view` scores views (Projected Motion Area, paper §3.2, and the
   motion-area baseline) over the sample sphere of :mod:`~snapcore.select.sphere`;
 - :mod:`~snapcore.select.methods` names the view methods the study compares.

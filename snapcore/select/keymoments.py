@@ -366,7 +366,7 @@ def run_keymoments(entries: list[KeyMoments], *, data, methods, k: int = 3,
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 sel = select_pose(scene, method=m, k=k)
-            picks[m] = [int(scene.source_frame(f)) for f in sel.frames]
+            picks[m] = [int(scene.source_frame(i)) for i in sel.indices]
         first = int(scene.frame_offset)
         last = int(scene.frame_offset + scene.n_frames - 1)
         fps = float(scene.fps)

@@ -49,6 +49,7 @@ __all__ = [
     "EVENT_MODES",
     "ZERO_INFORMATION",
     "PoseEntropy",
+    "PoseScores",
     "PoseSelection",
     "savgol_matrix",
     "smooth_positions",
@@ -136,29 +137,87 @@ class PoseEntropy:
 
 
 @dataclass
-class PoseSelection:
-    """The selected pose(s) of a scene.
+class PoseScores:
+    """The per-frame score of any pose selector, as named terms that add up to it.
 
     Attributes
     ----------
-    frame : int
-        Internal index of the selected frame (``argmax`` of the total entropy).
-    frames : list of int
-        Top-k distinct peaks, best first (``frames[0] == frame``); internal indices.
-    entropy : PoseEntropy
+    method : str
+        The selector (:data:`snapcore.select.pose_methods.POSE_METHODS`).
+    total : ndarray of shape (F,)
+        The score whose top peaks are the poses.
+    terms : dict of str to ndarray of shape (F,)
+        Named terms, weighted, with ``sum(terms.values()) == total`` (to rounding):
+        ``paper``: ``local``, ``global`` (normalised entropy times its weight);
+        ``story``: ``stance``, ``novelty``, ``events`` (bits); ``stretch``: ``stretch``
+        (statures); ``fastest``: ``speed`` (statures per second); ``middle``,
+        ``random``, ``salient``: ``rank`` (1 for the first pick down to 0.5 for the
+        last, 0 elsewhere).
+    unit : str
+        What the numbers are: ``"normalised entropy"``, ``"bits"``, ``"statures"``,
+        ``"statures/s"``, ``"rank"``.
+    interactions : Interactions
+        The events behind an event term (the paper's contacts, the story's debounced
+        limb contacts; none for the baselines).
+    fps : float
+    """
+
+    method: str
+    total: np.ndarray
+    terms: dict
+    unit: str
+    interactions: Interactions
+    fps: float
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.total.shape[0])
+
+    def caption(self, value: float) -> str:
+        """A value of the total as a short caption: ``"entropy 1.1"`` for the paper,
+        ``"story 14.9 bits"``, ``"stretch 0.236 statures"``..."""
+        if self.method == "paper":
+            return f"entropy {float(value):.3g}"
+        return f"{self.method} {float(value):.3g} {self.unit}"
+
+    @property
+    def label(self) -> str:
+        """How plots name the total: ``"pose entropy"`` for the paper, else
+        ``"<method> score (<unit>)"``."""
+        return "pose entropy" if self.method == "paper" else f"{self.method} score ({self.unit})"
+
+
+@dataclass
+class PoseSelection:
+    """The selected pose(s) of a scene.
+
+    Frames here are *indices* into the scene's (cut) arrays; the file's own frame
+    numbers are ``scene.source_frame(index)`` (``Snapshot.source_frame``).
+
+    Attributes
+    ----------
+    index : int
+        Index of the selected frame in the scene's arrays (the top peak of the score).
+    indices : list of int
+        Top-k distinct peaks, best first (``indices[0] == index``).
+    scores : PoseScores
+        The method's per-frame score and its terms.
     min_separation_s : float
     timings_s : dict
         Seconds: ``contacts``, ``local``, ``global``, ``select``, ``total``.
     method : str
         The selector that ran (:data:`snapcore.select.pose_methods.POSE_METHODS`).
+    entropy : PoseEntropy or None
+        The paper's pose entropy (``paper`` only).
     """
 
-    frame: int
-    frames: list[int]
-    entropy: PoseEntropy
+    index: int
+    indices: list[int]
+    scores: PoseScores
     min_separation_s: float
     timings_s: dict = field(default_factory=dict)
     method: str = "paper"
+    entropy: PoseEntropy | None = None
 
 
 # ----------------------------------------------------------------------- local term
@@ -663,6 +722,11 @@ def select_pose_paper(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARA
     timings = dict(entropy.timings_s)
     timings["select"] = t2 - t1
     timings["total"] = t2 - t0
-    return PoseSelection(frame=int(frames[0]), frames=[int(f) for f in frames],
-                         entropy=entropy, min_separation_s=float(min_separation_s),
-                         timings_s=timings)
+    scores = PoseScores(method="paper", total=total,
+                        terms={"local": entropy.weights[0] * entropy.local,
+                               "global": entropy.weights[1] * entropy.global_},
+                        unit="normalised entropy", interactions=entropy.interactions,
+                        fps=entropy.fps)
+    return PoseSelection(index=int(frames[0]), indices=[int(f) for f in frames],
+                         scores=scores, min_separation_s=float(min_separation_s),
+                         timings_s=timings, entropy=entropy)

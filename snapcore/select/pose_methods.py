@@ -8,12 +8,11 @@ Methods, each returning the same :class:`~snapcore.select.pose.PoseSelection`:
 - baselines from :mod:`snapcore.select.pose_baselines`: ``stretch``, ``fastest``, ``middle``,
   ``random`` (seeded), ``salient``.
 
-For methods other than ``paper`` the selection's ``entropy`` field holds the method's
-per-frame score in the :class:`~snapcore.select.pose.PoseEntropy` layout so every consumer
-(the JSON document, the plots) works unchanged: ``total`` is the score, ``local`` and
-``global_`` its two terms for ``story`` (pose and event information) and the
-normalised score and zeros for the baselines; ``interactions`` holds the debounced
-limb contacts for ``story`` and none for the baselines.
+Every method reports its per-frame score as a :class:`~snapcore.select.pose.PoseScores`:
+named terms that add up to the total, in the method's own unit (the paper's normalised
+entropy ``local`` + ``global``; the story's bits ``stance`` + ``novelty`` + ``events``;
+the baselines' statures, statures per second or rank). Only ``paper`` also fills
+``PoseSelection.entropy``.
 """
 
 from __future__ import annotations
@@ -29,9 +28,8 @@ from snapcore.select.pose import (
     MIN_SEPARATION_S,
     REST_SPEED,
     SMOOTH_S,
-    PoseEntropy,
+    PoseScores,
     PoseSelection,
-    minmax,
     select_pose_paper,
     top_peaks,
 )
@@ -162,16 +160,12 @@ def _empty_interactions(scene):
                         DEFAULT_TOLERANCES)
 
 
-def _selection(scene, method, frames, *, total, local, glob, interactions, k, sep_s,
-               timings, weights=(1.0, 0.0)):
-    ent = PoseEntropy(local=local, global_=glob, total=total,
-                      local_by_character=local[None, :].copy(),
-                      global_by_character=glob[None, :].copy(),
-                      information=np.zeros((scene.n_characters, scene.n_frames)),
-                      interactions=interactions, weights=weights, events_mode="transitions",
-                      fps=float(scene.fps), timings_s=dict(timings))
-    return PoseSelection(frame=int(frames[0]), frames=[int(f) for f in frames[:k]],
-                         entropy=ent, min_separation_s=float(sep_s), timings_s=timings,
+def _selection(scene, method, frames, *, terms, unit, interactions, k, sep_s, timings):
+    total = np.sum(list(terms.values()), axis=0)
+    scores = PoseScores(method=method, total=total, terms=terms, unit=unit,
+                        interactions=interactions, fps=float(scene.fps))
+    return PoseSelection(index=int(frames[0]), indices=[int(f) for f in frames[:k]],
+                         scores=scores, min_separation_s=float(sep_s), timings_s=timings,
                          method=method)
 
 
@@ -260,19 +254,18 @@ def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float =
         t1 = time.perf_counter()
         timings = {"story": info.timings_s["story"], "select": t1 - t0 - info.timings_s["story"],
                    "total": t1 - t0}
-        return _selection(scene, method, frames, total=total, local=info.pose, glob=info.event,
+        return _selection(scene, method, frames, terms=info.terms,
+                          unit="bits" if params.combine == "bits" else "normalised",
                           interactions=story_interactions(scene, info), k=k,
-                          sep_s=min_separation_s, timings=timings,
-                          weights=(params.w_pose, params.w_event))
+                          sep_s=min_separation_s, timings=timings)
     if method in ("stretch", "fastest"):
         raw = stretch_score(scene) if method == "stretch" else speed_score(scene)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            score = minmax(raw)
         if not float(raw.max()) > float(raw.min()):
             warnings.warn(f"the {method} score is the same at every frame (static clip?); "
                           "choosing the first frame", stacklevel=3)
-        frames = top_peaks(score, int(k), min_separation=sep)
+        frames = top_peaks(raw, int(k), min_separation=sep)
+        terms = {"stretch": raw} if method == "stretch" else {"speed": raw}
+        unit = "statures" if method == "stretch" else "statures/s"
     else:
         if method == "middle":
             frames = middle_frames(n_f, int(k))
@@ -282,8 +275,9 @@ def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float =
             frames = salient_frames(scene, int(k))
         score = zeros.copy()
         score[frames] = np.linspace(1.0, 0.5, len(frames)) if len(frames) > 1 else 1.0
+        terms, unit = {"rank": score}, "rank"
     t1 = time.perf_counter()
     timings = {"select": t1 - t0, "total": t1 - t0}
-    return _selection(scene, method, frames, total=score, local=score, glob=zeros,
+    return _selection(scene, method, frames, terms=terms, unit=unit,
                       interactions=_empty_interactions(scene), k=k, sep_s=min_separation_s,
                       timings=timings)

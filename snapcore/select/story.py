@@ -4,38 +4,59 @@ The paper's pose entropy (:mod:`snapcore.select.pose`, method ``paper``) often l
 footfall beside the action: contact events flicker (dozens of onsets and releases per
 clip, every ankle, toe and toe-end joint its own event), each event frame gets the
 normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
-hold ~37 % of the time (feet) instead of rare ones. This module keeps the paper's
-structure -- the information of a frame is a local (pose) term plus a global (event)
-term, each min-max normalised and summed with weights (eq. 8-9), the pose is the argmax
--- and measures both terms as *surprisal* (self-information, eq. 1: ``I = -log2 P``):
+hold ~37 % of the time (feet) instead of rare ones. A pose term that only measures
+rarity *within the clip* fails the other way: where a gesture fills most of a short
+clip, the performer standing at rest before and after it is the rare pose, and wins.
 
-1. **Pose information** (the local term; "extreme poses" of §3.1.1): the surprisal of
-   the frame's pose under a Gaussian model of all the clip's poses,
-   ``I_pose(i) = 1/2 (x_i - mu)^T S^-1 (x_i - mu) / ln 2`` bits (the log-normaliser is
-   the same for every frame and dropped). ``x_i`` describes the pose by quantities that
-   do not change under yaw, translation or a change of unit: the heights above the
-   ground of six key joints (head, pelvis, hands, feet) and their pairwise distances,
-   divided by the character's stature. ``S`` is the sample covariance shrunk towards
-   a multiple of the identity and widened by the capture noise (well posed for short
-   clips).
-2. **Event information** (the global term, §3.1.2): contacts with the ground are
-   *debounced* per limb -- one leg (foot and toes, a kneeling knee), one arm or the
-   trunk is one contact, whatever of its joints touch -- with hysteresis on height and
-   speed and minimum durations for a contact and for a gap. Each onset and each
-   release is an event; an event of a kind (limb, onset or release) that happens
-   ``n`` times in ``F`` frames carries ``-log2(n / F)`` bits (rare events, a two-foot
-   take-off, carry most). Its information is given *temporal support* on the side where
-   the limb is free: a release credits the frames after it (the swing, the flight it
-   opens), an onset the frames before it (the approach it closes), with a half-Gaussian
-   of width ``event_support_s``.
-3. **Combination**: both terms min-max normalised (eq. 9), weighted, summed, then
-   averaged over a Gaussian window of ``support_s`` with nothing outside the clip (a
-   frame whose surroundings the clip does not show has less support). The pose is the
-   argmax; the top-k are distinct peaks (:func:`snapcore.select.pose.top_peaks`).
+This module keeps the paper's structure -- the information of a frame is a pose term
+plus an event term, the pose is the argmax -- and measures every ingredient as
+*self-information* in bits (eq. 1: ``I = -log2 P``), so that the terms add:
 
-Every ingredient can be switched off or replaced for ablation through
-:class:`StoryParameters`. Everything is vectorised over frames and joints; the Python
-loops run over characters and limbs (at most five per character).
+1. **Departure from the neutral stance** (``stance``; "extreme poses" of §3.1.1): the
+   surprisal of the frame's pose for a person standing at rest, under an isotropic
+   Gaussian of spread ``stance_spread`` (statures) around the character's neutral
+   stance, ``I = 1/2 |x_i - n|^2 / spread^2 / ln 2``. The neutral stance
+   (:func:`neutral_stance`) is built from the skeleton's own bone lengths and rigid body
+   measurements -- standing straight, arms hanging -- never from the clip's first
+   frames (a clip may start mid-action). This is what finds the action whatever share
+   of the clip it fills: a raised hand, a bow, a kick depart from it; the rest pose
+   does not.
+2. **Novelty in the clip** (``novelty``): how unusual the pose is among the clip's own
+   poses -- the Mahalanobis distance under a Gaussian of all the clip's poses
+   (covariance shrunk towards a multiple of the identity and widened by the capture
+   noise), turned into the empirical tail surprisal ``-log2 (share of frames at least
+   as far out)``, so that it is at most ``log2 F`` bits, like one event: it separates
+   poses that depart equally (the punch from the held guard), and cannot outweigh a
+   large departure by rarity alone.
+   Its weight ``w_novelty`` (0.25) keeps rarity alone from outweighing a departure:
+   where a shallow bow fills most of a clip the rest pose is the rare one.
+   Both use a descriptor invariant to yaw, translation and unit (:func:`pose_descriptor`):
+   the heights above the ground of six key joints (head, pelvis, wrists, ankles), their
+   pairwise distances and pairwise horizontal distances (a bow's lean, a reach),
+   divided by the character's stature.
+3. **Event information** (``w_event``; §3.1.2): contacts with the ground are *debounced*
+   per limb (``debounce``, ``per_limb``) -- one leg (foot and toes, a kneeling knee),
+   one arm or the trunk is one contact, whatever of its joints touch -- with
+   hysteresis on height and speed and minimum durations for a contact and for a gap.
+   Each onset and each release is an event; an event of a kind (limb, onset or
+   release) that happens ``n`` times in ``F`` frames carries ``-log2(n / F)`` bits
+   (rare events, a two-foot take-off, carry most). Its information is given temporal
+   support on the side where the limb is free (``event_support_s``,
+   ``sided_support``): a release credits the frames after it (the swing, the flight),
+   an onset the frames before it (the approach).
+4. **Combination** (``combine``): the pose bits (1 + 2) weighted by ``w_pose`` plus the
+   event bits weighted by ``w_event``, then averaged over a Gaussian window of
+   ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
+   surroundings the clip does not show has less support). Averaging is linear, so the
+   supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
+   ``combine="normalised"`` min-max normalises the pose and event terms first, as the
+   paper's eq. 9 does (for ablation). The pose is the argmax; the top-k are distinct
+   peaks (:func:`snapcore.select.pose.top_peaks`).
+
+Nothing depends on a frame's position in the clip (no preference for the middle), and
+every ingredient can be switched off or replaced for ablation through
+:class:`StoryParameters` (the README's ablation table). Everything is vectorised over
+frames and joints; the Python loops run over characters and limbs.
 
 References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
 the motion); Roberts, Mantiuk et al. 2019 (*Salient Poses*); Shannon's self-information.
@@ -47,12 +68,22 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field, fields, replace
-from functools import lru_cache
 
 import numpy as np
 
-from snapcore.motion.anatomy import REFERENCE_STATURE_M, joint_roles, joint_sides
+from snapcore.motion.anatomy import (
+    REFERENCE_STATURE_M,
+)
 from snapcore.select.pose import minmax, smooth_positions
+from snapcore.select.stance import (
+    _roles_sides_of,
+    _stature,
+    descriptor_of,
+    key_joints,
+    neutral_stance,
+    pose_descriptor,
+    stance_departure,
+)
 
 __all__ = [
     "StoryParameters",
@@ -66,6 +97,11 @@ __all__ = [
     "key_joints",
     "pose_descriptor",
     "pose_surprisal",
+    "tail_surprisal",
+    "neutral_stance",
+    "descriptor_of",
+    "stance_departure",
+    "COMBINE_MODES",
     "event_surprisal",
     "contact_state_entropy",
     "temporal_support",
@@ -81,9 +117,8 @@ _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
 #: contacts several times cheaper on skeletons with 30 finger joints).
 _CONTACT_ROLES = frozenset({"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine",
                             "chest", "head"})
-#: Key joints of the pose descriptor: (role, side), the first joint of each found.
-_KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
-              ("foot", "R"))
+#: How the pose and event terms are combined (:class:`StoryParameters`).
+COMBINE_MODES = ("bits", "normalised")
 #: Event-information models.
 EVENT_MODELS = ("surprisal", "entropy")
 #: A term whose range over the clip is below this many bits is constant: rounding in
@@ -101,7 +136,9 @@ class StoryParameters:
     Attributes
     ----------
     w_pose, w_event : float
-        Weights of the normalised pose and event terms (eq. 9); 0 switches a term off.
+        Weights of the pose (stance + novelty) and event terms (eq. 9's weights, on
+        bits, or on the normalised terms with ``combine="normalised"``); 0 switches a
+        term off.
     smooth_s : float
         Savitzky-Golay window (s) for the joint trajectories (capture jitter).
     support_height, release_height : float
@@ -138,6 +175,21 @@ class StoryParameters:
         Capture noise (m), added as ``noise^2 I`` (in stature units) to the covariance.
     support_s : float
         Width (s) of the Gaussian that averages the total over time; 0: none.
+    stance : bool
+        Count the departure from the neutral stance (:func:`stance_departure`).
+    stance_spread : float
+        Spread (statures) of a person at rest around the neutral stance; the smaller,
+        the more a departure weighs against novelty and events.
+    novelty : bool
+        Count the pose's novelty in the clip (:func:`tail_surprisal` of
+        :func:`pose_surprisal`).
+    w_novelty : float
+        Weight of the novelty relative to the stance departure (both in bits).
+    horizontal : bool
+        The pose descriptor includes the key joints' horizontal distances (a lean, a
+        reach); False: heights and 3-D distances only.
+    combine : {"bits", "normalised"}
+        Add the terms in bits, or min-max normalise each first (eq. 9).
     """
 
     w_pose: float = 1.0
@@ -157,6 +209,12 @@ class StoryParameters:
     shrinkage: float = 0.5
     noise: float = 0.02
     support_s: float = 0.1
+    stance: bool = True
+    stance_spread: float = 0.15
+    novelty: bool = True
+    w_novelty: float = 0.25
+    horizontal: bool = True
+    combine: str = "bits"
 
     def __post_init__(self):
         for f in fields(self):
@@ -166,6 +224,11 @@ class StoryParameters:
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, "
                                  f"got {v}")
+        if self.combine not in COMBINE_MODES:
+            raise ValueError(f"StoryParameters.combine must be one of "
+                             f"{', '.join(COMBINE_MODES)}, got {self.combine!r}")
+        if not self.stance_spread > 0:
+            raise ValueError(f"StoryParameters.stance_spread must be > 0, got {self.stance_spread}")
         if self.event_model not in EVENT_MODELS:
             raise ValueError(f"StoryParameters.event_model must be one of "
                              f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}")
@@ -217,22 +280,24 @@ class StoryInformation:
 
     Attributes
     ----------
-    pose_bits, event_bits : ndarray of shape (F,)
-        The two terms before normalisation (bits), summed over characters.
-    pose, event : ndarray of shape (F,)
-        The terms min-max normalised to [0, 1].
+    stance_bits, novelty_bits, event_bits : ndarray of shape (F,)
+        The ingredients (bits, summed over characters), before weights and support.
+    terms : dict of str to ndarray of shape (F,)
+        The weighted, supported terms, which add up to ``total`` exactly:
+        ``stance``, ``novelty``, ``events`` (bits) with ``combine="bits"``; ``pose`` and
+        ``events`` (normalised) with ``combine="normalised"``.
     total : ndarray of shape (F,)
-        ``w_pose * pose + w_event * event``, after temporal support.
+        The score whose argmax is the pose.
     contacts : list of LimbContacts
         Per character.
     params : StoryParameters
     timings_s : dict
     """
 
-    pose_bits: np.ndarray
+    stance_bits: np.ndarray
+    novelty_bits: np.ndarray
     event_bits: np.ndarray
-    pose: np.ndarray
-    event: np.ndarray
+    terms: dict
     total: np.ndarray
     contacts: list[LimbContacts]
     params: StoryParameters
@@ -408,60 +473,6 @@ def debounced_contacts(character, *, ground: float, fps: float,
 # ----------------------------------------------------------------------- pose term
 
 
-def key_joints(character) -> np.ndarray:
-    """Head, pelvis, left/right hand and foot joints (those found), shape (K,).
-
-    Falls back to the root and every end joint (a joint without children) when fewer
-    than four are found by role.
-    """
-    roles, sides = _roles_sides(character)
-    out = []
-    for role, side in _KEY_ROLES:
-        for j, (r, s) in enumerate(zip(roles, sides)):
-            if r == role and s == side:
-                out.append(j)
-                break
-    if len(out) < 4:
-        parents = np.asarray(character.parents)
-        leaves = np.setdiff1d(np.arange(parents.size), parents[parents >= 0])
-        out = sorted({int(np.flatnonzero(parents < 0)[0]), *leaves.tolist()})
-    return np.asarray(out, dtype=np.int64)
-
-
-def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05
-                    ) -> np.ndarray:
-    """Pose of every frame as quantities invariant to yaw, translation and unit.
-
-    Parameters
-    ----------
-    character : Character
-    ground : float
-        Ground height (m).
-    fps : float
-    smooth_s : float
-        Savitzky-Golay window (s) of the trajectories.
-
-    Returns
-    -------
-    ndarray of shape (F, K + K (K - 1) / 2)
-        Heights of the K :func:`key_joints` above the ground, then their pairwise
-        distances, all divided by the character's stature (dimensionless).
-    """
-    kj = key_joints(character)
-    stature = _stature(character)
-    x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
-    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, K): reductions over 3 unrolled
-    a, b = np.triu_indices(kj.size, 1)
-    d = xc[:, :, a] - xc[:, :, b]  # (3, F, P)
-    d *= d
-    dist = np.sqrt(d[0] + d[1] + d[2])
-    out = np.empty((x.shape[0], kj.size + a.size))
-    out[:, :kj.size] = xc[1] - ground
-    out[:, kj.size:] = dist
-    out /= stature
-    return out
-
-
 def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
                    ) -> np.ndarray:
     """Self-information (bits) of each frame's pose under a Gaussian of the clip's poses.
@@ -489,10 +500,30 @@ def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float
     z = x - x.mean(axis=0)
     cov = (z.T @ z) / max(n_f - 1, 1)
     cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise ** 2) * np.eye(d)
-    # Cholesky: C = L L^T, m^2 = |L^-1 z|^2 (stable, no explicit inverse)
-    chol = np.linalg.cholesky(cov)
-    w = np.linalg.solve(chol, z.T)
-    return 0.5 * np.square(w).sum(axis=0) / math.log(2.0)
+    # Cholesky: C = L L^T, m^2 = |L^-1 z|^2; L^-1 of the small, well-conditioned (shrunk,
+    # noise-widened) D x D factor once, then one matrix product over the frames (a
+    # solve with F right-hand sides is 4x slower)
+    w = z @ np.linalg.inv(np.linalg.cholesky(cov)).T
+    w *= w
+    return 0.5 * w.sum(axis=1) / math.log(2.0)
+
+
+def tail_surprisal(values: np.ndarray) -> np.ndarray:
+    """``-log2`` of the fraction of frames whose value is at least this frame's, (F,).
+
+    The empirical surprisal of "a pose at least this unusual" in the clip: bounded by
+    ``log2 F`` (the most unusual frame), 0 for the least unusual, and the same for any
+    monotone transform of ``values``. Ties share the larger fraction; values that
+    span at most :data:`ZERO_BITS` are all ties (rounding noise on a static clip),
+    giving 0 everywhere.
+    """
+    v = np.asarray(values, dtype=float)
+    n = v.size
+    if n == 0 or float(v.max() - v.min()) <= ZERO_BITS:
+        return np.zeros(n)
+    srt = np.sort(v)
+    at_least = n - np.searchsorted(srt, v, side="left")  # frames with value >= v_i
+    return -np.log2(at_least / n)
 
 
 # ----------------------------------------------------------------------- event term
@@ -599,16 +630,6 @@ def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
                            tuple(np.asarray(character.parents).tolist()))
 
 
-@lru_cache(maxsize=64)
-def _roles_sides_of(names: tuple, parents: tuple):
-    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
-
-
-def _stature(character) -> float:
-    h = float(character.height)
-    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
-
-
 def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryInformation:
     """Per-frame story information of ``scene`` (see the module docstring).
 
@@ -624,21 +645,37 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
     Warns
     -----
     UserWarning
-        When a term is constant over the clip (a static clip, no contact events): it
-        contributes 0 (:func:`snapcore.select.pose.minmax`).
+        When the pose term is constant over the clip (a static clip): the pick is then
+        arbitrary (:func:`snapcore.select.pose_methods.select_pose` warns too); and when
+        a character's skeleton does not name the joints of a neutral stance (its
+        departure is left out).
     """
     p = params
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
-    pose_bits = np.zeros(n_f)
+    stance_bits = np.zeros(n_f)
+    novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
-        if p.w_pose > 0:
-            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s)
-            pose_bits += pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
+        if p.w_pose > 0 and (p.novelty or p.stance):
+            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s,
+                                    horizontal=p.horizontal)
+            if p.novelty:
+                novelty_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
+                                                              noise=p.noise))
+            if p.stance:
+                neutral = neutral_stance(c, ground=scene.ground)
+                if neutral is None:
+                    warnings.warn(f"{c.name}: the skeleton does not name a head, pelvis, arms "
+                                  "and legs; its pose term leaves out the departure from "
+                                  "a neutral stance", stacklevel=2)
+                else:
+                    nd = descriptor_of(neutral[None], ground=0.0, stature=_stature(c),
+                                       horizontal=p.horizontal)[0]
+                    stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
         contacts.append(lc)
@@ -650,19 +687,29 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
                 event_bits += contact_state_entropy(lc.state)
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
-    for bits in (pose_bits, event_bits):
+    for bits in (stance_bits, novelty_bits, event_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
-    with warnings.catch_warnings():
-        # a term that is switched off is constant by design: no warning for it
-        if p.w_pose == 0 or p.w_event == 0:
-            warnings.simplefilter("ignore")
-        pose = minmax(pose_bits, name="story pose information") if p.w_pose > 0 else pose_bits * 0
-        # No contact event at all (a punch with both feet planted) leaves the event term
-        # 0 by construction: expected, not a symptom worth a warning.
-        event = (minmax(event_bits, name="story event information")
-                 if p.w_event > 0 and event_bits.any() else event_bits * 0)
-    total = temporal_support(p.w_pose * pose + p.w_event * event, fps=fps, support_s=p.support_s)
+    pose_bits = stance_bits + novelty_bits
+    if p.w_pose > 0 and not pose_bits.any():
+        warnings.warn("story pose information is constant over the clip (static clip?); "
+                      "it contributes 0", stacklevel=2)
+
+    def support(v):
+        return temporal_support(v, fps=fps, support_s=p.support_s)
+
+    if p.combine == "bits":
+        terms = {"stance": support(p.w_pose * stance_bits),
+                 "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
+                 "events": support(p.w_event * event_bits)}
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # constant terms warned about above
+            pose = minmax(pose_bits)
+            event = minmax(event_bits)
+        terms = {"pose": support(p.w_pose * pose), "events": support(p.w_event * event)}
+    total = np.sum(list(terms.values()), axis=0)
     timings = {"pose_term": t_pose, "contacts_events": t_event,
                "story": time.perf_counter() - t0}
-    return StoryInformation(pose_bits, event_bits, pose, event, total, contacts, p, timings)
+    return StoryInformation(stance_bits, novelty_bits, event_bits, terms, total, contacts, p,
+                            timings)

@@ -41,7 +41,7 @@ class StudyScene:
         Display name for researchers.
     baseline_frames : dict
         Motion-derived baselines for the frame analysis, name → source frame
-        (``fastest``, ``farthest_from_mean``; empty when the motion is not at hand).
+        (``fastest``, ``stretch``: those selectors' top picks; empty when unknown).
     salient_frames : tuple of int
         Simulated studies: other salient moments observers may aim at (source numbering).
     strengths : dict or None

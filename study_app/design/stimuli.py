@@ -373,7 +373,7 @@ def _picks_by_method(scene, k: int = 3) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             sel = select_pose(scene, method=m, k=k)
-        out[m] = [int(scene.source_frame(f)) for f in sel.frames]
+        out[m] = [int(scene.source_frame(i)) for i in sel.indices]
     return out
 
 

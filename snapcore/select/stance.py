@@ -1,0 +1,296 @@
+"""The neutral stance and the pose descriptor of the story selector.
+
+A pose is described by quantities that do not change under yaw, translation or a change
+of unit (:func:`pose_descriptor`): the heights above the ground of six key joints (head,
+pelvis, wrists, ankles), their pairwise distances and their pairwise horizontal
+distances, over the character's stature.
+:func:`neutral_stance` builds the same joints for the character standing at rest with
+its arms down, from its own bone lengths and rigid body measurements, and
+:func:`stance_departure` gives the self-information (bits) of departing from it. See
+:mod:`snapcore.select.story` for how they are used.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
+from snapcore.select.pose import smooth_positions
+
+__all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor",
+           "stance_departure"]
+
+#: Key joints of the pose descriptor where landmarks are missing: (role, side), the
+#: first joint of each found.
+_KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
+              ("foot", "R"))
+#: The key joints as landmarks (:func:`snapcore.motion.anatomy.body_landmarks`).
+_KEY_LANDMARKS = ("head", "pelvis", "wrist_L", "wrist_R", "ankle_L", "ankle_R")
+#: Frames (about; evenly spaced) on which :func:`neutral_stance` takes its medians.
+_MEASURE_FRAMES = 256
+#: How far (statures) a hanging hand lies outside its shoulder joint (:func:`neutral_stance`).
+_HAND_OUTSET = 0.04
+
+
+def _stature(character) -> float:
+    h = float(character.height)
+    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
+
+
+@lru_cache(maxsize=64)
+def _roles_sides_of(names: tuple, parents: tuple):
+    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
+
+
+def key_joints(character) -> np.ndarray:
+    """Head, pelvis, left/right wrist and ankle joints, shape (K,).
+
+    The joints of :func:`snapcore.motion.anatomy.body_landmarks` (``head``, ``pelvis``,
+    ``wrist_L``, ``wrist_R``, ``ankle_L``, ``ankle_R``) when the skeleton names all six;
+    else the first joint of each role (those found); with fewer than four, the root and
+    every end joint (a joint without children).
+    """
+    return _key_joints_of(*_skeleton_key(character))
+
+
+def _skeleton_key(character):
+    return tuple(character.joint_names), tuple(np.asarray(character.parents).tolist())
+
+
+@lru_cache(maxsize=64)
+def _key_joints_of(names: tuple, parents: tuple) -> np.ndarray:
+    lm = body_landmarks(names, parents)
+    full = [lm.get(k) for k in _KEY_LANDMARKS]
+    if all(j is not None for j in full):
+        out = np.asarray(full, dtype=np.int64)
+        out.flags.writeable = False
+        return out
+    roles, sides = _roles_sides_of(names, parents)
+    found = []
+    for role, side in _KEY_ROLES:
+        for j, (r, s) in enumerate(zip(roles, sides)):
+            if r == role and s == side:
+                found.append(j)
+                break
+    if len(found) < 4:
+        par = np.asarray(parents)
+        leaves = np.setdiff1d(np.arange(par.size), par[par >= 0])
+        found = sorted({int(np.flatnonzero(par < 0)[0]), *leaves.tolist()})
+    out = np.asarray(found, dtype=np.int64)
+    out.flags.writeable = False
+    return out
+
+
+def _chain_length(parents, lengths, top: int, bottom: int) -> float:
+    """Sum of the bone lengths from joint ``top`` down to its descendant ``bottom``."""
+    total, j = 0.0, int(bottom)
+    while j >= 0 and j != top:
+        total += float(lengths[j])
+        j = int(parents[j])
+    return total if j == top else float("nan")
+
+
+def neutral_stance(character, *, ground: float) -> np.ndarray | None:
+    """The character standing at rest, arms down: its key joints, shape (6, 3), metres.
+
+    Built from the skeleton's own proportions, not from any frame's pose (a clip may
+    start mid-action): the order of :func:`key_joints` (head, pelvis, left and right
+    wrist, left and right ankle), in a frame with +Y up and the left side at +X,
+    heights above ``ground``.
+
+    - Legs straight down: the ankles ``a`` above the ground, below the hips; the pelvis
+      at ``a + thigh + shin + drop``, ``drop`` the height of the pelvis joint above the
+      hip joints.
+    - Spine straight up: the head at the pelvis plus the bone lengths from the pelvis
+      to the head.
+    - Arms hanging: each wrist below its shoulder joint by the upper arm plus forearm,
+      4 % of the stature further out (beside the thigh);
+      the shoulders at the height of the joint the two arms branch from (the chest,
+      spine straight) plus the height of the shoulder joints above that joint.
+
+    Lengths are the skeleton's bone lengths (its offsets). Widths (hip to hip,
+    shoulder to shoulder), ``drop``, the shoulders' height above the chest and the
+    standing ankle height are body measurements read from the clip, as medians of
+    nearly rigid distances over the frames (about 256 evenly spaced ones; not from any
+    one frame's pose): the
+    distances between the two hip and the two shoulder joints, the vertical offsets,
+    and the 5th percentile of the ankles' height above the ground (a planted foot),
+    kept within 2-10 % of the stature.
+
+    Returns
+    -------
+    ndarray of shape (6, 3), or None
+        None when the skeleton does not name a head, a pelvis and both arms and legs
+        (:func:`snapcore.motion.anatomy.body_landmarks`).
+    """
+    geometry = _stance_geometry(*_skeleton_key(character),
+                                np.asarray(character.skeleton.offsets, dtype=float).tobytes())
+    if geometry is None:
+        return None
+    idx, leg, spine, to_branch, arm = geometry
+    stature = _stature(character)
+    # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch, on
+    # at most ~256 evenly spaced frames (medians of body measurements need no more):
+    # (F', 8, 3)
+    step = max(1, character.n_frames // _MEASURE_FRAMES)
+    x = character.positions[::step, idx]
+    hip_w = float(np.median(np.linalg.norm(x[:, 0] - x[:, 1], axis=1))) / 2
+    sh_w = float(np.median(np.linalg.norm(x[:, 2] - x[:, 3], axis=1))) / 2
+    y = x[..., 1]
+    ankle_h = float(np.percentile(y[:, 4:6] - ground, 5))
+    ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
+    # the pelvis joint above the hip joints (below on some rigs): a rigid offset, whose
+    # vertical part barely changes with the pelvis's tilt
+    drop = float(np.median(y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])))
+    pelvis_h = ankle_h + leg + drop
+    head_h = pelvis_h + spine
+    # the shoulder joints above the joint both arms hang from (the chest): nearly rigid
+    rise = float(np.median(0.5 * (y[:, 2] + y[:, 3]) - y[:, 7]))
+    shoulder_h = pelvis_h + to_branch + rise
+    wrist_h = shoulder_h - arm
+    # hands hang beside the thighs, outside the shoulder joints by about a thigh's
+    # half-thickness (measured at rest on the shared rigs: 0.03-0.05 statures)
+    wrist_x = sh_w + _HAND_OUTSET * stature
+    out = np.array([[0.0, head_h, 0.0], [0.0, pelvis_h, 0.0], [wrist_x, wrist_h, 0.0],
+                    [-wrist_x, wrist_h, 0.0], [hip_w, ankle_h, 0.0], [-hip_w, ankle_h, 0.0]])
+    return out if np.isfinite(out).all() else None
+
+
+@lru_cache(maxsize=64)
+def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
+    """The skeleton's part of :func:`neutral_stance` (cached per skeleton), or None.
+
+    Returns the joints to gather (hips L/R, shoulders L/R, ankles L/R, pelvis, the
+    shoulders' common ancestor) and the lengths (m): hip to ankle, pelvis to head,
+    pelvis to that ancestor, shoulder to wrist (means of the two sides).
+    """
+    lm = body_landmarks(names, parents)
+    need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
+            "hip_R", "ankle_L", "ankle_R")
+    if any(lm.get(k) is None for k in need):
+        return None
+    par = np.asarray(parents)
+    lengths = np.linalg.norm(np.frombuffer(offsets).reshape(-1, 3), axis=1)
+    pelvis = lm["pelvis"]
+
+    def chain(top, bottom):
+        return _chain_length(par, lengths, top, bottom)
+
+    def mean2(f):
+        v = np.array([f(s) for s in "LR"])
+        return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+
+    branch = _common_ancestor(par, lm["shoulder_L"], lm["shoulder_R"])
+    if branch is None or not np.isfinite(chain(pelvis, branch)):
+        branch = pelvis
+    idx = np.array([lm["hip_L"], lm["hip_R"], lm["shoulder_L"], lm["shoulder_R"],
+                    lm["ankle_L"], lm["ankle_R"], pelvis, branch], dtype=np.int64)
+    sizes = (mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"])),
+             chain(pelvis, lm["head"]), chain(pelvis, branch),
+             mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"])))
+    if not np.isfinite(sizes).all():
+        return None
+    return (idx, *sizes)
+
+
+def _common_ancestor(parents, a: int, b: int) -> int | None:
+    up = []
+    j = int(a)
+    while j >= 0:
+        up.append(j)
+        j = int(parents[j])
+    j = int(parents[b])
+    while j >= 0:
+        if j in up:
+            return j
+        j = int(parents[j])
+    return None
+
+
+def descriptor_of(points: np.ndarray, *, ground: float, stature: float,
+                  horizontal: bool = True) -> np.ndarray:
+    """:func:`pose_descriptor` of key-joint positions, shape (F, K + K (K - 1)).
+
+    Parameters
+    ----------
+    points : ndarray of shape (F, K, 3)
+        Metres, Y up.
+    ground : float
+    stature : float
+        Metres.
+    horizontal : bool
+        Include the pairwise horizontal distances (False: shape (F, K + K (K - 1) / 2),
+        for ablation).
+    """
+    x = np.asarray(points, dtype=float)
+    k = x.shape[1]
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, K): reductions over 3 unrolled
+    a, b = np.triu_indices(k, 1)
+    d = xc[:, :, a] - xc[:, :, b]  # (3, F, P)
+    d *= d
+    flat = d[0] + d[2]  # squared horizontal distance
+    n_p = a.size
+    out = np.empty((x.shape[0], k + (2 if horizontal else 1) * n_p))
+    out[:, :k] = xc[1] - ground
+    out[:, k:k + n_p] = np.sqrt(flat + d[1])
+    if horizontal:
+        out[:, k + n_p:] = np.sqrt(flat)
+    out /= stature
+    return out
+
+
+def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05,
+                    horizontal: bool = True) -> np.ndarray:
+    """Pose of every frame as quantities invariant to yaw, translation and unit.
+
+    Parameters
+    ----------
+    character : Character
+    ground : float
+        Ground height (m).
+    fps : float
+    smooth_s : float
+        Savitzky-Golay window (s) of the trajectories.
+    horizontal : bool
+        Include the horizontal distances (see :func:`descriptor_of`).
+
+    Returns
+    -------
+    ndarray of shape (F, K + K (K - 1))
+        Heights of the K :func:`key_joints` above the ground, their pairwise distances,
+        then their pairwise *horizontal* distances, all divided by the character's
+        stature (dimensionless). The horizontal distances see what the 3-D ones barely
+        do: a trunk leaning in a bow moves the head forward of the pelvis and feet (the
+        head-to-pelvis distance is rigid; at 30 degrees the head drops 4 % of the
+        stature but moves 16 % forward), a guiding hand reaching out.
+    """
+    kj = key_joints(character)
+    x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
+    return descriptor_of(x, ground=ground, stature=_stature(character), horizontal=horizontal)
+
+
+def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
+                     ) -> np.ndarray:
+    """Self-information (bits) of each pose for a person standing at rest, shape (F,).
+
+    Parameters
+    ----------
+    features : ndarray of shape (F, D)
+        Pose descriptors (:func:`pose_descriptor`).
+    neutral : ndarray of shape (D,)
+        The descriptor of the character's :func:`neutral_stance`.
+    spread : float
+        Standard deviation (stature units) of the isotropic Gaussian around the neutral
+        stance: how far a person "at rest" strays (sway, arms not quite straight).
+
+    Returns
+    -------
+    ndarray of shape (F,)
+        ``1/2 |x_i - n|^2 / spread^2 / ln 2``: ``-log2`` of the Gaussian's density up
+        to a constant, 0 at the neutral stance.
+    """
+    z = np.asarray(features, dtype=float) - np.asarray(neutral, dtype=float)
+    return 0.5 * np.square(z).sum(axis=1) / (spread ** 2 * math.log(2.0))
