@@ -18,11 +18,12 @@ from __future__ import annotations
 import os
 import warnings
 from pathlib import Path
+from typing import Literal, overload
 
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.bvh import read_bvh, split_roots
+from snapcore.motion.bvh import BVHDocument, read_bvh, split_roots
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
@@ -32,6 +33,7 @@ from snapcore.motion.gltf import (
 )
 from snapcore.motion.scene import (
     Z_UP_TO_Y_UP,
+    Character,
     Scene,
     character_from_bvh,
     infer_scale,
@@ -69,6 +71,10 @@ def _warn_unit_mismatch(probes, statures) -> None:
         )
 
 
+@overload
+def data_dir(required: Literal[True]) -> Path: ...
+@overload
+def data_dir(required: bool = False) -> Path | None: ...
 def data_dir(required: bool = False) -> Path | None:
     """Folder of the real motion data.
 
@@ -187,12 +193,14 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         if not path.exists():
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
-        parts = [None] if _is_gltf(path) else split_roots(read_bvh(path))
+        # a glTF file is read further down (None here); a BVH file gives one part per ROOT
+        parts: list[BVHDocument | None] = (
+            [None] if _is_gltf(path) else list(split_roots(read_bvh(path))))
         for d in parts:
             paths.append(path)
             docs.append(d)
             # one character per ROOT, named after the file (or the entry) and its root
-            entries.append(e if len(parts) == 1 else
+            entries.append(e if d is None or len(parts) == 1 else
                            {**e, "name": f"{e.get('name') or path.stem}_{d.names[0]}"})
     # Forward kinematics once, in file units; positions scale linearly afterwards.
     bvh_fps = [d.fps for d in docs if d is not None]
@@ -230,7 +238,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                 f"stature of 1.70 m ({scene_scale:.4g} m per unit). Pass --scale to override.",
                 stacklevel=3,
             )
-    chars = []
+    chars: list[Character] = []
     used_names: set[str] = set()
     for probe, e, g in zip(probes, entries, is_gltf):
         if g and not (scale or e.get("scale") or spec.get("scale")):
@@ -285,22 +293,22 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         # glTF animations have no added T-pose; only BVH characters are checked
         cut = tpose_lead_in([c.positions for c, g in zip(chars, is_gltf) if not g], chars[0].fps)
         if cut:
-            chars = [c.frames(cut, None) for c in chars]
+            chars = [c.frames(cut, c.n_frames) for c in chars]
             offset = cut
             why_cut = ("they are an added T-pose and the blend out of it "
                        "(drop_tpose = false in a scene manifest keeps them)")
     if chars[0].n_frames < 1:
         raise SceneError(f"{source or paths[0]}: no frames left to analyse")
-    g = ground if ground is not None else spec.get("ground")
-    if g is None:
+    ground_y = ground if ground is not None else spec.get("ground")
+    if ground_y is None:
         # a glTF character stands on its mesh (soles, paws), not on its joints
-        g = infer_ground([lowest_points(c) if gl else c.positions
+        ground_y = infer_ground([lowest_points(c) if gl else c.positions
                           for c, gl in zip(chars, is_gltf)])
     scene_name = name or spec.get("name") or chars[0].name
     return Scene(
         characters=chars,
         fps=chars[0].fps,
-        ground=float(g),
+        ground=float(ground_y),
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,

@@ -279,5 +279,6 @@ def relief_comparison_figure(
         fontsize=10,
     )
     fig.tight_layout()
-    fig.reliefs = reliefs
+    # matplotlib's Figure declares no such attribute: set it by name (documented above)
+    setattr(fig, "reliefs", reliefs)  # noqa: B010
     return fig

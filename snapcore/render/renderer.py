@@ -489,11 +489,9 @@ def render_mesh(vertices, faces, view, *, size=(512, 512), face_colors=None,
     import trimesh
 
     size = check_size(size)
-    tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False)
-    if face_colors is not None:
-        tm.visual.face_colors = face_colors
-    else:
-        tm.visual.face_colors = [200, 200, 200, 255]
+    colors = [200, 200, 200, 255] if face_colors is None else face_colors
+    tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64),
+                         face_colors=colors, process=False)
     mesh = pyrender.Mesh.from_trimesh(tm, smooth=False)
     cam = fit_camera(tm.vertices, view, size=size, projection=projection)
     ps = pyrender.Scene(bg_color=[*BACKGROUND, 1.0], ambient_light=[0.3] * 3)
