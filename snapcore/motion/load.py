@@ -156,6 +156,22 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
     ------
     BVHError, GLTFError, SchemaError, SceneError
         With a one-line message naming the file and what is wrong.
+
+    Examples
+    --------
+    A BVH file of the synthetic jump, 3 s at 30 fps from the first frame to the last:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from snapcore import load_scene
+    >>> from snapcore.motion.bvh import write_bvh
+    >>> from snapcore.motion.synth import humanoid_document
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "jump.bvh"
+    ...     write_bvh(humanoid_document("jump", fps=30.0), path)
+    ...     scene = load_scene(path)
+    >>> scene.name, scene.n_frames, scene.fps, len(scene.characters)
+    ('jump', 91, 30.0, 1)
     """
     if isinstance(paths_or_manifest, (str, os.PathLike)):
         items = [paths_or_manifest]

@@ -458,6 +458,17 @@ def render_still(scene, frame: int, view=None, *, size=None, projection="orthogr
     Returns
     -------
     ndarray of uint8, shape (H, W, 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from snapcore import render_still
+    >>> from snapcore.motion.synth import synth_scene
+    >>> image = render_still(synth_scene("walk"), 0, size=(160, 120))
+    >>> image.shape, image.dtype.name
+    ((120, 160, 3), 'uint8')
+    >>> len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # shaded figure and floor, not blank
+    True
     """
     if size is None:
         size = renderer.size if renderer is not None else (800, 600)
