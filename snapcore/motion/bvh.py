@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import os
 import warnings
-from typing import NoReturn
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
