@@ -16,7 +16,7 @@ export SNAPSHOT_DATA ?= $(abspath ../shared/motions)
 PYTEST_ARGS ?= -n auto --maxprocesses=4 --dist loadfile
 PORT      ?= 8501
 
-.PHONY: study test bench install sysdeps lint clean demo serve-replicas
+.PHONY: study test bench install sysdeps lint check clean demo serve-replicas
 
 study: install sysdeps
 	$(VENV)/bin/snapshot study --port $(PORT)
@@ -63,6 +63,13 @@ sysdeps:
 
 lint: install
 	$(VENV)/bin/ruff check snapcore study_app analysis tests
+
+# Lint, format check and type check: what CI runs before the tests (the paths and options
+# are in pyproject.toml: [tool.ruff], [tool.mypy]).
+check: install
+	$(VENV)/bin/ruff check snapcore study_app analysis data_schema tests
+	$(VENV)/bin/ruff format --check snapcore study_app analysis data_schema tests
+	$(VENV)/bin/mypy
 
 clean:
 	rm -rf $(VENV) var/ .pytest_cache

@@ -18,49 +18,35 @@ results. ``tests/test_architecture.py`` holds the layer table that enforces this
 
 from __future__ import annotations
 
-from .figures import FIGURES, make_figures, measure_table1, paper_analogues, paper_table1
-from .frames import (
-    baselines_from_stimuli,
-    closeness_tests,
-    frame_distances,
-    frame_histogram,
-    hit_rates,
-    motion_baselines,
-    scene_frames_from_rows,
-)
-from .load import (
-    LoadError,
-    attention_summary,
-    load_responses,
-    ordered_scenes,
-    pose_choices,
-    tidy_responses,
-    view_choices,
-)
-from .power import power_chisquare, power_curve, power_pairwise, power_table, sample_size
-from .report import analyze, analyze_counts, write_table
-from .simulate import (
-    ObserverModel,
-    paper_design,
-    simulate_participants,
-    simulate_vote_counts,
-    simulated_rows,
-    store_simulation,
-)
-from .votes import (
-    chisquare_no_preference,
-    choices_from_counts,
-    claim_summary,
-    fleiss_kappa,
-    holm_adjust,
-    luce_strengths,
-    ours_vs_baselines,
-    paper_counts,
-    paper_table2,
-    vote_counts,
-    vote_table,
-    wilson_interval,
-)
+from importlib import import_module
+
+# The names below are imported on first use (PEP 562), not here: importing one
+# analysis module (say analysis.power) runs this file, and importing them all up front
+# (pandas, scipy.stats, the study store) cost seconds, at test collection too.
+_WHERE = {
+    ".figures": ("FIGURES", "make_figures", "measure_table1", "paper_analogues", "paper_table1"),
+    ".frames": ("baselines_from_stimuli", "closeness_tests", "frame_distances", "frame_histogram", "hit_rates", "motion_baselines", "scene_frames_from_rows"),
+    ".load": ("LoadError", "attention_summary", "load_responses", "ordered_scenes", "pose_choices", "tidy_responses", "view_choices"),
+    ".power": ("power_chisquare", "power_curve", "power_pairwise", "power_table", "sample_size"),
+    ".report": ("analyze", "analyze_counts", "write_table"),
+    ".simulate": ("ObserverModel", "paper_design", "simulate_participants", "simulate_vote_counts", "simulated_rows", "store_simulation"),
+    ".votes": ("chisquare_no_preference", "choices_from_counts", "claim_summary", "fleiss_kappa", "holm_adjust", "luce_strengths", "ours_vs_baselines", "paper_counts", "paper_table2", "vote_counts", "vote_table", "wilson_interval"),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(__all__)
+
 
 __all__ = [
     "FIGURES",

@@ -75,8 +75,8 @@ def paper_table1() -> pd.DataFrame:
 
 def load_analogue(scene_id: str, *, data_dir=None):
     """Load the paper-analogue clip of ``scene_id`` as a :class:`snapcore.Scene`."""
-    from snapcore import data_dir as find_data
     from snapcore import load_scene
+    from snapcore.motion.load import data_dir as find_data
 
     base = Path(data_dir) if data_dir is not None else find_data()
     if base is None:

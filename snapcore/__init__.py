@@ -9,27 +9,27 @@ from __future__ import annotations
 
 from importlib import import_module
 
-# The public names and the module each lives in. They are imported on first use
-# (PEP 562), not here: `import snapcore.anything` runs this file, and importing every
-# layer up front (trimesh, scipy, pyrender) cost seconds on every `snapshot` call,
-# including a `snapshot batch` re-run that has nothing to do.
+# The public API: the stages of the pipeline (load, interactions, pose, view, the whole
+# snapshot, renders, relief), their parameter objects and their result types. Everything
+# else (BVH I/O, body meshes, buffers, scores) is imported from its module.
+# The names are imported on first use (PEP 562), not here: `import snapcore.anything`
+# runs this file, and importing every layer up front (trimesh, scipy, pyrender) cost
+# seconds on every `snapshot` call, including a `snapshot batch` re-run that has
+# nothing to do.
 _WHERE = {
-    "snapcore.errors": ("BVHError", "SceneError", "SchemaError", "SnapshotError"),
-    "snapcore.motion.bvh": ("BVHDocument", "read_bvh", "write_bvh"),
-    "snapcore.motion.load": ("data_dir", "load_scene"),
+    "snapcore.errors": ("BVHError", "SceneError", "SnapshotError"),
+    "snapcore.motion.load": ("load_scene",),
     "snapcore.motion.scene": ("Character", "Scene", "Skeleton"),
+    "snapcore.select.contacts": ("ContactTolerances", "Interactions", "detect_interactions"),
+    "snapcore.select.pose": ("PoseScores", "PoseSelection"),
+    "snapcore.select.pose_methods": ("PoseParams", "select_pose"),
+    "snapcore.select.view": ("ViewSelection", "select_view"),
     "snapcore.pipeline": ("Snapshot", "ViewParams", "take_snapshot"),
-    "snapcore.render.bodies": ("posed_mesh",),
-    "snapcore.render.body": ("PosedMesh", "SceneBody"),
-    "snapcore.render.composites": ("compare_views", "contact_sheet"),
-    "snapcore.render.buffers": ("render_depth", "render_face_ids"),
     "snapcore.render.renderer": ("render_still",),
     "snapcore.render.video": ("render_video",),
-    "snapcore.select.contacts": ("ContactTolerances", "Interactions", "detect_interactions"),
-    "snapcore.select.methods": ("VIEW_METHODS", "ViewMethod"),
-    "snapcore.select.pose": ("PoseEntropy", "PoseScores", "PoseSelection", "pose_entropy"),
-    "snapcore.select.pose_methods": ("POSE_METHODS", "PoseParams", "select_pose"),
-    "snapcore.select.view": ("ViewSelection", "pma_scores", "select_view"),
+    "snapcore.render.composites": ("compare_views", "contact_sheet"),
+    "snapcore.relief.height_field": ("Relief", "ReliefParams"),
+    "snapcore.relief.scene": ("relief_from_scene",),
 }
 _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
@@ -50,44 +50,35 @@ def __dir__():
 __version__ = "0.1.0"
 
 __all__ = [
-    "BVHDocument",
-    "BVHError",
-    "Character",
-    "ContactTolerances",
-    "Interactions",
-    "PoseEntropy",
-    "PoseScores",
-    "PosedMesh",
-    "POSE_METHODS",
-    "PoseSelection",
-    "Scene",
-    "SceneBody",
-    "SceneError",
-    "SchemaError",
-    "Skeleton",
-    "Snapshot",
-    "SnapshotError",
-    "ViewMethod",
-    "VIEW_METHODS",
-    "PoseParams",
-    "ViewParams",
-    "ViewSelection",
-    "compare_views",
-    "contact_sheet",
-    "data_dir",
-    "detect_interactions",
+    # stages, in pipeline order
     "load_scene",
-    "pma_scores",
-    "pose_entropy",
-    "posed_mesh",
-    "read_bvh",
-    "render_depth",
-    "render_face_ids",
-    "render_still",
-    "render_video",
+    "detect_interactions",
     "select_pose",
     "select_view",
     "take_snapshot",
-    "write_bvh",
+    "render_still",
+    "render_video",
+    "contact_sheet",
+    "compare_views",
+    "relief_from_scene",
+    # their parameters
+    "ContactTolerances",
+    "PoseParams",
+    "ViewParams",
+    "ReliefParams",
+    # their results
+    "Scene",
+    "Character",
+    "Skeleton",
+    "Interactions",
+    "PoseSelection",
+    "PoseScores",
+    "ViewSelection",
+    "Snapshot",
+    "Relief",
+    # errors (every one a SnapshotError)
+    "SnapshotError",
+    "SceneError",
+    "BVHError",
     "__version__",
 ]

@@ -17,8 +17,30 @@ Layers, lowest first, with :mod:`analysis` between the logic and the UI
 So data flows one way: design → data → session → analysis → UI → operations → commands.
 """
 
-from .data.errors import StoreError
-from .data.export import read_export, write_export
-from .data.store import Store
+from importlib import import_module
+
+# The names below are imported on first use (PEP 562), not here: importing any
+# study module runs this file, and the store (SQLAlchemy) cost every test module that
+# only needs a protocol or a scene a second or more, at test collection too.
+_WHERE = {
+    ".data.errors": ("StoreError",),
+    ".data.export": ("read_export", "write_export"),
+    ".data.store": ("Store",),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(__all__)
+
 
 __all__ = ["Store", "StoreError", "read_export", "write_export"]

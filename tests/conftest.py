@@ -17,6 +17,28 @@ from snapcore.motion.load import data_dir  # noqa: E402
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
 
+class lazy_module:  # noqa: N801 - stands for a module
+    """The module ``name``, imported on its first attribute access instead of here.
+
+    A test file names the modules it tests at its top (``fr = lazy_module("analysis.frames")``
+    for ``from analysis import frames as fr``); collecting it, which every xdist worker
+    does for every file, then costs nothing, where pandas, scipy.stats and the study store
+    cost seconds.
+    """
+
+    def __init__(self, name: str):
+        self.__name = name
+
+    def __getattr__(self, attr: str):
+        import importlib
+
+        if attr.startswith("_mock") or (attr.startswith("__") and attr.endswith("__")):
+            # what collection asks of every attribute of a test file (__test__, _mock_name,
+            # ...): not about the module, so no reason to import it
+            raise AttributeError(attr)
+        return getattr(importlib.import_module(self.__name), attr)
+
+
 def need(condition: bool, reason: str) -> None:
     """Skip (locally) or fail (in CI) when a test's precondition is missing."""
     if not condition:

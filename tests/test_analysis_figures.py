@@ -7,9 +7,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import lazy_module
 
-from analysis import figures as fg
 from snapcore.select.methods import VIEW_METHODS, ViewMethod
+
+# the modules under test, imported when a test first uses them (fast collection)
+fg = lazy_module("analysis.figures")
 
 
 def _png_std(path) -> float:

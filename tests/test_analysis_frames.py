@@ -6,11 +6,14 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-import pandas as pd
 import pytest
+from conftest import lazy_module
 
-from analysis import frames as fr
 from study_app.design.scenes import StudyScene
+
+# the modules under test, imported when a test first uses them (fast collection)
+pd = lazy_module("pandas")
+fr = lazy_module("analysis.frames")
 
 
 def _pose(scene, chosen, *, algorithm, fps, n_frames):

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import stats
+from conftest import lazy_module
 
-from analysis import power as pw
-from analysis import simulate as sim
+# the modules under test, imported when a test first uses them (fast collection)
+stats = lazy_module("scipy.stats")
+pw = lazy_module("analysis.power")
+sim = lazy_module("analysis.simulate")
+
 
 
 def test_vectorised_p_equals_scipy_for_all_k():

@@ -7,14 +7,17 @@ import json
 import re
 
 import numpy as np
-import pandas as pd
 import pytest
 from click.testing import CliRunner
+from conftest import lazy_module
 
-from analysis import load as ld
-from analysis import simulate as sim
 from snapcore.cli.main import cli
 from study_app.design.scenes import StudyScene
+
+# the modules under test, imported when a test first uses them (fast collection)
+pd = lazy_module("pandas")
+ld = lazy_module("analysis.load")
+sim = lazy_module("analysis.simulate")
 
 
 def _rows(n=20, seed=3, **kw):

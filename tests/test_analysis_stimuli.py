@@ -7,11 +7,14 @@ import json
 
 import pytest
 from click.testing import CliRunner
+from conftest import lazy_module
 
-from analysis import frames as fr
-from analysis import simulate as sim
-from analysis import stimuli as st
 from snapcore.cli.main import cli
+
+# the modules under test, imported when a test first uses them (fast collection)
+fr = lazy_module("analysis.frames")
+sim = lazy_module("analysis.simulate")
+st = lazy_module("analysis.stimuli")
 
 
 def _manifest(scenes):

@@ -5,14 +5,17 @@ and the Luce model against its analytic answer and simulated known strengths."""
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
-from scipy import stats
+from conftest import lazy_module
 
-from analysis import simulate as sim
-from analysis import votes as vt
 from snapcore.select.methods import VIEW_METHODS
 from study_app.design.scenes import StudyScene
+
+# the modules under test, imported when a test first uses them (fast collection)
+pd = lazy_module("pandas")
+stats = lazy_module("scipy.stats")
+sim = lazy_module("analysis.simulate")
+vt = lazy_module("analysis.votes")
 
 # The paper's Table 2 as printed (../shared/METHOD.md §5 and the paper's text), typed here
 # independently of analysis/data/paper_table2.csv: ours, viewpoint entropy, motion area.

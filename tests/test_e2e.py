@@ -42,7 +42,11 @@ TOKEN = "e2e-researcher-token"
 #: Seconds to wait for the server to answer /_stcore/health.
 SERVER_START_S = 90
 #: Streamlit marks the app root with the script state; "notRunning" = the page is settled.
+#: (Callers first wait for something the run they wait on draws, a heading or a message,
+#: so a run that has not started yet cannot pass for a finished one.)
 IDLE = "[data-testid=stApp][data-test-script-state=notRunning]"
+#: The same as a JavaScript condition (for the Firefox test, which has no Playwright).
+SETTLED = f"() => document.querySelector('{IDLE}') !== null"
 
 
 def free_port() -> int:
@@ -139,9 +143,43 @@ def page(browser):
 
 
 def settle(page) -> None:
-    """Wait until Streamlit has finished the current script run."""
-    page.wait_for_timeout(200)
+    """Wait until Streamlit has finished the current script run (see :data:`SETTLED`)."""
     page.wait_for_selector(IDLE, timeout=30_000)
+
+
+def after_resize(page) -> None:
+    """Wait until the page has laid itself out again after a viewport change: two
+    animation frames (resize observers run before the first paint) and a settled app."""
+    page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+    settle(page)
+
+
+def video_settled(page) -> None:
+    """Wait until the picker's video shows the frame it was sent to (no seek pending:
+    the picker chains its seeks, so ``seeking`` stays true until the last lands)."""
+    video = page.locator(".snap-picker video").element_handle()
+    page.wait_for_function("v => !v.seeking && v.readyState >= 2", arg=video, timeout=20_000)
+
+
+def wait_until_answerable(store, pid: str, trial_index: int, min_answer_s: float) -> None:
+    """Return once the trial has been on screen for the study's ``min_answer_s`` (the app
+    refuses an earlier answer as the second click of a double click): the deadline is the
+    stored time the trial was first shown, not a guess."""
+    from datetime import datetime
+
+    from study_app.session import SHOWN_EVENT
+
+    deadline = time.monotonic() + 30
+    while True:
+        shown = [e["created_at"] for e in store.events(pid)
+                 if e["kind"] == SHOWN_EVENT and e["trial_index"] == trial_index]
+        if shown:
+            break
+        assert time.monotonic() < deadline, f"trial {trial_index} was never shown"
+        time.sleep(0.05)  # polling the store
+    left = datetime.fromisoformat(shown[0]).timestamp() + min_answer_s - time.time()
+    if left > 0:
+        time.sleep(left)
 
 
 def shot(page, artifacts, name: str) -> None:
@@ -189,10 +227,8 @@ def watch_through(page, timeout_ms: int = 30_000) -> None:
     page.get_by_test_id("picker-play").click()
     page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=timeout_ms)
     page.wait_for_selector(".snap-picker video", timeout=timeout_ms)
-    deadline = time.monotonic() + timeout_ms / 1000
-    while not page.locator(".snap-picker video").evaluate("v => v.paused"):  # at the end
-        assert time.monotonic() < deadline, "the animation did not stop at its end"
-        page.wait_for_timeout(100)
+    video = page.locator(".snap-picker video").element_handle()
+    page.wait_for_function("v => v.paused", arg=video, timeout=timeout_ms)  # at the end
 
 
 def shown_frame(page) -> int:
@@ -261,15 +297,16 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     # back one, confirm.
     picker_ready(page)
     watch_through(page)
-    page.get_by_test_id("picker-play").click()
-    page.wait_for_timeout(400)
-    page.get_by_test_id("picker-play").click()  # pause
-    page.wait_for_timeout(200)
+    page.get_by_test_id("picker-play").click()  # from the start again
+    video = page.locator(".snap-picker video").element_handle()
+    page.wait_for_function("v => !v.paused && v.currentTime > 0.3", arg=video)  # it plays
+    page.get_by_test_id("picker-play").click()  # pause, some frames in
+    video_settled(page)
     paused = shown_frame(page)
     for _ in range(3):
         page.get_by_test_id("picker-forward").click()
     page.get_by_test_id("picker-back").click()
-    page.wait_for_timeout(300)
+    video_settled(page)
     first = shown_frame(page)
     assert first == min(paused + 3, n_first - 1) - 1
     frame_on_screen_matches(page, stimuli_dir, plan[0].scene, first)
@@ -289,7 +326,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     scrub = page.get_by_test_id("picker-scrub")
     target = moving_frame(stimuli_dir, plan[1].scene)
     scrub.fill(str(target))  # the range input's value (0-based frame)
-    page.wait_for_timeout(300)
+    video_settled(page)
     second = shown_frame(page)
     assert second == target
     frame_on_screen_matches(page, stimuli_dir, plan[1].scene, second)
@@ -308,7 +345,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     page.get_by_test_id("view-choose-0").click()
 
     heading(page, "One more question")
-    page.wait_for_timeout(1000)  # answers count only after the study's min_answer_s
+    wait_until_answerable(store, pid, 4, stim.study.min_answer_s)
     page.get_by_test_id("stRadioGroup").get_by_text("A purple circle").click()
     shot(page, artifacts, "06-attention")
     page.get_by_role("button", name="Continue").click()

@@ -31,7 +31,9 @@ from app_helpers import tiny_demo_stimuli
 from conftest import need
 from test_e2e import (
     REPO,
+    SETTLED,
     TOKEN,
+    after_resize,
     free_port,
     heading,
     picker_ready,
@@ -39,6 +41,7 @@ from test_e2e import (
     shown_frame,
     start_study,
     stop_process,
+    video_settled,
     watch_through,
 )
 
@@ -430,7 +433,7 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     """Keys work without clicking into the player; a reload keeps the frame and the log;
     Space on a focused Confirm confirms."""
     page, store, pid = _at_first_pose_page(server, browser)
-    page.wait_for_timeout(500)
+    video_settled(page)
     picker = page.locator(".snap-picker")
     start = shown_frame(page)
     for _ in range(6):
@@ -439,8 +442,7 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     until(picker, f"r => r.dataset.frame === '{start + 5}'", 10)
     page.keyboard.press(" ")  # Space plays
     video = page.get_by_test_id("picker-video")
-    page.wait_for_timeout(300)
-    assert video.evaluate("v => !v.paused")
+    until(video, "v => !v.paused", 10)
     until(video, "v => v.ended || v.paused")
     # Played from frame 5 on: not yet the whole animation, so Confirm stays off ...
     assert page.get_by_test_id("picker-confirm").is_disabled()
@@ -465,7 +467,7 @@ def test_reload_keeps_player_and_keys_work(server, browser):
     picker_ready(page)
     until(page.locator(".snap-picker"), f"r => r.dataset.frame === '{here}'", 10)  # restored
     page.set_viewport_size({"width": 1280, "height": 720})  # item 11 at the smaller size
-    page.wait_for_timeout(400)
+    after_resize(page)
     for el in ("picker-video", "picker-play", "picker-confirm"):
         b = box(page.get_by_test_id(el))
         assert b["y"] >= 0 and b["y"] + b["height"] <= 720, (el, b)
@@ -520,7 +522,7 @@ def test_candidates_same_size_no_methods_in_page(server, browser, artifacts):
     page.wait_for_selector(".snap-views[data-ready='1']", timeout=30_000)
     for w, h in SIZES:
         page.set_viewport_size({"width": w, "height": h})
-        page.wait_for_timeout(400)
+        after_resize(page)
         boxes = [box(page.get_by_test_id(f"view-image-{i}")) for i in range(3)]
         for b in boxes[1:]:
             assert abs(b["width"] - boxes[0]["width"]) <= 1 and \
@@ -658,7 +660,7 @@ def test_firefox_esr_plays_webm(server, artifacts):
         assert ff.js("document.createElement('video').canPlayType('video/mp4; codecs=\"avc1.42E01E\"')") == ""
         ff.wait("[...document.querySelectorAll('h1')].some(h => h.innerText.includes('Tiny demo'))")
         ff.wait("!!document.querySelector('[data-testid=stCheckbox] input')")
-        time.sleep(0.5)
+        ff.wait(f"({SETTLED})()")
         ff.js("document.querySelector('[data-testid=stCheckbox] input').click()")
         ff.click("button", "Start the study")
         ff.wait("[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('About you'))")

@@ -34,22 +34,30 @@ ENTRY_POINT_GROUP = "action_snapshot.commands"
 
 class _OneLineError(click.ClickException):
     """A click error (bad option value, unknown option or command, missing argument...)
-    shown as one ``error: <click's message>`` line instead of click's usage block."""
+    shown as one ``error: <click's message>`` line instead of click's usage block.
+    Exit code 1, click's own for an error a command raises."""
 
     def __init__(self, err: click.ClickException):
         text = " ".join(ln.strip() for ln in err.format_message().splitlines() if ln.strip())
         super().__init__(text)
-        usage = isinstance(err, (click.UsageError, click.FileError))
-        self.exit_code = EXIT_BAD_INPUT if usage else err.exit_code
 
     def show(self, file=None):
         click.echo(f"error: {self.format_message()}", file=file, err=True)
+
+
+class _OneLineBadInput(_OneLineError):
+    """A usage or file error as one line, exit code 2 (click's ``exit_code`` is a class
+    variable, hence a class per code)."""
+
+    exit_code = EXIT_BAD_INPUT
 
 
 def _one_line(err: click.ClickException) -> click.ClickException:
     """``err`` as a one-line error; ``snapshot`` alone (help for no arguments) stays as is."""
     if isinstance(err, (click.exceptions.NoArgsIsHelpError, _OneLineError)):
         return err
+    if isinstance(err, (click.UsageError, click.FileError)):
+        return _OneLineBadInput(err)
     return _OneLineError(err)
 
 

@@ -60,27 +60,32 @@ def per_stature(*metres: float) -> tuple[float, ...]:
     return tuple(m / _MEASURED_ON_M for m in metres)
 
 
+def _radii(lateral: float, depth: float) -> tuple[float, float]:
+    """A bone's ``(lateral, depth)`` radii (m, on the reference figure) per stature."""
+    return lateral / _MEASURED_ON_M, depth / _MEASURED_ON_M
+
+
 #: Bone radii as fractions of the stature, by the role of the bone's parent joint:
 #: ``(lateral, depth)`` semi-axes of the cross-section. Lateral ≠ depth only on the
 #: torso (hips are wider than deep). Roughly the anthropometric girths of an adult
 #: (thigh circumference ~0.50 m → radius ~0.08 m; forearm ~0.25 m → ~0.04 m) slimmed a
 #: little so limbs stay readable when they cross the torso.
 ROLE_RADII: dict[str, tuple[float, float]] = {
-    "pelvis": per_stature(0.085, 0.085),  # pelvis → hip joint: CMU LHipJoint, Daz buttock
-    "spine": per_stature(0.125, 0.095),  # lower back / abdomen
-    "chest": per_stature(0.140, 0.100),  # thorax up to the shoulders
-    "neck": per_stature(0.050, 0.050),
-    "head": per_stature(0.085, 0.100),  # drawn as an ellipsoid by the body mesh
-    "clavicle": per_stature(0.050, 0.050),
-    "upperarm": per_stature(0.046, 0.046),
-    "forearm": per_stature(0.038, 0.038),
-    "hand": per_stature(0.030, 0.030),  # palm bones (hand → knuckles)
-    "finger": per_stature(0.010, 0.010),
-    "thigh": per_stature(0.072, 0.072),
-    "shin": per_stature(0.050, 0.050),
-    "foot": per_stature(0.042, 0.042),
-    "toe": per_stature(0.032, 0.032),
-    "other": per_stature(0.040, 0.040),
+    "pelvis": _radii(0.085, 0.085),  # pelvis → hip joint: CMU LHipJoint, Daz buttock
+    "spine": _radii(0.125, 0.095),  # lower back / abdomen
+    "chest": _radii(0.140, 0.100),  # thorax up to the shoulders
+    "neck": _radii(0.050, 0.050),
+    "head": _radii(0.085, 0.100),  # drawn as an ellipsoid by the body mesh
+    "clavicle": _radii(0.050, 0.050),
+    "upperarm": _radii(0.046, 0.046),
+    "forearm": _radii(0.038, 0.038),
+    "hand": _radii(0.030, 0.030),  # palm bones (hand → knuckles)
+    "finger": _radii(0.010, 0.010),
+    "thigh": _radii(0.072, 0.072),
+    "shin": _radii(0.050, 0.050),
+    "foot": _radii(0.042, 0.042),
+    "toe": _radii(0.032, 0.032),
+    "other": _radii(0.040, 0.040),
 }
 #: Role given to joint names no pattern recognises.
 DEFAULT_ROLE = "other"

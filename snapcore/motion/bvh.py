@@ -25,6 +25,7 @@ import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -183,6 +184,12 @@ class _Tokens:
         return value
 
 
+def _xyz(tk: _Tokens, what: str) -> tuple[float, float, float]:
+    """The three numbers of an OFFSET line; ``what`` names its joint in errors."""
+    x, y, z = (tk.number(f"OFFSET {ax} {what}") for ax in "xyz")
+    return x, y, z
+
+
 def _parse_hierarchy(lines: list[str], path: str | None):
     tk = _Tokens(lines, path)
     first = tk.peek()
@@ -215,7 +222,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
         end_site.append(False)
         tk.expect("{")
         tk.expect("OFFSET")
-        offsets.append(tuple(tk.number(f"OFFSET {ax} of joint '{name}'") for ax in "xyz"))
+        offsets.append(_xyz(tk, f"of joint '{name}'"))
         tk.expect("CHANNELS")
         n_tok, n_line = tk.next("the channel count")
         try:
@@ -257,7 +264,7 @@ def _parse_hierarchy(lines: list[str], path: str | None):
                 tk.expect("Site")
                 tk.expect("{")
                 tk.expect("OFFSET")
-                off = tuple(tk.number(f"OFFSET {ax} of the end site of '{name}'") for ax in "xyz")
+                off = _xyz(tk, f"of the end site of '{name}'")
                 tk.expect("}")
                 n_end += 1
                 end_name = f"{name}_End" if n_end == 1 else f"{name}_End{n_end}"
@@ -375,8 +382,8 @@ def _parse_motion_block(lines, start, n_frames, n_chan, path) -> np.ndarray:
     try:
         motion = np.loadtxt(data, dtype=float, ndmin=2, comments=None)
     except ValueError:
-        motion = None
-    if motion is None or motion.shape != (n_frames, n_chan):
+        motion = np.empty((0, 0))  # not the declared shape: the slow path below finds the row
+    if motion.shape != (n_frames, n_chan):
         _raise_bad_row(data, rows, start, n_chan, path)
     finite = np.isfinite(motion)
     if not finite.all():
@@ -389,7 +396,7 @@ def _parse_motion_block(lines, start, n_frames, n_chan, path) -> np.ndarray:
     return motion
 
 
-def _raise_bad_row(data, rows, start, n_chan, path):
+def _raise_bad_row(data, rows, start, n_chan, path) -> NoReturn:
     """Slow path, only on error: find the first row that is not n_chan numbers."""
     for r, text in enumerate(data):
         toks = text.split()

@@ -140,13 +140,14 @@ def euler_to_quat(order: str, angles: np.ndarray) -> np.ndarray:
         Radians, in ``order`` order.
     """
     angles = np.asarray(angles, dtype=float)
-    q = None
+    q = np.zeros(angles.shape[:-1] + (4,))
+    q[..., 0] = 1.0  # the identity, composed with each axis's rotation in turn
     for k, axis in enumerate(order):
         half = 0.5 * angles[..., k]
         e = np.zeros(angles.shape[:-1] + (4,))
         e[..., 0] = np.cos(half)
         e[..., 1 + _AXIS[axis]] = np.sin(half)
-        q = e if q is None else quat_mul(q, e)
+        q = quat_mul(q, e)
     return q
 
 

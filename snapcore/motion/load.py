@@ -18,11 +18,12 @@ from __future__ import annotations
 import os
 import warnings
 from pathlib import Path
+from typing import Literal, overload
 
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.bvh import read_bvh, split_roots
+from snapcore.motion.bvh import BVHDocument, read_bvh, split_roots
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
@@ -33,6 +34,7 @@ from snapcore.motion.gltf import (
 )
 from snapcore.motion.scene import (
     Z_UP_TO_Y_UP,
+    Character,
     Scene,
     character_from_bvh,
     infer_scale,
@@ -70,6 +72,10 @@ def _warn_unit_mismatch(probes, statures) -> None:
         )
 
 
+@overload
+def data_dir(required: Literal[True]) -> Path: ...
+@overload
+def data_dir(required: bool = False) -> Path | None: ...
 def data_dir(required: bool = False) -> Path | None:
     """Folder of the real motion data.
 
@@ -151,6 +157,22 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
     ------
     BVHError, GLTFError, SchemaError, SceneError
         With a one-line message naming the file and what is wrong.
+
+    Examples
+    --------
+    A BVH file of the synthetic jump, 3 s at 30 fps from the first frame to the last:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from snapcore import load_scene
+    >>> from snapcore.motion.bvh import write_bvh
+    >>> from snapcore.motion.synth import humanoid_document
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "jump.bvh"
+    ...     write_bvh(humanoid_document("jump", fps=30.0), path)
+    ...     scene = load_scene(path)
+    >>> scene.name, scene.n_frames, scene.fps, len(scene.characters)
+    ('jump', 91, 30.0, 1)
     """
     if isinstance(paths_or_manifest, (str, os.PathLike)):
         items = [paths_or_manifest]
@@ -199,12 +221,12 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                                {**e, "name": f"{e.get('name') or path.stem}_{root}",
                                 "_character": k})
             continue
-        parts = split_roots(read_bvh(path))
+        parts: list[BVHDocument | None] = list(split_roots(read_bvh(path)))
         for d in parts:
             paths.append(path)
             docs.append(d)
             # one character per ROOT, named after the file (or the entry) and its root
-            entries.append(e if len(parts) == 1 else
+            entries.append(e if d is None or len(parts) == 1 else
                            {**e, "name": f"{e.get('name') or path.stem}_{d.names[0]}"})
     # Forward kinematics once, in file units; positions scale linearly afterwards.
     bvh_fps = [d.fps for d in docs if d is not None]
@@ -242,7 +264,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                 f"stature of 1.70 m ({scene_scale:.4g} m per unit). Pass --scale to override.",
                 stacklevel=3,
             )
-    chars = []
+    chars: list[Character] = []
     used_names: set[str] = set()
     for probe, e, g in zip(probes, entries, is_gltf):
         if g and not (scale or e.get("scale") or spec.get("scale")):
@@ -297,22 +319,22 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         # glTF animations have no added T-pose; only BVH characters are checked
         cut = tpose_lead_in([c.positions for c, g in zip(chars, is_gltf) if not g], chars[0].fps)
         if cut:
-            chars = [c.frames(cut, None) for c in chars]
+            chars = [c.frames(cut, c.n_frames) for c in chars]
             offset = cut
             why_cut = ("they are an added T-pose and the blend out of it "
                        "(drop_tpose = false in a scene manifest keeps them)")
     if chars[0].n_frames < 1:
         raise SceneError(f"{source or paths[0]}: no frames left to analyse")
-    g = ground if ground is not None else spec.get("ground")
-    if g is None:
+    ground_y = ground if ground is not None else spec.get("ground")
+    if ground_y is None:
         # a glTF character stands on its mesh (soles, paws), not on its joints
-        g = infer_ground([lowest_points(c) if gl else c.positions
+        ground_y = infer_ground([lowest_points(c) if gl else c.positions
                           for c, gl in zip(chars, is_gltf)])
     scene_name = name or spec.get("name") or chars[0].name
     return Scene(
         characters=chars,
         fps=chars[0].fps,
-        ground=float(g),
+        ground=float(ground_y),
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,

@@ -541,7 +541,7 @@ def synth_scene(name: str, *, fps: float = 30.0, seed: int = 0, facing_deg: floa
     """
     if name == "push":
         docs = _push_documents(fps=fps, seed=seed, facing_deg=facing_deg)
-        names = ("pusher", "pushed")
+        names: tuple[str, ...] = ("pusher", "pushed")
     elif name in _MAKERS:
         docs = (humanoid_document(name, fps=fps, seed=seed, facing_deg=facing_deg),)
         names = ("actor",)
@@ -640,7 +640,7 @@ def events(name: str, *, seconds: float | None = None) -> dict:
             offs = first + (k + WALK_STANCE_FRACTION - 1) * WALK_STRIDE_S
             out[f"{side}_toe_offs"] = np.round(offs[(offs >= 0) & (offs <= secs)], 9)
         return out
-    table = {
+    table: dict[str, dict[str, float | tuple[float, float]]] = {
         "jump": {"takeoff": JUMP_TAKEOFF_S, "landing": JUMP_LANDING_S},
         "kick": {"impact": KICK_IMPACT_S},
         "punch": {"impact": PUNCH_IMPACT_S},

@@ -213,8 +213,8 @@ class Pose:
 
     def world(self, name: str):
         """World rotation (F, 3, 3) and position (F, 3) of joint ``name``."""
-        chain = []
-        j = name
+        chain: list[str] = []
+        j: str | None = name
         while j is not None:
             chain.append(j)
             j = PARENT[j]
@@ -355,7 +355,7 @@ def to_document(pose: Pose, fps: float, *, facing_deg: float = 0.0, offset=(0.0,
                 for name, end in zip(NAMES, END_SITE)]
     cols = np.concatenate([root_pos, angles.reshape(pose.n, -1)], axis=1)
     motion = np.round(cols, DECIMALS) + 0.0  # "+ 0.0" turns -0.0 into 0.0
-    parents = np.array([-1 if PARENT[n] is None else INDEX[PARENT[n]] for n in NAMES])
+    parents = np.array([-1 if (p := PARENT[n]) is None else INDEX[p] for n in NAMES])
     return BVHDocument(
         names=NAMES,
         parents=parents,

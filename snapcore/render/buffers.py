@@ -357,11 +357,11 @@ def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
         if not (hw > 0 and hh > 0):
             raise RenderError(f"extent must be positive, got {extent!r}")
     if np.ndim(resolution) == 0:
-        n = int(resolution)
+        side = int(resolution)
         if hw >= hh:
-            w, h = n, max(int(round(n * hh / hw)), 1)
+            w, h = side, max(int(round(side * hh / hw)), 1)
         else:
-            w, h = max(int(round(n * hw / hh)), 1), n
+            w, h = max(int(round(side * hw / hh)), 1), side
         # keep pixels square: recompute the half height from the integer height
         s = 2 * hw / w if hw >= hh else 2 * hh / h
         hw, hh = s * w / 2, s * h / 2

@@ -227,6 +227,16 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     Returns
     -------
     ndarray of uint8, shape (H, W, 3)
+
+    Examples
+    --------
+    Three poses of the synthetic walk in one row of 120 × 160 pixel panels:
+
+    >>> from snapcore import contact_sheet
+    >>> from snapcore.motion.synth import synth_scene
+    >>> sheet = contact_sheet(synth_scene("walk"), [0, 45, 90], size=(120, 160))
+    >>> sheet.dtype.name, sheet.shape[1] >= 3 * 120, sheet.shape[0] >= 160
+    ('uint8', True, True)
     """
     size = check_size(size)
     frames = [int(f) for f in np.asarray(frames).reshape(-1)]
@@ -298,6 +308,17 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
     -----
     Same framing in every panel: one scale for all panels (the largest any single view
     needs to fit the pose with the standard margin), each centred on the pose.
+
+    Examples
+    --------
+    One pose of the synthetic walk from the side and from the front, two panels in a row:
+
+    >>> from snapcore import compare_views
+    >>> from snapcore.motion.synth import synth_scene
+    >>> views = {"side": [1.0, 0.0, 0.0], "front": [0.0, 0.0, 1.0]}
+    >>> image = compare_views(synth_scene("walk"), 45, views, size=(120, 160))
+    >>> image.dtype.name, image.shape[1] >= 2 * 120, image.shape[0] >= 160
+    ('uint8', True, True)
     """
     size = check_size(size)
     frame = int(frame)

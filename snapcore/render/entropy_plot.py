@@ -223,7 +223,8 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
         hi = max(float(f[0].max()) for f in figs)
         drawn.append((i, figs, lo, hi))
     margin = 0.3 * height
-    x0, cursor = [], 0.0
+    x0: list[float] = []  # left edge of each drawn frame's figures, metres
+    cursor = 0.0
     for k, (_, _, lo, hi) in enumerate(drawn):
         if k:
             cursor = max(cursor - lo + margin, x0[-1] + 0.6 * height)  # room for the labels

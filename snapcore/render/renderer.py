@@ -477,6 +477,17 @@ def render_still(scene, frame: int, view=None, *, size=None, projection="orthogr
     Returns
     -------
     ndarray of uint8, shape (H, W, 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from snapcore import render_still
+    >>> from snapcore.motion.synth import synth_scene
+    >>> image = render_still(synth_scene("walk"), 0, size=(160, 120))
+    >>> image.shape, image.dtype.name
+    ((120, 160, 3), 'uint8')
+    >>> len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # shaded figure and floor, not blank
+    True
     """
     if size is None:
         size = renderer.size if renderer is not None else (800, 600)
@@ -508,11 +519,9 @@ def render_mesh(vertices, faces, view, *, size=(512, 512), face_colors=None,
     import trimesh
 
     size = check_size(size)
-    tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False)
-    if face_colors is not None:
-        tm.visual.face_colors = face_colors
-    else:
-        tm.visual.face_colors = [200, 200, 200, 255]
+    colors = [200, 200, 200, 255] if face_colors is None else face_colors
+    tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64),
+                         face_colors=colors, process=False)
     mesh = pyrender.Mesh.from_trimesh(tm, smooth=False)
     cam = fit_camera(tm.vertices, view, size=size, projection=projection)
     ps = pyrender.Scene(bg_color=[*BACKGROUND, 1.0], ambient_light=[0.3] * 3)

@@ -54,7 +54,7 @@ class EntropyError(SnapshotError):
     """A viewpoint-entropy request that cannot be met (bad id buffers, empty mesh)."""
 
 
-def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray:
+def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray | float:
     """Viewpoint entropy of face-id images, one value per view (bits).
 
     Parameters

@@ -671,6 +671,23 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
     probability of eq. 6 is per joint. Another character's body is its bones
     (``skeleton.links``) as capsules with the radii of the rendered body
     (:func:`bone_radii`); characters do not touch themselves.
+
+    Examples
+    --------
+    In the synthetic push the pusher's palms touch the other person's chest from
+    ``PUSH_CONTACT_S`` = 1.3 s to ``PUSH_CONTACT_END_S`` = 1.6 s:
+
+    >>> from snapcore import detect_interactions
+    >>> from snapcore.motion.synth import synth_scene
+    >>> scene = synth_scene("push")
+    >>> found = detect_interactions(scene)
+    >>> found.objects
+    ['ground', 'pusher', 'pushed']
+    >>> pusher = scene.characters[0]
+    >>> [(round(e.start / scene.fps, 2), round(e.end / scene.fps, 2))
+    ...  for e in found.for_character(0)
+    ...  if e.object == "pushed" and pusher.joint_names[e.joint] == "RightHand"]
+    [(1.3, 1.6)]
     """
     import time
 

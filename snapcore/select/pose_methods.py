@@ -200,6 +200,17 @@ def select_pose(scene, *, method: str | None = None, k: int = 3,
     UserWarning
         When the method's score is constant (e.g. a static clip): the first frame is
         returned, a defined but arbitrary choice.
+
+    Examples
+    --------
+    >>> from snapcore import select_pose
+    >>> from snapcore.motion.synth import synth_scene
+    >>> scene = synth_scene("kick")
+    >>> sel = select_pose(scene, k=2, min_separation_s=0.3)
+    >>> sel.method, len(sel.frames), sel.frames[0] == sel.frame
+    ('story', 2, True)
+    >>> abs(sel.frames[1] - sel.frames[0]) >= 0.3 * scene.fps  # the runner-up is another moment
+    True
     """
     if int(k) != k or k < 1:
         raise ValueError(f"k must be a positive integer, got {k}")

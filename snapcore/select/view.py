@@ -555,6 +555,17 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
        and refined from if it is better, so the answer is never below any sample.
     A clip without motion above the floor returns the facing direction (or +Z) with a
     warning and score 0.
+
+    Examples
+    --------
+    A person walking along +Z sweeps the largest area seen from the side (±X):
+
+    >>> import numpy as np
+    >>> from snapcore import select_view
+    >>> from snapcore.motion.synth import synth_scene
+    >>> sel = select_view(synth_scene("walk"))
+    >>> sel.method, bool(abs(sel.view[0]) > 0.9), round(float(np.linalg.norm(sel.view)), 6)
+    ('pma', True, 1.0)
     """
     _check_weighting(method)
     frames = window_frames(scene, frame, window_s)
