@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from pg import pg_server, pg_url  # noqa: F401 - fixtures, requested by name
 from test_open_data import PROLIFIC, populate
 
 from snapcore.cli.main import cli
@@ -164,3 +165,45 @@ def test_backup_verify_and_a_corrupt_backup(db, tmp_path):
     code, err = run("restore", bad, "--db", target)
     assert code == 2 and str(bad) in err and "target" not in err
     assert not target.exists()  # no empty database left behind
+
+
+# ----------------------------------------------------------------------------- item 8: analyze
+def test_analyze_refuses_an_export_without_chosen_method(db, tmp_path):
+    full = tmp_path / "full.csv"
+    assert run("export", "--db", db, "-o", full)[0] == 0
+    rows = read_csv(full)
+    cut = tmp_path / "cut.csv"
+    with open(cut, "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, [c for c in rows[0] if c != "chosen_method"], extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    code, err = run("analyze", "--input", cut, "-o", tmp_path / "out", "--include-incomplete")
+    assert code == 2 and "chosen_method" in err and str(cut) in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_analyze_never_creates_a_database(tmp_path):
+    missing = tmp_path / "missing" / "dir" / "x.db"
+    code, err = run("analyze", "--db", f"sqlite:///{missing}", "-o", tmp_path / "out")
+    assert code == 2 and "no such file" in err
+    assert not missing.parent.exists() and not (tmp_path / "out").exists()
+
+
+def test_analyze_takes_a_bare_db_path_like_export(db, tmp_path):
+    code, err = run("analyze", "--db", db, "-o", tmp_path / "out", "--include-incomplete",
+                    "--boot", "0", "-q")
+    assert code == 0, err
+    assert (tmp_path / "out" / "report.html").is_file()
+
+
+def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):
+    import sqlalchemy as sa
+
+    from study_app.data.database import normalize_url
+
+    code, err = run("analyze", "--db", pg_url, "-o", tmp_path / "out")
+    assert code == 2 and "no study tables" in err
+    engine = sa.create_engine(normalize_url(pg_url))
+    with engine.connect() as conn:
+        assert sa.inspect(conn).get_table_names() == []
+    engine.dispose()
