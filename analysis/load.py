@@ -75,9 +75,14 @@ def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list
     """Export rows from the study store at ``url`` (None: the store's default URL).
 
     The store is opened as a reader: a missing SQLite file or folder, or a database
-    without the study tables, is an error, never created."""
+    without the study tables, is an error, never created. Participants excluded on the
+    researcher page (:mod:`study_app.data.monitor`) are left out."""
+    from study_app.data.monitor import excluded_ids
+
     with Store(url, create=False) as store:
-        return store.export_rows(include_simulated=include_simulated)
+        left_out = excluded_ids(store)  # excluded on the researcher page, with a reason
+        return [r for r in store.export_rows(include_simulated=include_simulated)
+                if r["participant_id"] not in left_out]
 
 
 def _check_columns(rows, source) -> None:

@@ -337,7 +337,7 @@ def _withdrawal_records(url) -> list[dict]:
 def _reapply(conn, records) -> list[str]:
     """Delete the data of every participant of ``records`` that the restored rows hold,
     and copy their withdrawal records; return their link ids."""
-    from .database import events, participants, responses, withdrawals
+    from .database import events, exclusions, participants, responses, withdrawals
 
     ids = [r["participant_id"] for r in records]
     present = set(conn.execute(sa.select(participants.c.participant_id).where(
@@ -348,7 +348,7 @@ def _reapply(conn, records) -> list[str]:
     for rec in records:
         pid = rec["participant_id"]
         if pid in present:
-            for table in (responses, events, participants):
+            for table in (responses, events, exclusions, participants):
                 conn.execute(table.delete().where(table.c.participant_id == pid))
             done.append(pid)
         if pid not in known:

@@ -21,7 +21,7 @@ from datetime import UTC, datetime
 
 import sqlalchemy as sa
 
-from .database import events, participants, responses, withdrawals
+from .database import events, exclusions, participants, responses, withdrawals
 from .errors import StoreError
 from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
 
@@ -205,6 +205,7 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
             n_resp = conn.execute(responses.delete().where(
                 responses.c.participant_id == pid)).rowcount
             n_ev = conn.execute(events.delete().where(events.c.participant_id == pid)).rowcount
+            conn.execute(exclusions.delete().where(exclusions.c.participant_id == pid))
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
             conn.execute(withdrawals.insert().values(
                 participant_id=pid, study_id=row["study_id"], prolific_pid=row["prolific_pid"],
