@@ -252,7 +252,7 @@ def _recruitment(ctx) -> None:
     c = st.columns(3)
     c[0].toggle("Close the study", key=K["closed"])
     c[1].checkbox("Cap the participants", key=K["cap.on"])
-    c[2].number_input("Cap", min_value=0, step=1, key=K["cap.n"])
+    c[2].number_input("Most participants", min_value=0, step=1, key=K["cap.n"])
     st.button("Save recruitment", key=K["controls.button"], on_click=_save_controls, args=(ctx,))
 
 
