@@ -231,15 +231,19 @@ def test_wrong_tokens_lock_the_page(server, browser):
     module: the lock holds for this server's remaining life)."""
     base, *_ = server
     page = browser.new_page()
+    page.set_default_timeout(90_000)
     page.goto(f"{base}/researcher")
     field = page.get_by_label("Access token")
-    for k in range(5):
+    for k in range(1, 5):
         field.fill(f"wrong-guess-{k}")
         field.press("Enter")
-        settled(page)
-    field.fill(TOKEN)
+        page.get_by_text(f"Wrong token. {k} of 5").wait_for()
+    field.fill("wrong-guess-5")
     field.press("Enter")
     page.get_by_text("Too many wrong tokens").wait_for()
+    field.fill(TOKEN)
+    field.press("Enter")
+    page.get_by_text("the page is locked for").wait_for()
     settled(page)
     assert page.locator("[data-testid=stMetric]").count() == 0
     page.close()

@@ -69,7 +69,8 @@ def _locked(now: float) -> float:
         return max(0.0, _LOCKED_UNTIL[0] - now)
 
 
-def _failed(now: float) -> None:
+def _failed(now: float) -> int:
+    """Count a wrong token; return the wrong tries in the window (0: the page just locked)."""
     with _GUARD:
         _FAILURES.append(now)
         while _FAILURES and _FAILURES[0] < now - FAILURE_WINDOW_S:
@@ -80,6 +81,7 @@ def _failed(now: float) -> None:
             _FAILURES.clear()
     _log.warning("researcher page: wrong access token (%d in the last %.0f s)%s", n,
                  FAILURE_WINDOW_S, f"; locked for {LOCKOUT_S:.0f} s" if n >= MAX_FAILURES else "")
+    return 0 if n >= MAX_FAILURES else n
 
 
 def _token_ok() -> bool:
@@ -103,8 +105,11 @@ def _token_ok() -> bool:
         st.error(f"Too many wrong tokens: the page is locked for {wait:.0f} more seconds.")
         return False
     if not hmac.compare_digest(given.encode(), expected.encode()):
-        _failed(now)
-        st.error("Wrong token.")
+        n = _failed(now)
+        st.error(f"Wrong token. {n} of {MAX_FAILURES} wrong tries allowed in "
+                 f"{FAILURE_WINDOW_S:.0f} s." if n else
+                 f"Wrong token. Too many wrong tokens: the page is locked for "
+                 f"{LOCKOUT_S:.0f} seconds.")
         return False
     return True
 
