@@ -207,3 +207,30 @@ def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_pat
     with engine.connect() as conn:
         assert sa.inspect(conn).get_table_names() == []
     engine.dispose()
+
+
+def test_psych_ds_metadata_comes_from_the_study_config(tmp_path):
+    """Licence, creators and citation from the config; the description is the dataset's,
+    not the text participants read."""
+    import json
+
+    from app_helpers import fixture_study_doc, write_fixture_stimuli
+
+    from study_app.design.stimuli import load_stimuli
+
+    doc = fixture_study_doc()
+    doc["study"].update(license="CC-BY-4.0", creators=["A. Researcher", "B. Researcher"],
+                        citation="Researcher et al. (2026). Action Snapshot study data.",
+                        description="Thank you for helping us with this study!")
+    stim_dir = tmp_path / "stim"
+    write_fixture_stimuli(stim_dir, doc)
+    stim = load_stimuli(stim_dir)
+    db = tmp_path / "s.db"
+    with Store(f"sqlite:///{db}") as store:
+        populate(store, stim.study.id)
+    assert run("export", "--db", db, "--psych-ds", tmp_path / "ds", "--stimuli", stim_dir)[0] == 0
+    desc = json.loads((tmp_path / "ds" / "dataset_description.json").read_text())
+    assert desc["license"] == "CC-BY-4.0"
+    assert [c["name"] for c in desc["creator"]] == ["A. Researcher", "B. Researcher"]
+    assert desc["citation"].startswith("Researcher et al.")
+    assert "Thank you" not in desc["description"]

@@ -14,7 +14,8 @@ database)::
 
 ``dataset_description.json`` holds the fields Psych-DS requires (``@context``,
 ``@type: Dataset``, ``name``, ``description``, ``variableMeasured``) and some it
-recommends (``keywords``, ``dateCreated``). ``variableMeasured`` lists every column of
+recommends (``keywords``, ``dateCreated``; ``license``, ``creator`` and ``citation``
+when the study config gives ``license``, ``creators`` and ``citation``). ``variableMeasured`` lists every column of
 every data file as a ``PropertyValue`` whose description comes from the column's
 schema (``data_schema/response.schema.json``, ``participant.schema.json``,
 ``event.schema.json``), so a column cannot be added without being described. File
@@ -227,6 +228,13 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
         "variableMeasured": variable_measured(),
     }
+    if study is not None:  # what the study config says about its dataset
+        if study.license:
+            doc["license"] = study.license
+        if study.creators:
+            doc["creator"] = [{"@type": "Person", "name": n} for n in study.creators]
+        if study.citation:
+            doc["citation"] = study.citation
     _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
     files.insert(0, DESCRIPTION_NAME)
     return {"folder": root, "files": files, "responses": len(rows),
