@@ -234,3 +234,31 @@ def test_psych_ds_metadata_comes_from_the_study_config(tmp_path):
     assert [c["name"] for c in desc["creator"]] == ["A. Researcher", "B. Researcher"]
     assert desc["citation"].startswith("Researcher et al.")
     assert "Thank you" not in desc["description"]
+
+
+def test_exclusion_keeps_the_data_marks_the_export_and_leaves_the_analysis(db, tmp_path):
+    from study_app.data import monitor
+
+    with Store(f"sqlite:///{db}") as store:
+        people = store.participants()
+        who = people[0]["participant_id"]
+        monitor.exclude(store, who, "  failed the\nattention check ")
+        with pytest.raises(Exception, match="already excluded"):
+            monitor.exclude(store, who, "again")
+        with pytest.raises(Exception, match="needs a reason"):
+            monitor.exclude(store, people[1]["participant_id"], " ")
+        n_rows = store.progress()["responses"]
+    code, err = run("export", "--db", db, "-o", tmp_path / "r.csv", "--participants",
+                    tmp_path / "p.csv", "--identifiers")
+    assert code == 0, err
+    assert len(read_csv(tmp_path / "r.csv")) == n_rows  # the data stay
+    marks = {p["participant_id"]: p["excluded"] for p in read_csv(tmp_path / "p.csv")}
+    assert marks[who] == "failed the attention check"
+    assert [v for k, v in marks.items() if k != who] == ["", ""]
+    from analysis.load import rows_from_store
+
+    assert who not in {r["participant_id"] for r in rows_from_store(f"sqlite:///{db}")}
+    # Withdrawing an excluded participant deletes the exclusion with the rest.
+    assert run("withdraw", "--db", db, "--pid", who)[0] == 0
+    with sqlite3.connect(db) as con:
+        assert con.execute("SELECT count(*) FROM exclusions").fetchone()[0] == 0

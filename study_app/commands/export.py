@@ -82,8 +82,11 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
         if output is not None:
             n = write_export(anon(rows), output, fmt=fmt)
             if participants_path:
+                from study_app.data.monitor import with_exclusions
+
                 n_part = write_participants(
-                    anon(store.participants(include_simulated=include_simulated)),
+                    anon(with_exclusions(store, store.participants(
+                        include_simulated=include_simulated))),
                     participants_path, drop=() if identifiers else OPEN_DROPPED)
             if events_path:
                 keep = {r["participant_id"] for r in store.participants(

@@ -24,7 +24,8 @@ import sqlalchemy as sa
 from .database import _utc, events, exclusions, participants, responses, study_controls
 from .errors import StoreError
 
-__all__ = ["TIMEOUT_S", "STATES", "monitor_rows", "exclude", "excluded_ids", "controls",
+__all__ = ["TIMEOUT_S", "STATES", "monitor_rows", "exclude", "excluded_ids", "with_exclusions",
+           "controls",
            "set_controls", "enrolment", "completion_codes"]
 
 #: Seconds without an answer or a player event after which a participant who has not
@@ -137,6 +138,13 @@ def excluded_ids(store, study_id: str | None = None) -> dict[str, str]:
         if not sa.inspect(conn).has_table("exclusions"):  # a database older than the table
             return {}
         return dict(conn.execute(query).all())
+
+
+def with_exclusions(store, records) -> list[dict]:
+    """Participant records (:meth:`Store.participants`) with ``excluded``: the reason, or
+    None (the participants export's column)."""
+    reasons = excluded_ids(store)
+    return [{**r, "excluded": reasons.get(r["participant_id"])} for r in records]
 
 
 def controls(store, study_id: str) -> dict:

@@ -171,7 +171,9 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
     if root.exists() and (not root.is_dir() or (any(root.iterdir()) and not force)):
         raise StoreError(f"{root}: not an empty folder (choose a new one, or --force)")
     manifest = _manifest(stimuli_dir)
-    people = store.participants(include_simulated=include_simulated)
+    from .monitor import with_exclusions
+
+    people = with_exclusions(store, store.participants(include_simulated=include_simulated))
     keep = {p["participant_id"] for p in people}
     rows = store.export_rows(include_simulated=include_simulated)
     events = [e for e in store.events() if e["participant_id"] in keep]

@@ -400,7 +400,8 @@ def export_files(ctx, folder: Path) -> dict[str, Path]:
 
     anon = Pseudonymiser(ctx.store)
     sid = ctx.stimuli.study.id
-    people = [p for p in ctx.store.participants() if p["study_id"] == sid]
+    people = monitor.with_exclusions(ctx.store, [p for p in ctx.store.participants()
+                                                 if p["study_id"] == sid])
     keep = {p["participant_id"] for p in people}
     rows = [r for r in ctx.store.export_rows() if r["study_id"] == sid]
     out = {}
