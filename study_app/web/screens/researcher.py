@@ -2,11 +2,10 @@
 completion codes and every download.
 
 Behind a token: the page compares what is typed with ``$SNAPSHOT_ADMIN_TOKEN``
-(constant-time). Without the variable, with one shorter than :data:`MIN_TOKEN_CHARS`,
-or without the right token, it shows nothing but the token field. Wrong tokens are
-logged and limited: after :data:`MAX_FAILURES` within :data:`FAILURE_WINDOW_S` seconds
-(from any browser, this server process) every try, right or wrong, is refused for
-:data:`LOCKOUT_S` seconds.
+(constant-time). Without the variable, with one shorter than 16 characters, or
+without the right token, it shows nothing but the token field. Wrong tokens are logged
+and limited (:mod:`study_app.web.screens.token_guard`): after 5 within 60 seconds (from
+any browser, this server process) every try, right or wrong, is refused for 120 seconds.
 
 Every action (withdraw, exclude, the recruitment switches) runs in its button's
 callback, before the page is drawn again: the tables and the downloads drawn after it
@@ -19,13 +18,10 @@ from __future__ import annotations
 
 import hmac
 import io
-import logging
 import os
 import tempfile
-import threading
 import time
 import zipfile
-from collections import deque
 from pathlib import Path
 
 import streamlit as st
@@ -35,53 +31,14 @@ from study_app.data import monitor
 from study_app.data.pseudonym import OPEN_DROPPED, PSEUDONYM_RE, Pseudonymiser
 from study_app.data.withdraw import withdraw, withdrawal_plan
 from study_app.web.screens import context, keys, widgets
+from study_app.web.screens import token_guard as guard
 
 #: Seconds between refreshes of the live panels.
 REFRESH_S = 10
-#: The shortest token the page accepts (a guessable token opens every participant's data).
-MIN_TOKEN_CHARS = 16
-#: Wrong tokens allowed within FAILURE_WINDOW_S seconds before the page locks.
-MAX_FAILURES = 5
-FAILURE_WINDOW_S = 60.0
-#: Seconds the page refuses every token after too many wrong ones.
-LOCKOUT_S = 120.0
-
-_log = logging.getLogger("study_app.researcher")
-_FAILURES: deque = deque()
-_LOCKED_UNTIL = [0.0]
-_GUARD = threading.Lock()
-
 #: Widget keys of the sections added here (keys.py holds the older ones).
 K = {name: f"researcher.{name}" for name in (
     "message", "exclude.id", "exclude.reason", "exclude.button", "cap.on", "cap.n", "closed",
     "controls.button")}
-
-
-def reset_token_limit() -> None:
-    """Forget the wrong tokens seen (tests; a restart does the same)."""
-    with _GUARD:
-        _FAILURES.clear()
-        _LOCKED_UNTIL[0] = 0.0
-
-
-def _locked(now: float) -> float:
-    with _GUARD:
-        return max(0.0, _LOCKED_UNTIL[0] - now)
-
-
-def _failed(now: float) -> int:
-    """Count a wrong token; return the wrong tries in the window (0: the page just locked)."""
-    with _GUARD:
-        _FAILURES.append(now)
-        while _FAILURES and _FAILURES[0] < now - FAILURE_WINDOW_S:
-            _FAILURES.popleft()
-        n = len(_FAILURES)
-        if n >= MAX_FAILURES:
-            _LOCKED_UNTIL[0] = now + LOCKOUT_S
-            _FAILURES.clear()
-    _log.warning("researcher page: wrong access token (%d in the last %.0f s)%s", n,
-                 FAILURE_WINDOW_S, f"; locked for {LOCKOUT_S:.0f} s" if n >= MAX_FAILURES else "")
-    return 0 if n >= MAX_FAILURES else n
 
 
 def _token_ok() -> bool:
@@ -91,25 +48,25 @@ def _token_ok() -> bool:
         st.info(f"This page is disabled. Start the app with {keys.ENV_ADMIN_TOKEN} set to "
                 "open it.")
         return False
-    if len(expected) < MIN_TOKEN_CHARS:
+    if len(expected) < guard.MIN_TOKEN_CHARS:
         st.error(f"This page is disabled: {keys.ENV_ADMIN_TOKEN} has {len(expected)} "
-                 f"characters; use at least {MIN_TOKEN_CHARS} random ones (e.g. "
+                 f"characters; use at least {guard.MIN_TOKEN_CHARS} random ones (e.g. "
                  "python -c 'import secrets; print(secrets.token_urlsafe(24))').")
         return False
     given = st.text_input("Access token", type="password", key=keys.KEY_ADMIN_TOKEN)
     if not given:
         return False
     now = time.monotonic()
-    wait = _locked(now)
+    wait = guard.locked(now)
     if wait > 0:
         st.error(f"Too many wrong tokens: the page is locked for {wait:.0f} more seconds.")
         return False
     if not hmac.compare_digest(given.encode(), expected.encode()):
-        n = _failed(now)
-        st.error(f"Wrong token. {n} of {MAX_FAILURES} wrong tries allowed in "
-                 f"{FAILURE_WINDOW_S:.0f} s." if n else
+        n = guard.failed(now)
+        st.error(f"Wrong token. {n} of {guard.MAX_FAILURES} wrong tries allowed in "
+                 f"{guard.FAILURE_WINDOW_S:.0f} s." if n else
                  f"Wrong token. Too many wrong tokens: the page is locked for "
-                 f"{LOCKOUT_S:.0f} seconds.")
+                 f"{guard.LOCKOUT_S:.0f} seconds.")
         return False
     return True
 
