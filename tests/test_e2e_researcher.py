@@ -127,6 +127,7 @@ def metric(page, label: str) -> str:
 
 
 def download(page, name: str) -> bytes:
+    settled(page)
     with page.expect_download() as d:
         page.get_by_role("button", name=re.compile(re.escape(name))).click()
     return open(d.value.path(), "rb").read()

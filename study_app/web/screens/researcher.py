@@ -339,7 +339,7 @@ def _completion_codes(ctx) -> None:
     st.download_button(f"Download completion codes (CSV, {len(rows)} rows)",
                        table.to_csv(index=False).encode(),
                        file_name=f"{ctx.stimuli.study.id}-completion-codes.csv", mime="text/csv",
-                       key=f"{keys.KEY_DOWNLOAD}.codes")
+                       key=f"{keys.KEY_DOWNLOAD}.codes", on_click="ignore")
 
 
 # ----------------------------------------------------------------------------- downloads
@@ -389,6 +389,8 @@ def _zip(paths) -> bytes:
 
 def _downloads(ctx) -> None:
     st.subheader("Downloads")
+    # A download does not re-run the page (on_click="ignore"): a re-run while the browser
+    # fetches the file would replace it under the download (Chromium: canceled).
     st.caption("Shared exports: ids are pseudonyms, no seeds, times as UTC dates (the raw "
                "ids only from `snapshot export --identifiers`). Built now, after every "
                "action above.")
@@ -411,16 +413,16 @@ def _downloads(ctx) -> None:
         for k, (name, label, mime) in enumerate(items):
             c[k % 3].download_button(label, files[name].read_bytes(),
                                      file_name=f"{sid}-{name}", mime=mime,
-                                     key=f"{keys.KEY_DOWNLOAD}.{name}")
+                                     key=f"{keys.KEY_DOWNLOAD}.{name}", on_click="ignore")
         if "psych-ds" in files:
             c[1].download_button("Download Psych-DS dataset (zip)",
                                  _zip([(f"{sid}-psych-ds", files["psych-ds"])]),
                                  file_name=f"{sid}-psych-ds.zip", mime="application/zip",
-                                 key=f"{keys.KEY_DOWNLOAD}.psychds")
+                                 key=f"{keys.KEY_DOWNLOAD}.psychds", on_click="ignore")
         everything = [(f"{sid}/{n}", p) for n, p in files.items()]
         c[2].download_button("Download everything (zip)", _zip(everything),
                              file_name=f"{sid}-export.zip", mime="application/zip",
-                             key=f"{keys.KEY_DOWNLOAD}.all")
+                             key=f"{keys.KEY_DOWNLOAD}.all", on_click="ignore")
 
 
 if __name__ == "__main__":  # run as the page script by st.navigation (see app.py)
