@@ -130,7 +130,10 @@ def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
 
 def _store_url(db):
     if db is not None:
-        return db
+        from study_app.data.database import normalize_url
+
+        # A bare .db/.sqlite path is a SQLite store, as for export, withdraw and backup.
+        return normalize_url(db).render_as_string(hide_password=False)
     try:
         from study_app.data.store import default_url
     except ImportError as err:

@@ -303,7 +303,7 @@ def _fig5(ctx: _Context) -> list[Path]:
         plot_strip(snap, strip=8, ax=ax)
         ax.set_title(f"{labels.get(sid, sid)} — stand-in clip {_clip_name(sid)}: selected "
                      f"frame {snap.frame}", fontsize=9, loc="left")
-    fig.suptitle("Fig. 5: pose entropy along each animation (brighter = more informative; "
+    fig.suptitle("Pose entropy along each animation (brighter = more informative; "
                  "#1-#3 = the selected poses)", fontsize=11)
     return _figure_paths(fig, ctx.out / "fig5_pose_entropy")
 
@@ -319,7 +319,7 @@ def _fig6(ctx: _Context) -> list[Path]:
     if bottom.get_legend() is not None:  # keep the #1 peak's label clear of the legend
         bottom.legend(loc="upper right", fontsize=8, framealpha=0.8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # leave room for the title
-    fig.suptitle(f"Fig. 6: local and global pose entropy of the dance ({_clip_name(FEATURE_SCENE)})",
+    fig.suptitle(f"Local and global pose entropy of the dance ({_clip_name(FEATURE_SCENE)})",
                  fontsize=10)
     return _figure_paths(fig, ctx.out / "fig6_local_global_entropy")
 
@@ -385,7 +385,7 @@ def _fig8_10(ctx: _Context) -> list[Path]:
     for ax, img in zip(axes[:, 0], images, strict=True):
         ax.imshow(img)
         ax.set_axis_off()
-    fig.suptitle("Fig. 8-10: the selected pose from the view of each method", fontsize=11)
+    fig.suptitle("The selected pose from the view of each method", fontsize=11)
     paths = _figure_paths(fig, ctx.out / "fig8-10_views")
     from snapcore.render.renderer import save_png
 
@@ -402,7 +402,7 @@ def _fig11(ctx: _Context) -> list[Path]:
     snap = ctx.snapshot(FEATURE_SCENE)
     views = snapshot_views(snap)
     fig = relief_figure(snap.scene, snap.index, {m.panel: v for m, v in views.items()},
-                        title=f"Fig. 11: reliefs of the dance pose (frame {snap.frame}, "
+                        title=f"Reliefs of the dance pose (frame {snap.frame}, "
                               f"{_clip_name(FEATURE_SCENE)}) from each method's view")
     return _figure_paths(fig, ctx.out / "fig11_reliefs")
 

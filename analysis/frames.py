@@ -20,15 +20,14 @@ Predictors compared with the people's choices, per scene:
   guessed).
 
 Distances are in seconds, ``|chosen − predictor| / fps``. Hit rates count choices within
-±0.25, ±0.5 and ±1 s (``TOLERANCES_S``). Permutation tests ask whether the algorithm
-is closer to people than each baseline (one-sided):
-
-- deterministic baseline ``b``: paired sign-flip test on
-  ``d_i = |c_i − b| − |c_i − a|`` (statistic: mean ``d``; under "equally close" each
-  ``d_i`` is symmetric about 0); exact enumeration for up to ``EXACT_MAX_N`` choices,
-  else ``N_PERMUTATIONS`` random flips, ``p = (1 + #{T* >= T}) / (1 + B)``;
-- ``uniform_random``: the exact randomisation p-value, the fraction of the clip's frames
-  whose mean distance to the choices is at most the algorithm's.
+±0.25, ±0.5 and ±1 s (``TOLERANCES_S``). :func:`closeness_tests` asks whether the
+algorithm is closer to people than each baseline with a paired test over participants:
+each person's distance to the baseline's frame (for ``uniform_random``, their expected
+distance to a random frame) minus their distance to the algorithm's, one-sided
+Wilcoxon signed-rank, the mean difference with a bootstrap interval over participants
+and the rank-biserial correlation as effect sizes, Holm over the tests that can differ.
+Rows pooled over scenes (``scene == "ALL"``) have intervals from a bootstrap over
+participants (:func:`cluster_bootstrap_ci`): one person's choices are not independent.
 
 Frames are in source numbering; a clip covers frames ``frame_offset ..
 frame_offset + n_frames − 1`` (``frame_offset`` 0 unless the stimuli manifest says).
@@ -36,7 +35,6 @@ frame_offset + n_frames − 1`` (``frame_offset`` 0 unless the stimuli manifest 
 
 from __future__ import annotations
 
-import itertools
 import warnings
 
 import numpy as np
@@ -50,7 +48,7 @@ from .votes import holm_adjust, wilson_interval
 __all__ = [
     "TOLERANCES_S",
     "N_PERMUTATIONS",
-    "EXACT_MAX_N",
+    "N_BOOT",
     "DETERMINISTIC_BASELINES",
     "scene_frames_from_rows",
     "motion_baselines",
@@ -60,15 +58,17 @@ __all__ = [
     "frame_distances",
     "hit_rates",
     "closeness_tests",
+    "paired_closeness",
+    "cluster_bootstrap_ci",
     "frame_histogram",
 ]
 
 #: Hit-rate windows, seconds either side of the predicted frame.
 TOLERANCES_S = (0.25, 0.5, 1.0)
-#: Random sign flips of the permutation test when exact enumeration is too large.
+#: Kept for older callers (the tests are Wilcoxon signed-rank tests now).
 N_PERMUTATIONS = 10_000
-#: Up to this many choices the sign-flip test enumerates all 2^n flips exactly.
-EXACT_MAX_N = 16
+#: Bootstrap resamples (over participants) of effect intervals and pooled rows.
+N_BOOT = 2000
 #: Baselines that predict one frame (tested by paired sign flips).
 DETERMINISTIC_BASELINES = ("middle", "fastest", "stretch")
 #: The pose selectors (:data:`snapcore.select.pose_methods.POSE_METHODS`) whose top pick
@@ -302,15 +302,17 @@ def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float =
     DataFrame
         ``scene``, ``selector``, ``frame`` (its top pick), ``n`` (choices), ``hit``
         (fraction of choices within the tolerance), ``hit_low``/``hit_high`` (Wilson 95%),
-        ``median_abs_error_s``; then rows with ``scene == "ALL"``: the mean hit rate and
-        the median distance over every choice, per selector. Empty when no scene has
-        selector picks.
+        ``median_abs_error_s``; then rows with ``scene == "ALL"``: the hit rate and the
+        median distance over every choice, per selector, ``frame`` empty (no one frame),
+        ``n`` the choices and ``participants`` the people, the interval a percentile
+        bootstrap over participants (:func:`cluster_bootstrap_ci`; one person's choices
+        in several scenes are not independent). Empty when no scene has selector picks.
     """
     rows, pooled = [], {}
     for scene, info in scenes.items():
         if not info.selector_frames:
             continue
-        c = pose.loc[pose["scene"] == scene, "chosen_frame"].to_numpy(dtype=float)
+        c, who = _per_participant(pose, scene)
         if c.size == 0:
             continue
         for name, fs in info.selector_frames.items():
@@ -318,18 +320,22 @@ def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float =
             k = int((d <= tolerance_s + 1e-9).sum())
             lo, hi = wilson_interval(k, c.size)
             rows.append({"scene": scene, "selector": name, "frame": int(fs[0]), "n": int(c.size),
+                         "participants": len(set(who)),
                          "hit": k / c.size, "hit_low": float(lo), "hit_high": float(hi),
                          "median_abs_error_s": float(np.median(d))})
-            pooled.setdefault(name, []).append(d)
-    for name, ds in pooled.items():
-        d = np.concatenate(ds)
-        k = int((d <= tolerance_s + 1e-9).sum())
-        lo, hi = wilson_interval(k, d.size)
-        rows.append({"scene": "ALL", "selector": name, "frame": -1, "n": int(d.size),
-                     "hit": k / d.size, "hit_low": float(lo), "hit_high": float(hi),
-                     "median_abs_error_s": float(np.median(d))})
-    return pd.DataFrame(rows, columns=["scene", "selector", "frame", "n", "hit", "hit_low",
-                                       "hit_high", "median_abs_error_s"])
+            pooled.setdefault(name, []).append((d, who))
+    for name, parts in pooled.items():
+        d = np.concatenate([p[0] for p in parts])
+        who = np.concatenate([p[1] for p in parts])
+        hit = (d <= tolerance_s + 1e-9).astype(float)
+        lo, hi = cluster_bootstrap_ci(hit, who)
+        rows.append({"scene": "ALL", "selector": name, "frame": pd.NA, "n": int(d.size),
+                     "participants": len(set(who)), "hit": float(hit.mean()),
+                     "hit_low": lo, "hit_high": hi, "median_abs_error_s": float(np.median(d))})
+    out = pd.DataFrame(rows, columns=["scene", "selector", "frame", "n", "participants", "hit",
+                                      "hit_low", "hit_high", "median_abs_error_s"])
+    out["frame"] = out["frame"].astype("Int64")
+    return out
 
 
 def selector_timeline_document(pose: pd.DataFrame, scenes: dict) -> dict | None:
@@ -347,64 +353,156 @@ def selector_timeline_document(pose: pd.DataFrame, scenes: dict) -> dict | None:
                      for m, fs in i.selector_frames.items()]}
 
 
-def _sign_flip_p(d, *, n_permutations, rng):
-    """One-sided p of mean(d) > 0 under sign symmetry; exact for small n."""
-    d = np.asarray(d, dtype=float)
-    t_obs = d.mean()
-    if np.allclose(d, 0):
-        return 1.0, True
-    n = d.size
-    if n <= EXACT_MAX_N:
-        signs = np.array(list(itertools.product((1.0, -1.0), repeat=n)))
-        t = (signs * d).mean(axis=1)
-        return float(np.mean(t >= t_obs - 1e-12)), True
-    signs = rng.choice((-1.0, 1.0), size=(n_permutations, n))
-    t = (signs * d).mean(axis=1)
-    return float((1 + np.sum(t >= t_obs - 1e-12)) / (1 + n_permutations)), False
+def _per_participant(pose: pd.DataFrame, scene: str) -> tuple[np.ndarray, np.ndarray]:
+    """One scene's chosen frames and the participant of each, shape (n,) both."""
+    g = pose[pose["scene"] == scene]
+    who = (g["participant_id"].to_numpy() if "participant_id" in g
+           else np.arange(len(g)))
+    return g["chosen_frame"].to_numpy(dtype=float), who
 
 
-def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_permutations: int = N_PERMUTATIONS,
-                    seed: int = 0, alpha: float = 0.05) -> pd.DataFrame:
-    """Is the algorithm closer to people than each baseline? One-sided permutation tests.
+def _participant_means(values: np.ndarray, who: np.ndarray) -> np.ndarray:
+    """Mean of ``values`` per participant (one number per person: repeated choices of
+    one person are not independent observations)."""
+    return pd.Series(values).groupby(pd.Series(who)).mean().to_numpy()
+
+
+def cluster_bootstrap_ci(values, clusters, *, stat=np.mean, n_boot: int = N_BOOT,
+                         seed: int = 0, confidence: float = 0.95) -> tuple[float, float]:
+    """Percentile bootstrap interval of ``stat(values)``, resampling whole clusters.
+
+    Parameters
+    ----------
+    values : array-like, shape (n,)
+        One number per observation (e.g. 1/0 for a hit, a distance in s).
+    clusters : array-like, shape (n,)
+        The cluster of each observation (the participant): a resample draws
+        participants with replacement and keeps all their observations, so that the
+        interval counts people, not choices.
+    stat : callable
+        Statistic of the pooled values of a resample.
+
+    Returns
+    -------
+    (low, high) : tuple of float
+        NaN when there are no values.
+    """
+    values = np.asarray(values, dtype=float)
+    clusters = np.asarray(clusters)
+    if values.size == 0 or n_boot <= 0:
+        return float("nan"), float("nan")
+    _, inverse = np.unique(clusters, return_inverse=True)
+    members = [np.flatnonzero(inverse == k) for k in range(inverse.max() + 1)]
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(members), size=(n_boot, len(members)))
+    boots = np.array([stat(values[np.concatenate([members[k] for k in row])]) for row in picks])
+    q = (1 - confidence) / 2
+    lo, hi = np.quantile(boots, [q, 1 - q])
+    return float(lo), float(hi)
+
+
+def paired_closeness(d) -> dict:
+    """One-sided Wilcoxon signed-rank test that ``d > 0`` (the algorithm is closer), and
+    the matched-pairs rank-biserial correlation.
+
+    Parameters
+    ----------
+    d : array-like, shape (n,)
+        One paired difference per participant: their distance to the baseline minus
+        their distance to the algorithm, in seconds.
+
+    Returns
+    -------
+    dict
+        ``p_value`` (``scipy.stats.wilcoxon(d, alternative="greater")``: zero
+        differences dropped, exact null distribution for small samples without ties,
+        else the normal approximation), ``rank_biserial`` ((W+ − W−)/(W+ + W−) over
+        the non-zero differences, in [−1, 1]; > 0 = the algorithm closer), ``n_nonzero``.
+        ``p_value`` is NaN when every difference is 0 (nothing to test).
+    """
+    from scipy import stats
+
+    # Rounded to 1e-9 s: equal distances computed by different float paths (0.3 as
+    # 0.7 - 0.4) must tie and cancel, or rounding noise would order the ranks.
+    d = np.round(np.asarray(d, dtype=float), 9)
+    nz = d[d != 0]
+    if nz.size == 0:
+        return {"p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
+    ranks = stats.rankdata(np.abs(nz))
+    w_plus, w_minus = ranks[nz > 0].sum(), ranks[nz < 0].sum()
+    p = stats.wilcoxon(nz, alternative="greater", zero_method="wilcox").pvalue
+    return {"p_value": float(p), "rank_biserial": float((w_plus - w_minus) / (w_plus + w_minus)),
+            "n_nonzero": int(nz.size)}
+
+
+def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_boot: int = N_BOOT,
+                    seed: int = 0, alpha: float = 0.05, confidence: float = 0.95,
+                    n_permutations: int | None = None) -> pd.DataFrame:
+    """Is the algorithm closer to people than each baseline? Paired tests over participants.
+
+    Per scene and baseline, each participant gives one paired difference
+    ``d_i = |c_i − b| − |c_i − a|`` in seconds (their choice ``c_i``, the baseline's
+    frame ``b``, the algorithm's ``a``; for ``uniform_random`` the first term is their
+    expected distance to a uniformly drawn frame of the clip; a participant with several
+    choices of a scene gives the mean). The test is a one-sided Wilcoxon signed-rank test
+    over participants (:func:`paired_closeness`), so its p-value shrinks with the number
+    of people (the old randomisation test against a uniform frame could not go below
+    1/n_frames). Holm's adjustment runs over the tests that can come out either way: a
+    baseline whose frame is the algorithm's gives ``d = 0`` for everyone and is reported,
+    not tested.
+
+    Parameters
+    ----------
+    n_boot : int
+        Resamples of the bootstrap (over participants) of the effect's interval.
+    n_permutations : int, optional
+        Accepted for older callers; unused.
 
     Returns
     -------
     DataFrame
-        ``scene``, ``baseline``, ``n``, ``algorithm_mean_abs_s``,
-        ``baseline_mean_abs_s``, ``difference_s`` (baseline − algorithm; > 0 = the
-        algorithm is closer), ``p_value``, ``method`` (``"sign-flip exact"``,
-        ``"sign-flip Monte Carlo"``, ``"uniform frame exact"``), ``p_holm`` (over all
-        rows), ``significant`` (p_holm < alpha), ``note``.
+        ``scene``, ``baseline``, ``n`` (participants), ``algorithm_mean_abs_s``,
+        ``baseline_mean_abs_s``, ``difference_s`` (mean ``d``: > 0 = the algorithm is
+        closer), ``difference_low``/``difference_high`` (percentile bootstrap over
+        participants), ``rank_biserial`` (effect size), ``p_value``, ``method``,
+        ``p_holm`` (NaN for rows not tested), ``significant`` (p_holm < alpha),
+        ``note``.
     """
-    rng = np.random.default_rng(seed)
+    del n_permutations
     rows = []
-    for scene, info in scenes.items():
-        c = pose.loc[pose["scene"] == scene, "chosen_frame"].to_numpy(dtype=float)
+    for k, (scene, info) in enumerate(scenes.items()):
+        c, who = _per_participant(pose, scene)
         if c.size == 0:
             continue
         preds = predictor_frames(info)
         a = preds.pop("algorithm")
         da = np.abs(c - a) / info.fps
-        for name, b in preds.items():
-            db = np.abs(c - b) / info.fps
-            p, exact = _sign_flip_p(db - da, n_permutations=n_permutations, rng=rng)
-            rows.append({"scene": scene, "baseline": name, "n": c.size,
-                         "algorithm_mean_abs_s": da.mean(), "baseline_mean_abs_s": db.mean(),
-                         "difference_s": db.mean() - da.mean(), "p_value": p,
-                         "method": "sign-flip exact" if exact else "sign-flip Monte Carlo",
-                         "note": "same frame as the algorithm" if b == a else ""})
-        mean_per_frame = _uniform_distance_matrix(c, info).mean(axis=0)
-        p = float(np.mean(mean_per_frame <= da.mean() + 1e-12))
-        rows.append({"scene": scene, "baseline": "uniform_random", "n": c.size,
-                     "algorithm_mean_abs_s": da.mean(),
-                     "baseline_mean_abs_s": mean_per_frame.mean(),
-                     "difference_s": mean_per_frame.mean() - da.mean(), "p_value": p,
-                     "method": "uniform frame exact", "note": ""})
+        against = {name: (np.abs(c - b) / info.fps, b) for name, b in preds.items()}
+        against["uniform_random"] = (_uniform_distance_matrix(c, info).mean(axis=1), None)
+        for name, (db, b) in against.items():
+            d = _participant_means(db - da, who)
+            same = b is not None and b == a
+            test = paired_closeness(d) if not same else {
+                "p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
+            lo, hi = cluster_bootstrap_ci(db - da, who, n_boot=n_boot, seed=seed + k,
+                                          confidence=confidence)
+            rows.append({"scene": scene, "baseline": name, "n": int(d.size),
+                         "algorithm_mean_abs_s": float(_participant_means(da, who).mean()),
+                         "baseline_mean_abs_s": float(_participant_means(db, who).mean()),
+                         "difference_s": float(d.mean()), "difference_low": lo,
+                         "difference_high": hi, "rank_biserial": test["rank_biserial"],
+                         "p_value": test["p_value"],
+                         "method": "Wilcoxon signed-rank over participants (one-sided)",
+                         "note": ("same frame as the algorithm: not tested" if same else
+                                  "every participant equally close: not tested"
+                                  if np.isnan(test["p_value"]) else "")})
     out = pd.DataFrame(rows)
     if out.empty:
         return out
-    out["p_holm"] = holm_adjust(out["p_value"])
-    out["significant"] = out["p_holm"] < alpha
+    tested = out["p_value"].notna()
+    out["p_holm"] = np.nan
+    out.loc[tested, "p_holm"] = holm_adjust(out.loc[tested, "p_value"])
+    out["significant"] = out["p_holm"] < alpha  # NaN (not tested) compares False
     return out
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "LoadError",
     "load_responses",
     "rows_from_store",
+    "ANALYSIS_COLUMNS",
     "tidy_responses",
     "pose_choices",
     "view_choices",
@@ -64,9 +65,31 @@ class LoadError(SnapshotError):
 # ----------------------------------------------------------------- sources
 
 
+#: Columns the analysis reads: an export file without one of them cannot be analysed
+#: (a report would silently lack the section that needs it).
+ANALYSIS_COLUMNS = ("participant_id", "task", "scene", "chosen_frame", "algorithm_frame", "fps",
+                    "n_frames", "chosen_method", "shown_order", "correct")
+
+
 def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
-    """Export rows from the study store at ``url`` (None: the store's default URL)."""
-    return Store(url).export_rows(include_simulated=include_simulated)
+    """Export rows from the study store at ``url`` (None: the store's default URL).
+
+    The store is opened as a reader: a missing SQLite file or folder, or a database
+    without the study tables, is an error, never created. Participants excluded on the
+    researcher page (:mod:`study_app.data.monitor`) are left out."""
+    from study_app.data.monitor import excluded_ids
+
+    with Store(url, create=False) as store:
+        left_out = excluded_ids(store)  # excluded on the researcher page, with a reason
+        return [r for r in store.export_rows(include_simulated=include_simulated)
+                if r["participant_id"] not in left_out]
+
+
+def _check_columns(rows, source) -> None:
+    missing = [c for c in ANALYSIS_COLUMNS if rows and not any(c in r for r in rows)]
+    if missing:
+        raise LoadError(f"{source}: no {', '.join(missing)} column (a `snapshot export` file "
+                        "has every column of data_schema/response.schema.json)")
 
 
 # ----------------------------------------------------------------- tidy frames
@@ -160,6 +183,7 @@ def load_responses(source, *, include_simulated: bool = False,
         rows = read_export(text, validate=False)  # tidy_responses validates, if asked
     except SnapshotError as err:
         raise LoadError(str(err)) from err
+    _check_columns(rows, text)
     return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
                           source=text)
 

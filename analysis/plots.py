@@ -37,6 +37,11 @@ PREDICTOR_STYLES = {"algorithm": ("#D55E00", "-", "algorithm's pick"),
                     "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame")}
 
 
+#: TrueType (Type 42) fonts in PDF/PS: publishers' checks (ACM, IEEE PDF eXpress) reject
+#: matplotlib's default Type 3 fonts.
+PDF_FONTS = {"pdf.fonttype": 42, "ps.fonttype": 42}
+
+
 def _method_label(method) -> str:
     """A method's legend entry: its panel title (:attr:`ViewMethod.panel`), or the name."""
     return ViewMethod(method).panel if method in set(ViewMethod) else str(method)
@@ -76,10 +81,11 @@ def save_figure(fig, stem, *, formats=("png", "pdf"), dpi: int = 150) -> list:
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     out = []
-    for fmt in formats:
-        p = stem.with_suffix(f".{fmt}")
-        fig.savefig(p, dpi=dpi)
-        out.append(p)
+    with _plt().rc_context(PDF_FONTS):
+        for fmt in formats:
+            p = stem.with_suffix(f".{fmt}")
+            fig.savefig(p, dpi=dpi)
+            out.append(p)
     _plt().close(fig)
     return out
 
@@ -200,8 +206,9 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         sec = ax.secondary_xaxis("top", functions=(lambda f, i=info: (f - i.frame_offset) / i.fps,
                                                    lambda s, i=info: s * i.fps + i.frame_offset))
         sec.tick_params(labelsize=6)
+        sec.set_xlabel("seconds into the clip", fontsize=7)
     _shared_legend(fig, axes)
-    fig.suptitle("Chosen frames per animation (top axis: seconds); ▼ = the algorithm's pick",
+    fig.suptitle("Chosen frames per animation; ▼ = the algorithm's pick",
                  fontsize=10)
     return fig
 

@@ -230,8 +230,13 @@ def _compact_hits(hits: pd.DataFrame, tolerances=fr.TOLERANCES_S) -> pd.DataFram
 def _compact_tests(tests: pd.DataFrame) -> pd.DataFrame:
     """Permutation tests for the page."""
     return pd.DataFrame({"scene": tests["scene"], "baseline": tests["baseline"],
+                         "n": tests["n"],
                          "mean |Δ| algorithm s": tests["algorithm_mean_abs_s"],
                          "mean |Δ| baseline s": tests["baseline_mean_abs_s"],
+                         "closer by s [95% CI]": [_ci(v, lo, hi) for v, lo, hi in zip(
+                             tests["difference_s"], tests["difference_low"],
+                             tests["difference_high"], strict=True)],
+                         "r (rank-biserial)": tests["rank_biserial"],
                          "p_value": tests["p_value"], "p_holm": tests["p_holm"],
                          "algorithm closer": tests["significant"],
                          "test": tests["method"] + np.where(tests["note"] != "",
@@ -278,7 +283,7 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     wide = counts.copy()
     wide.insert(0, "scene", [labels.get(s, s) for s in counts.index])
     sections = [
-        ("Views: which method's view do people prefer? (Table 2)",
+        ("Views: which method's view do people prefer?",
          [wide.reset_index(drop=True), f_votes]
          + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims]),
         ("No preference? Chi-square per scene", [chi]),
@@ -299,18 +304,23 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
 
 
 def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
+    del n_permutations  # the frame tests are Wilcoxon signed-rank tests now
     from .plots import plot_error_distributions, plot_frame_histograms, save_figure
 
     tables, figs = out / "tables", out / "figures"
     hits = fr.hit_rates(pose, scenes)
-    tests = fr.closeness_tests(pose, scenes, n_permutations=n_permutations, seed=seed, alpha=alpha)
+    tests = fr.closeness_tests(pose, scenes, seed=seed, alpha=alpha)
     dist = fr.frame_distances(pose, scenes)
     write_table(hits, tables / "frame_hits",
                 caption="Distance of chosen frames to each predictor and hit rates within "
                         "±0.25/0.5/1 s (Wilson 95% intervals).")
     write_table(tests, tables / "frame_tests",
-                caption="Is the algorithm closer to people than each baseline? One-sided "
-                        "permutation tests, Holm-adjusted.")
+                caption="Is the algorithm closer to people than each baseline? Per scene, "
+                        "each participant's distance to the baseline's frame minus their "
+                        "distance to the algorithm's: one-sided Wilcoxon signed-rank over "
+                        "participants, mean difference (s) with a 95% bootstrap interval over "
+                        "participants, rank-biserial r; Holm over the tests that can differ "
+                        "(a baseline on the algorithm's frame is not tested).")
     f_hist = save_figure(plot_frame_histograms(pose, scenes), figs / "fig13_frame_histograms")[0]
     f_err = save_figure(plot_error_distributions(dist, scenes, hits=hits),
                         figs / "frame_distances")[0]
@@ -320,7 +330,7 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
              f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
              for r in algo.to_dict(orient="records")]
     better = tests[tests["significant"]]
-    worse = tests[~tests["significant"]]
+    worse = tests[~tests["significant"] & tests["p_value"].notna()]
     verdict = (f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
                + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
                             zip(better["scene"], better["baseline"], strict=True)) or "none")
@@ -332,7 +342,7 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
             f"the stimuli manifest; they are missing for {', '.join(missing)} (pass "
             "--stimuli manifest.json)."
             if missing else "")
-    sections = [("Poses: which frame do people pick? (Fig. 13)",
+    sections = [("Poses: which frame do people pick?",
                  [f_hist, *lines, f"<div class='claim'>{html.escape(verdict)}</div>",
                   _compact_hits(hits), _compact_tests(tests), f_err] + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []))]
     summary = {"frames": algo[["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s",
@@ -365,8 +375,12 @@ def _selector_section(pose, out, *, scenes):
 
         extra = {s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist()
                  for s in scenes}
-        parts.insert(0, save_figure(plot_keymoment_timelines(doc, extra=extra),
-                                    out / "figures" / "selector_timeline")[0])
+        fig = plot_keymoment_timelines(doc, extra=extra)
+        # The shared plot's title describes key-moment intervals (green), which this
+        # figure has none of: say what is drawn.
+        fig.axes[0].set_title("each selector's picks (filled: top pick, hollow: picks 2..k) "
+                              "and the people's chosen frames (grey ticks)", fontsize=9)
+        parts.insert(0, save_figure(fig, out / "figures" / "selector_timeline")[0])
     return [("Poses: which selector agrees with people?", parts)]
 
 
@@ -379,8 +393,13 @@ _METHODS_TEXT = (
     "Fleiss' kappa (scenes = items, methods = categories). Frames: distances in seconds; hit "
     "rates within ±0.25/0.5/1 s; baselines middle frame, uniform random frame (exact "
     "expectation), the fastest and most-stretched poses (the pose selectors' picks); "
-    "paired sign-flip permutation tests (one-sided, algorithm closer), exact randomisation "
-    "test against a uniform frame; Holm over all frame tests.")
+    "per scene and baseline, a one-sided Wilcoxon signed-rank test over participants of "
+    "each person's distance to the baseline's frame (to a uniform random frame: its "
+    "expectation) minus their distance to the algorithm's, effect sizes the mean "
+    "difference (percentile bootstrap over participants) and the rank-biserial "
+    "correlation; Holm over the tests that can differ (a baseline on the algorithm's "
+    "frame is reported, not tested). Rows pooled over scenes: intervals from a bootstrap "
+    "over participants.")
 
 
 def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
@@ -454,8 +473,8 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     from snapcore.errors import SnapshotError
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     df = load_responses(source, include_simulated=include_simulated)
+    out.mkdir(parents=True, exist_ok=True)  # after the load: bad input leaves no folder
     if df.empty:
         raise SnapshotError(f"{_source_name(source)}: no responses to analyse"
                             + ("" if include_simulated else

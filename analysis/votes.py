@@ -369,8 +369,10 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
     seed : int
         Seed of the bootstrap's ``numpy.random.Generator``.
     pooled : bool
-        Add rows for scene ``"all"``: one model over every scene's choices (bootstrap
-        stratified by scene).
+        Add rows for scene ``"all"``: one model over every scene's choices. Its bootstrap
+        resamples participants (all their choices together; one person's choices in
+        several scenes are not independent) when ``choices`` has ``participant_id``,
+        else choices stratified by scene (a count table has no people).
     order : sequence of str, optional
         Preferred scene order (:func:`analysis.load.ordered_scenes`).
 
@@ -401,12 +403,16 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
     q = (1 - confidence) / 2
     rows = []
 
-    def emit(scene, idx_by_stratum):
+    def emit(scene, idx_by_stratum, clusters=None):
         flat = [i for idx in idx_by_stratum for i in idx]
         share, theta = _fit_shares(len(methods), [data_all[i] for i in flat], luce_alpha)
         boots = np.empty((n_boot, len(methods)))
         for b in range(n_boot):
-            pick = [i for idx in idx_by_stratum for i in rng.choice(idx, size=len(idx))]
+            if clusters is not None:  # whole participants, with all their choices
+                pick = [i for k in rng.integers(0, len(clusters), len(clusters))
+                        for i in clusters[k]]
+            else:
+                pick = [i for idx in idx_by_stratum for i in rng.choice(idx, size=len(idx))]
             # Starting from the full-data estimate only saves iterations (same optimum).
             boots[b], _ = _fit_shares(len(methods), [data_all[i] for i in pick], luce_alpha,
                                       initial=theta)
@@ -430,7 +436,12 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
     for scene, idx in groups.items():
         emit(scene, [np.asarray(idx)])
     if pooled and len(groups) > 1:
-        emit("all", [np.asarray(idx) for idx in groups.values()])
+        clusters = None
+        if "participant_id" in choices and choices["participant_id"].notna().all():
+            who = pd.Series(range(len(choices))).groupby(
+                choices["participant_id"].to_numpy(), sort=False)
+            clusters = [np.asarray(v) for v in who.groups.values()]
+        emit("all", [np.asarray(idx) for idx in groups.values()], clusters)
     return pd.DataFrame(rows)
 
 

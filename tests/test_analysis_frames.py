@@ -1,5 +1,5 @@
 """Chosen frames against the algorithm (Fig. 13): distances, hit rates, baselines and the
-permutation tests, on hand-made choices with known answers."""
+paired tests over participants, on hand-made choices with known answers."""
 
 from __future__ import annotations
 
@@ -52,31 +52,86 @@ def test_signed_errors_in_seconds():
     np.testing.assert_allclose(alg["abs_error_s"], [0.5, 1.0])
 
 
-def test_sign_flip_exact_p():
-    """Five people all at the algorithm's frame, baseline far: exact one-sided p = 1/2^5."""
+def test_paired_test_exact_p():
+    """Five people all at the algorithm's frame, baseline far: every paired difference is
+    positive, the one most extreme of the 2^5 equally likely sign patterns under H0 →
+    exact one-sided signed-rank p = 1/32, for the middle frame and for a uniform frame."""
     pose = _pose("a", [80] * 5, algorithm=80, fps=10.0, n_frames=100)
     tests = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose)).set_index("baseline")
     mid = tests.loc["middle"]  # middle = 49, all d_i = 3.1 s > 0
-    assert mid["method"] == "sign-flip exact"
+    assert mid["method"].startswith("Wilcoxon signed-rank")
     assert mid["p_value"] == pytest.approx(1 / 32)
     assert mid["difference_s"] == pytest.approx(3.1)
-    # Uniform baseline: frame 80 is the unique best of 100 frames → exact p = 1/100.
-    assert tests.loc["uniform_random", "p_value"] == pytest.approx(1 / 100)
+    assert mid["rank_biserial"] == pytest.approx(1.0)
+    # Uniform baseline: d_i = mean_f |80 - f| / 10 > 0 for all five → also 1/32 (the
+    # old randomisation test could not go below 1/n_frames whatever the n).
+    assert tests.loc["uniform_random", "p_value"] == pytest.approx(1 / 32)
+    assert tests.loc["uniform_random", "difference_s"] == pytest.approx(
+        np.abs(np.arange(100) - 80).mean() / 10)
 
 
-def test_permutation_test_direction_and_null():
-    """People at the baseline's frame → the algorithm is not closer (p near 1); identical → p = 1."""
+def test_paired_test_direction_and_null():
+    """People at the baseline's frame → the algorithm is not closer (p near 1); a
+    baseline on the algorithm's frame is reported but not tested, and left out of Holm."""
     rng = np.random.default_rng(0)
     chosen = np.clip(np.rint(rng.normal(50, 3, size=60)), 0, 99).astype(int)
     pose = _pose("a", chosen, algorithm=85, fps=10.0, n_frames=100)  # people near middle (49)
     t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose), seed=1).set_index("baseline")
-    assert t.loc["middle", "method"] == "sign-flip Monte Carlo"
     assert t.loc["middle", "p_value"] > 0.99
     assert t.loc["middle", "difference_s"] < 0
+    assert t.loc["middle", "difference_high"] < 0  # the whole interval says "farther"
     same = _pose("a", chosen, algorithm=49, fps=10.0, n_frames=100)
     t2 = fr.closeness_tests(same, fr.scene_frames_from_rows(same)).set_index("baseline")
-    assert t2.loc["middle", "p_value"] == 1.0
-    assert t2.loc["middle", "note"] == "same frame as the algorithm"
+    assert np.isnan(t2.loc["middle", "p_value"]) and np.isnan(t2.loc["middle", "p_holm"])
+    assert not t2.loc["middle", "significant"]
+    assert "not tested" in t2.loc["middle", "note"]
+    # Holm ran over the one test left: its adjusted p is its own p.
+    assert t2.loc["uniform_random", "p_holm"] == pytest.approx(t2.loc["uniform_random", "p_value"])
+
+
+def test_paired_test_against_scipy_with_ties_and_zeros():
+    """Known answer: the p-value is scipy's signed-rank test on the non-zero
+    per-participant differences, and r the matched-pairs rank-biserial correlation."""
+    from scipy import stats
+
+    rng = np.random.default_rng(3)
+    chosen = rng.integers(30, 70, size=45)
+    pose = _pose("a", chosen, algorithm=45, fps=10.0, n_frames=100)
+    t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose)).set_index("baseline")
+    d = (np.abs(chosen - 49) - np.abs(chosen - 45)) / 10.0
+    nz = d[d != 0]
+    # scipy.stats.wilcoxon(nz, alternative="greater", zero_method="wilcox")
+    expected = stats.wilcoxon(nz, alternative="greater", zero_method="wilcox").pvalue
+    assert t.loc["middle", "p_value"] == pytest.approx(expected, rel=1e-12)
+    ranks = stats.rankdata(np.abs(nz))
+    r = (ranks[nz > 0].sum() - ranks[nz < 0].sum()) / ranks.sum()
+    assert t.loc["middle", "rank_biserial"] == pytest.approx(r)
+    # One participant per row: the bootstrap over participants is the ordinary one;
+    # scipy.stats.bootstrap((d,), np.mean, method="percentile") agrees within MC error.
+    ci = stats.bootstrap((d,), np.mean, method="percentile", n_resamples=4000,
+                         random_state=np.random.default_rng(0)).confidence_interval
+    assert t.loc["middle", "difference_low"] == pytest.approx(ci.low, abs=0.02)
+    assert t.loc["middle", "difference_high"] == pytest.approx(ci.high, abs=0.02)
+
+
+def test_simulated_300_near_the_algorithm_are_significant_after_holm():
+    """The simulated case of issue 27: 300 participants whose picks cluster near the
+    algorithm's (±0.3 s) in four scenes → every test that can differ is significant after
+    Holm, the uniform-frame ones included (the old randomisation test stopped at
+    p ≥ 1/n_frames, ≈ 0.22 after Holm over 20 tests)."""
+    rng = np.random.default_rng(27)
+    parts = []
+    for k, (alg, n_frames) in enumerate(((30, 120), (90, 150), (60, 100), (20, 80))):
+        chosen = np.clip(np.rint(alg + rng.normal(0, 0.3 * 30, size=300)), 0, n_frames - 1)
+        parts.append(_pose(f"s{k}", chosen.astype(int), algorithm=alg, fps=30.0,
+                           n_frames=n_frames))
+    pose = pd.concat(parts, ignore_index=True)
+    t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose))
+    assert len(t) == 8 and (t["n"] == 300).all()
+    assert t["significant"].all(), t[["scene", "baseline", "p_value", "p_holm"]]
+    uni = t[t["baseline"] == "uniform_random"]
+    assert (uni["p_holm"] < 1e-20).all()
+    assert (t["difference_low"] > 0).all()
 
 
 def test_permutation_false_positive_rate():
@@ -88,9 +143,34 @@ def test_permutation_false_positive_rate():
         # equally close to both in expectation (symmetric around 39.5) → H0 holds.
         chosen = rng.integers(20, 60, size=40)
         pose = _pose("a", chosen, algorithm=30, fps=10.0, n_frames=100)
-        t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose), n_permutations=400, seed=i)
+        t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose), n_boot=0, seed=i)
         rejections += int(t.set_index("baseline").loc["middle", "p_value"] < 0.05)
     assert rejections / 200 <= 0.085
+
+
+def test_pooled_rows_count_people_not_choices():
+    """40 people, each either within ±0.5 s of every selector pick in 5 scenes or of none:
+    200 choices but 40 independent people. The pooled interval must be about as wide as
+    a Wilson interval for 40 (not 200), and the pooled row names no frame."""
+    from analysis.votes import wilson_interval
+
+    rng = np.random.default_rng(5)
+    good = rng.random(40) < 0.5
+    parts, scenes = [], {}
+    for k in range(5):
+        chosen = np.where(good, 50, 90)
+        parts.append(_pose(f"s{k}", chosen, algorithm=50, fps=10.0, n_frames=100))
+    pose = pd.concat(parts, ignore_index=True)
+    for k in range(5):
+        scenes[f"s{k}"] = StudyScene(scene=f"s{k}", fps=10.0, n_frames=100, algorithm_frame=50,
+                                     selector_frames={"ours": [50]})
+    agree = fr.selector_agreement(pose, scenes)
+    pooled = agree[agree["scene"] == "ALL"].iloc[0]
+    assert pd.isna(pooled["frame"]) and pooled["n"] == 200 and pooled["participants"] == 40
+    width = pooled["hit_high"] - pooled["hit_low"]
+    lo40, hi40 = wilson_interval(int(good.sum()), 40)
+    lo200, hi200 = wilson_interval(int(good.sum()) * 5, 200)
+    assert width > 0.8 * (hi40 - lo40) > 1.5 * (hi200 - lo200)
 
 
 def _fake_scene(positions, *, fps=10.0, offset=0):

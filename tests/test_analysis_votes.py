@@ -277,3 +277,26 @@ def test_near_duplicates_merged_into_one_option():
     fine = m[m["scene"] == "fine"]
     assert list(fine["option"]) == [m.value for m in VIEW_METHODS] and (fine["options"] == 3).all()
     assert fine["chisquare_p"].iloc[0] == pytest.approx(stats.chisquare([7, 6, 8]).pvalue)
+
+
+def test_pooled_strengths_resample_people_not_choices():
+    """30 people, each choosing the same method in all 5 scenes: the pooled ("all")
+    interval comes from a bootstrap over the 30 people, so it is about sqrt(5) times as
+    wide as one that treats the 150 choices as independent (issue 27)."""
+    import numpy as np
+    import pandas as pd
+
+    from analysis.votes import luce_strengths
+
+    rng = np.random.default_rng(1)
+    favourite = rng.choice(["ours", "motion_area", "viewpoint_entropy"], size=30, p=[.5, .3, .2])
+    choices = pd.DataFrame([{"scene": f"s{k}", "participant_id": f"p{i}", "chosen_method": m}
+                            for k in range(5) for i, m in enumerate(favourite)])
+    people = luce_strengths(choices, n_boot=300, seed=0)
+    loose = luce_strengths(choices.drop(columns="participant_id"), n_boot=300, seed=0)
+
+    def width(t):
+        row = t[(t["scene"] == "all") & (t["method"] == "ours")].iloc[0]
+        return row["ci_high"] - row["ci_low"]
+
+    assert width(people) > 1.7 * width(loose)

@@ -48,8 +48,10 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     Identifiers are pseudonymised by default: participant ids, Prolific ids, session
     ids and per-participant completion codes become p- and 16 hex digits of a keyed
     hash (HMAC-SHA256 with a secret kept in the database, never exported), the same in
-    every export, so an analysis can be re-run and files joined. --identifiers gives
-    the raw ids, with a warning.
+    every export, so an analysis can be re-run and files joined. Such shared exports
+    also leave out each participant's seed and give times as UTC dates, so that no
+    column joins a row to an identifiers file. --identifiers gives the raw ids, seeds
+    and exact times, with a warning.
 
     Frames are motion frames in source numbering; times are ISO 8601 in UTC. In CSV,
     `shown_order` (the method shown at each screen position, left to right) is a JSON
@@ -64,7 +66,7 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
     import os
 
     from study_app.data.export import write_events, write_export, write_participants
-    from study_app.data.pseudonym import IDENTIFIERS_WARNING, Pseudonymiser
+    from study_app.data.pseudonym import IDENTIFIERS_WARNING, OPEN_DROPPED, Pseudonymiser
     from study_app.data.store import Store
 
     if output is None and psych_ds is None:
@@ -80,9 +82,12 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
         if output is not None:
             n = write_export(anon(rows), output, fmt=fmt)
             if participants_path:
+                from study_app.data.monitor import with_exclusions
+
                 n_part = write_participants(
-                    anon(store.participants(include_simulated=include_simulated)),
-                    participants_path)
+                    anon(with_exclusions(store, store.participants(
+                        include_simulated=include_simulated))),
+                    participants_path, drop=() if identifiers else OPEN_DROPPED)
             if events_path:
                 keep = {r["participant_id"] for r in store.participants(
                     include_simulated=include_simulated)}

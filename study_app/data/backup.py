@@ -41,6 +41,7 @@ from pathlib import Path
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
+from .database import _utc as _as_utc
 from .database import (
     STUDY_TABLES,
     copy_tables,
@@ -54,7 +55,8 @@ from .database import (
 )
 from .errors import StoreError
 
-__all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "find_pg_tool", "table_counts"]
+__all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "verify_backup",
+           "find_pg_tool", "table_counts"]
 
 #: Values of ``method``.
 BACKUP_METHODS = ("auto", "native", "logical")
@@ -84,6 +86,8 @@ class BackupResult:
     path: Path
     method: str
     rows: dict = field(default_factory=dict)
+    #: Participants whose later withdrawal a restore re-applied (``withdrawals_from``).
+    withdrawn: list = field(default_factory=list)
 
 
 def find_pg_tool(name: str) -> Path | None:
@@ -253,7 +257,107 @@ def _kind(path: Path) -> str:
     raise StoreError(f"{path}: not a backup (neither a SQLite file nor a pg_dump archive)")
 
 
-def restore(backup_file, url) -> BackupResult:
+def verify_backup(backup_file) -> BackupResult:
+    """Check that a backup file can be restored, without restoring it.
+
+    A SQLite backup: ``PRAGMA integrity_check`` and ``foreign_key_check`` pass, the
+    study tables are there, and every study with participants has its pseudonym secret
+    (else its exports would get new pseudonyms). A ``pg_dump`` archive: ``pg_restore
+    --list`` reads its table of contents.
+
+    Returns
+    -------
+    BackupResult
+        ``method`` ``"sqlite"`` or ``"pg_dump"``; ``rows`` per table (SQLite).
+
+    Raises
+    ------
+    StoreError
+        Naming the file and the first problem found.
+    """
+    path = Path(backup_file)
+    if not path.is_file():
+        raise StoreError(f"{path}: no such backup file")
+    if _kind(path) == "pg_dump":
+        tool = find_pg_tool("pg_restore")
+        if tool is None:
+            raise StoreError("pg_restore is not installed (install postgresql-client)")
+        proc = subprocess.run([str(tool), "--list", str(path)], capture_output=True, text=True,
+                              timeout=_PG_TIMEOUT_S)
+        if proc.returncode != 0:
+            raise StoreError(f"{path}: not a readable pg_dump archive "
+                             f"({_first_error(proc.stderr)})")
+        return BackupResult(path, "pg_dump")
+    import sqlite3
+
+    try:
+        # Read-only: verifying must not change the file (no journal, no new tables).
+        con = sqlite3.connect(f"file:{path.resolve()}?mode=ro", uri=True)
+        try:
+            bad = [r[0] for r in con.execute("PRAGMA integrity_check")]
+            if bad != ["ok"]:
+                raise StoreError(f"{path}: damaged SQLite file ({bad[0]})")
+            names = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            missing = [t for t in STUDY_TABLES if t not in names]
+            if missing:
+                raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
+            orphans = con.execute("PRAGMA foreign_key_check").fetchall()
+            if orphans:
+                raise StoreError(f"{path}: {len(orphans)} rows refer to missing rows (first in "
+                                 f"table {orphans[0][0]})")
+            rows = {t: con.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0]
+                    for t in (t.name for t in metadata.sorted_tables) if t in names}
+            if "study_secrets" in names:
+                keyless = [r[0] for r in con.execute(
+                    "SELECT DISTINCT study_id FROM participants WHERE study_id NOT IN "
+                    "(SELECT study_id FROM study_secrets)")]
+                if keyless:
+                    raise StoreError(f"{path}: no pseudonym secret for study "
+                                     f"{', '.join(map(repr, keyless))} (its exports from this "
+                                     "backup would get new pseudonyms)")
+        finally:
+            con.close()
+    except sqlite3.Error as err:
+        raise StoreError(f"{path}: damaged SQLite file ({err})") from None
+    return BackupResult(path, "sqlite", rows)
+
+
+def _withdrawal_records(url) -> list[dict]:
+    """The withdrawal records of the database (or SQLite backup) at ``url``."""
+    from .database import withdrawals
+    from .store import Store
+
+    with Store(url, create=False) as src, src.transaction(write=False) as conn:
+        if not sa.inspect(conn).has_table("withdrawals"):
+            return []
+        return [{k: _as_utc(v) for k, v in r.items()}
+                for r in conn.execute(sa.select(withdrawals)).mappings()]
+
+
+def _reapply(conn, records) -> list[str]:
+    """Delete the data of every participant of ``records`` that the restored rows hold,
+    and copy their withdrawal records; return their link ids."""
+    from .database import events, exclusions, participants, responses, withdrawals
+
+    ids = [r["participant_id"] for r in records]
+    present = set(conn.execute(sa.select(participants.c.participant_id).where(
+        participants.c.participant_id.in_(ids))).scalars())
+    known = set(conn.execute(sa.select(withdrawals.c.participant_id).where(
+        withdrawals.c.participant_id.in_(ids))).scalars())
+    done = []
+    for rec in records:
+        pid = rec["participant_id"]
+        if pid in present:
+            for table in (responses, events, exclusions, participants):
+                conn.execute(table.delete().where(table.c.participant_id == pid))
+            done.append(pid)
+        if pid not in known:
+            conn.execute(withdrawals.insert().values(
+                {k: v for k, v in rec.items() if k != "id"}))
+    return done
+
+
+def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
     """Load a backup made by :func:`backup` into the empty database at ``url``.
 
     Parameters
@@ -264,6 +368,11 @@ def restore(backup_file, url) -> BackupResult:
     url : str
         The target. Its study tables must be absent or empty: a restore never mixes
         with, or replaces, data already there.
+    withdrawals_from : str, optional
+        The database the backup was taken from (or any later backup of it): every
+        withdrawal recorded there is applied to the restored rows, in the restore's
+        transaction, so that nobody who withdrew after the backup comes back. The
+        ids re-withdrawn are in ``BackupResult.withdrawn``.
 
     Raises
     ------
@@ -282,20 +391,40 @@ def restore(backup_file, url) -> BackupResult:
     if kind == "pg_dump" and target.get_backend_name() != "postgresql":
         raise StoreError(f"{path} is a pg_dump archive: it restores only into PostgreSQL, "
                          f"not {target.get_backend_name()}")
+    verify_backup(path)  # a damaged backup is named before the target is touched
+    records = None if withdrawals_from is None else _withdrawal_records(withdrawals_from)
+    new_file = None
+    if target.get_backend_name() == "sqlite" and target.database not in (None, "", ":memory:"):
+        new_file = None if Path(target.database).exists() else Path(target.database)
     # The tables are made here (empty) for either kind: pg_restore --clean replaces them.
     store = Store(url)
     try:
-        counts = table_counts(store.engine)
-        held = {t: n for t, n in counts.items() if n}
-        if held:
-            raise StoreError(f"database {store.url} already holds data ("
-                             + ", ".join(f"{n} {t}" for t, n in held.items())
-                             + "); restore only into an empty database")
-        if kind == "pg_dump":
-            return _pg_restore(path, target, clean=bool(counts))
-        return _logical_restore(path, store)
-    finally:
+        result = _restore_into(store, path, kind, target, records)
+    except BaseException:
         store.close()
+        if new_file is not None:  # a failed restore leaves no empty database behind
+            for extra in ("", "-wal", "-shm", "-journal"):
+                Path(f"{new_file}{extra}").unlink(missing_ok=True)
+        raise
+    store.close()
+    return result
+
+
+def _restore_into(store, path, kind, target, records) -> BackupResult:
+    """Refuse a target with rows, then load the backup (and the later withdrawals)."""
+    counts = table_counts(store.engine)
+    held = {t: n for t, n in counts.items() if n}
+    if held:
+        raise StoreError(f"database {store.url} already holds data ("
+                         + ", ".join(f"{n} {t}" for t, n in held.items())
+                         + "); restore only into an empty database")
+    if kind == "pg_dump":
+        result = _pg_restore(path, target, clean=bool(counts))
+        if records:
+            with store.transaction(write=True) as conn:
+                result.withdrawn = _reapply(conn, records)
+        return result
+    return _logical_restore(path, store, records)
 
 
 def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
@@ -314,7 +443,7 @@ def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
     return BackupResult(path, "pg_restore")
 
 
-def _logical_restore(path: Path, store) -> BackupResult:
+def _logical_restore(path: Path, store, records=None) -> BackupResult:
     src = sa.create_engine(f"sqlite:///{path}")
     try:
         with src.connect() as src_conn:
@@ -324,10 +453,11 @@ def _logical_restore(path: Path, store) -> BackupResult:
                 raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
             with store.transaction(write=True) as dst_conn:
                 rows = copy_tables(src_conn, dst_conn, names)
+                withdrawn = _reapply(dst_conn, records) if records else []
                 if store.dialect == "postgresql":
                     move_sequences(dst_conn)
     except sa_exc.SQLAlchemyError as err:
         raise StoreError(f"cannot read {path}: {one_line(err)}") from None
     finally:
         src.dispose()
-    return BackupResult(path, "logical", rows)
+    return BackupResult(path, "logical", rows, withdrawn)

@@ -22,6 +22,7 @@ from .errors import StoreError
 
 __all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
            "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
+           "exclusions", "study_controls",
            "STUDY_TABLES", "PROLIFIC_INDEX",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "ensure_postgres_database", "SQLITE_BUSY_TIMEOUT_MS"]
@@ -115,6 +116,27 @@ study_secrets = sa.Table(
     sa.Column("study_id", _TEXT, primary_key=True),
     sa.Column("secret", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+#: A participant the researcher excluded from the analysis (an attention failure, a
+#: bot...): their data stay, with the reason. No foreign key, like withdrawals: a
+#: withdrawal deletes the participant and this row with them (study_app.data.monitor).
+exclusions = sa.Table(
+    "exclusions", metadata,
+    sa.Column("participant_id", _ID, primary_key=True),
+    sa.Column("study_id", _TEXT, nullable=False),
+    sa.Column("reason", sa.String(500), nullable=False),
+    sa.Column("excluded_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+#: Recruitment switches of a study (study_app.data.monitor): closed to new
+#: participants, and a cap on how many may start. One row per study, absent = open.
+study_controls = sa.Table(
+    "study_controls", metadata,
+    sa.Column("study_id", _TEXT, primary_key=True),
+    sa.Column("closed", sa.Boolean, nullable=False, default=False),
+    sa.Column("cap", sa.Integer),
+    sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
 )
 
 #: The tables a study database must have; the others are added to an older database

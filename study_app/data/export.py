@@ -154,15 +154,18 @@ def _validate_each(rows, name: str, source) -> None:
         validate(row, name, source=f"{source}: row {i} (participant {row.get('participant_id')!r})")
 
 
-def write_participants(records, path, *, fmt: str | None = None) -> int:
+def write_participants(records, path, *, fmt: str | None = None, drop=()) -> int:
     """Validate and write :meth:`Store.participants` records (background flattened) to
-    CSV/JSON lines (``data_schema/participant.schema.json``); return the count."""
+    CSV/JSON lines (``data_schema/participant.schema.json``); return the count.
+
+    ``drop``: columns left out of the file (an open export drops ``seed``,
+    :data:`study_app.data.pseudonym.OPEN_DROPPED`)."""
     fmt = export_format(path, fmt)
     rows = []
     for rec in records:
         bg = rec.get("background") or {}
         rows.append({**rec, **{k: _background_value(bg.get(k)) for k in BACKGROUND_FIELDS}})
-    columns = participants_columns()
+    columns = [c for c in participants_columns() if c not in drop]
     _validate_each([{c: r.get(c) for c in columns} for r in rows], "participant", path)
     _write_atomic(Path(path), _render(rows, columns, fmt))
     return len(rows)

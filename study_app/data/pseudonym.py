@@ -9,8 +9,16 @@ every export of the study, so a re-run analysis joins the same people; without t
 secret nobody can go from a pseudonym back to the id, nor test a guessed Prolific id.
 
 The secret is made once per study (``secrets.token_hex(32)``) and kept in the
-database's ``study_secrets`` table: a backup carries it (a restored database exports
-the same pseudonyms), no export does.
+database's ``study_secrets`` table, in the transaction that registers the study's first
+participant (:func:`ensure_secret`, called by the store): a backup taken at any time
+after that carries it (a restored database exports the same pseudonyms), no export
+does, and exporting from a backup reads it instead of writing a new one.
+
+Open exports also drop what could link a row back to an identifiers file without the
+ids: the participant's ``seed`` (62 random bits, unique per person) and exact times
+(``created_at``/``completed_at`` to the microsecond). :meth:`Pseudonymiser.record`
+leaves ``seed`` out and gives every time as its UTC date (``YYYY-MM-DD``);
+``snapshot export --identifiers`` keeps both exact.
 """
 
 from __future__ import annotations
@@ -27,7 +35,8 @@ from .database import participants, study_secrets
 from .errors import StoreError
 
 __all__ = ["IDENTIFIER_COLUMNS", "PSEUDONYM_PREFIX", "PSEUDONYM_RE", "IDENTIFIERS_WARNING",
-           "pseudonym", "study_secret", "Pseudonymiser"]
+           "OPEN_DROPPED", "TIME_COLUMNS", "pseudonym", "study_secret", "ensure_secret",
+           "Pseudonymiser", "participants_by_pseudonym"]
 
 #: Columns of any export that identify a person (or link to their Prolific record).
 IDENTIFIER_COLUMNS = ("participant_id", "prolific_pid", "prolific_session_id", "completion_code")
@@ -36,6 +45,10 @@ PSEUDONYM_PREFIX = "p-"
 #: A pseudonym: the prefix and 16 lowercase hex digits (64 bits of the HMAC).
 PSEUDONYM_RE = r"^p-[0-9a-f]{16}$"
 _HEX_DIGITS = 16
+#: Columns left out of open exports: the seed is unique per person (a join key).
+OPEN_DROPPED = ("seed",)
+#: Timestamp columns, given as their UTC date in open exports.
+TIME_COLUMNS = ("created_at", "completed_at")
 #: What ``--identifiers`` prints: the files then hold personal data.
 IDENTIFIERS_WARNING = ("warning: --identifiers: the export holds raw participant, Prolific and "
                        "session ids (personal data under the GDPR); keep it private, share the "
@@ -63,6 +76,27 @@ def pseudonym(secret: str, column: str, value: str) -> str:
     """
     mac = hmac.new(secret.encode(), f"{column}\x00{value}".encode(), hashlib.sha256)
     return PSEUDONYM_PREFIX + mac.hexdigest()[:_HEX_DIGITS]
+
+
+def ensure_secret(conn, study_id: str) -> None:
+    """Make the study's secret in the open transaction ``conn`` unless it exists.
+
+    One ``INSERT ... ON CONFLICT DO NOTHING``: two first participants registered at
+    once on PostgreSQL cannot fail each other's registration.
+    """
+    if conn.dialect.name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert
+    elif conn.dialect.name == "sqlite":
+        from sqlalchemy.dialects.sqlite import insert
+    else:  # pragma: no cover - other databases: look first (no upsert construct)
+        if conn.execute(sa.select(study_secrets.c.study_id).where(
+                study_secrets.c.study_id == study_id)).first() is None:
+            conn.execute(study_secrets.insert().values(
+                study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC)))
+        return
+    conn.execute(insert(study_secrets).values(
+        study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC))
+        .on_conflict_do_nothing(index_elements=["study_id"]))
 
 
 def study_secret(store, study_id: str) -> str:
@@ -125,8 +159,12 @@ class Pseudonymiser:
         return self._study_of[record["participant_id"]]
 
     def record(self, record: dict) -> dict:
-        """A copy of ``record`` with every non-empty identifier column pseudonymised."""
-        out = dict(record)
+        """A copy of ``record`` for an open export: every non-empty identifier column
+        pseudonymised, ``seed`` left out, times as their UTC date."""
+        out = {k: v for k, v in record.items() if k not in OPEN_DROPPED}
+        for column in TIME_COLUMNS:
+            if isinstance(out.get(column), str):
+                out[column] = _date(out[column])
         present = [c for c in IDENTIFIER_COLUMNS if out.get(c) not in (None, "")]
         if present:
             secret = self._secret(self._study(record))
@@ -137,3 +175,31 @@ class Pseudonymiser:
     def records(self, records) -> list[dict]:
         """:meth:`record` of each record, in order."""
         return [self.record(r) for r in records]
+
+
+def _date(value: str) -> str:
+    """The UTC date (``YYYY-MM-DD``) of an ISO 8601 time."""
+    t = datetime.fromisoformat(value)
+    return (t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)).date().isoformat()
+
+
+def participants_by_pseudonym(store, value: str, *, study_id: str | None = None) -> list[str]:
+    """The participant link ids whose participant, Prolific or session id, or completion
+    code, has the pseudonym ``value`` (the only id a published dataset shows).
+
+    Every participant's identifiers are hashed with their study's secret and compared;
+    nothing is stored. Empty when none matches.
+    """
+    cond = sa.true() if study_id is None else participants.c.study_id == study_id
+    with store.transaction(write=False) as conn:
+        keys = dict(conn.execute(sa.select(study_secrets.c.study_id, study_secrets.c.secret)).all())
+        rows = conn.execute(sa.select(participants).where(cond)).mappings().all()
+    found = []
+    for row in rows:
+        secret = keys.get(row["study_id"])
+        if secret is None:
+            continue
+        if any(row.get(c) not in (None, "") and hmac.compare_digest(
+                pseudonym(secret, c, str(row[c])), value) for c in IDENTIFIER_COLUMNS):
+            found.append(row["participant_id"])
+    return found

@@ -14,12 +14,14 @@ database)::
 
 ``dataset_description.json`` holds the fields Psych-DS requires (``@context``,
 ``@type: Dataset``, ``name``, ``description``, ``variableMeasured``) and some it
-recommends (``keywords``, ``dateCreated``). ``variableMeasured`` lists every column of
+recommends (``keywords``, ``dateCreated``; ``license``, ``creator`` and ``citation``
+when the study config gives ``license``, ``creators`` and ``citation``). ``variableMeasured`` lists every column of
 every data file as a ``PropertyValue`` whose description comes from the column's
 schema (``data_schema/response.schema.json``, ``participant.schema.json``,
 ``event.schema.json``), so a column cannot be added without being described. File
 names are Psych-DS keyword names (official keywords ``study`` and ``description``;
-values only letters and digits, so a study id's ``-``, ``_`` and ``.`` are dropped).
+values only letters and digits, so a study id's ``-``, ``_`` and ``.`` are dropped, and
+two ids that then coincide are told apart by a hash, :func:`study_file_keys`).
 Identifiers are pseudonymised (:mod:`study_app.data.pseudonym`) unless asked otherwise.
 """
 
@@ -37,9 +39,10 @@ from study_app.design.protocol import Study, study_from_dict
 
 from .errors import StoreError
 from .export import _write_atomic, write_events, write_export, write_participants
-from .pseudonym import Pseudonymiser
+from .pseudonym import OPEN_DROPPED, Pseudonymiser
 
-__all__ = ["DESCRIPTION_NAME", "data_file_name", "variable_measured", "write_psych_ds"]
+__all__ = ["DESCRIPTION_NAME", "data_file_name", "study_file_keys", "variable_measured",
+           "write_psych_ds"]
 
 DESCRIPTION_NAME = "dataset_description.json"
 #: The data files of one study: Psych-DS ``description`` keyword value → columns' schema.
@@ -63,6 +66,30 @@ def data_file_name(study_id: str, description: str | None = None) -> str:
         raise StoreError(f"study id {study_id!r} has no letters or digits for a Psych-DS file name")
     parts = [f"study-{value}"] + ([f"description-{description}"] if description else [])
     return "_".join(parts) + "_data.csv"
+
+
+def study_file_keys(study_ids) -> dict[str, str]:
+    """Study id → the ``study-`` keyword value of its data files, one per study.
+
+    The value is the id's letters and digits; ids that lose their difference that way
+    (``pilot-1`` and ``pilot_1`` both give ``pilot1``) each get ``x`` and the first 8 hex
+    digits of the id's SHA-256 appended, so no study's file replaces another's.
+
+    Raises
+    ------
+    StoreError
+        A study id has no letter or digit to name the file by.
+    """
+    import hashlib
+
+    plain = {sid: re.sub(r"[^A-Za-z0-9]", "", sid) for sid in study_ids}
+    for sid, value in plain.items():
+        if not value:
+            raise StoreError(f"study id {sid!r} has no letters or digits for a Psych-DS file name")
+    taken = list(plain.values())
+    return {sid: value if taken.count(value) == 1
+            else value + "x" + hashlib.sha256(sid.encode()).hexdigest()[:8]
+            for sid, value in plain.items()}
 
 
 def variable_measured() -> list[dict]:
@@ -136,13 +163,17 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
     Raises
     ------
     StoreError
-        The folder is not empty, the manifest cannot be read, or a row breaks its schema.
+        The folder is not empty, the manifest cannot be read, there is no response to
+        export (Psych-DS treats a dataset without data as an error), or a row breaks its
+        schema.
     """
     root = Path(folder)
     if root.exists() and (not root.is_dir() or (any(root.iterdir()) and not force)):
         raise StoreError(f"{root}: not an empty folder (choose a new one, or --force)")
     manifest = _manifest(stimuli_dir)
-    people = store.participants(include_simulated=include_simulated)
+    from .monitor import with_exclusions
+
+    people = with_exclusions(store, store.participants(include_simulated=include_simulated))
     keep = {p["participant_id"] for p in people}
     rows = store.export_rows(include_simulated=include_simulated)
     events = [e for e in store.events() if e["participant_id"] in keep]
@@ -153,15 +184,22 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
     studies = sorted({p["study_id"] for p in people})
     if manifest is not None:
         studies = sorted(set(studies) | {manifest[1].id})
+    if not rows:
+        # Psych-DS requires at least one data file with rows: an empty export is an error.
+        raise StoreError("no responses to export" + ("" if include_simulated else
+                         " (simulated participants are left out: --include-simulated)"))
+    file_keys = study_file_keys(studies)
     (root / "data").mkdir(parents=True, exist_ok=True)
     files = []
     for sid in studies:
         for description, records, write in (
                 (None, [r for r in rows if r["study_id"] == sid], write_export),
-                ("participants", [p for p in people if p["study_id"] == sid], write_participants),
+                ("participants", [p for p in people if p["study_id"] == sid],
+                 lambda recs, path: write_participants(
+                     recs, path, drop=OPEN_DROPPED if pseudonymise else ())),
                 ("events", [e for e in events if study_of.get(e["participant_id"]) == sid],
                  lambda recs, path: write_events(recs, path, fmt="csv"))):
-            rel = Path("data") / data_file_name(sid, description)
+            rel = Path("data") / data_file_name(file_keys[sid], description)
             write(records, root / rel)
             files.append(rel.as_posix())
     if manifest is not None:
@@ -170,15 +208,18 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         files.append(f"materials/{manifest[0].name}")
     study = manifest[1] if manifest is not None else None
     title = study.title if study else f"Action Snapshot study {', '.join(studies) or '(empty)'}"
+    # The dataset's own description; the study's description is the text participants read.
     description = (
-        (study.description.strip() + " " if study and study.description else "")
-        + "Responses of an Action Snapshot user study: for each animation, participants picked "
+        "Responses of an Action Snapshot user study: for each animation, participants picked "
         "the frame that best tells the action (pose task) and the clearest of three views of "
         "the selected pose (view task), plus one attention check. data/ holds one CSV per "
         "table (responses; participants with their background answers; interaction events "
         "with the video player); materials/ the stimulus manifest (scenes, frame maps, "
         "file checksums). Frames are 0-based in the source motion's numbering; times are "
-        "ISO 8601 in UTC; in CSV, lists and objects are JSON strings and empty cells are "
+        + ("UTC dates (YYYY-MM-DD; the seed of each participant's trial order is left out, "
+           "so that no column links a row to the study's private records)"
+           if pseudonymise else "ISO 8601 in UTC")
+        + "; in CSV, lists and objects are JSON strings and empty cells are "
         "missing values." + (_PSEUDONYM_NOTE if pseudonymise else ""))
     doc = {
         "@context": "https://schema.org/",
@@ -189,6 +230,13 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
         "variableMeasured": variable_measured(),
     }
+    if study is not None:  # what the study config says about its dataset
+        if study.license:
+            doc["license"] = study.license
+        if study.creators:
+            doc["creator"] = [{"@type": "Person", "name": n} for n in study.creators]
+        if study.citation:
+            doc["citation"] = study.citation
     _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
     files.insert(0, DESCRIPTION_NAME)
     return {"folder": root, "files": files, "responses": len(rows),

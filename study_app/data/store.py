@@ -80,6 +80,7 @@ from .database import (
 from .errors import StoreError
 from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
 from .group_commit import GroupCommit
+from .pseudonym import ensure_secret
 from .rows import checked_event, checked_response
 
 __all__ = ["Store", "default_url", "mask_url", "normalize_url"]
@@ -122,8 +123,6 @@ def _iso(value) -> str | None:
     value = _utc(value)
     return None if value is None else value.isoformat(timespec="microseconds")
 
-
-# ----------------------------------------------------------------------------- the store
 
 # -- statements of every script run, built once -----------------------------------------
 # SQLAlchemy derives a cache key from a statement every time it is built; a statement
@@ -348,10 +347,11 @@ class Store:
         self._check_new(study_id, manifest_sha256, app_version, seed)
         values = self._prolific_values(prolific)
         pid = secrets.token_urlsafe(16)
-        self._write(lambda conn: conn.execute(participants.insert().values(
-            participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
-            manifest_sha256=manifest_sha256, simulated=bool(simulated),
-            created_at=_utcnow(), **values)))
+        self._write(lambda conn: (ensure_secret(conn, study_id), conn.execute(
+            participants.insert().values(
+                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
+                manifest_sha256=manifest_sha256, simulated=bool(simulated),
+                created_at=_utcnow(), **values))))
         return pid
 
     @staticmethod
@@ -434,6 +434,7 @@ class Store:
         if found is not None:
             return found, False
         pid = secrets.token_urlsafe(16)
+        ensure_secret(conn, study_id)  # the pseudonym key exists from the first participant
         conn.execute(participants.insert().values(
             participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
             manifest_sha256=manifest_sha256, simulated=False, created_at=_utcnow(),

@@ -15,13 +15,15 @@ Prolific id does not enrol them again.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
 import sqlalchemy as sa
 
-from .database import events, participants, responses, withdrawals
+from .database import events, exclusions, participants, responses, withdrawals
 from .errors import StoreError
+from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
 
 __all__ = ["WITHDRAWN_BY", "Withdrawal", "withdraw", "withdrawal_of", "withdrawal_plan"]
 
@@ -65,11 +67,15 @@ def _record(row) -> Withdrawal:
                       row["requested_by"], _utc(row["withdrawn_at"]))
 
 
-def _targets(conn, participant_id, prolific_pid, study_id) -> list:
-    """The participant rows named by exactly one of the two ids."""
-    if (participant_id is None) == (prolific_pid is None):
-        raise StoreError("withdraw needs exactly one of a participant id and a Prolific id")
-    if participant_id is not None:
+def _targets(conn, participant_id, prolific_pid, study_id, named=None) -> list:
+    """The participant rows named by exactly one of the two ids (or, ``named``, the link
+    ids a pseudonym stands for)."""
+    if named is not None:
+        cond = participants.c.participant_id.in_(named)
+    elif (participant_id is None) == (prolific_pid is None):
+        raise StoreError("withdraw needs exactly one of a participant id, a Prolific id and "
+                         "a pseudonym")
+    elif participant_id is not None:
         cond = participants.c.participant_id == str(participant_id)
     else:
         cond = participants.c.prolific_pid == str(prolific_pid)
@@ -77,6 +83,26 @@ def _targets(conn, participant_id, prolific_pid, study_id) -> list:
         cond = sa.and_(cond, participants.c.study_id == study_id)
     return conn.execute(sa.select(participants).where(cond)
                         .order_by(participants.c.created_at)).mappings().all()
+
+
+def _by_pseudonym(store, participant_id, prolific_pid, pseudonym_value, study_id):
+    """The link ids a pseudonym names (None when no pseudonym is given)."""
+    if pseudonym_value is None:
+        return None
+    if participant_id is not None or prolific_pid is not None:
+        raise StoreError("withdraw needs exactly one of a participant id, a Prolific id and "
+                         "a pseudonym")
+    value = str(pseudonym_value).strip()
+    if not re.match(PSEUDONYM_RE, value):
+        raise StoreError(f"{value[:70]!r} is not a pseudonym (p- and 16 hex digits, as in the "
+                         "shared exports)")
+    named = participants_by_pseudonym(store, value, study_id=study_id)
+    if not named:
+        raise StoreError(f"unknown pseudonym {value!r}: no participant of "
+                         + (f"study {study_id!r}" if study_id else "this database")
+                         + " has it (already withdrawn, or from another database); "
+                         "nothing was deleted")
+    return named
 
 
 def _unknown(conn, participant_id, prolific_pid) -> StoreError:
@@ -100,7 +126,8 @@ def _count(conn, table, pid: str) -> int:
 
 
 def withdrawal_plan(store, *, participant_id: str | None = None,
-                    prolific_pid: str | None = None, study_id: str | None = None) -> list[dict]:
+                    prolific_pid: str | None = None, study_id: str | None = None,
+                    pseudonym: str | None = None) -> list[dict]:
     """What :func:`withdraw` would delete, without deleting it (for a confirmation).
 
     Returns
@@ -114,8 +141,9 @@ def withdrawal_plan(store, *, participant_id: str | None = None,
     StoreError
         No participant has that id (the message says if they already withdrew).
     """
+    named = _by_pseudonym(store, participant_id, prolific_pid, pseudonym, study_id)
     with store.transaction(write=False) as conn:
-        rows = _targets(conn, participant_id, prolific_pid, study_id)
+        rows = _targets(conn, participant_id, prolific_pid, study_id, named)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
         out = []
@@ -130,7 +158,8 @@ def withdrawal_plan(store, *, participant_id: str | None = None,
 
 
 def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | None = None,
-             study_id: str | None = None, by: str = "cli") -> list[Withdrawal]:
+             study_id: str | None = None, by: str = "cli",
+             pseudonym: str | None = None) -> list[Withdrawal]:
     """Delete a participant's data and record the withdrawal, in one transaction.
 
     Parameters
@@ -145,6 +174,10 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
         Only this study's participants.
     by : {"cli", "page"}
         Who did it (stored in the record).
+    pseudonym : str, optional
+        Instead of an id: the pseudonym (``p-`` and 16 hex digits) of their participant,
+        Prolific or session id or completion code in a shared export — the only id a
+        published dataset shows.
 
     Returns
     -------
@@ -159,10 +192,11 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
     """
     if by not in WITHDRAWN_BY:
         raise StoreError(f"withdrawn by must be one of {', '.join(WITHDRAWN_BY)}, got {by!r}")
+    named = _by_pseudonym(store, participant_id, prolific_pid, pseudonym, study_id)
     now = datetime.now(UTC)
     done = []
     with store.transaction(write=True) as conn:
-        rows = _targets(conn, participant_id, prolific_pid, study_id)
+        rows = _targets(conn, participant_id, prolific_pid, study_id, named)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
         for row in rows:
@@ -171,6 +205,7 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
             n_resp = conn.execute(responses.delete().where(
                 responses.c.participant_id == pid)).rowcount
             n_ev = conn.execute(events.delete().where(events.c.participant_id == pid)).rowcount
+            conn.execute(exclusions.delete().where(exclusions.c.participant_id == pid))
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
             conn.execute(withdrawals.insert().values(
                 participant_id=pid, study_id=row["study_id"], prolific_pid=row["prolific_pid"],

@@ -142,6 +142,10 @@ class Study:
     contact : str or None
         Who participants write to, e.g. to withdraw (replaces ``{contact}`` in the
         consent text; :data:`DEFAULT_CONTACT` without it).
+    license, citation : str or None
+        The shared dataset's licence and how to cite it (Psych-DS metadata).
+    creators : tuple of str
+        Who made the dataset (Psych-DS metadata).
     min_answer_s : float
         Seconds a trial must have been on screen before an answer to it is accepted
         (a double click cannot answer the next trial unseen).
@@ -173,6 +177,9 @@ class Study:
     redirect_url: str | None = None
     consent: str = DEFAULT_CONSENT
     contact: str | None = None
+    license: str | None = None
+    creators: tuple = ()
+    citation: str | None = None
     min_answer_s: float = 1.0
     require_watch: bool = True
     near_duplicate_deg: float = 15.0
@@ -202,6 +209,11 @@ class Study:
             study["redirect_url"] = self.redirect_url
         if self.contact:
             study["contact"] = self.contact
+        for name in ("license", "citation"):
+            if getattr(self, name):
+                study[name] = getattr(self, name)
+        if self.creators:
+            study["creators"] = list(self.creators)
         return {"study": study, "background": dict(self.background),
                 "attention": dict(self.attention), "selection": dict(self.selection),
                 "scenes": [dict(s) for s in self.scenes]}
@@ -279,6 +291,9 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
         redirect_url=s.get("redirect_url") or None,
         consent=s.get("consent") or DEFAULT_CONSENT,
         contact=s.get("contact") or None,
+        license=s.get("license") or None,
+        creators=tuple(s.get("creators") or ()),
+        citation=s.get("citation") or None,
         min_answer_s=float(s.get("min_answer_s", 1.0)),
         require_watch=bool(s.get("require_watch", True)),
         near_duplicate_deg=float(s.get("near_duplicate_deg", 15.0)),

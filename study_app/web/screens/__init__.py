@@ -5,5 +5,6 @@
 share is in four modules that are not pages: :mod:`.keys` (every session-state, URL and
 environment key), :mod:`.context` (the stimuli and store of the server, this run's
 session), :mod:`.widgets` (small UI helpers) and :mod:`.answers` (storing an answer once
-per tab).
+per tab); :mod:`.token_guard` (the researcher page's wrong-token limit) is not a page
+either.
 """

@@ -14,6 +14,8 @@ def render() -> None:
     ctx = context.load_context()
     study = ctx.stimuli.study
     st.title(study.title)
+    if _refused(ctx):
+        return
     if study.description:
         st.markdown(study.description)
     # The duration follows from the stimuli actually served (their animations' lengths).
@@ -36,9 +38,36 @@ def _on_start() -> None:
             keys.QUERY_PID in st.query_params:
         return  # the second send of a double click: this tab already started
     ctx = context.load_context()
+    if _why_closed(ctx) is not None:
+        return  # closed (or full) between the page and the click: the next run says so
     # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
     query = {k: st.query_params.get(k) for k in st.query_params.keys()}
     session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
     # The id goes in the URL: a reload, or the same link later, resumes here.
     st.query_params[keys.QUERY_PID] = session.participant_id
     st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
+
+
+#: What a new participant reads when the researcher closed the study or it is full.
+CLOSED_TEXT = {"closed": "This study is closed: it is not taking new participants.",
+               "full": "This study has all the participants it needs: it is not taking new "
+                       "participants."}
+
+
+def _why_closed(ctx) -> str | None:
+    """``"closed"``/``"full"`` for a new participant (study_app.data.monitor), None when
+    they may start. A returning Prolific participant is not new: they resume."""
+    from study_app.data.monitor import enrolment
+
+    why = enrolment(ctx.store, ctx.stimuli.study.id)
+    ppid = st.query_params.get("PROLIFIC_PID")
+    if why is not None and ppid and ctx.store.find_prolific(ctx.stimuli.study.id, ppid):
+        return None
+    return why
+
+
+def _refused(ctx) -> bool:
+    why = _why_closed(ctx)
+    if why is not None:
+        st.info(CLOSED_TEXT[why])
+    return why is not None
