@@ -34,13 +34,14 @@ from study_app.design.protocol import (
     redirect_url,
     trial_plan,
 )
-from study_app.design.stimuli import Stimuli, app_version
+from study_app.design.stimuli import Stimuli, app_version, find_stimulus_set
 
 __all__ = [
     "Stage",
     "SessionError",
     "UnknownParticipant",
     "Withdrawn",
+    "MaterialsChanged",
     "InvalidAnswer",
     "TooEarly",
     "prolific_problems",
@@ -113,6 +114,11 @@ class SessionError(SnapshotError):
 
 class UnknownParticipant(SessionError):
     """A participant id (from the URL) that is malformed, unknown or from another study."""
+
+
+class MaterialsChanged(UnknownParticipant):
+    """A participant whose stimulus set is no longer on the server (what they answered
+    so far is stored; nothing more can be)."""
 
 
 class Withdrawn(UnknownParticipant):
@@ -285,11 +291,15 @@ class ParticipantSession:
                                      "Please use the link you were given, or start a new session.")
         if part["study_id"] != stimuli.study.id:
             raise UnknownParticipant("This participant link belongs to another study.")
-        if part["manifest_sha256"] != stimuli.sha256:
-            raise UnknownParticipant("The study's materials have changed since you started, "
-                                     "so this session cannot continue. Please contact the "
-                                     "researchers.")
-        return cls(store, stimuli, part, answered)
+        # A participant who started before the stimuli were rebuilt goes on with the set
+        # they started on (kept beside the new one): never answers against another set.
+        own = find_stimulus_set(stimuli, part["manifest_sha256"])
+        if own is None or own.study.id != part["study_id"]:
+            raise MaterialsChanged("The study's materials have changed since you started, "
+                                   "and the ones you saw are no longer available, so this "
+                                   "session cannot continue. Your answers so far are saved. "
+                                   "Please contact the researchers.")
+        return cls(store, own, part, answered)
 
     # -- where the participant is ----------------------------------------------------
     @property

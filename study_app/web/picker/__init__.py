@@ -23,7 +23,7 @@ from __future__ import annotations
 from functools import cache, partial
 from pathlib import Path
 
-__all__ = ["frame_picker", "view_chooser", "confirmed", "chosen", "media_url", "FRAME_PICKER", "VIEW_CHOOSER",
+__all__ = ["frame_picker", "view_chooser", "confirmed", "chosen", "media_url", "pin_files", "FRAME_PICKER", "VIEW_CHOOSER",
            "DEFAULT_LABELS"]
 
 HERE = Path(__file__).resolve().parent
@@ -59,16 +59,47 @@ def _components():
     return picker, chooser
 
 
+#: {absolute path: sha256} of the stimulus files the server serves (:func:`pin_files`).
+_PINNED: dict[str, str] = {}
+
+
+def pin_files(digests: dict[str, str]) -> None:
+    """Serve the files named in ``digests`` (``{absolute path: sha256}``, the manifest
+    the server started with) only with those contents."""
+    _PINNED.update(digests)
+
+
 @cache
 def _media_bytes(path: str) -> bytes:
-    """A stimulus file's bytes, read once per server process.
+    """A stimulus file's bytes, read once per server process and checked against the
+    pinned manifest (:func:`pin_files`).
 
     Streamlit's media manager reads and hashes a file given by path on every call,
     holding its one process-wide lock; with every participant's page registering its
     videos and pictures on every script run, threads queued on that lock under load.
-    Stimuli never change while the app runs (they are verified once at start-up).
+    A file whose bytes are not the ones the study started with (changed on disk since)
+    is refused, never served under the old manifest's records.
+
+    Raises
+    ------
+    StimuliError
+        The file is missing or its sha256 differs from the pinned one (one line).
     """
-    return Path(path).read_bytes()
+    import hashlib
+
+    from study_app.design.stimuli import StimuliError
+
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise StimuliError(f"stimulus file {path} cannot be read ({err.strerror})") from None
+    want = _PINNED.get(path)
+    if want is not None and hashlib.sha256(data).hexdigest() != want:
+        _media_bytes.cache_clear()  # nothing of a changed set stays cached
+        raise StimuliError(f"stimulus file {path} changed on disk since the study started "
+                           "(its sha256 differs from the manifest); restart the study "
+                           "server on a stimuli folder that is not rebuilt in place")
+    return data
 
 
 def media_url(path: str | Path, *, where: str) -> str:

@@ -43,7 +43,11 @@ def timed_fragment(func):
     @functools.wraps(func)
     def run(*args, **kwargs):
         with RunClock(current_stage, fragment=True):
-            return func(*args, **kwargs)
+            try:
+                return func(*args, **kwargs)
+            except SnapshotError as err:  # e.g. a stimulus file changed on disk
+                st.error(f"This page cannot be shown: {one_line(err)}")
+                return None
 
     return st.fragment(run)
 
