@@ -67,6 +67,7 @@ from .database import (
     PROLIFIC_INDEX,
     STUDY_TABLES,
     configure_sqlite,
+    create_tables,
     default_url,
     events,
     mask_url,
@@ -243,12 +244,7 @@ class Store:
         return engine
 
     def _create_tables(self) -> None:
-        try:
-            metadata.create_all(self.engine, checkfirst=True)
-        except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
-            # Two processes creating the same tables at once (PostgreSQL): the loser
-            # retries and now finds them.
-            metadata.create_all(self.engine, checkfirst=True)
+        create_tables(self.engine)
 
     def _create_indexes(self) -> None:
         """Add indexes a database made by an older version lacks (never drops anything)."""

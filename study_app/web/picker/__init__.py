@@ -36,6 +36,10 @@ DEFAULT_LABELS = {
     "frame": "Frame", "confirm": "Confirm this frame", "saving": "Saving…",
     "scrub": "Position in the animation", "video_error": "The video cannot be played",
     "choose": "Choose", "watch_first": "Watch the whole animation once to choose a frame.",
+    "video": "The animation", "retry": "Try again",
+    "not_saved": "The connection was lost: your answer was not saved. Please press Confirm again.",
+    "not_saved_choice": "The connection was lost: your choice was not saved. Please choose again.",
+    "image_error": "A picture could not be loaded, so this question cannot be answered yet.",
 }
 _MIME = {".mp4": "video/mp4", ".webm": "video/webm", ".png": "image/png", ".jpg": "image/jpeg",
          ".jpeg": "image/jpeg"}
@@ -126,7 +130,8 @@ def media_url(path: str | Path, *, where: str) -> str:
 
 
 def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,
-                 start_frame: int = 0, watched: float = 0.0, require_watch: bool = False,
+                 start_frame: int = 0, watched: float = 0.0, watched_ranges=(),
+                 require_watch: bool = False,
                  watch_min: float = 0.9, min_answer_s: float = 0.0,
                  labels: dict | None = None, height: int | None = None,
                  log_key: str = "", on_confirm=None, args: tuple = ()):
@@ -149,6 +154,9 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
         Frame shown first (e.g. where the participant was before a reload).
     watched : float
         Share of the animation already watched (restored after a reload).
+    watched_ranges : list of [float, float]
+        The video frames already watched, ``[[from, to], ...]`` (restored after a
+        reload or a return; united with what this page plays).
     require_watch : bool
         Confirm stays off until ``watch_min`` of the animation was played.
     min_answer_s : float
@@ -179,6 +187,7 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
     data = {"sources": sources, "fps": float(fps),
             "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
             "watched": float(watched), "require_watch": bool(require_watch),
+            "watched_ranges": [[float(a), float(b)] for a, b in watched_ranges],
             "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
             "labels": {**DEFAULT_LABELS, **(labels or {})}, "log_key": str(log_key)}
     result = picker(key=key, data=[data], on_confirm_change=_bound(on_confirm, args),
@@ -196,8 +205,11 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
 
 def view_chooser(images: list[str | Path], *, trial: int, key: str,
                  captions: list[str] | None = None, min_answer_s: float = 0.0,
-                 labels: dict | None = None, on_choice=None, args: tuple = ()):
-    """Mount the view chooser; return ``{"trial", "position"}`` when one is chosen.
+                 labels: dict | None = None, on_choice=None, args: tuple = (),
+                 tab_key: str = ""):
+    """Mount the view chooser; return ``{"trial", "position", "client"}`` when one is
+    chosen (without ``on_choice``), ``{"trial", "failed": [positions]}`` in the run
+    after pictures failed to load (retried; the buttons stay off), else None.
 
     Parameters
     ----------
@@ -215,14 +227,22 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
     on_choice : callable, optional
         Called with ``args`` when a picture is chosen, before the script run that
         follows (read the answer with :func:`chosen`); the function then returns None.
+    tab_key : str
+        Names this participant's trial in the browser tab (its active time is kept
+        across reloads under it).
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
     data = {"trial": int(trial), "labels": {**DEFAULT_LABELS, **(labels or {})},
-            "min_answer_s": float(min_answer_s),
+            "min_answer_s": float(min_answer_s), "tab_key": str(tab_key),
             "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
                       for i, p in enumerate(images)]}
-    result = chooser(key=key, data=[data], on_choice_change=_bound(on_choice, args))
+    result = chooser(key=key, data=[data], on_choice_change=_bound(on_choice, args),
+                     on_failed_change=_noop)
+    if result.get("failed"):
+        got = result["failed"] or {}
+        return {"trial": got.get("trial"), "failed": list(got.get("positions") or []),
+                "tab": got.get("tab")}
     return dict(result["choice"]) if result.get("choice") and on_choice is None else None
 
 

@@ -80,7 +80,9 @@ KEY_ANSWERED_HERE = "snapshot.answered_here"
 KEY_FRESH_SESSION = "snapshot.fresh_session"
 #: A message to show once on the next run (kind, text).
 KEY_FLASH = "snapshot.flash"
-#: True when the browser could not play a video: pose tasks use the frame slider.
+#: {(participant id, trial index)} whose video this browser could not play (after
+#: retries): that trial uses the frame slider (its answer says so); the next trial tries
+#: the player again.
 KEY_FRAMES_FALLBACK = "snapshot.frames_fallback"
 #: Widget keys (AppTest drives widgets by these).
 KEY_CONSENT_AGREE = "consent.agree"
