@@ -716,7 +716,7 @@ def client_fields(client, response_time_s: float) -> dict:
         "viewport_height": vp[1] if ok_vp else None,
         "device_pixel_ratio": round(float(dpr), 3) if _number(dpr) and 0 < dpr <= 16 else None,
         "input_type": c.get("input") if c.get("input") in INPUT_TYPES else None,
-        "active_time_s": round(min(float(active), response_time_s), 3)
+        "active_time_s": min(round(float(active), 3), response_time_s)
         if _number(active) and active >= 0 else None,
         "tab_id": c.get("tab") if isinstance(c.get("tab"), str) and _TAB.match(c["tab"]) else None,
     }

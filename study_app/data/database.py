@@ -22,7 +22,7 @@ from .errors import StoreError
 
 __all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
            "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
-           "STUDY_TABLES", "PROLIFIC_INDEX", "add_missing_columns", "create_tables",
+           "STUDY_TABLES", "PROLIFIC_INDEX", "add_missing_columns", "create_tables", "upgrade_columns",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "ensure_postgres_database", "SQLITE_BUSY_TIMEOUT_MS"]
 
@@ -321,16 +321,18 @@ def add_missing_columns(engine) -> list[str]:
 
 
 def create_tables(engine) -> None:
-    """Create the tables a database lacks, and the columns its tables of an older
-    version lack (:func:`add_missing_columns`)."""
+    """Create the tables a database lacks (the columns: :func:`upgrade_columns`)."""
     try:
         metadata.create_all(engine, checkfirst=True)
     except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
         # Two processes creating the same tables at once (PostgreSQL): the loser
         # retries and now finds them.
         metadata.create_all(engine, checkfirst=True)
+
+
+def upgrade_columns(engine) -> list[str]:
+    """:func:`add_missing_columns`, once more if another process added one meanwhile."""
     try:
-        add_missing_columns(engine)
+        return add_missing_columns(engine)
     except (sa_exc.ProgrammingError, sa_exc.OperationalError):
-        # Two processes adding the same column at once: the other one did.
-        add_missing_columns(engine)
+        return add_missing_columns(engine)

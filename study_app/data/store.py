@@ -77,6 +77,7 @@ from .database import (
     participants,
     responses,
     standalone_sqlite,
+    upgrade_columns,
 )
 from .errors import StoreError
 from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
@@ -247,7 +248,9 @@ class Store:
         create_tables(self.engine)
 
     def _create_indexes(self) -> None:
-        """Add indexes a database made by an older version lacks (never drops anything)."""
+        """Add columns and indexes a database made by an older version lacks (never
+        drops anything)."""
+        upgrade_columns(self.engine)
         try:
             with self.transaction(write=True) as conn:
                 PROLIFIC_INDEX.create(conn, checkfirst=True)
