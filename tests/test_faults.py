@@ -6,6 +6,7 @@ tests/test_e2e_faults.py.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -239,3 +240,53 @@ def test_analysis_excludes_slider_and_unwatched_answers():
     kept, n = exclude_unverified(df)
     assert n == {"slider": 1, "not_watched": 1}
     assert list(kept.index) == [2, 3, 4]
+
+
+def test_silhouette_iou_sees_mirror_images(tmp_path):
+    """The measure itself, on drawn shapes: a shape and its mirror image are the same
+    picture (1.0); an L and a bar share little."""
+    from PIL import Image, ImageDraw
+
+    from study_app.design.similarity import silhouette_iou
+
+    def draw(name, boxes):
+        img = Image.new("RGB", (160, 120), (249, 249, 249))
+        d = ImageDraw.Draw(img)
+        for b in boxes:
+            d.rectangle(b, fill=(40, 60, 90))
+        img.save(tmp_path / name)
+        return tmp_path / name
+
+    ell = draw("l.png", [(40, 10, 60, 110), (40, 90, 120, 110)])
+    mirrored = draw("m.png", [(100, 10, 120, 110), (40, 90, 120, 110)])
+    bar = draw("bar.png", [(20, 50, 140, 70)])
+    assert silhouette_iou(ell, mirrored) == pytest.approx(1.0, abs=0.02)
+    assert silhouette_iou(ell, bar) < 0.5
+
+
+def test_tiny_build_flags_alike_candidates_by_their_pictures(tmp_path_factory):
+    """Issue 29 item 7: the rendered candidates of the tiny study are measured; the
+    pairs that look the same (one a mirror image, 163.6° apart, which the angle misses)
+    are near-duplicates by IoU, and a study set to refuse them stops with the measure."""
+    import warnings
+
+    from app_helpers import tiny_demo_stimuli
+
+    from study_app.design.similarity import NEAR_DUPLICATE_IOU, silhouette_iou
+    from study_app.design.stimuli import StimuliError, check_alike_pictures
+
+    folder, r = tiny_demo_stimuli(tmp_path_factory)
+    assert r is None or r.returncode == 0, r.stderr
+    s = load_stimuli(folder)
+    for sid, sc in s.scenes.items():
+        ious = sc.entry["view_iou"]
+        # Recomputed from the pictures on disk, independently of the build's record.
+        assert ious["ours|motion_area"] == pytest.approx(
+            silhouette_iou(sc.views["ours"], sc.views["motion_area"]), abs=1e-3)
+        assert ious["ours|motion_area"] >= NEAR_DUPLICATE_IOU, (sid, ious)
+        assert ["ours", "motion_area"] in sc.entry["near_duplicates"]
+        assert ious["ours|viewpoint_entropy"] < NEAR_DUPLICATE_IOU, (sid, ious)
+    study = dataclasses.replace(s.study, near_duplicate="error")
+    with warnings.catch_warnings(), pytest.raises(StimuliError, match=r"silhouette IoU 0\.\d\d"):
+        warnings.simplefilter("ignore")
+        check_alike_pictures(study, "jump", s.scenes["jump"].views)

@@ -47,6 +47,7 @@ from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
 from .protocol import Study, study_from_dict
 from .scenes import StudyScene
+from .similarity import NEAR_DUPLICATE_IOU, candidate_ious
 
 __all__ = [
     "MANIFEST_NAME",
@@ -71,6 +72,7 @@ __all__ = [
     "find_stimulus_set",
     "SETS_SUFFIX",
     "publish_set",
+    "check_alike_pictures",
 ]
 
 MANIFEST_NAME = "manifest.json"
@@ -508,6 +510,26 @@ def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dic
     return angles, dupes
 
 
+def check_alike_pictures(study: Study, scene_id: str, views: dict) -> tuple[dict, list]:
+    """The candidates' silhouette IoUs and the pairs at or above
+    :data:`NEAR_DUPLICATE_IOU`, acted on as the study's ``near_duplicate`` says (as
+    :func:`check_near_duplicates`, with the measure in the message)."""
+    ious = candidate_ious(views)
+    pairs = [k.split("|") for k, v in ious.items() if v >= NEAR_DUPLICATE_IOU]
+    if pairs:
+        which = "; ".join(f"{a} and {b} (silhouette IoU {ious[f'{a}|{b}']:.2f}, mirror "
+                          "images included)" for a, b in pairs)
+        text = (f"nearly the same picture from {which} (threshold IoU "
+                f"{NEAR_DUPLICATE_IOU:g}; all pairs: "
+                + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in ious.items()) + ")")
+        if study.near_duplicate == "error":
+            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
+                               "\"warn\" to build anyway")
+        warnings.warn(text + ": votes may split between them (the analysis reports it)",
+                      stacklevel=3)
+    return ious, pairs
+
+
 def _unit(v) -> list[float]:
     a = np.asarray(v, dtype=float).reshape(3)
     return (a / np.linalg.norm(a)).tolist()
@@ -744,6 +766,10 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
                            f"renderer reported {len(vmap)}")
     t3 = time.perf_counter()
     views = write_views(scene, picks, folder, size=study.size)
+    # Judged on the pictures themselves too: two views far apart in angle can still
+    # show the same shape (a mirror image, a symmetric pose).
+    ious, alike = check_alike_pictures(study, sc["id"], views)
+    dupes = dupes + [p for p in alike if p not in dupes]
     t4 = time.perf_counter()
     source = {k: sc[k] for k in ("demo", "files", "manifest", "fps", "scale", "frames") if k in sc}
     return {
@@ -764,6 +790,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "views": views,
         "view_angles": angles,
         "near_duplicates": dupes,
+        "view_iou": ious,
         "timings_s": {"load": t1 - t0, "select": t2 - t1, "video": t3 - t2, "views": t4 - t3,
                       **{f"select_{k}": v for k, v in timings.items()}},
     }

@@ -18,6 +18,7 @@ Configuration comes from the environment (``snapshot study`` sets it):
 
 from __future__ import annotations
 
+import functools
 import logging
 import sys
 from pathlib import Path
@@ -97,6 +98,8 @@ def _participant(ctx):
                     ", ".join(f"{k}={describe_value(query.get(k))}"
                               for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
         return None, " ".join(problems) + " Please open the study again from Prolific."
+    if "PROLIFIC_PID" in query and not ctx.stimuli.study.completion_code:
+        _no_completion_code(ctx.stimuli.study.id)
     pid = query.get(keys.QUERY_PID)
     if fresh is not None:  # read (and updated) by this run's answer callback just now
         st.session_state[keys.KEY_PARTICIPANT_ID] = fresh.participant_id
@@ -126,6 +129,15 @@ def _participant(ctx):
         st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
         st.query_params[keys.QUERY_PID] = session.participant_id
     return session, None
+
+
+@functools.cache
+def _no_completion_code(study_id: str) -> None:
+    """Say once per server that a Prolific participant arrived on a study without a
+    completion code (they will get a random code Prolific cannot check)."""
+    log.warning("a participant arrived from Prolific, but study '%s' has no completion_code: "
+                "they will get a random code Prolific cannot accept (set study.completion_code)",
+                study_id)
 
 
 def _refused(err: UnknownParticipant) -> str:
