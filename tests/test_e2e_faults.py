@@ -462,3 +462,49 @@ def _picture_digests(page) -> list[str]:
         body = page.request.get(src).body()
         out.append(hashlib.sha256(body).hexdigest())
     return out
+
+
+# ----------------------------------------------------------------------------- small items
+def test_small_items(study, browser):
+    """Deep addresses land on the participant's step without Streamlit's "Page not
+    found"; Confirm is on screen at 683×384 (200% zoom) and on a landscape phone; the
+    step buttons and the video have names; the live frame number is not re-announced
+    on every frame of a play; the personal link has a copy button that copies it."""
+    pid = seeded(study)
+    ctx = browser.new_context(viewport={"width": 683, "height": 384})
+    ctx.grant_permissions(["clipboard-read", "clipboard-write"], origin=study["base"])
+    page = ctx.new_page()
+    page.set_default_timeout(30_000)
+    for path in ("study", "pose_task", f"done?pid={pid}"):
+        page.goto(f"{study['base']}/{path}")
+        heading(page, "Animation 1 of 2" if "pid" in path else "Tiny demo")
+        settle(page)
+        assert "Page not found" not in page.inner_text("body"), path
+    assert f"pid={pid}" in page.url
+    picker_ready(page)
+    settle(page)
+    for size in ({"width": 683, "height": 384}, {"width": 844, "height": 390}):
+        page.set_viewport_size(size)
+        page.evaluate("() => window.scrollTo(0, 0)")
+        page.wait_for_function(f"() => window.innerHeight === {size['height']}")
+        b = page.get_by_test_id("picker-confirm").bounding_box()
+        assert b is not None and 0 <= b["y"] and b["y"] + b["height"] <= size["height"], (size, b)
+    page.get_by_role("button", name="Previous frame").wait_for()
+    page.get_by_role("button", name="Next frame").wait_for()
+    assert page.get_by_test_id("picker-video").get_attribute("aria-label")
+    live = page.get_by_test_id("picker-frame-live")
+    assert live.get_attribute("aria-live") == "polite"
+    assert page.get_by_test_id("picker-frame").get_attribute("aria-live") is None
+    live.evaluate("el => { window.__changes = 0; new MutationObserver(() => window.__changes++)"
+                  ".observe(el, {childList: true, characterData: true, subtree: true}); }")
+    video = page.get_by_test_id("picker-video")
+    page.get_by_test_id("picker-play").click()
+    until(video, "v => v.ended || (v.paused && v.currentTime > 0.5)")
+    assert page.evaluate("() => window.__changes") <= 2  # the 24 frames played: not 24 times
+    copy = page.get_by_test_id("copy-link")
+    copy.scroll_into_view_if_needed()
+    copy.click()
+    until(copy, "b => b.dataset.done === '1'")
+    assert page.evaluate("() => navigator.clipboard.readText()").endswith(f"/?pid={pid}")
+    no_traceback(page, study)
+    ctx.close()

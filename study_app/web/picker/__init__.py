@@ -23,13 +23,14 @@ from __future__ import annotations
 from functools import cache, partial
 from pathlib import Path
 
-__all__ = ["frame_picker", "view_chooser", "confirmed", "chosen", "media_url", "pin_files", "FRAME_PICKER", "VIEW_CHOOSER",
+__all__ = ["frame_picker", "view_chooser", "copy_button", "confirmed", "chosen", "media_url", "pin_files", "FRAME_PICKER", "VIEW_CHOOSER",
            "DEFAULT_LABELS"]
 
 HERE = Path(__file__).resolve().parent
 #: Component names (unique in the app).
 FRAME_PICKER = "snapshot_frame_picker"
 VIEW_CHOOSER = "snapshot_view_chooser"
+COPY_LINK = "snapshot_copy_link"
 #: Text shown by the widgets (English defaults; pass ``labels`` to translate).
 DEFAULT_LABELS = {
     "play": "Play", "pause": "Pause", "back": "Previous frame", "forward": "Next frame",
@@ -244,6 +245,21 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
         return {"trial": got.get("trial"), "failed": list(got.get("positions") or []),
                 "tab": got.get("tab")}
     return dict(result["choice"]) if result.get("choice") and on_choice is None else None
+
+
+@cache
+def _copy_component():
+    import streamlit as st
+
+    return st.components.v2.component(
+        COPY_LINK, js=(HERE / "copy_link.js").read_text(encoding="utf-8"),
+        css=(HERE / "picker.css").read_text(encoding="utf-8"))
+
+
+def copy_button(text: str, *, key: str, labels: dict | None = None) -> None:
+    """A button that copies ``text`` to the clipboard (and then says so)."""
+    labels = {"copy": "Copy the link", "copied": "Copied", **(labels or {})}
+    _copy_component()(key=key, data=[{"text": str(text), "labels": labels}])
 
 
 def _bound(callback, args: tuple):

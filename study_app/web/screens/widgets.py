@@ -115,7 +115,11 @@ def resume_link(session) -> None:
     st.divider()
     st.caption("Your personal link: to pause and continue later (in this or another "
                "browser), copy it and open it again.")
-    st.code(resume_url(base, session.participant_id), language=None)
+    link = resume_url(base, session.participant_id)
+    st.code(link, language=None, wrap_lines=True)  # whole on a phone, not cut off
+    from study_app.web.picker import copy_button
+
+    copy_button(link, key="snapshot.copy_link")
 
 
 def one_line(err: BaseException) -> str:
