@@ -117,6 +117,11 @@ def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated:
         df[c] = pd.array(df[c].to_numpy(dtype=object), dtype="Int64")
     for c in (c for c, t in types.items() if t == "number"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+    for c in (c for c, t in types.items() if t == "string"):
+        # An all-empty text column (e.g. picked_with in view-only rows) reads back from
+        # CSV as floats: text columns hold text or None, whatever the source.
+        df[c] = pd.Series([v if isinstance(v, str) else None for v in df[c]],
+                          index=df.index, dtype=object)
     df["correct"] = pd.array(df["correct"].to_numpy(dtype=object), dtype="boolean")
     df["simulated"] = df["simulated"].fillna(False).astype(bool)
     df["shown_order"] = [tuple(v) if isinstance(v, list | tuple) else None
