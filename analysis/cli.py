@@ -64,6 +64,9 @@ def _parse_strengths(text: str | None) -> dict | None:
               help="Analyse simulated participants too (excluded by default).")
 @click.option("--exclude-failed-attention", is_flag=True,
               help="Drop participants who failed the attention check.")
+@click.option("--exclude-unwatched", is_flag=True,
+              help="Leave out pose answers picked on the frame slider (the video did not play) "
+                   "or before the animation was watched; the report says how many.")
 @click.option("--include-incomplete", is_flag=True,
               help="Analyse participants who started but did not finish too (by default "
                    "only completed participants count).")
@@ -75,7 +78,8 @@ def _parse_strengths(text: str | None) -> dict | None:
               show_default=True, help="Significance level (family-wise, Holm).")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the output folder.")
 def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
-            exclude_failed_attention, include_incomplete, n_boot, seed, alpha, quiet):
+            exclude_failed_attention, exclude_unwatched, include_incomplete, n_boot, seed,
+            alpha, quiet):
     """Analyse the study: tables (CSV, Markdown, LaTeX), figures (PNG, PDF) and a
     one-page HTML report in OUT.
 
@@ -111,7 +115,8 @@ def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
         summary = report.analyze(source, out_dir, include_simulated=include_simulated,
                                  stimuli=stimuli, exclude_failed_attention=exclude_failed_attention,
                                  n_boot=n_boot, seed=seed, alpha=alpha,
-                                 completed_only=not include_incomplete)
+                                 completed_only=not include_incomplete,
+                                 exclude_unwatched=exclude_unwatched)
     if not quiet:
         if "participants" in summary:
             click.echo(f"{summary['participants']} participants"
@@ -121,6 +126,10 @@ def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
                        + (f" ({summary['simulated_participants']} simulated)"
                           if summary.get("simulated_participants") else "")
                        + f", {summary['responses']} responses")
+        if "excluded_answers" in summary:
+            ex = summary["excluded_answers"]
+            click.echo(f"left out {ex['slider']} pose answers picked on the frame slider and "
+                       f"{ex['not_watched']} given before the animation was watched")
         for line in summary.get("claims", []):
             click.echo(line)
         if "frame_verdict" in summary:

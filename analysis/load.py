@@ -51,7 +51,13 @@ __all__ = [
     "attention_summary",
     "PAPER_SCENES",
     "ordered_scenes",
+    "exclude_unverified",
+    "WATCHED_ENOUGH",
 ]
+
+#: Share of the animation a pose answer's participant must have played for it to count
+#: as watched (the study's own bar, :data:`study_app.session.WATCHED_ENOUGH`).
+WATCHED_ENOUGH = 0.9
 
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
 PAPER_SCENES = ("dancing", "running", "soccer_kicking", "basketball_shooting",
@@ -134,6 +140,11 @@ def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated:
         df[c] = pd.array(df[c].to_numpy(dtype=object), dtype="Int64")
     for c in (c for c, t in types.items() if t == "number"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+    for c in (c for c, t in types.items() if t == "string"):
+        # An all-empty text column (e.g. picked_with in view-only rows) reads back from
+        # CSV as floats: text columns hold text or None, whatever the source.
+        df[c] = pd.Series([v if isinstance(v, str) else None for v in df[c]],
+                          index=df.index, dtype=object)
     df["correct"] = pd.array(df["correct"].to_numpy(dtype=object), dtype="boolean")
     df["simulated"] = df["simulated"].fillna(False).astype(bool)
     df["shown_order"] = [tuple(v) if isinstance(v, list | tuple) else None
@@ -232,3 +243,29 @@ def attention_summary(df: pd.DataFrame) -> pd.DataFrame:
                         "n_correct": g.apply(lambda s: int(s.fillna(False).sum()))})
     out["passed"] = out["n_correct"] == out["n_checks"]
     return out.reset_index()
+
+
+def exclude_unverified(df: pd.DataFrame, *, watch_min: float = WATCHED_ENOUGH
+                       ) -> tuple[pd.DataFrame, dict[str, int]]:
+    """Leave out the pose answers nobody can vouch were given on the animation.
+
+    Dropped: answers picked on the frame slider (``picked_with == "slider"``: the
+    fallback when the video did not play, nothing was watched) and answers in the
+    player whose ``watched`` share is below ``watch_min``. Answers of versions that did
+    not record these fields (null ``picked_with``) are kept; other tasks are kept.
+
+    Returns
+    -------
+    (DataFrame, dict)
+        The kept rows, and ``{"slider": n, "not_watched": n}``, how many were dropped
+        for each reason.
+    """
+    if df.empty or "picked_with" not in df:
+        return df, {"slider": 0, "not_watched": 0}
+    pose = df["task"] == "pose"
+    slider = pose & (df["picked_with"] == "slider")
+    watched = pd.to_numeric(df.get("watched"), errors="coerce")
+    unwatched = pose & (df["picked_with"] == "player") & ~(watched >= watch_min)
+    drop = (slider | unwatched).fillna(False).astype(bool)
+    return df[~drop], {"slider": int(slider.fillna(False).sum()),
+                       "not_watched": int(unwatched.fillna(False).sum())}

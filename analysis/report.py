@@ -449,7 +449,8 @@ def default_stimuli(df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT) -> P
 def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
             exclude_failed_attention: bool = False, n_boot: int = DEFAULT_BOOT, seed: int = 0,
             n_permutations: int = fr.N_PERMUTATIONS, alpha: float = vt.ALPHA,
-            title: str | None = None, completed_only: bool = True) -> dict:
+            title: str | None = None, completed_only: bool = True,
+            exclude_unwatched: bool = False) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
     Parameters
@@ -469,6 +470,10 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     completed_only : bool
         Analyse the answers of participants who finished only (the default); False
         keeps those who started and left. The participants table reports both.
+    exclude_unwatched : bool
+        Leave out pose answers picked on the frame slider or before the animation was
+        watched (:func:`analysis.load.exclude_unverified`); the summary's
+        ``excluded_answers`` says how many.
     """
     from snapcore.errors import SnapshotError
 
@@ -491,6 +496,11 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                                 "(add --include-incomplete to analyse those who started)")
     if exclude_failed_attention and failed:
         df = df[~df["participant_id"].isin(failed)]
+    excluded = None
+    if exclude_unwatched:
+        from .load import exclude_unverified
+
+        df, excluded = exclude_unverified(df)
     order, extra, labels = None, {}, {}
     if stimuli is None:
         stimuli = default_stimuli(df)
@@ -532,6 +542,8 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
                                  seed=seed, alpha=alpha)
         sections += s
         summary.update(summ)
+    if excluded is not None:
+        summary["excluded_answers"] = excluded
     write_table(parts, out / "tables" / "participants",
                 caption="Participants (started and completed) and their responses.")
     sections.insert(0, ("Participants", [parts]))

@@ -34,13 +34,14 @@ from study_app.design.protocol import (
     redirect_url,
     trial_plan,
 )
-from study_app.design.stimuli import Stimuli, app_version
+from study_app.design.stimuli import Stimuli, app_version, find_stimulus_set
 
 __all__ = [
     "Stage",
     "SessionError",
     "UnknownParticipant",
     "Withdrawn",
+    "MaterialsChanged",
     "InvalidAnswer",
     "TooEarly",
     "prolific_problems",
@@ -51,6 +52,9 @@ __all__ = [
     "prolific_params",
     "PROLIFIC_KEYS",
     "EVENT_KINDS",
+    "MEDIA_FAILED_EVENT",
+    "PICKED_WITH",
+    "client_fields",
     "SHOWN_EVENT",
     "MAX_EVENTS_PER_TRIAL",
     "STALE_TAB_TEXT",
@@ -64,7 +68,17 @@ _PROLIFIC_VALUE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 #: that could not be one before asking the database.
 _PID = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
 #: Picker interactions worth keeping (plays, pauses, seeks, frame steps, scrubbing).
-EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select")
+EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select", "watch")
+#: The event the server stores when a trial's media did not load in the participant's
+#: browser after retries (nothing is answered: the chooser stays closed, the player
+#: falls back to the frame slider, whose answers say so).
+MEDIA_FAILED_EVENT = "media_failed"
+#: How a pose answer's frame was picked: in the video player, or on the frame slider
+#: (the fallback when the video cannot be played, or the study's ``picker = "frames"``).
+PICKED_WITH = ("player", "slider")
+#: Input types a browser reports for the click that answered.
+INPUT_TYPES = ("mouse", "touch", "pen", "keyboard")
+_TAB = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
 #: Share of the animation that must have been played (the video's played ranges) for
 #: "watched through once": a little under 1, as the last frame's interval and a
 #: dropped frame at the start are not counted as played by every browser.
@@ -113,6 +127,11 @@ class SessionError(SnapshotError):
 
 class UnknownParticipant(SessionError):
     """A participant id (from the URL) that is malformed, unknown or from another study."""
+
+
+class MaterialsChanged(UnknownParticipant):
+    """A participant whose stimulus set is no longer on the server (what they answered
+    so far is stored; nothing more can be)."""
 
 
 class Withdrawn(UnknownParticipant):
@@ -285,11 +304,15 @@ class ParticipantSession:
                                      "Please use the link you were given, or start a new session.")
         if part["study_id"] != stimuli.study.id:
             raise UnknownParticipant("This participant link belongs to another study.")
-        if part["manifest_sha256"] != stimuli.sha256:
-            raise UnknownParticipant("The study's materials have changed since you started, "
-                                     "so this session cannot continue. Please contact the "
-                                     "researchers.")
-        return cls(store, stimuli, part, answered)
+        # A participant who started before the stimuli were rebuilt goes on with the set
+        # they started on (kept beside the new one): never answers against another set.
+        own = find_stimulus_set(stimuli, part["manifest_sha256"])
+        if own is None or own.study.id != part["study_id"]:
+            raise MaterialsChanged("The study's materials have changed since you started, "
+                                   "and the ones you saw are no longer available, so this "
+                                   "session cannot continue. Your answers so far are saved. "
+                                   "Please contact the researchers.")
+        return cls(store, own, part, answered)
 
     # -- where the participant is ----------------------------------------------------
     @property
@@ -427,7 +450,8 @@ class ParticipantSession:
         return bool(stored)
 
     def submit_pose(self, trial_index: int, video_frame, *, response_time_s: float,
-                    events=(), watched: float | None = None) -> bool:
+                    events=(), watched: float | None = None, ranges=None,
+                    client: dict | None = None) -> bool:
         """Answer a pose task with the confirmed frame of the video.
 
         The video frame is checked against the scene's frame map and converted to the
@@ -440,7 +464,13 @@ class ParticipantSession:
             Share of the animation played in the video player (0-1, the largest the
             player reported in this or an earlier page load of the trial). With the
             study's ``require_watch`` it must reach :data:`WATCHED_ENOUGH`; None means
-            the participant used the frame slider, where nothing plays.
+            the participant used the frame slider, where nothing plays (stored as
+            ``picked_with = "slider"``, so the analysis can leave it out).
+        ranges : list of [float, float], optional
+            The video frames played (the player's played ranges), united with the
+            stored ones to give the share watched.
+        client : dict, optional
+            What the answer was given on (:func:`client_fields`).
 
         Raises
         ------
@@ -461,14 +491,18 @@ class ParticipantSession:
             if isinstance(watched, bool) or not isinstance(watched, (int, float)) \
                     or not 0 <= watched <= 1:
                 raise InvalidAnswer("The player reported an invalid viewing time.")
-            watched = max(float(watched), self.watched(trial.index))
+            watched = max(float(watched), self.watched(trial.index),
+                          _share(_ranges(ranges), sc.n_video_frames, self._ranges(trial.index)))
             if self.stimuli.study.require_watch and watched < WATCHED_ENOUGH:
                 raise InvalidAnswer("Please watch the whole animation once before choosing "
                                     "a frame.")
         row = {"trial_index": trial.index, "task": "pose", "scene": trial.scene,
                "stimulus_id": trial.stimulus_id, "chosen_frame": m, "chosen_video_frame": v,
                "algorithm_frame": sc.algorithm_frame, "fps": sc.fps, "n_frames": sc.n_frames,
-               "response_time_s": self._time(response_time_s)}
+               "response_time_s": self._time(response_time_s),
+               "picked_with": "slider" if watched is None else "player",
+               "watched": None if watched is None else round(min(watched, 1.0), 3)}
+        row.update(client_fields(client, row["response_time_s"]))
         # The picker's log goes with the answer (its "select" entry carries how much was
         # watched), in the same transaction.
         return self._record(row, _picker_items(events, n_video_frames=sc.n_video_frames))
@@ -493,24 +527,56 @@ class ParticipantSession:
 
     def picker_state(self, trial_index: int) -> tuple[int, float]:
         """``(frame, watched)`` to restore the player at: the last frame the stored log
-        shows (0 before any) and the largest share watched so far."""
-        frame, watched = 0, 0.0
+        shows (0 before any) and the share watched so far (the stored played ranges
+        united, or the largest share a log entry reports)."""
+        frame, watched, _ = self.watch_record(trial_index)
+        return frame, watched
+
+    def watch_record(self, trial_index: int) -> tuple[int, float, list]:
+        """``(frame, watched, ranges)`` of the stored log of a trial: the last frame, the
+        share watched and the video frames played (``[[from, to], ...]``, united)."""
+        frame, watched, ranges = 0, 0.0, []
         for e in self.store.events(self.participant_id):
-            if e["trial_index"] != trial_index or e["kind"] == SHOWN_EVENT:
+            if e["trial_index"] != trial_index or e["kind"] in (SHOWN_EVENT, MEDIA_FAILED_EVENT):
                 continue
             p = e["payload"] or {}
             if isinstance(p.get("frame"), int):
                 frame = p["frame"]
             if isinstance(p.get("watched"), (int, float)):
                 watched = max(watched, float(p["watched"]))
-        return frame, watched
+            ranges.extend(_ranges(p.get("ranges")))
+        ranges = _unite(ranges)
+        t = self.plan[trial_index] if 0 <= trial_index < len(self.plan) else None
+        if t is not None and t.task == "pose":
+            watched = max(watched, _share(ranges, self.stimuli.scenes[t.scene].n_video_frames))
+        return frame, min(watched, 1.0), ranges
+
+    def _ranges(self, trial_index: int) -> list:
+        return self.watch_record(trial_index)[2]
 
     def watched(self, trial_index: int) -> float:
-        """The largest share of the trial's animation the stored log says was watched."""
+        """The share of the trial's animation the stored log says was watched."""
         return self.picker_state(trial_index)[1]
 
+    def record_media_failure(self, trial_index, what: str, positions=(), tab=None) -> bool:
+        """Record that the current trial's media did not load in the participant's
+        browser after retries (:data:`MEDIA_FAILED_EVENT`); nothing is answered. False
+        (nothing stored) for a trial that is not the current one."""
+        t = self.current_trial
+        if t is None or isinstance(trial_index, bool) or trial_index != t.index \
+                or what not in ("image", "video"):
+            return False
+        payload = {"what": what,
+                   "positions": [p for p in positions or () if isinstance(p, int)
+                                 and not isinstance(p, bool) and 0 <= p < 8][:8]}
+        if isinstance(tab, str) and _TAB.match(tab):
+            payload["tab"] = tab
+        return self.store.record_events(self.participant_id, t.index,
+                                        [(MEDIA_FAILED_EVENT, payload)],
+                                        limit=MAX_EVENTS_PER_TRIAL) > 0
+
     def submit_view(self, trial_index: int, position, method=None, *,
-                    response_time_s: float) -> bool:
+                    response_time_s: float, client: dict | None = None) -> bool:
         """Answer a view task: the screen position clicked.
 
         The method is looked up in the participant's seeded screen order (the page never
@@ -536,6 +602,7 @@ class ParticipantSession:
                "fps": sc.fps, "n_frames": sc.n_frames, "chosen_method": m,
                "chosen_position": p, "shown_order": list(trial.shown_order),
                "response_time_s": self._time(response_time_s)}
+        row.update(client_fields(client, row["response_time_s"]))
         return self._record(row)
 
     def submit_attention(self, trial_index: int, answer, *, response_time_s: float) -> bool:
@@ -592,5 +659,64 @@ def _picker_items(events, *, n_video_frames: int) -> list[tuple[str, dict]]:
         w = ev.get("watched")
         if isinstance(w, (int, float)) and not isinstance(w, bool) and 0 <= w <= 1:
             payload["watched"] = round(float(w), 3)
+        ranges = _ranges(ev.get("ranges"), limit=n_video_frames + 1)
+        if ranges:
+            payload["ranges"] = ranges
+        if isinstance(ev.get("tab"), str) and _TAB.match(ev["tab"]):
+            payload["tab"] = ev["tab"]
         items.append((ev["kind"], payload))
     return items
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _ranges(value, *, limit: float = 1e6) -> list[list[float]]:
+    """Well-formed ``[[from, to], ...]`` video-frame ranges (at most 64, inside
+    ``[0, limit]``), united; anything else is dropped."""
+    if not isinstance(value, list):
+        return []
+    out = [[round(float(r[0]), 2), round(float(r[1]), 2)] for r in value[:64]
+           if isinstance(r, list) and len(r) == 2 and all(_number(x) for x in r)
+           and 0 <= r[0] < r[1] <= limit]
+    return _unite(out)
+
+
+def _unite(ranges) -> list[list[float]]:
+    """Sorted ranges with overlaps merged."""
+    out: list[list[float]] = []
+    for a, b in sorted(ranges):
+        if out and a <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return out
+
+
+def _share(ranges, n_video_frames: int, more=()) -> float:
+    """Share of an ``n_video_frames`` animation the ranges (with ``more``) cover."""
+    covered = sum(min(b, n_video_frames) - max(a, 0.0)
+                  for a, b in _unite(list(ranges) + list(more)) if b > 0 and a < n_video_frames)
+    return min(covered / n_video_frames, 1.0) if n_video_frames > 0 else 0.0
+
+
+def client_fields(client, response_time_s: float) -> dict:
+    """The response columns of what an answer was given on, from the widget's ``client``
+    report (``{viewport: [w, h], dpr, input, active_s, tab}``): well-formed values only
+    (None otherwise); the active time at most the response time."""
+    c = client if isinstance(client, dict) else {}
+    vp = c.get("viewport")
+    ok_vp = isinstance(vp, list) and len(vp) == 2 and all(
+        isinstance(x, int) and not isinstance(x, bool) and 0 < x < 100_000 for x in vp)
+    dpr = c.get("dpr")
+    active = c.get("active_s")
+    return {
+        "viewport_width": vp[0] if ok_vp else None,
+        "viewport_height": vp[1] if ok_vp else None,
+        "device_pixel_ratio": round(float(dpr), 3) if _number(dpr) and 0 < dpr <= 16 else None,
+        "input_type": c.get("input") if c.get("input") in INPUT_TYPES else None,
+        "active_time_s": min(round(float(active), 3), response_time_s)
+        if _number(active) and active >= 0 else None,
+        "tab_id": c.get("tab") if isinstance(c.get("tab"), str) and _TAB.match(c["tab"]) else None,
+    }

@@ -279,6 +279,10 @@ def test_deep_page_addresses_go_to_the_study_with_their_query(study):
     assert _get(f"{base}/pages/consent?PROLIFIC_PID=p1&STUDY_ID=s", html) == (
         307, "/?PROLIFIC_PID=p1&STUDY_ID=s")
     assert _get(f"{base}/study/a/b", html) == (307, "/")
-    assert _get(f"{base}/study", html)[0] == 200  # one segment: a page, Streamlit's own
+    # One segment that is not a page of the app (every step is at the root; issue 29:
+    # Streamlit showed "Page not found" over /study), with its query; the researcher
+    # page is one.
+    assert _get(f"{base}/study?pid=x1", html) == (307, "/?pid=x1")
+    assert _get(f"{base}/researcher", html)[0] == 200
     assert _get(f"{base}/_stcore/health", html)[0] == 200
     assert _get(f"{base}/pages/consent", "*/*")[0] != 307  # a script's fetch: not a page

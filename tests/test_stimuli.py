@@ -45,12 +45,37 @@ def test_manifest_lists_every_file_with_its_sha256(folder):
                if p.is_file() and p.name != "manifest.json"}
     assert on_disk == set(m["files"])
     s = load_stimuli(folder)
-    assert s.sha256 == hashlib.sha256((folder / "manifest.json").read_bytes()).hexdigest()
+    assert s.file_sha256 == hashlib.sha256((folder / "manifest.json").read_bytes()).hexdigest()
     assert s.scene_ids == ["walk", "jump", "kick"]
     sc = s.scenes["walk"]
     assert sc.n_video_frames == len(sc.frames) == 24 and sc.video.is_file()
     assert set(sc.views) == {"ours", "viewpoint_entropy", "motion_area"}
     assert sc.algorithm_video_frame == 10  # motion frame 20 is shown at video frame 10
+
+
+def test_set_identity_covers_content_not_build_record(folder, tmp_path):
+    """Issue 29 item 4: a build run later (other time, app version, timings) shows the
+    same set; a changed file or frame map is another set."""
+    import shutil
+
+    from study_app.design.stimuli import content_sha256
+
+    base = load_stimuli(folder).sha256
+    copy = tmp_path / "again"
+    shutil.copytree(folder, copy)
+    m = json.loads((copy / "manifest.json").read_text())
+    m["created_at"], m["app_version"] = "2031-01-01T00:00:00+00:00", "9.9.9"
+    m["scenes"][0]["timings_s"] = {"load": 123.0}
+    (copy / "manifest.json").write_text(json.dumps(m, indent=3))
+    again = load_stimuli(copy)
+    assert again.sha256 == base and again.file_sha256 != load_stimuli(folder).file_sha256
+    m2 = json.loads(json.dumps(m))
+    first = sorted(m2["files"])[0]
+    m2["files"][first] = "0" * 64
+    assert content_sha256(m2) != base
+    m3 = json.loads(json.dumps(m))
+    m3["scenes"][0]["video_to_motion"][3] += 1
+    assert content_sha256(m3) != base
 
 
 @pytest.mark.parametrize("change, message", [

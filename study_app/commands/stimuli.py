@@ -24,7 +24,7 @@ def stimuli():
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--out", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder to write (must not exist unless --force).")
-@click.option("--force", is_flag=True, help="Replace an existing folder.")
+@click.option("--force", is_flag=True, help="Point an existing folder at the new build (earlier builds are kept in FOLDER.sets/).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def build(config: Path, out: Path, force: bool, quiet: bool):
     """Run the selection on each scene of study CONFIG and write its stimuli to --out.

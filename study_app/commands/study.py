@@ -76,6 +76,11 @@ def study(config, stimuli_dir, db, port, address, build, quiet):
         warnings.warn(f"{folder} was built from another version of {config}; serving it as "
                       f"built (rebuild: snapshot stimuli build {config} -o {folder} --force)",
                       stacklevel=1)
+    if not stim.study.completion_code and "prolific" in (stim.study.redirect_url or "").lower():
+        # Flagged before anyone starts: Prolific checks the code a participant brings back.
+        warnings.warn(f"study '{stim.study.id}' sends participants back to Prolific but has no "
+                      "completion_code: each gets a random code Prolific cannot accept; set "
+                      "study.completion_code to your Prolific study's code", stacklevel=1)
     store = Store(db)
     url = store.url
     store.close()

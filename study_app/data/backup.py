@@ -41,7 +41,6 @@ from pathlib import Path
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
-from .database import _utc as _as_utc
 from .database import (
     STUDY_TABLES,
     copy_tables,
@@ -53,6 +52,7 @@ from .database import (
     table_counts,
     table_names,
 )
+from .database import _utc as _as_utc
 from .errors import StoreError
 
 __all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "verify_backup",

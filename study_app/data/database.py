@@ -23,7 +23,7 @@ from .errors import StoreError
 __all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
            "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
            "exclusions", "study_controls",
-           "STUDY_TABLES", "PROLIFIC_INDEX",
+           "STUDY_TABLES", "PROLIFIC_INDEX", "add_missing_columns", "create_tables", "upgrade_columns",
            "default_url", "mask_url", "normalize_url", "configure_sqlite",
            "ensure_postgres_database", "SQLITE_BUSY_TIMEOUT_MS"]
 
@@ -79,6 +79,15 @@ responses = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("app_version", _TEXT, nullable=False),
     sa.Column("manifest_sha256", sa.String(64), nullable=False),
+    # What the answer was given on and how (issue 29); NULL in rows of older versions.
+    sa.Column("picked_with", sa.String(16)),
+    sa.Column("watched", sa.Float),
+    sa.Column("viewport_width", sa.Integer),
+    sa.Column("viewport_height", sa.Integer),
+    sa.Column("device_pixel_ratio", sa.Float),
+    sa.Column("input_type", sa.String(16)),
+    sa.Column("active_time_s", sa.Float),
+    sa.Column("tab_id", sa.String(32)),
     # The guarantee that a re-sent answer cannot become a second row.
     sa.UniqueConstraint("participant_id", "trial_index", name="uq_responses_participant_trial"),
 )
@@ -312,3 +321,40 @@ def configure_sqlite(engine: sa.engine.Engine) -> None:
         # and waits on the busy timeout.
         immediate = conn.get_execution_options().get("snapshot_write", False)
         conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
+
+
+def add_missing_columns(engine) -> list[str]:
+    """Add the nullable columns a study table of an older version lacks (``ALTER TABLE
+    ... ADD COLUMN``; nothing is dropped or changed); return ``table.column`` added."""
+    added = []
+    with engine.begin() as conn:
+        present = set(sa.inspect(conn).get_table_names())
+        for table in metadata.sorted_tables:
+            if table.name not in present:
+                continue
+            have = {c["name"] for c in sa.inspect(conn).get_columns(table.name)}
+            for col in table.columns:
+                if col.name in have or not col.nullable:
+                    continue
+                kind = col.type.compile(dialect=conn.dialect)
+                conn.execute(sa.text(f'ALTER TABLE {table.name} ADD COLUMN {col.name} {kind}'))
+                added.append(f"{table.name}.{col.name}")
+    return added
+
+
+def create_tables(engine) -> None:
+    """Create the tables a database lacks (the columns: :func:`upgrade_columns`)."""
+    try:
+        metadata.create_all(engine, checkfirst=True)
+    except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
+        # Two processes creating the same tables at once (PostgreSQL): the loser
+        # retries and now finds them.
+        metadata.create_all(engine, checkfirst=True)
+
+
+def upgrade_columns(engine) -> list[str]:
+    """:func:`add_missing_columns`, once more if another process added one meanwhile."""
+    try:
+        return add_missing_columns(engine)
+    except (sa_exc.ProgrammingError, sa_exc.OperationalError):
+        return add_missing_columns(engine)

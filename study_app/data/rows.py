@@ -19,7 +19,9 @@ __all__ = ["TRIAL_FIELDS", "checked_response", "checked_event"]
 #: Fields of a response row that the caller gives (the store fills the others).
 TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
                 "chosen_video_frame", "algorithm_frame", "fps", "n_frames", "chosen_method",
-                "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s")
+                "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s",
+                "picked_with", "watched", "viewport_width", "viewport_height",
+                "device_pixel_ratio", "input_type", "active_time_s", "tab_id")
 
 
 def checked_response(row: dict) -> dict:

@@ -67,6 +67,7 @@ from .database import (
     PROLIFIC_INDEX,
     STUDY_TABLES,
     configure_sqlite,
+    create_tables,
     default_url,
     events,
     mask_url,
@@ -76,6 +77,7 @@ from .database import (
     participants,
     responses,
     standalone_sqlite,
+    upgrade_columns,
 )
 from .errors import StoreError
 from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
@@ -242,15 +244,12 @@ class Store:
         return engine
 
     def _create_tables(self) -> None:
-        try:
-            metadata.create_all(self.engine, checkfirst=True)
-        except (sa_exc.IntegrityError, sa_exc.ProgrammingError):
-            # Two processes creating the same tables at once (PostgreSQL): the loser
-            # retries and now finds them.
-            metadata.create_all(self.engine, checkfirst=True)
+        create_tables(self.engine)
 
     def _create_indexes(self) -> None:
-        """Add indexes a database made by an older version lacks (never drops anything)."""
+        """Add columns and indexes a database made by an older version lacks (never
+        drops anything)."""
+        upgrade_columns(self.engine)
         try:
             with self.transaction(write=True) as conn:
                 PROLIFIC_INDEX.create(conn, checkfirst=True)

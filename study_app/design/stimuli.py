@@ -13,6 +13,15 @@ file, the motion frame (source numbering) shown at each video frame, the algorit
 picks, and which method made which view. The app refuses a folder whose manifest does
 not match its files (:func:`load_stimuli`), before any participant starts.
 
+Stimulus sets are content-addressed and never rewritten: ``build_stimuli(study, OUT)``
+writes the set into ``OUT.sets/<content hash>/`` and points ``OUT`` (a symbolic link)
+at it. A rebuild makes a new set beside the old one (or reuses it when the content is
+the same), so a study serving the old set (the server pins the folder ``OUT`` resolves
+to at start) keeps serving it, and participants who started on it resume on it after
+a restart (:func:`find_stimulus_set`). A set's identity, :func:`content_sha256`, is the
+hash of its manifest without the build's record (time, app version, timings): the
+files' own sha256 are in it, so it changes exactly when what participants see does.
+
 The builder runs one function per stage, so each can be tested and replaced alone:
 :func:`load_study_scene` → :func:`select_scene` → :func:`write_video` →
 :func:`write_frames` → :func:`write_views` → :func:`write_manifest`. Rendering uses
@@ -38,6 +47,7 @@ from snapcore.select.methods import VIEW_METHODS, ViewMethod
 
 from .protocol import Study, study_from_dict
 from .scenes import StudyScene
+from .similarity import NEAR_DUPLICATE_IOU, candidate_ious
 
 __all__ = [
     "MANIFEST_NAME",
@@ -58,6 +68,11 @@ __all__ = [
     "app_version",
     "candidate_angles",
     "check_near_duplicates",
+    "content_sha256",
+    "find_stimulus_set",
+    "SETS_SUFFIX",
+    "publish_set",
+    "check_alike_pictures",
 ]
 
 MANIFEST_NAME = "manifest.json"
@@ -65,6 +80,13 @@ _REPO = Path(__file__).resolve().parents[2]
 #: JPEG quality of the pickable frames: visually lossless at study sizes, ~20 kB a frame.
 FRAME_JPEG_QUALITY = 88
 _HASH_CHUNK = 1 << 20
+#: ``OUT`` links to ``OUT.sets/<content hash>/``, where every build of ``OUT`` is kept.
+SETS_SUFFIX = ".sets"
+#: Manifest fields that record how a build went, not what it shows: not in its identity.
+BUILD_RECORD_FIELDS = ("created_at", "app_version")
+SCENE_BUILD_RECORD_FIELDS = ("timings_s",)
+#: Characters of the content hash that name a set's folder.
+SET_NAME_CHARS = 16
 
 
 def default_stimuli_dir(study_id: str) -> Path:
@@ -153,10 +175,13 @@ class Stimuli:
     manifest : dict
         The parsed manifest.
     sha256 : str
-        sha256 of ``manifest.json``: identifies this exact set of stimuli (stored with
-        every participant and response).
+        :func:`content_sha256` of the manifest: identifies this exact set of stimuli
+        (stored with every participant and response).
     study : Study
     scenes : dict of str to SceneStimulus
+    file_sha256 : str
+        sha256 of the ``manifest.json`` file (what databases of earlier versions stored
+        as the participant's manifest: accepted as the same set).
     """
 
     folder: Path
@@ -164,6 +189,17 @@ class Stimuli:
     sha256: str
     study: Study
     scenes: dict
+    file_sha256: str = ""
+
+    @property
+    def hashes(self) -> tuple[str, ...]:
+        """Every hash a participant's ``manifest_sha256`` may hold for this set."""
+        return tuple(h for h in (self.sha256, self.file_sha256) if h)
+
+    def file_digests(self) -> dict[str, str]:
+        """``{absolute path: sha256}`` of every file of the set (what the server checks
+        each file it serves against)."""
+        return {str(self.folder / rel): digest for rel, digest in self.manifest["files"].items()}
 
     @property
     def scene_ids(self) -> list[str]:
@@ -253,8 +289,59 @@ def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
             views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
             video_webm=root / e["video_webm"] if e.get("video_webm") else None,
         )
-    return Stimuli(folder=root, manifest=manifest, sha256=sha256_file(root / MANIFEST_NAME),
-                   study=study, scenes=scenes)
+    return Stimuli(folder=root, manifest=manifest, sha256=content_sha256(manifest),
+                   study=study, scenes=scenes, file_sha256=sha256_file(root / MANIFEST_NAME))
+
+
+def content_sha256(manifest: dict) -> str:
+    """The identity of a stimulus set: sha256 of its manifest without the build's record
+    (:data:`BUILD_RECORD_FIELDS`, each scene's timings), as canonical JSON.
+
+    Two builds showing the same files (each file's sha256 is in the manifest) with the
+    same frame maps, picks and study settings have the same hash, whenever they ran.
+    """
+    doc = {k: v for k, v in manifest.items() if k not in BUILD_RECORD_FIELDS}
+    doc["scenes"] = [{k: v for k, v in e.items() if k not in SCENE_BUILD_RECORD_FIELDS}
+                     for e in manifest.get("scenes", [])]
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+_SETS: dict[tuple[str, str], Stimuli] = {}
+
+
+def find_stimulus_set(stimuli: Stimuli, sha256: str) -> Stimuli | None:
+    """The set whose hash is ``sha256`` among the sets kept beside ``stimuli`` (the
+    other builds in its ``OUT.sets`` folder), verified; None when there is none.
+
+    A participant who started before a rebuild resumes on the set they started with.
+    Found sets are kept for the process (they never change).
+    """
+    if sha256 in stimuli.hashes:
+        return stimuli
+    key = (str(stimuli.folder.parent), sha256)
+    if key in _SETS:
+        return _SETS[key]
+    parent = stimuli.folder.parent
+    if not parent.name.endswith(SETS_SUFFIX):
+        return None
+    named = parent / sha256[:SET_NAME_CHARS]
+    candidates = [named] if named.is_dir() else []
+    candidates += sorted(p for p in parent.iterdir() if p.is_dir() and p != named
+                         and not p.name.startswith("."))
+    for folder in candidates:
+        try:
+            manifest = json.loads((folder / MANIFEST_NAME).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if content_sha256(manifest) == sha256 or sha256_file(folder / MANIFEST_NAME) == sha256:
+            try:
+                found = load_stimuli(folder)
+            except StimuliError:
+                return None
+            _SETS[key] = found
+            return found
+    return None
 
 
 # --------------------------------------------------------------------------- building
@@ -423,6 +510,26 @@ def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dic
     return angles, dupes
 
 
+def check_alike_pictures(study: Study, scene_id: str, views: dict) -> tuple[dict, list]:
+    """The candidates' silhouette IoUs and the pairs at or above
+    :data:`NEAR_DUPLICATE_IOU`, acted on as the study's ``near_duplicate`` says (as
+    :func:`check_near_duplicates`, with the measure in the message)."""
+    ious = candidate_ious(views)
+    pairs = [k.split("|") for k, v in ious.items() if v >= NEAR_DUPLICATE_IOU]
+    if pairs:
+        which = "; ".join(f"{a} and {b} (silhouette IoU {ious[f'{a}|{b}']:.2f}, mirror "
+                          "images included)" for a, b in pairs)
+        text = (f"nearly the same picture from {which} (threshold IoU "
+                f"{NEAR_DUPLICATE_IOU:g}; all pairs: "
+                + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in ious.items()) + ")")
+        if study.near_duplicate == "error":
+            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
+                               "\"warn\" to build anyway")
+        warnings.warn(text + ": votes may split between them (the analysis reports it)",
+                      stacklevel=3)
+    return ious, pairs
+
+
 def _unit(v) -> list[float]:
     a = np.asarray(v, dtype=float).reshape(3)
     return (a / np.linalg.norm(a)).tolist()
@@ -562,15 +669,18 @@ def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
                   quiet: bool = False) -> Path:
     """Build every scene's stimuli into ``out_dir`` and write the manifest.
 
-    The build goes to ``<out_dir>.partial`` and is renamed when complete, so an
-    interrupted build never leaves a folder that looks usable.
+    The build goes to ``<out_dir>.partial``; when complete it becomes the set
+    ``<out_dir>.sets/<content hash>/`` (kept if a build with the same content exists)
+    and ``out_dir`` is made a link to it in one step. An interrupted build never leaves
+    a folder that looks usable, and the sets of earlier builds stay, untouched, for the
+    studies and participants that use them.
 
     Parameters
     ----------
     study : Study
     out_dir : path
     force : bool
-        Replace an existing ``out_dir``.
+        Point an existing ``out_dir`` at the new build (its earlier sets are kept).
     quiet : bool
         No progress bar.
 
@@ -581,8 +691,9 @@ def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
     """
     from tqdm.auto import tqdm
 
-    out = Path(out_dir).resolve()
-    if out.exists() and not force:
+    # Not resolved: OUT is a link to the set it shows, and the link is what moves.
+    out = Path(out_dir).absolute()
+    if (out.exists() or out.is_symlink()) and not force:
         raise StimuliError(f"{out} already exists (use --force to rebuild it)")
     tmp = out.with_name(out.name + ".partial")
     if tmp.exists():
@@ -599,10 +710,44 @@ def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
             warnings.warn(f"scene {sc['id']}: {w.message}", w.category, stacklevel=2)
     write_manifest(tmp, study, entries)
     shutil.rmtree(tmp / ".demo", ignore_errors=True)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    return publish_set(tmp, out)
+
+
+def publish_set(built: str | Path, out: str | Path) -> Path:
+    """Make the finished build ``built`` (a folder with its manifest) the set that
+    ``out`` shows: moved to ``<out>.sets/<content hash>/`` (or dropped when a set with
+    that content exists: that one is kept as it is), then ``out`` re-pointed in one
+    step. Returns ``out / "manifest.json"``."""
+    built, out = Path(built), Path(out).absolute()
+    sets = out.with_name(out.name + SETS_SUFFIX)
+    digest = content_sha256(json.loads((built / MANIFEST_NAME).read_text(encoding="utf-8")))
+    sets.mkdir(parents=True, exist_ok=True)
+    final = sets / digest[:SET_NAME_CHARS]
+    if final.exists():
+        shutil.rmtree(built)
+    else:
+        built.rename(final)
+    _point(out, final)
     return out / MANIFEST_NAME
+
+
+def _point(out: Path, final: Path) -> None:
+    """Make ``out`` a link to the set ``final`` in one step (a reader sees the old set or
+    the new one, never a half-written folder). A real folder at ``out`` (a build of an
+    earlier version) is kept among the sets, under its own hash."""
+    if out.is_dir() and not out.is_symlink():
+        try:
+            old = content_sha256(json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8")))
+            kept = final.parent / old[:SET_NAME_CHARS]
+        except (OSError, ValueError):
+            kept = final.parent / f"old-{time.time_ns()}"
+        if kept.exists():
+            shutil.rmtree(out)
+        else:
+            out.rename(kept)
+    link = out.with_name(f".{out.name}.link-{time.time_ns()}")
+    link.symlink_to(Path(final.parent.name) / final.name, target_is_directory=True)
+    link.replace(out)
 
 
 def _build_scene(study: Study, sc: dict, root: Path) -> dict:
@@ -621,6 +766,10 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
                            f"renderer reported {len(vmap)}")
     t3 = time.perf_counter()
     views = write_views(scene, picks, folder, size=study.size)
+    # Judged on the pictures themselves too: two views far apart in angle can still
+    # show the same shape (a mirror image, a symmetric pose).
+    ious, alike = check_alike_pictures(study, sc["id"], views)
+    dupes = dupes + [p for p in alike if p not in dupes]
     t4 = time.perf_counter()
     source = {k: sc[k] for k in ("demo", "files", "manifest", "fps", "scale", "frames") if k in sc}
     return {
@@ -641,6 +790,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "views": views,
         "view_angles": angles,
         "near_duplicates": dupes,
+        "view_iou": ious,
         "timings_s": {"load": t1 - t0, "select": t2 - t1, "video": t3 - t2, "views": t4 - t3,
                       **{f"select_{k}": v for k, v in timings.items()}},
     }

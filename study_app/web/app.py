@@ -18,6 +18,7 @@ Configuration comes from the environment (``snapshot study`` sets it):
 
 from __future__ import annotations
 
+import functools
 import logging
 import sys
 from pathlib import Path
@@ -30,7 +31,9 @@ _REPO = str(Path(__file__).resolve().parents[2])
 if _REPO not in sys.path:
     sys.path.insert(0, _REPO)
 
+from snapcore.errors import SnapshotError  # noqa: E402
 from study_app.session import (  # noqa: E402
+    MaterialsChanged,
     ParticipantSession,
     Stage,
     UnknownParticipant,
@@ -87,6 +90,7 @@ def _participant(ctx):
     query = _query()
     fresh = context.take_fresh_session(query.get(keys.QUERY_PID))  # taken on every run
     st.session_state[keys.KEY_WITHDRAWN] = False
+    st.session_state[keys.KEY_ANSWERS_KEPT] = False
     problems = prolific_problems(query)
     if problems:
         # Refused before anything is stored, and logged for the researcher.
@@ -94,6 +98,8 @@ def _participant(ctx):
                     ", ".join(f"{k}={describe_value(query.get(k))}"
                               for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
         return None, " ".join(problems) + " Please open the study again from Prolific."
+    if "PROLIFIC_PID" in query and not ctx.stimuli.study.completion_code:
+        _no_completion_code(ctx.stimuli.study.id)
     pid = query.get(keys.QUERY_PID)
     if fresh is not None:  # read (and updated) by this run's answer callback just now
         st.session_state[keys.KEY_PARTICIPANT_ID] = fresh.participant_id
@@ -103,8 +109,7 @@ def _participant(ctx):
             session = ParticipantSession.resume(ctx.store, ctx.stimuli, pid)
         except UnknownParticipant as err:
             log.warning("refused participant link pid=%s: %s", describe_value(pid), err)
-            st.session_state[keys.KEY_WITHDRAWN] = isinstance(err, Withdrawn)
-            return None, str(err)
+            return None, _refused(err)
         st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
         return session, None
     session = None
@@ -117,13 +122,29 @@ def _participant(ctx):
     if session is None:
         try:
             session = ParticipantSession.for_prolific(ctx.store, ctx.stimuli, query)
-        except Withdrawn as err:
-            st.session_state[keys.KEY_WITHDRAWN] = True
-            return None, str(err)
+        except UnknownParticipant as err:  # withdrew, or their stimuli are gone
+            log.warning("refused Prolific participant: %s", err)
+            return None, _refused(err)
     if session is not None:
         st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id
         st.query_params[keys.QUERY_PID] = session.participant_id
     return session, None
+
+
+@functools.cache
+def _no_completion_code(study_id: str) -> None:
+    """Say once per server that a Prolific participant arrived on a study without a
+    completion code (they will get a random code Prolific cannot check)."""
+    log.warning("a participant arrived from Prolific, but study '%s' has no completion_code: "
+                "they will get a random code Prolific cannot accept (set study.completion_code)",
+                study_id)
+
+
+def _refused(err: UnknownParticipant) -> str:
+    """The invalid-link page's text for ``err`` (and what it must say beside it)."""
+    st.session_state[keys.KEY_WITHDRAWN] = isinstance(err, Withdrawn)
+    st.session_state[keys.KEY_ANSWERS_KEPT] = isinstance(err, MaterialsChanged)
+    return str(err)
 
 
 #: Stages shown full width (three pictures side by side need the room).
@@ -160,7 +181,12 @@ def main() -> None:
         n_trials = 2 * len(ctx.stimuli.scene_ids) + 1
         done_steps, total = session.progress() if session else (0, 2 + n_trials)
         st.progress(done_steps / total, text=f"Progress: {done_steps} of {total} steps")
-    page.run()
+    try:
+        page.run()
+    except SnapshotError as err:  # e.g. a stimulus file changed on disk: one line
+        log.error("page failed: %s", err)
+        st.error(f"This page cannot be shown: {widgets.one_line(err)}")
+        return
     if page.url_path != RESEARCHER_PATH and session is not None \
             and session.stage is not Stage.DONE:
         widgets.resume_link(session)

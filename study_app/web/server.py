@@ -136,8 +136,11 @@ def index_config_sections() -> None:
 
 
 class DeepPageRedirect:
-    """ASGI middleware: a page request for a path of two or more segments → 307 to the
-    app's root with the same query string.
+    """ASGI middleware: a page request for a path of two or more segments, or of one that
+    is not a page of the app (``/study``, ``/pose_task``, ``/done``: every step of the
+    flow is at the root) → 307 to the app's root with the same query string (so
+    ``/done?pid=…`` resumes the participant). Streamlit would show the root's page under
+    a "Page not found" dialog.
 
     Only browser page loads (GET/HEAD accepting ``text/html``) outside Streamlit's own
     route prefixes are redirected; scripts, assets and the websocket pass through.
@@ -145,6 +148,8 @@ class DeepPageRedirect:
 
     #: First path segments that are Streamlit's (or its components') routes, never pages.
     RESERVED = frozenset({"_stcore", "static", "media", "component", "app", "auth", "oauth2callback"})
+    #: Pages with an address of their own (study_app.web.app.RESEARCHER_PATH).
+    PAGES = frozenset({"researcher"})
 
     def __init__(self, app, base_path: str = ""):
         self.app = app
@@ -156,7 +161,8 @@ class DeepPageRedirect:
             path = scope["path"][len(self.root) - 1:] if scope["path"].startswith(self.root) else ""
             segments = [s for s in path.split("/") if s]
             accept = dict(scope.get("headers") or ()).get(b"accept", b"")
-            if len(segments) >= 2 and segments[0] not in self.RESERVED and b"text/html" in accept:
+            elsewhere = len(segments) >= 2 or (len(segments) == 1 and segments[0] not in self.PAGES)
+            if elsewhere and segments[0] not in self.RESERVED and b"text/html" in accept:
                 query = scope.get("query_string", b"")
                 location = self.root.encode() + (b"?" + query if query else b"")
                 await send({"type": "http.response.start", "status": 307,

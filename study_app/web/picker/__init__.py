@@ -23,19 +23,24 @@ from __future__ import annotations
 from functools import cache, partial
 from pathlib import Path
 
-__all__ = ["frame_picker", "view_chooser", "confirmed", "chosen", "media_url", "FRAME_PICKER", "VIEW_CHOOSER",
+__all__ = ["frame_picker", "view_chooser", "copy_button", "confirmed", "chosen", "media_url", "pin_files", "FRAME_PICKER", "VIEW_CHOOSER",
            "DEFAULT_LABELS"]
 
 HERE = Path(__file__).resolve().parent
 #: Component names (unique in the app).
 FRAME_PICKER = "snapshot_frame_picker"
 VIEW_CHOOSER = "snapshot_view_chooser"
+COPY_LINK = "snapshot_copy_link"
 #: Text shown by the widgets (English defaults; pass ``labels`` to translate).
 DEFAULT_LABELS = {
     "play": "Play", "pause": "Pause", "back": "Previous frame", "forward": "Next frame",
     "frame": "Frame", "confirm": "Confirm this frame", "saving": "Saving…",
     "scrub": "Position in the animation", "video_error": "The video cannot be played",
     "choose": "Choose", "watch_first": "Watch the whole animation once to choose a frame.",
+    "video": "The animation", "retry": "Try again",
+    "not_saved": "The connection was lost: your answer was not saved. Please press Confirm again.",
+    "not_saved_choice": "The connection was lost: your choice was not saved. Please choose again.",
+    "image_error": "A picture could not be loaded, so this question cannot be answered yet.",
 }
 _MIME = {".mp4": "video/mp4", ".webm": "video/webm", ".png": "image/png", ".jpg": "image/jpeg",
          ".jpeg": "image/jpeg"}
@@ -59,16 +64,47 @@ def _components():
     return picker, chooser
 
 
+#: {absolute path: sha256} of the stimulus files the server serves (:func:`pin_files`).
+_PINNED: dict[str, str] = {}
+
+
+def pin_files(digests: dict[str, str]) -> None:
+    """Serve the files named in ``digests`` (``{absolute path: sha256}``, the manifest
+    the server started with) only with those contents."""
+    _PINNED.update(digests)
+
+
 @cache
 def _media_bytes(path: str) -> bytes:
-    """A stimulus file's bytes, read once per server process.
+    """A stimulus file's bytes, read once per server process and checked against the
+    pinned manifest (:func:`pin_files`).
 
     Streamlit's media manager reads and hashes a file given by path on every call,
     holding its one process-wide lock; with every participant's page registering its
     videos and pictures on every script run, threads queued on that lock under load.
-    Stimuli never change while the app runs (they are verified once at start-up).
+    A file whose bytes are not the ones the study started with (changed on disk since)
+    is refused, never served under the old manifest's records.
+
+    Raises
+    ------
+    StimuliError
+        The file is missing or its sha256 differs from the pinned one (one line).
     """
-    return Path(path).read_bytes()
+    import hashlib
+
+    from study_app.design.stimuli import StimuliError
+
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise StimuliError(f"stimulus file {path} cannot be read ({err.strerror})") from None
+    want = _PINNED.get(path)
+    if want is not None and hashlib.sha256(data).hexdigest() != want:
+        _media_bytes.cache_clear()  # nothing of a changed set stays cached
+        raise StimuliError(f"stimulus file {path} changed on disk since the study started "
+                           "(its sha256 differs from the manifest); restart the study "
+                           "server on a stimuli folder that is not rebuilt in place")
+    return data
 
 
 def media_url(path: str | Path, *, where: str) -> str:
@@ -95,7 +131,8 @@ def media_url(path: str | Path, *, where: str) -> str:
 
 
 def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,
-                 start_frame: int = 0, watched: float = 0.0, require_watch: bool = False,
+                 start_frame: int = 0, watched: float = 0.0, watched_ranges=(),
+                 require_watch: bool = False,
                  watch_min: float = 0.9, min_answer_s: float = 0.0,
                  labels: dict | None = None, height: int | None = None,
                  log_key: str = "", on_confirm=None, args: tuple = ()):
@@ -118,6 +155,9 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
         Frame shown first (e.g. where the participant was before a reload).
     watched : float
         Share of the animation already watched (restored after a reload).
+    watched_ranges : list of [float, float]
+        The video frames already watched, ``[[from, to], ...]`` (restored after a
+        reload or a return; united with what this page plays).
     require_watch : bool
         Confirm stays off until ``watch_min`` of the animation was played.
     min_answer_s : float
@@ -148,6 +188,7 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
     data = {"sources": sources, "fps": float(fps),
             "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
             "watched": float(watched), "require_watch": bool(require_watch),
+            "watched_ranges": [[float(a), float(b)] for a, b in watched_ranges],
             "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
             "labels": {**DEFAULT_LABELS, **(labels or {})}, "log_key": str(log_key)}
     result = picker(key=key, data=[data], on_confirm_change=_bound(on_confirm, args),
@@ -165,8 +206,11 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
 
 def view_chooser(images: list[str | Path], *, trial: int, key: str,
                  captions: list[str] | None = None, min_answer_s: float = 0.0,
-                 labels: dict | None = None, on_choice=None, args: tuple = ()):
-    """Mount the view chooser; return ``{"trial", "position"}`` when one is chosen.
+                 labels: dict | None = None, on_choice=None, args: tuple = (),
+                 tab_key: str = ""):
+    """Mount the view chooser; return ``{"trial", "position", "client"}`` when one is
+    chosen (without ``on_choice``), ``{"trial", "failed": [positions]}`` in the run
+    after pictures failed to load (retried; the buttons stay off), else None.
 
     Parameters
     ----------
@@ -184,15 +228,38 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
     on_choice : callable, optional
         Called with ``args`` when a picture is chosen, before the script run that
         follows (read the answer with :func:`chosen`); the function then returns None.
+    tab_key : str
+        Names this participant's trial in the browser tab (its active time is kept
+        across reloads under it).
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
     data = {"trial": int(trial), "labels": {**DEFAULT_LABELS, **(labels or {})},
-            "min_answer_s": float(min_answer_s),
+            "min_answer_s": float(min_answer_s), "tab_key": str(tab_key),
             "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
                       for i, p in enumerate(images)]}
-    result = chooser(key=key, data=[data], on_choice_change=_bound(on_choice, args))
+    result = chooser(key=key, data=[data], on_choice_change=_bound(on_choice, args),
+                     on_failed_change=_noop)
+    if result.get("failed"):
+        got = result["failed"] or {}
+        return {"trial": got.get("trial"), "failed": list(got.get("positions") or []),
+                "tab": got.get("tab")}
     return dict(result["choice"]) if result.get("choice") and on_choice is None else None
+
+
+@cache
+def _copy_component():
+    import streamlit as st
+
+    return st.components.v2.component(
+        COPY_LINK, js=(HERE / "copy_link.js").read_text(encoding="utf-8"),
+        css=(HERE / "picker.css").read_text(encoding="utf-8"))
+
+
+def copy_button(text: str, *, key: str, labels: dict | None = None) -> None:
+    """A button that copies ``text`` to the clipboard (and then says so)."""
+    labels = {"copy": "Copy the link", "copied": "Copied", **(labels or {})}
+    _copy_component()(key=key, data=[{"text": str(text), "labels": labels}])
 
 
 def _bound(callback, args: tuple):

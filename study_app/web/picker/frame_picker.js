@@ -1,16 +1,30 @@
 // Frame-accurate video frame picker (Streamlit components v2, no build step).
 //
 // data: [{sources: [{src, type}], fps, n_frames, trial, start_frame, watched,
-//        require_watch, watch_min, min_answer_s, labels, log_key}]  (one-item list)
+//        watched_ranges, require_watch, watch_min, min_answer_s, labels, log_key}]
+//        (one-item list)
 // Triggers:
 //   "log": {trial, events}      the log of plays, pauses, seeks and steps ({kind, t:
-//                               seconds since mounted, frame, watched}), sent in small
-//                               batches as it happens, so a reload loses nothing;
-//   "confirm": {trial, frame, events, watched}  frame is the 0-based video frame on
-//                               screen when the participant pressed Confirm, events the
-//                               entries not sent yet, watched the share of the
-//                               animation played (0-1);
-//   "error": {trial, message}   the browser can play none of the sources.
+//                               seconds since mounted, frame, watched, ranges, tab}),
+//                               sent in small batches as it happens, so a reload loses
+//                               nothing; while playing, a "watch" entry every 2 s keeps
+//                               the frames watched (ranges) stored;
+//   "confirm": {trial, frame, events, watched, ranges, client, resend}  frame is the
+//                               0-based video frame on screen when the participant
+//                               pressed Confirm, events the entries not sent yet,
+//                               watched the share of the animation played (0-1),
+//                               client what the answer was given on (viewport, device
+//                               pixel ratio, input, active time, tab id);
+//   "error": {trial, message}   the browser can play none of the sources, after retries.
+//
+// Watching is kept as ranges of video frames played ([[from, to], ...]): the stored
+// ranges of earlier page loads (watched_ranges) and this page's played ranges are
+// united, so half watched before a reload and the other half after it is the whole.
+//
+// An answer sent while the connection is down is lost by the browser: if the page has
+// not moved on RESEND_MS after Confirm, the answer is sent again (the server stores it
+// once), and after RESENDS tries Confirm opens again with a message that nothing was
+// saved. A video that fails to load is loaded again (VIDEO_RETRIES) before the error.
 //
 // A reload (or leaving the page) before a batch went out keeps its entries in the tab's
 // sessionStorage under log_key (participant and trial); the player mounted again for
@@ -29,6 +43,65 @@
 // seeking to frame f targets the middle of its display interval, (f + 0.5) / fps, so
 // rounding can never land on a neighbour.
 
+const RESEND_MS = 4000;
+const RESENDS = 3;
+const VIDEO_RETRIES = 2;
+
+// The tab's id (kept across reloads of the tab, new in another tab).
+function tabId() {
+  try {
+    let id = sessionStorage.getItem("snap-tab");
+    if (!id) {
+      id = Math.random().toString(36).slice(2, 12);
+      sessionStorage.setItem("snap-tab", id);
+    }
+    return id;
+  } catch (e) { return "unknown"; }
+}
+
+// Time the page was visible (ms), across reloads of this tab (kept under key).
+function activeClock(key) {
+  const store = key ? `snap-active:${key}` : null;
+  let before = 0;
+  if (store) { try { before = Number(sessionStorage.getItem(store)) || 0; } catch (e) { before = 0; } }
+  let since = document.visibilityState === "visible" ? performance.now() : null;
+  const ms = () => before + (since === null ? 0 : performance.now() - since);
+  const save = () => { if (store) { try { sessionStorage.setItem(store, String(ms())); } catch (e) { /* full */ } } };
+  document.addEventListener("visibilitychange", () => {
+    if (document.visibilityState === "visible") { if (since === null) since = performance.now(); }
+    else if (since !== null) { before += performance.now() - since; since = null; save(); }
+  });
+  window.addEventListener("pagehide", save);
+  return { ms, clear: () => { if (store) sessionStorage.removeItem(store); } };
+}
+
+// What an answer was given on; input from the event that gave it.
+function clientInfo(ev, lastPointer, clock) {
+  const keyboard = ev && ev.detail === 0 && !lastPointer.recent();
+  return { viewport: [window.innerWidth, window.innerHeight],
+           dpr: window.devicePixelRatio || 1,
+           input: keyboard ? "keyboard" : (lastPointer.type || "mouse"),
+           active_s: Math.round(clock.ms()) / 1000, tab: tabId() };
+}
+
+function pointerTracker(root) {
+  const p = { type: null, at: -1e9, recent: () => performance.now() - p.at < 1500 };
+  root.addEventListener("pointerdown", (e) => { p.type = e.pointerType || "mouse"; p.at = performance.now(); }, true);
+  return p;
+}
+
+// United [from, to] ranges (sorted, overlaps merged).
+function unite(ranges) {
+  const r = ranges.filter((x) => Array.isArray(x) && x.length === 2 && x[1] > x[0])
+    .map((x) => [Number(x[0]), Number(x[1])]).sort((a, b) => a[0] - b[0]);
+  const out = [];
+  for (const x of r) {
+    if (out.length && x[0] <= out[out.length - 1][1] + 1e-6) out[out.length - 1][1] = Math.max(out[out.length - 1][1], x[1]);
+    else out.push(x);
+  }
+  return out;
+}
+
 function buildPicker(root, data) {
   const n = data.n_frames;
   const fps = data.fps;
@@ -36,16 +109,19 @@ function buildPicker(root, data) {
   root.innerHTML = `
     <div class="snap-stage">
       <video class="snap-video" data-testid="picker-video" preload="auto" muted playsinline
-             disablepictureinpicture></video>
+             disablepictureinpicture aria-label="${L.video || "The animation"}"></video>
       <div class="snap-error" data-testid="picker-error" hidden></div>
     </div>
     <input class="snap-scrub" data-testid="picker-scrub" type="range" min="0" max="${n - 1}"
            step="1" value="0" aria-label="${L.scrub || "Position in the animation"}">
     <div class="snap-controls">
-      <button type="button" data-testid="picker-back" title="${L.back || "Previous frame"} (←)">◀ 1</button>
+      <button type="button" data-testid="picker-back" title="${L.back || "Previous frame"} (←)"
+              aria-label="${L.back || "Previous frame"}">◀ 1</button>
       <button type="button" data-testid="picker-play" class="snap-play">${L.play || "Play"}</button>
-      <button type="button" data-testid="picker-forward" title="${L.forward || "Next frame"} (→)">1 ▶</button>
-      <span class="snap-frame" data-testid="picker-frame" aria-live="polite"></span>
+      <button type="button" data-testid="picker-forward" title="${L.forward || "Next frame"} (→)"
+              aria-label="${L.forward || "Next frame"}">1 ▶</button>
+      <span class="snap-frame" data-testid="picker-frame"></span>
+      <span class="snap-sr" data-testid="picker-frame-live" aria-live="polite"></span>
       <button type="button" data-testid="picker-confirm" class="snap-confirm" disabled>
         ${L.confirm || "Confirm this frame"}</button>
     </div>
@@ -59,11 +135,15 @@ function buildPicker(root, data) {
   const confirm = root.querySelector("[data-testid=picker-confirm]");
   const errorBox = root.querySelector(".snap-error");
   const hint = root.querySelector(".snap-hint");
+  const live = root.querySelector(".snap-sr");
+  const pointer = pointerTracker(root);
+  const clock = activeClock(data.log_key);
 
   const t0 = performance.now();
   const state = { frame: Math.min(Math.max(data.start_frame || 0, 0), n - 1), events: [],
                   sent: false, ready: false, seeking: false, pendingSeek: null,
-                  watched: Math.min(Math.max(Number(data.watched) || 0, 0), 1), logged: 0 };
+                  watched: Math.min(Math.max(Number(data.watched) || 0, 0), 1), logged: 0,
+                  ranges: unite(data.watched_ranges || []), resends: 0, retries: 0 };
   root._snap = state;
   // Entries a reload interrupted (see the header), sent before anything new.
   state.pendingKey = data.log_key ? `snap-pending-log:${data.log_key}` : null;
@@ -77,21 +157,24 @@ function buildPicker(root, data) {
     const last = pending[pending.length - 1];
     if (Number.isFinite(last.frame)) state.frame = Math.min(Math.max(last.frame, 0), n - 1);
     state.watched = Math.max(state.watched, ...pending.map((e) => Number(e.watched) || 0));
+    state.ranges = unite([...state.ranges, ...pending.flatMap((e) => e.ranges || [])]);
     setTimeout(() => root._api.setTriggerValue("log", { trial: data.trial, events: pending }), 0);
   }
   const minAnswerMs = 1000 * (Number(data.min_answer_s) || 0);
   const watchMin = Number(data.watch_min) || 0.9;
-  // Share of the animation played so far: the browser's own played ranges, so scrubbing
-  // or stepping does not count as watching.
-  const playedShare = () => {
-    const d = video.duration;
-    if (!(d > 0) || !isFinite(d)) return 0;
-    let s = 0;
-    for (let i = 0; i < video.played.length; i++) s += video.played.end(i) - video.played.start(i);
-    return Math.min(s / d, 1);
-  };
+  // The frames played so far: the browser's own played ranges (so scrubbing or stepping
+  // does not count as watching) united with those of earlier page loads.
   const updateWatched = () => {
-    state.watched = Math.max(state.watched, playedShare());
+    const mine = [];
+    for (let i = 0; i < video.played.length; i++) {
+      mine.push([Math.round(video.played.start(i) * fps * 100) / 100,
+                 Math.round(video.played.end(i) * fps * 100) / 100]);
+    }
+    state.ranges = unite([...state.ranges, ...mine]);
+    const d = video.duration;
+    const total = d > 0 && isFinite(d) ? d * fps : n;
+    const covered = state.ranges.reduce((a, r) => a + Math.min(r[1], total) - Math.max(r[0], 0), 0);
+    state.watched = Math.max(state.watched, Math.min(covered / total, 1));
     root.dataset.watched = state.watched.toFixed(3);
   };
   const canConfirm = () => state.ready && !state.sent
@@ -115,7 +198,7 @@ function buildPicker(root, data) {
     if (state.events.length < 500) {
       updateWatched();
       state.events.push({ kind, t: (performance.now() - t0) / 1000, frame: state.frame,
-                          watched: state.watched, ...extra });
+                          watched: state.watched, ranges: state.ranges, tab: tabId(), ...extra });
       // Batched: one round trip per burst of clicks, not per click.
       if (flushTimer === null) flushTimer = setTimeout(flush, 800);
     }
@@ -125,6 +208,8 @@ function buildPicker(root, data) {
     state.frame = clamp(f);
     scrub.value = String(state.frame);
     label.textContent = `${L.frame || "Frame"} ${state.frame + 1} / ${n}`;
+    // Screen readers hear the frame when it settles (paused), not every frame of a play.
+    if (video.paused && !state.seeking) live.textContent = label.textContent;
     root.dataset.frame = String(state.frame);
   };
   const seek = (f) => {
@@ -169,10 +254,22 @@ function buildPicker(root, data) {
     refreshConfirm();
   }, 250);
   video.addEventListener("play", () => { play.textContent = L.pause || "Pause"; log("play"); });
+  // While playing, the frames watched are stored every 2 s (a reload or a return keeps them).
+  const watchTimer = setInterval(() => {
+    if (!root.isConnected) { clearInterval(watchTimer); return; }
+    if (!video.paused && !state.sent) log("watch");
+  }, 2000);
   video.addEventListener("pause", () => { play.textContent = L.play || "Play"; refreshConfirm(); });
   video.addEventListener("ended", () => { show(n - 1); log("ended"); refreshConfirm(); });
   const fail = (msg) => {
     if (root.dataset.error) return;
+    // Loaded again first (a dropped request is not a browser that cannot play it).
+    if (state.retries < VIDEO_RETRIES) {
+      state.retries += 1;
+      root.dataset.retries = String(state.retries);
+      setTimeout(() => loadSources(`retry=${state.retries}`), 400 * state.retries);
+      return;
+    }
     errorBox.textContent = `${L.video_error || "The video cannot be played"}: ${msg}`;
     errorBox.hidden = false;
     root.dataset.error = msg;
@@ -223,35 +320,57 @@ function buildPicker(root, data) {
     else if (e.key === "ArrowRight") { step(1); e.preventDefault(); }
     else if (e.key === " ") { play.click(); e.preventDefault(); }
   };
-  confirm.addEventListener("click", () => {
+  const send = (payload) => root._api.setTriggerValue("confirm", payload);
+  confirm.addEventListener("click", (ev) => {
     if (!canConfirm()) return;
     if (!video.paused) { video.pause(); }
     state.sent = true;
     confirm.disabled = true;
     confirm.textContent = L.saving || "Saving…";
+    errorBox.hidden = true;
     log("select");
     if (flushTimer !== null) { clearTimeout(flushTimer); flushTimer = null; }
-    root._api.setTriggerValue("confirm", { trial: data.trial, frame: state.frame,
-                                           events: state.events.slice(state.logged),
-                                           watched: state.watched });
+    const payload = { trial: data.trial, frame: state.frame,
+                      events: state.events.slice(state.logged), watched: state.watched,
+                      ranges: state.ranges, client: clientInfo(ev, pointer, clock) };
+    send(payload);
+    // Still here after a while: the answer may have been lost with the connection.
+    state.resends = 0;
+    clearInterval(state.resendTimer);
+    state.resendTimer = setInterval(() => {
+      if (!root.isConnected) { clearInterval(state.resendTimer); clock.clear(); return; }
+      state.resends += 1;
+      if (state.resends <= RESENDS) { send({ ...payload, resend: true }); return; }
+      clearInterval(state.resendTimer);
+      state.sent = false;
+      confirm.textContent = L.confirm || "Confirm this frame";
+      errorBox.textContent = L.not_saved || "The connection was lost: your answer was not saved. Please press Confirm again.";
+      errorBox.hidden = false;
+      root.dataset.lost = "1";
+      refreshConfirm();
+    }, RESEND_MS);
   });
 
   show(state.frame);
   // Every source the page offers (H.264 MP4 for most browsers, WebM/VP9 for those
   // without H.264, e.g. Debian's Firefox ESR); the browser plays the first it can.
   const sources = data.sources || [{ src: data.src, type: "video/mp4" }];
-  sources.forEach((s, i) => {
-    const el = document.createElement("source");
-    el.src = s.src;
-    if (s.type) el.type = s.type;
-    // Errors of <source> children do not reach the video element: the last one
-    // failing means none could be played.
-    if (i === sources.length - 1) {
-      el.addEventListener("error", () => fail("this browser can play none of the video formats"));
-    }
-    video.appendChild(el);
-  });
-  video.load();
+  const loadSources = (query) => {
+    video.querySelectorAll("source").forEach((el) => el.remove());
+    sources.forEach((s, i) => {
+      const el = document.createElement("source");
+      el.src = query ? `${s.src}${s.src.includes("?") ? "&" : "?"}${query}` : s.src;
+      if (s.type) el.type = s.type;
+      // Errors of <source> children do not reach the video element: the last one
+      // failing means none could be played.
+      if (i === sources.length - 1) {
+        el.addEventListener("error", () => fail("this browser can play none of the video formats"));
+      }
+      video.appendChild(el);
+    });
+    video.load();
+  };
+  loadSources("");
 }
 
 // One page-wide key handler, dispatching to the picker on screen now.

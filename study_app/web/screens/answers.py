@@ -56,17 +56,22 @@ def release_step(session, step) -> None:
         st.session_state.get(KEY_ANSWERED_HERE, set()).discard((session.participant_id, step))
 
 
-def store_answer(session, step, submit, refused) -> None:
+def store_answer(session, step, submit, refused, *, resend: bool = False) -> None:
     """Store one answer of this tab: ``submit()`` (a ``ParticipantSession.submit_*``
     call, True if stored) runs once per tab and step (see :func:`claim_step`); a
     refusal (:class:`~study_app.session.InvalidAnswer`) goes to ``refused(err)`` and
-    frees the step for another try."""
+    frees the step for another try.
+
+    ``resend``: the widget sent this answer again because the page had not moved on
+    (the connection dropped, or the server restarted: a new browser session). If its
+    first send was stored, the trial is answered and the page moves on without the
+    other-tab notice."""
     if not claim_step(session, step):
         return  # the second send of a double click: this tab answers it, nothing to say
     stored = False
     try:
         stored = submit()
-        answer_outcome(stored)
+        answer_outcome(stored or resend)
     except InvalidAnswer as err:
         refused(err)
     finally:

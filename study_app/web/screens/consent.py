@@ -5,7 +5,7 @@ from __future__ import annotations
 import streamlit as st
 
 from study_app.design.protocol import consent_text, estimated_minutes
-from study_app.session import ParticipantSession
+from study_app.session import ParticipantSession, UnknownParticipant
 from study_app.web.screens import context, keys
 from study_app.web.timing import callback_started
 
@@ -42,7 +42,12 @@ def _on_start() -> None:
         return  # closed (or full) between the page and the click: the next run says so
     # Prolific appends PROLIFIC_PID, STUDY_ID and SESSION_ID to the study link.
     query = {k: st.query_params.get(k) for k in st.query_params.keys()}
-    session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
+    try:
+        session = ParticipantSession.start(ctx.store, ctx.stimuli, prolific=query)
+    except UnknownParticipant:
+        # A Prolific id registered before, whose record cannot go on (withdrawn, or
+        # its stimuli gone): the run that follows finds it by the id and says why.
+        return
     # The id goes in the URL: a reload, or the same link later, resumes here.
     st.query_params[keys.QUERY_PID] = session.participant_id
     st.session_state[keys.KEY_PARTICIPANT_ID] = session.participant_id

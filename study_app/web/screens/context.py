@@ -59,7 +59,11 @@ def _load_context(stimuli_dir: str, db_url: str | None) -> AppContext:
     key = (stimuli_dir, db_url)
     with st.spinner("Checking the study materials…"), _CONTEXT_LOCK:
         if key not in _CONTEXTS:
-            _CONTEXTS[key] = AppContext(stimuli=load_stimuli(stimuli_dir), store=Store(db_url))
+            from study_app.web.picker import pin_files
+
+            stimuli = load_stimuli(stimuli_dir)
+            pin_files(stimuli.file_digests())  # served only with the verified contents
+            _CONTEXTS[key] = AppContext(stimuli=stimuli, store=Store(db_url))
     return _CONTEXTS[key]
 
 

@@ -1,5 +1,6 @@
 """Shown for a participant link that is malformed, unknown or from another study, or
-whose participant withdrew (their data were deleted: the page says so)."""
+whose participant withdrew (their data were deleted: the page says so), or whose
+stimuli are gone (their answers so far are stored: the page says so)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,10 @@ def render() -> None:
     if st.session_state.get(keys.KEY_WITHDRAWN):
         st.header("Your data were withdrawn")
         st.info(st.session_state.get(keys.KEY_PROBLEM))
+        return
+    if st.session_state.get(keys.KEY_ANSWERS_KEPT):
+        st.header("This session cannot continue")
+        st.warning(st.session_state.get(keys.KEY_PROBLEM))
         return
     st.header("This link does not work")
     st.error(st.session_state.get(keys.KEY_PROBLEM) or "Unknown participant.")

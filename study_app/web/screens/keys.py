@@ -13,6 +13,7 @@ __all__ = [
     "KEY_ON_SCREEN",
     "KEY_PROBLEM",
     "KEY_WITHDRAWN",
+    "KEY_ANSWERS_KEPT",
     "KEY_TRIAL_SHOWN",
     "KEY_PICKER_START",
     "KEY_ATTEMPT",
@@ -62,6 +63,9 @@ KEY_ON_SCREEN = "snapshot.on_screen"
 KEY_PROBLEM = "snapshot.problem"
 #: True when the refused link is that of a participant who withdrew.
 KEY_WITHDRAWN = "snapshot.withdrawn"
+#: True when the refused link is that of a participant whose answers are stored but
+#: whose stimuli are gone (the page must not say nothing was recorded).
+KEY_ANSWERS_KEPT = "snapshot.answers_kept"
 #: {(participant id, trial index): wall-clock time the trial was first shown}.
 KEY_TRIAL_SHOWN = "snapshot.trial_shown"
 #: {(participant id, player widget key): (frame, share watched)} the player starts
@@ -76,7 +80,9 @@ KEY_ANSWERED_HERE = "snapshot.answered_here"
 KEY_FRESH_SESSION = "snapshot.fresh_session"
 #: A message to show once on the next run (kind, text).
 KEY_FLASH = "snapshot.flash"
-#: True when the browser could not play a video: pose tasks use the frame slider.
+#: {(participant id, trial index)} whose video this browser could not play (after
+#: retries): that trial uses the frame slider (its answer says so); the next trial tries
+#: the player again.
 KEY_FRAMES_FALLBACK = "snapshot.frames_fallback"
 #: Widget keys (AppTest drives widgets by these).
 KEY_CONSENT_AGREE = "consent.agree"

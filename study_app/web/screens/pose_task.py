@@ -30,7 +30,8 @@ def render() -> None:
     st.header(f"Animation {trial.index + 1} of {n_pose}")
     study = session.stimuli.study
     use_frames = (session.stimuli.study.picker == "frames"
-                  or st.session_state.get(keys.KEY_FRAMES_FALLBACK, False))
+                  or (session.participant_id, trial.index)
+                  in st.session_state.get(keys.KEY_FRAMES_FALLBACK, set()))
     # The instructions name only the controls the participant has (the slider when the
     # browser cannot play the video).
     st.markdown(SLIDER_TEXT if use_frames
@@ -63,18 +64,21 @@ def _player(pid: str, trial_index: int) -> None:
     starts = st.session_state.setdefault(keys.KEY_PICKER_START, {})
     key = (pid, widget)
     if key not in starts:
-        starts[key] = session.picker_state(trial.index)
-    frame, watched = starts[key]
+        starts[key] = session.watch_record(trial.index)
+    frame, watched, ranges = starts[key]
     answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
                           trial=trial.index, key=widget, start_frame=frame, watched=watched,
+                          watched_ranges=ranges,
                           require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
                           min_answer_s=study.min_answer_s, log_key=f"{pid}:{trial.index}",
                           on_confirm=_on_confirm,
                           args=(pid, trial.index, widget))
     if answer and "error" in answer:
-        # This browser cannot play the video: offer the frames instead (the page's
-        # instructions change too).
-        st.session_state[keys.KEY_FRAMES_FALLBACK] = True
+        # The video did not play after retries: this trial offers the frames instead
+        # (the page's instructions change too, the answer says "slider"), and the
+        # failure is recorded with the trial.
+        session.record_media_failure(answer.get("trial"), "video")
+        st.session_state.setdefault(keys.KEY_FRAMES_FALLBACK, set()).add((pid, trial.index))
         st.rerun(scope="app")
     if answer and "log" in answer:
         # A batch of the player's log, stored as it happens; the player stays.
@@ -98,8 +102,9 @@ def _submit(session, trial, answer: dict) -> None:
         lambda: session.submit_pose(answer.get("trial"), answer.get("frame"),
                                     response_time_s=widgets.elapsed_s(session, trial),
                                     events=answer.get("events") or (),
-                                    watched=answer.get("watched")),
-        lambda err: answers.retry_trial(trial, err))
+                                    watched=answer.get("watched"), ranges=answer.get("ranges"),
+                                    client=answer.get("client")),
+        lambda err: answers.retry_trial(trial, err), resend=bool(answer.get("resend")))
 
 
 def _frames_picker(sc, trial):

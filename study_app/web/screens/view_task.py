@@ -20,9 +20,15 @@ def render() -> None:
     widgets.trial_clock(session, trial)
     # Pictures only: the position → method map stays here (submit_view applies it).
     widget = widgets.widget_key(keys.KEY_CHOOSER, trial)
-    view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
-                 key=widget, min_answer_s=session.stimuli.study.min_answer_s,
-                 on_choice=_on_choice, args=(session.participant_id, trial.index, widget))
+    failed = view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
+                          key=widget, min_answer_s=session.stimuli.study.min_answer_s,
+                          on_choice=_on_choice, args=(session.participant_id, trial.index, widget),
+                          tab_key=f"{session.participant_id}:{trial.index}")
+    if failed and failed.get("failed"):
+        # Pictures that did not load after retries: the buttons stay off (the page offers
+        # to try again), nothing is answered, and the trial records it.
+        session.record_media_failure(failed.get("trial"), "image", failed["failed"],
+                                     failed.get("tab"))
 
 
 def _on_choice(pid: str, trial_index: int, widget: str) -> None:
@@ -35,5 +41,6 @@ def _on_choice(pid: str, trial_index: int, widget: str) -> None:
     answers.store_answer(
         session, trial.index,
         lambda: session.submit_view(answer.get("trial"), answer.get("position"),
-                                    response_time_s=widgets.elapsed_s(session, trial)),
-        lambda err: answers.retry_trial(trial, err))
+                                    response_time_s=widgets.elapsed_s(session, trial),
+                                    client=answer.get("client")),
+        lambda err: answers.retry_trial(trial, err), resend=bool(answer.get("resend")))

@@ -43,7 +43,11 @@ def timed_fragment(func):
     @functools.wraps(func)
     def run(*args, **kwargs):
         with RunClock(current_stage, fragment=True):
-            return func(*args, **kwargs)
+            try:
+                return func(*args, **kwargs)
+            except SnapshotError as err:  # e.g. a stimulus file changed on disk
+                st.error(f"This page cannot be shown: {one_line(err)}")
+                return None
 
     return st.fragment(run)
 
@@ -111,7 +115,11 @@ def resume_link(session) -> None:
     st.divider()
     st.caption("Your personal link: to pause and continue later (in this or another "
                "browser), copy it and open it again.")
-    st.code(resume_url(base, session.participant_id), language=None)
+    link = resume_url(base, session.participant_id)
+    st.code(link, language=None, wrap_lines=True)  # whole on a phone, not cut off
+    from study_app.web.picker import copy_button
+
+    copy_button(link, key="snapshot.copy_link")
 
 
 def one_line(err: BaseException) -> str:
