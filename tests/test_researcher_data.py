@@ -196,7 +196,7 @@ def test_analyze_takes_a_bare_db_path_like_export(db, tmp_path):
     assert (tmp_path / "out" / "report.html").is_file()
 
 
-def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):
+def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):  # noqa: F811 - the fixture
     import sqlalchemy as sa
 
     from study_app.data.database import normalize_url
