@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -240,8 +241,9 @@ class SceneRenderer:
             baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
             doubleSided=True)
         n = len(self.body.characters)
-        self._node = None
-        self._shadow_node = None
+        # pyrender nodes (pyrender has no type information)
+        self._node: Any = None
+        self._shadow_node: Any = None
         self._below = False  # camera under the floor (set with the camera)
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
@@ -259,12 +261,12 @@ class SceneRenderer:
             b = scene.bounds()
             self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
             self.pscene.add(self._grid)
-        self._cam_node = None
-        self._last_cam = None
-        self._gl_cam = None
+        self._cam_node: Any = None
+        self._last_cam: Camera | None = None
+        self._gl_cam: Camera | None = None  # set with the first camera, see _set_camera
         self._cam_full = True
-        self._background = None
-        self._light_nodes = []
+        self._background: np.ndarray | None = None
+        self._light_nodes: list[Any] = []
         self._shadow_dir = np.array([0.0, 1.0, 0.0])
 
     def _vertex_colors(self, i):
@@ -342,6 +344,12 @@ class SceneRenderer:
             self.pscene.set_pose(self._cam_node, gl_cam.pose)
         self._cam_full = gl_cam is self._gl_cam
 
+    def _full_camera(self) -> Camera:
+        """The GL camera of the whole view (set by :meth:`_set_camera`)."""
+        if self._gl_cam is None:
+            raise RenderError("internal: SceneRenderer used before its camera was set")
+        return self._gl_cam
+
     def _update_bodies(self, frame: int):
         # All characters in one mesh and all shadows in another: each draw call costs
         # ~1 ms of Python and GL state in pyrender, the triangles themselves are cheap.
@@ -396,18 +404,19 @@ class SceneRenderer:
             self._set_camera(camera)
         drawn = self._update_bodies(int(frame))
         window = self._crop_window(camera, drawn) if crop else None
+        gl_cam = self._full_camera()
         if window is None:
             if not self._cam_full:
-                self._point_camera(self._gl_cam)
+                self._point_camera(gl_cam)
             color, _ = gl_renderer(*self.size).render(self.pscene, flags=pyrender.RenderFlags.NONE)
             return np.ascontiguousarray(color)
         background = self._background_image()
         x0, y0, cw, ch = window
-        p = self._gl_cam.pixel_size
+        p = gl_cam.pixel_size
         w, h = self.size
-        shift = (self._gl_cam.right * (x0 + cw / 2 - w / 2) * p
-                 + self._gl_cam.up * (h / 2 - y0 - ch / 2) * p)
-        self._point_camera(replace(self._gl_cam, position=self._gl_cam.position + shift,
+        shift = (gl_cam.right * (x0 + cw / 2 - w / 2) * p
+                 + gl_cam.up * (h / 2 - y0 - ch / 2) * p)
+        self._point_camera(replace(gl_cam, position=gl_cam.position + shift,
                                    size=(cw, ch), half_height=ch * p / 2))
         part, _ = gl_renderer(cw, ch).render(self.pscene, flags=pyrender.RenderFlags.NONE)
         image = background.copy()
@@ -442,7 +451,7 @@ class SceneRenderer:
             for n in nodes:
                 n.mesh.is_visible = False
             if not self._cam_full:
-                self._point_camera(self._gl_cam)
+                self._point_camera(self._full_camera())
             color, _ = gl_renderer(*self.size).render(self.pscene, flags=pyrender.RenderFlags.NONE)
             self._background = np.ascontiguousarray(color)
             for n, v in zip(nodes, shown):
