@@ -27,7 +27,7 @@ from snapcore.errors import GLTFError
 __all__ = ["Buffers", "COMPONENT_DTYPES", "TYPE_SIZES"]
 
 #: glTF componentType → little-endian NumPy dtype.
-COMPONENT_DTYPES = {
+COMPONENT_DTYPES: dict[int, np.dtype] = {
     5120: np.dtype("<i1"),
     5121: np.dtype("<u1"),
     5122: np.dtype("<i2"),
