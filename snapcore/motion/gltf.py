@@ -334,7 +334,8 @@ def _primitive_arrays(gltf, buffers: Buffers, mi: int):
 def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_scale,
                 all_joints=()) -> SkinnedMesh:
     rest_v, faces, bones, wts, colors = [], [], [], [], []
-    ibms, slot_joint = [], []
+    ibms: list[np.ndarray] = []
+    slot_joint: list[int] = []  # skeleton joint of each bind slot
     n_v = 0
     for ni, node in enumerate(gltf.nodes or []):
         if node.mesh is None:
@@ -405,7 +406,7 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
     ibm = np.concatenate(ibms, axis=0)
     key = np.concatenate([np.asarray(slot_joint, float)[:, None], ibm.reshape(-1, 16).round(9)], 1)
     _, first, remap = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    slot_joint, ibm = np.asarray(slot_joint, dtype=np.int64)[first], ibm[first]
+    slots, ibm = np.asarray(slot_joint, dtype=np.int64)[first], ibm[first]
     weights = weight_matrix(remap.ravel()[np.vstack([b for b, _ in pad])],
                             np.vstack([w for _, w in pad]), len(first))
     if np.any(np.asarray(weights.sum(axis=1)).ravel() == 0):
@@ -413,7 +414,7 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
                       stacklevel=4)
     rgb = np.vstack(colors)
     return SkinnedMesh(rest=np.vstack(rest_v), faces=np.vstack(faces).astype(np.int64),
-                       weights=weights, slot_joint=slot_joint, inverse_bind=ibm,
+                       weights=weights, slot_joint=slots, inverse_bind=ibm,
                        face_rgb=None if np.all(np.isnan(rgb)) else rgb,
                        joint_scale=world_scale)
 
@@ -453,7 +454,7 @@ def _characters(gltf, parent, order, joint_set) -> list[list[int]]:
     or when one skin binds them (BrainStem: 59 skins, one skeleton): two people in one
     file are two groups, ordered by their first joint."""
     joints = [i for i in order if i in joint_set]
-    top = {}
+    top: dict[int, int] = {}
     for j in joints:  # the topmost joint above j (parents come first)
         a = parent[j]
         while a >= 0 and a not in joint_set:
@@ -550,13 +551,13 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
         raise buffers.error(f"has no character {k} (it has {len(groups)})")
     joints = groups[k]
     joint_index = {node: k for k, node in enumerate(joints)}
-    jparent = []
+    jparent_list = []
     for node in joints:
         a = parent[node]
         while a >= 0 and a not in joint_index:
             a = parent[a]
-        jparent.append(joint_index[a] if a >= 0 else -1)
-    jparent = np.asarray(jparent, dtype=int)
+        jparent_list.append(joint_index[a] if a >= 0 else -1)
+    jparent = np.asarray(jparent_list, dtype=int)
 
     rest = [np.array(x) for x in zip(*[_local_trs(n) for n in nodes])]  # T, R, S: (N, ·)
     a_idx, a_name = _pick_animation(g, animation, buffers)
