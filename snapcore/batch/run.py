@@ -26,7 +26,7 @@ import json
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import closing, contextmanager
 from dataclasses import dataclass, field
@@ -258,14 +258,14 @@ def read_choices(out) -> dict[str, int]:
     path = Path(out) / CHOICES_NAME
     if not path.is_file():
         return {}
-    choices = {}
+    choices: dict[str, int] = {}
     with open(path, encoding="utf-8", newline="") as fh:
         for n, cells in enumerate(csv.reader(fh), start=1):
             if not cells or cells == ["path", "pose"]:
                 continue
             try:
-                key, rank = cells
-                rank = int(rank)
+                key, rank_text = cells
+                rank = int(rank_text)
                 if rank < 1:
                     raise ValueError
             except ValueError:
@@ -295,7 +295,10 @@ def prune_outputs(out, keep: Iterable[str]) -> list[str]:
 def _store(out: Path, result: SceneResult) -> dict:
     """Write a result's outputs (atomically) and return its complete index row."""
     row = {c: result.row.get(c) for c in COLUMNS}  # every column, as read back from the CSV
-    paths = output_paths(row["path"])
+    key = row["path"]
+    if not isinstance(key, str):
+        raise BatchError(f"internal: a scene result has no path key (got {key!r})")
+    paths = output_paths(key)
     for what, rel in paths.items():
         target = out / rel
         data = result.outputs.get(what)
@@ -507,7 +510,7 @@ def _watch_workers(client, before: set, notify: Callable[[str], None]) -> set:
     return now
 
 
-def _executor(tasks, jobs, scheduler, notify) -> Iterator[SceneResult]:
+def _executor(tasks, jobs, scheduler, notify) -> Generator[SceneResult, None, None]:
     """The results of ``tasks`` from the chosen executor (none started for no task)."""
     if tasks:
         yield from (_dask(tasks, scheduler, notify) if scheduler

@@ -238,7 +238,7 @@ def run_scene(task: SceneTask) -> SceneResult:
 
 
 #: Set once the first scene's survivors (modules, caches) are frozen out of the collector.
-_FROZEN = []
+_FROZEN: list[bool] = []
 
 
 def _release() -> None:
