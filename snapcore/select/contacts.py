@@ -29,12 +29,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.select.capsules import BODY_BLOCK_S, body_near, bone_radii, segment_distance
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Character
 
 __all__ = [
     "GROUND",
@@ -472,8 +476,8 @@ class _Distances:
                 bad.append(np.flatnonzero((self.ref[k:] != self.ref[:n - k]).take(s)))
         if bad and sum(b.size for b in bad):  # ask those all at once
             i = np.concatenate(bad)
-            k = np.repeat(np.arange(1, m), [b.size for b in bad])
-            asked = self._ask(s.take(i), s.take(i) + k) <= tol
+            shift = np.repeat(np.arange(1, m), [b.size for b in bad])
+            asked = self._ask(s.take(i), s.take(i) + shift) <= tol
             for kk, b, a in zip(range(1, m), bad, np.split(asked, np.cumsum([b.size for b in bad])[:-1])):
                 within[kk - 1][b] = a
         for w in within:
@@ -499,10 +503,10 @@ class _Distances:
         if self.rel is None:  # ask the displacements for each offset in the band
             far = np.ones((total, band), dtype=bool)
             stop_of = np.repeat(stops, lengths)
-            for k in range(band):
-                t = entry + m + k
+            for step in range(band):
+                t = entry + m + step
                 inside = np.flatnonzero(t < stop_of)
-                far[inside, k] = self._ask(entry.take(inside), t.take(inside)) > tol
+                far[inside, step] = self._ask(entry.take(inside), t.take(inside)) > tol
         else:
             from numpy.lib.stride_tricks import sliding_window_view
 
@@ -702,8 +706,10 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
         [c.name for c in scene.characters] if bodies and scene.n_characters > 1 else []
     ) + prop_names
     # Every (character, object) pair is one scan problem; all are scanned together.
-    problems: list[tuple[int, str, object]] = []  # character, object, part namer
-    nears, displacements = [], []
+    # character, object, and for a body the nearest bone (F, J) and that character
+    problems: list[tuple[int, str, tuple[np.ndarray, Character] | None]] = []
+    nears: list[np.ndarray] = []
+    displacements: list[_StaticDisplacement | _BodyDisplacement] = []
     radii = [bone_radii(c) for c in scene.characters] if bodies else []
     cache: dict = {}  # prepared positions per character, shared by both directions
     for ci, c in enumerate(scene.characters):
