@@ -9,9 +9,14 @@ one of its frames needs them.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from snapcore.motion.skinning import face_incidence, vertex_normals
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Character
 
 __all__ = ["FrameBlocks", "BLOCK"]
 
@@ -24,6 +29,8 @@ class FrameBlocks:
     ``_pose(frames)`` (K, V, 3) of the subclass, which also sets ``faces``, ``character``
     and ``n_vertices``."""
 
+    faces: np.ndarray  # (M, 3) vertex indices, set by the subclass
+    character: Character  # set by the subclass
     _blk: tuple | None = None  # (first frame, vertices (K, V, 3), normals or None)
     _inc = None
 
