@@ -204,7 +204,8 @@ def _is_gltf(path) -> bool:
 
 
 def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animation) -> Scene:
-    docs, paths, entries = [], [], []
+    docs: list[BVHDocument | None] = []  # None: a glTF character, read by its entry
+    paths, entries = [], []
     for e in spec["characters"]:
         path = resolve_data_path(e["file"], base)
         if not path.exists():
@@ -213,7 +214,6 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         if _is_gltf(path):
             # one character per skeleton of the file, named after it when there are more
             roots = gltf_characters(path)
-            parts = [None] * len(roots)
             for k, root in enumerate(roots):
                 paths.append(path)
                 docs.append(None)
