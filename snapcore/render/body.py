@@ -161,7 +161,7 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     n_rows = len(phis)
-    top = 1 + n_rows * around
+    pole = 1 + n_rows * around  # the top pole's vertex
     i = np.arange(around)
     i1 = (i + 1) % around
     faces = [np.stack([np.zeros(around, int), 1 + i1, 1 + i], axis=1)]  # bottom fan
@@ -170,7 +170,7 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
         faces.append(np.stack([lo + i, lo + i1, hi + i1], axis=1))
         faces.append(np.stack([lo + i, hi + i1, hi + i], axis=1))
     last = 1 + (n_rows - 1) * around
-    faces.append(np.stack([last + i, last + i1, np.full(around, top)], axis=1))  # top fan
+    faces.append(np.stack([last + i, last + i1, np.full(around, pole)], axis=1))  # top fan
     return verts, normals, np.vstack(faces)
 
 

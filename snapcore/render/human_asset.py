@@ -138,7 +138,8 @@ def _rig_to_y_up(p) -> np.ndarray:
 
 def _read_obj(path: Path):
     """Vertices (N, 3) and the quads/triangles of group ``body`` (OBJ numbering, 0-based)."""
-    verts, faces, eyes = [], [], {EYE_GROUPS[0]: set(), EYE_GROUPS[1]: set()}
+    verts, faces = [], []
+    eyes: dict[str, set[int]] = {EYE_GROUPS[0]: set(), EYE_GROUPS[1]: set()}  # vertex ids
     group = None
     with open(path, encoding="utf-8") as fh:
         for line in fh:

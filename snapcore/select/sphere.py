@@ -474,6 +474,8 @@ def sphere_search(b, bn, n: int, *, refine: bool = True) -> SearchResult:
             iters += r.iterations
             if r.score > best_s:
                 best_v, best_s, loc = r.view, r.score, loc_i
+        if loc is None:  # the bound's best sample is a local maximum: never empty
+            raise RuntimeError("internal: no local maximum of the view score was refined")
     else:
         loc = LocalScores(best_v, b, bn, OUTER_WINDOW)
         best_s = loc.score0
