@@ -28,6 +28,7 @@ import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -92,7 +93,7 @@ class KeyMoments:
     source: str = field(default="", repr=False)
 
 
-def _fail(path, line, fld, msg):
+def _fail(path, line, fld, msg) -> NoReturn:
     raise KeymomentsError(f"{path}:{line}: {fld}: {msg}")
 
 
@@ -243,7 +244,7 @@ def hits(frames, intervals, *, fps: float, widen_s: float = HIT_WIDEN_S) -> np.n
     """Whether each source frame lies in an interval widened by ``widen_s`` s, (n,) bool."""
     f = np.asarray(frames, dtype=float).reshape(-1, 1)
     w = _widened(intervals, fps, widen_s)
-    return ((f >= w[:, 0]) & (f <= w[:, 1])).any(axis=1)
+    return np.any((f >= w[:, 0]) & (f <= w[:, 1]), axis=1)
 
 
 def distance_to_intervals(frames, intervals, *, fps: float) -> np.ndarray:
