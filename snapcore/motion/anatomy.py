@@ -27,6 +27,7 @@ to a file whose unit is unknown) use :data:`REFERENCE_STATURE_M`.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import numpy as np
 
@@ -312,7 +313,7 @@ REQUIRED_LANDMARKS = ("pelvis", "head", *(f"{n}_{s}" for s in "LR" for n in (
     "shoulder", "elbow", "wrist", "hip", "knee", "ankle")))
 
 
-def body_landmarks(names, parents) -> dict[str, int | None]:
+def body_landmarks(names, parents) -> dict[str, Any]:
     """The joints a human body is fitted to, found by role and side.
 
     Parameters
@@ -349,7 +350,8 @@ def body_landmarks(names, parents) -> dict[str, int | None]:
                 return j
         return None
 
-    out: dict = {"pelvis": first("pelvis"), "head": first("head")}
+    # values: int | None, but "spine" is a tuple (keys are built from names: no TypedDict)
+    out: dict[str, Any] = {"pelvis": first("pelvis"), "head": first("head")}
     neck = None
     if out["head"] is not None:
         for j in ancestors(out["head"])[1:]:

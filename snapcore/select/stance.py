@@ -167,11 +167,10 @@ def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
     shoulders' common ancestor) and the lengths (m): hip to ankle, pelvis to head,
     pelvis to that ancestor, shoulder to wrist (means of the two sides).
     """
-    found = body_landmarks(names, parents)
+    lm = body_landmarks(names, parents)
     need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
             "hip_R", "ankle_L", "ankle_R")
-    lm = {k: j for k, j in found.items() if j is not None}
-    if any(k not in lm for k in need):
+    if any(lm.get(k) is None for k in need):
         return None
     par = np.asarray(parents)
     lengths = np.linalg.norm(np.frombuffer(offsets).reshape(-1, 3), axis=1)
