@@ -128,9 +128,11 @@ class Snapshot:
     @property
     def pma(self) -> dict | None:
         """Projected-motion-area details of the view stage (JSON-ready)."""
-        sel = self.view_selection
+        sel, params = self.view_selection, self.view_params
         if sel is None:
             return None
+        if params is None:  # the view stage sets both
+            raise ValueError("Snapshot.pma: view_selection is set without its view_params")
         return {
             "score": sel.score,
             "mean_ratio": sel.mean_ratio,
@@ -139,7 +141,7 @@ class Snapshot:
             "n_views": int(sel.views.shape[0]),
             "n_quads": sel.n_quads,
             "n_skipped": sel.n_skipped,
-            "floor_m2": float(self.view_params.floor_m2),
+            "floor_m2": float(params.floor_m2),
             "iterations": sel.iterations,
             "certified": sel.certified,
             "facing": sel.facing,
@@ -218,7 +220,7 @@ class Snapshot:
         peaks = [{"frame": src(i), "time_s": round(i / fps, 6), "total": float(scores.total[i]),
                   **{name: float(v[i]) for name, v in scores.terms.items()}}
                  for i in self.pose.indices]
-        counts = {}
+        counts: dict[str, dict[str, int]] = {}  # character → object → events
         for e in scores.interactions.events:
             ch = scene.characters[e.character].name
             counts.setdefault(ch, {})

@@ -31,7 +31,7 @@ class BenchResult:
 
     @property
     def status(self) -> str:
-        if self.min_ms is None:
+        if self.min_ms is None or self.median_ms is None:  # both None when skipped
             return "skipped"
         if self.target_ms is None:
             return ""
