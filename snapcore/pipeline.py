@@ -323,7 +323,7 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
     >>> from snapcore import take_snapshot
     >>> from snapcore.motion.synth import synth_scene
     >>> snap = take_snapshot(synth_scene("walk"), k=2, baselines=False)
-    >>> len(snap.pose.frames), snap.motion_area is None
+    >>> len(snap.pose.indices), snap.motion_area is None
     (2, True)
     >>> bool(abs(snap.view_selection.view[0]) > 0.9)  # a walk along +Z, seen from the side
     True

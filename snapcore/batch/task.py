@@ -311,8 +311,8 @@ def _select(scene, opts: BatchOptions):
     doc = snap.to_dict()
     validate(doc, "snapshot", source=f"{scene.name} snapshot")
     data = (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
-    totals = doc["pose_entropy"]["total"]
-    at = doc["frame"] - doc["pose_entropy"]["first_frame"]
+    totals = doc["pose_scores"]["total"]
+    at = doc["frame"] - doc["pose_scores"]["first_frame"]
     fields = {
         "score": round(float(totals[at]), 6) if 0 <= at < len(totals) else None,
         "characters": len(doc["characters"]),

@@ -207,9 +207,9 @@ def select_pose(scene, *, method: str | None = None, k: int = 3,
     >>> from snapcore.motion.synth import synth_scene
     >>> scene = synth_scene("kick")
     >>> sel = select_pose(scene, k=2, min_separation_s=0.3)
-    >>> sel.method, len(sel.frames), sel.frames[0] == sel.frame
+    >>> sel.method, len(sel.indices), sel.indices[0] == sel.index
     ('story', 2, True)
-    >>> abs(sel.frames[1] - sel.frames[0]) >= 0.3 * scene.fps  # the runner-up is another moment
+    >>> abs(sel.indices[1] - sel.indices[0]) >= 0.3 * scene.fps  # the runner-up is another moment
     True
     """
     if int(k) != k or k < 1:
