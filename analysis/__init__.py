@@ -25,12 +25,48 @@ from importlib import import_module
 # (pandas, scipy.stats, the study store) cost seconds, at test collection too.
 _WHERE = {
     ".figures": ("FIGURES", "make_figures", "measure_table1", "paper_analogues", "paper_table1"),
-    ".frames": ("baselines_from_stimuli", "closeness_tests", "frame_distances", "frame_histogram", "hit_rates", "motion_baselines", "scene_frames_from_rows"),
-    ".load": ("LoadError", "attention_summary", "load_responses", "ordered_scenes", "pose_choices", "tidy_responses", "view_choices"),
+    ".frames": (
+        "baselines_from_stimuli",
+        "closeness_tests",
+        "frame_distances",
+        "frame_histogram",
+        "hit_rates",
+        "motion_baselines",
+        "scene_frames_from_rows",
+    ),
+    ".load": (
+        "LoadError",
+        "attention_summary",
+        "load_responses",
+        "ordered_scenes",
+        "pose_choices",
+        "tidy_responses",
+        "view_choices",
+    ),
     ".power": ("power_chisquare", "power_curve", "power_pairwise", "power_table", "sample_size"),
     ".report": ("analyze", "analyze_counts", "write_table"),
-    ".simulate": ("ObserverModel", "paper_design", "simulate_participants", "simulate_vote_counts", "simulated_rows", "store_simulation"),
-    ".votes": ("chisquare_no_preference", "choices_from_counts", "claim_summary", "fleiss_kappa", "holm_adjust", "luce_strengths", "ours_vs_baselines", "paper_counts", "paper_table2", "vote_counts", "vote_table", "wilson_interval"),
+    ".simulate": (
+        "ObserverModel",
+        "paper_design",
+        "simulate_participants",
+        "simulate_vote_counts",
+        "simulated_rows",
+        "store_simulation",
+    ),
+    ".votes": (
+        "chisquare_no_preference",
+        "choices_from_counts",
+        "claim_summary",
+        "fleiss_kappa",
+        "holm_adjust",
+        "luce_strengths",
+        "ours_vs_baselines",
+        "paper_counts",
+        "paper_table2",
+        "vote_counts",
+        "vote_table",
+        "wilson_interval",
+    ),
 }
 _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 

@@ -33,53 +33,122 @@ def _parse_strengths(text: str | None) -> dict | None:
         name, _, value = part.partition("=")
         name = name.strip()
         if name not in VIEW_METHODS:
-            raise click.BadParameter(f"unknown method '{name}' (expected {', '.join(VIEW_METHODS)})",
-                                     param_hint="--strengths")
+            raise click.BadParameter(
+                f"unknown method '{name}' (expected {', '.join(VIEW_METHODS)})",
+                param_hint="--strengths",
+            )
         try:
             out[name] = float(value)
         except ValueError:
-            raise click.BadParameter(f"'{part}' is not method=number",
-                                     param_hint="--strengths") from None
+            raise click.BadParameter(
+                f"'{part}' is not method=number", param_hint="--strengths"
+            ) from None
     if set(out) != set(VIEW_METHODS) or any(not v > 0 for v in out.values()):
-        raise click.BadParameter(f"give a positive strength for each of {', '.join(VIEW_METHODS)}",
-                                 param_hint="--strengths")
+        raise click.BadParameter(
+            f"give a positive strength for each of {', '.join(VIEW_METHODS)}",
+            param_hint="--strengths",
+        )
     return out
 
 
 @click.command(name="analyze")
-@click.option("--db", "db", default=None, metavar="URL",
-              help="Study store URL (SQLAlchemy, e.g. sqlite:///var/study.db or "
-                   "postgresql+psycopg://...). Default: $SNAPSHOT_DB, else the app's default store.")
-@click.option("--input", "input_path", type=click.Path(dir_okay=False), default=None,
-              help="An export file (snapshot export: .csv or .jsonl) instead of the store.")
-@click.option("--paper-table2", is_flag=True,
-              help="Analyse the paper's own published Table 2 counts (no study data needed).")
-@click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False), default="results",
-              show_default=True, help="Output folder (tables/, figures/, report.html).")
-@click.option("--stimuli", type=click.Path(), default=None,
-              help="Stimuli manifest (or its folder): scene titles, top-k picks, the motion "
-                   "for the fastest / most-stretched baselines (the manifest's selector picks) and near-duplicate "
-                   "candidates. Default: var/stimuli/<study id> when it exists.")
-@click.option("--include-simulated", is_flag=True,
-              help="Analyse simulated participants too (excluded by default).")
-@click.option("--exclude-failed-attention", is_flag=True,
-              help="Drop participants who failed the attention check.")
-@click.option("--exclude-unwatched", is_flag=True,
-              help="Leave out pose answers picked on the frame slider (the video did not play) "
-                   "or before the animation was watched; the report says how many.")
-@click.option("--include-incomplete", is_flag=True,
-              help="Analyse participants who started but did not finish too (by default "
-                   "only completed participants count).")
-@click.option("--boot", "n_boot", type=click.IntRange(0), default=1000, show_default=True,
-              help="Bootstrap resamples for the strengths' intervals.")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="Seed of the bootstrap and permutation tests.")
-@click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=0.05,
-              show_default=True, help="Significance level (family-wise, Holm).")
+@click.option(
+    "--db",
+    "db",
+    default=None,
+    metavar="URL",
+    help="Study store URL (SQLAlchemy, e.g. sqlite:///var/study.db or "
+    "postgresql+psycopg://...). Default: $SNAPSHOT_DB, else the app's default store.",
+)
+@click.option(
+    "--input",
+    "input_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="An export file (snapshot export: .csv or .jsonl) instead of the store.",
+)
+@click.option(
+    "--paper-table2",
+    is_flag=True,
+    help="Analyse the paper's own published Table 2 counts (no study data needed).",
+)
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="results",
+    show_default=True,
+    help="Output folder (tables/, figures/, report.html).",
+)
+@click.option(
+    "--stimuli",
+    type=click.Path(),
+    default=None,
+    help="Stimuli manifest (or its folder): scene titles, top-k picks, the motion "
+    "for the fastest / most-stretched baselines (the manifest's selector picks) and near-duplicate "
+    "candidates. Default: var/stimuli/<study id> when it exists.",
+)
+@click.option(
+    "--include-simulated",
+    is_flag=True,
+    help="Analyse simulated participants too (excluded by default).",
+)
+@click.option(
+    "--exclude-failed-attention",
+    is_flag=True,
+    help="Drop participants who failed the attention check.",
+)
+@click.option(
+    "--exclude-unwatched",
+    is_flag=True,
+    help="Leave out pose answers picked on the frame slider (the video did not play) "
+    "or before the animation was watched; the report says how many.",
+)
+@click.option(
+    "--include-incomplete",
+    is_flag=True,
+    help="Analyse participants who started but did not finish too (by default "
+    "only completed participants count).",
+)
+@click.option(
+    "--boot",
+    "n_boot",
+    type=click.IntRange(0),
+    default=1000,
+    show_default=True,
+    help="Bootstrap resamples for the strengths' intervals.",
+)
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="Seed of the bootstrap and permutation tests.",
+)
+@click.option(
+    "--alpha",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.05,
+    show_default=True,
+    help="Significance level (family-wise, Holm).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Print only the output folder.")
-def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
-            exclude_failed_attention, exclude_unwatched, include_incomplete, n_boot, seed,
-            alpha, quiet):
+def analyze(
+    db,
+    input_path,
+    paper_table2,
+    out_dir,
+    stimuli,
+    include_simulated,
+    exclude_failed_attention,
+    exclude_unwatched,
+    include_incomplete,
+    n_boot,
+    seed,
+    alpha,
+    quiet,
+):
     """Analyse the study: tables (CSV, Markdown, LaTeX), figures (PNG, PDF) and a
     one-page HTML report in OUT.
 
@@ -107,29 +176,52 @@ def analyze(db, input_path, paper_table2, out_dir, stimuli, include_simulated,
         t = table()
         labels = dict(zip(t["scene"], t["scene_label"], strict=True))
         summary = report.analyze_counts(
-            paper_counts(), out_dir, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha,
+            paper_counts(),
+            out_dir,
+            labels=labels,
+            n_boot=n_boot,
+            seed=seed,
+            alpha=alpha,
             title="Action Snapshot: the paper's Table 2 re-analysed",
-            source="the paper's published Table 2 (100 participants; analysis/data/paper_table2.csv)")
+            source="the paper's published Table 2 (100 participants; analysis/data/paper_table2.csv)",
+        )
     else:
         source = input_path if input_path is not None else _store_url(db)
-        summary = report.analyze(source, out_dir, include_simulated=include_simulated,
-                                 stimuli=stimuli, exclude_failed_attention=exclude_failed_attention,
-                                 n_boot=n_boot, seed=seed, alpha=alpha,
-                                 completed_only=not include_incomplete,
-                                 exclude_unwatched=exclude_unwatched)
+        summary = report.analyze(
+            source,
+            out_dir,
+            include_simulated=include_simulated,
+            stimuli=stimuli,
+            exclude_failed_attention=exclude_failed_attention,
+            n_boot=n_boot,
+            seed=seed,
+            alpha=alpha,
+            completed_only=not include_incomplete,
+            exclude_unwatched=exclude_unwatched,
+        )
     if not quiet:
         if "participants" in summary:
-            click.echo(f"{summary['participants']} participants"
-                       + (f" analysed of {summary['started_participants']} started"
-                          if summary.get("started_participants", summary["participants"])
-                          != summary["participants"] else "")
-                       + (f" ({summary['simulated_participants']} simulated)"
-                          if summary.get("simulated_participants") else "")
-                       + f", {summary['responses']} responses")
+            click.echo(
+                f"{summary['participants']} participants"
+                + (
+                    f" analysed of {summary['started_participants']} started"
+                    if summary.get("started_participants", summary["participants"])
+                    != summary["participants"]
+                    else ""
+                )
+                + (
+                    f" ({summary['simulated_participants']} simulated)"
+                    if summary.get("simulated_participants")
+                    else ""
+                )
+                + f", {summary['responses']} responses"
+            )
         if "excluded_answers" in summary:
             ex = summary["excluded_answers"]
-            click.echo(f"left out {ex['slider']} pose answers picked on the frame slider and "
-                       f"{ex['not_watched']} given before the animation was watched")
+            click.echo(
+                f"left out {ex['slider']} pose answers picked on the frame slider and "
+                f"{ex['not_watched']} given before the animation was watched"
+            )
         for line in summary.get("claims", []):
             click.echo(line)
         if "frame_verdict" in summary:
@@ -146,29 +238,63 @@ def _store_url(db):
     try:
         from study_app.data.store import default_url
     except ImportError as err:
-        raise AnalysisError(f"no --db or --input given and the study store is unavailable ({err})") from err
+        raise AnalysisError(
+            f"no --db or --input given and the study store is unavailable ({err})"
+        ) from err
     return default_url()
 
 
 @click.command(name="simulate")
 @click.option("--n", "n", type=click.IntRange(1), required=True, help="Participants to simulate.")
-@click.option("--db", "db", default=None, metavar="URL",
-              help="Study store URL to write to (default: $SNAPSHOT_DB, else the app's store).")
-@click.option("--stimuli", type=click.Path(), default=None,
-              help="Stimuli manifest (or its folder) giving the scenes; default: the paper's six "
-                   "animations (Table 1 lengths, Table 2 shares as strengths).")
-@click.option("--strengths", default=None, metavar="ours=S,viewpoint_entropy=S,motion_area=S",
-              help="Luce strengths of the methods for every scene (default: the paper's Table 2 "
-                   "shares per scene for the paper design, equal strengths for a manifest).")
-@click.option("--spread", "spread_s", type=click.FloatRange(0), default=0.5, show_default=True,
-              help="SD (seconds) of a frame choice around the salient moment aimed at.")
-@click.option("--lapse", type=click.FloatRange(0, 1), default=0.1, show_default=True,
-              help="Probability of a uniformly random frame.")
-@click.option("--algorithm-weight", type=click.FloatRange(0, 1), default=0.7, show_default=True,
-              help="Probability that the moment aimed at is the algorithm's pick (else another "
-                   "salient moment, when the scene has some).")
-@click.option("--study-id", default=None,
-              help="Study id to store (default: the manifest's, or paper-simulated).")
+@click.option(
+    "--db",
+    "db",
+    default=None,
+    metavar="URL",
+    help="Study store URL to write to (default: $SNAPSHOT_DB, else the app's store).",
+)
+@click.option(
+    "--stimuli",
+    type=click.Path(),
+    default=None,
+    help="Stimuli manifest (or its folder) giving the scenes; default: the paper's six "
+    "animations (Table 1 lengths, Table 2 shares as strengths).",
+)
+@click.option(
+    "--strengths",
+    default=None,
+    metavar="ours=S,viewpoint_entropy=S,motion_area=S",
+    help="Luce strengths of the methods for every scene (default: the paper's Table 2 "
+    "shares per scene for the paper design, equal strengths for a manifest).",
+)
+@click.option(
+    "--spread",
+    "spread_s",
+    type=click.FloatRange(0),
+    default=0.5,
+    show_default=True,
+    help="SD (seconds) of a frame choice around the salient moment aimed at.",
+)
+@click.option(
+    "--lapse",
+    type=click.FloatRange(0, 1),
+    default=0.1,
+    show_default=True,
+    help="Probability of a uniformly random frame.",
+)
+@click.option(
+    "--algorithm-weight",
+    type=click.FloatRange(0, 1),
+    default=0.7,
+    show_default=True,
+    help="Probability that the moment aimed at is the algorithm's pick (else another "
+    "salient moment, when the scene has some).",
+)
+@click.option(
+    "--study-id",
+    default=None,
+    help="Study id to store (default: the manifest's, or paper-simulated).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulation.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study_id, seed, quiet):
@@ -197,8 +323,9 @@ def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study
         doc, base = read_stimuli(stimuli)
         design = sim.design_from_stimuli(doc, strengths=chosen)
         # manifest["study"] is the study config document: {"study": {"id": ...}, ...}
-        study_id = study_id or ((doc.get("study") or {}).get("study") or {}).get("id") \
-            or "simulated"
+        study_id = (
+            study_id or ((doc.get("study") or {}).get("study") or {}).get("id") or "simulated"
+        )
         path = Path(stimuli) / "manifest.json" if Path(stimuli).is_dir() else Path(stimuli)
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         att = (doc.get("study") or {}).get("attention")
@@ -216,28 +343,68 @@ def simulate(n, db, stimuli, strengths, spread_s, lapse, algorithm_weight, study
         raise AnalysisError(f"the study store is unavailable ({err})") from err
     people = sim.simulate_participants(design, n, seed=seed, model=model, attention=attention)
     store = Store(db)
-    ids = sim.store_simulation(store, people, study_id=study_id, manifest_sha256=digest,
-                               progress=not quiet)
-    click.echo(f"stored {len(ids)} simulated participants ({sum(len(p['rows']) for p in people)} "
-               f"responses, study '{study_id}') in {store.url}")
+    ids = sim.store_simulation(
+        store, people, study_id=study_id, manifest_sha256=digest, progress=not quiet
+    )
+    click.echo(
+        f"stored {len(ids)} simulated participants ({sum(len(p['rows']) for p in people)} "
+        f"responses, study '{study_id}') in {store.url}"
+    )
 
 
 @click.command(name="power")
-@click.option("--ours", "p_ours", type=click.FloatRange(0, 1), default=None,
-              help="True vote share of ours (with --baseline).")
-@click.option("--baseline", "p_baseline", type=click.FloatRange(0, 1), default=None,
-              help="True vote share of the baseline (the third method gets the rest).")
-@click.option("--third", type=click.FloatRange(0, 1, max_open=True), default=1 / 3,
-              show_default="1/3", help="Share of the third method in the difference table.")
-@click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=0.05,
-              show_default=True, help="Family-wise significance level.")
-@click.option("--power", "target", type=click.FloatRange(0, 1, min_open=True, max_open=True),
-              default=0.8, show_default=True, help="Target power.")
-@click.option("--comparisons", type=click.IntRange(1), default=12, show_default=True,
-              help="Tests Holm-corrected together (the paper's design: 6 scenes x 2 baselines).")
-@click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Write the result here: the table (CSV/Markdown/LaTeX), or with --ours "
-                   "and --baseline the power curve (PNG/PDF).")
+@click.option(
+    "--ours",
+    "p_ours",
+    type=click.FloatRange(0, 1),
+    default=None,
+    help="True vote share of ours (with --baseline).",
+)
+@click.option(
+    "--baseline",
+    "p_baseline",
+    type=click.FloatRange(0, 1),
+    default=None,
+    help="True vote share of the baseline (the third method gets the rest).",
+)
+@click.option(
+    "--third",
+    type=click.FloatRange(0, 1, max_open=True),
+    default=1 / 3,
+    show_default="1/3",
+    help="Share of the third method in the difference table.",
+)
+@click.option(
+    "--alpha",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.05,
+    show_default=True,
+    help="Family-wise significance level.",
+)
+@click.option(
+    "--power",
+    "target",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.8,
+    show_default=True,
+    help="Target power.",
+)
+@click.option(
+    "--comparisons",
+    type=click.IntRange(1),
+    default=12,
+    show_default=True,
+    help="Tests Holm-corrected together (the paper's design: 6 scenes x 2 baselines).",
+)
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Write the result here: the table (CSV/Markdown/LaTeX), or with --ours "
+    "and --baseline the power curve (PNG/PDF).",
+)
 def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
     """Participants needed to show that ours is preferred to a baseline.
 
@@ -260,22 +427,34 @@ def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
             raise click.BadParameter("--ours + --baseline must be at most 1", param_hint="--ours")
         r = pw.sample_size(p_ours, p_baseline, alpha=alpha, power=target, comparisons=comparisons)
         if p_ours <= p_baseline:
-            click.echo("ours' share is not above the baseline's: no number of participants "
-                       "makes 'ours is preferred' likely.")
+            click.echo(
+                "ours' share is not above the baseline's: no number of participants "
+                "makes 'ours is preferred' likely."
+            )
         elif r["n_stable"] is None:
-            click.echo(f"more than {pw.N_MAX} participants needed (power {target:g} at level "
-                       f"{alpha:g}/{comparisons}).")
+            click.echo(
+                f"more than {pw.N_MAX} participants needed (power {target:g} at level "
+                f"{alpha:g}/{comparisons})."
+            )
         else:
-            click.echo(f"{r['n_stable']} participants give power {r['power_at_n']:.3f} >= {target:g} "
-                       f"to show ours ({p_ours:g}) beats the baseline ({p_baseline:g}) at level "
-                       f"{alpha:g}/{comparisons} (exact binomial).")
+            click.echo(
+                f"{r['n_stable']} participants give power {r['power_at_n']:.3f} >= {target:g} "
+                f"to show ours ({p_ours:g}) beats the baseline ({p_baseline:g}) at level "
+                f"{alpha:g}/{comparisons} (exact binomial)."
+            )
         table = None
         top = max(50, int(1.5 * (r["n_stable"] or 300)))
-        curve = pw.power_curve(p_ours, p_baseline, n_values=range(5, top + 1, max(1, top // 200)),
-                               alpha=alpha, comparisons=comparisons)
+        curve = pw.power_curve(
+            p_ours,
+            p_baseline,
+            n_values=range(5, top + 1, max(1, top // 200)),
+            alpha=alpha,
+            comparisons=comparisons,
+        )
     else:
-        table = pw.power_table(third=third, alpha=alpha, power=target,
-                               comparisons=sorted({1, comparisons}))
+        table = pw.power_table(
+            third=third, alpha=alpha, power=target, comparisons=sorted({1, comparisons})
+        )
         from .report import to_markdown
 
         click.echo(to_markdown(table), nl=False)
@@ -286,32 +465,70 @@ def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
 
         out = Path(out_dir)
         if table is not None:
-            write_table(table, out / "power_table",
-                        caption=f"Participants needed for power {target:g}, exact binomial test "
-                                f"of ours vs a baseline, alpha {alpha:g} / comparisons.")
+            write_table(
+                table,
+                out / "power_table",
+                caption=f"Participants needed for power {target:g}, exact binomial test "
+                f"of ours vs a baseline, alpha {alpha:g} / comparisons.",
+            )
         else:
             po, pb = p_ours, p_baseline
-            write_table(curve, out / "power_curve",
-                        caption=f"Power against participants (ours {po:g}, baseline {pb:g}).")
-            save_figure(plot_power_curve(curve, target=target, n_needed=r["n_stable"],
-                                         title=f"true shares: ours {po:g}, baseline {pb:g}; "
-                                               f"level {alpha:g}/{comparisons}"),
-                        out / "power_curve")
+            write_table(
+                curve,
+                out / "power_curve",
+                caption=f"Power against participants (ours {po:g}, baseline {pb:g}).",
+            )
+            save_figure(
+                plot_power_curve(
+                    curve,
+                    target=target,
+                    n_needed=r["n_stable"],
+                    title=f"true shares: ours {po:g}, baseline {pb:g}; "
+                    f"level {alpha:g}/{comparisons}",
+                ),
+                out / "power_curve",
+            )
         click.echo(f"wrote {out}")
 
 
 @click.command(name="figures")
-@click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False), default="figures",
-              show_default=True, help="Output folder.")
-@click.option("--only", default=None, metavar="NAMES",
-              help="Comma-separated subset of: fig5, fig6, fig8-10, fig11, fig13, table1, table2.")
-@click.option("--db", "db", default=None, metavar="URL",
-              help="Study store for Fig. 13 (default: simulated participants, labelled so).")
-@click.option("--input", "input_path", type=click.Path(dir_okay=False), default=None,
-              help="Export file for Fig. 13 instead of the store.")
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="figures",
+    show_default=True,
+    help="Output folder.",
+)
+@click.option(
+    "--only",
+    default=None,
+    metavar="NAMES",
+    help="Comma-separated subset of: fig5, fig6, fig8-10, fig11, fig13, table1, table2.",
+)
+@click.option(
+    "--db",
+    "db",
+    default=None,
+    metavar="URL",
+    help="Study store for Fig. 13 (default: simulated participants, labelled so).",
+)
+@click.option(
+    "--input",
+    "input_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Export file for Fig. 13 instead of the store.",
+)
 @click.option("--include-simulated", is_flag=True, help="Use simulated participants from --db too.")
-@click.option("--repeats", type=click.IntRange(1), default=3, show_default=True,
-              help="Timing repeats per clip for Table 1 (median reported).")
+@click.option(
+    "--repeats",
+    type=click.IntRange(1),
+    default=3,
+    show_default=True,
+    help="Timing repeats per clip for Table 1 (median reported).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress output.")
 def figures(out_dir, only, db, input_path, include_simulated, repeats, quiet):
     """Regenerate the paper's figures and tables from the motion data in SNAPSHOT_DATA.
@@ -333,17 +550,25 @@ def figures(out_dir, only, db, input_path, include_simulated, repeats, quiet):
     names = fg.FIGURES if not only else [s.strip() for s in only.split(",") if s.strip()]
     unknown = sorted(set(names) - set(fg.FIGURES))
     if unknown:
-        raise click.BadParameter(f"unknown figure(s) {', '.join(unknown)} "
-                                 f"(expected {', '.join(fg.FIGURES)})", param_hint="--only")
+        raise click.BadParameter(
+            f"unknown figure(s) {', '.join(unknown)} (expected {', '.join(fg.FIGURES)})",
+            param_hint="--only",
+        )
     source = input_path if input_path is not None else db
-    results = fg.make_figures(out_dir, names=names, source=source,
-                              include_simulated=include_simulated, repeats=repeats,
-                              progress=not quiet)
+    results = fg.make_figures(
+        out_dir,
+        names=names,
+        source=source,
+        include_simulated=include_simulated,
+        repeats=repeats,
+        progress=not quiet,
+    )
     for name, (paths, reason) in results.items():
         if paths:
             click.echo(f"{name}: " + ", ".join(str(p) for p in paths))
         else:
             click.echo(f"{name}: skipped ({reason})")
     if not any(p for p, _ in results.values()):
-        raise AnalysisError("no figure could be made: " +
-                            "; ".join(f"{k}: {r}" for k, (_, r) in results.items()))
+        raise AnalysisError(
+            "no figure could be made: " + "; ".join(f"{k}: {r}" for k, (_, r) in results.items())
+        )

@@ -37,8 +37,16 @@ import pandas as pd
 from snapcore.errors import SnapshotError
 from snapcore.select.methods import VIEW_METHODS
 
-__all__ = ["FIGURES", "FigureUnavailable", "paper_analogues", "load_analogue",
-           "paper_table1", "make_figures", "measure_table1", "snapshot_views"]
+__all__ = [
+    "FIGURES",
+    "FigureUnavailable",
+    "paper_analogues",
+    "load_analogue",
+    "paper_table1",
+    "make_figures",
+    "measure_table1",
+    "snapshot_views",
+]
 
 #: Every figure/table ``snapshot figures`` can make, in the order it makes them.
 FIGURES = ("table2", "fig13", "table1", "fig5", "fig6", "fig8-10", "fig11")
@@ -150,14 +158,25 @@ def _table2(ctx: _Context) -> list[Path]:
     pair = ours_vs_baselines(counts)
     wide = counts.copy()
     wide.insert(0, "animation", [labels[s] for s in counts.index])
-    paths = write_table(wide.reset_index(drop=True), ctx.out / "table2",
-                        caption="The paper's Table 2: votes of 100 participants per view.")
-    paths += write_table(pair, ctx.out / "table2_pairwise",
-                         caption="Ours vs each baseline on the paper's counts: exact binomial, "
-                                 "Holm-adjusted.")
-    paths += save_figure(plot_votes(table, pairwise=pair, labels=labels,
-                                    title="The paper's Table 2 (100 participants per animation)"),
-                         ctx.out / "table2_votes")
+    paths = write_table(
+        wide.reset_index(drop=True),
+        ctx.out / "table2",
+        caption="The paper's Table 2: votes of 100 participants per view.",
+    )
+    paths += write_table(
+        pair,
+        ctx.out / "table2_pairwise",
+        caption="Ours vs each baseline on the paper's counts: exact binomial, Holm-adjusted.",
+    )
+    paths += save_figure(
+        plot_votes(
+            table,
+            pairwise=pair,
+            labels=labels,
+            title="The paper's Table 2 (100 participants per animation)",
+        ),
+        ctx.out / "table2_votes",
+    )
     return paths
 
 
@@ -174,23 +193,28 @@ def _fig13(ctx: _Context) -> list[Path]:
         from .simulate import paper_design, simulate_participants, simulated_rows
 
         design = paper_design()
-        df = load_responses(simulated_rows(simulate_participants(design, 100, seed=0)),
-                            include_simulated=True)
-        title = ("SIMULATED participants (100, observer model of analysis.simulate on the "
-                 "paper's design) — not study data")
+        df = load_responses(
+            simulated_rows(simulate_participants(design, 100, seed=0)), include_simulated=True
+        )
+        title = (
+            "SIMULATED participants (100, observer model of analysis.simulate on the "
+            "paper's design) — not study data"
+        )
     pose = pose_choices(df)
     if pose.empty:
         raise FigureUnavailable("no pose-task responses")
     scenes = fr.scene_frames_from_rows(
-        pose, extra={s: {"title": labels.get(s)} for s in pose["scene"].unique()})
+        pose, extra={s: {"title": labels.get(s)} for s in pose["scene"].unique()}
+    )
     fig = plot_frame_histograms(pose, scenes)
     if title:
         fig.suptitle(title + "\n▼ = the algorithm's pick", fontsize=9, color="#B00000")
     return save_figure(fig, ctx.out / "fig13_frame_histograms")
 
 
-def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
-                   scenes=None) -> pd.DataFrame:
+def measure_table1(
+    *, repeats: int = 3, data_dir=None, progress: bool = False, scenes=None
+) -> pd.DataFrame:
     """Time our pose and view selection on the paper-analogue clips (Table 1).
 
     Runs ``snapcore.pipeline.take_snapshot`` ``repeats`` times per clip and takes the
@@ -220,22 +244,31 @@ def measure_table1(*, repeats: int = 3, data_dir=None, progress: bool = False,
             for k, v in _timings(snap).items():
                 times[k].append(v)
         p = paper.loc[sid] if sid in paper.index else None
-        rows.append({"scene": sid, "clip": "; ".join(analogues.loc[sid, "files"]),
-                     "frames": sc.n_frames, "joints": sum(c.n_joints for c in sc.characters),
-                     "ours_pose_s": _median(times["pose"]),
-                     "ours_view_s": _median(times["view"]),
-                     "ours_motion_area_s": _median(times["motion_area"]),
-                     "ours_viewpoint_entropy_s": _median(times["viewpoint_entropy"]),
-                     "paper_frames": None if p is None else int(p["frames"]),
-                     "paper_joints": None if p is None else int(p["joints"]),
-                     "paper_pose_s": None if p is None else float(p["pose_selection_s"]),
-                     "paper_view_s": None if p is None else float(p["viewpoint_selection_s"]),
-                     "note": analogues.loc[sid, "note"]})
+        rows.append(
+            {
+                "scene": sid,
+                "clip": "; ".join(analogues.loc[sid, "files"]),
+                "frames": sc.n_frames,
+                "joints": sum(c.n_joints for c in sc.characters),
+                "ours_pose_s": _median(times["pose"]),
+                "ours_view_s": _median(times["view"]),
+                "ours_motion_area_s": _median(times["motion_area"]),
+                "ours_viewpoint_entropy_s": _median(times["viewpoint_entropy"]),
+                "paper_frames": None if p is None else int(p["frames"]),
+                "paper_joints": None if p is None else int(p["joints"]),
+                "paper_pose_s": None if p is None else float(p["pose_selection_s"]),
+                "paper_view_s": None if p is None else float(p["viewpoint_selection_s"]),
+                "note": analogues.loc[sid, "note"],
+            }
+        )
         if progress:
             import click
 
-            click.echo(f"table1: {sid}: pose {rows[-1]['ours_pose_s']:.3f} s, "
-                       f"view {rows[-1]['ours_view_s']:.3f} s", err=True)
+            click.echo(
+                f"table1: {sid}: pose {rows[-1]['ours_pose_s']:.3f} s, "
+                f"view {rows[-1]['ours_view_s']:.3f} s",
+                err=True,
+            )
     return pd.DataFrame(rows)
 
 
@@ -259,19 +292,25 @@ def _timings(snap) -> dict:
     if view is None:
         parts = [v for k, v in t.items() if k.startswith("view_")]
         view = sum(parts) if parts else np.nan
-    return {"pose": float(pose), "view": float(view),
-            "motion_area": float(t.get("motion_area", np.nan)),
-            "viewpoint_entropy": float(t.get("viewpoint_entropy", np.nan))}
+    return {
+        "pose": float(pose),
+        "view": float(view),
+        "motion_area": float(t.get("motion_area", np.nan)),
+        "viewpoint_entropy": float(t.get("viewpoint_entropy", np.nan)),
+    }
 
 
 def _table1(ctx: _Context) -> list[Path]:
     from .report import write_table
 
     t = measure_table1(repeats=ctx.repeats, data_dir=ctx.data_dir, progress=ctx.progress)
-    return write_table(t, ctx.out / "table1",
-                       caption="Selection time, seconds: ours (this machine, median of "
-                               f"{ctx.repeats} runs) beside the paper's (Xeon W3680). Clips "
-                               "are analogues of the paper's animations, not the same data.")
+    return write_table(
+        t,
+        ctx.out / "table1",
+        caption="Selection time, seconds: ours (this machine, median of "
+        f"{ctx.repeats} runs) beside the paper's (Xeon W3680). Clips "
+        "are analogues of the paper's animations, not the same data.",
+    )
 
 
 def _figure_paths(fig, stem) -> list[Path]:
@@ -296,15 +335,23 @@ def _fig5(ctx: _Context) -> list[Path]:
     if not ids:
         raise FigureUnavailable("no paper-analogue clip could be loaded: " + "; ".join(skipped))
     plt = _plt()
-    fig, axes = plt.subplots(len(ids), 1, figsize=(13, 2.5 * len(ids)), layout="constrained",
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        len(ids), 1, figsize=(13, 2.5 * len(ids)), layout="constrained", squeeze=False
+    )
     for ax, sid in zip(axes[:, 0], ids, strict=True):
         snap = ctx.snapshot(sid)
         plot_strip(snap, strip=8, ax=ax)
-        ax.set_title(f"{labels.get(sid, sid)} — stand-in clip {_clip_name(sid)}: selected "
-                     f"frame {snap.frame}", fontsize=9, loc="left")
-    fig.suptitle("Pose entropy along each animation (brighter = more informative; "
-                 "#1-#3 = the selected poses)", fontsize=11)
+        ax.set_title(
+            f"{labels.get(sid, sid)} — stand-in clip {_clip_name(sid)}: selected "
+            f"frame {snap.frame}",
+            fontsize=9,
+            loc="left",
+        )
+    fig.suptitle(
+        "Pose entropy along each animation (brighter = more informative; "
+        "#1-#3 = the selected poses)",
+        fontsize=11,
+    )
     return _figure_paths(fig, ctx.out / "fig5_pose_entropy")
 
 
@@ -319,8 +366,9 @@ def _fig6(ctx: _Context) -> list[Path]:
     if bottom.get_legend() is not None:  # keep the #1 peak's label clear of the legend
         bottom.legend(loc="upper right", fontsize=8, framealpha=0.8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # leave room for the title
-    fig.suptitle(f"Local and global pose entropy of the dance ({_clip_name(FEATURE_SCENE)})",
-                 fontsize=10)
+    fig.suptitle(
+        f"Local and global pose entropy of the dance ({_clip_name(FEATURE_SCENE)})", fontsize=10
+    )
     return _figure_paths(fig, ctx.out / "fig6_local_global_entropy")
 
 
@@ -353,8 +401,10 @@ def snapshot_views(snap) -> dict:
     views = snap.views
     missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
-        raise FigureUnavailable(f"the snapshot has no {', '.join(missing)} view (take it with "
-                                "the view stage and the baselines)")
+        raise FigureUnavailable(
+            f"the snapshot has no {', '.join(missing)} view (take it with "
+            "the view stage and the baselines)"
+        )
     return {m: views[m] for m in VIEW_METHODS}
 
 
@@ -372,16 +422,21 @@ def _fig8_10(ctx: _Context) -> list[Path]:
             skipped.append(f"{sid} ({err})")
             continue
         views = snapshot_views(snap)
-        img = compare_views(snap.scene, snap.index, {m.panel: v for m, v in views.items()},
-                      title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}")
+        img = compare_views(
+            snap.scene,
+            snap.index,
+            {m.panel: v for m, v in views.items()},
+            title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}",
+        )
         images.append(np.asarray(img))
         names.append(sid)
     if not images:
         raise FigureUnavailable("no clip could be rendered: " + "; ".join(skipped))
     plt = _plt()
     h, w = images[0].shape[:2]
-    fig, axes = plt.subplots(len(images), 1, figsize=(12, 12 * h / w * len(images)),
-                             squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        len(images), 1, figsize=(12, 12 * h / w * len(images)), squeeze=False, layout="constrained"
+    )
     for ax, img in zip(axes[:, 0], images, strict=True):
         ax.imshow(img)
         ax.set_axis_off()
@@ -401,18 +456,37 @@ def _fig11(ctx: _Context) -> list[Path]:
 
     snap = ctx.snapshot(FEATURE_SCENE)
     views = snapshot_views(snap)
-    fig = relief_figure(snap.scene, snap.index, {m.panel: v for m, v in views.items()},
-                        title=f"Reliefs of the dance pose (frame {snap.frame}, "
-                              f"{_clip_name(FEATURE_SCENE)}) from each method's view")
+    fig = relief_figure(
+        snap.scene,
+        snap.index,
+        {m.panel: v for m, v in views.items()},
+        title=f"Reliefs of the dance pose (frame {snap.frame}, "
+        f"{_clip_name(FEATURE_SCENE)}) from each method's view",
+    )
     return _figure_paths(fig, ctx.out / "fig11_reliefs")
 
 
-_MAKERS = {"table2": _table2, "fig13": _fig13, "table1": _table1, "fig5": _fig5,
-           "fig6": _fig6, "fig8-10": _fig8_10, "fig11": _fig11}
+_MAKERS = {
+    "table2": _table2,
+    "fig13": _fig13,
+    "table1": _table1,
+    "fig5": _fig5,
+    "fig6": _fig6,
+    "fig8-10": _fig8_10,
+    "fig11": _fig11,
+}
 
 
-def make_figures(out_dir, *, names=FIGURES, source=None, include_simulated: bool = False,
-                 repeats: int = 3, progress: bool = True, data_dir=None) -> dict:
+def make_figures(
+    out_dir,
+    *,
+    names=FIGURES,
+    source=None,
+    include_simulated: bool = False,
+    repeats: int = 3,
+    progress: bool = True,
+    data_dir=None,
+) -> dict:
     """Make the named figures in ``out_dir``.
 
     Returns
@@ -422,8 +496,14 @@ def make_figures(out_dir, *, names=FIGURES, source=None, include_simulated: bool
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = _Context(out=out, source=source, include_simulated=include_simulated,
-                   repeats=repeats, progress=progress, data_dir=data_dir)
+    ctx = _Context(
+        out=out,
+        source=source,
+        include_simulated=include_simulated,
+        repeats=repeats,
+        progress=progress,
+        data_dir=data_dir,
+    )
     results = {}
     for name in names:
         t0 = time.perf_counter()

@@ -82,13 +82,15 @@ def _mode(values, name, scene):
         return None
     counts = v.value_counts()
     if len(counts) > 1:
-        warnings.warn(f"scene '{scene}': rows disagree on {name} ({sorted(counts.index)}); "
-                      f"using the most common, {counts.index[0]}", stacklevel=3)
+        warnings.warn(
+            f"scene '{scene}': rows disagree on {name} ({sorted(counts.index)}); "
+            f"using the most common, {counts.index[0]}",
+            stacklevel=3,
+        )
     return counts.index[0]
 
 
-def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
-                           order=None) -> dict:
+def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None, order=None) -> dict:
     """Per-scene :class:`~study_app.design.scenes.StudyScene` from pose-task rows (fps, n_frames, algorithm_frame).
 
     Parameters
@@ -110,12 +112,16 @@ def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None,
         n = _mode(g["n_frames"], "n_frames", scene)
         a = _mode(g["algorithm_frame"], "algorithm_frame", scene)
         if fps is None or n is None or a is None:
-            warnings.warn(f"scene '{scene}': rows lack fps, n_frames or algorithm_frame; "
-                          "left out of the frame analysis", stacklevel=2)
+            warnings.warn(
+                f"scene '{scene}': rows lack fps, n_frames or algorithm_frame; "
+                "left out of the frame analysis",
+                stacklevel=2,
+            )
             continue
         kw = dict(extra.get(scene, {}))
-        out[scene] = StudyScene(scene=scene, fps=float(fps), n_frames=int(n),
-                                 algorithm_frame=int(a), **kw)
+        out[scene] = StudyScene(
+            scene=scene, fps=float(fps), n_frames=int(n), algorithm_frame=int(a), **kw
+        )
     return out
 
 
@@ -149,14 +155,19 @@ def motion_baselines(scene, *, window=None) -> dict:
     if window is not None:
         keep = (source >= window[0]) & (source < window[1])
     if not keep.any():
-        raise ValueError(f"scene '{scene.name}': window {tuple(window)} holds no frame of the "
-                         f"motion (source frames {source[0]}..{source[-1]})")
+        raise ValueError(
+            f"scene '{scene.name}': window {tuple(window)} holds no frame of the "
+            f"motion (source frames {source[0]}..{source[-1]})"
+        )
     frames = source[keep]
     if frames.size == 1:
-        warnings.warn(f"scene '{scene.name}': one frame; the baselines are that frame",
-                      stacklevel=2)
-    return {"fastest": int(frames[int(np.argmax(speed_score(scene)[keep]))]),
-            "stretch": int(frames[int(np.argmax(stretch_score(scene)[keep]))])}
+        warnings.warn(
+            f"scene '{scene.name}': one frame; the baselines are that frame", stacklevel=2
+        )
+    return {
+        "fastest": int(frames[int(np.argmax(speed_score(scene)[keep]))]),
+        "stretch": int(frames[int(np.argmax(stretch_score(scene)[keep]))]),
+    }
 
 
 def baselines_from_stimuli(manifest) -> dict:
@@ -184,8 +195,9 @@ def baselines_from_stimuli(manifest) -> dict:
         sid = entry["id"]
         picks = entry.get("picks") or {}
         info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
-        by_method = {m: [int(f) for f in fs] for m, fs in (picks.get("by_method") or {}).items()
-                     if fs}
+        by_method = {
+            m: [int(f) for f in fs] for m, fs in (picks.get("by_method") or {}).items() if fs
+        }
         if by_method:
             info["selector_frames"] = by_method
         if entry.get("title"):
@@ -195,9 +207,12 @@ def baselines_from_stimuli(manifest) -> dict:
         if baselines:
             info["baseline_frames"] = baselines
         else:
-            warnings.warn(f"stimuli scene '{sid}': the manifest records no picks of the "
-                          f"{' and '.join(SELECTOR_BASELINES)} selectors (picks.by_method); "
-                          "those baselines are left out", stacklevel=2)
+            warnings.warn(
+                f"stimuli scene '{sid}': the manifest records no picks of the "
+                f"{' and '.join(SELECTOR_BASELINES)} selectors (picks.by_method); "
+                "those baselines are left out",
+                stacklevel=2,
+            )
         out[sid] = info
     return out
 
@@ -207,8 +222,10 @@ def baselines_from_stimuli(manifest) -> dict:
 
 def predictor_frames(info: StudyScene) -> dict:
     """Name → predicted source frame for the deterministic predictors of a scene."""
-    out = {"algorithm": info.algorithm_frame,
-           "middle": info.frame_offset + (info.n_frames - 1) // 2}
+    out = {
+        "algorithm": info.algorithm_frame,
+        "middle": info.frame_offset + (info.n_frames - 1) // 2,
+    }
     for name in DETERMINISTIC_BASELINES[1:]:
         if name in info.baseline_frames:
             out[name] = int(info.baseline_frames[name])
@@ -230,13 +247,31 @@ def frame_distances(pose: pd.DataFrame, scenes: dict) -> pd.DataFrame:
         c = g["chosen_frame"].to_numpy(dtype=float)
         for name, f in predictor_frames(info).items():
             e = (c - f) / info.fps
-            parts.append(pd.DataFrame({"scene": scene, "participant_id": g["participant_id"].values,
-                                       "chosen_frame": c.astype(int), "predictor": name,
-                                       "predicted_frame": int(f), "error_s": e,
-                                       "abs_error_s": np.abs(e)}))
+            parts.append(
+                pd.DataFrame(
+                    {
+                        "scene": scene,
+                        "participant_id": g["participant_id"].values,
+                        "chosen_frame": c.astype(int),
+                        "predictor": name,
+                        "predicted_frame": int(f),
+                        "error_s": e,
+                        "abs_error_s": np.abs(e),
+                    }
+                )
+            )
     if not parts:
-        return pd.DataFrame(columns=["scene", "participant_id", "chosen_frame", "predictor",
-                                     "predicted_frame", "error_s", "abs_error_s"])
+        return pd.DataFrame(
+            columns=[
+                "scene",
+                "participant_id",
+                "chosen_frame",
+                "predictor",
+                "predicted_frame",
+                "error_s",
+                "abs_error_s",
+            ]
+        )
     return pd.concat(parts, ignore_index=True)
 
 
@@ -245,8 +280,9 @@ def _uniform_distance_matrix(c, info):
     return np.abs(c[:, None] - info.source_frames[None, :]) / info.fps
 
 
-def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
-              confidence: float = 0.95) -> pd.DataFrame:
+def hit_rates(
+    pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S, confidence: float = 0.95
+) -> pd.DataFrame:
     """Hit rates and mean distances of every predictor, per scene.
 
     Returns
@@ -266,8 +302,14 @@ def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
             continue
         for name, f in predictor_frames(info).items():
             d = np.abs(c - f) / info.fps
-            row = {"scene": scene, "predictor": name, "predicted_frame": float(f), "n": n,
-                   "mean_abs_error_s": d.mean(), "median_abs_error_s": float(np.median(d))}
+            row = {
+                "scene": scene,
+                "predictor": name,
+                "predicted_frame": float(f),
+                "n": n,
+                "mean_abs_error_s": d.mean(),
+                "median_abs_error_s": float(np.median(d)),
+            }
             for t in tolerances:
                 k = int((d <= t + 1e-9).sum())
                 lo, hi = wilson_interval(k, n, confidence=confidence)
@@ -275,8 +317,14 @@ def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
                 row[f"hit_{t:g}s_low"], row[f"hit_{t:g}s_high"] = float(lo), float(hi)
             rows.append(row)
         dm = _uniform_distance_matrix(c, info)  # expectation over a uniform frame
-        row = {"scene": scene, "predictor": "uniform_random", "predicted_frame": np.nan, "n": n,
-               "mean_abs_error_s": dm.mean(), "median_abs_error_s": np.nan}
+        row = {
+            "scene": scene,
+            "predictor": "uniform_random",
+            "predicted_frame": np.nan,
+            "n": n,
+            "mean_abs_error_s": dm.mean(),
+            "median_abs_error_s": np.nan,
+        }
         for t in tolerances:
             row[f"hit_{t:g}s"] = float((dm <= t + 1e-9).mean())
             row[f"hit_{t:g}s_low"] = row[f"hit_{t:g}s_high"] = np.nan
@@ -284,8 +332,9 @@ def hit_rates(pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S,
     return pd.DataFrame(rows)
 
 
-def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float = 0.5
-                       ) -> pd.DataFrame:
+def selector_agreement(
+    pose: pd.DataFrame, scenes: dict, *, tolerance_s: float = 0.5
+) -> pd.DataFrame:
     """How well every pose selector's top pick agrees with the people's chosen frames.
 
     Parameters
@@ -319,21 +368,52 @@ def selector_agreement(pose: pd.DataFrame, scenes: dict, *, tolerance_s: float =
             d = np.abs(c - fs[0]) / info.fps
             k = int((d <= tolerance_s + 1e-9).sum())
             lo, hi = wilson_interval(k, c.size)
-            rows.append({"scene": scene, "selector": name, "frame": int(fs[0]), "n": int(c.size),
-                         "participants": len(set(who)),
-                         "hit": k / c.size, "hit_low": float(lo), "hit_high": float(hi),
-                         "median_abs_error_s": float(np.median(d))})
+            rows.append(
+                {
+                    "scene": scene,
+                    "selector": name,
+                    "frame": int(fs[0]),
+                    "n": int(c.size),
+                    "participants": len(set(who)),
+                    "hit": k / c.size,
+                    "hit_low": float(lo),
+                    "hit_high": float(hi),
+                    "median_abs_error_s": float(np.median(d)),
+                }
+            )
             pooled.setdefault(name, []).append((d, who))
     for name, parts in pooled.items():
         d = np.concatenate([p[0] for p in parts])
         who = np.concatenate([p[1] for p in parts])
         hit = (d <= tolerance_s + 1e-9).astype(float)
         lo, hi = cluster_bootstrap_ci(hit, who)
-        rows.append({"scene": "ALL", "selector": name, "frame": pd.NA, "n": int(d.size),
-                     "participants": len(set(who)), "hit": float(hit.mean()),
-                     "hit_low": lo, "hit_high": hi, "median_abs_error_s": float(np.median(d))})
-    out = pd.DataFrame(rows, columns=["scene", "selector", "frame", "n", "participants", "hit",
-                                      "hit_low", "hit_high", "median_abs_error_s"])
+        rows.append(
+            {
+                "scene": "ALL",
+                "selector": name,
+                "frame": pd.NA,
+                "n": int(d.size),
+                "participants": len(set(who)),
+                "hit": float(hit.mean()),
+                "hit_low": lo,
+                "hit_high": hi,
+                "median_abs_error_s": float(np.median(d)),
+            }
+        )
+    out = pd.DataFrame(
+        rows,
+        columns=[
+            "scene",
+            "selector",
+            "frame",
+            "n",
+            "participants",
+            "hit",
+            "hit_low",
+            "hit_high",
+            "median_abs_error_s",
+        ],
+    )
     out["frame"] = out["frame"].astype("Int64")
     return out
 
@@ -345,19 +425,31 @@ def selector_timeline_document(pose: pd.DataFrame, scenes: dict) -> dict | None:
     if not sc:
         return None
     methods = list(dict.fromkeys(m for _, i in sc for m in i.selector_frames))
-    return {"widen_s": 0.0, "methods": methods,
-            "scenes": [{"scene": s, "fps": i.fps, "first_frame": i.frame_offset,
-                        "last_frame": i.frame_offset + i.n_frames - 1, "intervals": []}
-                       for s, i in sc],
-            "rows": [{"scene": s, "method": m, "frames": fs} for s, i in sc
-                     for m, fs in i.selector_frames.items()]}
+    return {
+        "widen_s": 0.0,
+        "methods": methods,
+        "scenes": [
+            {
+                "scene": s,
+                "fps": i.fps,
+                "first_frame": i.frame_offset,
+                "last_frame": i.frame_offset + i.n_frames - 1,
+                "intervals": [],
+            }
+            for s, i in sc
+        ],
+        "rows": [
+            {"scene": s, "method": m, "frames": fs}
+            for s, i in sc
+            for m, fs in i.selector_frames.items()
+        ],
+    }
 
 
 def _per_participant(pose: pd.DataFrame, scene: str) -> tuple[np.ndarray, np.ndarray]:
     """One scene's chosen frames and the participant of each, shape (n,) both."""
     g = pose[pose["scene"] == scene]
-    who = (g["participant_id"].to_numpy() if "participant_id" in g
-           else np.arange(len(g)))
+    who = g["participant_id"].to_numpy() if "participant_id" in g else np.arange(len(g))
     return g["chosen_frame"].to_numpy(dtype=float), who
 
 
@@ -367,8 +459,9 @@ def _participant_means(values: np.ndarray, who: np.ndarray) -> np.ndarray:
     return pd.Series(values).groupby(pd.Series(who)).mean().to_numpy()
 
 
-def cluster_bootstrap_ci(values, clusters, *, stat=np.mean, n_boot: int = N_BOOT,
-                         seed: int = 0, confidence: float = 0.95) -> tuple[float, float]:
+def cluster_bootstrap_ci(
+    values, clusters, *, stat=np.mean, n_boot: int = N_BOOT, seed: int = 0, confidence: float = 0.95
+) -> tuple[float, float]:
     """Percentile bootstrap interval of ``stat(values)``, resampling whole clusters.
 
     Parameters
@@ -431,13 +524,23 @@ def paired_closeness(d) -> dict:
     ranks = stats.rankdata(np.abs(nz))
     w_plus, w_minus = ranks[nz > 0].sum(), ranks[nz < 0].sum()
     p = stats.wilcoxon(nz, alternative="greater", zero_method="wilcox").pvalue
-    return {"p_value": float(p), "rank_biserial": float((w_plus - w_minus) / (w_plus + w_minus)),
-            "n_nonzero": int(nz.size)}
+    return {
+        "p_value": float(p),
+        "rank_biserial": float((w_plus - w_minus) / (w_plus + w_minus)),
+        "n_nonzero": int(nz.size),
+    }
 
 
-def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_boot: int = N_BOOT,
-                    seed: int = 0, alpha: float = 0.05, confidence: float = 0.95,
-                    n_permutations: int | None = None) -> pd.DataFrame:
+def closeness_tests(
+    pose: pd.DataFrame,
+    scenes: dict,
+    *,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+    alpha: float = 0.05,
+    confidence: float = 0.95,
+    n_permutations: int | None = None,
+) -> pd.DataFrame:
     """Is the algorithm closer to people than each baseline? Paired tests over participants.
 
     Per scene and baseline, each participant gives one paired difference
@@ -482,20 +585,36 @@ def closeness_tests(pose: pd.DataFrame, scenes: dict, *, n_boot: int = N_BOOT,
         for name, (db, b) in against.items():
             d = _participant_means(db - da, who)
             same = b is not None and b == a
-            test = paired_closeness(d) if not same else {
-                "p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
-            lo, hi = cluster_bootstrap_ci(db - da, who, n_boot=n_boot, seed=seed + k,
-                                          confidence=confidence)
-            rows.append({"scene": scene, "baseline": name, "n": int(d.size),
-                         "algorithm_mean_abs_s": float(_participant_means(da, who).mean()),
-                         "baseline_mean_abs_s": float(_participant_means(db, who).mean()),
-                         "difference_s": float(d.mean()), "difference_low": lo,
-                         "difference_high": hi, "rank_biserial": test["rank_biserial"],
-                         "p_value": test["p_value"],
-                         "method": "Wilcoxon signed-rank over participants (one-sided)",
-                         "note": ("same frame as the algorithm: not tested" if same else
-                                  "every participant equally close: not tested"
-                                  if np.isnan(test["p_value"]) else "")})
+            test = (
+                paired_closeness(d)
+                if not same
+                else {"p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
+            )
+            lo, hi = cluster_bootstrap_ci(
+                db - da, who, n_boot=n_boot, seed=seed + k, confidence=confidence
+            )
+            rows.append(
+                {
+                    "scene": scene,
+                    "baseline": name,
+                    "n": int(d.size),
+                    "algorithm_mean_abs_s": float(_participant_means(da, who).mean()),
+                    "baseline_mean_abs_s": float(_participant_means(db, who).mean()),
+                    "difference_s": float(d.mean()),
+                    "difference_low": lo,
+                    "difference_high": hi,
+                    "rank_biserial": test["rank_biserial"],
+                    "p_value": test["p_value"],
+                    "method": "Wilcoxon signed-rank over participants (one-sided)",
+                    "note": (
+                        "same frame as the algorithm: not tested"
+                        if same
+                        else "every participant equally close: not tested"
+                        if np.isnan(test["p_value"])
+                        else ""
+                    ),
+                }
+            )
     out = pd.DataFrame(rows)
     if out.empty:
         return out
@@ -523,7 +642,6 @@ def frame_histogram(pose: pd.DataFrame, info: StudyScene, *, bins: int | None = 
     c = pose.loc[pose["scene"] == info.scene, "chosen_frame"].to_numpy(dtype=float)
     if bins is None:
         bins = int(np.clip(round(info.n_frames / (0.25 * info.fps)), 10, 60))
-    edges = np.linspace(info.frame_offset - 0.5, info.frame_offset + info.n_frames - 0.5,
-                        bins + 1)
+    edges = np.linspace(info.frame_offset - 0.5, info.frame_offset + info.n_frames - 0.5, bins + 1)
     counts, edges = np.histogram(c, bins=edges)
     return counts, edges

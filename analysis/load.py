@@ -60,8 +60,14 @@ __all__ = [
 WATCHED_ENOUGH = 0.9
 
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
-PAPER_SCENES = ("dancing", "running", "soccer_kicking", "basketball_shooting",
-                "two_person_arguing", "two_person_boxing")
+PAPER_SCENES = (
+    "dancing",
+    "running",
+    "soccer_kicking",
+    "basketball_shooting",
+    "two_person_arguing",
+    "two_person_boxing",
+)
 
 
 class LoadError(SnapshotError):
@@ -73,8 +79,18 @@ class LoadError(SnapshotError):
 
 #: Columns the analysis reads: an export file without one of them cannot be analysed
 #: (a report would silently lack the section that needs it).
-ANALYSIS_COLUMNS = ("participant_id", "task", "scene", "chosen_frame", "algorithm_frame", "fps",
-                    "n_frames", "chosen_method", "shown_order", "correct")
+ANALYSIS_COLUMNS = (
+    "participant_id",
+    "task",
+    "scene",
+    "chosen_frame",
+    "algorithm_frame",
+    "fps",
+    "n_frames",
+    "chosen_method",
+    "shown_order",
+    "correct",
+)
 
 
 def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
@@ -87,22 +103,32 @@ def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list
 
     with Store(url, create=False) as store:
         left_out = excluded_ids(store)  # excluded on the researcher page, with a reason
-        return [r for r in store.export_rows(include_simulated=include_simulated)
-                if r["participant_id"] not in left_out]
+        return [
+            r
+            for r in store.export_rows(include_simulated=include_simulated)
+            if r["participant_id"] not in left_out
+        ]
 
 
 def _check_columns(rows, source) -> None:
     missing = [c for c in ANALYSIS_COLUMNS if rows and not any(c in r for r in rows)]
     if missing:
-        raise LoadError(f"{source}: no {', '.join(missing)} column (a `snapshot export` file "
-                        "has every column of data_schema/response.schema.json)")
+        raise LoadError(
+            f"{source}: no {', '.join(missing)} column (a `snapshot export` file "
+            "has every column of data_schema/response.schema.json)"
+        )
 
 
 # ----------------------------------------------------------------- tidy frames
 
 
-def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated: bool = False,
-                   validate: bool = True, source: str = "rows") -> pd.DataFrame:
+def tidy_responses(
+    rows: Iterable[Mapping] | pd.DataFrame,
+    *,
+    include_simulated: bool = False,
+    validate: bool = True,
+    source: str = "rows",
+) -> pd.DataFrame:
     """Rows (dicts following the response schema) → the tidy frame described above.
 
     Parameters
@@ -143,12 +169,14 @@ def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated:
     for c in (c for c, t in types.items() if t == "string"):
         # An all-empty text column (e.g. picked_with in view-only rows) reads back from
         # CSV as floats: text columns hold text or None, whatever the source.
-        df[c] = pd.Series([v if isinstance(v, str) else None for v in df[c]],
-                          index=df.index, dtype=object)
+        df[c] = pd.Series(
+            [v if isinstance(v, str) else None for v in df[c]], index=df.index, dtype=object
+        )
     df["correct"] = pd.array(df["correct"].to_numpy(dtype=object), dtype="boolean")
     df["simulated"] = df["simulated"].fillna(False).astype(bool)
-    df["shown_order"] = [tuple(v) if isinstance(v, list | tuple) else None
-                         for v in df["shown_order"]]
+    df["shown_order"] = [
+        tuple(v) if isinstance(v, list | tuple) else None for v in df["shown_order"]
+    ]
     df["created_at"] = pd.to_datetime(df["created_at"], utc=True, errors="coerce", format="ISO8601")
     if not include_simulated:
         df = df[~df["simulated"]]
@@ -164,8 +192,9 @@ def tidy_responses(rows: Iterable[Mapping] | pd.DataFrame, *, include_simulated:
     return df
 
 
-def load_responses(source, *, include_simulated: bool = False,
-                   validate: bool = True) -> pd.DataFrame:
+def load_responses(
+    source, *, include_simulated: bool = False, validate: bool = True
+) -> pd.DataFrame:
     """Load responses from a store URL, an export file, or rows in memory.
 
     Parameters
@@ -188,15 +217,15 @@ def load_responses(source, *, include_simulated: bool = False,
     if "://" in text:
         # The store's own filter is the first line of defence; tidy_responses filters again.
         rows = rows_from_store(text, include_simulated=include_simulated)
-        return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
-                              source=text.split("@")[-1])
+        return tidy_responses(
+            rows, include_simulated=include_simulated, validate=validate, source=text.split("@")[-1]
+        )
     try:
         rows = read_export(text, validate=False)  # tidy_responses validates, if asked
     except SnapshotError as err:
         raise LoadError(str(err)) from err
     _check_columns(rows, text)
-    return tidy_responses(rows, include_simulated=include_simulated, validate=validate,
-                          source=text)
+    return tidy_responses(rows, include_simulated=include_simulated, validate=validate, source=text)
 
 
 # ----------------------------------------------------------------- task views
@@ -234,19 +263,25 @@ def attention_summary(df: pd.DataFrame) -> pd.DataFrame:
     """
     att = df[df["task"] == "attention"]
     if att.empty:
-        return pd.DataFrame({"participant_id": pd.Series(dtype=str),
-                             "n_checks": pd.Series(dtype=int),
-                             "n_correct": pd.Series(dtype=int),
-                             "passed": pd.Series(dtype=bool)})
+        return pd.DataFrame(
+            {
+                "participant_id": pd.Series(dtype=str),
+                "n_checks": pd.Series(dtype=int),
+                "n_correct": pd.Series(dtype=int),
+                "passed": pd.Series(dtype=bool),
+            }
+        )
     g = att.groupby("participant_id")["correct"]
-    out = pd.DataFrame({"n_checks": g.size(),
-                        "n_correct": g.apply(lambda s: int(s.fillna(False).sum()))})
+    out = pd.DataFrame(
+        {"n_checks": g.size(), "n_correct": g.apply(lambda s: int(s.fillna(False).sum()))}
+    )
     out["passed"] = out["n_correct"] == out["n_checks"]
     return out.reset_index()
 
 
-def exclude_unverified(df: pd.DataFrame, *, watch_min: float = WATCHED_ENOUGH
-                       ) -> tuple[pd.DataFrame, dict[str, int]]:
+def exclude_unverified(
+    df: pd.DataFrame, *, watch_min: float = WATCHED_ENOUGH
+) -> tuple[pd.DataFrame, dict[str, int]]:
     """Leave out the pose answers nobody can vouch were given on the animation.
 
     Dropped: answers picked on the frame slider (``picked_with == "slider"``: the
@@ -267,5 +302,7 @@ def exclude_unverified(df: pd.DataFrame, *, watch_min: float = WATCHED_ENOUGH
     watched = pd.to_numeric(df.get("watched"), errors="coerce")
     unwatched = pose & (df["picked_with"] == "player") & ~(watched >= watch_min)
     drop = (slider | unwatched).fillna(False).astype(bool)
-    return df[~drop], {"slider": int(slider.fillna(False).sum()),
-                       "not_watched": int(unwatched.fillna(False).sum())}
+    return df[~drop], {
+        "slider": int(slider.fillna(False).sum()),
+        "not_watched": int(unwatched.fillna(False).sum()),
+    }

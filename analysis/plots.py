@@ -27,14 +27,19 @@ __all__ = [
 ]
 
 #: One colour per method, the same in every figure (colour-blind safe, Okabe–Ito).
-METHOD_COLORS = {ViewMethod.OURS: "#D55E00", ViewMethod.VIEWPOINT_ENTROPY: "#0072B2",
-                 ViewMethod.MOTION_AREA: "#009E73"}
+METHOD_COLORS = {
+    ViewMethod.OURS: "#D55E00",
+    ViewMethod.VIEWPOINT_ENTROPY: "#0072B2",
+    ViewMethod.MOTION_AREA: "#009E73",
+}
 #: How each frame predictor is marked: (colour, line style, label).
-PREDICTOR_STYLES = {"algorithm": ("#D55E00", "-", "algorithm's pick"),
-                    "middle": ("#555555", ":", "middle frame"),
-                    "fastest": ("#0072B2", "--", "fastest frame"),
-                    "stretch": ("#009E73", "-.", "most stretched pose"),
-                    "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame")}
+PREDICTOR_STYLES = {
+    "algorithm": ("#D55E00", "-", "algorithm's pick"),
+    "middle": ("#555555", ":", "middle frame"),
+    "fastest": ("#0072B2", "--", "fastest frame"),
+    "stretch": ("#009E73", "-.", "most stretched pose"),
+    "uniform_random": ("#999999", (0, (1, 3)), "uniform random frame"),
+}
 
 
 #: TrueType (Type 42) fonts in PDF/PS: publishers' checks (ACM, IEEE PDF eXpress) reject
@@ -67,8 +72,13 @@ def _grid(n: int, *, ncols: int = 3, size=(4.2, 2.9)):
     plt = _plt()
     ncols = max(1, min(ncols, n))
     nrows = max(1, math.ceil(n / ncols))
-    fig, axes = plt.subplots(nrows, ncols, figsize=(size[0] * ncols, size[1] * nrows),
-                             squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        nrows,
+        ncols,
+        figsize=(size[0] * ncols, size[1] * nrows),
+        squeeze=False,
+        layout="constrained",
+    )
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat[:n])
@@ -90,8 +100,14 @@ def save_figure(fig, stem, *, formats=("png", "pdf"), dpi: int = 150) -> list:
     return out
 
 
-def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
-               labels: dict | None = None, ax=None, title: str | None = None):
+def plot_votes(
+    table: pd.DataFrame,
+    *,
+    pairwise: pd.DataFrame | None = None,
+    labels: dict | None = None,
+    ax=None,
+    title: str | None = None,
+):
     """Grouped bars: vote share per method per scene with its 95% interval (Table 2).
 
     Parameters
@@ -124,17 +140,33 @@ def plot_votes(table: pd.DataFrame, *, pairwise: pd.DataFrame | None = None,
         for i, s in enumerate(scenes):
             won = pairwise[(pairwise["scene"] == s) & (pairwise["verdict"] == "ours preferred")]
             if len(won):
-                top = float(table[(table["scene"] == s) & (table["method"] == "ours")]["ci_high"].iloc[0])
-                ax.text(x[i] + (j - (len(methods) - 1) / 2) * width, top + 0.05, "*" * len(won),
-                        ha="center", va="bottom", fontsize=11)
+                top = float(
+                    table[(table["scene"] == s) & (table["method"] == "ours")]["ci_high"].iloc[0]
+                )
+                ax.text(
+                    x[i] + (j - (len(methods) - 1) / 2) * width,
+                    top + 0.05,
+                    "*" * len(won),
+                    ha="center",
+                    va="bottom",
+                    fontsize=11,
+                )
     ax.set_xticks(x, [labels.get(s, s) for s in scenes], rotation=20, ha="right")
     ax.set_ylabel("share of votes (95% Wilson CI)")
     ax.set_ylim(0, 1)
     ax.axhline(1 / len(methods), color="grey", lw=0.8, ls=":", label="no preference")
-    ax.legend(fontsize=8, ncols=len(methods) + 1, loc="lower center", bbox_to_anchor=(0.5, 1.0),
-              frameon=False)
-    note = ("* ours beats one baseline, ** both (exact binomial, Holm-adjusted, α = 0.05)"
-            if pairwise is not None else "")
+    ax.legend(
+        fontsize=8,
+        ncols=len(methods) + 1,
+        loc="lower center",
+        bbox_to_anchor=(0.5, 1.0),
+        frameon=False,
+    )
+    note = (
+        "* ours beats one baseline, ** both (exact binomial, Holm-adjusted, α = 0.05)"
+        if pairwise is not None
+        else ""
+    )
     ax.set_title("\n".join(t for t in (title, note) if t), fontsize=9, pad=22)
     return fig
 
@@ -150,10 +182,16 @@ def plot_strengths(strengths: pd.DataFrame, *, labels: dict | None = None, ax=No
         t = strengths[strengths["method"] == m].set_index("scene").reindex(scenes)
         s = t["strength"].to_numpy(float)
         yy = y + (j - 1) * 0.22
-        ax.errorbar(s, yy, xerr=np.vstack([s - t["ci_low"].to_numpy(float),
-                                           t["ci_high"].to_numpy(float) - s]),
-                    fmt="o", color=METHOD_COLORS.get(m), label=_method_label(m),
-                    ms=4, capsize=2)
+        ax.errorbar(
+            s,
+            yy,
+            xerr=np.vstack([s - t["ci_low"].to_numpy(float), t["ci_high"].to_numpy(float) - s]),
+            fmt="o",
+            color=METHOD_COLORS.get(m),
+            label=_method_label(m),
+            ms=4,
+            capsize=2,
+        )
     ax.set_yticks(y, [labels.get(s, s) for s in scenes])
     ax.axvline(1 / max(1, len(methods)), color="grey", lw=0.8, ls=":")
     ax.set_xlim(0, 1)
@@ -162,8 +200,9 @@ def plot_strengths(strengths: pd.DataFrame, *, labels: dict | None = None, ax=No
     return fig
 
 
-def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None = None,
-                          show_baselines: bool = True):
+def plot_frame_histograms(
+    pose: pd.DataFrame, scenes: dict, *, bins: int | None = None, show_baselines: bool = True
+):
     """The paper's Fig. 13: per scene, the histogram of chosen frames, picks marked.
 
     Parameters
@@ -185,16 +224,27 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         preds = predictor_frames(info)
         others = [f for f in info.algorithm_frames if f != info.algorithm_frame]
         for k, extra in enumerate(others):
-            ax.axvline(extra, color=PREDICTOR_STYLES["algorithm"][0], lw=0.8, ls=(0, (2, 2)),
-                       alpha=0.7, label="the algorithm's other top-k picks" if k == 0 else None)
+            ax.axvline(
+                extra,
+                color=PREDICTOR_STYLES["algorithm"][0],
+                lw=0.8,
+                ls=(0, (2, 2)),
+                alpha=0.7,
+                label="the algorithm's other top-k picks" if k == 0 else None,
+            )
         for name, f in preds.items():
             if name != "algorithm" and not show_baselines:
                 continue
             color, ls, label = PREDICTOR_STYLES[name]
-            ax.axvline(f, color=color, ls=ls, lw=2.0 if name == "algorithm" else 1.2,
-                       label=label)
-        ax.plot([info.algorithm_frame], [top * 1.05], marker="v", color=PREDICTOR_STYLES["algorithm"][0],
-                ms=8, clip_on=False)
+            ax.axvline(f, color=color, ls=ls, lw=2.0 if name == "algorithm" else 1.2, label=label)
+        ax.plot(
+            [info.algorithm_frame],
+            [top * 1.05],
+            marker="v",
+            color=PREDICTOR_STYLES["algorithm"][0],
+            ms=8,
+            clip_on=False,
+        )
         n = int((pose["scene"] == sid).sum())
         ax.set_title(f"{info.title or sid}  (n = {n})", fontsize=9)
         ax.set_xlim(edges[0], edges[-1])
@@ -203,18 +253,27 @@ def plot_frame_histograms(pose: pd.DataFrame, scenes: dict, *, bins: int | None 
         ax.set_ylabel("participants", fontsize=8)
         ax.yaxis.get_major_locator().set_params(integer=True)
         ax.tick_params(labelsize=7)
-        sec = ax.secondary_xaxis("top", functions=(lambda f, i=info: (f - i.frame_offset) / i.fps,
-                                                   lambda s, i=info: s * i.fps + i.frame_offset))
+        sec = ax.secondary_xaxis(
+            "top",
+            functions=(
+                lambda f, i=info: (f - i.frame_offset) / i.fps,
+                lambda s, i=info: s * i.fps + i.frame_offset,
+            ),
+        )
         sec.tick_params(labelsize=6)
         sec.set_xlabel("seconds into the clip", fontsize=7)
     _shared_legend(fig, axes)
-    fig.suptitle("Chosen frames per animation; ▼ = the algorithm's pick",
-                 fontsize=10)
+    fig.suptitle("Chosen frames per animation; ▼ = the algorithm's pick", fontsize=10)
     return fig
 
 
-def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerances=(0.25, 0.5, 1.0),
-                             hits: pd.DataFrame | None = None):
+def plot_error_distributions(
+    distances: pd.DataFrame,
+    scenes: dict,
+    *,
+    tolerances=(0.25, 0.5, 1.0),
+    hits: pd.DataFrame | None = None,
+):
     """Per scene, the cumulative distribution of |chosen − predictor| in seconds.
 
     Parameters
@@ -234,8 +293,15 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
             if x.size == 0:
                 continue
             color, ls, label = PREDICTOR_STYLES.get(name, ("black", "-", name))
-            ax.step(np.r_[0, x], np.r_[0, np.arange(1, x.size + 1) / x.size], where="post",
-                    color=color, ls=ls, lw=2.0 if name == "algorithm" else 1.2, label=label)
+            ax.step(
+                np.r_[0, x],
+                np.r_[0, np.arange(1, x.size + 1) / x.size],
+                where="post",
+                color=color,
+                ls=ls,
+                lw=2.0 if name == "algorithm" else 1.2,
+                label=label,
+            )
             xmax = max(xmax, float(np.quantile(x, 0.9)))
         if hits is not None:
             u = hits[(hits["scene"] == sid) & (hits["predictor"] == "uniform_random")]
@@ -256,22 +322,43 @@ def plot_error_distributions(distances: pd.DataFrame, scenes: dict, *, tolerance
     return fig
 
 
-def plot_power_curve(curve: pd.DataFrame, *, target: float = 0.8, title: str | None = None,
-                     n_needed: int | None = None, ax=None):
+def plot_power_curve(
+    curve: pd.DataFrame,
+    *,
+    target: float = 0.8,
+    title: str | None = None,
+    n_needed: int | None = None,
+    ax=None,
+):
     """Power against participants (:func:`analysis.power.power_curve` output).
 
     ``n_needed`` (e.g. :func:`analysis.power.sample_size`'s ``n_stable``) is marked.
     """
     fig, ax = _figure_axes(ax, (6, 3.6))
-    ax.plot(curve["n"], curve["power_pairwise"], color=METHOD_COLORS[ViewMethod.OURS],
-            label="ours beats the baseline (exact binomial, corrected level)")
-    ax.plot(curve["n"], curve["power_chisquare"], color="#555555", ls="--",
-            label="some preference among the three (chi-square, uncorrected)")
+    ax.plot(
+        curve["n"],
+        curve["power_pairwise"],
+        color=METHOD_COLORS[ViewMethod.OURS],
+        label="ours beats the baseline (exact binomial, corrected level)",
+    )
+    ax.plot(
+        curve["n"],
+        curve["power_chisquare"],
+        color="#555555",
+        ls="--",
+        label="some preference among the three (chi-square, uncorrected)",
+    )
     ax.axhline(target, color="grey", lw=0.8, ls=":")
     if n_needed is not None:
         ax.axvline(n_needed, color=METHOD_COLORS[ViewMethod.OURS], lw=0.8, ls=":")
-        ax.annotate(f"{n_needed} participants", (n_needed, target), xytext=(6, -14),
-                    textcoords="offset points", fontsize=8, color=METHOD_COLORS[ViewMethod.OURS])
+        ax.annotate(
+            f"{n_needed} participants",
+            (n_needed, target),
+            xytext=(6, -14),
+            textcoords="offset points",
+            fontsize=8,
+            color=METHOD_COLORS[ViewMethod.OURS],
+        )
     ax.set_ylim(0, 1)
     ax.set_xlabel("participants (votes per scene)")
     ax.set_ylabel("power")
@@ -291,5 +378,6 @@ def _shared_legend(fig, axes) -> None:
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8,
-               frameon=False)
+    fig.legend(
+        handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False
+    )

@@ -51,8 +51,10 @@ N_MAX = 3000
 
 def _check_shares(p_ours: float, p_baseline: float) -> None:
     if not (0 <= p_ours <= 1 and 0 <= p_baseline <= 1 and p_ours + p_baseline <= 1 + 1e-12):
-        raise ValueError(f"shares: need 0 <= p_ours, p_baseline and p_ours + p_baseline <= 1, "
-                         f"got {p_ours}, {p_baseline}")
+        raise ValueError(
+            f"shares: need 0 <= p_ours, p_baseline and p_ours + p_baseline <= 1, "
+            f"got {p_ours}, {p_baseline}"
+        )
     if p_ours + p_baseline == 0:
         raise ValueError("shares: p_ours + p_baseline must be > 0")
 
@@ -100,8 +102,9 @@ def _conditional_power(m_max: int, q: float, level: float) -> np.ndarray:
     return np.where(c <= m, stats.binom.sf(c - 1, m, q), 0.0)
 
 
-def power_pairwise(n, p_ours: float, p_baseline: float, *, alpha: float = ALPHA,
-                   comparisons: int = 1) -> np.ndarray:
+def power_pairwise(
+    n, p_ours: float, p_baseline: float, *, alpha: float = ALPHA, comparisons: int = 1
+) -> np.ndarray:
     """Exact power of "ours preferred to the baseline" with ``n`` participants.
 
     Parameters
@@ -137,9 +140,9 @@ def power_pairwise(n, p_ours: float, p_baseline: float, *, alpha: float = ALPHA,
     by_n = np.empty(n_top + 1)
     by_n[0] = pmf @ s
     for k in range(1, n_top + 1):
-        pmf[1:k + 1] = (1 - pair) * pmf[1:k + 1] + pair * pmf[:k]
+        pmf[1 : k + 1] = (1 - pair) * pmf[1 : k + 1] + pair * pmf[:k]
         pmf[0] *= 1 - pair
-        by_n[k] = pmf[:k + 1] @ s[:k + 1]
+        by_n[k] = pmf[: k + 1] @ s[: k + 1]
     return by_n[n_arr].reshape(np.shape(n))
 
 
@@ -162,8 +165,9 @@ def power_chisquare(n, shares, *, alpha: float = ALPHA) -> np.ndarray:
     return stats.ncx2.sf(crit, k - 1, n * effect) if effect > 0 else np.full(n.shape, alpha)
 
 
-def power_curve(p_ours: float, p_baseline: float, *, n_values=None, alpha: float = ALPHA,
-                comparisons: int = 1) -> pd.DataFrame:
+def power_curve(
+    p_ours: float, p_baseline: float, *, n_values=None, alpha: float = ALPHA, comparisons: int = 1
+) -> pd.DataFrame:
     """Power against the number of participants.
 
     Returns
@@ -174,15 +178,26 @@ def power_curve(p_ours: float, p_baseline: float, *, n_values=None, alpha: float
     """
     n_values = np.arange(10, 501, 5) if n_values is None else np.asarray(n_values, dtype=int)
     rest = max(0.0, 1 - p_ours - p_baseline)
-    return pd.DataFrame({
-        "n": n_values,
-        "power_pairwise": power_pairwise(n_values, p_ours, p_baseline, alpha=alpha,
-                                         comparisons=comparisons),
-        "power_chisquare": power_chisquare(n_values, [p_ours, p_baseline, rest], alpha=alpha)})
+    return pd.DataFrame(
+        {
+            "n": n_values,
+            "power_pairwise": power_pairwise(
+                n_values, p_ours, p_baseline, alpha=alpha, comparisons=comparisons
+            ),
+            "power_chisquare": power_chisquare(n_values, [p_ours, p_baseline, rest], alpha=alpha),
+        }
+    )
 
 
-def sample_size(p_ours: float, p_baseline: float, *, alpha: float = ALPHA,
-                power: float = TARGET_POWER, comparisons: int = 1, n_max: int = N_MAX) -> dict:
+def sample_size(
+    p_ours: float,
+    p_baseline: float,
+    *,
+    alpha: float = ALPHA,
+    power: float = TARGET_POWER,
+    comparisons: int = 1,
+    n_max: int = N_MAX,
+) -> dict:
     """Participants needed for the pairwise claim to reach ``power``.
 
     Returns
@@ -192,8 +207,16 @@ def sample_size(p_ours: float, p_baseline: float, *, alpha: float = ALPHA,
         ``n_stable`` (smallest N from which every N up to ``n_max`` reaches it),
         ``power_at_n`` (power at ``n_stable``), and the inputs.
     """
-    out = {"p_ours": p_ours, "p_baseline": p_baseline, "alpha": alpha, "power": power,
-           "comparisons": comparisons, "n_first": None, "n_stable": None, "power_at_n": np.nan}
+    out = {
+        "p_ours": p_ours,
+        "p_baseline": p_baseline,
+        "alpha": alpha,
+        "power": power,
+        "comparisons": comparisons,
+        "n_first": None,
+        "n_stable": None,
+        "power_at_n": np.nan,
+    }
     if p_ours <= p_baseline:
         return out  # the claim is false: no N makes it likely
     n = np.arange(1, n_max + 1)
@@ -218,9 +241,15 @@ def shares_for_difference(difference: float, *, third: float = 1 / 3) -> tuple[f
     return (pair + difference) / 2, (pair - difference) / 2
 
 
-def power_table(differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40), *, third: float = 1 / 3,
-                alpha: float = ALPHA, power: float = TARGET_POWER, comparisons=(1, 12),
-                n_max: int = N_MAX) -> pd.DataFrame:
+def power_table(
+    differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40),
+    *,
+    third: float = 1 / 3,
+    alpha: float = ALPHA,
+    power: float = TARGET_POWER,
+    comparisons=(1, 12),
+    n_max: int = N_MAX,
+) -> pd.DataFrame:
     """Participants needed per vote-share difference (ours − baseline).
 
     Parameters
@@ -242,10 +271,20 @@ def power_table(differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40), *, third
         po, pb = shares_for_difference(d, third=third)
         for c in comparisons:
             r = sample_size(po, pb, alpha=alpha, power=power, comparisons=c, n_max=n_max)
-            rows.append({"difference": d, "p_ours": po, "p_baseline": pb, "p_third": third,
-                         "comparisons": c, "level": alpha / c, "n_first": r["n_first"],
-                         "n_stable": r["n_stable"], "power_at_n": r["power_at_n"],
-                         "note": "" if r["n_stable"] is not None else f"more than {n_max}"})
+            rows.append(
+                {
+                    "difference": d,
+                    "p_ours": po,
+                    "p_baseline": pb,
+                    "p_third": third,
+                    "comparisons": c,
+                    "level": alpha / c,
+                    "n_first": r["n_first"],
+                    "n_stable": r["n_stable"],
+                    "power_at_n": r["power_at_n"],
+                    "note": "" if r["n_stable"] is not None else f"more than {n_max}",
+                }
+            )
     out = pd.DataFrame(rows)
     for c in ("n_first", "n_stable"):
         out[c] = out[c].astype("Int64")

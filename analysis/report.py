@@ -32,8 +32,16 @@ from . import frames as fr
 from . import votes as vt
 from .load import attention_summary, load_responses, ordered_scenes, pose_choices, view_choices
 
-__all__ = ["format_table", "to_markdown", "to_latex", "write_table", "analyze",
-           "analyze_counts", "html_report", "DEFAULT_BOOT"]
+__all__ = [
+    "format_table",
+    "to_markdown",
+    "to_latex",
+    "write_table",
+    "analyze",
+    "analyze_counts",
+    "html_report",
+    "DEFAULT_BOOT",
+]
 
 #: Bootstrap resamples for the Luce strengths' intervals.
 DEFAULT_BOOT = 1000
@@ -55,8 +63,15 @@ def _fmt(col: str, v) -> str:
             return "<1e-300" if v < 1e-300 else (f"{v:.2g}" if v < 0.001 else f"{v:.3f}")
         # Frames and counts are whole numbers even when a column holds NaN (float dtype):
         # "54", not "54.000".
-        if v.is_integer() and abs(v) < 1e6 and (col in ("predicted_frame", "n", "votes")
-                                                or col.endswith("frame") or col.startswith("n_")):
+        if (
+            v.is_integer()
+            and abs(v) < 1e6
+            and (
+                col in ("predicted_frame", "n", "votes")
+                or col.endswith("frame")
+                or col.startswith("n_")
+            )
+        ):
             return str(int(v))
         return f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
     if isinstance(v, tuple | list):
@@ -76,14 +91,28 @@ def to_markdown(df: pd.DataFrame) -> str:
     align = ["right" if _is_numeric(f[c]) else "left" for c in f.columns]
     esc = lambda s: str(s).replace("|", "\\|")  # noqa: E731
     f = f.map(esc).rename(columns=esc)
-    return f.to_markdown(index=False, tablefmt="pipe", disable_numparse=True,
-                         colalign=align) + "\n"
+    return f.to_markdown(index=False, tablefmt="pipe", disable_numparse=True, colalign=align) + "\n"
 
 
-_LATEX_ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
-                  "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
-                  "^": r"\textasciicircum{}", "<": r"\textless{}", ">": r"\textgreater{}",
-                  "−": "-", "–": "--", "±": r"$\pm$", "α": r"$\alpha$", "|": r"\textbar{}"}
+_LATEX_ESCAPES = {
+    "\\": r"\textbackslash{}",
+    "&": r"\&",
+    "%": r"\%",
+    "$": r"\$",
+    "#": r"\#",
+    "_": r"\_",
+    "{": r"\{",
+    "}": r"\}",
+    "~": r"\textasciitilde{}",
+    "^": r"\textasciicircum{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "−": "-",
+    "–": "--",
+    "±": r"$\pm$",
+    "α": r"$\alpha$",
+    "|": r"\textbar{}",
+}
 
 
 def _latex_escape(s: str) -> str:
@@ -98,9 +127,14 @@ def to_latex(df: pd.DataFrame, *, caption: str = "", label: str = "") -> str:
     spec = "".join("r" if _is_numeric(f[c]) else "l" for c in f.columns)
     f = f.map(_latex_escape).rename(columns=_latex_escape)
     styler = f.style.hide(axis="index").set_table_styles([{"selector": "small", "props": ":;"}])
-    return styler.to_latex(column_format=spec, position="ht", position_float="centering",
-                           hrules=True, caption=_latex_escape(caption) if caption else None,
-                           label=label or None)
+    return styler.to_latex(
+        column_format=spec,
+        position="ht",
+        position_float="centering",
+        hrules=True,
+        caption=_latex_escape(caption) if caption else None,
+        label=label or None,
+    )
 
 
 def _is_numeric(cells) -> bool:
@@ -152,8 +186,9 @@ def _img(path: Path) -> str:
     return f'<img alt="{html.escape(Path(path).stem)}" src="data:image/png;base64,{data}">'
 
 
-def html_report(sections: list, path, *, title: str, meta: str = "",
-                labels: dict | None = None) -> Path:
+def html_report(
+    sections: list, path, *, title: str, meta: str = "", labels: dict | None = None
+) -> Path:
     """Write a one-page self-contained HTML report.
 
     Parameters
@@ -165,9 +200,11 @@ def html_report(sections: list, path, *, title: str, meta: str = "",
         Scene id → display name, applied to a ``scene`` column of every table.
     """
     labels = labels or {}
-    parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-             f"<h1>{html.escape(title)}</h1>"]
+    parts = [
+        f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
     if meta:
         parts.append(f"<p class='meta'>{meta}</p>")
     for heading, items in sections:
@@ -198,14 +235,25 @@ def _ci(v, lo, hi) -> str:
 
 def _compact_pairwise(pair: pd.DataFrame) -> pd.DataFrame:
     """The pairwise table narrowed for the page (the CSV keeps every column)."""
-    return pd.DataFrame({
-        "scene": pair["scene"], "baseline": pair["baseline"],
-        "votes ours : baseline": [f"{a} : {b}" for a, b in
-                                  zip(pair["reference_votes"], pair["baseline_votes"], strict=True)],
-        "share of ours [95% CP]": [_ci(v, lo, hi) for v, lo, hi in
-                                   zip(pair["share_reference"], pair["ci_low"], pair["ci_high"],
-                                       strict=True)],
-        "p_value": pair["p_value"], "p_holm": pair["p_holm"], "verdict": pair["verdict"]})
+    return pd.DataFrame(
+        {
+            "scene": pair["scene"],
+            "baseline": pair["baseline"],
+            "votes ours : baseline": [
+                f"{a} : {b}"
+                for a, b in zip(pair["reference_votes"], pair["baseline_votes"], strict=True)
+            ],
+            "share of ours [95% CP]": [
+                _ci(v, lo, hi)
+                for v, lo, hi in zip(
+                    pair["share_reference"], pair["ci_low"], pair["ci_high"], strict=True
+                )
+            ],
+            "p_value": pair["p_value"],
+            "p_holm": pair["p_holm"],
+            "verdict": pair["verdict"],
+        }
+    )
 
 
 def _pct(v, lo=None, hi=None) -> str:
@@ -216,40 +264,65 @@ def _pct(v, lo=None, hi=None) -> str:
 
 def _compact_hits(hits: pd.DataFrame, tolerances=fr.TOLERANCES_S) -> pd.DataFrame:
     """Hit rates for the page: one ``rate [low, high]`` cell per tolerance."""
-    out = pd.DataFrame({"scene": hits["scene"], "predictor": hits["predictor"],
-                        "frame": hits["predicted_frame"],
-                        "mean |Δ| s": hits["mean_abs_error_s"],
-                        "median |Δ| s": hits["median_abs_error_s"]})
+    out = pd.DataFrame(
+        {
+            "scene": hits["scene"],
+            "predictor": hits["predictor"],
+            "frame": hits["predicted_frame"],
+            "mean |Δ| s": hits["mean_abs_error_s"],
+            "median |Δ| s": hits["median_abs_error_s"],
+        }
+    )
     for t in tolerances:
         c = f"hit_{t:g}s"
-        out[f"within ±{t:g} s"] = [_pct(v, lo, hi) for v, lo, hi in
-                                   zip(hits[c], hits[c + "_low"], hits[c + "_high"], strict=True)]
+        out[f"within ±{t:g} s"] = [
+            _pct(v, lo, hi)
+            for v, lo, hi in zip(hits[c], hits[c + "_low"], hits[c + "_high"], strict=True)
+        ]
     return out
 
 
 def _compact_tests(tests: pd.DataFrame) -> pd.DataFrame:
     """Permutation tests for the page."""
-    return pd.DataFrame({"scene": tests["scene"], "baseline": tests["baseline"],
-                         "n": tests["n"],
-                         "mean |Δ| algorithm s": tests["algorithm_mean_abs_s"],
-                         "mean |Δ| baseline s": tests["baseline_mean_abs_s"],
-                         "closer by s [95% CI]": [_ci(v, lo, hi) for v, lo, hi in zip(
-                             tests["difference_s"], tests["difference_low"],
-                             tests["difference_high"], strict=True)],
-                         "r (rank-biserial)": tests["rank_biserial"],
-                         "p_value": tests["p_value"], "p_holm": tests["p_holm"],
-                         "algorithm closer": tests["significant"],
-                         "test": tests["method"] + np.where(tests["note"] != "",
-                                                            " (" + tests["note"] + ")", "")})
+    return pd.DataFrame(
+        {
+            "scene": tests["scene"],
+            "baseline": tests["baseline"],
+            "n": tests["n"],
+            "mean |Δ| algorithm s": tests["algorithm_mean_abs_s"],
+            "mean |Δ| baseline s": tests["baseline_mean_abs_s"],
+            "closer by s [95% CI]": [
+                _ci(v, lo, hi)
+                for v, lo, hi in zip(
+                    tests["difference_s"],
+                    tests["difference_low"],
+                    tests["difference_high"],
+                    strict=True,
+                )
+            ],
+            "r (rank-biserial)": tests["rank_biserial"],
+            "p_value": tests["p_value"],
+            "p_holm": tests["p_holm"],
+            "algorithm closer": tests["significant"],
+            "test": tests["method"] + np.where(tests["note"] != "", " (" + tests["note"] + ")", ""),
+        }
+    )
 
 
 def _compact_strengths(strengths: pd.DataFrame) -> pd.DataFrame:
     """Strengths as scenes × methods, each cell ``value [low, high]``."""
-    cell = strengths.assign(text=[_ci(v, lo, hi) for v, lo, hi in
-                                  zip(strengths["strength"], strengths["ci_low"],
-                                      strengths["ci_high"], strict=True)])
+    cell = strengths.assign(
+        text=[
+            _ci(v, lo, hi)
+            for v, lo, hi in zip(
+                strengths["strength"], strengths["ci_low"], strengths["ci_high"], strict=True
+            )
+        ]
+    )
     wide = cell.pivot(index="scene", columns="method", values="text")
-    wide = wide.loc[list(dict.fromkeys(strengths["scene"])), list(dict.fromkeys(strengths["method"]))]
+    wide = wide.loc[
+        list(dict.fromkeys(strengths["scene"])), list(dict.fromkeys(strengths["method"]))
+    ]
     wide.columns.name = None
     return wide.reset_index()
 
@@ -266,16 +339,28 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed, order=list(counts.index))
     kappa = vt.fleiss_kappa(counts)
     claims = vt.claim_summary(pair, alpha=alpha, labels=labels)
-    write_table(table, tables / "votes",
-                caption="Votes per method per scene with shares and 95% Wilson intervals.")
-    write_table(chi, tables / "chisquare",
-                caption="Chi-square goodness-of-fit test against no preference, per scene.")
-    write_table(pair, tables / "pairwise",
-                caption="Ours vs each baseline: exact two-sided binomial test among the two "
-                        "methods' votes, Holm-adjusted over all scenes and baselines.")
-    write_table(strengths, tables / "strengths",
-                caption=f"Luce strengths (choix ilsr_top1) with 95% percentile bootstrap "
-                        f"intervals ({n_boot} resamples, seed {seed}).")
+    write_table(
+        table,
+        tables / "votes",
+        caption="Votes per method per scene with shares and 95% Wilson intervals.",
+    )
+    write_table(
+        chi,
+        tables / "chisquare",
+        caption="Chi-square goodness-of-fit test against no preference, per scene.",
+    )
+    write_table(
+        pair,
+        tables / "pairwise",
+        caption="Ours vs each baseline: exact two-sided binomial test among the two "
+        "methods' votes, Holm-adjusted over all scenes and baselines.",
+    )
+    write_table(
+        strengths,
+        tables / "strengths",
+        caption=f"Luce strengths (choix ilsr_top1) with 95% percentile bootstrap "
+        f"intervals ({n_boot} resamples, seed {seed}).",
+    )
     write_table(kappa, tables / "agreement", caption="Fleiss' kappa over scenes.")
     f_votes = save_figure(plot_votes(table, pairwise=pair, labels=labels), figs / "votes")[0]
     f_str = save_figure(plot_strengths(strengths, labels=labels), figs / "strengths")[0]
@@ -283,23 +368,35 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     wide = counts.copy()
     wide.insert(0, "scene", [labels.get(s, s) for s in counts.index])
     sections = [
-        ("Views: which method's view do people prefer?",
-         [wide.reset_index(drop=True), f_votes]
-         + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims]),
+        (
+            "Views: which method's view do people prefer?",
+            [wide.reset_index(drop=True), f_votes]
+            + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims],
+        ),
         ("No preference? Chi-square per scene", [chi]),
         ("Ours vs each baseline (exact binomial, Holm)", [_compact_pairwise(pair)]),
-        ("Method strengths (Luce model: probability of being chosen, 95% bootstrap CI)",
-         [_compact_strengths(strengths), f_str]),
-        ("Agreement", [f"Fleiss' kappa over {int(k['n_items'])} scenes = {k['kappa']:.3f} "
-                       f"(chance-corrected agreement on the best view; 0 = chance, 1 = all "
-                       f"agree); z = {k['z']:.2f}, one-sided p = {_fmt('p_value', k['p_value'])}."]),
+        (
+            "Method strengths (Luce model: probability of being chosen, 95% bootstrap CI)",
+            [_compact_strengths(strengths), f_str],
+        ),
+        (
+            "Agreement",
+            [
+                f"Fleiss' kappa over {int(k['n_items'])} scenes = {k['kappa']:.3f} "
+                f"(chance-corrected agreement on the best view; 0 = chance, 1 = all "
+                f"agree); z = {k['z']:.2f}, one-sided p = {_fmt('p_value', k['p_value'])}."
+            ],
+        ),
     ]
-    summary = {"claims": claims,
-               "votes": {s: {m: int(v) for m, v in row.items()} for s, row in counts.iterrows()},
-               "chisquare_p": dict(zip(chi["scene"], chi["p_value"].astype(float), strict=True)),
-               "pairwise": pair[["scene", "baseline", "p_value", "p_holm", "verdict"]]
-               .to_dict(orient="records"),
-               "fleiss_kappa": float(k["kappa"])}
+    summary = {
+        "claims": claims,
+        "votes": {s: {m: int(v) for m, v in row.items()} for s, row in counts.iterrows()},
+        "chisquare_p": dict(zip(chi["scene"], chi["p_value"].astype(float), strict=True)),
+        "pairwise": pair[["scene", "baseline", "p_value", "p_holm", "verdict"]].to_dict(
+            orient="records"
+        ),
+        "fleiss_kappa": float(k["kappa"]),
+    }
     return sections, summary
 
 
@@ -311,43 +408,82 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
     hits = fr.hit_rates(pose, scenes)
     tests = fr.closeness_tests(pose, scenes, seed=seed, alpha=alpha)
     dist = fr.frame_distances(pose, scenes)
-    write_table(hits, tables / "frame_hits",
-                caption="Distance of chosen frames to each predictor and hit rates within "
-                        "±0.25/0.5/1 s (Wilson 95% intervals).")
-    write_table(tests, tables / "frame_tests",
-                caption="Is the algorithm closer to people than each baseline? Per scene, "
-                        "each participant's distance to the baseline's frame minus their "
-                        "distance to the algorithm's: one-sided Wilcoxon signed-rank over "
-                        "participants, mean difference (s) with a 95% bootstrap interval over "
-                        "participants, rank-biserial r; Holm over the tests that can differ "
-                        "(a baseline on the algorithm's frame is not tested).")
+    write_table(
+        hits,
+        tables / "frame_hits",
+        caption="Distance of chosen frames to each predictor and hit rates within "
+        "±0.25/0.5/1 s (Wilson 95% intervals).",
+    )
+    write_table(
+        tests,
+        tables / "frame_tests",
+        caption="Is the algorithm closer to people than each baseline? Per scene, "
+        "each participant's distance to the baseline's frame minus their "
+        "distance to the algorithm's: one-sided Wilcoxon signed-rank over "
+        "participants, mean difference (s) with a 95% bootstrap interval over "
+        "participants, rank-biserial r; Holm over the tests that can differ "
+        "(a baseline on the algorithm's frame is not tested).",
+    )
     f_hist = save_figure(plot_frame_histograms(pose, scenes), figs / "fig13_frame_histograms")[0]
-    f_err = save_figure(plot_error_distributions(dist, scenes, hits=hits),
-                        figs / "frame_distances")[0]
+    f_err = save_figure(
+        plot_error_distributions(dist, scenes, hits=hits), figs / "frame_distances"
+    )[0]
     algo = hits[hits["predictor"] == "algorithm"]
-    lines = [f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
-             f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
-             f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
-             for r in algo.to_dict(orient="records")]
+    lines = [
+        f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
+        f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
+        f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
+        for r in algo.to_dict(orient="records")
+    ]
     better = tests[tests["significant"]]
     worse = tests[~tests["significant"] & tests["p_value"].notna()]
-    verdict = (f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
-               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
-                            zip(better["scene"], better["baseline"], strict=True)) or "none")
-               + ". Not significantly closer than: "
-               + (", ".join(f"{b} in {scenes[s].title or s}" for s, b in
-                            zip(worse["scene"], worse["baseline"], strict=True)) or "none") + ".")
+    verdict = (
+        f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
+        + (
+            ", ".join(
+                f"{b} in {scenes[s].title or s}"
+                for s, b in zip(better["scene"], better["baseline"], strict=True)
+            )
+            or "none"
+        )
+        + ". Not significantly closer than: "
+        + (
+            ", ".join(
+                f"{b} in {scenes[s].title or s}"
+                for s, b in zip(worse["scene"], worse["baseline"], strict=True)
+            )
+            or "none"
+        )
+        + "."
+    )
     missing = [s for s, i in scenes.items() if not i.baseline_frames]
-    note = ("The fastest and most-stretched baselines are the selectors' picks recorded in "
-            f"the stimuli manifest; they are missing for {', '.join(missing)} (pass "
-            "--stimuli manifest.json)."
-            if missing else "")
-    sections = [("Poses: which frame do people pick?",
-                 [f_hist, *lines, f"<div class='claim'>{html.escape(verdict)}</div>",
-                  _compact_hits(hits), _compact_tests(tests), f_err] + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []))]
-    summary = {"frames": algo[["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s",
-                               "hit_1s"]].to_dict(orient="records"),
-               "frame_verdict": verdict}
+    note = (
+        "The fastest and most-stretched baselines are the selectors' picks recorded in "
+        f"the stimuli manifest; they are missing for {', '.join(missing)} (pass "
+        "--stimuli manifest.json)."
+        if missing
+        else ""
+    )
+    sections = [
+        (
+            "Poses: which frame do people pick?",
+            [
+                f_hist,
+                *lines,
+                f"<div class='claim'>{html.escape(verdict)}</div>",
+                _compact_hits(hits),
+                _compact_tests(tests),
+                f_err,
+            ]
+            + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []),
+        )
+    ]
+    summary = {
+        "frames": algo[
+            ["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s", "hit_1s"]
+        ].to_dict(orient="records"),
+        "frame_verdict": verdict,
+    }
     sections += _selector_section(pose, out, scenes=scenes)
     return sections, summary
 
@@ -357,15 +493,21 @@ def _selector_section(pose, out, *, scenes):
     agree = fr.selector_agreement(pose, scenes)
     if agree.empty:
         return []
-    write_table(agree, out / "tables" / "selector_agreement",
-                caption="Each pose selector's top pick against the people's chosen frames: "
-                        "share of choices within ±0.5 s (Wilson 95%) and median distance.")
-    overall = agree[agree["scene"] == "ALL"].sort_values(["hit", "median_abs_error_s"],
-                                                          ascending=[False, True])
+    write_table(
+        agree,
+        out / "tables" / "selector_agreement",
+        caption="Each pose selector's top pick against the people's chosen frames: "
+        "share of choices within ±0.5 s (Wilson 95%) and median distance.",
+    )
+    overall = agree[agree["scene"] == "ALL"].sort_values(
+        ["hit", "median_abs_error_s"], ascending=[False, True]
+    )
     best = overall.iloc[0]
-    text = (f"Across scenes, the selector whose pick agrees with people best is "
-            f"{best['selector']}: {100 * best['hit']:.0f}% of choices within ±0.5 s "
-            f"(median distance {best['median_abs_error_s']:.2f} s).")
+    text = (
+        f"Across scenes, the selector whose pick agrees with people best is "
+        f"{best['selector']}: {100 * best['hit']:.0f}% of choices within ±0.5 s "
+        f"(median distance {best['median_abs_error_s']:.2f} s)."
+    )
     parts = [text, overall.round(3)]
     doc = fr.selector_timeline_document(pose, scenes)
     if doc is not None:
@@ -373,13 +515,17 @@ def _selector_section(pose, out, *, scenes):
 
         from .plots import save_figure
 
-        extra = {s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist()
-                 for s in scenes}
+        extra = {
+            s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist() for s in scenes
+        }
         fig = plot_keymoment_timelines(doc, extra=extra)
         # The shared plot's title describes key-moment intervals (green), which this
         # figure has none of: say what is drawn.
-        fig.axes[0].set_title("each selector's picks (filled: top pick, hollow: picks 2..k) "
-                              "and the people's chosen frames (grey ticks)", fontsize=9)
+        fig.axes[0].set_title(
+            "each selector's picks (filled: top pick, hollow: picks 2..k) "
+            "and the people's chosen frames (grey ticks)",
+            fontsize=9,
+        )
         parts.insert(0, save_figure(fig, out / "figures" / "selector_timeline")[0])
     return [("Poses: which selector agrees with people?", parts)]
 
@@ -399,12 +545,21 @@ _METHODS_TEXT = (
     "difference (percentile bootstrap over participants) and the rank-biserial "
     "correlation; Holm over the tests that can differ (a baseline on the algorithm's "
     "frame is reported, not tested). Rows pooled over scenes: intervals from a bootstrap "
-    "over participants.")
+    "over participants."
+)
 
 
-def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
-                   title: str = "Vote analysis", source: str = "", n_boot: int = DEFAULT_BOOT,
-                   seed: int = 0, alpha: float = vt.ALPHA) -> dict:
+def analyze_counts(
+    counts: pd.DataFrame,
+    out_dir,
+    *,
+    labels: dict | None = None,
+    title: str = "Vote analysis",
+    source: str = "",
+    n_boot: int = DEFAULT_BOOT,
+    seed: int = 0,
+    alpha: float = vt.ALPHA,
+) -> dict:
     """The vote analysis on a count table alone (e.g. the paper's Table 2).
 
     Returns
@@ -415,11 +570,14 @@ def analyze_counts(counts: pd.DataFrame, out_dir, *, labels: dict | None = None,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     labels = labels or {}
-    sections, summary = _vote_section(counts, out, labels=labels, n_boot=n_boot, seed=seed,
-                                      alpha=alpha)
+    sections, summary = _vote_section(
+        counts, out, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha
+    )
     sections.append(("Methods", [_METHODS_TEXT]))
-    meta = (f"{html.escape(source)} · {int(counts.to_numpy().sum())} votes over "
-            f"{len(counts)} scenes · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
+    meta = (
+        f"{html.escape(source)} · {int(counts.to_numpy().sum())} votes over "
+        f"{len(counts)} scenes · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC"
+    )
     html_report(sections, out / "report.html", title=title, meta=meta, labels=labels)
     summary["source"] = source
     _write_summary(out, summary)
@@ -446,11 +604,21 @@ def default_stimuli(df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT) -> P
     return folder if (folder / "manifest.json").is_file() else None
 
 
-def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
-            exclude_failed_attention: bool = False, n_boot: int = DEFAULT_BOOT, seed: int = 0,
-            n_permutations: int = fr.N_PERMUTATIONS, alpha: float = vt.ALPHA,
-            title: str | None = None, completed_only: bool = True,
-            exclude_unwatched: bool = False) -> dict:
+def analyze(
+    source,
+    out_dir,
+    *,
+    include_simulated: bool = False,
+    stimuli=None,
+    exclude_failed_attention: bool = False,
+    n_boot: int = DEFAULT_BOOT,
+    seed: int = 0,
+    n_permutations: int = fr.N_PERMUTATIONS,
+    alpha: float = vt.ALPHA,
+    title: str | None = None,
+    completed_only: bool = True,
+    exclude_unwatched: bool = False,
+) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
     Parameters
@@ -481,9 +649,14 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     df = load_responses(source, include_simulated=include_simulated)
     out.mkdir(parents=True, exist_ok=True)  # after the load: bad input leaves no folder
     if df.empty:
-        raise SnapshotError(f"{_source_name(source)}: no responses to analyse"
-                            + ("" if include_simulated else
-                               " (simulated participants are excluded; add --include-simulated)"))
+        raise SnapshotError(
+            f"{_source_name(source)}: no responses to analyse"
+            + (
+                ""
+                if include_simulated
+                else " (simulated participants are excluded; add --include-simulated)"
+            )
+        )
     att = attention_summary(df)
     failed = set(att.loc[~att["passed"], "participant_id"])
     parts = _participants_table(df, att)
@@ -492,8 +665,10 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     if completed_only:
         df = df[df["participant_id"].isin(done)]
         if df.empty:
-            raise SnapshotError(f"{_source_name(source)}: no participant has finished the study "
-                                "(add --include-incomplete to analyse those who started)")
+            raise SnapshotError(
+                f"{_source_name(source)}: no participant has finished the study "
+                "(add --include-incomplete to analyse those who started)"
+            )
     if exclude_failed_attention and failed:
         df = df[~df["participant_id"].isin(failed)]
     excluded = None
@@ -526,8 +701,9 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
     views = view_choices(df)
     if not views.empty:
         counts = vt.vote_counts(views, order=order)
-        s, summ = _vote_section(counts, out, labels=labels, n_boot=n_boot, seed=seed,
-                                alpha=alpha, choices=views)
+        s, summ = _vote_section(
+            counts, out, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha, choices=views
+        )
         sections += s
         summary.update(summ)
         if not dupes.empty:
@@ -535,36 +711,63 @@ def analyze(source, out_dir, *, include_simulated: bool = False, stimuli=None,
             summary["near_duplicate_scenes"] = sorted(set(dupes["scene"]))
     pose = pose_choices(df)
     if not pose.empty:
-        extra = {sid: {**extra.get(sid, {}), "title": extra.get(sid, {}).get("title")
-                       or labels.get(sid)} for sid in ordered_scenes(pose["scene"], order)}
+        extra = {
+            sid: {**extra.get(sid, {}), "title": extra.get(sid, {}).get("title") or labels.get(sid)}
+            for sid in ordered_scenes(pose["scene"], order)
+        }
         scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
-        s, summ = _frame_section(pose, out, scenes=scenes, n_permutations=n_permutations,
-                                 seed=seed, alpha=alpha)
+        s, summ = _frame_section(
+            pose, out, scenes=scenes, n_permutations=n_permutations, seed=seed, alpha=alpha
+        )
         sections += s
         summary.update(summ)
     if excluded is not None:
         summary["excluded_answers"] = excluded
-    write_table(parts, out / "tables" / "participants",
-                caption="Participants (started and completed) and their responses.")
+    write_table(
+        parts,
+        out / "tables" / "participants",
+        caption="Participants (started and completed) and their responses.",
+    )
     sections.insert(0, ("Participants", [parts]))
     sections.append(("Methods", [_METHODS_TEXT]))
     n_sim = int(df.loc[df["simulated"], "participant_id"].nunique())
-    meta = (f"source: {html.escape(_source_name(source))} · "
-            f"{df['participant_id'].nunique()} participants"
-            + (f" (completed; {started} started)" if completed_only else
-               f" (started, {len(done)} completed)")
-            + (f" ({n_sim} SIMULATED)" if n_sim else "")
-            + f" · {len(df)} responses"
-            + (f" · {len(failed)} failed the attention check"
-               + (" (excluded)" if exclude_failed_attention else " (kept)") if failed else "")
-            + f" · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
+    meta = (
+        f"source: {html.escape(_source_name(source))} · "
+        f"{df['participant_id'].nunique()} participants"
+        + (
+            f" (completed; {started} started)"
+            if completed_only
+            else f" (started, {len(done)} completed)"
+        )
+        + (f" ({n_sim} SIMULATED)" if n_sim else "")
+        + f" · {len(df)} responses"
+        + (
+            f" · {len(failed)} failed the attention check"
+            + (" (excluded)" if exclude_failed_attention else " (kept)")
+            if failed
+            else ""
+        )
+        + f" · generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC"
+    )
     study = ", ".join(sorted(df["study_id"].dropna().unique()))
-    html_report(sections, out / "report.html", title=title or f"Action Snapshot study: {study}",
-                meta=meta, labels=labels)
-    summary.update({"source": _source_name(source), "participants": int(df["participant_id"].nunique()),
-                    "simulated_participants": n_sim, "responses": len(df),
-                    "failed_attention": len(failed), "started_participants": started,
-                    "completed_participants": len(done)})
+    html_report(
+        sections,
+        out / "report.html",
+        title=title or f"Action Snapshot study: {study}",
+        meta=meta,
+        labels=labels,
+    )
+    summary.update(
+        {
+            "source": _source_name(source),
+            "participants": int(df["participant_id"].nunique()),
+            "simulated_participants": n_sim,
+            "responses": len(df),
+            "failed_attention": len(failed),
+            "started_participants": started,
+            "completed_participants": len(done),
+        }
+    )
     _write_summary(out, summary)
     return summary
 
@@ -599,21 +802,31 @@ def _duplicate_section(counts, dupes, out, *, labels, alpha):
     for r in dupes.itertuples():
         pairs.setdefault(r.scene, []).append((r.method_a, r.method_b))
     merged = vt.merge_near_duplicates(counts, pairs)
-    write_table(dupes, out / "tables" / "near_duplicates",
-                caption="Candidate views that are nearly the same picture (angle between their "
-                        "directions; over 90° means a near mirror image).")
-    write_table(merged, out / "tables" / "votes_duplicates_merged",
-                caption="Sensitivity analysis: near-duplicate candidates counted as one option; "
-                        "chi-square against equal votes per distinct picture.")
+    write_table(
+        dupes,
+        out / "tables" / "near_duplicates",
+        caption="Candidate views that are nearly the same picture (angle between their "
+        "directions; over 90° means a near mirror image).",
+    )
+    write_table(
+        merged,
+        out / "tables" / "votes_duplicates_merged",
+        caption="Sensitivity analysis: near-duplicate candidates counted as one option; "
+        "chi-square against equal votes per distinct picture.",
+    )
     keep = [s for s in counts.index if s not in pairs]
-    text = [f"In {len(pairs)} scene(s) two candidates are nearly the same picture "
-            f"({', '.join(labels.get(s, s) for s in pairs)}); votes may split between them."]
+    text = [
+        f"In {len(pairs)} scene(s) two candidates are nearly the same picture "
+        f"({', '.join(labels.get(s, s) for s in pairs)}); votes may split between them."
+    ]
     items = [dupes, *text, merged]
     if keep and len(keep) < len(counts):
-        claims = vt.claim_summary(vt.ours_vs_baselines(counts.loc[keep], alpha=alpha),
-                                  alpha=alpha, labels=labels)
-        items += ["Without those scenes:"] + [f"<div class='claim'>{html.escape(c)}</div>"
-                                              for c in claims]
+        claims = vt.claim_summary(
+            vt.ours_vs_baselines(counts.loc[keep], alpha=alpha), alpha=alpha, labels=labels
+        )
+        items += ["Without those scenes:"] + [
+            f"<div class='claim'>{html.escape(c)}</div>" for c in claims
+        ]
     return [("Near-duplicate candidates: sensitivity analysis", items)]
 
 
@@ -622,16 +835,21 @@ def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:
     rows = []
     done = completed_participants(df)
     for sim, part in g:
-        rows.append({"participants": "simulated" if sim else "real",
-                     "n": int(part["participant_id"].nunique()),
-                     "started": int(part["participant_id"].nunique()),
-                     "completed": len(set(part["participant_id"]) & done),
-                     "responses": len(part),
-                     "pose_choices": int((part["task"] == "pose").sum()),
-                     "view_choices": int((part["task"] == "view").sum()),
-                     "attention_passed": int(att[att["participant_id"].isin(part["participant_id"])]
-                                             ["passed"].sum()),
-                     "median_response_time_s": float(part["response_time_s"].median())})
+        rows.append(
+            {
+                "participants": "simulated" if sim else "real",
+                "n": int(part["participant_id"].nunique()),
+                "started": int(part["participant_id"].nunique()),
+                "completed": len(set(part["participant_id"]) & done),
+                "responses": len(part),
+                "pose_choices": int((part["task"] == "pose").sum()),
+                "view_choices": int((part["task"] == "view").sum()),
+                "attention_passed": int(
+                    att[att["participant_id"].isin(part["participant_id"])]["passed"].sum()
+                ),
+                "median_response_time_s": float(part["response_time_s"].median()),
+            }
+        )
     return pd.DataFrame(rows)
 
 

@@ -55,12 +55,19 @@ __all__ = [
 #: ``app_version`` stored with simulated participants.
 SIM_APP_VERSION = "simulate-1"
 #: Fallback attention check when the design names none (mirrors the app's default).
-_ATTENTION = {"options": ["A red square", "A purple circle", "A green triangle",
-                          "I am not sure"], "answer": "A purple circle"}
-_BACKGROUND = {"age_band": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older"],
-               "gender": ["Woman", "Man", "Non-binary", "Prefer not to say"],
-               "experience": ["No experience", "Some (a course or a hobby)",
-                              "Experienced (animation, 3D or art is part of my work or studies)"]}
+_ATTENTION = {
+    "options": ["A red square", "A purple circle", "A green triangle", "I am not sure"],
+    "answer": "A purple circle",
+}
+_BACKGROUND = {
+    "age_band": ["18–24", "25–34", "35–44", "45–54", "55–64", "65 or older"],
+    "gender": ["Woman", "Man", "Non-binary", "Prefer not to say"],
+    "experience": [
+        "No experience",
+        "Some (a course or a hobby)",
+        "Experienced (animation, 3D or art is part of my work or studies)",
+    ],
+}
 
 
 @dataclass(frozen=True)
@@ -105,8 +112,10 @@ class ObserverModel:
 def _check_strengths(s: dict, what: str) -> None:
     bad = {m: v for m, v in s.items() if not (np.isfinite(v) and v > 0)}
     if bad or set(s) != set(VIEW_METHODS):
-        raise ValueError(f"{what}: expected a positive strength for each of "
-                         f"{[str(m) for m in VIEW_METHODS]}, got {s}")
+        raise ValueError(
+            f"{what}: expected a positive strength for each of "
+            f"{[str(m) for m in VIEW_METHODS]}, got {s}"
+        )
 
 
 def paper_design() -> list[StudyScene]:
@@ -123,18 +132,29 @@ def paper_design() -> list[StudyScene]:
     from .votes import paper_counts
 
     counts = paper_counts()
-    spec = [("dancing", "Dancing", 1096, 604, (430,)),
-            ("running", "Running", 66, 40, ()),
-            ("soccer_kicking", "Soccer kicking", 525, 406, (360,)),
-            ("basketball_shooting", "Basketball shooting", 540, 325, ()),
-            ("two_person_arguing", "Two-person arguing", 1992, 1240, (850, 1470)),
-            ("two_person_boxing", "Two-person boxing", 150, 100, ())]
+    spec = [
+        ("dancing", "Dancing", 1096, 604, (430,)),
+        ("running", "Running", 66, 40, ()),
+        ("soccer_kicking", "Soccer kicking", 525, 406, (360,)),
+        ("basketball_shooting", "Basketball shooting", 540, 325, ()),
+        ("two_person_arguing", "Two-person arguing", 1992, 1240, (850, 1470)),
+        ("two_person_boxing", "Two-person boxing", 150, 100, ()),
+    ]
     out = []
     for sid, title, n, a, extra in spec:
         shares = counts.loc[sid] / counts.loc[sid].sum()
         strengths = {m: max(float(shares[m]), 0.01) for m in VIEW_METHODS}
-        out.append(StudyScene(scene=sid, fps=30.0, n_frames=n, algorithm_frame=a,
-                            salient_frames=extra, strengths=strengths, title=title))
+        out.append(
+            StudyScene(
+                scene=sid,
+                fps=30.0,
+                n_frames=n,
+                algorithm_frame=a,
+                salient_frames=extra,
+                strengths=strengths,
+                title=title,
+            )
+        )
     return out
 
 
@@ -143,21 +163,40 @@ def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[Stud
     from .stimuli import stimuli_scenes
 
     t = stimuli_scenes(manifest)
-    return [StudyScene(scene=r.scene, fps=r.fps, n_frames=r.n_frames,
-                     algorithm_frame=r.algorithm_frame, frame_offset=r.frame_offset,
-                     salient_frames=tuple(f for f in r.algorithm_frames if f != r.algorithm_frame),
-                     strengths=strengths, title=r.title) for r in t.itertuples()]
+    return [
+        StudyScene(
+            scene=r.scene,
+            fps=r.fps,
+            n_frames=r.n_frames,
+            algorithm_frame=r.algorithm_frame,
+            frame_offset=r.frame_offset,
+            salient_frames=tuple(f for f in r.algorithm_frames if f != r.algorithm_frame),
+            strengths=strengths,
+            title=r.title,
+        )
+        for r in t.itertuples()
+    ]
 
 
 #: The scene fields a simulated study depends on (hashed by :func:`design_sha256`).
-_DESIGN_FIELDS = ("scene", "fps", "n_frames", "algorithm_frame", "frame_offset",
-                  "salient_frames", "strengths", "title")
+_DESIGN_FIELDS = (
+    "scene",
+    "fps",
+    "n_frames",
+    "algorithm_frame",
+    "frame_offset",
+    "salient_frames",
+    "strengths",
+    "title",
+)
 
 
 def design_sha256(design, model: ObserverModel) -> str:
     """A stable sha256 of a design + model (the store's ``manifest_sha256`` for them)."""
-    doc = {"design": [{k: getattr(s, k) for k in _DESIGN_FIELDS} for s in design],
-           "model": asdict(model)}
+    doc = {
+        "design": [{k: getattr(s, k) for k in _DESIGN_FIELDS} for s in design],
+        "model": asdict(model),
+    }
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 
@@ -182,8 +221,15 @@ def _view_choice(rng, strengths: dict) -> tuple[tuple, int, str]:
     return shown, pos, shown[pos]
 
 
-def simulate_participants(design, n: int, *, seed: int = 0, model: ObserverModel | None = None,
-                          attention: dict | None = None, background: dict | None = None) -> list:
+def simulate_participants(
+    design,
+    n: int,
+    *,
+    seed: int = 0,
+    model: ObserverModel | None = None,
+    attention: dict | None = None,
+    background: dict | None = None,
+) -> list:
     """Simulate ``n`` participants answering every trial of ``design``.
 
     Parameters
@@ -225,23 +271,45 @@ def simulate_participants(design, n: int, *, seed: int = 0, model: ObserverModel
         for k in rng.permutation(len(design)):
             s = design[k]
             f = _pose_choice(rng, s, model)
-            rows.append({"task": "pose", "scene": s.scene, "stimulus_id": f"{s.scene}/pose",
-                         "chosen_frame": f, "algorithm_frame": s.algorithm_frame,
-                         "fps": float(s.fps), "n_frames": int(s.n_frames),
-                         "response_time_s": float(model.pose_time_s * rng.lognormal(0, 0.5))})
+            rows.append(
+                {
+                    "task": "pose",
+                    "scene": s.scene,
+                    "stimulus_id": f"{s.scene}/pose",
+                    "chosen_frame": f,
+                    "algorithm_frame": s.algorithm_frame,
+                    "fps": float(s.fps),
+                    "n_frames": int(s.n_frames),
+                    "response_time_s": float(model.pose_time_s * rng.lognormal(0, 0.5)),
+                }
+            )
         for k in rng.permutation(len(design)):
             s = design[k]
             shown, pos, method = _view_choice(rng, s.strengths or model.strengths)
-            rows.append({"task": "view", "scene": s.scene, "stimulus_id": f"{s.scene}/view",
-                         "chosen_method": method, "chosen_position": pos,
-                         "shown_order": list(shown),
-                         "response_time_s": float(model.view_time_s * rng.lognormal(0, 0.5))})
+            rows.append(
+                {
+                    "task": "view",
+                    "scene": s.scene,
+                    "stimulus_id": f"{s.scene}/view",
+                    "chosen_method": method,
+                    "chosen_position": pos,
+                    "shown_order": list(shown),
+                    "response_time_s": float(model.view_time_s * rng.lognormal(0, 0.5)),
+                }
+            )
         right = rng.random() < model.attention_pass
         wrong = [o for o in attention["options"] if o != attention["answer"]]
         value = attention["answer"] if right or not wrong else wrong[int(rng.integers(len(wrong)))]
-        rows.append({"task": "attention", "scene": "attention", "stimulus_id": "attention",
-                     "chosen_value": value, "correct": value == attention["answer"],
-                     "response_time_s": float(4.0 * rng.lognormal(0, 0.5))})
+        rows.append(
+            {
+                "task": "attention",
+                "scene": "attention",
+                "stimulus_id": "attention",
+                "chosen_value": value,
+                "correct": value == attention["answer"],
+                "response_time_s": float(4.0 * rng.lognormal(0, 0.5)),
+            }
+        )
         for i, r in enumerate(rows):
             r["trial_index"] = i
         bg = {k: v[int(rng.integers(len(v)))] for k, v in background.items()}
@@ -249,8 +317,9 @@ def simulate_participants(design, n: int, *, seed: int = 0, model: ObserverModel
     return out
 
 
-def simulated_rows(participants, *, study_id: str = "simulated",
-                   manifest_sha256: str = "0" * 64) -> pd.DataFrame:
+def simulated_rows(
+    participants, *, study_id: str = "simulated", manifest_sha256: str = "0" * 64
+) -> pd.DataFrame:
     """Simulated participants → export-shaped rows (no database), ``simulated`` true.
 
     Participant ids are ``sim-000000``, ``sim-000001``, ...; ``created_at`` is now.
@@ -259,18 +328,33 @@ def simulated_rows(participants, *, study_id: str = "simulated",
     recs = []
     for i, p in enumerate(participants):
         for r in p["rows"]:
-            recs.append({"participant_id": f"sim-{i:06d}", "study_id": study_id,
-                         "created_at": now, "app_version": SIM_APP_VERSION,
-                         "manifest_sha256": manifest_sha256, "simulated": True,
-                         "age_band": p["background"].get("age_band"),
-                         "gender": p["background"].get("gender"),
-                         "experience": p["background"].get("experience"),
-                         "prolific_pid": None, **r})
+            recs.append(
+                {
+                    "participant_id": f"sim-{i:06d}",
+                    "study_id": study_id,
+                    "created_at": now,
+                    "app_version": SIM_APP_VERSION,
+                    "manifest_sha256": manifest_sha256,
+                    "simulated": True,
+                    "age_band": p["background"].get("age_band"),
+                    "gender": p["background"].get("gender"),
+                    "experience": p["background"].get("experience"),
+                    "prolific_pid": None,
+                    **r,
+                }
+            )
     return pd.DataFrame.from_records(recs)
 
 
-def store_simulation(store, participants, *, study_id: str, manifest_sha256: str,
-                     app_version: str = SIM_APP_VERSION, progress: bool = False) -> list[str]:
+def store_simulation(
+    store,
+    participants,
+    *,
+    study_id: str,
+    manifest_sha256: str,
+    app_version: str = SIM_APP_VERSION,
+    progress: bool = False,
+) -> list[str]:
     """Write simulated participants through the study store, marked simulated.
 
     Returns
@@ -282,8 +366,9 @@ def store_simulation(store, participants, *, study_id: str, manifest_sha256: str
 
     ids = []
     for p in tqdm(participants, desc="simulate", unit="participant", disable=not progress):
-        pid = store.create_participant(study_id, manifest_sha256, app_version=app_version,
-                                       seed=p["seed"], simulated=True)
+        pid = store.create_participant(
+            study_id, manifest_sha256, app_version=app_version, seed=p["seed"], simulated=True
+        )
         store.set_background(pid, p["background"])
         rows = [{k: v for k, v in r.items()} for r in p["rows"]]
         store.record_responses(pid, rows)

@@ -17,8 +17,13 @@ import pandas as pd
 
 from .load import LoadError
 
-__all__ = ["read_stimuli", "stimuli_scenes", "load_scene_for_entry", "near_duplicate_scenes",
-           "DEFAULT_NEAR_DUPLICATE_DEG"]
+__all__ = [
+    "read_stimuli",
+    "stimuli_scenes",
+    "load_scene_for_entry",
+    "near_duplicate_scenes",
+    "DEFAULT_NEAR_DUPLICATE_DEG",
+]
 
 #: Threshold (degrees) for manifests that do not name one (the study config's default).
 DEFAULT_NEAR_DUPLICATE_DEG = 15.0
@@ -57,12 +62,19 @@ def stimuli_scenes(manifest) -> pd.DataFrame:
     for e in doc.get("scenes", []):
         picks = e.get("picks") or {}
         t = e.get("timings_s") or {}
-        rows.append({"scene": e["id"], "title": e.get("title", e["id"]), "fps": float(e["fps"]),
-                     "n_frames": int(e["n_frames"]), "frame_offset": int(e["frame_offset"]),
-                     "algorithm_frame": int(picks["frame"]),
-                     "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ()),
-                     "pose_s": _first(t, "select_pose", "pose"),
-                     "view_s": _first(t, "select_view", "view")})
+        rows.append(
+            {
+                "scene": e["id"],
+                "title": e.get("title", e["id"]),
+                "fps": float(e["fps"]),
+                "n_frames": int(e["n_frames"]),
+                "frame_offset": int(e["frame_offset"]),
+                "algorithm_frame": int(picks["frame"]),
+                "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ()),
+                "pose_s": _first(t, "select_pose", "pose"),
+                "view_s": _first(t, "select_view", "view"),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -83,21 +95,33 @@ def near_duplicate_scenes(manifest) -> pd.DataFrame:
     from snapcore.select.view import near_duplicate_views, view_angles_deg
 
     doc, _ = read_stimuli(manifest)
-    thr = float((doc.get("study") or {}).get("study", {}).get("near_duplicate_deg",
-                                                              DEFAULT_NEAR_DUPLICATE_DEG))
+    thr = float(
+        (doc.get("study") or {})
+        .get("study", {})
+        .get("near_duplicate_deg", DEFAULT_NEAR_DUPLICATE_DEG)
+    )
     rows = []
     for e in doc.get("scenes", []):
         angles = e.get("view_angles")
         if not angles:
             picks = e.get("picks") or {}
-            dirs = {"ours": picks.get("view"), "viewpoint_entropy": picks.get("viewpoint_entropy"),
-                    "motion_area": picks.get("motion_area")}
+            dirs = {
+                "ours": picks.get("view"),
+                "viewpoint_entropy": picks.get("viewpoint_entropy"),
+                "motion_area": picks.get("motion_area"),
+            }
             if any(v is None for v in dirs.values()):
                 continue
             angles = view_angles_deg(dirs)
         for a, b in near_duplicate_views(angles, thr):
-            rows.append({"scene": e["id"], "method_a": a, "method_b": b,
-                         "angle_deg": float(angles[f"{a}|{b}"])})
+            rows.append(
+                {
+                    "scene": e["id"],
+                    "method_a": a,
+                    "method_b": b,
+                    "angle_deg": float(angles[f"{a}|{b}"]),
+                }
+            )
     return pd.DataFrame(rows, columns=["scene", "method_a", "method_b", "angle_deg"])
 
 
@@ -154,5 +178,7 @@ def load_scene_for_entry(entry: dict, base: Path | None = None):
             return load_scene([_resolve(f, bases) for f in src["files"]], fps=fps, scale=scale)
         if src.get("manifest"):
             return load_scene(_resolve(src["manifest"], bases), fps=fps, scale=scale)
-    raise LoadError(f"stimuli scene '{entry.get('id')}': source names no motion "
-                    "(expected scene_file, demo, files or manifest)")
+    raise LoadError(
+        f"stimuli scene '{entry.get('id')}': source names no motion "
+        "(expected scene_file, demo, files or manifest)"
+    )

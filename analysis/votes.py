@@ -127,8 +127,9 @@ def choices_from_counts(counts: pd.DataFrame) -> pd.DataFrame:
         for m in methods:
             scene += [s] * int(row[m])
             chosen += [m] * int(row[m])
-    return pd.DataFrame({"scene": scene, "chosen_method": chosen,
-                         "shown_order": [methods] * len(scene)})
+    return pd.DataFrame(
+        {"scene": scene, "chosen_method": chosen, "shown_order": [methods] * len(scene)}
+    )
 
 
 # ----------------------------------------------------------------- small kernels
@@ -194,13 +195,16 @@ def vote_table(counts: pd.DataFrame, *, confidence: float = 0.95) -> pd.DataFram
         (votes / n), ``ci_low``, ``ci_high`` (Wilson score interval of the share at
         ``confidence``), ``rank`` (1 = most votes; ties share the best rank).
     """
-    long = counts.reset_index().melt(id_vars=counts.index.name or "index",
-                                     var_name="method", value_name="votes")
+    long = counts.reset_index().melt(
+        id_vars=counts.index.name or "index", var_name="method", value_name="votes"
+    )
     long = long.rename(columns={counts.index.name or "index": "scene"})
     scene_order = {s: i for i, s in enumerate(counts.index)}
     method_order = {m: i for i, m in enumerate(counts.columns)}
-    long = long.sort_values(by=["scene", "method"],
-                            key=lambda c: c.map(scene_order if c.name == "scene" else method_order))
+    long = long.sort_values(
+        by=["scene", "method"],
+        key=lambda c: c.map(scene_order if c.name == "scene" else method_order),
+    )
     n = long.groupby("scene")["votes"].transform("sum")
     long["n"] = n.astype(int)
     long["share"] = long["votes"] / long["n"].where(long["n"] > 0)
@@ -234,17 +238,34 @@ def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd
         chi2 = ((obs - expected[:, None]) ** 2 / expected[:, None]).sum(axis=1)
     p = np.where(n > 0, stats.chi2.sf(chi2, k - 1), 1.0)
     chi2 = np.where(n > 0, chi2, 0.0)
-    note = np.where(expected < MIN_EXPECTED,
-                    f"expected count below {MIN_EXPECTED:g}: chi-square approximation is rough",
-                    "")
-    return pd.DataFrame({"scene": counts.index, "n": n.astype(int), "chi2": chi2,
-                         "dof": k - 1, "p_value": p, "min_expected": expected,
-                         "significant": p < alpha, "note": note})
+    note = np.where(
+        expected < MIN_EXPECTED,
+        f"expected count below {MIN_EXPECTED:g}: chi-square approximation is rough",
+        "",
+    )
+    return pd.DataFrame(
+        {
+            "scene": counts.index,
+            "n": n.astype(int),
+            "chi2": chi2,
+            "dof": k - 1,
+            "p_value": p,
+            "min_expected": expected,
+            "significant": p < alpha,
+            "note": note,
+        }
+    )
 
 
-def ours_vs_baselines(counts: pd.DataFrame, *, reference: str = "ours", baselines=None,
-                      alpha: float = ALPHA, family: str = "all",
-                      confidence: float = 0.95) -> pd.DataFrame:
+def ours_vs_baselines(
+    counts: pd.DataFrame,
+    *,
+    reference: str = "ours",
+    baselines=None,
+    alpha: float = ALPHA,
+    family: str = "all",
+    confidence: float = 0.95,
+) -> pd.DataFrame:
     """Exact binomial tests of ``reference`` against each baseline, Holm-adjusted.
 
     Parameters
@@ -276,7 +297,9 @@ def ours_vs_baselines(counts: pd.DataFrame, *, reference: str = "ours", baseline
         raise ValueError(f"reference: '{reference}' is not a column of counts")
     if family not in ("all", "scene"):
         raise ValueError(f"family: expected 'all' or 'scene', got {family!r}")
-    baselines = [m for m in counts.columns if m != reference] if baselines is None else list(baselines)
+    baselines = (
+        [m for m in counts.columns if m != reference] if baselines is None else list(baselines)
+    )
     rows = []
     for scene, row in counts.iterrows():
         for b in baselines:
@@ -288,9 +311,19 @@ def ours_vs_baselines(counts: pd.DataFrame, *, reference: str = "ours", baseline
                 lo, hi, p = ci.low, ci.high, test.pvalue
             else:
                 lo, hi, p = 0.0, 1.0, 1.0
-            rows.append({"scene": scene, "baseline": b, "reference_votes": k, "baseline_votes": j,
-                         "n_pair": n, "share_reference": k / n if n else np.nan,
-                         "ci_low": lo, "ci_high": hi, "p_value": p})
+            rows.append(
+                {
+                    "scene": scene,
+                    "baseline": b,
+                    "reference_votes": k,
+                    "baseline_votes": j,
+                    "n_pair": n,
+                    "share_reference": k / n if n else np.nan,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "p_value": p,
+                }
+            )
     out = pd.DataFrame(rows)
     if family == "all":
         out["p_holm"] = holm_adjust(out["p_value"])
@@ -298,14 +331,21 @@ def ours_vs_baselines(counts: pd.DataFrame, *, reference: str = "ours", baseline
         out["p_holm"] = out.groupby("scene")["p_value"].transform(lambda s: holm_adjust(s))
     out["significant"] = out["p_holm"] < alpha
     better = out["reference_votes"] > out["baseline_votes"]
-    out["verdict"] = np.where(~out["significant"], "no significant difference",
-                              np.where(better, f"{reference} preferred",
-                                       out["baseline"] + " preferred"))
+    out["verdict"] = np.where(
+        ~out["significant"],
+        "no significant difference",
+        np.where(better, f"{reference} preferred", out["baseline"] + " preferred"),
+    )
     return out
 
 
-def claim_summary(pairwise: pd.DataFrame, *, reference: str = "ours", alpha: float = ALPHA,
-                  labels: dict | None = None) -> list[str]:
+def claim_summary(
+    pairwise: pd.DataFrame,
+    *,
+    reference: str = "ours",
+    alpha: float = ALPHA,
+    labels: dict | None = None,
+) -> list[str]:
     """Plain sentences: where the claim "``reference`` is preferred" holds, per baseline.
 
     Parameters
@@ -322,9 +362,11 @@ def claim_summary(pairwise: pd.DataFrame, *, reference: str = "ours", alpha: flo
         yes = [name(s) for s in g.loc[g["verdict"] == f"{reference} preferred", "scene"]]
         rev = [name(s) for s in g.loc[g["verdict"] == f"{b} preferred", "scene"]]
         no = [name(s) for s in g.loc[~g["significant"], "scene"]]
-        text = (f"{reference} vs {b} (exact binomial, Holm-adjusted, alpha={alpha:g}): "
-                f"{reference} is significantly preferred in {len(yes)} of {len(g)} scenes"
-                + (f" ({', '.join(yes)})" if yes else ""))
+        text = (
+            f"{reference} vs {b} (exact binomial, Holm-adjusted, alpha={alpha:g}): "
+            f"{reference} is significantly preferred in {len(yes)} of {len(g)} scenes"
+            + (f" ({', '.join(yes)})" if yes else "")
+        )
         if no:
             text += f"; not significant in {', '.join(no)}"
         if rev:
@@ -353,9 +395,17 @@ def _fit_shares(n_items, data, alpha, initial=None):
     return w / w.sum(), theta
 
 
-def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int = 1000,
-                   seed: int = 0, confidence: float = 0.95, pooled: bool = True,
-                   luce_alpha: float = LUCE_ALPHA, order=None) -> pd.DataFrame:
+def luce_strengths(
+    choices: pd.DataFrame,
+    *,
+    methods=VIEW_METHODS,
+    n_boot: int = 1000,
+    seed: int = 0,
+    confidence: float = 0.95,
+    pooled: bool = True,
+    luce_alpha: float = LUCE_ALPHA,
+    order=None,
+) -> pd.DataFrame:
     """Luce (Plackett–Luce top-1 / Bradley–Terry) method strengths with bootstrap CIs.
 
     Parameters
@@ -394,8 +444,9 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
     index = {m: i for i, m in enumerate(methods)}
     rng = np.random.default_rng(seed)
     shown_col = choices["shown_order"] if "shown_order" in choices else [None] * len(choices)
-    shown = [tuple(s) if isinstance(s, list | tuple) and len(s) else tuple(methods)
-             for s in shown_col]
+    shown = [
+        tuple(s) if isinstance(s, list | tuple) and len(s) else tuple(methods) for s in shown_col
+    ]
     chosen = list(choices["chosen_method"])
     scenes = list(choices["scene"])
     groups = {s: [i for i, t in enumerate(scenes) if t == s] for s in ordered_scenes(scenes, order)}
@@ -409,15 +460,20 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
         boots = np.empty((n_boot, len(methods)))
         for b in range(n_boot):
             if clusters is not None:  # whole participants, with all their choices
-                pick = [i for k in rng.integers(0, len(clusters), len(clusters))
-                        for i in clusters[k]]
+                pick = [
+                    i for k in rng.integers(0, len(clusters), len(clusters)) for i in clusters[k]
+                ]
             else:
                 pick = [i for idx in idx_by_stratum for i in rng.choice(idx, size=len(idx))]
             # Starting from the full-data estimate only saves iterations (same optimum).
-            boots[b], _ = _fit_shares(len(methods), [data_all[i] for i in pick], luce_alpha,
-                                      initial=theta)
-        lo, hi = (np.quantile(boots, [q, 1 - q], axis=0) if n_boot > 0
-                  else (np.full(len(methods), np.nan),) * 2)
+            boots[b], _ = _fit_shares(
+                len(methods), [data_all[i] for i in pick], luce_alpha, initial=theta
+            )
+        lo, hi = (
+            np.quantile(boots, [q, 1 - q], axis=0)
+            if n_boot > 0
+            else (np.full(len(methods), np.nan),) * 2
+        )
         if n_boot > 0 and flat:
             # A method chosen by none (or by all) of n: every resample repeats that, so
             # the percentile interval collapses to [0, 0] (or [1, 1]) as if the share
@@ -429,9 +485,17 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
             lo[k == 0], hi[k == 0] = 0.0, 1 - q ** (1 / n_flat)
             lo[k == n_flat], hi[k == n_flat] = q ** (1 / n_flat), 1.0
         for m, i in index.items():
-            rows.append({"scene": scene, "method": m, "n": len(flat), "strength": share[i],
-                         "log_strength": theta[i] - theta.mean(), "ci_low": lo[i],
-                         "ci_high": hi[i]})
+            rows.append(
+                {
+                    "scene": scene,
+                    "method": m,
+                    "n": len(flat),
+                    "strength": share[i],
+                    "log_strength": theta[i] - theta.mean(),
+                    "ci_low": lo[i],
+                    "ci_high": hi[i],
+                }
+            )
 
     for scene, idx in groups.items():
         emit(scene, [np.asarray(idx)])
@@ -439,7 +503,8 @@ def luce_strengths(choices: pd.DataFrame, *, methods=VIEW_METHODS, n_boot: int =
         clusters = None
         if "participant_id" in choices and choices["participant_id"].notna().all():
             who = pd.Series(range(len(choices))).groupby(
-                choices["participant_id"].to_numpy(), sort=False)
+                choices["participant_id"].to_numpy(), sort=False
+            )
             clusters = [np.asarray(v) for v in who.groups.values()]
         emit("all", [np.asarray(idx) for idx in groups.values()], clusters)
     return pd.DataFrame(rows)
@@ -482,10 +547,18 @@ def merge_near_duplicates(counts: pd.DataFrame, duplicates: dict) -> pd.DataFram
         options = list({id(g): g for g in groups.values()}.values())
         votes = [int(sum(int(row[m]) for m in g)) for g in options]
         n = int(sum(votes))
-        p = (stats.chisquare(votes).pvalue if len(votes) > 1 and n > 0 else float("nan"))
+        p = stats.chisquare(votes).pvalue if len(votes) > 1 and n > 0 else float("nan")
         for g, v in zip(options, votes, strict=True):
-            rows.append({"scene": scene, "option": " = ".join(g), "votes": v, "n": n,
-                         "options": len(options), "chisquare_p": float(p)})
+            rows.append(
+                {
+                    "scene": scene,
+                    "option": " = ".join(g),
+                    "votes": v,
+                    "n": n,
+                    "options": len(options),
+                    "chisquare_p": float(p),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -512,9 +585,20 @@ def fleiss_kappa(counts: pd.DataFrame) -> pd.DataFrame:
     x = x[x.sum(axis=1) > 1]
     if x.shape[0] == 0:
         warnings.warn("fleiss_kappa: no scene with two or more votes; kappa is NaN", stacklevel=2)
-        return pd.DataFrame([{"kappa": np.nan, "n_items": 0, "raters_per_item": np.nan,
-                              "p_observed": np.nan, "p_chance": np.nan, "se0": np.nan,
-                              "z": np.nan, "p_value": np.nan}])
+        return pd.DataFrame(
+            [
+                {
+                    "kappa": np.nan,
+                    "n_items": 0,
+                    "raters_per_item": np.nan,
+                    "p_observed": np.nan,
+                    "p_chance": np.nan,
+                    "se0": np.nan,
+                    "z": np.nan,
+                    "p_value": np.nan,
+                }
+            ]
+        )
     n_i = x.sum(axis=1)
     p_i = ((x**2).sum(axis=1) - n_i) / (n_i * (n_i - 1))
     p_bar = p_i.mean()
@@ -524,9 +608,24 @@ def fleiss_kappa(counts: pd.DataFrame) -> pd.DataFrame:
     n, N = n_i.mean(), x.shape[0]
     pq = p_j * (1 - p_j)
     spq = pq.sum()
-    var0 = 2 / (N * n * (n - 1)) * (spq**2 - (pq * (1 - 2 * p_j)).sum()) / spq**2 if spq > 0 else np.nan
+    var0 = (
+        2 / (N * n * (n - 1)) * (spq**2 - (pq * (1 - 2 * p_j)).sum()) / spq**2
+        if spq > 0
+        else np.nan
+    )
     se0 = np.sqrt(var0) if var0 == var0 and var0 > 0 else np.nan
     z = kappa / se0 if se0 == se0 and se0 > 0 else np.nan
-    return pd.DataFrame([{"kappa": kappa, "n_items": N, "raters_per_item": n,
-                          "p_observed": p_bar, "p_chance": p_e, "se0": se0, "z": z,
-                          "p_value": stats.norm.sf(z) if z == z else np.nan}])
+    return pd.DataFrame(
+        [
+            {
+                "kappa": kappa,
+                "n_items": N,
+                "raters_per_item": n,
+                "p_observed": p_bar,
+                "p_chance": p_e,
+                "se0": se0,
+                "z": z,
+                "p_value": stats.norm.sf(z) if z == z else np.nan,
+            }
+        ]
+    )

@@ -110,9 +110,11 @@ class Snapshot:
     @property
     def views(self) -> dict[ViewMethod, np.ndarray]:
         """The view directions that were computed, by method: unit vectors (3,)."""
-        found = {ViewMethod.OURS: self.view_selection,
-                 ViewMethod.VIEWPOINT_ENTROPY: self.viewpoint_entropy,
-                 ViewMethod.MOTION_AREA: self.motion_area}
+        found = {
+            ViewMethod.OURS: self.view_selection,
+            ViewMethod.VIEWPOINT_ENTROPY: self.viewpoint_entropy,
+            ViewMethod.MOTION_AREA: self.motion_area,
+        }
         return {m: np.asarray(sel.view, dtype=float) for m, sel in found.items() if sel is not None}
 
     @property
@@ -171,13 +173,23 @@ class Snapshot:
             return None
         out = {}
         if (ma := self.motion_area) is not None:
-            out[ViewMethod.MOTION_AREA.value] = {"view": ma.view, "score": ma.score, "units": "m2",
-                                                 "side_rule": ma.side_rule, "certified": ma.certified}
+            out[ViewMethod.MOTION_AREA.value] = {
+                "view": ma.view,
+                "score": ma.score,
+                "units": "m2",
+                "side_rule": ma.side_rule,
+                "certified": ma.certified,
+            }
         if (ve := self.viewpoint_entropy) is not None:
             out[ViewMethod.VIEWPOINT_ENTROPY.value] = {
-                "view": ve.view, "score": ve.score, "units": "bits",
-                "frame": int(self.scene.source_frame(ve.frame)), "n_views": int(ve.views.shape[0]),
-                "resolution": ve.resolution, "n_faces": ve.n_faces}
+                "view": ve.view,
+                "score": ve.score,
+                "units": "bits",
+                "frame": int(self.scene.source_frame(ve.frame)),
+                "n_views": int(ve.views.shape[0]),
+                "resolution": ve.resolution,
+                "n_faces": ve.n_faces,
+            }
         return out
 
     @property
@@ -217,9 +229,15 @@ class Snapshot:
             return np.round(np.asarray(a, dtype=float), _DECIMALS).tolist()
 
         # each peak: its source frame, time, total and the terms that add up to it
-        peaks = [{"frame": src(i), "time_s": round(i / fps, 6), "total": float(scores.total[i]),
-                  **{name: float(v[i]) for name, v in scores.terms.items()}}
-                 for i in self.pose.indices]
+        peaks = [
+            {
+                "frame": src(i),
+                "time_s": round(i / fps, 6),
+                "total": float(scores.total[i]),
+                **{name: float(v[i]) for name, v in scores.terms.items()},
+            }
+            for i in self.pose.indices
+        ]
         counts: dict[str, dict[str, int]] = {}  # character → object → events
         for e in scores.interactions.events:
             ch = scene.characters[e.character].name
@@ -279,9 +297,16 @@ def _jsonable(value):
     return value
 
 
-def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = True,
-                  window_s: float | None = None, baselines: bool = True, n_views: int = 2562,
-                  **pose_options) -> Snapshot:
+def take_snapshot(
+    scene,
+    pose_params: PoseParams | None = None,
+    *,
+    view: bool = True,
+    window_s: float | None = None,
+    baselines: bool = True,
+    n_views: int = 2562,
+    **pose_options,
+) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
@@ -331,17 +356,27 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
     known = {f.name for f in fields(PoseParams)}
     unknown = sorted(set(pose_options) - known)
     if unknown:
-        raise TypeError(f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
-                        f"are {', '.join(sorted(known))})")
+        raise TypeError(
+            f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
+            f"are {', '.join(sorted(known))})"
+        )
     params = replace(pose_params or PoseParams(), **pose_options)
     kwargs = params.kwargs()
     t0 = time.perf_counter()
     sel = select_pose(scene, **kwargs)
     t1 = time.perf_counter()
-    options = {"pose_method": sel.method, "k": int(params.k),
-               "min_separation_s": float(params.min_separation_s)}
-    options.update({name: value for name, value in kwargs.items()
-                    if name not in ("method", "k", "min_separation_s", "tolerances", "story")})
+    options = {
+        "pose_method": sel.method,
+        "k": int(params.k),
+        "min_separation_s": float(params.min_separation_s),
+    }
+    options.update(
+        {
+            name: value
+            for name, value in kwargs.items()
+            if name not in ("method", "k", "min_separation_s", "tolerances", "story")
+        }
+    )
     tol = sel.scores.interactions.tolerances
     if sel.method == "paper":
         options["contact_tolerances"] = {
@@ -353,15 +388,18 @@ def take_snapshot(scene, pose_params: PoseParams | None = None, *, view: bool = 
         }
     elif sel.method == "story":  # every ingredient of the run, for the record
         options["story"] = asdict(params.story or DEFAULT_STORY)
-    timings = {key: sel.timings_s[key] for key in ("contacts", "local", "global", "story", "select")
-               if key in sel.timings_s}
+    timings = {
+        key: sel.timings_s[key]
+        for key in ("contacts", "local", "global", "story", "select")
+        if key in sel.timings_s
+    }
     timings["pose"] = t1 - t0
     snap = Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
     if view:
-        view_params = ViewParams(window_s=window_s, baselines=bool(baselines),
-                                 n_views=int(n_views))
-        options.update(window_s=window_s, baselines=view_params.baselines,
-                       n_views=view_params.n_views)
+        view_params = ViewParams(window_s=window_s, baselines=bool(baselines), n_views=int(n_views))
+        options.update(
+            window_s=window_s, baselines=view_params.baselines, n_views=view_params.n_views
+        )
         _view_stage(snap, view_params)
     timings["total"] = time.perf_counter() - t0
     return snap
@@ -377,8 +415,14 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     t0 = time.perf_counter()
     frames = window_frames(scene, frame if params.window_s is not None else None, params.window_s)
     tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)
-    common = dict(frame=frame, window_s=params.window_s, n_views=params.n_views,
-                  refine=params.refine, floor=params.floor_m2, triangles=tri)
+    common = dict(
+        frame=frame,
+        window_s=params.window_s,
+        n_views=params.n_views,
+        refine=params.refine,
+        floor=params.floor_m2,
+        triangles=tri,
+    )
     snap.view_params = params
     snap.view_selection = select_view(scene, **common)
     timings["view"] = time.perf_counter() - t0

@@ -88,8 +88,10 @@ WATCHED_ENOUGH = 0.9
 SHOWN_EVENT = "shown"
 #: What a tab says when the step it showed was answered elsewhere (another tab or
 #: browser) first, so what it sent for that step was not stored.
-STALE_TAB_TEXT = ("This question had already been answered in another window or tab, so "
-                  "the answer given here was not saved. Here is the next step.")
+STALE_TAB_TEXT = (
+    "This question had already been answered in another window or tab, so "
+    "the answer given here was not saved. Here is the next step."
+)
 #: A cap on stored events per trial, so a runaway client cannot flood the store.
 MAX_EVENTS_PER_TRIAL = 500
 #: Longest plausible response time (s) stored; longer ones (a tab left open) are clipped.
@@ -138,9 +140,11 @@ class Withdrawn(UnknownParticipant):
     """A participant link (or Prolific id) whose data were withdrawn and deleted."""
 
     def __init__(self, when):
-        super().__init__(f"Your data were withdrawn from this study on {when:%d %B %Y} and "
-                         "deleted, as you asked. Nothing more is recorded from this link. "
-                         "Thank you for your interest in the study.")
+        super().__init__(
+            f"Your data were withdrawn from this study on {when:%d %B %Y} and "
+            "deleted, as you asked. Nothing more is recorded from this link. "
+            "Thank you for your interest in the study."
+        )
 
 
 class InvalidAnswer(SessionError):
@@ -172,8 +176,10 @@ def prolific_problems(query: dict) -> list[str]:
         if isinstance(v, list) and len(v) == 1:
             v = v[0]
         if not isinstance(v, str) or not _PROLIFIC_VALUE.match(v):
-            out.append(f"The study link's {k} is not a valid Prolific value (expected up to 64 "
-                       "letters, digits, '-' or '_').")
+            out.append(
+                f"The study link's {k} is not a valid Prolific value (expected up to 64 "
+                "letters, digits, '-' or '_')."
+            )
     return out
 
 
@@ -186,8 +192,9 @@ def resume_url(base_url: str, participant_id: str) -> str:
     for suffix in ("/study", "/researcher"):  # the page's own address, not the app's
         if path.endswith(suffix):
             path = path[: -len(suffix)]
-    return urlunsplit((parts.scheme, parts.netloc, path.rstrip("/") + "/",
-                       urlencode({"pid": participant_id}), ""))
+    return urlunsplit(
+        (parts.scheme, parts.netloc, path.rstrip("/") + "/", urlencode({"pid": participant_id}), "")
+    )
 
 
 def describe_value(value, limit: int = 80) -> str:
@@ -240,8 +247,15 @@ class ParticipantSession:
 
     # -- construction --------------------------------------------------------------
     @classmethod
-    def start(cls, store, stimuli: Stimuli, *, prolific: dict | None = None,
-              seed: int | None = None, simulated: bool = False) -> ParticipantSession:
+    def start(
+        cls,
+        store,
+        stimuli: Stimuli,
+        *,
+        prolific: dict | None = None,
+        seed: int | None = None,
+        simulated: bool = False,
+    ) -> ParticipantSession:
         """Register a new participant (they agreed to take part) and return their session.
 
         ``seed`` defaults to 62 random bits; pass one only to reproduce a plan.
@@ -252,12 +266,21 @@ class ParticipantSession:
         if params.get("PROLIFIC_PID") and not simulated:
             # One Prolific id, one participant: a second browser resumes the first record.
             pid, _ = store.participant_for_prolific(
-                stimuli.study.id, stimuli.sha256, app_version=app_version(), seed=int(seed),
-                prolific=params)
+                stimuli.study.id,
+                stimuli.sha256,
+                app_version=app_version(),
+                seed=int(seed),
+                prolific=params,
+            )
             return cls.resume(store, stimuli, pid)
         pid = store.create_participant(
-            stimuli.study.id, stimuli.sha256, app_version=app_version(), seed=int(seed),
-            prolific=params or None, simulated=simulated)
+            stimuli.study.id,
+            stimuli.sha256,
+            app_version=app_version(),
+            seed=int(seed),
+            prolific=params or None,
+            simulated=simulated,
+        )
         return cls.resume(store, stimuli, pid)
 
     @classmethod
@@ -293,25 +316,31 @@ class ParticipantSession:
             started with different stimuli (answers would not be comparable).
         """
         if not isinstance(participant_id, str) or not _PID.match(participant_id):
-            raise UnknownParticipant("This participant link is not valid. Please use the "
-                                     "link you were given, or start a new session.")
+            raise UnknownParticipant(
+                "This participant link is not valid. Please use the "
+                "link you were given, or start a new session."
+            )
         part, answered = store.participant_state(participant_id)
         if part is None:
             gone = withdrawal_of(store, participant_id=participant_id)
             if gone is not None:
                 raise Withdrawn(gone.withdrawn_at)
-            raise UnknownParticipant("This participant link is not known to this study. "
-                                     "Please use the link you were given, or start a new session.")
+            raise UnknownParticipant(
+                "This participant link is not known to this study. "
+                "Please use the link you were given, or start a new session."
+            )
         if part["study_id"] != stimuli.study.id:
             raise UnknownParticipant("This participant link belongs to another study.")
         # A participant who started before the stimuli were rebuilt goes on with the set
         # they started on (kept beside the new one): never answers against another set.
         own = find_stimulus_set(stimuli, part["manifest_sha256"])
         if own is None or own.study.id != part["study_id"]:
-            raise MaterialsChanged("The study's materials have changed since you started, "
-                                   "and the ones you saw are no longer available, so this "
-                                   "session cannot continue. Your answers so far are saved. "
-                                   "Please contact the researchers.")
+            raise MaterialsChanged(
+                "The study's materials have changed since you started, "
+                "and the ones you saw are no longer available, so this "
+                "session cannot continue. Your answers so far are saved. "
+                "Please contact the researchers."
+            )
         return cls(store, own, part, answered)
 
     # -- where the participant is ----------------------------------------------------
@@ -391,20 +420,31 @@ class ParticipantSession:
                 missing.append(BACKGROUND_NAMES[key])
             clean[key] = value
         if missing:
-            raise InvalidAnswer("Please answer the question" + ("s" if len(missing) > 1 else "")
-                                + " about your " + _join(missing) + ".")
+            raise InvalidAnswer(
+                "Please answer the question"
+                + ("s" if len(missing) > 1 else "")
+                + " about your "
+                + _join(missing)
+                + "."
+            )
         extra = answers.get("gender_self")
         if isinstance(extra, str) and extra.strip():
             clean["gender_self"] = extra.strip()[:100]
         stored = self.store.set_background(self.participant_id, clean)
-        self.participant = {**self.participant, "background": clean} if stored else \
-            self.store.get_participant(self.participant_id)
+        self.participant = (
+            {**self.participant, "background": clean}
+            if stored
+            else self.store.get_participant(self.participant_id)
+        )
         return bool(stored)
 
     def _trial_for(self, trial_index, task: str) -> Trial | None:
         """The trial an answer claims to answer; None if it is already answered."""
-        if isinstance(trial_index, bool) or not isinstance(trial_index, int) \
-                or not 0 <= trial_index < len(self.plan):
+        if (
+            isinstance(trial_index, bool)
+            or not isinstance(trial_index, int)
+            or not 0 <= trial_index < len(self.plan)
+        ):
             raise InvalidAnswer(f"There is no question number {trial_index!r} in this study.")
         trial = self.plan[trial_index]
         if trial.task != task:
@@ -424,9 +464,11 @@ class ParticipantSession:
         if t < self.stimuli.study.min_answer_s:
             # Too soon after the trial appeared to be about it: typically the second
             # click of a double click, landing on the next trial's button.
-            raise TooEarly("That click came before this question was on screen long enough "
-                           "to be an answer to it; nothing was saved. Please take a look "
-                           "and answer again.")
+            raise TooEarly(
+                "That click came before this question was on screen long enough "
+                "to be an answer to it; nothing was saved. Please take a look "
+                "and answer again."
+            )
         return min(t, MAX_RESPONSE_TIME_S)
 
     def _record(self, row: dict, trial_events=()) -> bool:
@@ -442,16 +484,23 @@ class ParticipantSession:
         if following is not None:
             events.append((following, SHOWN_EVENT, self._shown_payload()))
         at = datetime.now(UTC)
-        stored = self.store.record_response(self.participant_id, row, with_events=events,
-                                            at=at)
+        stored = self.store.record_response(self.participant_id, row, with_events=events, at=at)
         if stored and following is not None:
             self._shown[following] = at.timestamp()
         self.answered.add(row["trial_index"])
         return bool(stored)
 
-    def submit_pose(self, trial_index: int, video_frame, *, response_time_s: float,
-                    events=(), watched: float | None = None, ranges=None,
-                    client: dict | None = None) -> bool:
+    def submit_pose(
+        self,
+        trial_index: int,
+        video_frame,
+        *,
+        response_time_s: float,
+        events=(),
+        watched: float | None = None,
+        ranges=None,
+        client: dict | None = None,
+    ) -> bool:
         """Answer a pose task with the confirmed frame of the video.
 
         The video frame is checked against the scene's frame map and converted to the
@@ -488,20 +537,35 @@ class ParticipantSession:
         except AnswerError as err:
             raise InvalidAnswer(f"That frame cannot be stored: {err}.") from None
         if watched is not None:
-            if isinstance(watched, bool) or not isinstance(watched, (int, float)) \
-                    or not 0 <= watched <= 1:
+            if (
+                isinstance(watched, bool)
+                or not isinstance(watched, (int, float))
+                or not 0 <= watched <= 1
+            ):
                 raise InvalidAnswer("The player reported an invalid viewing time.")
-            watched = max(float(watched), self.watched(trial.index),
-                          _share(_ranges(ranges), sc.n_video_frames, self._ranges(trial.index)))
+            watched = max(
+                float(watched),
+                self.watched(trial.index),
+                _share(_ranges(ranges), sc.n_video_frames, self._ranges(trial.index)),
+            )
             if self.stimuli.study.require_watch and watched < WATCHED_ENOUGH:
-                raise InvalidAnswer("Please watch the whole animation once before choosing "
-                                    "a frame.")
-        row = {"trial_index": trial.index, "task": "pose", "scene": trial.scene,
-               "stimulus_id": trial.stimulus_id, "chosen_frame": m, "chosen_video_frame": v,
-               "algorithm_frame": sc.algorithm_frame, "fps": sc.fps, "n_frames": sc.n_frames,
-               "response_time_s": self._time(response_time_s),
-               "picked_with": "slider" if watched is None else "player",
-               "watched": None if watched is None else round(min(watched, 1.0), 3)}
+                raise InvalidAnswer(
+                    "Please watch the whole animation once before choosing a frame."
+                )
+        row = {
+            "trial_index": trial.index,
+            "task": "pose",
+            "scene": trial.scene,
+            "stimulus_id": trial.stimulus_id,
+            "chosen_frame": m,
+            "chosen_video_frame": v,
+            "algorithm_frame": sc.algorithm_frame,
+            "fps": sc.fps,
+            "n_frames": sc.n_frames,
+            "response_time_s": self._time(response_time_s),
+            "picked_with": "slider" if watched is None else "player",
+            "watched": None if watched is None else round(min(watched, 1.0), 3),
+        }
         row.update(client_fields(client, row["response_time_s"]))
         # The picker's log goes with the answer (its "select" entry carries how much was
         # watched), in the same transaction.
@@ -515,15 +579,15 @@ class ParticipantSession:
         are ignored (0), as are entries beyond :data:`MAX_EVENTS_PER_TRIAL` a trial.
         """
         t = self.current_trial
-        if t is None or t.task != "pose" or trial_index != t.index \
-                or isinstance(trial_index, bool):
+        if t is None or t.task != "pose" or trial_index != t.index or isinstance(trial_index, bool):
             return 0
         sc = self.stimuli.scenes[t.scene]
         items = _picker_items(events, n_video_frames=sc.n_video_frames)
         if not items:
             return 0
-        return self.store.record_events(self.participant_id, t.index, items,
-                                        limit=MAX_EVENTS_PER_TRIAL)
+        return self.store.record_events(
+            self.participant_id, t.index, items, limit=MAX_EVENTS_PER_TRIAL
+        )
 
     def picker_state(self, trial_index: int) -> tuple[int, float]:
         """``(frame, watched)`` to restore the player at: the last frame the stored log
@@ -563,20 +627,42 @@ class ParticipantSession:
         browser after retries (:data:`MEDIA_FAILED_EVENT`); nothing is answered. False
         (nothing stored) for a trial that is not the current one."""
         t = self.current_trial
-        if t is None or isinstance(trial_index, bool) or trial_index != t.index \
-                or what not in ("image", "video"):
+        if (
+            t is None
+            or isinstance(trial_index, bool)
+            or trial_index != t.index
+            or what not in ("image", "video")
+        ):
             return False
-        payload = {"what": what,
-                   "positions": [p for p in positions or () if isinstance(p, int)
-                                 and not isinstance(p, bool) and 0 <= p < 8][:8]}
+        payload = {
+            "what": what,
+            "positions": [
+                p
+                for p in positions or ()
+                if isinstance(p, int) and not isinstance(p, bool) and 0 <= p < 8
+            ][:8],
+        }
         if isinstance(tab, str) and _TAB.match(tab):
             payload["tab"] = tab
-        return self.store.record_events(self.participant_id, t.index,
-                                        [(MEDIA_FAILED_EVENT, payload)],
-                                        limit=MAX_EVENTS_PER_TRIAL) > 0
+        return (
+            self.store.record_events(
+                self.participant_id,
+                t.index,
+                [(MEDIA_FAILED_EVENT, payload)],
+                limit=MAX_EVENTS_PER_TRIAL,
+            )
+            > 0
+        )
 
-    def submit_view(self, trial_index: int, position, method=None, *,
-                    response_time_s: float, client: dict | None = None) -> bool:
+    def submit_view(
+        self,
+        trial_index: int,
+        position,
+        method=None,
+        *,
+        response_time_s: float,
+        client: dict | None = None,
+    ) -> bool:
         """Answer a view task: the screen position clicked.
 
         The method is looked up in the participant's seeded screen order (the page never
@@ -597,11 +683,19 @@ class ParticipantSession:
         except AnswerError as err:
             raise InvalidAnswer(f"That choice cannot be stored: {err}.") from None
         sc = self.stimuli.scenes[trial.scene]
-        row = {"trial_index": trial.index, "task": "view", "scene": trial.scene,
-               "stimulus_id": trial.stimulus_id, "algorithm_frame": sc.algorithm_frame,
-               "fps": sc.fps, "n_frames": sc.n_frames, "chosen_method": m,
-               "chosen_position": p, "shown_order": list(trial.shown_order),
-               "response_time_s": self._time(response_time_s)}
+        row = {
+            "trial_index": trial.index,
+            "task": "view",
+            "scene": trial.scene,
+            "stimulus_id": trial.stimulus_id,
+            "algorithm_frame": sc.algorithm_frame,
+            "fps": sc.fps,
+            "n_frames": sc.n_frames,
+            "chosen_method": m,
+            "chosen_position": p,
+            "shown_order": list(trial.shown_order),
+            "response_time_s": self._time(response_time_s),
+        }
         row.update(client_fields(client, row["response_time_s"]))
         return self._record(row)
 
@@ -614,9 +708,15 @@ class ParticipantSession:
             correct = check_attention_answer(self.stimuli.study, answer)
         except AnswerError:
             raise InvalidAnswer("Please choose one of the options.") from None
-        row = {"trial_index": trial.index, "task": "attention", "scene": trial.scene,
-               "stimulus_id": trial.stimulus_id, "chosen_value": answer, "correct": correct,
-               "response_time_s": self._time(response_time_s)}
+        row = {
+            "trial_index": trial.index,
+            "task": "attention",
+            "scene": trial.scene,
+            "stimulus_id": trial.stimulus_id,
+            "chosen_value": answer,
+            "correct": correct,
+            "response_time_s": self._time(response_time_s),
+        }
         return self._record(row)
 
     def finish(self) -> str:
@@ -677,9 +777,14 @@ def _ranges(value, *, limit: float = 1e6) -> list[list[float]]:
     ``[0, limit]``), united; anything else is dropped."""
     if not isinstance(value, list):
         return []
-    out = [[round(float(r[0]), 2), round(float(r[1]), 2)] for r in value[:64]
-           if isinstance(r, list) and len(r) == 2 and all(_number(x) for x in r)
-           and 0 <= r[0] < r[1] <= limit]
+    out = [
+        [round(float(r[0]), 2), round(float(r[1]), 2)]
+        for r in value[:64]
+        if isinstance(r, list)
+        and len(r) == 2
+        and all(_number(x) for x in r)
+        and 0 <= r[0] < r[1] <= limit
+    ]
     return _unite(out)
 
 
@@ -696,8 +801,11 @@ def _unite(ranges) -> list[list[float]]:
 
 def _share(ranges, n_video_frames: int, more=()) -> float:
     """Share of an ``n_video_frames`` animation the ranges (with ``more``) cover."""
-    covered = sum(min(b, n_video_frames) - max(a, 0.0)
-                  for a, b in _unite(list(ranges) + list(more)) if b > 0 and a < n_video_frames)
+    covered = sum(
+        min(b, n_video_frames) - max(a, 0.0)
+        for a, b in _unite(list(ranges) + list(more))
+        if b > 0 and a < n_video_frames
+    )
     return min(covered / n_video_frames, 1.0) if n_video_frames > 0 else 0.0
 
 
@@ -707,8 +815,11 @@ def client_fields(client, response_time_s: float) -> dict:
     (None otherwise); the active time at most the response time."""
     c = client if isinstance(client, dict) else {}
     vp = c.get("viewport")
-    ok_vp = isinstance(vp, list) and len(vp) == 2 and all(
-        isinstance(x, int) and not isinstance(x, bool) and 0 < x < 100_000 for x in vp)
+    ok_vp = (
+        isinstance(vp, list)
+        and len(vp) == 2
+        and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x < 100_000 for x in vp)
+    )
     dpr = c.get("dpr")
     active = c.get("active_s")
     return {
@@ -717,6 +828,7 @@ def client_fields(client, response_time_s: float) -> dict:
         "device_pixel_ratio": round(float(dpr), 3) if _number(dpr) and 0 < dpr <= 16 else None,
         "input_type": c.get("input") if c.get("input") in INPUT_TYPES else None,
         "active_time_s": min(round(float(active), 3), response_time_s)
-        if _number(active) and active >= 0 else None,
+        if _number(active) and active >= 0
+        else None,
         "tab_id": c.get("tab") if isinstance(c.get("tab"), str) and _TAB.match(c["tab"]) else None,
     }

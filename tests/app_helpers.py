@@ -31,8 +31,13 @@ COLOURS = {"ours": (200, 60, 60), "viewpoint_entropy": (60, 160, 60), "motion_ar
 
 def fixture_study_doc(scene_ids=("walk", "jump"), **study_fields) -> dict:
     """A study config document with the given scenes (as demo scenes)."""
-    study = {"id": "fixture", "title": "Fixture study", "video_fps": FIXTURE_VIDEO_FPS,
-             "size": list(FIXTURE_SIZE), **study_fields}
+    study = {
+        "id": "fixture",
+        "title": "Fixture study",
+        "video_fps": FIXTURE_VIDEO_FPS,
+        "size": list(FIXTURE_SIZE),
+        **study_fields,
+    }
     return {"study": study, "scenes": [{"id": s, "demo": s} for s in scene_ids]}
 
 
@@ -65,8 +70,15 @@ def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
         (d / "frames").mkdir(parents=True, exist_ok=True)
         frames = np.stack([_digits_image(str(i), study.size) for i in range(n_video)])
         video = d / "video.mp4"
-        iio.imwrite(video, frames, plugin="FFMPEG", fps=study.video_fps, codec="libx264",
-                    macro_block_size=8, output_params=["-movflags", "+faststart", "-g", "6"])
+        iio.imwrite(
+            video,
+            frames,
+            plugin="FFMPEG",
+            fps=study.video_fps,
+            codec="libx264",
+            macro_block_size=8,
+            output_params=["-movflags", "+faststart", "-g", "6"],
+        )
         paths = []
         for i, f in enumerate(frames):
             p = d / "frames" / f"{i:05d}.jpg"
@@ -77,16 +89,28 @@ def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
             p = d / f"view_{m}.png"
             Image.fromarray(_digits_image("ABC"[k], study.size, COLOURS[m])).save(p)
             views[m] = {"file": p, "direction": [0.0, 0.0, 1.0]}
-        entries.append({
-            "id": sc["id"], "title": sc["id"], "fps": FIXTURE_MOTION_FPS,
-            "n_frames": FIXTURE_MOTION_FRAMES, "frame_offset": 0, "video": video,
-            "video_fps": study.video_fps, "size": list(study.size),
-            "video_to_motion": [2 * i for i in range(n_video)], "frames": paths,
-            "picks": {"frame": FIXTURE_ALGORITHM_FRAME, "frames": [FIXTURE_ALGORITHM_FRAME],
-                      "view": [0.0, 0.0, 1.0], "viewpoint_entropy": [1.0, 0.0, 0.0],
-                      "motion_area": [0.0, 1.0, 0.0]},
-            "views": views,
-        })
+        entries.append(
+            {
+                "id": sc["id"],
+                "title": sc["id"],
+                "fps": FIXTURE_MOTION_FPS,
+                "n_frames": FIXTURE_MOTION_FRAMES,
+                "frame_offset": 0,
+                "video": video,
+                "video_fps": study.video_fps,
+                "size": list(study.size),
+                "video_to_motion": [2 * i for i in range(n_video)],
+                "frames": paths,
+                "picks": {
+                    "frame": FIXTURE_ALGORITHM_FRAME,
+                    "frames": [FIXTURE_ALGORITHM_FRAME],
+                    "view": [0.0, 0.0, 1.0],
+                    "viewpoint_entropy": [1.0, 0.0, 0.0],
+                    "motion_area": [0.0, 1.0, 0.0],
+                },
+                "views": views,
+            }
+        )
     return write_manifest(root, study, entries)
 
 
@@ -132,6 +156,11 @@ def tiny_demo_stimuli(tmp_path_factory):
     root.mkdir(parents=True, exist_ok=True)
     (root / "tiny.toml").write_text(TINY_STUDY)
     snapshot = str(Path(sys.executable).with_name("snapshot"))
-    r = subprocess.run([snapshot, "stimuli", "build", "tiny.toml", "-o", "stimuli", "-q"],
-                       capture_output=True, text=True, timeout=600, cwd=root)
+    r = subprocess.run(
+        [snapshot, "stimuli", "build", "tiny.toml", "-o", "stimuli", "-q"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=root,
+    )
     return out, r

@@ -21,7 +21,9 @@ def make_library(root: Path, *, broken: bool = True) -> Path:
     write_bvh(synth.humanoid_document("idle", seconds=1.5, facing_deg=180), root / "duo" / "b.bvh")
     (root / "duo" / "duo.toml").write_text(
         'name = "duo"\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n'
-        '[[characters]]\nfile = "b.bvh"\noffset = [0.0, 0.0, 1.2]\n', encoding="utf-8")
+        '[[characters]]\nfile = "b.bvh"\noffset = [0.0, 0.0, 1.2]\n',
+        encoding="utf-8",
+    )
     (root / "notes.json").write_text('{"hello": "not a scene"}\n', encoding="utf-8")
     if broken:
         text = format_bvh(synth.humanoid_document("kick", seconds=1.5))

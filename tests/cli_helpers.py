@@ -80,8 +80,14 @@ def run_batch(cases: dict, walk: Path, root: Path) -> dict:
             (folder / name).write_bytes(walk.read_bytes() if data is None else data)
         folders[cid] = folder
         todo.append([cid, str(folder), [a.format(walk=walk) for a in args]])
-    proc = subprocess.run([sys.executable, "-c", _DRIVER], input=json.dumps(todo), env=_env(),
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", _DRIVER],
+        input=json.dumps(todo),
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     outs = proc.stdout.split("@@END\n")
     errs = proc.stderr.split("@@END\n")
     assert len(outs) == len(errs) == len(todo) + 1, proc.stdout[-2000:] + proc.stderr[-2000:]
@@ -95,8 +101,14 @@ def run_batch(cases: dict, walk: Path, root: Path) -> dict:
 
 def alone(*args, cwd) -> Run:
     """One command in its own process, as a user runs it."""
-    r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", *map(str, args)], cwd=cwd,
-                       env=_env(), capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "snapcore.cli.main", *map(str, args)],
+        cwd=cwd,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     return Run(r.returncode, r.stdout, r.stderr, Path(cwd))
 
 

@@ -51,7 +51,9 @@ def need(condition: bool, reason: str) -> None:
 def motions_dir():
     """The real motion-capture folder (``SNAPSHOT_DATA`` or ``../shared/motions``)."""
     d = data_dir()
-    need(d is not None, "no motion data: set SNAPSHOT_DATA or put ../shared/motions beside the repo")
+    need(
+        d is not None, "no motion data: set SNAPSHOT_DATA or put ../shared/motions beside the repo"
+    )
     return d
 
 

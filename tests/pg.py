@@ -52,11 +52,15 @@ FAST_SETTINGS = {
 
 def find_pg_bin() -> Path | None:
     """Folder holding ``initdb`` and ``pg_ctl`` (newest Debian version first), or None."""
-    candidates = sorted(glob.glob("/usr/lib/postgresql/*/bin"),
-                        key=lambda p: [int(t) for t in Path(p).parent.name.split(".")
-                                       if t.isdigit()], reverse=True)
+    candidates = sorted(
+        glob.glob("/usr/lib/postgresql/*/bin"),
+        key=lambda p: [int(t) for t in Path(p).parent.name.split(".") if t.isdigit()],
+        reverse=True,
+    )
     for folder in candidates:
-        if os.access(Path(folder) / "initdb", os.X_OK) and os.access(Path(folder) / "pg_ctl", os.X_OK):
+        if os.access(Path(folder) / "initdb", os.X_OK) and os.access(
+            Path(folder) / "pg_ctl", os.X_OK
+        ):
             return Path(folder)
     initdb, pg_ctl = shutil.which("initdb"), shutil.which("pg_ctl")
     if initdb and pg_ctl and Path(initdb).parent == Path(pg_ctl).parent:
@@ -95,14 +99,16 @@ class PostgresServer:
         if self.as_root:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
         # cwd: the postgres user may not be allowed into the caller's working folder.
-        proc = subprocess.run(cmd, cwd=self.root, capture_output=True, text=True,
-                              timeout=START_TIMEOUT_S)
+        proc = subprocess.run(
+            cmd, cwd=self.root, capture_output=True, text=True, timeout=START_TIMEOUT_S
+        )
         if check and proc.returncode != 0:
             log = ""
             if self.root is not None and (self.root / "server.log").exists():
                 log = (self.root / "server.log").read_text(errors="replace")[-2000:]
-            raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n"
-                               f"{proc.stdout}\n{proc.stderr}\n{log}")
+            raise RuntimeError(
+                f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}\n{log}"
+            )
         return proc
 
     def start(self) -> PostgresServer:
@@ -118,18 +124,40 @@ class PostgresServer:
             shutil.chown(pwfile, user="postgres", group="postgres")
         # Local socket: trust (the fixture creates databases); TCP: password, so that a
         # wrong password in a URL is a real authentication failure.
-        self._run("initdb", "-D", str(data), "-U", "postgres", "-E", "UTF8",
-                  "--locale=C", "--no-sync", "--auth-local=trust",
-                  "--auth-host=scram-sha-256", f"--pwfile={pwfile}")
+        self._run(
+            "initdb",
+            "-D",
+            str(data),
+            "-U",
+            "postgres",
+            "-E",
+            "UTF8",
+            "--locale=C",
+            "--no-sync",
+            "--auth-local=trust",
+            "--auth-host=scram-sha-256",
+            f"--pwfile={pwfile}",
+        )
         pwfile.unlink()
         last_error = None
         for _ in range(3):  # the free port can be taken between choosing and binding
             self.port = _free_port()
             options = " ".join(f"-c {k}={v}" for k, v in FAST_SETTINGS.items())
             options += f" -p {self.port} -k {self.root}"
-            proc = self._run("pg_ctl", "-D", str(data), "-l", str(self.root / "server.log"),
-                             "-w", "-t", str(START_TIMEOUT_S), "-o", options, "start",
-                             check=False)
+            proc = self._run(
+                "pg_ctl",
+                "-D",
+                str(data),
+                "-l",
+                str(self.root / "server.log"),
+                "-w",
+                "-t",
+                str(START_TIMEOUT_S),
+                "-o",
+                options,
+                "start",
+                check=False,
+            )
             if proc.returncode == 0:
                 break
             last_error = proc.stdout + proc.stderr
@@ -161,9 +189,14 @@ class PostgresServer:
 
         self._n_databases += 1
         name = name or f"test_{os.getpid()}_{self._n_databases}"
-        with psycopg.connect(host="127.0.0.1", port=self.port, user="postgres",
-                             password=PG_PASSWORD, dbname="postgres",
-                             autocommit=True) as conn:
+        with psycopg.connect(
+            host="127.0.0.1",
+            port=self.port,
+            user="postgres",
+            password=PG_PASSWORD,
+            dbname="postgres",
+            autocommit=True,
+        ) as conn:
             conn.execute(f'CREATE DATABASE "{name}"')
         return self.url(name)
 
@@ -175,16 +208,21 @@ class PostgresServer:
         """
         import psycopg
 
-        params = dict(host="127.0.0.1", port=self.port, user="postgres", password=PG_PASSWORD,
-                      autocommit=True)
+        params = dict(
+            host="127.0.0.1", port=self.port, user="postgres", password=PG_PASSWORD, autocommit=True
+        )
         with psycopg.connect(dbname="postgres", **params) as conn:
-            exists = conn.execute("SELECT 1 FROM pg_database WHERE datname = %s",
-                                  (name,)).fetchone()
+            exists = conn.execute(
+                "SELECT 1 FROM pg_database WHERE datname = %s", (name,)
+            ).fetchone()
             if not exists:
                 conn.execute(f'CREATE DATABASE "{name}"')
                 return self.url(name)
-            conn.execute("SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
-                         "WHERE datname = %s AND pid <> pg_backend_pid()", (name,))
+            conn.execute(
+                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+                "WHERE datname = %s AND pid <> pg_backend_pid()",
+                (name,),
+            )
         with psycopg.connect(dbname=name, **params) as conn:
             conn.execute("DROP SCHEMA public CASCADE")
             conn.execute("CREATE SCHEMA public")
@@ -203,8 +241,10 @@ def pg_server():
     from conftest import need
 
     bin_dir = find_pg_bin()
-    need(bin_dir is not None, "PostgreSQL server binaries not found "
-                              "(apt-get install postgresql; `make test` does it)")
+    need(
+        bin_dir is not None,
+        "PostgreSQL server binaries not found (apt-get install postgresql; `make test` does it)",
+    )
     if os.geteuid() == 0:
         import pwd
 
@@ -213,8 +253,11 @@ def pg_server():
             have_user = True
         except KeyError:
             have_user = False
-        need(have_user, "running as root and there is no 'postgres' system user to run "
-                        "the server as (Debian's postgresql package creates it)")
+        need(
+            have_user,
+            "running as root and there is no 'postgres' system user to run "
+            "the server as (Debian's postgresql package creates it)",
+        )
     server = PostgresServer(bin_dir)
     server.start()
     try:

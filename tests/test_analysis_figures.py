@@ -30,16 +30,25 @@ def test_paper_tables_are_package_data():
     assert t1.loc["two_person_arguing", "viewpoint_selection_s"] == 4.69
     assert t1["source"].str.contains("Table 1").all()
     an = fg.paper_analogues()
-    assert set(an["scene"]) == {"dancing", "running", "soccer_kicking", "basketball_shooting",
-                                "two_person_arguing", "two_person_boxing"}
+    assert set(an["scene"]) == {
+        "dancing",
+        "running",
+        "soccer_kicking",
+        "basketball_shooting",
+        "two_person_arguing",
+        "two_person_boxing",
+    }
     assert an.set_index("scene").loc["two_person_arguing", "files"] == [
-        "two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"]
+        "two_person/60_01_scaled.bvh",
+        "two_person/61_01_scaled.bvh",
+    ]
 
 
 def test_missing_data_is_a_reason_not_a_crash(tmp_path):
     """No motion folder: the clip figures are skipped with a reason, Table 2 is still made."""
-    res = fg.make_figures(tmp_path, names=["table2", "fig6"], progress=False,
-                          data_dir=tmp_path / "nowhere")
+    res = fg.make_figures(
+        tmp_path, names=["table2", "fig6"], progress=False, data_dir=tmp_path / "nowhere"
+    )
     assert res["table2"][0] and not res["table2"][1]
     paths, reason = res["fig6"]
     assert paths == []
@@ -51,8 +60,11 @@ def test_snapshot_views_reads_the_typed_views():
     """The three views come from Snapshot.views in the paper's order (whatever order the
     snapshot holds them in); a snapshot without the view stage or without a baseline is
     refused, naming what it lacks."""
-    views = {ViewMethod.MOTION_AREA: np.array([0.0, 0, 1]), ViewMethod.OURS: np.array([1.0, 0, 0]),
-             ViewMethod.VIEWPOINT_ENTROPY: np.array([0.0, 1, 0])}
+    views = {
+        ViewMethod.MOTION_AREA: np.array([0.0, 0, 1]),
+        ViewMethod.OURS: np.array([1.0, 0, 0]),
+        ViewMethod.VIEWPOINT_ENTROPY: np.array([0.0, 1, 0]),
+    }
     v = fg.snapshot_views(SimpleNamespace(views=views))
     assert list(v) == list(VIEW_METHODS) == ["ours", "viewpoint_entropy", "motion_area"]
     np.testing.assert_array_equal(v[ViewMethod.VIEWPOINT_ENTROPY], [0, 1, 0])
@@ -66,8 +78,11 @@ def test_snapshot_views_reads_the_typed_views():
 
 def test_view_panels_are_named_by_the_method_vocabulary():
     """Figure panels and legends use ViewMethod.panel: the label and the paper figure."""
-    assert [m.panel for m in VIEW_METHODS] == ["ours: PMA (Fig. 8)", "viewpoint entropy (Fig. 9)",
-                                               "motion area (Fig. 10)"]
+    assert [m.panel for m in VIEW_METHODS] == [
+        "ours: PMA (Fig. 8)",
+        "viewpoint entropy (Fig. 9)",
+        "motion area (Fig. 10)",
+    ]
 
 
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
@@ -84,7 +99,9 @@ def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
     assert not reason, reason
     assert {p.suffix for p in paths} == {".png", ".pdf"}
     assert _png_std([p for p in paths if p.suffix == ".png"][0]) > 10
-    t = fg.measure_table1(repeats=1, data_dir=motions_dir, scenes=["running", "basketball_shooting"])
+    t = fg.measure_table1(
+        repeats=1, data_dir=motions_dir, scenes=["running", "basketball_shooting"]
+    )
     assert list(t["scene"]) == ["running", "basketball_shooting"]
     assert (t["ours_pose_s"] > 0).all()
     assert list(t["paper_pose_s"]) == [0.31, 2.06]  # the paper's Table 1

@@ -17,9 +17,16 @@ fr = lazy_module("analysis.frames")
 
 
 def _pose(scene, chosen, *, algorithm, fps, n_frames):
-    return pd.DataFrame({"scene": scene, "participant_id": [f"p{i}" for i in range(len(chosen))],
-                         "chosen_frame": chosen, "algorithm_frame": algorithm, "fps": fps,
-                         "n_frames": n_frames})
+    return pd.DataFrame(
+        {
+            "scene": scene,
+            "participant_id": [f"p{i}" for i in range(len(chosen))],
+            "chosen_frame": chosen,
+            "algorithm_frame": algorithm,
+            "fps": fps,
+            "n_frames": n_frames,
+        }
+    )
 
 
 def test_hit_rates_known_answer():
@@ -38,7 +45,11 @@ def test_hit_rates_known_answer():
     assert mid["hit_1s"] == 0
     # Uniform frame: for a choice at 100 of 0..199, P(|f - 100| <= 5 frames) = 11/200 exactly.
     one = _pose("b", [100], algorithm=100, fps=10.0, n_frames=200)
-    u = fr.hit_rates(one, fr.scene_frames_from_rows(one)).set_index("predictor").loc["uniform_random"]
+    u = (
+        fr.hit_rates(one, fr.scene_frames_from_rows(one))
+        .set_index("predictor")
+        .loc["uniform_random"]
+    )
     assert u["hit_0.5s"] == pytest.approx(11 / 200)
     assert u["mean_abs_error_s"] == pytest.approx(np.abs(np.arange(200) - 100).mean() / 10)
 
@@ -67,7 +78,8 @@ def test_paired_test_exact_p():
     # old randomisation test could not go below 1/n_frames whatever the n).
     assert tests.loc["uniform_random", "p_value"] == pytest.approx(1 / 32)
     assert tests.loc["uniform_random", "difference_s"] == pytest.approx(
-        np.abs(np.arange(100) - 80).mean() / 10)
+        np.abs(np.arange(100) - 80).mean() / 10
+    )
 
 
 def test_paired_test_direction_and_null():
@@ -108,8 +120,9 @@ def test_paired_test_against_scipy_with_ties_and_zeros():
     assert t.loc["middle", "rank_biserial"] == pytest.approx(r)
     # One participant per row: the bootstrap over participants is the ordinary one;
     # scipy.stats.bootstrap((d,), np.mean, method="percentile") agrees within MC error.
-    ci = stats.bootstrap((d,), np.mean, method="percentile", n_resamples=4000,
-                         random_state=np.random.default_rng(0)).confidence_interval
+    ci = stats.bootstrap(
+        (d,), np.mean, method="percentile", n_resamples=4000, random_state=np.random.default_rng(0)
+    ).confidence_interval
     assert t.loc["middle", "difference_low"] == pytest.approx(ci.low, abs=0.02)
     assert t.loc["middle", "difference_high"] == pytest.approx(ci.high, abs=0.02)
 
@@ -123,8 +136,7 @@ def test_simulated_300_near_the_algorithm_are_significant_after_holm():
     parts = []
     for k, (alg, n_frames) in enumerate(((30, 120), (90, 150), (60, 100), (20, 80))):
         chosen = np.clip(np.rint(alg + rng.normal(0, 0.3 * 30, size=300)), 0, n_frames - 1)
-        parts.append(_pose(f"s{k}", chosen.astype(int), algorithm=alg, fps=30.0,
-                           n_frames=n_frames))
+        parts.append(_pose(f"s{k}", chosen.astype(int), algorithm=alg, fps=30.0, n_frames=n_frames))
     pose = pd.concat(parts, ignore_index=True)
     t = fr.closeness_tests(pose, fr.scene_frames_from_rows(pose))
     assert len(t) == 8 and (t["n"] == 300).all()
@@ -162,8 +174,13 @@ def test_pooled_rows_count_people_not_choices():
         parts.append(_pose(f"s{k}", chosen, algorithm=50, fps=10.0, n_frames=100))
     pose = pd.concat(parts, ignore_index=True)
     for k in range(5):
-        scenes[f"s{k}"] = StudyScene(scene=f"s{k}", fps=10.0, n_frames=100, algorithm_frame=50,
-                                     selector_frames={"ours": [50]})
+        scenes[f"s{k}"] = StudyScene(
+            scene=f"s{k}",
+            fps=10.0,
+            n_frames=100,
+            algorithm_frame=50,
+            selector_frames={"ours": [50]},
+        )
     agree = fr.selector_agreement(pose, scenes)
     pooled = agree[agree["scene"] == "ALL"].iloc[0]
     assert pd.isna(pooled["frame"]) and pooled["n"] == 200 and pooled["participants"] == 40
@@ -176,8 +193,14 @@ def test_pooled_rows_count_people_not_choices():
 def _fake_scene(positions, *, fps=10.0, offset=0):
     """A duck-typed snapcore Scene with one character (positions (F, J, 3))."""
     ch = SimpleNamespace(positions=np.asarray(positions, float))
-    return SimpleNamespace(characters=[ch], fps=fps, n_frames=len(positions), frame_offset=offset,
-                           name="fake", source_frame=lambda i: i + offset)
+    return SimpleNamespace(
+        characters=[ch],
+        fps=fps,
+        n_frames=len(positions),
+        frame_offset=offset,
+        name="fake",
+        source_frame=lambda i: i + offset,
+    )
 
 
 def test_motion_baselines_are_the_selectors_picks():
@@ -206,14 +229,15 @@ def test_baselines_enter_hits_and_tests():
     """Motion baselines passed as extra scene info appear as predictors."""
     pose = _pose("a", [10, 11, 12], algorithm=11, fps=10.0, n_frames=60)
     scenes = fr.scene_frames_from_rows(
-        pose, extra={"a": {"baseline_frames": {"fastest": 40, "stretch": 12}}})
+        pose, extra={"a": {"baseline_frames": {"fastest": 40, "stretch": 12}}}
+    )
     hits = fr.hit_rates(pose, scenes)
-    assert set(hits["predictor"]) == {"algorithm", "middle", "fastest", "stretch",
-                                      "uniform_random"}
+    assert set(hits["predictor"]) == {"algorithm", "middle", "fastest", "stretch", "uniform_random"}
     t = fr.closeness_tests(pose, scenes).set_index("baseline")
     assert t.loc["fastest", "p_value"] == pytest.approx(1 / 8)  # n = 3, all d > 0: 1/2^3
     assert t.loc["stretch", "difference_s"] == pytest.approx(
-        (np.abs([-2, -1, 0]).mean() - np.abs([-1, 0, 1]).mean()) / 10)
+        (np.abs([-2, -1, 0]).mean() - np.abs([-1, 0, 1]).mean()) / 10
+    )
 
 
 def test_histogram_counts_every_choice():
@@ -240,10 +264,16 @@ def test_selector_agreement_and_timeline(tmp_path):
     timeline figure."""
     from analysis.report import _selector_section
 
-    info = StudyScene(scene="kick", fps=10.0, n_frames=100, algorithm_frame=50,
-                          selector_frames={"story": [50, 20], "middle": [49], "paper": [90]})
-    pose = pd.DataFrame({"scene": "kick", "participant_id": ["a", "b", "c", "d"],
-                         "chosen_frame": [48, 52, 56, 80]})
+    info = StudyScene(
+        scene="kick",
+        fps=10.0,
+        n_frames=100,
+        algorithm_frame=50,
+        selector_frames={"story": [50, 20], "middle": [49], "paper": [90]},
+    )
+    pose = pd.DataFrame(
+        {"scene": "kick", "participant_id": ["a", "b", "c", "d"], "chosen_frame": [48, 52, 56, 80]}
+    )
     agree = fr.selector_agreement(pose, {"kick": info})
     row = agree[(agree["scene"] == "kick") & (agree["selector"] == "story")].iloc[0]
     # |48-50|, |52-50| <= 5 frames (0.5 s); 56 and 80 are not

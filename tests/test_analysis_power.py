@@ -12,7 +12,6 @@ pw = lazy_module("analysis.power")
 sim = lazy_module("analysis.simulate")
 
 
-
 def test_vectorised_p_equals_scipy_for_all_k():
     """The power search's vectorised p equals scipy.stats.binomtest(k, m, 0.5).pvalue for
     every k <= m <= 40 (m = 0 gives 1)."""
@@ -28,8 +27,11 @@ def test_critical_region_matches_brute_force():
         m = np.arange(0, 121)
         c = pw._critical_k(m, level)
         for mm in range(0, 121):
-            ks = [k for k in range(mm + 1)
-                  if 2 * k > mm and stats.binomtest(k, mm, 0.5).pvalue <= level]
+            ks = [
+                k
+                for k in range(mm + 1)
+                if 2 * k > mm and stats.binomtest(k, mm, 0.5).pvalue <= level
+            ]
             assert c[mm] == (ks[0] if ks else mm + 1), (level, mm)
 
 

@@ -43,10 +43,16 @@ def test_fig13_pdf_has_truetype_fonts_a_seconds_label_and_no_paper_numbers(tmp_p
     from analysis import frames as fr
 
     rng = np.random.default_rng(0)
-    pose = pd.DataFrame({"scene": np.repeat(["kick", "jump"], 30),
-                         "participant_id": [f"p{i}" for i in range(30)] * 2,
-                         "chosen_frame": np.clip(rng.normal(45, 8, 60), 0, 89).astype(int),
-                         "algorithm_frame": 44, "fps": 30.0, "n_frames": 90})
+    pose = pd.DataFrame(
+        {
+            "scene": np.repeat(["kick", "jump"], 30),
+            "participant_id": [f"p{i}" for i in range(30)] * 2,
+            "chosen_frame": np.clip(rng.normal(45, 8, 60), 0, 89).astype(int),
+            "algorithm_frame": 44,
+            "fps": 30.0,
+            "n_frames": 90,
+        }
+    )
     fig = plots.plot_frame_histograms(pose, fr.scene_frames_from_rows(pose))
     paths = plots.save_figure(fig, tmp_path / "fig13_frame_histograms")
     pdf = next(p for p in paths if p.suffix == ".pdf").read_bytes()
@@ -60,10 +66,20 @@ def test_fig13_pdf_has_truetype_fonts_a_seconds_label_and_no_paper_numbers(tmp_p
 def test_selector_timeline_title_says_what_is_drawn(tmp_path, saved_texts):
     from analysis import report
 
-    pose = pd.DataFrame({"scene": "kick", "participant_id": [f"p{i}" for i in range(6)],
-                         "chosen_frame": np.array([40, 42, 44, 50, 52, 61])})
-    info = StudyScene(scene="kick", fps=30.0, n_frames=90, algorithm_frame=44,
-                      selector_frames={"ours": [44, 60], "fastest": [61]})
+    pose = pd.DataFrame(
+        {
+            "scene": "kick",
+            "participant_id": [f"p{i}" for i in range(6)],
+            "chosen_frame": np.array([40, 42, 44, 50, 52, 61]),
+        }
+    )
+    info = StudyScene(
+        scene="kick",
+        fps=30.0,
+        n_frames=90,
+        algorithm_frame=44,
+        selector_frames={"ours": [44, 60], "fastest": [61]},
+    )
     (tmp_path / "tables").mkdir()
     report._selector_section(pose, tmp_path, scenes={"kick": info})
     texts = saved_texts["selector_timeline"]

@@ -58,8 +58,10 @@ def test_export_files_round_trip(tmp_path):
     v = ld.view_choices(a)
     assert all(isinstance(s, tuple) and len(s) == 3 for s in v["shown_order"])
     # the chosen method is the one shown at the chosen position
-    assert all(s[p] == m for s, p, m in zip(v["shown_order"], v["chosen_position"],
-                                            v["chosen_method"], strict=True))
+    assert all(
+        s[p] == m
+        for s, p, m in zip(v["shown_order"], v["chosen_position"], v["chosen_method"], strict=True)
+    )
     p = ld.pose_choices(a)
     np.testing.assert_allclose(p["error_s"], (p["chosen_frame"] - p["algorithm_frame"]) / p["fps"])
 
@@ -90,13 +92,17 @@ def test_analysis_reads_exports_with_the_study_codec(tmp_path):
     a .json list); a bad CSV cell is named by file, line and column."""
     from study_app.data.export import write_export
 
-    rows = [{k: (list(v) if isinstance(v, tuple) else v) for k, v in r.items()}
-            for r in _rows(3).replace({np.nan: None}).to_dict(orient="records")]
+    rows = [
+        {k: (list(v) if isinstance(v, tuple) else v) for k, v in r.items()}
+        for r in _rows(3).replace({np.nan: None}).to_dict(orient="records")
+    ]
     for name in ("r.csv", "r.jsonl"):
         write_export(rows, tmp_path / name)
     (tmp_path / "r.json").write_text(json.dumps(rows))
-    frames = [ld.load_responses(tmp_path / n, include_simulated=True)
-              for n in ("r.csv", "r.jsonl", "r.json")]
+    frames = [
+        ld.load_responses(tmp_path / n, include_simulated=True)
+        for n in ("r.csv", "r.jsonl", "r.json")
+    ]
     direct = ld.load_responses(rows, include_simulated=True)
     for df in frames:
         pd.testing.assert_frame_equal(df, direct)
@@ -114,18 +120,28 @@ def test_tables_as_markdown_and_latex():
     numbers right-aligned); LaTeX: booktabs, one row per line, specials escaped."""
     from analysis.report import format_table, to_latex, to_markdown
 
-    df = pd.DataFrame({"scene": ["a|b", "c_d"], "p_value": [1e-5, 0.5], "n": [3, 4],
-                       "significant": [True, False]})
+    df = pd.DataFrame(
+        {"scene": ["a|b", "c_d"], "p_value": [1e-5, 0.5], "n": [3, 4], "significant": [True, False]}
+    )
     md = to_markdown(df).splitlines()
     assert md[1] == "|:--------|----------:|----:|:--------------|"
-    cells = [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
-             for line in md[2:]]
-    assert cells == format_table(df).values.tolist() == [["a|b", "1e-05", "3", "yes"],
-                                                          ["c_d", "0.500", "4", "no"]]
+    cells = [
+        [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+        for line in md[2:]
+    ]
+    assert (
+        cells
+        == format_table(df).values.tolist()
+        == [["a|b", "1e-05", "3", "yes"], ["c_d", "0.500", "4", "no"]]
+    )
     tex = to_latex(df, caption="Votes & 5% (α)", label="tab:t").splitlines()
-    assert tex[:4] == ["\\begin{table}[ht]", "\\centering",
-                       "\\caption{Votes \\& 5\\% ($\\alpha$)}", "\\small"]
-    body = tex[tex.index("\\midrule") + 1:tex.index("\\bottomrule")]
+    assert tex[:4] == [
+        "\\begin{table}[ht]",
+        "\\centering",
+        "\\caption{Votes \\& 5\\% ($\\alpha$)}",
+        "\\small",
+    ]
+    body = tex[tex.index("\\midrule") + 1 : tex.index("\\bottomrule")]
     assert body == ["a\\textbar{}b & 1e-05 & 3 & yes \\\\", "c\\_d & 0.500 & 4 & no \\\\"]
     assert "\\begin{tabular}{lrrl}" in tex and "\\label{tab:t}" in tex
 
@@ -138,8 +154,11 @@ def test_observer_model_frames():
     f = rows.loc[rows["task"] == "pose", "chosen_frame"].to_numpy(float)
     assert abs(f.mean() - 1000) < 3  # SE = 50 / sqrt(2000) ≈ 1.1 frames
     assert f.std() == pytest.approx(50, rel=0.05)  # 0.5 s at 100 fps
-    lapse = sim.simulated_rows(sim.simulate_participants(
-        design, 2000, seed=2, model=sim.ObserverModel(spread_s=0.1, lapse=0.5)))
+    lapse = sim.simulated_rows(
+        sim.simulate_participants(
+            design, 2000, seed=2, model=sim.ObserverModel(spread_s=0.1, lapse=0.5)
+        )
+    )
     g = lapse.loc[lapse["task"] == "pose", "chosen_frame"].to_numpy(float)
     far = np.mean(np.abs(g - 1000) > 100)  # lapses land far with probability 0.5 * 0.9
     assert far == pytest.approx(0.45, abs=0.04)
@@ -153,12 +172,16 @@ def test_analyze_paper_table2_cli(tmp_path):
     out = tmp_path / "paper"
     res = CliRunner().invoke(cli, ["analyze", "--paper-table2", "-o", str(out), "--boot", "100"])
     assert res.exit_code == 0, res.output
-    assert ("ours is significantly preferred in 4 of 6 scenes ((a) Dancing, (c) Soccer kicking, "
-            "(d) Basketball shooting, (f) Two-person boxing); not significant in (b) Running, "
-            "(e) Two-person arguing.") in res.output
-    assert ("ours vs motion_area (exact binomial, Holm-adjusted, alpha=0.05): ours is "
-            "significantly preferred in 3 of 6 scenes ((c) Soccer kicking, (e) Two-person arguing, "
-            "(f) Two-person boxing)") in res.output
+    assert (
+        "ours is significantly preferred in 4 of 6 scenes ((a) Dancing, (c) Soccer kicking, "
+        "(d) Basketball shooting, (f) Two-person boxing); not significant in (b) Running, "
+        "(e) Two-person arguing."
+    ) in res.output
+    assert (
+        "ours vs motion_area (exact binomial, Holm-adjusted, alpha=0.05): ours is "
+        "significantly preferred in 3 of 6 scenes ((c) Soccer kicking, (e) Two-person arguing, "
+        "(f) Two-person boxing)"
+    ) in res.output
     for name in ("votes", "chisquare", "pairwise", "strengths", "agreement"):
         for ext in ("csv", "md", "tex"):
             assert (out / "tables" / f"{name}.{ext}").stat().st_size > 50, (name, ext)
@@ -189,10 +212,13 @@ def test_simulate_store_analyze_end_to_end(tmp_path):
     assert len(rows) == 520 and all(row["simulated"] for row in rows)
     # A real analysis refuses to analyse nothing, in one line.
     res = r.invoke(cli, ["analyze", "--db", url, "-o", str(tmp_path / "real")])
-    assert res.exit_code == 2 and "no responses" in res.output and "--include-simulated" in res.output
+    assert (
+        res.exit_code == 2 and "no responses" in res.output and "--include-simulated" in res.output
+    )
     out = tmp_path / "sim"
-    res = r.invoke(cli, ["analyze", "--db", url, "--include-simulated", "-o", str(out),
-                         "--boot", "50"])
+    res = r.invoke(
+        cli, ["analyze", "--db", url, "--include-simulated", "-o", str(out), "--boot", "50"]
+    )
     assert res.exit_code == 0, res.output
     assert "40 participants (40 simulated), 520 responses" in res.output
     summary = json.loads((out / "summary.json").read_text())
@@ -202,8 +228,9 @@ def test_simulate_store_analyze_end_to_end(tmp_path):
     assert set(hits["predictor"]) >= {"algorithm", "middle", "uniform_random"}
     for name in ("frame_hits", "frame_tests", "participants"):
         assert (out / "tables" / f"{name}.md").exists()
-    _check_figures(out / "figures", ["votes", "strengths", "fig13_frame_histograms",
-                                     "frame_distances"])
+    _check_figures(
+        out / "figures", ["votes", "strengths", "fig13_frame_histograms", "frame_distances"]
+    )
     html = (out / "report.html").read_text()
     assert "SIMULATED" in html and html.count("data:image/png;base64,") == 4
 
@@ -213,12 +240,26 @@ def test_analyze_export_file_and_attention(tmp_path):
     rows = _rows(30, seed=9, model=sim.ObserverModel(attention_pass=0.5))
     rows["simulated"] = False  # pretend they are real people
     f = tmp_path / "responses.jsonl"
-    f.write_text("".join(json.dumps(r) + "\n" for r in rows.replace({np.nan: None})
-                         .to_dict(orient="records")))
+    f.write_text(
+        "".join(
+            json.dumps(r) + "\n" for r in rows.replace({np.nan: None}).to_dict(orient="records")
+        )
+    )
     failed = int((rows.loc[rows.task == "attention", "correct"] == False).sum())  # noqa: E712
     assert 0 < failed < 30
-    res = CliRunner().invoke(cli, ["analyze", "--input", str(f), "-o", str(tmp_path / "a"),
-                                   "--boot", "20", "--exclude-failed-attention"])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "analyze",
+            "--input",
+            str(f),
+            "-o",
+            str(tmp_path / "a"),
+            "--boot",
+            "20",
+            "--exclude-failed-attention",
+        ],
+    )
     assert res.exit_code == 0, res.output
     s = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert s["failed_attention"] == failed
@@ -227,8 +268,20 @@ def test_analyze_export_file_and_attention(tmp_path):
 
 def test_power_cli(tmp_path):
     """`snapshot power --ours --baseline` names the participants needed; -o writes the curve."""
-    res = CliRunner().invoke(cli, ["power", "--ours", "0.52", "--baseline", "0.40",
-                                   "--comparisons", "1", "-o", str(tmp_path)])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "power",
+            "--ours",
+            "0.52",
+            "--baseline",
+            "0.40",
+            "--comparisons",
+            "1",
+            "-o",
+            str(tmp_path),
+        ],
+    )
     assert res.exit_code == 0, res.output
     from analysis.power import power_pairwise
 
@@ -255,8 +308,9 @@ def test_frames_print_as_whole_numbers():
     """Frame numbers and counts print as 54, not 54.000 (even in float columns)."""
     from analysis.report import format_table
 
-    t = format_table(pd.DataFrame({"algorithm_frame": [54.0, np.nan], "votes": [3.0, 1.0],
-                                   "share": [0.5, 0.25]}))
+    t = format_table(
+        pd.DataFrame({"algorithm_frame": [54.0, np.nan], "votes": [3.0, 1.0], "share": [0.5, 0.25]})
+    )
     assert list(t["algorithm_frame"]) == ["54", ""] and list(t["votes"]) == ["3", "1"]
     assert list(t["share"]) == ["0.500", "0.250"]
 
@@ -271,7 +325,11 @@ def test_completed_participants_only_by_default(tmp_path):
     # two participants left after their first three answers (no attention check)
     rows = rows[~rows["participant_id"].isin(left) | (rows["trial_index"] < 3)]
     s = analyze(rows, tmp_path / "a", include_simulated=True, n_boot=10)
-    assert (s["participants"], s["started_participants"], s["completed_participants"]) == (10, 12, 10)
+    assert (s["participants"], s["started_participants"], s["completed_participants"]) == (
+        10,
+        12,
+        10,
+    )
     assert sum(s["votes"]["dancing"].values()) <= 10
     parts = pd.read_csv(tmp_path / "a" / "tables" / "participants.csv")
     assert (parts["started"].sum(), parts["completed"].sum()) == (12, 10)
@@ -284,10 +342,20 @@ def _near_duplicate_manifest(scenes) -> dict:
     entries = []
     for k, sc in enumerate(scenes):
         a = np.radians(3.5 if k == 0 else 60.0)
-        entries.append({"id": sc, "fps": 30.0, "n_frames": 300, "frame_offset": 0,
-                        "picks": {"frame": 100, "view": [1.0, 0.0, 0.0],
-                                  "viewpoint_entropy": [0.0, 0.0, 1.0],
-                                  "motion_area": [float(np.cos(a)), float(np.sin(a)), 0.0]}})
+        entries.append(
+            {
+                "id": sc,
+                "fps": 30.0,
+                "n_frames": 300,
+                "frame_offset": 0,
+                "picks": {
+                    "frame": 100,
+                    "view": [1.0, 0.0, 0.0],
+                    "viewpoint_entropy": [0.0, 0.0, 1.0],
+                    "motion_area": [float(np.cos(a)), float(np.sin(a)), 0.0],
+                },
+            }
+        )
     return {"study": {"study": {"id": "paper", "near_duplicate_deg": 15}}, "scenes": entries}
 
 
@@ -307,7 +375,9 @@ def test_near_duplicate_scenes_reported_with_sensitivity(tmp_path):
     merged = pd.read_csv(tmp_path / "r" / "tables" / "votes_duplicates_merged.csv")
     assert "ours = motion_area" in set(merged.loc[merged["scene"] == scenes[0], "option"])
     html = (tmp_path / "r" / "report.html").read_text()
-    assert "Near-duplicate candidates: sensitivity analysis" in html and "Without those scenes" in html
+    assert (
+        "Near-duplicate candidates: sensitivity analysis" in html and "Without those scenes" in html
+    )
 
 
 def test_analyze_uses_the_study_stimuli_by_default(tmp_path, monkeypatch):

@@ -22,24 +22,46 @@ def _manifest(scenes):
     out = []
     for e in scenes:
         sid = e["id"]
-        out.append({"video": f"{sid}/video.mp4", "video_fps": 24.0,
-                    "video_to_motion": [e["frame_offset"]], "frames": [f"{sid}/f0.png"],
-                    "views": {m: {"file": f"{sid}/{m}.png"}
-                              for m in ("ours", "viewpoint_entropy", "motion_area")}, **e})
-    return {"format": "action-snapshot-stimuli", "version": 1,
-            "created_at": "2025-01-01T00:00:00+00:00", "app_version": "test",
-            "study": {"study": {"id": "stim-test", "title": "t"}}, "scenes": out,
-            "files": {"a/video.mp4": "0" * 64}}
+        out.append(
+            {
+                "video": f"{sid}/video.mp4",
+                "video_fps": 24.0,
+                "video_to_motion": [e["frame_offset"]],
+                "frames": [f"{sid}/f0.png"],
+                "views": {
+                    m: {"file": f"{sid}/{m}.png"}
+                    for m in ("ours", "viewpoint_entropy", "motion_area")
+                },
+                **e,
+            }
+        )
+    return {
+        "format": "action-snapshot-stimuli",
+        "version": 1,
+        "created_at": "2025-01-01T00:00:00+00:00",
+        "app_version": "test",
+        "study": {"study": {"id": "stim-test", "title": "t"}},
+        "scenes": out,
+        "files": {"a/video.mp4": "0" * 64},
+    }
 
 
 def _walk_entry(**kw):
     from snapcore.motion import synth
 
     sc = synth.synth_scene("walk")
-    e = {"id": "walk", "title": "Synthetic walk", "source": {"demo": "walk"}, "fps": sc.fps,
-         "n_frames": sc.n_frames, "frame_offset": int(sc.frame_offset),
-         "picks": {"frame": int(sc.frame_offset) + sc.n_frames // 3,
-                   "frames": [int(sc.frame_offset) + sc.n_frames // 3, int(sc.frame_offset) + 5]}}
+    e = {
+        "id": "walk",
+        "title": "Synthetic walk",
+        "source": {"demo": "walk"},
+        "fps": sc.fps,
+        "n_frames": sc.n_frames,
+        "frame_offset": int(sc.frame_offset),
+        "picks": {
+            "frame": int(sc.frame_offset) + sc.n_frames // 3,
+            "frames": [int(sc.frame_offset) + sc.n_frames // 3, int(sc.frame_offset) + 5],
+        },
+    }
     e.update(kw)
     return e, sc
 
@@ -79,8 +101,10 @@ def test_analyze_with_stimuli_adds_motion_baselines(tmp_path):
     from analysis.report import analyze
 
     e, sc = _walk_entry()
-    e["picks"]["by_method"] = {"fastest": [int(sc.frame_offset) + 20],
-                               "stretch": [int(sc.frame_offset) + 40]}
+    e["picks"]["by_method"] = {
+        "fastest": [int(sc.frame_offset) + 20],
+        "stretch": [int(sc.frame_offset) + 40],
+    }
     doc = _manifest([e])
     design = sim.design_from_stimuli(doc)
     assert design[0].salient_frames == (e["picks"]["frames"][1],)
@@ -100,8 +124,21 @@ def test_simulate_cli_with_manifest(tmp_path):
     path = tmp_path / "manifest.json"
     path.write_text(json.dumps(_manifest([e])))
     url = f"sqlite:///{tmp_path / 's.db'}"
-    res = CliRunner().invoke(cli, ["simulate", "--n", "6", "--db", url, "--stimuli", str(path),
-                                   "--strengths", "ours=2,viewpoint_entropy=1,motion_area=1", "-q"])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "simulate",
+            "--n",
+            "6",
+            "--db",
+            url,
+            "--stimuli",
+            str(path),
+            "--strengths",
+            "ours=2,viewpoint_entropy=1,motion_area=1",
+            "-q",
+        ],
+    )
     assert res.exit_code == 0, res.output
     from study_app.data.store import Store
 
@@ -110,6 +147,7 @@ def test_simulate_cli_with_manifest(tmp_path):
     assert {r["manifest_sha256"] for r in rows} == {hashlib.sha256(path.read_bytes()).hexdigest()}
     pose = [r for r in rows if r["task"] == "pose"]
     assert len(pose) == 6 and {r["algorithm_frame"] for r in pose} == {e["picks"]["frame"]}
-    res = CliRunner().invoke(cli, ["simulate", "--n", "2", "--db", url,
-                                   "--strengths", "ours=1,best=2"])
+    res = CliRunner().invoke(
+        cli, ["simulate", "--n", "2", "--db", url, "--strengths", "ours=1,best=2"]
+    )
     assert res.exit_code == 2 and "unknown method 'best'" in res.output

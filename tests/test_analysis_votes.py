@@ -99,14 +99,25 @@ def test_paper_claim_verdicts_are_stated_plainly():
     assert got == expected
     # Spelled out: ours beats viewpoint entropy in (a), (c), (d), (f); motion area in (c), (e), (f).
     assert {s for (s, b), v in got.items() if v and b == "viewpoint_entropy"} == {
-        "dancing", "soccer_kicking", "basketball_shooting", "two_person_boxing"}
+        "dancing",
+        "soccer_kicking",
+        "basketball_shooting",
+        "two_person_boxing",
+    }
     assert {s for (s, b), v in got.items() if v and b == "motion_area"} == {
-        "soccer_kicking", "two_person_arguing", "two_person_boxing"}
-    assert not (pair["verdict"].str.contains("viewpoint_entropy preferred|motion_area preferred")).any()
+        "soccer_kicking",
+        "two_person_arguing",
+        "two_person_boxing",
+    }
+    assert not (
+        pair["verdict"].str.contains("viewpoint_entropy preferred|motion_area preferred")
+    ).any()
     lines = vt.claim_summary(pair)
     assert lines[0].startswith("ours vs viewpoint_entropy")
-    assert "significantly preferred in 4 of 6 scenes (dancing, soccer_kicking, " \
-           "basketball_shooting, two_person_boxing)" in lines[0]
+    assert (
+        "significantly preferred in 4 of 6 scenes (dancing, soccer_kicking, "
+        "basketball_shooting, two_person_boxing)" in lines[0]
+    )
     assert "not significant in running, two_person_arguing" in lines[0]
     assert "3 of 6 scenes (soccer_kicking, two_person_arguing, two_person_boxing)" in lines[1]
 
@@ -131,8 +142,12 @@ def test_wilson_matches_scipy():
 def test_wilson_known_answers():
     """Wilson 95% intervals of Newcombe (1998, Stat. Med. 17:857, Table I, method 3), also
     R: prop.test(81, 263, correct = FALSE)$conf.int -> 0.2553 0.3662."""
-    for (k, n), want in {(81, 263): (0.2553, 0.3662), (15, 148): (0.0624, 0.1605),
-                         (0, 20): (0.0, 0.1611), (1, 29): (0.0061, 0.1718)}.items():
+    for (k, n), want in {
+        (81, 263): (0.2553, 0.3662),
+        (15, 148): (0.0624, 0.1605),
+        (0, 20): (0.0, 0.1611),
+        (1, 29): (0.0061, 0.1718),
+    }.items():
         lo, hi = vt.wilson_interval(k, n)
         assert (float(lo), float(hi)) == pytest.approx(want, abs=5e-5), (k, n)
     lo, hi = vt.wilson_interval([0, 3], [0, 7])  # vectorised; n = 0 gives (0, 1)
@@ -149,9 +164,20 @@ def test_pairwise_p_known_answer():
 
 def test_fleiss_kappa_published_example():
     """Fleiss (1971) example as given on Wikipedia (10 subjects, 14 raters, 5 classes): kappa 0.210."""
-    table = pd.DataFrame([[0, 0, 0, 0, 14], [0, 2, 6, 4, 2], [0, 0, 3, 5, 6], [0, 3, 9, 2, 0],
-                          [2, 2, 8, 1, 1], [7, 7, 0, 0, 0], [3, 2, 6, 3, 0], [2, 5, 3, 2, 2],
-                          [6, 5, 2, 1, 0], [0, 2, 2, 3, 7]])
+    table = pd.DataFrame(
+        [
+            [0, 0, 0, 0, 14],
+            [0, 2, 6, 4, 2],
+            [0, 0, 3, 5, 6],
+            [0, 3, 9, 2, 0],
+            [2, 2, 8, 1, 1],
+            [7, 7, 0, 0, 0],
+            [3, 2, 6, 3, 0],
+            [2, 5, 3, 2, 2],
+            [6, 5, 2, 1, 0],
+            [0, 2, 2, 3, 7],
+        ]
+    )
     k = vt.fleiss_kappa(table).iloc[0]
     assert k["kappa"] == pytest.approx(0.20993, abs=5e-5)
     assert k["p_observed"] == pytest.approx(0.37802, abs=5e-5)  # P-bar
@@ -171,7 +197,9 @@ def test_luce_strengths_equal_shares_when_all_shown():
     pooled = st[st["scene"] == "all"].set_index("method")["strength"]
     total = np.sum(list(PAPER.values()), axis=0) / 600
     np.testing.assert_allclose(pooled.loc[list(VIEW_METHODS)], total, atol=2e-3)
-    assert ((st["ci_low"] <= st["strength"] + 1e-9) & (st["strength"] <= st["ci_high"] + 1e-9)).all()
+    assert (
+        (st["ci_low"] <= st["strength"] + 1e-9) & (st["strength"] <= st["ci_high"] + 1e-9)
+    ).all()
 
 
 def test_luce_uses_shown_subsets():
@@ -185,12 +213,21 @@ def test_luce_uses_shown_subsets():
         shown = tuple(rng.choice(3, size=2, replace=False))
         p = true[list(shown)] / true[list(shown)].sum()
         win = shown[rng.choice(2, p=p)]
-        rows.append({"scene": "s", "chosen_method": VIEW_METHODS[win],
-                     "shown_order": tuple(VIEW_METHODS[i] for i in shown)})
+        rows.append(
+            {
+                "scene": "s",
+                "chosen_method": VIEW_METHODS[win],
+                "shown_order": tuple(VIEW_METHODS[i] for i in shown),
+            }
+        )
     st = vt.luce_strengths(pd.DataFrame(rows), n_boot=0, pooled=False)
-    data = [(VIEW_METHODS.index(r["chosen_method"]),
-             tuple(VIEW_METHODS.index(m) for m in r["shown_order"] if m != r["chosen_method"]))
-            for r in rows]
+    data = [
+        (
+            VIEW_METHODS.index(r["chosen_method"]),
+            tuple(VIEW_METHODS.index(m) for m in r["shown_order"] if m != r["chosen_method"]),
+        )
+        for r in rows
+    ]
     theta = choix.opt_top1(3, data)
     ref = np.exp(theta) / np.exp(theta).sum()
     np.testing.assert_allclose(st["strength"].to_numpy(), ref, atol=2e-3)
@@ -249,26 +286,32 @@ def test_bad_input_named():
 
 def test_zero_votes_get_a_real_interval():
     """A method nobody chose gets the exact upper end 1 - 0.025^(1/n), not [0, 0]."""
-    counts = pd.DataFrame({"ours": [10], "viewpoint_entropy": [0], "motion_area": [5]},
-                          index=pd.Index(["s"], name="scene"))
+    counts = pd.DataFrame(
+        {"ours": [10], "viewpoint_entropy": [0], "motion_area": [5]},
+        index=pd.Index(["s"], name="scene"),
+    )
     st = vt.luce_strengths(vt.choices_from_counts(counts), n_boot=50, seed=1)
     zero = st[st["method"] == "viewpoint_entropy"].iloc[0]
     # scipy: Clopper-Pearson interval of 0 of 15
     exact = stats.binomtest(0, 15).proportion_ci(confidence_level=0.95, method="exact")
     assert zero["ci_low"] == 0 and zero["ci_high"] == pytest.approx(exact.high)
     assert zero["ci_high"] > 0.2
-    all_votes = vt.luce_strengths(vt.choices_from_counts(counts.assign(
-        viewpoint_entropy=0, motion_area=0)), n_boot=20, seed=1)
+    all_votes = vt.luce_strengths(
+        vt.choices_from_counts(counts.assign(viewpoint_entropy=0, motion_area=0)), n_boot=20, seed=1
+    )
     ours = all_votes[all_votes["method"] == "ours"].iloc[0]
     assert ours["ci_high"] == 1 and ours["ci_low"] == pytest.approx(
-        stats.binomtest(10, 10).proportion_ci(method="exact").low)
+        stats.binomtest(10, 10).proportion_ci(method="exact").low
+    )
 
 
 def test_near_duplicates_merged_into_one_option():
     """Sensitivity analysis: a near-duplicate pair's votes are one option, tested against
     equal votes per distinct picture (scipy chisquare)."""
-    counts = pd.DataFrame({"ours": [10, 7], "viewpoint_entropy": [5, 6], "motion_area": [9, 8]},
-                          index=pd.Index(["dup", "fine"], name="scene"))
+    counts = pd.DataFrame(
+        {"ours": [10, 7], "viewpoint_entropy": [5, 6], "motion_area": [9, 8]},
+        index=pd.Index(["dup", "fine"], name="scene"),
+    )
     m = vt.merge_near_duplicates(counts, {"dup": [("ours", "motion_area")]})
     dup = m[m["scene"] == "dup"].set_index("option")
     assert dup["votes"].to_dict() == {"ours = motion_area": 19, "viewpoint_entropy": 5}
@@ -289,9 +332,14 @@ def test_pooled_strengths_resample_people_not_choices():
     from analysis.votes import luce_strengths
 
     rng = np.random.default_rng(1)
-    favourite = rng.choice(["ours", "motion_area", "viewpoint_entropy"], size=30, p=[.5, .3, .2])
-    choices = pd.DataFrame([{"scene": f"s{k}", "participant_id": f"p{i}", "chosen_method": m}
-                            for k in range(5) for i, m in enumerate(favourite)])
+    favourite = rng.choice(["ours", "motion_area", "viewpoint_entropy"], size=30, p=[0.5, 0.3, 0.2])
+    choices = pd.DataFrame(
+        [
+            {"scene": f"s{k}", "participant_id": f"p{i}", "chosen_method": m}
+            for k in range(5)
+            for i, m in enumerate(favourite)
+        ]
+    )
     people = luce_strengths(choices, n_boot=300, seed=0)
     loose = luce_strengths(choices.drop(columns="participant_id"), n_boot=300, seed=0)
 

@@ -24,54 +24,162 @@ from snapcore.motion.synth import humanoid_document
 
 #: The humanoid's joints (CMU-style names) by landmark: what each convention must name.
 SYNTH_LANDMARKS = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
-    f"{limb}_{s[0]}": f"{s}{joint}" for s in ("Left", "Right") for limb, joint in (
-        ("clavicle", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
-        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("toe", "ToeBase"))}
+    f"{limb}_{s[0]}": f"{s}{joint}"
+    for s in ("Left", "Right")
+    for limb, joint in (
+        ("clavicle", "Shoulder"),
+        ("shoulder", "Arm"),
+        ("elbow", "ForeArm"),
+        ("wrist", "Hand"),
+        ("hip", "UpLeg"),
+        ("knee", "Leg"),
+        ("ankle", "Foot"),
+        ("toe", "ToeBase"),
+    )
+}
 
 # Convention name for each humanoid joint: centre joints, then sided ones as a template in
 # {L} (the side as the tool writes it) and the tool's words for each side.
 _CENTRE = ("Hips", "Spine", "Spine1", "Neck", "Head")
 _SIDED = ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot", "ToeBase")
 CONVENTIONS = {
-    "unreal": (("pelvis", "spine_01", "spine_03", "neck_01", "head"),
-               ("clavicle_{L}", "upperarm_{L}", "lowerarm_{L}", "hand_{L}", "thigh_{L}",
-                "calf_{L}", "foot_{L}", "ball_{L}"), ("l", "r")),
-    "xsens_mvn": (("Pelvis", "L5", "T8", "Neck", "Head"),
-                  ("{L}Shoulder", "{L}UpperArm", "{L}ForeArm", "{L}Hand", "{L}UpperLeg",
-                   "{L}LowerLeg", "{L}Foot", "{L}Toe"), ("Left", "Right")),
-    "optitrack_motive": (("Hip", "Ab", "Chest", "Neck", "Head"),
-                         ("{L}Shoulder", "{L}UArm", "{L}FArm", "{L}Hand", "{L}Thigh", "{L}Shin",
-                          "{L}Foot", "{L}Toe"), ("L", "R")),
+    "unreal": (
+        ("pelvis", "spine_01", "spine_03", "neck_01", "head"),
+        (
+            "clavicle_{L}",
+            "upperarm_{L}",
+            "lowerarm_{L}",
+            "hand_{L}",
+            "thigh_{L}",
+            "calf_{L}",
+            "foot_{L}",
+            "ball_{L}",
+        ),
+        ("l", "r"),
+    ),
+    "xsens_mvn": (
+        ("Pelvis", "L5", "T8", "Neck", "Head"),
+        (
+            "{L}Shoulder",
+            "{L}UpperArm",
+            "{L}ForeArm",
+            "{L}Hand",
+            "{L}UpperLeg",
+            "{L}LowerLeg",
+            "{L}Foot",
+            "{L}Toe",
+        ),
+        ("Left", "Right"),
+    ),
+    "optitrack_motive": (
+        ("Hip", "Ab", "Chest", "Neck", "Head"),
+        (
+            "{L}Shoulder",
+            "{L}UArm",
+            "{L}FArm",
+            "{L}Hand",
+            "{L}Thigh",
+            "{L}Shin",
+            "{L}Foot",
+            "{L}Toe",
+        ),
+        ("L", "R"),
+    ),
     # Kinect v2 names joints, not bones, and has no pelvis joint: SpineBase is the root
-    "kinect": (("SpineBase", "SpineMid", "SpineShoulder", "Neck", "Head"),
-               ("Clavicle{L}", "Shoulder{L}", "Elbow{L}", "Wrist{L}", "Hip{L}", "Knee{L}",
-                "Ankle{L}", "Foot{L}"), ("Left", "Right")),
-    "smpl": (("pelvis", "spine1", "spine3", "neck", "head"),
-             ("{L}_collar", "{L}_shoulder", "{L}_elbow", "{L}_wrist", "{L}_hip", "{L}_knee",
-              "{L}_ankle", "{L}_foot"), ("left", "right")),
-    "blender_metarig": (("hips", "spine", "chest", "neck", "head"),
-                        ("shoulder.{L}", "upper_arm.{L}", "forearm.{L}", "hand.{L}", "thigh.{L}",
-                         "shin.{L}", "foot.{L}", "toe.{L}"), ("L", "R")),
-    "3dsmax_biped": (("Bip01_Pelvis", "Bip01_Spine", "Bip01_Spine1", "Bip01_Neck", "Bip01_Head"),
-                     ("Bip01_{L}_Clavicle", "Bip01_{L}_UpperArm", "Bip01_{L}_Forearm",
-                      "Bip01_{L}_Hand", "Bip01_{L}_Thigh", "Bip01_{L}_Calf", "Bip01_{L}_Foot",
-                      "Bip01_{L}_Toe0"), ("L", "R")),
-    "character_creator": (("CC_Base_Hip", "CC_Base_Waist", "CC_Base_Spine02",
-                           "CC_Base_NeckTwist01", "CC_Base_Head"),
-                          ("CC_Base_{L}_Clavicle", "CC_Base_{L}_Upperarm", "CC_Base_{L}_Forearm",
-                           "CC_Base_{L}_Hand", "CC_Base_{L}_Thigh", "CC_Base_{L}_Calf",
-                           "CC_Base_{L}_Foot", "CC_Base_{L}_ToeBase"), ("L", "R")),
-    "vrm": (("J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_Neck", "J_Bip_C_Head"),
-            ("J_Bip_{L}_Shoulder", "J_Bip_{L}_UpperArm", "J_Bip_{L}_LowerArm", "J_Bip_{L}_Hand",
-             "J_Bip_{L}_UpperLeg", "J_Bip_{L}_LowerLeg", "J_Bip_{L}_Foot", "J_Bip_{L}_ToeBase"),
-            ("L", "R")),
+    "kinect": (
+        ("SpineBase", "SpineMid", "SpineShoulder", "Neck", "Head"),
+        (
+            "Clavicle{L}",
+            "Shoulder{L}",
+            "Elbow{L}",
+            "Wrist{L}",
+            "Hip{L}",
+            "Knee{L}",
+            "Ankle{L}",
+            "Foot{L}",
+        ),
+        ("Left", "Right"),
+    ),
+    "smpl": (
+        ("pelvis", "spine1", "spine3", "neck", "head"),
+        (
+            "{L}_collar",
+            "{L}_shoulder",
+            "{L}_elbow",
+            "{L}_wrist",
+            "{L}_hip",
+            "{L}_knee",
+            "{L}_ankle",
+            "{L}_foot",
+        ),
+        ("left", "right"),
+    ),
+    "blender_metarig": (
+        ("hips", "spine", "chest", "neck", "head"),
+        (
+            "shoulder.{L}",
+            "upper_arm.{L}",
+            "forearm.{L}",
+            "hand.{L}",
+            "thigh.{L}",
+            "shin.{L}",
+            "foot.{L}",
+            "toe.{L}",
+        ),
+        ("L", "R"),
+    ),
+    "3dsmax_biped": (
+        ("Bip01_Pelvis", "Bip01_Spine", "Bip01_Spine1", "Bip01_Neck", "Bip01_Head"),
+        (
+            "Bip01_{L}_Clavicle",
+            "Bip01_{L}_UpperArm",
+            "Bip01_{L}_Forearm",
+            "Bip01_{L}_Hand",
+            "Bip01_{L}_Thigh",
+            "Bip01_{L}_Calf",
+            "Bip01_{L}_Foot",
+            "Bip01_{L}_Toe0",
+        ),
+        ("L", "R"),
+    ),
+    "character_creator": (
+        ("CC_Base_Hip", "CC_Base_Waist", "CC_Base_Spine02", "CC_Base_NeckTwist01", "CC_Base_Head"),
+        (
+            "CC_Base_{L}_Clavicle",
+            "CC_Base_{L}_Upperarm",
+            "CC_Base_{L}_Forearm",
+            "CC_Base_{L}_Hand",
+            "CC_Base_{L}_Thigh",
+            "CC_Base_{L}_Calf",
+            "CC_Base_{L}_Foot",
+            "CC_Base_{L}_ToeBase",
+        ),
+        ("L", "R"),
+    ),
+    "vrm": (
+        ("J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_Neck", "J_Bip_C_Head"),
+        (
+            "J_Bip_{L}_Shoulder",
+            "J_Bip_{L}_UpperArm",
+            "J_Bip_{L}_LowerArm",
+            "J_Bip_{L}_Hand",
+            "J_Bip_{L}_UpperLeg",
+            "J_Bip_{L}_LowerLeg",
+            "J_Bip_{L}_Foot",
+            "J_Bip_{L}_ToeBase",
+        ),
+        ("L", "R"),
+    ),
 }
 
 
 def _cmu_with_prefix(prefix: str):
     """CMU/HumanIK names behind a tool's prefix."""
-    return (tuple(prefix + n for n in _CENTRE), tuple(prefix + "{L}" + n for n in _SIDED),
-            ("Left", "Right"))
+    return (
+        tuple(prefix + n for n in _CENTRE),
+        tuple(prefix + "{L}" + n for n in _SIDED),
+        ("Left", "Right"),
+    )
 
 
 # MotionBuilder / HumanIK with the character's name as a prefix
@@ -81,7 +189,8 @@ CONVENTIONS["mixamo_underscore"] = _cmu_with_prefix("mixamorig_")
 # the Biped as 3ds Max writes it into BVH files, spaces and all
 CONVENTIONS["3dsmax_biped_spaces"] = (
     *(tuple(n.replace("_", " ") for n in names) for names in CONVENTIONS["3dsmax_biped"][:2]),
-    CONVENTIONS["3dsmax_biped"][2])
+    CONVENTIONS["3dsmax_biped"][2],
+)
 
 
 def _renaming(convention: str) -> dict[str, str]:
@@ -96,8 +205,9 @@ def _renamed_clip(tmp_path, convention: str, motion: str = "walk", seconds: floa
     """The procedural humanoid written as BVH with the convention's joint names."""
     text = format_bvh(humanoid_document(motion, seconds=seconds))
     mapping = _renaming(convention)
-    text = re.sub(r"^(\s*(?:ROOT|JOINT) )(\S+)", lambda m: m.group(1) + mapping[m.group(2)],
-                  text, flags=re.M)
+    text = re.sub(
+        r"^(\s*(?:ROOT|JOINT) )(\S+)", lambda m: m.group(1) + mapping[m.group(2)], text, flags=re.M
+    )
     path = tmp_path / f"{convention}.bvh"
     path.write_text(text)
     with warnings.catch_warnings():
@@ -120,7 +230,8 @@ def test_landmarks_are_found_in_every_naming(tmp_path, convention):
     assert not [k for k in REQUIRED_LANDMARKS if lm[k] is None]
     pairs = left_right_pairs(names, ch.skeleton.parents)
     assert [names[j] for k in ("hip", "shoulder") for j in pairs[k]] == [
-        mapping[n] for n in ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")]
+        mapping[n] for n in ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")
+    ]
 
 
 @pytest.mark.parametrize("convention", ["kinect", "optitrack_motive", "3dsmax_biped_spaces"])
@@ -169,5 +280,7 @@ def test_the_story_pick_does_not_depend_on_the_naming(tmp_path, motion):
         return sel.index
 
     want = pick(_renamed_clip(tmp_path, "motionbuilder", motion, seconds=None)[0])
-    got = {c: pick(_renamed_clip(tmp_path, c, motion, seconds=None)[0]) for c in sorted(CONVENTIONS)}
+    got = {
+        c: pick(_renamed_clip(tmp_path, c, motion, seconds=None)[0]) for c in sorted(CONVENTIONS)
+    }
     assert got == dict.fromkeys(got, want)

@@ -39,9 +39,15 @@ def stimuli_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("stimuli") / "fixture"
     # AppTest answers within milliseconds and plays no video: no minimum answer time
     # and no watching requirement here (the browser tests check both).
-    write_fixture_stimuli(d, fixture_study_doc(
-        redirect_url="https://app.prolific.com/submissions/complete?cc={code}",
-        completion_code="C0DE42", min_answer_s=0, require_watch=False))
+    write_fixture_stimuli(
+        d,
+        fixture_study_doc(
+            redirect_url="https://app.prolific.com/submissions/complete?cc={code}",
+            completion_code="C0DE42",
+            min_answer_s=0,
+            require_watch=False,
+        ),
+    )
     return d
 
 
@@ -80,9 +86,12 @@ def send_trigger(at: AppTest, name: str, event: str, value) -> AppTest:
 
     el = component(at, name)
     states = at._tree.get_widget_states()
-    states.widgets.append(WidgetState(id=_make_trigger_id(el.proto.id, "events"),
-                                      json_trigger_value=json.dumps([{"event": event,
-                                                                      "value": value}])))
+    states.widgets.append(
+        WidgetState(
+            id=_make_trigger_id(el.proto.id, "events"),
+            json_trigger_value=json.dumps([{"event": event, "value": value}]),
+        )
+    )
     return at._run(states)
 
 
@@ -134,11 +143,17 @@ def test_whole_session_stores_every_answer(store):
             assert data["fps"] == 24.0 and data["sources"][0]["src"].endswith(".mp4")
             video_frame = 3 + 5 * trial.index
             picks[trial.scene] = video_frame
-            events = [{"kind": "play", "t": 0.5, "frame": 0},
-                      {"kind": "pause", "t": 1.5, "frame": 12},
-                      {"kind": "step", "t": 2.0, "frame": video_frame}]
-            at = send_trigger(at, FRAME_PICKER, "confirm",
-                              {"trial": trial.index, "frame": video_frame, "events": events})
+            events = [
+                {"kind": "play", "t": 0.5, "frame": 0},
+                {"kind": "pause", "t": 1.5, "frame": 12},
+                {"kind": "step", "t": 2.0, "frame": video_frame},
+            ]
+            at = send_trigger(
+                at,
+                FRAME_PICKER,
+                "confirm",
+                {"trial": trial.index, "frame": video_frame, "events": events},
+            )
         elif trial.task == "view":
             chooser = component(at, VIEW_CHOOSER)
             data = json.loads(chooser.proto.json)[0]
@@ -146,8 +161,9 @@ def test_whole_session_stores_every_answer(store):
             assert all(set(v) == {"src", "label"} for v in data["views"])
             position = trial.index % 3
             chosen[trial.scene] = (position, trial.shown_order[position])
-            at = send_trigger(at, VIEW_CHOOSER, "choice",
-                              {"trial": trial.index, "position": position})
+            at = send_trigger(
+                at, VIEW_CHOOSER, "choice", {"trial": trial.index, "position": position}
+            )
         else:
             at.radio(key=keys.KEY_ATTENTION_CHOICE).set_value("A purple circle")
             at.button(key=keys.KEY_ATTENTION_SUBMIT).click().run()
@@ -163,8 +179,11 @@ def test_whole_session_stores_every_answer(store):
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == list(range(len(plan)))
     for r, trial in zip(rows, plan):
-        assert (r["task"], r["scene"], r["stimulus_id"]) == (trial.task, trial.scene,
-                                                             trial.stimulus_id)
+        assert (r["task"], r["scene"], r["stimulus_id"]) == (
+            trial.task,
+            trial.scene,
+            trial.stimulus_id,
+        )
         assert r["age_band"] == "25–34" and r["prolific_pid"] == "5f1e2d3c4b5a69788796a5b4"
         assert r["response_time_s"] >= 0
         if trial.task == "pose":
@@ -183,9 +202,11 @@ def test_whole_session_stores_every_answer(store):
     kinds = [(e["trial_index"], e["kind"]) for e in store.events(pid)]
     # each trial's "shown" when first displayed (once, though the page reruns), then
     # a pose trial's picker log when it is answered
-    assert kinds == [(t.index, k) for t in plan
-                     for k in (("shown", "play", "pause", "step") if t.task == "pose"
-                               else ("shown",))]
+    assert kinds == [
+        (t.index, k)
+        for t in plan
+        for k in (("shown", "play", "pause", "step") if t.task == "pose" else ("shown",))
+    ]
 
 
 def test_reload_resumes_at_first_unanswered_trial(store):
@@ -235,15 +256,15 @@ def test_out_of_range_frame_and_forged_position_write_nothing(store):
     at = send_trigger(at, FRAME_PICKER, "confirm", {"trial": 1, "frame": 0, "events": []})
     assert store.answered_trials(pid) == {0, 1}
     view = plan[2]
-    wrong = next(m for m in ("ours", "motion_area", "viewpoint_entropy")
-                 if m != view.shown_order[0])
+    wrong = next(
+        m for m in ("ours", "motion_area", "viewpoint_entropy") if m != view.shown_order[0]
+    )
     for position in (3, -1, 1.5, "0", None, True):
         at = send_trigger(at, VIEW_CHOOSER, "choice", {"trial": 2, "position": position})
         assert at.error, f"no message for position {position!r}"
     assert store.answered_trials(pid) == {0, 1}
     # a forged method label in the payload is ignored: position 0 shows shown_order[0]
-    at = send_trigger(at, VIEW_CHOOSER, "choice",
-                      {"trial": 2, "position": 0, "method": wrong})
+    at = send_trigger(at, VIEW_CHOOSER, "choice", {"trial": 2, "position": 0, "method": wrong})
     assert store.responses(pid)[-1]["chosen_method"] == view.shown_order[0]
 
 
@@ -334,18 +355,22 @@ def test_researcher_page_withdraws_a_participant(store, monkeypatch):
     a.text_input(key=keys.KEY_ADMIN_TOKEN).input("s3cret-token-0123456789").run()
     a.text_input(key=keys.KEY_WITHDRAW_ID).input(pid).run()
     assert any(pid in w.value and "1 responses" in w.value for w in a.warning)
-    assert a.button(key=keys.KEY_WITHDRAW_BUTTON).disabled   # not before the confirmation
+    assert a.button(key=keys.KEY_WITHDRAW_BUTTON).disabled  # not before the confirmation
     assert store.get_participant(pid) is not None
     a.checkbox(key=f"{keys.KEY_WITHDRAW_CONFIRM}.{pid}").check().run()
     a.button(key=keys.KEY_WITHDRAW_BUTTON).click().run()
     assert not a.exception
     assert any(f"Withdrew participant {pid}" in m.value for m in a.success)
     with store.engine.connect() as conn:
-        left = {t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t} WHERE participant_id = ?",
-                                        (pid,)).scalar()
-                for t in ("participants", "responses", "events")}
-        record = conn.exec_driver_sql("SELECT requested_by, prolific_pid FROM withdrawals "
-                                      "WHERE participant_id = ?", (pid,)).all()
+        left = {
+            t: conn.exec_driver_sql(
+                f"SELECT COUNT(*) FROM {t} WHERE participant_id = ?", (pid,)
+            ).scalar()
+            for t in ("participants", "responses", "events")
+        }
+        record = conn.exec_driver_sql(
+            "SELECT requested_by, prolific_pid FROM withdrawals WHERE participant_id = ?", (pid,)
+        ).all()
     assert left == {"participants": 0, "responses": 0, "events": 0}
     assert record == [("page", ppid)]
     assert [p["participant_id"] for p in store.participants()] == [other]
@@ -357,7 +382,7 @@ def test_researcher_page_withdraws_a_participant(store, monkeypatch):
 
 
 def test_background_self_describe_and_missing_answers(store):
-    """"Prefer to self-describe" opens a text box whose text is stored; every missing
+    """ "Prefer to self-describe" opens a text box whose text is stored; every missing
     answer is named in one message at the top of the page."""
     at = new_app()
     at.checkbox(key="consent.agree").check().run()
@@ -378,8 +403,11 @@ def test_background_self_describe_and_missing_answers(store):
     at.radio(key="background.experience").set_value(BACKGROUND["experience"])
     at.button(key=keys.KEY_BG_SUBMIT).click().run()
     assert store.get_participant(pid)["background"] == {
-        "age_band": "25–34", "gender": "Prefer to self-describe", "experience": "No experience",
-        "gender_self": "agender"}
+        "age_band": "25–34",
+        "gender": "Prefer to self-describe",
+        "experience": "No experience",
+        "gender_self": "agender",
+    }
 
 
 def test_fallback_text_matches_its_controls(store):

@@ -94,7 +94,9 @@ def test_check_view_choice_refuses_forged_labels():
 def test_study_config_errors_name_the_field(tmp_path):
     """Bad configs: schema errors name file and field; semantic errors are StudyErrors."""
     p = tmp_path / "s.toml"
-    p.write_text('[study]\nid = "x"\ntitle = "t"\nvideo_fps = -3\n[[scenes]]\nid = "a"\ndemo = "walk"\n')
+    p.write_text(
+        '[study]\nid = "x"\ntitle = "t"\nvideo_fps = -3\n[[scenes]]\nid = "a"\ndemo = "walk"\n'
+    )
     with pytest.raises(SchemaError, match=r"s\.toml: study\.video_fps"):
         load_study(p)
     doc = fixture_study_doc(("a", "a"))
@@ -126,8 +128,9 @@ def test_shipped_configs_are_valid():
 
 
 def test_attention_and_redirect():
-    study = study_from_dict(fixture_study_doc(
-        redirect_url="https://app.prolific.com/submissions/complete?cc={code}"))
+    study = study_from_dict(
+        fixture_study_doc(redirect_url="https://app.prolific.com/submissions/complete?cc={code}")
+    )
     assert check_attention_answer(study, "A purple circle") is True
     assert check_attention_answer(study, "A red square") is False
     with pytest.raises(AnswerError):
@@ -256,8 +259,10 @@ def test_the_next_trial_is_shown_when_an_answer_is_stored(store, stimuli):
     shown = [e for e in store.events(s.participant_id) if e["kind"] == "shown"]
     assert [e["trial_index"] for e in shown] == [0, 1]
     assert shown[1]["created_at"] == answer["created_at"]
-    assert shown[1]["payload"] == {"min_answer_s": stimuli.study.min_answer_s,
-                                   "require_watch": stimuli.study.require_watch}
+    assert shown[1]["payload"] == {
+        "min_answer_s": stimuli.study.min_answer_s,
+        "require_watch": stimuli.study.require_watch,
+    }
     # The same moment for this session (no query), for a reload, and no second event.
     t1 = s.trial_shown_at(1)
     assert ParticipantSession.resume(store, stimuli, s.participant_id).trial_shown_at(1) == t1
@@ -282,14 +287,22 @@ def test_picker_events_are_sanitised(store, stimuli):
     """Known event kinds are kept with numeric fields only; junk entries are dropped."""
     s = ParticipantSession.start(store, stimuli)
     s.submit_background(BACKGROUND)
-    events = [{"kind": "play", "t": 0.25, "frame": 0}, {"kind": "hack", "t": 1},
-              "nonsense", {"kind": "step", "by": 1, "frame": 5, "extra": "x" * 1000},
-              {"kind": "seek", "frame": 999, "from": 3, "t": float("inf")}]
+    events = [
+        {"kind": "play", "t": 0.25, "frame": 0},
+        {"kind": "hack", "t": 1},
+        "nonsense",
+        {"kind": "step", "by": 1, "frame": 5, "extra": "x" * 1000},
+        {"kind": "seek", "frame": 999, "from": 3, "t": float("inf")},
+    ]
     s.submit_pose(0, 5, response_time_s=2, events=events)
-    got = [(e["kind"], e["payload"]) for e in store.events(s.participant_id)
-           if e["trial_index"] == 0]  # (trial 1's "shown" event came with the answer)
-    assert got == [("play", {"t": 0.25, "frame": 0}), ("step", {"frame": 5, "by": 1}),
-                   ("seek", {"from": 3})]
+    got = [
+        (e["kind"], e["payload"]) for e in store.events(s.participant_id) if e["trial_index"] == 0
+    ]  # (trial 1's "shown" event came with the answer)
+    assert got == [
+        ("play", {"t": 0.25, "frame": 0}),
+        ("step", {"frame": 5, "by": 1}),
+        ("seek", {"from": 3}),
+    ]
 
 
 # ----------------------------------------------------------------------------- the field study (issue 14)
@@ -337,18 +350,36 @@ def test_watching_is_required_and_stored(store, stimuli):
     s = ParticipantSession.start(store, stimuli, seed=4)
     s.submit_background(BACKGROUND)
     with pytest.raises(InvalidAnswer, match="watch the whole animation"):
-        s.submit_pose(0, 3, response_time_s=5, watched=0.5,
-                      events=[{"kind": "select", "frame": 3, "watched": 0.5}])
+        s.submit_pose(
+            0,
+            3,
+            response_time_s=5,
+            watched=0.5,
+            events=[{"kind": "select", "frame": 3, "watched": 0.5}],
+        )
     assert store.answered_trials(s.participant_id) == set()
     # the player's log arrives in batches while the trial is open ...
-    assert s.record_picker_events(0, [{"kind": "play", "t": 0.1, "frame": 0, "watched": 0},
-                                      {"kind": "ended", "t": 1.1, "frame": 23, "watched": 1},
-                                      {"kind": "step", "t": 2, "frame": 7, "by": -1}]) == 3
+    assert (
+        s.record_picker_events(
+            0,
+            [
+                {"kind": "play", "t": 0.1, "frame": 0, "watched": 0},
+                {"kind": "ended", "t": 1.1, "frame": 23, "watched": 1},
+                {"kind": "step", "t": 2, "frame": 7, "by": -1},
+            ],
+        )
+        == 3
+    )
     assert s.picker_state(0) == (7, 1.0)  # where to restore the player after a reload
     assert s.record_picker_events(1, [{"kind": "play"}]) == 0  # not the open trial
     # ... and a reloaded player that reports less still counts what was watched before
-    assert s.submit_pose(0, 7, response_time_s=5, watched=0.2,
-                         events=[{"kind": "select", "frame": 7, "watched": 0.2}])
+    assert s.submit_pose(
+        0,
+        7,
+        response_time_s=5,
+        watched=0.2,
+        events=[{"kind": "select", "frame": 7, "watched": 0.2}],
+    )
     kinds = [e["kind"] for e in store.events(s.participant_id) if e["trial_index"] == 0]
     assert kinds == ["play", "ended", "step", "select"]
     assert s.record_picker_events(0, [{"kind": "play"}]) == 0  # answered: ignored
@@ -373,8 +404,9 @@ def test_background_names_every_missing_answer(store, stimuli):
         s.submit_background({})
     with pytest.raises(InvalidAnswer, match=r"question about your experience\.$"):
         s.submit_background({"age_band": "18–24", "gender": "Man"})
-    s.submit_background({**BACKGROUND, "gender": "Prefer to self-describe",
-                         "gender_self": "  genderfluid "})
+    s.submit_background(
+        {**BACKGROUND, "gender": "Prefer to self-describe", "gender_self": "  genderfluid "}
+    )
     assert store.get_participant(s.participant_id)["background"]["gender_self"] == "genderfluid"
 
 
@@ -391,13 +423,25 @@ def test_estimated_minutes_follow_the_stimuli():
 def test_new_study_options_are_validated_by_the_schema():
     """min_answer_s, require_watch, near_duplicate(_deg): defaults, and bad values refused."""
     s = study_from_dict(fixture_study_doc())
-    assert (s.min_answer_s, s.require_watch, s.near_duplicate_deg, s.near_duplicate) == \
-        (1.0, True, 15.0, "warn")
-    s = study_from_dict(fixture_study_doc(min_answer_s=0.5, require_watch=False,
-                                          near_duplicate_deg=20, near_duplicate="error"))
+    assert (s.min_answer_s, s.require_watch, s.near_duplicate_deg, s.near_duplicate) == (
+        1.0,
+        True,
+        15.0,
+        "warn",
+    )
+    s = study_from_dict(
+        fixture_study_doc(
+            min_answer_s=0.5, require_watch=False, near_duplicate_deg=20, near_duplicate="error"
+        )
+    )
     assert study_from_dict(s.to_dict()) == s  # the manifest keeps them
-    for bad in ({"min_answer_s": -1}, {"min_answer_s": "1"}, {"require_watch": "yes"},
-                {"near_duplicate": "drop"}, {"near_duplicate_deg": 200}):
+    for bad in (
+        {"min_answer_s": -1},
+        {"min_answer_s": "1"},
+        {"require_watch": "yes"},
+        {"near_duplicate": "drop"},
+        {"near_duplicate_deg": 200},
+    ):
         with pytest.raises(SchemaError, match=next(iter(bad))):
             study_from_dict(fixture_study_doc(**bad))
 

@@ -81,8 +81,9 @@ def _imports(module: str, path: Path) -> list[tuple[str, int]]:
                 parts = parts[: len(parts) - (node.level - 1)]
                 base = ".".join(parts + ([node.module] if node.module else []))
             # "from pkg import sub" imports the submodule when there is one
-            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base
-                     for a in node.names]
+            names = [
+                f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names
+            ]
         else:
             continue
         for name in names:
@@ -105,17 +106,24 @@ def test_the_layer_table_knows_every_module():
 def test_every_study_module_is_in_a_named_layer():
     """A new module directly under ``study_app/`` must be placed in one of its layers,
     not fall under the package's own entry (which is for ``study_app/__init__`` only)."""
-    loose = [m for m in MODULES if m.startswith("study_app.")
-             and max((p for p in LAYERS if m == p or m.startswith(p + ".")), key=len) == "study_app"]
+    loose = [
+        m
+        for m in MODULES
+        if m.startswith("study_app.")
+        and max((p for p in LAYERS if m == p or m.startswith(p + ".")), key=len) == "study_app"
+    ]
     assert not loose, loose
 
 
 def test_no_import_climbs_to_a_higher_layer():
     """No module imports from a layer above its own, at module level or inside a function."""
-    bad = [f"{MODULES[m].relative_to(ROOT)}:{line} imports {target} "
-           f"(layer {layer(target)} > {layer(m)})"
-           for m, edges in GRAPH.items() for target, line in edges
-           if layer(target) > layer(m)]
+    bad = [
+        f"{MODULES[m].relative_to(ROOT)}:{line} imports {target} "
+        f"(layer {layer(target)} > {layer(m)})"
+        for m, edges in GRAPH.items()
+        for target, line in edges
+        if layer(target) > layer(m)
+    ]
     assert not bad, "\n".join(bad)
 
 
@@ -129,7 +137,7 @@ def test_no_import_cycles():
         stack.append(m)
         for target, _ in GRAPH[m]:
             if state.get(target) == 1:
-                cycles.append(" -> ".join(stack[stack.index(target):] + [target]))
+                cycles.append(" -> ".join(stack[stack.index(target) :] + [target]))
             elif target not in state:
                 visit(target, stack)
         stack.pop()
@@ -161,26 +169,36 @@ def test_the_checker_sees_upward_and_cyclic_imports(tmp_path):
 #: ``sa.select(...)``, ... or those names imported from sqlalchemy), a database driver
 #: (``sqlite3``, ``psycopg``) imported, a raw script run, or a string literal that starts
 #: with an SQL keyword in capitals.
-SQL = re.compile(r"""
+SQL = re.compile(
+    r"""
     \b(?:sa|sqlalchemy)\.(?:text|select|insert|update|delete)\(
   | ^\s*from\ sqlalchemy(?:\.\w+)*\ import\ .*\b(?:text|select|insert|update|delete)\b
   | ^\s*(?:import|from)\ (?:sqlite3|psycopg)\b
   | \.(?:exec_driver_sql|executescript)\(
   | ["'](?:SELECT|INSERT\ INTO|UPDATE\ \w+\ SET|DELETE\ FROM|CREATE|DROP|ALTER|PRAGMA|VACUUM|BEGIN|COMMIT)\b
-""", re.X)
+""",
+    re.X,
+)
 DATA_LAYER = "study_app.data"
 
 
 def _sql_lines(path: Path) -> list[tuple[int, str]]:
-    return [(i, line.strip()) for i, line in enumerate(path.read_text().splitlines(), 1)
-            if SQL.search(line)]
+    return [
+        (i, line.strip())
+        for i, line in enumerate(path.read_text().splitlines(), 1)
+        if SQL.search(line)
+    ]
 
 
 def test_sql_appears_only_in_the_data_layer():
     """Every SQL statement, SQLAlchemy statement builder and database driver import is
     under ``study_app/data/``: the rest of the project asks the store."""
-    bad = [f"{path.relative_to(ROOT)}:{i}: {line}" for m, path in MODULES.items()
-           if layer(m) != LAYERS[DATA_LAYER] for i, line in _sql_lines(path)]
+    bad = [
+        f"{path.relative_to(ROOT)}:{i}: {line}"
+        for m, path in MODULES.items()
+        if layer(m) != LAYERS[DATA_LAYER]
+        for i, line in _sql_lines(path)
+    ]
     assert not bad, "\n".join(bad)
 
 
@@ -188,16 +206,22 @@ def test_the_sql_pattern_finds_sql():
     """Known answers: the store's own statements are found, and so are the kinds of SQL
     the pattern names (the replica supervisor's old database check among them)."""
     assert _sql_lines(ROOT / "study_app" / "data" / "store.py")
-    for line in ('rows = conn.execute(sa.select(participants.c.id))',
-                 'from sqlalchemy import delete, select',
-                 'import sqlite3',
-                 '    import psycopg',
-                 'conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (name,))',
-                 "conn.execute(f'CREATE DATABASE \"{name}\"')",
-                 'con.executescript(script)'):
+    for line in (
+        "rows = conn.execute(sa.select(participants.c.id))",
+        "from sqlalchemy import delete, select",
+        "import sqlite3",
+        "    import psycopg",
+        'conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (name,))',
+        "conn.execute(f'CREATE DATABASE \"{name}\"')",
+        "con.executescript(script)",
+    ):
         assert SQL.search(line), line
-    for line in ('"""Select the frames (no SQL here)."""', 'select_pose(scene)',
-                 'parts.insert(0, x)', 'ax.text(0.5, 0.5, "no events")'):
+    for line in (
+        '"""Select the frames (no SQL here)."""',
+        "select_pose(scene)",
+        "parts.insert(0, x)",
+        'ax.text(0.5, 0.5, "no events")',
+    ):
         assert not SQL.search(line), line
 
 

@@ -48,8 +48,12 @@ def _pose_defaults():
 #: `snapshot batch`'s defaults for the pipeline, as the command builds them.
 POSE_DEFAULTS = {p.name: p.default for p in _pose_defaults.__click_params__}
 #: Small and fast: no baseline views, small pictures.
-FAST = BatchOptions(snapshot=snapshot_kwargs(POSE_DEFAULTS, baselines=False), size=(160, 180),
-                    sheet=True, sheet_size=(120, 135))
+FAST = BatchOptions(
+    snapshot=snapshot_kwargs(POSE_DEFAULTS, baselines=False),
+    size=(160, 180),
+    sheet=True,
+    sheet_size=(120, 135),
+)
 FAST_ARGS = ["--no-baselines", "--size", "160x180", "--sheet", "--sheet-size", "120x135", "-q"]
 
 
@@ -76,33 +80,49 @@ def subset(library):
 
 
 def strip_timings(rows, keys=None):
-    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows
-            if keys is None or r["path"] in keys]
+    return [
+        {k: v for k, v in r.items() if k not in TIMING_COLUMNS}
+        for r in rows
+        if keys is None or r["path"] in keys
+    ]
 
 
 def test_discovery_takes_scenes_and_leaves_manifest_members_out(library):
     """Folders are walked; a manifest's members are not scenes of their own; a JSON
     that is not a manifest is skipped; keys are relative to the SOURCE."""
     found = discover([library])
-    assert [s.key for s in found.scenes] == ["duo/duo.toml", "jumps/jump.bvh",
-                                             "jumps/truncated.bvh", "model.glb",
-                                             "notes.bvh", "walks/walk.bvh"]
+    assert [s.key for s in found.scenes] == [
+        "duo/duo.toml",
+        "jumps/jump.bvh",
+        "jumps/truncated.bvh",
+        "model.glb",
+        "notes.bvh",
+        "walks/walk.bvh",
+    ]
     kinds = {s.key: s.kind for s in found.scenes}
     assert kinds["duo/duo.toml"] == "manifest" and kinds["model.glb"] == "gltf"
     duo = next(s for s in found.scenes if s.kind == "manifest")
     assert [Path(m).name for m in duo.members] == ["a.bvh", "b.bvh"]
     skipped = {Path(p).name: why.split(" (")[0] for p, why in found.skipped}
-    assert skipped == {"a.bvh": "part of a scene manifest", "b.bvh": "part of a scene manifest",
-                       "notes.json": "not a scene manifest"}
+    assert skipped == {
+        "a.bvh": "part of a scene manifest",
+        "b.bvh": "part of a scene manifest",
+        "notes.json": "not a scene manifest",
+    }
 
 
 def test_discovery_globs_list_files_and_missing_sources(library, tmp_path):
     """A glob and a list file name the same scenes as the folder does; a SOURCE that
     does not exist is one error naming it."""
     by_glob = discover([str(library / "**" / "*.bvh")])
-    assert {s.key for s in by_glob.scenes} == {"jumps/jump.bvh", "jumps/truncated.bvh",
-                                               "notes.bvh", "walks/walk.bvh", "duo/a.bvh",
-                                               "duo/b.bvh"}  # no manifest among them
+    assert {s.key for s in by_glob.scenes} == {
+        "jumps/jump.bvh",
+        "jumps/truncated.bvh",
+        "notes.bvh",
+        "walks/walk.bvh",
+        "duo/a.bvh",
+        "duo/b.bvh",
+    }  # no manifest among them
     lst = library / "some.txt"
     lst.write_text("# two scenes\nwalks/walk.bvh\nduo/duo.toml\n", encoding="utf-8")
     try:
@@ -120,8 +140,11 @@ def test_shared_library_with_the_salsa_manifests(motions_dir):
     except the four salsa files, which are the two manifests' members."""
     found = discover([motions_dir, SCENES])
     keys = {s.key for s in found.scenes}
-    files = {p.relative_to(motions_dir).as_posix() for p in motions_dir.rglob("*")
-             if p.suffix in (".bvh", ".glb")}
+    files = {
+        p.relative_to(motions_dir).as_posix()
+        for p in motions_dir.rglob("*")
+        if p.suffix in (".bvh", ".glb")
+    }
     salsa = {f for f in files if f.startswith("two_person/")}
     assert len(salsa) == 4
     assert keys == (files - salsa) | {"two_person/salsa_01.toml", "two_person/salsa_12.toml"}
@@ -143,10 +166,21 @@ def test_index_round_trips_and_the_schema_lists_its_columns(tmp_path):
     exactly the index's columns."""
     assert set(load_schema("batch_index")["properties"]) == set(COLUMNS)
     row = {c: None for c in COLUMNS} | {
-        "path": "a/b c,d.bvh", "folder": "a", "name": "b c,d.bvh", "kind": "bvh",
-        "status": "ok", "content_hash": "0" * 64, "options_hash": "f" * 64, "characters": 2,
-        "n_frames": 10, "fps": 30.0, "frame": 3, "view_x": -0.5, "top_frames": "3;7",
-        "error": 'quote " and, comma'}
+        "path": "a/b c,d.bvh",
+        "folder": "a",
+        "name": "b c,d.bvh",
+        "kind": "bvh",
+        "status": "ok",
+        "content_hash": "0" * 64,
+        "options_hash": "f" * 64,
+        "characters": 2,
+        "n_frames": 10,
+        "fps": 30.0,
+        "frame": 3,
+        "view_x": -0.5,
+        "top_frames": "3;7",
+        "error": 'quote " and, comma',
+    }
     write_index(tmp_path / "index.csv", [row])
     assert read_index(tmp_path / "index.csv") == [row]
     assert [p.name for p in tmp_path.iterdir()] == ["index.csv"]  # no temporary left
@@ -177,8 +211,10 @@ def test_a_batch_writes_outputs_index_and_gallery(local_run, library):
     assert re.search(r"jumps/truncated\.bvh:\d+: .*truncated", errors["jumps/truncated.bvh"])
     assert errors["notes.bvh"].startswith("notes.bvh:")
     # a GLB header with no JSON chunk: the glTF reader's one line, named by the scene
-    assert re.fullmatch(r".*model\.glb: not a readable glTF/GLB file \(a damaged GLB container\)",
-                        errors["model.glb"]), errors["model.glb"]
+    assert re.fullmatch(
+        r".*model\.glb: not a readable glTF/GLB file \(a damaged GLB container\)",
+        errors["model.glb"],
+    ), errors["model.glb"]
     assert all("\n" not in e and str(library) not in e for e in errors.values())
     assert not any(rows[k][c] for k in errors for c in ("json", "thumb", "sheet"))
     assert (out / "index.html").is_file()
@@ -189,8 +225,12 @@ def test_the_json_is_what_select_prints(local_run, library):
     """The batch's JSON equals `snapshot select --json` with the same options, apart
     from timings."""
     out, _ = local_run
-    r = subprocess.run([SNAPSHOT, "select", str(library / "jumps" / "jump.bvh"), "--json",
-                        "--no-baselines"], capture_output=True, text=True, check=True)
+    r = subprocess.run(
+        [SNAPSHOT, "select", str(library / "jumps" / "jump.bvh"), "--json", "--no-baselines"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     cli_doc = json.loads(r.stdout)
     batch_doc = json.loads((out / "scenes" / "jumps" / "jump.bvh.json").read_text())
     for d in (cli_doc, batch_doc):
@@ -227,8 +267,9 @@ def test_a_rerun_does_no_work_and_an_edit_redoes_one_scene(local_run, library, t
 
 
 @pytest.mark.slow
-def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, library,
-                                                                     tmp_path, monkeypatch):
+def test_worker_processes_give_the_same_index_with_one_renderer_each(
+    local_run, library, tmp_path, monkeypatch
+):
     """--jobs 2: the index equals the in-process run apart from timings, and each
     worker process made exactly one GL renderer for all its scenes. The caller's main
     module is not run in the workers (here one that would fail, as a Streamlit page
@@ -236,7 +277,7 @@ def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, 
     import types
 
     script = tmp_path / "page.py"
-    script.write_text("raise SystemExit('the caller\'s main module ran in a worker')\n")
+    script.write_text("raise SystemExit('the caller's main module ran in a worker')\n")
     fake_main = types.ModuleType("__main__")
     fake_main.__file__ = str(script)
     monkeypatch.setitem(sys.modules, "__main__", fake_main)
@@ -244,8 +285,9 @@ def test_worker_processes_give_the_same_index_with_one_renderer_each(local_run, 
     died = []
     report = run_batch(subset(library), tmp_path / "out", FAST, jobs=2, notify=died.append)
     assert died == []  # no worker ran the caller's main module and died of it
-    assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == \
-        strip_timings(read_index(src / "index.csv"), SUBSET)
+    assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == strip_timings(
+        read_index(src / "index.csv"), SUBSET
+    )
     pids = {w["pid"] for w in report.workers}
     assert 1 <= len(pids) <= 2 and os.getpid() not in pids
     per_pid = {p: {w["renderer"] for w in report.workers if w["pid"] == p} for p in pids}
@@ -258,19 +300,51 @@ def _dask_cluster(tmp_path, n_workers=2):
     need(dask is not None, "no dask CLI in the venv")
     sched_file = tmp_path / "scheduler.json"
     logs = [open(tmp_path / f"dask{i}.log", "w") for i in range(n_workers + 1)]  # noqa: SIM115
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0",
-                               "--no-dashboard", "--scheduler-file", str(sched_file)],
-                              stdout=logs[0], stderr=subprocess.STDOUT)]
+    procs = [
+        subprocess.Popen(
+            [
+                dask,
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(sched_file),
+            ],
+            stdout=logs[0],
+            stderr=subprocess.STDOUT,
+        )
+    ]
     deadline = time.monotonic() + 60
     while not sched_file.exists() and time.monotonic() < deadline:
         time.sleep(0.2)
     address = json.loads(sched_file.read_text())["address"]
     for i in range(n_workers):
-        procs.append(subprocess.Popen(
-            [dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-             "--host", "127.0.0.1", "--name", f"w{i}", "--memory-limit", "0",
-             "--local-directory", str(tmp_path / f"w{i}")],
-            stdout=logs[i + 1], stderr=subprocess.STDOUT))
+        procs.append(
+            subprocess.Popen(
+                [
+                    dask,
+                    "worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--no-nanny",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                    "--name",
+                    f"w{i}",
+                    "--memory-limit",
+                    "0",
+                    "--local-directory",
+                    str(tmp_path / f"w{i}"),
+                ],
+                stdout=logs[i + 1],
+                stderr=subprocess.STDOUT,
+            )
+        )
     return address, procs, logs
 
 
@@ -287,8 +361,9 @@ def test_a_dask_cluster_gives_the_same_index(local_run, library, tmp_path):
         with Client(address, timeout="60s") as c:
             c.wait_for_workers(2, timeout=120)
         report = run_batch(subset(library), tmp_path / "out", FAST, scheduler=address)
-        assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == \
-            strip_timings(read_index(src / "index.csv"), SUBSET)
+        assert strip_timings(read_index(tmp_path / "out" / "index.csv")) == strip_timings(
+            read_index(src / "index.csv"), SUBSET
+        )
         assert report.done == len(SUBSET)
         assert os.getpid() not in {w["pid"] for w in report.workers}
         # the local pool's set-up reached the Dask workers: one Mesa rasteriser thread
@@ -313,27 +388,39 @@ def test_cli_runs_resumes_and_refuses_bad_input(library, tmp_path):
     shutil.copy(library / "walks" / "walk.bvh", lib / "walk.bvh")
     shutil.copy(library / "notes.bvh", lib / "notes.bvh")
     out = tmp_path / "out"
-    r = subprocess.run([SNAPSHOT, "batch", str(lib), "-o", str(out), *FAST_ARGS],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [SNAPSHOT, "batch", str(lib), "-o", str(out), *FAST_ARGS], capture_output=True, text=True
+    )
     assert r.returncode == 0, r.stderr
     assert "2 scenes: 2 processed" in r.stdout and "1 with errors" in r.stdout
     # the re-run has nothing to do and loads none of the heavy libraries (that is what
     # keeps a no-work run of a whole library under two seconds)
     heavy = ("trimesh", "pyrender", "OpenGL", "scipy", "snapcore.pipeline")
-    r = subprocess.run([sys.executable, "-c",
-                        "import sys; from snapcore.cli.main import main; code = main(sys.argv[1:]);"
-                        f"print(sorted(m for m in {heavy!r} if m in sys.modules)); sys.exit(code)",
-                        "batch", str(lib), "-o", str(out), *FAST_ARGS],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from snapcore.cli.main import main; code = main(sys.argv[1:]);"
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules)); sys.exit(code)",
+            "batch",
+            str(lib),
+            "-o",
+            str(out),
+            *FAST_ARGS,
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     assert "0 processed" in r.stdout and "2 already done" in r.stdout
     assert r.stdout.splitlines()[-1] == "[]"
-    for args, msg in ((["nowhere"], "no such file or folder"),
-                      ([str(lib), "-o", str(lib / "walk.bvh")], "is a file"),
-                      ([str(lib), "--scheduler", "localhost"], "tcp://HOST:8786")):
+    for args, msg in (
+        (["nowhere"], "no such file or folder"),
+        ([str(lib), "-o", str(lib / "walk.bvh")], "is a file"),
+        ([str(lib), "--scheduler", "localhost"], "tcp://HOST:8786"),
+    ):
         argv = args if "-o" in args else [*args, "-o", str(tmp_path / "o2")]
-        r = subprocess.run([SNAPSHOT, "batch", *argv], capture_output=True, text=True,
-                           cwd=tmp_path)
+        r = subprocess.run([SNAPSHOT, "batch", *argv], capture_output=True, text=True, cwd=tmp_path)
         assert r.returncode == 2 and msg in r.stderr, r.stderr
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
@@ -348,9 +435,13 @@ def test_ctrl_c_stops_cleanly_with_the_index_of_what_finished(tmp_path):
     for i in range(5):
         write_bvh(synth.humanoid_document("walk", seconds=1.5, seed=i), lib / f"w{i}.bvh")
     out = tmp_path / "out"
-    proc = subprocess.Popen([SNAPSHOT, "batch", str(lib), "-o", str(out), "--jobs", "2",
-                             *FAST_ARGS], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    proc = subprocess.Popen(
+        [SNAPSHOT, "batch", str(lib), "-o", str(out), "--jobs", "2", *FAST_ARGS],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 240
     # a scene's sheet is its last output
     while not list((out / "scenes").glob("*.sheet.png")) and time.monotonic() < deadline:
@@ -380,16 +471,20 @@ def test_a_damaged_copy_of_the_real_folder(motions_dir, tmp_path):
         shutil.copy(motions_dir / rel, lib / rel)
     text = (motions_dir / "walk_run" / "02_03.bvh").read_text()
     (lib / "walk_run" / "02_03_truncated.bvh").write_text(text[: len(text) // 2])
-    shutil.copy(REPO / "docs" / "images" / sorted(os.listdir(REPO / "docs" / "images"))[0],
-                lib / "walk_run" / "picture.bvh")
+    shutil.copy(
+        REPO / "docs" / "images" / sorted(os.listdir(REPO / "docs" / "images"))[0],
+        lib / "walk_run" / "picture.bvh",
+    )
     report = run_batch(discover([lib]).scenes, tmp_path / "out", FAST)
     status = {r["path"]: (r["status"], r["error"]) for r in report.rows}
     assert status["basketball/06_15_jumpshot_excerpt.bvh"] == ("ok", None)
     assert status["walk_run/dataset-2_run_normal_001.bvh"] == ("ok", None)
     assert status["walk_run/02_03_truncated.bvh"][0] == "error"
     assert "truncated" in status["walk_run/02_03_truncated.bvh"][1]
-    assert status["walk_run/picture.bvh"] == ("error", "walk_run/picture.bvh: not a text "
-                                                       "file (contains NUL bytes)")
+    assert status["walk_run/picture.bvh"] == (
+        "error",
+        "walk_run/picture.bvh: not a text file (contains NUL bytes)",
+    )
 
 
 def test_a_subset_run_keeps_the_other_rows_and_prune_drops_them(local_run, library, tmp_path):
@@ -423,8 +518,10 @@ def test_the_body_option_reaches_the_thumbnail(library):
     from snapcore.render.renderer import render_still
 
     walk = next(s for s in discover([library]).scenes if s.key == "walks/walk.bvh")
-    opts = {b: BatchOptions(**{**FAST.__dict__, "sheet": False, "body": b})
-            for b in ("mannequin", "human")}
+    opts = {
+        b: BatchOptions(**{**FAST.__dict__, "sheet": False, "body": b})
+        for b in ("mannequin", "human")
+    }
     assert opts["mannequin"].key() != opts["human"].key()
     thumbs = {}
     for b, o in opts.items():
@@ -432,12 +529,17 @@ def test_the_body_option_reaches_the_thumbnail(library):
         result = run_scene(task)
         assert result.row["status"] == "ok", result.row["error"]
         thumbs[b] = np.asarray(Image.open(io.BytesIO(result.outputs["thumb"])).convert("RGB"))
-    doc = json.loads(run_scene(SceneTask(scene=walk, options=opts["mannequin"],
-                                         content_hash="0" * 64,
-                                         options_hash="0" * 64)).outputs["json"])
+    doc = json.loads(
+        run_scene(
+            SceneTask(
+                scene=walk, options=opts["mannequin"], content_hash="0" * 64, options_hash="0" * 64
+            )
+        ).outputs["json"]
+    )
     scene = load_scene([walk.path])
     scene.meta["body"] = "mannequin"
-    expected = render_still(scene, scene.internal_frame(doc["frame"]), np.asarray(doc["view"]),
-                            size=FAST.size)
+    expected = render_still(
+        scene, scene.internal_frame(doc["frame"]), np.asarray(doc["view"]), size=FAST.size
+    )
     assert np.abs(thumbs["mannequin"].astype(int) - expected[..., :3]).max() <= 1
     assert np.abs(thumbs["human"].astype(int) - thumbs["mannequin"]).mean() > 1.0

@@ -25,8 +25,9 @@ from snapcore.motion.bvh import write_bvh
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ARTIFACTS = Path(__file__).resolve().parents[1] / "var" / "test-artifacts" / "batch"
-OPTS = BatchOptions(snapshot={"baselines": False}, size=(160, 180), sheet=True,
-                    sheet_size=(120, 135))
+OPTS = BatchOptions(
+    snapshot={"baselines": False}, size=(160, 180), sheet=True, sheet_size=(120, 135)
+)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +40,9 @@ def glib(tmp_path_factory):
     write_bvh(synth.humanoid_document("walk", seconds=2.0), lib / "pair" / "p2.bvh")
     (lib / "pair" / "pair.toml").write_text(
         '[[characters]]\nfile = "p1.bvh"\n[[characters]]\nfile = "p2.bvh"\n'
-        'offset = [1.5, 0.0, 0.0]\n', encoding="utf-8")
+        "offset = [1.5, 0.0, 0.0]\n",
+        encoding="utf-8",
+    )
     return lib
 
 
@@ -79,7 +82,8 @@ def test_the_grid_shows_every_scene_with_its_thumbnail(page, gallery):
     assert sorted(shown(page)) == sorted(r["path"] for r in report.rows)
     assert page.inner_text("#count") == "7 of 7 scenes"
     widths = page.eval_on_selector_all(
-        ".card img", "is => Promise.all(is.map(i => i.decode().then(() => i.naturalWidth)))")
+        ".card img", "is => Promise.all(is.map(i => i.decode().then(() => i.naturalWidth)))"
+    )
     assert widths == [160, 160, 160, 160]
     errors = page.eval_on_selector_all(".card.error .err", "es => es.map(e => e.textContent)")
     assert any("model.glb: not a readable glTF/GLB file" in e for e in errors), errors
@@ -120,8 +124,11 @@ def test_clicking_a_scene_opens_its_sheet_and_json(page, gallery):
     frame = page.frame_locator("#d-json")
     assert '"format": "action-snapshot/snapshot@2"' in frame.locator("body").inner_text()
     links = page.eval_on_selector_all("#d-links a", "as => as.map(a => a.href)")
-    assert [Path(lk.removeprefix("file://")) for lk in links] == \
-        [out / row["json"], out / row["thumb"], out / row["sheet"]]
+    assert [Path(lk.removeprefix("file://")) for lk in links] == [
+        out / row["json"],
+        out / row["thumb"],
+        out / row["sheet"],
+    ]
     page.screenshot(path=str(ARTIFACTS / "scene.png"))
     page.click("#close")
     assert page.query_selector("#detail[open]") is None
@@ -133,8 +140,9 @@ def test_nothing_is_requested_from_outside_the_folder(page, gallery):
     assert page.requests
     for url in page.requests:
         assert url.startswith("file://"), url
-        assert Path(unquote(url.removeprefix("file://"))).resolve().is_relative_to(
-            out.resolve()), url
+        assert Path(unquote(url.removeprefix("file://"))).resolve().is_relative_to(out.resolve()), (
+            url
+        )
 
 
 def test_names_are_text_not_markup():
@@ -142,8 +150,13 @@ def test_names_are_text_not_markup():
     no element it did not write, and the embedded rows read back unchanged."""
     from html.parser import HTMLParser
 
-    row = {"path": "x/</script><b>.bvh", "folder": "x", "name": "</script><b>.bvh",
-           "status": "error", "error": "<img src=x onerror=alert(1)>"}
+    row = {
+        "path": "x/</script><b>.bvh",
+        "folder": "x",
+        "name": "</script><b>.bvh",
+        "status": "error",
+        "error": "<img src=x onerror=alert(1)>",
+    }
 
     class Tags(HTMLParser):
         def __init__(self):
@@ -198,8 +211,9 @@ def test_status_filters_warnings_on_cards_and_sort_by_score(page, gallery):
     text = page.inner_text('.card[data-path="pair/pair.toml"] .warn')
     assert "different frame counts" in text
     page.select_option("#status", "clean")
-    assert sorted(shown(page)) == sorted(p for p, r in rows.items()
-                                         if r["status"] == "ok" and not r["warnings"])
+    assert sorted(shown(page)) == sorted(
+        p for p, r in rows.items() if r["status"] == "ok" and not r["warnings"]
+    )
     page.select_option("#status", "*")
     page.select_option("#sort", "-score")
     order = shown(page)
@@ -214,8 +228,11 @@ def test_hovering_a_card_flips_through_its_top_poses(page, gallery):
     """With contact sheets, hovering a card shows its sheet panned pose by pose (a CSS
     animation over the sheet already made, no extra file)."""
     # a scene with several top poses (a one-peak clip, such as the jump, has one moment)
-    many = next(r for r in gallery[1].rows
-                if r["status"] == "ok" and len(str(r["top_frames"] or "").split(";")) > 1)
+    many = next(
+        r
+        for r in gallery[1].rows
+        if r["status"] == "ok" and len(str(r["top_frames"] or "").split(";")) > 1
+    )
     sheet = many["path"].rsplit("/", 1)[-1] + ".sheet.png"
     card = f'.card[data-path="{many["path"]}"]'
     flip = page.query_selector(card + " .flip")
@@ -223,8 +240,10 @@ def test_hovering_a_card_flips_through_its_top_poses(page, gallery):
     assert flip.evaluate("e => getComputedStyle(e).opacity") == "0"
     page.hover(card)
     page.wait_for_timeout(300)
-    style = flip.evaluate("e => [getComputedStyle(e).opacity, getComputedStyle(e).animationName,"
-                          " getComputedStyle(e).backgroundImage]")
+    style = flip.evaluate(
+        "e => [getComputedStyle(e).opacity, getComputedStyle(e).animationName,"
+        " getComputedStyle(e).backgroundImage]"
+    )
     assert style[:2] == ["1", "flip"] and sheet in style[2]
     # one panel a card: the sheet is drawn as wide as its top poses side by side
     k = len(many["top_frames"].split(";"))
@@ -233,8 +252,9 @@ def test_hovering_a_card_flips_through_its_top_poses(page, gallery):
     page.mouse.move(0, 0)
 
 
-def test_choosing_pose_2_as_thumbnail_is_saved_and_a_rerun_renders_it(page, gallery, glib,
-                                                                       tmp_path):
+def test_choosing_pose_2_as_thumbnail_is_saved_and_a_rerun_renders_it(
+    page, gallery, glib, tmp_path
+):
     """In the detail view, '#2' becomes the scene's thumbnail choice: the card says so,
     the page offers thumb-choices.csv; saved into OUT, a re-run renders pose #2 as the
     thumbnail (the still of that frame) and the index keeps thumb_pose = 2, also through
@@ -271,9 +291,12 @@ def test_choosing_pose_2_as_thumbnail_is_saved_and_a_rerun_renders_it(page, gall
     assert row["thumb_pose"] == 2
     second = int(row["top_frames"].split(";")[1])
     scene = load_scene([str(src / "walks" / "walk.bvh")])
-    expected = render_still(scene, scene.internal_frame(second),
-                            np.array([row["view_x"], row["view_y"], row["view_z"]]),
-                            size=OPTS.size)[..., :3]
+    expected = render_still(
+        scene,
+        scene.internal_frame(second),
+        np.array([row["view_x"], row["view_y"], row["view_z"]]),
+        size=OPTS.size,
+    )[..., :3]
     thumb = np.asarray(Image.open(io.BytesIO((out / row["thumb"]).read_bytes())).convert("RGB"))
     assert np.abs(thumb.astype(int) - expected).max() <= 1
     (out / "thumb-choices.csv").unlink()
@@ -286,17 +309,23 @@ def test_choosing_pose_2_as_thumbnail_is_saved_and_a_rerun_renders_it(page, gall
 def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(page, gallery):
     """At 390x844 (a phone): two cards a row, a header that is not sticky and takes
     less than a fifth of the screen."""
-    pg = page.context.browser.new_page(viewport={"width": 390, "height": 844},
-                                       device_scale_factor=2)
+    pg = page.context.browser.new_page(
+        viewport={"width": 390, "height": 844}, device_scale_factor=2
+    )
     try:
         pg.goto((gallery[0] / "index.html").as_uri())
         pg.wait_for_selector(".card")
-        lefts = pg.eval_on_selector_all(".card", "cs => cs.map(c => c.getBoundingClientRect().left)")
+        lefts = pg.eval_on_selector_all(
+            ".card", "cs => cs.map(c => c.getBoundingClientRect().left)"
+        )
         assert len(set(lefts)) == 2
-        header = pg.eval_on_selector("header", "h => [getComputedStyle(h).position, "
-                                                "h.getBoundingClientRect().height]")
+        header = pg.eval_on_selector(
+            "header", "h => [getComputedStyle(h).position, h.getBoundingClientRect().height]"
+        )
         assert header[0] == "static" and header[1] < 844 / 5, header
-        widths = pg.eval_on_selector_all(".card", "cs => cs.map(c => c.getBoundingClientRect().right)")
+        widths = pg.eval_on_selector_all(
+            ".card", "cs => cs.map(c => c.getBoundingClientRect().right)"
+        )
         assert max(widths) <= 390
         pg.screenshot(path=str(ARTIFACTS / "phone.png"))
     finally:

@@ -50,8 +50,10 @@ def test_a_processed_scene_is_freed_with_its_bodies(tmp_path):
 def _small_library(root: Path, n: int, seconds: float = 1.5) -> Path:
     root.mkdir(parents=True)
     for i in range(n):
-        write_bvh(synth.humanoid_document(("walk", "jump", "punch")[i % 3], seconds=seconds,
-                                          seed=i), root / f"c{i}.bvh")
+        write_bvh(
+            synth.humanoid_document(("walk", "jump", "punch")[i % 3], seconds=seconds, seed=i),
+            root / f"c{i}.bvh",
+        )
     return root
 
 
@@ -68,15 +70,25 @@ def test_a_killed_worker_leaves_no_good_scene_marked_as_an_error(tmp_path):
     def progress(total):
         def tick(row):
             if not killed:
-                workers = [p for p in psutil.Process().children()
-                           if "resource_tracker" not in " ".join(p.cmdline())]
+                workers = [
+                    p
+                    for p in psutil.Process().children()
+                    if "resource_tracker" not in " ".join(p.cmdline())
+                ]
                 assert len(workers) == 2
                 workers[0].send_signal(signal.SIGKILL)
                 killed.append(workers[0].pid)
+
         return tick
 
-    report = run_batch(discover([lib]).scenes, tmp_path / "out", FAST, jobs=2,
-                       progress=progress, notify=messages.append)
+    report = run_batch(
+        discover([lib]).scenes,
+        tmp_path / "out",
+        FAST,
+        jobs=2,
+        progress=progress,
+        notify=messages.append,
+    )
     assert killed
     rows = read_index(tmp_path / "out" / "index.csv")
     assert [r["status"] for r in rows] == ["ok"] * 6, [r["error"] for r in rows]
@@ -97,8 +109,11 @@ def _gone(pids, within_s: float) -> bool:
 
     deadline = time.monotonic() + within_s
     while time.monotonic() < deadline:
-        if not [p for p in pids if psutil.pid_exists(p)
-                and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]:
+        if not [
+            p
+            for p in pids
+            if psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE
+        ]:
             return True
         time.sleep(0.2)
     return False
@@ -112,16 +127,21 @@ def test_no_worker_outlives_a_killed_main_process(tmp_path, sig):
     SIGTERM also writes the index of what finished, like Ctrl-C."""
     lib = _small_library(tmp_path / "lib", 6)
     out = tmp_path / "out"
-    proc = subprocess.Popen([SNAPSHOT, "batch", str(lib), "-o", str(out), "--jobs", "2",
-                             *FAST_ARGS], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    proc = subprocess.Popen(
+        [SNAPSHOT, "batch", str(lib), "-o", str(out), "--jobs", "2", *FAST_ARGS],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         deadline = time.monotonic() + 240
         while not list((out / "scenes").glob("*.sheet.png")) and time.monotonic() < deadline:
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.1)
-        workers = [p.pid for p in _children_of(proc.pid)
-                   if "resource_tracker" not in " ".join(p.cmdline())]
+        workers = [
+            p.pid for p in _children_of(proc.pid) if "resource_tracker" not in " ".join(p.cmdline())
+        ]
         assert len(workers) == 2
         os.kill(proc.pid, sig)
         _, stderr = proc.communicate(timeout=60)
@@ -146,13 +166,19 @@ def test_a_json_with_a_characters_list_is_not_taken_for_a_manifest(tmp_path):
     `characters` list is skipped with the schema's reason; a real manifest (JSON or
     TOML) is a scene. (Every such JSON once became an error row.)"""
     lib = _small_library(tmp_path / "lib", 2)
-    (lib / "select.json").write_text(json.dumps(
-        {"frame": 3, "characters": [{"name": "c0", "joints": 31}]}), encoding="utf-8")
+    (lib / "select.json").write_text(
+        json.dumps({"frame": 3, "characters": [{"name": "c0", "joints": 31}]}), encoding="utf-8"
+    )
     (lib / "gallery.json").write_text(json.dumps({"characters": []}), encoding="utf-8")
-    (lib / "pair.json").write_text(json.dumps(
-        {"name": "pair", "characters": [{"file": "c0.bvh"},
-                                        {"file": "c1.bvh", "offset": [0, 0, 1]}]}),
-        encoding="utf-8")
+    (lib / "pair.json").write_text(
+        json.dumps(
+            {
+                "name": "pair",
+                "characters": [{"file": "c0.bvh"}, {"file": "c1.bvh", "offset": [0, 0, 1]}],
+            }
+        ),
+        encoding="utf-8",
+    )
     found = discover([lib])
     assert [(s.key, s.kind) for s in found.scenes] == [("pair.json", "manifest")]
     why = {Path(p).name: w for p, w in found.skipped}
@@ -174,14 +200,18 @@ def test_a_sub_folder_run_updates_its_rows_of_the_library_index(tmp_path):
     _small_library(lib / "walks", 2)
     _small_library(lib / "more" / "deep", 1)
     out = tmp_path / "out"
-    r = subprocess.run([SNAPSHOT, "batch", str(lib), "-o", str(out), *FAST_ARGS],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [SNAPSHOT, "batch", str(lib), "-o", str(out), *FAST_ARGS], capture_output=True, text=True
+    )
     assert r.returncode == 0, r.stderr
     keys = ["more/deep/c0.bvh", "walks/c0.bvh", "walks/c1.bvh"]
     assert [row["path"] for row in read_index(out / "index.csv")] == keys
     write_bvh(synth.humanoid_document("jump", seconds=1.2, seed=9), lib / "walks" / "c1.bvh")
-    r = subprocess.run([SNAPSHOT, "batch", str(lib / "walks"), "-o", str(out), *FAST_ARGS],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [SNAPSHOT, "batch", str(lib / "walks"), "-o", str(out), *FAST_ARGS],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     assert "1 processed" in r.stdout and "1 already done" in r.stdout, r.stdout
     assert "--prune" not in r.stdout + r.stderr
@@ -210,8 +240,9 @@ def test_the_parquet_index_holds_the_csv_rows_with_the_schema_types(tmp_path):
     assert table.schema.field("n_frames").type == pa.int64()
     assert table.schema.field("duration_s").type == pa.float64()
     assert table.schema.field("path").type == pa.string()
-    assert read_parquet(tmp_path / "out" / "index.parquet") == \
-        read_index(tmp_path / "out" / "index.csv")
+    assert read_parquet(tmp_path / "out" / "index.parquet") == read_index(
+        tmp_path / "out" / "index.csv"
+    )
 
 
 def test_lost_dask_workers_are_reported():
@@ -230,7 +261,8 @@ def test_lost_dask_workers_are_reported():
     now = _watch_workers(Client(["tcp://a", "tcp://b"]), {"tcp://a", "tcp://b"}, said.append)
     assert now == {"tcp://a", "tcp://b"} and said == []
     now = _watch_workers(Client(["tcp://b"]), now, said.append)
-    assert said == ["Dask: 1 worker(s) lost (tcp://a); their scenes run again on the "
-                    "others; 1 left"]
+    assert said == [
+        "Dask: 1 worker(s) lost (tcp://a); their scenes run again on the others; 1 left"
+    ]
     _watch_workers(Client([]), now, said.append)
     assert "none left: waiting for a worker to join" in said[-1]

@@ -44,15 +44,66 @@ def _parents(names, parent_names):
 
 def test_roles_cmu_cgspeed_names():
     """CMU cgspeed: LeftShoulder is the clavicle, LeftArm the upper arm, LeftLeg the shin."""
-    names = ["Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "LowerBack",
-             "Spine", "Spine1", "Neck1", "Head", "LeftShoulder", "LeftArm", "LeftForeArm",
-             "LeftHand", "LeftFingerBase", "LeftHandIndex1", "LThumb"]
-    par = [None, "Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "Hips", "LowerBack",
-           "Spine", "Spine1", "Neck1", "Spine1", "LeftShoulder", "LeftArm", "LeftForeArm",
-           "LeftHand", "LeftFingerBase", "LeftHand"]
-    expect = ["pelvis", "pelvis", "thigh", "shin", "foot", "toe", "spine", "spine", "chest",
-              "neck", "head", "clavicle", "upperarm", "forearm", "hand", "hand", "finger",
-              "finger"]
+    names = [
+        "Hips",
+        "LHipJoint",
+        "LeftUpLeg",
+        "LeftLeg",
+        "LeftFoot",
+        "LeftToeBase",
+        "LowerBack",
+        "Spine",
+        "Spine1",
+        "Neck1",
+        "Head",
+        "LeftShoulder",
+        "LeftArm",
+        "LeftForeArm",
+        "LeftHand",
+        "LeftFingerBase",
+        "LeftHandIndex1",
+        "LThumb",
+    ]
+    par = [
+        None,
+        "Hips",
+        "LHipJoint",
+        "LeftUpLeg",
+        "LeftLeg",
+        "LeftFoot",
+        "Hips",
+        "LowerBack",
+        "Spine",
+        "Spine1",
+        "Neck1",
+        "Spine1",
+        "LeftShoulder",
+        "LeftArm",
+        "LeftForeArm",
+        "LeftHand",
+        "LeftFingerBase",
+        "LeftHand",
+    ]
+    expect = [
+        "pelvis",
+        "pelvis",
+        "thigh",
+        "shin",
+        "foot",
+        "toe",
+        "spine",
+        "spine",
+        "chest",
+        "neck",
+        "head",
+        "clavicle",
+        "upperarm",
+        "forearm",
+        "hand",
+        "hand",
+        "finger",
+        "finger",
+    ]
     assert joint_roles(names, _parents(names, par)) == expect
     sides = joint_sides(names)
     assert sides[2] == "L" and sides[1] == "L" and sides[17] == "L" and sides[0] == ""
@@ -61,34 +112,148 @@ def test_roles_cmu_cgspeed_names():
 
 def test_roles_daz_and_bandai_names():
     """Daz (hip, abdomen, lCollar, lShldr, rThigh, rShin) and Bandai (UpperLeg_L...)."""
-    daz = ["hip", "abdomen", "chest", "neck", "head", "leftEye", "lCollar", "lShldr", "lForeArm",
-           "lHand", "lIndex1", "rButtock", "rThigh", "rShin", "rFoot"]
-    dpar = [None, "hip", "abdomen", "chest", "neck", "head", "chest", "lCollar", "lShldr",
-            "lForeArm", "lHand", "hip", "rButtock", "rThigh", "rShin"]
+    daz = [
+        "hip",
+        "abdomen",
+        "chest",
+        "neck",
+        "head",
+        "leftEye",
+        "lCollar",
+        "lShldr",
+        "lForeArm",
+        "lHand",
+        "lIndex1",
+        "rButtock",
+        "rThigh",
+        "rShin",
+        "rFoot",
+    ]
+    dpar = [
+        None,
+        "hip",
+        "abdomen",
+        "chest",
+        "neck",
+        "head",
+        "chest",
+        "lCollar",
+        "lShldr",
+        "lForeArm",
+        "lHand",
+        "hip",
+        "rButtock",
+        "rThigh",
+        "rShin",
+    ]
     assert joint_roles(daz, _parents(daz, dpar)) == [
-        "pelvis", "spine", "chest", "neck", "head", "hidden", "clavicle", "upperarm", "forearm",
-        "hand", "finger", "pelvis", "thigh", "shin", "foot"]
+        "pelvis",
+        "spine",
+        "chest",
+        "neck",
+        "head",
+        "hidden",
+        "clavicle",
+        "upperarm",
+        "forearm",
+        "hand",
+        "finger",
+        "pelvis",
+        "thigh",
+        "shin",
+        "foot",
+    ]
     assert joint_sides(daz)[6:10] == ["L"] * 4 and joint_sides(daz)[11:] == ["R"] * 4
-    ban = ["joint_Root", "Hips", "Spine", "Chest", "Neck", "Head", "Shoulder_L", "UpperArm_L",
-           "LowerArm_L", "Hand_L", "UpperLeg_R", "LowerLeg_R", "Foot_R", "Toes_R"]
-    bpar = [None, "joint_Root", "Hips", "Spine", "Chest", "Neck", "Chest", "Shoulder_L",
-            "UpperArm_L", "LowerArm_L", "Hips", "UpperLeg_R", "LowerLeg_R", "Foot_R"]
+    ban = [
+        "joint_Root",
+        "Hips",
+        "Spine",
+        "Chest",
+        "Neck",
+        "Head",
+        "Shoulder_L",
+        "UpperArm_L",
+        "LowerArm_L",
+        "Hand_L",
+        "UpperLeg_R",
+        "LowerLeg_R",
+        "Foot_R",
+        "Toes_R",
+    ]
+    bpar = [
+        None,
+        "joint_Root",
+        "Hips",
+        "Spine",
+        "Chest",
+        "Neck",
+        "Chest",
+        "Shoulder_L",
+        "UpperArm_L",
+        "LowerArm_L",
+        "Hips",
+        "UpperLeg_R",
+        "LowerLeg_R",
+        "Foot_R",
+    ]
     assert joint_roles(ban, _parents(ban, bpar)) == [
-        "hidden", "pelvis", "spine", "chest", "neck", "head", "clavicle", "upperarm", "forearm",
-        "hand", "thigh", "shin", "foot", "toe"]
+        "hidden",
+        "pelvis",
+        "spine",
+        "chest",
+        "neck",
+        "head",
+        "clavicle",
+        "upperarm",
+        "forearm",
+        "hand",
+        "thigh",
+        "shin",
+        "foot",
+        "toe",
+    ]
     assert joint_sides(ban)[6] == "L" and joint_sides(ban)[10] == "R"
 
 
 def test_roles_older_cmu_names_and_unknown():
     """LeftCollar → LeftShoulder (= upper arm) → LeftElbow; LeftHip is the thigh; unknown
     names get the default role."""
-    names = ["Hips", "Chest", "LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist", "LeftHip",
-             "LeftKnee", "LeftAnkle", "Tail"]
-    par = [None, "Hips", "Chest", "LeftCollar", "LeftShoulder", "LeftElbow", "Hips", "LeftHip",
-           "LeftKnee", "Hips"]
+    names = [
+        "Hips",
+        "Chest",
+        "LeftCollar",
+        "LeftShoulder",
+        "LeftElbow",
+        "LeftWrist",
+        "LeftHip",
+        "LeftKnee",
+        "LeftAnkle",
+        "Tail",
+    ]
+    par = [
+        None,
+        "Hips",
+        "Chest",
+        "LeftCollar",
+        "LeftShoulder",
+        "LeftElbow",
+        "Hips",
+        "LeftHip",
+        "LeftKnee",
+        "Hips",
+    ]
     assert joint_roles(names, _parents(names, par)) == [
-        "pelvis", "chest", "clavicle", "upperarm", "forearm", "hand", "thigh", "shin", "foot",
-        "other"]
+        "pelvis",
+        "chest",
+        "clavicle",
+        "upperarm",
+        "forearm",
+        "hand",
+        "thigh",
+        "shin",
+        "foot",
+        "other",
+    ]
 
 
 def test_radius_table_torso_thicker_than_limbs_than_fingers():
@@ -129,9 +294,15 @@ def _segment_distance(x, a, b):
     return np.linalg.norm(x - (a + t[:, None] * ab), axis=1)
 
 
-@pytest.mark.parametrize("clip", ["walk_run/02_01.bvh", "two_person/60_01_scaled.bvh",
-                                  "walk_run/dataset-2_run_normal_001.bvh",
-                                  "boxing_jump/Boxing_Toes.bvh"])
+@pytest.mark.parametrize(
+    "clip",
+    [
+        "walk_run/02_01.bvh",
+        "two_person/60_01_scaled.bvh",
+        "walk_run/dataset-2_run_normal_001.bvh",
+        "boxing_jump/Boxing_Toes.bvh",
+    ],
+)
 def test_bones_stay_attached_to_their_joints(motions_dir, clip):
     """Every bone capsule, posed at any frame, lies within its radius of the segment
     between its two joints as forward kinematics places them, and reaches both ends."""
@@ -280,10 +451,15 @@ def test_helper_joints_draw_no_blobs(walk):
     offsets = [np.asarray(o, float) for o in sk.offsets]
     extra = []  # (name, parent name, offset in the parent's frame)
     for side, x in (("L", 1.0), ("R", -1.0)):
-        extra += [(f"CC_Base_{side}_RibsTwist", "Spine1", (0.06 * x, 0.10, 0.06)),
-                  (f"CC_Base_{side}_Breast", f"CC_Base_{side}_RibsTwist", (0.0, -0.03, 0.07)),
-                  (f"CC_Base_{side}_UpperarmTwist01",
-                   "LeftArm" if side == "L" else "RightArm", (0.14 * x, 0.0, 0.0))]
+        extra += [
+            (f"CC_Base_{side}_RibsTwist", "Spine1", (0.06 * x, 0.10, 0.06)),
+            (f"CC_Base_{side}_Breast", f"CC_Base_{side}_RibsTwist", (0.0, -0.03, 0.07)),
+            (
+                f"CC_Base_{side}_UpperarmTwist01",
+                "LeftArm" if side == "L" else "RightArm",
+                (0.14 * x, 0.0, 0.0),
+            ),
+        ]
     pos, rot = ch.positions, ch.rotations
     new_pos, new_rot = [pos], [rot]
     for name, parent, off in extra:
@@ -295,11 +471,16 @@ def test_helper_joints_draw_no_blobs(walk):
         q = np.concatenate(new_pos, axis=1)[:, p]
         new_pos.append((q + r @ np.asarray(off))[:, None])
         new_rot.append(r[:, None])
-    rich = Character("cc", Skeleton(tuple(names), np.array(parents), np.array(offsets),
-                                    np.zeros(len(names), bool)),
-                     np.concatenate(new_pos, axis=1), np.concatenate(new_rot, axis=1),
-                     np.concatenate(new_rot, axis=1).copy(), fps=ch.fps)
+    rich = Character(
+        "cc",
+        Skeleton(tuple(names), np.array(parents), np.array(offsets), np.zeros(len(names), bool)),
+        np.concatenate(new_pos, axis=1),
+        np.concatenate(new_rot, axis=1),
+        np.concatenate(new_rot, axis=1).copy(),
+        fps=ch.fps,
+    )
     plain, helped = CharacterBody(ch), CharacterBody(rich)
-    assert [(p["kind"], p["joint"], p["child"]) for p in helped.pieces] == \
-        [(p["kind"], p["joint"], p["child"]) for p in plain.pieces]
+    assert [(p["kind"], p["joint"], p["child"]) for p in helped.pieces] == [
+        (p["kind"], p["joint"], p["child"]) for p in plain.pieces
+    ]
     np.testing.assert_allclose(helped.vertices(5), plain.vertices(5), atol=1e-9)

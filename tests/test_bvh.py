@@ -95,8 +95,11 @@ def test_byte_order_mark_is_ignored(tmp_path):
 def test_joint_names_may_contain_spaces():
     """3ds Max writes its Biped's names with spaces (``JOINT Bip01 L Thigh``): the name is
     the rest of the line, up to the brace."""
-    doc = parse_bvh(GOOD.replace("JOINT Leg", "JOINT Bip01 L Thigh").replace("ROOT Hips", "ROOT Bip01 {")
-                    .replace("ROOT Bip01 {\n{", "ROOT Bip01 {"))
+    doc = parse_bvh(
+        GOOD.replace("JOINT Leg", "JOINT Bip01 L Thigh")
+        .replace("ROOT Hips", "ROOT Bip01 {")
+        .replace("ROOT Bip01 {\n{", "ROOT Bip01 {")
+    )
     assert doc.names == ("Bip01", "Spine", "Spine_End", "Bip01 L Thigh", "Bip01 L Thigh_End")
     assert doc.motion.shape == (3, 12)
 
@@ -104,10 +107,16 @@ def test_joint_names_may_contain_spaces():
 def test_keywords_in_any_case():
     """Keywords and channel names written in another case (``joint``, ``End site``,
     ``XROTATION``, ``Frame time:``) read as the same document; joint names keep theirs."""
-    text = (GOOD.replace("JOINT", "Joint").replace("OFFSET", "offset").replace("CHANNELS", "Channels")
-            .replace("End Site", "end site").replace("Xrotation", "XROTATION")
-            .replace("MOTION", "Motion").replace("Frame Time:", "Frame time:")
-            .replace("ROOT Hips", "root Hips"))
+    text = (
+        GOOD.replace("JOINT", "Joint")
+        .replace("OFFSET", "offset")
+        .replace("CHANNELS", "Channels")
+        .replace("End Site", "end site")
+        .replace("Xrotation", "XROTATION")
+        .replace("MOTION", "Motion")
+        .replace("Frame Time:", "Frame time:")
+        .replace("ROOT Hips", "root Hips")
+    )
     a, b = parse_bvh(GOOD), parse_bvh(text)
     assert b.names == a.names and b.channels == a.channels
     assert np.array_equal(b.motion, a.motion) and b.frame_time == a.frame_time
@@ -130,8 +139,6 @@ def test_write_read_file(tmp_path):
     assert np.array_equal(back.motion, doc.motion) and back.names == doc.names
 
 
-
-
 # GOOD's lines: 25 MOTION, 26 Frames, 27 Frame Time, 28-30 the three data rows.
 MALFORMED = {
     # name: (text, expected line or None, fragment of the message)
@@ -139,25 +146,61 @@ MALFORMED = {
     "no HIERARCHY keyword": (GOOD.replace("HIERARCHY", "HIERARCHIES"), 1, "expected 'HIERARCHY'"),
     "truncated hierarchy": (GOOD[: GOOD.index("\tJOINT Leg")], None, "unexpected end of file"),
     "missing MOTION": (GOOD[: GOOD.index("MOTION")], None, "MOTION"),
-    "fewer values than channels": (GOOD.replace("1 90 0 10 0 0 5 0 0 0 0 -5", "1 90 0 10 0 0 5 0 0 0 0"),
-                                   29, "11 values, fewer than the 12"),
-    "more values than channels": (GOOD.replace("0 90 0 0 0 0 0 0 0 0 0 0", "0 90 0 0 0 0 0 0 0 0 0 0 7"),
-                                  28, "13 values, more than the 12"),
-    "non-numeric value": (GOOD.replace("2 90 0 20", "2 90 zero 20"), 30, "expected a number, found 'zero'"),
-    "NaN value": (GOOD.replace("2 90 0 20", "2 90 nan 20"), 30, "channel 2 is not a finite number (nan)"),
+    "fewer values than channels": (
+        GOOD.replace("1 90 0 10 0 0 5 0 0 0 0 -5", "1 90 0 10 0 0 5 0 0 0 0"),
+        29,
+        "11 values, fewer than the 12",
+    ),
+    "more values than channels": (
+        GOOD.replace("0 90 0 0 0 0 0 0 0 0 0 0", "0 90 0 0 0 0 0 0 0 0 0 0 7"),
+        28,
+        "13 values, more than the 12",
+    ),
+    "non-numeric value": (
+        GOOD.replace("2 90 0 20", "2 90 zero 20"),
+        30,
+        "expected a number, found 'zero'",
+    ),
+    "NaN value": (
+        GOOD.replace("2 90 0 20", "2 90 nan 20"),
+        30,
+        "channel 2 is not a finite number (nan)",
+    ),
     "infinite value": (GOOD.replace("1 90 0 10", "1 90 inf 10"), 29, "not a finite number"),
     "zero frames": (GOOD.replace("Frames: 3", "Frames: 0"), 26, "0 frames"),
-    "negative frame time": (GOOD.replace("Frame Time: 0.0333333", "Frame Time: -0.03"), 27,
-                            "frame time must be a positive"),
-    "unknown channel name": (GOOD.replace("Xrotation Yrotation Zrotation", "Xrotation Yrotation Wrotation"),
-                             18, "unknown channel 'Wrotation'"),
-    "duplicate joint names": (GOOD.replace("JOINT Leg", "JOINT Spine"), 15, "duplicate joint name 'Spine'"),
-    "fewer data rows than frames": (GOOD.replace("Frames: 3", "Frames: 5"), None, "expected 5 frames"),
-    "channel count too large": (GOOD.replace("CHANNELS 3 Zrotation Xrotation Yrotation",
-                                             "CHANNELS 4 Zrotation Xrotation Yrotation"), None,
-                                "unknown channel"),
+    "negative frame time": (
+        GOOD.replace("Frame Time: 0.0333333", "Frame Time: -0.03"),
+        27,
+        "frame time must be a positive",
+    ),
+    "unknown channel name": (
+        GOOD.replace("Xrotation Yrotation Zrotation", "Xrotation Yrotation Wrotation"),
+        18,
+        "unknown channel 'Wrotation'",
+    ),
+    "duplicate joint names": (
+        GOOD.replace("JOINT Leg", "JOINT Spine"),
+        15,
+        "duplicate joint name 'Spine'",
+    ),
+    "fewer data rows than frames": (
+        GOOD.replace("Frames: 3", "Frames: 5"),
+        None,
+        "expected 5 frames",
+    ),
+    "channel count too large": (
+        GOOD.replace(
+            "CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 4 Zrotation Xrotation Yrotation"
+        ),
+        None,
+        "unknown channel",
+    ),
     "non-numeric offset": (GOOD.replace("OFFSET 0 10 0", "OFFSET 0 ten 0"), 8, "expected OFFSET y"),
-    "non-integer frame count": (GOOD.replace("Frames: 3", "Frames: three"), 26, "integer frame count"),
+    "non-integer frame count": (
+        GOOD.replace("Frames: 3", "Frames: three"),
+        26,
+        "integer frame count",
+    ),
     "garbage after hierarchy": (GOOD.replace("MOTION", "}\nMOTION"), 25, "expected 'MOTION'"),
 }
 
@@ -192,8 +235,9 @@ def test_cli_reports_malformed_files_in_one_line(tmp_path):
         "    sys.stderr.write('@@END\\n'); sys.stderr.flush()\n"
     )
     files = [str(tmp_path / f"case{i}.bvh") for i in range(len(cases))]
-    out = subprocess.run([sys.executable, "-c", code, *files], capture_output=True, text=True,
-                         timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *files], capture_output=True, text=True, timeout=120
+    )
     rcs = [line.split()[1] for line in out.stdout.splitlines() if line.startswith("RC")]
     blocks = out.stderr.split("@@END\n")[: len(cases)]
     assert rcs == ["2"] * len(cases), out.stdout + out.stderr
@@ -209,8 +253,12 @@ def test_cli_missing_file_and_binary(tmp_path):
     binary = tmp_path / "junk.bvh"
     binary.write_bytes(bytes(range(256)) * 4)
     for p in (tmp_path / "nope.bvh", binary):
-        r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "info", str(p)],
-                           capture_output=True, text=True, timeout=60)
+        r = subprocess.run(
+            [sys.executable, "-m", "snapcore.cli.main", "info", str(p)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert r.returncode == 2
         assert r.stderr.count("\n") == 1 and r.stderr.startswith("error: ")
         assert "Traceback" not in r.stderr

@@ -14,7 +14,8 @@ from snapcore.cli.main import cli
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
     f"{opt}={v}": (["info", W, opt, v], [f"'{opt}'", "positive finite number", f"'{v}'"])
-    for opt in ("--fps", "--scale") for v in ("nan", "inf", "0", "-1")
+    for opt in ("--fps", "--scale")
+    for v in ("nan", "inf", "0", "-1")
 } | {
     "unknown-option": (["info", W, "--frame", "3"], ["No such option", "--frame"]),
     "misspelt-option": (["info", W, "--fpz", "3"], ["No such option", "--fpz", "--fps"]),

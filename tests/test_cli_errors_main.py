@@ -62,5 +62,5 @@ def test_readme_shows_export_table_options_with_their_paths():
     # the export command's lines (select's --events, the paper's event mode, is another option)
     text = "\n".join(ln for ln in readme.splitlines() if "export" in ln)
     for opt in ("--participants", "--events"):
-        uses = [text[m.start():m.start() + 40] for m in re.finditer(re.escape(opt), text)]
+        uses = [text[m.start() : m.start() + 40] for m in re.finditer(re.escape(opt), text)]
         assert uses and all(re.match(rf"{opt} (PATH|\S+\.(csv|jsonl))", u) for u in uses), uses

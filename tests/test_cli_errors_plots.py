@@ -9,17 +9,27 @@ from cli_helpers import W, alone, one_error_line, run_batch, walk_clip
 
 #: Outputs the commands cannot write: (args, output as given, what the line says).
 SUFFIX_CASES = {
-    "plot-entropy-txt": (["plot-entropy", W, "-o", "ent.txt"], "-o/--output ent.txt",
-                         "plot-entropy writes .png, .pdf or .svg"),
-    "plot-views-txt": (["plot-views", W, "-o", "pv.txt"], "-o/--output pv.txt",
-                       "plot-views writes .png, .pdf or .svg"),
+    "plot-entropy-txt": (
+        ["plot-entropy", W, "-o", "ent.txt"],
+        "-o/--output ent.txt",
+        "plot-entropy writes .png, .pdf or .svg",
+    ),
+    "plot-views-txt": (
+        ["plot-views", W, "-o", "pv.txt"],
+        "-o/--output pv.txt",
+        "plot-views writes .png, .pdf or .svg",
+    ),
 }
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
-    "plot-entropy-missing-folder": (["plot-entropy", W, "-o", "missing/e.pdf"],
-                                    ["-o/--output missing/e.pdf: folder missing does not exist"]),
-    "plot-views-window=nan": (["plot-views", W, "-o", "v.png", "--window", "nan"],
-                              ["'--window'", "finite"]),
+    "plot-entropy-missing-folder": (
+        ["plot-entropy", W, "-o", "missing/e.pdf"],
+        ["-o/--output missing/e.pdf: folder missing does not exist"],
+    ),
+    "plot-views-window=nan": (
+        ["plot-views", W, "-o", "v.png", "--window", "nan"],
+        ["'--window'", "finite"],
+    ),
 }
 
 
@@ -30,8 +40,7 @@ def walk(motions_dir):
 
 @pytest.fixture(scope="module")
 def runs(walk, tmp_path_factory) -> dict:
-    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED)
-             for cid, row in table.items()}
+    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED) for cid, row in table.items()}
     return run_batch(cases, walk, tmp_path_factory.mktemp("cli_errors_plots"))
 
 

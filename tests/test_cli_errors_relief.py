@@ -13,15 +13,22 @@ from snapcore.cli.main import cli
 #: Outputs the command cannot write: (args, output as given, what the line says).
 SUFFIX_CASES = {
     "relief-png": (["relief", W, "-o", "r.png"], "-o/--output r.png", "relief writes .stl"),
-    "relief-preview-jpg": (["relief", W, "-o", "r.stl", "--preview", "p.jpg"],
-                           "--preview p.jpg", "relief writes its preview as .png"),
+    "relief-preview-jpg": (
+        ["relief", W, "-o", "r.stl", "--preview", "p.jpg"],
+        "--preview p.jpg",
+        "relief writes its preview as .png",
+    ),
 }
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
-    "missing-folder": (["relief", W, "-o", "missing/r.stl"],
-                       ["-o/--output missing/r.stl: folder missing does not exist"]),
-    "preview-missing-folder": (["relief", W, "--preview", "missing/p.png"],
-                               ["--preview missing/p.png: folder missing does not exist"]),
+    "missing-folder": (
+        ["relief", W, "-o", "missing/r.stl"],
+        ["-o/--output missing/r.stl: folder missing does not exist"],
+    ),
+    "preview-missing-folder": (
+        ["relief", W, "--preview", "missing/p.png"],
+        ["--preview missing/p.png: folder missing does not exist"],
+    ),
     "depth=0": (["relief", W, "--depth", "0"], ["'--depth'"]),
     "base=inf": (["relief", W, "--base", "inf"], ["'--base'"]),
 }
@@ -32,8 +39,10 @@ VECTOR = (["relief", W, "--view", "1,2"], ["'--view'", "'1,2'"])
 OLD_PNG, OLD_STL = b"an older picture", b"an older STL"
 OVERWRITE_CASES = {
     "png-output": (["relief", W, "-o", "r4.png"], ["-o/--output r4.png", "relief writes .stl"]),
-    "preview-is-output": (["relief", W, "-o", "r5.stl", "--preview", "r5.stl"],
-                          ["--preview r5.stl", "relief writes its preview as .png"]),
+    "preview-is-output": (
+        ["relief", W, "-o", "r5.stl", "--preview", "r5.stl"],
+        ["--preview r5.stl", "relief writes its preview as .png"],
+    ),
 }
 OLD_FILES = {"r4.png": OLD_PNG, "r5.stl": OLD_STL}
 
@@ -45,8 +54,7 @@ def walk(motions_dir):
 
 @pytest.fixture(scope="module")
 def runs(walk, tmp_path_factory) -> dict:
-    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED)
-             for cid, row in table.items()}
+    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED) for cid, row in table.items()}
     cases["vector"] = (VECTOR[0], {})
     cases |= {f"overwrite:{cid}": (row[0], OLD_FILES) for cid, row in OVERWRITE_CASES.items()}
     return run_batch(cases, walk, tmp_path_factory.mktemp("cli_errors_relief"))
@@ -83,9 +91,24 @@ def test_relief_never_overwrites_the_stl_with_its_preview(runs, cid):
 
 
 def test_relief_writes_stl_and_preview_where_asked(walk, tmp_path):
-    r = CliRunner().invoke(cli, ["relief", str(walk), "--frame", "10", "--view", "0,0,1",
-                                 "--resolution", "16", "-o", str(tmp_path / "a.stl"),
-                                 "--preview", str(tmp_path / "look.png"), "-q"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "relief",
+            str(walk),
+            "--frame",
+            "10",
+            "--view",
+            "0,0,1",
+            "--resolution",
+            "16",
+            "-o",
+            str(tmp_path / "a.stl"),
+            "--preview",
+            str(tmp_path / "look.png"),
+            "-q",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.stl", "look.png"]
     assert (tmp_path / "look.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

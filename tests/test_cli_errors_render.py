@@ -14,14 +14,18 @@ SUFFIX_CASES = {
 }
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
-    "missing-folder": (["render", W, "-o", "missing/x.png"],
-                       ["-o/--output missing/x.png: folder missing does not exist"]),
+    "missing-folder": (
+        ["render", W, "-o", "missing/x.png"],
+        ["-o/--output missing/x.png: folder missing does not exist"],
+    ),
     "fps=inf": (["render", W, "-o", "x.png", "--fps", "inf"], ["'--fps'"]),
     "not-an-integer": (["render", W, "--frame", "x", "-o", "x.png"], ["'--frame'", "'x'"]),
     "bad-choice": (["render", W, "--fit", "bad", "-o", "x.png"], ["'--fit'", "'bad'"]),
     "bad-size": (["render", W, "--size", "3x3", "-o", "x.png"], ["'--size'", "3x3"]),
-    "frame-outside-scene": (["render", W, "--frame", "99999", "--view", "0,0,1", "-o", "x.png"],
-                            ["--frame", "frame 99999 is not in this scene"]),
+    "frame-outside-scene": (
+        ["render", W, "--frame", "99999", "--view", "0,0,1", "-o", "x.png"],
+        ["--frame", "frame 99999 is not in this scene"],
+    ),
 }
 #: Malformed vectors (without --frame the command would select the pose first).
 VECTOR_CASES = {
@@ -38,8 +42,11 @@ def walk(motions_dir):
 
 @pytest.fixture(scope="module")
 def runs(walk, tmp_path_factory) -> dict:
-    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED, VECTOR_CASES)
-             for cid, row in table.items()}
+    cases = {
+        cid: (row[0], {})
+        for table in (SUFFIX_CASES, REFUSED, VECTOR_CASES)
+        for cid, row in table.items()
+    }
     cases["help"] = (["render", "--help"], {})
     return run_batch(cases, walk, tmp_path_factory.mktemp("cli_errors_render"))
 

@@ -8,11 +8,15 @@ from cli_helpers import W, one_error_line, run_batch, walk_clip
 
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
-    "missing-folder": (["select", W, "-o", "missing/s.json"],
-                       ["-o/--output missing/s.json: folder missing does not exist"]),
+    "missing-folder": (
+        ["select", W, "-o", "missing/s.json"],
+        ["-o/--output missing/s.json: folder missing does not exist"],
+    ),
     "smooth=inf": (["select", W, "--smooth", "inf"], ["'--smooth'", "finite"]),
-    "min-separation=nan": (["select", W, "--min-separation", "nan"],
-                           ["'--min-separation'", "finite"]),
+    "min-separation=nan": (
+        ["select", W, "--min-separation", "nan"],
+        ["'--min-separation'", "finite"],
+    ),
 }
 
 
@@ -24,8 +28,10 @@ def walk(motions_dir):
 @pytest.fixture(scope="module")
 def runs(walk, tmp_path_factory) -> dict:
     cases = {cid: (row[0], {}) for cid, row in REFUSED.items()}
-    cases["input"] = (["select", "walk.bvh", "-o", "walk.bvh", "--no-view"],
-                      {"walk.bvh": None})  # None: a copy of the clip
+    cases["input"] = (
+        ["select", "walk.bvh", "-o", "walk.bvh", "--no-view"],
+        {"walk.bvh": None},
+    )  # None: a copy of the clip
     return run_batch(cases, walk, tmp_path_factory.mktemp("cli_errors_select"))
 
 

@@ -13,10 +13,14 @@ from snapcore.cli.main import cli
 #: Malformed vectors (without --frame the command would select the pose first).
 VECTOR_CASES = {
     "sheet-zero": (["sheet", W, "-o", "x.png", "--view", "0,0,0"], ["'--view'", "'0,0,0'"]),
-    "sheet-views": (["sheet", W, "-o", "x.png", "--views", "a=0,0,1", "--views", "b=1,2"],
-                    ["'--views'", "'1,2'"]),
-    "sheet-views-no-name": (["sheet", W, "-o", "x.png", "--views", "a0,0,1"],
-                            ["'--views'", "NAME=x,y,z"]),
+    "sheet-views": (
+        ["sheet", W, "-o", "x.png", "--views", "a=0,0,1", "--views", "b=1,2"],
+        ["'--views'", "'1,2'"],
+    ),
+    "sheet-views-no-name": (
+        ["sheet", W, "-o", "x.png", "--views", "a0,0,1"],
+        ["'--views'", "NAME=x,y,z"],
+    ),
 }
 
 
@@ -62,8 +66,9 @@ def test_sheet_columns_apply_to_view_comparisons(walk, tmp_path):
 
     def size(name, *args):
         out = tmp_path / name
-        r = CliRunner().invoke(cli, ["sheet", str(walk), "-o", str(out), "--size", "64x80",
-                                     "--frame", "10", *args])
+        r = CliRunner().invoke(
+            cli, ["sheet", str(walk), "-o", str(out), "--size", "64x80", "--frame", "10", *args]
+        )
         assert r.exit_code == 0, r.output
         return Image.open(out).size
 

@@ -10,13 +10,18 @@ from cli_helpers import W, alone, one_error_line, run_batch, walk_clip
 SUFFIX_CASES = {
     "video-txt": (["video", W, "-o", "v.txt"], "-o/--output v.txt", "video writes .mp4"),
     "video-avi": (["video", W, "-o", "v.avi"], "-o/--output v.avi", "video writes .mp4"),
-    "video-frame-map-txt": (["video", W, "-o", "v.mp4", "--frame-map", "map.txt"],
-                            "--frame-map map.txt", "the frame map is written as .json"),
+    "video-frame-map-txt": (
+        ["video", W, "-o", "v.mp4", "--frame-map", "map.txt"],
+        "--frame-map map.txt",
+        "the frame map is written as .json",
+    ),
 }
 #: Refused command lines: (args, what the one line names).
 REFUSED = {
-    "missing-folder": (["video", W, "-o", "missing/v.mp4"],
-                       ["-o/--output missing/v.mp4: folder missing does not exist"]),
+    "missing-folder": (
+        ["video", W, "-o", "missing/v.mp4"],
+        ["-o/--output missing/v.mp4: folder missing does not exist"],
+    ),
     "motion-fps=0": (["video", W, "-o", "v.mp4", "--motion-fps", "0"], ["'--motion-fps'"]),
     "motion-fps=nan": (["video", W, "-o", "v.mp4", "--motion-fps", "nan"], ["'--motion-fps'"]),
     "scale=-1": (["video", W, "-o", "v.mp4", "--scale", "-1"], ["'--scale'"]),
@@ -33,8 +38,7 @@ def walk(motions_dir):
 
 @pytest.fixture(scope="module")
 def runs(walk, tmp_path_factory) -> dict:
-    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED)
-             for cid, row in table.items()}
+    cases = {cid: (row[0], {}) for table in (SUFFIX_CASES, REFUSED) for cid, row in table.items()}
     cases["vector"] = (VECTOR[0], {})
     return run_batch(cases, walk, tmp_path_factory.mktemp("cli_errors_video"))
 

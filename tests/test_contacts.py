@@ -27,14 +27,36 @@ from snapcore.select.contacts import (
 )
 
 HAND = re.compile(r"(hand|thumb|index|mid|ring|pinky)", re.I)
-SALSA_PAIRS = [("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
-               ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh")]
+SALSA_PAIRS = [
+    ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
+    ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh"),
+]
 # Joints of each foot across the naming schemes of walk_run/ (CMU MotionBuilder, CMU
 # 3ds Max, Bandai); the first listed of each side present is the heel (ankle) joint.
-FOOT = {"L": ("LeftFoot", "LeftAnkle", "Foot_L", "LeftToeBase", "LeftToeBase_End", "LeftToe",
-              "LeftToe_End", "Toes_L", "Toes_L_End"),
-        "R": ("RightFoot", "RightAnkle", "Foot_R", "RightToeBase", "RightToeBase_End",
-              "RightToe", "RightToe_End", "Toes_R", "Toes_R_End")}
+FOOT = {
+    "L": (
+        "LeftFoot",
+        "LeftAnkle",
+        "Foot_L",
+        "LeftToeBase",
+        "LeftToeBase_End",
+        "LeftToe",
+        "LeftToe_End",
+        "Toes_L",
+        "Toes_L_End",
+    ),
+    "R": (
+        "RightFoot",
+        "RightAnkle",
+        "Foot_R",
+        "RightToeBase",
+        "RightToeBase_End",
+        "RightToe",
+        "RightToe_End",
+        "Toes_R",
+        "Toes_R_End",
+    ),
+}
 HEEL = {"L": ("LeftFoot", "LeftAnkle", "Foot_L"), "R": ("RightFoot", "RightAnkle", "Foot_R")}
 
 
@@ -120,8 +142,9 @@ def _loop_scan(near, x, m, tol):
     for j in range(near.shape[1]):
         f = 0
         while f <= near.shape[0] - m:
-            ok = near[f:f + m, j].all() and all(
-                np.linalg.norm(x[f + k, j] - x[f, j]) <= tol for k in range(m))
+            ok = near[f : f + m, j].all() and all(
+                np.linalg.norm(x[f + k, j] - x[f, j]) <= tol for k in range(m)
+            )
             if not ok:
                 f += 1
                 continue
@@ -173,7 +196,7 @@ def _foot_contacts(scene, inter, side):
     on = np.zeros(scene.n_frames, bool)
     for e in inter.events:
         if e.object == GROUND and e.joint in foot:
-            on[e.start:e.end + 1] = True
+            on[e.start : e.end + 1] = True
     edges = np.flatnonzero(np.diff(np.r_[0, on.astype(int), 0]))
     return list(zip(edges[::2], edges[1::2] - 1)), foot
 
@@ -195,7 +218,7 @@ def _steps_from_heel_minima(scene, side, foot):
     for k in minima - 1:
         if steps:
             a = steps[-1]
-            if low[a:k + 1].max() - max(low[a], low[k]) < 0.03:
+            if low[a : k + 1].max() - max(low[a], low[k]) < 0.03:
                 continue
         steps.append(k)
     return steps
@@ -222,8 +245,8 @@ def test_foot_contacts_match_steps_and_lie_on_the_floor(motions_dir):
             speed = np.linalg.norm(np.gradient(c.positions[:, foot], axis=0), axis=-1)
             speed = speed.min(axis=1) * scene.fps
             for s, e in contacts:
-                assert np.median(low[s:e + 1]) <= 0.10, (path.name, side, s, e)
-                assert np.median(speed[s:e + 1]) <= 0.5, (path.name, side, s, e)
+                assert np.median(low[s : e + 1]) <= 0.10, (path.name, side, s, e)
+                assert np.median(speed[s : e + 1]) <= 0.5, (path.name, side, s, e)
 
 
 @pytest.mark.parametrize("pair", SALSA_PAIRS)
@@ -253,7 +276,7 @@ def test_salsa_hand_contacts_where_hands_touch(motions_dir, pair):
         who = scene.characters[e.character]
         assert e.object != who.name  # nobody touches themself
         if HAND.search(who.joint_names[e.joint]) and e.part and HAND.search(e.part):
-            touching[e.start:e.end + 1] = True
+            touching[e.start : e.end + 1] = True
     assert (touching & held).sum() >= 0.8 * held.sum()
     assert dist[touching].max() <= 0.10
 
@@ -278,11 +301,13 @@ def test_contacts_do_not_depend_on_the_frame_rate(motions_dir):
 def test_contacts_do_not_depend_on_units_or_placement(motions_dir):
     """Rescaled (cm), rotated and moved: the same events (tolerances follow stature)."""
     scene = _load([motions_dir / p for p in SALSA_PAIRS[1]], fps=60)
-    base = [(e.character, e.joint, e.object, e.start, e.end)
-            for e in detect_interactions(scene).events]
+    base = [
+        (e.character, e.joint, e.object, e.start, e.end) for e in detect_interactions(scene).events
+    ]
     moved = scene.transformed(yaw_deg=63.0, offset=(1.5, -0.2, 4.0), scale=100.0)
-    got = [(e.character, e.joint, e.object, e.start, e.end)
-           for e in detect_interactions(moved).events]
+    got = [
+        (e.character, e.joint, e.object, e.start, e.end) for e in detect_interactions(moved).events
+    ]
     assert got == base
 
 
@@ -308,9 +333,13 @@ def test_synthetic_push_touches_the_chest():
     scene = synth.synth_scene("push", fps=60)
     pusher = scene.characters[0].name
     inter = detect_interactions(scene)
-    hands = [e for e in inter.events if e.object != GROUND
-             and scene.characters[e.character].name == pusher
-             and "Hand" in scene.characters[e.character].joint_names[e.joint]]
+    hands = [
+        e
+        for e in inter.events
+        if e.object != GROUND
+        and scene.characters[e.character].name == pusher
+        and "Hand" in scene.characters[e.character].joint_names[e.joint]
+    ]
     assert hands
     for e in hands:
         assert abs(e.start / 60 - synth.PUSH_CONTACT_S) <= 0.15
@@ -340,8 +369,12 @@ def test_props_from_the_manifest():
     hand = c.joint_names.index("RightHand")
     at = c.positions[:, hand].mean(axis=0)
     scene.props = [
-        {"name": "table", "type": "box", "center": (at - [0, 0.06, 0]).tolist(),
-         "size": [0.6, 0.1, 0.6]},
+        {
+            "name": "table",
+            "type": "box",
+            "center": (at - [0, 0.06, 0]).tolist(),
+            "size": [0.6, 0.1, 0.6],
+        },
         {"name": "moon", "type": "sphere", "center": [0.0, 50.0, 0.0], "radius": 1.0},
     ]
     inter = detect_interactions(scene)

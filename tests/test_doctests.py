@@ -22,8 +22,15 @@ RENDERING = {"render_still", "render_video", "contact_sheet", "compare_views"}
 
 def test_the_public_api_is_stages_and_results():
     """Entry points and result types only; internals stay in their modules."""
-    assert {"load_scene", "select_pose", "select_view", "take_snapshot",
-            "relief_from_scene", "Relief", "Snapshot"} <= set(snapcore.__all__)
+    assert {
+        "load_scene",
+        "select_pose",
+        "select_view",
+        "take_snapshot",
+        "relief_from_scene",
+        "Relief",
+        "Snapshot",
+    } <= set(snapcore.__all__)
     for internal in ("render_face_ids", "PosedMesh", "SceneBody", "pma_scores"):
         assert internal not in snapcore.__all__
         with pytest.raises(AttributeError):
@@ -39,8 +46,9 @@ def test_entry_point_docstring_and_examples(name):
     for section in ("Parameters", "Returns", "Examples"):
         assert f"\n{section}\n{'-' * len(section)}\n" in doc, f"{name}: no {section} section"
     module = inspect.getmodule(func)
-    found = doctest.DocTestFinder(recurse=False).find(func, name, module=module,
-                                                     globs={"__name__": module.__name__})
+    found = doctest.DocTestFinder(recurse=False).find(
+        func, name, module=module, globs={"__name__": module.__name__}
+    )
     assert sum(len(t.examples) for t in found) > 0, f"{name}: no examples"
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     report: list[str] = []

@@ -32,9 +32,15 @@ from study_app.design.stimuli import load_stimuli
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run",
-                 "--disable-quic"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+]
 REPO = Path(__file__).resolve().parents[1]
 SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
 ARTIFACTS = REPO / "var" / "test-artifacts" / "e2e"
@@ -60,10 +66,12 @@ def start_study(stimuli, db: str, log_path) -> tuple[subprocess.Popen, str]:
     answers /_stcore/health. Returns (process, base url); fails the test with the log."""
     port = free_port()
     with open(log_path, "w") as log:  # the child keeps its own handle
-        proc = subprocess.Popen([SNAPSHOT, "study", "--stimuli", str(stimuli), "--db", db,
-                                 "--port", str(port)],
-                                env={**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN},
-                                stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [SNAPSHOT, "study", "--stimuli", str(stimuli), "--db", db, "--port", str(port)],
+            env={**os.environ, "SNAPSHOT_ADMIN_TOKEN": TOKEN},
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
     base = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + SERVER_START_S
     while True:
@@ -171,8 +179,11 @@ def wait_until_answerable(store, pid: str, trial_index: int, min_answer_s: float
 
     deadline = time.monotonic() + 30
     while True:
-        shown = [e["created_at"] for e in store.events(pid)
-                 if e["kind"] == SHOWN_EVENT and e["trial_index"] == trial_index]
+        shown = [
+            e["created_at"]
+            for e in store.events(pid)
+            if e["kind"] == SHOWN_EVENT and e["trial_index"] == trial_index
+        ]
         if shown:
             break
         assert time.monotonic() < deadline, f"trial {trial_index} was never shown"
@@ -286,8 +297,11 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     heading(page, "Animation 1 of 2")
 
     part = store.get_participant(pid)
-    assert part["background"] == {"age_band": "35–44", "gender": "Prefer not to say",
-                                  "experience": "Some (a course or a hobby)"}
+    assert part["background"] == {
+        "age_band": "35–44",
+        "gender": "Prefer not to say",
+        "experience": "Some (a course or a hobby)",
+    }
     assert part["prolific_pid"] == "60a1b2c3d4e5f60718293a4b"
     plan = trial_plan(["jump", "push"], part["seed"])
     stim = load_stimuli(stimuli_dir)
@@ -371,8 +385,12 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     kinds = [e["kind"] for e in store.events(pid) if e["trial_index"] == 0 and e["kind"] != "watch"]
     # the server's "shown" (the response time counts from it), then the picker's log:
     # the play-through, then play, pause, four steps, the choice
-    assert kinds[:4] == ["shown", "play", "ended", "play"] and "pause" in kinds \
-        and kinds.count("step") == 4 and kinds[-1] == "select"
+    assert (
+        kinds[:4] == ["shown", "play", "ended", "play"]
+        and "pause" in kinds
+        and kinds.count("step") == 4
+        and kinds[-1] == "select"
+    )
     shown = [e["trial_index"] for e in store.events(pid) if e["kind"] == "shown"]
     assert shown == [t.index for t in plan]  # each trial once, though pages rerun
     part = store.get_participant(pid)
@@ -418,7 +436,8 @@ def test_tampering_is_refused_and_writes_nothing(server, page, artifacts):
     page.wait_for_selector(".snap-view img")
     # The page knows positions only; send one that does not exist.
     page.locator(".snap-views").evaluate(
-        "root => root._api.setTriggerValue('choice', {trial: 2, position: 7})")
+        "root => root._api.setTriggerValue('choice', {trial: 2, position: 7})"
+    )
     alert = page.locator("[data-testid=stAlert]")
     alert.wait_for()
     assert "position 7 does not exist" in alert.inner_text()
@@ -455,11 +474,19 @@ def test_altered_stimuli_refused_before_serving(stimuli_dir, tmp_path):
     bad = tmp_path / "stimuli"
     shutil.copytree(stimuli_dir, bad)
     (bad / "jump" / "video.mp4").write_bytes(b"not a video")
-    r = subprocess.run([SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
-                       capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 2
     assert "jump/video.mp4 has been altered" in r.stderr and "Traceback" not in r.stderr
     (bad / "jump" / "video.mp4").unlink()
-    r = subprocess.run([SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
-                       capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [SNAPSHOT, "study", "--stimuli", str(bad), "--port", str(free_port())],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 2 and "jump/video.mp4 is missing" in r.stderr

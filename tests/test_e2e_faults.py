@@ -123,8 +123,16 @@ def study(tmp_path_factory, playwright_api):
     log_path = root / "server.log"
     proc, base = start_study(link, db, log_path)
     proxy = CutProxy(int(base.rsplit(":", 1)[1]))
-    env = {"proxy": proxy, "base": f"http://127.0.0.1:{proxy.port}", "store": Store(db),
-           "link": link, "db": db, "log": log_path, "proc": proc, "root": root}
+    env = {
+        "proxy": proxy,
+        "base": f"http://127.0.0.1:{proxy.port}",
+        "store": Store(db),
+        "link": link,
+        "db": db,
+        "log": log_path,
+        "proc": proc,
+        "root": root,
+    }
     yield env
     env["store"].close()
     proxy.close()
@@ -323,8 +331,9 @@ def test_watching_is_kept_across_a_reload(study, browser):
     while not any((e["payload"] or {}).get("ranges") for e in store.events(pid)):
         assert time.monotonic() < deadline, store.events(pid)
         time.sleep(0.2)
-    stored = max(sum(b - a for a, b in (e["payload"] or {}).get("ranges", []))
-                 for e in store.events(pid))
+    stored = max(
+        sum(b - a for a, b in (e["payload"] or {}).get("ranges", [])) for e in store.events(pid)
+    )
     page.reload()
     heading(page, "Animation 1 of 2")
     picker_ready(page)
@@ -334,8 +343,10 @@ def test_watching_is_kept_across_a_reload(study, browser):
     picker = page.locator(".snap-picker")
     n = int(picker.evaluate("r => r.querySelector('.snap-scrub').max")) + 1
     assert end < n * 0.9  # the rest alone would not open Confirm
-    picker.evaluate(f"r => {{ const s = r.querySelector('.snap-scrub'); s.value = '{end}'; "
-                    "s.dispatchEvent(new Event('input')); }")
+    picker.evaluate(
+        f"r => {{ const s = r.querySelector('.snap-scrub'); s.value = '{end}'; "
+        "s.dispatchEvent(new Event('input')); }"
+    )
     page.get_by_test_id("picker-play").click()
     page.wait_for_selector("[data-testid=picker-confirm]:enabled", timeout=30_000)
     page.get_by_test_id("picker-confirm").click()
@@ -375,7 +386,9 @@ def _answered_or_told(page, next_heading: str) -> None:
         "(h) => [...document.querySelectorAll('h1,h2,h3')].some(e => e.innerText.includes(h))"
         " || [...document.querySelectorAll('*')].some(e => e.shadowRoot && "
         "e.shadowRoot.querySelector('.snap-picker[data-lost=\"1\"]'))",
-        arg=next_heading, timeout=60_000)
+        arg=next_heading,
+        timeout=60_000,
+    )
     lost = page.locator(".snap-picker[data-lost='1']")
     if lost.count():
         assert "not saved" in page.get_by_test_id("picker-error").inner_text()
@@ -495,8 +508,10 @@ def test_small_items(study, browser):
     live = page.get_by_test_id("picker-frame-live")
     assert live.get_attribute("aria-live") == "polite"
     assert page.get_by_test_id("picker-frame").get_attribute("aria-live") is None
-    live.evaluate("el => { window.__changes = 0; new MutationObserver(() => window.__changes++)"
-                  ".observe(el, {childList: true, characterData: true, subtree: true}); }")
+    live.evaluate(
+        "el => { window.__changes = 0; new MutationObserver(() => window.__changes++)"
+        ".observe(el, {childList: true, characterData: true, subtree: true}); }"
+    )
     video = page.get_by_test_id("picker-video")
     page.get_by_test_id("picker-play").click()
     until(video, "v => v.ended || (v.paused && v.currentTime > 0.5)")

@@ -168,8 +168,9 @@ def seeded(server, *, poses_done: int = 0) -> str:
 
     _, store, _, stimuli = server
     s = ParticipantSession.start(store, load_stimuli(stimuli, verify=False))
-    s.submit_background({"age_band": "35–44", "gender": "Prefer not to say",
-                         "experience": "No experience"})
+    s.submit_background(
+        {"age_band": "35–44", "gender": "Prefer not to say", "experience": "No experience"}
+    )
     for t in s.plan[:poses_done]:
         s.submit_pose(t.index, 0, response_time_s=5.0, watched=1.0)
     return s.participant_id
@@ -390,8 +391,11 @@ def test_stale_second_tab_is_told(server, browser):
 
 
 # ----------------------------------------------------------------------------- item 6
-@pytest.mark.parametrize("value", ["a" * 65, "Ünïcødé5f1e2d3c", "<script>alert(1)</script>",
-                                   "1' OR '1'='1"], ids=["65-chars", "unicode", "script", "sql"])
+@pytest.mark.parametrize(
+    "value",
+    ["a" * 65, "Ünïcødé5f1e2d3c", "<script>alert(1)</script>", "1' OR '1'='1"],
+    ids=["65-chars", "unicode", "script", "sql"],
+)
 def test_odd_prolific_ids_refused(server, browser, value):
     """An odd PROLIFIC_PID: a clear message on the first page, nothing stored, logged."""
     from urllib.parse import quote
@@ -525,8 +529,10 @@ def test_candidates_same_size_no_methods_in_page(server, browser, artifacts):
         after_resize(page)
         boxes = [box(page.get_by_test_id(f"view-image-{i}")) for i in range(3)]
         for b in boxes[1:]:
-            assert abs(b["width"] - boxes[0]["width"]) <= 1 and \
-                abs(b["height"] - boxes[0]["height"]) <= 1, (w, boxes)
+            assert (
+                abs(b["width"] - boxes[0]["width"]) <= 1
+                and abs(b["height"] - boxes[0]["height"]) <= 1
+            ), (w, boxes)
         assert boxes[0]["width"] > 80, (w, boxes)
         if w >= 1280:
             for i in range(3):
@@ -569,7 +575,8 @@ class Bidi:
 
         self._stack = contextlib.ExitStack()
         self.ws = self._stack.enter_context(
-            connect(f"ws://127.0.0.1:{port}/session", max_size=50 * 2**20, open_timeout=10))
+            connect(f"ws://127.0.0.1:{port}/session", max_size=50 * 2**20, open_timeout=10)
+        )
         self.n = 0
         self.send("session.new", {"capabilities": {}})
         tree = self.send("browsingContext.getTree", {})
@@ -586,18 +593,25 @@ class Bidi:
                 return msg["result"]
 
     def js(self, expression: str):
-        r = self.send("script.evaluate", {"expression": expression, "awaitPromise": True,
-                                          "target": {"context": self.ctx}})
+        r = self.send(
+            "script.evaluate",
+            {"expression": expression, "awaitPromise": True, "target": {"context": self.ctx}},
+        )
         if r.get("type") == "exception":
             raise AssertionError(f"{expression[:80]}: {r['exceptionDetails'].get('text')}")
         return r["result"].get("value")
 
     def click(self, selector: str, text: str, *, exact: bool = False) -> None:
         """Wait for the element matching ``selector`` whose text has ``text``; click it."""
-        find = (f"[...document.querySelectorAll({json.dumps(selector)})].find(e => "
-                + (f"e.innerText.trim() === {json.dumps(text)}" if exact
-                   else f"e.innerText.includes({json.dumps(text)})")
-                + " && !e.disabled)")
+        find = (
+            f"[...document.querySelectorAll({json.dumps(selector)})].find(e => "
+            + (
+                f"e.innerText.trim() === {json.dumps(text)}"
+                if exact
+                else f"e.innerText.includes({json.dumps(text)})"
+            )
+            + " && !e.disabled)"
+        )
         self.wait(f"!!{find}")
         self.js(f"{find}.click()")
 
@@ -638,9 +652,19 @@ def test_firefox_esr_plays_webm(server, artifacts):
     base, store, *_ = server
     profile = tempfile.mkdtemp(prefix="ff-profile-")
     port = free_port()
-    proc = subprocess.Popen([FIREFOX, "--headless", "--no-remote", "--profile", profile,
-                             f"--remote-debugging-port={port}", "about:blank"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [
+            FIREFOX,
+            "--headless",
+            "--no-remote",
+            "--profile",
+            profile,
+            f"--remote-debugging-port={port}",
+            "about:blank",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     ff = None
     try:
         deadline = time.monotonic() + 60
@@ -652,54 +676,85 @@ def test_firefox_esr_plays_webm(server, artifacts):
                 if time.monotonic() > deadline:
                     raise
                 time.sleep(0.5)
-        ff.send("browsingContext.setViewport", {"context": ff.ctx,
-                                                "viewport": {"width": 1366, "height": 768}})
-        ff.send("browsingContext.navigate", {"context": ff.ctx, "url": f"{base}/",
-                                             "wait": "complete"})
+        ff.send(
+            "browsingContext.setViewport",
+            {"context": ff.ctx, "viewport": {"width": 1366, "height": 768}},
+        )
+        ff.send(
+            "browsingContext.navigate", {"context": ff.ctx, "url": f"{base}/", "wait": "complete"}
+        )
         # no H.264 decoder in this Firefox (that is why the WebM copy exists)
-        assert ff.js("document.createElement('video').canPlayType('video/mp4; codecs=\"avc1.42E01E\"')") == ""
+        assert (
+            ff.js(
+                "document.createElement('video').canPlayType('video/mp4; codecs=\"avc1.42E01E\"')"
+            )
+            == ""
+        )
         ff.wait("[...document.querySelectorAll('h1')].some(h => h.innerText.includes('Tiny demo'))")
         ff.wait("!!document.querySelector('[data-testid=stCheckbox] input')")
         ff.wait(f"({SETTLED})()")
         ff.js("document.querySelector('[data-testid=stCheckbox] input').click()")
         ff.click("button", "Start the study")
-        ff.wait("[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('About you'))")
+        ff.wait(
+            "[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('About you'))"
+        )
         pid = re.search(r"pid=([A-Za-z0-9_-]+)", ff.js("location.href")).group(1)
         assert store.get_participant(pid) is not None
         # The background form is Chromium's business (tested above); answer it in the
         # store and reload: the pose task is what differs in this browser.
-        store.set_background(pid, {"age_band": "35–44", "gender": "Prefer not to say",
-                                   "experience": "No experience"})
+        store.set_background(
+            pid, {"age_band": "35–44", "gender": "Prefer not to say", "experience": "No experience"}
+        )
         ff.send("browsingContext.reload", {"context": ff.ctx, "wait": "complete"})
-        ff.wait("[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('Animation 1 of 2'))")
+        ff.wait(
+            "[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('Animation 1 of 2'))"
+        )
         # The full player, on the WebM source; the instructions name its controls.
-        ff.wait("(() => {" + DEEP + "const r = deep('.snap-picker'); return r && r.dataset.ready === '1'; })()")
+        ff.wait(
+            "(() => {"
+            + DEEP
+            + "const r = deep('.snap-picker'); return r && r.dataset.ready === '1'; })()"
+        )
         src = ff.js("(() => {" + DEEP + "return deep('video').currentSrc; })()")
-        assert src and ff.js("(() => {" + DEEP + "return deep('video').currentSrc.length > 0 && "
-                             "deep('video source[type=\"video/webm\"]').src === deep('video').currentSrc; })()"), src
+        assert src and ff.js(
+            "(() => {" + DEEP + "return deep('video').currentSrc.length > 0 && "
+            "deep('video source[type=\"video/webm\"]').src === deep('video').currentSrc; })()"
+        ), src
         body = ff.js("document.body.innerText")
         assert "Play" in body and "arrow keys" in body and "slider" not in body.lower()
         # Two steps and a reload at once: the steps reach the database all the same
-        ff.js("(() => {" + DEEP + "deep('[data-testid=picker-forward]').click(); "
-              "deep('[data-testid=picker-forward]').click(); })()")
+        ff.js(
+            "(() => {" + DEEP + "deep('[data-testid=picker-forward]').click(); "
+            "deep('[data-testid=picker-forward]').click(); })()"
+        )
         ff.send("browsingContext.reload", {"context": ff.ctx, "wait": "complete"})
-        ff.wait("(() => {" + DEEP + "const r = deep('.snap-picker'); return r && r.dataset.ready === '1'; })()")
+        ff.wait(
+            "(() => {"
+            + DEEP
+            + "const r = deep('.snap-picker'); return r && r.dataset.ready === '1'; })()"
+        )
         deadline = time.monotonic() + 15
         while [e["kind"] for e in store.events(pid)].count("step") < 2:
             assert time.monotonic() < deadline, store.events(pid)
             time.sleep(0.2)
         # back to the first frame (the player came back at the third), so playing shows
         # the whole animation: from the third frame on, a 24-frame one is 89.6% of it
-        ff.js("(() => {" + DEEP + "deep('[data-testid=picker-back]').click(); "
-              "deep('[data-testid=picker-back]').click(); })()")
+        ff.js(
+            "(() => {" + DEEP + "deep('[data-testid=picker-back]').click(); "
+            "deep('[data-testid=picker-back]').click(); })()"
+        )
         ff.wait("(() => {" + DEEP + "return deep('.snap-picker').dataset.frame === '0'; })()")
         ff.js("(() => {" + DEEP + "deep('[data-testid=picker-play]').click(); })()")
-        ff.wait("(() => {" + DEEP + "return !deep('[data-testid=picker-confirm]').disabled; })()", 40)
+        ff.wait(
+            "(() => {" + DEEP + "return !deep('[data-testid=picker-confirm]').disabled; })()", 40
+        )
         shot_b64 = ff.send("browsingContext.captureScreenshot", {"context": ff.ctx})["data"]
         (ARTIFACTS / "firefox-1366x768-pose-task.png").write_bytes(base64.b64decode(shot_b64))
         frame = ff.js("(() => {" + DEEP + "return Number(deep('.snap-picker').dataset.frame); })()")
         ff.js("(() => {" + DEEP + "deep('[data-testid=picker-confirm]').click(); })()")
-        ff.wait("[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('Animation 2 of 2'))")
+        ff.wait(
+            "[...document.querySelectorAll('h2, h1')].some(h => h.innerText.includes('Animation 2 of 2'))"
+        )
     finally:
         if ff is not None:
             ff.close()
@@ -711,4 +766,3 @@ def test_firefox_esr_plays_webm(server, artifacts):
     sel = [e for e in store.events(pid) if e["kind"] == "select"]
     assert len(sel) == 1 and sel[0]["payload"]["watched"] >= 0.9
     assert [e["kind"] for e in store.events(pid)].count("step") == 4  # once each
-

@@ -43,19 +43,45 @@ def _answers(stim, *, finished: bool) -> list[dict]:
     rows, k = [], 0
     for sid in stim.scene_ids:
         sc = stim.scenes[sid]
-        rows.append({"trial_index": k, "task": "pose", "scene": sid, "stimulus_id": f"{sid}/pose",
-                     "chosen_frame": sc.algorithm_frame, "chosen_video_frame": 0,
-                     "algorithm_frame": sc.algorithm_frame, "fps": float(sc.fps),
-                     "n_frames": sc.n_frames, "response_time_s": 3.0})
-        rows.append({"trial_index": k + 1, "task": "view", "scene": sid,
-                     "stimulus_id": f"{sid}/view", "chosen_method": "ours", "chosen_position": 0,
-                     "shown_order": ["ours", "motion_area", "viewpoint_entropy"],
-                     "response_time_s": 2.0})
+        rows.append(
+            {
+                "trial_index": k,
+                "task": "pose",
+                "scene": sid,
+                "stimulus_id": f"{sid}/pose",
+                "chosen_frame": sc.algorithm_frame,
+                "chosen_video_frame": 0,
+                "algorithm_frame": sc.algorithm_frame,
+                "fps": float(sc.fps),
+                "n_frames": sc.n_frames,
+                "response_time_s": 3.0,
+            }
+        )
+        rows.append(
+            {
+                "trial_index": k + 1,
+                "task": "view",
+                "scene": sid,
+                "stimulus_id": f"{sid}/view",
+                "chosen_method": "ours",
+                "chosen_position": 0,
+                "shown_order": ["ours", "motion_area", "viewpoint_entropy"],
+                "response_time_s": 2.0,
+            }
+        )
         k += 2
     if finished:
-        rows.append({"trial_index": k, "task": "attention", "scene": "attention",
-                     "stimulus_id": "attention", "chosen_value": "x", "correct": True,
-                     "response_time_s": 1.0})
+        rows.append(
+            {
+                "trial_index": k,
+                "task": "attention",
+                "scene": "attention",
+                "stimulus_id": "attention",
+                "chosen_value": "x",
+                "correct": True,
+                "response_time_s": 1.0,
+            }
+        )
     return rows
 
 
@@ -65,8 +91,9 @@ def populate(url, stim) -> dict:
     with Store(url) as store:
         for name in ("A", "B", "C"):
             prolific = {"PROLIFIC_PID": PROLIFIC[name]} if name in PROLIFIC else None
-            pid = store.create_participant(stim.study.id, stim.sha256, app_version="e2e",
-                                           seed=7, prolific=prolific)
+            pid = store.create_participant(
+                stim.study.id, stim.sha256, app_version="e2e", seed=7, prolific=prolific
+            )
             store.record_responses(pid, _answers(stim, finished=name != "B"))
             store.record_events(pid, 0, [("play", {"t": 0.0})])
             if name != "B":
@@ -157,13 +184,18 @@ def test_researcher_page_end_to_end(server, browser):
     page.get_by_label("Reason").fill("failed the attention check")
     page.get_by_role("button", name="Exclude").click()
     page.get_by_text(f"Excluded {pids['B']}").wait_for()
-    assert rows(engine, "SELECT reason FROM exclusions WHERE participant_id = :p",
-                p=pids["B"]) == [("failed the attention check",)]
-    assert rows(engine, "SELECT count(*) FROM responses WHERE participant_id = :p",
-                p=pids["B"])[0][0] > 0
-    page.wait_for_function("() => [...document.querySelectorAll('[data-testid=stMetric]')]"
-                           ".some(m => m.innerText.startsWith('Excluded') && m.innerText.trim()"
-                           ".endsWith('1'))")
+    assert rows(engine, "SELECT reason FROM exclusions WHERE participant_id = :p", p=pids["B"]) == [
+        ("failed the attention check",)
+    ]
+    assert (
+        rows(engine, "SELECT count(*) FROM responses WHERE participant_id = :p", p=pids["B"])[0][0]
+        > 0
+    )
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('[data-testid=stMetric]')]"
+        ".some(m => m.innerText.startsWith('Excluded') && m.innerText.trim()"
+        ".endsWith('1'))"
+    )
 
     # -- close switch, then a cap: the study link turns new people away
     page.get_by_text("Close the study").click()
@@ -202,8 +234,9 @@ def test_researcher_page_end_to_end(server, browser):
     key = secret(engine, stim.study.id)
     gone = pseudonym(key, "participant_id", pids["A"])
     assert len(got) == in_db and gone not in {r["participant_id"] for r in got}
-    assert rows(engine, "SELECT count(*) FROM participants WHERE participant_id = :p",
-                p=pids["A"]) == [(0,)]
+    assert rows(
+        engine, "SELECT count(*) FROM participants WHERE participant_id = :p", p=pids["A"]
+    ) == [(0,)]
     assert rows(engine, "SELECT requested_by FROM withdrawals") == [("page",)]
 
     # -- the other downloads
@@ -218,11 +251,13 @@ def test_researcher_page_end_to_end(server, browser):
         assert any(n.endswith("materials/manifest.json") for n in names)
     with zipfile.ZipFile(io.BytesIO(download(page, "Download everything"))) as z:
         names = z.namelist()
-        assert {f"{stim.study.id}/{n}" for n in ("responses.csv", "participants.csv",
-                                                 "events.jsonl")} <= set(names)
+        assert {
+            f"{stim.study.id}/{n}" for n in ("responses.csv", "participants.csv", "events.jsonl")
+        } <= set(names)
     codes = list(csv.DictReader(io.StringIO(download(page, "Download completion codes").decode())))
-    code_c = rows(engine, "SELECT completion_code FROM participants WHERE participant_id = :p",
-                  p=pids["C"])[0][0]
+    code_c = rows(
+        engine, "SELECT completion_code FROM participants WHERE participant_id = :p", p=pids["C"]
+    )[0][0]
     assert [(c["Prolific id"], c["completion code"]) for c in codes] == [(PROLIFIC["C"], code_c)]
     page.context.close()
 

@@ -115,8 +115,7 @@ def test_a_participant_whose_set_is_gone_gets_a_clear_page(sets, tmp_path, monke
     write_fixture_stimuli_manifest(lonely, fixture_study_doc(min_answer_s=0, require_watch=True))
     url = f"sqlite:///{tmp_path / 'gone.db'}"
     st = Store(url)
-    s = ParticipantSession.start(st, load_stimuli(lonely),
-                                 prolific={"PROLIFIC_PID": "a" * 24})
+    s = ParticipantSession.start(st, load_stimuli(lonely), prolific={"PROLIFIC_PID": "a" * 24})
     st.close()
     shutil.rmtree(lonely)
     monkeypatch.setenv(keys.ENV_STIMULI, str(out))
@@ -158,8 +157,12 @@ def test_failed_video_falls_back_for_that_trial_only_and_says_so(app_store):
     failed = [e for e in app_store.events(pid) if e["kind"] == MEDIA_FAILED_EVENT]
     assert [(e["trial_index"], e["payload"]["what"]) for e in failed] == [(0, "video")]
     assert component(at, FRAME_PICKER)  # trial 1: the player again
-    at = send_trigger(at, FRAME_PICKER, "confirm", {"trial": 1, "frame": 5, "events": [],
-                                                    "watched": 0.95, "client": CLIENT})
+    at = send_trigger(
+        at,
+        FRAME_PICKER,
+        "confirm",
+        {"trial": 1, "frame": 5, "events": [], "watched": 0.95, "client": CLIENT},
+    )
     rows = app_store.responses(pid)
     assert [r["picked_with"] for r in rows] == ["slider", "player"]
     assert rows[1]["watched"] == 0.95 and rows[1]["viewport_width"] == 390
@@ -174,13 +177,17 @@ def test_failed_pictures_answer_nothing_and_a_resend_is_stored_once(app_store):
     at = new_app()
     pid = consent_and_background(at)
     for i in (0, 1):
-        at = send_trigger(at, FRAME_PICKER, "confirm", {"trial": i, "frame": 5, "events": [],
-                                                        "watched": 1.0})
+        at = send_trigger(
+            at, FRAME_PICKER, "confirm", {"trial": i, "frame": 5, "events": [], "watched": 1.0}
+        )
     at = send_trigger(at, VIEW_CHOOSER, "failed", {"trial": 2, "positions": [0], "tab": "t1"})
     assert len(app_store.responses(pid)) == 2
     ev = [e for e in app_store.events(pid) if e["kind"] == MEDIA_FAILED_EVENT]
-    assert ev[0]["trial_index"] == 2 and ev[0]["payload"] == {"what": "image", "positions": [0],
-                                                              "tab": "t1"}
+    assert ev[0]["trial_index"] == 2 and ev[0]["payload"] == {
+        "what": "image",
+        "positions": [0],
+        "tab": "t1",
+    }
     choice = {"trial": 2, "position": 1, "client": CLIENT}
     at = send_trigger(at, VIEW_CHOOSER, "choice", choice)
     rows = app_store.responses(pid)
@@ -195,8 +202,9 @@ def test_watching_in_two_halves_counts_as_watched(tmp_path):
     store = Store(f"sqlite:///{tmp_path / 'w.db'}")
     s = ParticipantSession.start(store, load_stimuli(d))
     s.submit_background(BACKGROUND)
-    s.record_picker_events(0, [{"kind": "watch", "frame": 12, "watched": 0.5,
-                                "ranges": [[0, 12.0]], "tab": "a"}])
+    s.record_picker_events(
+        0, [{"kind": "watch", "frame": 12, "watched": 0.5, "ranges": [[0, 12.0]], "tab": "a"}]
+    )
     again = ParticipantSession.resume(store, load_stimuli(d), s.participant_id)
     frame, watched, ranges = again.watch_record(0)
     assert ranges == [[0.0, 12.0]] and watched == pytest.approx(0.5)
@@ -234,9 +242,13 @@ def test_analysis_excludes_slider_and_unwatched_answers():
     """The analysis option leaves out the answers nobody watched and says how many."""
     from analysis.load import exclude_unverified
 
-    df = pd.DataFrame({"task": ["pose", "pose", "pose", "pose", "view"],
-                       "picked_with": ["slider", "player", "player", None, None],
-                       "watched": [None, 0.5, 0.97, None, None]})
+    df = pd.DataFrame(
+        {
+            "task": ["pose", "pose", "pose", "pose", "view"],
+            "picked_with": ["slider", "player", "player", None, None],
+            "watched": [None, 0.5, 0.97, None, None],
+        }
+    )
     kept, n = exclude_unverified(df)
     assert n == {"slider": 1, "not_watched": 1}
     assert list(kept.index) == [2, 3, 4]
@@ -282,7 +294,8 @@ def test_tiny_build_flags_alike_candidates_by_their_pictures(tmp_path_factory):
         ious = sc.entry["view_iou"]
         # Recomputed from the pictures on disk, independently of the build's record.
         assert ious["ours|motion_area"] == pytest.approx(
-            silhouette_iou(sc.views["ours"], sc.views["motion_area"]), abs=1e-3)
+            silhouette_iou(sc.views["ours"], sc.views["motion_area"]), abs=1e-3
+        )
         assert ious["ours|motion_area"] >= NEAR_DUPLICATE_IOU, (sid, ious)
         assert ["ours", "motion_area"] in sc.entry["near_duplicates"]
         assert ious["ours|viewpoint_entropy"] < NEAR_DUPLICATE_IOU, (sid, ious)

@@ -29,19 +29,38 @@ def test_linear_and_step_match_hand_values():
     values = np.array([[0.0, 0.0, 0.0], [2.0, 4.0, -2.0], [6.0, 4.0, 0.0]])
     t = np.array([-1.0, 0.25, 1.0, 2.0, 2.999, 5.0])
     lin = sample_curve(times, values, "LINEAR", t)
-    np.testing.assert_allclose(lin, [[0, 0, 0], [0.5, 1, -0.5], [2, 4, -2], [4, 4, -1],
-                                     [2 + 4 * 0.9995, 4, -2 + 2 * 0.9995], [6, 4, 0]], atol=1e-12)
+    np.testing.assert_allclose(
+        lin,
+        [
+            [0, 0, 0],
+            [0.5, 1, -0.5],
+            [2, 4, -2],
+            [4, 4, -1],
+            [2 + 4 * 0.9995, 4, -2 + 2 * 0.9995],
+            [6, 4, 0],
+        ],
+        atol=1e-12,
+    )
     step = sample_curve(times, values, "STEP", t)
-    np.testing.assert_allclose(step, [[0, 0, 0], [0, 0, 0], [2, 4, -2], [2, 4, -2],
-                                      [2, 4, -2], [6, 4, 0]], atol=1e-12)
+    np.testing.assert_allclose(
+        step, [[0, 0, 0], [0, 0, 0], [2, 4, -2], [2, 4, -2], [2, 4, -2], [6, 4, 0]], atol=1e-12
+    )
 
 
 def test_cubicspline_is_the_hermite_curve():
     """CUBICSPLINE (glTF Appendix C) at s = 0.5 of a 2 s interval, computed by hand."""
     times = np.array([1.0, 3.0])
     # per key: in-tangent, value, out-tangent
-    values = np.array([[9.0], [1.0], [2.0],    # key 0: v = 1, out-tangent b0 = 2
-                       [-4.0], [5.0], [9.0]])  # key 1: in-tangent a1 = -4, v = 5
+    values = np.array(
+        [
+            [9.0],
+            [1.0],
+            [2.0],  # key 0: v = 1, out-tangent b0 = 2
+            [-4.0],
+            [5.0],
+            [9.0],
+        ]
+    )  # key 1: in-tangent a1 = -4, v = 5
     # s = 0.5, dt = 2: h00 = 0.5, h10 = 0.125, h01 = 0.5, h11 = -0.125
     # p = 0.5*1 + 0.125*2*2 + 0.5*5 + (-0.125)*2*(-4) = 0.5 + 0.5 + 2.5 + 1.0
     got = sample_curve(times, values, "CUBICSPLINE", np.array([2.0, 1.0, 3.0]))
@@ -54,12 +73,14 @@ def test_linear_rotations_are_slerped_the_short_way():
     q1 = np.array([0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
     half = np.array([0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)])
     np.testing.assert_allclose(slerp(q0[None], q1[None], np.array([0.5]))[0], half, atol=1e-12)
-    got = sample_curve(np.array([0.0, 1.0]), np.stack([q0, -q1]), "LINEAR", np.array([0.5]),
-                       rotation=True)[0]
+    got = sample_curve(
+        np.array([0.0, 1.0]), np.stack([q0, -q1]), "LINEAR", np.array([0.5]), rotation=True
+    )[0]
     assert abs(abs(got @ half) - 1.0) < 1e-12
     # a third of the way: 30°, not the 1/3 chord (slerp keeps the angular speed)
-    third = sample_curve(np.array([0.0, 1.0]), np.stack([q0, q1]), "LINEAR", np.array([1 / 3]),
-                         rotation=True)[0]
+    third = sample_curve(
+        np.array([0.0, 1.0]), np.stack([q0, q1]), "LINEAR", np.array([1 / 3]), rotation=True
+    )[0]
     np.testing.assert_allclose(third, [0, 0, np.sin(np.pi / 12), np.cos(np.pi / 12)], atol=1e-12)
 
 
@@ -92,9 +113,11 @@ def _two_bone_document(*, ibm=True, interpolation="LINEAR") -> dict:
         buf.extend(data)
         return off, len(data)
 
-    verts = [((0.5, 0.5, 0.0), (0, 0, 0, 0), (255, 0, 0, 0)),
-             ((1.0, 1.0, 0.0), (1, 0, 0, 0), (255, 0, 0, 0)),
-             ((9.0, 9.0, 9.0), (0, 1, 0, 0), (128, 127, 0, 0))]
+    verts = [
+        ((0.5, 0.5, 0.0), (0, 0, 0, 0), (255, 0, 0, 0)),
+        ((1.0, 1.0, 0.0), (1, 0, 0, 0), (255, 0, 0, 0)),
+        ((9.0, 9.0, 9.0), (0, 1, 0, 0), (128, 127, 0, 0)),
+    ]
     inter = b"".join(struct.pack("<3f4B4B", *p, *j, *w) for p, j, w in verts)
     o_int, n_int = add(inter)
     o_idx, n_idx = add(struct.pack("<3H", 0, 1, 2))
@@ -132,23 +155,44 @@ def _two_bone_document(*, ibm=True, interpolation="LINEAR") -> dict:
         {"buffer": 0, "byteOffset": o_tr, "byteLength": n_tr},
     ]
     acc = [
-        {"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-         "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5121},
-                    "values": {"bufferView": 3}}},                                   # 0
+        {
+            "bufferView": 0,
+            "byteOffset": 0,
+            "componentType": 5126,
+            "count": 3,
+            "type": "VEC3",
+            "sparse": {
+                "count": 1,
+                "indices": {"bufferView": 2, "componentType": 5121},
+                "values": {"bufferView": 3},
+            },
+        },  # 0
         {"bufferView": 0, "byteOffset": 12, "componentType": 5121, "count": 3, "type": "VEC4"},
-        {"bufferView": 0, "byteOffset": 16, "componentType": 5121, "count": 3, "type": "VEC4",
-         "normalized": True},                                                        # 2
-        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},      # 3
-        {"bufferView": 4, "componentType": 5126, "count": 3, "type": "VEC3"},        # 4
-        {"bufferView": 5, "componentType": 5121, "count": 3, "type": "VEC4"},        # 5
-        {"bufferView": 6, "componentType": 5126, "count": 3, "type": "VEC4"},        # 6
-        {"bufferView": 7, "componentType": 5123, "count": 3, "type": "SCALAR"},      # 7
-        {"bufferView": 8, "componentType": 5126, "count": 2, "type": "MAT4"},        # 8
-        {"bufferView": 9, "componentType": 5126, "count": 1, "type": "MAT4"},        # 9
-        {"bufferView": 10, "componentType": 5126, "count": 2, "type": "SCALAR",
-         "min": [0.0], "max": [1.0]},                                                # 10
-        {"bufferView": 11, "componentType": 5126, "count": 2, "type": "VEC4"},       # 11
-        {"bufferView": 12, "componentType": 5126, "count": 2, "type": "VEC3"},       # 12
+        {
+            "bufferView": 0,
+            "byteOffset": 16,
+            "componentType": 5121,
+            "count": 3,
+            "type": "VEC4",
+            "normalized": True,
+        },  # 2
+        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},  # 3
+        {"bufferView": 4, "componentType": 5126, "count": 3, "type": "VEC3"},  # 4
+        {"bufferView": 5, "componentType": 5121, "count": 3, "type": "VEC4"},  # 5
+        {"bufferView": 6, "componentType": 5126, "count": 3, "type": "VEC4"},  # 6
+        {"bufferView": 7, "componentType": 5123, "count": 3, "type": "SCALAR"},  # 7
+        {"bufferView": 8, "componentType": 5126, "count": 2, "type": "MAT4"},  # 8
+        {"bufferView": 9, "componentType": 5126, "count": 1, "type": "MAT4"},  # 9
+        {
+            "bufferView": 10,
+            "componentType": 5126,
+            "count": 2,
+            "type": "SCALAR",
+            "min": [0.0],
+            "max": [1.0],
+        },  # 10
+        {"bufferView": 11, "componentType": 5126, "count": 2, "type": "VEC4"},  # 11
+        {"bufferView": 12, "componentType": 5126, "count": 2, "type": "VEC3"},  # 12
     ]
     skin0 = {"joints": [0, 1]}
     skin1 = {"joints": [1]}
@@ -166,21 +210,40 @@ def _two_bone_document(*, ibm=True, interpolation="LINEAR") -> dict:
             {"name": "meshB", "mesh": 1, "skin": 1},
         ],
         "meshes": [
-            {"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2},
-                             "indices": 3}]},
-            {"primitives": [{"attributes": {"POSITION": 4, "JOINTS_0": 5, "WEIGHTS_0": 6},
-                             "indices": 7}]},
+            {
+                "primitives": [
+                    {"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2}, "indices": 3}
+                ]
+            },
+            {
+                "primitives": [
+                    {"attributes": {"POSITION": 4, "JOINTS_0": 5, "WEIGHTS_0": 6}, "indices": 7}
+                ]
+            },
         ],
         "skins": [skin0, skin1],
-        "animations": [{"name": "raise", "samplers": [
-            {"input": 10, "output": 11, "interpolation": interpolation},
-            {"input": 10, "output": 12, "interpolation": "STEP"}],
-            "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}},
-                         {"sampler": 1, "target": {"node": 0, "path": "translation"}}]}],
+        "animations": [
+            {
+                "name": "raise",
+                "samplers": [
+                    {"input": 10, "output": 11, "interpolation": interpolation},
+                    {"input": 10, "output": 12, "interpolation": "STEP"},
+                ],
+                "channels": [
+                    {"sampler": 0, "target": {"node": 1, "path": "rotation"}},
+                    {"sampler": 1, "target": {"node": 0, "path": "translation"}},
+                ],
+            }
+        ],
         "accessors": acc,
         "bufferViews": views,
-        "buffers": [{"byteLength": len(buf), "uri": "data:application/octet-stream;base64,"
-                     + base64.b64encode(bytes(buf)).decode()}],
+        "buffers": [
+            {
+                "byteLength": len(buf),
+                "uri": "data:application/octet-stream;base64,"
+                + base64.b64encode(bytes(buf)).decode(),
+            }
+        ],
     }
 
 
@@ -198,8 +261,9 @@ def test_two_bone_file_gives_hand_computed_vertices(tmp_path):
     v = mesh.vertices(c, np.arange(5))  # (5, 6, 3): mesh A's 3 vertices, then mesh B's
     w0, w1 = 128 / 255, 127 / 255
     # bind pose (t = 0): the mesh as stored, the sparse vertex corrected
-    np.testing.assert_allclose(v[0], [[0.5, 0.5, 0], [1, 1, 0], [1, 1, 0],
-                                      [0, 2, 0], [1, 2, 0], [0, 2, 1]], atol=1e-6)
+    np.testing.assert_allclose(
+        v[0], [[0.5, 0.5, 0], [1, 1, 0], [1, 1, 0], [0, 2, 0], [1, 2, 0], [0, 2, 1]], atol=1e-6
+    )
     # t = 0.5: the arm has turned 45° about Z around (0, 1, 0); the root has not moved yet
     c45, s45 = np.cos(np.pi / 4), np.sin(np.pi / 4)
     arm = np.array([c45, 1 + s45, 0.0])  # (1, 0, 0) from the arm joint, turned 45°
@@ -210,8 +274,9 @@ def test_two_bone_file_gives_hand_computed_vertices(tmp_path):
     np.testing.assert_allclose(v[2, 4], [c45 - s45, 1 + s45 + c45, 0], atol=1e-6)
     # t = 1: 90°, and the STEP translation of the root by (0, 0, 2) has happened
     np.testing.assert_allclose(v[4, 1], [0, 2, 2], atol=1e-6)
-    np.testing.assert_allclose(v[4, 2], w0 * np.array([1, 1, 2]) + w1 * np.array([0, 2, 2]),
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        v[4, 2], w0 * np.array([1, 1, 2]) + w1 * np.array([0, 2, 2]), atol=1e-6
+    )
     np.testing.assert_allclose(v[3, 1, 2], 0.0, atol=1e-6)  # STEP: nothing before t = 1
     np.testing.assert_allclose(c.positions[4], [[0, 0, 2], [0, 1, 2]], atol=1e-6)
 
@@ -228,8 +293,9 @@ def test_accessors_read_interleaved_normalised_and_sparse_data(tmp_path):
     np.testing.assert_array_equal(b.accessor(0), [[0.5, 0.5, 0], [1, 1, 0], [1, 1, 0]])
     np.testing.assert_array_equal(b.accessor(1)[:, :2], [[0, 0], [1, 0], [0, 1]])
     np.testing.assert_allclose(b.accessor(2)[:, :2], [[1, 0], [1, 0], [128 / 255, 127 / 255]])
-    np.testing.assert_array_equal(b.accessor(8)[1], [[1, 0, 0, 0], [0, 1, 0, -1], [0, 0, 1, 0],
-                                                     [0, 0, 0, 1]])  # column-major → rows
+    np.testing.assert_array_equal(
+        b.accessor(8)[1], [[1, 0, 0, 0], [0, 1, 0, -1], [0, 0, 1, 0], [0, 0, 0, 1]]
+    )  # column-major → rows
 
 
 def test_missing_inverse_bind_matrices_mean_identity(tmp_path):
@@ -329,8 +395,12 @@ def _glb(doc: dict, binary: bytes) -> bytes:
     js = json.dumps(doc).encode()
     js += b" " * (-len(js) % 4)
     binary += b"\0" * (-len(binary) % 4)
-    body = (struct.pack("<II", len(js), 0x4E4F534A) + js
-            + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    body = (
+        struct.pack("<II", len(js), 0x4E4F534A)
+        + js
+        + struct.pack("<II", len(binary), 0x004E4942)
+        + binary
+    )
     return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
 
 
@@ -378,7 +448,9 @@ def _bad_file(tmp_path: Path, case: str) -> Path:
         raw = bytearray(base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1]))
         view = doc["bufferViews"][4]
         noise = np.random.default_rng(26).normal(0.0, 1e3, view["byteLength"] // 4)
-        raw[view["byteOffset"]:view["byteOffset"] + view["byteLength"]] = noise.astype("<f4").tobytes()
+        raw[view["byteOffset"] : view["byteOffset"] + view["byteLength"]] = noise.astype(
+            "<f4"
+        ).tobytes()
         p = tmp_path / f"{case}.glb"
         p.write_bytes(_glb(doc, bytes(raw)))
         return p
@@ -389,7 +461,9 @@ def test_extensions_that_do_not_change_geometry_are_accepted(tmp_path):
     """Required material/texture extensions do not move a vertex: the file still reads."""
     doc = _two_bone_document()
     doc["extensionsUsed"] = doc["extensionsRequired"] = [
-        "KHR_materials_pbrSpecularGlossiness", "KHR_texture_transform"]
+        "KHR_materials_pbrSpecularGlossiness",
+        "KHR_texture_transform",
+    ]
     assert read_gltf(_write(tmp_path, doc, "materials.gltf")).n_joints == 2
 
 
@@ -407,15 +481,18 @@ def bad_runs(tmp_path_factory):
     """`snapshot info` on every bad file, in ONE subprocess (the CLI's start-up is slow)."""
     d = tmp_path_factory.mktemp("bad_gltf")
     paths = {case: _bad_file(d, case) for case in BAD_CASES}
-    code = ("import contextlib, io, json, sys\n"
-            "from snapcore.cli.main import main\n"
-            "for p in sys.argv[1:]:\n"
-            "    err = io.StringIO()\n"
-            "    with contextlib.redirect_stderr(err):\n"
-            "        rc = main(['info', p])\n"
-            "    print(json.dumps([p, rc, err.getvalue()]))\n")
-    res = subprocess.run([sys.executable, "-c", code, *map(str, paths.values())],
-                         capture_output=True, text=True)
+    code = (
+        "import contextlib, io, json, sys\n"
+        "from snapcore.cli.main import main\n"
+        "for p in sys.argv[1:]:\n"
+        "    err = io.StringIO()\n"
+        "    with contextlib.redirect_stderr(err):\n"
+        "        rc = main(['info', p])\n"
+        "    print(json.dumps([p, rc, err.getvalue()]))\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code, *map(str, paths.values())], capture_output=True, text=True
+    )
     assert res.returncode == 0, res.stderr
     out = {p: (rc, err) for p, rc, err in map(json.loads, res.stdout.splitlines())}
     return {case: (p, *out[str(p)]) for case, p in paths.items()}
@@ -440,10 +517,21 @@ def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
     the BVH's rate, its animation chosen by name, read in centimetres (it is 80 "m" tall
     in its file), standing on the floor with its paws (mesh), not its joints."""
     manifest = tmp_path / "mixed.json"
-    manifest.write_text(json.dumps({"name": "mixed", "characters": [
-        {"file": str(motions_dir / "dance" / "05_06.bvh")},
-        {"file": str(motions_dir / "gltf" / "Fox.glb"), "animation": "Run", "offset": [2, 0, 0]},
-    ]}))
+    manifest.write_text(
+        json.dumps(
+            {
+                "name": "mixed",
+                "characters": [
+                    {"file": str(motions_dir / "dance" / "05_06.bvh")},
+                    {
+                        "file": str(motions_dir / "gltf" / "Fox.glb"),
+                        "animation": "Run",
+                        "offset": [2, 0, 0],
+                    },
+                ],
+            }
+        )
+    )
     import warnings
 
     from snapcore.motion.load import load_scene
@@ -484,12 +572,18 @@ def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
     config.write_text(
         '[study]\nid = "fox"\ntitle = "Fox"\ndescription = "A fox."\nvideo_fps = 12\n'
         'size = [160, 120]\npicker = "video"\n\n'
-        '[[scenes]]\nid = "fox"\ntitle = "Fox"\nfiles = ["gltf/Fox.glb"]\n', encoding="utf-8")
+        '[[scenes]]\nid = "fox"\ntitle = "Fox"\nfiles = ["gltf/Fox.glb"]\n',
+        encoding="utf-8",
+    )
     out = tmp_path / "stimuli"
     env = {**os.environ, "SNAPSHOT_DATA": str(motions_dir)}
     snapshot = str(Path(sys.executable).with_name("snapshot"))
-    r = subprocess.run([snapshot, "stimuli", "build", str(config), "-o", str(out), "-q"],
-                       capture_output=True, text=True, env=env)
+    r = subprocess.run(
+        [snapshot, "stimuli", "build", str(config), "-o", str(out), "-q"],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert r.returncode == 0, r.stderr
     r = subprocess.run([snapshot, "stimuli", "verify", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
@@ -527,8 +621,9 @@ def test_animations_with_the_same_name_can_each_be_chosen(tmp_path):
     other = read_gltf(path, animation="raise_2", fps=4.0)
     assert other.meta["animations"] == ["raise", "raise_2"] and other.meta["animation"] == "raise_2"
     assert not np.allclose(first.local_rotations[-1, 1], np.eye(3))
-    np.testing.assert_allclose(other.local_rotations[:, 1], np.broadcast_to(np.eye(3), (5, 3, 3)),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        other.local_rotations[:, 1], np.broadcast_to(np.eye(3), (5, 3, 3)), atol=1e-9
+    )
 
 
 def _two_character_document() -> dict:
@@ -589,8 +684,9 @@ def test_video_takes_animation_and_body(tmp_path):
     from snapcore.cli.main import cli
 
     path = _write(tmp_path, _two_bone_document(), "two_bone.gltf")
-    r = CliRunner().invoke(cli, ["video", str(path), "--animation", "nope", "-o",
-                                 str(tmp_path / "a.mp4")])
+    r = CliRunner().invoke(
+        cli, ["video", str(path), "--animation", "nope", "-o", str(tmp_path / "a.mp4")]
+    )
     assert r.exit_code == 2 and "no animation 'nope'" in r.output, r.output
     from snapcore.motion.bvh import format_bvh
     from snapcore.motion.synth import humanoid_document
@@ -598,7 +694,8 @@ def test_video_takes_animation_and_body(tmp_path):
     bvh = tmp_path / "walk.bvh"
     bvh.write_text(format_bvh(humanoid_document("walk", seconds=0.5)))
     out = tmp_path / "walk.mp4"
-    r = CliRunner().invoke(cli, ["video", str(bvh), "--body", "mannequin", "-o", str(out),
-                                 "--size", "64x48", "-q"])
+    r = CliRunner().invoke(
+        cli, ["video", str(bvh), "--body", "mannequin", "-o", str(out), "--size", "64x48", "-q"]
+    )
     assert r.exit_code == 0, r.output
     assert out.stat().st_size > 0

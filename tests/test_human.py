@@ -58,8 +58,10 @@ def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
         err = np.linalg.norm(got - want, axis=-1)  # (F, L)
         f, k = np.unravel_index(np.argmax(err), err.shape)
         worst[name] = (float(err[f, k]), names[k], int(f))
-    report = "\n".join(f"{n}: {e * 100:.2f} cm ({lm}, frame {f})" for n, (e, lm, f) in
-                       sorted(worst.items(), key=lambda kv: -kv[1][0]))
+    report = "\n".join(
+        f"{n}: {e * 100:.2f} cm ({lm}, frame {f})"
+        for n, (e, lm, f) in sorted(worst.items(), key=lambda kv: -kv[1][0])
+    )
     print("\nworst landmark error per clip:\n" + report)
     assert max(e for e, _, _ in worst.values()) <= LANDMARK_TOL_M, report
 
@@ -179,16 +181,18 @@ def test_soles_stand_on_the_floor_in_contact_frames(all_bvh):
         lm = body_landmarks(ch.skeleton.names, np.asarray(ch.skeleton.parents))
         gaps = []
         for s, side in (("L", "Left"), ("R", "Right")):
-            foot = np.flatnonzero(w[:, [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]]
-                                  .sum(axis=1) > 0.5)
+            foot = np.flatnonzero(
+                w[:, [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]].sum(axis=1) > 0.5
+            )
             frames = _contact_frames(ch, s, lm)
             frames = frames[:: max(1, len(frames) // 150)]
             v = body.skin(ch.positions[frames], ch.rotations[frames])
             gaps.append(v[:, foot, 1].min(axis=1) - scene.ground)
         gap = np.concatenate(gaps)
         rows.append((path.name, float(np.median(gap)), float(gap[np.argmax(np.abs(gap))])))
-    report = "\n".join(f"{n}: median {m * 100:+.1f} cm, worst {w * 100:+.1f} cm"
-                       for n, m, w in rows)
+    report = "\n".join(
+        f"{n}: median {m * 100:+.1f} cm, worst {w * 100:+.1f} cm" for n, m, w in rows
+    )
     print("\nsole height above the floor in contact frames:\n" + report)
     assert all(abs(m) <= SOLE_TOL_M and abs(w) <= SOLE_WORST_M for _, m, w in rows), report
 
@@ -215,10 +219,17 @@ def test_unknown_skeleton_falls_back_to_the_mannequin_with_a_warning():
     offsets = np.array([[0.0, 1.0, 0.0], [0.0, 0.3, 0.0], [0.0, 0.3, 0.0], [0.2, -0.5, 0.0]])
     f = 3
     pos = np.cumsum(np.broadcast_to(offsets, (f, 4, 3)), axis=1) * 0 + np.array(
-        [[0, 1, 0], [0, 1.3, 0], [0, 1.6, 0], [0.2, 0.5, 0]])
+        [[0, 1, 0], [0, 1.3, 0], [0, 1.6, 0], [0.2, 0.5, 0]]
+    )
     rot = np.broadcast_to(np.eye(3), (f, 4, 3, 3)).copy()
-    ch = Character("blobby", Skeleton(names, parents, offsets, np.zeros(4, bool)), pos, rot,
-                   rot.copy(), fps=30.0)
+    ch = Character(
+        "blobby",
+        Skeleton(names, parents, offsets, np.zeros(4, bool)),
+        pos,
+        rot,
+        rot.copy(),
+        fps=30.0,
+    )
     scene = Scene([ch], fps=30.0)
     with pytest.warns(UserWarning, match=r"blob_a, blob_b, blob_c.*mannequin") as rec:
         body = MixedSceneBody(scene)
@@ -246,8 +257,13 @@ def test_viewpoint_entropy_runs_on_the_two_human_bodies(motions_dir):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        scene = load_scene([motions_dir / "two_person" / "60_01_scaled.bvh",
-                            motions_dir / "two_person" / "61_01_scaled.bvh"], fps=60)
+        scene = load_scene(
+            [
+                motions_dir / "two_person" / "60_01_scaled.bvh",
+                motions_dir / "two_person" / "61_01_scaled.bvh",
+            ],
+            fps=60,
+        )
     sel = select_view_entropy(scene, 900)
     assert sel.n_faces == 2 * 26756
     assert np.isfinite(sel.score) and abs(np.linalg.norm(sel.view) - 1) < 1e-9

@@ -29,8 +29,15 @@ def reexpressed(ch: Character, c: np.ndarray, name: str) -> Character:
     rot = ch.rotations @ c
     local = rot.copy()
     local[:, has] = np.swapaxes(rot[:, pp[has]], -1, -2) @ rot[:, has]
-    return Character(name, Skeleton(sk.names, parents, off, sk.end_site), ch.positions.copy(),
-                     rot, local, fps=ch.fps, meta=dict(ch.meta))
+    return Character(
+        name,
+        Skeleton(sk.names, parents, off, sk.end_site),
+        ch.positions.copy(),
+        rot,
+        local,
+        fps=ch.fps,
+        meta=dict(ch.meta),
+    )
 
 
 def _conventions(ch: Character) -> dict[str, np.ndarray]:
@@ -57,8 +64,9 @@ def _conventions(ch: Character) -> dict[str, np.ndarray]:
         "A-pose": a_pose,
         "identity rest along local X": along_x,
         "random per-joint rest": Rotation.random(j, random_state=rng).as_matrix(),
-        "Z-up": np.broadcast_to(Rotation.from_euler("x", -90, degrees=True).as_matrix(),
-                                (j, 3, 3)).copy(),
+        "Z-up": np.broadcast_to(
+            Rotation.from_euler("x", -90, degrees=True).as_matrix(), (j, 3, 3)
+        ).copy(),
     }
 
 
@@ -89,8 +97,15 @@ def test_a_head_top_joint_places_the_crown():
     base = synth_scene("punch").characters[0]
     sk = base.skeleton
     names = tuple("HeadTop_End" if n == "Head_End" else n for n in sk.names)
-    ch = Character("top", Skeleton(names, sk.parents, sk.offsets, sk.end_site), base.positions,
-                   base.rotations, base.local_rotations, fps=base.fps, meta=dict(base.meta))
+    ch = Character(
+        "top",
+        Skeleton(names, sk.parents, sk.offsets, sk.end_site),
+        base.positions,
+        base.rotations,
+        base.local_rotations,
+        fps=base.fps,
+        meta=dict(base.meta),
+    )
     body = HumanBody(ch)
     a = body.asset
     crown = a.vertices[[np.argmax(a.vertices[:, 1])]]
@@ -108,7 +123,8 @@ def _section_area(vertices, faces, origin, normal) -> float:
     from matplotlib.path import Path as MPath
 
     sec = trimesh.Trimesh(vertices, faces, process=False).section(
-        plane_origin=origin, plane_normal=normal)
+        plane_origin=origin, plane_normal=normal
+    )
     assert sec is not None
     u = np.cross(normal, [0.0, 1.0, 0.0])
     u /= np.linalg.norm(u)
@@ -156,8 +172,11 @@ def test_a_bent_elbow_keeps_the_arms_volume():
         assert kept >= 0.7, f"upper arm at {t:.0%}: {kept:.0%} of its straight area"
     bis = axis + bend @ axis
     bis /= np.linalg.norm(bis)
-    elbow = (_section_area(v[1], body.faces, rest[el], bis)
-             / _section_area(v[0], body.faces, rest[el], axis) * np.cos(np.radians(25)))
+    elbow = (
+        _section_area(v[1], body.faces, rest[el], bis)
+        / _section_area(v[0], body.faces, rest[el], axis)
+        * np.cos(np.radians(25))
+    )
     assert elbow >= 0.7, f"elbow section {elbow:.0%} of a bent cylinder's"
 
 
@@ -179,8 +198,9 @@ def test_segment_frames_are_rotations_and_hinges_follow_the_bend():
     rng = np.random.default_rng(3)
     y, ref = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     for f in (frame_x(y, ref), frame_z(y, ref), frame_x(np.zeros((2, 3)), ref[:2])):
-        np.testing.assert_allclose(f @ np.swapaxes(f, -1, -2), np.broadcast_to(np.eye(3), f.shape),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            f @ np.swapaxes(f, -1, -2), np.broadcast_to(np.eye(3), f.shape), atol=1e-12
+        )
         np.testing.assert_allclose(np.linalg.det(f), 1.0, atol=1e-12)
     a, d = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     a /= np.linalg.norm(a, axis=1, keepdims=True)

@@ -36,18 +36,26 @@ def _write(tmp_path, text, name="km.tsv"):
 def test_measures_known_answers():
     """Hits use intervals widened by 0.1 s; distances are to the unwidened interval."""
     iv = [(100, 120), (300, 310)]
-    assert hits([88, 89, 95, 133, 200, 305], iv, fps=100).tolist() == [False, False, True,
-                                                                        False, False, True]
-    np.testing.assert_allclose(distance_to_intervals([90, 110, 200, 320], iv, fps=100),
-                               [0.1, 0.0, 0.8, 0.1])
+    assert hits([88, 89, 95, 133, 200, 305], iv, fps=100).tolist() == [
+        False,
+        False,
+        True,
+        False,
+        False,
+        True,
+    ]
+    np.testing.assert_allclose(
+        distance_to_intervals([90, 110, 200, 320], iv, fps=100), [0.1, 0.0, 0.8, 0.1]
+    )
     # frames 0..999; widened [90, 130] and [290, 320]: 41 + 31 frames
     assert chance_rate(iv, first=0, last=999, fps=100) == pytest.approx(72 / 1000)
 
 
 def test_tsv_and_json_hold_the_same_content(tmp_path):
     """A TSV read, written as JSON (schema-valid) and read back gives the same entries."""
-    p = _write(tmp_path, HEADER + "a\tx/1.bvh, x/2.bvh\t60\t1-5;10-12\ttwo people\n"
-                                  "b\ty.bvh\t\t7-7\t\n")
+    p = _write(
+        tmp_path, HEADER + "a\tx/1.bvh, x/2.bvh\t60\t1-5;10-12\ttwo people\nb\ty.bvh\t\t7-7\t\n"
+    )
     entries = read_keymoments(p)
     assert entries[0].files == ["x/1.bvh", "x/2.bvh"] and entries[0].fps == 60
     assert entries[0].intervals == [(1, 5), (10, 12)] and entries[1].fps is None
@@ -56,18 +64,22 @@ def test_tsv_and_json_hold_the_same_content(tmp_path):
     q = tmp_path / "km.json"
     q.write_text(json.dumps(doc))
     again = read_keymoments(q)
-    assert [(e.scene, e.files, e.fps, e.intervals, e.what) for e in again] == \
-        [(e.scene, e.files, e.fps, e.intervals, e.what) for e in entries]
+    assert [(e.scene, e.files, e.fps, e.intervals, e.what) for e in again] == [
+        (e.scene, e.files, e.fps, e.intervals, e.what) for e in entries
+    ]
 
 
-@pytest.mark.parametrize("text, line, field", [
-    (HEADER + "a\tx.bvh\t\t9-3\t\n", 2, "intervals"),           # a > b
-    (HEADER + "a\tx.bvh\t\t1-3;oops\t\n", 2, "intervals"),      # malformed
-    (HEADER + "a\tx.bvh\tfast\t1-3\t\n", 2, "fps"),             # not a number
-    (HEADER + "a\tx.bvh\t\t1-3\t\n\tx.bvh\t\t1-3\t\n", 3, "scene"),  # empty scene
-    ("scene\tfiles\tintervals\tcolour\n", 1, "colour"),          # unknown column
-    ("scene\tfps\tintervals\n", 1, "files"),                     # missing column
-])
+@pytest.mark.parametrize(
+    "text, line, field",
+    [
+        (HEADER + "a\tx.bvh\t\t9-3\t\n", 2, "intervals"),  # a > b
+        (HEADER + "a\tx.bvh\t\t1-3;oops\t\n", 2, "intervals"),  # malformed
+        (HEADER + "a\tx.bvh\tfast\t1-3\t\n", 2, "fps"),  # not a number
+        (HEADER + "a\tx.bvh\t\t1-3\t\n\tx.bvh\t\t1-3\t\n", 3, "scene"),  # empty scene
+        ("scene\tfiles\tintervals\tcolour\n", 1, "colour"),  # unknown column
+        ("scene\tfps\tintervals\n", 1, "files"),  # missing column
+    ],
+)
 def test_bad_annotations_one_line_exit_2(tmp_path, text, line, field):
     """A bad file: exit 2, one stderr line naming the file, line and field, no traceback."""
     p = _write(tmp_path, text)
@@ -97,8 +109,18 @@ def test_keymoments_outputs(tmp_path, motions_dir):
     the middle baseline's pick on a 68-frame clip is frame 33 (hit: 30-40)."""
     p = _write(tmp_path, HEADER + "run\twalk_run/dataset-2_run_normal_001.bvh\t\t30-40\trun\n")
     out = tmp_path / "res"
-    r = _run(["keymoments", str(p), "--data", str(motions_dir), "--methods", "middle,story",
-              "-o", str(out)])
+    r = _run(
+        [
+            "keymoments",
+            str(p),
+            "--data",
+            str(motions_dir),
+            "--methods",
+            "middle,story",
+            "-o",
+            str(out),
+        ]
+    )
     assert r.exit_code == 0, r.output
     assert "ALL" in r.stdout and "middle" in r.stdout
     doc = json.loads((out / "keymoments.json").read_text())

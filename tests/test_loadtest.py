@@ -61,8 +61,12 @@ def study(tmp_path_factory):
 
 def _run(args, tmp_path) -> tuple[subprocess.CompletedProcess, dict]:
     out = tmp_path / "report.json"
-    r = subprocess.run([SNAPSHOT, "loadtest", *args, "--json", str(out)],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [SNAPSHOT, "loadtest", *args, "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     report = json.loads(out.read_text())
     jsonschema.validate(report, _schema(), cls=jsonschema.Draft202012Validator)
@@ -86,8 +90,11 @@ def _assert_stored_once(db: str, results_prolific: set[str]) -> None:
 def _prolific_ids(db: str, session_prefix: str) -> set[str]:
     store = Store(db)
     try:
-        return {p["prolific_pid"] for p in store.participants()
-                if (p.get("prolific_session_id") or "").startswith(session_prefix)}
+        return {
+            p["prolific_pid"]
+            for p in store.participants()
+            if (p.get("prolific_session_id") or "").startswith(session_prefix)
+        }
     finally:
         store.close()
 
@@ -96,9 +103,31 @@ def test_protocol_driver_every_answer_stored_once(study, tmp_path):
     """Four participants (reloading, going Back, double-clicking) all finish; every
     answer is stored once as sent; the report follows its schema."""
     base, db, timings = study
-    _, report = _run(["--url", base, "-n", "4", "--ramp", "1", "--think", "1.5",
-                      "--seed", "7", "--reload", "1", "--back", "1", "--double-click", "1",
-                      "--db", db, "--timings", str(timings)], tmp_path)
+    _, report = _run(
+        [
+            "--url",
+            base,
+            "-n",
+            "4",
+            "--ramp",
+            "1",
+            "--think",
+            "1.5",
+            "--seed",
+            "7",
+            "--reload",
+            "1",
+            "--back",
+            "1",
+            "--double-click",
+            "1",
+            "--db",
+            db,
+            "--timings",
+            str(timings),
+        ],
+        tmp_path,
+    )
     assert report["completed"] == 4 and report["errors"]["count"] == 0
     db_check = report["database"]
     assert db_check["ok"], db_check["problems"]
@@ -121,8 +150,11 @@ def test_protocol_driver_every_answer_stored_once(study, tmp_path):
         for p in store.participants():
             if p["prolific_pid"] not in pids:
                 continue
-            pose = {r["trial_index"] for r in store.responses(p["participant_id"])
-                    if r["task"] == "pose"}
+            pose = {
+                r["trial_index"]
+                for r in store.responses(p["participant_id"])
+                if r["task"] == "pose"
+            }
             logged = {(e["trial_index"], e["kind"]) for e in store.events(p["participant_id"])}
             for t in pose:
                 assert {(t, "play"), (t, "ended"), (t, "seek"), (t, "select")} <= logged, t
@@ -136,9 +168,29 @@ def test_protocol_driver_answers_refused_as_too_early_are_sent_again(study, tmp_
     second answer on the same trial (the attention check shows no trial index), so the
     database check holds."""
     base, db, _ = study
-    _, report = _run(["--url", base, "-n", "2", "--ramp", "0", "--think", "0.3",
-                      "--seed", "3", "--reload", "0", "--back", "0", "--double-click", "0",
-                      "--db", db], tmp_path)
+    _, report = _run(
+        [
+            "--url",
+            base,
+            "-n",
+            "2",
+            "--ramp",
+            "0",
+            "--think",
+            "0.3",
+            "--seed",
+            "3",
+            "--reload",
+            "0",
+            "--back",
+            "0",
+            "--double-click",
+            "0",
+            "--db",
+            db,
+        ],
+        tmp_path,
+    )
     assert report["completed"] == 2
     db_check = report["database"]
     assert db_check["ok"], db_check["problems"]
@@ -154,8 +206,25 @@ def test_browser_driver_agrees(study, tmp_path):
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"no Chromium at {CHROMIUM}")
     base, db, _ = study
-    _, report = _run(["--url", base, "-n", "2", "--ramp", "1", "--think", "1", "--seed", "8",
-                      "--driver", "browser", "--db", db], tmp_path)
+    _, report = _run(
+        [
+            "--url",
+            base,
+            "-n",
+            "2",
+            "--ramp",
+            "1",
+            "--think",
+            "1",
+            "--seed",
+            "8",
+            "--driver",
+            "browser",
+            "--db",
+            db,
+        ],
+        tmp_path,
+    )
     assert report["completed"] == 2
     assert report["database"]["ok"], report["database"]["problems"]
     assert report["database"]["answers_stored_once"] == 2 * N_TRIALS
@@ -165,20 +234,35 @@ def test_browser_driver_agrees(study, tmp_path):
 
 def test_report_schema_rejects_a_report_without_latency():
     """The schema is not empty: a report missing its latencies is refused."""
-    doc = {"config": {"url": "x", "participants": 1, "ramp_s": 0, "think_s": 0, "seed": 0,
-                      "driver": "protocol"}, "elapsed_s": 1, "participants": 1,
-           "completed": 1, "reconnects": 0, "errors": {"count": 0, "first": []},
-           "server": {}}
+    doc = {
+        "config": {
+            "url": "x",
+            "participants": 1,
+            "ramp_s": 0,
+            "think_s": 0,
+            "seed": 0,
+            "driver": "protocol",
+        },
+        "elapsed_s": 1,
+        "participants": 1,
+        "completed": 1,
+        "reconnects": 0,
+        "errors": {"count": 0, "first": []},
+        "server": {},
+    }
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(doc, _schema(), cls=jsonschema.Draft202012Validator)
     doc["latency"] = {"all": {"n": 0, "p50": None, "p95": None, "max": None}}
     jsonschema.validate(doc, _schema(), cls=jsonschema.Draft202012Validator)
 
 
-@pytest.mark.parametrize("args, says", [
-    (["--url", "http://127.0.0.1:9"], "cannot reach the study"),
-    (["--url", "not a url"], "cannot reach the study"),
-])
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["--url", "http://127.0.0.1:9"], "cannot reach the study"),
+        (["--url", "not a url"], "cannot reach the study"),
+    ],
+)
 def test_unreachable_study_is_one_line_exit_2(args, says):
     """An address where no study answers: one line, exit code 2, no traceback."""
     r = CliRunner().invoke(cli, ["loadtest", *args, "-n", "1"])
@@ -190,8 +274,18 @@ def test_unreachable_study_is_one_line_exit_2(args, says):
 def test_broken_database_url_is_one_line_exit_2(study):
     """A database that cannot be opened: one line, exit code 2, before any participant."""
     base, _, _ = study
-    r = CliRunner().invoke(cli, ["loadtest", "--url", base, "-n", "1",
-                                 "--db", "postgresql+psycopg://nobody@127.0.0.1:9/none"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "loadtest",
+            "--url",
+            base,
+            "-n",
+            "1",
+            "--db",
+            "postgresql+psycopg://nobody@127.0.0.1:9/none",
+        ],
+    )
     assert r.exit_code == 2, r.output
     assert "cannot open database" in r.output and "Traceback" not in r.output
     assert len(r.output.strip().splitlines()) == 1
@@ -202,24 +296,36 @@ def test_server_warm_up_imports_what_the_first_runs_need():
     arrives, the modules the first player page would import inside a script run:
     pandas and pyarrow (Streamlit scans component data for frames), SQLAlchemy, the
     pages. Run in a fresh interpreter, so nothing was imported before."""
-    code = ("import sys; from study_app.web.server import warm_up; warm_up(); "
-            "print(' '.join(m for m in ('pandas', 'pyarrow', 'sqlalchemy', "
-            "'study_app.web.screens.pose_task', 'study_app.session') if m in sys.modules))")
-    before = subprocess.run([sys.executable, "-c", "import sys, study_app.web.server; "
-                             "print('pandas' in sys.modules)"],
-                            capture_output=True, text=True, check=True)
+    code = (
+        "import sys; from study_app.web.server import warm_up; warm_up(); "
+        "print(' '.join(m for m in ('pandas', 'pyarrow', 'sqlalchemy', "
+        "'study_app.web.screens.pose_task', 'study_app.session') if m in sys.modules))"
+    )
+    before = subprocess.run(
+        [sys.executable, "-c", "import sys, study_app.web.server; print('pandas' in sys.modules)"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert before.stdout.strip() == "False"  # importing the launcher alone loads nothing
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert r.stdout.split() == ["pandas", "pyarrow", "sqlalchemy",
-                                "study_app.web.screens.pose_task", "study_app.session"]
+    assert r.stdout.split() == [
+        "pandas",
+        "pyarrow",
+        "sqlalchemy",
+        "study_app.web.screens.pose_task",
+        "study_app.session",
+    ]
 
 
 def test_server_warm_up_hides_the_imports_from_the_garbage_collector():
     """After the warm-up, the objects the imports made are frozen (gc.freeze): full
     collections under load then walk only what the sessions made (they paused the
     server 150-240 ms each before). Run in a fresh interpreter."""
-    code = ("import gc; from study_app.web.server import _warm_in_background; "
-            "print(gc.get_freeze_count()); _warm_in_background(); print(gc.get_freeze_count())")
+    code = (
+        "import gc; from study_app.web.server import _warm_in_background; "
+        "print(gc.get_freeze_count()); _warm_in_background(); print(gc.get_freeze_count())"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     before, after = map(int, r.stdout.split())
     assert before == 0 and after > 100_000, (before, after)
@@ -277,7 +383,9 @@ def test_deep_page_addresses_go_to_the_study_with_their_query(study):
     base, *_ = study
     html = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
     assert _get(f"{base}/pages/consent?PROLIFIC_PID=p1&STUDY_ID=s", html) == (
-        307, "/?PROLIFIC_PID=p1&STUDY_ID=s")
+        307,
+        "/?PROLIFIC_PID=p1&STUDY_ID=s",
+    )
     assert _get(f"{base}/study/a/b", html) == (307, "/")
     # One segment that is not a page of the app (every step is at the root; issue 29:
     # Streamlit showed "Page not found" over /study), with its query; the researcher

@@ -44,26 +44,46 @@ BACKGROUND = {"age_band": "25–34", "gender": "Woman", "experience": "No experi
 
 
 def pose(trial: int, frame: int = 30) -> dict:
-    return {"trial_index": trial, "task": "pose", "scene": "walk", "stimulus_id": "walk/pose",
-            "chosen_frame": frame, "chosen_video_frame": frame // 2, "algorithm_frame": 20,
-            "fps": 48.0, "n_frames": 48, "response_time_s": 2.5}
+    return {
+        "trial_index": trial,
+        "task": "pose",
+        "scene": "walk",
+        "stimulus_id": "walk/pose",
+        "chosen_frame": frame,
+        "chosen_video_frame": frame // 2,
+        "algorithm_frame": 20,
+        "fps": 48.0,
+        "n_frames": 48,
+        "response_time_s": 2.5,
+    }
 
 
 def view(trial: int) -> dict:
     order = ["motion_area", "ours", "viewpoint_entropy"]
-    return {"trial_index": trial, "task": "view", "scene": "walk", "stimulus_id": "walk/view",
-            "chosen_method": "ours", "chosen_position": 1, "shown_order": order,
-            "response_time_s": 1.5}
+    return {
+        "trial_index": trial,
+        "task": "view",
+        "scene": "walk",
+        "stimulus_id": "walk/view",
+        "chosen_method": "ours",
+        "chosen_position": 1,
+        "shown_order": order,
+        "response_time_s": 1.5,
+    }
 
 
 def populate(store, study_id: str = "fixture") -> dict:
     """Three participants (two from Prolific), each with background, answers and events."""
     pids = {}
     for name in ("A", "B", "C"):
-        prolific = ({"PROLIFIC_PID": PROLIFIC[name], "STUDY_ID": "STUDYzz",
-                     "SESSION_ID": SESSIONS[name]} if name in PROLIFIC else None)
-        pid = store.create_participant(study_id, SHA, app_version="0.1.0", seed=len(pids),
-                                       prolific=prolific)
+        prolific = (
+            {"PROLIFIC_PID": PROLIFIC[name], "STUDY_ID": "STUDYzz", "SESSION_ID": SESSIONS[name]}
+            if name in PROLIFIC
+            else None
+        )
+        pid = store.create_participant(
+            study_id, SHA, app_version="0.1.0", seed=len(pids), prolific=prolific
+        )
         store.set_background(pid, BACKGROUND)
         store.record_responses(pid, [pose(0, 10 + len(pids)), view(1)])
         store.record_events(pid, 0, [("play", {"t": 0.0}), ("pause", {"t": 0.5})])
@@ -78,8 +98,10 @@ def dump(url) -> dict[str, list[tuple]]:
     meta = sa.MetaData()
     meta.reflect(engine)
     with engine.connect() as conn:
-        out = {name: sorted(tuple(str(v) for v in row) for row in conn.execute(sa.select(t)))
-               for name, t in meta.tables.items()}
+        out = {
+            name: sorted(tuple(str(v) for v in row) for row in conn.execute(sa.select(t)))
+            for name, t in meta.tables.items()
+        }
     engine.dispose()
     return out
 
@@ -118,19 +140,31 @@ def test_withdraw_leaves_only_the_withdrawal_record(url):
     con = sqlite3.connect(url.removeprefix("sqlite:///"))
     con.row_factory = sqlite3.Row
     (rec,) = con.execute("SELECT * FROM withdrawals").fetchall()
-    assert (rec["participant_id"], rec["study_id"], rec["prolific_pid"], rec["requested_by"]) \
-        == (pids["A"], "fixture", PROLIFIC["A"], "cli")
+    assert (rec["participant_id"], rec["study_id"], rec["prolific_pid"], rec["requested_by"]) == (
+        pids["A"],
+        "fixture",
+        PROLIFIC["A"],
+        "cli",
+    )
     at = datetime.fromisoformat(rec["withdrawn_at"]).replace(tzinfo=UTC)
     assert t0 - 1 <= at.timestamp() <= time.time() + 1
-    assert set(rec.keys()) == {"id", "participant_id", "study_id", "prolific_pid",
-                               "requested_by", "withdrawn_at"}
+    assert set(rec.keys()) == {
+        "id",
+        "participant_id",
+        "study_id",
+        "prolific_pid",
+        "requested_by",
+        "withdrawn_at",
+    }
     # Everyone else's rows are exactly as before.
     for table in ("participants", "responses", "events"):
-        assert [r for r in before[table] if not any(g in c for g in gone for c in r)] \
-            == after[table]
+        assert [r for r in before[table] if not any(g in c for g in gone for c in r)] == after[
+            table
+        ]
     # Export and analysis count the two others only.
-    code, _, err = cli_run("export", "--db", url, "-o", Path(url[10:]).with_name("r.csv"),
-                           "--identifiers")
+    code, _, err = cli_run(
+        "export", "--db", url, "-o", Path(url[10:]).with_name("r.csv"), "--identifiers"
+    )
     assert code == 0 and "exported 4 responses of 2 participants" in err
     df = load_responses(url)
     assert set(df["participant_id"]) == {pids["B"], pids["C"]} and len(df) == 4
@@ -167,8 +201,9 @@ def test_withdraw_by_prolific_id_and_unknown_ids(url):
 def test_consent_names_the_contact():
     """The default consent text says how to withdraw and whom to write to."""
     doc = fixture_study_doc()
-    with_contact = study_from_dict({**doc, "study": {**doc["study"],
-                                                     "contact": "ethics@uni.example"}})
+    with_contact = study_from_dict(
+        {**doc, "study": {**doc["study"], "contact": "ethics@uni.example"}}
+    )
     text = consent_text(with_contact, 5)
     assert "withdraw" in text and "ethics@uni.example" in text and "{contact}" not in text
     assert DEFAULT_CONTACT in consent_text(study_from_dict(doc), 5)
@@ -178,8 +213,9 @@ def test_consent_names_the_contact():
 def expected_pseudonym(url: str, study: str, column: str, value: str) -> str:
     """The documented formula, with the secret read from the database directly."""
     con = sqlite3.connect(url.removeprefix("sqlite:///"))
-    (secret,) = con.execute("SELECT secret FROM study_secrets WHERE study_id = ?",
-                            (study,)).fetchone()
+    (secret,) = con.execute(
+        "SELECT secret FROM study_secrets WHERE study_id = ?", (study,)
+    ).fetchone()
     mac = hmac.new(secret.encode(), f"{column}\x00{value}".encode(), hashlib.sha256)
     return "p-" + mac.hexdigest()[:16]
 
@@ -201,10 +237,22 @@ def test_no_export_holds_a_raw_identifier(url, tmp_path, stimuli):
     out = [tmp_path / "one", tmp_path / "two", tmp_path / "raw"]
     for folder, extra in zip(out, ([], [], ["--identifiers"])):
         folder.mkdir()
-        code, _, err = cli_run("export", "--db", url, "-o", folder / "r.csv",
-                               "--participants", folder / "p.jsonl", "--events",
-                               folder / "e.jsonl", "--psych-ds", folder / "ds",
-                               "--stimuli", stimuli, *extra)
+        code, _, err = cli_run(
+            "export",
+            "--db",
+            url,
+            "-o",
+            folder / "r.csv",
+            "--participants",
+            folder / "p.jsonl",
+            "--events",
+            folder / "e.jsonl",
+            "--psych-ds",
+            folder / "ds",
+            "--stimuli",
+            stimuli,
+            *extra,
+        )
         assert code == 0, err
         assert ("--identifiers" in err and "personal data" in err) == bool(extra)
     for folder in out[:2]:
@@ -213,17 +261,19 @@ def test_no_export_holds_a_raw_identifier(url, tmp_path, stimuli):
         for f in files:
             data = f.read_bytes()
             assert not [r for r in raw if r.encode() in data], f
-    for name in ("r.csv", "p.jsonl", "e.jsonl"):   # stable across exports
+    for name in ("r.csv", "p.jsonl", "e.jsonl"):  # stable across exports
         assert (out[0] / name).read_bytes() == (out[1] / name).read_bytes()
     rows = read_export(out[0] / "r.csv")
     assert {r["participant_id"] for r in rows} == {
-        expected_pseudonym(url, "fixture", "participant_id", p) for p in pids.values()}
+        expected_pseudonym(url, "fixture", "participant_id", p) for p in pids.values()
+    }
     people = [json.loads(line) for line in (out[0] / "p.jsonl").read_text().splitlines()]
     assert {p["prolific_session_id"] for p in people} == {
-        expected_pseudonym(url, "fixture", "prolific_session_id", v)
-        for v in SESSIONS.values()} | {None}
+        expected_pseudonym(url, "fixture", "prolific_session_id", v) for v in SESSIONS.values()
+    } | {None}
     assert {r["prolific_pid"] for r in rows} == {
-        expected_pseudonym(url, "fixture", "prolific_pid", v) for v in PROLIFIC.values()} | {None}
+        expected_pseudonym(url, "fixture", "prolific_pid", v) for v in PROLIFIC.values()
+    } | {None}
     raw_files = b"".join(f.read_bytes() for f in out[2].rglob("*") if f.is_file())
     assert all(r.encode() in raw_files for r in raw)
 
@@ -235,22 +285,34 @@ def layout(folder: Path) -> dict:
     for f in sorted((folder / "data").rglob("*")):
         if f.is_file():
             table = list(csv.reader(io.StringIO(f.read_text(encoding="utf-8"), newline="")))
-            files.append({"path": f.relative_to(folder).as_posix(), "header": table[0],
-                          "row_cells": [len(r) for r in table[1:]]})
-    return {"top_level": sorted(p.name for p in folder.iterdir()),
-            "description": json.loads((folder / "dataset_description.json").read_text()),
-            "data_files": files}
+            files.append(
+                {
+                    "path": f.relative_to(folder).as_posix(),
+                    "header": table[0],
+                    "row_cells": [len(r) for r in table[1:]],
+                }
+            )
+    return {
+        "top_level": sorted(p.name for p in folder.iterdir()),
+        "description": json.loads((folder / "dataset_description.json").read_text()),
+        "data_files": files,
+    }
 
 
 def check_psych_ds(folder: Path) -> None:
     schema = json.loads(schema_path("psychds_layout").read_text())
     doc = layout(folder)
-    jsonschema.validate(doc, schema, cls=jsonschema.Draft202012Validator,
-                        format_checker=jsonschema.Draft202012Validator.FORMAT_CHECKER)
-    described = {v if isinstance(v, str) else v["name"]
-                 for v in doc["description"]["variableMeasured"]}
+    jsonschema.validate(
+        doc,
+        schema,
+        cls=jsonschema.Draft202012Validator,
+        format_checker=jsonschema.Draft202012Validator.FORMAT_CHECKER,
+    )
+    described = {
+        v if isinstance(v, str) else v["name"] for v in doc["description"]["variableMeasured"]
+    }
     for f in doc["data_files"]:
-        assert set(f["row_cells"]) <= {len(f["header"])}, f["path"]   # HeaderRowMismatch
+        assert set(f["row_cells"]) <= {len(f["header"])}, f["path"]  # HeaderRowMismatch
         assert set(f["header"]) <= described, (f["path"], set(f["header"]) - described)
 
 
@@ -259,29 +321,34 @@ def test_psych_ds_dataset_follows_the_rules(url, tmp_path, stimuli):
     column rule; its data read back to the store's rows; the manifest is in materials/."""
     with Store(url) as s:
         populate(s)
-        populate(s, study_id="second-study.v2")   # a study id with '-' and '.'
+        populate(s, study_id="second-study.v2")  # a study id with '-' and '.'
         n_rows = len(s.export_rows())
     ds = tmp_path / "ds"
     code, _, err = cli_run("export", "--db", url, "--psych-ds", ds, "--stimuli", stimuli)
     assert code == 0, err
     check_psych_ds(ds)
     assert sorted(p.relative_to(ds).as_posix() for p in ds.rglob("*") if p.is_file()) == [
-        "data/study-fixture_data.csv", "data/study-fixture_description-events_data.csv",
+        "data/study-fixture_data.csv",
+        "data/study-fixture_description-events_data.csv",
         "data/study-fixture_description-participants_data.csv",
         "data/study-secondstudyv2_data.csv",
         "data/study-secondstudyv2_description-events_data.csv",
         "data/study-secondstudyv2_description-participants_data.csv",
-        "dataset_description.json", "materials/manifest.json"]
+        "dataset_description.json",
+        "materials/manifest.json",
+    ]
     desc = json.loads((ds / "dataset_description.json").read_text())
-    assert desc["name"] == "Fixture study"          # the manifest's study title
+    assert desc["name"] == "Fixture study"  # the manifest's study title
     # variableMeasured is the response schema's columns first, each with its description.
     response = json.loads(schema_path("response").read_text())["properties"]
-    vm = desc["variableMeasured"][:len(response)]
+    vm = desc["variableMeasured"][: len(response)]
     assert [(v["name"], v["description"]) for v in vm] == [
-        (k, spec["description"]) for k, spec in response.items()]
+        (k, spec["description"]) for k, spec in response.items()
+    ]
     assert (ds / "materials/manifest.json").read_bytes() == (stimuli / "manifest.json").read_bytes()
-    rows = read_export(ds / "data/study-fixture_data.csv") + \
-        read_export(ds / "data/study-secondstudyv2_data.csv")
+    rows = read_export(ds / "data/study-fixture_data.csv") + read_export(
+        ds / "data/study-secondstudyv2_data.csv"
+    )
     assert len(rows) == n_rows == 12
     # An existing, non-empty folder is refused with one line.
     code, _, err = cli_run("export", "--db", url, "--psych-ds", ds)
@@ -297,8 +364,13 @@ def test_psych_ds_checks_are_not_vacuous(url, tmp_path):
     assert cli_run("export", "--db", url, "--psych-ds", ds)[0] == 0
     check_psych_ds(ds)
     data = ds / "data" / "study-fixture_data.csv"
-    for bad in ("study_fixture_data.csv", "Study-fixture_data.csv", "study-fix-ture_data.csv",
-                "study-fixture.csv", "mood-happy_data.csv"):
+    for bad in (
+        "study_fixture_data.csv",
+        "Study-fixture_data.csv",
+        "study-fix-ture_data.csv",
+        "study-fixture.csv",
+        "mood-happy_data.csv",
+    ):
         renamed = data.rename(data.with_name(bad))
         with pytest.raises(jsonschema.ValidationError):
             check_psych_ds(ds)
@@ -324,7 +396,7 @@ def test_psych_ds_checks_are_not_vacuous(url, tmp_path):
 
 # ----------------------------------------------------------------------------- backups
 N_WRITERS = 20
-BATCH = 2   # responses per transaction: a torn copy would hold a partial batch
+BATCH = 2  # responses per transaction: a torn copy would hold a partial batch
 
 
 def backup_under_load(url, out: Path, method: str):
@@ -334,7 +406,7 @@ def backup_under_load(url, out: Path, method: str):
     backup's ``(t0, t1)`` (monotonic clock).
     """
     store = Store(url)
-    study_secret(store, "load")          # the secret must travel with the backup
+    study_secret(store, "load")  # the secret must travel with the backup
     log: dict[str, list] = {}
     lock = threading.Lock()
     stop = threading.Event()
@@ -343,11 +415,16 @@ def backup_under_load(url, out: Path, method: str):
 
     def writer(k: int):
         try:
-            pid = store.create_participant("load", SHA, app_version="0.1.0", seed=k,
-                                           prolific={"PROLIFIC_PID": f"LOADpid{k:04d}"})
+            pid = store.create_participant(
+                "load",
+                SHA,
+                app_version="0.1.0",
+                seed=k,
+                prolific={"PROLIFIC_PID": f"LOADpid{k:04d}"},
+            )
             with lock:
                 log[pid] = []
-            created.wait(timeout=60)   # all 20 write at once from here on
+            created.wait(timeout=60)  # all 20 write at once from here on
             b = 0
             while not stop.is_set():
                 rows = [pose(BATCH * b + i, frame=k) for i in range(BATCH)]
@@ -394,7 +471,7 @@ def check_snapshot(restored_url, log, t0, t1) -> int:
     with Store(restored_url, create=False) as s:
         rows = s.export_rows(include_simulated=True)
         people = {p["participant_id"] for p in s.participants()}
-    assert people == set(log)   # all were registered before the backup began
+    assert people == set(log)  # all were registered before the backup began
     kept: dict[str, dict[int, int]] = {pid: {} for pid in people}
     for r in rows:
         per = kept[r["participant_id"]]
@@ -423,25 +500,34 @@ def restore_target(kind: str, request, tmp_path) -> str:
     return request.getfixturevalue("pg_server").create_database()
 
 
-CASES = [("sqlite", "native"), ("sqlite", "logical"),
-         pytest.param("postgresql", "native", marks=pytest.mark.postgres),
-         pytest.param("postgresql", "logical", marks=pytest.mark.postgres)]
+CASES = [
+    ("sqlite", "native"),
+    ("sqlite", "logical"),
+    pytest.param("postgresql", "native", marks=pytest.mark.postgres),
+    pytest.param("postgresql", "logical", marks=pytest.mark.postgres),
+]
 
 
 @pytest.mark.parametrize(("backend", "method"), CASES)
-def test_backup_during_concurrent_writes_restores_a_consistent_copy(backend, method, request,
-                                                                    tmp_path):
+def test_backup_during_concurrent_writes_restores_a_consistent_copy(
+    backend, method, request, tmp_path
+):
     """A backup taken while 20 participants write restores, into a fresh database, to
     exactly the rows committed before one moment of the backup: no torn state; the
     restored database takes new answers and exports the same pseudonyms."""
     if backend == "postgresql" and method == "native" and find_pg_tool("pg_dump") is None:
         pytest.skip("pg_dump is not installed")
-    source = (f"sqlite:///{tmp_path / 'live.db'}" if backend == "sqlite"
-              else request.getfixturevalue("pg_url"))
+    source = (
+        f"sqlite:///{tmp_path / 'live.db'}"
+        if backend == "sqlite"
+        else request.getfixturevalue("pg_url")
+    )
     out = tmp_path / "backup.bin"
     result, log, (t0, t1) = backup_under_load(source, out, method)
-    expected_method = {("sqlite", "native"): "sqlite-backup",
-                       ("postgresql", "native"): "pg_dump"}.get((backend, method), "logical")
+    expected_method = {
+        ("sqlite", "native"): "sqlite-backup",
+        ("postgresql", "native"): "pg_dump",
+    }.get((backend, method), "logical")
     assert result.method == expected_method
     # pg_dump archives go back into PostgreSQL; SQLite backups into SQLite.
     target = restore_target(backend, request, tmp_path)
@@ -451,12 +537,13 @@ def test_backup_during_concurrent_writes_restores_a_consistent_copy(backend, met
         assert n < len(live.export_rows())
         # Every restored row is the live row, unchanged (timestamps included).
         live_rows = {(r["participant_id"], r["trial_index"]): r for r in live.export_rows()}
-        assert all(live_rows[(r["participant_id"], r["trial_index"])] == r
-                   for r in back.export_rows())
+        assert all(
+            live_rows[(r["participant_id"], r["trial_index"])] == r for r in back.export_rows()
+        )
         people = [{"participant_id": p, "study_id": "load"} for p in log]
         assert Pseudonymiser(back).records(people) == Pseudonymiser(live).records(people)
         pid = next(iter(log))
-        assert back.record_response(pid, view(10_000))   # ids continue past the copy
+        assert back.record_response(pid, view(10_000))  # ids continue past the copy
     if restored.rows:
         assert restored.rows["responses"] == n
 
@@ -475,10 +562,12 @@ def test_restore_refuses_what_it_cannot_restore(url, tmp_path):
     junk.write_text("not a database")
     empty = tmp_path / "empty.db"
     sqlite3.connect(empty).execute("CREATE TABLE other (x)").connection.commit()
-    for args, says in (([good, "--db", url], "already holds data"),
-                       ([junk, "--db", f"sqlite:///{tmp_path / 'n1.db'}"], "not a backup"),
-                       ([empty, "--db", f"sqlite:///{tmp_path / 'n2.db'}"], "not a study backup"),
-                       ([tmp_path / "missing.db", "--db", url], "no such backup file")):
+    for args, says in (
+        ([good, "--db", url], "already holds data"),
+        ([junk, "--db", f"sqlite:///{tmp_path / 'n1.db'}"], "not a backup"),
+        ([empty, "--db", f"sqlite:///{tmp_path / 'n2.db'}"], "not a study backup"),
+        ([tmp_path / "missing.db", "--db", url], "no such backup file"),
+    ):
         code, _, err = cli_run("restore", *args)
         assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
     assert dump(url) == state

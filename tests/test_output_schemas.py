@@ -91,10 +91,13 @@ def test_info_json_follows_schema(walk_bvh):
     _valid(doc, "info")
     assert doc["frame_offset"] == 1 and doc["n_characters"] == len(doc["characters"]) == 1
     assert doc["characters"][0]["unit"] == "cmu"
-    _rejects_changes(doc, "info",
-                     (("frame_offset",), _DELETE),
-                     (("characters", 0, "n_joints"), "38"),
-                     (("bounds_m", "min"), [0.0, 0.0]))
+    _rejects_changes(
+        doc,
+        "info",
+        (("frame_offset",), _DELETE),
+        (("characters", 0, "n_joints"), "38"),
+        (("bounds_m", "min"), [0.0, 0.0]),
+    )
 
 
 def test_info_units_cover_every_known_unit():
@@ -113,7 +116,9 @@ def test_writer_with_a_broken_document_fails_in_one_line(walk_bvh, monkeypatch):
     monkeypatch.setattr(info_cmd, "scene_summary", lambda scene: real(scene) | {"n_frames": -1})
     result = CliRunner().invoke(cli, ["info", str(walk_bvh), "--json"])
     assert result.exit_code == 2
-    assert "error: snapshot info output: n_frames: -1 is less than the minimum of 1" in result.output
+    assert (
+        "error: snapshot info output: n_frames: -1 is less than the minimum of 1" in result.output
+    )
     assert "{" not in result.stdout and "Traceback" not in result.output
 
 
@@ -135,10 +140,13 @@ def test_bench_json_follows_schema(bench_env):
     doc = json.loads(_run(["bench", "--only", "synth walk", "--json", "-n", "1"]).stdout)
     _valid(doc, "bench")
     assert len(doc) == 1 and doc[0]["repeats"] == 1 and doc[0]["status"] in ("ok", "SLOW")
-    _rejects_changes(doc, "bench",
-                     ((0, "median_ms"), _DELETE),
-                     ((0, "min_ms"), None),  # a case that ran has times
-                     ((0, "status"), "fine"))
+    _rejects_changes(
+        doc,
+        "bench",
+        ((0, "median_ms"), _DELETE),
+        ((0, "min_ms"), None),  # a case that ran has times
+        ((0, "status"), "fine"),
+    )
 
 
 def test_bench_only_matching_nothing_is_an_error(bench_env):
@@ -149,8 +157,9 @@ def test_bench_only_matching_nothing_is_an_error(bench_env):
 
     result = CliRunner().invoke(cli, ["bench", "--only", "no such case", "--json"])
     assert result.exit_code == 2
-    assert result.output.strip() == ("error: --only 'no such case': no benchmark case has "
-                                     "that in its name")
+    assert result.output.strip() == (
+        "error: --only 'no such case': no benchmark case has that in its name"
+    )
     _rejects([], "bench")
 
 
@@ -160,8 +169,7 @@ def test_bench_json_skipped_case_follows_schema(bench_env, tmp_path):
     doc = json.loads(_run(["bench", "--only", "parse+FK Boxing", "--json", "-n", "1"]).stdout)
     _valid(doc, "bench")
     assert [(r["status"], r["min_ms"], r["repeats"]) for r in doc] == [("skipped", None, 0)]
-    _rejects_changes(doc, "bench",
-                     ((0, "min_ms"), 1.0))
+    _rejects_changes(doc, "bench", ((0, "min_ms"), 1.0))
 
 
 # ----------------------------------------------------------------- snapshot relief
@@ -170,16 +178,32 @@ def test_bench_json_skipped_case_follows_schema(bench_env, tmp_path):
 def test_relief_json_follows_schema(walk_bvh, tmp_path):
     """Pose and view picked by the pipeline; a 120 x 80 mm footprint gives a [ny, nx] grid."""
     stl = tmp_path / "walk.stl"
-    doc = json.loads(_run(["relief", str(walk_bvh), "--resolution", "16", "--size", "120x80",
-                           "-o", str(stl), "--json"]).stdout)
+    doc = json.loads(
+        _run(
+            [
+                "relief",
+                str(walk_bvh),
+                "--resolution",
+                "16",
+                "--size",
+                "120x80",
+                "-o",
+                str(stl),
+                "--json",
+            ]
+        ).stdout
+    )
     _valid(doc, "relief")
     assert doc["selected"] == ["frame", "view"] and doc["frame"] >= 1  # source numbering
     assert doc["grid"] == [11, 16] and doc["size_mm"] == [120.0, 80.0]
     assert doc["stl"] == str(stl) and stl.exists() and (tmp_path / "walk.png").exists()
-    _rejects_changes(doc, "relief",
-                     (("method",), "poisson"),
-                     (("grid",), [11.5, 16]),
-                     (("n_triangles",), _DELETE))
+    _rejects_changes(
+        doc,
+        "relief",
+        (("method",), "poisson"),
+        (("grid",), [11.5, 16]),
+        (("n_triangles",), _DELETE),
+    )
 
 
 # ----------------------------------------------------------------- snapshot video --frame-map
@@ -188,17 +212,36 @@ def test_relief_json_follows_schema(walk_bvh, tmp_path):
 def test_video_frame_map_follows_schema(walk_bvh, tmp_path):
     """--frames A:B are source frames; the map lists the source frame of each video frame."""
     fm = tmp_path / "map.json"
-    _run(["video", str(walk_bvh), "-o", str(tmp_path / "walk.mp4"), "--fps", "30",
-          "--size", "64x48", "--frames", "5:35", "--view", "0,0,1", "--quiet",
-          "--frame-map", str(fm)])
+    _run(
+        [
+            "video",
+            str(walk_bvh),
+            "-o",
+            str(tmp_path / "walk.mp4"),
+            "--fps",
+            "30",
+            "--size",
+            "64x48",
+            "--frames",
+            "5:35",
+            "--view",
+            "0,0,1",
+            "--quiet",
+            "--frame-map",
+            str(fm),
+        ]
+    )
     doc = json.loads(fm.read_text())
     _valid(doc, "frame_map")
     assert doc["source_frames"][0] == 5 and doc["source_frames"][-1] <= 35
     assert doc["size"] == [64, 48] and doc["fps"] == 30 and doc["motion_fps"] == 120
-    _rejects_changes(doc, "frame_map",
-                     (("source_frames",), []),
-                     (("size",), [64, 47]),  # videos have even sizes
-                     (("source_frames", 0), 5.5))
+    _rejects_changes(
+        doc,
+        "frame_map",
+        (("source_frames",), []),
+        (("size",), [64, 47]),  # videos have even sizes
+        (("source_frames", 0), 5.5),
+    )
 
 
 # ----------------------------------------------------------------- snapshot analyze summary.json
@@ -211,10 +254,13 @@ def test_analysis_summary_of_paper_table2_follows_schema(tmp_path):
     doc = json.loads((out / "summary.json").read_text())
     _valid(doc, "analysis_summary")
     assert "participants" not in doc and len(doc["pairwise"]) == 12
-    _rejects_changes(doc, "analysis_summary",
-                     (("fleiss_kappa",), _DELETE),  # the vote part comes whole
-                     (("votes", "dancing", "ours"), 52.5),
-                     (("pairwise", 0, "p_value"), 1.5))
+    _rejects_changes(
+        doc,
+        "analysis_summary",
+        (("fleiss_kappa",), _DELETE),  # the vote part comes whole
+        (("votes", "dancing", "ours"), 52.5),
+        (("pairwise", 0, "p_value"), 1.5),
+    )
 
 
 def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
@@ -229,10 +275,13 @@ def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
     _valid(doc, "analysis_summary")
     assert doc["participants"] == doc["simulated_participants"] == 12
     assert {"claims", "frames", "frame_verdict"} <= set(doc)
-    _rejects_changes(doc, "analysis_summary",
-                     (("responses",), _DELETE),
-                     (("frames", 0, "hit_0.5s"), "50%"),
-                     (("participants",), -1))
+    _rejects_changes(
+        doc,
+        "analysis_summary",
+        (("responses",), _DELETE),
+        (("frames", 0, "hit_0.5s"), "50%"),
+        (("participants",), -1),
+    )
 
 
 def test_analysis_summary_is_validated_before_writing(tmp_path):
@@ -241,8 +290,17 @@ def test_analysis_summary_is_validated_before_writing(tmp_path):
     from snapcore.errors import SchemaError
 
     with pytest.raises(SchemaError, match=r"summary.json: .*fleiss_kappa"):
-        _write_summary(tmp_path, {"source": "x", "claims": [], "votes": {}, "chisquare_p": {},
-                                  "pairwise": [], "fleiss_kappa": "high"})
+        _write_summary(
+            tmp_path,
+            {
+                "source": "x",
+                "claims": [],
+                "votes": {},
+                "chisquare_p": {},
+                "pairwise": [],
+                "fleiss_kappa": "high",
+            },
+        )
     assert not (tmp_path / "summary.json").exists()
 
 

@@ -39,8 +39,10 @@ from snapcore.select.pose import (
 )
 from snapcore.select.pose_methods import select_pose
 
-SALSA_PAIRS = [("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
-               ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh")]
+SALSA_PAIRS = [
+    ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
+    ("two_person/60_12_scaled.bvh", "two_person/61_12_scaled.bvh"),
+]
 
 
 def _load(paths, **kw):
@@ -58,21 +60,30 @@ def _quiet(fn, *a, **kw):
 # --------------------------------------------------------------------------- builders
 
 
-def _chain_character(root_positions, root_rotations, *, child_offset=(0.0, 0.0, 0.5),
-                     fps=30.0, name="probe"):
+def _chain_character(
+    root_positions, root_rotations, *, child_offset=(0.0, 0.0, 0.5), fps=30.0, name="probe"
+):
     """A two-joint skeleton (root + end site) driven by the given root path/rotations."""
     root_positions = np.asarray(root_positions, float)
     root_rotations = np.asarray(root_rotations, float)
     n = root_positions.shape[0]
     off = np.asarray(child_offset, float)
-    sk = Skeleton(("root", "root_End"), np.array([-1, 0]), np.array([[0, 0, 0], off]),
-                  np.array([False, True]))
+    sk = Skeleton(
+        ("root", "root_End"), np.array([-1, 0]), np.array([[0, 0, 0], off]), np.array([False, True])
+    )
     child = root_positions + root_rotations @ off
     pos = np.stack([root_positions, child], axis=1)
     rot = np.stack([root_rotations, root_rotations], axis=1)
     local = np.stack([root_rotations, np.broadcast_to(np.eye(3), (n, 3, 3))], axis=1)
-    return Character(name=name, skeleton=sk, positions=pos, rotations=rot,
-                     local_rotations=local.copy(), fps=fps, scale=1.0)
+    return Character(
+        name=name,
+        skeleton=sk,
+        positions=pos,
+        rotations=rot,
+        local_rotations=local.copy(),
+        fps=fps,
+        scale=1.0,
+    )
 
 
 def _spin(n, rate_rad, axis=(0.0, 1.0, 0.0)):
@@ -96,7 +107,7 @@ def test_circle_curvature_is_sin_pi_over_n(n_per_rev, smooth_s):
     # Savitzky-Golay is a symmetric linear filter: in the interior it maps a uniformly
     # sampled circle to a smaller, still uniformly sampled circle; the ends are fitted.
     h = int(round(smooth_s * fps)) // 2 + 1
-    inner = kappa[h + 1:-h - 1]
+    inner = kappa[h + 1 : -h - 1]
     np.testing.assert_allclose(inner, math.sin(math.pi / n_per_rev), rtol=1e-9)
     assert kappa[0] == 0 and kappa[-1] == 0
 
@@ -134,9 +145,12 @@ def test_rotation_change_recovers_known_angles():
 
 def test_limb_lengths_take_the_longest_child():
     """l_j is the longest link from j to a child; end sites get 0."""
-    sk = Skeleton(("a", "b", "c", "c_End", "b_End"), np.array([-1, 0, 0, 2, 1]),
-                  np.array([[0, 0, 0], [0.3, 0, 0], [0, 0.4, 0], [0, 0, 0.2], [0, 0.1, 0]]),
-                  np.array([False, False, False, True, True]))
+    sk = Skeleton(
+        ("a", "b", "c", "c_End", "b_End"),
+        np.array([-1, 0, 0, 2, 1]),
+        np.array([[0, 0, 0], [0.3, 0, 0], [0, 0.4, 0], [0, 0, 0.2], [0, 0.1, 0]]),
+        np.array([False, False, False, True, True]),
+    )
     np.testing.assert_allclose(limb_lengths(sk), [0.4, 0.1, 0.2, 0.0, 0.0])
 
 
@@ -187,8 +201,9 @@ def test_static_clip_gives_a_defined_result_with_a_warning(motions_dir):
         assert arr.shape == (n,) and np.all(arr == 0)
     assert sel.index == 0 and sel.indices[0] == 0
     # the feet rest on the floor for the whole clip: interactions, but no transitions
-    assert ent.interactions.events and all(e.start == 0 and e.end == n - 1
-                                           for e in ent.interactions.events)
+    assert ent.interactions.events and all(
+        e.start == 0 and e.end == n - 1 for e in ent.interactions.events
+    )
 
 
 def test_one_sharp_reversal_is_where_the_pose_entropy_peaks():
@@ -303,8 +318,12 @@ def test_choice_is_invariant_to_yaw_translation_and_units(motions_dir):
     to centimetres to inches) leaves the selected frames unchanged."""
     for scene in _invariance_scenes(motions_dir):
         base = _quiet(select_pose, scene, method="paper")
-        for kw in ({"yaw_deg": 37.0}, {"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
-                   {"scale": 100.0}, {"scale": 1 / 0.0254, "yaw_deg": 90.0}):
+        for kw in (
+            {"yaw_deg": 37.0},
+            {"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
+            {"scale": 100.0},
+            {"scale": 1 / 0.0254, "yaw_deg": 90.0},
+        ):
             moved = _quiet(select_pose, scene.transformed(**kw), method="paper")
             assert moved.indices == base.indices, (scene.name, kw)
             np.testing.assert_allclose(moved.entropy.total, base.entropy.total, atol=1e-6)
@@ -327,7 +346,7 @@ def reference_smooth(x, fps, smooth_s):
     t = np.arange(w, dtype=float)
     for i in range(n):
         a = min(max(i - h, 0), n - w)
-        coef = np.polyfit(t, flat[a:a + w], SAVGOL_POLYORDER)  # (3, columns)
+        coef = np.polyfit(t, flat[a : a + w], SAVGOL_POLYORDER)  # (3, columns)
         u = float(i - a)
         out[i] = (coef[0] * u + coef[1]) * u + coef[2]
     return out.reshape(x.shape)
@@ -360,8 +379,11 @@ def reference_scan(near, rel, m, tol):
     for j in range(n_j):
         f = 0
         while f <= n_f - m:
-            if near[f, j] and near[f:f + m, j].all() and all(
-                    np.linalg.norm(rel(j, f, f + k)) <= tol for k in range(1, m)):
+            if (
+                near[f, j]
+                and near[f : f + m, j].all()
+                and all(np.linalg.norm(rel(j, f, f + k)) <= tol for k in range(1, m))
+            ):
                 g = f + m
                 while g < n_f and near[g, j] and np.linalg.norm(rel(j, f, g)) <= tol:
                     g += 1
@@ -387,8 +409,9 @@ def reference_interactions(scene):
         near = np.zeros((c.n_frames, c.n_joints), bool)
         for f in range(c.n_frames):
             near[f] = x[f, :, 1] - scene.ground <= tol.ground_distance * k
-        for j, s, e in reference_scan(near, lambda j, s, g, x=x: x[g, j] - x[s, j], m,
-                                      tol.displacement * k):
+        for j, s, e in reference_scan(
+            near, lambda j, s, g, x=x: x[g, j] - x[s, j], m, tol.displacement * k
+        ):
             events.append((j, "ground", s, e))
         for other in scene.characters:
             if other is c:
@@ -403,9 +426,11 @@ def reference_interactions(scene):
                 t = np.sum(ap * ab, -1) / np.sum(ab * ab, -1)
                 # nearest point on the segment; an end point exactly when outside, so
                 # two bones meeting at a joint are equally near a point beyond it
-                closest = np.where((t <= 0)[..., None], a[None],
-                                   np.where((t >= 1)[..., None], b[None],
-                                            a[None] + t[..., None] * ab[None]))
+                closest = np.where(
+                    (t <= 0)[..., None],
+                    a[None],
+                    np.where((t >= 1)[..., None], b[None], a[None] + t[..., None] * ab[None]),
+                )
                 d = np.linalg.norm(x[f][:, None] - closest, axis=-1) - radii
                 bone[f] = np.argmin(d, axis=1)
                 near[f] = d.min(axis=1) <= tol.body_distance * k
@@ -435,7 +460,7 @@ def reference_pose_entropy(scene):
         c = scene.characters[ci]
         frames_active = np.zeros((n_f, c.n_joints), bool)
         for j, _, s, e in events:
-            frames_active[s:e + 1, j] = True
+            frames_active[s : e + 1, j] = True
         pj = frames_active.sum(axis=0) / n_f
         hj = [-v * math.log2(v) if v > 0 else 0.0 for v in pj]
         marks: dict[int, set] = {}
@@ -453,8 +478,11 @@ def reference_pose_entropy(scene):
     local, glob = norm(local), norm(glob)
     total = local + glob
     sep = int(round(0.3 * scene.fps))
-    cands = [i for i in range(n_f) if (i == 0 or total[i] >= total[i - 1])
-             and (i == n_f - 1 or total[i] >= total[i + 1])]
+    cands = [
+        i
+        for i in range(n_f)
+        if (i == 0 or total[i] >= total[i - 1]) and (i == n_f - 1 or total[i] >= total[i + 1])
+    ]
     cands.sort(key=lambda i: (-total[i], i))
     chosen = []
     for i in cands:
@@ -504,13 +532,17 @@ def test_synthetic_clips_pass_the_checks_without_shared_data():
         assert sel.indices == frames, name
         ref = reference_interactions(scene)
         for ci in range(scene.n_characters):
-            got = sorted((e.joint, e.object, e.start, e.end)
-                         for e in sel.entropy.interactions.for_character(ci))
+            got = sorted(
+                (e.joint, e.object, e.start, e.end)
+                for e in sel.entropy.interactions.for_character(ci)
+            )
             assert got == sorted(ref[ci]), name
         if name == "idle":
             continue  # constant entropy: the first frame, whatever the transform
-        for kw in ({"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
-                   {"scale": 1 / 0.0254, "yaw_deg": 90.0}):
+        for kw in (
+            {"yaw_deg": -120.0, "offset": (3.0, 0.4, -7.5)},
+            {"scale": 1 / 0.0254, "yaw_deg": 90.0},
+        ):
             moved = _quiet(select_pose, scene.transformed(**kw), method="paper")
             np.testing.assert_allclose(moved.entropy.total, sel.entropy.total, atol=1e-6)
             # the same poses; a periodic synthetic clip ties its peaks, so their order may
@@ -522,8 +554,10 @@ def test_synthetic_clips_pass_the_checks_without_shared_data():
 def test_fast_events_equal_reference_events(motions_dir):
     """The interaction events themselves (joint, object, start, end) match the loop
     reference on a walk and a salsa pair (where body contacts happen)."""
-    for paths, fps in (([motions_dir / "walk_run" / "131_01.bvh"], None),
-                       ([motions_dir / p for p in SALSA_PAIRS[0]], 60.0)):
+    for paths, fps in (
+        ([motions_dir / "walk_run" / "131_01.bvh"], None),
+        ([motions_dir / p for p in SALSA_PAIRS[0]], 60.0),
+    ):
         scene = _load(paths, fps=fps)
         fast = _quiet(pose_entropy, scene).interactions
         ref = reference_interactions(scene)
@@ -539,8 +573,9 @@ def test_local_term_needs_no_quaternions(motions_dir):
 
     c = _load(motions_dir / "walk_run" / "131_01.bvh").characters[0]
     bare = dataclasses.replace(c, local_quaternions=None)
-    np.testing.assert_allclose(local_information(bare), local_information(c), rtol=1e-12,
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        local_information(bare), local_information(c), rtol=1e-12, atol=1e-15
+    )
     assert local_information(c).max() > 0
 
 
@@ -554,8 +589,9 @@ def test_pose_params_are_the_pose_options():
     paper = dict(pose_method="paper", w_local=0.5, smooth_s=0.0)
     a = take_snapshot(scene, PoseParams(k=2, **paper), view=False)
     b = take_snapshot(scene, k=2, **paper, view=False)
-    c = take_snapshot(scene, PoseParams(k=5, w_local=0.5, pose_method="paper"), k=2,
-                      smooth_s=0.0, view=False)
+    c = take_snapshot(
+        scene, PoseParams(k=5, w_local=0.5, pose_method="paper"), k=2, smooth_s=0.0, view=False
+    )
     assert a.indices == b.indices == c.indices and len(a.indices) == 2
     np.testing.assert_array_equal(a.pose.entropy.total, b.pose.entropy.total)
     fields = set(PoseParams(pose_method="paper").kwargs()) - {"tolerances", "method"}

@@ -58,8 +58,16 @@ def outputs(motions_dir):
     runner = CliRunner()
     docs = {}
     for name, case in REFERENCE["cases"].items():
-        args = ["select", *[str(motions_dir / p) for p in case["paths"]], *case["args"],
-                "--json", "--body", "mannequin", "--pose-method", "paper"]
+        args = [
+            "select",
+            *[str(motions_dir / p) for p in case["paths"]],
+            *case["args"],
+            "--json",
+            "--body",
+            "mannequin",
+            "--pose-method",
+            "paper",
+        ]
         res = runner.invoke(cli, args)
         assert res.exit_code == 0, f"{name}: {res.stderr}"
         docs[name] = json.loads(res.stdout)
@@ -73,4 +81,6 @@ def test_select_matches_recording(outputs, name):
     want = REFERENCE["cases"][name]["output"]
     got = {k: outputs[name][k] for k in want}
     diffs = _diff(want, got)
-    assert not diffs, f"{name} differs from commit {REFERENCE['commit'][:10]}: " + "; ".join(diffs[:8])
+    assert not diffs, f"{name} differs from commit {REFERENCE['commit'][:10]}: " + "; ".join(
+        diffs[:8]
+    )

@@ -33,8 +33,9 @@ def _subdivided_cube(n=8, size=1.0):
 # ----------------------------------------------------------------------------- cameras
 
 
-@pytest.mark.parametrize("view", [[0, 0, 1], [1, 2, 3], [0, 1, 0], [0, -1, 0], [0, 1, 1e-9],
-                                  [-1, 0, 0]])
+@pytest.mark.parametrize(
+    "view", [[0, 0, 1], [1, 2, 3], [0, 1, 0], [0, -1, 0], [0, 1, 1e-9], [-1, 0, 0]]
+)
 def test_view_basis_is_right_handed_and_orthonormal(view):
     """right × up = view for every view, including straight up and down."""
     r, u, b = view_basis(view)
@@ -88,7 +89,7 @@ def test_silhouette_area_of_a_cube_matches_the_analytic_area():
     res = 256
     ids = render_face_ids(m.vertices, m.faces, views, resolution=res)
     cam = face_id_camera(m.vertices, views[0], resolution=res)
-    px = cam.pixel_size ** 2
+    px = cam.pixel_size**2
     areas = (ids > 0).sum(axis=(1, 2)) * px
     np.testing.assert_allclose(areas, [1.0, np.sqrt(3)], rtol=0.02)
 
@@ -127,7 +128,9 @@ def test_face_ids_are_exact_at_every_pixel():
     s = cam.pixel_size
     jj, ii = np.meshgrid(np.arange(res), np.arange(res))
     px = np.stack([(jj + 0.5 - res / 2) * s, (res / 2 - ii - 0.5) * s], -1) + [
-        cam.position @ r, cam.position @ u]
+        cam.position @ r,
+        cam.position @ u,
+    ]
     hit = im > 0
     assert im.max() <= len(m.faces)
     tri = m.vertices[m.faces[im[hit] - 1]]
@@ -140,7 +143,9 @@ def test_face_ids_are_exact_at_every_pixel():
 
     d1, d2, d3 = cross(a, b, p), cross(b, c, p), cross(c, a, p)
     tol = 1e-9
-    inside = ((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)) | ((d1 <= tol) & (d2 <= tol) & (d3 <= tol))
+    inside = ((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)) | (
+        (d1 <= tol) & (d2 <= tol) & (d3 <= tol)
+    )
     assert inside.mean() > 0.995  # the rest sit exactly on shared edges
 
 
@@ -163,9 +168,11 @@ def test_depth_at_the_centre_of_a_box_is_the_analytic_distance():
     h, w = d.shape
     centre = d.depth[h // 2, w // 2]
     assert abs(d.origin[2] - centre - 1.5) < 1e-9
-    np.testing.assert_allclose(d.points()[h // 2, w // 2], [d.pixel_centers()[h // 2, w // 2, 0],
-                                                            d.pixel_centers()[h // 2, w // 2, 1],
-                                                            1.5], atol=1e-9)
+    np.testing.assert_allclose(
+        d.points()[h // 2, w // 2],
+        [d.pixel_centers()[h // 2, w // 2, 0], d.pixel_centers()[h // 2, w // 2, 1], 1.5],
+        atol=1e-9,
+    )
     assert np.allclose(d.depth[d.mask], centre)  # a flat face: one depth everywhere
     assert abs(d.mask.any(axis=0).sum() * d.pixel_size - 1.0) <= 2 * d.pixel_size
     assert abs(d.mask.any(axis=1).sum() * d.pixel_size - 2.0) <= 2 * d.pixel_size
@@ -289,13 +296,21 @@ def test_renderer_is_bound_to_its_thread_and_threads_get_their_own(walk):
     t.join()
     assert errors and "thread" in str(errors[0])
     m = _subdivided_cube(2)
-    np.testing.assert_array_equal(results["ids"],
-                                  render_face_ids(m.vertices, m.faces, [1, 1, 1], resolution=64))
+    np.testing.assert_array_equal(
+        results["ids"], render_face_ids(m.vertices, m.faces, [1, 1, 1], resolution=64)
+    )
 
 
 def test_camera_project_matches_fit(walk):
-    cam = Camera(np.array([0, 0, 5.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
-                 np.array([0, 0, 1.0]), (100, 50), "orthographic", half_height=1.0)
+    cam = Camera(
+        np.array([0, 0, 5.0]),
+        np.array([1.0, 0, 0]),
+        np.array([0, 1.0, 0]),
+        np.array([0, 0, 1.0]),
+        (100, 50),
+        "orthographic",
+        half_height=1.0,
+    )
     np.testing.assert_allclose(cam.project([[0, 0, 0], [2, 1, 0]]), [[50, 25], [100, 0]])
 
 
@@ -321,7 +336,7 @@ def test_level_orthographic_view_puts_the_horizon_at_the_feet(walk):
     is_floor = np.abs(col - floor).sum(axis=1) <= 3
     first_floor = np.flatnonzero(is_floor)[0]
     assert abs(first_floor - row) <= 1.5
-    assert is_sky[: int(row) - 1].all() and is_floor[int(row) + 2:].all()
+    assert is_sky[: int(row) - 1].all() and is_floor[int(row) + 2 :].all()
     body = np.abs(img - sky).sum(axis=2) > 12
     body &= np.abs(img - floor).sum(axis=2) > 12
     lowest = np.flatnonzero(body.any(axis=1)).max()
@@ -366,7 +381,8 @@ def test_many_threads_render_and_finish_without_breaking_the_others(walk):
             t.join()
         gc.collect()
         np.testing.assert_array_equal(
-            render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48), expect)
+            render_face_ids(m.vertices, m.faces, [0.2, 1, 0.4], resolution=48), expect
+        )
     assert len(out) == 6 and all(np.array_equal(o, expect) for o in out)
     assert render_still(walk, 3, size=(64, 48)).std() > 3
 
@@ -433,7 +449,7 @@ def _panel_edges(img, n, size, strip=6):
     out = []
     for i in range(n):
         x = PANEL_GAP + i * (w + PANEL_GAP)
-        p = img[PANEL_GAP:PANEL_GAP + h, x:x + w].astype(float)
+        p = img[PANEL_GAP : PANEL_GAP + h, x : x + w].astype(float)
         out.append(np.concatenate([p[:, :strip], p[:, -strip:]], axis=1).mean(axis=1))
     return out
 
@@ -457,14 +473,15 @@ def test_candidate_views_share_one_background(walk):
     floor = np.abs(edges[0] - np.array(FLOOR_COLOR) * 255).max(axis=1) < 3
     assert (~(sky | floor)).sum() <= 2  # sky, floor and the anti-aliased horizon only
     assert floor[-1] and sky[0] and floor.sum() > 5  # the horizon is in the picture
-    above = compare_views(walk, 40, {"a": _elevated(40, 25), "b": _elevated(100, 35)},
-                          size=size, labels=False)
+    above = compare_views(
+        walk, 40, {"a": _elevated(40, 25), "b": _elevated(100, 35)}, size=size, labels=False
+    )
     from snapcore.render.composites import PANEL_GAP
     from snapcore.render.renderer import GRID_COLOR
 
     w, h = size
     for i in range(2):  # grid lines in the far floor (the top quarter, above any shadow)
         x = PANEL_GAP + i * (w + PANEL_GAP)
-        top = above[PANEL_GAP:PANEL_GAP + h // 4, x:x + w].astype(float)
+        top = above[PANEL_GAP : PANEL_GAP + h // 4, x : x + w].astype(float)
         lines = np.abs(top - np.array(GRID_COLOR) * 255).max(axis=-1) < 25
         assert lines.sum() > 20, f"panel {i}: no grid"

@@ -71,8 +71,15 @@ def test_video_frame_range_and_numbers(walk, tmp_path):
     frame-number label changes the pixels in its corner only."""
     a, b = tmp_path / "a.mp4", tmp_path / "b.mp4"
     fa = render_video(walk, a, fps=walk.fps, size=(128, 96), frame_range=(10, 20), progress=False)
-    fb = render_video(walk, b, fps=walk.fps, size=(128, 96), frame_range=(10, 20), progress=False,
-                      frame_numbers=True)
+    fb = render_video(
+        walk,
+        b,
+        fps=walk.fps,
+        size=(128, 96),
+        frame_range=(10, 20),
+        progress=False,
+        frame_numbers=True,
+    )
     np.testing.assert_array_equal(fa, walk.source_frame(np.arange(10, 20)))
     np.testing.assert_array_equal(fa, fb)
     _, n, fa_frames = _probe(a)
@@ -99,12 +106,18 @@ def test_contact_sheet_and_view_comparison_layout(walk):
 
     img = contact_sheet(walk, [0, 30, 60], size=(120, 140), entropy=[1.0, 2.0, 3.0])
     assert img.shape[1] == 3 * 120 + 4 * PANEL_GAP and img.shape[0] > 140
-    cmp = compare_views(walk, 30, {"front": [0, 0.2, 1], "back": [0, 0.2, -1]}, size=(120, 140),
-                        labels=False, ground=False)
+    cmp = compare_views(
+        walk,
+        30,
+        {"front": [0, 0.2, 1], "back": [0, 0.2, -1]},
+        size=(120, 140),
+        labels=False,
+        ground=False,
+    )
     assert cmp.shape == (140 + 2 * PANEL_GAP, 2 * 120 + 3 * PANEL_GAP, 3)
     bg = np.round(np.asarray(BACKGROUND) * 255)
     g = PANEL_GAP
-    panels = [cmp[g:g + 140, g:g + 120], cmp[g:g + 140, 2 * g + 120:2 * g + 240]]
+    panels = [cmp[g : g + 140, g : g + 120], cmp[g : g + 140, 2 * g + 120 : 2 * g + 240]]
     areas = [(np.abs(p.astype(int) - bg).sum(axis=2) > 12).sum() for p in panels]
     assert abs(areas[0] - areas[1]) / max(areas) < 0.05
     with pytest.raises(RenderError):
@@ -127,15 +140,39 @@ def test_cli_render_writes_a_png_of_the_asked_size(walk_bvh, tmp_path):
     from PIL import Image
 
     out = tmp_path / "pose.png"
-    r = CliRunner().invoke(cli, ["render", str(walk_bvh), "--frame", "12", "--view", "1,0.3,0.5",
-                                 "-o", str(out), "--size", "160x120"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "render",
+            str(walk_bvh),
+            "--frame",
+            "12",
+            "--view",
+            "1,0.3,0.5",
+            "-o",
+            str(out),
+            "--size",
+            "160x120",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert Image.open(out).size == (160, 120)
 
 
 def test_cli_render_bad_frame_is_one_line_exit_2(walk_bvh, tmp_path):
-    r = CliRunner().invoke(cli, ["render", str(walk_bvh), "--frame", "999", "-o",
-                                 str(tmp_path / "x.png"), "--view", "0,0,1"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "render",
+            str(walk_bvh),
+            "--frame",
+            "999",
+            "-o",
+            str(tmp_path / "x.png"),
+            "--view",
+            "0,0,1",
+        ],
+    )
     assert r.exit_code == 2
     assert "frame 999 is not in this scene" in r.output
     assert "Traceback" not in r.output
@@ -143,8 +180,24 @@ def test_cli_render_bad_frame_is_one_line_exit_2(walk_bvh, tmp_path):
 
 def test_cli_video_writes_mp4_and_frame_map(walk_bvh, tmp_path):
     out, fm = tmp_path / "walk.mp4", tmp_path / "map.json"
-    r = CliRunner().invoke(cli, ["video", str(walk_bvh), "-o", str(out), "--fps", "10", "--size",
-                                 "128x96", "--quiet", "--frame-map", str(fm), "--view", "0,0,1"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "video",
+            str(walk_bvh),
+            "-o",
+            str(out),
+            "--fps",
+            "10",
+            "--size",
+            "128x96",
+            "--quiet",
+            "--frame-map",
+            str(fm),
+            "--view",
+            "0,0,1",
+        ],
+    )
     assert r.exit_code == 0, r.output
     from snapcore.motion.bvh import read_bvh
 
@@ -159,13 +212,42 @@ def test_cli_sheet_frames_and_views(walk_bvh, tmp_path):
     from PIL import Image
 
     a, b = tmp_path / "a.png", tmp_path / "b.png"
-    r = CliRunner().invoke(cli, ["sheet", str(walk_bvh), "-o", str(a), "--frames", "5,25",
-                                 "--size", "96x120", "--view", "0,0.2,1"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "sheet",
+            str(walk_bvh),
+            "-o",
+            str(a),
+            "--frames",
+            "5,25",
+            "--size",
+            "96x120",
+            "--view",
+            "0,0.2,1",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert Image.open(a).size[0] == 2 * 96 + 3 * 8
-    r = CliRunner().invoke(cli, ["sheet", str(walk_bvh), "-o", str(b), "--frame", "10",
-                                 "--views", "front=0,0,1", "--views", "side=1,0,0",
-                                 "--views", "top=0,1,0", "--size", "96x120"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "sheet",
+            str(walk_bvh),
+            "-o",
+            str(b),
+            "--frame",
+            "10",
+            "--views",
+            "front=0,0,1",
+            "--views",
+            "side=1,0,0",
+            "--views",
+            "top=0,1,0",
+            "--size",
+            "96x120",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert Image.open(b).size[0] == 3 * 96 + 4 * 8
 
@@ -223,8 +305,9 @@ def test_hand_picked_frames_are_not_captioned_as_ranked(walk, monkeypatch):
     import snapcore.render.composites as sheets
 
     seen = []
-    monkeypatch.setattr(sheets, "tile_panels",
-                        lambda panels, captions, **kw: seen.append(captions) or panels[0])
+    monkeypatch.setattr(
+        sheets, "tile_panels", lambda panels, captions, **kw: seen.append(captions) or panels[0]
+    )
     sheets.contact_sheet(walk, [5, 25], size=(64, 80))
     sheets.contact_sheet(walk, [5, 25], size=(64, 80), ranked=False)
     first = walk.source_frame(5)

@@ -54,9 +54,22 @@ def replica_set(stimuli_dir, tmp_path):
     run_dir.chmod(0o755)
     log = tmp_path / "serve.log"
     with open(log, "w") as f:
-        proc = subprocess.Popen([SNAPSHOT, "serve", "--replicas", "2", "--stimuli",
-                                 str(stimuli_dir), "--port", str(free_port()),
-                                 "--run-dir", str(run_dir)], stdout=f, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [
+                SNAPSHOT,
+                "serve",
+                "--replicas",
+                "2",
+                "--stimuli",
+                str(stimuli_dir),
+                "--port",
+                str(free_port()),
+                "--run-dir",
+                str(run_dir),
+            ],
+            stdout=f,
+            stderr=subprocess.STDOUT,
+        )
     state_file = run_dir / "state.json"
     deadline = time.monotonic() + START_S
     while not state_file.exists():
@@ -85,9 +98,17 @@ def test_a_replica_killed_mid_run_loses_and_duplicates_no_answer(replica_set):
             os.kill(victim, signal.SIGKILL)
             killed_at.append(elapsed_s)
 
-    report, results = run_load(replica_set["url"], N_PARTICIPANTS, ramp_s=2.0, think_s=2.0,
-                               seed=16, timeout_s=30.0, db_url=replica_set["db_url"],
-                               timings=[replica_set["timings"]], during=kill_one)
+    report, results = run_load(
+        replica_set["url"],
+        N_PARTICIPANTS,
+        ramp_s=2.0,
+        think_s=2.0,
+        seed=16,
+        timeout_s=30.0,
+        db_url=replica_set["db_url"],
+        timings=[replica_set["timings"]],
+        during=kill_one,
+    )
     assert killed_at, "the run ended before the replica was killed"
     # Someone was on the killed replica mid-study, reconnected and went on elsewhere.
     moved = [r for r in results if r.reconnects]
@@ -109,8 +130,11 @@ def test_a_replica_killed_mid_run_loses_and_duplicates_no_answer(replica_set):
     finally:
         store.close()
     # Both replicas served script runs (the routing spreads participants).
-    pids = {json.loads(line)["pid"] for line in
-            Path(replica_set["timings"]).read_text().splitlines() if line.strip()}
+    pids = {
+        json.loads(line)["pid"]
+        for line in Path(replica_set["timings"]).read_text().splitlines()
+        if line.strip()
+    }
     assert len(pids) == 2
 
 
@@ -121,8 +145,16 @@ def test_serve_with_a_broken_database_url_is_one_line_exit_2(stimuli_dir):
 
     from snapcore.cli.main import cli
 
-    r = CliRunner().invoke(cli, ["serve", "--stimuli", str(stimuli_dir), "--db",
-                                 "postgresql+psycopg://nobody@127.0.0.1:9/none"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "serve",
+            "--stimuli",
+            str(stimuli_dir),
+            "--db",
+            "postgresql+psycopg://nobody@127.0.0.1:9/none",
+        ],
+    )
     assert r.exit_code == 2, r.output
     assert "cannot open database" in r.output and "Traceback" not in r.output
     assert len(r.output.strip().splitlines()) == 1
@@ -136,11 +168,18 @@ def test_nginx_config_routes_by_cookie_upgrades_websockets_and_is_valid(tmp_path
     need(os.access(NGINX, os.X_OK), f"no nginx at {NGINX} (make sysdeps installs it)")
     (tmp_path / "nginx-tmp").mkdir()
     conf = tmp_path / "nginx.conf"
-    text = nginx_config(tmp_path, port=free_port(), replica_ports=[18001, 18002, 18003],
-                        worker_user="nobody nogroup" if os.geteuid() == 0 else None)
+    text = nginx_config(
+        tmp_path,
+        port=free_port(),
+        replica_ports=[18001, 18002, 18003],
+        worker_user="nobody nogroup" if os.geteuid() == 0 else None,
+    )
     conf.write_text(text)
-    r = subprocess.run([NGINX, "-t", "-p", str(tmp_path), "-c", str(conf), "-e",
-                        str(tmp_path / "error.log")], capture_output=True, text=True)
+    r = subprocess.run(
+        [NGINX, "-t", "-p", str(tmp_path), "-c", str(conf), "-e", str(tmp_path / "error.log")],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     assert f"map $cookie_{ROUTE_COOKIE} $route_key" in text
     assert "hash $route_key consistent;" in text and "ip_hash" not in text

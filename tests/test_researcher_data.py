@@ -94,8 +94,12 @@ def test_open_exports_cannot_be_joined_to_the_identifiers_file(db, tmp_path):
     time: a join on any column the identifiers file shares with them, other than the
     study-wide ones, finds nobody; with --identifiers the exact values are there."""
     ids, open_ = tmp_path / "ids.csv", tmp_path / "open.csv"
-    assert run("export", "--db", db, "-o", tmp_path / "r.csv", "--participants", ids,
-               "--identifiers")[0] == 0
+    assert (
+        run("export", "--db", db, "-o", tmp_path / "r.csv", "--participants", ids, "--identifiers")[
+            0
+        ]
+        == 0
+    )
     assert run("export", "--db", db, "-o", tmp_path / "r2.csv", "--participants", open_)[0] == 0
     assert run("export", "--db", db, "--psych-ds", tmp_path / "ds")[0] == 0
     secret_rows = read_csv(ids)
@@ -113,8 +117,12 @@ def test_open_exports_cannot_be_joined_to_the_identifiers_file(db, tmp_path):
 
 # ----------------------------------------------------------------------------- item 5
 def test_withdraw_by_the_pseudonym_a_published_dataset_shows(db, tmp_path):
-    assert run("export", "--db", db, "-o", tmp_path / "open.csv", "--participants",
-               tmp_path / "p.csv")[0] == 0
+    assert (
+        run(
+            "export", "--db", db, "-o", tmp_path / "open.csv", "--participants", tmp_path / "p.csv"
+        )[0]
+        == 0
+    )
     person = next(r for r in read_csv(tmp_path / "p.csv") if r["prolific_pid"])
     code, err = run("withdraw", "--db", db, "--pseudonym", person["participant_id"])
     assert code == 0, err
@@ -144,8 +152,9 @@ def test_restore_reapplies_withdrawals_made_after_the_backup(db, tmp_path):
         assert con.execute("SELECT count(*) FROM withdrawals").fetchone()[0] == 1
         gone = con.execute("SELECT participant_id FROM withdrawals").fetchone()[0]
         for table in ("responses", "events"):
-            n = con.execute(f"SELECT count(*) FROM {table} WHERE participant_id = ?",
-                            (gone,)).fetchone()[0]
+            n = con.execute(
+                f"SELECT count(*) FROM {table} WHERE participant_id = ?", (gone,)
+            ).fetchone()[0]
             assert n == 0, table
 
 
@@ -157,7 +166,7 @@ def test_backup_verify_and_a_corrupt_backup(db, tmp_path):
     assert code == 0 and "sound" in err
     bad = tmp_path / "corrupt.db"
     data = bytearray(good.read_bytes())
-    data[len(data) // 2:] = b"\x5a" * (len(data) - len(data) // 2)  # half the pages overwritten
+    data[len(data) // 2 :] = b"\x5a" * (len(data) - len(data) // 2)  # half the pages overwritten
     bad.write_bytes(bytes(data))
     code, err = run("backup", "--verify", bad)
     assert code == 2 and str(bad) in err and "Traceback" not in err
@@ -190,8 +199,9 @@ def test_analyze_never_creates_a_database(tmp_path):
 
 
 def test_analyze_takes_a_bare_db_path_like_export(db, tmp_path):
-    code, err = run("analyze", "--db", db, "-o", tmp_path / "out", "--include-incomplete",
-                    "--boot", "0", "-q")
+    code, err = run(
+        "analyze", "--db", db, "-o", tmp_path / "out", "--include-incomplete", "--boot", "0", "-q"
+    )
     assert code == 0, err
     assert (tmp_path / "out" / "report.html").is_file()
 
@@ -219,9 +229,12 @@ def test_psych_ds_metadata_comes_from_the_study_config(tmp_path):
     from study_app.design.stimuli import load_stimuli
 
     doc = fixture_study_doc()
-    doc["study"].update(license="CC-BY-4.0", creators=["A. Researcher", "B. Researcher"],
-                        citation="Researcher et al. (2026). Action Snapshot study data.",
-                        description="Thank you for helping us with this study!")
+    doc["study"].update(
+        license="CC-BY-4.0",
+        creators=["A. Researcher", "B. Researcher"],
+        citation="Researcher et al. (2026). Action Snapshot study data.",
+        description="Thank you for helping us with this study!",
+    )
     stim_dir = tmp_path / "stim"
     write_fixture_stimuli(stim_dir, doc)
     stim = load_stimuli(stim_dir)
@@ -248,8 +261,16 @@ def test_exclusion_keeps_the_data_marks_the_export_and_leaves_the_analysis(db, t
         with pytest.raises(Exception, match="needs a reason"):
             monitor.exclude(store, people[1]["participant_id"], " ")
         n_rows = store.progress()["responses"]
-    code, err = run("export", "--db", db, "-o", tmp_path / "r.csv", "--participants",
-                    tmp_path / "p.csv", "--identifiers")
+    code, err = run(
+        "export",
+        "--db",
+        db,
+        "-o",
+        tmp_path / "r.csv",
+        "--participants",
+        tmp_path / "p.csv",
+        "--identifiers",
+    )
     assert code == 0, err
     assert len(read_csv(tmp_path / "r.csv")) == n_rows  # the data stay
     marks = {p["participant_id"]: p["excluded"] for p in read_csv(tmp_path / "p.csv")}

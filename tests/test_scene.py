@@ -61,14 +61,22 @@ def test_fk_matches_scipy_reference_for_every_channel_order(order):
 def test_fk_hand_computed_right_angles():
     """Quarter turns give positions computable by hand."""
     # ZXY order; root turns 90° about Z: the chain's +Y offset points to -X.
-    motion = np.array([[1.0, 2.0, 3.0, 90.0, 0, 0, 0, 0, 0, 0, 0, 0],
-                       # joint a turns 90° about Y: b's +X offset (in a's frame) points to -Z.
-                       [0.0, 0.0, 0.0, 0, 0, 0, 0, 0, 90.0, 0, 0, 0]])
+    motion = np.array(
+        [
+            [1.0, 2.0, 3.0, 90.0, 0, 0, 0, 0, 0, 0, 0, 0],
+            # joint a turns 90° about Y: b's +X offset (in a's frame) points to -Z.
+            [0.0, 0.0, 0.0, 0, 0, 0, 0, 0, 90.0, 0, 0, 0],
+        ]
+    )
     c = character_from_bvh(chain_document("ZXY", motion), scale=1.0)
     np.testing.assert_allclose(c.positions[0, 1], [0.0, 2.0, 3.0], atol=1e-12)  # (1,2,3) + (-1,0,0)
-    np.testing.assert_allclose(c.positions[0, 2], [0.0, 2.5, 3.0], atol=1e-12)  # + R_z(90)(0.5,0,0) = (0,0.5,0)
+    np.testing.assert_allclose(
+        c.positions[0, 2], [0.0, 2.5, 3.0], atol=1e-12
+    )  # + R_z(90)(0.5,0,0) = (0,0.5,0)
     np.testing.assert_allclose(c.positions[1, 2], [0.0, 1.0, -0.5], atol=1e-12)
-    np.testing.assert_allclose(c.positions[1, 3], [0.25, 1.0, -0.5], atol=1e-12)  # R_y(90)(0,0,.25) = (.25,0,0)
+    np.testing.assert_allclose(
+        c.positions[1, 3], [0.25, 1.0, -0.5], atol=1e-12
+    )  # R_y(90)(0,0,.25) = (.25,0,0)
 
 
 def test_six_channel_joint_positions_replace_offset():
@@ -77,9 +85,14 @@ def test_six_channel_joint_positions_replace_offset():
     chans = list(doc.channels)
     chans[1] = ("Xposition", "Yposition", "Zposition") + chans[1]
     motion = np.zeros((1, 15))
-    motion[0, 6:9] = [0.0, 7.0, 0.0]  # joint a's position channels: (0, 7, 0), offset says (0, 1, 0)
-    doc = BVHDocument(doc.names, doc.parents, doc.offsets, tuple(chans), doc.end_site, doc.frame_time,
-                      motion)
+    motion[0, 6:9] = [
+        0.0,
+        7.0,
+        0.0,
+    ]  # joint a's position channels: (0, 7, 0), offset says (0, 1, 0)
+    doc = BVHDocument(
+        doc.names, doc.parents, doc.offsets, tuple(chans), doc.end_site, doc.frame_time, motion
+    )
     c = character_from_bvh(doc, scale=1.0)
     np.testing.assert_allclose(c.positions[0, 1], [0.0, 7.0, 0.0])
 
@@ -102,8 +115,9 @@ def test_every_shared_file_loads_with_adult_height_and_rigid_bones(all_bvh):
         length = np.linalg.norm(c.positions[:, child] - c.positions[:, parents[child]], axis=2)
         rest = np.linalg.norm(c.skeleton.offsets[child], axis=1)
         # Joints with position channels (Bandai, root) may move; all others are rigid bones.
-        rigid = np.array([not any(ch.endswith("position") for ch in c.source.channels[j])
-                          for j in child])
+        rigid = np.array(
+            [not any(ch.endswith("position") for ch in c.source.channels[j]) for j in child]
+        )
         ref = np.maximum(rest[rigid], 1e-9)
         rel = np.abs(length[:, rigid] - rest[rigid]) / ref
         rel[:, rest[rigid] < 1e-9] = 0.0
@@ -129,11 +143,17 @@ def test_known_units_are_recognised(motions_dir):
 def test_salsa_pair_shares_one_scale_and_world_frame(motions_dir):
     """Two files captured together get one scale; partners' hands touch (MANIFEST: 5-8 cm)."""
     with pytest.warns(UserWarning, match="no standard unit"):
-        scene = load_scene([motions_dir / "two_person/60_01_scaled.bvh",
-                            motions_dir / "two_person/61_01_scaled.bvh"], fps=60)
+        scene = load_scene(
+            [
+                motions_dir / "two_person/60_01_scaled.bvh",
+                motions_dir / "two_person/61_01_scaled.bvh",
+            ],
+            fps=60,
+        )
     a, b = scene.characters
     assert a.scale == b.scale
     assert scene.fps == 60 and scene.n_frames == a.n_frames == b.n_frames
+
     # Hand and finger joints (Daz names: hands, then their descendants in file order).
     def hand_region(c):
         out = [c.skeleton.index("lHand"), c.skeleton.index("rHand")]
@@ -228,7 +248,7 @@ def test_json_manifest_equivalent(tmp_path):
         ('[[characters]]\nfile = "a.bvh"\noffset = [1, 2]\n', "characters[0].offset"),
         ('[[characters]]\nfile = "a.bvh"\nfps = -3\n', "characters[0].fps"),
         ('[[characters]]\nfile = "a.bvh"\ncolour = "red"\n', "colour"),
-        ('characters = []\n', "characters"),
+        ("characters = []\n", "characters"),
         ('[[characters]]\nfile = "a.bvh"\n[[props]]\nname = "ball"\ntype = "sphere"\n', "props[0]"),
     ],
 )
@@ -255,8 +275,12 @@ def test_different_frame_rates_are_refused(tmp_path):
     """Characters with different fps need an explicit fps."""
     a = _write_chain(tmp_path, "a.bvh")
     doc = parse_bvh(a.read_text())
-    write_bvh(BVHDocument(doc.names, doc.parents, doc.offsets, doc.channels, doc.end_site, 1 / 60,
-                          doc.motion), tmp_path / "b.bvh")
+    write_bvh(
+        BVHDocument(
+            doc.names, doc.parents, doc.offsets, doc.channels, doc.end_site, 1 / 60, doc.motion
+        ),
+        tmp_path / "b.bvh",
+    )
     with pytest.raises(SceneError, match="different frame rates"):
         load_scene([a, tmp_path / "b.bvh"], scale=1.0)
     assert load_scene([a, tmp_path / "b.bvh"], scale=1.0, fps=30).fps == 30
@@ -271,9 +295,19 @@ def test_one_frame_motion_loads(tmp_path):
 
 def test_info_json(motions_dir):
     """`snapshot info --json` reports frames, fps, duration, height and bounds in metres."""
-    r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "info", "--json",
-                        str(motions_dir / "walk_run/02_01.bvh")], capture_output=True, text=True,
-                       timeout=60)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "snapcore.cli.main",
+            "info",
+            "--json",
+            str(motions_dir / "walk_run/02_01.bvh"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     # MANIFEST: 343 frames at 120 fps, 31 joints (+ end sites).
@@ -290,9 +324,16 @@ def test_transformed_scene_moves_props_with_it(tmp_path):
     """Scene.transformed rotates, scales and translates props like the characters."""
     p = _write_chain(tmp_path)
     scene = load_scene(p, scale=1.0)
-    scene.props = [{"name": "ball", "type": "sphere", "center": [1.0, 0.0, 0.0], "radius": 0.1},
-                   {"name": "bar", "type": "capsule", "a": [0.0, 1.0, 0.0], "b": [0.0, 1.0, 2.0],
-                    "radius": 0.05}]
+    scene.props = [
+        {"name": "ball", "type": "sphere", "center": [1.0, 0.0, 0.0], "radius": 0.1},
+        {
+            "name": "bar",
+            "type": "capsule",
+            "a": [0.0, 1.0, 0.0],
+            "b": [0.0, 1.0, 2.0],
+            "radius": 0.05,
+        },
+    ]
     moved = scene.transformed(yaw_deg=90, scale=2.0, offset=(0.0, 0.0, 1.0))
     ball, bar = moved.props
     # Yaw 90° about +Y maps +X to -Z and +Z to +X; then ×2; then +1 in z.
@@ -309,13 +350,18 @@ def test_local_quaternions_are_the_local_rotations(motions_dir):
     from snapcore.motion.kinematics import matrix_to_quat, quat_to_matrix
 
     c = load_scene(motions_dir / "walk_run" / "02_01.bvh").characters[0]
-    variants = {"loaded": c, "yawed": c.transformed(yaw_deg=37.0, offset=(1.0, 0.0, -2.0)),
-                "rescaled": c.rescaled(c.scale * 2.0), "sliced": c.frames(10, 50)}
+    variants = {
+        "loaded": c,
+        "yawed": c.transformed(yaw_deg=37.0, offset=(1.0, 0.0, -2.0)),
+        "rescaled": c.rescaled(c.scale * 2.0),
+        "sliced": c.frames(10, 50),
+    }
     for label, v in variants.items():
         assert v.local_quaternions is not None, label
         assert v.local_quaternions.shape == v.local_rotations.shape[:2] + (4,), label
-        np.testing.assert_allclose(quat_to_matrix(v.local_quaternions), v.local_rotations,
-                                   atol=1e-12, err_msg=label)
+        np.testing.assert_allclose(
+            quat_to_matrix(v.local_quaternions), v.local_rotations, atol=1e-12, err_msg=label
+        )
     q = matrix_to_quat(c.local_rotations)
     same = np.abs(np.einsum("fjk,fjk->fj", q, c.local_quaternions))  # |q . q'| = 1 if equal
     np.testing.assert_allclose(same, 1.0, atol=1e-12)
@@ -327,8 +373,10 @@ def test_scene_frames_keep_source_numbering(motions_dir):
     part = scene.frames(10, 60)
     assert part.n_frames == 50
     assert part.source_frame(0) == scene.source_frame(10)
-    np.testing.assert_array_equal(part.characters[0].positions, scene.characters[0].positions[10:60])
-    assert scene.frames(0, 10 ** 6).n_frames == scene.n_frames  # clipped like a slice
+    np.testing.assert_array_equal(
+        part.characters[0].positions, scene.characters[0].positions[10:60]
+    )
+    assert scene.frames(0, 10**6).n_frames == scene.n_frames  # clipped like a slice
     with pytest.raises(SceneError, match="empty"):
         scene.frames(5, 5)
 
@@ -338,7 +386,10 @@ def test_files_in_different_units_are_flagged(motions_dir):
     """A CMU walk (~0.056 m per unit) loaded with a salsa dancer (~1.3 m per unit) would
     share one scale and come out 3 m and 0.13 m tall: a warning says so and names both.
     Characters in the same unit (the salsa pair) load without it."""
-    walk, salsa = motions_dir / "walk_run" / "02_01.bvh", motions_dir / "two_person" / "61_01_scaled.bvh"
+    walk, salsa = (
+        motions_dir / "walk_run" / "02_01.bvh",
+        motions_dir / "two_person" / "61_01_scaled.bvh",
+    )
     with pytest.warns(UserWarning, match=r"'02_01' and '61_01_scaled' differ 2\dx in size"):
         load_scene([walk, salsa], fps=60)
     with warnings.catch_warnings(record=True) as caught:
@@ -350,8 +401,9 @@ def test_files_in_different_units_are_flagged(motions_dir):
 def test_manifest_frame_range_past_the_end_warns(tmp_path):
     """frames = [1, 50] on a 5-frame motion keeps [1, 5) and says so (no silent clamp)."""
     _write_chain(tmp_path, "a.bvh")
-    (tmp_path / "s.toml").write_text('frames = [1, 50]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n',
-                                     encoding="utf-8")
+    (tmp_path / "s.toml").write_text(
+        'frames = [1, 50]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n', encoding="utf-8"
+    )
     with pytest.warns(UserWarning, match=r"frames \[1, 50\) runs past the motion's 5 frames"):
         scene = load_scene(tmp_path / "s.toml")
     assert scene.n_frames == 4 and scene.frame_offset == 1
@@ -372,8 +424,9 @@ def test_a_frame_that_was_cut_says_why(motions_dir, tmp_path):
     with pytest.raises(SceneError, match=rf"keeps source frames {first}\.\.{last}$"):
         scene.internal_frame(last + 1)  # after the end: nothing was cut there
     _write_chain(tmp_path, "a.bvh")
-    (tmp_path / "s.toml").write_text('frames = [2, 5]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n',
-                                     encoding="utf-8")
+    (tmp_path / "s.toml").write_text(
+        'frames = [2, 5]\nscale = 1.0\n[[characters]]\nfile = "a.bvh"\n', encoding="utf-8"
+    )
     with pytest.raises(SceneError, match="manifest's frames range"):
         load_scene(tmp_path / "s.toml").internal_frame(1)
 
@@ -397,9 +450,13 @@ def _two_root_file(tmp_path, *, prop: bool = False):
         vb = rb.split()
         vb[0] = f"{float(vb[0]) + 1.5:.6f}"
         rows.append(" ".join([ra, *vb, *(["0.4 0.11 0.3 0 0 0"] if prop else [])]))
-    ball = ("ROOT Ball\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition "
-            "Zrotation Xrotation Yrotation\n  End Site\n  {\n    OFFSET 0 0.11 0\n  }\n}\n")
-    text = head_a + head_b + (ball if prop else "") + "MOTION\n" + "\n".join(rows_a[:2] + rows) + "\n"
+    ball = (
+        "ROOT Ball\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition "
+        "Zrotation Xrotation Yrotation\n  End Site\n  {\n    OFFSET 0 0.11 0\n  }\n}\n"
+    )
+    text = (
+        head_a + head_b + (ball if prop else "") + "MOTION\n" + "\n".join(rows_a[:2] + rows) + "\n"
+    )
     path = tmp_path / "pair.bvh"
     path.write_text(text)
     return path, a
@@ -416,8 +473,9 @@ def test_one_character_per_root(tmp_path, prop):
     assert names == ["pair_Hips", "pair_B_Hips", *(["pair_Ball"] if prop else [])]
     assert scene.meta["unit"] == "m"
     (tmp_path / "alone.bvh").write_text(alone)
-    np.testing.assert_allclose(scene.characters[0].positions,
-                               load_scene(tmp_path / "alone.bvh").characters[0].positions)
+    np.testing.assert_allclose(
+        scene.characters[0].positions, load_scene(tmp_path / "alone.bvh").characters[0].positions
+    )
     assert scene.characters[1].positions[:, 0, 0].min() > 1.0  # the second person, 1.5 m away
 
 
@@ -452,7 +510,11 @@ def _z_up_document(doc: BVHDocument, turn=_TO_Z_UP, *, lying: bool = False) -> B
         r = Rotation.from_euler(order, doc.motion[:, cols], degrees=True).as_matrix()
         r = turn @ r if lying else turn @ r @ turn.T
         out[:, cols] = Rotation.from_matrix(r).as_euler(order, degrees=True)
-        pos = [starts[j] + chans.index(c) for c in ("Xposition", "Yposition", "Zposition") if c in chans]
+        pos = [
+            starts[j] + chans.index(c)
+            for c in ("Xposition", "Yposition", "Zposition")
+            if c in chans
+        ]
         if len(pos) == 3:
             out[:, pos] = doc.motion[:, pos] @ turn.T
     return replace(doc, offsets=doc.offsets if lying else doc.offsets @ turn.T, motion=out)
@@ -473,8 +535,9 @@ def test_a_z_up_file_is_stood_up(tmp_path):
     np.testing.assert_allclose(got.positions, want.positions, atol=1e-5)
     # joint frames are relative to each file's own rest pose: the Z-up one's is turned
     np.testing.assert_allclose(got.rotations @ _TO_Z_UP, want.rotations, atol=1e-5)
-    write_bvh(_z_up_document(humanoid_document("idle", seconds=1.0), lying=True),
-              tmp_path / "lying.bvh")
+    write_bvh(
+        _z_up_document(humanoid_document("idle", seconds=1.0), lying=True), tmp_path / "lying.bvh"
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)
         c = load_scene(tmp_path / "lying.bvh").characters[0]

@@ -28,8 +28,7 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
     """--json: schema-valid; frames, peaks and events are source frame numbers
     (02_03 has an added T-pose frame, so internal i is source i + 1)."""
     path = motions_dir / "walk_run" / "02_03.bvh"
-    result = _run(["select", str(path), "--json", "-k", "2", "--no-view", "--pose-method",
-                   "paper"])
+    result = _run(["select", str(path), "--json", "-k", "2", "--no-view", "--pose-method", "paper"])
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     validate(doc, "snapshot")
@@ -48,8 +47,9 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
     ent = snap.pose.entropy
     np.testing.assert_allclose(doc["pose_entropy"]["local"], ent.local, atol=1e-6)
     events = snap.pose.entropy.interactions.events
-    assert [(e["start"], e["end"]) for e in doc["events"]] == [(e.start + 1, e.end + 1)
-                                                                  for e in events]
+    assert [(e["start"], e["end"]) for e in doc["events"]] == [
+        (e.start + 1, e.end + 1) for e in events
+    ]
     assert set(doc["timings_s"]) >= {"contacts", "local", "global", "select", "pose", "total"}
 
 
@@ -57,16 +57,20 @@ def test_select_options_reach_the_method(motions_dir):
     """--w-global 0 selects the local maximum; --events state changes the global term."""
     path = str(motions_dir / "dance" / "05_06.bvh")
     paper = ["--pose-method", "paper"]
-    doc = json.loads(_run(["select", path, "--json", "--no-view", "--w-global", "0", *paper]).stdout)
+    doc = json.loads(
+        _run(["select", path, "--json", "--no-view", "--w-global", "0", *paper]).stdout
+    )
     local = np.array(doc["pose_entropy"]["local"])
     assert doc["frame"] == int(np.argmax(local)) + doc["frame_offset"]
     trans = json.loads(_run(["select", path, "--json", "--no-view", *paper]).stdout)
-    state = json.loads(_run(["select", path, "--json", "--no-view", "--events", "state",
-                             *paper]).stdout)
+    state = json.loads(
+        _run(["select", path, "--json", "--no-view", "--events", "state", *paper]).stdout
+    )
     assert state["pose_entropy"]["events_mode"] == "state"
     assert state["pose_entropy"]["global"] != trans["pose_entropy"]["global"]
-    sep = json.loads(_run(["select", path, "--json", "--no-view", "-k", "3",
-                           "--min-separation", "2"]).stdout)
+    sep = json.loads(
+        _run(["select", path, "--json", "--no-view", "-k", "3", "--min-separation", "2"]).stdout
+    )
     f = np.array(sep["frames"])
     gaps = np.abs(f[:, None] - f[None])[~np.eye(3, dtype=bool)]
     assert len(f) == 3 and np.all(gaps >= 2 * 120)  # 2 s at 120 fps
@@ -77,8 +81,7 @@ def test_select_human_output(motions_dir, tmp_path):
     -o writes the JSON document too."""
     a, b = (motions_dir / "two_person" / f"{p}_scaled.bvh" for p in ("60_12", "61_12"))
     out = tmp_path / "snap.json"
-    result = _run(["select", str(a), str(b), "--fps", "60", "-k", "3", "--no-view",
-                   "-o", str(out)])
+    result = _run(["select", str(a), str(b), "--fps", "60", "-k", "3", "--no-view", "-o", str(out)])
     assert result.exit_code == 0, result.output
     text = result.stdout
     doc = json.loads(out.read_text())
@@ -103,12 +106,12 @@ def test_printed_terms_add_up_to_the_total(motions_dir, method):
     total = float(score.split(" = ")[0].split()[-1])
     terms = [float(part.split()[-1]) for part in score.split(" = ")[1].split(" + ")]
     assert abs(sum(terms) - total) <= 0.5e-3 * (len(terms) + 1), line
-    doc = json.loads(_run(["select", path, "--json", "--no-view", "--pose-method",
-                           method]).stdout)
+    doc = json.loads(_run(["select", path, "--json", "--no-view", "--pose-method", method]).stdout)
     sc = doc["pose_scores"]
     assert sc["method"] == method
-    np.testing.assert_allclose(np.sum([sc["terms"][k] for k in sc["terms"]], axis=0),
-                               sc["total"], atol=1e-5)
+    np.testing.assert_allclose(
+        np.sum([sc["terms"][k] for k in sc["terms"]], axis=0), sc["total"], atol=1e-5
+    )
     if method == "paper":
         assert "entropy" in line and set(sc["terms"]) == {"local", "global"}
         assert "pose_entropy" in doc
@@ -121,8 +124,12 @@ def test_select_errors_are_one_line(tmp_path):
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
     for target in (tmp_path / "missing.bvh", bad):
-        r = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "select", str(target)],
-                           capture_output=True, text=True, timeout=120)
+        r = subprocess.run(
+            [sys.executable, "-m", "snapcore.cli.main", "select", str(target)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert r.returncode == 2
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in r.stderr
@@ -196,8 +203,9 @@ def test_synthetic_kick_pose_is_near_the_kick():
     assert np.min(np.abs(times - synth.KICK_IMPACT_S)) <= 0.2, times
 
 
-@pytest.mark.parametrize("bad", [{"k": 0}, {"min_separation_s": -1.0}, {"w_local": -1.0},
-                                 {"events": "onsets"}])
+@pytest.mark.parametrize(
+    "bad", [{"k": 0}, {"min_separation_s": -1.0}, {"w_local": -1.0}, {"events": "onsets"}]
+)
 def test_bad_options_raise_value_errors(bad):
     """Options are checked at the boundary with a message naming the parameter."""
     scene = synth.synth_scene("idle", fps=30)

@@ -41,8 +41,11 @@ def test_manifest_lists_every_file_with_its_sha256(folder):
     validate(m, "stimuli")
     for rel, digest in m["files"].items():
         assert hashlib.sha256((folder / rel).read_bytes()).hexdigest() == digest
-    on_disk = {p.relative_to(folder).as_posix() for p in folder.rglob("*")
-               if p.is_file() and p.name != "manifest.json"}
+    on_disk = {
+        p.relative_to(folder).as_posix()
+        for p in folder.rglob("*")
+        if p.is_file() and p.name != "manifest.json"
+    }
     assert on_disk == set(m["files"])
     s = load_stimuli(folder)
     assert s.file_sha256 == hashlib.sha256((folder / "manifest.json").read_bytes()).hexdigest()
@@ -78,15 +81,22 @@ def test_set_identity_covers_content_not_build_record(folder, tmp_path):
     assert content_sha256(m3) != base
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda d: (d / "walk" / "video.mp4").unlink(), "walk/video.mp4 is missing"),
-    (lambda d: (d / "kick" / "frames" / "00007.jpg").write_bytes(b"x"),
-     "kick/frames/00007.jpg has been altered"),
-    (lambda d: (d / "jump" / "view_ours.png").rename(d / "jump" / "view_x.png"),
-     "jump/view_ours.png is missing"),
-    (lambda d: (d / "manifest.json").unlink(), "no manifest.json"),
-    (lambda d: (d / "manifest.json").write_text("{"), "cannot read the manifest"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda d: (d / "walk" / "video.mp4").unlink(), "walk/video.mp4 is missing"),
+        (
+            lambda d: (d / "kick" / "frames" / "00007.jpg").write_bytes(b"x"),
+            "kick/frames/00007.jpg has been altered",
+        ),
+        (
+            lambda d: (d / "jump" / "view_ours.png").rename(d / "jump" / "view_x.png"),
+            "jump/view_ours.png is missing",
+        ),
+        (lambda d: (d / "manifest.json").unlink(), "no manifest.json"),
+        (lambda d: (d / "manifest.json").write_text("{"), "cannot read the manifest"),
+    ],
+)
 def test_altered_or_missing_files_are_refused(copy, change, message):
     change(copy)
     with pytest.raises(StimuliError, match=message.replace(".", r"\.")):
@@ -113,14 +123,19 @@ def test_inconsistent_manifest_is_refused(copy):
 
 
 def test_verify_command(folder, copy):
-    r = subprocess.run([SNAPSHOT, "stimuli", "verify", str(folder)], capture_output=True,
-                       text=True, timeout=60)
+    r = subprocess.run(
+        [SNAPSHOT, "stimuli", "verify", str(folder)], capture_output=True, text=True, timeout=60
+    )
     assert r.returncode == 0 and "ok" in r.stdout
     (copy / "walk" / "view_motion_area.png").write_bytes(b"")
-    r = subprocess.run([SNAPSHOT, "stimuli", "verify", str(copy)], capture_output=True,
-                       text=True, timeout=60)
+    r = subprocess.run(
+        [SNAPSHOT, "stimuli", "verify", str(copy)], capture_output=True, text=True, timeout=60
+    )
     assert r.returncode == 2
-    assert r.stderr.strip().startswith("error:") and "view_motion_area.png has been altered" in r.stderr
+    assert (
+        r.stderr.strip().startswith("error:")
+        and "view_motion_area.png has been altered" in r.stderr
+    )
 
 
 def test_fixture_video_decodes_to_its_frames(folder):
@@ -139,13 +154,16 @@ def test_fixture_video_decodes_to_its_frames(folder):
 
 # ----------------------------------------------------------------------------- real build
 
+
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The tiny study, built once per session through the CLI (`snapshot stimuli build`)."""
     out, r = tiny_demo_stimuli(tmp_path_factory)
     if r is not None:
-        need("must run the view stage" not in r.stderr,
-             "snapcore.pipeline.take_snapshot has no view stage yet")
+        need(
+            "must run the view stage" not in r.stderr,
+            "snapcore.pipeline.take_snapshot has no view stage yet",
+        )
         assert r.returncode == 0, r.stderr
         assert "2 scenes" in r.stdout and "manifest sha256" in r.stdout
     return out
@@ -202,12 +220,18 @@ def test_build_records_the_selection(built):
 
 
 def test_build_refuses_to_overwrite(built, tiny_config):
-    r = subprocess.run([SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(built), "-q"],
-                       capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(built), "-q"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 2 and "already exists" in r.stderr
 
 
-def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tmp_path, monkeypatch):
+def test_study_command_builds_missing_stimuli_then_serves(
+    built, tiny_config, tmp_path, monkeypatch
+):
     """`snapshot study --build` builds a missing folder, verifies it, then execs streamlit."""
     from click.testing import CliRunner
 
@@ -217,18 +241,34 @@ def test_study_command_builds_missing_stimuli_then_serves(built, tiny_config, tm
     monkeypatch.setattr(study.os, "execve", lambda exe, argv, env: calls.append((argv, env)))
     out = tmp_path / "st"
     db = f"sqlite:///{tmp_path / 'db.sqlite'}"
-    r = CliRunner().invoke(study.study, ["--config", str(tiny_config), "--stimuli", str(out),
-                                         "--db", db, "--port", "8599", "--build", "-q"])
+    r = CliRunner().invoke(
+        study.study,
+        [
+            "--config",
+            str(tiny_config),
+            "--stimuli",
+            str(out),
+            "--db",
+            db,
+            "--port",
+            "8599",
+            "--build",
+            "-q",
+        ],
+    )
     assert r.exit_code == 0, r.output
-    (argv, env), = calls
-    assert argv[1:4] == ["-m", "study_app.web.server", "run"] and argv[4].endswith("study_app/web/app.py")
+    ((argv, env),) = calls
+    assert argv[1:4] == ["-m", "study_app.web.server", "run"] and argv[4].endswith(
+        "study_app/web/app.py"
+    )
     assert argv[argv.index("--server.port") + 1] == "8599"
     assert argv[argv.index("--server.headless") + 1] == "true"
     assert env["SNAPSHOT_STIMULI"] == str(out.resolve()) and env["SNAPSHOT_DB"] == db
     assert load_stimuli(out).study.id == "tiny"
     # without --build, a study other than the demo is not built implicitly
-    r = CliRunner().invoke(study.study, ["--config", str(tiny_config), "--stimuli",
-                                         str(tmp_path / "none"), "--db", db])
+    r = CliRunner().invoke(
+        study.study, ["--config", str(tiny_config), "--stimuli", str(tmp_path / "none"), "--db", db]
+    )
     assert r.exit_code != 0 and "snapshot stimuli build" in str(r.exception)
 
 
@@ -244,10 +284,16 @@ def test_view_stills_share_one_background(tmp_path):
     from study_app.design.stimuli import write_views
 
     scene = synth.synth_scene("walk", fps=30)
-    dirs = [np.array(v, float) / np.linalg.norm(v) for v in ((1, -0.16, 0.2), (1, 0, 0.3),
-                                                             (0.6, 0.6, 0.5))]
-    picks = {"frame": scene.frame_offset + 20, "view": dirs[0],
-             "viewpoint_entropy": dirs[1], "motion_area": dirs[2]}
+    dirs = [
+        np.array(v, float) / np.linalg.norm(v)
+        for v in ((1, -0.16, 0.2), (1, 0, 0.3), (0.6, 0.6, 0.5))
+    ]
+    picks = {
+        "frame": scene.frame_offset + 20,
+        "view": dirs[0],
+        "viewpoint_entropy": dirs[1],
+        "motion_area": dirs[2],
+    }
     views = write_views(scene, picks, tmp_path, size=(96, 128))
     bg = np.round(np.asarray(BACKGROUND) * 255)
     for m in VIEW_METHODS:
@@ -261,25 +307,40 @@ def test_build_warnings_name_their_scene(tmp_path):
     """A warning raised while one scene is built says which scene it is about; the angle
     between every pair of candidates is reported; a scene without contacts (the demo
     punch) builds without the alarming "constant global pose entropy" warning."""
-    (tmp_path / "one.toml").write_text('[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
-                                       'size = [96, 72]\nnear_duplicate_deg = 90\n\n'
-                                       '[[scenes]]\nid = "punch"\ndemo = "punch"\n')
+    (tmp_path / "one.toml").write_text(
+        '[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
+        "size = [96, 72]\nnear_duplicate_deg = 90\n\n"
+        '[[scenes]]\nid = "punch"\ndemo = "punch"\n'
+    )
     snapshot = str(Path(sys.executable).with_name("snapshot"))
-    r = subprocess.run([snapshot, "stimuli", "build", "one.toml", "-o", "stim", "-q"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [snapshot, "stimuli", "build", "one.toml", "-o", "stim", "-q"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     # a 90° threshold makes every pair a near-duplicate: the warning names the scene
     assert "warning: scene punch: nearly the same picture from" in r.stderr
     assert "global pose entropy" not in r.stderr and "constant" not in r.stderr
-    assert re.search(r"punch: ours/viewpoint_entropy \d+\.\d°, ours/motion_area \d+\.\d°, "
-                     r"viewpoint_entropy/motion_area \d+\.\d°  NEAR-DUPLICATE", r.stdout), r.stdout
+    assert re.search(
+        r"punch: ours/viewpoint_entropy \d+\.\d°, ours/motion_area \d+\.\d°, "
+        r"viewpoint_entropy/motion_area \d+\.\d°  NEAR-DUPLICATE",
+        r.stdout,
+    ), r.stdout
     entry = json.loads((tmp_path / "stim" / "manifest.json").read_text())["scenes"][0]
-    assert set(entry["view_angles"]) == {"ours|viewpoint_entropy", "ours|motion_area",
-                                         "viewpoint_entropy|motion_area"}
+    assert set(entry["view_angles"]) == {
+        "ours|viewpoint_entropy",
+        "ours|motion_area",
+        "viewpoint_entropy|motion_area",
+    }
     assert len(entry["near_duplicates"]) == 3
     # the WebM/VP9 copy is listed and hashed beside the MP4
     assert entry["video_webm"] == "punch/video.webm"
-    assert "punch/video.webm" in json.loads((tmp_path / "stim" / "manifest.json").read_text())["files"]
+    assert (
+        "punch/video.webm" in json.loads((tmp_path / "stim" / "manifest.json").read_text())["files"]
+    )
 
 
 def test_near_duplicate_error_stops_the_build():
@@ -290,10 +351,15 @@ def test_near_duplicate_error_stops_the_build():
     from study_app.design.protocol import study_from_dict
     from study_app.design.stimuli import StimuliError, check_near_duplicates
 
-    picks = {"view": [1.0, 0.0, 0.0], "viewpoint_entropy": [0.0, 0.0, 1.0],
-             "motion_area": [-0.99, 0.0, 0.1411]}  # ~171.9° from ours: a mirror image
-    doc = {"study": {"id": "s", "title": "S", "near_duplicate": "error"},
-           "scenes": [{"id": "a", "demo": "walk"}]}
+    picks = {
+        "view": [1.0, 0.0, 0.0],
+        "viewpoint_entropy": [0.0, 0.0, 1.0],
+        "motion_area": [-0.99, 0.0, 0.1411],
+    }  # ~171.9° from ours: a mirror image
+    doc = {
+        "study": {"id": "s", "title": "S", "near_duplicate": "error"},
+        "scenes": [{"id": "a", "demo": "walk"}],
+    }
     with pytest.raises(StimuliError, match=r"ours and motion_area \(171\.9° apart\)"):
         check_near_duplicates(study_from_dict(doc), "a", picks)
     doc["study"]["near_duplicate"] = "warn"

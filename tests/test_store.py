@@ -59,23 +59,49 @@ def store(store_url):
 
 
 def pose_row(trial: int, *, frame: int = 40, rt: float = 3.5) -> dict:
-    return {"trial_index": trial, "task": "pose", "scene": f"scene{trial}",
-            "stimulus_id": f"scene{trial}-pose", "chosen_frame": frame,
-            "chosen_video_frame": frame // 2, "algorithm_frame": 52, "fps": 60.0,
-            "n_frames": 300, "response_time_s": rt}
+    return {
+        "trial_index": trial,
+        "task": "pose",
+        "scene": f"scene{trial}",
+        "stimulus_id": f"scene{trial}-pose",
+        "chosen_frame": frame,
+        "chosen_video_frame": frame // 2,
+        "algorithm_frame": 52,
+        "fps": 60.0,
+        "n_frames": 300,
+        "response_time_s": rt,
+    }
 
 
-def view_row(trial: int, *, position: int = 1, order=("motion_area", "ours", "viewpoint_entropy"),
-             rt: float = 2.0) -> dict:
-    return {"trial_index": trial, "task": "view", "scene": f"scene{trial}",
-            "stimulus_id": f"scene{trial}-view", "chosen_method": order[position],
-            "chosen_position": position, "shown_order": list(order), "response_time_s": rt}
+def view_row(
+    trial: int,
+    *,
+    position: int = 1,
+    order=("motion_area", "ours", "viewpoint_entropy"),
+    rt: float = 2.0,
+) -> dict:
+    return {
+        "trial_index": trial,
+        "task": "view",
+        "scene": f"scene{trial}",
+        "stimulus_id": f"scene{trial}-view",
+        "chosen_method": order[position],
+        "chosen_position": position,
+        "shown_order": list(order),
+        "response_time_s": rt,
+    }
 
 
 def attention_row(trial: int, *, answer: str = "blue", correct: bool = True) -> dict:
-    return {"trial_index": trial, "task": "attention", "scene": "attention",
-            "stimulus_id": "attention-colour", "chosen_value": answer, "correct": correct,
-            "response_time_s": 1.25}
+    return {
+        "trial_index": trial,
+        "task": "attention",
+        "scene": "attention",
+        "stimulus_id": "attention-colour",
+        "chosen_value": answer,
+        "correct": correct,
+        "response_time_s": 1.25,
+    }
 
 
 def new_participant(store, **kw) -> str:
@@ -106,14 +132,17 @@ def test_default_url_is_repo_var_and_env_overrides(monkeypatch, tmp_path):
         pid = new_participant(s)
     assert target.exists(), "the folder of the SQLite file is created"
     assert sqlite3.connect(target).execute(
-        "SELECT participant_id FROM participants").fetchall() == [(pid,)]
+        "SELECT participant_id FROM participants"
+    ).fetchall() == [(pid,)]
 
 
 def test_url_normalisation_and_masking():
     """postgresql:// maps to psycopg; passwords never appear in what we print."""
     u = normalize_url("postgresql://alice:s3cret@db.example:5433/study")
     assert u.drivername == "postgresql+psycopg" and u.port == 5433 and u.database == "study"
-    assert mask_url("postgresql+psycopg://alice:s3cret@h/db") == "postgresql+psycopg://alice:***@h/db"
+    assert (
+        mask_url("postgresql+psycopg://alice:s3cret@h/db") == "postgresql+psycopg://alice:***@h/db"
+    )
     assert "s3cret" not in mask_url("weird://alice:s3cret@h:not-a-port/db")
     assert normalize_url("some/where/study.db").drivername == "sqlite"
     with pytest.raises(StoreError, match="not a database URL"):
@@ -132,15 +161,19 @@ def test_sqlite_pragmas(sqlite_url):
             conn.exec_driver_sql(
                 "INSERT INTO responses (participant_id, trial_index, task, scene, stimulus_id,"
                 " response_time_s, created_at, app_version, manifest_sha256)"
-                " VALUES ('nobody-nobody-nobody', 0, 'pose', 's', 's', 1, '2020-01-01', 'v', 'x')")
+                " VALUES ('nobody-nobody-nobody', 0, 'pose', 's', 's', 1, '2020-01-01', 'v', 'x')"
+            )
 
 
-@pytest.mark.parametrize("url, expect", [
-    ("nosuchdb://user:pw@host/db", "unknown database type"),
-    ("sqlite:///{tmp}/a-file/study.db", "cannot create folder"),     # parent is a file
-    ("sqlite:///{tmp}/a-dir.db", "unable to open database file"),    # the path is a folder
-    ("postgresql://alice:s3cret@127.0.0.1:{port}/db", "Connection refused"),
-])
+@pytest.mark.parametrize(
+    "url, expect",
+    [
+        ("nosuchdb://user:pw@host/db", "unknown database type"),
+        ("sqlite:///{tmp}/a-file/study.db", "cannot create folder"),  # parent is a file
+        ("sqlite:///{tmp}/a-dir.db", "unable to open database file"),  # the path is a folder
+        ("postgresql://alice:s3cret@127.0.0.1:{port}/db", "Connection refused"),
+    ],
+)
 def test_broken_url_is_one_line_store_error(url, expect, tmp_path):
     """A broken URL gives one line naming the (masked) URL, and nothing else."""
     (tmp_path / "a-file").write_text("not a folder")
@@ -198,16 +231,24 @@ def test_reader_does_not_create_databases(tmp_path):
 def test_participants(store):
     """Ids are unguessable and distinct; every given field is stored; unknown id → None."""
     before = datetime.now(UTC)
-    pid = new_participant(store, seed=2**62, prolific={
-        "PROLIFIC_PID": "5f1a", "STUDY_ID": "st9", "SESSION_ID": "se3"})
+    pid = new_participant(
+        store, seed=2**62, prolific={"PROLIFIC_PID": "5f1a", "STUDY_ID": "st9", "SESSION_ID": "se3"}
+    )
     after = datetime.now(UTC)
     other = new_participant(store, simulated=True)
     assert pid != other and len(pid) >= 22  # token_urlsafe(16): 128 random bits
     p = store.get_participant(pid)
-    assert (p["study_id"], p["seed"], p["manifest_sha256"], p["app_version"]) == \
-        ("demo", 2**62, SHA, "0.1.0")
-    assert (p["prolific_pid"], p["prolific_study_id"], p["prolific_session_id"]) == \
-        ("5f1a", "st9", "se3")
+    assert (p["study_id"], p["seed"], p["manifest_sha256"], p["app_version"]) == (
+        "demo",
+        2**62,
+        SHA,
+        "0.1.0",
+    )
+    assert (p["prolific_pid"], p["prolific_study_id"], p["prolific_session_id"]) == (
+        "5f1a",
+        "st9",
+        "se3",
+    )
     assert p["simulated"] is False and store.get_participant(other)["simulated"] is True
     assert p["completed_at"] is None and p["completion_code"] is None and p["background"] is None
     created = datetime.fromisoformat(p["created_at"])
@@ -301,20 +342,23 @@ def test_unknown_or_tampered_id_writes_nothing(store):
     assert store.get_participant(pid)["background"] is None
 
 
-@pytest.mark.parametrize("change, field", [
-    ({"chosen_method": "forged"}, "chosen_method"),          # a forged method label
-    ({"chosen_method": "ours", "chosen_position": 0}, "chosen_method"),  # not shown there
-    ({"chosen_position": 3}, "chosen_position"),
-    ({"shown_order": ["ours", "ours", "motion_area"]}, "shown_order"),
-    ({"shown_order": ["ours", "mine", "motion_area"]}, "shown_order"),
-    ({"chosen_position": -1}, "chosen_position"),
-    ({"task": "quiz"}, "task"),
-    ({"response_time_s": float("nan")}, "response_time_s"),
-    ({"shown_order": "ours"}, "shown_order"),
-    ({"participant_id": "someone-else-entirely"}, "participant_id"),   # not a trial field
-    ({"trial_index": None}, "trial_index"),
-    ({"task": "pose", "chosen_frame": -3}, "chosen_frame"),
-])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"chosen_method": "forged"}, "chosen_method"),  # a forged method label
+        ({"chosen_method": "ours", "chosen_position": 0}, "chosen_method"),  # not shown there
+        ({"chosen_position": 3}, "chosen_position"),
+        ({"shown_order": ["ours", "ours", "motion_area"]}, "shown_order"),
+        ({"shown_order": ["ours", "mine", "motion_area"]}, "shown_order"),
+        ({"chosen_position": -1}, "chosen_position"),
+        ({"task": "quiz"}, "task"),
+        ({"response_time_s": float("nan")}, "response_time_s"),
+        ({"shown_order": "ours"}, "shown_order"),
+        ({"participant_id": "someone-else-entirely"}, "participant_id"),  # not a trial field
+        ({"trial_index": None}, "trial_index"),
+        ({"task": "pose", "chosen_frame": -3}, "chosen_frame"),
+    ],
+)
 def test_bad_row_is_refused(sqlite_url, change, field):
     """A row that breaks the schema names the field and writes nothing."""
     with Store(sqlite_url) as s:
@@ -331,8 +375,10 @@ def test_events(store):
     store.record_event(pid, None, "page", {"name": "consent"})
     got = store.events(pid)
     assert [(e["kind"], e["trial_index"], e["payload"]) for e in got] == [
-        ("play", 0, {"t": 0.0}), ("seek", 0, {"from": 1.5, "to": 0.25}),
-        ("page", None, {"name": "consent"})]
+        ("play", 0, {"t": 0.0}),
+        ("seek", 0, {"from": 1.5, "to": 0.25}),
+        ("page", None, {"name": "consent"}),
+    ]
     with pytest.raises(StoreError, match="payload"):
         store.record_event(pid, 0, "seek", {"to": float("inf")})
     assert len(store.events()) == 3
@@ -341,7 +387,9 @@ def test_events(store):
     with pytest.raises(StoreError, match="payload"):
         store.record_events(pid, 2, [("play", {}), ("seek", {"to": float("nan")})])
     assert [(e["kind"], e["trial_index"]) for e in store.events(pid)[3:]] == [
-        ("play", 1), ("step", 1)]
+        ("play", 1),
+        ("step", 1),
+    ]
     with pytest.raises(StoreError, match="unknown participant"):
         store.record_events(tampered(pid), 1, [("play", {})])
     assert len(store.events()) == 5
@@ -357,8 +405,7 @@ def test_event_limit_per_trial(store):
     assert store.record_events(pid, 0, [("seek", {"i": i}) for i in range(4)], limit=6) == 2
     assert store.record_events(pid, 0, [("play", {})], limit=6) == 0
     mine = [(e["kind"], e["payload"]) for e in store.events(pid) if e["trial_index"] == 0]
-    assert mine == [("step", {"i": i}) for i in range(4)] + [("seek", {"i": 0}),
-                                                            ("seek", {"i": 1})]
+    assert mine == [("step", {"i": i}) for i in range(4)] + [("seek", {"i": 0}), ("seek", {"i": 1})]
 
 
 def test_first_event_at(store):
@@ -413,10 +460,18 @@ def test_progress_counts(store):
     store.record_responses(real[1], [pose_row(0)])
     store.record_responses(sim, [pose_row(0), attention_row(1)])
     store.complete(real[0])
-    assert store.progress() == {"participants": 3, "completed": 1, "responses": 4,
-                                "by_task": {"pose": 3, "view": 1}, "simulated": 1}
+    assert store.progress() == {
+        "participants": 3,
+        "completed": 1,
+        "responses": 4,
+        "by_task": {"pose": 3, "view": 1},
+        "simulated": 1,
+    }
     assert store.progress(include_simulated=True)["by_task"] == {
-        "attention": 1, "pose": 4, "view": 1}
+        "attention": 1,
+        "pose": 4,
+        "view": 1,
+    }
 
 
 # ----------------------------------------------------------------------------- export
@@ -426,14 +481,22 @@ def populate(store) -> tuple[dict, str]:
     a = new_participant(store, prolific={"PROLIFIC_PID": "p-a"})
     store.set_background(a, {"age_band": "25-34", "gender": "man", "experience": "none"})
     b = new_participant(store, seed=11)
-    store.set_background(b, {"age_band": "18-24", "gender": "woman",
-                             "experience": ["animation", "art"]})
+    store.set_background(
+        b, {"age_band": "18-24", "gender": "woman", "experience": ["animation", "art"]}
+    )
     sim = new_participant(store, simulated=True)
-    for pid, rows in ((a, [pose_row(0, frame=12), view_row(1, position=2), attention_row(2)]),
-                      (b, [view_row(0, position=0, order=("ours", "motion_area",
-                                                          "viewpoint_entropy")),
-                           pose_row(1, frame=0), attention_row(2, answer="red", correct=False)]),
-                      (sim, [pose_row(0)])):
+    for pid, rows in (
+        (a, [pose_row(0, frame=12), view_row(1, position=2), attention_row(2)]),
+        (
+            b,
+            [
+                view_row(0, position=0, order=("ours", "motion_area", "viewpoint_entropy")),
+                pose_row(1, frame=0),
+                attention_row(2, answer="red", correct=False),
+            ],
+        ),
+        (sim, [pose_row(0)]),
+    ):
         for row in rows:
             assert store.record_response(pid, row)
             sent[(pid, row["trial_index"])] = row
@@ -481,28 +544,40 @@ def test_export_file_round_trip(store, tmp_path, suffix):
 def test_export_refuses_invalid_rows(tmp_path):
     """A row breaking the schema: the error names file, row number and field; no file."""
     good = {c: None for c in export_columns()} | {
-        "participant_id": "p" * 22, "study_id": "demo", "trial_index": 0, "task": "pose",
-        "scene": "s", "stimulus_id": "s-pose", "chosen_frame": 3, "response_time_s": 1.0,
-        "created_at": "2025-01-01T00:00:00+00:00", "app_version": "1", "manifest_sha256": SHA,
-        "simulated": False}
+        "participant_id": "p" * 22,
+        "study_id": "demo",
+        "trial_index": 0,
+        "task": "pose",
+        "scene": "s",
+        "stimulus_id": "s-pose",
+        "chosen_frame": 3,
+        "response_time_s": 1.0,
+        "created_at": "2025-01-01T00:00:00+00:00",
+        "app_version": "1",
+        "manifest_sha256": SHA,
+        "simulated": False,
+    }
     rows = [good, good | {"trial_index": 1, "chosen_frame": 2.5}]
-    with pytest.raises(SchemaError, match=r"x.csv: row 2 \(participant 'p+', trial 1\): "
-                                          r"chosen_frame: 2.5 is not of type"):
+    with pytest.raises(
+        SchemaError,
+        match=r"x.csv: row 2 \(participant 'p+', trial 1\): "
+        r"chosen_frame: 2.5 is not of type",
+    ):
         write_export(rows, tmp_path / "x.csv")
     assert not (tmp_path / "x.csv").exists()
 
 
 # ----------------------------------------------------------------------------- load
 N_PARTICIPANTS = 50
-N_TRIALS = 10          # answered one by one by each participant's own thread
-RESENT = (2, 5, 9)     # trials each participant re-sends (a double click, a retry)
+N_TRIALS = 10  # answered one by one by each participant's own thread
+RESENT = (2, 5, 9)  # trials each participant re-sends (a double click, a retry)
 
 
 def test_concurrent_participants(store):
     """50 participants answer at once (threads), re-sending some answers, and two racing
     requests per participant send the same last trial: exactly one row per trial."""
     start = threading.Barrier(N_PARTICIPANTS)
-    stored_first = {}   # (pid, trial) -> the row whose send returned True
+    stored_first = {}  # (pid, trial) -> the row whose send returned True
     lock = threading.Lock()
     n_false = [0]
 
@@ -521,9 +596,11 @@ def test_concurrent_participants(store):
         start.wait()
         pid = store.create_participant("load", SHA, app_version="0.1.0", seed=k)
         for t in range(N_TRIALS):
-            row = (pose_row(t, frame=rng.randrange(300), rt=rng.uniform(0.5, 9))
-                   if t % 2 == 0 else
-                   view_row(t, position=rng.randrange(3), order=rng.sample(METHODS, 3)))
+            row = (
+                pose_row(t, frame=rng.randrange(300), rt=rng.uniform(0.5, 9))
+                if t % 2 == 0
+                else view_row(t, position=rng.randrange(3), order=rng.sample(METHODS, 3))
+            )
             assert send(pid, row)
             if t in RESENT:
                 assert not send(pid, row | {"response_time_s": 99.0})
@@ -552,15 +629,17 @@ def test_concurrent_participants(store):
     assert len(rows) == expected == len(stored_first) == count_rows(store, "responses")
     assert n_false[0] == N_PARTICIPANTS * (len(RESENT) + 1)
     keys = [(r["participant_id"], r["trial_index"]) for r in rows]
-    assert len(set(keys)) == expected                       # none duplicated
-    assert set(keys) == {(p, t) for p in pids for t in range(N_TRIALS + 1)}   # none lost
-    for r in rows:                                          # the first answer is the one kept
+    assert len(set(keys)) == expected  # none duplicated
+    assert set(keys) == {(p, t) for p in pids for t in range(N_TRIALS + 1)}  # none lost
+    for r in rows:  # the first answer is the one kept
         src = stored_first[(r["participant_id"], r["trial_index"])]
         assert all(r[k] == v for k, v in src.items())
     assert count_rows(store, "events") == N_PARTICIPANTS * len(range(0, N_TRIALS, 3))
     assert store.progress()["participants"] == N_PARTICIPANTS
-    print(f"\n[{store.dialect}] {len(rows)} rows from {N_PARTICIPANTS} concurrent participants; "
-          f"{n_false[0]} duplicate sends refused")
+    print(
+        f"\n[{store.dialect}] {len(rows)} rows from {N_PARTICIPANTS} concurrent participants; "
+        f"{n_false[0]} duplicate sends refused"
+    )
 
 
 # ----------------------------------------------------------------------------- CLI
@@ -576,19 +655,30 @@ def test_cli_export(sqlite_url, tmp_path):
     out, parts = tmp_path / "out" / "responses.csv", tmp_path / "participants.csv"
     out.parent.mkdir()
     # --identifiers: the raw ids, to match the rows sent (pseudonyms: tests/test_open_data.py)
-    code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out),
-                           "--participants", str(parts), "--identifiers")
+    code, _, err = run_cli(
+        "export", "--db", sqlite_url, "-o", str(out), "--participants", str(parts), "--identifiers"
+    )
     assert code == 0, err
     rows = read_export(out)
-    assert {(r["participant_id"], r["trial_index"]) for r in rows} == \
-        {k for k in sent if k[0] != sim}
+    assert {(r["participant_id"], r["trial_index"]) for r in rows} == {
+        k for k in sent if k[0] != sim
+    }
     n_sim = sum(1 for k in sent if k[0] == sim)
     assert f"note: {n_sim} responses of simulated participants were left out" in err
     import csv
+
     table = list(csv.DictReader(parts.open()))
     assert len(table) == 2 and {t["n_responses"] for t in table} == {"3"}
-    code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(tmp_path / "all.json"),
-                           "--include-simulated", "--events", str(tmp_path / "ev.jsonl"))
+    code, _, err = run_cli(
+        "export",
+        "--db",
+        sqlite_url,
+        "-o",
+        str(tmp_path / "all.json"),
+        "--include-simulated",
+        "--events",
+        str(tmp_path / "ev.jsonl"),
+    )
     assert code == 0, err
     assert "left out" not in err
     lines = (tmp_path / "all.json").read_text().splitlines()
@@ -637,8 +727,10 @@ def test_cli_bad_row_names_row_and_field(sqlite_url, tmp_path):
     with Store(sqlite_url) as s:
         populate(s)
         with s.engine.begin() as conn:
-            conn.exec_driver_sql("UPDATE responses SET chosen_method = 'forged' "
-                                 "WHERE task = 'view' AND chosen_position = 2")
+            conn.exec_driver_sql(
+                "UPDATE responses SET chosen_method = 'forged' "
+                "WHERE task = 'view' AND chosen_position = 2"
+            )
     out = tmp_path / "r.csv"
     code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out))
     assert code == 2 and err.count("\n") == 1
@@ -646,11 +738,14 @@ def test_cli_bad_row_names_row_and_field(sqlite_url, tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("url, expect", [
-    ("bogus://u:hunter2@h/db", "unknown database type"),
-    ("sqlite:///{tmp}/missing/study.db", "no such file"),
-    ("postgresql://u:hunter2@127.0.0.1:{port}/db", "Connection refused"),
-])
+@pytest.mark.parametrize(
+    "url, expect",
+    [
+        ("bogus://u:hunter2@h/db", "unknown database type"),
+        ("sqlite:///{tmp}/missing/study.db", "no such file"),
+        ("postgresql://u:hunter2@127.0.0.1:{port}/db", "Connection refused"),
+    ],
+)
 def test_cli_broken_url(url, expect, tmp_path):
     """A broken --db URL: one line, password masked, exit code 2, no traceback."""
     with socket.socket() as sock:
@@ -664,9 +759,20 @@ def test_cli_broken_url(url, expect, tmp_path):
 
 def test_cli_broken_url_real_process(tmp_path):
     """The same through the real console entry point (no test runner in between)."""
-    proc = subprocess.run([sys.executable, "-m", "snapcore.cli.main", "export", "--db",
-                           "postgresql://me:topsecret@127.0.0.1:1/x", "-o",
-                           str(tmp_path / "r.csv")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "snapcore.cli.main",
+            "export",
+            "--db",
+            "postgresql://me:topsecret@127.0.0.1:1/x",
+            "-o",
+            str(tmp_path / "r.csv"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     assert proc.stderr.startswith("error: cannot open database postgresql+psycopg://me:***@")
     assert proc.stderr.count("\n") == 1 and "topsecret" not in proc.stderr
@@ -700,8 +806,9 @@ def test_one_participant_per_prolific_id_under_concurrency(store_url):
 
     def register(k):
         s = (a, b)[k % 2]
-        return s.participant_for_prolific("demo", SHA, app_version="0.1.0", seed=k,
-                                          prolific=prolific)
+        return s.participant_for_prolific(
+            "demo", SHA, app_version="0.1.0", seed=k, prolific=prolific
+        )
 
     with ThreadPoolExecutor(8) as pool:
         got = list(pool.map(register, range(8)))

@@ -40,8 +40,7 @@ def _quiet(fn, *a, **kw):
 def test_hysteresis_keeps_state_inside_the_band():
     """On at <= 1, off above 2, unchanged in between; starts off."""
     s = np.array([1.5, 0.5, 1.5, 1.9, 2.5, 1.5, 0.9, 3.0])
-    assert hysteresis(s, 1.0, 2.0).tolist() == [False, True, True, True, False, False, True,
-                                                 False]
+    assert hysteresis(s, 1.0, 2.0).tolist() == [False, True, True, True, False, False, True, False]
     two = np.stack([s, s[::-1]], axis=1)  # columns switch independently
     np.testing.assert_array_equal(hysteresis(two, 1.0, 2.0)[:, 0], hysteresis(s, 1.0, 2.0))
 
@@ -76,7 +75,7 @@ def test_rare_events_carry_more_bits():
     st = np.zeros((2, n_f), dtype=bool)
     st[0, 10:150] = True  # limb 0: one release at 150
     for s in range(0, 200, 40):
-        st[1, s + 5:s + 25] = True  # limb 1: five releases
+        st[1, s + 5 : s + 25] = True  # limb 1: five releases
     bits = event_surprisal(st, fps=10.0, support_s=0.0)
     assert bits[150] == pytest.approx(np.log2(200))
     assert bits[25] == pytest.approx(np.log2(200 / 5))
@@ -198,7 +197,7 @@ def _steps_from_heel_minima(c, fps, foot):
     minima, _ = find_peaks(-padded, prominence=0.02, distance=max(1, int(0.2 * fps)))
     steps = []
     for k in minima - 1:
-        if steps and low[steps[-1]:k + 1].max() - max(low[steps[-1]], low[k]) < 0.03:
+        if steps and low[steps[-1] : k + 1].max() - max(low[steps[-1]], low[k]) < 0.03:
             continue
         steps.append(k)
     return steps
@@ -243,7 +242,7 @@ def test_salient_error_table_matches_direct_sums():
         for b in range(a + 1, 5):
             s, e = keys[a], keys[b]
             t = (np.arange(s, e + 1) - s) / (e - s)
-            ref = np.square(x[s:e + 1] - ((1 - t)[:, None] * x[s] + t[:, None] * x[e])).sum()
+            ref = np.square(x[s : e + 1] - ((1 - t)[:, None] * x[s] + t[:, None] * x[e])).sum()
             assert err[a, b] == pytest.approx(ref, rel=1e-9, abs=1e-9)
 
 
@@ -262,10 +261,12 @@ def test_salient_finds_the_corner_of_a_polyline():
 def test_middle_and_random_baselines():
     """middle: the middle frame first; random: reproducible by seed, distinct frames."""
     assert middle_frames(101, 3) == [50, 25, 75]
-    a, b = random_frames(500, 3, seed=7, min_separation=30), random_frames(500, 3, seed=7,
-                                                                             min_separation=30)
+    a, b = (
+        random_frames(500, 3, seed=7, min_separation=30),
+        random_frames(500, 3, seed=7, min_separation=30),
+    )
     assert a == b and len(set(a)) == 3
-    assert min(abs(x - y) for i, x in enumerate(a) for y in a[i + 1:]) >= 30
+    assert min(abs(x - y) for i, x in enumerate(a) for y in a[i + 1 :]) >= 30
     assert random_frames(500, 3, seed=8) != a
 
 

@@ -39,12 +39,14 @@ def _standing(t, rng) -> Pose:
     pose = Pose(n)
     breath = np.sin(2 * np.pi * t / (3.0 + rng.uniform(0, 0.6)))
     sway = np.sin(2 * np.pi * t / (4.0 + rng.uniform(0, 1.0)) + rng.uniform(0, 2 * np.pi))
-    pose.root = np.stack([0.02 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath,
-                          0.004 * breath], axis=1)
+    pose.root = np.stack(
+        [0.02 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath, 0.004 * breath], axis=1
+    )
     pose.local["Hips"] = zxy(1.5 * sway, 1.0, 2.0 * sway)
     pose.local["Spine"] = zxy(-1.5 * sway, 1.0 + breath, -sway)
-    plant_feet(pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]],
-               [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03])
+    plant_feet(
+        pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]], [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03]
+    )
     for side in SIDES:
         arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * SIDES[side], 14.0)
     return pose
@@ -65,8 +67,11 @@ def _gesture(fps: float, seed: int, *, seconds: float, start_s: float, end_s: fl
     t = np.arange(int(round(seconds * fps)) + 1) / fps
     pose = _standing(t, rng)
     peak = 160.0 + rng.uniform(-10, 10)
-    up = pchip(t, [0.0, start_s, start_s + 0.3, end_s - 0.3, end_s, seconds],
-               [0.0, 0.0, 1.0, 1.0, 0.0, 0.0])
+    up = pchip(
+        t,
+        [0.0, start_s, start_s + 0.3, end_s - 0.3, end_s, seconds],
+        [0.0, 0.0, 1.0, 1.0, 0.0, 0.0],
+    )
     wave = 12.0 * np.sin(2 * np.pi * 2.0 * (t - start_s)) * up
     arm_fk(pose, "Right", 8.0 + (peak - 8.0) * up + wave, 10.0 * up, 14.0 + 30.0 * up)
     action = np.flatnonzero(up >= 0.8)
@@ -92,13 +97,16 @@ def _kicks(fps: float, seed: int, *, seconds: float = 6.0, times=(1.2, 3.0, 4.8)
     pose.local["RightLeg"] = rx(knee)
     for side in SIDES:
         arm_fk(pose, side, 20.0, 40.0, 110.0)
-    peaks = [np.flatnonzero((np.abs(t - tk) < 0.6) & (hip >= 0.8 * hip[np.abs(t - tk) < 0.6].max()))
-             for tk in times]
+    peaks = [
+        np.flatnonzero((np.abs(t - tk) < 0.6) & (hip >= 0.8 * hip[np.abs(t - tk) < 0.6].max()))
+        for tk in times
+    ]
     return _scene(pose, fps, "kicks"), np.concatenate(peaks)
 
 
-def _bow(fps: float, seed: int, *, seconds: float, start_s: float, end_s: float,
-         depth_deg: float = 30.0):
+def _bow(
+    fps: float, seed: int, *, seconds: float, start_s: float, end_s: float, depth_deg: float = 30.0
+):
     """A bow: the trunk flexes by ``depth_deg`` (+-5, spine, chest and neck), held 0.4 s
     around the middle of ``start_s``..``end_s``. Returns the scene and the frames within
     30 % of the deepest flexion."""
@@ -106,8 +114,9 @@ def _bow(fps: float, seed: int, *, seconds: float, start_s: float, end_s: float,
     t = np.arange(int(round(seconds * fps)) + 1) / fps
     pose = _standing(t, rng)
     mid = 0.5 * (start_s + end_s)
-    flex = pchip(t, [0.0, start_s, mid - 0.2, mid + 0.2, end_s, seconds],
-                 [0.0, 0.0, 1.0, 1.0, 0.0, 0.0]) * (depth_deg + rng.uniform(-5, 5))
+    flex = pchip(
+        t, [0.0, start_s, mid - 0.2, mid + 0.2, end_s, seconds], [0.0, 0.0, 1.0, 1.0, 0.0, 0.0]
+    ) * (depth_deg + rng.uniform(-5, 5))
     pose.local["Spine"] = pose.local["Spine"] @ zxy(0.0, 0.6 * flex, 0.0)
     pose.local["Spine1"] = zxy(0.0, 0.4 * flex, 0.0)
     pose.local["Neck"] = zxy(0.0, 0.3 * flex, 0.0)

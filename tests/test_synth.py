@@ -50,8 +50,14 @@ def test_round_trip_is_exact(motion):
     assert back.frame_time == doc.frame_time
     assert np.array_equal(back.motion, doc.motion)
     assert format_bvh(back) == text
-    assert doc.channels[0] == ("Xposition", "Yposition", "Zposition",
-                               "Zrotation", "Xrotation", "Yrotation")
+    assert doc.channels[0] == (
+        "Xposition",
+        "Yposition",
+        "Zposition",
+        "Zrotation",
+        "Xrotation",
+        "Yrotation",
+    )
     assert set(doc.channels[1:]) <= {("Zrotation", "Xrotation", "Yrotation"), ()}
 
 
@@ -59,9 +65,26 @@ def test_document_shape_and_names():
     """Default length, CMU-like joint names, end sites on head, hands and toes."""
     doc = synth.humanoid_document("walk", seconds=2.0, fps=25.0)
     assert doc.n_frames == 51  # 2 s at 25 fps, first and last frame included
-    for name in ("Hips", "Spine", "Spine1", "Neck", "Head", "LeftShoulder", "LeftArm",
-                 "LeftForeArm", "LeftHand", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot",
-                 "LeftToeBase", "RightToeBase", "Head_End", "LeftHand_End", "RightToeBase_End"):
+    for name in (
+        "Hips",
+        "Spine",
+        "Spine1",
+        "Neck",
+        "Head",
+        "LeftShoulder",
+        "LeftArm",
+        "LeftForeArm",
+        "LeftHand",
+        "RightHand",
+        "LeftUpLeg",
+        "LeftLeg",
+        "LeftFoot",
+        "LeftToeBase",
+        "RightToeBase",
+        "Head_End",
+        "LeftHand_End",
+        "RightToeBase_End",
+    ):
         assert name in doc.names
     assert doc.end_site.sum() == 5
     with pytest.raises(ValueError, match="unknown motion"):
@@ -114,7 +137,9 @@ def test_bone_lengths_constant(scenes):
         for c in scene.characters:
             links = c.skeleton.links
             rest = np.linalg.norm(c.skeleton.offsets[links[:, 1]], axis=1)
-            length = np.linalg.norm(c.positions[:, links[:, 1]] - c.positions[:, links[:, 0]], axis=2)
+            length = np.linalg.norm(
+                c.positions[:, links[:, 1]] - c.positions[:, links[:, 0]], axis=2
+            )
             np.testing.assert_allclose(length, np.broadcast_to(rest, length.shape), atol=1e-5)
 
 
@@ -180,8 +205,8 @@ def test_jump_leaves_ground_at_documented_times(scenes):
     root_y = c.positions[:, 0, 1]
     assert root_y.max() - root_y[0] >= 0.2
     to, ld = _frame(synth.JUMP_TAKEOFF_S), _frame(synth.JUMP_LANDING_S)
-    assert low[:to + 1].max() < 0.02
-    assert low[to + 3: ld - 2].min() > 0.05
+    assert low[: to + 1].max() < 0.02
+    assert low[to + 3 : ld - 2].min() > 0.05
     assert low.max() >= 0.2  # the feet themselves clear 20 cm at the apex
     assert low[ld:].max() < 0.02
 
@@ -197,7 +222,7 @@ def test_kick_extends_fast_at_impact(scenes):
     assert abs(int(np.argmax(toe[:, 2])) - ti) <= 2
     assert toe[ti, 1] > 0.8  # about hip height
     speed = np.linalg.norm(np.gradient(toe, axis=0), axis=1) * c.fps
-    assert speed[ti - 4: ti + 1].max() > 4.0
+    assert speed[ti - 4 : ti + 1].max() > 4.0
     left = c.positions[:, c.skeleton.index("LeftToeBase")]
     assert np.linalg.norm(left - left[0], axis=1).max() < 0.005
     assert _foot_low(c, "Right")[-1] < 0.02  # the kicking foot is back down
@@ -339,7 +364,7 @@ def test_jumping_jacks_hop_at_documented_times(scenes):
     width = np.linalg.norm(ankles[:, 0] - ankles[:, 1], axis=1)
     starts = synth.events("jumping_jacks")["jack_starts"]
     assert len(starts) == 3
-    assert low[:_frame(starts[0])].max() < 0.01  # standing still before the first
+    assert low[: _frame(starts[0])].max() < 0.01  # standing still before the first
     for t in starts:
         assert low[_frame(t + 0.07)] > 0.03
         assert width[_frame(t + 0.3 * synth.JACKS_PERIOD_S)] > 0.5
@@ -349,13 +374,17 @@ def test_jumping_jacks_hop_at_documented_times(scenes):
 
 def test_events_cover_every_scene():
     """events() answers for every scene, and matches the module constants."""
-    assert synth.events("jump") == {"takeoff": synth.JUMP_TAKEOFF_S, "landing": synth.JUMP_LANDING_S}
+    assert synth.events("jump") == {
+        "takeoff": synth.JUMP_TAKEOFF_S,
+        "landing": synth.JUMP_LANDING_S,
+    }
     assert synth.events("push") == {"contact": (synth.PUSH_CONTACT_S, synth.PUSH_CONTACT_END_S)}
     assert synth.events("kick") == {"impact": synth.KICK_IMPACT_S}
     assert synth.events("punch") == {"impact": synth.PUNCH_IMPACT_S}
     assert synth.events("idle") == {}
     assert synth.events("jump", seconds=1.0) == {}  # both after the end of a 1 s clip
-    np.testing.assert_allclose(synth.events("walk")["left_heel_strikes"],
-                               synth.walk_heel_strikes()["left"])
+    np.testing.assert_allclose(
+        synth.events("walk")["left_heel_strikes"], synth.walk_heel_strikes()["left"]
+    )
     with pytest.raises(ValueError):
         synth.events("dance")

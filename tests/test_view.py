@@ -48,7 +48,9 @@ def array_scene(positions, parents, names=None, fps=30.0) -> Scene:
     f, j, _ = positions.shape
     parents = np.asarray(parents)
     names = tuple(names or (f"j{i}" for i in range(j)))
-    offsets = positions[0] - np.where(parents[:, None] >= 0, positions[0][np.maximum(parents, 0)], 0.0)
+    offsets = positions[0] - np.where(
+        parents[:, None] >= 0, positions[0][np.maximum(parents, 0)], 0.0
+    )
     eye = np.broadcast_to(np.eye(3), (f, j, 3, 3)).copy()
     sk = Skeleton(names, parents, offsets, np.zeros(j, bool))
     return Scene([Character("c", sk, positions, eye, eye.copy(), fps)], fps=fps)
@@ -80,7 +82,7 @@ def test_view_sphere_is_unit_and_antipodal(n):
     v = view_sphere(n)
     assert v.shape == (n, 3)
     np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-12)
-    np.testing.assert_array_equal(v[n // 2:], -v[: n // 2])
+    np.testing.assert_array_equal(v[n // 2 :], -v[: n // 2])
     assert np.all(v[: n // 2, 1] >= -1e-12)
     # near-uniform: the nearest neighbour of every sample is closer than the
     # spacing of a uniform set of n points times 1.5 (area 4π/n per point)
@@ -128,8 +130,9 @@ def test_pma_is_symmetric_under_view_reversal(motions_dir):
     v = unit(np.random.default_rng(1).normal(size=(40, 3)))
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     for w in ("pma", "motion_area"):
-        np.testing.assert_allclose(pma_scores(v, tri, weighting=w), pma_scores(-v, tri, weighting=w),
-                                   rtol=1e-12)
+        np.testing.assert_allclose(
+            pma_scores(v, tri, weighting=w), pma_scores(-v, tri, weighting=w), rtol=1e-12
+        )
 
 
 def loop_reference(scene, views, *, weighting, floor=MA_FLOOR_M2):
@@ -158,8 +161,10 @@ def test_fast_scores_equal_a_per_quad_loop(motions_dir, weighting):
     views /= np.linalg.norm(views, axis=1, keepdims=True)
     one = load(motions_dir / "walk_run/02_03.bvh")
     one = Scene([one.characters[0].frames(10, 40)], fps=one.fps)
-    pair = load([motions_dir / "two_person/60_01_scaled.bvh", motions_dir / "two_person/61_01_scaled.bvh"],
-                fps=60)
+    pair = load(
+        [motions_dir / "two_person/60_01_scaled.bvh", motions_dir / "two_person/61_01_scaled.bvh"],
+        fps=60,
+    )
     pair = Scene([c.frames(300, 316) for c in pair.characters], fps=60)
     for scene in (one, pair):
         tri = motion_triangles(scene)
@@ -170,8 +175,11 @@ def test_fast_scores_equal_a_per_quad_loop(motions_dir, weighting):
 
 def test_refined_view_is_never_below_the_best_sample(motions_dir):
     """The returned view scores at least as much as every sample, exactly evaluated."""
-    for rel, n in (("walk_run/02_03.bvh", 162), ("boxing_jump/dataset-1_punch_normal_001.bvh", 642),
-                   ("dance/05_06.bvh", 2562)):
+    for rel, n in (
+        ("walk_run/02_03.bvh", 162),
+        ("boxing_jump/dataset-1_punch_normal_001.bvh", 642),
+        ("dance/05_06.bvh", 2562),
+    ):
         scene = load(motions_dir / rel)
         tri = motion_triangles(scene)
         for method in ("pma", "motion_area"):
@@ -179,7 +187,9 @@ def test_refined_view_is_never_below_the_best_sample(motions_dir):
             exact = pma_scores(view_sphere(n), tri, weighting=method)
             assert sel.score >= exact.max() * (1 - 1e-12), (rel, method)
             assert sel.score_grid == pytest.approx(exact.max(), rel=1e-9)
-            assert sel.score == pytest.approx(pma_scores(sel.view, tri, weighting=method)[0], rel=1e-9)
+            assert sel.score == pytest.approx(
+                pma_scores(sel.view, tri, weighting=method)[0], rel=1e-9
+            )
             # the reported sample scores are lower bounds of the exact ones
             assert np.all(sel.scores <= exact * (1 + 1e-6))
 
@@ -209,8 +219,9 @@ def travel_direction(scene):
     return unit(d)
 
 
-@pytest.mark.parametrize("rel", ["walk_run/02_01.bvh", "walk_run/02_03.bvh",
-                                 "walk_run/dataset-2_run_normal_001.bvh"])
+@pytest.mark.parametrize(
+    "rel", ["walk_run/02_01.bvh", "walk_run/02_03.bvh", "walk_run/dataset-2_run_normal_001.bvh"]
+)
 def test_walk_and_runs_are_seen_from_the_side(motions_dir, rel):
     """>= 75° from the direction of travel and within 20° of horizontal."""
     scene = load(motions_dir / rel)
@@ -287,12 +298,18 @@ def test_synthetic_clips_pass_the_checks_without_shared_data():
             continue  # no motion: the static-clip test covers it
         tri = motion_triangles(scene)
         for w in ("pma", "motion_area"):
-            np.testing.assert_allclose(pma_scores(views, tri, weighting=w),
-                                       pma_scores(-views, tri, weighting=w), rtol=1e-12)
+            np.testing.assert_allclose(
+                pma_scores(views, tri, weighting=w),
+                pma_scores(-views, tri, weighting=w),
+                rtol=1e-12,
+            )
         short = Scene([c.frames(0, 20) for c in scene.characters], fps=scene.fps)
         for w in ("pma", "motion_area"):
-            np.testing.assert_allclose(pma_scores(views, motion_triangles(short), weighting=w),
-                                       loop_reference(short, views, weighting=w), rtol=1e-9)
+            np.testing.assert_allclose(
+                pma_scores(views, motion_triangles(short), weighting=w),
+                loop_reference(short, views, weighting=w),
+                rtol=1e-9,
+            )
         sel = select_view(scene, triangles=tri)
         assert sel.score >= 0.995 * pma_scores(dirs, tri).max(), scene.name
         rot = select_view(scene.transformed(yaw_deg=128.0))
@@ -323,9 +340,24 @@ def jumping_jacks(facing_deg, *, frames=90, fps=30.0):
 
     At yaw 0 the figure faces +Z, so its left side is +X (names follow CMU).
     """
-    names = ["Hips", "Spine", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand",
-             "RightArm", "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot",
-             "RightUpLeg", "RightLeg", "RightFoot"]
+    names = [
+        "Hips",
+        "Spine",
+        "Neck",
+        "Head",
+        "LeftArm",
+        "LeftForeArm",
+        "LeftHand",
+        "RightArm",
+        "RightForeArm",
+        "RightHand",
+        "LeftUpLeg",
+        "LeftLeg",
+        "LeftFoot",
+        "RightUpLeg",
+        "RightLeg",
+        "RightFoot",
+    ]
     parents = [-1, 0, 1, 2, 2, 4, 5, 2, 7, 8, 0, 10, 11, 0, 13, 14]
     t = np.arange(frames) / fps
     phase = 0.5 - 0.5 * np.cos(2 * math.pi * t / 1.0)  # 0 → 1 → 0 each second
@@ -337,7 +369,10 @@ def jumping_jacks(facing_deg, *, frames=90, fps=30.0):
     x[:, 1] = x[:, 0] + [0, 0.25, 0]
     x[:, 2] = x[:, 1] + [0, 0.25, 0]
     x[:, 3] = x[:, 2] + [0, 0.2, 0]
-    for side, (sh, el, ha, hip, kn, ft) in ((1, (4, 5, 6, 10, 11, 12)), (-1, (7, 8, 9, 13, 14, 15))):
+    for side, (sh, el, ha, hip, kn, ft) in (
+        (1, (4, 5, 6, 10, 11, 12)),
+        (-1, (7, 8, 9, 13, 14, 15)),
+    ):
         x[:, sh] = x[:, 2] + [side * 0.18, -0.05, 0]
         down = np.stack([side * np.sin(arm), -np.cos(arm), 0 * t], 1)
         x[:, el] = x[:, sh] + 0.3 * down
@@ -406,13 +441,19 @@ def test_profile_tie_break_is_rotation_invariant_and_faces_screen_right():
         assert screen_right @ f > 0.99
 
 
-@pytest.mark.parametrize("rel,names", [
-    ("walk_run/02_01.bvh", ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")),
-    ("walk_run/131_01.bvh", ("LeftHip", "RightHip", "LeftShoulder", "RightShoulder")),
-    ("soccer/10_01.bvh", ("lThigh", "rThigh", "lShldr", "rShldr")),
-    ("walk_run/dataset-2_run_normal_001.bvh", ("UpperLeg_L", "UpperLeg_R", "UpperArm_L", "UpperArm_R")),
-    ("boxing_jump/Boxing_Toes.bvh", ("LeftHip", "RightHip", "LeftShoulder", "RightShoulder")),
-])
+@pytest.mark.parametrize(
+    "rel,names",
+    [
+        ("walk_run/02_01.bvh", ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")),
+        ("walk_run/131_01.bvh", ("LeftHip", "RightHip", "LeftShoulder", "RightShoulder")),
+        ("soccer/10_01.bvh", ("lThigh", "rThigh", "lShldr", "rShldr")),
+        (
+            "walk_run/dataset-2_run_normal_001.bvh",
+            ("UpperLeg_L", "UpperLeg_R", "UpperArm_L", "UpperArm_R"),
+        ),
+        ("boxing_jump/Boxing_Toes.bvh", ("LeftHip", "RightHip", "LeftShoulder", "RightShoulder")),
+    ],
+)
 def test_joint_roles_across_namings(motions_dir, rel, names):
     """Hips and upper arms are found in the CMU, 3ds Max, Daz, Bandai and boxing namings."""
     c = load(motions_dir / rel).characters[0]
@@ -425,8 +466,12 @@ def test_facing_of_a_figure_facing_plus_z():
     """(left - right) × up: left hip at +X gives +Z; no named hips gives zero facing."""
     scene = jumping_jacks(0.0, frames=5)
     c = scene.characters[0]
-    np.testing.assert_allclose(character_facing(c.positions, c.joint_names, c.parents), [[0, 0, 1]] * 5, atol=1e-12)
-    np.testing.assert_allclose(character_facing(c.positions, [f"j{i}" for i in range(c.n_joints)], c.parents), 0.0)
+    np.testing.assert_allclose(
+        character_facing(c.positions, c.joint_names, c.parents), [[0, 0, 1]] * 5, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        character_facing(c.positions, [f"j{i}" for i in range(c.n_joints)], c.parents), 0.0
+    )
     np.testing.assert_allclose(scene_facing(scene.transformed(yaw_deg=90)), [1, 0, 0], atol=1e-12)
 
 
@@ -454,7 +499,8 @@ def test_window_picks_the_pose_specific_view():
     # step), whose maximum over v lies in the XZ plane at atan(118/178) = 33.5° from x
     assert abs(whole.view[1]) < 0.02
     assert angle_deg(whole.view, (1, 0, 0), up_to_sign=True) == pytest.approx(
-        math.degrees(math.atan2(118, 178)), abs=1.0)
+        math.degrees(math.atan2(118, 178)), abs=1.0
+    )
     assert window_frames(scene, 2, 10.0) == (0, scene.n_frames)
 
 
@@ -482,8 +528,14 @@ def test_static_clip_warns_and_returns_the_facing():
 def test_motion_area_weighting_prefers_big_sweeps():
     """Motion area weighs quads by m²; PMA by ratio: a big sweep in one plane and many
     small ones in another split the two methods."""
-    big = sweeping_link_scene((0, 0, 1), frames=20, with_translation=False).characters[0].positions * 5
-    small = sweeping_link_scene((1, 0, 0), frames=200, with_translation=False).characters[0].positions * 0.2
+    big = (
+        sweeping_link_scene((0, 0, 1), frames=20, with_translation=False).characters[0].positions
+        * 5
+    )
+    small = (
+        sweeping_link_scene((1, 0, 0), frames=200, with_translation=False).characters[0].positions
+        * 0.2
+    )
     small = small - small[0, 0] + big[-1, 0]
     scene = array_scene(np.concatenate([big, small]), [-1, 0, 1])
     pma = select_view(scene)
@@ -518,28 +570,39 @@ def test_select_json_reports_view_baselines_and_window(motions_dir):
     path = motions_dir / "walk_run/02_03.bvh"
     res = CliRunner().invoke(select, [str(path), "--json", "--window", "0.25"])
     assert res.exit_code == 0, res.output
-    doc = json.loads(res.output[res.output.index("{"):])  # the command validated it already
+    doc = json.loads(res.output[res.output.index("{") :])  # the command validated it already
     scene = load(path)
     frame = doc["frame"] - scene.frame_offset  # internal index of the pose
     half = round(0.25 * scene.fps)
     lo, hi = max(0, frame - half), min(scene.n_frames - 1, frame + half)
-    assert doc["window"] == {"mode": "pose", "half_width_s": 0.25, "frame": doc["frame"],
-                             "start_frame": lo + scene.frame_offset,
-                             "end_frame": hi + scene.frame_offset}
+    assert doc["window"] == {
+        "mode": "pose",
+        "half_width_s": 0.25,
+        "frame": doc["frame"],
+        "start_frame": lo + scene.frame_offset,
+        "end_frame": hi + scene.frame_offset,
+    }
     view = np.array(doc["view"])
     assert np.linalg.norm(view) == pytest.approx(1.0)
     np.testing.assert_allclose(doc["view_refined"], view)
     # PMA of the reported view, recomputed by the per-quad loop over the window's frames
     window = Scene([c.frames(lo, hi + 1) for c in scene.characters], fps=scene.fps)
-    assert doc["pma"]["score"] == pytest.approx(loop_reference(window, view[None], weighting="pma")[0],
-                                                rel=1e-9)
+    assert doc["pma"]["score"] == pytest.approx(
+        loop_reference(window, view[None], weighting="pma")[0], rel=1e-9
+    )
     assert doc["pma"]["score"] >= doc["pma"]["score_grid"] and doc["pma"]["certified"]
     base = doc["baselines"]
     assert set(base) == {"motion_area", "viewpoint_entropy"}
     assert base["motion_area"]["score"] == pytest.approx(
-        loop_reference(window, np.array(base["motion_area"]["view"])[None], weighting="motion_area")[0],
-        rel=1e-9)
-    assert base["viewpoint_entropy"]["frame"] == doc["frame"] and base["viewpoint_entropy"]["score"] > 0
+        loop_reference(
+            window, np.array(base["motion_area"]["view"])[None], weighting="motion_area"
+        )[0],
+        rel=1e-9,
+    )
+    assert (
+        base["viewpoint_entropy"]["frame"] == doc["frame"]
+        and base["viewpoint_entropy"]["score"] > 0
+    )
     for b in base.values():
         assert np.linalg.norm(b["view"]) == pytest.approx(1.0)
     assert {"view", "motion_area", "viewpoint_entropy"} <= set(doc["timings_s"])
@@ -571,8 +634,15 @@ def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
     from snapcore.cli.views import plot_views
 
     out = tmp_path / f"views_{projection}.png"
-    args = [str(motions_dir / "walk_run/02_03.bvh"), "-o", str(out), "--projection", projection,
-            "--frame", "80"]
+    args = [
+        str(motions_dir / "walk_run/02_03.bvh"),
+        "-o",
+        str(out),
+        "--projection",
+        projection,
+        "--frame",
+        "80",
+    ]
     if projection == "equirect":
         args.append("--no-entropy")
     res = CliRunner().invoke(plot_views, args)
@@ -598,15 +668,25 @@ def test_view_maps_picks_are_the_maxima(motions_dir):
 
 def test_joint_roles_on_other_namings():
     """Namespaces, _L/_R and l/r suffixes; CMU's clavicle "LeftShoulder" loses to "LeftArm"."""
-    names = ["mixamorig:Hips", "mixamorig:LeftUpLeg", "mixamorig:RightUpLeg",
-             "mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:RightShoulder",
-             "mixamorig:RightArm", "LHipJoint"]
+    names = [
+        "mixamorig:Hips",
+        "mixamorig:LeftUpLeg",
+        "mixamorig:RightUpLeg",
+        "mixamorig:LeftShoulder",
+        "mixamorig:LeftArm",
+        "mixamorig:RightShoulder",
+        "mixamorig:RightArm",
+        "LHipJoint",
+    ]
+
     def pairs(names):
         return left_right_pairs(names, [-1] * len(names))
 
     assert pairs(names) == {"hip": (1, 2), "shoulder": (4, 6)}
     assert pairs(["pelvis", "thigh_l", "thigh_r", "upperarm_l", "upperarm_r"]) == {
-        "hip": (1, 2), "shoulder": (3, 4)}
+        "hip": (1, 2),
+        "shoulder": (3, 4),
+    }
     assert pairs(["Hips", "Spine", "Head"]) == {"hip": None, "shoulder": None}
 
 
@@ -615,8 +695,7 @@ def test_view_angles_and_near_duplicates_known_answers():
     from snapcore.select.view import near_duplicate_views, view_angles_deg
 
     c = math.radians(10.0)
-    dirs = {"a": [1, 0, 0], "b": [math.cos(c), 0, math.sin(c)], "c": [0, 0, 5],
-            "d": [-1, 0.05, 0]}
+    dirs = {"a": [1, 0, 0], "b": [math.cos(c), 0, math.sin(c)], "c": [0, 0, 5], "d": [-1, 0.05, 0]}
     ang = view_angles_deg(dirs)
     assert ang["a|b"] == pytest.approx(10.0) and ang["a|c"] == pytest.approx(90.0)
     assert ang["a|d"] == pytest.approx(180 - math.degrees(math.atan(0.05)))

@@ -73,7 +73,9 @@ def test_cube_entropy_along_an_axis_and_a_diagonal():
     """Face-id renders of a cube match the hand-computed entropies (1.25 and 2.48 bits)."""
     render = pytest.importorskip("snapcore.render.buffers")
     v, f = unit_cube()
-    views = np.array([[0, 0, 1.0], [1.0, 0, 0], [1, 1, 1.0] / np.sqrt(3), [-1, 1, -1.0] / np.sqrt(3)])
+    views = np.array(
+        [[0, 0, 1.0], [1.0, 0, 0], [1, 1, 1.0] / np.sqrt(3), [-1, 1, -1.0] / np.sqrt(3)]
+    )
     ids = render.render_face_ids(v, f, views, resolution=512)
     got = viewpoint_entropy(ids, len(f))
     # pixel edges cost ~1 % of a face's pixels at 512²: a few hundredths of a bit
@@ -93,7 +95,9 @@ def test_cube_baseline_picks_a_corner_view():
     # views more than 10° below the horizon were not rendered
     low = sel.views[:, 1] < -math.sin(math.radians(10)) - 1e-9
     assert np.all(np.isnan(sel.scores[low])) and np.all(np.isfinite(sel.scores[~low]))
-    full = select_view_entropy(None, 0, mesh=SimpleNamespace(vertices=v, faces=f), min_elevation_deg=None)
+    full = select_view_entropy(
+        None, 0, mesh=SimpleNamespace(vertices=v, faces=f), min_elevation_deg=None
+    )
     assert np.all(np.isfinite(full.scores)) and full.score >= sel.score
 
 

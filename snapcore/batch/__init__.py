@@ -12,5 +12,14 @@ from snapcore.batch.discover import BatchError, Discovery, SceneSource, discover
 from snapcore.batch.run import BatchInterrupted, BatchReport, run_batch
 from snapcore.batch.task import BatchOptions, run_scene
 
-__all__ = ["BatchError", "BatchInterrupted", "BatchOptions", "BatchReport", "Discovery",
-           "SceneSource", "discover", "run_batch", "run_scene"]
+__all__ = [
+    "BatchError",
+    "BatchInterrupted",
+    "BatchOptions",
+    "BatchReport",
+    "Discovery",
+    "SceneSource",
+    "discover",
+    "run_batch",
+    "run_scene",
+]

@@ -23,8 +23,17 @@ from pathlib import Path, PurePosixPath
 
 from snapcore.errors import SnapshotError
 
-__all__ = ["BatchError", "SceneSource", "Discovery", "discover", "content_hash",
-           "MOTION_SUFFIXES", "GLTF_SUFFIXES", "MANIFEST_SUFFIXES", "LIST_SUFFIXES"]
+__all__ = [
+    "BatchError",
+    "SceneSource",
+    "Discovery",
+    "discover",
+    "content_hash",
+    "MOTION_SUFFIXES",
+    "GLTF_SUFFIXES",
+    "MANIFEST_SUFFIXES",
+    "LIST_SUFFIXES",
+]
 
 #: Motion files run as one scene each.
 BVH_SUFFIXES = (".bvh",)
@@ -142,8 +151,11 @@ def _walk(root: Path, exclude: list[Path]) -> list[Path]:
     found = []
     for folder, dirs, files in os.walk(root):
         here = Path(folder)
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".")
-                         and not any(_same(here / d, e) for e in exclude))
+        dirs[:] = sorted(
+            d
+            for d in dirs
+            if not d.startswith(".") and not any(_same(here / d, e) for e in exclude)
+        )
         found += [here / f for f in sorted(files) if not f.startswith(".")]
     return found
 
@@ -177,8 +189,9 @@ def _expand(source: str, exclude: list[Path], depth: int = 0) -> list[tuple[Path
         out = []
         for m in sorted(glob.glob(str(p), recursive=True)):
             mp = Path(m)
-            out += ([(f, mp, False) for f in _walk(mp, exclude)] if mp.is_dir()
-                    else [(mp, root, False)])
+            out += (
+                [(f, mp, False) for f in _walk(mp, exclude)] if mp.is_dir() else [(mp, root, False)]
+            )
         if not out:
             raise BatchError(f"SOURCE {source}: the pattern matches no files")
         return out
@@ -295,8 +308,12 @@ def _unique_keys(scenes: list[SceneSource]) -> list[SceneSource]:
         seen[s.key] = n
         if n > 1:
             stem = PurePosixPath(s.key)
-            s = SceneSource(key=str(stem.with_name(f"{stem.stem}~{n}{stem.suffix}")),
-                            kind=s.kind, path=s.path, members=s.members)
+            s = SceneSource(
+                key=str(stem.with_name(f"{stem.stem}~{n}{stem.suffix}")),
+                kind=s.kind,
+                path=s.path,
+                members=s.members,
+            )
         out.append(s)
     return sorted(out, key=lambda s: s.key)
 

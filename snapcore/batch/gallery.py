@@ -25,9 +25,31 @@ __all__ = ["write_gallery", "gallery_html", "GALLERY_NAME"]
 
 GALLERY_NAME = "index.html"
 #: Row fields the page uses (hashes and options stay in the CSV).
-_FIELDS = ("path", "folder", "name", "kind", "status", "error", "warnings", "characters",
-           "n_frames", "fps", "duration_s", "frame", "time_s", "top_frames", "score",
-           "thumb_pose", "view_x", "view_y", "view_z", "json", "thumb", "sheet", "t_total_s")
+_FIELDS = (
+    "path",
+    "folder",
+    "name",
+    "kind",
+    "status",
+    "error",
+    "warnings",
+    "characters",
+    "n_frames",
+    "fps",
+    "duration_s",
+    "frame",
+    "time_s",
+    "top_frames",
+    "score",
+    "thumb_pose",
+    "view_x",
+    "view_y",
+    "view_z",
+    "json",
+    "thumb",
+    "sheet",
+    "t_total_s",
+)
 
 _CSS = """
 body{font:14px system-ui,sans-serif;margin:0;background:#f4f4f2;color:#222}
@@ -300,8 +322,9 @@ folder, then run the batch again</span></header>
 """
 
 
-def write_gallery(out, rows, *, title: str = "Action Snapshot gallery",
-                  size: tuple[int, int] = (320, 360)) -> Path:
+def write_gallery(
+    out, rows, *, title: str = "Action Snapshot gallery", size: tuple[int, int] = (320, 360)
+) -> Path:
     """Write ``OUT/index.html`` for ``rows`` (atomically) and return its path."""
     path = Path(out) / GALLERY_NAME
     atomic_write(path, gallery_html(rows, title=title, ratio=size[0] / size[1]))

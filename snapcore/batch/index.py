@@ -17,21 +17,52 @@ import io
 import os
 from pathlib import Path
 
-__all__ = ["COLUMNS", "TIMING_COLUMNS", "INDEX_NAME", "PARQUET_NAME", "atomic_write",
-           "write_index", "read_index", "write_parquet", "read_parquet", "validate_row"]
+__all__ = [
+    "COLUMNS",
+    "TIMING_COLUMNS",
+    "INDEX_NAME",
+    "PARQUET_NAME",
+    "atomic_write",
+    "write_index",
+    "read_index",
+    "write_parquet",
+    "read_parquet",
+    "validate_row",
+]
 
 INDEX_NAME = "index.csv"
 #: The same index as Parquet (same columns, order and types; null for an empty cell).
 PARQUET_NAME = "index.parquet"
 #: Column order in the CSV (the schema's properties, in a reading order).
 COLUMNS = (
-    "path", "folder", "name", "kind", "status", "error", "warnings",
-    "content_hash", "options_hash",
-    "characters", "n_frames", "fps", "duration_s", "frame", "time_s", "top_frames",
-    "score", "thumb_pose",
-    "view_x", "view_y", "view_z",
-    "json", "thumb", "sheet",
-    "t_load_s", "t_select_s", "t_render_s", "t_total_s",
+    "path",
+    "folder",
+    "name",
+    "kind",
+    "status",
+    "error",
+    "warnings",
+    "content_hash",
+    "options_hash",
+    "characters",
+    "n_frames",
+    "fps",
+    "duration_s",
+    "frame",
+    "time_s",
+    "top_frames",
+    "score",
+    "thumb_pose",
+    "view_x",
+    "view_y",
+    "view_z",
+    "json",
+    "thumb",
+    "sheet",
+    "t_load_s",
+    "t_select_s",
+    "t_render_s",
+    "t_total_s",
 )
 #: Columns that differ between two runs of the same batch (wall-clock seconds).
 TIMING_COLUMNS = ("t_load_s", "t_select_s", "t_render_s", "t_total_s")
@@ -108,8 +139,9 @@ def read_index(path) -> list[dict]:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None or tuple(header) != COLUMNS:
-            raise SchemaError(f"{path}: not a batch index (its columns are not "
-                              f"{', '.join(COLUMNS[:3])}, ...)")
+            raise SchemaError(
+                f"{path}: not a batch index (its columns are not {', '.join(COLUMNS[:3])}, ...)"
+            )
         rows = []
         for n, cells in enumerate(reader, start=2):
             if len(cells) != len(COLUMNS):
@@ -146,8 +178,9 @@ def write_parquet(path, rows) -> None:
         return v
 
     rows = sorted(rows, key=lambda r: r["path"])
-    table = pa.Table.from_pydict({c: [value(r, c) for r in rows] for c in COLUMNS},
-                                 schema=_arrow_schema())
+    table = pa.Table.from_pydict(
+        {c: [value(r, c) for r in rows] for c in COLUMNS}, schema=_arrow_schema()
+    )
     buf = pa.BufferOutputStream()
     pq.write_table(table, buf)
     atomic_write(path, buf.getvalue().to_pybytes())

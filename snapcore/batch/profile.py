@@ -31,7 +31,10 @@ __all__ = ["profile_batch", "format_profile"]
 
 def _cpu_s() -> float:
     """CPU seconds of this process and of its finished children (workers, commands)."""
-    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    me, kids = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
@@ -54,16 +57,34 @@ def _loop(scenes, options, n: int) -> dict:
             sel = [exe, "select", s.path, "--json", *common]
             if not options.snapshot.get("baselines", True):
                 sel.append("--no-baselines")
-            doc = json.loads(subprocess.run(sel, check=True, capture_output=True,
-                                            text=True).stdout)
+            doc = json.loads(subprocess.run(sel, check=True, capture_output=True, text=True).stdout)
             view = ",".join(repr(float(x)) for x in doc["view"])
-            subprocess.run([exe, "render", s.path, *common, "--frame", str(doc["frame"]),
-                            "--view", view, "--size", size, "-o", str(Path(tmp) / "t.png")],
-                           check=True, capture_output=True)
+            subprocess.run(
+                [
+                    exe,
+                    "render",
+                    s.path,
+                    *common,
+                    "--frame",
+                    str(doc["frame"]),
+                    "--view",
+                    view,
+                    "--size",
+                    size,
+                    "-o",
+                    str(Path(tmp) / "t.png"),
+                ],
+                check=True,
+                capture_output=True,
+            )
             times.append(time.perf_counter() - t0)
     n = len(times)
-    return {"scenes": n, "elapsed_s": sum(times), "per_scene_s": sum(times) / n if n else None,
-            "cpu_per_scene_s": (_cpu_s() - cpu0) / n if n else None}
+    return {
+        "scenes": n,
+        "elapsed_s": sum(times),
+        "per_scene_s": sum(times) / n if n else None,
+        "cpu_per_scene_s": (_cpu_s() - cpu0) / n if n else None,
+    }
 
 
 def _batch(scenes, out, options, jobs: int, quiet: bool) -> dict:
@@ -71,14 +92,22 @@ def _batch(scenes, out, options, jobs: int, quiet: bool) -> dict:
         print(f"profile: batch --jobs {jobs} ...", file=sys.stderr, flush=True)
     cpu0 = _cpu_s()
     r = run_batch(scenes, out, options, jobs=jobs, force=True)
-    return {"jobs": jobs, "scenes": r.done, "ok": r.done - r.errors, "errors": r.errors,
-            "elapsed_s": r.elapsed_s, "scenes_per_s": r.done / r.elapsed_s,
-            "per_scene_s": r.elapsed_s / r.done, "cpu_per_scene_s": (_cpu_s() - cpu0) / r.done,
-            "rows": r.rows}
+    return {
+        "jobs": jobs,
+        "scenes": r.done,
+        "ok": r.done - r.errors,
+        "errors": r.errors,
+        "elapsed_s": r.elapsed_s,
+        "scenes_per_s": r.done / r.elapsed_s,
+        "per_scene_s": r.elapsed_s / r.done,
+        "cpu_per_scene_s": (_cpu_s() - cpu0) / r.done,
+        "rows": r.rows,
+    }
 
 
-def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
-                  quiet: bool = False) -> dict:
+def profile_batch(
+    scenes, out, options, *, loop: int = 3, jobs: int = 2, quiet: bool = False
+) -> dict:
     """Time the batch at 1 and ``jobs`` processes and a loop of separate commands.
 
     Parameters
@@ -106,13 +135,19 @@ def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
     base = Path(out) / "profile"
     one = _batch(scenes, base / "jobs1", options, 1, quiet)
     many = _batch(scenes, base / f"jobs{jobs}", options, jobs, quiet)
-    result = {"cpus": os.cpu_count(), "scenes": len(scenes),
-              "batch": [{k: v for k, v in b.items() if k != "rows"} for b in (one, many)],
-              "speedup": one["elapsed_s"] / many["elapsed_s"]}
+    result = {
+        "cpus": os.cpu_count(),
+        "scenes": len(scenes),
+        "batch": [{k: v for k, v in b.items() if k != "rows"} for b in (one, many)],
+        "speedup": one["elapsed_s"] / many["elapsed_s"],
+    }
     if loop:
         if not quiet:
-            print(f"profile: separate select + render calls on {loop} scenes ...",
-                  file=sys.stderr, flush=True)
+            print(
+                f"profile: separate select + render calls on {loop} scenes ...",
+                file=sys.stderr,
+                flush=True,
+            )
         ok = {r["path"]: r for r in one["rows"] if r["status"] == "ok"}
         picked = [s for s in scenes if s.key in ok][:loop]
         lp = _loop(picked, options, loop)
@@ -127,24 +162,37 @@ def profile_batch(scenes, out, options, *, loop: int = 3, jobs: int = 2,
 
 def format_profile(result: dict) -> list[str]:
     """The measurement as a Markdown table (what the README shows)."""
-    lines = [f"{result['scenes']} scenes, {result['cpus']} CPUs", "",
-             "| run | scenes | wall s | scenes/s | wall s per scene | CPU s per scene |",
-             "|---|---:|---:|---:|---:|---:|"]
+    lines = [
+        f"{result['scenes']} scenes, {result['cpus']} CPUs",
+        "",
+        "| run | scenes | wall s | scenes/s | wall s per scene | CPU s per scene |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
     for b in result["batch"]:
-        lines.append(f"| `batch --jobs {b['jobs']}` | {b['scenes']} | {b['elapsed_s']:.1f} | "
-                     f"{b['scenes_per_s']:.3f} | {b['per_scene_s']:.2f} | "
-                     f"{b['cpu_per_scene_s']:.2f} |")
+        lines.append(
+            f"| `batch --jobs {b['jobs']}` | {b['scenes']} | {b['elapsed_s']:.1f} | "
+            f"{b['scenes_per_s']:.3f} | {b['per_scene_s']:.2f} | "
+            f"{b['cpu_per_scene_s']:.2f} |"
+        )
     lp = result.get("loop")
     if lp and lp["scenes"]:
-        lines.append(f"| loop: `select` + `render` per scene | {lp['scenes']} | "
-                     f"{lp['elapsed_s']:.1f} | {lp['scenes'] / lp['elapsed_s']:.3f} | "
-                     f"{lp['per_scene_s']:.2f} | {lp['cpu_per_scene_s']:.2f} |")
-        lines += ["", f"--jobs {result['batch'][1]['jobs']} vs --jobs 1: "
-                      f"{result['speedup']:.2f}x the throughput",
-                  f"separate calls vs the batch on the same {lp['scenes']} scenes "
-                  f"({', '.join(lp['paths'])}): {lp['per_scene_s']:.2f} s vs "
-                  f"{lp['batch_per_scene_s']:.2f} s per scene = {result['loop_vs_batch']:.1f}x"]
+        lines.append(
+            f"| loop: `select` + `render` per scene | {lp['scenes']} | "
+            f"{lp['elapsed_s']:.1f} | {lp['scenes'] / lp['elapsed_s']:.3f} | "
+            f"{lp['per_scene_s']:.2f} | {lp['cpu_per_scene_s']:.2f} |"
+        )
+        lines += [
+            "",
+            f"--jobs {result['batch'][1]['jobs']} vs --jobs 1: "
+            f"{result['speedup']:.2f}x the throughput",
+            f"separate calls vs the batch on the same {lp['scenes']} scenes "
+            f"({', '.join(lp['paths'])}): {lp['per_scene_s']:.2f} s vs "
+            f"{lp['batch_per_scene_s']:.2f} s per scene = {result['loop_vs_batch']:.1f}x",
+        ]
     else:
-        lines += ["", f"--jobs {result['batch'][1]['jobs']} vs --jobs 1: "
-                      f"{result['speedup']:.2f}x the throughput"]
+        lines += [
+            "",
+            f"--jobs {result['batch'][1]['jobs']} vs --jobs 1: "
+            f"{result['speedup']:.2f}x the throughput",
+        ]
     return lines

@@ -45,9 +45,20 @@ from snapcore.batch.index import (
 )
 from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
 
-__all__ = ["BatchReport", "BatchInterrupted", "plan_batch", "prune_outputs", "run_batch",
-           "output_paths", "library_root", "read_choices", "LIBRARY_NAME", "CHOICES_NAME",
-           "SCENES_DIR", "INDEX_EVERY_S"]
+__all__ = [
+    "BatchReport",
+    "BatchInterrupted",
+    "plan_batch",
+    "prune_outputs",
+    "run_batch",
+    "output_paths",
+    "library_root",
+    "read_choices",
+    "LIBRARY_NAME",
+    "CHOICES_NAME",
+    "SCENES_DIR",
+    "INDEX_EVERY_S",
+]
 
 SCENES_DIR = "scenes"
 #: ``OUT/library.json``: the library root the index's keys are relative to.
@@ -120,8 +131,9 @@ class _CtrlC:
         # SIGTERM (kill, a job scheduler's stop) is handled as Ctrl-C: the index of what
         # finished is written and the workers are stopped before this process goes.
         if threading.current_thread() is threading.main_thread():
-            self.previous = {sig: signal.signal(sig, self._handler)
-                             for sig in (signal.SIGINT, signal.SIGTERM)}
+            self.previous = {
+                sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)
+            }
         return self
 
     def __exit__(self, *exc):
@@ -173,7 +185,9 @@ def library_root(out, sources) -> Path | None:
         for n, child in enumerate(sorted(here.rglob("*"))):
             if n > 500:
                 break
-            if child.is_file() and not any(p.startswith(".") for p in child.relative_to(here).parts):
+            if child.is_file() and not any(
+                p.startswith(".") for p in child.relative_to(here).parts
+            ):
                 for above in (here, *here.parents):
                     if child.relative_to(above).as_posix() in prev:
                         return above
@@ -194,9 +208,15 @@ def _previous(out: Path) -> dict[str, dict]:
         return {}
 
 
-def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
-               force: bool = False, retry_errors: bool = False,
-               prune: bool = False) -> tuple[list[SceneTask], list[dict]]:
+def plan_batch(
+    scenes: Iterable[SceneSource],
+    out,
+    options: BatchOptions,
+    *,
+    force: bool = False,
+    retry_errors: bool = False,
+    prune: bool = False,
+) -> tuple[list[SceneTask], list[dict]]:
     """Split scenes into tasks to run and rows to keep from the previous index.
 
     A previous row of one of ``scenes`` is kept when its content hash and options hash
@@ -230,14 +250,21 @@ def plan_batch(scenes: Iterable[SceneSource], out, options: BatchOptions, *,
         pose = choices.get(s.key) or (row or {}).get("thumb_pose") or 1
         if row and row["content_hash"] == h and row["options_hash"] == opt_hash:
             outputs = [row[c] for c in ("json", "thumb", "sheet") if row[c]]
-            finished = (row["status"] == "ok" and row["json"] and row["thumb"]
-                        and all((out / p).is_file() for p in outputs)
-                        and (row["thumb_pose"] or 1) == pose)
+            finished = (
+                row["status"] == "ok"
+                and row["json"]
+                and row["thumb"]
+                and all((out / p).is_file() for p in outputs)
+                and (row["thumb_pose"] or 1) == pose
+            )
             if finished or (row["status"] == "error" and not retry_errors):
                 kept.append(row)
                 continue
-        tasks.append(SceneTask(scene=s, options=options, content_hash=h, options_hash=opt_hash,
-                               thumb_pose=pose))
+        tasks.append(
+            SceneTask(
+                scene=s, options=options, content_hash=h, options_hash=opt_hash, thumb_pose=pose
+            )
+        )
     return tasks, kept
 
 
@@ -269,8 +296,10 @@ def read_choices(out) -> dict[str, int]:
                 if rank < 1:
                     raise ValueError
             except ValueError:
-                raise BatchError(f"{path}:{n}: expected 'path,pose' with a pose rank of 1 "
-                                 f"or more, got {','.join(cells)!r}") from None
+                raise BatchError(
+                    f"{path}:{n}: expected 'path,pose' with a pose rank of 1 "
+                    f"or more, got {','.join(cells)!r}"
+                ) from None
             choices[key] = rank
     return choices
 
@@ -335,8 +364,9 @@ def _plain_main():
         sys.modules["__main__"] = real
 
 
-def _local(tasks: list[SceneTask], jobs: int,
-           notify: Callable[[str], None]) -> Iterator[SceneResult]:
+def _local(
+    tasks: list[SceneTask], jobs: int, notify: Callable[[str], None]
+) -> Iterator[SceneResult]:
     """Results as they finish, from this process (``jobs=1``) or ``jobs`` processes.
 
     A worker that dies (killed, out of memory, a crash in a native library) breaks a
@@ -383,11 +413,17 @@ def _local(tasks: list[SceneTask], jobs: int,
                 pool.close()  # joins every worker: their exit codes are known after it
                 code = pool.exit_codes()
                 if alone:
-                    yield error_result(lost[0], RuntimeError(
-                        f"the worker process died while running this scene alone ({code})"))
+                    yield error_result(
+                        lost[0],
+                        RuntimeError(
+                            f"the worker process died while running this scene alone ({code})"
+                        ),
+                    )
                 else:
-                    notify(f"a worker process died ({code}); {len(lost)} scene(s) it may "
-                           "have been running are run again, one at a time")
+                    notify(
+                        f"a worker process died ({code}); {len(lost)} scene(s) it may "
+                        "have been running are run again, one at a time"
+                    )
                     suspects = list(reversed(lost))
                 pool = _Pool(jobs, size)
     finally:
@@ -407,8 +443,11 @@ class _Pool:
         from snapcore.batch.task import init_worker
 
         self.ex = ProcessPoolExecutor(
-            max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-            initializer=init_worker, initargs=(size, True, 1, os.getpid()))
+            max_workers=jobs,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=init_worker,
+            initargs=(size, True, 1, os.getpid()),
+        )
         self.procs: dict = {}
 
     def submit(self, task: SceneTask, back_to: list | None = None):
@@ -436,8 +475,7 @@ class _Pool:
         codes = [c for c in codes if c != -15] or codes
         if not codes:
             return "exit code unknown"
-        return ", ".join(f"killed by signal {-c}" if c < 0 else f"exit code {c}"
-                         for c in codes)
+        return ", ".join(f"killed by signal {-c}" if c < 0 else f"exit code {c}" for c in codes)
 
     def close(self):
         # scenes still running are abandoned: their outputs only ever reach disk
@@ -447,8 +485,9 @@ class _Pool:
         self.ex.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask(tasks: list[SceneTask], scheduler: str,
-          notify: Callable[[str], None]) -> Iterator[SceneResult]:
+def _dask(
+    tasks: list[SceneTask], scheduler: str, notify: Callable[[str], None]
+) -> Iterator[SceneResult]:
     """Results as they finish, from the Dask cluster at ``scheduler``.
 
     Every worker gets the local pool's set-up (one BLAS and one Mesa rasteriser thread,
@@ -501,10 +540,15 @@ def _watch_workers(client, before: set, notify: Callable[[str], None]) -> set:
         return before
     lost, joined = before - now, now - before
     if lost:
-        left = (f"{len(now)} left" if now else
-                "none left: waiting for a worker to join (Ctrl-C stops, keeping what finished)")
-        notify(f"Dask: {len(lost)} worker(s) lost ({', '.join(sorted(lost))}); their scenes "
-               f"run again on the others; {left}")
+        left = (
+            f"{len(now)} left"
+            if now
+            else "none left: waiting for a worker to join (Ctrl-C stops, keeping what finished)"
+        )
+        notify(
+            f"Dask: {len(lost)} worker(s) lost ({', '.join(sorted(lost))}); their scenes "
+            f"run again on the others; {left}"
+        )
     if joined and before:
         notify(f"Dask: {len(joined)} worker(s) joined; {len(now)} now")
     return now
@@ -513,8 +557,7 @@ def _watch_workers(client, before: set, notify: Callable[[str], None]) -> set:
 def _executor(tasks, jobs, scheduler, notify) -> Generator[SceneResult, None, None]:
     """The results of ``tasks`` from the chosen executor (none started for no task)."""
     if tasks:
-        yield from (_dask(tasks, scheduler, notify) if scheduler
-                    else _local(tasks, jobs, notify))
+        yield from (_dask(tasks, scheduler, notify) if scheduler else _local(tasks, jobs, notify))
 
 
 def _warn(message: str) -> None:
@@ -523,11 +566,21 @@ def _warn(message: str) -> None:
     warnings.warn(message, stacklevel=2)
 
 
-def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: int = 1,
-              scheduler: str | None = None, force: bool = False, retry_errors: bool = False,
-              prune: bool = False, progress: Callable[[int], Callable[[dict], None]] | None = None,
-              title: str = "Action Snapshot gallery", root=None,
-              notify: Callable[[str], None] | None = None) -> BatchReport:
+def run_batch(
+    scenes: list[SceneSource],
+    out,
+    options: BatchOptions,
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    force: bool = False,
+    retry_errors: bool = False,
+    prune: bool = False,
+    progress: Callable[[int], Callable[[dict], None]] | None = None,
+    title: str = "Action Snapshot gallery",
+    root=None,
+    notify: Callable[[str], None] | None = None,
+) -> BatchReport:
     """Process a library's scenes into ``out``: outputs, index and gallery.
 
     Parameters
@@ -579,8 +632,9 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
     out.mkdir(parents=True, exist_ok=True)
     if prune:
         prune_outputs(out, (s.key for s in scenes))
-    tasks, kept = plan_batch(scenes, out, options, force=force, retry_errors=retry_errors,
-                             prune=prune)
+    tasks, kept = plan_batch(
+        scenes, out, options, force=force, retry_errors=retry_errors, prune=prune
+    )
     keys = {s.key for s in scenes}
     report = BatchReport(rows=list(kept), reused=sum(r["path"] in keys for r in kept))
     index = out / INDEX_NAME
@@ -600,7 +654,10 @@ def run_batch(scenes: list[SceneSource], out, options: BatchOptions, *, jobs: in
             atomic_write(out / LIBRARY_NAME, json.dumps({"root": str(Path(root).resolve())}) + "\n")
 
     try:
-        with _CtrlC() as ctrl_c, closing(_executor(tasks, jobs, scheduler, notify or _warn)) as results:
+        with (
+            _CtrlC() as ctrl_c,
+            closing(_executor(tasks, jobs, scheduler, notify or _warn)) as results,
+        ):
             # closing(): on Ctrl-C the executor's clean-up (stop the workers, cancel
             # what is queued) runs now, not whenever the generator is collected
             for result in results:

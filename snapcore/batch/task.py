@@ -28,8 +28,15 @@ from dataclasses import asdict, dataclass, field
 from snapcore.batch.discover import SceneSource
 from snapcore.errors import SceneError, SnapshotError
 
-__all__ = ["BatchOptions", "SceneTask", "SceneResult", "run_scene", "init_worker",
-           "error_result", "OUTPUT_FORMAT"]
+__all__ = [
+    "BatchOptions",
+    "SceneTask",
+    "SceneResult",
+    "run_scene",
+    "init_worker",
+    "error_result",
+    "OUTPUT_FORMAT",
+]
 
 #: Bumped when the outputs of a scene change meaning: part of every options hash, so a
 #: new format redoes the library instead of mixing old and new outputs.
@@ -121,8 +128,14 @@ class SceneResult:
     worker: dict = field(default_factory=dict)
 
 
-def init_worker(size=(320, 360), ignore_sigint: bool = True, threads: int | None = 1,
-                parent: int | None = None, *, renderer: bool = True):
+def init_worker(
+    size=(320, 360),
+    ignore_sigint: bool = True,
+    threads: int | None = 1,
+    parent: int | None = None,
+    *,
+    renderer: bool = True,
+):
     """Set up a worker process: the GL renderer, created once, and the signals.
 
     Parameters
@@ -199,8 +212,10 @@ def _load(task: SceneTask):
 
     s, opts = task.scene, task.options
     if s.kind == "unknown":
-        raise SceneError(f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
-                         "scene manifest .toml/.json)")
+        raise SceneError(
+            f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
+            "scene manifest .toml/.json)"
+        )
     scene = load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
     if opts.body is not None:
         scene.meta["body"] = opts.body  # read by snapcore.render.bodies.body_kind
@@ -217,10 +232,17 @@ def _png(image) -> bytes:
 
 def _base_row(task: SceneTask) -> dict:
     s = task.scene
-    return {"path": s.key, "folder": s.folder, "name": s.key.rsplit("/", 1)[-1],
-            "kind": s.kind, "content_hash": task.content_hash,
-            "options_hash": task.options_hash, "status": "error", "error": None,
-            "warnings": None}
+    return {
+        "path": s.key,
+        "folder": s.folder,
+        "name": s.key.rsplit("/", 1)[-1],
+        "kind": s.kind,
+        "content_hash": task.content_hash,
+        "options_hash": task.options_hash,
+        "status": "error",
+        "error": None,
+        "warnings": None,
+    }
 
 
 def error_result(task: SceneTask, err: BaseException) -> SceneResult:
@@ -293,8 +315,9 @@ def _run_scene(task: SceneTask) -> SceneResult:
             row["error"] = _one_line(err, task.scene)
             outputs = {}
         else:
-            row.update(row_fields, status="ok", t_load_s=t1 - t0, t_select_s=t2 - t1,
-                       t_render_s=t3 - t2)
+            row.update(
+                row_fields, status="ok", t_load_s=t1 - t0, t_select_s=t2 - t1, t_render_s=t3 - t2
+            )
     row["t_total_s"] = time.perf_counter() - t0
     notes = list(dict.fromkeys(str(w.message).splitlines()[0] for w in caught))
     if notes:
@@ -334,8 +357,11 @@ def _thumb_pose(task: SceneTask, snap) -> int:
     poses than that (with a warning, kept in the row)."""
     k = len(snap.indices)
     if task.thumb_pose > k:
-        warnings.warn(f"thumbnail pose #{task.thumb_pose} asked for, but the clip has "
-                      f"{k} top pose(s): #1 shown", stacklevel=2)
+        warnings.warn(
+            f"thumbnail pose #{task.thumb_pose} asked for, but the clip has "
+            f"{k} top pose(s): #1 shown",
+            stacklevel=2,
+        )
         return 1
     return task.thumb_pose
 
@@ -352,8 +378,16 @@ def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, b
 
         sc = snap.pose.scores
         captions = [sc.caption(sc.total[i]) for i in snap.indices]
-        out["sheet"] = _png(contact_sheet(scene, snap.indices, view=snap.view, captions=captions,
-                                          size=opts.sheet_size, title=scene.name))
+        out["sheet"] = _png(
+            contact_sheet(
+                scene,
+                snap.indices,
+                view=snap.view,
+                captions=captions,
+                size=opts.sheet_size,
+                title=scene.name,
+            )
+        )
     return out
 
 
@@ -365,5 +399,8 @@ def _worker(opts: BatchOptions) -> dict:
         renderer = id(gl_renderer(*opts.size))
     except SnapshotError:
         renderer = None
-    return {"pid": os.getpid(), "renderer": renderer,
-            "lp_threads": os.environ.get("LP_NUM_THREADS")}
+    return {
+        "pid": os.getpid(),
+        "renderer": renderer,
+        "lp_threads": os.environ.get("LP_NUM_THREADS"),
+    }

@@ -28,14 +28,16 @@ from snapcore.select.view import motion_triangles, select_view
 # ----------------------------------------------------------------- motion core
 
 
-@case("parse+FK salsa pair (2x2242 frames, 2x57 joints)", target_ms=150.0,
-      note="two BVH files read, scaled, forward kinematics, lead-in trimmed")
+@case(
+    "parse+FK salsa pair (2x2242 frames, 2x57 joints)",
+    target_ms=150.0,
+    note="two BVH files read, scaled, forward kinematics, lead-in trimmed",
+)
 def _parse_fk_pair(ctx: BenchContext):
     a, b = ctx.path("two_person/60_01_scaled.bvh"), ctx.path("two_person/61_01_scaled.bvh")
     if a is None or b is None:
         return None
     import warnings
-
 
     def work():
         with warnings.catch_warnings():
@@ -52,7 +54,6 @@ def _parse_fk_boxing(ctx: BenchContext):
         return None
     import warnings
 
-
     def work():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -64,14 +65,20 @@ def _parse_fk_boxing(ctx: BenchContext):
 # ----------------------------------------------------------------- synth (demo data)
 
 
-@case("synth walk document (3 s at 30 fps)", target_ms=50.0,
-      note="procedural humanoid: keyframes, leg IK, Euler conversion")
+@case(
+    "synth walk document (3 s at 30 fps)",
+    target_ms=50.0,
+    note="procedural humanoid: keyframes, leg IK, Euler conversion",
+)
 def _synth_walk(ctx: BenchContext):
     return lambda: humanoid_document("walk")
 
 
-@case("synth push scene (2 characters, 3 s at 30 fps)", target_ms=50.0,
-      note="two documents (pusher's arms solved onto the other's chest) + FK")
+@case(
+    "synth push scene (2 characters, 3 s at 30 fps)",
+    target_ms=50.0,
+    note="two documents (pusher's arms solved onto the other's chest) + FK",
+)
 def _synth_push(ctx: BenchContext):
     return lambda: synth_scene("push")
 
@@ -104,7 +111,6 @@ def _pose_scene(ctx: BenchContext, n_frames: int | None = POSE_FRAMES):
 def _select(scene, method="paper"):
     import warnings
 
-
     def work():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the salsa unit is fitted, which warns
@@ -113,17 +119,23 @@ def _select(scene, method="paper"):
     return work
 
 
-@case(f"pose selection (story, the default) salsa pair ({POSE_FRAMES} frames)", target_ms=20.0,
-      note="snapcore.select.story: pose surprisal + debounced limb contacts + event surprisal, "
-           "temporal support, top-3")
+@case(
+    f"pose selection (story, the default) salsa pair ({POSE_FRAMES} frames)",
+    target_ms=20.0,
+    note="snapcore.select.story: pose surprisal + debounced limb contacts + event surprisal, "
+    "temporal support, top-3",
+)
 def _story_salsa(ctx: BenchContext):
     scene = _pose_scene(ctx)
     return None if scene is None else _select(scene, "story")
 
 
-@case(f"pose selection salsa pair ({POSE_FRAMES} frames, 2x57 joints)", target_ms=20.0,
-      note="the issue's 2000 frames with twice its 58 joints; everything: contacts (ground "
-           "+ partner's body), local and global terms, top-3")
+@case(
+    f"pose selection salsa pair ({POSE_FRAMES} frames, 2x57 joints)",
+    target_ms=20.0,
+    note="the issue's 2000 frames with twice its 58 joints; everything: contacts (ground "
+    "+ partner's body), local and global terms, top-3",
+)
 def _pose_salsa(ctx: BenchContext):
     scene = _pose_scene(ctx)
     return None if scene is None else _select(scene)
@@ -147,8 +159,10 @@ def _local_salsa(ctx: BenchContext):
     return lambda: [local_information(c) for c in scene.characters]
 
 
-@case("pose selection salsa pair, whole clip (2x2239 frames)",
-      note="no target of its own: 12% more frames than the target case")
+@case(
+    "pose selection salsa pair, whole clip (2x2239 frames)",
+    note="no target of its own: 12% more frames than the target case",
+)
 def _pose_salsa_whole(ctx: BenchContext):
     scene = _pose_scene(ctx, None)
     return None if scene is None else _select(scene)
@@ -157,8 +171,11 @@ def _pose_salsa_whole(ctx: BenchContext):
 # ----------------------------------------------------------------- view selection
 
 
-@case("view PMA salsa pair (2562 views + refinement)", target_ms=30.0,
-      note="2x2239 frames x 56 links: 500k swept triangles, bound, refine, certificate")
+@case(
+    "view PMA salsa pair (2562 views + refinement)",
+    target_ms=30.0,
+    note="2x2239 frames x 56 links: 500k swept triangles, bound, refine, certificate",
+)
 def _view_pma_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
@@ -167,8 +184,10 @@ def _view_pma_salsa(ctx: BenchContext):
     return lambda: select_view(scene)
 
 
-@case("view motion area salsa pair (triangles shared)",
-      note="the Kwon & Lee baseline on the PMA run's triangles")
+@case(
+    "view motion area salsa pair (triangles shared)",
+    note="the Kwon & Lee baseline on the PMA run's triangles",
+)
 def _view_ma_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
@@ -178,9 +197,12 @@ def _view_ma_salsa(ctx: BenchContext):
     return lambda: select_view(scene, method="motion_area", triangles=tri)
 
 
-@case("viewpoint entropy 162 views, 75.5k-face body", target_ms=5000.0,
-      note="the Bandai dancer's posed body subdivided to the paper's Dancing face count; "
-           "face-id renders at 256² + entropies")
+@case(
+    "viewpoint entropy 162 views, 75.5k-face body",
+    target_ms=5000.0,
+    note="the Bandai dancer's posed body subdivided to the paper's Dancing face count; "
+    "face-id renders at 256² + entropies",
+)
 def _view_entropy_75k(ctx: BenchContext):
     p = ctx.path("dance/dataset-1_dance-short_normal_001.bvh")
     if p is None:
@@ -189,7 +211,6 @@ def _view_entropy_75k(ctx: BenchContext):
 
     import numpy as np
     import trimesh
-
 
     m = posed_mesh(load_scene(p), 900)
     v, f = trimesh.remesh.subdivide(m.vertices, m.faces)
@@ -216,7 +237,6 @@ def _salsa_75k_mesh(ctx: BenchContext):
     import numpy as np
     import trimesh
 
-
     m = posed_mesh(scene, 900)
     v, f = trimesh.remesh.subdivide(m.vertices, m.faces)  # x4
     extra = (75000 - len(f)) // 3  # subdividing one face adds three
@@ -224,14 +244,16 @@ def _salsa_75k_mesh(ctx: BenchContext):
     return v, f
 
 
-@case("render: face ids 162 views x 256², 75k-face bodies", target_ms=5000.0,
-      note="salsa pair at frame 900 subdivided to 75,000 faces; exact ids, no multisampling")
+@case(
+    "render: face ids 162 views x 256², 75k-face bodies",
+    target_ms=5000.0,
+    note="salsa pair at frame 900 subdivided to 75,000 faces; exact ids, no multisampling",
+)
 def _render_face_ids_75k(ctx: BenchContext):
     mesh = _salsa_75k_mesh(ctx)
     if mesh is None:
         return None
     import trimesh
-
 
     views = trimesh.creation.icosphere(subdivisions=2).vertices  # 162 directions
     return lambda: render_face_ids(mesh[0], mesh[1], views, resolution=256)
@@ -247,8 +269,10 @@ def _render_depth_salsa(ctx: BenchContext):
     return lambda: render_depth(m.vertices, m.faces, [0.3, 0.2, 1.0], resolution=1024)
 
 
-@case("render: still 1280x720, two salsa dancers (per frame)",
-      note="pose both bodies + shadows, upload, draw (4x MSAA), read back; no encoding")
+@case(
+    "render: still 1280x720, two salsa dancers (per frame)",
+    note="pose both bodies + shadows, upload, draw (4x MSAA), read back; no encoding",
+)
 def _render_still_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
@@ -272,22 +296,30 @@ def _video_case(ctx: BenchContext, n_frames: int):
     import tempfile
     from pathlib import Path
 
-
     out = Path(tempfile.mkdtemp(prefix="snapcore-bench-")) / "salsa.mp4"
     # the motion is 60 fps: a 60 fps video of n motion frames has n video frames
-    return lambda: render_video(scene, out, fps=scene.fps, size=(1280, 720),
-                                frame_range=(0, n_frames), progress=False)
+    return lambda: render_video(
+        scene, out, fps=scene.fps, size=(1280, 720), frame_range=(0, n_frames), progress=False
+    )
 
 
-@case("render: video 1280x720 two salsa dancers, 100 frames", target_ms=6000.0,
-      note="render + H.264 encode + write; 1000 frames < 60 s scaled to 100", max_repeats=3)
+@case(
+    "render: video 1280x720 two salsa dancers, 100 frames",
+    target_ms=6000.0,
+    note="render + H.264 encode + write; 1000 frames < 60 s scaled to 100",
+    max_repeats=3,
+)
 def _video_salsa_100(ctx: BenchContext):
     return _video_case(ctx, 100)
 
 
-@case("render: video 1280x720 two salsa dancers, 1000 frames", target_ms=60000.0,
-      note="human bodies (the default since issue 15); timed once, no warm-up",
-      max_repeats=1, warmup=False)
+@case(
+    "render: video 1280x720 two salsa dancers, 1000 frames",
+    target_ms=60000.0,
+    note="human bodies (the default since issue 15); timed once, no warm-up",
+    max_repeats=1,
+    warmup=False,
+)
 def _video_salsa_1000(ctx: BenchContext):
     return _video_case(ctx, 1000)
 
@@ -300,12 +332,15 @@ def _relief_height_field(ctx: BenchContext, resolution: int):
     or, without motion data or GL, a dome with bumps (synthetic, same size)."""
     import numpy as np
 
-
     scene = ctx.salsa()
     if scene is not None:
         try:
-            dm = height_field_from_scene(scene, 900 - scene.frame_offset, (0.3, 0.2, 1.0),
-                                         params=ReliefParams(resolution=resolution))
+            dm = height_field_from_scene(
+                scene,
+                900 - scene.frame_offset,
+                (0.3, 0.2, 1.0),
+                params=ReliefParams(resolution=resolution),
+            )
             h, m = height_from_depth(dm.depth)
             return h, m, dm.pixel_size, "salsa pair, frame 900"
         except Exception:  # no GL here: fall back to the synthetic field  # noqa: BLE001
@@ -318,12 +353,14 @@ def _relief_height_field(ctx: BenchContext, resolution: int):
     return np.where(m, h, 0.0), m, 2.0 / n, "synthetic dome"
 
 
-@case("relief 1024x1024 height field -> STL", target_ms=2000.0,
-      note="compress (CBF + masked Poisson), mesh, binary STL written")
+@case(
+    "relief 1024x1024 height field -> STL",
+    target_ms=2000.0,
+    note="compress (CBF + masked Poisson), mesh, binary STL written",
+)
 def _relief_1024(ctx: BenchContext):
     import os
     import tempfile
-
 
     h, m, px, _ = _relief_height_field(ctx, 1024)
     params = ReliefParams(resolution=1024)
@@ -338,11 +375,12 @@ def _relief_1024(ctx: BenchContext):
     return work
 
 
-@case("relief 1024x1024 height field -> STL (linear)", note="plain linear compression, for comparison")
+@case(
+    "relief 1024x1024 height field -> STL (linear)", note="plain linear compression, for comparison"
+)
 def _relief_1024_linear(ctx: BenchContext):
     import os
     import tempfile
-
 
     h, m, px, _ = _relief_height_field(ctx, 1024)
     params = ReliefParams(resolution=1024, method="linear")

@@ -16,9 +16,11 @@ from snapcore.bench.registry import BenchContext, case
 SKIN_CHUNK = 128
 
 
-@case("skin: two salsa human bodies, all 2242 frames",
-      note="retargeted MakeHuman mesh (2 x 13,380 vertices) posed by linear blend skinning, "
-           f"{SKIN_CHUNK} frames per call; retargeting itself not timed")
+@case(
+    "skin: two salsa human bodies, all 2242 frames",
+    note="retargeted MakeHuman mesh (2 x 13,380 vertices) posed by linear blend skinning, "
+    f"{SKIN_CHUNK} frames per call; retargeting itself not timed",
+)
 def _skin_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
@@ -31,13 +33,16 @@ def _skin_salsa(ctx: BenchContext):
         for b in bodies:
             c = b.character
             for a in range(0, c.n_frames, SKIN_CHUNK):
-                b.skin(c.positions[a:a + SKIN_CHUNK], c.rotations[a:a + SKIN_CHUNK])
+                b.skin(c.positions[a : a + SKIN_CHUNK], c.rotations[a : a + SKIN_CHUNK])
 
     return work
 
 
-@case("viewpoint entropy 162 views, two human bodies", target_ms=3000.0,
-      note="salsa pair at frame 900, 2 x 26,756 faces; face-id renders at 256² + entropies")
+@case(
+    "viewpoint entropy 162 views, two human bodies",
+    target_ms=3000.0,
+    note="salsa pair at frame 900, 2 x 26,756 faces; face-id renders at 256² + entropies",
+)
 def _entropy_human_salsa(ctx: BenchContext):
     scene = ctx.salsa()
     if scene is None:
@@ -52,8 +57,10 @@ def _entropy_human_salsa(ctx: BenchContext):
     return lambda: select_view_entropy(None, 0, mesh=mesh, min_elevation_deg=None)
 
 
-@case("glTF: read CesiumMan.glb (sample at 30 fps, mesh, ground)",
-      note="pygltflib parse + accessors + node FK + unit and ground from the skinned mesh")
+@case(
+    "glTF: read CesiumMan.glb (sample at 30 fps, mesh, ground)",
+    note="pygltflib parse + accessors + node FK + unit and ground from the skinned mesh",
+)
 def _read_cesium(ctx: BenchContext):
     p = ctx.path("gltf/CesiumMan.glb")
     if p is None:

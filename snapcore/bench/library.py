@@ -36,9 +36,16 @@ RIGS = ("metres", "centimetres", "prefixed")
 _MOTIONS = ("walk", "jump", "kick", "punch", "jumping_jacks", "idle")
 _LENGTHS_S = (1.0, 2.0, 3.0, 4.0, 6.0)
 #: Real clips copied in (relative to the data folder), when present.
-REAL = ("walk_run/02_01.bvh", "walk_run/dataset-2_run_normal_001.bvh",
-        "boxing_jump/Boxing_Toes.bvh", "basketball/06_15_jumpshot_excerpt.bvh",
-        "dance/05_06.bvh", "soccer/10_01.bvh", "gltf/CesiumMan.glb", "gltf/BrainStem.glb")
+REAL = (
+    "walk_run/02_01.bvh",
+    "walk_run/dataset-2_run_normal_001.bvh",
+    "boxing_jump/Boxing_Toes.bvh",
+    "basketball/06_15_jumpshot_excerpt.bvh",
+    "dance/05_06.bvh",
+    "soccer/10_01.bvh",
+    "gltf/CesiumMan.glb",
+    "gltf/BrainStem.glb",
+)
 
 
 def _rig(doc, rig: str):
@@ -100,8 +107,9 @@ def make_library(root, n: int, *, data: Path | None = None) -> Path:
         rig = RIGS[(i // len(_MOTIONS)) % len(RIGS)]
         seconds = float(_LENGTHS_S[rng.integers(len(_LENGTHS_S))])
         fps = 60.0 if rng.random() < 0.2 else 30.0
-        doc = synth.humanoid_document(motion, seconds=seconds, fps=fps, seed=i,
-                                      facing_deg=float(rng.uniform(0, 360)))
+        doc = synth.humanoid_document(
+            motion, seconds=seconds, fps=fps, seed=i, facing_deg=float(rng.uniform(0, 360))
+        )
         folder = root / rig / motion
         folder.mkdir(parents=True, exist_ok=True)
         write_bvh(_rig(doc, rig), folder / f"{motion}_{i:05d}.bvh")
@@ -145,8 +153,14 @@ class _RssSampler:
         self.thread.join()
 
 
-def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
-                data: Path | None = None, quiet: bool = False) -> dict:
+def run_library(
+    n: int = 2500,
+    *,
+    jobs: int = 2,
+    work: Path | None = None,
+    data: Path | None = None,
+    quiet: bool = False,
+) -> dict:
     """Generate (or reuse) an ``n``-clip library and run ``snapshot batch`` on it.
 
     Parameters
@@ -172,8 +186,11 @@ def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
     """
     from snapcore.batch import BatchOptions, discover, run_batch
 
-    work = Path(work) if work is not None else Path(os.environ.get("TMPDIR", "/tmp")) / \
-        "snapshot-bench-library"
+    work = (
+        Path(work)
+        if work is not None
+        else Path(os.environ.get("TMPDIR", "/tmp")) / "snapshot-bench-library"
+    )
     lib = make_library(work / f"lib{n}", n, data=data)
     out = work / f"out{n}"
     if out.exists():
@@ -182,12 +199,14 @@ def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
     options = BatchOptions(snapshot={"baselines": False})  # the batch's default
     load0 = os.getloadavg()[0]
     with _RssSampler() as rss:
+
         def progress(total):
             def tick(row):
                 rss.done += 1
                 rss.sample()
                 if not quiet and rss.done % 50 == 0:
                     print(f"library: {rss.done}/{total} scenes", file=sys.stderr, flush=True)
+
             return tick
 
         report = run_batch(scenes, out, options, jobs=max(jobs, 2), progress=progress)
@@ -196,12 +215,15 @@ def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
         curve = [(d, mb) for d, p, mb in rss.samples if p == pid]
         at_100 = [mb for d, mb in curve if d <= 100]
         after = [mb for d, mb in curve if d > 100]
-        workers[pid] = {"first_mb": curve[0][1], "at_100_mb": at_100[-1] if at_100 else None,
-                        "peak_to_100_mb": max(at_100) if at_100 else None,
-                        "peak_mb": max(mb for _, mb in curve), "last_mb": curve[-1][1],
-                        # the high-water mark after scene 100 over the one before it
-                        "growth_after_100_mb": (max(after) - max(at_100)) if at_100 and after
-                        else None}
+        workers[pid] = {
+            "first_mb": curve[0][1],
+            "at_100_mb": at_100[-1] if at_100 else None,
+            "peak_to_100_mb": max(at_100) if at_100 else None,
+            "peak_mb": max(mb for _, mb in curve),
+            "last_mb": curve[-1][1],
+            # the high-water mark after scene 100 over the one before it
+            "growth_after_100_mb": (max(after) - max(at_100)) if at_100 and after else None,
+        }
     ok = [r for r in report.rows if r["status"] == "ok"]
     stages = {s: sum(r[f"t_{s}_s"] or 0.0 for r in ok) for s in ("load", "select", "render")}
     total = sum(stages.values()) or 1.0
@@ -213,11 +235,18 @@ def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
     after = [mb for d, _, mb in rss.samples if d > 100]
     growth = [max(after) - max(before)] if before and after else []
     result = {
-        "scenes": report.done, "ok": len(ok), "errors": report.errors, "jobs": max(jobs, 2),
-        "elapsed_s": report.elapsed_s, "scenes_per_min": 60.0 * report.done / report.elapsed_s,
-        "workers": workers, "growth_after_100_mb": max(growth) if growth else None,
+        "scenes": report.done,
+        "ok": len(ok),
+        "errors": report.errors,
+        "jobs": max(jobs, 2),
+        "elapsed_s": report.elapsed_s,
+        "scenes_per_min": 60.0 * report.done / report.elapsed_s,
+        "workers": workers,
+        "growth_after_100_mb": max(growth) if growth else None,
         "stages_s": {s: {"s": v, "share": v / total} for s, v in stages.items()},
-        "curve": rss.samples, "load": [load0, os.getloadavg()[0]], "cpus": os.cpu_count(),
+        "curve": rss.samples,
+        "load": [load0, os.getloadavg()[0]],
+        "cpus": os.cpu_count(),
     }
     (work / f"library{n}.json").write_text(json.dumps(result, indent=1) + "\n")
     return result
@@ -225,27 +254,43 @@ def run_library(n: int = 2500, *, jobs: int = 2, work: Path | None = None,
 
 def format_library(result: dict) -> list[str]:
     """The report as text lines (what the README's scale section shows)."""
-    lines = [f"{result['scenes']} scenes ({result['ok']} ok, {result['errors']} errors), "
-             f"--jobs {result['jobs']} on {result['cpus']} CPUs (load average "
-             f"{result['load'][0]:.1f} at start, {result['load'][1]:.1f} at end): "
-             f"{result['elapsed_s'] / 60:.1f} min, {result['scenes_per_min']:.1f} scenes/min"]
+    lines = [
+        f"{result['scenes']} scenes ({result['ok']} ok, {result['errors']} errors), "
+        f"--jobs {result['jobs']} on {result['cpus']} CPUs (load average "
+        f"{result['load'][0]:.1f} at start, {result['load'][1]:.1f} at end): "
+        f"{result['elapsed_s'] / 60:.1f} min, {result['scenes_per_min']:.1f} scenes/min"
+    ]
     for pid, w in result["workers"].items():
-        at = "" if w["at_100_mb"] is None else (f", peak up to scene 100 "
-                                               f"{w['peak_to_100_mb']:.0f} MB")
-        lines.append(f"worker {pid}: RSS first {w['first_mb']:.0f} MB{at}, peak "
-                     f"{w['peak_mb']:.0f} MB, last {w['last_mb']:.0f} MB")
+        at = (
+            ""
+            if w["at_100_mb"] is None
+            else (f", peak up to scene 100 {w['peak_to_100_mb']:.0f} MB")
+        )
+        lines.append(
+            f"worker {pid}: RSS first {w['first_mb']:.0f} MB{at}, peak "
+            f"{w['peak_mb']:.0f} MB, last {w['last_mb']:.0f} MB"
+        )
     if result["growth_after_100_mb"] is not None:
-        lines.append(f"growth of the workers' peak RSS after the first 100 scenes: "
-                     f"{result['growth_after_100_mb']:.0f} MB")
-    lines.append("cost per stage (worker seconds): " + ", ".join(
-        f"{s} {v['s']:.0f} s ({100 * v['share']:.0f}%)" for s, v in result["stages_s"].items()))
+        lines.append(
+            f"growth of the workers' peak RSS after the first 100 scenes: "
+            f"{result['growth_after_100_mb']:.0f} MB"
+        )
+    lines.append(
+        "cost per stage (worker seconds): "
+        + ", ".join(
+            f"{s} {v['s']:.0f} s ({100 * v['share']:.0f}%)" for s, v in result["stages_s"].items()
+        )
+    )
     return lines
 
 
-@case("batch library: generated clips, --jobs 2 (SNAPSHOT_BENCH_LIBRARY=N clips)",
-      max_repeats=1, warmup=False,
-      note="skipped unless SNAPSHOT_BENCH_LIBRARY is set (2500: the CMU-sized library); "
-           "prints scenes/min, RSS per worker and the cost per stage")
+@case(
+    "batch library: generated clips, --jobs 2 (SNAPSHOT_BENCH_LIBRARY=N clips)",
+    max_repeats=1,
+    warmup=False,
+    note="skipped unless SNAPSHOT_BENCH_LIBRARY is set (2500: the CMU-sized library); "
+    "prints scenes/min, RSS per worker and the cost per stage",
+)
 def _library(ctx: BenchContext):
     n = int(os.environ.get("SNAPSHOT_BENCH_LIBRARY", "0") or 0)
     if n <= 0:

@@ -33,7 +33,10 @@ class BenchContext:
     def salsa(self):
         """The 2,242-frame, two-person salsa scene at its true 60 fps (or None)."""
         if "salsa" not in self.cache:
-            a, b = self.path("two_person/60_01_scaled.bvh"), self.path("two_person/61_01_scaled.bvh")
+            a, b = (
+                self.path("two_person/60_01_scaled.bvh"),
+                self.path("two_person/61_01_scaled.bvh"),
+            )
             if a is None or b is None:
                 self.cache["salsa"] = None
             else:
@@ -56,8 +59,14 @@ class BenchCase:
 CASES: list[BenchCase] = []
 
 
-def case(name: str, *, target_ms: float | None = None, note: str = "",
-         max_repeats: int | None = None, warmup: bool = True):
+def case(
+    name: str,
+    *,
+    target_ms: float | None = None,
+    note: str = "",
+    max_repeats: int | None = None,
+    warmup: bool = True,
+):
     """Register a benchmark case (decorator). The function returns the timed callable,
     or None to skip (e.g. data missing).
 

@@ -50,13 +50,15 @@ def select_cases(only: str | None) -> list:
     # a number in the text is a whole number ("100" is not the start of "1000"); words
     # may be prefixes ("Boxing" names "Boxing_Toes")
     text = only.strip()
-    words = re.compile(r"(?<![0-9])" * text[:1].isdigit() + re.escape(text)
-                       + r"(?![0-9])" * text[-1:].isdigit())
+    words = re.compile(
+        r"(?<![0-9])" * text[:1].isdigit() + re.escape(text) + r"(?![0-9])" * text[-1:].isdigit()
+    )
     return [c for c in CASES if words.search(c.name)]
 
 
-def run_cases(ctx: BenchContext, *, repeats: int = 7, only: str | None = None,
-              progress=None) -> list[BenchResult]:
+def run_cases(
+    ctx: BenchContext, *, repeats: int = 7, only: str | None = None, progress=None
+) -> list[BenchResult]:
     """Run every registered case, or those :func:`select_cases` picks by ``only``."""
     results = []
     chosen = select_cases(only)
@@ -75,7 +77,7 @@ def run_cases(ctx: BenchContext, *, repeats: int = 7, only: str | None = None,
             t0 = time.perf_counter()
             work()
             times.append((time.perf_counter() - t0) * 1000.0)
-        results.append(BenchResult(c.name, min(times), statistics.median(times), n,
-                                   c.target_ms, c.note))
+        results.append(
+            BenchResult(c.name, min(times), statistics.median(times), n, c.target_ms, c.note)
+        )
     return results
-

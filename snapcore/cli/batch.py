@@ -34,8 +34,9 @@ def _size(ctx, param, value):
 
 def _scheduler(ctx, param, value):
     if value is not None and "://" not in value:
-        raise click.BadParameter(f"expected an address like tcp://HOST:8786, got '{value}'",
-                                 param=param)
+        raise click.BadParameter(
+            f"expected an address like tcp://HOST:8786, got '{value}'", param=param
+        )
     return value
 
 
@@ -62,8 +63,14 @@ def _progress(quiet: bool):
     bars = []
 
     def start(total: int):
-        bar = tqdm(total=total, unit="scenes", desc="batch", disable=quiet or total == 0,
-                   file=sys.stderr, dynamic_ncols=True)
+        bar = tqdm(
+            total=total,
+            unit="scenes",
+            desc="batch",
+            disable=quiet or total == 0,
+            file=sys.stderr,
+            dynamic_ncols=True,
+        )
         bars.append(bar)
         errors = [0]
 
@@ -84,55 +91,146 @@ def _progress(quiet: bool):
 
 @click.command()
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
-@click.option("-o", "--output", "out", required=True, callback=_out_folder, metavar="OUT/",
-              help="Output folder: index.csv, index.html and scenes/ (created).")
-@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Worker processes on this machine (one GL renderer each).")
-@click.option("--scheduler", default=None, metavar="tcp://HOST:8786", callback=_scheduler,
-              help="Run on this Dask distributed cluster instead (workers need the library "
-                   "at the same path; start them with --nthreads 1).")
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    required=True,
+    callback=_out_folder,
+    metavar="OUT/",
+    help="Output folder: index.csv, index.html and scenes/ (created).",
+)
+@click.option(
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Worker processes on this machine (one GL renderer each).",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="tcp://HOST:8786",
+    callback=_scheduler,
+    help="Run on this Dask distributed cluster instead (workers need the library "
+    "at the same path; start them with --nthreads 1).",
+)
 @click.option("--sheet", is_flag=True, help="Also render each scene's top-k contact sheet.")
-@click.option("--size", default="320x360", show_default=True, metavar="WxH", callback=_size,
-              help="Thumbnail size in pixels.")
-@click.option("--sheet-size", default="320x360", show_default=True, metavar="WxH",
-              callback=_size, help="Size of each contact-sheet panel in pixels.")
-@click.option("--fps", type=POSITIVE, default=None,
-              help="Frame rate override for EVERY scene (per-scene rates go in scene "
-                   "manifests).")
-@click.option("--scale", type=POSITIVE, default=None,
-              help="Metres per file unit for every scene (default: inferred per scene).")
-@click.option("--body", type=click.Choice(["human", "mannequin"]), default=None,
-              help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
-                   "characters wear their own) or the capsule 'mannequin' (faster).")
-@click.option("--animation", default=None, metavar="NAME",
-              help="glTF/GLB characters: the animation to play (name or index; default the "
-                   "first).")
+@click.option(
+    "--size",
+    default="320x360",
+    show_default=True,
+    metavar="WxH",
+    callback=_size,
+    help="Thumbnail size in pixels.",
+)
+@click.option(
+    "--sheet-size",
+    default="320x360",
+    show_default=True,
+    metavar="WxH",
+    callback=_size,
+    help="Size of each contact-sheet panel in pixels.",
+)
+@click.option(
+    "--fps",
+    type=POSITIVE,
+    default=None,
+    help="Frame rate override for EVERY scene (per-scene rates go in scene manifests).",
+)
+@click.option(
+    "--scale",
+    type=POSITIVE,
+    default=None,
+    help="Metres per file unit for every scene (default: inferred per scene).",
+)
+@click.option(
+    "--body",
+    type=click.Choice(["human", "mannequin"]),
+    default=None,
+    help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
+    "characters wear their own) or the capsule 'mannequin' (faster).",
+)
+@click.option(
+    "--animation",
+    default=None,
+    metavar="NAME",
+    help="glTF/GLB characters: the animation to play (name or index; default the first).",
+)
 @pose_options
-@click.option("--window", type=FiniteFloatRange(min=0.0), default=None, metavar="SECONDS",
-              help="Score the view over the selected pose ± SECONDS (default: whole sequence).")
-@click.option("--baselines/--no-baselines", default=False, show_default=True,
-              help="Also compute the motion-area and viewpoint-entropy baselines in each "
-                   "JSON (off by default in a batch: the viewpoint-entropy baseline was 56% "
-                   "of a scene's time; `snapshot select` computes them for one clip).")
+@click.option(
+    "--window",
+    type=FiniteFloatRange(min=0.0),
+    default=None,
+    metavar="SECONDS",
+    help="Score the view over the selected pose ± SECONDS (default: whole sequence).",
+)
+@click.option(
+    "--baselines/--no-baselines",
+    default=False,
+    show_default=True,
+    help="Also compute the motion-area and viewpoint-entropy baselines in each "
+    "JSON (off by default in a batch: the viewpoint-entropy baseline was 56% "
+    "of a scene's time; `snapshot select` computes them for one clip).",
+)
 @click.option("--force", is_flag=True, help="Redo every scene, even those already done.")
-@click.option("--prune", is_flag=True,
-              help="Drop from the index (and OUT/scenes/) the scenes of earlier runs that "
-                   "are not among this run's SOURCEs (default: keep them, so a run over one "
-                   "folder updates only that folder's rows).")
-@click.option("--retry-errors", is_flag=True,
-              help="Redo the scenes that failed before (e.g. after installing a reader).")
-@click.option("--title", default="Action Snapshot gallery", show_default=True,
-              help="Title of the gallery page.")
-@click.option("--profile", is_flag=True,
-              help="Measure instead: the batch with --jobs 1 and --jobs N (N = --jobs, at "
-                   "least 2) into OUT/profile/, and a loop of separate `snapshot select` + "
-                   "`snapshot render` calls; prints a table and writes OUT/profile.json.")
-@click.option("--profile-loop", type=click.IntRange(min=0), default=3, show_default=True,
-              metavar="N", help="Scenes in the --profile loop of separate calls.")
+@click.option(
+    "--prune",
+    is_flag=True,
+    help="Drop from the index (and OUT/scenes/) the scenes of earlier runs that "
+    "are not among this run's SOURCEs (default: keep them, so a run over one "
+    "folder updates only that folder's rows).",
+)
+@click.option(
+    "--retry-errors",
+    is_flag=True,
+    help="Redo the scenes that failed before (e.g. after installing a reader).",
+)
+@click.option(
+    "--title",
+    default="Action Snapshot gallery",
+    show_default=True,
+    help="Title of the gallery page.",
+)
+@click.option(
+    "--profile",
+    is_flag=True,
+    help="Measure instead: the batch with --jobs 1 and --jobs N (N = --jobs, at "
+    "least 2) into OUT/profile/, and a loop of separate `snapshot select` + "
+    "`snapshot render` calls; prints a table and writes OUT/profile.json.",
+)
+@click.option(
+    "--profile-loop",
+    type=click.IntRange(min=0),
+    default=3,
+    show_default=True,
+    metavar="N",
+    help="Scenes in the --profile loop of separate calls.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, body, animation,
-          window, baselines, force, prune, retry_errors, title, profile, profile_loop, quiet,
-          **pose):
+def batch(
+    sources,
+    out,
+    jobs,
+    scheduler,
+    sheet,
+    size,
+    sheet_size,
+    fps,
+    scale,
+    body,
+    animation,
+    window,
+    baselines,
+    force,
+    prune,
+    retry_errors,
+    title,
+    profile,
+    profile_loop,
+    quiet,
+    **pose,
+):
     """Snapshot a whole motion library: per scene the `select --json` document and a
     thumbnail of the chosen pose from the chosen view; an index and a gallery.
 
@@ -168,38 +266,64 @@ def batch(sources, out, jobs, scheduler, sheet, size, sheet_size, fps, scale, bo
     found = discover(sources, exclude=[out], root=root)
     manifests = [(p, why) for p, why in found.skipped if why.startswith("not a scene manifest")]
     if manifests:
-        click.echo(f"{len(manifests)} .json/.toml file(s) skipped, not scene manifests "
-                   f"(first: {manifests[0][0]}: {manifests[0][1]})", err=True)
+        click.echo(
+            f"{len(manifests)} .json/.toml file(s) skipped, not scene manifests "
+            f"(first: {manifests[0][0]}: {manifests[0][1]})",
+            err=True,
+        )
     if not found.scenes:
         raise BatchError(f"no scenes (BVH, glTF or scene manifests) in {', '.join(sources)}")
-    options = BatchOptions(snapshot=snapshot_kwargs(pose, window=window,
-                                                    baselines=baselines),
-                           fps=fps, scale=scale, size=size, sheet=sheet, sheet_size=sheet_size,
-                           body=body, animation=animation)
+    options = BatchOptions(
+        snapshot=snapshot_kwargs(pose, window=window, baselines=baselines),
+        fps=fps,
+        scale=scale,
+        size=size,
+        sheet=sheet,
+        sheet_size=sheet_size,
+        body=body,
+        animation=animation,
+    )
     if profile:
         from snapcore.batch.profile import format_profile, profile_batch
 
-        result = profile_batch(found.scenes, out, options, loop=profile_loop,
-                               jobs=max(jobs, 2), quiet=quiet)
+        result = profile_batch(
+            found.scenes, out, options, loop=profile_loop, jobs=max(jobs, 2), quiet=quiet
+        )
         for line in format_profile(result):
             click.echo(line)
         return
     start, close = _progress(quiet)
     try:
-        report = run_batch(found.scenes, out, options, jobs=jobs, scheduler=scheduler,
-                           force=force, retry_errors=retry_errors, prune=prune,
-                           progress=start, title=title, root=root, notify=_notify)
+        report = run_batch(
+            found.scenes,
+            out,
+            options,
+            jobs=jobs,
+            scheduler=scheduler,
+            force=force,
+            retry_errors=retry_errors,
+            prune=prune,
+            progress=start,
+            title=title,
+            root=root,
+            notify=_notify,
+        )
     except BatchInterrupted as stop:
         close()
         r = stop.report
-        click.echo(f"interrupted: {out / 'index.csv'} lists the {len(r.rows)} scenes that "
-                   f"finished ({r.done} in this run)", err=True)
+        click.echo(
+            f"interrupted: {out / 'index.csv'} lists the {len(r.rows)} scenes that "
+            f"finished ({r.done} in this run)",
+            err=True,
+        )
         sys.exit(130)
     close()
     rate = f", {report.done / report.elapsed_s:.2f} scenes/s" if report.done else ""
     others = len(report.rows) - report.done - report.reused
     # no --prune hint: after a run over one folder it would delete the rest of the library
     kept = f" (+{others} rows of other scenes kept from earlier runs)" if others else ""
-    click.echo(f"{report.done + report.reused} scenes: {report.done} processed{rate}, "
-               f"{report.reused} already done, {report.errors} with errors{kept}; index "
-               f"{out / 'index.csv'}, gallery {out / 'index.html'}")
+    click.echo(
+        f"{report.done + report.reused} scenes: {report.done} processed{rate}, "
+        f"{report.reused} already done, {report.errors} with errors{kept}; index "
+        f"{out / 'index.csv'}, gallery {out / 'index.html'}"
+    )

@@ -10,13 +10,25 @@ __all__ = ["bench"]
 
 
 @click.command()
-@click.option("--repeats", "-n", type=click.IntRange(1, 1000), default=7, show_default=True,
-              help="Timed runs per case (after one warm-up).")
+@click.option(
+    "--repeats",
+    "-n",
+    type=click.IntRange(1, 1000),
+    default=7,
+    show_default=True,
+    help="Timed runs per case (after one warm-up).",
+)
 @click.option("--only", default=None, help="Run only cases whose name contains this text.")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print results as JSON (data_schema/bench.schema.json).")
-@click.option("--threads", type=click.IntRange(1, 64), default=1, show_default=True,
-              help="BLAS threads (1 = the 'one core' the targets are set for).")
+@click.option(
+    "--json", "as_json", is_flag=True, help="Print results as JSON (data_schema/bench.schema.json)."
+)
+@click.option(
+    "--threads",
+    type=click.IntRange(1, 64),
+    default=1,
+    show_default=True,
+    help="BLAS threads (1 = the 'one core' the targets are set for).",
+)
 def bench(repeats, only, as_json, threads):
     """Benchmark parsing, FK, pose and view selection, rendering and reliefs.
 
@@ -33,8 +45,12 @@ def bench(repeats, only, as_json, threads):
     from snapcore.motion.load import data_dir
 
     ctx = BenchContext(data=data_dir())
-    results = run_cases(ctx, repeats=repeats, only=only,
-                        progress=None if as_json else lambda n: click.echo(f"  running {n}...", err=True))
+    results = run_cases(
+        ctx,
+        repeats=repeats,
+        only=only,
+        progress=None if as_json else lambda n: click.echo(f"  running {n}...", err=True),
+    )
     if not results:
         from snapcore.errors import SnapshotError
 

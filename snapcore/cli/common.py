@@ -19,9 +19,21 @@ import numpy as np
 
 from snapcore.motion.load import load_scene
 
-__all__ = ["scene_arguments", "scene_from_options", "echo_json", "parse_vector",
-           "PositiveFloat", "POSITIVE", "FiniteFloatRange", "check_output", "output_callback",
-           "refuse_inputs", "vector_callback", "view_callback", "internal_frame"]
+__all__ = [
+    "scene_arguments",
+    "scene_from_options",
+    "echo_json",
+    "parse_vector",
+    "PositiveFloat",
+    "POSITIVE",
+    "FiniteFloatRange",
+    "check_output",
+    "output_callback",
+    "refuse_inputs",
+    "vector_callback",
+    "view_callback",
+    "internal_frame",
+]
 
 
 class PositiveFloat(click.ParamType):
@@ -68,14 +80,24 @@ def _stash(ctx, param, value):
 def body_options(f):
     """Decorate a command with ``--body`` and ``--animation`` (kept for
     :func:`scene_from_options`, not passed to the command function)."""
-    f = click.option("--animation", default=None, metavar="NAME", expose_value=False,
-                     callback=_stash,
-                     help="glTF/GLB characters: the animation to play (name or index; "
-                          "default the first; `snapshot info` lists them).")(f)
-    f = click.option("--body", type=click.Choice(["human", "mannequin"]), default=None,
-                     expose_value=False, callback=_stash,
-                     help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
-                          "characters wear their own) or the capsule 'mannequin'.")(f)
+    f = click.option(
+        "--animation",
+        default=None,
+        metavar="NAME",
+        expose_value=False,
+        callback=_stash,
+        help="glTF/GLB characters: the animation to play (name or index; "
+        "default the first; `snapshot info` lists them).",
+    )(f)
+    f = click.option(
+        "--body",
+        type=click.Choice(["human", "mannequin"]),
+        default=None,
+        expose_value=False,
+        callback=_stash,
+        help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
+        "characters wear their own) or the capsule 'mannequin'.",
+    )(f)
     return f
 
 
@@ -83,12 +105,19 @@ def scene_arguments(f):
     """Decorate a command with ``PATH...`` plus ``--fps``, ``--scale``, ``--body`` and
     ``--animation``."""
     f = body_options(f)
-    f = click.option("--scale", type=POSITIVE, default=None,
-                     help="Metres per file unit (default: inferred from the characters' stature).")(f)
-    f = click.option("--fps", type=POSITIVE, default=None,
-                     help="Frame rate override (some headers are wrong, e.g. CMU salsa).")(f)
-    f = click.argument("paths", nargs=-1, required=True,
-                       type=click.Path(dir_okay=False))(f)
+    f = click.option(
+        "--scale",
+        type=POSITIVE,
+        default=None,
+        help="Metres per file unit (default: inferred from the characters' stature).",
+    )(f)
+    f = click.option(
+        "--fps",
+        type=POSITIVE,
+        default=None,
+        help="Frame rate override (some headers are wrong, e.g. CMU salsa).",
+    )(f)
+    f = click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))(f)
     return f
 
 
@@ -97,8 +126,7 @@ def scene_from_options(paths, fps=None, scale=None):
     and ``--body`` are read from the click context when a command is running)."""
     ctx = click.get_current_context(silent=True)
     meta = ctx.meta if ctx is not None else {}
-    scene = load_scene(list(paths), fps=fps, scale=scale,
-                       animation=meta.get("snapshot.animation"))
+    scene = load_scene(list(paths), fps=fps, scale=scale, animation=meta.get("snapshot.animation"))
     body = meta.get("snapshot.body")
     if body is not None:
         scene.meta["body"] = body  # read by snapcore.render.bodies.body_kind
@@ -123,8 +151,9 @@ def parse_vector(text: str, name: str = "--view") -> np.ndarray:
     try:
         v = np.array([float(t) for t in text.split(",")], dtype=float)
     except ValueError:
-        raise click.BadParameter(f"expected three numbers like 0,0,1, got '{text}'",
-                                 param_hint=name) from None
+        raise click.BadParameter(
+            f"expected three numbers like 0,0,1, got '{text}'", param_hint=name
+        ) from None
     if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
         raise click.BadParameter(f"expected a non-zero vector x,y,z, got '{text}'", param_hint=name)
     return v / np.linalg.norm(v)
@@ -188,8 +217,12 @@ def output_callback(*suffixes: str, what: str | None = None):
     def callback(ctx, param, value):
         if value is None:
             return value
-        return check_output(value, suffixes or None, option=_option_name(param),
-                            what=what or f"{ctx.info_name} writes")
+        return check_output(
+            value,
+            suffixes or None,
+            option=_option_name(param),
+            what=what or f"{ctx.info_name} writes",
+        )
 
     return callback
 

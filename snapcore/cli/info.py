@@ -40,8 +40,12 @@ def scene_summary(scene) -> dict:
 
 @click.command()
 @scene_arguments
-@click.option("--json", "as_json", is_flag=True,
-              help="Print machine-readable JSON (data_schema/info.schema.json).")
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print machine-readable JSON (data_schema/info.schema.json).",
+)
 def info(paths, fps, scale, as_json):
     """Summarise a scene: characters, joints, frames, fps, duration, height, bounds.
 
@@ -57,16 +61,24 @@ def info(paths, fps, scale, as_json):
         echo_json(s)
         return
     click.echo(f"scene       {s['name']}")
-    click.echo(f"frames      {s['n_frames']} at {s['fps']:g} fps = {s['duration_s']:.2f} s"
-               + (f" (source frames from {s['frame_offset']})" if s["frame_offset"] else ""))
+    click.echo(
+        f"frames      {s['n_frames']} at {s['fps']:g} fps = {s['duration_s']:.2f} s"
+        + (f" (source frames from {s['frame_offset']})" if s["frame_offset"] else "")
+    )
     click.echo(f"ground      y = {s['ground_m']:.3f} m")
     lo, hi = s["bounds_m"]["min"], s["bounds_m"]["max"]
     sx, sy, sz = (h - low for h, low in zip(hi, lo))
-    click.echo(f"bounds      x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  "
-               f"z {lo[2]:.2f}..{hi[2]:.2f} m  ({sx:.2f} x {sy:.2f} x {sz:.2f} m)")
+    click.echo(
+        f"bounds      x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  "
+        f"z {lo[2]:.2f}..{hi[2]:.2f} m  ({sx:.2f} x {sy:.2f} x {sz:.2f} m)"
+    )
     for c in s["characters"]:
-        click.echo(f"character   {c['name']}: {c['n_joints']} joints ({c['n_end_sites']} end sites), "
-                   f"height {c['height_m']:.2f} m, {c['scale_m_per_unit']:.4g} m/unit ({c['unit']})")
+        click.echo(
+            f"character   {c['name']}: {c['n_joints']} joints ({c['n_end_sites']} end sites), "
+            f"height {c['height_m']:.2f} m, {c['scale_m_per_unit']:.4g} m/unit ({c['unit']})"
+        )
         if c["animations"]:
-            click.echo(f"animations  {', '.join(c['animations'])} (playing {c['animation']}; "
-                       "--animation NAME picks one)")
+            click.echo(
+                f"animations  {', '.join(c['animations'])} (playing {c['animation']}; "
+                "--animation NAME picks one)"
+            )

@@ -17,26 +17,51 @@ def _methods(ctx, param, value):
     names = [v.strip() for v in value.split(",") if v.strip()]
     bad = [n for n in names if n not in POSE_METHODS]
     if bad or not names:
-        raise click.BadParameter(f"unknown method(s) {', '.join(bad) or '(none)'}; expected a "
-                                 f"comma-separated list of {', '.join(POSE_METHODS)}")
+        raise click.BadParameter(
+            f"unknown method(s) {', '.join(bad) or '(none)'}; expected a "
+            f"comma-separated list of {', '.join(POSE_METHODS)}"
+        )
     return list(dict.fromkeys(names))
 
 
 @click.command()
 @click.argument("annotations", type=click.Path(dir_okay=False))
-@click.option("--data", type=click.Path(file_okay=False), default=None,
-              help="Folder the annotated files are relative to (default: SNAPSHOT_DATA, "
-                   "else ../shared/motions).")
-@click.option("--methods", callback=_methods, default=None, metavar="A,B,...",
-              help="Pose methods to compare (default: all: story, paper, stretch, fastest, "
-                   "middle, random, salient).")
-@click.option("-k", "k", type=click.IntRange(min=1), default=3, show_default=True,
-              help="Picks per method (top-k).")
-@click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
-              help="Folder for keymoments.csv, keymoments.md, keymoments.json and "
-                   "keymoments_timeline.png.")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print the evaluation as JSON (data_schema/keymoments_evaluation.schema.json).")
+@click.option(
+    "--data",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Folder the annotated files are relative to (default: SNAPSHOT_DATA, "
+    "else ../shared/motions).",
+)
+@click.option(
+    "--methods",
+    callback=_methods,
+    default=None,
+    metavar="A,B,...",
+    help="Pose methods to compare (default: all: story, paper, stretch, fastest, "
+    "middle, random, salient).",
+)
+@click.option(
+    "-k",
+    "k",
+    type=click.IntRange(min=1),
+    default=3,
+    show_default=True,
+    help="Picks per method (top-k).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Folder for keymoments.csv, keymoments.md, keymoments.json and keymoments_timeline.png.",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the evaluation as JSON (data_schema/keymoments_evaluation.schema.json).",
+)
 def keymoments(annotations, data, methods, k, output, as_json):
     """Measure pose selectors against annotated key moments.
 
@@ -61,9 +86,14 @@ def keymoments(annotations, data, methods, k, output, as_json):
 
     entries = read_keymoments(annotations)
     base = Path(data) if data else data_dir(required=True)
-    doc = run_keymoments(entries, data=base, methods=methods, k=k, source=annotations,
-                         progress=None if as_json else
-                         (lambda s: click.echo(f"  running {s}...", err=True)))
+    doc = run_keymoments(
+        entries,
+        data=base,
+        methods=methods,
+        k=k,
+        source=annotations,
+        progress=None if as_json else (lambda s: click.echo(f"  running {s}...", err=True)),
+    )
     from snapcore.schema import validate
 
     validate(doc, "keymoments_evaluation", source="snapshot keymoments output")
@@ -78,12 +108,18 @@ def keymoments(annotations, data, methods, k, output, as_json):
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
             w.writeheader()
             w.writerows(rows)
-        md = ["| scene | method | top-1 | top-3 | distance (s) | chance | frames |",
-              "|---|---|---|---|---|---|---|"]
-        md += [f"| {r['scene']} | {r['method']} | {r['top1']} | {r['top3']} | "
-               f"{r['distance_s']} | {r['chance']} | {r['frames']} |" for r in rows]
-        (out / "keymoments.md").write_text("\n".join(md) + "\n\nOverall:\n\n"
-                                           + overall_markdown(doc) + "\n", encoding="utf-8")
+        md = [
+            "| scene | method | top-1 | top-3 | distance (s) | chance | frames |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        md += [
+            f"| {r['scene']} | {r['method']} | {r['top1']} | {r['top3']} | "
+            f"{r['distance_s']} | {r['chance']} | {r['frames']} |"
+            for r in rows
+        ]
+        (out / "keymoments.md").write_text(
+            "\n".join(md) + "\n\nOverall:\n\n" + overall_markdown(doc) + "\n", encoding="utf-8"
+        )
         (out / "keymoments.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
         from snapcore.render.keymoments_plot import plot_keymoment_timelines
 
@@ -94,12 +130,17 @@ def keymoments(annotations, data, methods, k, output, as_json):
 
         echo_json(doc)
         return
-    click.echo(f"{'scene':<14} {'method':<9} {'top1':>5} {'top3':>5} {'dist_s':>7} "
-               f"{'chance':>6}  frames")
+    click.echo(
+        f"{'scene':<14} {'method':<9} {'top1':>5} {'top3':>5} {'dist_s':>7} {'chance':>6}  frames"
+    )
     for r in rows:
-        click.echo(f"{r['scene']:<14} {r['method']:<9} {str(r['top1']):>5} {str(r['top3']):>5} "
-                   f"{r['distance_s']:>7.2f} {r['chance']:>6.2f}  {r['frames']}")
-    click.echo("a pick hits inside an interval widened by 0.1 s; dist_s: top pick to the "
-               "nearest interval; chance: a random frame's hit rate (ALL: expected hits)")
+        click.echo(
+            f"{r['scene']:<14} {r['method']:<9} {str(r['top1']):>5} {str(r['top3']):>5} "
+            f"{r['distance_s']:>7.2f} {r['chance']:>6.2f}  {r['frames']}"
+        )
+    click.echo(
+        "a pick hits inside an interval widened by 0.1 s; dist_s: top pick to the "
+        "nearest interval; chance: a random frame's hit rate (ALL: expected hits)"
+    )
     if output:
         click.echo(f"wrote {Path(output)}/keymoments.csv, .md, .json, keymoments_timeline.png")

@@ -32,16 +32,35 @@ CLIP = "dance/05_06.bvh"
 PANEL = (420, 480)
 #: The body pictures: (file name, clip files, source frame, motion fps or None, title).
 BODY_CLIPS = (
-    ("body_bandai_run.png", ("walk_run/dataset-2_run_normal_001.bvh",), 20, None,
-     "Bandai Namco run (identity rest pose), frame 20"),
-    ("body_bandai_punch.png", ("boxing_jump/dataset-1_punch_normal_001.bvh",), 60, None,
-     "Bandai Namco punch, frame 60"),
-    ("body_cmu.png", ("walk_run/131_01.bvh",), 300, None,
-     "CMU 131_01 (3ds Max naming), frame 300"),
-    ("body_daz.png", ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"), 525, 60,
-     "Daz/Poser salsa pair (eye joints), frame 525"),
-    ("body_gltf.png", ("gltf/BrainStem.glb",), 300, None,
-     "glTF BrainStem: its own skinned mesh and material colours, frame 300"),
+    (
+        "body_bandai_run.png",
+        ("walk_run/dataset-2_run_normal_001.bvh",),
+        20,
+        None,
+        "Bandai Namco run (identity rest pose), frame 20",
+    ),
+    (
+        "body_bandai_punch.png",
+        ("boxing_jump/dataset-1_punch_normal_001.bvh",),
+        60,
+        None,
+        "Bandai Namco punch, frame 60",
+    ),
+    ("body_cmu.png", ("walk_run/131_01.bvh",), 300, None, "CMU 131_01 (3ds Max naming), frame 300"),
+    (
+        "body_daz.png",
+        ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
+        525,
+        60,
+        "Daz/Poser salsa pair (eye joints), frame 525",
+    ),
+    (
+        "body_gltf.png",
+        ("gltf/BrainStem.glb",),
+        300,
+        None,
+        "glTF BrainStem: its own skinned mesh and material colours, frame 300",
+    ),
 )
 #: Panel size of the body pictures, pixels.
 BODY_PANEL = (300, 330)
@@ -68,14 +87,24 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     out.mkdir(parents=True, exist_ok=True)
     name = Path(clip).stem
     sheet_view = views.get("ours")
-    sheet = contact_sheet(scene, picks["indices"], view=sheet_view, captions=picks["captions"],
-                          size=panel, title=f"CMU {name}: the three most informative poses "
-                                            "(story information), selected view")
+    sheet = contact_sheet(
+        scene,
+        picks["indices"],
+        view=sheet_view,
+        captions=picks["captions"],
+        size=panel,
+        title=f"CMU {name}: the three most informative poses (story information), selected view",
+    )
     frame = picks["index"]
     labels = {ViewMethod.OURS.label: "ours (projected motion area)"}
-    cmp = compare_views(scene, frame, {labels.get(k, k): v for k, v in views.items()}, size=panel,
-                        title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "
-                              "the selected pose from each method's view")
+    cmp = compare_views(
+        scene,
+        frame,
+        {labels.get(k, k): v for k, v in views.items()},
+        size=panel,
+        title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "
+        "the selected pose from each method's view",
+    )
     paths = [out / "contact_sheet.png", out / "three_views.png", out / "relief.png"]
     save_png(sheet, paths[0])
     save_png(cmp, paths[1])
@@ -107,8 +136,7 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
         kinds = ("human", "mannequin")
         pts = np.vstack([scene_body(with_body(scene, k)).vertices(frame) for k in kinds])
         cam = fit_camera(pts, default_view(scene), size=panel)
-        panels = [SceneRenderer(with_body(scene, k), size=panel).render(frame, cam)
-                  for k in kinds]
+        panels = [SceneRenderer(with_body(scene, k), size=panel).render(frame, cam) for k in kinds]
         sheet = tile_panels(panels, ["human body", "mannequin"], title=title)
         paths.append(out / name)
         save_png(sheet, paths[-1])

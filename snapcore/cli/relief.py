@@ -124,8 +124,9 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     callback=output_callback(".png", what="relief writes its preview as"),
     help="Shaded preview PNG (.png; default: beside the STL, same name with .png).",
 )
-@click.option("--json", "as_json", is_flag=True,
-              help="Print a JSON summary (data_schema/relief.schema.json).")
+@click.option(
+    "--json", "as_json", is_flag=True, help="Print a JSON summary (data_schema/relief.schema.json)."
+)
 @click.option("--quiet", "-q", is_flag=True, help="Print nothing but errors.")
 def relief(
     paths,

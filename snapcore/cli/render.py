@@ -36,11 +36,13 @@ def parse_size(text: str, name: str = "--size") -> tuple[int, int]:
     try:
         w, h = (int(t) for t in text.lower().replace("×", "x").split("x"))
     except ValueError:
-        raise click.BadParameter(f"expected WIDTHxHEIGHT like 1280x720, got '{text}'",
-                                 param_hint=name) from None
+        raise click.BadParameter(
+            f"expected WIDTHxHEIGHT like 1280x720, got '{text}'", param_hint=name
+        ) from None
     if not (8 <= w <= 8192 and 8 <= h <= 8192):
-        raise click.BadParameter(f"width and height must be 8..8192 pixels, got '{text}'",
-                                 param_hint=name)
+        raise click.BadParameter(
+            f"width and height must be 8..8192 pixels, got '{text}'", param_hint=name
+        )
     return w, h
 
 
@@ -80,9 +82,13 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
         warnings.simplefilter("ignore")
         snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
     sc = snap.pose.scores
-    out = {"index": int(snap.index), "indices": [int(i) for i in snap.indices],
-           "captions": [sc.caption(sc.total[i]) for i in snap.indices],
-           "views": {}, "how": "selected pose"}
+    out = {
+        "index": int(snap.index),
+        "indices": [int(i) for i in snap.indices],
+        "captions": [sc.caption(sc.total[i]) for i in snap.indices],
+        "views": {},
+        "how": "selected pose",
+    }
     if not views:
         return out
     out["views"] = {m.label: v / np.linalg.norm(v) for m, v in snap.views.items()}
@@ -119,8 +125,9 @@ def _frame_range_callback(ctx, param, value):
     try:
         a, b = (int(t) for t in value.split(":"))
     except ValueError:
-        raise click.BadParameter(f"expected A:B source frames, got '{value}'",
-                                 param=param) from None
+        raise click.BadParameter(
+            f"expected A:B source frames, got '{value}'", param=param
+        ) from None
     if b < a:
         raise click.BadParameter(f"B must not be before A, got '{value}'", param=param)
     return a, b
@@ -128,8 +135,9 @@ def _frame_range_callback(ctx, param, value):
 
 def _render_options(f):
     opts = [
-        click.option("--perspective", is_flag=True,
-                     help="Perspective camera (default: orthographic)."),
+        click.option(
+            "--perspective", is_flag=True, help="Perspective camera (default: orthographic)."
+        ),
         click.option("--no-ground", is_flag=True, help="No floor grid (and no shadows)."),
         click.option("--no-shadows", is_flag=True, help="No shadows on the floor."),
     ]
@@ -140,17 +148,44 @@ def _render_options(f):
 
 @click.command()
 @scene_arguments
-@click.option("--frame", type=int, default=None, metavar="N",
-              help="Source frame number (as in the BVH file). Default: the selected pose.")
-@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
-              help="Direction from the scene to the camera (Y up), 'auto' = the selected "
-                   "view (projected motion area) [default], 'default' = a 3/4 front view.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              callback=output_callback(".png"), help="PNG file to write (.png).")
-@click.option("--size", default="1280x720", show_default=True, metavar="WxH",
-              callback=_size_callback, help="Image size in pixels.")
-@click.option("--fit", type=click.Choice(["frame", "motion"]), default="frame", show_default=True,
-              help="Frame the pose tightly, or the whole motion (as videos do).")
+@click.option(
+    "--frame",
+    type=int,
+    default=None,
+    metavar="N",
+    help="Source frame number (as in the BVH file). Default: the selected pose.",
+)
+@click.option(
+    "--view",
+    default=None,
+    metavar="x,y,z|auto|default",
+    callback=view_callback,
+    help="Direction from the scene to the camera (Y up), 'auto' = the selected "
+    "view (projected motion area) [default], 'default' = a 3/4 front view.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    required=True,
+    callback=output_callback(".png"),
+    help="PNG file to write (.png).",
+)
+@click.option(
+    "--size",
+    default="1280x720",
+    show_default=True,
+    metavar="WxH",
+    callback=_size_callback,
+    help="Image size in pixels.",
+)
+@click.option(
+    "--fit",
+    type=click.Choice(["frame", "motion"]),
+    default="frame",
+    show_default=True,
+    help="Frame the pose tightly, or the whole motion (as videos do).",
+)
 @_render_options
 def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_ground, no_shadows):
     """Render one frame of a scene to a PNG.
@@ -166,50 +201,115 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
     i, _ = _frame_option(scene, frame, views=False)
     v, how = _view_option(view, scene)
     _note(f"view {np.round(v, 3).tolist()} ({how})")
-    img = render_still(scene, i, v, size=(w, h), projection="perspective" if perspective
-                       else "orthographic", fit=fit, ground=not no_ground,
-                       shadows=not (no_shadows or no_ground))
+    img = render_still(
+        scene,
+        i,
+        v,
+        size=(w, h),
+        projection="perspective" if perspective else "orthographic",
+        fit=fit,
+        ground=not no_ground,
+        shadows=not (no_shadows or no_ground),
+    )
     save_png(img, output)
     click.echo(output)
 
 
 @click.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              callback=output_callback(".mp4"),
-              help="MP4 file to write (.mp4; H.264, yuv420p, faststart).")
-@click.option("--fps", "video_fps", type=FiniteFloatRange(min=1, max=240), default=24.0,
-              show_default=True,
-              help="Frame rate of the VIDEO; the motion is resampled (nearest frame).")
-@click.option("--motion-fps", "fps", type=POSITIVE, default=None,
-              help="Frame rate override for the MOTION (what --fps means in the other "
-                   "commands; some headers are wrong, e.g. CMU salsa is 60).")
-@click.option("--scale", type=POSITIVE, default=None,
-              help="Metres per file unit (default: inferred from the characters' stature).")
-@click.option("--size", default="1280x720", show_default=True, metavar="WxH",
-              callback=_size_callback, help="Video size in pixels (even numbers).")
-@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
-              help="Direction from the scene to the camera. Default: 'default' = a neutral "
-                   "3/4 front view; 'auto' = the selected view.")
-@click.option("--frames", "frame_range", default=None, metavar="A:B",
-              callback=_frame_range_callback,
-              help="Only the span of source frames A..B (inclusive), resampled to the "
-                   "video's rate by nearest frame: at a lower rate the last frame shown "
-                   "may fall a little before B (see --frame-map).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    required=True,
+    callback=output_callback(".mp4"),
+    help="MP4 file to write (.mp4; H.264, yuv420p, faststart).",
+)
+@click.option(
+    "--fps",
+    "video_fps",
+    type=FiniteFloatRange(min=1, max=240),
+    default=24.0,
+    show_default=True,
+    help="Frame rate of the VIDEO; the motion is resampled (nearest frame).",
+)
+@click.option(
+    "--motion-fps",
+    "fps",
+    type=POSITIVE,
+    default=None,
+    help="Frame rate override for the MOTION (what --fps means in the other "
+    "commands; some headers are wrong, e.g. CMU salsa is 60).",
+)
+@click.option(
+    "--scale",
+    type=POSITIVE,
+    default=None,
+    help="Metres per file unit (default: inferred from the characters' stature).",
+)
+@click.option(
+    "--size",
+    default="1280x720",
+    show_default=True,
+    metavar="WxH",
+    callback=_size_callback,
+    help="Video size in pixels (even numbers).",
+)
+@click.option(
+    "--view",
+    default=None,
+    metavar="x,y,z|auto|default",
+    callback=view_callback,
+    help="Direction from the scene to the camera. Default: 'default' = a neutral "
+    "3/4 front view; 'auto' = the selected view.",
+)
+@click.option(
+    "--frames",
+    "frame_range",
+    default=None,
+    metavar="A:B",
+    callback=_frame_range_callback,
+    help="Only the span of source frames A..B (inclusive), resampled to the "
+    "video's rate by nearest frame: at a lower rate the last frame shown "
+    "may fall a little before B (see --frame-map).",
+)
 @click.option("--frame-numbers", is_flag=True, help="Print source frame number and time.")
-@click.option("--frame-map", type=click.Path(dir_okay=False), default=None,
-              callback=output_callback(".json", what="the frame map is written as"),
-              help="Also write the video-frame → source-frame map as JSON (.json; "
-                   "data_schema/frame_map.schema.json).")
-@click.option("--detail", type=click.Choice(["reduced", "full"]), default="reduced",
-              show_default=True,
-              help="Human bodies: the reduced mesh (a third of the triangles, the same picture "
-                   "at video sizes, ~40%% faster) or the full one (close-ups).")
+@click.option(
+    "--frame-map",
+    type=click.Path(dir_okay=False),
+    default=None,
+    callback=output_callback(".json", what="the frame map is written as"),
+    help="Also write the video-frame → source-frame map as JSON (.json; "
+    "data_schema/frame_map.schema.json).",
+)
+@click.option(
+    "--detail",
+    type=click.Choice(["reduced", "full"]),
+    default="reduced",
+    show_default=True,
+    help="Human bodies: the reduced mesh (a third of the triangles, the same picture "
+    "at video sizes, ~40%% faster) or the full one (close-ups).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 @body_options
 @_render_options
-def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_numbers,
-          frame_map, detail, quiet, perspective, no_ground, no_shadows):
+def video(
+    paths,
+    output,
+    video_fps,
+    fps,
+    scale,
+    size,
+    view,
+    frame_range,
+    frame_numbers,
+    frame_map,
+    detail,
+    quiet,
+    perspective,
+    no_ground,
+    no_shadows,
+):
     """Render a scene to an H.264 MP4 that plays in Chrome and Firefox.
 
     One fixed camera frames the whole motion. Prints the number of video frames; the
@@ -225,8 +325,9 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
 
     w, h = size
     if w % 2 or h % 2:
-        raise click.BadParameter(f"video width and height must be even, got {w}x{h}",
-                                 param_hint="--size")
+        raise click.BadParameter(
+            f"video width and height must be even, got {w}x{h}", param_hint="--size"
+        )
     refuse_inputs(paths, **{"--frame-map": frame_map})
     scene = scene_from_options(paths, fps, scale)
     rng = None
@@ -236,28 +337,45 @@ def video(paths, output, video_fps, fps, scale, size, view, frame_range, frame_n
     v, how = _view_option(view, scene, default="default")
     if not quiet:
         _note(f"view {np.round(v, 3).tolist()} ({how})")
-    fmap = render_video(scene, output, fps=video_fps, size=(w, h), view=v,
-                        projection="perspective" if perspective else "orthographic",
-                        frame_numbers=frame_numbers, progress=not quiet, frame_range=rng,
-                        ground=not no_ground, shadows=not (no_shadows or no_ground),
-                        detail=detail)
+    fmap = render_video(
+        scene,
+        output,
+        fps=video_fps,
+        size=(w, h),
+        view=v,
+        projection="perspective" if perspective else "orthographic",
+        frame_numbers=frame_numbers,
+        progress=not quiet,
+        frame_range=rng,
+        ground=not no_ground,
+        shadows=not (no_shadows or no_ground),
+        detail=detail,
+    )
     if frame_map:
-        doc = {"video": str(output), "fps": float(video_fps), "size": [w, h],
-               "motion_fps": float(scene.fps), "source_frames": [int(x) for x in fmap]}
+        doc = {
+            "video": str(output),
+            "fps": float(video_fps),
+            "size": [w, h],
+            "motion_fps": float(scene.fps),
+            "source_frames": [int(x) for x in fmap],
+        }
         from snapcore.schema import validate
 
         validate(doc, "frame_map", source="snapshot video frame map")
         Path(frame_map).write_text(json.dumps(doc) + "\n")
-    click.echo(f"{output}: {len(fmap)} frame{'s' if len(fmap) != 1 else ''} at {video_fps:g} fps "
-               f"(source frames {int(fmap[0])}..{int(fmap[-1])})")
+    click.echo(
+        f"{output}: {len(fmap)} frame{'s' if len(fmap) != 1 else ''} at {video_fps:g} fps "
+        f"(source frames {int(fmap[0])}..{int(fmap[-1])})"
+    )
 
 
 def _parse_frames(text: str) -> list[int]:
     try:
         return [int(t) for t in text.split(",") if t.strip()]
     except ValueError:
-        raise click.BadParameter(f"expected source frame numbers like 120,340,560, got '{text}'",
-                                 param_hint="--frames") from None
+        raise click.BadParameter(
+            f"expected source frame numbers like 120,340,560, got '{text}'", param_hint="--frames"
+        ) from None
 
 
 def _parse_named_view(text: str) -> tuple[str, np.ndarray]:
@@ -280,30 +398,88 @@ def _frames_callback(ctx, param, value):
 
 @click.command()
 @scene_arguments
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              callback=output_callback(".png"), help="PNG file to write (.png).")
-@click.option("--frames", "frames", default=None, metavar="A,B,C", callback=_frames_callback,
-              help="Contact sheet of these source frames (default: the top poses).")
-@click.option("--top", type=click.IntRange(min=1, max=12), default=3, show_default=True,
-              help="Contact sheet of the K most informative poses (pose entropy).")
-@click.option("--view", default=None, metavar="x,y,z|auto|default", callback=view_callback,
-              help="View of the contact sheet (default: 'auto' = the selected view).")
-@click.option("--views", "named_views", multiple=True, metavar="NAME=x,y,z",
-              callback=_named_views_callback,
-              help="Compare views instead: one panel per NAME=x,y,z (repeat the option).")
-@click.option("--compare", is_flag=True,
-              help="Compare the three methods' views (ours / viewpoint entropy / motion "
-                   "area, as far as available) at --frame.")
-@click.option("--frame", type=int, default=None, metavar="N",
-              help="Source frame for --views/--compare (default: the selected pose).")
-@click.option("--size", default="480x540", show_default=True, metavar="WxH",
-              callback=_size_callback, help="Size of each panel in pixels.")
-@click.option("--columns", type=click.IntRange(min=1), default=None,
-              help="Panels per row (default: one row).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    required=True,
+    callback=output_callback(".png"),
+    help="PNG file to write (.png).",
+)
+@click.option(
+    "--frames",
+    "frames",
+    default=None,
+    metavar="A,B,C",
+    callback=_frames_callback,
+    help="Contact sheet of these source frames (default: the top poses).",
+)
+@click.option(
+    "--top",
+    type=click.IntRange(min=1, max=12),
+    default=3,
+    show_default=True,
+    help="Contact sheet of the K most informative poses (pose entropy).",
+)
+@click.option(
+    "--view",
+    default=None,
+    metavar="x,y,z|auto|default",
+    callback=view_callback,
+    help="View of the contact sheet (default: 'auto' = the selected view).",
+)
+@click.option(
+    "--views",
+    "named_views",
+    multiple=True,
+    metavar="NAME=x,y,z",
+    callback=_named_views_callback,
+    help="Compare views instead: one panel per NAME=x,y,z (repeat the option).",
+)
+@click.option(
+    "--compare",
+    is_flag=True,
+    help="Compare the three methods' views (ours / viewpoint entropy / motion "
+    "area, as far as available) at --frame.",
+)
+@click.option(
+    "--frame",
+    type=int,
+    default=None,
+    metavar="N",
+    help="Source frame for --views/--compare (default: the selected pose).",
+)
+@click.option(
+    "--size",
+    default="480x540",
+    show_default=True,
+    metavar="WxH",
+    callback=_size_callback,
+    help="Size of each panel in pixels.",
+)
+@click.option(
+    "--columns", type=click.IntRange(min=1), default=None, help="Panels per row (default: one row)."
+)
 @click.option("--title", default=None, help="Title line above the panels.")
 @_render_options
-def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, frame, size,
-          columns, title, perspective, no_ground, no_shadows):
+def sheet(
+    paths,
+    fps,
+    scale,
+    output,
+    frames,
+    top,
+    view,
+    named_views,
+    compare,
+    frame,
+    size,
+    columns,
+    title,
+    perspective,
+    no_ground,
+    no_shadows,
+):
     """Composite pictures: a contact sheet of poses, or one pose from several views.
 
     \b
@@ -322,8 +498,13 @@ def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, fr
     w, h = size
     proj = "perspective" if perspective else "orthographic"
     scene = scene_from_options(paths, fps, scale)
-    common = dict(size=(w, h), projection=proj, ground=not no_ground,
-                  shadows=not (no_shadows or no_ground), columns=columns)
+    common = dict(
+        size=(w, h),
+        projection=proj,
+        ground=not no_ground,
+        shadows=not (no_shadows or no_ground),
+        columns=columns,
+    )
     picks = None
     if named_views or compare:
         i, picks = _frame_option(scene, frame, views=compare)
@@ -341,8 +522,15 @@ def sheet(paths, fps, scale, output, frames, top, view, named_views, compare, fr
             frames, captions = picks["indices"], picks["captions"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
-        img = contact_sheet(scene, frames, view=v, captions=captions, title=title,
-                            ranked=captions is not None, **common)  # --frames: no ranks
+        img = contact_sheet(
+            scene,
+            frames,
+            view=v,
+            captions=captions,
+            title=title,
+            ranked=captions is not None,
+            **common,
+        )  # --frames: no ranks
     save_png(img, output)
     click.echo(output)
 

@@ -18,20 +18,45 @@ __all__ = ["plot_views"]
 
 @click.command("plot-views")
 @scene_arguments
-@click.option("-o", "--output", type=click.Path(dir_okay=False, writable=True), required=True,
-              callback=output_callback(".png", ".pdf", ".svg"),
-              help="Image file to write (.png, .pdf, .svg).")
-@click.option("--frame", type=click.IntRange(min=0), default=None,
-              help="Source frame of the pose (default: the pose-entropy pick).")
-@click.option("--window", "window", type=FiniteFloatRange(min=0.0), default=None,
-              metavar="SECONDS",
-              help="Score PMA and motion area over the pose ± SECONDS (default: whole sequence).")
-@click.option("--projection", type=click.Choice(["mollweide", "equirect"]), default="mollweide",
-              show_default=True, help="Map projection of the sphere.")
-@click.option("--n-views", type=click.IntRange(min=12), default=2562, show_default=True,
-              help="Samples of the view sphere for PMA and motion area.")
-@click.option("--no-entropy", is_flag=True,
-              help="Leave out the viewpoint-entropy map (no rendering).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, writable=True),
+    required=True,
+    callback=output_callback(".png", ".pdf", ".svg"),
+    help="Image file to write (.png, .pdf, .svg).",
+)
+@click.option(
+    "--frame",
+    type=click.IntRange(min=0),
+    default=None,
+    help="Source frame of the pose (default: the pose-entropy pick).",
+)
+@click.option(
+    "--window",
+    "window",
+    type=FiniteFloatRange(min=0.0),
+    default=None,
+    metavar="SECONDS",
+    help="Score PMA and motion area over the pose ± SECONDS (default: whole sequence).",
+)
+@click.option(
+    "--projection",
+    type=click.Choice(["mollweide", "equirect"]),
+    default="mollweide",
+    show_default=True,
+    help="Map projection of the sphere.",
+)
+@click.option(
+    "--n-views",
+    type=click.IntRange(min=12),
+    default=2562,
+    show_default=True,
+    help="Samples of the view sphere for PMA and motion area.",
+)
+@click.option(
+    "--no-entropy", is_flag=True, help="Leave out the viewpoint-entropy map (no rendering)."
+)
 @click.option("--dpi", type=click.IntRange(min=30), default=120, show_default=True)
 def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no_entropy, dpi):
     """Map the view scores over the sphere with the three methods' picks.
@@ -56,7 +81,9 @@ def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no
         if not 0 <= index < scene.n_frames:
             raise click.BadParameter(
                 f"source frame {frame} is outside {scene.frame_offset}.."
-                f"{scene.frame_offset + scene.n_frames - 1}", param_hint="--frame")
+                f"{scene.frame_offset + scene.n_frames - 1}",
+                param_hint="--frame",
+            )
     from snapcore.render.view_plot import plot_views as draw
     from snapcore.render.view_plot import view_maps
 

@@ -145,7 +145,7 @@ def _split_side(name: str) -> tuple[str, str]:
     for side, pat in _SIDE_PATTERNS:
         m = pat.search(base)
         if m:
-            rest = (base[: m.start()] + base[m.end():]).strip("_ .")
+            rest = (base[: m.start()] + base[m.end() :]).strip("_ .")
             return side, rest.lower()
     return "", base.lower()
 
@@ -202,9 +202,13 @@ def joint_roles(names, parents) -> list[str]:
                 roles[j] = "pelvis"
     if "pelvis" not in roles:
         # No pelvis by name (Kinect's SpineBase): it is where the two legs meet.
-        meet = _meeting_joint(parents, *(
-            [j for j, (r, s) in enumerate(zip(roles, sides)) if r == "thigh" and s == side]
-            for side in "LR"))
+        meet = _meeting_joint(
+            parents,
+            *(
+                [j for j, (r, s) in enumerate(zip(roles, sides)) if r == "thigh" and s == side]
+                for side in "LR"
+            ),
+        )
         if meet is not None:
             roles[meet] = "pelvis"
     return roles
@@ -290,8 +294,11 @@ def _mirrored_siblings(names, parents) -> list[tuple[int, int]]:
     for j, (side, base) in enumerate(split):
         if side != "L":
             continue
-        match = [k for k, (s, b) in enumerate(split)
-                 if s == "R" and b == base and parents[k] == parents[j]]
+        match = [
+            k
+            for k, (s, b) in enumerate(split)
+            if s == "R" and b == base and parents[k] == parents[j]
+        ]
         if match:
             out.append((j, match[0]))
     return out
@@ -309,8 +316,11 @@ LIMB_ROLES = {
     "toe": "toe",
 }
 #: Landmarks a skeleton must have to carry a human body (retargeting).
-REQUIRED_LANDMARKS = ("pelvis", "head", *(f"{n}_{s}" for s in "LR" for n in (
-    "shoulder", "elbow", "wrist", "hip", "knee", "ankle")))
+REQUIRED_LANDMARKS = (
+    "pelvis",
+    "head",
+    *(f"{n}_{s}" for s in "LR" for n in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")),
+)
 
 
 def body_landmarks(names, parents) -> dict[str, Any]:
@@ -345,8 +355,12 @@ def body_landmarks(names, parents) -> dict[str, Any]:
 
     def first(role, side="", below=None):
         for j in range(n):
-            if roles[j] == role and sides[j] == side and not end[j] and (
-                    below is None or below in ancestors(j)):
+            if (
+                roles[j] == role
+                and sides[j] == side
+                and not end[j]
+                and (below is None or below in ancestors(j))
+            ):
                 return j
         return None
 
@@ -377,8 +391,14 @@ def body_landmarks(names, parents) -> dict[str, Any]:
                 # a second foot joint below the ankle is the ball of the foot (SMPL's and
                 # Kinect's "foot" below their "ankle")
                 ankle = out[f"ankle_{side}"]
-                j = next((k for k in range(n) if parents[k] == ankle and not end[k]
-                          and roles[k] == "foot"), None)
+                j = next(
+                    (
+                        k
+                        for k in range(n)
+                        if parents[k] == ankle and not end[k] and roles[k] == "foot"
+                    ),
+                    None,
+                )
             out[f"{limb}_{side}"] = j
             prev = j if j is not None else prev
     return out

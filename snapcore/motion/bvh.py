@@ -31,8 +31,15 @@ import numpy as np
 
 from snapcore.errors import BVHError
 
-__all__ = ["BVHDocument", "read_bvh", "parse_bvh", "write_bvh", "format_bvh", "split_roots",
-           "CHANNEL_NAMES"]
+__all__ = [
+    "BVHDocument",
+    "read_bvh",
+    "parse_bvh",
+    "write_bvh",
+    "format_bvh",
+    "split_roots",
+    "CHANNEL_NAMES",
+]
 
 #: Channel names the format defines; anything else is an error.
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
@@ -242,7 +249,9 @@ def _parse_hierarchy(lines: list[str], path: str | None):
             c, c_line = tk.next(f"{n} channel names for joint '{name}'")
             c = _CHANNEL_CASE.get(c.lower(), c)  # XROTATION, xrotation
             if c not in CHANNEL_NAMES:
-                hint = " (the CHANNELS count may be too large)" if c in ("JOINT", "End", "}") else ""
+                hint = (
+                    " (the CHANNELS count may be too large)" if c in ("JOINT", "End", "}") else ""
+                )
                 raise BVHError(
                     f"unknown channel '{c}' for joint '{name}'; expected one of "
                     f"{', '.join(CHANNEL_NAMES)}{hint}",
@@ -295,7 +304,9 @@ def _parse_hierarchy(lines: list[str], path: str | None):
         joint(-1)
     if tk.peek() is not None:
         tok, line = tk.next("end of hierarchy")
-        raise BVHError(f"expected 'MOTION' after the hierarchy, found '{tok}'", path=path, line=line)
+        raise BVHError(
+            f"expected 'MOTION' after the hierarchy, found '{tok}'", path=path, line=line
+        )
     return names, parents, offsets, channels, end_site
 
 
@@ -317,8 +328,9 @@ def _header_number(lines, start: int, label: str, cast, what: str, path):
     try:
         return cast(value), value, i
     except ValueError:
-        raise BVHError(f"expected {what} after '{label}', found '{value}'", path=path,
-                       line=i + 1) from None
+        raise BVHError(
+            f"expected {what} after '{label}', found '{value}'", path=path, line=i + 1
+        ) from None
 
 
 def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
@@ -331,9 +343,13 @@ def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
         raise BVHError("no 'MOTION' section after the hierarchy", path=path, line=len(lines))
     names, parents, offsets, channels, end_site = _parse_hierarchy(lines[:m], path)
 
-    n_frames, value, i = _header_number(lines, m + 1, "Frames:", int, "an integer frame count", path)
+    n_frames, value, i = _header_number(
+        lines, m + 1, "Frames:", int, "an integer frame count", path
+    )
     if n_frames <= 0:
-        raise BVHError(f"the motion has {n_frames} frames; expected at least 1", path=path, line=i + 1)
+        raise BVHError(
+            f"the motion has {n_frames} frames; expected at least 1", path=path, line=i + 1
+        )
     frame_time, value, i = _header_number(lines, i + 1, "Frame Time:", float, "a number", path)
     if not np.isfinite(frame_time) or frame_time <= 0:
         raise BVHError(
@@ -435,10 +451,18 @@ def split_roots(doc: BVHDocument) -> list[BVHDocument]:
     out = []
     for a, b in zip(roots, [*roots[1:], len(doc.names)]):
         cols = slice(int(starts[a]), int(starts[b - 1] + counts[b - 1]))
-        out.append(BVHDocument(
-            names=doc.names[a:b], parents=np.where(doc.parents[a:b] < 0, -1, doc.parents[a:b] - a),
-            offsets=doc.offsets[a:b], channels=doc.channels[a:b], end_site=doc.end_site[a:b],
-            frame_time=doc.frame_time, motion=doc.motion[:, cols], path=doc.path))
+        out.append(
+            BVHDocument(
+                names=doc.names[a:b],
+                parents=np.where(doc.parents[a:b] < 0, -1, doc.parents[a:b] - a),
+                offsets=doc.offsets[a:b],
+                channels=doc.channels[a:b],
+                end_site=doc.end_site[a:b],
+                frame_time=doc.frame_time,
+                motion=doc.motion[:, cols],
+                path=doc.path,
+            )
+        )
     return out
 
 

@@ -43,6 +43,7 @@ MIN_AXIS_M = 0.02
 #: The rules :func:`choose_side` applies, in order.
 SIDE_RULES = ("above", "front", "right side", "fallback")
 
+
 def character_facing(positions, names, parents) -> np.ndarray:
     """Horizontal facing of one character at every frame.
 
@@ -108,8 +109,9 @@ def scene_facing(scene, *, frames=None) -> np.ndarray:
     return acc / len(scene.characters)
 
 
-def choose_side(view, facing, *, tie: float = FACING_TIE,
-                above_deg: float = ABOVE_DEG) -> tuple[np.ndarray, str]:
+def choose_side(
+    view, facing, *, tie: float = FACING_TIE, above_deg: float = ABOVE_DEG
+) -> tuple[np.ndarray, str]:
     """Pick ``view`` or ``-view`` (equal projected areas) by the floor and the facing.
 
     Parameters

@@ -43,8 +43,18 @@ from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.skinning import blend_skin, weight_matrix
 
-__all__ = ["read_gltf", "gltf_characters", "gltf_animations", "SkinnedMesh", "node_world_matrices",
-           "lowest_points", "gltf_unit", "GLTF_SUFFIXES", "DEFAULT_FPS", "MAX_HEIGHT_M"]
+__all__ = [
+    "read_gltf",
+    "gltf_characters",
+    "gltf_animations",
+    "SkinnedMesh",
+    "node_world_matrices",
+    "lowest_points",
+    "gltf_unit",
+    "GLTF_SUFFIXES",
+    "DEFAULT_FPS",
+    "MAX_HEIGHT_M",
+]
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: Sampling rate (frames per second) of glTF animations when none is given.
@@ -59,8 +69,13 @@ _TRIANGLE_MODES = (4, 5, 6)
 #: (materials, textures, lights), not where its vertices are; mesh quantization is only
 #: integer accessors, which :mod:`snapcore.motion.gltf_access` reads. Any other required
 #: extension (Draco or meshopt compression...) holds data this reader cannot decode.
-_HARMLESS_EXTENSIONS = ("KHR_materials_", "KHR_texture_", "EXT_texture_", "KHR_lights_",
-                        "KHR_mesh_quantization")
+_HARMLESS_EXTENSIONS = (
+    "KHR_materials_",
+    "KHR_texture_",
+    "EXT_texture_",
+    "KHR_lights_",
+    "KHR_mesh_quantization",
+)
 
 
 @dataclass(eq=False)
@@ -105,7 +120,8 @@ class SkinnedMesh:
         s = (character.scale * self.joint_scale[self.slot_joint])[:, None, None]
         g = np.concatenate([rot * s, pos[..., None]], axis=-1)  # (..., K, 3, 4)
         return g[..., :3] @ self.inverse_bind[:, :3, :] + np.concatenate(
-            [np.zeros(g.shape[:-1] + (3,)), g[..., 3:]], axis=-1)
+            [np.zeros(g.shape[:-1] + (3,)), g[..., 3:]], axis=-1
+        )
 
     def vertices(self, character, frames) -> np.ndarray:
         """World vertices (metres) at ``frames``: (V, 3) for one frame, (F, V, 3) for many."""
@@ -198,8 +214,9 @@ def node_world_matrices(local: np.ndarray, parent: np.ndarray, order) -> np.ndar
 def gltf_animations(gltf) -> list[str]:
     """Names of a document's animations (``animation_<i>`` for unnamed ones), made
     unique as joint names are (a second ``walk`` is ``walk_2``), so each can be chosen."""
-    return list(_unique_names([a.name or f"animation_{i}"
-                               for i, a in enumerate(gltf.animations or [])]))
+    return list(
+        _unique_names([a.name or f"animation_{i}" for i, a in enumerate(gltf.animations or [])])
+    )
 
 
 def _pick_animation(gltf, animation, buffers: Buffers):
@@ -227,22 +244,30 @@ def _sample_animation(gltf, index, buffers: Buffers, rest_trs, fps: float, name:
         if ch.target.node is None or path == "weights":
             continue  # morph weights do not move joints; a channel with no node is ignored
         if not 0 <= ch.target.node < n:
-            raise buffers.error(f"animation '{name}' channel {c} targets node "
-                                f"{ch.target.node}, which does not exist")
+            raise buffers.error(
+                f"animation '{name}' channel {c} targets node "
+                f"{ch.target.node}, which does not exist"
+            )
         if path not in ("translation", "rotation", "scale"):
             raise buffers.error(f"animation '{name}' channel {c}: unknown target path {path!r}")
         if not 0 <= ch.sampler < len(anim.samplers or []):
-            raise buffers.error(f"animation '{name}' channel {c}: sampler {ch.sampler} does not exist")
+            raise buffers.error(
+                f"animation '{name}' channel {c}: sampler {ch.sampler} does not exist"
+            )
         smp = anim.samplers[ch.sampler]
         interp = smp.interpolation or "LINEAR"
         if interp not in INTERPOLATIONS:
-            raise buffers.error(f"animation '{name}' sampler {ch.sampler}: unknown interpolation "
-                                f"'{interp}' (glTF 2.0 has {', '.join(INTERPOLATIONS)})")
+            raise buffers.error(
+                f"animation '{name}' sampler {ch.sampler}: unknown interpolation "
+                f"'{interp}' (glTF 2.0 has {', '.join(INTERPOLATIONS)})"
+            )
         times = buffers.floats(smp.input, f"animation '{name}' sampler {ch.sampler} input")
         values = buffers.floats(smp.output, f"animation '{name}' sampler {ch.sampler} output")
         if times.size == 0:
-            raise buffers.error(f"animation '{name}' sampler {ch.sampler} has no key times "
-                                "(an animation needs at least one key)")
+            raise buffers.error(
+                f"animation '{name}' sampler {ch.sampler} has no key times "
+                "(an animation needs at least one key)"
+            )
         curves.append((ch.target.node, path, times, values.reshape(values.shape[0], -1), interp))
     if not curves:
         return [x[None] for x in rest_trs]
@@ -261,8 +286,10 @@ def _sample_animation(gltf, index, buffers: Buffers, rest_trs, fps: float, name:
             raise buffers.error(f"animation '{name}' {path} of node {node}: {err}") from None
         width = 4 if path == "rotation" else 3
         if v.shape[1] != width:
-            raise buffers.error(f"animation '{name}' {path} of node {node} has {v.shape[1]} "
-                                f"components, expected {width}")
+            raise buffers.error(
+                f"animation '{name}' {path} of node {node} has {v.shape[1]} "
+                f"components, expected {width}"
+            )
         out[slot[path]][:, node] = v
     return out
 
@@ -317,7 +344,9 @@ def _primitive_arrays(gltf, buffers: Buffers, mi: int):
         else:
             idx = np.arange(pos.shape[0])
         if idx.size and (idx.min() < 0 or idx.max() >= pos.shape[0]):
-            raise buffers.error(f"mesh {mi} primitive {pi}: indices past its {pos.shape[0]} vertices")
+            raise buffers.error(
+                f"mesh {mi} primitive {pi}: indices past its {pos.shape[0]} vertices"
+            )
         faces = _triangles(idx, mode)
         influences = []
         for k in range(4):
@@ -325,14 +354,19 @@ def _primitive_arrays(gltf, buffers: Buffers, mi: int):
             w = getattr(attrs, f"WEIGHTS_{k}", None)
             if j is None or w is None:
                 break
-            influences.append((np.asarray(buffers.accessor(j), dtype=np.int64),
-                               buffers.floats(w, f"mesh {mi} primitive {pi} WEIGHTS_{k}")))
+            influences.append(
+                (
+                    np.asarray(buffers.accessor(j), dtype=np.int64),
+                    buffers.floats(w, f"mesh {mi} primitive {pi} WEIGHTS_{k}"),
+                )
+            )
         out.append((pos, faces, influences, _material_rgb(gltf, prim.material)))
     return out
 
 
-def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_scale,
-                all_joints=()) -> SkinnedMesh:
+def _build_mesh(
+    gltf, buffers, parent, rest_world, joints, joint_index, world_scale, all_joints=()
+) -> SkinnedMesh:
     rest_v, faces, bones, wts, colors = [], [], [], [], []
     ibms: list[np.ndarray] = []
     slot_joint: list[int] = []  # skeleton joint of each bind slot
@@ -350,10 +384,14 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
                 continue  # another character's mesh
             sj = [joint_index[j] for j in skin.joints]
             if skin.inverseBindMatrices is not None:
-                ibm = buffers.floats(skin.inverseBindMatrices, f"skin {node.skin} inverseBindMatrices")
+                ibm = buffers.floats(
+                    skin.inverseBindMatrices, f"skin {node.skin} inverseBindMatrices"
+                )
                 if ibm.shape != (len(sj), 4, 4):
-                    raise buffers.error(f"skin {node.skin}: {ibm.shape[0]} inverse bind matrices "
-                                        f"for {len(sj)} joints")
+                    raise buffers.error(
+                        f"skin {node.skin}: {ibm.shape[0]} inverse bind matrices "
+                        f"for {len(sj)} joints"
+                    )
             else:
                 ibm = np.repeat(np.eye(4)[None], len(sj), axis=0)  # spec: identity when absent
             base = len(slot_joint)
@@ -361,12 +399,16 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
             ibms.append(ibm)
             for pos, f, infl, rgb in prims:
                 if not infl:
-                    raise buffers.error(f"mesh {node.mesh} is skinned but has no JOINTS_0/WEIGHTS_0")
+                    raise buffers.error(
+                        f"mesh {node.mesh} is skinned but has no JOINTS_0/WEIGHTS_0"
+                    )
                 jj = np.concatenate([j for j, _ in infl], axis=1)
                 ww = np.concatenate([w for _, w in infl], axis=1)
                 if np.any(jj[ww != 0] >= len(sj)):
-                    raise buffers.error(f"mesh {node.mesh}: a joint index is past skin "
-                                        f"{node.skin}'s {len(sj)} joints")
+                    raise buffers.error(
+                        f"mesh {node.mesh}: a joint index is past skin "
+                        f"{node.skin}'s {len(sj)} joints"
+                    )
                 rest_v.append(pos)
                 faces.append(f + n_v)
                 colors.append(np.broadcast_to(np.nan if rgb is None else rgb, (len(f), 3)))
@@ -383,8 +425,10 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
             while b >= 0 and b not in all_joints:
                 b = parent[b]
             if b < 0:  # (below another character's joint: that character's piece)
-                warnings.warn(f"{buffers.path}: mesh of node {ni} is attached to no joint; "
-                              "left out", stacklevel=4)
+                warnings.warn(
+                    f"{buffers.path}: mesh of node {ni} is attached to no joint; left out",
+                    stacklevel=4,
+                )
             continue
         slot = len(slot_joint)
         slot_joint.append(joint_index[a])
@@ -400,23 +444,33 @@ def _build_mesh(gltf, buffers, parent, rest_world, joints, joint_index, world_sc
     if not rest_v:
         raise buffers.error("has no triangle mesh attached to its skeleton")
     width = max(b.shape[1] for b in bones)
-    pad = [(np.pad(b, ((0, 0), (0, width - b.shape[1]))), np.pad(w, ((0, 0), (0, width - w.shape[1]))))
-           for b, w in zip(bones, wts)]
+    pad = [
+        (np.pad(b, ((0, 0), (0, width - b.shape[1]))), np.pad(w, ((0, 0), (0, width - w.shape[1]))))
+        for b, w in zip(bones, wts)
+    ]
     # skins that share joints and bind poses (BrainStem: 59 skins, one skeleton) share slots
     ibm = np.concatenate(ibms, axis=0)
     key = np.concatenate([np.asarray(slot_joint, float)[:, None], ibm.reshape(-1, 16).round(9)], 1)
     _, first, remap = np.unique(key, axis=0, return_index=True, return_inverse=True)
     slots, ibm = np.asarray(slot_joint, dtype=np.int64)[first], ibm[first]
-    weights = weight_matrix(remap.ravel()[np.vstack([b for b, _ in pad])],
-                            np.vstack([w for _, w in pad]), len(first))
+    weights = weight_matrix(
+        remap.ravel()[np.vstack([b for b, _ in pad])], np.vstack([w for _, w in pad]), len(first)
+    )
     if np.any(np.asarray(weights.sum(axis=1)).ravel() == 0):
-        warnings.warn(f"{buffers.path}: some vertices have no skin weight; they stay at the origin",
-                      stacklevel=4)
+        warnings.warn(
+            f"{buffers.path}: some vertices have no skin weight; they stay at the origin",
+            stacklevel=4,
+        )
     rgb = np.vstack(colors)
-    return SkinnedMesh(rest=np.vstack(rest_v), faces=np.vstack(faces).astype(np.int64),
-                       weights=weights, slot_joint=slots, inverse_bind=ibm,
-                       face_rgb=None if np.all(np.isnan(rgb)) else rgb,
-                       joint_scale=world_scale)
+    return SkinnedMesh(
+        rest=np.vstack(rest_v),
+        faces=np.vstack(faces).astype(np.int64),
+        weights=weights,
+        slot_joint=slots,
+        inverse_bind=ibm,
+        face_rgb=None if np.all(np.isnan(rgb)) else rgb,
+        joint_scale=world_scale,
+    )
 
 
 # --------------------------------------------------------------------------- reader
@@ -434,17 +488,25 @@ def _load(path: Path):
     except Exception as err:  # pygltflib raises struct, JSON, Unicode, Key... errors alike
         # Attribute and type errors come from inside pygltflib on a damaged GLB container
         # (a header with no JSON chunk): its own wording would name its internals.
-        detail = ("a damaged GLB container" if isinstance(err, (AttributeError, TypeError))
-                  else f"{type(err).__name__}: {err}")
+        detail = (
+            "a damaged GLB container"
+            if isinstance(err, (AttributeError, TypeError))
+            else f"{type(err).__name__}: {err}"
+        )
         raise GLTFError(f"not a readable glTF/GLB file ({detail})", path=str(path)) from err
     if g is None or not isinstance(g.nodes, list):
         raise GLTFError("not a readable glTF/GLB file (no JSON document)", path=str(path))
     if g.asset is not None and g.asset.version and not str(g.asset.version).startswith("2"):
         raise GLTFError(f"glTF version {g.asset.version} is not supported (2.0 is)", path=str(path))
-    unknown = [e for e in (g.extensionsRequired or []) if not str(e).startswith(_HARMLESS_EXTENSIONS)]
+    unknown = [
+        e for e in (g.extensionsRequired or []) if not str(e).startswith(_HARMLESS_EXTENSIONS)
+    ]
     if unknown:
-        raise GLTFError(f"requires the extension {', '.join(map(str, unknown))}, which this "
-                        "reader does not decode (re-export without it)", path=str(path))
+        raise GLTFError(
+            f"requires the extension {', '.join(map(str, unknown))}, which this "
+            "reader does not decode (re-export without it)",
+            path=str(path),
+        )
     return g
 
 
@@ -489,12 +551,20 @@ def gltf_characters(path) -> list[str]:
         raise buffers.error("has no skin: only skinned characters can be read")
     parent = _node_parents(g, buffers)
     joint_set = {j for skin in g.skins for j in skin.joints or [] if 0 <= j < len(nodes)}
-    return [nodes[grp[0]].name or f"node_{grp[0]}"
-            for grp in _characters(g, parent, _topological(parent, buffers), joint_set)]
+    return [
+        nodes[grp[0]].name or f"node_{grp[0]}"
+        for grp in _characters(g, parent, _topological(parent, buffers), joint_set)
+    ]
 
 
-def read_gltf(path, *, animation: str | int | None = None, fps: float | None = None,
-              name: str | None = None, character: int | None = None) -> Character:
+def read_gltf(
+    path,
+    *,
+    animation: str | int | None = None,
+    fps: float | None = None,
+    name: str | None = None,
+    character: int | None = None,
+) -> Character:
     """Read a skinned glTF 2.0 / GLB file as a :class:`Character` carrying its mesh.
 
     Parameters
@@ -544,8 +614,10 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
     groups = _characters(g, parent, order, joint_set)
     if character is None and len(groups) > 1:
         names = ", ".join(nodes[grp[0]].name or f"node_{grp[0]}" for grp in groups)
-        raise buffers.error(f"holds {len(groups)} skinned characters (skeletons {names}); "
-                            "read them with load_scene, one character each")
+        raise buffers.error(
+            f"holds {len(groups)} skinned characters (skeletons {names}); "
+            "read them with load_scene, one character each"
+        )
     k = character or 0
     if not 0 <= k < len(groups):
         raise buffers.error(f"has no character {k} (it has {len(groups)})")
@@ -577,20 +649,27 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
     scale_fj = np.cbrt(np.abs(np.linalg.det(lin)))  # (F, J) isotropic world scale
     joint_scale = np.median(scale_fj, axis=0)
     if np.any(np.abs(scale_fj / np.where(joint_scale > 0, joint_scale, 1) - 1) > 1e-3) or np.any(
-            sv.max(-1) > sv.min(-1) * (1 + 1e-3)):
-        warnings.warn(f"{path}: joints scale non-uniformly or over time; the mesh follows their "
-                      "median uniform scale", stacklevel=2)
+        sv.max(-1) > sv.min(-1) * (1 + 1e-3)
+    ):
+        warnings.warn(
+            f"{path}: joints scale non-uniformly or over time; the mesh follows their "
+            "median uniform scale",
+            stacklevel=2,
+        )
     pos = jw[..., :3, 3]
-    par_rot = np.where((jparent >= 0)[None, :, None, None], rot[:, np.maximum(jparent, 0)],
-                       np.eye(3))
+    par_rot = np.where(
+        (jparent >= 0)[None, :, None, None], rot[:, np.maximum(jparent, 0)], np.eye(3)
+    )
     local_rot = np.swapaxes(par_rot, -1, -2) @ rot
     rel = pos - np.where((jparent >= 0)[None, :, None], pos[:, np.maximum(jparent, 0)], 0.0)
     offsets = np.median(np.einsum("fjki,fjk->fji", par_rot, rel), axis=0)
-    skeleton = Skeleton(names=_unique_names([nodes[i].name or f"node_{i}" for i in joints]),
-                        parents=jparent,
-                        offsets=offsets, end_site=np.zeros(len(joints), dtype=bool))
-    mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale,
-                       joint_set)
+    skeleton = Skeleton(
+        names=_unique_names([nodes[i].name or f"node_{i}" for i in joints]),
+        parents=jparent,
+        offsets=offsets,
+        end_site=np.zeros(len(joints), dtype=bool),
+    )
+    mesh = _build_mesh(g, buffers, parent, rest_world, joints, joint_index, joint_scale, joint_set)
     return Character(
         name=name or path.stem,
         skeleton=skeleton,
@@ -600,8 +679,13 @@ def read_gltf(path, *, animation: str | int | None = None, fps: float | None = N
         fps=fps,
         scale=1.0,
         source=None,
-        meta={"format": "gltf", "path": str(path), "mesh": mesh, "animation": a_name,
-              "animations": gltf_animations(g)},
+        meta={
+            "format": "gltf",
+            "path": str(path),
+            "mesh": mesh,
+            "animation": a_name,
+            "animations": gltf_animations(g),
+        },
         local_quaternions=matrix_to_quat(local_rot),
     )
 
@@ -629,13 +713,22 @@ def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np
     where skinning the whole mesh at every frame is not (BrainStem: 34k vertices).
     """
     mesh = character.meta["mesh"]
-    f = np.unique(np.linspace(0, character.n_frames - 1,
-                              min(character.n_frames, max_frames)).round().astype(int))
+    f = np.unique(
+        np.linspace(0, character.n_frames - 1, min(character.n_frames, max_frames))
+        .round()
+        .astype(int)
+    )
     v = mesh.vertices(character, f)  # (S, V, 3)
     k = min(per_frame, v.shape[1])
     low = np.unique(np.argpartition(v[..., 1], k - 1, axis=1)[:, :k])
-    sub = SkinnedMesh(mesh.rest[low], mesh.faces[:0], mesh.weights[low], mesh.slot_joint,
-                      mesh.inverse_bind, mesh.joint_scale)
+    sub = SkinnedMesh(
+        mesh.rest[low],
+        mesh.faces[:0],
+        mesh.weights[low],
+        mesh.slot_joint,
+        mesh.inverse_bind,
+        mesh.joint_scale,
+    )
     return sub.vertices(character, np.arange(character.n_frames))
 
 

@@ -99,8 +99,9 @@ class Buffers:
         self._buffers[i] = data
         return data
 
-    def _view(self, v: int, offset: int, count: int, size: int, dtype: np.dtype,
-              what: str) -> np.ndarray:
+    def _view(
+        self, v: int, offset: int, count: int, size: int, dtype: np.dtype, what: str
+    ) -> np.ndarray:
         """(count, size) elements from buffer view ``v`` at ``offset``, honouring byteStride."""
         views = self.gltf.bufferViews or []
         if not 0 <= v < len(views):
@@ -114,12 +115,15 @@ class Buffers:
         start = (bv.byteOffset or 0) + offset
         need = stride * (count - 1) + elem if count else 0
         if offset + need > bv.byteLength or start + need > len(data):
-            raise self.error(f"{what} reaches past the end of its data (buffer view {v}, "
-                             f"{need} bytes from offset {start}; the file may be truncated)")
+            raise self.error(
+                f"{what} reaches past the end of its data (buffer view {v}, "
+                f"{need} bytes from offset {start}; the file may be truncated)"
+            )
         if count == 0:
             return np.zeros((0, size), dtype)
-        arr = np.ndarray((count, size), dtype=dtype, buffer=data, offset=start,
-                         strides=(stride, dtype.itemsize))
+        arr = np.ndarray(
+            (count, size), dtype=dtype, buffer=data, offset=start, strides=(stride, dtype.itemsize)
+        )
         return arr.copy()
 
     def accessor(self, i: int) -> np.ndarray:
@@ -143,7 +147,9 @@ class Buffers:
             raise self.error(f"{what}: unknown type {a.type!r}")
         if a.type in ("MAT2", "MAT3") and dtype.itemsize < 4:
             # columns would be padded to 4-byte boundaries (§3.6.2.4); no tool we read emits it
-            raise self.error(f"{what}: {a.type} of {dtype.itemsize}-byte components is not supported")
+            raise self.error(
+                f"{what}: {a.type} of {dtype.itemsize}-byte components is not supported"
+            )
         count = int(a.count)
         if a.bufferView is None:
             out = np.zeros((count, size), dtype)
@@ -154,12 +160,26 @@ class Buffers:
             idt = COMPONENT_DTYPES.get(sp.indices.componentType)
             if idt is None or idt.kind != "u":
                 raise self.error(f"{what}: sparse indices need an unsigned componentType")
-            idx = self._view(sp.indices.bufferView, sp.indices.byteOffset or 0, sp.count, 1, idt,
-                             f"{what} sparse indices")[:, 0].astype(np.int64)
+            idx = self._view(
+                sp.indices.bufferView,
+                sp.indices.byteOffset or 0,
+                sp.count,
+                1,
+                idt,
+                f"{what} sparse indices",
+            )[:, 0].astype(np.int64)
             if idx.size and (idx.max() >= count):
-                raise self.error(f"{what}: sparse index {int(idx.max())} is past its {count} elements")
-            vals = self._view(sp.values.bufferView, sp.values.byteOffset or 0, sp.count, size, dtype,
-                              f"{what} sparse values")
+                raise self.error(
+                    f"{what}: sparse index {int(idx.max())} is past its {count} elements"
+                )
+            vals = self._view(
+                sp.values.bufferView,
+                sp.values.byteOffset or 0,
+                sp.count,
+                size,
+                dtype,
+                f"{what} sparse values",
+            )
             out = out.copy()
             out[idx] = vals
         if a.normalized and dtype.kind in "iu":
@@ -167,7 +187,7 @@ class Buffers:
         elif dtype.kind == "f":
             out = out.astype(np.float64)
         if a.type.startswith("MAT"):
-            n = int(round(size ** 0.5))
+            n = int(round(size**0.5))
             out = out.reshape(count, n, n).transpose(0, 2, 1)  # column-major → row-major
         elif size == 1:
             out = out[:, 0]
@@ -192,7 +212,9 @@ class Buffers:
                 bad = np.any((flat < lo - tol) | (flat > hi + tol), axis=1)
                 if np.any(bad):
                     k = int(np.argmax(bad))
-                    raise self.error(f"{what} (accessor {i}): element {k} is {flat[k].tolist()}, "
-                                     f"outside the declared min {lo.tolist()} / max "
-                                     f"{hi.tolist()}: the binary data is damaged")
+                    raise self.error(
+                        f"{what} (accessor {i}): element {k} is {flat[k].tolist()}, "
+                        f"outside the declared min {lo.tolist()} / max "
+                        f"{hi.tolist()}: the binary data is damaged"
+                    )
         return out

@@ -66,8 +66,14 @@ def slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
     return quat_normalize(w0 * q0 + w1 * q1)
 
 
-def sample_curve(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray, *,
-                 rotation: bool = False) -> np.ndarray:
+def sample_curve(
+    times: np.ndarray,
+    values: np.ndarray,
+    interpolation: str,
+    t: np.ndarray,
+    *,
+    rotation: bool = False,
+) -> np.ndarray:
     """Values of one animation sampler at times ``t``.
 
     Parameters
@@ -98,12 +104,15 @@ def sample_curve(times: np.ndarray, values: np.ndarray, interpolation: str, t: n
     t = np.asarray(t, dtype=np.float64)
     k = times.size
     if interpolation not in INTERPOLATIONS:
-        raise ValueError(f"unknown interpolation {interpolation!r} (expected one of "
-                         f"{', '.join(INTERPOLATIONS)})")
+        raise ValueError(
+            f"unknown interpolation {interpolation!r} (expected one of {', '.join(INTERPOLATIONS)})"
+        )
     per_key = 3 if interpolation == "CUBICSPLINE" else 1
     if k == 0 or values.shape[0] != per_key * k:
-        raise ValueError(f"{values.shape[0]} output values for {k} keys of a "
-                         f"{interpolation} sampler (expected {per_key * k})")
+        raise ValueError(
+            f"{values.shape[0]} output values for {k} keys of a "
+            f"{interpolation} sampler (expected {per_key * k})"
+        )
     if k > 1 and np.any(np.diff(times) <= 0):
         raise ValueError("key times must increase strictly")
     if per_key == 3:
@@ -131,6 +140,10 @@ def sample_curve(times: np.ndarray, values: np.ndarray, interpolation: str, t: n
         h10 = s3 - 2 * s2 + s
         h01 = -2 * s3 + 3 * s2
         h11 = s3 - s2
-        out = (h00[:, None] * value[i] + (h10 * dt)[:, None] * tangent_out[i]
-               + h01[:, None] * value[i + 1] + (h11 * dt)[:, None] * tangent_in[i + 1])
+        out = (
+            h00[:, None] * value[i]
+            + (h10 * dt)[:, None] * tangent_out[i]
+            + h01[:, None] * value[i + 1]
+            + (h11 * dt)[:, None] * tangent_in[i + 1]
+        )
     return quat_normalize(out) if rotation else out

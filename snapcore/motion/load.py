@@ -126,9 +126,16 @@ def infer_ground(positions: list[np.ndarray]) -> float:
     return float(np.percentile(lowest, 5))
 
 
-def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | None = None,
-               ground: float | None = None, drop_tpose: bool | None = None,
-               name: str | None = None, animation: str | None = None) -> Scene:
+def load_scene(
+    paths_or_manifest,
+    *,
+    fps: float | None = None,
+    scale: float | None = None,
+    ground: float | None = None,
+    drop_tpose: bool | None = None,
+    name: str | None = None,
+    animation: str | None = None,
+) -> Scene:
     """Load a scene from BVH files or a scene manifest.
 
     Parameters
@@ -184,7 +191,9 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
     manifests = [p for p in paths if p.suffix.lower() in MANIFEST_SUFFIXES]
     if manifests:
         if len(paths) > 1:
-            raise SceneError(f"{manifests[0]}: give either one scene manifest or BVH files, not both")
+            raise SceneError(
+                f"{manifests[0]}: give either one scene manifest or BVH files, not both"
+            )
         # imported here: jsonschema is only needed for manifests, and finding files
         # (resolve_data_path, e.g. a `snapshot batch` re-run) should not pay for it
         from snapcore.schema import read_document
@@ -194,9 +203,17 @@ def load_scene(paths_or_manifest, *, fps: float | None = None, scale: float | No
     else:
         spec = {"characters": [{"file": str(p)} for p in paths]}
         base = None
-    return _build(spec, base, fps=fps, scale=scale, ground=ground, drop_tpose=drop_tpose,
-                  name=name, source=str(manifests[0]) if manifests else None,
-                  animation=animation)
+    return _build(
+        spec,
+        base,
+        fps=fps,
+        scale=scale,
+        ground=ground,
+        drop_tpose=drop_tpose,
+        name=name,
+        source=str(manifests[0]) if manifests else None,
+        animation=animation,
+    )
 
 
 def _is_gltf(path) -> bool:
@@ -217,31 +234,45 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
             for k, root in enumerate(roots):
                 paths.append(path)
                 docs.append(None)
-                entries.append(e if len(roots) == 1 else
-                               {**e, "name": f"{e.get('name') or path.stem}_{root}",
-                                "_character": k})
+                entries.append(
+                    e
+                    if len(roots) == 1
+                    else {**e, "name": f"{e.get('name') or path.stem}_{root}", "_character": k}
+                )
             continue
         parts: list[BVHDocument | None] = list(split_roots(read_bvh(path)))
         for d in parts:
             paths.append(path)
             docs.append(d)
             # one character per ROOT, named after the file (or the entry) and its root
-            entries.append(e if d is None or len(parts) == 1 else
-                           {**e, "name": f"{e.get('name') or path.stem}_{d.names[0]}"})
+            entries.append(
+                e
+                if d is None or len(parts) == 1
+                else {**e, "name": f"{e.get('name') or path.stem}_{d.names[0]}"}
+            )
     # Forward kinematics once, in file units; positions scale linearly afterwards.
     bvh_fps = [d.fps for d in docs if d is not None]
     probes = []
     for d, e, path in zip(docs, entries, paths):
         rate = fps or e.get("fps") or spec.get("fps")
         if d is None:  # glTF: sampled at the BVH characters' rate when mixed with them
-            probes.append(read_gltf(path, animation=animation or e.get("animation"),
-                                    fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
-                                    name=e.get("name"), character=e.get("_character")))
+            probes.append(
+                read_gltf(
+                    path,
+                    animation=animation or e.get("animation"),
+                    fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
+                    name=e.get("name"),
+                    character=e.get("_character"),
+                )
+            )
         else:
             c = character_from_bvh(d, scale=1.0, name=e.get("name"), fps=rate)
             if stands_along_z(c.skeleton, c.positions):
-                warnings.warn(f"{path}: written Z up (its skeleton stands along +Z, at rest and "
-                              "in the motion); read turned to Y up", stacklevel=3)
+                warnings.warn(
+                    f"{path}: written Z up (its skeleton stands along +Z, at rest and "
+                    "in the motion); read turned to Y up",
+                    stacklevel=3,
+                )
                 c = c.transformed(rotation=Z_UP_TO_Y_UP)
             probes.append(c)
     is_gltf = [d is None for d in docs]
@@ -250,8 +281,11 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     scene_scale = scale or spec.get("scale")
     how = "given"
     bvh_probes = [p for p, g in zip(probes, is_gltf) if not g]
-    if scene_scale is None and bvh_probes and not all(
-            "scale" in e for e, g in zip(entries, is_gltf) if not g):
+    if (
+        scene_scale is None
+        and bvh_probes
+        and not all("scale" in e for e, g in zip(entries, is_gltf) if not g)
+    ):
         # props (a ball: a root with a joint or two) do not say what the unit is
         people = [p for p in bvh_probes if np.sum(~p.skeleton.end_site) >= MIN_PERSON_JOINTS]
         people = people or bvh_probes
@@ -272,9 +306,12 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
             c = probe.rescaled(metres)
             c.meta["unit"] = unit
             if unit != "m":
-                warnings.warn(f"{probe.meta['path']}: read in {unit}, not in metres as glTF "
-                              f"specifies: in metres '{probe.name}' would be taller than "
-                              f"{MAX_HEIGHT_M:g} m. Pass --scale to override.", stacklevel=3)
+                warnings.warn(
+                    f"{probe.meta['path']}: read in {unit}, not in metres as glTF "
+                    f"specifies: in metres '{probe.name}' would be taller than "
+                    f"{MAX_HEIGHT_M:g} m. Pass --scale to override.",
+                    stacklevel=3,
+                )
         else:
             c = probe.rescaled(scale or e.get("scale") or scene_scale)
             c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
@@ -306,11 +343,16 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     if start or stop is not None:
         n = chars[0].n_frames
         if stop is not None and stop > n:
-            warnings.warn(f"{source or 'scene'}: frames [{start}, {stop}) runs past the motion's "
-                          f"{n} frames; keeping [{start}, {n})", stacklevel=3)
+            warnings.warn(
+                f"{source or 'scene'}: frames [{start}, {stop}) runs past the motion's "
+                f"{n} frames; keeping [{start}, {n})",
+                stacklevel=3,
+            )
         stop = n if stop is None else min(stop, n)
         if not 0 <= start < stop:
-            raise SceneError(f"{source or 'scene'}: frames [{start}, {stop}) is empty (the motion has {n} frames)")
+            raise SceneError(
+                f"{source or 'scene'}: frames [{start}, {stop}) is empty (the motion has {n} frames)"
+            )
         chars = [c.frames(start, stop) for c in chars]
         offset = start
         why_cut = "the scene manifest's frames range starts there"
@@ -321,15 +363,18 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         if cut:
             chars = [c.frames(cut, c.n_frames) for c in chars]
             offset = cut
-            why_cut = ("they are an added T-pose and the blend out of it "
-                       "(drop_tpose = false in a scene manifest keeps them)")
+            why_cut = (
+                "they are an added T-pose and the blend out of it "
+                "(drop_tpose = false in a scene manifest keeps them)"
+            )
     if chars[0].n_frames < 1:
         raise SceneError(f"{source or paths[0]}: no frames left to analyse")
     ground_y = ground if ground is not None else spec.get("ground")
     if ground_y is None:
         # a glTF character stands on its mesh (soles, paws), not on its joints
-        ground_y = infer_ground([lowest_points(c) if gl else c.positions
-                          for c, gl in zip(chars, is_gltf)])
+        ground_y = infer_ground(
+            [lowest_points(c) if gl else c.positions for c, gl in zip(chars, is_gltf)]
+        )
     scene_name = name or spec.get("name") or chars[0].name
     return Scene(
         characters=chars,
@@ -338,6 +383,9 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         name=scene_name,
         props=list(spec.get("props", [])),
         frame_offset=offset,
-        meta={"source": source or list(dict.fromkeys(str(p) for p in paths)), "unit": how,
-              **({"cut": why_cut} if offset else {})},
+        meta={
+            "source": source or list(dict.fromkeys(str(p) for p in paths)),
+            "unit": how,
+            **({"cut": why_cut} if offset else {}),
+        },
     )

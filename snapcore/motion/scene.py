@@ -190,8 +190,9 @@ class Character:
         """Estimated standing height (stature) in metres; see :func:`stature_units`."""
         return stature_units(self.skeleton, self.positions)
 
-    def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0),
-                    rotation: np.ndarray | None = None) -> Character:
+    def transformed(
+        self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None
+    ) -> Character:
         """A copy rotated about +Y by ``yaw_deg`` (or by the 3×3 ``rotation``) then
         translated by ``offset`` (metres)."""
         r = yaw_matrix(yaw_deg) if rotation is None else np.asarray(rotation, dtype=float)
@@ -206,10 +207,15 @@ class Character:
             scale=self.scale,
             source=self.source,
             meta=dict(self.meta),
-            local_quaternions=(None if self.local_quaternions is None else
-                               _rotate_root_quaternions(self.local_quaternions, self.parents,
-                                                        _yaw_quaternion(yaw_deg) if rotation is None
-                                                        else matrix_to_quat(r))),
+            local_quaternions=(
+                None
+                if self.local_quaternions is None
+                else _rotate_root_quaternions(
+                    self.local_quaternions,
+                    self.parents,
+                    _yaw_quaternion(yaw_deg) if rotation is None else matrix_to_quat(r),
+                )
+            ),
         )
 
     def rescaled(self, scale: float) -> Character:
@@ -217,8 +223,12 @@ class Character:
         k = scale / self.scale
         return Character(
             name=self.name,
-            skeleton=Skeleton(self.skeleton.names, self.skeleton.parents,
-                              self.skeleton.offsets * k, self.skeleton.end_site),
+            skeleton=Skeleton(
+                self.skeleton.names,
+                self.skeleton.parents,
+                self.skeleton.offsets * k,
+                self.skeleton.end_site,
+            ),
             positions=self.positions * k,
             rotations=self.rotations,
             local_rotations=self.local_rotations,
@@ -241,8 +251,9 @@ class Character:
             scale=self.scale,
             source=self.source,
             meta=dict(self.meta),
-            local_quaternions=(None if self.local_quaternions is None
-                               else self.local_quaternions[start:stop]),
+            local_quaternions=(
+                None if self.local_quaternions is None else self.local_quaternions[start:stop]
+            ),
         )
 
 
@@ -344,8 +355,10 @@ class Scene:
             why = ""
             if i < 0 and self.meta.get("cut"):
                 why = f"; frames before {first} were cut: {self.meta['cut']}"
-            raise SceneError(f"frame {source_frame} is not in this scene, which keeps source "
-                             f"frames {first}..{last}{why}")
+            raise SceneError(
+                f"frame {source_frame} is not in this scene, which keeps source "
+                f"frames {first}..{last}{why}"
+            )
         return i
 
     def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), scale: float = 1.0):
@@ -355,7 +368,10 @@ class Scene:
             c2 = c.transformed(yaw_deg=yaw_deg)
             c2.positions = c2.positions * scale + np.asarray(offset, dtype=float)
             c2.skeleton = Skeleton(
-                c.skeleton.names, c.skeleton.parents, c.skeleton.offsets * scale, c.skeleton.end_site
+                c.skeleton.names,
+                c.skeleton.parents,
+                c.skeleton.offsets * scale,
+                c.skeleton.end_site,
             )
             c2.scale = c.scale * scale
             chars.append(c2)
@@ -374,9 +390,13 @@ class Scene:
         start, stop, _ = slice(start, stop).indices(self.n_frames)
         if stop <= start:
             raise SceneError(f"frames {start}:{stop} of a {self.n_frames}-frame scene are empty")
-        return replace(self, characters=[c.frames(start, stop) for c in self.characters],
-                       props=[dict(p) for p in self.props], frame_offset=self.frame_offset + start,
-                       meta=dict(self.meta))
+        return replace(
+            self,
+            characters=[c.frames(start, stop) for c in self.characters],
+            props=[dict(p) for p in self.props],
+            frame_offset=self.frame_offset + start,
+            meta=dict(self.meta),
+        )
 
 
 def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset) -> dict:
@@ -402,8 +422,9 @@ def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset) -> dict:
 # --------------------------------------------------------------------------- building
 
 
-def character_from_bvh(doc: BVHDocument, *, scale: float, name: str | None = None,
-                       fps: float | None = None) -> Character:
+def character_from_bvh(
+    doc: BVHDocument, *, scale: float, name: str | None = None, fps: float | None = None
+) -> Character:
     """Run forward kinematics on a BVH document and return a :class:`Character`.
 
     Parameters
@@ -593,7 +614,7 @@ def tpose_lead_in(positions: list[np.ndarray], fps: float) -> int:
         if x.shape[0] < 4:
             continue
         # Only the first 2.5 s can be cut: the rest of a long clip is not looked at.
-        head = x[:int(2 * fps) + int(0.5 * fps) + 2]
+        head = x[: int(2 * fps) + int(0.5 * fps) + 2]
         rel = head - head[:, :1]  # root-relative: a running root is not a glitch
         speed = np.linalg.norm(rel[1:] - rel[:-1], axis=2).max(axis=1) * fps  # (W-1,) m/s
         moved = np.linalg.norm(rel - rel[:1], axis=2).max(axis=1) > 1e-3  # (W,)

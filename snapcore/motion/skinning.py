@@ -23,8 +23,14 @@ import numpy as np
 if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
     from scipy import sparse
 
-__all__ = ["weight_matrix", "blend_skin", "vertex_normals", "face_incidence", "CHUNK_BYTES",
-           "DENSE_MAX_BONES"]
+__all__ = [
+    "weight_matrix",
+    "blend_skin",
+    "vertex_normals",
+    "face_incidence",
+    "CHUNK_BYTES",
+    "DENSE_MAX_BONES",
+]
 
 #: Memory budget (bytes) for one chunk of blended matrices (V × frames × 12 float64).
 CHUNK_BYTES = 48 * 2**20
@@ -32,8 +38,9 @@ CHUNK_BYTES = 48 * 2**20
 DENSE_MAX_BONES = 256
 
 
-def weight_matrix(bones: np.ndarray, weights: np.ndarray, n_bones: int, *,
-                  normalize: bool = True) -> sparse.csr_matrix:
+def weight_matrix(
+    bones: np.ndarray, weights: np.ndarray, n_bones: int, *, normalize: bool = True
+) -> sparse.csr_matrix:
     """Sparse (V, K) skin weights from per-vertex bone indices and weights.
 
     Parameters
@@ -71,8 +78,9 @@ def weight_matrix(bones: np.ndarray, weights: np.ndarray, n_bones: int, *,
     return m.tocsr()
 
 
-def blend_skin(rest: np.ndarray, weights: sparse.csr_matrix, matrices: np.ndarray, *,
-               dtype=np.float64) -> np.ndarray:
+def blend_skin(
+    rest: np.ndarray, weights: sparse.csr_matrix, matrices: np.ndarray, *, dtype=np.float64
+) -> np.ndarray:
     """Linear blend skinning of ``rest`` vertices by bone ``matrices``.
 
     Parameters
@@ -134,12 +142,14 @@ def face_incidence(faces: np.ndarray, n_vertices: int) -> sparse.csr_matrix:
 
     faces = np.asarray(faces, dtype=np.int64)
     m = faces.shape[0]
-    return sparse.csr_matrix((np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(m), 3))),
-                             shape=(n_vertices, m))
+    return sparse.csr_matrix(
+        (np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(m), 3))), shape=(n_vertices, m)
+    )
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray,
-                   incidence: sparse.csr_matrix | None = None) -> np.ndarray:
+def vertex_normals(
+    vertices: np.ndarray, faces: np.ndarray, incidence: sparse.csr_matrix | None = None
+) -> np.ndarray:
     """Area-weighted unit vertex normals of a posed mesh, for one or many frames.
 
     Parameters

@@ -98,8 +98,15 @@ SCENES = MOTIONS + ("push",)
 #: Scenes :func:`write_demo` writes.
 DEMO_SCENES = ("walk", "jump", "kick", "punch", "push")
 #: Default clip length per scene, seconds (first to last frame).
-DEFAULT_SECONDS = {"walk": 3.0, "jump": 3.0, "kick": 2.5, "punch": 2.5,
-                   "jumping_jacks": 3.0, "idle": 3.0, "push": 3.0}
+DEFAULT_SECONDS = {
+    "walk": 3.0,
+    "jump": 3.0,
+    "kick": 2.5,
+    "punch": 2.5,
+    "jumping_jacks": 3.0,
+    "idle": 3.0,
+    "push": 3.0,
+}
 
 #: Walk: seconds per stride (two steps); left heel strikes at
 #: ``WALK_FIRST_LEFT_STRIKE_S + k * WALK_STRIDE_S``, right ones half a stride later.
@@ -169,8 +176,9 @@ def _walk(t, rng):
         def ball_at(cycle, shift=shift, sx=sx):  # ball of the foot planted in this cycle
             t_mid = (cycle + shift + 0.3) * T + WALK_FIRST_LEFT_STRIKE_S
             z = v * t_mid + BALL[2]
-            return np.stack([np.full_like(z, sx), np.full_like(z, ANKLE_HEIGHT + BALL[1]), z],
-                            axis=1)
+            return np.stack(
+                [np.full_like(z, sx), np.full_like(z, ANKLE_HEIGHT + BALL[1]), z], axis=1
+            )
 
         pitch = cyclic(f, *pitch_keys)
         ankle_st, rot_st = foot_on_ground(ball_at(k), pitch)
@@ -215,8 +223,7 @@ def _jump(t, rng):
     y0, y1, m1, dt = ROOT_HEIGHT_M - depth, y_to, v0, t_to - tb
     seg = (t >= tb) & (t < t_to)
     u = (t[seg] - tb) / dt
-    y[seg] = ((2 * u**3 - 3 * u**2 + 1) * y0 + (-2 * u**3 + 3 * u**2) * y1
-              + (u**3 - u**2) * m1 * dt)
+    y[seg] = (2 * u**3 - 3 * u**2 + 1) * y0 + (-2 * u**3 + 3 * u**2) * y1 + (u**3 - u**2) * m1 * dt
     seg = (t >= t_to) & (t < t_ld)
     tau = t[seg] - t_to
     y[seg] = y_to + v0 * tau - 0.5 * g * tau**2
@@ -224,19 +231,26 @@ def _jump(t, rng):
     seg = (t >= t_ld) & (t < tl)
     u = (t[seg] - t_ld) / (tl - t_ld)
     y0, y1, m0, dt = y_to, ROOT_HEIGHT_M - land_depth, -v0, tl - t_ld
-    y[seg] = ((2 * u**3 - 3 * u**2 + 1) * y0 + (-2 * u**3 + 3 * u**2) * y1
-              + (u**3 - 2 * u**2 + u) * m0 * dt)
+    y[seg] = (
+        (2 * u**3 - 3 * u**2 + 1) * y0
+        + (-2 * u**3 + 3 * u**2) * y1
+        + (u**3 - 2 * u**2 + u) * m0 * dt
+    )
     seg = t >= tl
     y[seg] = pchip(t[seg], [tl, tl + 0.55], [ROOT_HEIGHT_M - land_depth, ROOT_HEIGHT_M - 0.01])
     pose.root = np.stack([np.zeros(n), y, np.zeros(n)], axis=1)
-    lean = pchip(t, [0.45, tb, t_to, t_to + 0.25, t_ld, tl, tl + 0.55],
-                 [0.0, 25.0, 0.0, 0.0, 5.0, 22.0, 0.0])
+    lean = pchip(
+        t, [0.45, tb, t_to, t_to + 0.25, t_ld, tl, tl + 0.55], [0.0, 25.0, 0.0, 0.0, 5.0, 22.0, 0.0]
+    )
     pose.local["Hips"] = zxy(0.0, lean, 0.0)
     pose.local["Spine"] = zxy(0.0, 0.3 * lean, 0.0)
     pose.local["Neck"] = zxy(0.0, -0.8 * lean, 0.0)
     # Feet on the ground except in flight; heels rise before take-off, toes touch first.
-    pitch = pchip(t, [0.0, tb + 0.05, t_to, t_to + 0.2, t_ld - 0.15, t_ld, t_ld + 0.12],
-                  [0.0, 0.0, toe_pitch, 20.0, 25.0, toe_pitch, 0.0])
+    pitch = pchip(
+        t,
+        [0.0, tb + 0.05, t_to, t_to + 0.2, t_ld - 0.15, t_ld, t_ld + 0.12],
+        [0.0, 0.0, toe_pitch, 20.0, 25.0, toe_pitch, 0.0],
+    )
     air = (t > t_to) & (t < t_ld)
     u = np.clip((t - t_to) / flight, 0, 1)
     tuck = 0.16 * np.sin(np.pi * u) * air
@@ -248,8 +262,11 @@ def _jump(t, rng):
         solve_leg(pose, side, ankle, rot, toe_deg=np.where(air, 0.0, np.maximum(pitch, 0)))
     # Arms: swing back in the crouch, up through take-off, down after landing.
     amp = jitter(rng, 0.1)
-    flex = pchip(t, [0.0, 0.45, tb, t_to, t_to + 0.2, t_ld, tl, tl + 0.55],
-                 [5.0, 5.0, -45.0 * amp, 150.0 * amp, 160.0 * amp, 60.0, 20.0, 5.0])
+    flex = pchip(
+        t,
+        [0.0, 0.45, tb, t_to, t_to + 0.2, t_ld, tl, tl + 0.55],
+        [5.0, 5.0, -45.0 * amp, 150.0 * amp, 160.0 * amp, 60.0, 20.0, 5.0],
+    )
     elbow = pchip(t, [0.0, tb, t_to, t_ld, tl + 0.55], [12.0, 10.0, 20.0, 30.0, 12.0])
     for side in SIDES:
         arm_fk(pose, side, 10.0, flex, elbow)
@@ -269,8 +286,9 @@ def _kick(t, rng):
     y = ROOT_HEIGHT_M - 0.03 - 0.03 * shift
     z = pchip(t, [0.0, 0.65, ti, ti + 0.5, ti + 1.1], [0.0, -0.02, 0.02, 0.0, 0.0])
     pose.root = np.stack([x, y, z], axis=1)
-    tilt = pchip(t, [0.0, 0.6, ti - 0.1, ti + 0.15, ti + 0.6, ti + 1.0],
-                 [2.0, 0.0, -10.0, -12.0, -2.0, 2.0])
+    tilt = pchip(
+        t, [0.0, 0.6, ti - 0.1, ti + 0.15, ti + 0.6, ti + 1.0], [2.0, 0.0, -10.0, -12.0, -2.0, 2.0]
+    )
     pose.local["Hips"] = zxy(-4.0 * shift, tilt, 8.0 * shift)
     pose.local["Spine"] = zxy(2.0 * shift, 6.0 - 0.6 * tilt, -4.0 * shift)
     pose.local["Spine1"] = zxy(0.0, 3.0, -3.0 * shift)
@@ -287,8 +305,11 @@ def _kick(t, rng):
     r_root = pose.local["Hips"]
     hip_pos = pose.root + rotate(r_root, OFFSET["RightUpLeg"])
     thigh = r_root @ rx(-hip)
-    kick_ankle = (hip_pos + rotate(thigh, np.array([0.0, -THIGH, 0.0]))
-                  + rotate(thigh @ rx(knee), np.array([0.0, -SHANK, 0.0])))
+    kick_ankle = (
+        hip_pos
+        + rotate(thigh, np.array([0.0, -THIGH, 0.0]))
+        + rotate(thigh @ rx(knee), np.array([0.0, -SHANK, 0.0]))
+    )
     planted, flat = foot_on_ground(np.broadcast_to(ball_r, (n, 3)), np.zeros(n))
     ankle = planted + (kick_ankle - planted) * w[:, None]
     rot = nlerp(flat, thigh @ rx(knee) @ rx(point), w)
@@ -347,9 +368,12 @@ def _jumping_jacks(t, rng):
     f = np.mod(c, 1.0)
     # Out-jump in [0, 0.15), feet apart [0.15, 0.5), in-jump [0.5, 0.65), together after.
     spread = np.where(active, cyclic(f, [0.0, 0.15, 0.5, 0.65], [0.0, 1.0, 1.0, 0.0]), 0.0)
-    hop = np.where(active, np.sin(np.pi * np.clip(f / 0.15, 0, 1)) * (f < 0.15)
-                   + np.sin(np.pi * np.clip((f - 0.5) / 0.15, 0, 1)) * ((f >= 0.5) & (f < 0.65)),
-                   0.0)
+    hop = np.where(
+        active,
+        np.sin(np.pi * np.clip(f / 0.15, 0, 1)) * (f < 0.15)
+        + np.sin(np.pi * np.clip((f - 0.5) / 0.15, 0, 1)) * ((f >= 0.5) & (f < 0.65)),
+        0.0,
+    )
     squat = np.where(active, 0.5 + 0.5 * np.cos(2 * np.pi * (f - 0.3) / 0.35), 0.0)
     squat = np.where((f > 0.15) & (f < 0.5) | (f > 0.65), squat, 0.0) * active
     # The arms take longer than the legs: up over 0.4 of the period, down over 0.45.
@@ -359,8 +383,9 @@ def _jumping_jacks(t, rng):
     pose.root = np.stack([np.zeros(n), y, np.zeros(n)], axis=1)
     for side in SIDES:
         sx = SIDES[side] * (0.1 + wide * spread)
-        ball = np.stack([sx, np.full(n, ANKLE_HEIGHT + BALL[1] + hop_h * hop),
-                         np.full(n, BALL[2])], axis=1)
+        ball = np.stack(
+            [sx, np.full(n, ANKLE_HEIGHT + BALL[1] + hop_h * hop), np.full(n, BALL[2])], axis=1
+        )
         ankle, rot = foot_on_ground(ball, np.zeros(n))
         solve_leg(pose, side, ankle, rot, pole=np.broadcast_to([0.0, 0.0, 1.0], (n, 3)))
         arm_fk(pose, side, 6.0 + (up - 6.0) * arms, 0.0, 0.0)
@@ -372,21 +397,29 @@ def _idle(t, rng):
     pose = Pose(n)
     breath = np.sin(2 * np.pi * t / (3.2 * jitter(rng, 0.1)))
     sway = np.sin(2 * np.pi * t / (4.5 * jitter(rng, 0.1)) + rng.uniform(0, 2 * np.pi))
-    pose.root = np.stack([0.025 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath,
-                          0.005 * breath], axis=1)
+    pose.root = np.stack(
+        [0.025 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath, 0.005 * breath], axis=1
+    )
     pose.local["Hips"] = zxy(1.5 * sway, 1.0, 2.0 * sway)
     pose.local["Spine"] = zxy(-1.5 * sway, 1.0 + 1.0 * breath, -1.0 * sway)
     pose.local["Spine1"] = zxy(0.0, 1.0 * breath, 0.0)
     pose.local["Head"] = zxy(0.0, -2.0 + 2.0 * breath, 6.0 * np.sin(2 * np.pi * t / 5.0))
-    plant_feet(pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]],
-                [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03])
+    plant_feet(
+        pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]], [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03]
+    )
     for side in SIDES:
         arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * SIDES[side], 14.0)
     return pose
 
 
-_MAKERS = {"walk": _walk, "jump": _jump, "kick": _kick, "punch": _punch,
-           "jumping_jacks": _jumping_jacks, "idle": _idle}
+_MAKERS = {
+    "walk": _walk,
+    "jump": _jump,
+    "kick": _kick,
+    "punch": _punch,
+    "jumping_jacks": _jumping_jacks,
+    "idle": _idle,
+}
 
 
 def _push(t, rng):
@@ -396,11 +429,18 @@ def _push(t, rng):
     # --- B, the pushed person: stands, is shoved back, steps back with the left foot.
     b = Pose(n)
     shove = 0.18 * jitter(rng, 0.1)
-    back = pchip(t, [0.0, tc, te, te + 0.5, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16])
-    lean = pchip(t, [0.0, tc, tc + 0.2, te + 0.1, te + 0.6, te + 1.1], [1.0, 1.0, -7.0, -10.0, -4.0, 1.0])
+    back = pchip(
+        t, [0.0, tc, te, te + 0.5, te + 0.9], [0.0, 0.0, shove, shove + 0.14, shove + 0.16]
+    )
+    lean = pchip(
+        t, [0.0, tc, tc + 0.2, te + 0.1, te + 0.6, te + 1.1], [1.0, 1.0, -7.0, -10.0, -4.0, 1.0]
+    )
     b.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - 0.02 * (back > 0.05), -back], axis=1)
-    b.root[:, 1] = ROOT_HEIGHT_M - 0.015 - pchip(t, [0.0, tc, te, te + 0.5, te + 1.0],
-                                                  [0.0, 0.0, 0.04, 0.03, 0.0])
+    b.root[:, 1] = (
+        ROOT_HEIGHT_M
+        - 0.015
+        - pchip(t, [0.0, tc, te, te + 0.5, te + 1.0], [0.0, 0.0, 0.04, 0.03, 0.0])
+    )
     b.local["Hips"] = zxy(0.0, lean * 0.5, 0.0)
     b.local["Spine"] = zxy(0.0, lean * 0.5, 0.0)
     b.local["Neck"] = zxy(0.0, -0.6 * lean + 8 * (lean < -5), 0.0)
@@ -419,8 +459,7 @@ def _push(t, rng):
     # into the shove, then settles.
     a = Pose(n)
     adv = pchip(t, [0.0, 0.5, 1.05, tc, te, te + 0.7], [0.0, 0.0, 0.33, 0.42, 0.57, 0.50])
-    lunge = pchip(t, [0.0, 0.5, 1.05, te, te + 0.6, te + 1.2],
-                  [0.0, 0.0, 0.05, 0.045, 0.02, 0.015])
+    lunge = pchip(t, [0.0, 0.5, 1.05, te, te + 0.6, te + 1.2], [0.0, 0.0, 0.05, 0.045, 0.02, 0.015])
     a.root = np.stack([np.zeros(n), ROOT_HEIGHT_M - 0.015 - lunge, adv], axis=1)
     lean_a = pchip(t, [0.0, 0.5, tc, te, te + 0.6, te + 1.2], [1.0, 1.0, 10.0, 14.0, 6.0, 3.0])
     a.local["Hips"] = zxy(0.0, 0.4 * lean_a, 0.0)
@@ -428,10 +467,12 @@ def _push(t, rng):
     a.local["Neck"] = zxy(0.0, -0.8 * lean_a, 0.0)
     step_r = pchip(t, [0.0, 0.5, 1.05], [0.0, 0.0, 1.0])
     step_l = pchip(t, [0.0, 1.02, 1.32], [0.0, 0.0, 1.0])
-    ball_ar = np.stack([np.full(n, -0.1), yb + 0.07 * np.sin(np.pi * step_r),
-                        BALL[2] + 0.65 * step_r], axis=1)
-    ball_al = np.stack([np.full(n, 0.1), yb + 0.05 * np.sin(np.pi * step_l),
-                        BALL[2] + 0.30 * step_l], axis=1)
+    ball_ar = np.stack(
+        [np.full(n, -0.1), yb + 0.07 * np.sin(np.pi * step_r), BALL[2] + 0.65 * step_r], axis=1
+    )
+    ball_al = np.stack(
+        [np.full(n, 0.1), yb + 0.05 * np.sin(np.pi * step_l), BALL[2] + 0.30 * step_l], axis=1
+    )
     heel = pchip(t, [0.0, tc + 0.05, te, te + 0.4, te + 1.0], [0.0, 0.0, 15.0, 15.0, 0.0])
     plant_feet(a, ball_al, ball_ar, pitch_l=heel)
     # A's hands: hanging → ready in front of the chest → on B's chest → back down.
@@ -453,8 +494,10 @@ def _push(t, rng):
         wrist = hang + (ready - hang) * w_ready[:, None]
         wrist = wrist + (on_b - wrist) * w_touch[:, None]
         # Elbows back while the arms hang, out and down while they push.
-        pole = rotate(a_rot, np.array([s * 0.2, -0.3, -1.0])
-                      + w_ready[:, None] * np.array([s * 0.5, -0.3, 0.6]))
+        pole = rotate(
+            a_rot,
+            np.array([s * 0.2, -0.3, -1.0]) + w_ready[:, None] * np.array([s * 0.5, -0.3, 0.6]),
+        )
         solve_arm(a, side, wrist, pole)
         # Palm flat on B's chest: fingers up, palm (local -Y) facing B, thumb (local
         # +Z) toward the midline.
@@ -482,8 +525,14 @@ def _times(name: str, seconds: float | None, fps: float) -> np.ndarray:
     return np.arange(n) / fps
 
 
-def humanoid_document(motion: str, *, seconds: float | None = None, fps: float = 30.0,
-                      seed: int = 0, facing_deg: float = 0.0) -> BVHDocument:
+def humanoid_document(
+    motion: str,
+    *,
+    seconds: float | None = None,
+    fps: float = 30.0,
+    seed: int = 0,
+    facing_deg: float = 0.0,
+) -> BVHDocument:
     """A procedural humanoid performing ``motion``, as a BVH document in metres.
 
     Parameters
@@ -517,8 +566,13 @@ def _push_documents(*, seconds=None, fps=30.0, seed=0, facing_deg=0.0):
     a, b = _push(t, np.random.default_rng(seed))
     yaw = yaw_matrix(facing_deg)
     doc_a = to_document(a, fps, facing_deg=facing_deg, path="push_pusher.bvh")
-    doc_b = to_document(b, fps, facing_deg=facing_deg + 180.0,
-                      offset=yaw @ np.array([0.0, 0.0, PUSH_DISTANCE_M]), path="push_pushed.bvh")
+    doc_b = to_document(
+        b,
+        fps,
+        facing_deg=facing_deg + 180.0,
+        offset=yaw @ np.array([0.0, 0.0, PUSH_DISTANCE_M]),
+        path="push_pushed.bvh",
+    )
     return doc_a, doc_b
 
 
@@ -552,8 +606,13 @@ def synth_scene(name: str, *, fps: float = 30.0, seed: int = 0, facing_deg: floa
         c = character_from_bvh(doc, scale=1.0, name=cname, fps=fps)
         c.meta["unit"] = "m"
         chars.append(c)
-    return Scene(characters=chars, fps=float(fps), ground=0.0, name=name,
-                 meta={"source": "synth", "unit": "m", "seed": seed})
+    return Scene(
+        characters=chars,
+        fps=float(fps),
+        ground=0.0,
+        name=name,
+        meta={"source": "synth", "unit": "m", "seed": seed},
+    )
 
 
 _DESCRIPTIONS = {
@@ -561,16 +620,24 @@ _DESCRIPTIONS = {
     "jump": f"Synthetic vertical jump: take-off at {JUMP_TAKEOFF_S} s, landing at {JUMP_LANDING_S} s.",
     "kick": f"Synthetic right front kick, full extension at {KICK_IMPACT_S} s.",
     "punch": f"Synthetic right cross from a boxing guard, full extension at {PUNCH_IMPACT_S} s.",
-    "push": (f"Synthetic two-person push: the pusher's palms on the other's chest from "
-             f"{PUSH_CONTACT_S} s to {PUSH_CONTACT_END_S} s; the pushed person steps back."),
+    "push": (
+        f"Synthetic two-person push: the pusher's palms on the other's chest from "
+        f"{PUSH_CONTACT_S} s to {PUSH_CONTACT_END_S} s; the pushed person steps back."
+    ),
     "jumping_jacks": "Synthetic jumping jacks.",
     "idle": "Synthetic idle standing.",
 }
 
 
 def _toml_manifest(name: str, fps: float, chars: list[tuple[str, str]]) -> str:
-    lines = [f'name = "{name}"', f'description = "{_DESCRIPTIONS[name]}"', f"fps = {float(fps)!r}",
-             "ground = 0.0", "drop_tpose = false", ""]
+    lines = [
+        f'name = "{name}"',
+        f'description = "{_DESCRIPTIONS[name]}"',
+        f"fps = {float(fps)!r}",
+        "ground = 0.0",
+        "drop_tpose = false",
+        "",
+    ]
     for file, cname in chars:
         lines += ["[[characters]]", f'file = "{file}"', f'name = "{cname}"', ""]
     return "\n".join(lines)
@@ -634,8 +701,10 @@ def events(name: str, *, seconds: float | None = None) -> dict:
     if name == "walk":
         strikes = walk_heel_strikes(secs)
         out = {f"{side}_heel_strikes": strikes[side] for side in ("left", "right")}
-        for side, first in (("left", WALK_FIRST_LEFT_STRIKE_S),
-                            ("right", WALK_FIRST_LEFT_STRIKE_S - WALK_STRIDE_S / 2)):
+        for side, first in (
+            ("left", WALK_FIRST_LEFT_STRIKE_S),
+            ("right", WALK_FIRST_LEFT_STRIKE_S - WALK_STRIDE_S / 2),
+        ):
             k = np.arange(0, int(secs / WALK_STRIDE_S) + 2)
             offs = first + (k + WALK_STANCE_FRACTION - 1) * WALK_STRIDE_S
             out[f"{side}_toe_offs"] = np.round(offs[(offs >= 0) & (offs <= secs)], 9)
@@ -660,4 +729,7 @@ def walk_heel_strikes(seconds: float | None = None) -> dict[str, np.ndarray]:
     left = WALK_FIRST_LEFT_STRIKE_S + k * WALK_STRIDE_S
     right = left + WALK_STRIDE_S / 2
     left, right = np.round(left, 9), np.round(right, 9)
-    return {"left": left[(left >= 0) & (left <= secs)], "right": right[(right >= 0) & (right <= secs)]}
+    return {
+        "left": left[(left >= 0) & (left <= secs)],
+        "right": right[(right >= 0) & (right <= secs)],
+    }

@@ -90,8 +90,9 @@ def rx(deg):
     a = np.deg2rad(np.asarray(deg, dtype=float))
     c, s = np.cos(a), np.sin(a)
     z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1),
-                     np.stack([z, s, c], -1)], -2)
+    return np.stack(
+        [np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2
+    )
 
 
 def ry(deg):
@@ -99,8 +100,9 @@ def ry(deg):
     a = np.deg2rad(np.asarray(deg, dtype=float))
     c, s = np.cos(a), np.sin(a)
     z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
-                     np.stack([-s, z, c], -1)], -2)
+    return np.stack(
+        [np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2
+    )
 
 
 def rz(deg):
@@ -108,8 +110,9 @@ def rz(deg):
     a = np.deg2rad(np.asarray(deg, dtype=float))
     c, s = np.cos(a), np.sin(a)
     z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
-                     np.stack([z, z, o], -1)], -2)
+    return np.stack(
+        [np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2
+    )
 
 
 def zxy(z=0.0, x=0.0, y=0.0):
@@ -153,19 +156,24 @@ def pchip(t, times, values):
         with np.errstate(divide="ignore", invalid="ignore"):
             hm = (w1 + w2) / (w1 / delta[:-1] + w2 / delta[1:])
         d[1:-1] = np.where(same, hm, 0.0)
-        for end, (h0, h1, m0, m1) in ((0, (h[0], h[1], delta[0], delta[1])),
-                                      (-1, (h[-1], h[-2], delta[-1], delta[-2]))):
+        for end, (h0, h1, m0, m1) in (
+            (0, (h[0], h[1], delta[0], delta[1])),
+            (-1, (h[-1], h[-2], delta[-1], delta[-2])),
+        ):
             de = ((2 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
             de = np.where(np.sign(de) != np.sign(m0), 0.0, de)
-            de = np.where((np.sign(m0) != np.sign(m1)) & (np.abs(de) > 3 * np.abs(m0)),
-                          3 * m0, de)
+            de = np.where((np.sign(m0) != np.sign(m1)) & (np.abs(de) > 3 * np.abs(m0)), 3 * m0, de)
             d[end] = de
     tc = np.clip(np.asarray(t, dtype=float), x[0], x[-1])
     i = np.clip(np.searchsorted(x, tc, side="right") - 1, 0, len(x) - 2)
     hi = h[i]
     u = ((tc - x[i]) / hi[:, 0])[:, None]
-    out = ((2 * u**3 - 3 * u**2 + 1) * y[i] + (u**3 - 2 * u**2 + u) * hi * d[i]
-           + (-2 * u**3 + 3 * u**2) * y[i + 1] + (u**3 - u**2) * hi * d[i + 1])
+    out = (
+        (2 * u**3 - 3 * u**2 + 1) * y[i]
+        + (u**3 - 2 * u**2 + u) * hi * d[i]
+        + (-2 * u**3 + 3 * u**2) * y[i + 1]
+        + (u**3 - u**2) * hi * d[i + 1]
+    )
     return out[:, 0] if flat else out
 
 
@@ -274,8 +282,7 @@ def solve_leg(pose: Pose, side: str, ankle, foot_rot, toe_deg=0.0, pole=None):
     pose.local[f"{side}Leg"] = knee
     shank = thigh @ knee
     pose.local[f"{side}Foot"] = np.swapaxes(shank, -1, -2) @ foot_rot
-    pose.local[f"{side}ToeBase"] = rx(np.broadcast_to(-np.asarray(toe_deg, dtype=float),
-                                                       (pose.n,)))
+    pose.local[f"{side}ToeBase"] = rx(np.broadcast_to(-np.asarray(toe_deg, dtype=float), (pose.n,)))
 
 
 def solve_arm(pose: Pose, side: str, wrist, pole, hand_rot=None):
@@ -302,8 +309,9 @@ def arm_fk(pose: Pose, side: str, abduct, flex, elbow, twist=0.0):
     flexion; sets the shoulder and elbow rotations."""
     s = SIDES[side]
     n = pose.n
-    abduct, flex, elbow, twist = (np.broadcast_to(np.asarray(v, dtype=float), (n,))
-                                  for v in (abduct, flex, elbow, twist))
+    abduct, flex, elbow, twist = (
+        np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (abduct, flex, elbow, twist)
+    )
     pose.local[f"{side}Arm"] = zxy(-s * (90.0 - abduct), twist, -s * flex)
     pose.local[f"{side}ForeArm"] = ry(-s * elbow)
 
@@ -341,18 +349,27 @@ def plant_feet(pose, ball_l, ball_r, pitch_l=None, pitch_r=None):
 # --------------------------------------------------------------------------- output
 
 
-def to_document(pose: Pose, fps: float, *, facing_deg: float = 0.0, offset=(0.0, 0.0, 0.0),
-              path: str | None = None) -> BVHDocument:
+def to_document(
+    pose: Pose,
+    fps: float,
+    *,
+    facing_deg: float = 0.0,
+    offset=(0.0, 0.0, 0.0),
+    path: str | None = None,
+) -> BVHDocument:
     """BVH document of ``pose`` turned by ``facing_deg`` about +Y, then moved by ``offset``."""
     yaw = yaw_matrix(facing_deg)
     root_pos = pose.root @ yaw.T + np.asarray(offset, dtype=float)
     joints = [name for name, end in zip(NAMES, END_SITE) if not end]
-    rots = np.stack([np.broadcast_to(pose.local[name], (pose.n, 3, 3)) for name in joints],
-                    axis=1)  # (F, Jr, 3, 3)
+    rots = np.stack(
+        [np.broadcast_to(pose.local[name], (pose.n, 3, 3)) for name in joints], axis=1
+    )  # (F, Jr, 3, 3)
     rots[:, 0] = yaw @ rots[:, 0]
     angles = continuous_euler(rots)  # (F, Jr, 3)
-    channels = [() if end else (ROOT_CHANNELS if name == "Hips" else JOINT_CHANNELS)
-                for name, end in zip(NAMES, END_SITE)]
+    channels = [
+        () if end else (ROOT_CHANNELS if name == "Hips" else JOINT_CHANNELS)
+        for name, end in zip(NAMES, END_SITE)
+    ]
     cols = np.concatenate([root_pos, angles.reshape(pose.n, -1)], axis=1)
     motion = np.round(cols, DECIMALS) + 0.0  # "+ 0.0" turns -0.0 into 0.0
     parents = np.array([-1 if (p := PARENT[n]) is None else INDEX[p] for n in NAMES])
@@ -378,8 +395,10 @@ def continuous_euler(r):
     """
     f, j = r.shape[:2]
     e = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(f, j, 3)
-    alt = np.stack([e[..., 0] + 180.0, np.where(e[..., 1] >= 0, 180.0, -180.0) - e[..., 1],
-                    e[..., 2] + 180.0], axis=-1)
+    alt = np.stack(
+        [e[..., 0] + 180.0, np.where(e[..., 1] >= 0, 180.0, -180.0) - e[..., 1], e[..., 2] + 180.0],
+        axis=-1,
+    )
     alt[..., [0, 2]] = (alt[..., [0, 2]] + 180.0) % 360.0 - 180.0
 
     def wrapped(d):
@@ -392,5 +411,3 @@ def continuous_euler(r):
     use_alt = (flips + first.astype(int)) % 2 == 1
     out = np.where(use_alt[..., None], alt, e)
     return np.unwrap(out, period=360.0, axis=0)
-
-

@@ -37,9 +37,19 @@ from snapcore.render.body import (
 from snapcore.render.human import HumanBody, RetargetError
 from snapcore.render.skinned import FrameBlocks
 
-__all__ = ["BODY_KINDS", "DEFAULT_BODY", "body_kind", "with_body", "SkinnedBody",
-           "MixedSceneBody", "character_body", "scene_body", "shadow_body", "posed_mesh",
-           "scene_trimesh"]
+__all__ = [
+    "BODY_KINDS",
+    "DEFAULT_BODY",
+    "body_kind",
+    "with_body",
+    "SkinnedBody",
+    "MixedSceneBody",
+    "character_body",
+    "scene_body",
+    "shadow_body",
+    "posed_mesh",
+    "scene_trimesh",
+]
 
 BODY_KINDS = ("human", "mannequin")
 DEFAULT_BODY = "human"
@@ -84,8 +94,9 @@ class SkinnedBody(FrameBlocks):
         own = self.mesh.face_rgb
         if own is not None:  # the file's material colours where it has them
             rgb = np.where(np.isnan(own), rgb, own)
-        self.face_colors = np.round(np.append(rgb, np.ones((len(rgb), 1)), axis=1)
-                                    * 255).astype(np.uint8)
+        self.face_colors = np.round(np.append(rgb, np.ones((len(rgb), 1)), axis=1) * 255).astype(
+            np.uint8
+        )
 
     @property
     def n_vertices(self) -> int:
@@ -99,8 +110,15 @@ class SkinnedBody(FrameBlocks):
         return self.mesh.vertices(self.character, frames).astype(np.float32)
 
 
-def character_body(character, *, kind: str = DEFAULT_BODY, color=CHARACTER_COLORS[0],
-                   tessellation=TESSELLATION, detail: str = "full", ground: float | None = None):
+def character_body(
+    character,
+    *,
+    kind: str = DEFAULT_BODY,
+    color=CHARACTER_COLORS[0],
+    tessellation=TESSELLATION,
+    detail: str = "full",
+    ground: float | None = None,
+):
     """The body one character wears (see the module notes for the rules); ``detail``
     picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
     the floor height its soles stand on (default: inferred from its joints)."""
@@ -132,14 +150,34 @@ class MixedSceneBody(SceneBody):
         Level of detail of human meshes ("reduced": for videos).
     """
 
-    def __init__(self, scene, *, kind=None, colors=None, tessellation=TESSELLATION, bodies=None,
-                 detail="full"):
+    def __init__(
+        self,
+        scene,
+        *,
+        kind=None,
+        colors=None,
+        tessellation=TESSELLATION,
+        bodies=None,
+        detail="full",
+    ):
         self.kind = kind or body_kind(scene)
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
-        self._merge(scene, bodies if bodies is not None else [
-            character_body(ch, kind=self.kind, color=colors[i % len(colors)],
-                           tessellation=tessellation, detail=detail, ground=scene.ground)
-            for i, ch in enumerate(scene.characters)])
+        self._merge(
+            scene,
+            bodies
+            if bodies is not None
+            else [
+                character_body(
+                    ch,
+                    kind=self.kind,
+                    color=colors[i % len(colors)],
+                    tessellation=tessellation,
+                    detail=detail,
+                    ground=scene.ground,
+                )
+                for i, ch in enumerate(scene.characters)
+            ],
+        )
 
 
 def _bodies_of(scene) -> dict:
@@ -149,8 +187,9 @@ def _bodies_of(scene) -> dict:
     return vars(scene).setdefault("_snapcore_bodies", {})
 
 
-def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None,
-               detail: str = "full") -> MixedSceneBody:
+def scene_body(
+    scene, tessellation=TESSELLATION, *, kind: str | None = None, detail: str = "full"
+) -> MixedSceneBody:
     """The (cached) body of ``scene``: built once per scene, kind, tessellation and
     level of detail (``detail="reduced"``: the human mesh videos draw).
 
@@ -165,12 +204,17 @@ def scene_body(scene, tessellation=TESSELLATION, *, kind: str | None = None,
         reuse = None
         if other is not None:
             colors = list(CHARACTER_COLORS)
-            reuse = [b if not isinstance(b, CharacterBody) else
-                     CharacterBody(b.character, color=colors[i % len(colors)],
-                                   tessellation=tessellation)
-                     for i, b in enumerate(other.characters)]
+            reuse = [
+                b
+                if not isinstance(b, CharacterBody)
+                else CharacterBody(
+                    b.character, color=colors[i % len(colors)], tessellation=tessellation
+                )
+                for i, b in enumerate(other.characters)
+            ]
         body = bodies[(kind, tessellation, detail)] = MixedSceneBody(
-            scene, kind=kind, tessellation=tessellation, bodies=reuse, detail=detail)
+            scene, kind=kind, tessellation=tessellation, bodies=reuse, detail=detail
+        )
     return body
 
 
@@ -180,10 +224,19 @@ def shadow_body(body: MixedSceneBody, tessellation) -> MixedSceneBody:
     capsules cast nearly the same one for a fifth of the triangles, measured 30% of a
     1280x720 frame's time), a glTF character's own mesh (a fox is no mannequin)."""
     colors = list(CHARACTER_COLORS)
-    return MixedSceneBody(body.scene, kind=body.kind, tessellation=tessellation, bodies=[
-        b if isinstance(b, SkinnedBody) else
-        CharacterBody(b.character, color=colors[i % len(colors)], tessellation=tessellation)
-        for i, b in enumerate(body.characters)])
+    return MixedSceneBody(
+        body.scene,
+        kind=body.kind,
+        tessellation=tessellation,
+        bodies=[
+            b
+            if isinstance(b, SkinnedBody)
+            else CharacterBody(
+                b.character, color=colors[i % len(colors)], tessellation=tessellation
+            )
+            for i, b in enumerate(body.characters)
+        ],
+    )
 
 
 def posed_mesh(scene, frame: int, *, kind: str | None = None) -> PosedMesh:

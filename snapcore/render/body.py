@@ -98,7 +98,8 @@ def helper_joints(names, parents) -> np.ndarray:
     for j in range(len(names) - 1, -1, -1):  # children come after parents: decided first
         kids = np.flatnonzero(parents == j)
         if HELPER_JOINT.search(str(names[j])) and all(
-                out[c] or re.search(r"_end$", str(names[c]), re.I) for c in kids):
+            out[c] or re.search(r"_end$", str(names[c]), re.I) for c in kids
+        ):
             out[j] = True
     return out
 
@@ -118,7 +119,9 @@ TESSELLATION_COARSE = _by_radius(((0.08, (10, 2)), (0.035, (8, 2)), (0.018, (6, 
 #: Fine tessellation for surfaces that are read as geometry, not as shaded pictures:
 #: a relief carves the depth itself, where the flat facets of :data:`TESSELLATION`
 #: would show as ridges in raking light (~5x the faces).
-TESSELLATION_FINE = _by_radius(((0.08, (40, 10)), (0.035, (28, 7)), (0.018, (16, 4)), (0.0, (10, 2))))
+TESSELLATION_FINE = _by_radius(
+    ((0.08, (40, 10)), (0.035, (28, 7)), (0.018, (16, 4)), (0.0, (10, 2)))
+)
 
 #: Base colours of characters 0, 1, 2... (RGB 0-1, Tableau 10): distinct for two people.
 CHARACTER_COLORS = (
@@ -250,8 +253,13 @@ class PosedMesh:
         """The mesh as a :class:`trimesh.Trimesh` (face colours set, not processed)."""
         import trimesh
 
-        return trimesh.Trimesh(self.vertices, self.faces, face_colors=self.face_colors,
-                               vertex_normals=self.normals, process=False)
+        return trimesh.Trimesh(
+            self.vertices,
+            self.faces,
+            face_colors=self.face_colors,
+            vertex_normals=self.normals,
+            process=False,
+        )
 
 
 class CharacterBody:
@@ -294,8 +302,11 @@ class CharacterBody:
         # inherit a side from the parent chain (Daz fingers "lIndex1" have one, but
         # e.g. "LeftHandIndex1_End" or unnamed children may not)
         for j in range(len(names)):
-            if not self.sides[j] and parents[j] >= 0 and self.roles[j] not in ("spine", "chest",
-                                                                                "neck", "head"):
+            if (
+                not self.sides[j]
+                and parents[j] >= 0
+                and self.roles[j] not in ("spine", "chest", "neck", "head")
+            ):
                 self.sides[j] = self.sides[parents[j]]
         height = float(character.height)
         if not (np.isfinite(height) and height > 0):
@@ -352,15 +363,25 @@ class CharacterBody:
             around, rings = _tessellation(max(a, b) / k, self._table)  # relative to stature
             v, n, f = _capsule(length, a, b, cap, around, rings)
             pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
-            self.pieces.append({"kind": kind, "joint": int(j), "child": int(child),
-                                "radii": (float(a), float(b)), "length": float(length)})
+            self.pieces.append(
+                {
+                    "kind": kind,
+                    "joint": int(j),
+                    "child": int(child),
+                    "radii": (float(a), float(b)),
+                    "length": float(length),
+                }
+            )
 
         lateral_cache: dict[int, np.ndarray | None] = {}
 
         def lateral(j):
             if j not in lateral_cache:
-                pair = ("thigh", "upperarm") if roles[j] in ("pelvis", "spine") else (
-                    "upperarm", "clavicle", "thigh")
+                pair = (
+                    ("thigh", "upperarm")
+                    if roles[j] in ("pelvis", "spine")
+                    else ("upperarm", "clavicle", "thigh")
+                )
                 lateral_cache[j] = self._lateral(j, pair)
             return lateral_cache[j]
 
@@ -391,7 +412,9 @@ class CharacterBody:
                 anc = parents[anc]
             up = None
             if anc >= 0:
-                up = _mean_local_direction(c.rotations[s, j], c.positions[s, j] - c.positions[s, anc])
+                up = _mean_local_direction(
+                    c.rotations[s, j], c.positions[s, j] - c.positions[s, anc]
+                )
             if up is None:
                 up = np.array([0.0, 1.0, 0.0])
             left = self._lateral(j, ("upperarm", "clavicle", "thigh"))
@@ -419,12 +442,23 @@ class CharacterBody:
                 stack.extend(kids[q])
             if total >= HAND_BONES_MIN * k or parents[j] < 0:
                 continue
-            d = _mean_local_direction(c.rotations[s, j], c.positions[s, j] - c.positions[s, parents[j]])
+            d = _mean_local_direction(
+                c.rotations[s, j], c.positions[s, j] - c.positions[s, parents[j]]
+            )
             if d is None:
                 continue
             rr = HAND_BLOB_RADIUS * k
-            add(j, 0.0, rr, rr * 0.8, rr * 1.1, _frame_from(d, None),
-                d * HAND_BLOB_BEYOND * k, colour_of(j), "hand")
+            add(
+                j,
+                0.0,
+                rr,
+                rr * 0.8,
+                rr * 1.1,
+                _frame_from(d, None),
+                d * HAND_BLOB_BEYOND * k,
+                colour_of(j),
+                "hand",
+            )
 
         if not pieces:
             raise SceneError(f"character '{c.name}' has no bones to draw")
@@ -489,10 +523,13 @@ class SceneBody:
 
     def __init__(self, scene, *, colors=None, tessellation=TESSELLATION):
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
-        self._merge(scene, [
-            CharacterBody(ch, color=colors[i % len(colors)], tessellation=tessellation)
-            for i, ch in enumerate(scene.characters)
-        ])
+        self._merge(
+            scene,
+            [
+                CharacterBody(ch, color=colors[i % len(colors)], tessellation=tessellation)
+                for i, ch in enumerate(scene.characters)
+            ],
+        )
 
     def _merge(self, scene, bodies) -> None:
         """Merge per-character bodies (anything with ``vertices``, ``normals``, ``faces``,
@@ -506,7 +543,8 @@ class SceneBody:
         self.faces = np.vstack([b.faces + o for b, o in zip(self.characters, offs[:-1])])
         self.face_colors = np.vstack([b.face_colors for b in self.characters])
         self.face_character = np.concatenate(
-            [np.full(b.n_faces, i) for i, b in enumerate(self.characters)])
+            [np.full(b.n_faces, i) for i, b in enumerate(self.characters)]
+        )
 
     @property
     def n_vertices(self) -> int:
@@ -535,8 +573,13 @@ class SceneBody:
     def pose(self, frame: int) -> PosedMesh:
         """The merged mesh of all characters at internal frame ``frame``."""
         frame = int(frame)
-        return PosedMesh(self.vertices(frame), self.faces, self.face_colors,
-                         self.normals(frame), self.face_character)
+        return PosedMesh(
+            self.vertices(frame),
+            self.faces,
+            self.face_colors,
+            self.normals(frame),
+            self.face_character,
+        )
 
     def trimesh(self, frame: int):
         """``self.pose(frame).trimesh()``: a :class:`trimesh.Trimesh` with face colours."""

@@ -30,8 +30,7 @@ from snapcore.errors import RenderError
 from snapcore.render.camera import Camera, view_basis
 from snapcore.render.gl import current_gl_context, load_pyrender
 
-__all__ = ["DepthMap", "render_face_ids", "face_id_camera", "render_depth",
-           "FACE_ID_RESOLUTION"]
+__all__ = ["DepthMap", "render_face_ids", "face_id_camera", "render_depth", "FACE_ID_RESOLUTION"]
 
 #: Default square resolution (pixels) of face-id buffers. The number of faces a view
 #: "sees" depends strongly on it (3.2k faces/view at 256² vs 8.9k at 512² for a 77k-face
@@ -76,8 +75,17 @@ def face_id_camera(vertices, view, *, resolution=FACE_ID_RESOLUTION, sphere=None
     c, r = sphere if sphere is not None else _bounding_sphere(vertices)
     right, up, back = view_basis(view)
     dist = 2.0 * r
-    return Camera(c + back * dist, right, up, back, (int(resolution), int(resolution)),
-                  "orthographic", half_height=r, znear=0.5 * r, zfar=3.5 * r)
+    return Camera(
+        c + back * dist,
+        right,
+        up,
+        back,
+        (int(resolution), int(resolution)),
+        "orthographic",
+        half_height=r,
+        znear=0.5 * r,
+        zfar=3.5 * r,
+    )
 
 
 #: The id pass's shaders: the fragment writes the triangle's index within the draw
@@ -120,9 +128,11 @@ def _id_program(renderer):
 
     prog = getattr(renderer, "_snap_id_program", None)
     if prog is None:
-        prog = shaders.compileProgram(shaders.compileShader(_ID_VERTEX, GL_VERTEX_SHADER),
-                                      shaders.compileShader(_ID_FRAGMENT, GL_FRAGMENT_SHADER),
-                                      validate=False)
+        prog = shaders.compileProgram(
+            shaders.compileShader(_ID_VERTEX, GL_VERTEX_SHADER),
+            shaders.compileShader(_ID_FRAGMENT, GL_FRAGMENT_SHADER),
+            validate=False,
+        )
         renderer._snap_id_program = prog
     return prog
 
@@ -157,13 +167,24 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         loc_v = gl.glGetUniformLocation(prog, "V")
         loc_p = gl.glGetUniformLocation(prog, "P")
         gl.glBindTexture(gl.GL_TEXTURE_2D_ARRAY, tex)
-        gl.glTexImage3D(gl.GL_TEXTURE_2D_ARRAY, 0, gl.GL_R32I, w, h, layers, 0,
-                        gl.GL_RED_INTEGER, gl.GL_INT, None)
+        gl.glTexImage3D(
+            gl.GL_TEXTURE_2D_ARRAY,
+            0,
+            gl.GL_R32I,
+            w,
+            h,
+            layers,
+            0,
+            gl.GL_RED_INTEGER,
+            gl.GL_INT,
+            None,
+        )
         gl.glBindRenderbuffer(gl.GL_RENDERBUFFER, depth)
         gl.glRenderbufferStorage(gl.GL_RENDERBUFFER, gl.GL_DEPTH_COMPONENT24, w, h)
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, fbo)
-        gl.glFramebufferRenderbuffer(gl.GL_FRAMEBUFFER, gl.GL_DEPTH_ATTACHMENT,
-                                     gl.GL_RENDERBUFFER, depth)
+        gl.glFramebufferRenderbuffer(
+            gl.GL_FRAMEBUFFER, gl.GL_DEPTH_ATTACHMENT, gl.GL_RENDERBUFFER, depth
+        )
         gl.glFramebufferTextureLayer(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0, tex, 0, 0)
         if gl.glCheckFramebufferStatus(gl.GL_FRAMEBUFFER) != gl.GL_FRAMEBUFFER_COMPLETE:
             raise RenderError("the GL driver cannot render into a 32-bit integer target")
@@ -186,15 +207,14 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         for start in range(0, n_views, layers):
             n = min(layers, n_views - start)
             for k in range(n):  # one draw call per view: a layer and two matrices
-                gl.glFramebufferTextureLayer(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0,
-                                             tex, 0, k)
+                gl.glFramebufferTextureLayer(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0, tex, 0, k)
                 gl.glClearBufferiv(gl.GL_COLOR, 0, no_face)
                 gl.glClearBufferfv(gl.GL_DEPTH, 0, far)
                 gl.glUniformMatrix4fv(loc_v, 1, gl.GL_TRUE, mats[start + k][0])
                 gl.glUniformMatrix4fv(loc_p, 1, gl.GL_TRUE, mats[start + k][1])
                 gl.glDrawElements(gl.GL_TRIANGLES, f.size, gl.GL_UNSIGNED_INT, None)
             gl.glGetTexImage(gl.GL_TEXTURE_2D_ARRAY, 0, gl.GL_RED_INTEGER, gl.GL_INT, block)
-            out[start:start + n] = block[:n, ::-1]  # GL rows run bottom-up
+            out[start : start + n] = block[:n, ::-1]  # GL rows run bottom-up
     finally:
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
         gl.glBindVertexArray(0)
@@ -301,16 +321,16 @@ class DepthMap:
         s = self.pixel_size
         xs = (np.arange(w) + 0.5 - w / 2) * s
         ys = (np.arange(h) + 0.5 - h / 2) * s
-        return (self.origin + xs[None, :, None] * self.right
-                - ys[:, None, None] * self.up)
+        return self.origin + xs[None, :, None] * self.right - ys[:, None, None] * self.up
 
     def points(self) -> np.ndarray:
         """World surface point at each pixel (NaN for background), shape (H, W, 3)."""
         return self.pixel_centers() + self.depth[..., None] * self.forward
 
 
-def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
-                 margin=0.02) -> DepthMap:
+def render_depth(
+    vertices, faces, view, *, resolution=512, extent=None, up=None, margin=0.02
+) -> DepthMap:
     """Metric orthographic depth of a mesh seen along ``-view``.
 
     Parameters
@@ -375,8 +395,17 @@ def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
     depth_span = float(z.max() - z.min())
     pad = max(depth_span, hw, hh) * 0.1 + 1e-3
     origin = cx * right + cy * upv + (front + pad) * back
-    cam = Camera(origin, right, upv, back, (w, h), "orthographic", half_height=hh,
-                 znear=pad * 0.5, zfar=pad + depth_span + pad)
+    cam = Camera(
+        origin,
+        right,
+        upv,
+        back,
+        (w, h),
+        "orthographic",
+        half_height=hh,
+        znear=pad * 0.5,
+        zfar=pad + depth_span + pad,
+    )
     ids = _render_ids(*_id_mesh(v, f), [cam])[0]
     depth = np.full((h, w), np.nan)
     hit = ids > 0
@@ -385,8 +414,11 @@ def render_depth(vertices, faces, view, *, resolution=512, extent=None, up=None,
         tri = v[f[k]]  # (P, 3, 3)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         ii, jj = np.nonzero(hit)
-        o = (origin + ((jj + 0.5 - w / 2) * s)[:, None] * right
-             - ((ii + 0.5 - h / 2) * s)[:, None] * upv)
+        o = (
+            origin
+            + ((jj + 0.5 - w / 2) * s)[:, None] * right
+            - ((ii + 0.5 - h / 2) * s)[:, None] * upv
+        )
         fwd = -back
         denom = n @ fwd
         with np.errstate(divide="ignore", invalid="ignore"):

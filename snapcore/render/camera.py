@@ -134,11 +134,15 @@ class Camera:
     def pyrender_camera(self):
         pyrender = load_pyrender()
         if self.projection == "orthographic":
-            return pyrender.OrthographicCamera(xmag=self.half_height * self.aspect,
-                                               ymag=self.half_height,
-                                               znear=self.znear, zfar=self.zfar)
-        return pyrender.PerspectiveCamera(yfov=self.yfov, aspectRatio=self.aspect,
-                                          znear=self.znear, zfar=self.zfar)
+            return pyrender.OrthographicCamera(
+                xmag=self.half_height * self.aspect,
+                ymag=self.half_height,
+                znear=self.znear,
+                zfar=self.zfar,
+            )
+        return pyrender.PerspectiveCamera(
+            yfov=self.yfov, aspectRatio=self.aspect, znear=self.znear, zfar=self.zfar
+        )
 
     def project(self, points) -> np.ndarray:
         """Pixel coordinates (x right, y down; pixel centres at +0.5) of world points,
@@ -163,8 +167,17 @@ def check_size(size) -> tuple[int, int]:
     return w, h
 
 
-def fit_camera(points, view, *, size=(640, 480), projection="orthographic", margin=FRAME_MARGIN,
-               up=None, yfov_deg=PERSPECTIVE_YFOV_DEG, half_height=None) -> Camera:
+def fit_camera(
+    points,
+    view,
+    *,
+    size=(640, 480),
+    projection="orthographic",
+    margin=FRAME_MARGIN,
+    up=None,
+    yfov_deg=PERSPECTIVE_YFOV_DEG,
+    half_height=None,
+) -> Camera:
     """A camera along ``view`` that frames all ``points``.
 
     Parameters
@@ -219,17 +232,34 @@ def fit_camera(points, view, *, size=(640, 480), projection="orthographic", marg
         if half_height is not None:
             hh = float(half_height)
         dist = radius * 2 + 1.0
-        return Camera(centre + back * dist, right, upv, back, (w, h), "orthographic",
-                      half_height=hh, znear=max(dist - radius - 1.0, 1e-3),
-                      zfar=dist + radius + 1.0)
+        return Camera(
+            centre + back * dist,
+            right,
+            upv,
+            back,
+            (w, h),
+            "orthographic",
+            half_height=hh,
+            znear=max(dist - radius - 1.0, 1e-3),
+            zfar=dist + radius + 1.0,
+        )
     yfov = np.radians(yfov_deg)
     tv = np.tan(yfov / 2) * fill
     th = np.tan(yfov / 2) * aspect * fill
     xr, yr, zr = x - cx, y - cy, z - zc
     dist = float(max(np.max(zr + np.abs(xr) / th), np.max(zr + np.abs(yr) / tv), radius * 0.5))
     znear = max(dist - radius, 0.02)
-    return Camera(centre + back * dist, right, upv, back, (w, h), "perspective",
-                  yfov=float(yfov), znear=znear, zfar=dist + radius + 1.0)
+    return Camera(
+        centre + back * dist,
+        right,
+        upv,
+        back,
+        (w, h),
+        "perspective",
+        yfov=float(yfov),
+        znear=znear,
+        zfar=dist + radius + 1.0,
+    )
 
 
 def motion_points(scene, *, frames=None, body=None, max_frames=120) -> np.ndarray:

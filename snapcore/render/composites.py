@@ -27,8 +27,15 @@ from snapcore.render.camera import (
 )
 from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer
 
-__all__ = ["contact_sheet", "compare_views", "common_cameras", "floor_aligned", "tile_panels",
-           "PANEL_GAP", "CAPTION_HEIGHT"]
+__all__ = [
+    "contact_sheet",
+    "compare_views",
+    "common_cameras",
+    "floor_aligned",
+    "tile_panels",
+    "PANEL_GAP",
+    "CAPTION_HEIGHT",
+]
 
 #: Pixels between panels.
 PANEL_GAP = 8
@@ -38,8 +45,9 @@ _PAPER = (255, 255, 255)
 _INK = (35, 35, 35)
 
 
-def common_cameras(points_per_panel, views, *, size, projection="orthographic",
-                   margin=None) -> list[Camera]:
+def common_cameras(
+    points_per_panel, views, *, size, projection="orthographic", margin=None
+) -> list[Camera]:
     """One camera per panel, all at the same scale, each centred on its own points.
 
     Parameters
@@ -56,18 +64,34 @@ def common_cameras(points_per_panel, views, *, size, projection="orthographic",
     list of Camera
     """
     kw = {} if margin is None else {"margin": margin}
-    cams = [fit_camera(p, v, size=size, projection=projection, **kw)
-            for p, v in zip(points_per_panel, views)]
+    cams = [
+        fit_camera(p, v, size=size, projection=projection, **kw)
+        for p, v in zip(points_per_panel, views)
+    ]
     if projection == "orthographic":
         hh = max(c.half_height for c in cams)
-        return [fit_camera(p, v, size=size, projection=projection, half_height=hh, **kw)
-                for p, v in zip(points_per_panel, views)]
+        return [
+            fit_camera(p, v, size=size, projection=projection, half_height=hh, **kw)
+            for p, v in zip(points_per_panel, views)
+        ]
     targets = [_target(c, p) for c, p in zip(cams, points_per_panel)]
     dists = [float(np.linalg.norm(c.position - t)) for c, t in zip(cams, targets)]
     d = max(dists)
-    return [Camera(t + c.back * d, c.right, c.up, c.back, c.size, c.projection, c.half_height,
-                   c.yfov, max(c.znear + d - di, 0.02), c.zfar + d - di)
-            for c, t, di in zip(cams, targets, dists)]
+    return [
+        Camera(
+            t + c.back * d,
+            c.right,
+            c.up,
+            c.back,
+            c.size,
+            c.projection,
+            c.half_height,
+            c.yfov,
+            max(c.znear + d - di, 0.02),
+            c.zfar + d - di,
+        )
+        for c, t, di in zip(cams, targets, dists)
+    ]
 
 
 def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) -> list[Camera]:
@@ -85,8 +109,10 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
     up = cams[0].up
     fill = max(1.0 - 2.0 * (FRAME_MARGIN if margin is None else margin), 0.05)
     # each pose's vertical extent measured from its own floor point
-    rel = [np.asarray(p, float).reshape(-1, 3) @ up - float(np.asarray(f, float) @ up)
-           for p, f in zip(points_per_panel, feet)]
+    rel = [
+        np.asarray(p, float).reshape(-1, 3) @ up - float(np.asarray(f, float) @ up)
+        for p, f in zip(points_per_panel, feet)
+    ]
     lo = min(float(r.min()) for r in rel)
     hi = max(float(r.max()) for r in rel)
     hh = max(max(c.half_height for c in cams), (hi - lo) / 2 / fill)
@@ -94,8 +120,20 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
     for c, f in zip(cams, feet):
         # image centre at the same height above each panel's floor point
         shift = (float(np.asarray(f, float) @ up) + (lo + hi) / 2) - float(c.position @ up)
-        out.append(Camera(c.position + up * shift, c.right, c.up, c.back, c.size, c.projection,
-                          hh, c.yfov, c.znear, c.zfar))
+        out.append(
+            Camera(
+                c.position + up * shift,
+                c.right,
+                c.up,
+                c.back,
+                c.size,
+                c.projection,
+                hh,
+                c.yfov,
+                c.znear,
+                c.zfar,
+            )
+        )
     return out
 
 
@@ -116,8 +154,20 @@ def _horizon_aligned(cams: list[Camera], pts, foot) -> list[Camera]:
     out = []
     for c in cams:
         shift = (float(foot @ c.up) + (lo + hi) / 2) - float(c.position @ c.up)
-        out.append(Camera(c.position + c.up * shift, c.right, c.up, c.back, c.size,
-                          c.projection, hh, c.yfov, c.znear, c.zfar))
+        out.append(
+            Camera(
+                c.position + c.up * shift,
+                c.right,
+                c.up,
+                c.back,
+                c.size,
+                c.projection,
+                hh,
+                c.yfov,
+                c.znear,
+                c.zfar,
+            )
+        )
     return out
 
 
@@ -186,14 +236,32 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
         if lines:
             for k, text in enumerate(lines[i]):
                 f = _font(int(fpx * 1.1)) if k == 0 else font
-                draw.text((x + w // 2, y + h + int(fpx * 0.4) + k * int(fpx * 1.35)), str(text),
-                          fill=_INK if k == 0 else (90, 90, 90), font=f, anchor="ma")
+                draw.text(
+                    (x + w // 2, y + h + int(fpx * 0.4) + k * int(fpx * 1.35)),
+                    str(text),
+                    fill=_INK if k == 0 else (90, 90, 90),
+                    font=f,
+                    anchor="ma",
+                )
     return np.asarray(sheet)
 
 
-def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
-                  projection="orthographic", columns=None, title=None, labels=True,
-                  ranked=True, ground=True, shadows=True, captions=None) -> np.ndarray:
+def contact_sheet(
+    scene,
+    frames,
+    *,
+    view=None,
+    entropy=None,
+    size=(480, 540),
+    projection="orthographic",
+    columns=None,
+    title=None,
+    labels=True,
+    ranked=True,
+    ground=True,
+    shadows=True,
+    captions=None,
+) -> np.ndarray:
     """Poses of a clip side by side, one view, one scale, the floor on one row across
     the panels (the paper's Fig. 5 strip).
 
@@ -275,9 +343,20 @@ def contact_sheet(scene, frames, *, view=None, entropy=None, size=(480, 540),
     return tile_panels(panels, lines, columns=columns, title=title)
 
 
-def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
-                  projection="orthographic", columns=None, title=None, labels=True,
-                  ground=True, shadows=True, captions: dict | None = None) -> np.ndarray:
+def compare_views(
+    scene,
+    frame: int,
+    views: dict,
+    *,
+    size=(480, 540),
+    projection="orthographic",
+    columns=None,
+    title=None,
+    labels=True,
+    ground=True,
+    shadows=True,
+    captions: dict | None = None,
+) -> np.ndarray:
     """One pose from several directions, side by side (the paper's Fig. 8-10).
 
     Parameters
@@ -341,8 +420,9 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
     cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
     if floor == "horizon":
         b = scene.bounds()  # the renderer's horizon passes over the motion's centre
-        cams = _horizon_aligned(cams, pts, np.array([(b[0, 0] + b[1, 0]) / 2, scene.ground,
-                                                     (b[0, 2] + b[1, 2]) / 2]))
+        cams = _horizon_aligned(
+            cams, pts, np.array([(b[0, 0] + b[1, 0]) / 2, scene.ground, (b[0, 2] + b[1, 2]) / 2])
+        )
     panels = [sr.render(frame, c) for c in cams]
     caps = None
     if labels:
@@ -353,6 +433,5 @@ def compare_views(scene, frame: int, views: dict, *, size=(480, 540),
                 line2 = f"{captions[name]}   {line2}"
             caps.append([str(name), line2])
     if title is None and labels:
-        title = (f"{scene.name}: frame {int(scene.source_frame(frame))} "
-                 f"({frame / scene.fps:.2f} s)")
+        title = f"{scene.name}: frame {int(scene.source_frame(frame))} ({frame / scene.fps:.2f} s)"
     return tile_panels(panels, caps, columns=columns, title=title)

@@ -17,8 +17,7 @@ import numpy as np
 
 from snapcore.motion.facing import character_facing
 
-__all__ = ["plot_entropy", "plot_curves", "plot_events", "plot_strip", "side_axis",
-           "STRIP_CMAP"]
+__all__ = ["plot_entropy", "plot_curves", "plot_events", "plot_strip", "side_axis", "STRIP_CMAP"]
 
 #: Colour map of the film strip: dark = little information, bright = much (Fig. 5).
 STRIP_CMAP = "viridis"
@@ -60,14 +59,17 @@ def plot_curves(snapshot, *, axes=None):
     # what they hold (PoseScores.terms), in the method's own unit
     colours = [_TERM_COLOURS["local"], _TERM_COLOURS["global"], "#27ae60", "#8e44ad"]
     for k, (name, values) in enumerate(sc.terms.items()):
-        label = {"local": "local $w H^*_{local}$",
-                 "global": "global $w H^*_{global}$"}.get(name, name) if paper else name
-        ax_terms.plot(t, values, color=colours[k % len(colours)], lw=1.0, alpha=0.9,
-                      label=label)
+        label = (
+            {"local": "local $w H^*_{local}$", "global": "global $w H^*_{global}$"}.get(name, name)
+            if paper
+            else name
+        )
+        ax_terms.plot(t, values, color=colours[k % len(colours)], lw=1.0, alpha=0.9, label=label)
     ax_terms.set_ylabel("normalised\nentropy" if paper else f"terms\n({sc.unit})")
     ax_terms.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
-    ax_total.plot(t, sc.total, color=_TERM_COLOURS["total"], lw=1.1,
-                  label="total = " + " + ".join(sc.terms))
+    ax_total.plot(
+        t, sc.total, color=_TERM_COLOURS["total"], lw=1.1, label="total = " + " + ".join(sc.terms)
+    )
     ent = sc
     top = max(float(ent.total.max()), 1e-9)
     ax_total.set_ylim(-0.03 * top, 1.45 * top)  # room above the curve for the peak labels
@@ -79,12 +81,17 @@ def plot_curves(snapshot, *, axes=None):
         # one row per rank above the curve, beside the peak's dashed line: close peaks
         # (0.3 s apart at the default separation) do not print over each other or the curve
         late = t.size > 1 and t[i] > t[0] + 0.75 * (t[-1] - t[0])
-        ax_total.text(t[i], top * (1.37 - 0.11 * (rank - 1)),
-                      f"#{rank} frame {snapshot.scene.source_frame(i)}"
-                      + (" " if late else ""), ha="right" if late else "left",
-                      va="center", fontsize=8, color="#c0392b", zorder=4,
-                      bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
-                            "alpha": 0.8})
+        ax_total.text(
+            t[i],
+            top * (1.37 - 0.11 * (rank - 1)),
+            f"#{rank} frame {snapshot.scene.source_frame(i)}" + (" " if late else ""),
+            ha="right" if late else "left",
+            va="center",
+            fontsize=8,
+            color="#c0392b",
+            zorder=4,
+            bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+        )
     ax_total.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
     for ax in (ax_terms, ax_total):
         ax.grid(alpha=0.25)
@@ -130,8 +137,16 @@ def plot_events(snapshot, *, ax=None):
     ax.set_xlim(0, max(scene.duration, 1.0 / fps))
     ax.set_xlabel("time (s)")
     if not labels:
-        ax.text(0.5, 0.5, "no interaction events", transform=ax.transAxes, ha="center",
-                va="center", fontsize=9, color="0.4")
+        ax.text(
+            0.5,
+            0.5,
+            "no interaction events",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=9,
+            color="0.4",
+        )
         ax.set_yticks([])
     ax.grid(axis="x", alpha=0.25)
     return ax.figure
@@ -239,26 +254,68 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
             span = max(float(np.ptp(depth)), 1e-6)
             for a, b in c.skeleton.links:
                 near = 0.5 * (depth[a] + depth[b] - 2 * depth.min()) / span  # 0 far .. 1 near
-                ax.plot([sx[a], sx[b]], [sy[a], sy[b]], color=colour,
-                        lw=(2.6 if bold else 1.4) * (0.7 + 0.3 * near),
-                        alpha=0.45 + 0.55 * near, ls=_CHAR_STYLES[ci % len(_CHAR_STYLES)],
-                        solid_capstyle="round", zorder=2 + near)
+                ax.plot(
+                    [sx[a], sx[b]],
+                    [sy[a], sy[b]],
+                    color=colour,
+                    lw=(2.6 if bold else 1.4) * (0.7 + 0.3 * near),
+                    alpha=0.45 + 0.55 * near,
+                    ls=_CHAR_STYLES[ci % len(_CHAR_STYLES)],
+                    solid_capstyle="round",
+                    zorder=2 + near,
+                )
             head = int(np.argmax(sy))
             ax.plot(sx[head], sy[head], "o", color=colour, ms=4 if bold else 3, zorder=4)
-        ax.text(x0[k], -0.08 * height, f"{scene.source_frame(i)}", ha="center",
-                va="top", fontsize=7, fontweight="bold" if bold else "normal",
-                color="#c0392b" if bold else "0.3")
+        ax.text(
+            x0[k],
+            -0.08 * height,
+            f"{scene.source_frame(i)}",
+            ha="center",
+            va="top",
+            fontsize=7,
+            fontweight="bold" if bold else "normal",
+            color="#c0392b" if bold else "0.3",
+        )
         if bold:  # the rank above the figure, where there is room
             top = max(float(f[1].max()) for f in figs)
-            ax.text(x0[k], top + 0.06 * height, f"#{rank[i]}", ha="center", va="bottom",
-                    fontsize=9, fontweight="bold", color="#c0392b")
-        ax.text(x0[k], -0.2 * height, f"{i / ent.fps:.2f} s", ha="center", va="top",
-                fontsize=6, color="0.45")
+            ax.text(
+                x0[k],
+                top + 0.06 * height,
+                f"#{rank[i]}",
+                ha="center",
+                va="bottom",
+                fontsize=9,
+                fontweight="bold",
+                color="#c0392b",
+            )
+        ax.text(
+            x0[k],
+            -0.2 * height,
+            f"{i / ent.fps:.2f} s",
+            ha="center",
+            va="top",
+            fontsize=6,
+            color="0.45",
+        )
     # what the numbers under the poses are (short, so close poses' labels fit)
-    ax.text(drawn[0][2] - 0.5 * margin, -0.08 * height, "frame ", ha="right", va="top",
-            fontsize=7, color="0.3")
-    ax.text(drawn[0][2] - 0.5 * margin, -0.2 * height, "time ", ha="right", va="top",
-            fontsize=6, color="0.45")
+    ax.text(
+        drawn[0][2] - 0.5 * margin,
+        -0.08 * height,
+        "frame ",
+        ha="right",
+        va="top",
+        fontsize=7,
+        color="0.3",
+    )
+    ax.text(
+        drawn[0][2] - 0.5 * margin,
+        -0.2 * height,
+        "time ",
+        ha="right",
+        va="top",
+        fontsize=6,
+        color="0.45",
+    )
     ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
     ax.set_xlim(drawn[0][2] - 0.5 * margin, cursor + 0.5 * margin)
     ax.set_ylim(-0.3 * height, 1.25 * height)
@@ -274,10 +331,18 @@ def plot_strip(snapshot, *, strip: int = 8, ax=None):
     if scene.n_characters > 1:
         from matplotlib.lines import Line2D
 
-        handles = [Line2D([], [], color="0.3", ls=_CHAR_STYLES[ci % len(_CHAR_STYLES)],
-                          label=c.name) for ci, c in enumerate(scene.characters)]
-        ax.legend(handles=handles, loc="upper left", fontsize=7, frameon=False,
-                  bbox_to_anchor=(0.0, 1.08), ncol=len(handles))
+        handles = [
+            Line2D([], [], color="0.3", ls=_CHAR_STYLES[ci % len(_CHAR_STYLES)], label=c.name)
+            for ci, c in enumerate(scene.characters)
+        ]
+        ax.legend(
+            handles=handles,
+            loc="upper left",
+            fontsize=7,
+            frameon=False,
+            bbox_to_anchor=(0.0, 1.08),
+            ncol=len(handles),
+        )
     return ax.figure
 
 
@@ -298,8 +363,9 @@ def plot_entropy(snapshot, *, strip: int = 8, title: str | None = None):
     """
     plt = _pyplot()
     scene = snapshot.scene
-    n_rows = max(1, len({(e.character, e.object)
-                         for e in snapshot.pose.scores.interactions.events}))
+    n_rows = max(
+        1, len({(e.character, e.object) for e in snapshot.pose.scores.interactions.events})
+    )
     ev_h = 0.45 + 0.22 * n_rows
     fig = plt.figure(figsize=(12, 6.4 + ev_h), layout="constrained")
     grid = fig.add_gridspec(4, 1, height_ratios=[1.5, 1.5, ev_h, 2.4])
@@ -313,7 +379,9 @@ def plot_entropy(snapshot, *, strip: int = 8, title: str | None = None):
     plot_events(snapshot, ax=ax_events)
     plot_strip(snapshot, strip=strip, ax=ax_strip)
     if title is None:
-        title = (f"{scene.name}: {scene.n_frames} frames at {scene.fps:g} fps, "
-                 f"selected frame {snapshot.frame} (source numbering)")
+        title = (
+            f"{scene.name}: {scene.n_frames} frames at {scene.fps:g} fps, "
+            f"selected frame {snapshot.frame} (source numbering)"
+        )
     fig.suptitle(title, fontsize=11)
     return fig

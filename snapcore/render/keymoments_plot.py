@@ -59,22 +59,38 @@ def plot_keymoment_timelines(doc: dict, *, ax=None, extra: dict | None = None):
             off = (mi - (len(methods) - 1) / 2) * 0.5 / max(len(methods), 1)
             ts = [(f - first) / fps / dur for f in r["frames"]]
             mk, col = _MARKERS[mi % len(_MARKERS)], colors[mi % len(colors)]
-            ax.plot(ts[:1], [y + off], mk, color=col, ms=7, zorder=3,
-                    label=m if y == 0 else None)
+            ax.plot(ts[:1], [y + off], mk, color=col, ms=7, zorder=3, label=m if y == 0 else None)
             ax.plot(ts[1:], [y + off] * len(ts[1:]), mk, mfc="none", color=col, ms=5, zorder=3)
         if extra and sc["scene"] in extra and dur > 0:
             xs = [(f - first) / fps / dur for f in extra[sc["scene"]]]
-            ax.plot(xs, [y - 0.4] * len(xs), "|", color="0.3", ms=6, alpha=0.5, zorder=2,
-                    label="people" if y == 0 else None)
+            ax.plot(
+                xs,
+                [y - 0.4] * len(xs),
+                "|",
+                color="0.3",
+                ms=6,
+                alpha=0.5,
+                zorder=2,
+                label="people" if y == 0 else None,
+            )
     ax.set_yticks(range(n))
-    ax.set_yticklabels([f"{s['scene']} ({(s['last_frame'] - s['first_frame']) / s['fps']:.1f} s)"
-                        for s in scenes])
+    ax.set_yticklabels(
+        [f"{s['scene']} ({(s['last_frame'] - s['first_frame']) / s['fps']:.1f} s)" for s in scenes]
+    )
     ax.set_ylim(n - 0.5, -0.5)
     ax.set_xlim(-0.02, 1.02)
     ax.set_xlabel("time in the clip (fraction of its length)")
-    ax.set_title("key moments (green; light: widened for hits) and each selector's picks "
-                 "(filled: top pick, hollow: picks 2..k)", fontsize=9)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12 - 0.3 / max(n, 1)),
-              ncol=min(len(methods) + 1, 8), frameon=False, fontsize=8)
+    ax.set_title(
+        "key moments (green; light: widened for hits) and each selector's picks "
+        "(filled: top pick, hollow: picks 2..k)",
+        fontsize=9,
+    )
+    ax.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.12 - 0.3 / max(n, 1)),
+        ncol=min(len(methods) + 1, 8),
+        frameon=False,
+        fontsize=8,
+    )
     fig.tight_layout()
     return fig

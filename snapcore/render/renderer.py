@@ -105,17 +105,27 @@ def _ground_mesh(centre_xz, height):
     cx, cz = centre_xz
     r = GRID_FADE_RADIUS
     n = int(np.ceil(r / GRID_SPACING))
-    k = (np.arange(-n, n + 1) * GRID_SPACING)
+    k = np.arange(-n, n + 1) * GRID_SPACING
     # snap the grid to world multiples of the spacing, so it does not depend on the clip
-    cx0, cz0 = np.round(cx / GRID_SPACING) * GRID_SPACING, np.round(cz / GRID_SPACING) * GRID_SPACING
+    cx0, cz0 = (
+        np.round(cx / GRID_SPACING) * GRID_SPACING,
+        np.round(cz / GRID_SPACING) * GRID_SPACING,
+    )
     seg = np.arange(-n, n + 1) * GRID_SPACING
     s0, s1 = seg[:-1], seg[1:]
     hw = GRID_LINE_HALF_WIDTH
     off, a0 = np.meshgrid(k, s0, indexing="ij")
     _, a1 = np.meshgrid(k, s1, indexing="ij")
     off, a0, a1 = off.ravel(), a0.ravel(), a1.ravel()
-    along_x = np.stack([np.stack([a0, off - hw], -1), np.stack([a0, off + hw], -1),
-                        np.stack([a1, off + hw], -1), np.stack([a1, off - hw], -1)], axis=1)
+    along_x = np.stack(
+        [
+            np.stack([a0, off - hw], -1),
+            np.stack([a0, off + hw], -1),
+            np.stack([a1, off + hw], -1),
+            np.stack([a1, off - hw], -1),
+        ],
+        axis=1,
+    )
     along_z = along_x[..., ::-1]
     q = np.concatenate([along_x, along_z]) + [cx0, cz0]  # (Q, 4, 2) as (x, z)
     pos = np.stack([q[..., 0], np.full(q.shape[:2], height + 2e-3), q[..., 1]], -1).reshape(-1, 3)
@@ -125,11 +135,19 @@ def _ground_mesh(centre_xz, height):
     col = np.hstack([grid * (1 - t) + floor * t, np.ones((len(pos), 1))]).astype(np.float32)
     b = 4 * np.arange(len(q))
     faces = np.concatenate([np.stack([b, b + 1, b + 2], 1), np.stack([b, b + 2, b + 3], 1)])
-    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-                                             metallicFactor=0.0, roughnessFactor=1.0,
-                                             doubleSided=True)
-    prim = pyrender.Primitive(positions=pos.astype(np.float32), color_0=col,
-                              indices=faces.astype(np.uint32), material=mat, mode=4)
+    mat = pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=[1.0, 1.0, 1.0, 1.0],
+        metallicFactor=0.0,
+        roughnessFactor=1.0,
+        doubleSided=True,
+    )
+    prim = pyrender.Primitive(
+        positions=pos.astype(np.float32),
+        color_0=col,
+        indices=faces.astype(np.uint32),
+        material=mat,
+        mode=4,
+    )
     return pyrender.Mesh([prim])
 
 
@@ -169,12 +187,19 @@ def _sky_mesh(centre, cam: Camera, height, *, horizon: bool = False):
     w, h = 20 * SKY_DISTANCE, 20 * SKY_DISTANCE
     pos = np.array([c - hr * w, c + hr * w, c + hr * w + y * h, c - hr * w + y * h], np.float32)
     col = np.tile(np.append(_srgb_to_linear(BACKGROUND), 1.0), (4, 1)).astype(np.float32)
-    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-                                             metallicFactor=0.0, roughnessFactor=1.0,
-                                             doubleSided=True)
-    prim = pyrender.Primitive(positions=pos, color_0=col,
-                              indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
-                              material=mat, mode=4)
+    mat = pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=[1.0, 1.0, 1.0, 1.0],
+        metallicFactor=0.0,
+        roughnessFactor=1.0,
+        doubleSided=True,
+    )
+    prim = pyrender.Primitive(
+        positions=pos,
+        color_0=col,
+        indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+        material=mat,
+        mode=4,
+    )
     return pyrender.Mesh([prim])
 
 
@@ -216,8 +241,9 @@ class SceneRenderer:
         on both sides of the horizon, see :data:`FLOOR_STYLES`).
     """
 
-    def __init__(self, scene, *, size=(640, 480), ground=True, shadows=True, body=None,
-                 floor: str = "auto"):
+    def __init__(
+        self, scene, *, size=(640, 480), ground=True, shadows=True, body=None, floor: str = "auto"
+    ):
         from snapcore.render.bodies import scene_body
 
         pyrender = load_pyrender()
@@ -235,11 +261,15 @@ class SceneRenderer:
         self.pscene = pyrender.Scene(bg_color=[*bg, 1.0], ambient_light=[0.30] * 3)
         self._sky_node = None
         self._material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7)
+            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7
+        )
         # projected shadows have faces of both windings: draw them unculled
         self._shadow_material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
-            doubleSided=True)
+            baseColorFactor=[1.0, 1.0, 1.0, 1.0],
+            metallicFactor=0.0,
+            roughnessFactor=1.0,
+            doubleSided=True,
+        )
         n = len(self.body.characters)
         # pyrender nodes (pyrender has no type information)
         self._node: Any = None
@@ -252,9 +282,11 @@ class SceneRenderer:
             from snapcore.render.body import TESSELLATION_COARSE, SceneBody
 
             # a coarse mannequin, or a glTF character's own mesh (posed once for both)
-            self._shadow_body = (shadow_body(self.body, TESSELLATION_COARSE)
-                                 if isinstance(self.body, MixedSceneBody)
-                                 else SceneBody(scene, tessellation=TESSELLATION_COARSE))
+            self._shadow_body = (
+                shadow_body(self.body, TESSELLATION_COARSE)
+                if isinstance(self.body, MixedSceneBody)
+                else SceneBody(scene, tessellation=TESSELLATION_COARSE)
+            )
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         if self.ground:
@@ -284,12 +316,31 @@ class SceneRenderer:
         far = 2.0 * SKY_DISTANCE + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
         if cam.projection == "orthographic":
             back = far
-            gl_cam = Camera(cam.position + cam.back * back, cam.right, cam.up, cam.back, cam.size,
-                            cam.projection, cam.half_height, cam.yfov, cam.znear + back,
-                            cam.zfar + back + far)
+            gl_cam = Camera(
+                cam.position + cam.back * back,
+                cam.right,
+                cam.up,
+                cam.back,
+                cam.size,
+                cam.projection,
+                cam.half_height,
+                cam.yfov,
+                cam.znear + back,
+                cam.zfar + back + far,
+            )
         else:
-            gl_cam = Camera(cam.position, cam.right, cam.up, cam.back, cam.size, cam.projection,
-                            cam.half_height, cam.yfov, cam.znear, max(cam.zfar, far))
+            gl_cam = Camera(
+                cam.position,
+                cam.right,
+                cam.up,
+                cam.back,
+                cam.size,
+                cam.projection,
+                cam.half_height,
+                cam.yfov,
+                cam.znear,
+                max(cam.zfar, far),
+            )
         self._gl_cam = gl_cam
         self._point_camera(gl_cam)
         self._background = None
@@ -298,18 +349,24 @@ class SceneRenderer:
                 self.pscene.remove_node(self._sky_node)
                 self._sky_node = None
             b = self.scene.bounds()
-            sky = _sky_mesh((b[0] + b[1]) / 2, cam, self.scene.ground,
-                            horizon=self.floor == "horizon")
+            sky = _sky_mesh(
+                (b[0] + b[1]) / 2, cam, self.scene.ground, horizon=self.floor == "horizon"
+            )
             if sky is not None:
                 self._sky_node = self.pscene.add(sky)
             # an almost level orthographic view sees the grid edge-on: a row of dashes
             # along the horizon, not a floor; leave it out
-            level = (cam.projection == "orthographic"
-                     and abs(np.degrees(np.arcsin(np.clip(cam.back[1], -1, 1)))) < ORTHO_HORIZON_DEG)
+            level = (
+                cam.projection == "orthographic"
+                and abs(np.degrees(np.arcsin(np.clip(cam.back[1], -1, 1)))) < ORTHO_HORIZON_DEG
+            )
             # a camera under the floor would see its underside hide the feet; drawn, the
             # grid and the shadows cut through the legs instead: leave them out
-            self._below = (cam.back[1] < 0 if cam.projection == "orthographic"
-                           else cam.position[1] < self.scene.ground)
+            self._below = (
+                cam.back[1] < 0
+                if cam.projection == "orthographic"
+                else cam.position[1] < self.scene.ground
+            )
             self._grid.is_visible = not (level or self._below or self.floor == "horizon")
         for n in self._light_nodes:
             self.pscene.remove_node(n)
@@ -317,9 +374,11 @@ class SceneRenderer:
         y = np.array([0.0, 1.0, 0.0])
         # Lights follow the camera so every view is lit alike: a key light from above
         # the camera's left, a weaker fill from the right, a rim light from behind.
-        lights = ((cam.back + 1.4 * y - 0.8 * cam.right, 2.4),
-                  (cam.back + 0.2 * y + 1.0 * cam.right, 0.9),
-                  (-cam.back + 1.2 * y + 0.3 * cam.right, 1.1))
+        lights = (
+            (cam.back + 1.4 * y - 0.8 * cam.right, 2.4),
+            (cam.back + 0.2 * y + 1.0 * cam.right, 0.9),
+            (-cam.back + 1.2 * y + 0.3 * cam.right, 1.1),
+        )
         for direction, intensity in lights:
             d = direction / np.linalg.norm(direction)  # from the scene towards the light
             m = np.eye(4)
@@ -356,10 +415,14 @@ class SceneRenderer:
         pyrender = load_pyrender()
         verts = self.body.vertices(frame)
         drawn = [verts]
-        prim = pyrender.Primitive(positions=verts.astype(np.float32),
-                                  normals=self.body.normals(frame).astype(np.float32),
-                                  color_0=self._vcols, indices=self._faces,
-                                  material=self._material, mode=4)
+        prim = pyrender.Primitive(
+            positions=verts.astype(np.float32),
+            normals=self.body.normals(frame).astype(np.float32),
+            color_0=self._vcols,
+            indices=self._faces,
+            material=self._material,
+            mode=4,
+        )
         if self._node is not None:
             self.pscene.remove_node(self._node)
         self._node = self.pscene.add(pyrender.Mesh([prim]))
@@ -371,9 +434,13 @@ class SceneRenderer:
             tri = cv[sb.faces]
             lit = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) @ self._shadow_dir > 0
             sv = shadow_vertices(cv, self._shadow_dir, self.scene.ground + 3e-3)
-            sprim = pyrender.Primitive(positions=sv.astype(np.float32), color_0=self._shadow_rgb,
-                                       indices=sb.faces[lit].astype(np.uint32),
-                                       material=self._shadow_material, mode=4)
+            sprim = pyrender.Primitive(
+                positions=sv.astype(np.float32),
+                color_0=self._shadow_rgb,
+                indices=sb.faces[lit].astype(np.uint32),
+                material=self._shadow_material,
+                mode=4,
+            )
             if self._shadow_node is not None:
                 self.pscene.remove_node(self._shadow_node)
             self._shadow_node = self.pscene.add(pyrender.Mesh([sprim]))
@@ -395,8 +462,10 @@ class SceneRenderer:
         """
         pyrender = load_pyrender()
         if threading.get_ident() != self._thread:
-            raise RenderError("a SceneRenderer must be used on the thread that created it "
-                              "(EGL contexts are thread-bound); make one per thread")
+            raise RenderError(
+                "a SceneRenderer must be used on the thread that created it "
+                "(EGL contexts are thread-bound); make one per thread"
+            )
         if tuple(camera.size) != self.size:
             raise RenderError(f"camera size {camera.size} differs from the renderer's {self.size}")
         self.body._check(frame)
@@ -414,13 +483,13 @@ class SceneRenderer:
         x0, y0, cw, ch = window
         p = gl_cam.pixel_size
         w, h = self.size
-        shift = (gl_cam.right * (x0 + cw / 2 - w / 2) * p
-                 + gl_cam.up * (h / 2 - y0 - ch / 2) * p)
-        self._point_camera(replace(gl_cam, position=gl_cam.position + shift,
-                                   size=(cw, ch), half_height=ch * p / 2))
+        shift = gl_cam.right * (x0 + cw / 2 - w / 2) * p + gl_cam.up * (h / 2 - y0 - ch / 2) * p
+        self._point_camera(
+            replace(gl_cam, position=gl_cam.position + shift, size=(cw, ch), half_height=ch * p / 2)
+        )
         part, _ = gl_renderer(cw, ch).render(self.pscene, flags=pyrender.RenderFlags.NONE)
         image = background.copy()
-        image[y0:y0 + ch, x0:x0 + cw] = part
+        image[y0 : y0 + ch, x0 : x0 + cw] = part
         return image
 
     def _crop_window(self, camera: Camera, drawn) -> tuple[int, int, int, int] | None:
@@ -434,8 +503,10 @@ class SceneRenderer:
         hi = np.ceil(xy.max(axis=0)) + CROP_PAD_PX
         # sizes in steps of CROP_STEP_PX: the renderer's framebuffers are reallocated
         # only when the step changes, not every frame
-        cw, ch = (int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
-                  for a, b, n in zip(lo, hi, (w, h)))
+        cw, ch = (
+            int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
+            for a, b, n in zip(lo, hi, (w, h))
+        )
         if cw * ch > CROP_MAX_AREA * w * h:
             return None
         x0 = int(np.clip(lo[0], 0, w - cw))
@@ -459,8 +530,19 @@ class SceneRenderer:
         return self._background
 
 
-def render_still(scene, frame: int, view=None, *, size=None, projection="orthographic",
-                 fit="frame", ground=True, shadows=True, camera=None, renderer=None) -> np.ndarray:
+def render_still(
+    scene,
+    frame: int,
+    view=None,
+    *,
+    size=None,
+    projection="orthographic",
+    fit="frame",
+    ground=True,
+    shadows=True,
+    camera=None,
+    renderer=None,
+) -> np.ndarray:
     """One frame of a scene as an image.
 
     Parameters
@@ -503,9 +585,11 @@ def render_still(scene, frame: int, view=None, *, size=None, projection="orthogr
     size = check_size(size)
     frame = int(frame)
     if not 0 <= frame < scene.n_frames:
-        raise RenderError(f"frame {frame} is outside the scene's internal frames "
-                          f"0..{scene.n_frames - 1} (source frames {scene.frame_offset}.."
-                          f"{scene.frame_offset + scene.n_frames - 1})")
+        raise RenderError(
+            f"frame {frame} is outside the scene's internal frames "
+            f"0..{scene.n_frames - 1} (source frames {scene.frame_offset}.."
+            f"{scene.frame_offset + scene.n_frames - 1})"
+        )
     sr = renderer or SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
     if camera is None:
         if view is None:
@@ -520,8 +604,9 @@ def render_still(scene, frame: int, view=None, *, size=None, projection="orthogr
     return sr.render(frame, camera)
 
 
-def render_mesh(vertices, faces, view, *, size=(512, 512), face_colors=None,
-                projection="orthographic") -> np.ndarray:
+def render_mesh(
+    vertices, faces, view, *, size=(512, 512), face_colors=None, projection="orthographic"
+) -> np.ndarray:
     """Render any triangle mesh (e.g. a relief) lit like the stills, no floor:
     (H, W, 3) uint8. ``face_colors`` (M, 3|4) uint8, default light grey."""
     pyrender = load_pyrender()
@@ -529,8 +614,9 @@ def render_mesh(vertices, faces, view, *, size=(512, 512), face_colors=None,
 
     size = check_size(size)
     colors = [200, 200, 200, 255] if face_colors is None else face_colors
-    tm = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64),
-                         face_colors=colors, process=False)
+    tm = trimesh.Trimesh(
+        np.asarray(vertices, float), np.asarray(faces, np.int64), face_colors=colors, process=False
+    )
     mesh = pyrender.Mesh.from_trimesh(tm, smooth=False)
     cam = fit_camera(tm.vertices, view, size=size, projection=projection)
     ps = pyrender.Scene(bg_color=[*BACKGROUND, 1.0], ambient_light=[0.3] * 3)
@@ -551,5 +637,3 @@ def save_png(image: np.ndarray, path) -> None:
     from PIL import Image
 
     Image.fromarray(np.asarray(image, np.uint8)).save(str(path))
-
-

@@ -35,8 +35,16 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["unit", "frame_x", "frame_z", "hinge", "swing_matrices", "mean_rotation",
-           "BEND_FROM_DEG", "BEND_FULL_DEG"]
+__all__ = [
+    "unit",
+    "frame_x",
+    "frame_z",
+    "hinge",
+    "swing_matrices",
+    "mean_rotation",
+    "BEND_FROM_DEG",
+    "BEND_FULL_DEG",
+]
 
 #: A limb bent less than this has no bend plane (only the stand-in hinge is used) ...
 BEND_FROM_DEG = 8.0

@@ -34,8 +34,7 @@ from snapcore.render.bodies import scene_body
 from snapcore.render.camera import check_size, default_view, fit_camera, motion_points
 from snapcore.render.renderer import SceneRenderer
 
-__all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET",
-           "VP9_CRF"]
+__all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET", "VP9_CRF"]
 
 #: x264 constant-rate factor: 23 is ffmpeg's default, visually clean for flat renders.
 VIDEO_CRF = 23
@@ -45,8 +44,9 @@ VIDEO_PRESET = "veryfast"
 VP9_CRF = 32
 
 
-def video_frame_map(n_frames: int, motion_fps: float, video_fps: float, *, start: int = 0,
-                    stop: int | None = None) -> np.ndarray:
+def video_frame_map(
+    n_frames: int, motion_fps: float, video_fps: float, *, start: int = 0, stop: int | None = None
+) -> np.ndarray:
     """Internal motion frame shown by each video frame.
 
     Parameters
@@ -68,14 +68,17 @@ def video_frame_map(n_frames: int, motion_fps: float, video_fps: float, *, start
     if not (0 <= start < stop <= n_frames):
         raise RenderError(f"frame range {start}:{stop} is outside the motion's 0:{n_frames}")
     if not (video_fps > 0 and motion_fps > 0):
-        raise RenderError(f"frame rates must be positive, got video {video_fps}, motion {motion_fps}")
+        raise RenderError(
+            f"frame rates must be positive, got video {video_fps}, motion {motion_fps}"
+        )
     duration = (stop - 1 - start) / motion_fps
     k = np.arange(int(np.floor(duration * video_fps + 1e-9)) + 1)
     return np.minimum(start + np.round(k * motion_fps / video_fps).astype(int), stop - 1)
 
 
-def draw_label(image: np.ndarray, text: str, *, corner: str = "bottom-left",
-               scale: float = 1.0) -> np.ndarray:
+def draw_label(
+    image: np.ndarray, text: str, *, corner: str = "bottom-left", scale: float = 1.0
+) -> np.ndarray:
     """``image`` (H, W, 3) uint8 with ``text`` in a small translucent box (a new array)."""
     from PIL import Image, ImageDraw, ImageFont
 
@@ -95,11 +98,25 @@ def draw_label(image: np.ndarray, text: str, *, corner: str = "bottom-left",
     return np.asarray(im)
 
 
-def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
-                 projection: str = "orthographic", frame_numbers: bool = False,
-                 progress: bool = True, frame_range=None, ground: bool = True,
-                 shadows: bool = True, crf: int = VIDEO_CRF, preset: str = VIDEO_PRESET,
-                 camera=None, webm=None, detail: str = "reduced") -> np.ndarray:
+def render_video(
+    scene,
+    path,
+    *,
+    fps: float = 24.0,
+    size=(1280, 720),
+    view=None,
+    projection: str = "orthographic",
+    frame_numbers: bool = False,
+    progress: bool = True,
+    frame_range=None,
+    ground: bool = True,
+    shadows: bool = True,
+    crf: int = VIDEO_CRF,
+    preset: str = VIDEO_PRESET,
+    camera=None,
+    webm=None,
+    detail: str = "reduced",
+) -> np.ndarray:
     """Render a scene to an H.264 MP4.
 
     Parameters
@@ -171,35 +188,76 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
         raise RenderError(f"video width and height must be even (yuv420p), got {w}x{h}")
     if not (np.isfinite(fps) and 0 < fps <= 240):
         raise RenderError(f"fps must be in (0, 240], got {fps}")
-    start, stop = (0, scene.n_frames) if frame_range is None else (int(frame_range[0]),
-                                                                   int(frame_range[1]))
+    start, stop = (
+        (0, scene.n_frames) if frame_range is None else (int(frame_range[0]), int(frame_range[1]))
+    )
     frames = video_frame_map(scene.n_frames, scene.fps, fps, start=start, stop=stop)
     path = Path(path)
     if not path.parent.exists():
         raise FileNotFoundError(2, "no such folder", str(path.parent))
 
-    sr = SceneRenderer(scene, size=(w, h), ground=ground, shadows=shadows,
-                       body=scene_body(scene, detail=detail))
+    sr = SceneRenderer(
+        scene, size=(w, h), ground=ground, shadows=shadows, body=scene_body(scene, detail=detail)
+    )
     if camera is None:
         if view is None:
             view = default_view(scene)
-        camera = fit_camera(motion_points(scene, frames=np.arange(start, stop), body=sr.body),
-                            view, size=(w, h), projection=projection)
+        camera = fit_camera(
+            motion_points(scene, frames=np.arange(start, stop), body=sr.body),
+            view,
+            size=(w, h),
+            projection=projection,
+        )
 
     writer = imageio_ffmpeg.write_frames(
-        str(path), (w, h), pix_fmt_in="rgb24", pix_fmt_out="yuv420p", fps=float(fps),
-        codec="libx264", quality=None, macro_block_size=2, ffmpeg_log_level="error",
-        output_params=["-preset", preset, "-crf", str(int(crf)), "-g", str(max(int(round(fps)), 1)),
-                       "-movflags", "+faststart"])
+        str(path),
+        (w, h),
+        pix_fmt_in="rgb24",
+        pix_fmt_out="yuv420p",
+        fps=float(fps),
+        codec="libx264",
+        quality=None,
+        macro_block_size=2,
+        ffmpeg_log_level="error",
+        output_params=[
+            "-preset",
+            preset,
+            "-crf",
+            str(int(crf)),
+            "-g",
+            str(max(int(round(fps)), 1)),
+            "-movflags",
+            "+faststart",
+        ],
+    )
     writer.send(None)  # start ffmpeg
     writers = [writer]
     if webm is not None:
         vp9 = imageio_ffmpeg.write_frames(
-            str(webm), (w, h), pix_fmt_in="rgb24", pix_fmt_out="yuv420p", fps=float(fps),
-            codec="libvpx-vp9", quality=None, macro_block_size=2, ffmpeg_log_level="error",
-            output_params=["-b:v", "0", "-crf", str(VP9_CRF), "-deadline", "realtime",
-                           "-cpu-used", "8", "-row-mt", "1",
-                           "-g", str(max(int(round(fps)), 1))])
+            str(webm),
+            (w, h),
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            fps=float(fps),
+            codec="libvpx-vp9",
+            quality=None,
+            macro_block_size=2,
+            ffmpeg_log_level="error",
+            output_params=[
+                "-b:v",
+                "0",
+                "-crf",
+                str(VP9_CRF),
+                "-deadline",
+                "realtime",
+                "-cpu-used",
+                "8",
+                "-row-mt",
+                "1",
+                "-g",
+                str(max(int(round(fps)), 1)),
+            ],
+        )
         vp9.send(None)
         writers.append(vp9)
     q: queue.Queue = queue.Queue(maxsize=6)
@@ -220,8 +278,13 @@ def render_video(scene, path, *, fps: float = 24.0, size=(1280, 720), view=None,
 
     feeder = threading.Thread(target=feed, name="snapcore-video-encode", daemon=True)
     feeder.start()
-    bar = tqdm(total=len(frames), desc=f"video {path.name}", unit="frame", disable=not progress,
-               leave=False)
+    bar = tqdm(
+        total=len(frames),
+        desc=f"video {path.name}",
+        unit="frame",
+        disable=not progress,
+        leave=False,
+    )
     try:
         for f in frames:
             if failure:

@@ -86,9 +86,18 @@ def _interpolate(views, scores, size=MAP_SIZE):
     return lon, lat, field.reshape(ny, nx)
 
 
-def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", picks=None,
-                   facing=None, title: str | None = None, cmap: str = "magma",
-                   symmetric: tuple[str, ...] = ()):
+def sphere_heatmap(
+    views,
+    scores,
+    *,
+    ax=None,
+    projection: str = "mollweide",
+    picks=None,
+    facing=None,
+    title: str | None = None,
+    cmap: str = "magma",
+    symmetric: tuple[str, ...] = (),
+):
     """One heat map of scores over view directions.
 
     Parameters
@@ -121,28 +130,56 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
     fig = ax.figure
     lon, lat, field = _interpolate(views, scores)
     scale = 1.0 if projection == "mollweide" else 180.0 / math.pi
-    mesh = ax.pcolormesh(lon * scale, lat * scale, field, cmap=cmap, shading="flat",
-                         rasterized=True)
+    mesh = ax.pcolormesh(
+        lon * scale, lat * scale, field, cmap=cmap, shading="flat", rasterized=True
+    )
     fig.colorbar(mesh, ax=ax, shrink=0.75, pad=0.02)
     if facing is not None and np.linalg.norm(np.asarray(facing)[[0, 2]]) > 1e-9:
         f_lon, _ = lon_lat(np.asarray(facing) / np.linalg.norm(facing))
-        ax.plot([f_lon * scale] * 2, [-math.pi / 2 * scale, math.pi / 2 * scale], ls="--",
-                color="white", lw=0.9, alpha=0.8)
+        ax.plot(
+            [f_lon * scale] * 2,
+            [-math.pi / 2 * scale, math.pi / 2 * scale],
+            ls="--",
+            color="white",
+            lw=0.9,
+            alpha=0.8,
+        )
         ax.text(f_lon * scale, 0.62 * math.pi / 2 * scale, " front", color="white", fontsize=8)
     # hollow antipodes first, then the picks
-    order = [m for m in ("viewpoint_entropy", "motion_area", "pma") if (picks or {}).get(m) is not None]
+    order = [
+        m for m in ("viewpoint_entropy", "motion_area", "pma") if (picks or {}).get(m) is not None
+    ]
     for name in order:
         if name in symmetric:
             marker, colour, _ = MARKERS[name]
             x, y = lon_lat(-np.asarray(picks[name], float))
-            ax.plot(x * scale, y * scale, marker=marker, ms=15 if marker == "*" else 10,
-                    mfc="none", mec=colour, mew=1.5, ls="none", zorder=4)
+            ax.plot(
+                x * scale,
+                y * scale,
+                marker=marker,
+                ms=15 if marker == "*" else 10,
+                mfc="none",
+                mec=colour,
+                mew=1.5,
+                ls="none",
+                zorder=4,
+            )
     # the big star underneath, the smaller markers on it: picks at the same place all show
     for z, name in enumerate(sorted(order, key=lambda m: MARKERS[m][0] != "*")):
         marker, colour, label = MARKERS[name]
         x, y = lon_lat(np.asarray(picks[name], float))
-        ax.plot(x * scale, y * scale, marker=marker, ms=15 if marker == "*" else 8, color=colour,
-                mec="white", mew=1.0, ls="none", label=label, zorder=5 + z)
+        ax.plot(
+            x * scale,
+            y * scale,
+            marker=marker,
+            ms=15 if marker == "*" else 8,
+            color=colour,
+            mec="white",
+            mew=1.0,
+            ls="none",
+            label=label,
+            zorder=5 + z,
+        )
     if projection == "equirect":
         ax.set_xlim(-180, 180)
         ax.set_ylim(-90, 90)
@@ -158,8 +195,9 @@ def sphere_heatmap(views, scores, *, ax=None, projection: str = "mollweide", pic
     return fig
 
 
-def view_maps(scene, *, frame: int, window_s: float | None = None, n_views: int = 2562,
-              entropy: bool = True) -> dict:
+def view_maps(
+    scene, *, frame: int, window_s: float | None = None, n_views: int = 2562, entropy: bool = True
+) -> dict:
     """Exact scores over the sphere of every method, and their picks.
 
     Parameters
@@ -183,19 +221,38 @@ def view_maps(scene, *, frame: int, window_s: float | None = None, n_views: int 
     tri = motion_triangles(scene, frames=frames)
     out = {}
     for method in ("pma", "motion_area"):
-        sel = select_view(scene, frame=frame, window_s=window_s, method=method, n_views=n_views,
-                          triangles=tri)
-        out[method] = {"views": sel.views, "scores": pma_scores(sel.views, tri, weighting=method),
-                       "pick": sel.view, "score": sel.score, "facing": sel.facing}
+        sel = select_view(
+            scene, frame=frame, window_s=window_s, method=method, n_views=n_views, triangles=tri
+        )
+        out[method] = {
+            "views": sel.views,
+            "scores": pma_scores(sel.views, tri, weighting=method),
+            "pick": sel.view,
+            "score": sel.score,
+            "facing": sel.facing,
+        }
     if entropy:
         ve = select_view_entropy(scene, frame, score_all=True)
-        out["viewpoint_entropy"] = {"views": ve.views, "scores": ve.scores, "pick": ve.view,
-                                    "score": ve.score, "facing": out["pma"]["facing"]}
+        out["viewpoint_entropy"] = {
+            "views": ve.views,
+            "scores": ve.scores,
+            "pick": ve.view,
+            "score": ve.score,
+            "facing": out["pma"]["facing"],
+        }
     return out
 
 
-def plot_views(scene, *, frame: int, window_s: float | None = None, n_views: int = 2562,
-               projection: str = "mollweide", entropy: bool = True, maps: dict | None = None):
+def plot_views(
+    scene,
+    *,
+    frame: int,
+    window_s: float | None = None,
+    n_views: int = 2562,
+    projection: str = "mollweide",
+    entropy: bool = True,
+    maps: dict | None = None,
+):
     """Heat maps of PMA, motion area and viewpoint entropy with all picks marked.
 
     Parameters
@@ -224,18 +281,30 @@ def plot_views(scene, *, frame: int, window_s: float | None = None, n_views: int
     fig = plt.figure(figsize=(8.5, 3.9 * len(names)))
     picks = {m: maps[m]["pick"] for m in names}
     for i, m in enumerate(names):
-        ax = fig.add_subplot(len(names), 1, i + 1,
-                             projection="mollweide" if projection == "mollweide" else None)
-        sphere_heatmap(maps[m]["views"], maps[m]["scores"], ax=ax, projection=projection,
-                       picks=picks, facing=maps[m]["facing"], title=_TITLES[m],
-                       symmetric=("pma", "motion_area"))
+        ax = fig.add_subplot(
+            len(names), 1, i + 1, projection="mollweide" if projection == "mollweide" else None
+        )
+        sphere_heatmap(
+            maps[m]["views"],
+            maps[m]["scores"],
+            ax=ax,
+            projection=projection,
+            picks=picks,
+            facing=maps[m]["facing"],
+            title=_TITLES[m],
+            symmetric=("pma", "motion_area"),
+        )
     when = f"frame {int(scene.source_frame(frame))}"
     span = "whole sequence" if window_s is None else f"frame ± {window_s:g} s"
-    fig.suptitle(f"{scene.name}: view scores over the sphere (PMA and motion area: {span}; "
-                 f"entropy: body at {when})", fontsize=10)
+    fig.suptitle(
+        f"{scene.name}: view scores over the sphere (PMA and motion area: {span}; "
+        f"entropy: body at {when})",
+        fontsize=10,
+    )
     handles, labels = fig.axes[0].get_legend_handles_labels()
-    handles.append(plt.Line2D([], [], marker="*", ms=11, mfc="none", mec=MARKERS["pma"][1],
-                              mew=1.5, ls="none"))
+    handles.append(
+        plt.Line2D([], [], marker="*", ms=11, mfc="none", mec=MARKERS["pma"][1], mew=1.5, ls="none")
+    )
     labels.append("hollow: the antipode (same PMA / motion area)")
     fig.tight_layout(rect=(0, 0.035, 1, 1))
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)

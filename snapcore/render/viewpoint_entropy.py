@@ -86,7 +86,9 @@ def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray | floa
 def _entropy_visible(ids, n_faces):
     """Entropy (bits) and number of visible faces per view of ids (V, H, W)."""
     if ids.ndim != 3 or not np.issubdtype(ids.dtype, np.integer):
-        raise EntropyError(f"face ids must be an integer array (V, H, W), got {ids.dtype} {ids.shape}")
+        raise EntropyError(
+            f"face ids must be an integer array (V, H, W), got {ids.dtype} {ids.shape}"
+        )
     if ids.size and ids.min() < 0:
         raise EntropyError("face ids must be >= 0 (0 = background)")
     n_bins = (int(ids.max()) if n_faces is None else int(n_faces)) + 1
@@ -98,13 +100,13 @@ def _entropy_visible(ids, n_faces):
     visible = np.empty(v, dtype=np.int64)
     step = max(1, _HIST_BLOCK // max(n_bins, h * w))
     for i in range(0, v, step):
-        blk = flat[i:i + step]
+        blk = flat[i : i + step]
         keys = blk + (np.arange(blk.shape[0]) * n_bins)[:, None]
         counts = np.bincount(keys.ravel(), minlength=blk.shape[0] * n_bins).reshape(-1, n_bins)
         p = counts / float(h * w)
         safe = np.where(p > 0, p, 1.0)
-        entropy[i:i + step] = -(p * np.log2(safe)).sum(axis=1)
-        visible[i:i + step] = np.count_nonzero(counts[:, 1:], axis=1)
+        entropy[i : i + step] = -(p * np.log2(safe)).sum(axis=1)
+        visible[i : i + step] = np.count_nonzero(counts[:, 1:], axis=1)
     return entropy, visible
 
 
@@ -153,10 +155,16 @@ class EntropySelection:
         }
 
 
-def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
-                        resolution: int = VE_RESOLUTION,
-                        min_elevation_deg: float | None = MIN_ELEVATION_DEG,
-                        score_all: bool = False, mesh=None) -> EntropySelection:
+def select_view_entropy(
+    scene,
+    frame: int,
+    *,
+    n_views: int = VE_VIEWS,
+    resolution: int = VE_RESOLUTION,
+    min_elevation_deg: float | None = MIN_ELEVATION_DEG,
+    score_all: bool = False,
+    mesh=None,
+) -> EntropySelection:
     """The view of maximal viewpoint entropy of the posed body at ``frame``.
 
     Parameters
@@ -201,6 +209,13 @@ def select_view_entropy(scene, frame: int, *, n_views: int = VE_VIEWS,
     visible = np.zeros(len(views), dtype=np.int64)
     scores[keep], visible[keep] = _entropy_visible(ids, len(faces))
     best = int(np.nanargmax(np.where(allowed, scores, np.nan)))
-    return EntropySelection(view=views[best].copy(), score=float(scores[best]), views=views,
-                            scores=scores, frame=int(frame), n_faces=int(len(faces)),
-                            resolution=int(resolution), visible_faces=visible)
+    return EntropySelection(
+        view=views[best].copy(),
+        score=float(scores[best]),
+        views=views,
+        scores=scores,
+        frame=int(frame),
+        n_faces=int(len(faces)),
+        resolution=int(resolution),
+        visible_faces=visible,
+    )

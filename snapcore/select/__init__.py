@@ -17,11 +17,25 @@ from importlib import import_module
 
 # Imported on first use (PEP 562): `snapcore.select.pose` is needed by every command's
 # option parsing, the view search's trimesh only by the commands that search views.
-_WHERE = {"PoseSelection": "pose", "select_pose": "pose_methods", "POSE_METHODS": "pose_methods", "VIEW_METHODS": "methods",
-          "ViewMethod": "methods", "ViewSelection": "view", "select_view": "view"}
+_WHERE = {
+    "PoseSelection": "pose",
+    "select_pose": "pose_methods",
+    "POSE_METHODS": "pose_methods",
+    "VIEW_METHODS": "methods",
+    "ViewMethod": "methods",
+    "ViewSelection": "view",
+    "select_view": "view",
+}
 
-__all__ = ["POSE_METHODS", "PoseSelection", "VIEW_METHODS", "ViewMethod", "ViewSelection", "select_pose",
-           "select_view"]
+__all__ = [
+    "POSE_METHODS",
+    "PoseSelection",
+    "VIEW_METHODS",
+    "ViewMethod",
+    "ViewSelection",
+    "select_pose",
+    "select_view",
+]
 
 
 def __getattr__(name: str):

@@ -128,20 +128,22 @@ def _swept(z: np.ndarray, block: int):
     flat = z.reshape(n_f, n_j * 3)
     lo, hi = np.empty((n_b, n_j * 3)), np.empty((n_b, n_j * 3))
     if n_full:  # elementwise over the frames of the blocks: reductions over a short
-        main = flat[:n_full * block].reshape(n_full, block, n_j * 3)  # axis are slower
+        main = flat[: n_full * block].reshape(n_full, block, n_j * 3)  # axis are slower
         lo[:n_full], hi[:n_full] = main[:, 0], main[:, 0]
         for k in range(1, block):
             np.minimum(lo[:n_full], main[:, k], out=lo[:n_full])
             np.maximum(hi[:n_full], main[:, k], out=hi[:n_full])
     if n_b > n_full:
-        np.min(flat[n_full * block:], axis=0, out=lo[n_full])
-        np.max(flat[n_full * block:], axis=0, out=hi[n_full])
+        np.min(flat[n_full * block :], axis=0, out=lo[n_full])
+        np.max(flat[n_full * block :], axis=0, out=hi[n_full])
     rows = np.empty((3, n_j, n_b * block))
     rows[:, :, :n_f] = z.transpose(2, 1, 0)
-    rows[:, :, n_f:] = rows[:, :, n_f - 1:n_f]
-    return (np.ascontiguousarray(lo.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
-            np.ascontiguousarray(hi.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
-            rows.reshape(3, n_j * n_b, block))
+    rows[:, :, n_f:] = rows[:, :, n_f - 1 : n_f]
+    return (
+        np.ascontiguousarray(lo.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
+        np.ascontiguousarray(hi.reshape(n_b, n_j, 3).transpose(2, 1, 0)),
+        rows.reshape(3, n_j * n_b, block),
+    )
 
 
 def _overlap(alo, ahi, blo, bhi) -> np.ndarray:
@@ -154,8 +156,15 @@ def _overlap(alo, ahi, blo, bhi) -> np.ndarray:
     return r
 
 
-def body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = None,
-              block: int = 3, cache: dict | None = None):
+def body_near(
+    x: np.ndarray,
+    other,
+    gap: float,
+    *,
+    radii: np.ndarray | None = None,
+    block: int = 3,
+    cache: dict | None = None,
+):
     """Which joints of one character touch another's body (bones as capsules).
 
     Parameters
@@ -238,17 +247,24 @@ def body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = No
     hi_n = [jhi[c].reshape(-1).take(cand) for c in range(3)]
     # Level 2: against the groups of that block, (n, G).
     glo, ghi = (np.ascontiguousarray(v.transpose(0, 2, 1)) for v in (glo, ghi))  # (3, B, G)
-    ov = _overlap([v[:, None] for v in lo_n], [v[:, None] for v in hi_n],
-                  [glo[c].take(bi, axis=0) for c in range(3)],
-                  [ghi[c].take(bi, axis=0) for c in range(3)])
+    ov = _overlap(
+        [v[:, None] for v in lo_n],
+        [v[:, None] for v in hi_n],
+        [glo[c].take(bi, axis=0) for c in range(3)],
+        [ghi[c].take(bi, axis=0) for c in range(3)],
+    )
     n2, g2 = np.nonzero(ov)
     # Level 3: against the bones of those groups, (n2, S).
-    llo, lhi = (np.ascontiguousarray(v.transpose(0, 2, 1)).reshape(3, n_b * n_g, size)
-                for v in (llo, lhi))  # rows b * G + g
+    llo, lhi = (
+        np.ascontiguousarray(v.transpose(0, 2, 1)).reshape(3, n_b * n_g, size) for v in (llo, lhi)
+    )  # rows b * G + g
     bg = bi.take(n2) * n_g + g2
-    ov3 = _overlap([v.take(n2)[:, None] for v in lo_n], [v.take(n2)[:, None] for v in hi_n],
-                   [llo[c].take(bg, axis=0) for c in range(3)],
-                   [lhi[c].take(bg, axis=0) for c in range(3)])
+    ov3 = _overlap(
+        [v.take(n2)[:, None] for v in lo_n],
+        [v.take(n2)[:, None] for v in hi_n],
+        [llo[c].take(bg, axis=0) for c in range(3)],
+        [lhi[c].take(bg, axis=0) for c in range(3)],
+    )
     if n_g * size > n_l:  # padding repeats the last link: test it once
         ov3 &= (np.arange(n_g * size) < n_l).reshape(n_g, size).take(g2, axis=0)
     r3, c3 = np.nonzero(ov3)
@@ -258,17 +274,29 @@ def body_near(x: np.ndarray, other, gap: float, *, radii: np.ndarray | None = No
     jb3 = cand.take(n2.take(r3))  # j * B + b
     # Narrow phase, rows of ``block`` frames, in chunks whose temporaries stay in cache:
     # a cheap filter, then the exact distance of the few within reach.
-    idx = np.concatenate([  # row * block + frame in block
-        _within_reach(xrows, yrows, links, reach, jb3[s:s + _CHUNK_ROWS],
-                      link3[s:s + _CHUNK_ROWS], n_b) + s * block
-        for s in range(0, jb3.size, _CHUNK_ROWS)])
+    idx = np.concatenate(
+        [  # row * block + frame in block
+            _within_reach(
+                xrows,
+                yrows,
+                links,
+                reach,
+                jb3[s : s + _CHUNK_ROWS],
+                link3[s : s + _CHUNK_ROWS],
+                n_b,
+            )
+            + s * block
+            for s in range(0, jb3.size, _CHUNK_ROWS)
+        ]
+    )
     row, k = np.divmod(idx, block)
     lk, jb = link3.take(row), jb3.take(row)
     b = jb % n_b
     d = _segment_distance_planes(  # the points, gathered from the flattened rows
         xrows.reshape(3, -1).take(jb * block + k, axis=1),
         yrows.reshape(3, -1).take((links[:, 0].take(lk) * n_b + b) * block + k, axis=1),
-        yrows.reshape(3, -1).take((links[:, 1].take(lk) * n_b + b) * block + k, axis=1))
+        yrows.reshape(3, -1).take((links[:, 1].take(lk) * n_b + b) * block + k, axis=1),
+    )
     d -= radii.take(lk)
     hit = np.flatnonzero(d <= gap)
     if hit.size == 0:

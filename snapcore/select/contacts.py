@@ -68,7 +68,6 @@ _BAND = 24
 _FAR = 1e150
 
 
-
 @dataclass(frozen=True)
 class ContactTolerances:
     """Tolerances of interaction detection, metres and seconds.
@@ -111,8 +110,13 @@ class ContactTolerances:
     reference_stature: float | None = REFERENCE_STATURE_M
 
     def __post_init__(self):
-        for name in ("ground_distance", "body_distance", "prop_distance", "displacement",
-                     "min_duration"):
+        for name in (
+            "ground_distance",
+            "body_distance",
+            "prop_distance",
+            "displacement",
+            "min_duration",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"ContactTolerances.{name} must be a positive number, got {v}")
@@ -247,8 +251,10 @@ def prop_distance(points: np.ndarray, prop: dict) -> np.ndarray:
             b = np.asarray(prop["b"], dtype=float)
             d = segment_distance(points, a, b) - float(prop["radius"])
         else:
-            raise SceneError(f"prop '{prop.get('name', '?')}': unknown type {kind!r} "
-                             "(expected sphere, box or capsule)")
+            raise SceneError(
+                f"prop '{prop.get('name', '?')}': unknown type {kind!r} "
+                "(expected sphere, box or capsule)"
+            )
     except KeyError as err:
         raise SceneError(f"prop '{prop.get('name', '?')}' ({kind}): missing field {err}") from None
     return np.maximum(d, 0.0)
@@ -397,7 +403,7 @@ def _scan(nears: list, displacements: list, m: int, tol: float) -> list:
     starts, ends = starts[order], np.concatenate(out_e)[order]
     bounds = np.searchsorted(prob.take(starts), np.arange(len(nears) + 1))
     for p in range(len(nears)):
-        s, e = starts[bounds[p]:bounds[p + 1]], ends[bounds[p]:bounds[p + 1]]
+        s, e = starts[bounds[p] : bounds[p + 1]], ends[bounds[p] : bounds[p + 1]]
         found[p] = (joint.take(s), frame.take(s), frame.take(e))
     return found
 
@@ -418,13 +424,19 @@ class _Distances:
         self.rel = self.ref = None
         if all(hasattr(d, "relative") for d in displacements):
             bounds = list(zip(self.offsets[:-1], self.offsets[1:]))
-            self.rel = np.concatenate([d.relative(joint[a:b], frame[a:b])
-                                       for d, (a, b) in zip(displacements, bounds)], axis=1)
+            self.rel = np.concatenate(
+                [d.relative(joint[a:b], frame[a:b]) for d, (a, b) in zip(displacements, bounds)],
+                axis=1,
+            )
             if any(hasattr(d, "reference") for d in displacements):
-                self.ref = np.concatenate([
-                    d.reference(joint[a:b], frame[a:b]) if hasattr(d, "reference")
-                    else np.zeros(b - a, dtype=np.int64)
-                    for d, (a, b) in zip(displacements, bounds)])
+                self.ref = np.concatenate(
+                    [
+                        d.reference(joint[a:b], frame[a:b])
+                        if hasattr(d, "reference")
+                        else np.zeros(b - a, dtype=np.int64)
+                        for d, (a, b) in zip(displacements, bounds)
+                    ]
+                )
 
     def _ask(self, s: np.ndarray, g: np.ndarray) -> np.ndarray:
         """Distances from the displacements themselves (entries ``s``, ``g``)."""
@@ -438,8 +450,9 @@ class _Distances:
         for p in np.unique(prob).tolist():
             sel = np.flatnonzero(prob == p)
             ss, gg = s.take(sel), g.take(sel)
-            out[sel] = self.displacements[p](self.joint.take(ss), self.frame.take(ss),
-                                             self.frame.take(gg))
+            out[sel] = self.displacements[p](
+                self.joint.take(ss), self.frame.take(ss), self.frame.take(gg)
+            )
         return out
 
     def far(self, s: np.ndarray, t: np.ndarray, skip: np.ndarray, tol: float) -> np.ndarray:
@@ -473,12 +486,14 @@ class _Distances:
         for k in range(1, m):  # shifted slices, no gathers
             within.append(_norm(self.rel[:, k:] - self.rel[:, :-k]).take(s) <= tol)
             if self.ref is not None:  # pairs in different reference frames
-                bad.append(np.flatnonzero((self.ref[k:] != self.ref[:n - k]).take(s)))
+                bad.append(np.flatnonzero((self.ref[k:] != self.ref[: n - k]).take(s)))
         if bad and sum(b.size for b in bad):  # ask those all at once
             i = np.concatenate(bad)
             shift = np.repeat(np.arange(1, m), [b.size for b in bad])
             asked = self._ask(s.take(i), s.take(i) + shift) <= tol
-            for kk, b, a in zip(range(1, m), bad, np.split(asked, np.cumsum([b.size for b in bad])[:-1])):
+            for kk, b, a in zip(
+                range(1, m), bad, np.split(asked, np.cumsum([b.size for b in bad])[:-1])
+            ):
                 within[kk - 1][b] = a
         for w in within:
             ok &= w
@@ -514,7 +529,10 @@ class _Distances:
             # tolerance: the end of the run), so the band is a view, not a gather.
             buf = np.full((3, n_cols), _FAR)
             buf[:, col] = self.rel.take(entry, axis=1)
-            d = sliding_window_view(buf, band, axis=1)[:, m:m + n_cols - gap] - buf[:, :n_cols - gap, None]
+            d = (
+                sliding_window_view(buf, band, axis=1)[:, m : m + n_cols - gap]
+                - buf[:, : n_cols - gap, None]
+            )
             d *= d
             d2 = d[0] + d[1]
             d2 += d[2]
@@ -522,15 +540,19 @@ class _Distances:
             if self.ref is not None:
                 ref = self.ref.take(entry)
                 row0 = np.cumsum(np.r_[0, lengths[:-1]])  # each run's first row
-                varies = np.flatnonzero(np.minimum.reduceat(ref, row0)
-                                        != np.maximum.reduceat(ref, row0))
+                varies = np.flatnonzero(
+                    np.minimum.reduceat(ref, row0) != np.maximum.reduceat(ref, row0)
+                )
                 if varies.size:  # a joint slid to another bone: ask where references differ
                     stop_of = np.repeat(stops, lengths)
                     for r in varies.tolist():
                         rows = np.arange(row0[r], row0[r] + lengths[r])
                         t = entry.take(rows)[:, None] + m + np.arange(band)
                         ok = t < stop_of.take(rows)[:, None]
-                        bad = ok & (self.ref.take(np.minimum(t, self.ref.size - 1)) != ref.take(rows)[:, None])
+                        bad = ok & (
+                            self.ref.take(np.minimum(t, self.ref.size - 1))
+                            != ref.take(rows)[:, None]
+                        )
                         i, k = np.nonzero(bad)
                         if i.size:
                             far[rows[i], k] = self._ask(entry.take(rows[i]), t[i, k]) > tol
@@ -544,7 +566,7 @@ class _Distances:
         """Distances from entry ``s`` to entries ``lo .. hi - 1``."""
         if self.rel is None:
             return self._ask(np.full(hi - lo, s), np.arange(lo, hi))
-        d = self.rel[:, lo:hi] - self.rel[:, s:s + 1]
+        d = self.rel[:, lo:hi] - self.rel[:, s : s + 1]
         d = _norm(d)
         if self.ref is not None:
             bad = np.flatnonzero(self.ref[lo:hi] != self.ref[s])
@@ -597,8 +619,10 @@ class _BodyDisplacement:
         """``R_p^T (x_j - y_p)`` at ``frames``, component-first (3, n)."""
         rows = frames * self.y.shape[1] + parent
         r = self.rot.reshape(-1, 9).take(rows, axis=0).T  # r[3k + i] = R[k, i]
-        v = (self.x.reshape(-1, 3).take(frames * self.x.shape[1] + j, axis=0)
-             - self.y.reshape(-1, 3).take(rows, axis=0)).T
+        v = (
+            self.x.reshape(-1, 3).take(frames * self.x.shape[1] + j, axis=0)
+            - self.y.reshape(-1, 3).take(rows, axis=0)
+        ).T
         out = r[0:3] * v[0]
         out += r[3:6] * v[1]
         out += r[6:9] * v[2]
@@ -642,9 +666,15 @@ def merge_adjacent(joints, starts, ends):
     return joints[first], starts[first], ends[last], first
 
 
-def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERANCES,
-                        ground: bool = True, bodies: bool = True, props: bool = True,
-                        merge: bool = True) -> Interactions:
+def detect_interactions(
+    scene,
+    *,
+    tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+    ground: bool = True,
+    bodies: bool = True,
+    props: bool = True,
+    merge: bool = True,
+) -> Interactions:
     """Interaction events of every joint of every character in ``scene``.
 
     Parameters
@@ -702,9 +732,11 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
     n_f = scene.n_frames
     prop_list = list(scene.props) if props else []
     prop_names = [str(p.get("name", f"prop{i}")) for i, p in enumerate(prop_list)]
-    objects = ([GROUND] if ground else []) + (
-        [c.name for c in scene.characters] if bodies and scene.n_characters > 1 else []
-    ) + prop_names
+    objects = (
+        ([GROUND] if ground else [])
+        + ([c.name for c in scene.characters] if bodies and scene.n_characters > 1 else [])
+        + prop_names
+    )
     # Every (character, object) pair is one scan problem; all are scanned together.
     # character, object, and for a body the nearest bone (F, J) and that character
     problems: list[tuple[int, str, tuple[np.ndarray, Character] | None]] = []
@@ -723,8 +755,9 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             for oi, other in enumerate(scene.characters):
                 if oi == ci:
                     continue
-                near, bone = body_near(x, other, tol.body_distance, radii=radii[oi],
-                                       block=block, cache=cache)
+                near, bone = body_near(
+                    x, other, tol.body_distance, radii=radii[oi], block=block, cache=cache
+                )
                 problems.append((ci, other.name, (bone, other)))
                 nears.append(near)
                 displacements.append(_BodyDisplacement(x, other, bone))
@@ -734,8 +767,9 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
             displacements.append(static)
     events: list[Event] = []
     active = [np.zeros((n_f, c.n_joints), dtype=bool) for c in scene.characters]
-    for (ci, name, touched), (js, ss, es) in zip(problems, _scan(nears, displacements, m,
-                                                                 tol.displacement)):
+    for (ci, name, touched), (js, ss, es) in zip(
+        problems, _scan(nears, displacements, m, tol.displacement)
+    ):
         if merge:
             js, ss, es, _ = merge_adjacent(js, ss, es)
         parts = [None] * js.size
@@ -746,7 +780,7 @@ def detect_interactions(scene, *, tolerances: ContactTolerances = DEFAULT_TOLERA
         act = active[ci]
         for j, s, e, part in zip(js.tolist(), ss.tolist(), es.tolist(), parts):
             events.append(_event(ci, j, name, s, e, part))
-            act[s:e + 1, j] = True
+            act[s : e + 1, j] = True
     if len(set(objects)) < len(objects):  # else already in order: problems were made
         rank = {name: i for i, name in enumerate(objects)}  # by character and object
         events.sort(key=lambda e: (e.character, rank.get(e.object, 0), e.joint, e.start))

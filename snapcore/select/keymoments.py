@@ -105,8 +105,12 @@ def _parse_intervals(text: str, path, line) -> list[tuple[int, int]]:
     for part in parts:
         m = _INTERVAL.match(part)
         if not m:
-            _fail(path, line, "intervals", f"{part.strip()!r} is not an interval a-b of "
-                                           "non-negative frame numbers")
+            _fail(
+                path,
+                line,
+                "intervals",
+                f"{part.strip()!r} is not an interval a-b of non-negative frame numbers",
+            )
         a, b = int(m.group(1)), int(m.group(2))
         if a > b:
             _fail(path, line, "intervals", f"{a}-{b}: start after end (a > b)")
@@ -139,8 +143,10 @@ def read_keymoments(path) -> list[KeyMoments]:
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
-        raise KeymomentsError(f"{p}:0: file: cannot read it ({err.__class__.__name__}: "
-                              f"{getattr(err, 'strerror', None) or err})") from None
+        raise KeymomentsError(
+            f"{p}:0: file: cannot read it ({err.__class__.__name__}: "
+            f"{getattr(err, 'strerror', None) or err})"
+        ) from None
     if p.suffix.lower() == ".json":
         out = _read_json(p, text)
     else:
@@ -174,8 +180,17 @@ def _read_tsv(p: Path, text: str) -> list[KeyMoments]:
         if len(row) > len(header):
             _fail(p, n, "row", f"{len(row)} fields for {len(header)} columns")
         rec = dict(zip(header, row + [""] * (len(header) - len(row))))
-        out.append(_entry(p, n, rec.get("scene", ""), rec.get("files", ""), rec.get("fps"),
-                          rec.get("intervals", ""), rec.get("what", "")))
+        out.append(
+            _entry(
+                p,
+                n,
+                rec.get("scene", ""),
+                rec.get("files", ""),
+                rec.get("fps"),
+                rec.get("intervals", ""),
+                rec.get("what", ""),
+            )
+        )
     return out
 
 
@@ -192,8 +207,18 @@ def _read_json(p: Path, text: str) -> list[KeyMoments]:
     out = []
     for n, e in enumerate(doc["scenes"], start=1):
         iv = ";".join(f"{a}-{b}" for a, b in e["intervals"])
-        out.append(_entry(p, n, e["scene"], ",".join(e["files"]), e.get("fps"), iv,
-                          e.get("what", ""), kind="entry"))
+        out.append(
+            _entry(
+                p,
+                n,
+                e["scene"],
+                ",".join(e["files"]),
+                e.get("fps"),
+                iv,
+                e.get("what", ""),
+                kind="entry",
+            )
+        )
     return out
 
 
@@ -204,19 +229,33 @@ def _entry(p, n, scene, files, fps, intervals, what, kind="line") -> KeyMoments:
     names = [f.strip() for f in str(files).split(",") if f.strip()]
     if not names:
         _fail(p, n, "files", "no file")
-    km = KeyMoments(scene=scene, files=names, fps=_parse_fps(fps, p, n),
-                    intervals=_parse_intervals(intervals, p, n), what=str(what or "").strip(),
-                    where=f"{p}:{n}" if kind == "line" else f"{p}: entry {n}", line=n,
-                    source=str(p))
+    km = KeyMoments(
+        scene=scene,
+        files=names,
+        fps=_parse_fps(fps, p, n),
+        intervals=_parse_intervals(intervals, p, n),
+        what=str(what or "").strip(),
+        where=f"{p}:{n}" if kind == "line" else f"{p}: entry {n}",
+        line=n,
+        source=str(p),
+    )
     return km
 
 
 def keymoments_to_json(entries: list[KeyMoments]) -> dict:
     """The JSON form of annotations (``data_schema/keymoments.schema.json``)."""
-    return {"scenes": [{"scene": k.scene, "files": list(k.files),
-                        **({"fps": k.fps} if k.fps is not None else {}),
-                        "intervals": [[a, b] for a, b in k.intervals],
-                        **({"what": k.what} if k.what else {})} for k in entries]}
+    return {
+        "scenes": [
+            {
+                "scene": k.scene,
+                "files": list(k.files),
+                **({"fps": k.fps} if k.fps is not None else {}),
+                "intervals": [[a, b] for a, b in k.intervals],
+                **({"what": k.what} if k.what else {}),
+            }
+            for k in entries
+        ]
+    }
 
 
 def check_against_scene(km: KeyMoments, scene) -> None:
@@ -227,8 +266,12 @@ def check_against_scene(km: KeyMoments, scene) -> None:
     last = int(scene.frame_offset + scene.n_frames - 1)
     for a, b in km.intervals:
         if b > last:
-            _fail(km.source, km.line, "intervals",
-                  f"{a}-{b} is outside the clip of {km.scene} (source frames 0..{last})")
+            _fail(
+                km.source,
+                km.line,
+                "intervals",
+                f"{a}-{b} is outside the clip of {km.scene} (source frames 0..{last})",
+            )
 
 
 # ----------------------------------------------------------------------- measures
@@ -255,16 +298,18 @@ def distance_to_intervals(frames, intervals, *, fps: float) -> np.ndarray:
     return d.min(axis=1) / fps
 
 
-def chance_rate(intervals, *, first: int, last: int, fps: float,
-                widen_s: float = HIT_WIDEN_S) -> float:
+def chance_rate(
+    intervals, *, first: int, last: int, fps: float, widen_s: float = HIT_WIDEN_S
+) -> float:
     """Fraction of the clip's source frames ``first..last`` inside the widened intervals:
     the top-1 hit rate of a uniformly random pick."""
     frames = np.arange(first, last + 1)
     return float(hits(frames, intervals, fps=fps, widen_s=widen_s).mean())
 
 
-def evaluate_picks(picks: dict, km: KeyMoments, *, fps: float, first: int, last: int,
-                   widen_s: float = HIT_WIDEN_S) -> list[dict]:
+def evaluate_picks(
+    picks: dict, km: KeyMoments, *, fps: float, first: int, last: int, widen_s: float = HIT_WIDEN_S
+) -> list[dict]:
     """One row per method for one scene.
 
     Parameters
@@ -287,12 +332,17 @@ def evaluate_picks(picks: dict, km: KeyMoments, *, fps: float, first: int, last:
     for method, frames in picks.items():
         frames = [int(f) for f in frames]
         h = hits(frames, km.intervals, fps=fps, widen_s=widen_s)
-        rows.append({"scene": km.scene, "method": method, "frames": frames,
-                     "top1_hit": bool(h[0]) if h.size else False,
-                     "top3_hit": bool(h[:3].any()) if h.size else False,
-                     "distance_s": float(distance_to_intervals(frames[:1], km.intervals,
-                                                               fps=fps)[0]),
-                     "chance": chance})
+        rows.append(
+            {
+                "scene": km.scene,
+                "method": method,
+                "frames": frames,
+                "top1_hit": bool(h[0]) if h.size else False,
+                "top3_hit": bool(h[:3].any()) if h.size else False,
+                "distance_s": float(distance_to_intervals(frames[:1], km.intervals, fps=fps)[0]),
+                "chance": chance,
+            }
+        )
     return rows
 
 
@@ -303,19 +353,32 @@ def summarise(rows: list[dict]) -> list[dict]:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     for m in methods:
         rs = [r for r in rows if r["method"] == m]
-        out.append({"method": m, "n_scenes": len(rs),
-                    "top1_hits": int(sum(r["top1_hit"] for r in rs)),
-                    "top3_hits": int(sum(r["top3_hit"] for r in rs)),
-                    "median_distance_s": float(np.median([r["distance_s"] for r in rs])),
-                    "chance_hits": float(sum(r["chance"] for r in rs))})
+        out.append(
+            {
+                "method": m,
+                "n_scenes": len(rs),
+                "top1_hits": int(sum(r["top1_hit"] for r in rs)),
+                "top3_hits": int(sum(r["top3_hit"] for r in rs)),
+                "median_distance_s": float(np.median([r["distance_s"] for r in rs])),
+                "chance_hits": float(sum(r["chance"] for r in rs)),
+            }
+        )
     return out
 
 
 # ----------------------------------------------------------------------- running
 
 
-def run_keymoments(entries: list[KeyMoments], *, data, methods, k: int = 3,
-                   widen_s: float = HIT_WIDEN_S, source: str = "", progress=None) -> dict:
+def run_keymoments(
+    entries: list[KeyMoments],
+    *,
+    data,
+    methods,
+    k: int = 3,
+    widen_s: float = HIT_WIDEN_S,
+    source: str = "",
+    progress=None,
+) -> dict:
     """Run every selector on every annotated scene and score the picks.
 
     Parameters
@@ -345,7 +408,6 @@ def run_keymoments(entries: list[KeyMoments], *, data, methods, k: int = 3,
     """
     import warnings
 
-
     base = Path(data)
     scenes, rows = [], []
     for km in entries:
@@ -373,39 +435,67 @@ def run_keymoments(entries: list[KeyMoments], *, data, methods, k: int = 3,
         fps = float(scene.fps)
         rs = evaluate_picks(picks, km, fps=fps, first=first, last=last, widen_s=widen_s)
         rows += rs
-        scenes.append({"scene": km.scene, "files": list(km.files), "fps": fps,
-                       "first_frame": first, "last_frame": last,
-                       "intervals": [[a, b] for a, b in km.intervals],
-                       "chance": rs[0]["chance"] if rs else 0.0})
-    return {"format": KEYMOMENTS_FORMAT, "annotations": str(source), "widen_s": float(widen_s),
-            "k": int(k), "methods": list(methods), "scenes": scenes, "rows": rows,
-            "overall": summarise(rows)}
+        scenes.append(
+            {
+                "scene": km.scene,
+                "files": list(km.files),
+                "fps": fps,
+                "first_frame": first,
+                "last_frame": last,
+                "intervals": [[a, b] for a, b in km.intervals],
+                "chance": rs[0]["chance"] if rs else 0.0,
+            }
+        )
+    return {
+        "format": KEYMOMENTS_FORMAT,
+        "annotations": str(source),
+        "widen_s": float(widen_s),
+        "k": int(k),
+        "methods": list(methods),
+        "scenes": scenes,
+        "rows": rows,
+        "overall": summarise(rows),
+    }
 
 
 def table_rows(doc: dict) -> list[dict]:
     """Flat table: one row per scene and method, then ``ALL`` rows per method."""
     out = []
     for r in doc["rows"]:
-        out.append({"scene": r["scene"], "method": r["method"], "top1": int(r["top1_hit"]),
-                    "top3": int(r["top3_hit"]), "distance_s": round(r["distance_s"], 3),
-                    "chance": round(r["chance"], 3),
-                    "frames": " ".join(str(f) for f in r["frames"])})
+        out.append(
+            {
+                "scene": r["scene"],
+                "method": r["method"],
+                "top1": int(r["top1_hit"]),
+                "top3": int(r["top3_hit"]),
+                "distance_s": round(r["distance_s"], 3),
+                "chance": round(r["chance"], 3),
+                "frames": " ".join(str(f) for f in r["frames"]),
+            }
+        )
     for o in doc["overall"]:
-        out.append({"scene": "ALL", "method": o["method"],
-                    "top1": f"{o['top1_hits']}/{o['n_scenes']}",
-                    "top3": f"{o['top3_hits']}/{o['n_scenes']}",
-                    "distance_s": round(o["median_distance_s"], 3),
-                    "chance": round(o["chance_hits"], 2), "frames": ""})
+        out.append(
+            {
+                "scene": "ALL",
+                "method": o["method"],
+                "top1": f"{o['top1_hits']}/{o['n_scenes']}",
+                "top3": f"{o['top3_hits']}/{o['n_scenes']}",
+                "distance_s": round(o["median_distance_s"], 3),
+                "chance": round(o["chance_hits"], 2),
+                "frames": "",
+            }
+        )
     return out
 
 
 def overall_markdown(doc: dict) -> str:
     """The overall table as Markdown (methods as rows)."""
-    lines = ["| method | top-1 hits | top-3 hits | median distance (s) |",
-             "|---|---|---|---|"]
+    lines = ["| method | top-1 hits | top-3 hits | median distance (s) |", "|---|---|---|---|"]
     for o in doc["overall"]:
-        lines.append(f"| {o['method']} | {o['top1_hits']}/{o['n_scenes']} | "
-                     f"{o['top3_hits']}/{o['n_scenes']} | {o['median_distance_s']:.2f} |")
+        lines.append(
+            f"| {o['method']} | {o['top1_hits']}/{o['n_scenes']} | "
+            f"{o['top3_hits']}/{o['n_scenes']} | {o['median_distance_s']:.2f} |"
+        )
     chance = doc["overall"][0]["chance_hits"] if doc["overall"] else 0.0
     lines.append(f"| chance (random frame) | {chance:.1f} expected | | |")
     return "\n".join(lines)

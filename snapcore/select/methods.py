@@ -43,10 +43,16 @@ class ViewMethod(StrEnum):
         return f"{name} ({self.figure})"
 
 
-_LABELS = {ViewMethod.OURS: "ours", ViewMethod.VIEWPOINT_ENTROPY: "viewpoint entropy",
-           ViewMethod.MOTION_AREA: "motion area"}
-_FIGURES = {ViewMethod.OURS: "Fig. 8", ViewMethod.VIEWPOINT_ENTROPY: "Fig. 9",
-            ViewMethod.MOTION_AREA: "Fig. 10"}
+_LABELS = {
+    ViewMethod.OURS: "ours",
+    ViewMethod.VIEWPOINT_ENTROPY: "viewpoint entropy",
+    ViewMethod.MOTION_AREA: "motion area",
+}
+_FIGURES = {
+    ViewMethod.OURS: "Fig. 8",
+    ViewMethod.VIEWPOINT_ENTROPY: "Fig. 9",
+    ViewMethod.MOTION_AREA: "Fig. 10",
+}
 
 #: The three methods in the paper's order (ours first, then the baselines).
 VIEW_METHODS: tuple[ViewMethod, ...] = tuple(ViewMethod)

@@ -253,8 +253,13 @@ def _savgol_matrix(window: int, polyorder: int) -> np.ndarray:
     return mat
 
 
-def smooth_positions(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
-                     polyorder: int = SAVGOL_POLYORDER) -> np.ndarray:
+def smooth_positions(
+    positions: np.ndarray,
+    *,
+    fps: float,
+    smooth_s: float = SMOOTH_S,
+    polyorder: int = SAVGOL_POLYORDER,
+) -> np.ndarray:
     """Savitzky-Golay smoothed trajectories.
 
     Parameters
@@ -285,14 +290,15 @@ def smooth_positions(positions: np.ndarray, *, fps: float, smooth_s: float = SMO
     mat = savgol_matrix(w, polyorder)
     flat = x.reshape(n_f, -1)
     out = np.empty_like(flat)
-    out[h:n_f - h] = sliding_window_view(flat, w, axis=0) @ mat[h]
+    out[h : n_f - h] = sliding_window_view(flat, w, axis=0) @ mat[h]
     out[:h] = mat[:h] @ flat[:w]
-    out[n_f - h:] = mat[h + 1:] @ flat[n_f - w:]
+    out[n_f - h :] = mat[h + 1 :] @ flat[n_f - w :]
     return out.reshape(x.shape)
 
 
-def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S,
-                    rest_speed: float = REST_SPEED) -> np.ndarray:
+def joint_curvature(
+    positions: np.ndarray, *, fps: float, smooth_s: float = SMOOTH_S, rest_speed: float = REST_SPEED
+) -> np.ndarray:
     """Discrete curvature ``kappa = sin(theta / 2)`` of every joint trajectory.
 
     Parameters
@@ -330,7 +336,7 @@ def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOO
     step = _chunk_frames(n_j * 3)
     for a in range(0, n_f - 2, step):  # vertices a+1 .. b; frames a .. b+1
         b = min(a + step, n_f - 2)
-        e = flat[a + 1:b + 2] - flat[a:b + 1]  # edges a .. b, (n+1, J*3)
+        e = flat[a + 1 : b + 2] - flat[a : b + 1]  # edges a .. b, (n+1, J*3)
         length = np.sqrt((e * e).reshape(-1, 3) @ ones).reshape(-1, n_j)
         moving = length >= floor
         e = e.reshape(-1, n_j, 3)
@@ -341,7 +347,7 @@ def joint_curvature(positions: np.ndarray, *, fps: float, smooth_s: float = SMOO
         chord = np.sqrt((dt * dt).reshape(-1, 3) @ ones).reshape(-1, n_j)
         chord *= 0.5
         chord[~(moving[1:] & moving[:-1])] = 0.0
-        kappa[a + 1:b + 1] = chord
+        kappa[a + 1 : b + 1] = chord
     return kappa
 
 
@@ -374,7 +380,7 @@ def rotation_change(local_rotations: np.ndarray) -> np.ndarray:
     step = _chunk_frames(n_j * 9)
     for a in range(0, n_f - 1, step):
         b = min(a + step, n_f - 1)
-        d = flat[a + 1:b + 1] - flat[a:b]
+        d = flat[a + 1 : b + 1] - flat[a:b]
         d *= d
         s = np.sqrt(d.reshape(-1, 9) @ ones)  # row sums via BLAS, faster than sum(-1)
         s *= scale
@@ -408,8 +414,9 @@ def limb_lengths(skeleton) -> np.ndarray:
     return out
 
 
-def local_information(character, *, smooth_s: float = SMOOTH_S,
-                      rest_speed: float = REST_SPEED) -> np.ndarray:
+def local_information(
+    character, *, smooth_s: float = SMOOTH_S, rest_speed: float = REST_SPEED
+) -> np.ndarray:
     """``p_i = sum_j l_j |dm_ji| kappa_ji`` of one character (eq. 4-5), shape (F,).
 
     Parameters
@@ -452,7 +459,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         mat = savgol_matrix(w, SAVGOL_POLYORDER)
         taps = mat[h]  # interior: y_i = sum_k taps_k x_{i-h+k}
         head = mat[:h] @ pos[:w].reshape(w, n_j * 3)  # smoothed frames 0 .. h-1
-        tail = mat[h + 1:] @ pos[n_f - w:].reshape(w, n_j * 3)  # F-h .. F-1
+        tail = mat[h + 1 :] @ pos[n_f - w :].reshape(w, n_j * 3)  # F-h .. F-1
     floor = rest_speed / character.fps
     ones3, ones4 = np.ones(3), np.ones(4)
     step = _chunk_frames(n_j * 9)
@@ -464,13 +471,13 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
             i0, i1 = max(lo, h), min(hi, n_f - h)
             x = np.empty((hi - lo, n_j * 3))
             if i1 > i0:
-                raw = pos[i0 - h:i1 + h].reshape(i1 - i0 + 2 * h, n_j * 3)
-                x[i0 - lo:i1 - lo] = sliding_window_view(raw, w, axis=0) @ taps
+                raw = pos[i0 - h : i1 + h].reshape(i1 - i0 + 2 * h, n_j * 3)
+                x[i0 - lo : i1 - lo] = sliding_window_view(raw, w, axis=0) @ taps
             if lo < h:
-                x[:min(h, hi) - lo] = head[lo:min(h, hi)]
+                x[: min(h, hi) - lo] = head[lo : min(h, hi)]
             if hi > n_f - h:
                 k = max(lo, n_f - h)
-                x[k - lo:] = tail[k - (n_f - h):hi - (n_f - h)]
+                x[k - lo :] = tail[k - (n_f - h) : hi - (n_f - h)]
         else:
             x = pos[lo:hi].reshape(hi - lo, n_j * 3)
         # curvature at vertices a+1 .. b (see joint_curvature), as the chord
@@ -490,7 +497,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         # on quaternions: |q_i - q_i+1| = 2 sin(theta / 4) for the nearer of +-q_i+1
         # (|q - q'|^2 + |q + q'|^2 = 4), so theta / 4 = arcsin(|dq| / 2), accurate
         # for the small angles between frames
-        q = quat[a + 1:b + 2]
+        q = quat[a + 1 : b + 2]
         q = (q.take(limbs, axis=1) if skip else q).reshape(b + 1 - a, n_j * 4)
         d = q[1:] - q[:-1]
         d *= d
@@ -502,7 +509,7 @@ def local_information(character, *, smooth_s: float = SMOOTH_S,
         quarter_dm = np.arcsin(s, out=s).reshape(b - a, n_j)
         # kappa * dm = (chord / 2) * (4 quarter_dm): the factor 2 is applied at the end
         chord *= quarter_dm
-        p[a + 1:b + 1] = chord @ weight
+        p[a + 1 : b + 1] = chord @ weight
     p *= 2.0
     return p
 
@@ -527,8 +534,9 @@ def local_entropy(information: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------- global term
 
 
-def global_entropy(active: np.ndarray, joints, starts, ends, *, mode: str = "transitions"
-                   ) -> np.ndarray:
+def global_entropy(
+    active: np.ndarray, joints, starts, ends, *, mode: str = "transitions"
+) -> np.ndarray:
     """Event entropy of one character per frame (eq. 6-7), shape (F,).
 
     Parameters
@@ -580,8 +588,7 @@ def minmax(values: np.ndarray, *, name: str = "values") -> np.ndarray:
         return v.copy()
     lo, hi = float(v.min()), float(v.max())
     if not hi > lo:
-        warnings.warn(f"{name} is constant over the clip ({lo:g}); it contributes 0",
-                      stacklevel=3)
+        warnings.warn(f"{name} is constant over the clip ({lo:g}); it contributes 0", stacklevel=3)
         return np.zeros_like(v)
     return (v - lo) / (hi - lo)
 
@@ -617,11 +624,17 @@ def _rest_speed_for(scene, rest_speed: float) -> float:
     return rest_speed * (h / REFERENCE_STATURE_M if np.isfinite(h) and h > 0 else 1.0)
 
 
-def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
-                 events: str = "transitions", smooth_s: float = SMOOTH_S,
-                 rest_speed: float = REST_SPEED,
-                 tolerances: ContactTolerances = DEFAULT_TOLERANCES,
-                 interactions: Interactions | None = None) -> PoseEntropy:
+def pose_entropy(
+    scene,
+    *,
+    w_local: float = 1.0,
+    w_global: float = 1.0,
+    events: str = "transitions",
+    smooth_s: float = SMOOTH_S,
+    rest_speed: float = REST_SPEED,
+    tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+    interactions: Interactions | None = None,
+) -> PoseEntropy:
     """Pose entropy of every frame of ``scene``.
 
     Parameters
@@ -677,12 +690,14 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
         by_char[e.character].append((e.joint, e.start, e.end))
     for ci in range(n_c):
         arr = np.array(by_char[ci], dtype=np.int64).reshape(-1, 3)
-        h_global[ci] = global_entropy(interactions.active[ci], arr[:, 0], arr[:, 1], arr[:, 2],
-                                      mode=events)
+        h_global[ci] = global_entropy(
+            interactions.active[ci], arr[:, 0], arr[:, 1], arr[:, 2], mode=events
+        )
     timings["global"] = time.perf_counter() - t2
     if not info.max(initial=0.0) > ZERO_INFORMATION:
-        warnings.warn("no joint moves along a curve (static clip?): the local term is 0",
-                      stacklevel=2)
+        warnings.warn(
+            "no joint moves along a curve (static clip?): the local term is 0", stacklevel=2
+        )
     local = minmax(h_local.sum(axis=0), name="local pose entropy")
     if h_global.any():
         glob = minmax(h_global.sum(axis=0), name="global pose entropy (interaction events)")
@@ -692,14 +707,24 @@ def pose_entropy(scene, *, w_local: float = 1.0, w_global: float = 1.0,
         # symptom worth a warning.
         glob = np.zeros(n_f)
     total = w_local * local + w_global * glob
-    return PoseEntropy(local=local, global_=glob, total=total, local_by_character=h_local,
-                       global_by_character=h_global, information=info,
-                       interactions=interactions, weights=(float(w_local), float(w_global)),
-                       events_mode=events, fps=float(scene.fps), timings_s=timings)
+    return PoseEntropy(
+        local=local,
+        global_=glob,
+        total=total,
+        local_by_character=h_local,
+        global_by_character=h_global,
+        information=info,
+        interactions=interactions,
+        weights=(float(w_local), float(w_global)),
+        events_mode=events,
+        fps=float(scene.fps),
+        timings_s=timings,
+    )
 
 
-def select_pose_paper(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S,
-                      **options) -> PoseSelection:
+def select_pose_paper(
+    scene, *, k: int = 3, min_separation_s: float = MIN_SEPARATION_S, **options
+) -> PoseSelection:
     """The paper's most informative pose of ``scene`` and the top-k distinct runners-up.
 
     This is the ``paper`` method of :func:`snapcore.select.pose_methods.select_pose`,
@@ -716,17 +741,30 @@ def select_pose_paper(scene, *, k: int = 3, min_separation_s: float = MIN_SEPARA
     sep = int(round(min_separation_s * scene.fps))
     frames = top_peaks(total, int(k), min_separation=sep)
     if constant:
-        warnings.warn("pose entropy is the same at every frame (static clip?); "
-                      "choosing the first frame", stacklevel=3)
+        warnings.warn(
+            "pose entropy is the same at every frame (static clip?); choosing the first frame",
+            stacklevel=3,
+        )
     t2 = time.perf_counter()
     timings = dict(entropy.timings_s)
     timings["select"] = t2 - t1
     timings["total"] = t2 - t0
-    scores = PoseScores(method="paper", total=total,
-                        terms={"local": entropy.weights[0] * entropy.local,
-                               "global": entropy.weights[1] * entropy.global_},
-                        unit="normalised entropy", interactions=entropy.interactions,
-                        fps=entropy.fps)
-    return PoseSelection(index=int(frames[0]), indices=[int(f) for f in frames],
-                         scores=scores, min_separation_s=float(min_separation_s),
-                         timings_s=timings, entropy=entropy)
+    scores = PoseScores(
+        method="paper",
+        total=total,
+        terms={
+            "local": entropy.weights[0] * entropy.local,
+            "global": entropy.weights[1] * entropy.global_,
+        },
+        unit="normalised entropy",
+        interactions=entropy.interactions,
+        fps=entropy.fps,
+    )
+    return PoseSelection(
+        index=int(frames[0]),
+        indices=[int(f) for f in frames],
+        scores=scores,
+        min_separation_s=float(min_separation_s),
+        timings_s=timings,
+        entropy=entropy,
+    )

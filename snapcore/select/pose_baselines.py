@@ -92,8 +92,7 @@ def middle_frames(n_frames: int, k: int) -> list[int]:
     return out
 
 
-def random_frames(n_frames: int, k: int, *, seed: int = 0, min_separation: int = 1
-                  ) -> list[int]:
+def random_frames(n_frames: int, k: int, *, seed: int = 0, min_separation: int = 1) -> list[int]:
     """``k`` distinct frames drawn uniformly (seeded), each ``min_separation`` apart.
 
     The order of a random permutation, keeping a frame when it is far enough from
@@ -112,8 +111,10 @@ def random_frames(n_frames: int, k: int, *, seed: int = 0, min_separation: int =
 
 def _trajectories(scene) -> np.ndarray:
     """All characters' visible joints, flattened per frame, over the stature: (F, D)."""
-    parts = [c.positions[:, _visible(c)].reshape(scene.n_frames, -1) / _stature(c)
-             for c in scene.characters]
+    parts = [
+        c.positions[:, _visible(c)].reshape(scene.n_frames, -1) / _stature(c)
+        for c in scene.characters
+    ]
     return np.concatenate(parts, axis=1)
 
 
@@ -165,10 +166,11 @@ def interpolation_error_table(x: np.ndarray, keys: np.ndarray) -> np.ndarray:
     cross = (a1 - tx_s) + tx_e  # sum x_i . ((1 - t) x_s + t x_e)
     su = L * (L + 1) / 2  # sum of u = i - s over 0..L
     suu = L * (L + 1) * (2 * L + 1) / 6
-    st, stt = su / L, suu / L ** 2  # sum t, sum t^2
+    st, stt = su / L, suu / L**2  # sum t, sum t^2
     ns = np.square(xk).sum(1)
-    quad = ((n - 2 * st + stt) * ns[:, None] + 2 * (st - stt) * (xk @ xk.T)
-            + stt * ns[None, :])  # sum |(1 - t) x_s + t x_e|^2
+    quad = (
+        (n - 2 * st + stt) * ns[:, None] + 2 * (st - stt) * (xk @ xk.T) + stt * ns[None, :]
+    )  # sum |(1 - t) x_s + t x_e|^2
     err = np.maximum(sq - 2 * cross + quad, 0.0)
     err[~(e > s)] = np.inf
     return err
@@ -200,7 +202,9 @@ def salient_frames(scene, k: int) -> list[int]:
     n_f = scene.n_frames
     if n_f < 3:
         return [0][:k]
-    cand = np.unique(np.linspace(0, n_f - 1, min(n_f, SALIENT_MAX_CANDIDATES)).round().astype(np.int64))
+    cand = np.unique(
+        np.linspace(0, n_f - 1, min(n_f, SALIENT_MAX_CANDIDATES)).round().astype(np.int64)
+    )
     err = interpolation_error_table(_trajectories(scene), cand)
     n_c = cand.size
 

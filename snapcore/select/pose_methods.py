@@ -42,16 +42,30 @@ from snapcore.select.pose_baselines import (
 )
 from snapcore.select.story import DEFAULT_STORY, StoryParameters, _roles_sides, story_information
 
-__all__ = ["POSE_METHODS", "DEFAULT_POSE_METHOD", "PAPER_OPTIONS", "PoseParams", "select_pose",
-           "run_pose_method", "story_interactions"]
+__all__ = [
+    "POSE_METHODS",
+    "DEFAULT_POSE_METHOD",
+    "PAPER_OPTIONS",
+    "PoseParams",
+    "select_pose",
+    "run_pose_method",
+    "story_interactions",
+]
 
 #: Every selector, the default first.
 POSE_METHODS = ("story", "paper", "stretch", "fastest", "middle", "random", "salient")
 #: What ``select_pose`` and ``snapshot select`` use unless told otherwise.
 DEFAULT_POSE_METHOD = "story"
 #: Options that only the ``paper`` method takes.
-PAPER_OPTIONS = ("w_local", "w_global", "events", "smooth_s", "rest_speed", "tolerances",
-                 "interactions")
+PAPER_OPTIONS = (
+    "w_local",
+    "w_global",
+    "events",
+    "smooth_s",
+    "rest_speed",
+    "tolerances",
+    "interactions",
+)
 
 
 @dataclass(frozen=True)
@@ -106,14 +120,20 @@ class PoseParams:
         """Keyword arguments of :func:`select_pose`: the method, ``k``,
         ``min_separation_s`` and the options of that method only."""
         out = {"method": self.method, "k": self.k, "min_separation_s": self.min_separation_s}
-        changed = [name for name in PAPER_OPTIONS if name != "interactions"
-                   and getattr(self, name) != getattr(_DEFAULT_PARAMS, name)]
+        changed = [
+            name
+            for name in PAPER_OPTIONS
+            if name != "interactions" and getattr(self, name) != getattr(_DEFAULT_PARAMS, name)
+        ]
         if changed and self.method != "paper":
-            raise ValueError(f"option(s) {', '.join(changed)} apply to the 'paper' pose "
-                             f"method only, not {self.method!r}")
+            raise ValueError(
+                f"option(s) {', '.join(changed)} apply to the 'paper' pose "
+                f"method only, not {self.method!r}"
+            )
         if self.method == "paper":
-            out.update({name: getattr(self, name) for name in PAPER_OPTIONS
-                        if name != "interactions"})
+            out.update(
+                {name: getattr(self, name) for name in PAPER_OPTIONS if name != "interactions"}
+            )
         elif self.method == "story" and self.story is not None:
             out["story"] = self.story
         elif self.method == "random":
@@ -139,10 +159,11 @@ def story_interactions(scene, info):
             j = int(_representative(c, js))
             for s, e in lc.intervals(li):
                 events.append(Event(ci, j, GROUND, int(s), int(e)))
-                act[s:e + 1, js] = True
+                act[s : e + 1, js] = True
         active.append(act)
-    return Interactions(events, active, [GROUND], scene.n_frames, float(scene.fps),
-                        DEFAULT_TOLERANCES)
+    return Interactions(
+        events, active, [GROUND], scene.n_frames, float(scene.fps), DEFAULT_TOLERANCES
+    )
 
 
 def _representative(character, joints) -> int:
@@ -155,22 +176,44 @@ def _representative(character, joints) -> int:
 
 
 def _empty_interactions(scene):
-    return Interactions([], [np.zeros((scene.n_frames, c.n_joints), dtype=bool)
-                             for c in scene.characters], [], scene.n_frames, float(scene.fps),
-                        DEFAULT_TOLERANCES)
+    return Interactions(
+        [],
+        [np.zeros((scene.n_frames, c.n_joints), dtype=bool) for c in scene.characters],
+        [],
+        scene.n_frames,
+        float(scene.fps),
+        DEFAULT_TOLERANCES,
+    )
 
 
 def _selection(scene, method, frames, *, terms, unit, interactions, k, sep_s, timings):
     total = np.sum(list(terms.values()), axis=0)
-    scores = PoseScores(method=method, total=total, terms=terms, unit=unit,
-                        interactions=interactions, fps=float(scene.fps))
-    return PoseSelection(index=int(frames[0]), indices=[int(f) for f in frames[:k]],
-                         scores=scores, min_separation_s=float(sep_s), timings_s=timings,
-                         method=method)
+    scores = PoseScores(
+        method=method,
+        total=total,
+        terms=terms,
+        unit=unit,
+        interactions=interactions,
+        fps=float(scene.fps),
+    )
+    return PoseSelection(
+        index=int(frames[0]),
+        indices=[int(f) for f in frames[:k]],
+        scores=scores,
+        min_separation_s=float(sep_s),
+        timings_s=timings,
+        method=method,
+    )
 
 
-def select_pose(scene, *, method: str | None = None, k: int = 3,
-                min_separation_s: float = MIN_SEPARATION_S, **options) -> PoseSelection:
+def select_pose(
+    scene,
+    *,
+    method: str | None = None,
+    k: int = 3,
+    min_separation_s: float = MIN_SEPARATION_S,
+    **options,
+) -> PoseSelection:
     """The most informative pose of ``scene`` by a named selector, and the top-k runners-up.
 
     Parameters
@@ -222,8 +265,16 @@ def select_pose(scene, *, method: str | None = None, k: int = 3,
     return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s, **options)
 
 
-def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float = 0.3,
-                    story=None, seed: int = 0, **options):
+def run_pose_method(
+    scene,
+    method: str,
+    *,
+    k: int = 3,
+    min_separation_s: float = 0.3,
+    story=None,
+    seed: int = 0,
+    **options,
+):
     """Run the named selector (see the module docstring).
 
     Parameters
@@ -248,8 +299,10 @@ def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float =
     if method not in POSE_METHODS or method == "paper":
         raise ValueError(f"method must be one of {', '.join(POSE_METHODS)}, got {method!r}")
     if options:
-        raise ValueError(f"option(s) {', '.join(sorted(options))} apply to the 'paper' pose "
-                         f"method only, not {method!r}")
+        raise ValueError(
+            f"option(s) {', '.join(sorted(options))} apply to the 'paper' pose "
+            f"method only, not {method!r}"
+        )
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
     sep = int(round(min_separation_s * fps))
@@ -260,20 +313,36 @@ def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float =
         total = info.total
         frames = top_peaks(total, int(k), min_separation=sep)
         if not float(total.max()) > float(total.min()):
-            warnings.warn("story information is the same at every frame (static clip?); "
-                          "choosing the first frame", stacklevel=3)
+            warnings.warn(
+                "story information is the same at every frame (static clip?); "
+                "choosing the first frame",
+                stacklevel=3,
+            )
         t1 = time.perf_counter()
-        timings = {"story": info.timings_s["story"], "select": t1 - t0 - info.timings_s["story"],
-                   "total": t1 - t0}
-        return _selection(scene, method, frames, terms=info.terms,
-                          unit="bits" if params.combine == "bits" else "normalised",
-                          interactions=story_interactions(scene, info), k=k,
-                          sep_s=min_separation_s, timings=timings)
+        timings = {
+            "story": info.timings_s["story"],
+            "select": t1 - t0 - info.timings_s["story"],
+            "total": t1 - t0,
+        }
+        return _selection(
+            scene,
+            method,
+            frames,
+            terms=info.terms,
+            unit="bits" if params.combine == "bits" else "normalised",
+            interactions=story_interactions(scene, info),
+            k=k,
+            sep_s=min_separation_s,
+            timings=timings,
+        )
     if method in ("stretch", "fastest"):
         raw = stretch_score(scene) if method == "stretch" else speed_score(scene)
         if not float(raw.max()) > float(raw.min()):
-            warnings.warn(f"the {method} score is the same at every frame (static clip?); "
-                          "choosing the first frame", stacklevel=3)
+            warnings.warn(
+                f"the {method} score is the same at every frame (static clip?); "
+                "choosing the first frame",
+                stacklevel=3,
+            )
         frames = top_peaks(raw, int(k), min_separation=sep)
         terms = {"stretch": raw} if method == "stretch" else {"speed": raw}
         unit = "statures" if method == "stretch" else "statures/s"
@@ -289,6 +358,14 @@ def run_pose_method(scene, method: str, *, k: int = 3, min_separation_s: float =
         terms, unit = {"rank": score}, "rank"
     t1 = time.perf_counter()
     timings = {"select": t1 - t0, "total": t1 - t0}
-    return _selection(scene, method, frames, terms=terms, unit=unit,
-                      interactions=_empty_interactions(scene), k=k, sep_s=min_separation_s,
-                      timings=timings)
+    return _selection(
+        scene,
+        method,
+        frames,
+        terms=terms,
+        unit=unit,
+        interactions=_empty_interactions(scene),
+        k=k,
+        sep_s=min_separation_s,
+        timings=timings,
+    )

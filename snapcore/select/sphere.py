@@ -104,8 +104,10 @@ def _sphere(n: int) -> np.ndarray:
         # hand-written subdivision this replaced)
         v = np.asarray(trimesh.creation.icosphere(subdivisions=ICOSPHERE_COUNTS[n]).vertices)
         tol = 1e-9
-        upper = (v[:, 1] > tol) | ((np.abs(v[:, 1]) <= tol) & (
-            (v[:, 2] > tol) | ((np.abs(v[:, 2]) <= tol) & (v[:, 0] > 0))))
+        upper = (v[:, 1] > tol) | (
+            (np.abs(v[:, 1]) <= tol)
+            & ((v[:, 2] > tol) | ((np.abs(v[:, 2]) <= tol) & (v[:, 0] > 0)))
+        )
         half = v[upper]
         if half.shape[0] != n // 2:  # pragma: no cover - the icosphere is centrally symmetric
             raise RuntimeError(f"icosphere of {n} points is not antipodally symmetric")
@@ -132,9 +134,9 @@ def _neighbours(n: int) -> np.ndarray:
     v = _sphere(n)
     out = np.empty((n, 6), dtype=np.intp)
     for i in range(0, n, 256):
-        d = v[i:i + 256] @ v.T
+        d = v[i : i + 256] @ v.T
         d[np.arange(d.shape[0]), np.arange(i, i + d.shape[0])] = -np.inf  # not itself
-        out[i:i + 256] = np.argpartition(-d, 6, axis=1)[:, :6]
+        out[i : i + 256] = np.argpartition(-d, 6, axis=1)[:, :6]
     return out
 
 
@@ -156,12 +158,12 @@ def abs_dot_sums(views, b) -> np.ndarray:
     rows, cols = SCORE_BLOCK
     buf = np.empty(SCORE_BLOCK)
     for i in range(0, views.shape[0], rows):
-        vi = views[i:i + rows]
+        vi = views[i : i + rows]
         for z in chunk_slices(b.shape[1], cols):
             blk = buf[: vi.shape[0], : z.stop - z.start]
             np.matmul(vi, b[:, z], out=blk)
             np.abs(blk, out=blk)
-            out[i:i + rows] += blk.sum(axis=1)
+            out[i : i + rows] += blk.sum(axis=1)
     return out
 
 
@@ -279,7 +281,7 @@ def _bin_geometry(res: int):
     radius = np.zeros(res * res)
     for di in (0, 1):
         for dj in (0, 1):
-            sc, tc = np.meshgrid(edges[di:res + di], edges[dj:res + dj], indexing="ij")
+            sc, tc = np.meshgrid(edges[di : res + di], edges[dj : res + dj], indexing="ij")
             cos = np.einsum("ij,ij->i", centres, unmap(sc, tc).reshape(-1, 3))
             radius = np.maximum(radius, np.arccos(np.clip(cos, -1.0, 1.0)))
     radius += 1e-9  # rounding of the bin index at cell borders
@@ -298,7 +300,7 @@ def _straddle_factors(n: int, res: int):
     half = _sphere(n)[: n // 2]
     rows, cols, vals = [], [], []
     for i in range(0, half.shape[0], 128):
-        alpha = np.arcsin(np.clip(np.abs(half[i:i + 128] @ centres.T), 0.0, 1.0))
+        alpha = np.arcsin(np.clip(np.abs(half[i : i + 128] @ centres.T), 0.0, 1.0))
         r_i, c_i = np.nonzero(alpha < radius)
         a, r = alpha[r_i, c_i], radius[c_i]
         rows.append(r_i + i)
@@ -361,9 +363,9 @@ def _grid_lower(views, gen):
     buf = np.empty((rows, g32.shape[1]), np.float32)
     for i in range(0, v32.shape[0], rows):
         blk = buf[: min(rows, v32.shape[0] - i)]
-        np.matmul(v32[i:i + rows], g32, out=blk)
+        np.matmul(v32[i : i + rows], g32, out=blk)
         np.abs(blk, out=blk)
-        out[i:i + rows] = blk.sum(axis=1)
+        out[i : i + rows] = blk.sum(axis=1)
     return out
 
 
@@ -511,5 +513,12 @@ def sphere_search(b, bn, n: int, *, refine: bool = True) -> SearchResult:
         score_grid = float(scores[i_grid])
     else:
         score_grid = float(abs_dot_sums(grid_view[None], b)[0])
-    return SearchResult(view=best_v, score=best_s, grid_index=i_grid, score_grid=score_grid,
-                        scores=scores, iterations=iters, certified=certified)
+    return SearchResult(
+        view=best_v,
+        score=best_s,
+        grid_index=i_grid,
+        score_grid=score_grid,
+        scores=scores,
+        iterations=iters,
+        certified=certified,
+    )

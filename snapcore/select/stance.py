@@ -20,13 +20,18 @@ import numpy as np
 from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
 from snapcore.select.pose import smooth_positions
 
-__all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor",
-           "stance_departure"]
+__all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor", "stance_departure"]
 
 #: Key joints of the pose descriptor where landmarks are missing: (role, side), the
 #: first joint of each found.
-_KEY_ROLES = (("head", ""), ("pelvis", ""), ("hand", "L"), ("hand", "R"), ("foot", "L"),
-              ("foot", "R"))
+_KEY_ROLES = (
+    ("head", ""),
+    ("pelvis", ""),
+    ("hand", "L"),
+    ("hand", "R"),
+    ("foot", "L"),
+    ("foot", "R"),
+)
 #: The key joints as landmarks (:func:`snapcore.motion.anatomy.body_landmarks`).
 _KEY_LANDMARKS = ("head", "pelvis", "wrist_L", "wrist_R", "ankle_L", "ankle_R")
 #: Frames (about; evenly spaced) on which :func:`neutral_stance` takes its medians.
@@ -126,8 +131,9 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
         None when the skeleton does not name a head, a pelvis and both arms and legs
         (:func:`snapcore.motion.anatomy.body_landmarks`).
     """
-    geometry = _stance_geometry(*_skeleton_key(character),
-                                np.asarray(character.skeleton.offsets, dtype=float).tobytes())
+    geometry = _stance_geometry(
+        *_skeleton_key(character), np.asarray(character.skeleton.offsets, dtype=float).tobytes()
+    )
     if geometry is None:
         return None
     idx, leg, spine, to_branch, arm = geometry
@@ -154,8 +160,16 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     # hands hang beside the thighs, outside the shoulder joints by about a thigh's
     # half-thickness (measured at rest on the shared rigs: 0.03-0.05 statures)
     wrist_x = sh_w + _HAND_OUTSET * stature
-    out = np.array([[0.0, head_h, 0.0], [0.0, pelvis_h, 0.0], [wrist_x, wrist_h, 0.0],
-                    [-wrist_x, wrist_h, 0.0], [hip_w, ankle_h, 0.0], [-hip_w, ankle_h, 0.0]])
+    out = np.array(
+        [
+            [0.0, head_h, 0.0],
+            [0.0, pelvis_h, 0.0],
+            [wrist_x, wrist_h, 0.0],
+            [-wrist_x, wrist_h, 0.0],
+            [hip_w, ankle_h, 0.0],
+            [-hip_w, ankle_h, 0.0],
+        ]
+    )
     return out if np.isfinite(out).all() else None
 
 
@@ -168,8 +182,18 @@ def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
     pelvis to that ancestor, shoulder to wrist (means of the two sides).
     """
     lm = body_landmarks(names, parents)
-    need = ("pelvis", "head", "shoulder_L", "shoulder_R", "wrist_L", "wrist_R", "hip_L",
-            "hip_R", "ankle_L", "ankle_R")
+    need = (
+        "pelvis",
+        "head",
+        "shoulder_L",
+        "shoulder_R",
+        "wrist_L",
+        "wrist_R",
+        "hip_L",
+        "hip_R",
+        "ankle_L",
+        "ankle_R",
+    )
     if any(lm.get(k) is None for k in need):
         return None
     par = np.asarray(parents)
@@ -186,11 +210,25 @@ def _stance_geometry(names: tuple, parents: tuple, offsets: bytes):
     branch = _common_ancestor(par, lm["shoulder_L"], lm["shoulder_R"])
     if branch is None or not np.isfinite(chain(pelvis, branch)):
         branch = pelvis
-    idx = np.array([lm["hip_L"], lm["hip_R"], lm["shoulder_L"], lm["shoulder_R"],
-                    lm["ankle_L"], lm["ankle_R"], pelvis, branch], dtype=np.int64)
-    sizes = (mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"])),
-             chain(pelvis, lm["head"]), chain(pelvis, branch),
-             mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"])))
+    idx = np.array(
+        [
+            lm["hip_L"],
+            lm["hip_R"],
+            lm["shoulder_L"],
+            lm["shoulder_R"],
+            lm["ankle_L"],
+            lm["ankle_R"],
+            pelvis,
+            branch,
+        ],
+        dtype=np.int64,
+    )
+    sizes = (
+        mean2(lambda s: chain(lm[f"hip_{s}"], lm[f"ankle_{s}"])),
+        chain(pelvis, lm["head"]),
+        chain(pelvis, branch),
+        mean2(lambda s: chain(lm[f"shoulder_{s}"], lm[f"wrist_{s}"])),
+    )
     if not np.isfinite(sizes).all():
         return None
     return (idx, *sizes)
@@ -210,8 +248,9 @@ def _common_ancestor(parents, a: int, b: int) -> int | None:
     return None
 
 
-def descriptor_of(points: np.ndarray, *, ground: float, stature: float,
-                  horizontal: bool = True) -> np.ndarray:
+def descriptor_of(
+    points: np.ndarray, *, ground: float, stature: float, horizontal: bool = True
+) -> np.ndarray:
     """:func:`pose_descriptor` of key-joint positions, shape (F, K + K (K - 1)).
 
     Parameters
@@ -235,15 +274,16 @@ def descriptor_of(points: np.ndarray, *, ground: float, stature: float,
     n_p = a.size
     out = np.empty((x.shape[0], k + (2 if horizontal else 1) * n_p))
     out[:, :k] = xc[1] - ground
-    out[:, k:k + n_p] = np.sqrt(flat + d[1])
+    out[:, k : k + n_p] = np.sqrt(flat + d[1])
     if horizontal:
-        out[:, k + n_p:] = np.sqrt(flat)
+        out[:, k + n_p :] = np.sqrt(flat)
     out /= stature
     return out
 
 
-def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0.05,
-                    horizontal: bool = True) -> np.ndarray:
+def pose_descriptor(
+    character, *, ground: float, fps: float, smooth_s: float = 0.05, horizontal: bool = True
+) -> np.ndarray:
     """Pose of every frame as quantities invariant to yaw, translation and unit.
 
     Parameters
@@ -272,8 +312,7 @@ def pose_descriptor(character, *, ground: float, fps: float, smooth_s: float = 0
     return descriptor_of(x, ground=ground, stature=_stature(character), horizontal=horizontal)
 
 
-def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
-                     ) -> np.ndarray:
+def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float) -> np.ndarray:
     """Self-information (bits) of each pose for a person standing at rest, shape (F,).
 
     Parameters
@@ -293,4 +332,4 @@ def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
         to a constant, 0 at the neutral stance.
     """
     z = np.asarray(features, dtype=float) - np.asarray(neutral, dtype=float)
-    return 0.5 * np.square(z).sum(axis=1) / (spread ** 2 * math.log(2.0))
+    return 0.5 * np.square(z).sum(axis=1) / (spread**2 * math.log(2.0))

@@ -115,8 +115,9 @@ _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
 #: thigh or upper arm is never a limb's lowest point while its knee or elbow is not,
 #: and finger joints lie within a few cm of the hand joint (leaving them out makes the
 #: contacts several times cheaper on skeletons with 30 finger joints).
-_CONTACT_ROLES = frozenset({"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine",
-                            "chest", "head"})
+_CONTACT_ROLES = frozenset(
+    {"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine", "chest", "head"}
+)
 #: How the pose and event terms are combined (:class:`StoryParameters`).
 COMBINE_MODES = ("bits", "normalised")
 #: Event-information models.
@@ -222,21 +223,26 @@ class StoryParameters:
             if isinstance(v, bool) or isinstance(v, str):
                 continue
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, "
-                                 f"got {v}")
+                raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, got {v}")
         if self.combine not in COMBINE_MODES:
-            raise ValueError(f"StoryParameters.combine must be one of "
-                             f"{', '.join(COMBINE_MODES)}, got {self.combine!r}")
+            raise ValueError(
+                f"StoryParameters.combine must be one of "
+                f"{', '.join(COMBINE_MODES)}, got {self.combine!r}"
+            )
         if not self.stance_spread > 0:
             raise ValueError(f"StoryParameters.stance_spread must be > 0, got {self.stance_spread}")
         if self.event_model not in EVENT_MODELS:
-            raise ValueError(f"StoryParameters.event_model must be one of "
-                             f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}")
+            raise ValueError(
+                f"StoryParameters.event_model must be one of "
+                f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}"
+            )
         if not self.shrinkage <= 1:
             raise ValueError(f"StoryParameters.shrinkage must be in [0, 1], got {self.shrinkage}")
         if self.release_height < self.support_height or self.release_speed < self.support_speed:
-            raise ValueError("StoryParameters: release thresholds must not be below the "
-                             "support thresholds (hysteresis)")
+            raise ValueError(
+                "StoryParameters: release thresholds must not be below the "
+                "support thresholds (hysteresis)"
+            )
         if self.w_pose + self.w_event <= 0:
             raise ValueError("StoryParameters: at least one of w_pose, w_event must be > 0")
 
@@ -410,8 +416,9 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     return b
 
 
-def debounced_contacts(character, *, ground: float, fps: float,
-                       params: StoryParameters = DEFAULT_STORY) -> LimbContacts:
+def debounced_contacts(
+    character, *, ground: float, fps: float, params: StoryParameters = DEFAULT_STORY
+) -> LimbContacts:
     """Ground contacts of one character, one per limb, debounced.
 
     Parameters
@@ -457,8 +464,9 @@ def debounced_contacts(character, *, ground: float, fps: float,
     h /= scale * p.support_height
     score = np.maximum(h, v)  # (F, U)
     col = {int(j): k for k, j in enumerate(used.tolist())}
-    limb_score = np.stack([score[:, [col[int(j)] for j in js]].min(axis=1) for js in joints],
-                          axis=1)  # (F, L)
+    limb_score = np.stack(
+        [score[:, [col[int(j)] for j in js]].min(axis=1) for js in joints], axis=1
+    )  # (F, L)
     off = min(p.release_height / p.support_height, p.release_speed / p.support_speed)
     if not p.debounce:
         off = 1.0
@@ -473,8 +481,9 @@ def debounced_contacts(character, *, ground: float, fps: float,
 # ----------------------------------------------------------------------- pose term
 
 
-def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
-                   ) -> np.ndarray:
+def pose_surprisal(
+    features: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
+) -> np.ndarray:
     """Self-information (bits) of each frame's pose under a Gaussian of the clip's poses.
 
     Parameters
@@ -499,7 +508,7 @@ def pose_surprisal(features: np.ndarray, *, shrinkage: float = 0.5, noise: float
     n_f, d = x.shape
     z = x - x.mean(axis=0)
     cov = (z.T @ z) / max(n_f - 1, 1)
-    cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise ** 2) * np.eye(d)
+    cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise**2) * np.eye(d)
     # Cholesky: C = L L^T, m^2 = |L^-1 z|^2; L^-1 of the small, well-conditioned (shrunk,
     # noise-widened) D x D factor once, then one matrix product over the frames (a
     # solve with F right-hand sides is 4x slower)
@@ -541,8 +550,9 @@ def _half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
     return k, r
 
 
-def event_surprisal(state: np.ndarray, *, fps: float, support_s: float = 0.2,
-                    sided: bool = True) -> np.ndarray:
+def event_surprisal(
+    state: np.ndarray, *, fps: float, support_s: float = 0.2, sided: bool = True
+) -> np.ndarray:
     """Information (bits) of the contact events, with temporal support, shape (F,).
 
     Parameters
@@ -582,8 +592,8 @@ def event_surprisal(state: np.ndarray, *, fps: float, support_s: float = 0.2,
         return onset + release
     # np.convolve(x, k)[i + r] = sum_t x[t] k[i - t + r]: kernel index r + (i - t), so the
     # "after" kernel (offsets >= 0) credits frames i >= t, its mirror frames i <= t
-    after = np.convolve(release, kernel)[r:r + n_f]
-    before = np.convolve(onset, kernel[::-1])[r:r + n_f]
+    after = np.convolve(release, kernel)[r : r + n_f]
+    before = np.convolve(onset, kernel[::-1])[r : r + n_f]
     return after + before
 
 
@@ -621,13 +631,14 @@ def temporal_support(values: np.ndarray, *, fps: float, support_s: float) -> np.
     r = int(math.ceil(3 * sigma))
     k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
     k /= k.sum()
-    return np.convolve(v, k)[r:r + v.size]
+    return np.convolve(v, k)[r : r + v.size]
 
 
 def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """Body role and side of each joint, read from the names (cached per skeleton)."""
-    return _roles_sides_of(tuple(character.joint_names),
-                           tuple(np.asarray(character.parents).tolist()))
+    return _roles_sides_of(
+        tuple(character.joint_names), tuple(np.asarray(character.parents).tolist())
+    )
 
 
 def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryInformation:
@@ -661,28 +672,35 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
     for c in scene.characters:
         ta = time.perf_counter()
         if p.w_pose > 0 and (p.novelty or p.stance):
-            feats = pose_descriptor(c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s,
-                                    horizontal=p.horizontal)
+            feats = pose_descriptor(
+                c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s, horizontal=p.horizontal
+            )
             if p.novelty:
-                novelty_bits += tail_surprisal(pose_surprisal(feats, shrinkage=p.shrinkage,
-                                                              noise=p.noise))
+                novelty_bits += tail_surprisal(
+                    pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
+                )
             if p.stance:
                 neutral = neutral_stance(c, ground=scene.ground)
                 if neutral is None:
-                    warnings.warn(f"{c.name}: the skeleton does not name a head, pelvis, arms "
-                                  "and legs; its pose term leaves out the departure from "
-                                  "a neutral stance", stacklevel=2)
+                    warnings.warn(
+                        f"{c.name}: the skeleton does not name a head, pelvis, arms "
+                        "and legs; its pose term leaves out the departure from "
+                        "a neutral stance",
+                        stacklevel=2,
+                    )
                 else:
-                    nd = descriptor_of(neutral[None], ground=0.0, stature=_stature(c),
-                                       horizontal=p.horizontal)[0]
+                    nd = descriptor_of(
+                        neutral[None], ground=0.0, stature=_stature(c), horizontal=p.horizontal
+                    )[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
         contacts.append(lc)
         if p.w_event > 0:
             if p.event_model == "surprisal":
-                event_bits += event_surprisal(lc.state, fps=fps, support_s=p.event_support_s,
-                                              sided=p.sided_support)
+                event_bits += event_surprisal(
+                    lc.state, fps=fps, support_s=p.event_support_s, sided=p.sided_support
+                )
             else:
                 event_bits += contact_state_entropy(lc.state)
         t_pose += tb - ta
@@ -692,16 +710,20 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
             bits[:] = 0.0
     pose_bits = stance_bits + novelty_bits
     if p.w_pose > 0 and not pose_bits.any():
-        warnings.warn("story pose information is constant over the clip (static clip?); "
-                      "it contributes 0", stacklevel=2)
+        warnings.warn(
+            "story pose information is constant over the clip (static clip?); it contributes 0",
+            stacklevel=2,
+        )
 
     def support(v):
         return temporal_support(v, fps=fps, support_s=p.support_s)
 
     if p.combine == "bits":
-        terms = {"stance": support(p.w_pose * stance_bits),
-                 "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
-                 "events": support(p.w_event * event_bits)}
+        terms = {
+            "stance": support(p.w_pose * stance_bits),
+            "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
+            "events": support(p.w_event * event_bits),
+        }
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # constant terms warned about above
@@ -709,7 +731,7 @@ def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryIn
             event = minmax(event_bits)
         terms = {"pose": support(p.w_pose * pose), "events": support(p.w_event * event)}
     total = np.sum(list(terms.values()), axis=0)
-    timings = {"pose_term": t_pose, "contacts_events": t_event,
-               "story": time.perf_counter() - t0}
-    return StoryInformation(stance_bits, novelty_bits, event_bits, terms, total, contacts, p,
-                            timings)
+    timings = {"pose_term": t_pose, "contacts_events": t_event, "story": time.perf_counter() - t0}
+    return StoryInformation(
+        stance_bits, novelty_bits, event_bits, terms, total, contacts, p, timings
+    )

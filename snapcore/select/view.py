@@ -164,7 +164,7 @@ class MotionTriangles:
             out = np.empty(self.n_triangles)
             for _, off, steps, links in self.blocks:
                 n = steps * len(links)
-                out[off:off + 2 * n].reshape(2, n)[:] = self.quads[off // 2:off // 2 + n]
+                out[off : off + 2 * n].reshape(2, n)[:] = self.quads[off // 2 : off // 2 + n]
             self._cache["quad_area"] = out
         return self._cache["quad_area"]
 
@@ -230,7 +230,9 @@ def _motion_sources(source, links):
     return out
 
 
-def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR_M2) -> MotionTriangles:
+def motion_triangles(
+    source, links=None, *, frames=None, floor: float = MA_FLOOR_M2
+) -> MotionTriangles:
     """Triangles swept by every link between consecutive frames (all characters).
 
     Parameters
@@ -253,7 +255,9 @@ def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR
     n_total = items[0][0].shape[0]
     start, stop = (0, n_total) if frames is None else (int(frames[0]), int(frames[1]))
     if not (0 <= start < stop <= n_total):
-        raise ViewError(f"frames must satisfy 0 <= start < stop <= {n_total}, got ({start}, {stop})")
+        raise ViewError(
+            f"frames must satisfy 0 <= start < stop <= {n_total}, got ({start}, {stop})"
+        )
     steps = stop - start - 1
     sizes = [2 * steps * np.asarray(lk).reshape(-1, 2).shape[0] for _, lk in items]
     k_total = int(sum(sizes))
@@ -267,14 +271,25 @@ def motion_triangles(source, links=None, *, frames=None, floor: float = MA_FLOOR
             raise ViewError(f"character {ci} has {x.shape[0]} frames, expected {n_total}")
         blocks.append((ci, off, steps, lk))
         if size:
-            _swept_block(np.asarray(x[start:stop], float), lk, floor,
-                         b_pma[:, off:off + size], n_pma[off:off + size],
-                         quads[off // 2:(off + size) // 2])
+            _swept_block(
+                np.asarray(x[start:stop], float),
+                lk,
+                floor,
+                b_pma[:, off : off + size],
+                n_pma[off : off + size],
+                quads[off // 2 : (off + size) // 2],
+            )
         off += size
     b_pma.setflags(write=False)
     n_pma.setflags(write=False)
-    return MotionTriangles(pma_vectors=b_pma, pma_norms=n_pma, quads=quads, frames=(start, stop),
-                           blocks=blocks, floor=float(floor))
+    return MotionTriangles(
+        pma_vectors=b_pma,
+        pma_norms=n_pma,
+        quads=quads,
+        frames=(start, stop),
+        blocks=blocks,
+        floor=float(floor),
+    )
 
 
 def _swept_block(x, links, floor, b_pma, n_pma, quads):
@@ -294,7 +309,7 @@ def _swept_block(x, links, floor, b_pma, n_pma, quads):
     for s0 in range(0, steps, cs):
         s1 = min(steps, s0 + cs)
         ac, nc = a[:, :, : s1 - s0], nrm[:, : s1 - s0]
-        xc = xt[:, s0:s1 + 1]
+        xc = xt[:, s0 : s1 + 1]
         p = np.take(xc, links[:, 0], axis=2)
         e = np.take(xc, links[:, 1], axis=2)
         e -= p  # link vectors (3, frames, L)
@@ -331,7 +346,9 @@ def _as_views(views) -> np.ndarray:
     if v.ndim == 1:
         v = v[None]
     if v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
-        raise ViewError(f"views must be a finite array of shape (n, 3), got shape {np.shape(views)}")
+        raise ViewError(
+            f"views must be a finite array of shape (n, 3), got shape {np.shape(views)}"
+        )
     return v
 
 
@@ -362,8 +379,9 @@ def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> 
 
 
 @one_blas_thread
-def refine_view(view, triangles: MotionTriangles, *, weighting: str = "pma",
-                max_iter: int = REFINE_MAX_ITER) -> RefineResult:
+def refine_view(
+    view, triangles: MotionTriangles, *, weighting: str = "pma", max_iter: int = REFINE_MAX_ITER
+) -> RefineResult:
     """Climb from ``view`` to a local maximum of ``Σ_k |b_k · v|``.
 
     Parameters
@@ -516,9 +534,17 @@ def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
 
 
 @one_blas_thread
-def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_views: int = 2562,
-                refine: bool = True, floor: float = MA_FLOOR_M2,
-                triangles: MotionTriangles | None = None) -> ViewSelection:
+def select_view(
+    scene,
+    *,
+    frame=None,
+    window_s=None,
+    method: str = "pma",
+    n_views: int = 2562,
+    refine: bool = True,
+    floor: float = MA_FLOOR_M2,
+    triangles: MotionTriangles | None = None,
+) -> ViewSelection:
     """The view of a scene that maximises PMA (or the motion area).
 
     Parameters
@@ -576,25 +602,49 @@ def select_view(scene, *, frame=None, window_s=None, method: str = "pma", n_view
     facing = scene_facing(scene, frames=frames)
     views = view_sphere(n_views)
     n = views.shape[0]
-    base = dict(method=method, views=np.array(views), frames=frames, window_s=window_s,
-                facing=facing, n_quads=triangles.n_quads, n_skipped=triangles.n_skipped)
+    base = dict(
+        method=method,
+        views=np.array(views),
+        frames=frames,
+        window_s=window_s,
+        facing=facing,
+        n_quads=triangles.n_quads,
+        n_skipped=triangles.n_skipped,
+    )
     if triangles.n_quads == 0:
-        warnings.warn(f"no link moves more than the noise floor ({triangles.floor:g} m²) in frames "
-                      f"{frames[0]}..{frames[1] - 1}: the view defaults to the facing direction",
-                      stacklevel=2)
+        warnings.warn(
+            f"no link moves more than the noise floor ({triangles.floor:g} m²) in frames "
+            f"{frames[0]}..{frames[1] - 1}: the view defaults to the facing direction",
+            stacklevel=2,
+        )
         nf = np.linalg.norm(facing)
         v = facing / nf if nf > 0 else np.array([0.0, 0.0, 1.0])
-        return ViewSelection(view=v, view_grid=v.copy(), score=0.0, score_grid=0.0,
-                             scores=np.zeros(n), side_rule="front" if nf > 0 else "fallback",
-                             **base)
-    found = sphere_search(triangles.vectors(method), triangles.vector_norms(method), n,
-                          refine=refine)
+        return ViewSelection(
+            view=v,
+            view_grid=v.copy(),
+            score=0.0,
+            score_grid=0.0,
+            scores=np.zeros(n),
+            side_rule="front" if nf > 0 else "fallback",
+            **base,
+        )
+    found = sphere_search(
+        triangles.vectors(method), triangles.vector_norms(method), n, refine=refine
+    )
     best_v, grid_view = found.view, views[found.grid_index]
     view, rule = choose_side(best_v, facing)
     view_grid, _ = choose_side(grid_view, facing)
-    return ViewSelection(view=np.array(view), view_grid=np.array(view_grid), score=found.score,
-                         score_grid=found.score_grid, scores=found.scores, side_rule=rule,
-                         iterations=found.iterations, certified=found.certified, **base)
+    return ViewSelection(
+        view=np.array(view),
+        view_grid=np.array(view_grid),
+        score=found.score,
+        score_grid=found.score_grid,
+        scores=found.scores,
+        side_rule=rule,
+        iterations=found.iterations,
+        certified=found.certified,
+        **base,
+    )
 
 
 # --------------------------------------------------------------- snapshot stage
@@ -623,7 +673,7 @@ def view_angles_deg(directions: dict) -> dict:
         unit[n] = v / norm
     out = {}
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             c = float(np.clip(unit[a] @ unit[b], -1.0, 1.0))
             out[f"{a}|{b}"] = float(np.degrees(np.arccos(c)))
     return out
@@ -650,6 +700,8 @@ def near_duplicate_views(angles: dict, threshold_deg: float) -> list[tuple[str, 
     """
     if not 0 <= threshold_deg <= 90:
         raise ValueError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
-    return [tuple(k.split("|", 1)) for k, a in angles.items()
-            if a < threshold_deg or a > 180.0 - threshold_deg]
-
+    return [
+        tuple(k.split("|", 1))
+        for k, a in angles.items()
+        if a < threshold_deg or a > 180.0 - threshold_deg
+    ]

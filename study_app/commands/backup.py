@@ -6,23 +6,39 @@ import click
 
 __all__ = ["backup", "restore", "DB_HELP"]
 
-DB_HELP = ("Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) or a .db "
-           "file. Default: $SNAPSHOT_DB, else var/study.db in the project.")
+DB_HELP = (
+    "Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) or a .db "
+    "file. Default: $SNAPSHOT_DB, else var/study.db in the project."
+)
 
 
 @click.command()
 @click.option("--db", "db_url", metavar="URL", default=None, help=DB_HELP)
-@click.option("-o", "--output", default=None, metavar="FILE",
-              type=click.Path(dir_okay=False),
-              help="The backup file (a SQLite database, or a pg_dump archive).")
-@click.option("--verify", "verify", metavar="FILE", default=None,
-              type=click.Path(dir_okay=False),
-              help="Instead of backing up: check that FILE, a backup, can be restored "
-                   "(integrity, study tables, references, pseudonym secrets); exit 2 if not.")
-@click.option("--method", type=click.Choice(["auto", "native", "logical"]), default="auto",
-              show_default=True,
-              help="native: SQLite's online backup API or pg_dump; logical: a copy of every "
-                   "table through SQLAlchemy into a SQLite file; auto: native when available.")
+@click.option(
+    "-o",
+    "--output",
+    default=None,
+    metavar="FILE",
+    type=click.Path(dir_okay=False),
+    help="The backup file (a SQLite database, or a pg_dump archive).",
+)
+@click.option(
+    "--verify",
+    "verify",
+    metavar="FILE",
+    default=None,
+    type=click.Path(dir_okay=False),
+    help="Instead of backing up: check that FILE, a backup, can be restored "
+    "(integrity, study tables, references, pseudonym secrets); exit 2 if not.",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["auto", "native", "logical"]),
+    default="auto",
+    show_default=True,
+    help="native: SQLite's online backup API or pg_dump; logical: a copy of every "
+    "table through SQLAlchemy into a SQLite file; auto: native when available.",
+)
 @click.option("--force", is_flag=True, help="Replace FILE if it exists.")
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
 def backup(db_url, output, verify, method, force, quiet):
@@ -49,23 +65,33 @@ def backup(db_url, output, verify, method, force, quiet):
         checked = verify_backup(verify)
         if not quiet:
             rows = ", ".join(f"{n} {t}" for t, n in checked.rows.items())
-            click.echo(f"{verify}: a sound {checked.method} backup"
-                       + (f" ({rows})" if rows else ""), err=True)
+            click.echo(
+                f"{verify}: a sound {checked.method} backup" + (f" ({rows})" if rows else ""),
+                err=True,
+            )
         return
 
     result = backup_database(db_url, output, method=method, force=force)
     if not quiet:
         rows = ", ".join(f"{n} {t}" for t, n in result.rows.items())
-        click.echo(f"backed up {mask_url(db_url) if db_url else 'the default database'} to "
-                   f"{result.path} ({result.method}{': ' + rows if rows else ''})", err=True)
+        click.echo(
+            f"backed up {mask_url(db_url) if db_url else 'the default database'} to "
+            f"{result.path} ({result.method}{': ' + rows if rows else ''})",
+            err=True,
+        )
 
 
 @click.command()
 @click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False))
 @click.option("--db", "db_url", metavar="URL", required=True, help=DB_HELP.split(" Default")[0])
-@click.option("--withdrawals-from", "withdrawals_from", metavar="URL", default=None,
-              help="The database the backup was taken from (or a later backup): every "
-                   "withdrawal recorded there is applied to the restored data.")
+@click.option(
+    "--withdrawals-from",
+    "withdrawals_from",
+    metavar="URL",
+    default=None,
+    help="The database the backup was taken from (or a later backup): every "
+    "withdrawal recorded there is applied to the restored data.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
 def restore(backup_file, db_url, withdrawals_from, quiet):
     """Restore a backup made by snapshot backup into an empty database.
@@ -84,13 +110,21 @@ def restore(backup_file, db_url, withdrawals_from, quiet):
     result = restore_database(backup_file, db_url, withdrawals_from=withdrawals_from)
     if not quiet:
         rows = ", ".join(f"{n} {t}" for t, n in result.rows.items())
-        click.echo(f"restored {backup_file} into {mask_url(db_url)} "
-                   f"({result.method}{': ' + rows if rows else ''})", err=True)
+        click.echo(
+            f"restored {backup_file} into {mask_url(db_url)} "
+            f"({result.method}{': ' + rows if rows else ''})",
+            err=True,
+        )
         if result.withdrawn:
-            click.echo(f"re-applied {len(result.withdrawn)} withdrawals recorded after the "
-                       f"backup: deleted participants {', '.join(result.withdrawn)}", err=True)
+            click.echo(
+                f"re-applied {len(result.withdrawn)} withdrawals recorded after the "
+                f"backup: deleted participants {', '.join(result.withdrawn)}",
+                err=True,
+            )
     if withdrawals_from is None:
         # Always said (also with -q): the restored data may hold people who withdrew.
-        click.echo("warning: withdrawals recorded after this backup was taken are not in it; "
-                   "give --withdrawals-from URL (the database it was taken from) to apply them",
-                   err=True)
+        click.echo(
+            "warning: withdrawals recorded after this backup was taken are not in it; "
+            "give --withdrawals-from URL (the database it was taken from) to apply them",
+            err=True,
+        )

@@ -11,37 +11,88 @@ __all__ = ["export"]
 
 
 @click.command()
-@click.option("--db", "db_url", metavar="URL", default=None,
-              help="Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) "
-                   "or a .db file. Default: $SNAPSHOT_DB, else var/study.db in the project.")
-@click.option("-o", "--output", default=None, metavar="PATH",
-              help="Output file: .csv, or .jsonl/.json (JSON lines); '-' for stdout.")
-@click.option("--format", "fmt", type=click.Choice(["csv", "jsonl"]), default=None,
-              help="Output format (default: from the output suffix; csv for stdout).")
-@click.option("--include-simulated", is_flag=True,
-              help="Also export simulated participants (left out by default).")
-@click.option("--participants", "participants_path", metavar="PATH", default=None,
-              type=click.Path(dir_okay=False),
-              help="Also write one row per participant (background, Prolific ids, "
-                   "completion) to this .csv/.jsonl file.")
-@click.option("--events", "events_path", metavar="PATH", default=None,
-              type=click.Path(dir_okay=False),
-              help="Also write the interaction events (plays, seeks...) as JSON lines.")
-@click.option("--psych-ds", "psych_ds", metavar="DIR", default=None,
-              type=click.Path(file_okay=False),
-              help="Also (or instead of -o) write a Psych-DS dataset to this new folder: "
-                   "dataset_description.json, data/study-<id>_data.csv (+ participants, "
-                   "events), materials/manifest.json.")
-@click.option("--stimuli", "stimuli_dir", metavar="DIR", default=None,
-              type=click.Path(file_okay=False, exists=True),
-              help="With --psych-ds: the stimuli folder whose manifest goes to materials/ "
-                   "(default: $SNAPSHOT_STIMULI when set).")
-@click.option("--identifiers", is_flag=True,
-              help="Write the raw participant, Prolific and session ids instead of "
-                   "pseudonyms (personal data: keep such files private).")
+@click.option(
+    "--db",
+    "db_url",
+    metavar="URL",
+    default=None,
+    help="Database URL (sqlite:///path/study.db, postgresql+psycopg://user@host/db) "
+    "or a .db file. Default: $SNAPSHOT_DB, else var/study.db in the project.",
+)
+@click.option(
+    "-o",
+    "--output",
+    default=None,
+    metavar="PATH",
+    help="Output file: .csv, or .jsonl/.json (JSON lines); '-' for stdout.",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["csv", "jsonl"]),
+    default=None,
+    help="Output format (default: from the output suffix; csv for stdout).",
+)
+@click.option(
+    "--include-simulated",
+    is_flag=True,
+    help="Also export simulated participants (left out by default).",
+)
+@click.option(
+    "--participants",
+    "participants_path",
+    metavar="PATH",
+    default=None,
+    type=click.Path(dir_okay=False),
+    help="Also write one row per participant (background, Prolific ids, "
+    "completion) to this .csv/.jsonl file.",
+)
+@click.option(
+    "--events",
+    "events_path",
+    metavar="PATH",
+    default=None,
+    type=click.Path(dir_okay=False),
+    help="Also write the interaction events (plays, seeks...) as JSON lines.",
+)
+@click.option(
+    "--psych-ds",
+    "psych_ds",
+    metavar="DIR",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Also (or instead of -o) write a Psych-DS dataset to this new folder: "
+    "dataset_description.json, data/study-<id>_data.csv (+ participants, "
+    "events), materials/manifest.json.",
+)
+@click.option(
+    "--stimuli",
+    "stimuli_dir",
+    metavar="DIR",
+    default=None,
+    type=click.Path(file_okay=False, exists=True),
+    help="With --psych-ds: the stimuli folder whose manifest goes to materials/ "
+    "(default: $SNAPSHOT_STIMULI when set).",
+)
+@click.option(
+    "--identifiers",
+    is_flag=True,
+    help="Write the raw participant, Prolific and session ids instead of "
+    "pseudonyms (personal data: keep such files private).",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
-def export(db_url, output, fmt, include_simulated, participants_path, events_path, psych_ds,
-           stimuli_dir, identifiers, quiet):
+def export(
+    db_url,
+    output,
+    fmt,
+    include_simulated,
+    participants_path,
+    events_path,
+    psych_ds,
+    stimuli_dir,
+    identifiers,
+    quiet,
+):
     """Export the study responses: one row per trial, validated against
     data_schema/response.schema.json before anything is written.
 
@@ -85,28 +136,43 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
                 from study_app.data.monitor import with_exclusions
 
                 n_part = write_participants(
-                    anon(with_exclusions(store, store.participants(
-                        include_simulated=include_simulated))),
-                    participants_path, drop=() if identifiers else OPEN_DROPPED)
+                    anon(
+                        with_exclusions(
+                            store, store.participants(include_simulated=include_simulated)
+                        )
+                    ),
+                    participants_path,
+                    drop=() if identifiers else OPEN_DROPPED,
+                )
             if events_path:
-                keep = {r["participant_id"] for r in store.participants(
-                    include_simulated=include_simulated)}
-                n_events = write_events(anon([e for e in store.events()
-                                              if e["participant_id"] in keep]), events_path)
+                keep = {
+                    r["participant_id"]
+                    for r in store.participants(include_simulated=include_simulated)
+                }
+                n_events = write_events(
+                    anon([e for e in store.events() if e["participant_id"] in keep]), events_path
+                )
         dataset = None
         if psych_ds is not None:
             from study_app.data.psychds import write_psych_ds
 
             stimuli_dir = stimuli_dir or os.environ.get("SNAPSHOT_STIMULI") or None
             try:
-                dataset = write_psych_ds(store, psych_ds, stimuli_dir=stimuli_dir,
-                                         pseudonymise=not identifiers,
-                                         include_simulated=include_simulated)
+                dataset = write_psych_ds(
+                    store,
+                    psych_ds,
+                    stimuli_dir=stimuli_dir,
+                    pseudonymise=not identifiers,
+                    include_simulated=include_simulated,
+                )
             except SnapshotError as err:
                 raise type(err)(f"--psych-ds {psych_ds}: {err}") from None
         url = store.url
-        n_simulated_only = 0 if include_simulated else \
-            store.progress(include_simulated=True)["responses"] - len(rows)
+        n_simulated_only = (
+            0
+            if include_simulated
+            else store.progress(include_simulated=True)["responses"] - len(rows)
+        )
     if not quiet:
         who = len({r["participant_id"] for r in rows})
         if n is not None:
@@ -117,11 +183,17 @@ def export(db_url, output, fmt, include_simulated, participants_path, events_pat
                 msg += f"; {n_events} events to {events_path}"
             click.echo(msg, err=True)
         if dataset is not None:
-            click.echo(f"wrote a Psych-DS dataset of {dataset['responses']} responses of "
-                       f"{dataset['participants']} participants to {psych_ds} "
-                       f"({len(dataset['files'])} files"
-                       + ("" if stimuli_dir else "; no materials/: give --stimuli DIR")
-                       + ")", err=True)
+            click.echo(
+                f"wrote a Psych-DS dataset of {dataset['responses']} responses of "
+                f"{dataset['participants']} participants to {psych_ds} "
+                f"({len(dataset['files'])} files"
+                + ("" if stimuli_dir else "; no materials/: give --stimuli DIR")
+                + ")",
+                err=True,
+            )
         if n_simulated_only:
-            click.echo(f"note: {n_simulated_only} responses of simulated participants were left "
-                       "out (add --include-simulated)", err=True)
+            click.echo(
+                f"note: {n_simulated_only} responses of simulated participants were left "
+                "out (add --include-simulated)",
+                err=True,
+            )

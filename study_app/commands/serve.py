@@ -12,20 +12,47 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @click.command()
-@click.option("--replicas", "n", type=click.IntRange(1, 32), default=2, show_default=True,
-              help="Streamlit processes (each uses about one core under load).")
-@click.option("--config", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Study config (default: the embedded demo).")
-@click.option("--stimuli", "stimuli_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="Stimuli folder. Default: var/stimuli/<study id>.")
-@click.option("--db", default=None,
-              help="Database URL for all replicas. Default: a PostgreSQL of the set's own "
-                   "under <run-dir>/pg (initdb once, data kept between runs).")
-@click.option("--port", type=click.IntRange(1024, 65535), default=8600, show_default=True,
-              help="nginx's port: the participants' address.")
-@click.option("--run-dir", type=click.Path(file_okay=False, path_type=Path),
-              default=REPO / "var" / "replicas", show_default=True,
-              help="Folder of the set: nginx.conf, logs, pid files, timings, the database.")
+@click.option(
+    "--replicas",
+    "n",
+    type=click.IntRange(1, 32),
+    default=2,
+    show_default=True,
+    help="Streamlit processes (each uses about one core under load).",
+)
+@click.option(
+    "--config",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Study config (default: the embedded demo).",
+)
+@click.option(
+    "--stimuli",
+    "stimuli_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Stimuli folder. Default: var/stimuli/<study id>.",
+)
+@click.option(
+    "--db",
+    default=None,
+    help="Database URL for all replicas. Default: a PostgreSQL of the set's own "
+    "under <run-dir>/pg (initdb once, data kept between runs).",
+)
+@click.option(
+    "--port",
+    type=click.IntRange(1024, 65535),
+    default=8600,
+    show_default=True,
+    help="nginx's port: the participants' address.",
+)
+@click.option(
+    "--run-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=REPO / "var" / "replicas",
+    show_default=True,
+    help="Folder of the set: nginx.conf, logs, pid files, timings, the database.",
+)
 def serve(n, config, stimuli_dir, db, port, run_dir):
     """Serve the study on several processes: N Streamlit replicas behind nginx, all on
     one PostgreSQL database, so a Prolific launch is not limited to one process.
@@ -50,8 +77,10 @@ def serve(n, config, stimuli_dir, db, port, run_dir):
         study_cfg = load_study(config or DEMO_CONFIG)
         stimuli_dir = default_stimuli_dir(study_cfg.id)
     if not (stimuli_dir / "manifest.json").exists():
-        raise StimuliError(f"no stimuli at {stimuli_dir}: build them with `snapshot stimuli "
-                           f"build` (or run `snapshot study` once for the demo)")
+        raise StimuliError(
+            f"no stimuli at {stimuli_dir}: build them with `snapshot stimuli "
+            f"build` (or run `snapshot study` once for the demo)"
+        )
     stim = load_stimuli(stimuli_dir)  # verified file by file before anyone is served
     if db is not None:
         from study_app.data.store import Store
@@ -59,8 +88,11 @@ def serve(n, config, stimuli_dir, db, port, run_dir):
         Store(db).close()  # a wrong URL stops here, in one line, before any process starts
     rs = ReplicaSet(root=run_dir, n=n, port=port, stimuli=stimuli_dir.resolve(), db_url=db)
     rs.start()
-    click.echo(f"study '{stim.study.id}' on {n} replica(s) "
-               f"({', '.join(str(p) for p in rs.replica_ports)}) behind nginx; database "
-               f"{rs.db_url.split('@')[-1]}", err=True)
+    click.echo(
+        f"study '{stim.study.id}' on {n} replica(s) "
+        f"({', '.join(str(p) for p in rs.replica_ports)}) behind nginx; database "
+        f"{rs.db_url.split('@')[-1]}",
+        err=True,
+    )
     click.echo(f"participants: {rs.url}   state: {run_dir / 'state.json'}", err=True)
     main_loop(rs)

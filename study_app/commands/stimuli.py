@@ -22,9 +22,19 @@ def stimuli():
 
 @stimuli.command("build")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--out", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Folder to write (must not exist unless --force).")
-@click.option("--force", is_flag=True, help="Point an existing folder at the new build (earlier builds are kept in FOLDER.sets/).")
+@click.option(
+    "-o",
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder to write (must not exist unless --force).",
+)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Point an existing folder at the new build (earlier builds are kept in FOLDER.sets/).",
+)
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def build(config: Path, out: Path, force: bool, quiet: bool):
     """Run the selection on each scene of study CONFIG and write its stimuli to --out.
@@ -45,8 +55,11 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     for e in s.manifest["scenes"]:
         angles = e.get("view_angles") or {}
         flag = "  NEAR-DUPLICATE" if e.get("near_duplicates") else ""
-        click.echo(f"  {e['id']}: " + ", ".join(f"{k.replace('|', '/')} {v:.1f}°"
-                                                 for k, v in angles.items()) + flag)
+        click.echo(
+            f"  {e['id']}: "
+            + ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
+            + flag
+        )
 
 
 @stimuli.command("verify")
@@ -56,5 +69,7 @@ def verify(folder: Path):
     from study_app.design.stimuli import load_stimuli
 
     s = load_stimuli(folder)
-    click.echo(f"{folder}: ok ({len(s.manifest['files'])} files, study {s.study.id}, "
-               f"manifest sha256 {s.sha256})")
+    click.echo(
+        f"{folder}: ok ({len(s.manifest['files'])} files, study {s.study.id}, "
+        f"manifest sha256 {s.sha256})"
+    )

@@ -55,8 +55,15 @@ from .database import (
 from .database import _utc as _as_utc
 from .errors import StoreError
 
-__all__ = ["BACKUP_METHODS", "BackupResult", "backup", "restore", "verify_backup",
-           "find_pg_tool", "table_counts"]
+__all__ = [
+    "BACKUP_METHODS",
+    "BackupResult",
+    "backup",
+    "restore",
+    "verify_backup",
+    "find_pg_tool",
+    "table_counts",
+]
 
 #: Values of ``method``.
 BACKUP_METHODS = ("auto", "native", "logical")
@@ -92,11 +99,11 @@ class BackupResult:
 
 def find_pg_tool(name: str) -> Path | None:
     """``pg_dump``/``pg_restore``: the newest ``/usr/lib/postgresql/*/bin`` one, else PATH."""
+
     def version(p: str) -> list[int]:
         return [int(t) for t in Path(p).parent.parent.name.split(".") if t.isdigit()]
 
-    for path in sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"), key=version,
-                       reverse=True):
+    for path in sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"), key=version, reverse=True):
         if os.access(path, os.X_OK):
             return Path(path)
     found = shutil.which(name)
@@ -160,8 +167,9 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
             tool = find_pg_tool("pg_dump")
             result = None
             if tool is None and method == "native":
-                raise StoreError("pg_dump is not installed (install postgresql-client, or use "
-                                 "--method logical)")
+                raise StoreError(
+                    "pg_dump is not installed (install postgresql-client, or use --method logical)"
+                )
             if tool is not None:
                 result = _pg_dump(tool, parsed, tmp, fallback=method == "auto")
             if result is None:
@@ -195,8 +203,12 @@ def _libpq(parsed) -> tuple[str, dict]:
     (never on the command line, where other users could read it)."""
     from psycopg.conninfo import make_conninfo
 
-    params = {"host": parsed.host, "port": parsed.port, "user": parsed.username,
-              "dbname": parsed.database}
+    params = {
+        "host": parsed.host,
+        "port": parsed.port,
+        "user": parsed.username,
+        "dbname": parsed.database,
+    }
     params.update({k: v for k, v in parsed.query.items() if isinstance(v, str)})
     env = dict(os.environ)
     if parsed.password is not None:
@@ -211,9 +223,20 @@ def _first_error(text: str) -> str:
 
 def _pg_dump(tool: Path, parsed, tmp: Path, *, fallback: bool) -> BackupResult | None:
     conninfo, env = _libpq(parsed)
-    proc = subprocess.run([str(tool), "--format=custom", "--no-owner", "--no-privileges",
-                           f"--file={tmp}", f"--dbname={conninfo}"],
-                          capture_output=True, text=True, env=env, timeout=_PG_TIMEOUT_S)
+    proc = subprocess.run(
+        [
+            str(tool),
+            "--format=custom",
+            "--no-owner",
+            "--no-privileges",
+            f"--file={tmp}",
+            f"--dbname={conninfo}",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=_PG_TIMEOUT_S,
+    )
     if proc.returncode == 0:
         return BackupResult(tmp, "pg_dump")
     message = _first_error(proc.stderr)
@@ -282,11 +305,13 @@ def verify_backup(backup_file) -> BackupResult:
         tool = find_pg_tool("pg_restore")
         if tool is None:
             raise StoreError("pg_restore is not installed (install postgresql-client)")
-        proc = subprocess.run([str(tool), "--list", str(path)], capture_output=True, text=True,
-                              timeout=_PG_TIMEOUT_S)
+        proc = subprocess.run(
+            [str(tool), "--list", str(path)], capture_output=True, text=True, timeout=_PG_TIMEOUT_S
+        )
         if proc.returncode != 0:
-            raise StoreError(f"{path}: not a readable pg_dump archive "
-                             f"({_first_error(proc.stderr)})")
+            raise StoreError(
+                f"{path}: not a readable pg_dump archive ({_first_error(proc.stderr)})"
+            )
         return BackupResult(path, "pg_dump")
     import sqlite3
 
@@ -303,18 +328,29 @@ def verify_backup(backup_file) -> BackupResult:
                 raise StoreError(f"{path}: not a study backup ({', '.join(missing)} missing)")
             orphans = con.execute("PRAGMA foreign_key_check").fetchall()
             if orphans:
-                raise StoreError(f"{path}: {len(orphans)} rows refer to missing rows (first in "
-                                 f"table {orphans[0][0]})")
-            rows = {t: con.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0]
-                    for t in (t.name for t in metadata.sorted_tables) if t in names}
+                raise StoreError(
+                    f"{path}: {len(orphans)} rows refer to missing rows (first in "
+                    f"table {orphans[0][0]})"
+                )
+            rows = {
+                t: con.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0]
+                for t in (t.name for t in metadata.sorted_tables)
+                if t in names
+            }
             if "study_secrets" in names:
-                keyless = [r[0] for r in con.execute(
-                    "SELECT DISTINCT study_id FROM participants WHERE study_id NOT IN "
-                    "(SELECT study_id FROM study_secrets)")]
+                keyless = [
+                    r[0]
+                    for r in con.execute(
+                        "SELECT DISTINCT study_id FROM participants WHERE study_id NOT IN "
+                        "(SELECT study_id FROM study_secrets)"
+                    )
+                ]
                 if keyless:
-                    raise StoreError(f"{path}: no pseudonym secret for study "
-                                     f"{', '.join(map(repr, keyless))} (its exports from this "
-                                     "backup would get new pseudonyms)")
+                    raise StoreError(
+                        f"{path}: no pseudonym secret for study "
+                        f"{', '.join(map(repr, keyless))} (its exports from this "
+                        "backup would get new pseudonyms)"
+                    )
         finally:
             con.close()
     except sqlite3.Error as err:
@@ -330,8 +366,10 @@ def _withdrawal_records(url) -> list[dict]:
     with Store(url, create=False) as src, src.transaction(write=False) as conn:
         if not sa.inspect(conn).has_table("withdrawals"):
             return []
-        return [{k: _as_utc(v) for k, v in r.items()}
-                for r in conn.execute(sa.select(withdrawals)).mappings()]
+        return [
+            {k: _as_utc(v) for k, v in r.items()}
+            for r in conn.execute(sa.select(withdrawals)).mappings()
+        ]
 
 
 def _reapply(conn, records) -> list[str]:
@@ -340,10 +378,16 @@ def _reapply(conn, records) -> list[str]:
     from .database import events, exclusions, participants, responses, withdrawals
 
     ids = [r["participant_id"] for r in records]
-    present = set(conn.execute(sa.select(participants.c.participant_id).where(
-        participants.c.participant_id.in_(ids))).scalars())
-    known = set(conn.execute(sa.select(withdrawals.c.participant_id).where(
-        withdrawals.c.participant_id.in_(ids))).scalars())
+    present = set(
+        conn.execute(
+            sa.select(participants.c.participant_id).where(participants.c.participant_id.in_(ids))
+        ).scalars()
+    )
+    known = set(
+        conn.execute(
+            sa.select(withdrawals.c.participant_id).where(withdrawals.c.participant_id.in_(ids))
+        ).scalars()
+    )
     done = []
     for rec in records:
         pid = rec["participant_id"]
@@ -352,8 +396,7 @@ def _reapply(conn, records) -> list[str]:
                 conn.execute(table.delete().where(table.c.participant_id == pid))
             done.append(pid)
         if pid not in known:
-            conn.execute(withdrawals.insert().values(
-                {k: v for k, v in rec.items() if k != "id"}))
+            conn.execute(withdrawals.insert().values({k: v for k, v in rec.items() if k != "id"}))
     return done
 
 
@@ -389,8 +432,10 @@ def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
     kind = _kind(path)
     target = normalize_url(url)
     if kind == "pg_dump" and target.get_backend_name() != "postgresql":
-        raise StoreError(f"{path} is a pg_dump archive: it restores only into PostgreSQL, "
-                         f"not {target.get_backend_name()}")
+        raise StoreError(
+            f"{path} is a pg_dump archive: it restores only into PostgreSQL, "
+            f"not {target.get_backend_name()}"
+        )
     verify_backup(path)  # a damaged backup is named before the target is touched
     records = None if withdrawals_from is None else _withdrawal_records(withdrawals_from)
     new_file = None
@@ -415,9 +460,11 @@ def _restore_into(store, path, kind, target, records) -> BackupResult:
     counts = table_counts(store.engine)
     held = {t: n for t, n in counts.items() if n}
     if held:
-        raise StoreError(f"database {store.url} already holds data ("
-                         + ", ".join(f"{n} {t}" for t, n in held.items())
-                         + "); restore only into an empty database")
+        raise StoreError(
+            f"database {store.url} already holds data ("
+            + ", ".join(f"{n} {t}" for t, n in held.items())
+            + "); restore only into an empty database"
+        )
     if kind == "pg_dump":
         result = _pg_restore(path, target, clean=bool(counts))
         if records:
@@ -433,8 +480,15 @@ def _pg_restore(path: Path, target, *, clean: bool) -> BackupResult:
         raise StoreError("pg_restore is not installed (install postgresql-client)")
     conninfo, env = _libpq(target)
     # --clean only replaces the empty tables checked above.
-    args = [str(tool), "--no-owner", "--no-privileges", "--single-transaction",
-            "--exit-on-error", f"--dbname={conninfo}", str(path)]
+    args = [
+        str(tool),
+        "--no-owner",
+        "--no-privileges",
+        "--single-transaction",
+        "--exit-on-error",
+        f"--dbname={conninfo}",
+        str(path),
+    ]
     if clean:
         args[1:1] = ["--clean", "--if-exists"]
     proc = subprocess.run(args, capture_output=True, text=True, env=env, timeout=_PG_TIMEOUT_S)

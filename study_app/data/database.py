@@ -20,12 +20,34 @@ from sqlalchemy import exc as sa_exc
 
 from .errors import StoreError
 
-__all__ = ["one_line", "standalone_sqlite", "move_sequences", "table_counts", "one_snapshot",
-           "copy_tables", "table_names", "metadata", "participants", "responses", "events", "withdrawals", "study_secrets",
-           "exclusions", "study_controls",
-           "STUDY_TABLES", "PROLIFIC_INDEX", "add_missing_columns", "create_tables", "upgrade_columns",
-           "default_url", "mask_url", "normalize_url", "configure_sqlite",
-           "ensure_postgres_database", "SQLITE_BUSY_TIMEOUT_MS"]
+__all__ = [
+    "one_line",
+    "standalone_sqlite",
+    "move_sequences",
+    "table_counts",
+    "one_snapshot",
+    "copy_tables",
+    "table_names",
+    "metadata",
+    "participants",
+    "responses",
+    "events",
+    "withdrawals",
+    "study_secrets",
+    "exclusions",
+    "study_controls",
+    "STUDY_TABLES",
+    "PROLIFIC_INDEX",
+    "add_missing_columns",
+    "create_tables",
+    "upgrade_columns",
+    "default_url",
+    "mask_url",
+    "normalize_url",
+    "configure_sqlite",
+    "ensure_postgres_database",
+    "SQLITE_BUSY_TIMEOUT_MS",
+]
 
 #: How long (ms) a SQLite writer waits for another writer's lock before giving up.
 SQLITE_BUSY_TIMEOUT_MS = 30_000
@@ -40,7 +62,8 @@ _TEXT = sa.String(200)
 metadata = sa.MetaData()
 
 participants = sa.Table(
-    "participants", metadata,
+    "participants",
+    metadata,
     sa.Column("participant_id", _ID, primary_key=True),
     sa.Column("study_id", _TEXT, nullable=False),
     sa.Column("seed", sa.BigInteger, nullable=False),
@@ -57,10 +80,10 @@ participants = sa.Table(
 )
 
 responses = sa.Table(
-    "responses", metadata,
+    "responses",
+    metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
-              nullable=False),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"), nullable=False),
     sa.Column("trial_index", sa.Integer, nullable=False),
     sa.Column("task", sa.String(16), nullable=False),
     sa.Column("scene", _TEXT, nullable=False),
@@ -93,10 +116,10 @@ responses = sa.Table(
 )
 
 events = sa.Table(
-    "events", metadata,
+    "events",
+    metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"),
-              nullable=False),
+    sa.Column("participant_id", _ID, sa.ForeignKey("participants.participant_id"), nullable=False),
     sa.Column("trial_index", sa.Integer),
     sa.Column("kind", sa.String(32), nullable=False),
     sa.Column("payload", sa.JSON),
@@ -108,7 +131,8 @@ sa.Index("ix_events_participant", events.c.participant_id, events.c.trial_index)
 #: Prolific id, so that a returning Prolific participant is not enrolled again) and
 #: nothing they answered. No foreign key: the participant's row no longer exists.
 withdrawals = sa.Table(
-    "withdrawals", metadata,
+    "withdrawals",
+    metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
     sa.Column("participant_id", _ID, nullable=False, unique=True),
     sa.Column("study_id", _TEXT, nullable=False),
@@ -121,7 +145,8 @@ sa.Index("ix_withdrawals_prolific", withdrawals.c.study_id, withdrawals.c.prolif
 #: The per-study key of the pseudonyms in exports (study_app.data.pseudonym). Backed up with
 #: the rest (a restored database pseudonymises exactly as before), never exported.
 study_secrets = sa.Table(
-    "study_secrets", metadata,
+    "study_secrets",
+    metadata,
     sa.Column("study_id", _TEXT, primary_key=True),
     sa.Column("secret", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
@@ -131,7 +156,8 @@ study_secrets = sa.Table(
 #: bot...): their data stay, with the reason. No foreign key, like withdrawals: a
 #: withdrawal deletes the participant and this row with them (study_app.data.monitor).
 exclusions = sa.Table(
-    "exclusions", metadata,
+    "exclusions",
+    metadata,
     sa.Column("participant_id", _ID, primary_key=True),
     sa.Column("study_id", _TEXT, nullable=False),
     sa.Column("reason", sa.String(500), nullable=False),
@@ -141,7 +167,8 @@ exclusions = sa.Table(
 #: Recruitment switches of a study (study_app.data.monitor): closed to new
 #: participants, and a cap on how many may start. One row per study, absent = open.
 study_controls = sa.Table(
-    "study_controls", metadata,
+    "study_controls",
+    metadata,
     sa.Column("study_id", _TEXT, primary_key=True),
     sa.Column("closed", sa.Boolean, nullable=False, default=False),
     sa.Column("cap", sa.Integer),
@@ -154,8 +181,12 @@ STUDY_TABLES = ("participants", "responses", "events")
 
 #: One Prolific id, one participant per study: a returning participant resumes their
 #: record from any browser (NULLs, i.e. no Prolific id, do not collide).
-PROLIFIC_INDEX = sa.Index("uq_participants_study_prolific", participants.c.study_id,
-                          participants.c.prolific_pid, unique=True)
+PROLIFIC_INDEX = sa.Index(
+    "uq_participants_study_prolific",
+    participants.c.study_id,
+    participants.c.prolific_pid,
+    unique=True,
+)
 
 
 # ----------------------------------------------------------------------------- URLs
@@ -193,9 +224,11 @@ def normalize_url(url: str | None) -> sa.engine.URL:
     try:
         parsed = sa.engine.make_url(text)
     except sa_exc.ArgumentError:
-        raise StoreError(f"{mask_url(text)}: not a database URL "
-                         "(expected e.g. sqlite:///path/study.db or "
-                         "postgresql+psycopg://user@host/db)") from None
+        raise StoreError(
+            f"{mask_url(text)}: not a database URL "
+            "(expected e.g. sqlite:///path/study.db or "
+            "postgresql+psycopg://user@host/db)"
+        ) from None
     if parsed.drivername in ("postgresql", "postgres"):
         parsed = parsed.set(drivername="postgresql+psycopg")
     return parsed
@@ -221,12 +254,16 @@ def move_sequences(conn) -> None:
     insert would collide."""
     for table in metadata.sorted_tables:
         for col in table.primary_key.columns:
-            if col.autoincrement is True or (isinstance(col.type, sa.Integer)
-                                             and col.autoincrement == "auto"):
-                conn.execute(sa.text(
-                    f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
-                    f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
-                    f"FROM {table.name}"))
+            if col.autoincrement is True or (
+                isinstance(col.type, sa.Integer) and col.autoincrement == "auto"
+            ):
+                conn.execute(
+                    sa.text(
+                        f"SELECT setval(pg_get_serial_sequence('{table.name}', '{col.name}'), "
+                        f"COALESCE(MAX({col.name}), 1), MAX({col.name}) IS NOT NULL) "
+                        f"FROM {table.name}"
+                    )
+                )
 
 
 #: Rows per INSERT batch when :func:`copy_tables` copies a table.
@@ -245,8 +282,11 @@ def table_counts(engine) -> dict[str, int]:
     """Rows per study table present in the database."""
     with engine.connect() as conn:
         present = set(sa.inspect(conn).get_table_names())
-        return {t.name: int(conn.execute(sa.select(sa.func.count()).select_from(t)).scalar())
-                for t in metadata.sorted_tables if t.name in present}
+        return {
+            t.name: int(conn.execute(sa.select(sa.func.count()).select_from(t)).scalar())
+            for t in metadata.sorted_tables
+            if t.name in present
+        }
 
 
 def one_snapshot(conn):
@@ -254,8 +294,7 @@ def one_snapshot(conn):
     repeatable-read transaction, which never blocks the app's writers; SQLite's one
     transaction is a snapshot already)."""
     if conn.dialect.name == "postgresql":
-        return conn.execution_options(isolation_level="REPEATABLE READ",
-                                      postgresql_readonly=True)
+        return conn.execution_options(isolation_level="REPEATABLE READ", postgresql_readonly=True)
     return conn
 
 
@@ -280,8 +319,7 @@ def copy_tables(src_conn, dst_conn, names) -> dict[str, int]:
     return rows
 
 
-def ensure_postgres_database(*, host: str, port: int, user: str, password: str,
-                             name: str) -> None:
+def ensure_postgres_database(*, host: str, port: int, user: str, password: str, name: str) -> None:
     """Create the database ``name`` on a PostgreSQL server unless it exists.
 
     Parameters
@@ -293,10 +331,10 @@ def ensure_postgres_database(*, host: str, port: int, user: str, password: str,
     """
     import psycopg
 
-    with psycopg.connect(host=host, port=port, user=user, password=password,
-                         dbname="postgres", autocommit=True) as conn:
-        if not conn.execute("SELECT 1 FROM pg_database WHERE datname = %s",
-                            (name,)).fetchone():
+    with psycopg.connect(
+        host=host, port=port, user=user, password=password, dbname="postgres", autocommit=True
+    ) as conn:
+        if not conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (name,)).fetchone():
             conn.execute(f'CREATE DATABASE "{name}"')
 
 
@@ -337,7 +375,7 @@ def add_missing_columns(engine) -> list[str]:
                 if col.name in have or not col.nullable:
                     continue
                 kind = col.type.compile(dialect=conn.dialect)
-                conn.execute(sa.text(f'ALTER TABLE {table.name} ADD COLUMN {col.name} {kind}'))
+                conn.execute(sa.text(f"ALTER TABLE {table.name} ADD COLUMN {col.name} {kind}"))
                 added.append(f"{table.name}.{col.name}")
     return added
 

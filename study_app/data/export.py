@@ -26,9 +26,18 @@ from snapcore.schema import load_schema, validate
 from .errors import StoreError
 
 __all__ = [
-    "export_columns", "export_types", "validate_rows", "write_export", "read_export",
-    "export_format", "participants_columns", "write_participants", "events_columns", "write_events",
-    "EXPORT_FORMATS", "BACKGROUND_FIELDS",
+    "export_columns",
+    "export_types",
+    "validate_rows",
+    "write_export",
+    "read_export",
+    "export_format",
+    "participants_columns",
+    "write_participants",
+    "events_columns",
+    "write_events",
+    "EXPORT_FORMATS",
+    "BACKGROUND_FIELDS",
 ]
 
 EXPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".json": "jsonl"}
@@ -75,8 +84,10 @@ def validate_rows(rows, *, source: str = "export") -> None:
         Naming the row (1-based), its participant and trial, and the field.
     """
     for i, row in enumerate(rows, start=1):
-        where = (f"{source}: row {i} (participant {row.get('participant_id')!r}, "
-                 f"trial {row.get('trial_index')!r})")
+        where = (
+            f"{source}: row {i} (participant {row.get('participant_id')!r}, "
+            f"trial {row.get('trial_index')!r})"
+        )
         validate(row, "response", source=where)
 
 
@@ -88,8 +99,10 @@ def export_format(path, fmt: str | None = None) -> str:
         return fmt
     suffix = Path(str(path)).suffix.lower()
     if suffix not in EXPORT_FORMATS:
-        raise StoreError(f"{path}: cannot tell the format from the suffix "
-                         f"(use {', '.join(EXPORT_FORMATS)} or --format)")
+        raise StoreError(
+            f"{path}: cannot tell the format from the suffix "
+            f"(use {', '.join(EXPORT_FORMATS)} or --format)"
+        )
     return EXPORT_FORMATS[suffix]
 
 
@@ -286,4 +299,3 @@ def read_export(path, *, fmt: str | None = None, validate: bool = True) -> list[
     if validate:
         validate_rows(rows, source=str(path))
     return rows
-

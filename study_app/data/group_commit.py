@@ -90,8 +90,8 @@ class GroupCommit:
                 if job.done:
                     return self._outcome(job)
                 self._leading = True
-                batch = self._queue[:self._max_batch]
-                del self._queue[:self._max_batch]
+                batch = self._queue[: self._max_batch]
+                del self._queue[: self._max_batch]
             # Our job is in this batch unless more than max_batch jobs queued before it:
             # then we lead the oldest ones and go round again.
             try:

@@ -24,9 +24,18 @@ import sqlalchemy as sa
 from .database import _utc, events, exclusions, participants, responses, study_controls
 from .errors import StoreError
 
-__all__ = ["TIMEOUT_S", "STATES", "monitor_rows", "exclude", "excluded_ids", "with_exclusions",
-           "controls",
-           "set_controls", "enrolment", "completion_codes"]
+__all__ = [
+    "TIMEOUT_S",
+    "STATES",
+    "monitor_rows",
+    "exclude",
+    "excluded_ids",
+    "with_exclusions",
+    "controls",
+    "set_controls",
+    "enrolment",
+    "completion_codes",
+]
 
 #: Seconds without an answer or a player event after which a participant who has not
 #: finished counts as timed out (the study's own estimate is ~10 minutes).
@@ -39,8 +48,14 @@ def _now() -> datetime:
     return datetime.now(UTC)
 
 
-def monitor_rows(store, study_id: str, *, n_trials: int, now: datetime | None = None,
-                 timeout_s: float = TIMEOUT_S) -> list[dict]:
+def monitor_rows(
+    store,
+    study_id: str,
+    *,
+    n_trials: int,
+    now: datetime | None = None,
+    timeout_s: float = TIMEOUT_S,
+) -> list[dict]:
     """One row per participant of the study (simulated ones left out), newest first.
 
     Parameters
@@ -59,28 +74,50 @@ def monitor_rows(store, study_id: str, *, n_trials: int, now: datetime | None = 
         last activity, 0 when finished), ``reason`` (of an exclusion, else None).
     """
     now = now or _now()
-    n_resp = (sa.select(responses.c.participant_id, sa.func.count().label("n"),
-                        sa.func.max(responses.c.created_at).label("last"))
-              .group_by(responses.c.participant_id).subquery())
-    n_ev = (sa.select(events.c.participant_id, sa.func.max(events.c.created_at).label("last"))
-            .group_by(events.c.participant_id).subquery())
+    n_resp = (
+        sa.select(
+            responses.c.participant_id,
+            sa.func.count().label("n"),
+            sa.func.max(responses.c.created_at).label("last"),
+        )
+        .group_by(responses.c.participant_id)
+        .subquery()
+    )
+    n_ev = (
+        sa.select(events.c.participant_id, sa.func.max(events.c.created_at).label("last"))
+        .group_by(events.c.participant_id)
+        .subquery()
+    )
     p = participants
-    query = (sa.select(p.c.participant_id, p.c.prolific_pid, p.c.created_at, p.c.completed_at,
-                       n_resp.c.n, n_resp.c.last.label("last_answer"),
-                       n_ev.c.last.label("last_event"), exclusions.c.reason)
-             .select_from(p.outerjoin(n_resp, n_resp.c.participant_id == p.c.participant_id)
-                          .outerjoin(n_ev, n_ev.c.participant_id == p.c.participant_id)
-                          .outerjoin(exclusions,
-                                     exclusions.c.participant_id == p.c.participant_id))
-             .where(p.c.study_id == study_id, p.c.simulated.is_(False))
-             .order_by(p.c.created_at.desc()))
+    query = (
+        sa.select(
+            p.c.participant_id,
+            p.c.prolific_pid,
+            p.c.created_at,
+            p.c.completed_at,
+            n_resp.c.n,
+            n_resp.c.last.label("last_answer"),
+            n_ev.c.last.label("last_event"),
+            exclusions.c.reason,
+        )
+        .select_from(
+            p.outerjoin(n_resp, n_resp.c.participant_id == p.c.participant_id)
+            .outerjoin(n_ev, n_ev.c.participant_id == p.c.participant_id)
+            .outerjoin(exclusions, exclusions.c.participant_id == p.c.participant_id)
+        )
+        .where(p.c.study_id == study_id, p.c.simulated.is_(False))
+        .order_by(p.c.created_at.desc())
+    )
     with store.transaction(write=False) as conn:
         rows = conn.execute(query).mappings().all()
     out = []
     for r in rows:
         answered = int(r["n"] or 0)
-        times = [_utc(t) for t in (r["created_at"], r["last_answer"], r["last_event"],
-                                   r["completed_at"]) if t is not None]
+        times = [
+            _utc(t)
+            for t in (r["created_at"], r["last_answer"], r["last_event"], r["completed_at"])
+            if t is not None
+        ]
         last = max(times)
         idle = 0.0 if r["completed_at"] is not None else max(0.0, (now - last).total_seconds())
         if r["reason"] is not None:
@@ -91,12 +128,23 @@ def monitor_rows(store, study_id: str, *, n_trials: int, now: datetime | None = 
             state = "timed out"
         else:
             state = "started"
-        out.append({"participant_id": r["participant_id"], "prolific_pid": r["prolific_pid"],
-                    "state": state,
-                    "step": ("done" if r["completed_at"] is not None
-                             else f"{min(answered + 1, n_trials)} of {n_trials}"),
-                    "answered": answered, "started_at": _utc(r["created_at"]),
-                    "last_activity": last, "idle_s": round(idle, 1), "reason": r["reason"]})
+        out.append(
+            {
+                "participant_id": r["participant_id"],
+                "prolific_pid": r["prolific_pid"],
+                "state": state,
+                "step": (
+                    "done"
+                    if r["completed_at"] is not None
+                    else f"{min(answered + 1, n_trials)} of {n_trials}"
+                ),
+                "answered": answered,
+                "started_at": _utc(r["created_at"]),
+                "last_activity": last,
+                "idle_s": round(idle, 1),
+                "reason": r["reason"],
+            }
+        )
     return out
 
 
@@ -121,12 +169,16 @@ def exclude(store, participant_id: str, reason: str, *, study_id: str | None = N
         sid = conn.execute(sa.select(participants.c.study_id).where(cond)).scalar()
         if sid is None:
             raise StoreError(f"unknown participant {str(participant_id)[:70]!r}")
-        before = conn.execute(sa.select(exclusions.c.reason).where(
-            exclusions.c.participant_id == str(participant_id))).scalar()
+        before = conn.execute(
+            sa.select(exclusions.c.reason).where(exclusions.c.participant_id == str(participant_id))
+        ).scalar()
         if before is not None:
             raise StoreError(f"participant {participant_id} is already excluded ({before})")
-        conn.execute(exclusions.insert().values(participant_id=str(participant_id), study_id=sid,
-                                                reason=reason, excluded_at=_now()))
+        conn.execute(
+            exclusions.insert().values(
+                participant_id=str(participant_id), study_id=sid, reason=reason, excluded_at=_now()
+            )
+        )
 
 
 def excluded_ids(store, study_id: str | None = None) -> dict[str, str]:
@@ -150,8 +202,11 @@ def with_exclusions(store, records) -> list[dict]:
 def controls(store, study_id: str) -> dict:
     """``{"closed": bool, "cap": int or None}`` of a study (open, no cap by default)."""
     with store.transaction(write=False) as conn:
-        row = conn.execute(sa.select(study_controls).where(
-            study_controls.c.study_id == study_id)).mappings().first()
+        row = (
+            conn.execute(sa.select(study_controls).where(study_controls.c.study_id == study_id))
+            .mappings()
+            .first()
+        )
     return {"closed": bool(row["closed"]) if row else False, "cap": row["cap"] if row else None}
 
 
@@ -161,8 +216,11 @@ def set_controls(store, study_id: str, *, closed: bool, cap: int | None) -> None
         raise StoreError(f"the cap must be a whole number >= 0, got {cap!r}")
     with store.transaction(write=True) as conn:
         conn.execute(study_controls.delete().where(study_controls.c.study_id == study_id))
-        conn.execute(study_controls.insert().values(study_id=study_id, closed=bool(closed),
-                                                    cap=cap, updated_at=_now()))
+        conn.execute(
+            study_controls.insert().values(
+                study_id=study_id, closed=bool(closed), cap=cap, updated_at=_now()
+            )
+        )
 
 
 def enrolment(store, study_id: str) -> str | None:
@@ -172,9 +230,11 @@ def enrolment(store, study_id: str) -> str | None:
         return "closed"
     if c["cap"] is not None:
         with store.transaction(write=False) as conn:
-            n = conn.execute(sa.select(sa.func.count()).select_from(participants).where(
-                participants.c.study_id == study_id,
-                participants.c.simulated.is_(False))).scalar()
+            n = conn.execute(
+                sa.select(sa.func.count())
+                .select_from(participants)
+                .where(participants.c.study_id == study_id, participants.c.simulated.is_(False))
+            ).scalar()
         if n >= c["cap"]:
             return "full"
     return None
@@ -185,14 +245,26 @@ def completion_codes(store, study_id: str) -> list[dict]:
     ``completed_at`` (UTC), ``excluded`` (the reason, or None), oldest first — the list
     to approve submissions by on Prolific."""
     p = participants
-    query = (sa.select(p.c.participant_id, p.c.prolific_pid, p.c.completion_code,
-                       p.c.completed_at, exclusions.c.reason)
-             .select_from(p.outerjoin(exclusions,
-                                      exclusions.c.participant_id == p.c.participant_id))
-             .where(p.c.study_id == study_id, p.c.completed_at.is_not(None),
-                    p.c.simulated.is_(False))
-             .order_by(p.c.completed_at))
+    query = (
+        sa.select(
+            p.c.participant_id,
+            p.c.prolific_pid,
+            p.c.completion_code,
+            p.c.completed_at,
+            exclusions.c.reason,
+        )
+        .select_from(p.outerjoin(exclusions, exclusions.c.participant_id == p.c.participant_id))
+        .where(p.c.study_id == study_id, p.c.completed_at.is_not(None), p.c.simulated.is_(False))
+        .order_by(p.c.completed_at)
+    )
     with store.transaction(write=False) as conn:
-        return [{"participant_id": r["participant_id"], "prolific_pid": r["prolific_pid"],
-                 "completion_code": r["completion_code"], "completed_at": _utc(r["completed_at"]),
-                 "excluded": r["reason"]} for r in conn.execute(query).mappings()]
+        return [
+            {
+                "participant_id": r["participant_id"],
+                "prolific_pid": r["prolific_pid"],
+                "completion_code": r["completion_code"],
+                "completed_at": _utc(r["completed_at"]),
+                "excluded": r["reason"],
+            }
+            for r in conn.execute(query).mappings()
+        ]

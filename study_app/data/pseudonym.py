@@ -34,9 +34,19 @@ from sqlalchemy import exc as sa_exc
 from .database import participants, study_secrets
 from .errors import StoreError
 
-__all__ = ["IDENTIFIER_COLUMNS", "PSEUDONYM_PREFIX", "PSEUDONYM_RE", "IDENTIFIERS_WARNING",
-           "OPEN_DROPPED", "TIME_COLUMNS", "pseudonym", "study_secret", "ensure_secret",
-           "Pseudonymiser", "participants_by_pseudonym"]
+__all__ = [
+    "IDENTIFIER_COLUMNS",
+    "PSEUDONYM_PREFIX",
+    "PSEUDONYM_RE",
+    "IDENTIFIERS_WARNING",
+    "OPEN_DROPPED",
+    "TIME_COLUMNS",
+    "pseudonym",
+    "study_secret",
+    "ensure_secret",
+    "Pseudonymiser",
+    "participants_by_pseudonym",
+]
 
 #: Columns of any export that identify a person (or link to their Prolific record).
 IDENTIFIER_COLUMNS = ("participant_id", "prolific_pid", "prolific_session_id", "completion_code")
@@ -50,9 +60,11 @@ OPEN_DROPPED = ("seed",)
 #: Timestamp columns, given as their UTC date in open exports.
 TIME_COLUMNS = ("created_at", "completed_at")
 #: What ``--identifiers`` prints: the files then hold personal data.
-IDENTIFIERS_WARNING = ("warning: --identifiers: the export holds raw participant, Prolific and "
-                       "session ids (personal data under the GDPR); keep it private, share the "
-                       "default pseudonymised export instead")
+IDENTIFIERS_WARNING = (
+    "warning: --identifiers: the export holds raw participant, Prolific and "
+    "session ids (personal data under the GDPR); keep it private, share the "
+    "default pseudonymised export instead"
+)
 
 
 def pseudonym(secret: str, column: str, value: str) -> str:
@@ -89,14 +101,23 @@ def ensure_secret(conn, study_id: str) -> None:
     elif conn.dialect.name == "sqlite":
         from sqlalchemy.dialects.sqlite import insert
     else:  # pragma: no cover - other databases: look first (no upsert construct)
-        if conn.execute(sa.select(study_secrets.c.study_id).where(
-                study_secrets.c.study_id == study_id)).first() is None:
-            conn.execute(study_secrets.insert().values(
-                study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC)))
+        if (
+            conn.execute(
+                sa.select(study_secrets.c.study_id).where(study_secrets.c.study_id == study_id)
+            ).first()
+            is None
+        ):
+            conn.execute(
+                study_secrets.insert().values(
+                    study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC)
+                )
+            )
         return
-    conn.execute(insert(study_secrets).values(
-        study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC))
-        .on_conflict_do_nothing(index_elements=["study_id"]))
+    conn.execute(
+        insert(study_secrets)
+        .values(study_id=study_id, secret=secrets.token_hex(32), created_at=datetime.now(UTC))
+        .on_conflict_do_nothing(index_elements=["study_id"])
+    )
 
 
 def study_secret(store, study_id: str) -> str:
@@ -115,8 +136,11 @@ def study_secret(store, study_id: str) -> str:
             found = conn.execute(query).scalar()
             if found is None:
                 found = secrets.token_hex(32)
-                conn.execute(study_secrets.insert().values(
-                    study_id=study_id, secret=found, created_at=datetime.now(UTC)))
+                conn.execute(
+                    study_secrets.insert().values(
+                        study_id=study_id, secret=found, created_at=datetime.now(UTC)
+                    )
+                )
         return found
     except StoreError as err:
         if not isinstance(err.__cause__, sa_exc.IntegrityError):
@@ -154,8 +178,11 @@ class Pseudonymiser:
             return record["study_id"]
         if self._study_of is None:
             with self.store.transaction(write=False) as conn:
-                self._study_of = dict(conn.execute(sa.select(
-                    participants.c.participant_id, participants.c.study_id)).all())
+                self._study_of = dict(
+                    conn.execute(
+                        sa.select(participants.c.participant_id, participants.c.study_id)
+                    ).all()
+                )
         return self._study_of[record["participant_id"]]
 
     def record(self, record: dict) -> dict:
@@ -199,7 +226,10 @@ def participants_by_pseudonym(store, value: str, *, study_id: str | None = None)
         secret = keys.get(row["study_id"])
         if secret is None:
             continue
-        if any(row.get(c) not in (None, "") and hmac.compare_digest(
-                pseudonym(secret, c, str(row[c])), value) for c in IDENTIFIER_COLUMNS):
+        if any(
+            row.get(c) not in (None, "")
+            and hmac.compare_digest(pseudonym(secret, c, str(row[c])), value)
+            for c in IDENTIFIER_COLUMNS
+        ):
             found.append(row["participant_id"])
     return found

@@ -41,16 +41,23 @@ from .errors import StoreError
 from .export import _write_atomic, write_events, write_export, write_participants
 from .pseudonym import OPEN_DROPPED, Pseudonymiser
 
-__all__ = ["DESCRIPTION_NAME", "data_file_name", "study_file_keys", "variable_measured",
-           "write_psych_ds"]
+__all__ = [
+    "DESCRIPTION_NAME",
+    "data_file_name",
+    "study_file_keys",
+    "variable_measured",
+    "write_psych_ds",
+]
 
 DESCRIPTION_NAME = "dataset_description.json"
 #: The data files of one study: Psych-DS ``description`` keyword value → columns' schema.
 _TABLES = {None: "response", "participants": "participant", "events": "event"}
-_PSEUDONYM_NOTE = (" In this dataset every participant, Prolific and session id and every "
-                   "per-participant completion code is a pseudonym: p- and 16 hex digits of a "
-                   "keyed hash (HMAC-SHA256 with a secret the study keeps), the same in every "
-                   "file and every export of the study.")
+_PSEUDONYM_NOTE = (
+    " In this dataset every participant, Prolific and session id and every "
+    "per-participant completion code is a pseudonym: p- and 16 hex digits of a "
+    "keyed hash (HMAC-SHA256 with a secret the study keeps), the same in every "
+    "file and every export of the study."
+)
 
 
 def data_file_name(study_id: str, description: str | None = None) -> str:
@@ -87,9 +94,12 @@ def study_file_keys(study_ids) -> dict[str, str]:
         if not value:
             raise StoreError(f"study id {sid!r} has no letters or digits for a Psych-DS file name")
     taken = list(plain.values())
-    return {sid: value if taken.count(value) == 1
-            else value + "x" + hashlib.sha256(sid.encode()).hexdigest()[:8]
-            for sid, value in plain.items()}
+    return {
+        sid: value
+        if taken.count(value) == 1
+        else value + "x" + hashlib.sha256(sid.encode()).hexdigest()[:8]
+        for sid, value in plain.items()
+    }
 
 
 def variable_measured() -> list[dict]:
@@ -110,8 +120,10 @@ def variable_measured() -> list[dict]:
             if name in seen:
                 continue
             if not spec.get("description"):
-                raise SchemaError(f"data_schema/{schema_name}.schema.json: {name} has no "
-                                  "description (the Psych-DS variableMeasured needs one)")
+                raise SchemaError(
+                    f"data_schema/{schema_name}.schema.json: {name} has no "
+                    "description (the Psych-DS variableMeasured needs one)"
+                )
             seen.add(name)
             out.append({"@type": "PropertyValue", "name": name, "description": spec["description"]})
     return out
@@ -130,14 +142,22 @@ def _manifest(stimuli_dir) -> tuple[Path, Study] | None:
             raise StoreError(f"{path}: not a stimulus manifest (no study)")
         return path, study_from_dict(doc["study"], source=f"{path}: study")
     except OSError as err:
-        raise StoreError(f"cannot read the stimulus manifest {path}: "
-                         f"{err.strerror or err}") from None
+        raise StoreError(
+            f"cannot read the stimulus manifest {path}: {err.strerror or err}"
+        ) from None
     except json.JSONDecodeError as err:
         raise StoreError(f"{path}:{err.lineno}: not valid JSON ({err.msg})") from None
 
 
-def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True,
-                   include_simulated: bool = False, force: bool = False) -> dict:
+def write_psych_ds(
+    store,
+    folder,
+    *,
+    stimuli_dir=None,
+    pseudonymise: bool = True,
+    include_simulated: bool = False,
+    force: bool = False,
+) -> dict:
     """Write the store's data as a Psych-DS dataset in ``folder``.
 
     Parameters
@@ -186,19 +206,33 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         studies = sorted(set(studies) | {manifest[1].id})
     if not rows:
         # Psych-DS requires at least one data file with rows: an empty export is an error.
-        raise StoreError("no responses to export" + ("" if include_simulated else
-                         " (simulated participants are left out: --include-simulated)"))
+        raise StoreError(
+            "no responses to export"
+            + (
+                ""
+                if include_simulated
+                else " (simulated participants are left out: --include-simulated)"
+            )
+        )
     file_keys = study_file_keys(studies)
     (root / "data").mkdir(parents=True, exist_ok=True)
     files = []
     for sid in studies:
         for description, records, write in (
-                (None, [r for r in rows if r["study_id"] == sid], write_export),
-                ("participants", [p for p in people if p["study_id"] == sid],
-                 lambda recs, path: write_participants(
-                     recs, path, drop=OPEN_DROPPED if pseudonymise else ())),
-                ("events", [e for e in events if study_of.get(e["participant_id"]) == sid],
-                 lambda recs, path: write_events(recs, path, fmt="csv"))):
+            (None, [r for r in rows if r["study_id"] == sid], write_export),
+            (
+                "participants",
+                [p for p in people if p["study_id"] == sid],
+                lambda recs, path: write_participants(
+                    recs, path, drop=OPEN_DROPPED if pseudonymise else ()
+                ),
+            ),
+            (
+                "events",
+                [e for e in events if study_of.get(e["participant_id"]) == sid],
+                lambda recs, path: write_events(recs, path, fmt="csv"),
+            ),
+        ):
             rel = Path("data") / data_file_name(file_keys[sid], description)
             write(records, root / rel)
             files.append(rel.as_posix())
@@ -216,11 +250,15 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
         "table (responses; participants with their background answers; interaction events "
         "with the video player); materials/ the stimulus manifest (scenes, frame maps, "
         "file checksums). Frames are 0-based in the source motion's numbering; times are "
-        + ("UTC dates (YYYY-MM-DD; the seed of each participant's trial order is left out, "
-           "so that no column links a row to the study's private records)"
-           if pseudonymise else "ISO 8601 in UTC")
+        + (
+            "UTC dates (YYYY-MM-DD; the seed of each participant's trial order is left out, "
+            "so that no column links a row to the study's private records)"
+            if pseudonymise
+            else "ISO 8601 in UTC"
+        )
         + "; in CSV, lists and objects are JSON strings and empty cells are "
-        "missing values." + (_PSEUDONYM_NOTE if pseudonymise else ""))
+        "missing values." + (_PSEUDONYM_NOTE if pseudonymise else "")
+    )
     doc = {
         "@context": "https://schema.org/",
         "@type": "Dataset",
@@ -239,5 +277,10 @@ def write_psych_ds(store, folder, *, stimuli_dir=None, pseudonymise: bool = True
             doc["citation"] = study.citation
     _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
     files.insert(0, DESCRIPTION_NAME)
-    return {"folder": root, "files": files, "responses": len(rows),
-            "participants": len(people), "events": len(events)}
+    return {
+        "folder": root,
+        "files": files,
+        "responses": len(rows),
+        "participants": len(people),
+        "events": len(events),
+    }

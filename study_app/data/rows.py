@@ -17,11 +17,31 @@ from .errors import StoreError
 __all__ = ["TRIAL_FIELDS", "checked_response", "checked_event"]
 
 #: Fields of a response row that the caller gives (the store fills the others).
-TRIAL_FIELDS = ("trial_index", "task", "scene", "stimulus_id", "chosen_frame",
-                "chosen_video_frame", "algorithm_frame", "fps", "n_frames", "chosen_method",
-                "chosen_position", "shown_order", "chosen_value", "correct", "response_time_s",
-                "picked_with", "watched", "viewport_width", "viewport_height",
-                "device_pixel_ratio", "input_type", "active_time_s", "tab_id")
+TRIAL_FIELDS = (
+    "trial_index",
+    "task",
+    "scene",
+    "stimulus_id",
+    "chosen_frame",
+    "chosen_video_frame",
+    "algorithm_frame",
+    "fps",
+    "n_frames",
+    "chosen_method",
+    "chosen_position",
+    "shown_order",
+    "chosen_value",
+    "correct",
+    "response_time_s",
+    "picked_with",
+    "watched",
+    "viewport_width",
+    "viewport_height",
+    "device_pixel_ratio",
+    "input_type",
+    "active_time_s",
+    "tab_id",
+)
 
 
 def checked_response(row: dict) -> dict:
@@ -32,28 +52,47 @@ def checked_response(row: dict) -> dict:
         raise StoreError(f"a response must be a dict, got {type(row).__name__}")
     extra = sorted(set(row) - set(TRIAL_FIELDS))
     if extra:
-        raise StoreError(f"response has unknown field(s) {', '.join(extra)} "
-                         f"(the store fills participant, study, version, time itself)")
+        raise StoreError(
+            f"response has unknown field(s) {', '.join(extra)} "
+            f"(the store fills participant, study, version, time itself)"
+        )
     full = {k: row.get(k) for k in TRIAL_FIELDS}
     for key in ("fps", "response_time_s"):
         value = full[key]
         if isinstance(value, float) and not math.isfinite(value):
-            raise StoreError(f"response to trial {row.get('trial_index')!r}: {key}: "
-                             f"{value} is not a finite number")
+            raise StoreError(
+                f"response to trial {row.get('trial_index')!r}: {key}: "
+                f"{value} is not a finite number"
+            )
     order, pos, method = full["shown_order"], full["chosen_position"], full["chosen_method"]
-    if isinstance(order, list) and isinstance(pos, int) and not isinstance(pos, bool) \
-            and method is not None:
+    if (
+        isinstance(order, list)
+        and isinstance(pos, int)
+        and not isinstance(pos, bool)
+        and method is not None
+    ):
         # A forged label: the method claimed must be the one shown at that position.
         if not 0 <= pos < len(order) or order[pos] != method:
-            raise StoreError(f"response to trial {row.get('trial_index')!r}: chosen_method "
-                             f"{method!r} was not shown at chosen_position {pos!r} "
-                             f"(shown_order {order!r})")
+            raise StoreError(
+                f"response to trial {row.get('trial_index')!r}: chosen_method "
+                f"{method!r} was not shown at chosen_position {pos!r} "
+                f"(shown_order {order!r})"
+            )
     # Validate as a complete export row (placeholders for the store's own fields).
-    probe = {**full, "participant_id": "x" * 22, "study_id": "s",
-             "created_at": "2000-01-01T00:00:00+00:00", "app_version": "v",
-             "manifest_sha256": "0" * 64, "simulated": False}
-    probe = {k: v for k, v in probe.items() if v is not None
-             or k not in load_schema("response")["required"]}
+    probe = {
+        **full,
+        "participant_id": "x" * 22,
+        "study_id": "s",
+        "created_at": "2000-01-01T00:00:00+00:00",
+        "app_version": "v",
+        "manifest_sha256": "0" * 64,
+        "simulated": False,
+    }
+    probe = {
+        k: v
+        for k, v in probe.items()
+        if v is not None or k not in load_schema("response")["required"]
+    }
     try:
         validate(probe, "response", source=f"response to trial {row.get('trial_index')!r}")
     except SchemaError as err:
@@ -67,13 +106,12 @@ def checked_event(trial_index, kind, payload) -> dict:
     :class:`~study_app.data.errors.StoreError`."""
     if not isinstance(kind, str) or not 0 < len(kind) <= 32:
         raise StoreError(f"event kind must be 1-32 characters, got {kind!r}")
-    if trial_index is not None and (isinstance(trial_index, bool)
-                                    or not isinstance(trial_index, int) or trial_index < 0):
-        raise StoreError(f"event trial_index must be an integer >= 0 or None, "
-                         f"got {trial_index!r}")
+    if trial_index is not None and (
+        isinstance(trial_index, bool) or not isinstance(trial_index, int) or trial_index < 0
+    ):
+        raise StoreError(f"event trial_index must be an integer >= 0 or None, got {trial_index!r}")
     try:
-        payload = json.loads(json.dumps(payload if payload is not None else {},
-                                        allow_nan=False))
+        payload = json.loads(json.dumps(payload if payload is not None else {}, allow_nan=False))
     except (TypeError, ValueError) as err:
         raise StoreError(f"event payload is not plain JSON: {err}") from None
     return {"trial_index": trial_index, "kind": kind, "payload": payload}

@@ -101,8 +101,12 @@ MAX_SEED = 2**63 - 1
 #: Background answers joined into every export row.
 #: Retries of a write that lost a race on the (participant, trial) unique key.
 _DUPLICATE_RETRIES = 3
-PROLIFIC_KEYS = {"PROLIFIC_PID": "prolific_pid", "STUDY_ID": "prolific_study_id",
-                 "SESSION_ID": "prolific_session_id"}
+PROLIFIC_KEYS = {
+    "PROLIFIC_PID": "prolific_pid",
+    "STUDY_ID": "prolific_study_id",
+    "SESSION_ID": "prolific_session_id",
+}
+
 
 def _utcnow() -> datetime:
     return datetime.now(UTC)
@@ -129,17 +133,26 @@ def _iso(value) -> str | None:
 # -- statements of every script run, built once -----------------------------------------
 # SQLAlchemy derives a cache key from a statement every time it is built; a statement
 # built once keeps it.
-_PARTICIPANT = sa.select(participants).where(
-    participants.c.participant_id == sa.bindparam("pid"))
+_PARTICIPANT = sa.select(participants).where(participants.c.participant_id == sa.bindparam("pid"))
 _ANSWERED = sa.select(responses.c.trial_index).where(
-    responses.c.participant_id == sa.bindparam("pid"))
-_PARTICIPANT_EVENTS = sa.select(events).where(
-    events.c.participant_id == sa.bindparam("pid")).order_by(events.c.id)
+    responses.c.participant_id == sa.bindparam("pid")
+)
+_PARTICIPANT_EVENTS = (
+    sa.select(events).where(events.c.participant_id == sa.bindparam("pid")).order_by(events.c.id)
+)
 _FIRST_EVENT = sa.select(sa.func.min(events.c.created_at)).where(
-    events.c.participant_id == sa.bindparam("pid"), events.c.kind == sa.bindparam("kind"),
-    events.c.trial_index == sa.bindparam("trial"))
-_TRIAL_EVENT_COUNT = sa.select(sa.func.count()).select_from(events).where(
-    events.c.participant_id == sa.bindparam("pid"), events.c.trial_index == sa.bindparam("trial"))
+    events.c.participant_id == sa.bindparam("pid"),
+    events.c.kind == sa.bindparam("kind"),
+    events.c.trial_index == sa.bindparam("trial"),
+)
+_TRIAL_EVENT_COUNT = (
+    sa.select(sa.func.count())
+    .select_from(events)
+    .where(
+        events.c.participant_id == sa.bindparam("pid"),
+        events.c.trial_index == sa.bindparam("trial"),
+    )
+)
 
 
 class Store:
@@ -178,18 +191,20 @@ class Store:
         self._write_lock = threading.RLock() if self.dialect == "sqlite" else None
         # ... and the writes that queue there share the next transaction (one BEGIN and
         # one COMMIT for many answers under load; see study_app.data.group_commit).
-        self._group = (GroupCommit(partial(self.transaction, write=True))
-                       if self.dialect == "sqlite" else None)
+        self._group = (
+            GroupCommit(partial(self.transaction, write=True)) if self.dialect == "sqlite" else None
+        )
         self.engine = self._make_engine()
         try:
             with self.engine.connect() as conn:
                 conn.exec_driver_sql("SELECT 1")
-                missing = [t for t in metadata.tables
-                           if not sa.inspect(conn).has_table(t)]
+                missing = [t for t in metadata.tables if not sa.inspect(conn).has_table(t)]
             lacking = [t for t in STUDY_TABLES if t in missing]
             if not create and lacking:
-                raise StoreError(f"database {self.url} has no study tables "
-                                 f"({', '.join(lacking)} missing): wrong database?")
+                raise StoreError(
+                    f"database {self.url} has no study tables "
+                    f"({', '.join(lacking)} missing): wrong database?"
+                )
             if missing:
                 # A new database, or one made before the withdrawals/secrets tables.
                 self._create_tables()
@@ -220,8 +235,10 @@ class Store:
                 try:
                     folder.mkdir(parents=True, exist_ok=True)
                 except OSError as err:
-                    raise StoreError(f"cannot open database {self.url}: cannot create folder "
-                                     f"{folder} ({err.strerror or err})") from None
+                    raise StoreError(
+                        f"cannot open database {self.url}: cannot create folder "
+                        f"{folder} ({err.strerror or err})"
+                    ) from None
                 # Threads of the app share the pool; writes queue on the busy timeout.
                 kwargs.update(pool_size=10, max_overflow=40, pool_timeout=60)
         elif self.dialect == "postgresql":
@@ -231,12 +248,15 @@ class Store:
         try:
             engine = sa.create_engine(url, **kwargs)
         except sa_exc.NoSuchModuleError:
-            raise StoreError(f"cannot open database {self.url}: unknown database type "
-                             f"{url.drivername!r} (expected sqlite:///PATH or "
-                             "postgresql+psycopg://USER@HOST:PORT/DB)") from None
+            raise StoreError(
+                f"cannot open database {self.url}: unknown database type "
+                f"{url.drivername!r} (expected sqlite:///PATH or "
+                "postgresql+psycopg://USER@HOST:PORT/DB)"
+            ) from None
         except ImportError as err:
-            raise StoreError(f"cannot open database {self.url}: its driver is not "
-                             f"installed ({err})") from None
+            raise StoreError(
+                f"cannot open database {self.url}: its driver is not installed ({err})"
+            ) from None
         except (sa_exc.ArgumentError, TypeError) as err:
             raise StoreError(f"cannot open database {self.url}: {one_line(err)}") from None
         if self.dialect == "sqlite":
@@ -256,8 +276,11 @@ class Store:
         except StoreError as err:
             # e.g. an old database already holding one Prolific id twice: serve it, and
             # let participant_for_prolific's lookup keep new duplicates out.
-            warnings.warn(f"database {self.url}: cannot add the one-participant-per-Prolific-id "
-                          f"index ({err})", stacklevel=3)
+            warnings.warn(
+                f"database {self.url}: cannot add the one-participant-per-Prolific-id "
+                f"index ({err})",
+                stacklevel=3,
+            )
 
     def close(self) -> None:
         """Release every pooled connection."""
@@ -322,9 +345,16 @@ class Store:
         return row
 
     # -- participants ------------------------------------------------------------------
-    def create_participant(self, study_id: str, manifest_sha256: str, *, app_version: str,
-                           seed: int, prolific: dict | None = None,
-                           simulated: bool = False) -> str:
+    def create_participant(
+        self,
+        study_id: str,
+        manifest_sha256: str,
+        *,
+        app_version: str,
+        seed: int,
+        prolific: dict | None = None,
+        simulated: bool = False,
+    ) -> str:
         """Register a participant; return their new unguessable id.
 
         Parameters
@@ -346,21 +376,35 @@ class Store:
         self._check_new(study_id, manifest_sha256, app_version, seed)
         values = self._prolific_values(prolific)
         pid = secrets.token_urlsafe(16)
-        self._write(lambda conn: (ensure_secret(conn, study_id), conn.execute(
-            participants.insert().values(
-                participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
-                manifest_sha256=manifest_sha256, simulated=bool(simulated),
-                created_at=_utcnow(), **values))))
+        self._write(
+            lambda conn: (
+                ensure_secret(conn, study_id),
+                conn.execute(
+                    participants.insert().values(
+                        participant_id=pid,
+                        study_id=study_id,
+                        seed=seed,
+                        app_version=app_version,
+                        manifest_sha256=manifest_sha256,
+                        simulated=bool(simulated),
+                        created_at=_utcnow(),
+                        **values,
+                    )
+                ),
+            )
+        )
         return pid
 
     @staticmethod
     def _check_new(study_id, manifest_sha256, app_version, seed) -> None:
         if not isinstance(study_id, str) or not study_id or len(study_id) > 200:
             raise StoreError(f"study_id must be a non-empty string, got {study_id!r}")
-        if not isinstance(manifest_sha256, str) or not re.fullmatch(r"[0-9a-f]{64}",
-                                                                    manifest_sha256):
-            raise StoreError(f"manifest_sha256 must be 64 lowercase hex digits, "
-                             f"got {manifest_sha256!r}")
+        if not isinstance(manifest_sha256, str) or not re.fullmatch(
+            r"[0-9a-f]{64}", manifest_sha256
+        ):
+            raise StoreError(
+                f"manifest_sha256 must be 64 lowercase hex digits, got {manifest_sha256!r}"
+            )
         if not isinstance(app_version, str) or not app_version:
             raise StoreError(f"app_version must be a non-empty string, got {app_version!r}")
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
@@ -371,8 +415,9 @@ class Store:
         values = {v: None for v in PROLIFIC_KEYS.values()}
         for key, value in (prolific or {}).items():
             if key not in PROLIFIC_KEYS:
-                raise StoreError(f"unknown Prolific parameter {key!r} "
-                                 f"(expected {', '.join(PROLIFIC_KEYS)})")
+                raise StoreError(
+                    f"unknown Prolific parameter {key!r} (expected {', '.join(PROLIFIC_KEYS)})"
+                )
             if value not in (None, ""):
                 values[PROLIFIC_KEYS[key]] = str(value)[:200]
         return values
@@ -380,13 +425,22 @@ class Store:
     def find_prolific(self, study_id: str, prolific_pid: str) -> str | None:
         """The participant id registered for a Prolific id in a study, or None."""
         with self.transaction(write=False) as conn:
-            return conn.execute(sa.select(participants.c.participant_id).where(
-                participants.c.study_id == study_id,
-                participants.c.prolific_pid == str(prolific_pid))
-                .order_by(participants.c.created_at)).scalars().first()
+            return (
+                conn.execute(
+                    sa.select(participants.c.participant_id)
+                    .where(
+                        participants.c.study_id == study_id,
+                        participants.c.prolific_pid == str(prolific_pid),
+                    )
+                    .order_by(participants.c.created_at)
+                )
+                .scalars()
+                .first()
+            )
 
-    def participant_for_prolific(self, study_id: str, manifest_sha256: str, *,
-                                 app_version: str, seed: int, prolific: dict) -> tuple[str, bool]:
+    def participant_for_prolific(
+        self, study_id: str, manifest_sha256: str, *, app_version: str, seed: int, prolific: dict
+    ) -> tuple[str, bool]:
         """The participant of a Prolific id in this study, registered if new.
 
         One Prolific id is one participant per study: the same study link opened again,
@@ -414,30 +468,56 @@ class Store:
                 # write lock (BEGIN IMMEDIATE), so two browsers cannot both insert; on
                 # PostgreSQL the unique index refuses the loser, who retries and finds
                 # the winner's row.
-                return self._write(partial(self._find_or_insert_prolific, study_id=study_id,
-                                           seed=seed, app_version=app_version,
-                                           manifest_sha256=manifest_sha256, values=values))
+                return self._write(
+                    partial(
+                        self._find_or_insert_prolific,
+                        study_id=study_id,
+                        seed=seed,
+                        app_version=app_version,
+                        manifest_sha256=manifest_sha256,
+                        values=values,
+                    )
+                )
             except StoreError as err:
-                if not isinstance(err.__cause__, sa_exc.IntegrityError) \
-                        or attempt == _DUPLICATE_RETRIES:
+                if (
+                    not isinstance(err.__cause__, sa_exc.IntegrityError)
+                    or attempt == _DUPLICATE_RETRIES
+                ):
                     raise
         raise AssertionError("unreachable")  # pragma: no cover
 
     @staticmethod
-    def _find_or_insert_prolific(conn, *, study_id, seed, app_version, manifest_sha256,
-                                 values) -> tuple[str, bool]:
-        found = conn.execute(sa.select(participants.c.participant_id).where(
-            participants.c.study_id == study_id,
-            participants.c.prolific_pid == values["prolific_pid"])
-            .order_by(participants.c.created_at)).scalars().first()
+    def _find_or_insert_prolific(
+        conn, *, study_id, seed, app_version, manifest_sha256, values
+    ) -> tuple[str, bool]:
+        found = (
+            conn.execute(
+                sa.select(participants.c.participant_id)
+                .where(
+                    participants.c.study_id == study_id,
+                    participants.c.prolific_pid == values["prolific_pid"],
+                )
+                .order_by(participants.c.created_at)
+            )
+            .scalars()
+            .first()
+        )
         if found is not None:
             return found, False
         pid = secrets.token_urlsafe(16)
         ensure_secret(conn, study_id)  # the pseudonym key exists from the first participant
-        conn.execute(participants.insert().values(
-            participant_id=pid, study_id=study_id, seed=seed, app_version=app_version,
-            manifest_sha256=manifest_sha256, simulated=False, created_at=_utcnow(),
-            **values))
+        conn.execute(
+            participants.insert().values(
+                participant_id=pid,
+                study_id=study_id,
+                seed=seed,
+                app_version=app_version,
+                manifest_sha256=manifest_sha256,
+                simulated=False,
+                created_at=_utcnow(),
+                **values,
+            )
+        )
         return pid, True
 
     def get_participant(self, pid: str) -> dict | None:
@@ -455,11 +535,15 @@ class Store:
 
     def participants(self, *, include_simulated: bool = False) -> list[dict]:
         """Every participant (as :meth:`get_participant`) with ``n_responses``, oldest first."""
-        n = (sa.select(sa.func.count()).where(
-            responses.c.participant_id == participants.c.participant_id)
-            .scalar_subquery().label("n_responses"))
-        query = sa.select(participants, n).order_by(participants.c.created_at,
-                                                    participants.c.participant_id)
+        n = (
+            sa.select(sa.func.count())
+            .where(responses.c.participant_id == participants.c.participant_id)
+            .scalar_subquery()
+            .label("n_responses")
+        )
+        query = sa.select(participants, n).order_by(
+            participants.c.created_at, participants.c.participant_id
+        )
         if not include_simulated:
             query = query.where(participants.c.simulated.is_(False))
         with self.transaction(write=False) as conn:
@@ -475,16 +559,24 @@ class Store:
         if not isinstance(answers, dict) or not all(isinstance(k, str) for k in answers):
             raise StoreError(f"background answers must be a dict with string keys, got {answers!r}")
         for key, value in answers.items():
-            if not (value is None or isinstance(value, (str, int, float, bool))
-                    or (isinstance(value, list) and all(isinstance(v, str) for v in value))):
-                raise StoreError(f"background answer {key!r} must be text, a number or a "
-                                 f"list of text, got {value!r}")
+            if not (
+                value is None
+                or isinstance(value, (str, int, float, bool))
+                or (isinstance(value, list) and all(isinstance(v, str) for v in value))
+            ):
+                raise StoreError(
+                    f"background answer {key!r} must be text, a number or a "
+                    f"list of text, got {value!r}"
+                )
+
         def work(conn) -> bool:
             if self._participant_row(conn, pid)["background"] is not None:
                 return False
-            conn.execute(participants.update()
-                         .where(participants.c.participant_id == pid)
-                         .values(background=dict(answers)))
+            conn.execute(
+                participants.update()
+                .where(participants.c.participant_id == pid)
+                .values(background=dict(answers))
+            )
             return True
 
         return self._write(work)
@@ -501,24 +593,28 @@ class Store:
         """
         if code is not None and (not isinstance(code, str) or not code or len(code) > 64):
             raise StoreError(f"completion code must be 1-64 characters, got {code!r}")
-        new = code or "".join(secrets.choice(COMPLETION_ALPHABET)
-                              for _ in range(COMPLETION_CODE_LENGTH))
+        new = code or "".join(
+            secrets.choice(COMPLETION_ALPHABET) for _ in range(COMPLETION_CODE_LENGTH)
+        )
 
         def work(conn) -> str:
             row = self._participant_row(conn, pid)
             if row["completed_at"] is not None:
                 return row["completion_code"]
-            conn.execute(participants.update()
-                         .where(participants.c.participant_id == pid)
-                         .where(participants.c.completed_at.is_(None))
-                         .values(completed_at=_utcnow(), completion_code=new))
+            conn.execute(
+                participants.update()
+                .where(participants.c.participant_id == pid)
+                .where(participants.c.completed_at.is_(None))
+                .values(completed_at=_utcnow(), completion_code=new)
+            )
             return new
 
         return self._write(work)
 
     # -- responses ---------------------------------------------------------------------
-    def record_response(self, pid: str, row: dict, *, with_events=(),
-                        at: datetime | None = None) -> bool:
+    def record_response(
+        self, pid: str, row: dict, *, with_events=(), at: datetime | None = None
+    ) -> bool:
         """Append one trial's answer; False (and nothing changed) if that trial is stored.
 
         Parameters
@@ -553,8 +649,9 @@ class Store:
         """
         return self.record_responses(pid, [row], with_events=with_events, at=at) == 1
 
-    def record_responses(self, pid: str, rows: list[dict], *, with_events=(),
-                         at: datetime | None = None) -> int:
+    def record_responses(
+        self, pid: str, rows: list[dict], *, with_events=(), at: datetime | None = None
+    ) -> int:
         """Append several trials of one participant in one transaction; return how many were new.
 
         Already-answered trials are skipped (their first answer stays). Every row is
@@ -578,13 +675,24 @@ class Store:
             new = [r for r in checked if r["trial_index"] not in stored]
             now = at or _utcnow()
             if new:
-                conn.execute(responses.insert(), [{
-                    **r, "participant_id": pid, "created_at": now,
-                    "app_version": part["app_version"],
-                    "manifest_sha256": part["manifest_sha256"]} for r in new])
+                conn.execute(
+                    responses.insert(),
+                    [
+                        {
+                            **r,
+                            "participant_id": pid,
+                            "created_at": now,
+                            "app_version": part["app_version"],
+                            "manifest_sha256": part["manifest_sha256"],
+                        }
+                        for r in new
+                    ],
+                )
                 if event_rows:
-                    conn.execute(events.insert(), [
-                        {**e, "participant_id": pid, "created_at": now} for e in event_rows])
+                    conn.execute(
+                        events.insert(),
+                        [{**e, "participant_id": pid, "created_at": now} for e in event_rows],
+                    )
             return len(new)
 
         attempt = 0
@@ -596,8 +704,10 @@ class Store:
                 # on PostgreSQL, where readers do not wait): one insert hit the unique
                 # key and rolled back. Retry: the answered-trials check now sees the
                 # winner's row and skips it.
-                if not isinstance(err.__cause__, sa_exc.IntegrityError) \
-                        or attempt == _DUPLICATE_RETRIES:
+                if (
+                    not isinstance(err.__cause__, sa_exc.IntegrityError)
+                    or attempt == _DUPLICATE_RETRIES
+                ):
                     raise
                 attempt += 1
 
@@ -631,13 +741,17 @@ class Store:
         self._check_pid(pid)
         with self.transaction(write=False) as conn:
             self._participant_row(conn, pid)
-            rows = conn.execute(self._export_query().where(
-                responses.c.participant_id == pid)).mappings().all()
+            rows = (
+                conn.execute(self._export_query().where(responses.c.participant_id == pid))
+                .mappings()
+                .all()
+            )
         return [_export_row(r) for r in rows]
 
     # -- events ------------------------------------------------------------------------
-    def record_event(self, pid: str, trial_index: int | None, kind: str,
-                     payload: dict | None = None) -> None:
+    def record_event(
+        self, pid: str, trial_index: int | None, kind: str, payload: dict | None = None
+    ) -> None:
         """Append an interaction event (``kind`` like "play", "pause", "seek", "step").
 
         ``trial_index`` None is an event outside a trial (a page view); ``payload`` is
@@ -645,8 +759,9 @@ class Store:
         """
         self.record_events(pid, trial_index, [(kind, payload)])
 
-    def record_events(self, pid: str, trial_index: int | None, items, *,
-                      limit: int | None = None) -> int:
+    def record_events(
+        self, pid: str, trial_index: int | None, items, *, limit: int | None = None
+    ) -> int:
         """Append several events of one trial in one transaction; return how many.
 
         ``items``: ``(kind, payload)`` pairs, e.g. the picker's log of one trial. All are
@@ -662,17 +777,27 @@ class Store:
 
         def work(conn) -> int:
             self._participant_row(conn, pid)
-            room = len(rows) if limit is None else max(0, limit - conn.execute(
-                _TRIAL_EVENT_COUNT, {"pid": pid, "trial": trial_index}).scalar())
+            room = (
+                len(rows)
+                if limit is None
+                else max(
+                    0,
+                    limit
+                    - conn.execute(_TRIAL_EVENT_COUNT, {"pid": pid, "trial": trial_index}).scalar(),
+                )
+            )
             if room:
-                conn.execute(events.insert(), [{**r, "participant_id": pid, "created_at": now}
-                                               for r in rows[:room]])
+                conn.execute(
+                    events.insert(),
+                    [{**r, "participant_id": pid, "created_at": now} for r in rows[:room]],
+                )
             return min(room, len(rows))
 
         return self._write(work)
 
-    def first_event_or_record(self, pid: str, trial_index: int | None, kind: str,
-                              payload: dict | None = None) -> datetime:
+    def first_event_or_record(
+        self, pid: str, trial_index: int | None, kind: str, payload: dict | None = None
+    ) -> datetime:
         """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC);
         if there is none, store one now (with ``payload``) and return its time.
 
@@ -694,11 +819,16 @@ class Store:
 
     def _first_event(self, conn, pid: str, trial_index: int | None, kind: str):
         if trial_index is not None:  # the common case: one statement, built once
-            return conn.execute(_FIRST_EVENT, {"pid": self._check_pid(pid), "kind": kind,
-                                               "trial": trial_index}).scalar()
-        return conn.execute(sa.select(sa.func.min(events.c.created_at)).where(
-            events.c.participant_id == self._check_pid(pid), events.c.kind == kind,
-            events.c.trial_index.is_(None))).scalar()
+            return conn.execute(
+                _FIRST_EVENT, {"pid": self._check_pid(pid), "kind": kind, "trial": trial_index}
+            ).scalar()
+        return conn.execute(
+            sa.select(sa.func.min(events.c.created_at)).where(
+                events.c.participant_id == self._check_pid(pid),
+                events.c.kind == kind,
+                events.c.trial_index.is_(None),
+            )
+        ).scalar()
 
     def first_event_at(self, pid: str, trial_index: int | None, kind: str) -> datetime | None:
         """When the participant's first ``kind`` event of ``trial_index`` was stored (UTC),
@@ -714,20 +844,38 @@ class Store:
             if pid is None:
                 rows = conn.execute(sa.select(events).order_by(events.c.id)).mappings().all()
             else:
-                rows = conn.execute(_PARTICIPANT_EVENTS,
-                                    {"pid": self._check_pid(pid)}).mappings().all()
-        return [{"participant_id": r["participant_id"], "trial_index": r["trial_index"],
-                 "kind": r["kind"], "payload": r["payload"], "created_at": _iso(r["created_at"])}
-                for r in rows]
+                rows = (
+                    conn.execute(_PARTICIPANT_EVENTS, {"pid": self._check_pid(pid)})
+                    .mappings()
+                    .all()
+                )
+        return [
+            {
+                "participant_id": r["participant_id"],
+                "trial_index": r["trial_index"],
+                "kind": r["kind"],
+                "payload": r["payload"],
+                "created_at": _iso(r["created_at"]),
+            }
+            for r in rows
+        ]
 
     # -- export and progress -----------------------------------------------------------
     @staticmethod
     def _export_query():
-        return (sa.select(responses, participants.c.study_id, participants.c.simulated,
-                          participants.c.background, participants.c.prolific_pid)
-                .join(participants, responses.c.participant_id == participants.c.participant_id)
-                .order_by(participants.c.created_at, responses.c.participant_id,
-                          responses.c.trial_index))
+        return (
+            sa.select(
+                responses,
+                participants.c.study_id,
+                participants.c.simulated,
+                participants.c.background,
+                participants.c.prolific_pid,
+            )
+            .join(participants, responses.c.participant_id == participants.c.participant_id)
+            .order_by(
+                participants.c.created_at, responses.c.participant_id, responses.c.trial_index
+            )
+        )
 
     def export_rows(self, *, include_simulated: bool = False, validate: bool = False) -> list[dict]:
         """Every response as a ``response.schema.json`` row (background joined in).
@@ -756,29 +904,43 @@ class Store:
         real = sa.true() if include_simulated else p.c.simulated.is_(False)
         with self.transaction(write=False) as conn:
             n_part = conn.execute(sa.select(sa.func.count()).select_from(p).where(real)).scalar()
-            n_done = conn.execute(sa.select(sa.func.count()).select_from(p).where(
-                real, p.c.completed_at.is_not(None))).scalar()
-            n_sim = conn.execute(sa.select(sa.func.count()).select_from(p).where(
-                p.c.simulated.is_(True))).scalar()
-            by_task = dict(conn.execute(
-                sa.select(r.c.task, sa.func.count()).select_from(
-                    r.join(p, r.c.participant_id == p.c.participant_id))
-                .where(real).group_by(r.c.task)).all())
-        return {"participants": int(n_part), "completed": int(n_done),
-                "responses": int(sum(by_task.values())),
-                "by_task": {k: int(v) for k, v in sorted(by_task.items())},
-                "simulated": int(n_sim)}
+            n_done = conn.execute(
+                sa.select(sa.func.count()).select_from(p).where(real, p.c.completed_at.is_not(None))
+            ).scalar()
+            n_sim = conn.execute(
+                sa.select(sa.func.count()).select_from(p).where(p.c.simulated.is_(True))
+            ).scalar()
+            by_task = dict(
+                conn.execute(
+                    sa.select(r.c.task, sa.func.count())
+                    .select_from(r.join(p, r.c.participant_id == p.c.participant_id))
+                    .where(real)
+                    .group_by(r.c.task)
+                ).all()
+            )
+        return {
+            "participants": int(n_part),
+            "completed": int(n_done),
+            "responses": int(sum(by_task.values())),
+            "by_task": {k: int(v) for k, v in sorted(by_task.items())},
+            "simulated": int(n_sim),
+        }
 
 
 def _participant_dict(row) -> dict:
     return {
-        "participant_id": row["participant_id"], "study_id": row["study_id"],
-        "seed": int(row["seed"]), "created_at": _iso(row["created_at"]),
-        "completed_at": _iso(row["completed_at"]), "completion_code": row["completion_code"],
-        "background": row["background"], "prolific_pid": row["prolific_pid"],
+        "participant_id": row["participant_id"],
+        "study_id": row["study_id"],
+        "seed": int(row["seed"]),
+        "created_at": _iso(row["created_at"]),
+        "completed_at": _iso(row["completed_at"]),
+        "completion_code": row["completion_code"],
+        "background": row["background"],
+        "prolific_pid": row["prolific_pid"],
         "prolific_study_id": row["prolific_study_id"],
         "prolific_session_id": row["prolific_session_id"],
-        "simulated": bool(row["simulated"]), "manifest_sha256": row["manifest_sha256"],
+        "simulated": bool(row["simulated"]),
+        "manifest_sha256": row["manifest_sha256"],
         "app_version": row["app_version"],
     }
 

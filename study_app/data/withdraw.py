@@ -63,8 +63,13 @@ def _utc(value: datetime) -> datetime:
 
 
 def _record(row) -> Withdrawal:
-    return Withdrawal(row["participant_id"], row["study_id"], row["prolific_pid"],
-                      row["requested_by"], _utc(row["withdrawn_at"]))
+    return Withdrawal(
+        row["participant_id"],
+        row["study_id"],
+        row["prolific_pid"],
+        row["requested_by"],
+        _utc(row["withdrawn_at"]),
+    )
 
 
 def _targets(conn, participant_id, prolific_pid, study_id, named=None) -> list:
@@ -73,16 +78,20 @@ def _targets(conn, participant_id, prolific_pid, study_id, named=None) -> list:
     if named is not None:
         cond = participants.c.participant_id.in_(named)
     elif (participant_id is None) == (prolific_pid is None):
-        raise StoreError("withdraw needs exactly one of a participant id, a Prolific id and "
-                         "a pseudonym")
+        raise StoreError(
+            "withdraw needs exactly one of a participant id, a Prolific id and a pseudonym"
+        )
     elif participant_id is not None:
         cond = participants.c.participant_id == str(participant_id)
     else:
         cond = participants.c.prolific_pid == str(prolific_pid)
     if study_id is not None:
         cond = sa.and_(cond, participants.c.study_id == study_id)
-    return conn.execute(sa.select(participants).where(cond)
-                        .order_by(participants.c.created_at)).mappings().all()
+    return (
+        conn.execute(sa.select(participants).where(cond).order_by(participants.c.created_at))
+        .mappings()
+        .all()
+    )
 
 
 def _by_pseudonym(store, participant_id, prolific_pid, pseudonym_value, study_id):
@@ -90,44 +99,70 @@ def _by_pseudonym(store, participant_id, prolific_pid, pseudonym_value, study_id
     if pseudonym_value is None:
         return None
     if participant_id is not None or prolific_pid is not None:
-        raise StoreError("withdraw needs exactly one of a participant id, a Prolific id and "
-                         "a pseudonym")
+        raise StoreError(
+            "withdraw needs exactly one of a participant id, a Prolific id and a pseudonym"
+        )
     value = str(pseudonym_value).strip()
     if not re.match(PSEUDONYM_RE, value):
-        raise StoreError(f"{value[:70]!r} is not a pseudonym (p- and 16 hex digits, as in the "
-                         "shared exports)")
+        raise StoreError(
+            f"{value[:70]!r} is not a pseudonym (p- and 16 hex digits, as in the shared exports)"
+        )
     named = participants_by_pseudonym(store, value, study_id=study_id)
     if not named:
-        raise StoreError(f"unknown pseudonym {value!r}: no participant of "
-                         + (f"study {study_id!r}" if study_id else "this database")
-                         + " has it (already withdrawn, or from another database); "
-                         "nothing was deleted")
+        raise StoreError(
+            f"unknown pseudonym {value!r}: no participant of "
+            + (f"study {study_id!r}" if study_id else "this database")
+            + " has it (already withdrawn, or from another database); "
+            "nothing was deleted"
+        )
     return named
 
 
 def _unknown(conn, participant_id, prolific_pid) -> StoreError:
     """The error for an id with no participant: already withdrawn, or never known."""
-    kind, value = (("participant id", participant_id) if participant_id is not None
-                   else ("Prolific id", prolific_pid))
-    column = (withdrawals.c.participant_id if participant_id is not None
-              else withdrawals.c.prolific_pid)
-    done = conn.execute(sa.select(withdrawals.c.withdrawn_at).where(
-        column == str(value)).order_by(withdrawals.c.withdrawn_at)).scalars().first()
+    kind, value = (
+        ("participant id", participant_id)
+        if participant_id is not None
+        else ("Prolific id", prolific_pid)
+    )
+    column = (
+        withdrawals.c.participant_id if participant_id is not None else withdrawals.c.prolific_pid
+    )
+    done = (
+        conn.execute(
+            sa.select(withdrawals.c.withdrawn_at)
+            .where(column == str(value))
+            .order_by(withdrawals.c.withdrawn_at)
+        )
+        .scalars()
+        .first()
+    )
     if done is not None:
-        return StoreError(f"{kind} {value!r} was already withdrawn on "
-                          f"{_utc(done).isoformat(timespec='seconds')}; nothing to delete")
-    return StoreError(f"unknown {kind} {str(value)[:70]!r}: no participant has it; "
-                      "nothing was deleted")
+        return StoreError(
+            f"{kind} {value!r} was already withdrawn on "
+            f"{_utc(done).isoformat(timespec='seconds')}; nothing to delete"
+        )
+    return StoreError(
+        f"unknown {kind} {str(value)[:70]!r}: no participant has it; nothing was deleted"
+    )
 
 
 def _count(conn, table, pid: str) -> int:
-    return int(conn.execute(sa.select(sa.func.count()).select_from(table)
-                            .where(table.c.participant_id == pid)).scalar())
+    return int(
+        conn.execute(
+            sa.select(sa.func.count()).select_from(table).where(table.c.participant_id == pid)
+        ).scalar()
+    )
 
 
-def withdrawal_plan(store, *, participant_id: str | None = None,
-                    prolific_pid: str | None = None, study_id: str | None = None,
-                    pseudonym: str | None = None) -> list[dict]:
+def withdrawal_plan(
+    store,
+    *,
+    participant_id: str | None = None,
+    prolific_pid: str | None = None,
+    study_id: str | None = None,
+    pseudonym: str | None = None,
+) -> list[dict]:
     """What :func:`withdraw` would delete, without deleting it (for a confirmation).
 
     Returns
@@ -149,17 +184,28 @@ def withdrawal_plan(store, *, participant_id: str | None = None,
         out = []
         for row in rows:
             pid = row["participant_id"]
-            out.append({"participant_id": pid, "study_id": row["study_id"],
-                        "prolific_pid": row["prolific_pid"],
-                        "n_responses": _count(conn, responses, pid),
-                        "n_events": _count(conn, events, pid),
-                        "has_background": row["background"] is not None})
+            out.append(
+                {
+                    "participant_id": pid,
+                    "study_id": row["study_id"],
+                    "prolific_pid": row["prolific_pid"],
+                    "n_responses": _count(conn, responses, pid),
+                    "n_events": _count(conn, events, pid),
+                    "has_background": row["background"] is not None,
+                }
+            )
     return out
 
 
-def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | None = None,
-             study_id: str | None = None, by: str = "cli",
-             pseudonym: str | None = None) -> list[Withdrawal]:
+def withdraw(
+    store,
+    *,
+    participant_id: str | None = None,
+    prolific_pid: str | None = None,
+    study_id: str | None = None,
+    by: str = "cli",
+    pseudonym: str | None = None,
+) -> list[Withdrawal]:
     """Delete a participant's data and record the withdrawal, in one transaction.
 
     Parameters
@@ -202,29 +248,50 @@ def withdraw(store, *, participant_id: str | None = None, prolific_pid: str | No
         for row in rows:
             pid = row["participant_id"]
             # Children first: responses and events refer to the participant row.
-            n_resp = conn.execute(responses.delete().where(
-                responses.c.participant_id == pid)).rowcount
+            n_resp = conn.execute(
+                responses.delete().where(responses.c.participant_id == pid)
+            ).rowcount
             n_ev = conn.execute(events.delete().where(events.c.participant_id == pid)).rowcount
             conn.execute(exclusions.delete().where(exclusions.c.participant_id == pid))
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
-            conn.execute(withdrawals.insert().values(
-                participant_id=pid, study_id=row["study_id"], prolific_pid=row["prolific_pid"],
-                requested_by=by, withdrawn_at=now))
-            done.append(Withdrawal(pid, row["study_id"], row["prolific_pid"], by, now,
-                                   int(n_resp), int(n_ev)))
+            conn.execute(
+                withdrawals.insert().values(
+                    participant_id=pid,
+                    study_id=row["study_id"],
+                    prolific_pid=row["prolific_pid"],
+                    requested_by=by,
+                    withdrawn_at=now,
+                )
+            )
+            done.append(
+                Withdrawal(
+                    pid, row["study_id"], row["prolific_pid"], by, now, int(n_resp), int(n_ev)
+                )
+            )
     return done
 
 
-def withdrawal_of(store, *, participant_id: str | None = None, prolific_pid: str | None = None,
-                  study_id: str | None = None) -> Withdrawal | None:
+def withdrawal_of(
+    store,
+    *,
+    participant_id: str | None = None,
+    prolific_pid: str | None = None,
+    study_id: str | None = None,
+) -> Withdrawal | None:
     """The withdrawal record of a participant link id or a Prolific id, or None."""
     if (participant_id is None) == (prolific_pid is None):
         raise StoreError("withdrawal_of needs exactly one of a participant id and a Prolific id")
-    cond = (withdrawals.c.participant_id == str(participant_id) if participant_id is not None
-            else withdrawals.c.prolific_pid == str(prolific_pid))
+    cond = (
+        withdrawals.c.participant_id == str(participant_id)
+        if participant_id is not None
+        else withdrawals.c.prolific_pid == str(prolific_pid)
+    )
     if study_id is not None:
         cond = sa.and_(cond, withdrawals.c.study_id == study_id)
     with store.transaction(write=False) as conn:
-        row = conn.execute(sa.select(withdrawals).where(cond)
-                           .order_by(withdrawals.c.withdrawn_at)).mappings().first()
+        row = (
+            conn.execute(sa.select(withdrawals).where(cond).order_by(withdrawals.c.withdrawn_at))
+            .mappings()
+            .first()
+        )
     return None if row is None else _record(row)

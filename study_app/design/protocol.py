@@ -197,12 +197,19 @@ class Study:
 
     def to_dict(self) -> dict:
         """The config as a document that :func:`study_from_dict` reads back (for manifests)."""
-        study = {"id": self.id, "title": self.title, "description": self.description,
-                 "video_fps": self.video_fps, "size": list(self.size), "picker": self.picker,
-                 "consent": self.consent, "min_answer_s": self.min_answer_s,
-                 "require_watch": self.require_watch,
-                 "near_duplicate_deg": self.near_duplicate_deg,
-                 "near_duplicate": self.near_duplicate}
+        study = {
+            "id": self.id,
+            "title": self.title,
+            "description": self.description,
+            "video_fps": self.video_fps,
+            "size": list(self.size),
+            "picker": self.picker,
+            "consent": self.consent,
+            "min_answer_s": self.min_answer_s,
+            "require_watch": self.require_watch,
+            "near_duplicate_deg": self.near_duplicate_deg,
+            "near_duplicate": self.near_duplicate,
+        }
         if self.completion_code:
             study["completion_code"] = self.completion_code
         if self.redirect_url:
@@ -214,9 +221,13 @@ class Study:
                 study[name] = getattr(self, name)
         if self.creators:
             study["creators"] = list(self.creators)
-        return {"study": study, "background": dict(self.background),
-                "attention": dict(self.attention), "selection": dict(self.selection),
-                "scenes": [dict(s) for s in self.scenes]}
+        return {
+            "study": study,
+            "background": dict(self.background),
+            "attention": dict(self.attention),
+            "selection": dict(self.selection),
+            "scenes": [dict(s) for s in self.scenes],
+        }
 
 
 @dataclass(frozen=True)
@@ -260,8 +271,9 @@ def load_study(path: str | Path) -> Study:
     return study_from_dict(doc, source=str(p), base=p.resolve().parent, validated=True)
 
 
-def study_from_dict(doc: dict, *, source: str = "study config", base: Path | None = None,
-                    validated: bool = False) -> Study:
+def study_from_dict(
+    doc: dict, *, source: str = "study config", base: Path | None = None, validated: bool = False
+) -> Study:
     """Build a :class:`Study` from a parsed config document (validating it first)."""
     if not validated:
         validate(doc, "study", source=source)
@@ -272,12 +284,15 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
         raise StudyError(f"{source}: scenes: duplicate scene id(s) {', '.join(dupes)}")
     for k, sc in enumerate(doc["scenes"]):
         if "frames" in sc and sc["frames"][0] >= sc["frames"][1]:
-            raise StudyError(f"{source}: scenes[{k}].frames: {sc['frames']} is an empty window "
-                             "(need start < stop)")
+            raise StudyError(
+                f"{source}: scenes[{k}].frames: {sc['frames']} is an empty window "
+                "(need start < stop)"
+            )
     attention = dict(doc.get("attention") or DEFAULT_ATTENTION)
     if attention["answer"] not in attention["options"]:
-        raise StudyError(f"{source}: attention.answer: '{attention['answer']}' is not one of "
-                         "attention.options")
+        raise StudyError(
+            f"{source}: attention.answer: '{attention['answer']}' is not one of attention.options"
+        )
     background = dict(DEFAULT_BACKGROUND)
     background.update(doc.get("background") or {})
     return Study(
@@ -306,7 +321,9 @@ def study_from_dict(doc: dict, *, source: str = "study config", base: Path | Non
     )
 
 
-def trial_plan(scene_ids, seed: int, *, methods=VIEW_METHODS, attention: bool = True) -> list[Trial]:
+def trial_plan(
+    scene_ids, seed: int, *, methods=VIEW_METHODS, attention: bool = True
+) -> list[Trial]:
     """The ordered trials of one participant.
 
     Parameters
@@ -448,14 +465,19 @@ def estimated_minutes(video_seconds, *, attention: bool = True) -> int:
     Rounded up, so the consent page never promises less than it takes.
     """
     secs = [float(v) for v in video_seconds]
-    total = (_SECONDS_CONSENT + _SECONDS_BACKGROUND + (_SECONDS_ATTENTION if attention else 0)
-             + sum(_POSE_WATCH_FACTOR * v + _SECONDS_POSE for v in secs)
-             + _SECONDS_VIEW * len(secs))
+    total = (
+        _SECONDS_CONSENT
+        + _SECONDS_BACKGROUND
+        + (_SECONDS_ATTENTION if attention else 0)
+        + sum(_POSE_WATCH_FACTOR * v + _SECONDS_POSE for v in secs)
+        + _SECONDS_VIEW * len(secs)
+    )
     return max(1, math.ceil(total / 60))
 
 
 def consent_text(study: Study, minutes: int) -> str:
     """The consent Markdown with ``{minutes}`` replaced by the study's estimated duration
     and ``{contact}`` by whom to write to (to withdraw, :attr:`Study.contact`)."""
-    return (study.consent.replace("{minutes}", str(int(minutes)))
-            .replace("{contact}", study.contact or DEFAULT_CONTACT))
+    return study.consent.replace("{minutes}", str(int(minutes))).replace(
+        "{contact}", study.contact or DEFAULT_CONTACT
+    )

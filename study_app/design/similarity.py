@@ -42,9 +42,10 @@ def silhouette(path: str | Path) -> np.ndarray:
     if not mask.any():
         return np.zeros((_SILHOUETTE_SIDE, _SILHOUETTE_SIDE), dtype=bool)
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    crop = mask[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    crop = mask[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
     small = Image.fromarray(crop.astype(np.uint8) * 255).resize(
-        (_SILHOUETTE_SIDE, _SILHOUETTE_SIDE), Image.Resampling.BILINEAR)
+        (_SILHOUETTE_SIDE, _SILHOUETTE_SIDE), Image.Resampling.BILINEAR
+    )
     return np.asarray(small) >= 128
 
 
@@ -66,5 +67,8 @@ def candidate_ious(views: dict) -> dict[str, float]:
     method → ``{"file": path}`` or path), in :data:`VIEW_METHODS` order."""
     files = {m: Path(v["file"] if isinstance(v, dict) else v) for m, v in views.items()}
     names = [m.value for m in VIEW_METHODS if m.value in files]
-    return {f"{a}|{b}": round(silhouette_iou(files[a], files[b]), 3)
-            for i, a in enumerate(names) for b in names[i + 1:]}
+    return {
+        f"{a}|{b}": round(silhouette_iou(files[a], files[b]), 3)
+        for i, a in enumerate(names)
+        for b in names[i + 1 :]
+    }

@@ -207,8 +207,11 @@ class Stimuli:
 
 
 def _referenced_files(entry: dict) -> list[str]:
-    files = [entry["video"], *([entry["video_webm"]] if "video_webm" in entry else []),
-             *entry["frames"]]
+    files = [
+        entry["video"],
+        *([entry["video_webm"]] if "video_webm" in entry else []),
+        *entry["frames"],
+    ]
     files += [v["file"] for v in entry["views"].values()]
     return files
 
@@ -228,8 +231,10 @@ def verify_stimuli(folder: str | Path) -> dict:
     root = Path(folder)
     mpath = root / MANIFEST_NAME
     if not root.is_dir():
-        raise StimuliError(f"stimuli folder {root} does not exist (build it with "
-                           "`snapshot stimuli build STUDY.toml -o FOLDER`)")
+        raise StimuliError(
+            f"stimuli folder {root} does not exist (build it with "
+            "`snapshot stimuli build STUDY.toml -o FOLDER`)"
+        )
     if not mpath.is_file():
         raise StimuliError(f"stimuli folder {root}: no {MANIFEST_NAME} (an unfinished build?)")
     try:
@@ -246,20 +251,26 @@ def verify_stimuli(folder: str | Path) -> dict:
         if not p.is_file():
             raise StimuliError(f"stimuli folder {root}: {rel} is missing")
         if sha256_file(p) != digest:
-            raise StimuliError(f"stimuli folder {root}: {rel} has been altered "
-                               "(its sha256 differs from the manifest)")
+            raise StimuliError(
+                f"stimuli folder {root}: {rel} has been altered "
+                "(its sha256 differs from the manifest)"
+            )
     for entry in manifest["scenes"]:
         for rel in _referenced_files(entry):
             if rel not in listed:
                 raise StimuliError(f"{mpath}: scene {entry['id']}: {rel} has no sha256 in files")
         if len(entry["frames"]) != len(entry["video_to_motion"]):
-            raise StimuliError(f"{mpath}: scene {entry['id']}: {len(entry['frames'])} frame images "
-                               f"but {len(entry['video_to_motion'])} video frames in the map")
+            raise StimuliError(
+                f"{mpath}: scene {entry['id']}: {len(entry['frames'])} frame images "
+                f"but {len(entry['video_to_motion'])} video frames in the map"
+            )
         lo, hi = entry["frame_offset"], entry["frame_offset"] + entry["n_frames"]
         bad = [m for m in entry["video_to_motion"] if not lo <= m < hi]
         if bad or not lo <= entry["picks"]["frame"] < hi:
-            raise StimuliError(f"{mpath}: scene {entry['id']}: motion frames outside the "
-                               f"scene's range [{lo}, {hi})")
+            raise StimuliError(
+                f"{mpath}: scene {entry['id']}: motion frames outside the "
+                f"scene's range [{lo}, {hi})"
+            )
     return manifest
 
 
@@ -280,17 +291,29 @@ def load_stimuli(folder: str | Path, *, verify: bool = True) -> Stimuli:
     scenes = {}
     for e in manifest["scenes"]:
         scenes[e["id"]] = SceneStimulus(
-            scene=e["id"], fps=float(e["fps"]), n_frames=int(e["n_frames"]),
-            frame_offset=int(e["frame_offset"]), algorithm_frame=int(e["picks"]["frame"]),
+            scene=e["id"],
+            fps=float(e["fps"]),
+            n_frames=int(e["n_frames"]),
+            frame_offset=int(e["frame_offset"]),
+            algorithm_frame=int(e["picks"]["frame"]),
             algorithm_frames=tuple(int(f) for f in e["picks"].get("frames", ())),
-            title=e.get("title"), video=root / e["video"],
-            video_fps=float(e["video_fps"]), video_to_motion=tuple(e["video_to_motion"]),
+            title=e.get("title"),
+            video=root / e["video"],
+            video_fps=float(e["video_fps"]),
+            video_to_motion=tuple(e["video_to_motion"]),
             frames=tuple(root / f for f in e["frames"]),
-            views={m: root / v["file"] for m, v in e["views"].items()}, entry=e,
+            views={m: root / v["file"] for m, v in e["views"].items()},
+            entry=e,
             video_webm=root / e["video_webm"] if e.get("video_webm") else None,
         )
-    return Stimuli(folder=root, manifest=manifest, sha256=content_sha256(manifest),
-                   study=study, scenes=scenes, file_sha256=sha256_file(root / MANIFEST_NAME))
+    return Stimuli(
+        folder=root,
+        manifest=manifest,
+        sha256=content_sha256(manifest),
+        study=study,
+        scenes=scenes,
+        file_sha256=sha256_file(root / MANIFEST_NAME),
+    )
 
 
 def content_sha256(manifest: dict) -> str:
@@ -301,8 +324,10 @@ def content_sha256(manifest: dict) -> str:
     same frame maps, picks and study settings have the same hash, whenever they ran.
     """
     doc = {k: v for k, v in manifest.items() if k not in BUILD_RECORD_FIELDS}
-    doc["scenes"] = [{k: v for k, v in e.items() if k not in SCENE_BUILD_RECORD_FIELDS}
-                     for e in manifest.get("scenes", [])]
+    doc["scenes"] = [
+        {k: v for k, v in e.items() if k not in SCENE_BUILD_RECORD_FIELDS}
+        for e in manifest.get("scenes", [])
+    ]
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
@@ -327,8 +352,9 @@ def find_stimulus_set(stimuli: Stimuli, sha256: str) -> Stimuli | None:
         return None
     named = parent / sha256[:SET_NAME_CHARS]
     candidates = [named] if named.is_dir() else []
-    candidates += sorted(p for p in parent.iterdir() if p.is_dir() and p != named
-                         and not p.name.startswith("."))
+    candidates += sorted(
+        p for p in parent.iterdir() if p.is_dir() and p != named and not p.name.startswith(".")
+    )
     for folder in candidates:
         try:
             manifest = json.loads((folder / MANIFEST_NAME).read_text(encoding="utf-8"))
@@ -383,14 +409,19 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     for c in doc["characters"]:
         p = resolve_data_path(c["file"], src_base)
         if not p.exists():
-            raise StimuliError(f"scene {entry['id']}: {c['file']}: no such file (looked beside the "
-                               "study config and in SNAPSHOT_DATA)")
+            raise StimuliError(
+                f"scene {entry['id']}: {c['file']}: no such file (looked beside the "
+                "study config and in SNAPSHOT_DATA)"
+            )
         p = p.resolve()
         if "demo" in entry:
             shutil.copy2(p, work / p.name)
             c["file"] = p.name
-        elif data is not None and p.is_relative_to(data.resolve()) \
-                and not (base is not None and (base / c["file"]).exists()):
+        elif (
+            data is not None
+            and p.is_relative_to(data.resolve())
+            and not (base is not None and (base / c["file"]).exists())
+        ):
             c["file"] = p.relative_to(data.resolve()).as_posix()
         else:
             c["file"] = str(p)
@@ -416,8 +447,9 @@ def _demo_scene_document(name: str, folder: Path) -> dict:
     bvhs = {p.stem: p for p in written if p.suffix == ".bvh"}
     if name in bvhs:
         return {"characters": [{"file": str(bvhs[name])}]}
-    raise StimuliError(f"no synthetic demo scene '{name}' (have: "
-                       f"{', '.join(sorted(set(manifests) | set(bvhs)))})")
+    raise StimuliError(
+        f"no synthetic demo scene '{name}' (have: {', '.join(sorted(set(manifests) | set(bvhs)))})"
+    )
 
 
 def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
@@ -438,10 +470,16 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     views = snap.views
     missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
-        raise StimuliError(f"scene {scene.name}: the selection gave no {', '.join(missing)} "
-                           "view (a baseline was skipped: see the warning above)")
-    picks = {"frame": snap.frame, "frames": snap.frames, "pose_method": snap.pose.method,
-             "by_method": _picks_by_method(scene)}
+        raise StimuliError(
+            f"scene {scene.name}: the selection gave no {', '.join(missing)} "
+            "view (a baseline was skipped: see the warning above)"
+        )
+    picks = {
+        "frame": snap.frame,
+        "frames": snap.frames,
+        "pose_method": snap.pose.method,
+        "by_method": _picks_by_method(scene),
+    }
     picks.update({_PICK_KEYS[m]: _unit(views[m]) for m in VIEW_METHODS})
     timings = {k: float(v) for k, v in snap.timings_s.items()}
     return picks, timings
@@ -500,13 +538,17 @@ def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dic
     if dupes:
         report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
         which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
-        text = (f"nearly the same picture from {which} "
-                f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})")
+        text = (
+            f"nearly the same picture from {which} "
+            f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})"
+        )
         if study.near_duplicate == "error":
-            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
-                               "\"warn\" to build anyway")
-        warnings.warn(text + ": votes may split between them (the analysis reports it)",
-                      stacklevel=3)
+            raise StimuliError(
+                f'scene {scene_id}: {text}; set study.near_duplicate = "warn" to build anyway'
+            )
+        warnings.warn(
+            text + ": votes may split between them (the analysis reports it)", stacklevel=3
+        )
     return angles, dupes
 
 
@@ -517,16 +559,23 @@ def check_alike_pictures(study: Study, scene_id: str, views: dict) -> tuple[dict
     ious = candidate_ious(views)
     pairs = [k.split("|") for k, v in ious.items() if v >= NEAR_DUPLICATE_IOU]
     if pairs:
-        which = "; ".join(f"{a} and {b} (silhouette IoU {ious[f'{a}|{b}']:.2f}, mirror "
-                          "images included)" for a, b in pairs)
-        text = (f"nearly the same picture from {which} (threshold IoU "
-                f"{NEAR_DUPLICATE_IOU:g}; all pairs: "
-                + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in ious.items()) + ")")
+        which = "; ".join(
+            f"{a} and {b} (silhouette IoU {ious[f'{a}|{b}']:.2f}, mirror images included)"
+            for a, b in pairs
+        )
+        text = (
+            f"nearly the same picture from {which} (threshold IoU "
+            f"{NEAR_DUPLICATE_IOU:g}; all pairs: "
+            + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in ious.items())
+            + ")"
+        )
         if study.near_duplicate == "error":
-            raise StimuliError(f"scene {scene_id}: {text}; set study.near_duplicate = "
-                               "\"warn\" to build anyway")
-        warnings.warn(text + ": votes may split between them (the analysis reports it)",
-                      stacklevel=3)
+            raise StimuliError(
+                f'scene {scene_id}: {text}; set study.near_duplicate = "warn" to build anyway'
+            )
+        warnings.warn(
+            text + ": votes may split between them (the analysis reports it)", stacklevel=3
+        )
     return ious, pairs
 
 
@@ -535,8 +584,16 @@ def _unit(v) -> list[float]:
     return (a / np.linalg.norm(a)).tolist()
 
 
-def write_video(scene, path: str | Path, *, fps: float, size: tuple[int, int], view=None,
-                progress: bool = False, webm: str | Path | None = None) -> list[int]:
+def write_video(
+    scene,
+    path: str | Path,
+    *,
+    fps: float,
+    size: tuple[int, int],
+    view=None,
+    progress: bool = False,
+    webm: str | Path | None = None,
+) -> list[int]:
     """Stage 3: the animation video; returns the motion frame (source numbering) per video frame.
 
     ``webm``: also write the same frames as WebM/VP9 there (for browsers without H.264).
@@ -563,8 +620,9 @@ def write_frames(video: str | Path, folder: str | Path) -> list[Path]:
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for i, frame in enumerate(iio.imiter(video, plugin="pyav") if _has_pyav()
-                              else iio.imiter(video)):
+    for i, frame in enumerate(
+        iio.imiter(video, plugin="pyav") if _has_pyav() else iio.imiter(video)
+    ):
         p = out / f"{i:05d}.jpg"
         Image.fromarray(np.asarray(frame)[..., :3]).save(p, quality=FRAME_JPEG_QUALITY)
         paths.append(p)
@@ -606,8 +664,9 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     views = {}
     for m in VIEW_METHODS:
         p = out / f"view_{m}.png"
-        save_png(render_still(scene, frame, directions[m], size=size, fit="frame",
-                              renderer=renderer), p)
+        save_png(
+            render_still(scene, frame, directions[m], size=size, fit="frame", renderer=renderer), p
+        )
         views[m.value] = {"file": p, "direction": directions[m]}
     return views
 
@@ -665,8 +724,9 @@ def write_manifest(folder: str | Path, study: Study, scenes: list[dict]) -> Path
     return path
 
 
-def build_stimuli(study: Study, out_dir: str | Path, *, force: bool = False,
-                  quiet: bool = False) -> Path:
+def build_stimuli(
+    study: Study, out_dir: str | Path, *, force: bool = False, quiet: bool = False
+) -> Path:
     """Build every scene's stimuli into ``out_dir`` and write the manifest.
 
     The build goes to ``<out_dir>.partial``; when complete it becomes the set
@@ -758,12 +818,19 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     picks, timings = select_scene(scene, study.selection)
     angles, dupes = check_near_duplicates(study, sc["id"], picks)
     t2 = time.perf_counter()
-    vmap = write_video(scene, folder / "video.mp4", fps=study.video_fps, size=study.size,
-                       webm=folder / "video.webm")
+    vmap = write_video(
+        scene,
+        folder / "video.mp4",
+        fps=study.video_fps,
+        size=study.size,
+        webm=folder / "video.webm",
+    )
     frames = write_frames(folder / "video.mp4", folder / "frames")
     if len(frames) != len(vmap):
-        raise StimuliError(f"scene {sc['id']}: the video decodes to {len(frames)} frames but the "
-                           f"renderer reported {len(vmap)}")
+        raise StimuliError(
+            f"scene {sc['id']}: the video decodes to {len(frames)} frames but the "
+            f"renderer reported {len(vmap)}"
+        )
     t3 = time.perf_counter()
     views = write_views(scene, picks, folder, size=study.size)
     # Judged on the pictures themselves too: two views far apart in angle can still
@@ -791,6 +858,11 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "view_angles": angles,
         "near_duplicates": dupes,
         "view_iou": ious,
-        "timings_s": {"load": t1 - t0, "select": t2 - t1, "video": t3 - t2, "views": t4 - t3,
-                      **{f"select_{k}": v for k, v in timings.items()}},
+        "timings_s": {
+            "load": t1 - t0,
+            "select": t2 - t1,
+            "video": t3 - t2,
+            "views": t4 - t3,
+            **{f"select_{k}": v for k, v in timings.items()},
+        },
     }

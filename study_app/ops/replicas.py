@@ -49,8 +49,16 @@ from study_app.ops.loadtest.run import warm_up
 from study_app.web.server import streamlit_command
 from study_app.web.timing import ENV_TIMINGS
 
-__all__ = ["ReplicaError", "Postgres", "nginx_config", "ReplicaSet", "find_pg_bin",
-           "NGINX", "ROUTE_COOKIE", "STATE_FILE"]
+__all__ = [
+    "ReplicaError",
+    "Postgres",
+    "nginx_config",
+    "ReplicaSet",
+    "find_pg_bin",
+    "NGINX",
+    "ROUTE_COOKIE",
+    "STATE_FILE",
+]
 
 #: The nginx binary of Debian's package (installed by `make sysdeps`).
 NGINX = "/usr/sbin/nginx"
@@ -70,9 +78,11 @@ def find_pg_bin() -> Path | None:
     """Folder holding ``initdb`` and ``pg_ctl`` (newest Debian version first), or None."""
     import glob
 
-    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"),
-                   key=lambda p: [int(t) for t in Path(p).parents[1].name.split(".")
-                                  if t.isdigit()], reverse=True)
+    found = sorted(
+        glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"),
+        key=lambda p: [int(t) for t in Path(p).parents[1].name.split(".") if t.isdigit()],
+        reverse=True,
+    )
     if found:
         return Path(found[0]).parent
     pg_ctl = shutil.which("pg_ctl")
@@ -92,24 +102,26 @@ class Postgres:
 
     #: Settings for a study server: durable (fsync stays on), room for the replicas'
     #: connection pools.
-    SETTINGS = {"max_connections": "200", "listen_addresses": "127.0.0.1",
-                "shared_buffers": "64MB"}
+    SETTINGS = {"max_connections": "200", "listen_addresses": "127.0.0.1", "shared_buffers": "64MB"}
 
     def __init__(self, root: Path, port: int):
         self.root = Path(root)
         self.port = port
         self.bin = find_pg_bin()
         if self.bin is None:
-            raise ReplicaError("PostgreSQL server binaries (initdb, pg_ctl) not found: "
-                               "apt-get install postgresql (make sysdeps)")
+            raise ReplicaError(
+                "PostgreSQL server binaries (initdb, pg_ctl) not found: "
+                "apt-get install postgresql (make sysdeps)"
+            )
         self.as_root = os.geteuid() == 0
 
     def _run(self, *args: str) -> subprocess.CompletedProcess:
         cmd = [str(self.bin / args[0]), *args[1:]]
         if self.as_root:
             cmd = ["runuser", "-u", "postgres", "--", *cmd]
-        r = subprocess.run(cmd, cwd=self.root, capture_output=True, text=True,
-                           timeout=START_TIMEOUT_S)
+        r = subprocess.run(
+            cmd, cwd=self.root, capture_output=True, text=True, timeout=START_TIMEOUT_S
+        )
         if r.returncode != 0:
             out = " | ".join(x.strip() for x in (r.stderr or r.stdout).splitlines() if x.strip())
             raise ReplicaError(f"{args[0]} failed: {out} {_tail(self.root / 'server.log')}")
@@ -126,9 +138,11 @@ class Postgres:
             shutil.chown(self.root, user="postgres", group="postgres")
             blocked = [p for p in self.root.parents if not os.stat(p).st_mode & 0o001]
             if blocked:
-                raise ReplicaError(f"PostgreSQL runs as the postgres user, who cannot enter "
-                                   f"{blocked[0]} (mode {oct(os.stat(blocked[0]).st_mode)[-3:]})"
-                                   ": choose a --run-dir it can reach")
+                raise ReplicaError(
+                    f"PostgreSQL runs as the postgres user, who cannot enter "
+                    f"{blocked[0]} (mode {oct(os.stat(blocked[0]).st_mode)[-3:]})"
+                    ": choose a --run-dir it can reach"
+                )
         data = self.root / "data"
         if not (data / "PG_VERSION").exists():
             pw = self.root / "password"
@@ -136,22 +150,43 @@ class Postgres:
             pw.chmod(0o600)
             if self.as_root:
                 shutil.chown(pw, user="postgres", group="postgres")
-            self._run("initdb", "-D", str(data), "-U", "postgres", "-E", "UTF8", "--locale=C",
-                      "--auth-local=trust", "--auth-host=scram-sha-256", f"--pwfile={pw}")
+            self._run(
+                "initdb",
+                "-D",
+                str(data),
+                "-U",
+                "postgres",
+                "-E",
+                "UTF8",
+                "--locale=C",
+                "--auth-local=trust",
+                "--auth-host=scram-sha-256",
+                f"--pwfile={pw}",
+            )
         options = " ".join(f"-c {k}={v}" for k, v in self.SETTINGS.items())
-        self._run("pg_ctl", "-D", str(data), "-l", str(self.root / "server.log"), "-w",
-                  "-t", str(START_TIMEOUT_S), "-o", f"{options} -p {self.port} -k {self.root}",
-                  "start")
+        self._run(
+            "pg_ctl",
+            "-D",
+            str(data),
+            "-l",
+            str(self.root / "server.log"),
+            "-w",
+            "-t",
+            str(START_TIMEOUT_S),
+            "-o",
+            f"{options} -p {self.port} -k {self.root}",
+            "start",
+        )
         self._ensure_database("study")
         return self.url("study")
 
     def url(self, database: str) -> str:
-        return (f"postgresql+psycopg://postgres:{self.password}@127.0.0.1:{self.port}/"
-                f"{database}")
+        return f"postgresql+psycopg://postgres:{self.password}@127.0.0.1:{self.port}/{database}"
 
     def _ensure_database(self, name: str) -> None:
-        ensure_postgres_database(host="127.0.0.1", port=self.port, user="postgres",
-                                 password=self.password, name=name)
+        ensure_postgres_database(
+            host="127.0.0.1", port=self.port, user="postgres", password=self.password, name=name
+        )
 
     def stop(self) -> None:
         if (self.root / "data" / "postmaster.pid").exists():
@@ -161,9 +196,15 @@ class Postgres:
                 pass
 
 
-def nginx_config(root: Path, *, port: int, replica_ports: list[int],
-                 address: str = "127.0.0.1", fail_timeout_s: int = 10,
-                 worker_user: str | None = None) -> str:
+def nginx_config(
+    root: Path,
+    *,
+    port: int,
+    replica_ports: list[int],
+    address: str = "127.0.0.1",
+    fail_timeout_s: int = 10,
+    worker_user: str | None = None,
+) -> str:
     """The nginx configuration of a replica set (see the module docstring).
 
     Parameters
@@ -179,8 +220,10 @@ def nginx_config(root: Path, *, port: int, replica_ports: list[int],
         as this unprivileged user, e.g. ``"nobody nogroup"``).
     """
     root = Path(root).resolve()
-    servers = "\n".join(f"        server 127.0.0.1:{p} max_fails=1 fail_timeout={fail_timeout_s}s;"
-                        for p in replica_ports)
+    servers = "\n".join(
+        f"        server 127.0.0.1:{p} max_fails=1 fail_timeout={fail_timeout_s}s;"
+        for p in replica_ports
+    )
     proxy = """proxy_pass http://study;
             proxy_http_version 1.1;
             proxy_set_header Host $host;
@@ -282,8 +325,13 @@ def _tail(path: Path | None, n: int = 600) -> str:
     return " | ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
-def wait_healthy(url: str, *, proc: subprocess.Popen | None = None,
-                 timeout_s: float = START_TIMEOUT_S, log: Path | None = None) -> None:
+def wait_healthy(
+    url: str,
+    *,
+    proc: subprocess.Popen | None = None,
+    timeout_s: float = START_TIMEOUT_S,
+    log: Path | None = None,
+) -> None:
     """Wait until ``url``/_stcore/health answers ok (raise ReplicaError on timeout)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -334,22 +382,24 @@ class ReplicaSet:
         self.root = Path(self.root).resolve()
         self.root.mkdir(parents=True, exist_ok=True)
         if not os.access(NGINX, os.X_OK):
-            raise ReplicaError(f"nginx not found at {NGINX}: apt-get install nginx "
-                               "(make sysdeps)")
+            raise ReplicaError(f"nginx not found at {NGINX}: apt-get install nginx (make sysdeps)")
         try:
             if self.db_url is None:
                 self.postgres = Postgres(self.root / "pg", self.pg_port or _free_port())
                 self.db_url = self.postgres.start()
-            base_env = {**os.environ, **(env or {}), "SNAPSHOT_STIMULI": str(self.stimuli),
-                        "SNAPSHOT_DB": self.db_url,
-                        ENV_TIMINGS: str(self.root / "timings.jsonl")}
+            base_env = {
+                **os.environ,
+                **(env or {}),
+                "SNAPSHOT_STIMULI": str(self.stimuli),
+                "SNAPSHOT_DB": self.db_url,
+                ENV_TIMINGS: str(self.root / "timings.jsonl"),
+            }
             base_env.setdefault("PYOPENGL_PLATFORM", "egl")
             self.replica_ports = [_free_port() for _ in range(self.n)]
             for i, p in enumerate(self.replica_ports):
                 self.replicas.append(self._start_replica(i, p, base_env))
             for i, (p, proc) in enumerate(zip(self.replica_ports, self.replicas, strict=True)):
-                wait_healthy(f"http://127.0.0.1:{p}", proc=proc,
-                             log=self.root / f"replica-{i}.log")
+                wait_healthy(f"http://127.0.0.1:{p}", proc=proc, log=self.root / f"replica-{i}.log")
                 # Open the app once: each process verifies the stimuli on its first
                 # script run (seconds), which must not be a participant's first page.
                 warm_up(f"http://127.0.0.1:{p}")
@@ -357,18 +407,30 @@ class ReplicaSet:
             (self.root / "nginx-tmp").mkdir(exist_ok=True)
             conf = self.root / "nginx.conf"
             # As root, the workers (which talk to participants) drop to nobody.
-            conf.write_text(nginx_config(
-                self.root, port=self.port, replica_ports=self.replica_ports,
-                worker_user="nobody nogroup" if os.geteuid() == 0 else None))
+            conf.write_text(
+                nginx_config(
+                    self.root,
+                    port=self.port,
+                    replica_ports=self.replica_ports,
+                    worker_user="nobody nogroup" if os.geteuid() == 0 else None,
+                )
+            )
             # -p: nginx's prefix is the folder, so nothing is written under /var/lib/nginx.
-            cmd = [NGINX, "-p", str(self.root), "-c", str(conf), "-e",
-                   str(self.root / "nginx-error.log")]
+            cmd = [
+                NGINX,
+                "-p",
+                str(self.root),
+                "-c",
+                str(conf),
+                "-e",
+                str(self.root / "nginx-error.log"),
+            ]
             check = subprocess.run([*cmd, "-t"], capture_output=True, text=True)
             if check.returncode != 0:
-                raise ReplicaError(f"nginx rejected {conf}: "
-                                   + " | ".join(check.stderr.strip().splitlines()))
-            self.nginx = subprocess.Popen(cmd, stdout=subprocess.DEVNULL,
-                                          stderr=subprocess.DEVNULL)
+                raise ReplicaError(
+                    f"nginx rejected {conf}: " + " | ".join(check.stderr.strip().splitlines())
+                )
+            self.nginx = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             wait_healthy(self.url, proc=self.nginx, log=self.root / "nginx-error.log")
             self.write_state()
         except BaseException:
@@ -379,8 +441,12 @@ class ReplicaSet:
     def _start_replica(self, i: int, port: int, env: dict) -> subprocess.Popen:
         log = open(self.root / f"replica-{i}.log", "w")  # noqa: SIM115 - the child keeps it
         try:
-            return subprocess.Popen(streamlit_command(port=port, address="127.0.0.1"),
-                                    env=env, stdout=log, stderr=subprocess.STDOUT)
+            return subprocess.Popen(
+                streamlit_command(port=port, address="127.0.0.1"),
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
         finally:
             log.close()
 
@@ -389,12 +455,17 @@ class ReplicaSet:
         return f"http://127.0.0.1:{self.port}/"
 
     def state(self) -> dict:
-        return {"url": self.url, "db_url": self.db_url, "nginx_pid": self.nginx.pid
-                if self.nginx else None,
-                "replicas": [{"port": p, "pid": proc.pid} for p, proc in
-                             zip(self.replica_ports, self.replicas, strict=False)],
-                "timings": str(self.root / "timings.jsonl"),
-                "postgres_port": self.postgres.port if self.postgres else None}
+        return {
+            "url": self.url,
+            "db_url": self.db_url,
+            "nginx_pid": self.nginx.pid if self.nginx else None,
+            "replicas": [
+                {"port": p, "pid": proc.pid}
+                for p, proc in zip(self.replica_ports, self.replicas, strict=False)
+            ],
+            "timings": str(self.root / "timings.jsonl"),
+            "postgres_port": self.postgres.port if self.postgres else None,
+        }
 
     def write_state(self) -> None:
         (self.root / STATE_FILE).write_text(json.dumps(self.state(), indent=1) + "\n")

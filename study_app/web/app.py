@@ -75,8 +75,11 @@ log = logging.getLogger("study_app")
 
 def _query() -> dict:
     """The URL's query: one value per key, or the list when a key is repeated."""
-    return {k: (v[0] if len(v) == 1 else v)
-            for k in st.query_params.keys() if (v := st.query_params.get_all(k))}
+    return {
+        k: (v[0] if len(v) == 1 else v)
+        for k in st.query_params.keys()
+        if (v := st.query_params.get_all(k))
+    }
 
 
 def _participant(ctx):
@@ -94,9 +97,14 @@ def _participant(ctx):
     problems = prolific_problems(query)
     if problems:
         # Refused before anything is stored, and logged for the researcher.
-        log.warning("refused a study link with malformed Prolific parameters: %s",
-                    ", ".join(f"{k}={describe_value(query.get(k))}"
-                              for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID") if k in query))
+        log.warning(
+            "refused a study link with malformed Prolific parameters: %s",
+            ", ".join(
+                f"{k}={describe_value(query.get(k))}"
+                for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
+                if k in query
+            ),
+        )
         return None, " ".join(problems) + " Please open the study again from Prolific."
     if "PROLIFIC_PID" in query and not ctx.stimuli.study.completion_code:
         _no_completion_code(ctx.stimuli.study.id)
@@ -135,9 +143,11 @@ def _participant(ctx):
 def _no_completion_code(study_id: str) -> None:
     """Say once per server that a Prolific participant arrived on a study without a
     completion code (they will get a random code Prolific cannot check)."""
-    log.warning("a participant arrived from Prolific, but study '%s' has no completion_code: "
-                "they will get a random code Prolific cannot accept (set study.completion_code)",
-                study_id)
+    log.warning(
+        "a participant arrived from Prolific, but study '%s' has no completion_code: "
+        "they will get a random code Prolific cannot accept (set study.completion_code)",
+        study_id,
+    )
 
 
 def _refused(err: UnknownParticipant) -> str:
@@ -160,8 +170,9 @@ def main() -> None:
         st.stop()
     session, problem = _participant(ctx)
     wide = session is not None and session.stage in WIDE_STAGES
-    st.set_page_config(page_title=ctx.stimuli.study.title, page_icon="🎞️",
-                       layout="wide" if wide else "centered")
+    st.set_page_config(
+        page_title=ctx.stimuli.study.title, page_icon="🎞️", layout="wide" if wide else "centered"
+    )
     st.session_state[keys.KEY_SESSION] = session
     st.session_state[keys.KEY_PROBLEM] = problem
     if problem:
@@ -187,8 +198,7 @@ def main() -> None:
         log.error("page failed: %s", err)
         st.error(f"This page cannot be shown: {widgets.one_line(err)}")
         return
-    if page.url_path != RESEARCHER_PATH and session is not None \
-            and session.stage is not Stage.DONE:
+    if page.url_path != RESEARCHER_PATH and session is not None and session.stage is not Stage.DONE:
         widgets.resume_link(session)
 
 

@@ -38,8 +38,15 @@ import threading
 import time
 from pathlib import Path
 
-__all__ = ["main", "warm_up", "index_config_sections", "DeepPageRedirect",
-           "redirect_deep_page_paths", "streamlit_command", "APP"]
+__all__ = [
+    "main",
+    "warm_up",
+    "index_config_sections",
+    "DeepPageRedirect",
+    "redirect_deep_page_paths",
+    "streamlit_command",
+    "APP",
+]
 
 log = logging.getLogger("study_app.web.server")
 
@@ -81,17 +88,33 @@ def streamlit_command(*, port: int, address: str) -> list[str]:
     draw the answered step again. Off, a session's runs follow one another: a rerun
     stops the current run at its next Streamlit call and starts after it.
     """
-    return [sys.executable, "-m", "study_app.web.server", "run", str(APP),
-            "--server.headless", "true",
-            "--server.address", address,
-            "--server.port", str(port),
-            "--browser.gatherUsageStats", "false",
-            "--server.fileWatcherType", "none",
-            "--server.runOnSave", "false",
-            "--runner.postScriptGC", "false",
-            "--runner.fastReruns", "false",
-            "--theme.base", "light",
-            "--client.toolbarMode", "minimal"]
+    return [
+        sys.executable,
+        "-m",
+        "study_app.web.server",
+        "run",
+        str(APP),
+        "--server.headless",
+        "true",
+        "--server.address",
+        address,
+        "--server.port",
+        str(port),
+        "--browser.gatherUsageStats",
+        "false",
+        "--server.fileWatcherType",
+        "none",
+        "--server.runOnSave",
+        "false",
+        "--runner.postScriptGC",
+        "false",
+        "--runner.fastReruns",
+        "false",
+        "--theme.base",
+        "light",
+        "--client.toolbarMode",
+        "minimal",
+    ]
 
 
 def _warm_in_background() -> None:
@@ -147,7 +170,9 @@ class DeepPageRedirect:
     """
 
     #: First path segments that are Streamlit's (or its components') routes, never pages.
-    RESERVED = frozenset({"_stcore", "static", "media", "component", "app", "auth", "oauth2callback"})
+    RESERVED = frozenset(
+        {"_stcore", "static", "media", "component", "app", "auth", "oauth2callback"}
+    )
     #: Pages with an address of their own (study_app.web.app.RESEARCHER_PATH).
     PAGES = frozenset({"researcher"})
 
@@ -158,15 +183,22 @@ class DeepPageRedirect:
 
     async def __call__(self, scope, receive, send):
         if scope["type"] == "http" and scope["method"] in ("GET", "HEAD"):
-            path = scope["path"][len(self.root) - 1:] if scope["path"].startswith(self.root) else ""
+            path = (
+                scope["path"][len(self.root) - 1 :] if scope["path"].startswith(self.root) else ""
+            )
             segments = [s for s in path.split("/") if s]
             accept = dict(scope.get("headers") or ()).get(b"accept", b"")
             elsewhere = len(segments) >= 2 or (len(segments) == 1 and segments[0] not in self.PAGES)
             if elsewhere and segments[0] not in self.RESERVED and b"text/html" in accept:
                 query = scope.get("query_string", b"")
                 location = self.root.encode() + (b"?" + query if query else b"")
-                await send({"type": "http.response.start", "status": 307,
-                            "headers": [(b"location", location), (b"content-length", b"0")]})
+                await send(
+                    {
+                        "type": "http.response.start",
+                        "status": 307,
+                        "headers": [(b"location", location), (b"content-length", b"0")],
+                    }
+                )
                 await send({"type": "http.response.body", "body": b""})
                 return
         await self.app(scope, receive, send)
@@ -183,7 +215,9 @@ def redirect_deep_page_paths() -> None:
 
     def create_starlette_app(runtime):
         app = create(runtime)
-        app.add_middleware(DeepPageRedirect, base_path=config.get_option("server.baseUrlPath") or "")
+        app.add_middleware(
+            DeepPageRedirect, base_path=config.get_option("server.baseUrlPath") or ""
+        )
         return app
 
     create_starlette_app.snapshot_redirects = True

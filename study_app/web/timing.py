@@ -33,8 +33,14 @@ import os
 import threading
 import time
 
-__all__ = ["ENV_TIMINGS", "RunClock", "callback_started", "in_fragment_run", "record_run",
-           "read_timings"]
+__all__ = [
+    "ENV_TIMINGS",
+    "RunClock",
+    "callback_started",
+    "in_fragment_run",
+    "record_run",
+    "read_timings",
+]
 
 #: Environment variable naming the JSON-lines file of script-run timings.
 ENV_TIMINGS = "SNAPSHOT_TIMINGS"
@@ -94,7 +100,9 @@ class RunClock:
         if self._outer:
             _local.clock = self
             self._t0, self._c0 = getattr(_local, "callback", None) or (
-                time.perf_counter(), time.thread_time())
+                time.perf_counter(),
+                time.thread_time(),
+            )
             _local.callback = None
         return self
 
@@ -102,12 +110,17 @@ class RunClock:
         if not self._outer:
             return
         _local.clock = None
-        record_run(time.perf_counter() - self._t0, stage=self._stage(),
-                   cpu_seconds=time.thread_time() - self._c0, fragment=self._fragment)
+        record_run(
+            time.perf_counter() - self._t0,
+            stage=self._stage(),
+            cpu_seconds=time.thread_time() - self._c0,
+            fragment=self._fragment,
+        )
 
 
-def record_run(seconds: float, *, stage: str, cpu_seconds: float | None = None,
-               fragment: bool = False) -> None:
+def record_run(
+    seconds: float, *, stage: str, cpu_seconds: float | None = None, fragment: bool = False
+) -> None:
     """Record one script run of ``seconds`` (wall time; ``cpu_seconds`` of its thread's
     CPU time) on the page of ``stage``; ``fragment``: a fragment's own run."""
     ms = round(seconds * 1000.0, 2)

@@ -37,8 +37,21 @@ CASES = [
 ]
 
 # What must not change; timings and the version stamp may.
-KEYS = ("frame", "frames", "peaks", "pose_entropy", "events", "fps", "n_frames", "frame_offset",
-        "view", "view_refined", "baselines", "pma", "window")
+KEYS = (
+    "frame",
+    "frames",
+    "peaks",
+    "pose_entropy",
+    "events",
+    "fps",
+    "n_frames",
+    "frame_offset",
+    "view",
+    "view_refined",
+    "baselines",
+    "pma",
+    "window",
+)
 
 
 def data_dir() -> Path:
@@ -54,13 +67,17 @@ def run_case(paths: list[str], extra: list[str], method_args: list[str] | None =
 
 
 def main() -> None:
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, check=True,
-                            capture_output=True, text=True).stdout.strip()
+    commit = subprocess.run(
+        ["git", "rev-parse", "HEAD"], cwd=ROOT, check=True, capture_output=True, text=True
+    ).stdout.strip()
     cases = {}
     for name, paths, extra in CASES:
         doc = run_case(paths, extra)
-        cases[name] = {"paths": paths, "args": extra,
-                       "output": {k: doc[k] for k in KEYS if k in doc}}
+        cases[name] = {
+            "paths": paths,
+            "args": extra,
+            "output": {k: doc[k] for k in KEYS if k in doc},
+        }
         print(name, doc["frame"], file=sys.stderr)
     out = {"commit": commit, "cases": cases}
     (HERE / "select_outputs.json").write_text(json.dumps(out, indent=1) + "\n")

@@ -26,9 +26,16 @@ from .run import ServerSampler, build_report
 __all__ = ["run_browsers", "CHROMIUM", "CHROMIUM_ARGS"]
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run",
-                 "--disable-quic", "--autoplay-policy=no-user-gesture-required"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+    "--autoplay-policy=no-user-gesture-required",
+]
 IDLE = "[data-testid=stApp][data-test-script-state=notRunning]"
 SELF_DESCRIBE = "Prefer to self-describe"
 
@@ -61,8 +68,10 @@ class RunWatch:
         except Exception:  # noqa: BLE001 - not one of the app's messages
             return
         if fm.WhichOneof("type") == "script_finished" and fm.script_finished in (
-                self._msg.FINISHED_SUCCESSFULLY, self._msg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY,
-                self._msg.FINISHED_WITH_COMPILE_ERROR):
+            self._msg.FINISHED_SUCCESSFULLY,
+            self._msg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY,
+            self._msg.FINISHED_WITH_COMPILE_ERROR,
+        ):
             self.finished += 1
             self.at = time.perf_counter()
             self._changed.set()
@@ -88,8 +97,9 @@ class RunWatch:
 HEADINGS_JS = "() => Array.from(document.querySelectorAll('h1, h2')).map(e => e.innerText)"
 
 
-async def _timed_click(result, watch: RunWatch, action, page, locator, *,
-                       leaves: str | None = None) -> None:
+async def _timed_click(
+    result, watch: RunWatch, action, page, locator, *, leaves: str | None = None
+) -> None:
     """Click and wait for the run it caused; with ``leaves``, until the page's headings
     are no longer ``leaves`` (an answer moves to the next step). Counting runs alone
     cannot tell the answer's run from a run the player's event log started just before."""
@@ -97,8 +107,9 @@ async def _timed_click(result, watch: RunWatch, action, page, locator, *,
     await locator.click()
     done = await watch.after(page, before)
     if leaves is not None:
-        await page.wait_for_function(f"h => ({HEADINGS_JS})().join(' | ') !== h", arg=leaves,
-                                     timeout=60_000, polling=50)
+        await page.wait_for_function(
+            f"h => ({HEADINGS_JS})().join(' | ') !== h", arg=leaves, timeout=60_000, polling=50
+        )
         await page.wait_for_selector(IDLE, timeout=60_000)
         done = time.perf_counter()
     result.add(action, done - t0)
@@ -119,8 +130,10 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
     r.started = time.perf_counter()
     try:
         t0 = time.perf_counter()
-        await page.goto(f"{url.rstrip('/')}/?PROLIFIC_PID={prolific_pid}&STUDY_ID=loadtest"
-                        f"&SESSION_ID=b{index:05d}")
+        await page.goto(
+            f"{url.rstrip('/')}/?PROLIFIC_PID={prolific_pid}&STUDY_ID=loadtest"
+            f"&SESSION_ID=b{index:05d}"
+        )
         r.add("open", await watch.after(page, 0) - t0)
         for _ in range(100):
             h = await _heading(page)
@@ -131,23 +144,48 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                 break
             if await page.get_by_role("button", name="Start the study").count():
                 await page.wait_for_timeout(think * 500)
-                await _timed_click(r, watch, "consent_agree", page,
-                                   page.get_by_text("I have read the information"))
-                await _timed_click(r, watch, "consent_start", page,
-                                   page.get_by_role("button", name="Start the study"), leaves=h)
+                await _timed_click(
+                    r, watch, "consent_agree", page, page.get_by_text("I have read the information")
+                )
+                await _timed_click(
+                    r,
+                    watch,
+                    "consent_start",
+                    page,
+                    page.get_by_role("button", name="Start the study"),
+                    leaves=h,
+                )
             elif "About you" in h:
                 await page.get_by_role("combobox", name="Your age").click()
                 await page.get_by_role("option").first.wait_for()  # the list opens
                 options = await page.get_by_role("option").all_inner_texts()
-                await _timed_click(r, watch, "background_field", page,
-                                   page.get_by_role("option", name=rng.choice(options)))
+                await _timed_click(
+                    r,
+                    watch,
+                    "background_field",
+                    page,
+                    page.get_by_role("option", name=rng.choice(options)),
+                )
                 for group in range(2):
                     labels = page.get_by_test_id("stRadioGroup").nth(group).locator("label")
                     texts = [t for t in await labels.all_inner_texts() if t != SELF_DESCRIBE]
-                    await _timed_click(r, watch, "background_field", page, labels.filter(
-                        has_text=re.compile("^" + re.escape(rng.choice(texts)) + "$")).first)
-                await _timed_click(r, watch, "background_submit", page,
-                                   page.get_by_role("button", name="Continue"), leaves=h)
+                    await _timed_click(
+                        r,
+                        watch,
+                        "background_field",
+                        page,
+                        labels.filter(
+                            has_text=re.compile("^" + re.escape(rng.choice(texts)) + "$")
+                        ).first,
+                    )
+                await _timed_click(
+                    r,
+                    watch,
+                    "background_submit",
+                    page,
+                    page.get_by_role("button", name="Continue"),
+                    leaves=h,
+                )
             elif m := re.search(r"Animation (\d+) of (\d+)", h):
                 trial, n_pose = int(m.group(1)) - 1, int(m.group(2))
                 # This trial's player (its key starts with the trial index): the last
@@ -156,16 +194,23 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                 await page.wait_for_selector(f"{mine}[data-ready='1']", timeout=60_000)
                 player = page.locator(mine)
                 await player.get_by_test_id("picker-play").click()
-                await page.wait_for_selector(f"{mine} [data-testid=picker-confirm]:enabled",
-                                             timeout=60_000)
+                await page.wait_for_selector(
+                    f"{mine} [data-testid=picker-confirm]:enabled", timeout=60_000
+                )
                 for _ in range(rng.randrange(0, 6)):  # step back a few frames
                     await player.get_by_test_id("picker-back").click()
                 await page.wait_for_timeout(think * 300)
                 text = await player.get_by_test_id("picker-frame").inner_text()
                 frame = int(re.match(r"Frame (\d+)", text).group(1)) - 1
                 r.answers[trial] = {"task": "pose", "video_frame": frame}
-                await _timed_click(r, watch, "pose_confirm", page,
-                                   player.get_by_test_id("picker-confirm"), leaves=h)
+                await _timed_click(
+                    r,
+                    watch,
+                    "pose_confirm",
+                    page,
+                    player.get_by_test_id("picker-confirm"),
+                    leaves=h,
+                )
             elif m := re.search(r"Pictures (\d+) of (\d+)", h):
                 n_view = int(m.group(2))
                 trial = n_pose + int(m.group(1)) - 1
@@ -176,18 +221,31 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                 position = rng.randrange(n)
                 await page.wait_for_timeout(think * 1000)
                 r.answers[trial] = {"task": "view", "position": position}
-                await _timed_click(r, watch, "view_choose", page,
-                                   views.get_by_test_id(f"view-choose-{position}"), leaves=h)
+                await _timed_click(
+                    r,
+                    watch,
+                    "view_choose",
+                    page,
+                    views.get_by_test_id(f"view-choose-{position}"),
+                    leaves=h,
+                )
             elif "One more question" in h:
                 labels = page.get_by_test_id("stRadioGroup").locator("label")
                 texts = await labels.all_inner_texts()
                 choice = rng.choice(texts)
                 await page.wait_for_timeout(think * 1000)
-                await _timed_click(r, watch, "attention_choice", page,
-                                   labels.nth(texts.index(choice)))
+                await _timed_click(
+                    r, watch, "attention_choice", page, labels.nth(texts.index(choice))
+                )
                 r.answers[n_pose + n_view] = {"task": "attention", "value": choice}
-                await _timed_click(r, watch, "attention_submit", page,
-                                   page.get_by_role("button", name="Continue"), leaves=h)
+                await _timed_click(
+                    r,
+                    watch,
+                    "attention_submit",
+                    page,
+                    page.get_by_role("button", name="Continue"),
+                    leaves=h,
+                )
             else:
                 await page.wait_for_timeout(500)  # a page between steps: let it go on
                 await watch.after(page, watch.finished - 1)
@@ -200,16 +258,26 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
             where = await _heading(page)
         except Exception:  # noqa: BLE001 - the page itself may be gone
             where = "?"
-        r.errors.append(f"fatal on page '{where}': {type(err).__name__}: "
-                        f"{str(err).splitlines()[0]}")
+        r.errors.append(
+            f"fatal on page '{where}': {type(err).__name__}: {str(err).splitlines()[0]}"
+        )
     finally:
         r.finished = time.perf_counter()
         await ctx.close()
     return r
 
 
-def run_browsers(url: str, n: int, *, ramp_s: float = 5.0, think_s: float = 1.0,
-                 seed: int = 0, server_pids=(), timings=(), db_url: str | None = None):
+def run_browsers(
+    url: str,
+    n: int,
+    *,
+    ramp_s: float = 5.0,
+    think_s: float = 1.0,
+    seed: int = 0,
+    server_pids=(),
+    timings=(),
+    db_url: str | None = None,
+):
     """Run ``n`` participants in headless Chromium; return (report, results) like
     :func:`study_app.ops.loadtest.run.run_load`.
 
@@ -222,9 +290,11 @@ def run_browsers(url: str, n: int, *, ramp_s: float = 5.0, think_s: float = 1.0,
         async with async_playwright() as p:
             browser = await p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
             try:
+
                 async def one(i):
                     await asyncio.sleep(ramp_s * i / max(n, 1))
                     return await _participant(browser, url, i, seed=seed, think_s=think_s)
+
                 t0 = time.perf_counter()
                 results = await asyncio.gather(*(one(i) for i in range(n)))
                 return results, time.perf_counter() - t0
@@ -236,7 +306,21 @@ def run_browsers(url: str, n: int, *, ramp_s: float = 5.0, think_s: float = 1.0,
     results, elapsed = asyncio.run(main())
     wall1 = time.time()
     server = sampler.stop() if sampler else {}
-    config = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
-              "seed": seed, "prolific": True, "driver": "browser"}
-    return build_report(results, elapsed_s=elapsed, server=server, config=config,
-                        timings=timings, window=(wall0, wall1), db_url=db_url), results
+    config = {
+        "url": url,
+        "participants": n,
+        "ramp_s": ramp_s,
+        "think_s": think_s,
+        "seed": seed,
+        "prolific": True,
+        "driver": "browser",
+    }
+    return build_report(
+        results,
+        elapsed_s=elapsed,
+        server=server,
+        config=config,
+        timings=timings,
+        window=(wall0, wall1),
+        db_url=db_url,
+    ), results

@@ -26,8 +26,15 @@ from urllib.parse import parse_qsl, urlsplit
 __all__ = ["Element", "Page", "StreamlitClient", "ProtocolError", "trigger_id"]
 
 #: Element types that are widgets, by the oneof name of ``Element.type``.
-WIDGET_TYPES = ("button", "checkbox", "radio", "selectbox", "text_input", "slider",
-                "bidi_component")
+WIDGET_TYPES = (
+    "button",
+    "checkbox",
+    "radio",
+    "selectbox",
+    "text_input",
+    "slider",
+    "bidi_component",
+)
 #: Element types whose text the client keeps (what the participant reads).
 TEXT_TYPES = ("heading", "markdown", "alert", "code", "exception")
 
@@ -146,8 +153,15 @@ class StreamlitClient:
         the cookies it sets (nginx's replica-routing cookie comes this way).
     """
 
-    def __init__(self, url: str, *, query: str = "", cookies: dict | None = None,
-                 timeout_s: float = 60.0, load_page: bool = True):
+    def __init__(
+        self,
+        url: str,
+        *,
+        query: str = "",
+        cookies: dict | None = None,
+        timeout_s: float = 60.0,
+        load_page: bool = True,
+    ):
         parts = urlsplit(url)
         scheme = "wss" if parts.scheme == "https" else "ws"
         path = parts.path.rstrip("/")
@@ -196,8 +210,13 @@ class StreamlitClient:
         if self.cookies:
             headers["Cookie"] = "; ".join(f"{k}={v}" for k, v in self.cookies.items())
         self.ws = await websockets.connect(
-            self.ws_url, subprotocols=["streamlit"], additional_headers=headers,
-            max_size=None, open_timeout=self.timeout_s, ping_interval=None)
+            self.ws_url,
+            subprotocols=["streamlit"],
+            additional_headers=headers,
+            max_size=None,
+            open_timeout=self.timeout_s,
+            ping_interval=None,
+        )
 
     async def close(self) -> None:
         if self.ws is not None:
@@ -221,8 +240,9 @@ class StreamlitClient:
         return await self.rerun()
 
     # -- interactions ----------------------------------------------------------------
-    async def rerun(self, *, triggers: list | None = None, history: bool = False,
-                    wait: bool = True) -> Page:
+    async def rerun(
+        self, *, triggers: list | None = None, history: bool = False, wait: bool = True
+    ) -> Page:
         """Send one rerun (the stateful widget values plus ``triggers``) and read the
         page until the last script run finishes.
 
@@ -306,11 +326,16 @@ class StreamlitClient:
                 status = fm.script_finished
                 if status == ForwardMsg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY:
                     # What the fragment drew before and not this time is gone.
-                    for p in [p for p, e in elements.items()
-                              if e.fragment_id in fragments and p not in drawn]:
+                    for p in [
+                        p
+                        for p, e in elements.items()
+                        if e.fragment_id in fragments and p not in drawn
+                    ]:
                         del elements[p]
-                if status in (ForwardMsg.FINISHED_SUCCESSFULLY,
-                              ForwardMsg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY):
+                if status in (
+                    ForwardMsg.FINISHED_SUCCESSFULLY,
+                    ForwardMsg.FINISHED_FRAGMENT_RUN_SUCCESSFULLY,
+                ):
                     self.page = Page([elements[p] for p in sorted(elements)])
                     self._forget_gone_widgets()
                     return self.page
@@ -346,8 +371,10 @@ class StreamlitClient:
         from streamlit.proto.WidgetStates_pb2 import WidgetState
 
         self._fragment_id = element.fragment_id
-        return WidgetState(id=trigger_id(element.id),
-                           json_trigger_value=json.dumps([{"event": event, "value": value}]))
+        return WidgetState(
+            id=trigger_id(element.id),
+            json_trigger_value=json.dumps([{"event": event, "value": value}]),
+        )
 
     def query_params(self) -> dict:
         return dict(parse_qsl(self.query))

@@ -25,9 +25,21 @@ from .client import Page, ProtocolError, StreamlitClient
 __all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
 
 #: Action names in the latency report.
-ACTIONS = ("open", "consent_agree", "consent_start", "background_field", "background_submit",
-           "pose_log", "pose_confirm", "view_choose", "attention_choice", "attention_submit",
-           "reload", "back", "double_click")
+ACTIONS = (
+    "open",
+    "consent_agree",
+    "consent_start",
+    "background_field",
+    "background_submit",
+    "pose_log",
+    "pose_confirm",
+    "view_choose",
+    "attention_choice",
+    "attention_submit",
+    "reload",
+    "back",
+    "double_click",
+)
 #: Keys of the app's widgets (study_app.web.screens.keys; copied, as the driver must not
 #: import the UI layer).
 K_AGREE, K_START = "consent.agree", "consent.start"
@@ -98,15 +110,21 @@ def _attention_index(result: ParticipantResult) -> int:
     answered (the page does not show its index; the plan puts it after them). An answer
     refused as too early leaves the same page on screen: the next one is for the same
     trial, not the one after."""
-    return max((i for i, a in result.answers.items() if a["task"] != "attention"),
-               default=-1) + 1
+    return max((i for i, a in result.answers.items() if a["task"] != "attention"), default=-1) + 1
 
 
 class _Run:
     """The participant's state while running (kept small: hundreds run at once)."""
 
-    def __init__(self, client: StreamlitClient, result: ParticipantResult, rng: random.Random,
-                 think_s: float, behaviour: Behaviour, reconnect):
+    def __init__(
+        self,
+        client: StreamlitClient,
+        result: ParticipantResult,
+        rng: random.Random,
+        think_s: float,
+        behaviour: Behaviour,
+        reconnect,
+    ):
         self.c, self.r, self.rng = client, result, rng
         self.think_s, self.b, self.reconnect = think_s, behaviour, reconnect
         self.did_reload = self.did_back = self.did_double = False
@@ -145,20 +163,29 @@ class _Run:
 
     async def step(self, page: Page) -> Page:
         kind = page_kind(page)
-        if kind in ("pose", "view", "attention", "background") and self.b.reload \
-                and not self.did_reload and self.rng.random() < 0.3:
+        if (
+            kind in ("pose", "view", "attention", "background")
+            and self.b.reload
+            and not self.did_reload
+            and self.rng.random() < 0.3
+        ):
             self.did_reload = True
             t0 = asyncio.get_running_loop().time()
             page = await self.c.reload()
             self.r.add("reload", asyncio.get_running_loop().time() - t0)
             return page
-        if kind in ("pose", "view") and self.b.back and not self.did_back \
-                and self.rng.random() < 0.3:
+        if (
+            kind in ("pose", "view")
+            and self.b.back
+            and not self.did_back
+            and self.rng.random() < 0.3
+        ):
             self.did_back = True
             # Back to the study link the participant came from: no pid in the address.
             pid = self.c.query_params().get("pid")
-            self.c.query = "&".join(f"{k}={v}" for k, v in self.c.query_params().items()
-                                    if k != "pid")
+            self.c.query = "&".join(
+                f"{k}={v}" for k, v in self.c.query_params().items() if k != "pid"
+            )
             page = await self.act("back", history=True)
             if pid and "pid=" not in self.c.query:
                 self.r.errors.append("back: the app did not put the pid back into the URL")
@@ -177,8 +204,11 @@ class _Run:
                 self.c.set_value(w, self.rng.choice(options))
                 page = await self.act("background_field")
             await self.think(0.3)
-            return await self.submit("background_submit", page.widget(K_BG_SUBMIT),
-                                     self.c.click(page.widget(K_BG_SUBMIT)))
+            return await self.submit(
+                "background_submit",
+                page.widget(K_BG_SUBMIT),
+                self.c.click(page.widget(K_BG_SUBMIT)),
+            )
         if kind == "pose":
             w = page.widget(K_PICKER)
             d = w.data or {}
@@ -186,19 +216,30 @@ class _Run:
             frame = self.rng.randrange(n)
             await self.think()
             # The player sends its log while the participant watches and steps.
-            log = [{"kind": "play", "t": 0.0, "frame": 0},
-                   {"kind": "ended", "t": round(n / max(d.get("fps", 24.0), 1.0), 3),
-                    "frame": n - 1, "watched": 1.0},
-                   {"kind": "seek", "t": 5.0, "frame": frame}]
-            page = await self.act("pose_log", triggers=[self.c.component_event(
-                w, "log", {"trial": trial, "events": log})])
+            log = [
+                {"kind": "play", "t": 0.0, "frame": 0},
+                {
+                    "kind": "ended",
+                    "t": round(n / max(d.get("fps", 24.0), 1.0), 3),
+                    "frame": n - 1,
+                    "watched": 1.0,
+                },
+                {"kind": "seek", "t": 5.0, "frame": frame},
+            ]
+            page = await self.act(
+                "pose_log",
+                triggers=[self.c.component_event(w, "log", {"trial": trial, "events": log})],
+            )
             w = page.widget(K_PICKER) or w
             await self.think(0.5)
-            value = {"trial": trial, "frame": frame, "watched": 1.0,
-                     "events": [{"kind": "select", "t": 6.0, "frame": frame, "watched": 1.0}]}
+            value = {
+                "trial": trial,
+                "frame": frame,
+                "watched": 1.0,
+                "events": [{"kind": "select", "t": 6.0, "frame": frame, "watched": 1.0}],
+            }
             self.r.answers[trial] = {"task": "pose", "video_frame": frame}
-            return await self.submit("pose_confirm", w,
-                                     self.c.component_event(w, "confirm", value))
+            return await self.submit("pose_confirm", w, self.c.component_event(w, "confirm", value))
         if kind == "view":
             w = page.widget(K_CHOOSER)
             d = w.data or {}
@@ -206,8 +247,11 @@ class _Run:
             position = self.rng.randrange(len(d["views"]))
             await self.think()
             self.r.answers[trial] = {"task": "view", "position": position}
-            return await self.submit("view_choose", w, self.c.component_event(
-                w, "choice", {"trial": trial, "position": position}))
+            return await self.submit(
+                "view_choose",
+                w,
+                self.c.component_event(w, "choice", {"trial": trial, "position": position}),
+            )
         if kind == "attention":
             w = page.widget(K_ATT_CHOICE)
             choice = self.rng.choice(w.options)
@@ -233,15 +277,24 @@ class _Run:
             self.r.add("double_click", loop.time() - t0)
             if page.has_text(STALE_TAB_TEXT):
                 # The second click repeats this tab's own answer: nothing to tell.
-                self.r.errors.append(f"{action}: a double click was told its answer "
-                                     "came from another window")
+                self.r.errors.append(
+                    f"{action}: a double click was told its answer came from another window"
+                )
             return page
         return await self.act(action, triggers=[trigger])
 
 
-async def run_participant(url: str, index: int, *, seed: int, think_s: float,
-                          behaviour: Behaviour = Behaviour(), prolific: bool = True,
-                          timeout_s: float = 120.0, max_reconnects: int = 5) -> ParticipantResult:
+async def run_participant(
+    url: str,
+    index: int,
+    *,
+    seed: int,
+    think_s: float,
+    behaviour: Behaviour = Behaviour(),
+    prolific: bool = True,
+    timeout_s: float = 120.0,
+    max_reconnects: int = 5,
+) -> ParticipantResult:
     """Drive one participant from the study link to the completion code.
 
     Parameters
@@ -268,8 +321,9 @@ async def run_participant(url: str, index: int, *, seed: int, think_s: float,
     rng = random.Random(f"{seed}:{index}")
     prolific_pid = f"{rng.getrandbits(96):024x}"
     result = ParticipantResult(index=index, prolific_pid=prolific_pid)
-    query = (f"PROLIFIC_PID={prolific_pid}&STUDY_ID=loadtest&SESSION_ID=s{index:05d}"
-             if prolific else "")
+    query = (
+        f"PROLIFIC_PID={prolific_pid}&STUDY_ID=loadtest&SESSION_ID=s{index:05d}" if prolific else ""
+    )
     client = StreamlitClient(url, query=query, timeout_s=timeout_s)
     loop = asyncio.get_running_loop()
     result.started = loop.time()

@@ -25,8 +25,15 @@ from dataclasses import asdict
 
 from .participant import Behaviour, ParticipantResult, run_participant
 
-__all__ = ["run_load", "build_report", "percentiles", "ServerSampler", "server_pids_for_port",
-           "check_database", "behaviours"]
+__all__ = [
+    "run_load",
+    "build_report",
+    "percentiles",
+    "ServerSampler",
+    "server_pids_for_port",
+    "check_database",
+    "behaviours",
+]
 
 
 def percentiles(values) -> dict:
@@ -40,8 +47,12 @@ def percentiles(values) -> dict:
     v = np.asarray(list(values), dtype=float)
     if v.size == 0:
         return {"n": 0, "p50": None, "p95": None, "max": None}
-    return {"n": int(v.size), "p50": round(float(np.percentile(v, 50)), 4),
-            "p95": round(float(np.percentile(v, 95)), 4), "max": round(float(v.max()), 4)}
+    return {
+        "n": int(v.size),
+        "p50": round(float(np.percentile(v, 50)), 4),
+        "p95": round(float(np.percentile(v, 95)), 4),
+        "max": round(float(v.max()), 4),
+    }
 
 
 def server_pids_for_port(port: int) -> list[int]:
@@ -118,30 +129,46 @@ class ServerSampler:
         t0, c0, r0 = self.samples[0]
         t1, _, _ = self.samples[-1]
         cpu_used = max(c for _, c, _ in self.samples) - c0
-        return {"processes": len(self.procs), "cpu_seconds": round(cpu_used, 2),
-                "cpu_share": round(cpu_used / max(t1 - t0, 1e-9), 3),
-                "rss_start_mb": round(r0 / 2**20, 1),
-                "rss_peak_mb": round(max(r for _, _, r in self.samples) / 2**20, 1)}
+        return {
+            "processes": len(self.procs),
+            "cpu_seconds": round(cpu_used, 2),
+            "cpu_share": round(cpu_used / max(t1 - t0, 1e-9), 3),
+            "rss_start_mb": round(r0 / 2**20, 1),
+            "rss_peak_mb": round(max(r for _, _, r in self.samples) / 2**20, 1),
+        }
 
 
-def behaviours(n: int, *, reload: float, back: float, double_click: float,
-               seed: int) -> list[Behaviour]:
+def behaviours(
+    n: int, *, reload: float, back: float, double_click: float, seed: int
+) -> list[Behaviour]:
     """Who reloads, goes Back or double-clicks: each share drawn independently, seeded."""
     rng = random.Random(f"behaviours:{seed}")
-    return [Behaviour(reload=rng.random() < reload, back=rng.random() < back,
-                      double_click=rng.random() < double_click) for _ in range(n)]
+    return [
+        Behaviour(
+            reload=rng.random() < reload,
+            back=rng.random() < back,
+            double_click=rng.random() < double_click,
+        )
+        for _ in range(n)
+    ]
 
 
-async def _run_all(url, n, *, ramp_s, think_s, seed, kinds, prolific, timeout_s,
-                   on_start=None):
+async def _run_all(url, n, *, ramp_s, think_s, seed, kinds, prolific, timeout_s, on_start=None):
     loop = asyncio.get_running_loop()
     start = loop.time()
 
     async def one(i):
         # Arrivals spread evenly over the ramp (a launch: everyone within ramp_s).
         await asyncio.sleep(ramp_s * i / max(n, 1))
-        return await run_participant(url, i, seed=seed, think_s=think_s, behaviour=kinds[i],
-                                     prolific=prolific, timeout_s=timeout_s)
+        return await run_participant(
+            url,
+            i,
+            seed=seed,
+            think_s=think_s,
+            behaviour=kinds[i],
+            prolific=prolific,
+            timeout_s=timeout_s,
+        )
 
     tasks = [asyncio.create_task(one(i)) for i in range(n)]
     if on_start is not None:
@@ -150,10 +177,23 @@ async def _run_all(url, n, *, ramp_s, think_s, seed, kinds, prolific, timeout_s,
     return results, loop.time() - start
 
 
-def run_load(url: str, n: int, *, ramp_s: float = 30.0, think_s: float = 2.0, seed: int = 0,
-             reload: float = 0.0, back: float = 0.0, double_click: float = 0.0,
-             prolific: bool = True, server_pids=(), timings=(), timeout_s: float = 120.0,
-             db_url: str | None = None, during=None) -> tuple[dict, list[ParticipantResult]]:
+def run_load(
+    url: str,
+    n: int,
+    *,
+    ramp_s: float = 30.0,
+    think_s: float = 2.0,
+    seed: int = 0,
+    reload: float = 0.0,
+    back: float = 0.0,
+    double_click: float = 0.0,
+    prolific: bool = True,
+    server_pids=(),
+    timings=(),
+    timeout_s: float = 120.0,
+    db_url: str | None = None,
+    during=None,
+) -> tuple[dict, list[ParticipantResult]]:
     """Run ``n`` participants against the study at ``url``; return (report, results).
 
     Parameters
@@ -186,31 +226,66 @@ def run_load(url: str, n: int, *, ramp_s: float = 30.0, think_s: float = 2.0, se
     stop = threading.Event()
     watcher = None
     if during is not None:
+
         def watch():
             t0 = time.monotonic()
             while not stop.wait(1.0):
                 during(time.monotonic() - t0)
+
         watcher = threading.Thread(target=watch, daemon=True)
         watcher.start()
     try:
-        results, elapsed = asyncio.run(_run_all(
-            url, n, ramp_s=ramp_s, think_s=think_s, seed=seed, kinds=kinds,
-            prolific=prolific, timeout_s=timeout_s))
+        results, elapsed = asyncio.run(
+            _run_all(
+                url,
+                n,
+                ramp_s=ramp_s,
+                think_s=think_s,
+                seed=seed,
+                kinds=kinds,
+                prolific=prolific,
+                timeout_s=timeout_s,
+            )
+        )
     finally:
         stop.set()
         if watcher is not None:
             watcher.join()
     wall1 = time.time()
     server = sampler.stop() if sampler else {}
-    config = {"url": url, "participants": n, "ramp_s": ramp_s, "think_s": think_s,
-              "seed": seed, "reload": reload, "back": back, "double_click": double_click,
-              "prolific": prolific, "driver": "protocol"}
-    return build_report(results, elapsed_s=elapsed, server=server, config=config,
-                        timings=timings, window=(wall0, wall1), db_url=db_url), results
+    config = {
+        "url": url,
+        "participants": n,
+        "ramp_s": ramp_s,
+        "think_s": think_s,
+        "seed": seed,
+        "reload": reload,
+        "back": back,
+        "double_click": double_click,
+        "prolific": prolific,
+        "driver": "protocol",
+    }
+    return build_report(
+        results,
+        elapsed_s=elapsed,
+        server=server,
+        config=config,
+        timings=timings,
+        window=(wall0, wall1),
+        db_url=db_url,
+    ), results
 
 
-def build_report(results, *, elapsed_s: float, server: dict, config: dict, timings=None,
-                 window=(0.0, 0.0), db_url: str | None = None) -> dict:
+def build_report(
+    results,
+    *,
+    elapsed_s: float,
+    server: dict,
+    config: dict,
+    timings=None,
+    window=(0.0, 0.0),
+    db_url: str | None = None,
+) -> dict:
     """The load-test report of either driver: latencies, the run's settings, the
     server's memory per session and own script-run times, and the database check.
 
@@ -233,7 +308,8 @@ def build_report(results, *, elapsed_s: float, server: dict, config: dict, timin
     n = config["participants"]
     if server and n:
         server["rss_per_session_mb"] = round(
-            (server["rss_peak_mb"] - server["rss_start_mb"]) / n, 3)
+            (server["rss_peak_mb"] - server["rss_start_mb"]) / n, 3
+        )
     report = summarize(results, elapsed_s=elapsed_s, server=server)
     report["config"] = config
     if timings:
@@ -259,8 +335,10 @@ def summarize(results, *, elapsed_s: float, server: dict) -> dict:
         "completed": sum(1 for r in results if r.completion_code),
         "participants": len(results),
         "reconnects": sum(r.reconnects for r in results),
-        "latency": {"all": percentiles(every),
-                    **{a: percentiles(v) for a, v in sorted(by_action.items())}},
+        "latency": {
+            "all": percentiles(every),
+            **{a: percentiles(v) for a, v in sorted(by_action.items())},
+        },
         "errors": {"count": len(errors), "first": errors[:20]},
         "server": server,
     }
@@ -286,9 +364,18 @@ def check_database(db_url: str, results) -> dict:
         for p in store.participants(include_simulated=True):
             if p.get("prolific_pid"):
                 found.setdefault(p["prolific_pid"], []).append(p)
-        out = {"participants_expected": len(results), "participants_found": 0,
-               "answers_sent": 0, "answers_stored_once": 0, "duplicates": 0, "missing": 0,
-               "mismatched": 0, "unseen_trial_rows": 0, "codes_ok": 0, "problems": []}
+        out = {
+            "participants_expected": len(results),
+            "participants_found": 0,
+            "answers_sent": 0,
+            "answers_stored_once": 0,
+            "duplicates": 0,
+            "missing": 0,
+            "mismatched": 0,
+            "unseen_trial_rows": 0,
+            "codes_ok": 0,
+            "problems": [],
+        }
         for r in results:
             records = found.get(r.prolific_pid, [])
             if len(records) != 1:
@@ -313,21 +400,29 @@ def check_database(db_url: str, results) -> dict:
                     out["duplicates"] += 1
                 elif not _matches(sent, got[0]):
                     out["mismatched"] += 1
-                    out["problems"].append(f"participant {r.index}: trial {trial} stored "
-                                           f"{_stored_value(got[0])}, sent {sent}")
+                    out["problems"].append(
+                        f"participant {r.index}: trial {trial} stored "
+                        f"{_stored_value(got[0])}, sent {sent}"
+                    )
                 else:
                     out["answers_stored_once"] += 1
             reached = max(r.answers, default=-1) + 1  # the next trial may have been shown
             extra = [t for t in per_trial if t not in r.answers]
-            extra += [e["trial_index"] for e in store.events(pid)
-                      if e["trial_index"] is not None and e["trial_index"] > reached]
+            extra += [
+                e["trial_index"]
+                for e in store.events(pid)
+                if e["trial_index"] is not None and e["trial_index"] > reached
+            ]
             out["unseen_trial_rows"] += len(extra)
             if extra:
                 out["problems"].append(f"participant {r.index}: rows for unseen trials {extra}")
-        out["ok"] = (out["participants_found"] == len(results)
-                     and out["answers_stored_once"] == out["answers_sent"]
-                     and not (out["duplicates"] or out["missing"] or out["mismatched"]
-                              or out["unseen_trial_rows"]))
+        out["ok"] = (
+            out["participants_found"] == len(results)
+            and out["answers_stored_once"] == out["answers_sent"]
+            and not (
+                out["duplicates"] or out["missing"] or out["mismatched"] or out["unseen_trial_rows"]
+            )
+        )
         out["problems"] = out["problems"][:20]
         return out
     finally:
@@ -335,8 +430,9 @@ def check_database(db_url: str, results) -> dict:
 
 
 def _stored_value(row: dict):
-    return {k: row.get(k) for k in ("task", "chosen_video_frame", "chosen_position",
-                                    "chosen_value")}
+    return {
+        k: row.get(k) for k in ("task", "chosen_video_frame", "chosen_position", "chosen_value")
+    }
 
 
 def _matches(sent: dict, row: dict) -> bool:

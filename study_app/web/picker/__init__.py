@@ -23,8 +23,18 @@ from __future__ import annotations
 from functools import cache, partial
 from pathlib import Path
 
-__all__ = ["frame_picker", "view_chooser", "copy_button", "confirmed", "chosen", "media_url", "pin_files", "FRAME_PICKER", "VIEW_CHOOSER",
-           "DEFAULT_LABELS"]
+__all__ = [
+    "frame_picker",
+    "view_chooser",
+    "copy_button",
+    "confirmed",
+    "chosen",
+    "media_url",
+    "pin_files",
+    "FRAME_PICKER",
+    "VIEW_CHOOSER",
+    "DEFAULT_LABELS",
+]
 
 HERE = Path(__file__).resolve().parent
 #: Component names (unique in the app).
@@ -33,17 +43,30 @@ VIEW_CHOOSER = "snapshot_view_chooser"
 COPY_LINK = "snapshot_copy_link"
 #: Text shown by the widgets (English defaults; pass ``labels`` to translate).
 DEFAULT_LABELS = {
-    "play": "Play", "pause": "Pause", "back": "Previous frame", "forward": "Next frame",
-    "frame": "Frame", "confirm": "Confirm this frame", "saving": "Saving…",
-    "scrub": "Position in the animation", "video_error": "The video cannot be played",
-    "choose": "Choose", "watch_first": "Watch the whole animation once to choose a frame.",
-    "video": "The animation", "retry": "Try again",
+    "play": "Play",
+    "pause": "Pause",
+    "back": "Previous frame",
+    "forward": "Next frame",
+    "frame": "Frame",
+    "confirm": "Confirm this frame",
+    "saving": "Saving…",
+    "scrub": "Position in the animation",
+    "video_error": "The video cannot be played",
+    "choose": "Choose",
+    "watch_first": "Watch the whole animation once to choose a frame.",
+    "video": "The animation",
+    "retry": "Try again",
     "not_saved": "The connection was lost: your answer was not saved. Please press Confirm again.",
     "not_saved_choice": "The connection was lost: your choice was not saved. Please choose again.",
     "image_error": "A picture could not be loaded, so this question cannot be answered yet.",
 }
-_MIME = {".mp4": "video/mp4", ".webm": "video/webm", ".png": "image/png", ".jpg": "image/jpeg",
-         ".jpeg": "image/jpeg"}
+_MIME = {
+    ".mp4": "video/mp4",
+    ".webm": "video/webm",
+    ".png": "image/png",
+    ".jpg": "image/jpeg",
+    ".jpeg": "image/jpeg",
+}
 
 
 #: The components get their data wrapped in a one-item list, ``[data]`` (the JavaScript
@@ -58,9 +81,11 @@ def _components():
 
     css = (HERE / "picker.css").read_text(encoding="utf-8")
     picker = st.components.v2.component(
-        FRAME_PICKER, js=(HERE / "frame_picker.js").read_text(encoding="utf-8"), css=css)
+        FRAME_PICKER, js=(HERE / "frame_picker.js").read_text(encoding="utf-8"), css=css
+    )
     chooser = st.components.v2.component(
-        VIEW_CHOOSER, js=(HERE / "view_chooser.js").read_text(encoding="utf-8"), css=css)
+        VIEW_CHOOSER, js=(HERE / "view_chooser.js").read_text(encoding="utf-8"), css=css
+    )
     return picker, chooser
 
 
@@ -101,9 +126,11 @@ def _media_bytes(path: str) -> bytes:
     want = _PINNED.get(path)
     if want is not None and hashlib.sha256(data).hexdigest() != want:
         _media_bytes.cache_clear()  # nothing of a changed set stays cached
-        raise StimuliError(f"stimulus file {path} changed on disk since the study started "
-                           "(its sha256 differs from the manifest); restart the study "
-                           "server on a stimuli folder that is not rebuilt in place")
+        raise StimuliError(
+            f"stimulus file {path} changed on disk since the study started "
+            "(its sha256 differs from the manifest); restart the study "
+            "server on a stimuli folder that is not rebuilt in place"
+        )
     return data
 
 
@@ -130,12 +157,25 @@ def media_url(path: str | Path, *, where: str) -> str:
     return Runtime.instance().media_file_mgr.add(_media_bytes(str(p)), mime, coordinates)
 
 
-def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: int, key: str,
-                 start_frame: int = 0, watched: float = 0.0, watched_ranges=(),
-                 require_watch: bool = False,
-                 watch_min: float = 0.9, min_answer_s: float = 0.0,
-                 labels: dict | None = None, height: int | None = None,
-                 log_key: str = "", on_confirm=None, args: tuple = ()):
+def frame_picker(
+    video: str | Path | list,
+    *,
+    fps: float,
+    n_frames: int,
+    trial: int,
+    key: str,
+    start_frame: int = 0,
+    watched: float = 0.0,
+    watched_ranges=(),
+    require_watch: bool = False,
+    watch_min: float = 0.9,
+    min_answer_s: float = 0.0,
+    labels: dict | None = None,
+    height: int | None = None,
+    log_key: str = "",
+    on_confirm=None,
+    args: tuple = (),
+):
     """Mount the frame picker; return the confirm payload of this run, else None.
 
     Parameters
@@ -183,31 +223,62 @@ def frame_picker(video: str | Path | list, *, fps: float, n_frames: int, trial: 
     """
     picker, _ = _components()
     videos = [video] if isinstance(video, (str, Path)) else list(video)
-    sources = [{"src": media_url(v, where=f"video.{key}.{i}"),
-                "type": _MIME.get(Path(v).suffix.lower(), "")} for i, v in enumerate(videos)]
-    data = {"sources": sources, "fps": float(fps),
-            "n_frames": int(n_frames), "trial": int(trial), "start_frame": int(start_frame),
-            "watched": float(watched), "require_watch": bool(require_watch),
-            "watched_ranges": [[float(a), float(b)] for a, b in watched_ranges],
-            "watch_min": float(watch_min), "min_answer_s": float(min_answer_s),
-            "labels": {**DEFAULT_LABELS, **(labels or {})}, "log_key": str(log_key)}
-    result = picker(key=key, data=[data], on_confirm_change=_bound(on_confirm, args),
-                    on_error_change=_noop, on_log_change=_noop, height=height or "content")
+    sources = [
+        {
+            "src": media_url(v, where=f"video.{key}.{i}"),
+            "type": _MIME.get(Path(v).suffix.lower(), ""),
+        }
+        for i, v in enumerate(videos)
+    ]
+    data = {
+        "sources": sources,
+        "fps": float(fps),
+        "n_frames": int(n_frames),
+        "trial": int(trial),
+        "start_frame": int(start_frame),
+        "watched": float(watched),
+        "require_watch": bool(require_watch),
+        "watched_ranges": [[float(a), float(b)] for a, b in watched_ranges],
+        "watch_min": float(watch_min),
+        "min_answer_s": float(min_answer_s),
+        "labels": {**DEFAULT_LABELS, **(labels or {})},
+        "log_key": str(log_key),
+    }
+    result = picker(
+        key=key,
+        data=[data],
+        on_confirm_change=_bound(on_confirm, args),
+        on_error_change=_noop,
+        on_log_change=_noop,
+        height=height or "content",
+    )
     if result.get("confirm") and on_confirm is None:
         return dict(result["confirm"])
     if result.get("log"):
-        return {"trial": (result["log"] or {}).get("trial"),
-                "log": (result["log"] or {}).get("events") or []}
+        return {
+            "trial": (result["log"] or {}).get("trial"),
+            "log": (result["log"] or {}).get("events") or [],
+        }
     if result.get("error"):
-        return {"trial": (result["error"] or {}).get("trial"),
-                "error": (result["error"] or {}).get("message", "")}
+        return {
+            "trial": (result["error"] or {}).get("trial"),
+            "error": (result["error"] or {}).get("message", ""),
+        }
     return None
 
 
-def view_chooser(images: list[str | Path], *, trial: int, key: str,
-                 captions: list[str] | None = None, min_answer_s: float = 0.0,
-                 labels: dict | None = None, on_choice=None, args: tuple = (),
-                 tab_key: str = ""):
+def view_chooser(
+    images: list[str | Path],
+    *,
+    trial: int,
+    key: str,
+    captions: list[str] | None = None,
+    min_answer_s: float = 0.0,
+    labels: dict | None = None,
+    on_choice=None,
+    args: tuple = (),
+    tab_key: str = "",
+):
     """Mount the view chooser; return ``{"trial", "position", "client"}`` when one is
     chosen (without ``on_choice``), ``{"trial", "failed": [positions]}`` in the run
     after pictures failed to load (retried; the buttons stay off), else None.
@@ -234,16 +305,26 @@ def view_chooser(images: list[str | Path], *, trial: int, key: str,
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
-    data = {"trial": int(trial), "labels": {**DEFAULT_LABELS, **(labels or {})},
-            "min_answer_s": float(min_answer_s), "tab_key": str(tab_key),
-            "views": [{"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
-                      for i, p in enumerate(images)]}
-    result = chooser(key=key, data=[data], on_choice_change=_bound(on_choice, args),
-                     on_failed_change=_noop)
+    data = {
+        "trial": int(trial),
+        "labels": {**DEFAULT_LABELS, **(labels or {})},
+        "min_answer_s": float(min_answer_s),
+        "tab_key": str(tab_key),
+        "views": [
+            {"src": media_url(p, where=f"view.{key}.{i}"), "label": captions[i]}
+            for i, p in enumerate(images)
+        ],
+    }
+    result = chooser(
+        key=key, data=[data], on_choice_change=_bound(on_choice, args), on_failed_change=_noop
+    )
     if result.get("failed"):
         got = result["failed"] or {}
-        return {"trial": got.get("trial"), "failed": list(got.get("positions") or []),
-                "tab": got.get("tab")}
+        return {
+            "trial": got.get("trial"),
+            "failed": list(got.get("positions") or []),
+            "tab": got.get("tab"),
+        }
     return dict(result["choice"]) if result.get("choice") and on_choice is None else None
 
 
@@ -252,8 +333,10 @@ def _copy_component():
     import streamlit as st
 
     return st.components.v2.component(
-        COPY_LINK, js=(HERE / "copy_link.js").read_text(encoding="utf-8"),
-        css=(HERE / "picker.css").read_text(encoding="utf-8"))
+        COPY_LINK,
+        js=(HERE / "copy_link.js").read_text(encoding="utf-8"),
+        css=(HERE / "picker.css").read_text(encoding="utf-8"),
+    )
 
 
 def copy_button(text: str, *, key: str, labels: dict | None = None) -> None:

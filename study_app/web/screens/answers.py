@@ -113,8 +113,13 @@ def stale_tab_notice(session) -> None:
     # A step this tab answered itself is not stale, even when a run that started
     # before the answer was stored drew that step again (a double click's second send
     # interrupting the first one's run).
-    if shown is not None and shown[0] == session.participant_id and shown[1] != step \
-            and session.is_done(shown[1]) and not _claimed(shown[0], shown[1]):
+    if (
+        shown is not None
+        and shown[0] == session.participant_id
+        and shown[1] != step
+        and session.is_done(shown[1])
+        and not _claimed(shown[0], shown[1])
+    ):
         flash("warning", STALE_TAB_TEXT)
     st.session_state[KEY_ON_SCREEN] = (session.participant_id, step)
 

@@ -15,8 +15,13 @@ def render() -> None:
     widgets.show_flash()
     widgets.trial_clock(session, trial)
     _choice(att["question"], tuple(att["options"]))
-    st.button("Continue", key=keys.KEY_ATTENTION_SUBMIT, type="primary", on_click=_on_submit,
-              args=(session.participant_id, trial.index))
+    st.button(
+        "Continue",
+        key=keys.KEY_ATTENTION_SUBMIT,
+        type="primary",
+        on_click=_on_submit,
+        args=(session.participant_id, trial.index),
+    )
 
 
 @widgets.timed_fragment
@@ -37,7 +42,10 @@ def _on_submit(pid: str, trial_index: int) -> None:
         widgets.flash("warning", "Please choose one of the options.")
         return
     answers.store_answer(
-        session, trial.index,
-        lambda: session.submit_attention(trial.index, choice,
-                                         response_time_s=widgets.elapsed_s(session, trial)),
-        lambda err: widgets.flash("warning", str(err)))
+        session,
+        trial.index,
+        lambda: session.submit_attention(
+            trial.index, choice, response_time_s=widgets.elapsed_s(session, trial)
+        ),
+        lambda err: widgets.flash("warning", str(err)),
+    )

@@ -19,13 +19,20 @@ def render() -> None:
     if study.description:
         st.markdown(study.description)
     # The duration follows from the stimuli actually served (their animations' lengths).
-    minutes = estimated_minutes([sc.n_video_frames / sc.video_fps
-                                 for sc in ctx.stimuli.scenes.values()])
+    minutes = estimated_minutes(
+        [sc.n_video_frames / sc.video_fps for sc in ctx.stimuli.scenes.values()]
+    )
     st.markdown(consent_text(study, minutes))
-    agree = st.checkbox("I have read the information above and agree to take part.",
-                        key=keys.KEY_CONSENT_AGREE)
-    st.button("Start the study", key=keys.KEY_CONSENT_START, type="primary",
-              disabled=not agree, on_click=_on_start)
+    agree = st.checkbox(
+        "I have read the information above and agree to take part.", key=keys.KEY_CONSENT_AGREE
+    )
+    st.button(
+        "Start the study",
+        key=keys.KEY_CONSENT_START,
+        type="primary",
+        disabled=not agree,
+        on_click=_on_start,
+    )
 
 
 def _on_start() -> None:
@@ -34,8 +41,7 @@ def _on_start() -> None:
     callback_started()
     if st.session_state.get(keys.KEY_CONSENT_AGREE) is not True:
         return
-    if st.session_state.get(keys.KEY_PARTICIPANT_ID) and \
-            keys.QUERY_PID in st.query_params:
+    if st.session_state.get(keys.KEY_PARTICIPANT_ID) and keys.QUERY_PID in st.query_params:
         return  # the second send of a double click: this tab already started
     ctx = context.load_context()
     if _why_closed(ctx) is not None:
@@ -54,9 +60,10 @@ def _on_start() -> None:
 
 
 #: What a new participant reads when the researcher closed the study or it is full.
-CLOSED_TEXT = {"closed": "This study is closed: it is not taking new participants.",
-               "full": "This study has all the participants it needs: it is not taking new "
-                       "participants."}
+CLOSED_TEXT = {
+    "closed": "This study is closed: it is not taking new participants.",
+    "full": "This study has all the participants it needs: it is not taking new participants.",
+}
 
 
 def _why_closed(ctx) -> str | None:

@@ -118,8 +118,7 @@ def take_fresh_session(participant_id: str):
     read from the store (and updated with what it stored) just before this run, or
     None; taken once. It saves the run reading the participant again."""
     session = st.session_state.pop(KEY_FRESH_SESSION, None)
-    return session if session is not None and session.participant_id == participant_id \
-        else None
+    return session if session is not None and session.participant_id == participant_id else None
 
 
 def current_session():

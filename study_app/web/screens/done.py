@@ -22,5 +22,7 @@ def render() -> None:
         st.write("You can close this page now.")
     # The consent promised withdrawal after the end too: say whom to write to, with what.
     contact = session.stimuli.study.contact or DEFAULT_CONTACT
-    st.caption(f"To withdraw later and have your answers deleted, write to {contact} with "
-               f"your participant id `{session.participant_id}` (or your Prolific ID).")
+    st.caption(
+        f"To withdraw later and have your answers deleted, write to {contact} with "
+        f"your participant id `{session.participant_id}` (or your Prolific ID)."
+    )

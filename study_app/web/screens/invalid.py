@@ -20,12 +20,13 @@ def render() -> None:
         return
     st.header("This link does not work")
     st.error(st.session_state.get(keys.KEY_PROBLEM) or "Unknown participant.")
-    st.write("Nothing was recorded. If you were given a personal link, please use it "
-             "exactly as you received it.")
+    st.write(
+        "Nothing was recorded. If you were given a personal link, please use it "
+        "exactly as you received it."
+    )
     # Only a bad personal id can be dropped for a fresh start; a malformed Prolific
     # link must be opened again from Prolific (starting without it would lose who
     # the participant is).
-    if keys.QUERY_PID in st.query_params and st.button("Start a new session",
-                                                         key=keys.KEY_RESTART):
+    if keys.QUERY_PID in st.query_params and st.button("Start a new session", key=keys.KEY_RESTART):
         del st.query_params[keys.QUERY_PID]
         st.rerun()

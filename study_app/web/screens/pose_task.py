@@ -14,12 +14,14 @@ PLAYER_TEXT = (
     "Watch the animation (press **Play** or the space bar; you can replay it){watch}. Then "
     "find the **one moment that best shows what the figure is doing** — pause there, use "
     "the **◀ 1 / 1 ▶** buttons (or the ← → arrow keys) to step frame by frame — and press "
-    "**Confirm this frame**.")
+    "**Confirm this frame**."
+)
 WATCH_TEXT = " — **Confirm** opens once you have seen it to the end"
 SLIDER_TEXT = (
     "Move the **Frame** slider to go through the animation picture by picture. Find the "
     "**one moment that best shows what the figure is doing** and press **Confirm this "
-    "frame**.")
+    "frame**."
+)
 
 
 def render() -> None:
@@ -29,13 +31,17 @@ def render() -> None:
     n_pose = sum(t.task == "pose" for t in session.plan)
     st.header(f"Animation {trial.index + 1} of {n_pose}")
     study = session.stimuli.study
-    use_frames = (session.stimuli.study.picker == "frames"
-                  or (session.participant_id, trial.index)
-                  in st.session_state.get(keys.KEY_FRAMES_FALLBACK, set()))
+    use_frames = session.stimuli.study.picker == "frames" or (
+        session.participant_id,
+        trial.index,
+    ) in st.session_state.get(keys.KEY_FRAMES_FALLBACK, set())
     # The instructions name only the controls the participant has (the slider when the
     # browser cannot play the video).
-    st.markdown(SLIDER_TEXT if use_frames
-                else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else ""))
+    st.markdown(
+        SLIDER_TEXT
+        if use_frames
+        else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else "")
+    )
     widgets.show_flash()
     widgets.trial_clock(session, trial)
     if not use_frames:
@@ -66,13 +72,22 @@ def _player(pid: str, trial_index: int) -> None:
     if key not in starts:
         starts[key] = session.watch_record(trial.index)
     frame, watched, ranges = starts[key]
-    answer = frame_picker(sc.videos, fps=sc.video_fps, n_frames=sc.n_video_frames,
-                          trial=trial.index, key=widget, start_frame=frame, watched=watched,
-                          watched_ranges=ranges,
-                          require_watch=study.require_watch, watch_min=WATCHED_ENOUGH,
-                          min_answer_s=study.min_answer_s, log_key=f"{pid}:{trial.index}",
-                          on_confirm=_on_confirm,
-                          args=(pid, trial.index, widget))
+    answer = frame_picker(
+        sc.videos,
+        fps=sc.video_fps,
+        n_frames=sc.n_video_frames,
+        trial=trial.index,
+        key=widget,
+        start_frame=frame,
+        watched=watched,
+        watched_ranges=ranges,
+        require_watch=study.require_watch,
+        watch_min=WATCHED_ENOUGH,
+        min_answer_s=study.min_answer_s,
+        log_key=f"{pid}:{trial.index}",
+        on_confirm=_on_confirm,
+        args=(pid, trial.index, widget),
+    )
     if answer and "error" in answer:
         # The video did not play after retries: this trial offers the frames instead
         # (the page's instructions change too, the answer says "slider"), and the
@@ -98,22 +113,35 @@ def _submit(session, trial, answer: dict) -> None:
     """Store a pose answer for ``trial`` (the trial its page showed); a refused answer
     remounts the picker with the reason above it."""
     answers.store_answer(
-        session, trial.index,
-        lambda: session.submit_pose(answer.get("trial"), answer.get("frame"),
-                                    response_time_s=widgets.elapsed_s(session, trial),
-                                    events=answer.get("events") or (),
-                                    watched=answer.get("watched"), ranges=answer.get("ranges"),
-                                    client=answer.get("client")),
-        lambda err: answers.retry_trial(trial, err), resend=bool(answer.get("resend")))
+        session,
+        trial.index,
+        lambda: session.submit_pose(
+            answer.get("trial"),
+            answer.get("frame"),
+            response_time_s=widgets.elapsed_s(session, trial),
+            events=answer.get("events") or (),
+            watched=answer.get("watched"),
+            ranges=answer.get("ranges"),
+            client=answer.get("client"),
+        ),
+        lambda err: answers.retry_trial(trial, err),
+        resend=bool(answer.get("resend")),
+    )
 
 
 def _frames_picker(sc, trial):
     """Fallback picker: a slider over the pre-extracted frames (pure Streamlit)."""
     n = sc.n_video_frames
-    k = st.slider("Frame", min_value=1, max_value=n, value=1,
-                  key=widgets.widget_key(keys.KEY_FRAME_SLIDER, trial))
+    k = st.slider(
+        "Frame",
+        min_value=1,
+        max_value=n,
+        value=1,
+        key=widgets.widget_key(keys.KEY_FRAME_SLIDER, trial),
+    )
     st.image(str(sc.frames[k - 1]), caption=f"Frame {k} / {n}", width="stretch")
-    if st.button("Confirm this frame", key=widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial),
-                 type="primary"):
+    if st.button(
+        "Confirm this frame", key=widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial), type="primary"
+    ):
         return {"trial": trial.index, "frame": k - 1, "events": []}
     return None

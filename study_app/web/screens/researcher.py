@@ -36,22 +36,33 @@ from study_app.web.screens import token_guard as guard
 #: Seconds between refreshes of the live panels.
 REFRESH_S = 10
 #: Widget keys of the sections added here (keys.py holds the older ones).
-K = {name: f"researcher.{name}" for name in (
-    "message", "exclude.id", "exclude.reason", "exclude.button", "cap.on", "cap.n", "closed",
-    "controls.button")}
+K = {
+    name: f"researcher.{name}"
+    for name in (
+        "message",
+        "exclude.id",
+        "exclude.reason",
+        "exclude.button",
+        "cap.on",
+        "cap.n",
+        "closed",
+        "controls.button",
+    )
+}
 
 
 def _token_ok() -> bool:
     expected = os.environ.get(keys.ENV_ADMIN_TOKEN, "")
     st.header("Researcher")
     if not expected:
-        st.info(f"This page is disabled. Start the app with {keys.ENV_ADMIN_TOKEN} set to "
-                "open it.")
+        st.info(f"This page is disabled. Start the app with {keys.ENV_ADMIN_TOKEN} set to open it.")
         return False
     if len(expected) < guard.MIN_TOKEN_CHARS:
-        st.error(f"This page is disabled: {keys.ENV_ADMIN_TOKEN} has {len(expected)} "
-                 f"characters; use at least {guard.MIN_TOKEN_CHARS} random ones (e.g. "
-                 "python -c 'import secrets; print(secrets.token_urlsafe(24))').")
+        st.error(
+            f"This page is disabled: {keys.ENV_ADMIN_TOKEN} has {len(expected)} "
+            f"characters; use at least {guard.MIN_TOKEN_CHARS} random ones (e.g. "
+            "python -c 'import secrets; print(secrets.token_urlsafe(24))')."
+        )
         return False
     given = st.text_input("Access token", type="password", key=keys.KEY_ADMIN_TOKEN)
     if not given:
@@ -63,10 +74,13 @@ def _token_ok() -> bool:
         return False
     if not hmac.compare_digest(given.encode(), expected.encode()):
         n = guard.failed(now)
-        st.error(f"Wrong token. {n} of {guard.MAX_FAILURES} wrong tries allowed in "
-                 f"{guard.FAILURE_WINDOW_S:.0f} s." if n else
-                 f"Wrong token. Too many wrong tokens: the page is locked for "
-                 f"{guard.LOCKOUT_S:.0f} seconds.")
+        st.error(
+            f"Wrong token. {n} of {guard.MAX_FAILURES} wrong tries allowed in "
+            f"{guard.FAILURE_WINDOW_S:.0f} s."
+            if n
+            else f"Wrong token. Too many wrong tokens: the page is locked for "
+            f"{guard.LOCKOUT_S:.0f} seconds."
+        )
         return False
     return True
 
@@ -76,8 +90,10 @@ def render() -> None:
         return
     ctx = context.load_context()
     study = ctx.stimuli.study
-    st.caption(f"Study **{study.id}** · database {ctx.store.url} · stimuli "
-               f"{ctx.stimuli.folder.name} (manifest {ctx.stimuli.sha256[:12]}…)")
+    st.caption(
+        f"Study **{study.id}** · database {ctx.store.url} · stimuli "
+        f"{ctx.stimuli.folder.name} (manifest {ctx.stimuli.sha256[:12]}…)"
+    )
     for kind, text in st.session_state.pop(K["message"], []):
         getattr(st, kind)(text)
     _live(ctx)
@@ -113,20 +129,31 @@ def _live(ctx) -> None:
     c[4].metric("Excluded", states["excluded"])
     c[5].metric("Responses", p["responses"])
     st.subheader("Monitor")
-    st.caption(f"Each participant (newest first; pseudonyms as in the exports): state, the "
-               f"step they are on, seconds since their last answer or player event. "
-               f"Timed out: no activity for {monitor.TIMEOUT_S // 60} minutes.")
+    st.caption(
+        f"Each participant (newest first; pseudonyms as in the exports): state, the "
+        f"step they are on, seconds since their last answer or player event. "
+        f"Timed out: no activity for {monitor.TIMEOUT_S // 60} minutes."
+    )
     if rows:
         import pandas as pd
 
         anon = Pseudonymiser(ctx.store)
-        table = pd.DataFrame([{
-            "participant": anon.record({"participant_id": r["participant_id"],
-                                        "study_id": ctx.stimuli.study.id})["participant_id"],
-            "state": r["state"], "step": r["step"], "idle s": r["idle_s"],
-            "last activity (UTC)": r["last_activity"].strftime("%Y-%m-%d %H:%M:%S"),
-            "started (UTC)": r["started_at"].strftime("%Y-%m-%d %H:%M:%S"),
-            "exclusion reason": r["reason"] or ""} for r in rows])
+        table = pd.DataFrame(
+            [
+                {
+                    "participant": anon.record(
+                        {"participant_id": r["participant_id"], "study_id": ctx.stimuli.study.id}
+                    )["participant_id"],
+                    "state": r["state"],
+                    "step": r["step"],
+                    "idle s": r["idle_s"],
+                    "last activity (UTC)": r["last_activity"].strftime("%Y-%m-%d %H:%M:%S"),
+                    "started (UTC)": r["started_at"].strftime("%Y-%m-%d %H:%M:%S"),
+                    "exclusion reason": r["reason"] or "",
+                }
+                for r in rows
+            ]
+        )
         st.dataframe(table, hide_index=True, width="stretch")
     _votes(ctx)
 
@@ -168,7 +195,8 @@ def vote_frame(rows: list[dict], order):
     counts = vote_counts(view_choices(tidy_responses(rows, validate=False)), order=order)
     table = vote_table(counts)
     return table.pivot(index="scene", columns="method", values="votes").reindex(
-        index=counts.index, columns=counts.columns)
+        index=counts.index, columns=counts.columns
+    )
 
 
 def frame_histogram_figure(rows: list[dict], sc):
@@ -182,9 +210,14 @@ def frame_histogram_figure(rows: list[dict], sc):
 
     from analysis.frames import frame_histogram
 
-    chosen = np.array([r["chosen_frame"] for r in rows
-                       if r["task"] == "pose" and r["scene"] == sc.scene
-                       and r["chosen_frame"] is not None], dtype=float)
+    chosen = np.array(
+        [
+            r["chosen_frame"]
+            for r in rows
+            if r["task"] == "pose" and r["scene"] == sc.scene and r["chosen_frame"] is not None
+        ],
+        dtype=float,
+    )
     if chosen.size == 0:
         return None
     counts, edges = frame_histogram(pd.DataFrame({"scene": sc.scene, "chosen_frame": chosen}), sc)
@@ -205,9 +238,12 @@ def _recruitment(ctx) -> None:
     now = monitor.controls(ctx.store, sid)
     st.subheader("Recruitment")
     state = ("closed" if now["closed"] else "open") + (
-        f", cap {now['cap']} participants" if now["cap"] is not None else ", no cap")
-    st.caption(f"Now: **{state}**. Closed or full, the study link tells new participants so; "
-               "those already in it (and a returning Prolific id) go on.")
+        f", cap {now['cap']} participants" if now["cap"] is not None else ", no cap"
+    )
+    st.caption(
+        f"Now: **{state}**. Closed or full, the study link tells new participants so; "
+        "those already in it (and a returning Prolific id) go on."
+    )
     st.session_state.setdefault(K["closed"], now["closed"])
     st.session_state.setdefault(K["cap.on"], now["cap"] is not None)
     st.session_state.setdefault(K["cap.n"], now["cap"] if now["cap"] is not None else 100)
@@ -226,8 +262,13 @@ def _save_controls(ctx) -> None:
     except SnapshotError as err:
         _say("error", widgets.one_line(err))
         return
-    _say("success", "Recruitment saved: " + ("closed" if closed else "open")
-         + (f", cap {cap}" if cap is not None else ", no cap") + ".")
+    _say(
+        "success",
+        "Recruitment saved: "
+        + ("closed" if closed else "open")
+        + (f", cap {cap}" if cap is not None else ", no cap")
+        + ".",
+    )
 
 
 # ----------------------------------------------------------------------------- exclusion
@@ -247,8 +288,10 @@ def _resolve(ctx, given: str) -> str:
 
 def _exclusion(ctx) -> None:
     st.subheader("Exclude a participant from the analysis")
-    st.caption("Keeps their data, with the reason; the page's tables and `snapshot analyze` "
-               "leave them out (to delete the data, withdraw them below).")
+    st.caption(
+        "Keeps their data, with the reason; the page's tables and `snapshot analyze` "
+        "leave them out (to delete the data, withdraw them below)."
+    )
     c = st.columns([2, 3])
     c[0].text_input("Participant (link id or pseudonym p-…)", key=K["exclude.id"])
     c[1].text_input("Reason", key=K["exclude.reason"])
@@ -272,8 +315,11 @@ def _do_exclude(ctx) -> None:
 
 # ----------------------------------------------------------------------------- withdrawal
 #: The ids a withdrawal can be asked by: label → keyword of study_app.data.withdraw.withdraw.
-WITHDRAW_BY = {"Participant link id (pid=…)": "participant_id", "Prolific ID": "prolific_pid",
-               "Pseudonym in a shared dataset (p-…)": "pseudonym"}
+WITHDRAW_BY = {
+    "Participant link id (pid=…)": "participant_id",
+    "Prolific ID": "prolific_pid",
+    "Pseudonym in a shared dataset (p-…)": "pseudonym",
+}
 
 
 def _which(ctx, given: str) -> dict:
@@ -284,8 +330,10 @@ def _which(ctx, given: str) -> dict:
 def _withdrawal(ctx) -> None:
     """Delete a participant's data when they withdraw, after a confirmation."""
     st.subheader("Withdraw a participant")
-    st.caption("Deletes their responses, events and background answers; only a record "
-               "that they withdrew is kept, and their link says so.")
+    st.caption(
+        "Deletes their responses, events and background answers; only a record "
+        "that they withdrew is kept, and their link says so."
+    )
     st.radio("They gave their", list(WITHDRAW_BY), key=keys.KEY_WITHDRAW_KIND, horizontal=True)
     given = st.text_input("Id", key=keys.KEY_WITHDRAW_ID).strip()
     if not given:
@@ -296,14 +344,23 @@ def _withdrawal(ctx) -> None:
         st.warning(widgets.one_line(err))
         return
     for p in plan:
-        st.warning(f"Participant **{p['participant_id']}** will be deleted: "
-                   f"{p['n_responses']} responses, {p['n_events']} events"
-                   + (", background answers" if p["has_background"] else "")
-                   + ". This cannot be undone.")
-    sure = st.checkbox("Yes, delete this participant's data",
-                       key=f"{keys.KEY_WITHDRAW_CONFIRM}.{given}")
-    st.button("Withdraw", key=keys.KEY_WITHDRAW_BUTTON, type="primary", disabled=not sure,
-              on_click=_do_withdraw, args=(ctx, given))
+        st.warning(
+            f"Participant **{p['participant_id']}** will be deleted: "
+            f"{p['n_responses']} responses, {p['n_events']} events"
+            + (", background answers" if p["has_background"] else "")
+            + ". This cannot be undone."
+        )
+    sure = st.checkbox(
+        "Yes, delete this participant's data", key=f"{keys.KEY_WITHDRAW_CONFIRM}.{given}"
+    )
+    st.button(
+        "Withdraw",
+        key=keys.KEY_WITHDRAW_BUTTON,
+        type="primary",
+        disabled=not sure,
+        on_click=_do_withdraw,
+        args=(ctx, given),
+    )
 
 
 def _do_withdraw(ctx, given: str) -> None:
@@ -316,30 +373,46 @@ def _do_withdraw(ctx, given: str) -> None:
     st.session_state[keys.KEY_WITHDRAW_ID] = ""
     st.session_state.pop(f"{keys.KEY_WITHDRAW_CONFIRM}.{given}", None)
     for w in done:
-        _say("success", f"Withdrew participant {w.participant_id}: deleted {w.n_responses} "
-                        f"responses and {w.n_events} events.")
+        _say(
+            "success",
+            f"Withdrew participant {w.participant_id}: deleted {w.n_responses} "
+            f"responses and {w.n_events} events.",
+        )
 
 
 # ----------------------------------------------------------------------------- codes
 def _completion_codes(ctx) -> None:
     rows = monitor.completion_codes(ctx.store, ctx.stimuli.study.id)
     st.subheader("Completion codes")
-    st.caption("Who finished, with their Prolific id and code: approve these submissions on "
-               "Prolific (an excluded participant is marked; the decision is yours).")
+    st.caption(
+        "Who finished, with their Prolific id and code: approve these submissions on "
+        "Prolific (an excluded participant is marked; the decision is yours)."
+    )
     if not rows:
         st.write("Nobody has finished yet.")
         return
     import pandas as pd
 
-    table = pd.DataFrame([{"Prolific id": r["prolific_pid"] or "",
-                           "completion code": r["completion_code"] or "",
-                           "finished (UTC)": r["completed_at"].strftime("%Y-%m-%d %H:%M"),
-                           "excluded": r["excluded"] or ""} for r in rows])
+    table = pd.DataFrame(
+        [
+            {
+                "Prolific id": r["prolific_pid"] or "",
+                "completion code": r["completion_code"] or "",
+                "finished (UTC)": r["completed_at"].strftime("%Y-%m-%d %H:%M"),
+                "excluded": r["excluded"] or "",
+            }
+            for r in rows
+        ]
+    )
     st.dataframe(table, hide_index=True, width="stretch")
-    st.download_button(f"Download completion codes (CSV, {len(rows)} rows)",
-                       table.to_csv(index=False).encode(),
-                       file_name=f"{ctx.stimuli.study.id}-completion-codes.csv", mime="text/csv",
-                       key=f"{keys.KEY_DOWNLOAD}.codes", on_click="ignore")
+    st.download_button(
+        f"Download completion codes (CSV, {len(rows)} rows)",
+        table.to_csv(index=False).encode(),
+        file_name=f"{ctx.stimuli.study.id}-completion-codes.csv",
+        mime="text/csv",
+        key=f"{keys.KEY_DOWNLOAD}.codes",
+        on_click="ignore",
+    )
 
 
 # ----------------------------------------------------------------------------- downloads
@@ -357,8 +430,9 @@ def export_files(ctx, folder: Path) -> dict[str, Path]:
 
     anon = Pseudonymiser(ctx.store)
     sid = ctx.stimuli.study.id
-    people = monitor.with_exclusions(ctx.store, [p for p in ctx.store.participants()
-                                                 if p["study_id"] == sid])
+    people = monitor.with_exclusions(
+        ctx.store, [p for p in ctx.store.participants() if p["study_id"] == sid]
+    )
     keep = {p["participant_id"] for p in people}
     rows = [r for r in ctx.store.export_rows() if r["study_id"] == sid]
     out = {}
@@ -367,8 +441,10 @@ def export_files(ctx, folder: Path) -> dict[str, Path]:
         out[name] = folder / name
     write_participants(anon.records(people), folder / "participants.csv", drop=OPEN_DROPPED)
     out["participants.csv"] = folder / "participants.csv"
-    write_events(anon.records([e for e in ctx.store.events() if e["participant_id"] in keep]),
-                 folder / "events.jsonl")
+    write_events(
+        anon.records([e for e in ctx.store.events() if e["participant_id"] in keep]),
+        folder / "events.jsonl",
+    )
     out["events.jsonl"] = folder / "events.jsonl"
     if rows:
         write_psych_ds(ctx.store, folder / "psych-ds", stimuli_dir=ctx.stimuli.folder)
@@ -391,9 +467,11 @@ def _downloads(ctx) -> None:
     st.subheader("Downloads")
     # A download does not re-run the page (on_click="ignore"): a re-run while the browser
     # fetches the file would replace it under the download (Chromium: canceled).
-    st.caption("Shared exports: ids are pseudonyms, no seeds, times as UTC dates (the raw "
-               "ids only from `snapshot export --identifiers`). Built now, after every "
-               "action above.")
+    st.caption(
+        "Shared exports: ids are pseudonyms, no seeds, times as UTC dates (the raw "
+        "ids only from `snapshot export --identifiers`). Built now, after every "
+        "action above."
+    )
     sid = ctx.stimuli.study.id
     with tempfile.TemporaryDirectory() as tmp:
         try:
@@ -403,26 +481,44 @@ def _downloads(ctx) -> None:
             return
         n_rows = sum(1 for _ in open(files["responses.jsonl"], encoding="utf-8"))
         n_people = sum(1 for _ in open(files["participants.csv"], encoding="utf-8")) - 1
-        items = [("responses.csv", f"Download responses (CSV, {n_rows} rows)", "text/csv"),
-                 ("responses.jsonl", f"Download responses (JSONL, {n_rows} rows)",
-                  "application/x-ndjson"),
-                 ("participants.csv", f"Download participants (CSV, {n_people} rows)",
-                  "text/csv"),
-                 ("events.jsonl", "Download events (JSONL)", "application/x-ndjson")]
+        items = [
+            ("responses.csv", f"Download responses (CSV, {n_rows} rows)", "text/csv"),
+            (
+                "responses.jsonl",
+                f"Download responses (JSONL, {n_rows} rows)",
+                "application/x-ndjson",
+            ),
+            ("participants.csv", f"Download participants (CSV, {n_people} rows)", "text/csv"),
+            ("events.jsonl", "Download events (JSONL)", "application/x-ndjson"),
+        ]
         c = st.columns(3)
         for k, (name, label, mime) in enumerate(items):
-            c[k % 3].download_button(label, files[name].read_bytes(),
-                                     file_name=f"{sid}-{name}", mime=mime,
-                                     key=f"{keys.KEY_DOWNLOAD}.{name}", on_click="ignore")
+            c[k % 3].download_button(
+                label,
+                files[name].read_bytes(),
+                file_name=f"{sid}-{name}",
+                mime=mime,
+                key=f"{keys.KEY_DOWNLOAD}.{name}",
+                on_click="ignore",
+            )
         if "psych-ds" in files:
-            c[1].download_button("Download Psych-DS dataset (zip)",
-                                 _zip([(f"{sid}-psych-ds", files["psych-ds"])]),
-                                 file_name=f"{sid}-psych-ds.zip", mime="application/zip",
-                                 key=f"{keys.KEY_DOWNLOAD}.psychds", on_click="ignore")
+            c[1].download_button(
+                "Download Psych-DS dataset (zip)",
+                _zip([(f"{sid}-psych-ds", files["psych-ds"])]),
+                file_name=f"{sid}-psych-ds.zip",
+                mime="application/zip",
+                key=f"{keys.KEY_DOWNLOAD}.psychds",
+                on_click="ignore",
+            )
         everything = [(f"{sid}/{n}", p) for n, p in files.items()]
-        c[2].download_button("Download everything (zip)", _zip(everything),
-                             file_name=f"{sid}-export.zip", mime="application/zip",
-                             key=f"{keys.KEY_DOWNLOAD}.all", on_click="ignore")
+        c[2].download_button(
+            "Download everything (zip)",
+            _zip(everything),
+            file_name=f"{sid}-export.zip",
+            mime="application/zip",
+            key=f"{keys.KEY_DOWNLOAD}.all",
+            on_click="ignore",
+        )
 
 
 if __name__ == "__main__":  # run as the page script by st.navigation (see app.py)

@@ -10,8 +10,15 @@ import logging
 import threading
 from collections import deque
 
-__all__ = ["MIN_TOKEN_CHARS", "MAX_FAILURES", "FAILURE_WINDOW_S", "LOCKOUT_S", "locked",
-           "failed", "reset"]
+__all__ = [
+    "MIN_TOKEN_CHARS",
+    "MAX_FAILURES",
+    "FAILURE_WINDOW_S",
+    "LOCKOUT_S",
+    "locked",
+    "failed",
+    "reset",
+]
 
 #: The shortest token the page accepts (a guessable token opens every participant's data).
 MIN_TOKEN_CHARS = 16
@@ -50,6 +57,10 @@ def failed(now: float) -> int:
         if n >= MAX_FAILURES:
             _LOCKED_UNTIL[0] = now + LOCKOUT_S
             _FAILURES.clear()
-    _log.warning("researcher page: wrong access token (%d in the last %.0f s)%s", n,
-                 FAILURE_WINDOW_S, f"; locked for {LOCKOUT_S:.0f} s" if n >= MAX_FAILURES else "")
+    _log.warning(
+        "researcher page: wrong access token (%d in the last %.0f s)%s",
+        n,
+        FAILURE_WINDOW_S,
+        f"; locked for {LOCKOUT_S:.0f} s" if n >= MAX_FAILURES else "",
+    )
     return 0 if n >= MAX_FAILURES else n

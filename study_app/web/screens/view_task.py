@@ -14,21 +14,29 @@ def render() -> None:
     views = [t for t in session.plan if t.task == "view"]
     k = views.index(trial) + 1
     st.header(f"Pictures {k} of {len(views)}")
-    st.markdown("Here is one moment of an animation, seen from three directions. **Which "
-                "picture shows best what the figure is doing?** Click **Choose** under it.")
+    st.markdown(
+        "Here is one moment of an animation, seen from three directions. **Which "
+        "picture shows best what the figure is doing?** Click **Choose** under it."
+    )
     widgets.show_flash()
     widgets.trial_clock(session, trial)
     # Pictures only: the position → method map stays here (submit_view applies it).
     widget = widgets.widget_key(keys.KEY_CHOOSER, trial)
-    failed = view_chooser([path for _, path in session.view_choices(trial)], trial=trial.index,
-                          key=widget, min_answer_s=session.stimuli.study.min_answer_s,
-                          on_choice=_on_choice, args=(session.participant_id, trial.index, widget),
-                          tab_key=f"{session.participant_id}:{trial.index}")
+    failed = view_chooser(
+        [path for _, path in session.view_choices(trial)],
+        trial=trial.index,
+        key=widget,
+        min_answer_s=session.stimuli.study.min_answer_s,
+        on_choice=_on_choice,
+        args=(session.participant_id, trial.index, widget),
+        tab_key=f"{session.participant_id}:{trial.index}",
+    )
     if failed and failed.get("failed"):
         # Pictures that did not load after retries: the buttons stay off (the page offers
         # to try again), nothing is answered, and the trial records it.
-        session.record_media_failure(failed.get("trial"), "image", failed["failed"],
-                                     failed.get("tab"))
+        session.record_media_failure(
+            failed.get("trial"), "image", failed["failed"], failed.get("tab")
+        )
 
 
 def _on_choice(pid: str, trial_index: int, widget: str) -> None:
@@ -39,8 +47,14 @@ def _on_choice(pid: str, trial_index: int, widget: str) -> None:
         return
     trial = session.plan[trial_index]
     answers.store_answer(
-        session, trial.index,
-        lambda: session.submit_view(answer.get("trial"), answer.get("position"),
-                                    response_time_s=widgets.elapsed_s(session, trial),
-                                    client=answer.get("client")),
-        lambda err: answers.retry_trial(trial, err), resend=bool(answer.get("resend")))
+        session,
+        trial.index,
+        lambda: session.submit_view(
+            answer.get("trial"),
+            answer.get("position"),
+            response_time_s=widgets.elapsed_s(session, trial),
+            client=answer.get("client"),
+        ),
+        lambda err: answers.retry_trial(trial, err),
+        resend=bool(answer.get("resend")),
+    )

@@ -40,6 +40,7 @@ def timed_fragment(func):
     last full run left in the session state; whatever must move the page on calls
     :func:`~study_app.web.screens.answers.leave_fragment_if_moved_on`.
     """
+
     @functools.wraps(func)
     def run(*args, **kwargs):
         with RunClock(current_stage, fragment=True):
@@ -113,8 +114,10 @@ def resume_link(session) -> None:
 
     base = st.context.url or ""
     st.divider()
-    st.caption("Your personal link: to pause and continue later (in this or another "
-               "browser), copy it and open it again.")
+    st.caption(
+        "Your personal link: to pause and continue later (in this or another "
+        "browser), copy it and open it again."
+    )
     link = resume_url(base, session.participant_id)
     st.code(link, language=None, wrap_lines=True)  # whole on a phone, not cut off
     from study_app.web.picker import copy_button
