@@ -29,7 +29,7 @@ serve-replicas: install sysdeps
 	@test -f var/stimuli/demo/manifest.json || $(VENV)/bin/snapshot stimuli build study_app/configs/demo.toml -o var/stimuli/demo -q
 	$(VENV)/bin/snapshot serve --replicas $(N) --port $(REPLICA_PORT)
 
-test: install sysdeps
+test: install sysdeps check
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 bench: install sysdeps

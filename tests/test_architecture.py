@@ -19,7 +19,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("snapcore", "study_app", "analysis", "data_schema")
-MAX_LINES = 800
+# 800 before the formatter: its one-argument-a-line layout grew modules by about a
+# quarter (the five longest are 834-984 lines after it; split them by concept next)
+MAX_LINES = 1000
 
 #: Module-name prefix → layer rank (the longest matching prefix wins).
 LAYERS = {
@@ -151,7 +153,7 @@ def test_no_import_cycles():
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_modules_stay_readable(module):
-    """No module is longer than 800 lines (split by concept, not by length, before then)."""
+    """No module is longer than 1000 lines (split by concept, not by length, before then)."""
     n = len(MODULES[module].read_text().splitlines())
     assert n <= MAX_LINES, f"{module}: {n} lines"
 
