@@ -484,3 +484,18 @@ def test_helper_joints_draw_no_blobs(walk):
         (p["kind"], p["joint"], p["child"]) for p in plain.pieces
     ]
     np.testing.assert_allclose(helped.vertices(5), plain.vertices(5), atol=1e-9)
+
+
+def test_the_mannequin_cache_and_the_scene_body_cache_do_not_collide():
+    """A scene drawn as a mannequin (``body.scene_body``, as the viewpoint-entropy baseline
+    does) can then be drawn with its scene body: the two caches kept on the scene are
+    separate (they shared one dict, and the second lookup failed on the first's keys)."""
+    from snapcore.motion.synth import synth_scene
+    from snapcore.render import bodies, body
+
+    scene = synth_scene("kick")
+    mannequin = body.scene_body(scene)
+    dressed = bodies.scene_body(scene)
+    assert body.scene_body(scene) is mannequin
+    assert bodies.scene_body(scene) is dressed
+    assert dressed is not mannequin

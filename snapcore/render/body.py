@@ -589,8 +589,10 @@ class SceneBody:
 def _bodies_of(scene) -> dict:
     """The scene's body cache, kept on the scene object itself. (A module-level
     ``WeakKeyDictionary`` keyed by scene never freed an entry: its values, the bodies,
-    hold the scene. On the scene, scene and bodies form a cycle the collector frees.)"""
-    return vars(scene).setdefault("_snapcore_bodies", {})
+    hold the scene. On the scene, scene and bodies form a cycle the collector frees.)
+    Its own attribute: :func:`snapcore.render.bodies.scene_body` keeps another cache,
+    keyed differently, on the same scene."""
+    return vars(scene).setdefault("_snapcore_mannequins", {})
 
 
 def scene_body(scene, tessellation=TESSELLATION) -> SceneBody:
