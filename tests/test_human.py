@@ -51,11 +51,20 @@ def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
     """On every shared clip, in every frame, each skinned rig joint (the bone head moved
     with the surface around it) is within 3 cm of the skeleton joint it stands for (for the
     neck: the point of the skeleton's pelvis → head chain where the body's neck starts,
-    since skeletons' "neck" joints sit anywhere from mid-chest (CMU) to the neck)."""
+    since skeletons' "neck" joints sit anywhere from mid-chest (CMU) to the neck). The
+    ankles are allowed the foot's planting shift on top (the soles, not the joints,
+    stand on the floor: :meth:`Retarget.foot_shifts`), itself at most ``PLANT_MAX_M``."""
+    from snapcore.render.human import PLANT_MAX_M
+
     worst = {}
     for name, body in retargeted:
         names, got, want = body.landmarks()
         err = np.linalg.norm(got - want, axis=-1)  # (F, L)
+        c = body.character
+        shifts = body.retarget.foot_shifts(c.positions, c.rotations)  # (F, 2)
+        assert np.abs(shifts).max() <= PLANT_MAX_M + 1e-9
+        for i, s in enumerate("LR"):
+            err[:, names.index(f"ankle_{s}")] -= np.abs(shifts[:, i])
         f, k = np.unravel_index(np.argmax(err), err.shape)
         worst[name] = (float(err[f, k]), names[k], int(f))
     report = "\n".join(
@@ -145,11 +154,10 @@ def test_the_head_sits_on_the_eye_joints(retargeted):
     assert checked >= 2  # soccer and salsa have eyes
 
 
-#: Soles on the floor in contact frames (issue 26), metres: the median per clip, and a
-#: bound on the worst frame (the skeletons' own ankle height varies 1-5 cm over stance
-#: frames; feet are moved by at most 3 cm, see Retarget._plant).
+#: Soles on the floor in contact frames (issue 26), metres: every contact frame of
+#: every clip (the skeletons' own ankle height varies 1-5 cm over stance frames, so
+#: this holds only if the body plants its feet, see Retarget._plant).
 SOLE_TOL_M = 0.01
-SOLE_WORST_M = 0.04
 
 
 def _contact_frames(ch, side: str, lm) -> np.ndarray:
@@ -166,8 +174,10 @@ def _contact_frames(ch, side: str, lm) -> np.ndarray:
 def test_soles_stand_on_the_floor_in_contact_frames(all_bvh):
     """In the frames where a foot stands (by its joints), the body's sole (the lowest
     vertex carried mostly by the foot and toe bones) is on the scene's floor: within
-    1 cm at the median of every clip, and never more than 4 cm off (before: CMU soles
-    sank 1.5-3.1 cm at the median, Bandai's floated 1.3-2.7 cm). Prints the worst."""
+    1 cm in each of them (up to 150 per foot, spread over the clip) on every clip
+    (before: CMU soles sank 1.5-3.1 cm at the
+    median, Bandai's floated 1.3-2.7 cm; then, planted by a rigid estimate of the sole,
+    worst frames were still 3.9 cm under and 3.4 cm over). Prints the worst per clip."""
     from snapcore.motion.anatomy import body_landmarks
     from snapcore.render.human import HumanBody
 
@@ -194,7 +204,7 @@ def test_soles_stand_on_the_floor_in_contact_frames(all_bvh):
         f"{n}: median {m * 100:+.1f} cm, worst {w * 100:+.1f} cm" for n, m, w in rows
     )
     print("\nsole height above the floor in contact frames:\n" + report)
-    assert all(abs(m) <= SOLE_TOL_M and abs(w) <= SOLE_WORST_M for _, m, w in rows), report
+    assert all(abs(w) <= SOLE_TOL_M for _, _, w in rows), report
 
 
 def test_the_body_is_sized_to_the_skeleton(retargeted):

@@ -23,7 +23,7 @@ person is also broader); untracked groups (head, hands) scale by ``k`` all round
 foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
 to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
 lands on its skeleton joint, feet are planted on the floor where they stand
-(:meth:`Retarget._plant`), and linear blend skinning
+(:meth:`Retarget._plant_shifts`), and linear blend skinning
 (:func:`snapcore.motion.skinning.blend_skin`) deforms the mesh between them. Linear
 blend skinning is kept (not dual quaternions): the elbows that collapsed bent across
 the mesh's crease because the rig's hinge was turned away from the skeleton's bend
@@ -92,11 +92,19 @@ DRAW_DTYPE = np.float32
 #: range of the foot's depth scale that puts the sole there (see Retarget._sole_scale).
 SOLE_PERCENTILE = 10.0
 SOLE_SCALE_RANGE = (0.75, 1.35)
-#: Foot planting (Retarget._plant), metres: the largest shift of a foot; the sole's
-#: height above the floor up to which it is put on the floor, and from which it is left.
-PLANT_MAX_M = 0.03
+#: Foot planting (Retarget._plant_shifts), metres: the largest shift of a foot (a foot pointed
+#: on its toes puts the mesh's longer toes 6-8 cm under the floor on CMU 01_01 and
+#: 05_06); the sole's height above the floor up to which it is put on the floor, and
+#: from which it is left.
+PLANT_MAX_M = 0.08
 PLANT_FULL_M = 0.02
 PLANT_FADE_M = 0.05
+#: A foot whose ankle is within PLANT_ANKLE_FULL_M of its standing height (and whose
+#: sole is within PLANT_REACH_M of the floor) stands: its sole is put on the floor; the
+#: correction fades out by PLANT_ANKLE_FADE_M above the standing height.
+PLANT_ANKLE_FULL_M = 0.02
+PLANT_ANKLE_FADE_M = 0.04
+PLANT_REACH_M = 0.08
 #: Nearest rest vertices whose skin weights a landmark borrows.
 LANDMARK_NEIGHBOURS = 8
 
@@ -613,12 +621,16 @@ class Retarget:
         over frames of the ankle's height above the ground (the heel down in stance;
         frames in the air or on the toes are higher). The foot's depth below the ankle
         is scaled from the rig's (x k) to it, within [0.75, 1.35] (a foot no flatter or
-        deeper than that; the rest is left to the per-frame planting, :meth:`_plant`).
+        deeper than that; the rest is left to the per-frame planting, :meth:`_plant_shifts`).
         """
+        from scipy import sparse
+        from scipy.spatial import ConvexHull
+
         a = self.asset
         w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
         out = np.ones(len(self.groups))
         self._soles = {}
+        self._ankle_stand: dict[str, float] = {}
         for s, side in _SIDES.items():
             bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
             foot_v = w[:, bones].sum(axis=1) > 0.5
@@ -634,36 +646,73 @@ class Retarget:
                 if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")
             ]
             out[groups] = scale
-            # the sole: foot vertices within 1.5 cm of its lowest, each with the group
-            # that carries most of it (for the per-frame contact in _plant)
+            self._ankle_stand[s] = self.ground + h
+            # the sole: foot vertices within 1.5 cm of its lowest, with their skin
+            # weights (for the per-frame contact in _plant_shifts)
             sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < a.vertices[foot_v, 1].min() + 0.015))
-            owner = self.bone_group[np.argmax(w[sole], axis=1)]
-            owner = np.where(np.isin(owner, groups), owner, groups[0])
-            self._soles[s] = (a.vertices[sole], owner, np.array(groups))
+            # the lowest point of a (nearly rigidly) moved point set is on its hull:
+            # ~1/5 of the sole's points, the planting's cost with it
+            sole = sole[ConvexHull(a.vertices[sole]).vertices]
+            # only the bones that carry the sole: the planting skins a few hundred
+            # points with a handful of matrices, not the whole rig's
+            ws = sparse.csr_matrix(w[sole])
+            cols = np.unique(ws.indices)
+            self._soles[s] = (
+                a.vertices[sole],
+                ws[:, cols],
+                self.stretch_weights(a.vertices[sole], ws)[:, cols],
+                self.bone_group[cols],
+                w[sole][:, bones].sum(axis=1),  # the foot's share of each point
+                np.array(groups),
+            )
         return out
 
-    def _plant(self, m: np.ndarray) -> np.ndarray:
-        """Group matrices ``m`` (F, G, 3, 4) with each foot moved up or down onto the
-        floor where it is in contact: foot planting, as game engines do after a retarget.
+    def _plant_shifts(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """Foot planting, as game engines do after a retarget: how far to move each foot
+        up or down (F, 2; left, right; metres) to put it on the floor where it is in
+        contact, from the unplanted group matrices ``m`` (F, G, 3, 4), their stretch
+        term ``st`` (F, G, 3) and the poses ``positions`` (F, J, 3).
 
         A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
-        sliding into the floor), so no fixed foot keeps the soles on the floor. Per frame
-        and foot, ``r`` = the lowest sole point's height above the floor: a sole below
-        the floor is lifted onto it (by at most :data:`PLANT_MAX_M`), one up to
-        :data:`PLANT_FULL_M` above is lowered onto it, and the correction fades out
-        by :data:`PLANT_FADE_M` (a foot lifting off rises from the floor, no jump).
+        sliding into the floor, a foot pitched on its heel or toes), so no fixed foot
+        keeps the soles on the floor. Per frame and foot, ``r`` = the lowest sole
+        point's height above the floor. A sole below the floor is lifted onto it (by at
+        most :data:`PLANT_MAX_M`). Above it, the foot is lowered onto the floor with a
+        weight that is the larger of two cues of standing, both read from the pose:
+
+        - the sole is low: weight 1 up to :data:`PLANT_FULL_M`, fading out by
+          :data:`PLANT_FADE_M` (a foot lifting off rises from the floor, no jump);
+        - the ankle is at its standing height (``positions``; the 10th percentile of
+          the clip's ankle heights, see :meth:`_sole_scale`): weight 1 within
+          :data:`PLANT_ANKLE_FULL_M` of it, fading out by :data:`PLANT_ANKLE_FADE_M`,
+          for soles within :data:`PLANT_REACH_M` of the floor. A foot resting on its
+          heel with the toes up, or a skeleton whose stance is a little higher in one
+          step than another, keeps its ankle there while its sole hovers 1-4 cm up
+          (measured on CMU and Bandai clips); a swinging foot's ankle is higher.
+
         The foot and toe groups move by the same vertical shift; the skin at the ankle
         blends it into the shank.
         """
-        m = m.copy()
-        for s in _SIDES:
-            pts, owner, groups = self._soles[s]
-            y = np.einsum("fpj,pj->fp", m[:, owner, 1, :3], pts) + m[:, owner, 1, 3]
-            r = y.min(axis=1) - self.ground
-            fade = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
-            shift = np.clip(np.where(r < 0, -r, -r * fade), -PLANT_MAX_M, PLANT_MAX_M)
-            m[:, groups, 1, 3] += shift[:, None]
-        return m
+        lm = self.landmarks
+        out = np.zeros((m.shape[0], len(self._soles)))
+        for i, s in enumerate(self._soles):
+            pts, ws, stretch_w, owners, foot_share, _ = self._soles[s]
+            # the sole points as the skin will place them (blend and stretch): a
+            # point's rigid move with one bone misses the shank's share at the heel
+            y = blend_skin(pts, ws, m[:, owners])[..., 1]
+            y += np.asarray(stretch_w @ st[:, owners, 1].T).T
+            low_point = y.argmin(axis=1)
+            r = y[np.arange(len(y)), low_point] - self.ground
+            low = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
+            dh = positions[:, lm[f"ankle_{s}"], 1] - self._ankle_stand[s]
+            standing = np.clip(
+                (PLANT_ANKLE_FADE_M - dh) / (PLANT_ANKLE_FADE_M - PLANT_ANKLE_FULL_M), 0.0, 1.0
+            ) * (r < PLANT_REACH_M)
+            fade = np.maximum(low, standing)
+            # the lowest point moves by its foot share of the shift
+            shift = np.where(r < 0, -r, -r * fade) / foot_share[low_point]
+            out[:, i] = np.clip(shift, -PLANT_MAX_M, PLANT_MAX_M)
+        return out
 
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
@@ -789,6 +838,25 @@ class Retarget:
             :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
             so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
+        m, st = self._unplanted(positions, rotations)
+        shifts = self._plant_shifts(m, st, positions)
+        for s, (*_, groups) in enumerate(self._soles.values()):
+            m[:, groups, 1, 3] += shifts[:, s, None]
+        if stretch:
+            return m, st
+        return m
+
+    def foot_shifts(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+        """How far foot planting moves each foot up (+) or down (-): (F, 2) metres,
+        left then right, for poses (F, J, 3) / (F, J, 3, 3); see :meth:`_plant_shifts`.
+        The body's ankles leave the skeleton's by this much, on purpose: the soles, not
+        the joints, stand on the floor."""
+        m, st = self._unplanted(positions, rotations)
+        return self._plant_shifts(m, st, positions)
+
+    def _unplanted(self, positions, rotations):
+        """Group matrices before foot planting (F, G, 3, 4) and the stretch term
+        (F, G, 3) of :meth:`group_matrices`."""
         pts, d, fingers = self._inputs(positions)
         h, tip = self._heads_tips(positions)
         fr = self._frames(pts, d, rotations, fingers)
@@ -812,10 +880,8 @@ class Retarget:
         )
         lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
         trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
-        m = self._plant(np.concatenate([lin, trans[..., None]], axis=-1))
-        if stretch:
-            return m, (self.k - length)[..., None] * w[..., 1]
-        return m
+        st = (self.k - length)[..., None] * w[..., 1]
+        return np.concatenate([lin, trans[..., None]], axis=-1), st
 
     def bone_matrices(self, positions, rotations) -> np.ndarray:
         """Skinning matrices of the rig's bones: (F, B, 3, 4)."""
