@@ -679,7 +679,7 @@ def analyze(
     order, extra, labels = None, {}, {}
     if stimuli is None:
         stimuli = default_stimuli(df)
-    dupes = pd.DataFrame()
+    dupes, replaced = pd.DataFrame(), pd.DataFrame()
     if stimuli is not None:
         from .stimuli import stimuli_scenes
 
@@ -687,9 +687,10 @@ def analyze(
         order = list(st["scene"])
         labels = dict(zip(st["scene"], st["title"], strict=True))
         extra = fr.baselines_from_stimuli(stimuli)
-        from .stimuli import near_duplicate_scenes
+        from .stimuli import near_duplicate_scenes, replaced_views
 
         dupes = near_duplicate_scenes(stimuli)
+        replaced = replaced_views(stimuli)
     if not labels:
         from .votes import paper_table2
 
@@ -709,6 +710,12 @@ def analyze(
         if not dupes.empty:
             sections += _duplicate_section(counts, dupes, out, labels=labels, alpha=alpha)
             summary["near_duplicate_scenes"] = sorted(set(dupes["scene"]))
+        if not replaced.empty:
+            sections += _replaced_section(replaced, out)
+            summary["replaced_views"] = [
+                {"scene": r.scene, "method": r.method, "iou_before": r.iou_before}
+                for r in replaced.itertuples()
+            ]
     pose = pose_choices(df)
     if not pose.empty:
         extra = {
@@ -828,6 +835,23 @@ def _duplicate_section(counts, dupes, out, *, labels, alpha):
             f"<div class='claim'>{html.escape(c)}</div>" for c in claims
         ]
     return [("Near-duplicate candidates: sensitivity analysis", items)]
+
+
+def _replaced_section(replaced, out):
+    """Baseline views replaced at build time: which, why, and how far down its ranking."""
+    write_table(
+        replaced,
+        out / "tables" / "replaced_views",
+        caption="Baseline views replaced by the stimuli builder because their picture was "
+        "nearly another candidate's (silhouette IoU, mirror images included): each by the "
+        "best view of the same method's score whose picture is not.",
+    )
+    text = (
+        f"{len(replaced)} baseline view(s) were replaced because their picture was nearly "
+        "another candidate's; in those scenes a vote for that baseline is a vote for its "
+        "best view unlike the others, not for its own pick."
+    )
+    return [("Replaced candidate views", [text, replaced])]
 
 
 def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:

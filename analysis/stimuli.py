@@ -22,6 +22,7 @@ __all__ = [
     "stimuli_scenes",
     "load_scene_for_entry",
     "near_duplicate_scenes",
+    "replaced_views",
     "DEFAULT_NEAR_DUPLICATE_DEG",
 ]
 
@@ -79,18 +80,21 @@ def stimuli_scenes(manifest) -> pd.DataFrame:
 
 
 def near_duplicate_scenes(manifest) -> pd.DataFrame:
-    """Scenes whose candidate views are nearly the same picture.
+    """Scenes whose candidate views, as shown, are nearly the same picture.
 
-    The angles come from the manifest's ``view_angles`` when the builder recorded them,
-    else from the picks' view directions; the threshold is the study's
-    ``near_duplicate_deg`` (a pair under it, or over 180 minus it — a mirror image — is
-    a near-duplicate).
+    The pairs are the builder's ``near_duplicates`` when the manifest records them
+    (judged on the views shown, after any replacement: by angle or by silhouette IoU,
+    mirror images included; empty when every alike view was replaced). Older manifests
+    without them are judged by angle: ``view_angles`` when recorded, else the picks'
+    view directions, against the study's ``near_duplicate_deg`` (a pair under it, or
+    over 180 minus it — a mirror image — is a near-duplicate).
 
     Returns
     -------
     DataFrame
         One row per near-duplicate pair: ``scene``, ``method_a``, ``method_b``,
-        ``angle_deg``; empty (with those columns) when there is none.
+        ``angle_deg``, ``iou`` (silhouette IoU, NaN when not recorded); empty (with
+        those columns) when there is none.
     """
     from snapcore.select.view import near_duplicate_views, view_angles_deg
 
@@ -102,6 +106,21 @@ def near_duplicate_scenes(manifest) -> pd.DataFrame:
     )
     rows = []
     for e in doc.get("scenes", []):
+        ious = e.get("view_iou") or {}
+        if "near_duplicates" in e and ious:  # judged by the builder on the pictures shown
+            angles = e.get("view_angles") or {}
+            for a, b in e["near_duplicates"]:
+                key = f"{a}|{b}"
+                rows.append(
+                    {
+                        "scene": e["id"],
+                        "method_a": a,
+                        "method_b": b,
+                        "angle_deg": float(angles.get(key, float("nan"))),
+                        "iou": float(ious.get(key, float("nan"))),
+                    }
+                )
+            continue
         angles = e.get("view_angles")
         if not angles:
             picks = e.get("picks") or {}
@@ -120,9 +139,56 @@ def near_duplicate_scenes(manifest) -> pd.DataFrame:
                     "method_a": a,
                     "method_b": b,
                     "angle_deg": float(angles[f"{a}|{b}"]),
+                    "iou": float(ious.get(f"{a}|{b}", float("nan"))),
                 }
             )
-    return pd.DataFrame(rows, columns=["scene", "method_a", "method_b", "angle_deg"])
+    return pd.DataFrame(rows, columns=["scene", "method_a", "method_b", "angle_deg", "iou"])
+
+
+def replaced_views(manifest) -> pd.DataFrame:
+    """Baseline views the builder replaced because their picture was nearly another
+    candidate's (``replacements`` of the manifest, ``study.near_duplicate = "replace"``).
+
+    Votes for such a baseline in that scene are votes for its best view *unlike the
+    other candidates*, not for its own pick: the report lists them.
+
+    Returns
+    -------
+    DataFrame
+        One row per replaced view: ``scene``, ``method``, ``alike`` (the candidates it
+        was too alike to, comma-separated), ``iou_before`` and ``iou_after`` (the
+        largest silhouette IoU with a kept candidate), ``rank`` (of the replacement
+        among the method's views, 1 = its own pick), ``score_ratio`` (replacement's
+        score / the pick's), ``reason``; empty (with those columns) when none.
+    """
+    doc, _ = read_stimuli(manifest)
+    cols = [
+        "scene",
+        "method",
+        "alike",
+        "iou_before",
+        "iou_after",
+        "rank",
+        "score_ratio",
+        "reason",
+    ]
+    rows = []
+    for e in doc.get("scenes", []):
+        for r in e.get("replacements") or []:
+            s0, s1 = r.get("score_original"), r.get("score_replacement")
+            rows.append(
+                {
+                    "scene": e["id"],
+                    "method": r["method"],
+                    "alike": ", ".join(r["alike"]),
+                    "iou_before": max(r["iou_before"].values()),
+                    "iou_after": max(r["iou_after"].values()),
+                    "rank": int(r.get("rank", 0)) or None,
+                    "score_ratio": float(s1) / float(s0) if s0 else float("nan"),
+                    "reason": r["reason"],
+                }
+            )
+    return pd.DataFrame(rows, columns=cols)
 
 
 def _first(d: dict, *keys) -> float:

@@ -151,3 +151,65 @@ def test_simulate_cli_with_manifest(tmp_path):
         cli, ["simulate", "--n", "2", "--db", url, "--strengths", "ours=1,best=2"]
     )
     assert res.exit_code == 2 and "unknown method 'best'" in res.output
+
+
+@pytest.mark.filterwarnings("ignore:stimuli scene")
+def test_replaced_views_and_builder_pairs_reach_the_report(tmp_path):
+    """A manifest whose builder replaced motion area's view in one scene (it was ours'
+    mirror image) and left a near-duplicate pair in another: the pairs are the builder's
+    (judged on the pictures shown, IoU included, not re-judged by angle); the replaced
+    view is listed in the report and the summary (both schema-valid)."""
+    from analysis.report import analyze
+    from snapcore.schema import validate
+
+    rows = sim.simulated_rows(sim.simulate_participants(sim.paper_design(), 20, seed=5))
+    scenes = list(dict.fromkeys(rows["scene"]))
+    entries = []
+    for k, sid in enumerate(scenes):
+        e = {"id": sid, "fps": 30.0, "n_frames": 300, "frame_offset": 0, "picks": {"frame": 10}}
+        # 163.6° apart: not a near-duplicate by angle, yet the same picture mirrored
+        e["view_angles"] = {
+            "ours|viewpoint_entropy": 60.0,
+            "ours|motion_area": 163.6 if k == 1 else 70.0,
+            "viewpoint_entropy|motion_area": 50.0,
+        }
+        e["view_iou"] = {
+            "ours|viewpoint_entropy": 0.4,
+            "ours|motion_area": 0.93 if k == 1 else 0.6,
+            "viewpoint_entropy|motion_area": 0.5,
+        }
+        e["near_duplicates"] = [["ours", "motion_area"]] if k == 1 else []
+        e["replacements"] = []
+        entries.append(e)
+    entries[0]["replacements"] = [
+        {
+            "method": "motion_area",
+            "original": [-0.99, 0.04, 0.11],
+            "replacement": [-0.89, 0.07, 0.45],
+            "alike": ["ours"],
+            "iou_before": {"ours|motion_area": 0.954, "viewpoint_entropy|motion_area": 0.46},
+            "iou_after": {"ours|motion_area": 0.6, "viewpoint_entropy|motion_area": 0.5},
+            "score_original": 7.47,
+            "score_replacement": 7.02,
+            "score_unit": "m²",
+            "rank": 113,
+            "renders": 7,
+            "reason": "silhouette IoU 0.95 with ours at or above 0.8 (mirror images included)",
+        }
+    ]
+    doc = _manifest(entries)
+    validate(doc, "stimuli", source="test manifest")
+    d = st.near_duplicate_scenes(doc)
+    assert list(d["scene"]) == [scenes[1]] and d["iou"].iloc[0] == pytest.approx(0.93)
+    r = st.replaced_views(doc)
+    assert list(r["scene"]) == [scenes[0]] and list(r["method"]) == ["motion_area"]
+    assert (r["iou_before"].iloc[0], r["iou_after"].iloc[0]) == (0.954, 0.6)
+    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20)
+    assert summary["near_duplicate_scenes"] == [scenes[1]]
+    assert summary["replaced_views"] == [
+        {"scene": scenes[0], "method": "motion_area", "iou_before": 0.954}
+    ]
+    assert "Replaced candidate views" in (tmp_path / "report.html").read_text()
+    assert (tmp_path / "tables" / "replaced_views.csv").is_file()
+    # the summary written to disk passed its schema (validated before writing)
+    assert json.loads((tmp_path / "summary.json").read_text())["replaced_views"]

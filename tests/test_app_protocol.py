@@ -427,7 +427,7 @@ def test_new_study_options_are_validated_by_the_schema():
         1.0,
         True,
         15.0,
-        "warn",
+        "replace",
     )
     s = study_from_dict(
         fixture_study_doc(

@@ -309,7 +309,7 @@ def test_build_warnings_name_their_scene(tmp_path):
     punch) builds without the alarming "constant global pose entropy" warning."""
     (tmp_path / "one.toml").write_text(
         '[study]\nid = "one"\ntitle = "One"\nvideo_fps = 12\n'
-        "size = [96, 72]\nnear_duplicate_deg = 90\n\n"
+        'size = [96, 72]\nnear_duplicate_deg = 90\nnear_duplicate = "warn"\n\n'
         '[[scenes]]\nid = "punch"\ndemo = "punch"\n'
     )
     snapshot = str(Path(sys.executable).with_name("snapshot"))
@@ -321,7 +321,8 @@ def test_build_warnings_name_their_scene(tmp_path):
         timeout=300,
     )
     assert r.returncode == 0, r.stderr
-    # a 90° threshold makes every pair a near-duplicate: the warning names the scene
+    # a 90° threshold makes every pair a near-duplicate ("warn": built anyway): the
+    # warning names the scene
     assert "warning: scene punch: nearly the same picture from" in r.stderr
     assert "global pose entropy" not in r.stderr and "constant" not in r.stderr
     assert re.search(
@@ -341,6 +342,99 @@ def test_build_warnings_name_their_scene(tmp_path):
     assert (
         "punch/video.webm" in json.loads((tmp_path / "stim" / "manifest.json").read_text())["files"]
     )
+
+
+def test_near_duplicate_error_refuses_alike_pictures(tmp_path):
+    """near_duplicate = "error": a scene whose rendered candidates are too alike (the
+    demo jump: motion area's view is ours' mirror image, 163.6° apart, which the angle
+    cut-off misses) is refused, in one line naming the scene and the measure."""
+    (tmp_path / "jump.toml").write_text(
+        '[study]\nid = "j"\ntitle = "J"\nvideo_fps = 12\nsize = [160, 120]\n'
+        'near_duplicate = "error"\n\n[[scenes]]\nid = "jump"\ndemo = "jump"\n'
+    )
+    r = subprocess.run(
+        [SNAPSHOT, "stimuli", "build", "jump.toml", "-o", "stim", "-q"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode != 0
+    (line,) = [x for x in r.stderr.splitlines() if x.strip()]
+    assert "Traceback" not in r.stderr
+    assert re.search(
+        r"scene jump: nearly the same picture from ours and motion_area "
+        r"\(silhouette IoU 0\.9\d, mirror images included\) \(threshold IoU 0\.8",
+        line,
+    ), line
+    assert not (tmp_path / "stim").exists()
+
+
+def _drawn(boxes, size=(160, 120)):
+    """A candidate picture: dark boxes (x0, y0, x1, y1) on the plain background."""
+    img = np.full((size[1], size[0], 3), 249, dtype=np.uint8)
+    for x0, y0, x1, y1 in boxes:
+        img[y0:y1, x0:x1] = (40, 60, 90)
+    return img
+
+
+def _unit(*v):
+    a = np.asarray(v, float)
+    return a / np.linalg.norm(a)
+
+
+def test_replacement_walks_the_method_ranking_skipping_alike_views():
+    """find_replacement keeps the baseline's best-ranked view whose picture is unlike the
+    kept ones: views near a kept view, its mirror image or a rejected view are skipped
+    without rendering; a rendered view that is alike is rejected; the bound refuses
+    with the measure."""
+    from study_app.design.replacement import NoReplacement, find_replacement
+
+    ell = _drawn([(40, 10, 60, 110), (40, 90, 120, 110)])
+    mirrored = ell[:, ::-1].copy()
+    bar = _drawn([(20, 50, 140, 70)])
+    ours = _unit(1, 0, 0)
+    original = _unit(-1, 0.05, 0)  # nearly ours' opposite: the mirror image
+    views = np.array(
+        [
+            original,  # rank 1: the method's own pick
+            _unit(-1, 0.1, 0.1),  # near ours' mirror image: skipped unrendered
+            _unit(0, 0, 1),  # rendered: the same L again, rejected
+            _unit(0.1, 0, 1),  # 5.7° from the rejected one: skipped unrendered
+            _unit(0, 1, 0.2),  # rendered: a bar, kept
+            _unit(0, 1, -0.9),
+        ]
+    )
+    scores = np.array([6.0, 5.9, 5.5, 5.4, 5.0, 4.0])
+    pictures = {2: ell, 4: bar, 5: bar}
+    rendered = []
+
+    def render(v):
+        i = int(np.argmin(np.linalg.norm(views - v, axis=1)))
+        rendered.append(i)
+        return pictures[i]
+
+    kept = {"ours": (ours, ell)}
+    ranking = (views, scores, 6.0, "m²")
+    rep, pic = find_replacement(
+        "motion_area", original, mirrored, kept, ranking, render, exclude_deg=15
+    )
+    assert rendered == [2, 4] and pic is bar
+    assert rep.replacement == pytest.approx(views[4]) and (rep.rank, rep.renders) == (5, 2)
+    assert rep.alike == ["ours"] and rep.iou_before["ours|motion_area"] == pytest.approx(1.0)
+    assert rep.iou_after["ours|motion_area"] < 0.5
+    assert (rep.score_original, rep.score_replacement) == (6.0, 5.0)
+    # A picture unlike the kept ones is kept as it is, nothing rendered.
+    rendered.clear()
+    assert find_replacement(
+        "motion_area", original, bar, kept, ranking, render, exclude_deg=15
+    ) == (None, None)
+    assert rendered == []
+    # Out of renders: refused, with the measure.
+    with pytest.raises(NoReplacement, match=r"silhouette IoU 1\.00 with ours \(threshold 0\.8"):
+        find_replacement(
+            "motion_area", original, mirrored, kept, ranking, render, exclude_deg=15, max_renders=1
+        )
 
 
 def test_near_duplicate_error_stops_the_build():

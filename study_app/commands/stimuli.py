@@ -51,7 +51,7 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     s = load_stimuli(manifest.parent)
     n_files = len(s.manifest["files"])
     click.echo(f"{manifest}: {len(s.scenes)} scenes, {n_files} files, manifest sha256 {s.sha256}")
-    # The angle between every pair of candidate views: near-duplicates split votes.
+    # The angle between every pair of candidate views as shown: near-duplicates split votes.
     for e in s.manifest["scenes"]:
         angles = e.get("view_angles") or {}
         flag = "  NEAR-DUPLICATE" if e.get("near_duplicates") else ""
@@ -60,6 +60,16 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
             + ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
             + flag
         )
+        # A replaced view: what it was too alike to, and the measure before and after.
+        for r in e.get("replacements") or []:
+            click.echo(
+                f"    {r['method']} replaced (rank {r.get('rank', '?')} of its views): "
+                + ", ".join(
+                    f"IoU with {k.replace(r['method'], '').strip('|')} "
+                    f"{r['iou_before'][k]:.2f} -> {r['iou_after'][k]:.2f}"
+                    for k in r["iou_before"]
+                )
+            )
 
 
 @stimuli.command("verify")

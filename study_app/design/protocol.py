@@ -104,9 +104,11 @@ or your Prolific ID, and all your answers are deleted. Shared data carry no Prol
 DEFAULT_CONTACT = "the researchers (on Prolific: through Prolific's messages)"
 
 
-#: What the stimuli build does when two candidate views of a scene are nearly the same
-#: picture: "warn" (build, warn, and let the analysis report it) or "error" (stop).
-NEAR_DUPLICATE_ACTIONS = ("warn", "error")
+#: What the stimuli build does when two candidate pictures of a scene are nearly the same:
+#: "replace" (the default: a baseline's view by its best-scoring view whose picture is
+#: unlike the others, :mod:`study_app.design.replacement`), "error" (stop) or "warn"
+#: (build, warn, and let the analysis report it).
+NEAR_DUPLICATE_ACTIONS = ("replace", "error", "warn")
 #: Seconds a participant needs per study step beyond watching (estimates for the consent
 #: page's duration: reading the consent and background, choosing a view, the check).
 _SECONDS_CONSENT, _SECONDS_BACKGROUND, _SECONDS_VIEW, _SECONDS_ATTENTION = 60, 45, 15, 15
@@ -152,7 +154,9 @@ class Study:
     require_watch : bool
         The pose task's Confirm stays off until the animation was played through once.
     near_duplicate_deg : float
-        Candidate views closer than this angle (degrees) count as the same picture.
+        Candidate views closer than this angle (degrees), or than it to each other's
+        opposite, count as the same picture (and are skipped unrendered when looking
+        for a replacement).
     near_duplicate : str
         What the stimuli build does about them (:data:`NEAR_DUPLICATE_ACTIONS`).
     background : dict of str to list of str
@@ -183,7 +187,7 @@ class Study:
     min_answer_s: float = 1.0
     require_watch: bool = True
     near_duplicate_deg: float = 15.0
-    near_duplicate: str = "warn"
+    near_duplicate: str = "replace"
     background: dict = field(default_factory=lambda: dict(DEFAULT_BACKGROUND))
     attention: dict = field(default_factory=lambda: dict(DEFAULT_ATTENTION))
     selection: dict = field(default_factory=dict)
@@ -312,7 +316,7 @@ def study_from_dict(
         min_answer_s=float(s.get("min_answer_s", 1.0)),
         require_watch=bool(s.get("require_watch", True)),
         near_duplicate_deg=float(s.get("near_duplicate_deg", 15.0)),
-        near_duplicate=s.get("near_duplicate", "warn"),
+        near_duplicate=s.get("near_duplicate", "replace"),
         background=background,
         attention=attention,
         selection=dict(doc.get("selection") or {}),

@@ -24,7 +24,9 @@ files' own sha256 are in it, so it changes exactly when what participants see do
 
 The builder runs one function per stage, so each can be tested and replaced alone:
 :func:`load_study_scene` → :func:`select_scene` → :func:`write_video` →
-:func:`write_frames` → :func:`write_views` → :func:`write_manifest`. Rendering uses
+:func:`write_frames` → :func:`write_views` (→ :func:`replace_alike_views`: a baseline view
+whose picture is nearly another candidate's is replaced, ``study.near_duplicate``) →
+:func:`write_manifest`. Rendering uses
 ``snapcore.render.renderer`` (EGL, offline: see PLATFORM-NOTES, renderers do not cross threads).
 """
 
@@ -73,6 +75,8 @@ __all__ = [
     "SETS_SUFFIX",
     "publish_set",
     "check_alike_pictures",
+    "replace_alike_views",
+    "view_renderer",
 ]
 
 MANIFEST_NAME = "manifest.json"
@@ -464,6 +468,13 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
         ``viewpoint_entropy`` and ``motion_area`` (unit vectors, world frame).
         ``timings``: seconds per stage of the selection.
     """
+    picks, timings, _ = _select(scene, options)
+    return picks, timings
+
+
+def _select(scene, options: dict | None = None):
+    """:func:`select_scene`, and the snapshot it came from (the baselines' scored views,
+    for replacing a view whose picture is nearly another's)."""
     from snapcore.pipeline import take_snapshot
 
     snap = take_snapshot(scene, **(options or {}))
@@ -482,7 +493,7 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
     }
     picks.update({_PICK_KEYS[m]: _unit(views[m]) for m in VIEW_METHODS})
     timings = {k: float(v) for k, v in snap.timings_s.items()}
-    return picks, timings
+    return picks, timings, snap
 
 
 def _picks_by_method(scene, k: int = 3) -> dict:
@@ -523,28 +534,35 @@ def candidate_angles(picks: dict, *, threshold_deg: float) -> tuple[dict, list]:
     return angles, [list(p) for p in near_duplicate_views(angles, threshold_deg)]
 
 
-def check_near_duplicates(study: Study, scene_id: str, picks: dict) -> tuple[dict, list]:
+def check_near_duplicates(
+    study: Study, scene_id: str, picks: dict, *, action: str | None = None
+) -> tuple[dict, list]:
     """The candidates' pairwise angles and near-duplicates, acted on as the study says.
 
     ``study.near_duplicate == "warn"`` warns (the build goes on; the manifest records the
-    pairs and the analysis reports them); ``"error"`` raises :class:`StimuliError`.
+    pairs and the analysis reports them); ``"error"`` raises :class:`StimuliError`;
+    ``"replace"`` only reports them: the pictures decide (:func:`replace_alike_views`).
+    ``action`` overrides the study's (the builder warns about pairs left after
+    replacing).
 
     Returns
     -------
     (angles, pairs)
         As :func:`candidate_angles`.
     """
+    action = action or study.near_duplicate
     angles, dupes = candidate_angles(picks, threshold_deg=study.near_duplicate_deg)
-    if dupes:
+    if dupes and action != "replace":
         report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
         which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
         text = (
             f"nearly the same picture from {which} "
             f"(threshold {study.near_duplicate_deg:g}°; all pairs: {report})"
         )
-        if study.near_duplicate == "error":
+        if action == "error":
             raise StimuliError(
-                f'scene {scene_id}: {text}; set study.near_duplicate = "warn" to build anyway'
+                f"scene {scene_id}: {text}; set study.near_duplicate = "
+                '"replace" (the default) or "warn" to build anyway'
             )
         warnings.warn(
             text + ": votes may split between them (the analysis reports it)", stacklevel=3
@@ -571,12 +589,85 @@ def check_alike_pictures(study: Study, scene_id: str, views: dict) -> tuple[dict
         )
         if study.near_duplicate == "error":
             raise StimuliError(
-                f'scene {scene_id}: {text}; set study.near_duplicate = "warn" to build anyway'
+                f"scene {scene_id}: {text}; set study.near_duplicate = "
+                '"replace" (the default) or "warn" to build anyway'
             )
         warnings.warn(
             text + ": votes may split between them (the analysis reports it)", stacklevel=3
         )
     return ious, pairs
+
+
+def replace_alike_views(
+    study: Study, scene_id: str, snap, picks: dict, views: dict, *, renderer=None
+) -> tuple[dict, list]:
+    """Replace each baseline view whose picture is nearly an earlier candidate's by that
+    baseline's best-scoring view whose picture is not (:mod:`study_app.design.replacement`).
+
+    Parameters
+    ----------
+    study : Study
+        Its ``near_duplicate_deg`` is the angle around kept views skipped unrendered.
+    scene_id : str
+    snap : snapcore.pipeline.Snapshot
+        The selection the picks came from (the baselines' scored views).
+    picks : dict
+        :func:`select_scene`'s picks (the frame).
+    views : dict
+        :func:`write_views`'s pictures; replaced ones are rewritten in place and their
+        ``direction`` updated.
+    renderer : SceneRenderer, optional
+        The one :func:`write_views` used (:func:`view_renderer`).
+
+    Returns
+    -------
+    (views, replacements) : (dict, list of dict)
+        The views as shown, and one record per replaced view
+        (:meth:`~study_app.design.replacement.Replacement.to_dict`).
+
+    Raises
+    ------
+    StimuliError
+        A baseline has no view unlike the others within the bound (scene, method and
+        IoU named).
+    """
+    import imageio.v3 as iio
+
+    from snapcore.render.renderer import save_png
+
+    from .replacement import NoReplacement, find_replacement, ranked_views
+
+    scene = snap.scene
+    renderer = renderer or view_renderer(scene, study.size)
+    frame = int(picks["frame"]) - scene.frame_offset
+
+    def render(direction) -> np.ndarray:
+        return _render_view(scene, frame, direction, renderer)
+
+    def picture(m: str) -> np.ndarray:
+        return np.asarray(iio.imread(views[m]["file"]))[..., :3]
+
+    kept = {ViewMethod.OURS.value: (views["ours"]["direction"], picture("ours"))}
+    out = []
+    for m in VIEW_METHODS[1:]:
+        try:
+            found, pic = find_replacement(
+                m.value,
+                views[m.value]["direction"],
+                picture(m.value),
+                kept,
+                ranked_views(snap, m),
+                render,
+                exclude_deg=study.near_duplicate_deg,
+            )
+        except NoReplacement as err:
+            raise StimuliError(f"scene {scene_id}: {err}") from None
+        if found is not None and pic is not None:
+            save_png(pic, views[m.value]["file"])
+            views[m.value] = {**views[m.value], "direction": _unit(found.replacement)}
+            out.append(found.to_dict())
+        kept[m.value] = (views[m.value]["direction"], picture(m.value))
+    return views, out
 
 
 def _unit(v) -> list[float]:
@@ -639,7 +730,24 @@ def _has_pyav() -> bool:
     return True
 
 
-def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]) -> dict:
+def view_renderer(scene, size: tuple[int, int]):
+    """The renderer of the candidate pictures: no floor and no shadows (see
+    :func:`write_views`)."""
+    from snapcore.render.renderer import SceneRenderer
+
+    return SceneRenderer(scene, size=size, ground=False, shadows=False)
+
+
+def _render_view(scene, frame: int, direction, renderer) -> np.ndarray:
+    """One candidate picture (internal ``frame``), framed as all candidates are."""
+    from snapcore.render.renderer import render_still
+
+    return render_still(scene, frame, direction, fit="frame", renderer=renderer)
+
+
+def write_views(
+    scene, picks: dict, folder: str | Path, *, size: tuple[int, int], renderer=None
+) -> dict:
     """Stage 5: the selected pose seen along each method's direction (same size and framing).
 
     Returns
@@ -648,7 +756,7 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
         ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
         :data:`~snapcore.select.methods.VIEW_METHODS`.
     """
-    from snapcore.render.renderer import SceneRenderer, render_still, save_png
+    from snapcore.render.renderer import save_png
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
@@ -660,13 +768,11 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     # above, nothing of it near the horizon and the grid through the legs from below
     # (the methods may pick views down to 10 degrees under the horizon), so the
     # background alone would tell the three methods apart.
-    renderer = SceneRenderer(scene, size=size, ground=False, shadows=False)
+    renderer = renderer or view_renderer(scene, size)
     views = {}
     for m in VIEW_METHODS:
         p = out / f"view_{m}.png"
-        save_png(
-            render_still(scene, frame, directions[m], size=size, fit="frame", renderer=renderer), p
-        )
+        save_png(_render_view(scene, frame, directions[m], renderer), p)
         views[m.value] = {"file": p, "direction": directions[m]}
     return views
 
@@ -815,7 +921,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
     t0 = time.perf_counter()
     scene, doc = load_study_scene(study, sc, folder)
     t1 = time.perf_counter()
-    picks, timings = select_scene(scene, study.selection)
+    picks, timings, snap = _select(scene, study.selection)
     angles, dupes = check_near_duplicates(study, sc["id"], picks)
     t2 = time.perf_counter()
     vmap = write_video(
@@ -832,7 +938,16 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
             f"renderer reported {len(vmap)}"
         )
     t3 = time.perf_counter()
-    views = write_views(scene, picks, folder, size=study.size)
+    renderer = view_renderer(scene, study.size)
+    views = write_views(scene, picks, folder, size=study.size, renderer=renderer)
+    replacements: list = []
+    if study.near_duplicate == "replace":
+        views, replacements = replace_alike_views(
+            study, sc["id"], snap, picks, views, renderer=renderer
+        )
+        # The record describes the views shown (the picks keep each method's own).
+        shown = {_PICK_KEYS[m]: views[m.value]["direction"] for m in VIEW_METHODS}
+        angles, dupes = check_near_duplicates(study, sc["id"], {**picks, **shown}, action="warn")
     # Judged on the pictures themselves too: two views far apart in angle can still
     # show the same shape (a mirror image, a symmetric pose).
     ious, alike = check_alike_pictures(study, sc["id"], views)
@@ -858,6 +973,7 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "view_angles": angles,
         "near_duplicates": dupes,
         "view_iou": ious,
+        "replacements": replacements,
         "timings_s": {
             "load": t1 - t0,
             "select": t2 - t1,
