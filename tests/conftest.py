@@ -63,3 +63,24 @@ def all_bvh(motions_dir):
     files = sorted(motions_dir.rglob("*.bvh"))
     need(len(files) > 0, f"no BVH files under {motions_dir}")
     return files
+
+
+#: Tests slower than this (seconds, setup + call + teardown) carry the ``slow`` mark;
+#: the end of every run lists those that do not, so the mark keeps up with the suite.
+SLOW_S = 10.0
+_unmarked_slow: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report):
+    # with xdist this runs in the controller too, for the workers' reports
+    if "slow" in report.keywords:
+        return
+    _unmarked_slow[report.nodeid] = _unmarked_slow.get(report.nodeid, 0.0) + report.duration
+
+
+def pytest_terminal_summary(terminalreporter):
+    slow = sorted(((d, n) for n, d in _unmarked_slow.items() if d > SLOW_S), reverse=True)
+    if slow:
+        terminalreporter.section(f"tests over {SLOW_S:g} s without the slow mark")
+        for d, n in slow:
+            terminalreporter.write_line(f"{d:6.1f} s  {n}")
