@@ -76,11 +76,16 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
         pick's score in its method's terms, :meth:`PoseScores.caption`), ``views`` (``{"ours": v, "viewpoint entropy": v,
         "motion area": v}`` as computed, unit vectors), ``how`` (one line).
     """
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import ViewParams, take_snapshot
+    from snapcore.select.pose_methods import PoseParams
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
+        snap = take_snapshot(
+            scene,
+            pose=PoseParams(k=k),
+            view=ViewParams(baselines=baselines) if views else None,
+        )
     sc = snap.pose.scores
     out = {
         "index": int(snap.index),

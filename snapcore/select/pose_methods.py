@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from snapcore.errors import SnapshotError
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
 from snapcore.select.pose import (
     MIN_SEPARATION_S,
@@ -46,6 +47,7 @@ __all__ = [
     "POSE_METHODS",
     "DEFAULT_POSE_METHOD",
     "PAPER_OPTIONS",
+    "PaperOptionError",
     "PoseParams",
     "select_pose",
     "run_pose_method",
@@ -66,6 +68,47 @@ PAPER_OPTIONS = (
     "tolerances",
     "interactions",
 )
+
+
+class PaperOptionError(SnapshotError):
+    """Options of the ``paper`` pose method given with another method.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The paper-only options given (:data:`PAPER_OPTIONS`), in the order given.
+    method : str
+        The method that was asked for instead.
+    """
+
+    def __init__(self, names, method: str):
+        self.names = tuple(names)
+        self.method = method
+        super().__init__(
+            f"option(s) {', '.join(self.names)} apply to the 'paper' pose "
+            f"method only, not {method!r}"
+        )
+
+
+def check_paper_options(method: str, given) -> None:
+    """Refuse paper-only options for another pose method (the one place this rule lives).
+
+    Parameters
+    ----------
+    method : str
+        The pose method that runs (the default resolved).
+    given : iterable of str
+        The options the caller set: for :class:`PoseParams` those changed from their
+        defaults, for :func:`select_pose` the keywords passed.
+
+    Raises
+    ------
+    PaperOptionError
+        When ``method`` is not ``paper`` and ``given`` names a paper-only option.
+    """
+    names = [name for name in given if name in PAPER_OPTIONS]
+    if names and method != "paper":
+        raise PaperOptionError(names, method)
 
 
 @dataclass(frozen=True)
@@ -96,7 +139,18 @@ class PoseParams:
         ``random`` only.
 
     Values are checked where they are used (:func:`select_pose`); a paper-only option
-    changed from its default with another method is a ``ValueError`` (:meth:`kwargs`).
+    changed from its default with another method fails here, at construction, with a
+    :class:`PaperOptionError` (a ``ValueError``) naming the options.
+
+    Examples
+    --------
+    >>> from snapcore import PoseParams
+    >>> PoseParams(pose_method="paper", w_local=0.5).kwargs()["w_local"]
+    0.5
+    >>> PoseParams(w_local=0.5)  # the default method is 'story'
+    Traceback (most recent call last):
+    ...
+    snapcore.select.pose_methods.PaperOptionError: option(s) w_local apply to the 'paper' pose method only, not 'story'
     """
 
     pose_method: str | None = None
@@ -111,6 +165,15 @@ class PoseParams:
     story: StoryParameters | None = None
     seed: int = 0
 
+    def __post_init__(self):
+        # a field left at its default was not set: only changed ones count as given
+        changed = [
+            name
+            for name in PAPER_OPTIONS
+            if name in _PARAM_DEFAULTS and getattr(self, name) != _PARAM_DEFAULTS[name]
+        ]
+        check_paper_options(self.method, changed)
+
     @property
     def method(self) -> str:
         """The selector that runs (the default resolved)."""
@@ -120,16 +183,6 @@ class PoseParams:
         """Keyword arguments of :func:`select_pose`: the method, ``k``,
         ``min_separation_s`` and the options of that method only."""
         out = {"method": self.method, "k": self.k, "min_separation_s": self.min_separation_s}
-        changed = [
-            name
-            for name in PAPER_OPTIONS
-            if name != "interactions" and getattr(self, name) != getattr(_DEFAULT_PARAMS, name)
-        ]
-        if changed and self.method != "paper":
-            raise ValueError(
-                f"option(s) {', '.join(changed)} apply to the 'paper' pose "
-                f"method only, not {self.method!r}"
-            )
         if self.method == "paper":
             out.update(
                 {name: getattr(self, name) for name in PAPER_OPTIONS if name != "interactions"}
@@ -141,7 +194,8 @@ class PoseParams:
         return out
 
 
-_DEFAULT_PARAMS = PoseParams()
+#: Field defaults of PoseParams (what "changed" is measured against).
+_PARAM_DEFAULTS = {f.name: f.default for f in fields(PoseParams)}
 
 
 def story_interactions(scene, info):
@@ -238,6 +292,13 @@ def select_pose(
     PoseSelection
         Frames are internal indices; report ``scene.source_frame(frame)``.
 
+    Raises
+    ------
+    PaperOptionError
+        A paper-only option (:data:`PAPER_OPTIONS`) passed with another method.
+    ValueError
+        ``k`` or ``min_separation_s`` out of range, an unknown ``method``.
+
     Warns
     -----
     UserWarning
@@ -260,6 +321,7 @@ def select_pose(
     if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
         raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
     method = DEFAULT_POSE_METHOD if method is None else method
+    check_paper_options(method, options)
     if method == "paper":
         return select_pose_paper(scene, k=int(k), min_separation_s=min_separation_s, **options)
     return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s, **options)
@@ -273,7 +335,6 @@ def run_pose_method(
     min_separation_s: float = 0.3,
     story=None,
     seed: int = 0,
-    **options,
 ):
     """Run the named selector (see the module docstring).
 
@@ -289,8 +350,6 @@ def run_pose_method(
         For ``story``.
     seed : int
         For ``random``.
-    **options
-        Paper-only options (:data:`PAPER_OPTIONS`) are refused with a ``ValueError``.
 
     Returns
     -------
@@ -298,11 +357,6 @@ def run_pose_method(
     """
     if method not in POSE_METHODS or method == "paper":
         raise ValueError(f"method must be one of {', '.join(POSE_METHODS)}, got {method!r}")
-    if options:
-        raise ValueError(
-            f"option(s) {', '.join(sorted(options))} apply to the 'paper' pose "
-            f"method only, not {method!r}"
-        )
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
     sep = int(round(min_separation_s * fps))

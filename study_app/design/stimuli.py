@@ -464,9 +464,13 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
         ``viewpoint_entropy`` and ``motion_area`` (unit vectors, world frame).
         ``timings``: seconds per stage of the selection.
     """
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import snapshot_params, take_snapshot
 
-    snap = take_snapshot(scene, **(options or {}))
+    try:
+        pose, view = snapshot_params(options or {})
+    except ValueError as err:
+        raise StimuliError(f"study config [selection]: {err}") from None
+    snap = take_snapshot(scene, pose=pose, view=view)
     views = snap.views
     missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
