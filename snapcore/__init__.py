@@ -20,7 +20,7 @@ _WHERE = {
     "snapcore.errors": ("BVHError", "SceneError", "SnapshotError"),
     "snapcore.motion.load": ("load_scene",),
     "snapcore.motion.scene": ("Character", "Scene", "Skeleton"),
-    "snapcore.select.contacts": ("ContactTolerances", "Interactions", "detect_interactions"),
+    "snapcore.select.contacts": ("ContactParams", "Interactions", "detect_interactions"),
     "snapcore.select.pose": ("PoseScores", "PoseSelection"),
     "snapcore.select.pose_methods": ("PoseParams", "select_pose"),
     "snapcore.select.view": ("ViewSelection", "select_view"),
@@ -62,7 +62,7 @@ __all__ = [
     "compare_views",
     "relief_from_scene",
     # their parameters
-    "ContactTolerances",
+    "ContactParams",
     "PoseParams",
     "ViewParams",
     "ReliefParams",

@@ -36,7 +36,7 @@ from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.select.contacts import (
     DEFAULT_TOLERANCES,
-    ContactTolerances,
+    ContactParams,
     Interactions,
     detect_interactions,
 )
@@ -632,7 +632,7 @@ def pose_entropy(
     events: str = "transitions",
     smooth_s: float = SMOOTH_S,
     rest_speed: float = REST_SPEED,
-    tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+    tolerances: ContactParams = DEFAULT_TOLERANCES,
     interactions: Interactions | None = None,
 ) -> PoseEntropy:
     """Pose entropy of every frame of ``scene``.
@@ -649,7 +649,7 @@ def pose_entropy(
     rest_speed : float
         Rest threshold (m/s) for a 1.70 m person, scaled by the scene's mean stature
         so the result does not depend on the unit.
-    tolerances : ContactTolerances
+    tolerances : ContactParams
         For :func:`snapcore.select.contacts.detect_interactions`.
     interactions : Interactions, optional
         Precomputed events (skips detection).

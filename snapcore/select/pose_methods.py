@@ -41,7 +41,7 @@ from snapcore.select.pose_baselines import (
     speed_score,
     stretch_score,
 )
-from snapcore.select.story import DEFAULT_STORY, StoryParameters, _roles_sides, story_information
+from snapcore.select.story import DEFAULT_STORY, StoryParams, _roles_sides, story_information
 
 __all__ = [
     "POSE_METHODS",
@@ -131,9 +131,9 @@ class PoseParams:
         ``paper`` only: Savitzky-Golay window (s) for the trajectories; 0 for none.
     rest_speed : float
         ``paper`` only: rest threshold (m/s) for a person of the reference stature.
-    tolerances : ContactTolerances
+    tolerances : ContactParams
         ``paper`` only: for :func:`snapcore.select.contacts.detect_interactions`.
-    story : StoryParameters or None
+    story : StoryParams or None
         ``story`` only (None: :data:`~snapcore.select.story.DEFAULT_STORY`).
     seed : int
         ``random`` only.
@@ -161,8 +161,8 @@ class PoseParams:
     events: str = "transitions"
     smooth_s: float = SMOOTH_S
     rest_speed: float = REST_SPEED
-    tolerances: object = DEFAULT_TOLERANCES  # a ContactTolerances
-    story: StoryParameters | None = None
+    tolerances: object = DEFAULT_TOLERANCES  # a ContactParams
+    story: StoryParams | None = None
     seed: int = 0
 
     def __post_init__(self):
@@ -285,7 +285,7 @@ def select_pose(
         ``paper``: passed to :func:`~snapcore.select.pose.pose_entropy` (``w_local``,
         ``w_global``, ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``,
         ``interactions``); ``story``: ``story`` (a
-        :class:`~snapcore.select.story.StoryParameters`); ``random``: ``seed``.
+        :class:`~snapcore.select.story.StoryParams`); ``random``: ``seed``.
 
     Returns
     -------
@@ -346,7 +346,7 @@ def run_pose_method(
         :func:`select_pose` runs through :func:`~snapcore.select.pose.select_pose_paper`).
     k : int
     min_separation_s : float
-    story : StoryParameters, optional
+    story : StoryParams, optional
         For ``story``.
     seed : int
         For ``random``.
