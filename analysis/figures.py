@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 
 __all__ = [
     "FIGURES",
@@ -394,7 +394,7 @@ def snapshot_views(snap) -> dict:
     Returns
     -------
     dict of ViewMethod to ndarray of shape (3,)
-        :attr:`Snapshot.views` for each of :data:`~snapcore.select.methods.VIEW_METHODS`.
+        :attr:`Snapshot.views` for each of :data:`~snapcore.select.view_methods.VIEW_METHODS`.
 
     Raises
     ------

@@ -21,7 +21,7 @@ _WHERE = {
     "snapcore.motion.load": ("load_scene",),
     "snapcore.motion.scene": ("Character", "Scene", "Skeleton"),
     "snapcore.select.contacts": ("ContactParams", "Interactions", "detect_interactions"),
-    "snapcore.select.pose": ("PoseScores", "PoseSelection"),
+    "snapcore.select.pose_selection": ("PoseScores", "PoseSelection"),
     "snapcore.select.pose_methods": ("PoseParams", "select_pose"),
     "snapcore.select.view": ("ViewSelection", "select_view"),
     "snapcore.pipeline": ("Snapshot", "ViewParams", "take_snapshot"),

@@ -9,9 +9,9 @@ Like every output, a Snapshot reports frames in the *source* numbering
 (``scene.source_frame(i) = i + frame_offset``): ``Snapshot.frame``/``frames`` and every
 frame number in ``to_dict``; the per-frame arrays start at source frame
 ``frame_offset``. ``Snapshot.index``/``indices`` (and ``Snapshot.pose``, a
-:class:`~snapcore.select.pose.PoseSelection`) hold internal indices into the scene's
+:class:`~snapcore.select.pose_selection.PoseSelection`) hold internal indices into the scene's
 arrays. :attr:`Snapshot.views` gives the three methods' directions by
-:class:`~snapcore.select.methods.ViewMethod`.
+:class:`~snapcore.select.view_methods.ViewMethod`.
 """
 
 from __future__ import annotations
@@ -26,9 +26,8 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
-from snapcore.select.methods import ViewMethod
-from snapcore.select.pose import PoseSelection
 from snapcore.select.pose_methods import PoseParams, select_pose
+from snapcore.select.pose_selection import PoseSelection
 from snapcore.select.story import DEFAULT_STORY
 from snapcore.select.view import (
     MA_FLOOR_M2,
@@ -37,6 +36,7 @@ from snapcore.select.view import (
     select_view,
     window_frames,
 )
+from snapcore.select.view_methods import ViewMethod
 
 __all__ = [
     "Snapshot",

@@ -22,7 +22,7 @@ from snapcore import load_scene
 from snapcore.motion import synth
 from snapcore.motion.scene import Character, Scene, Skeleton
 from snapcore.select.contacts import DEFAULT_TOLERANCES, bone_radii
-from snapcore.select.pose import (
+from snapcore.select.paper import (
     REST_SPEED,
     SAVGOL_POLYORDER,
     SMOOTH_S,
@@ -35,9 +35,9 @@ from snapcore.select.pose import (
     pose_entropy,
     rotation_change,
     smooth_positions,
-    top_peaks,
 )
 from snapcore.select.pose_methods import select_pose
+from snapcore.select.pose_selection import top_peaks
 
 SALSA_PAIRS = [
     ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),

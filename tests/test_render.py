@@ -241,7 +241,7 @@ def test_still_shows_the_body_where_the_camera_projects_it(walk):
 
 def test_still_of_two_people_shows_both_colours():
     """The push scene: both characters' colours appear in the picture."""
-    from snapcore.render.body import CHARACTER_COLORS
+    from snapcore.render.mannequin import CHARACTER_COLORS
 
     scene = synth.synth_scene("push", fps=30)
     img = render_still(scene, 20, size=(240, 180)).astype(float) / 255

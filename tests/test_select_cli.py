@@ -16,8 +16,8 @@ from snapcore.cli.main import cli
 from snapcore.motion import synth
 from snapcore.pipeline import VIEW_FIELDS, Snapshot, ViewParams, take_snapshot
 from snapcore.schema import validate
-from snapcore.select.methods import ViewMethod
 from snapcore.select.pose_methods import PoseParams
+from snapcore.select.view_methods import ViewMethod
 
 
 def _run(args):

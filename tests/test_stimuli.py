@@ -294,7 +294,7 @@ def test_view_stills_share_one_background(tmp_path):
 
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
-    from snapcore.select.methods import VIEW_METHODS
+    from snapcore.select.view_methods import VIEW_METHODS
     from study_app.design.stimuli import write_views
 
     scene = synth.synth_scene("walk", fps=30)

@@ -22,7 +22,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 __all__ = ["make_readme_images", "make_body_images", "CLIP", "BODY_CLIPS"]
 

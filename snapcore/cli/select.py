@@ -14,8 +14,9 @@ from snapcore.cli.common import (
     scene_arguments,
     scene_from_options,
 )
-from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
+from snapcore.select.paper import EVENT_MODES, SMOOTH_S
 from snapcore.select.pose_methods import PaperOptionError, PoseParams
+from snapcore.select.pose_selection import MIN_SEPARATION_S
 
 __all__ = [
     "select",

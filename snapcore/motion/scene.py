@@ -154,7 +154,7 @@ class Character:
         The file content this character was built from (file units), for writing back.
     local_quaternions : ndarray of shape (F, J, 4) or None
         ``local_rotations`` as unit quaternions ``(w, x, y, z)``, when the builder has
-        them (FK does); None otherwise (:func:`snapcore.select.pose.local_information` then
+        them (FK does); None otherwise (:func:`snapcore.select.paper.local_information` then
         converts the matrices).
     """
 

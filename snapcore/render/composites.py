@@ -277,7 +277,7 @@ def contact_sheet(
         caption as ``entropy <value>``.
     captions : sequence of str, optional
         Instead of ``entropy``: a caption per frame naming its score in the pose
-        method's own terms (:meth:`snapcore.select.pose.PoseScores.caption`, e.g.
+        method's own terms (:meth:`snapcore.select.pose_selection.PoseScores.caption`, e.g.
         ``story 14.9 bits``).
     size : (int, int)
         Size of each panel, pixels.

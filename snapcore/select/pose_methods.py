@@ -1,14 +1,14 @@
 """Named pose selectors behind one interface (``select_pose(scene, method=...)``).
 
-Methods, each returning the same :class:`~snapcore.select.pose.PoseSelection`:
+Methods, each returning the same :class:`~snapcore.select.pose_selection.PoseSelection`:
 
 - ``story`` (the default): story information, :mod:`snapcore.select.story`;
-- ``paper``: the paper's pose entropy as METHOD §1 reads it, :mod:`snapcore.select.pose`,
+- ``paper``: the paper's pose entropy as METHOD §1 reads it, :mod:`snapcore.select.paper`,
   unchanged (what the paper's figures and study conditions use);
 - baselines from :mod:`snapcore.select.pose_baselines`: ``stretch``, ``fastest``, ``middle``,
   ``random`` (seeded), ``salient``.
 
-Every method reports its per-frame score as a :class:`~snapcore.select.pose.PoseScores`:
+Every method reports its per-frame score as a :class:`~snapcore.select.pose_selection.PoseScores`:
 named terms that add up to the total, in the method's own unit (the paper's normalised
 entropy ``local`` + ``global``; the story's bits ``stance`` + ``novelty`` + ``events``;
 the baselines' statures, statures per second or rank). Only ``paper`` also fills
@@ -25,15 +25,7 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
-from snapcore.select.pose import (
-    MIN_SEPARATION_S,
-    REST_SPEED,
-    SMOOTH_S,
-    PoseScores,
-    PoseSelection,
-    select_pose_paper,
-    top_peaks,
-)
+from snapcore.select.paper import REST_SPEED, SMOOTH_S, select_pose_paper
 from snapcore.select.pose_baselines import (
     middle_frames,
     random_frames,
@@ -41,6 +33,7 @@ from snapcore.select.pose_baselines import (
     speed_score,
     stretch_score,
 )
+from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
 from snapcore.select.story import DEFAULT_STORY, StoryParams, _roles_sides, story_information
 
 __all__ = [
@@ -276,13 +269,13 @@ def select_pose(
     method : str, optional
         One of :data:`POSE_METHODS`; default :data:`DEFAULT_POSE_METHOD` (``"story"``,
         story information). ``"paper"`` is the paper's pose entropy
-        (:func:`snapcore.select.pose.select_pose_paper`), unchanged.
+        (:func:`snapcore.select.paper.select_pose_paper`), unchanged.
     k : int
         How many distinct peaks to return (at least 1).
     min_separation_s : float
         Minimum time (s) between two returned poses.
     **options
-        ``paper``: passed to :func:`~snapcore.select.pose.pose_entropy` (``w_local``,
+        ``paper``: passed to :func:`~snapcore.select.paper.pose_entropy` (``w_local``,
         ``w_global``, ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``,
         ``interactions``); ``story``: ``story`` (a
         :class:`~snapcore.select.story.StoryParams`); ``random``: ``seed``.
@@ -343,7 +336,7 @@ def run_pose_method(
     scene : Scene
     method : str
         One of :data:`POSE_METHODS` other than ``paper`` (which
-        :func:`select_pose` runs through :func:`~snapcore.select.pose.select_pose_paper`).
+        :func:`select_pose` runs through :func:`~snapcore.select.paper.select_pose_paper`).
     k : int
     min_separation_s : float
     story : StoryParams, optional

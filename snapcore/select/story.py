@@ -1,6 +1,6 @@
 """Story information: the default pose selector, a repair of pose entropy (paper §3.1).
 
-The paper's pose entropy (:mod:`snapcore.select.pose`, method ``paper``) often lands on a
+The paper's pose entropy (:mod:`snapcore.select.paper`, method ``paper``) often lands on a
 footfall beside the action: contact events flicker (dozens of onsets and releases per
 clip, every ankle, toe and toe-end joint its own event), each event frame gets the
 normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
@@ -51,7 +51,7 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
    ``combine="normalised"`` min-max normalises the pose and event terms first, as the
    paper's eq. 9 does (for ablation). The pose is the argmax; the top-k are distinct
-   peaks (:func:`snapcore.select.pose.top_peaks`).
+   peaks (:func:`snapcore.select.pose_selection.top_peaks`).
 
 Nothing depends on a frame's position in the clip (no preference for the middle), and
 every ingredient can be switched off or replaced for ablation through
@@ -74,7 +74,7 @@ import numpy as np
 from snapcore.motion.anatomy import (
     REFERENCE_STATURE_M,
 )
-from snapcore.select.pose import minmax, smooth_positions
+from snapcore.select.paper import minmax, smooth_positions
 from snapcore.select.stance import (
     _roles_sides_of,
     _stature,

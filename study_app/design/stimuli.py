@@ -43,7 +43,7 @@ import numpy as np
 
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 from .protocol import Study, study_from_dict
 from .scenes import StudyScene
@@ -650,7 +650,7 @@ def write_views(scene, picks: dict, folder: str | Path, *, size: tuple[int, int]
     -------
     dict
         ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
-        :data:`~snapcore.select.methods.VIEW_METHODS`.
+        :data:`~snapcore.select.view_methods.VIEW_METHODS`.
     """
     from snapcore.render.renderer import SceneRenderer, render_still, save_png
 

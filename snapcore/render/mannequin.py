@@ -1,4 +1,4 @@
-"""Body meshes for skeletons without skin: a capsule per bone, spheres at joints.
+"""The mannequin: body meshes for skeletons without skin, a capsule per bone, spheres at joints.
 
 Motion capture gives joints, not a body. This module dresses every character in a
 mannequin built from rigid pieces, like the articulated models of the Action Snapshot
