@@ -61,6 +61,7 @@ def test_entry_point_docstring_and_examples(name):
 MORE_EXAMPLES = {
     "snapcore.select.pose_methods": ["PoseParams"],
     "snapcore.pipeline": ["snapshot_params"],
+    "snapcore.select.view_methods": ["view_label"],
 }
 
 
