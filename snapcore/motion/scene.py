@@ -33,7 +33,7 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
 from snapcore.motion.bvh import BVHDocument
 from snapcore.motion.kinematics import (
     channel_layout,
@@ -124,6 +124,19 @@ class Skeleton:
             if p >= 0:
                 kids[p].append(j)
         return tuple(tuple(k) for k in kids)
+
+    @cached_property
+    def roles(self) -> tuple[str, ...]:
+        """Anatomical role of each joint, length J (``"pelvis"``, ``"thigh"``, ``"foot"``,
+        ``"hand"``, ``"hidden"``...): :func:`snapcore.motion.anatomy.joint_roles` of the
+        names and parents, computed once per skeleton."""
+        return tuple(joint_roles(self.names, self.parents))
+
+    @cached_property
+    def sides(self) -> tuple[str, ...]:
+        """Side of each joint read from its name, length J: ``"L"``, ``"R"`` or ``""``
+        (:func:`snapcore.motion.anatomy.joint_sides`), computed once per skeleton."""
+        return tuple(joint_sides(self.names))
 
     @cached_property
     def links(self) -> np.ndarray:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapcore.motion.anatomy import joint_roles
 from snapcore.select.paper import smooth_positions
 
 __all__ = [
@@ -40,7 +39,7 @@ SALIENT_MAX_CANDIDATES = 400
 
 def _visible(character) -> np.ndarray:
     """Joints that belong to the body (not hidden helper joints such as a floor root)."""
-    roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
+    roles = character.skeleton.roles
     keep = np.array([r != "hidden" for r in roles])
     return np.flatnonzero(keep) if keep.any() else np.arange(character.n_joints)
 

@@ -34,7 +34,7 @@ from snapcore.select.pose_baselines import (
     stretch_score,
 )
 from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
-from snapcore.select.story import DEFAULT_STORY, StoryParams, _roles_sides, story_information
+from snapcore.select.story import DEFAULT_STORY, StoryParams, story_information
 
 __all__ = [
     "POSE_METHODS",
@@ -214,7 +214,7 @@ def story_interactions(scene, info):
 
 
 def _representative(character, joints) -> int:
-    roles = _roles_sides(character)[0]
+    roles = character.skeleton.roles
     for want in ("foot", "hand", "head", "pelvis"):
         for j in joints:
             if roles[int(j)] == want:
