@@ -26,7 +26,7 @@ def _parse_strengths(text: str | None) -> dict | None:
     """``"ours=0.5,viewpoint_entropy=0.2,motion_area=0.3"`` → dict (checked)."""
     if not text:
         return None
-    from snapcore.select.methods import VIEW_METHODS
+    from snapcore.select.view_methods import VIEW_METHODS
 
     out = {}
     for part in text.split(","):

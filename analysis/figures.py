@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 
 __all__ = [
     "FIGURES",
@@ -124,10 +124,13 @@ class _Context:
     def snapshot(self, sid):
         if sid not in self.snapshots:
             from snapcore.pipeline import take_snapshot
+            from snapcore.select.pose_methods import PoseParams
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                self.snapshots[sid] = take_snapshot(self.scene(sid), pose_method="paper")
+                self.snapshots[sid] = take_snapshot(
+                    self.scene(sid), pose=PoseParams(pose_method="paper")
+                )
         return self.snapshots[sid]
 
     def log(self, text):
@@ -230,6 +233,7 @@ def measure_table1(
         pipeline did not run is NaN.
     """
     from snapcore.pipeline import take_snapshot as take
+    from snapcore.select.pose_methods import PoseParams
 
     paper = paper_table1().set_index("scene")
     analogues = paper_analogues().set_index("scene")
@@ -240,7 +244,7 @@ def measure_table1(
         for _ in range(repeats):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                snap = take(sc, pose_method="paper")
+                snap = take(sc, pose=PoseParams(pose_method="paper"))
             for k, v in _timings(snap).items():
                 times[k].append(v)
         p = paper.loc[sid] if sid in paper.index else None
@@ -390,7 +394,7 @@ def snapshot_views(snap) -> dict:
     Returns
     -------
     dict of ViewMethod to ndarray of shape (3,)
-        :attr:`Snapshot.views` for each of :data:`~snapcore.select.methods.VIEW_METHODS`.
+        :attr:`Snapshot.views` for each of :data:`~snapcore.select.view_methods.VIEW_METHODS`.
 
     Raises
     ------

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from snapcore.select.methods import ViewMethod
+from snapcore.select.view_methods import ViewMethod
 
 __all__ = [
     "METHOD_COLORS",

@@ -36,7 +36,7 @@ from datetime import UTC, datetime
 import numpy as np
 import pandas as pd
 
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.design.scenes import StudyScene
 
 __all__ = [

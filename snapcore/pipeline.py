@@ -9,25 +9,25 @@ Like every output, a Snapshot reports frames in the *source* numbering
 (``scene.source_frame(i) = i + frame_offset``): ``Snapshot.frame``/``frames`` and every
 frame number in ``to_dict``; the per-frame arrays start at source frame
 ``frame_offset``. ``Snapshot.index``/``indices`` (and ``Snapshot.pose``, a
-:class:`~snapcore.select.pose.PoseSelection`) hold internal indices into the scene's
+:class:`~snapcore.select.pose_selection.PoseSelection`) hold internal indices into the scene's
 arrays. :attr:`Snapshot.views` gives the three methods' directions by
-:class:`~snapcore.select.methods.ViewMethod`.
+:class:`~snapcore.select.view_methods.ViewMethod`.
 """
 
 from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, fields, replace
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
-from snapcore.select.methods import ViewMethod
-from snapcore.select.pose import PoseSelection
 from snapcore.select.pose_methods import PoseParams, select_pose
+from snapcore.select.pose_selection import PoseSelection
 from snapcore.select.story import DEFAULT_STORY
 from snapcore.select.view import (
     MA_FLOOR_M2,
@@ -36,8 +36,17 @@ from snapcore.select.view import (
     select_view,
     window_frames,
 )
+from snapcore.select.view_methods import ViewMethod
 
-__all__ = ["Snapshot", "ViewParams", "take_snapshot", "SNAPSHOT_FORMAT", "VIEW_FIELDS"]
+__all__ = [
+    "Snapshot",
+    "ViewParams",
+    "DEFAULT_VIEW",
+    "take_snapshot",
+    "snapshot_params",
+    "SNAPSHOT_FORMAT",
+    "VIEW_FIELDS",
+]
 
 #: Value of the ``format`` field of the JSON document (bump on breaking changes).
 SNAPSHOT_FORMAT = "action-snapshot/snapshot@2"
@@ -297,38 +306,78 @@ def _jsonable(value):
     return value
 
 
+#: The view stage's options unless told otherwise (``take_snapshot``'s default).
+DEFAULT_VIEW = ViewParams()
+
+
+def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]:
+    """The two stages' parameter objects from one flat table of options, by field name.
+
+    What a study config's ``selection`` table and a batch's options give: each key is a
+    field of :class:`~snapcore.select.pose_methods.PoseParams` (``pose_method``, ``k``,
+    ``min_separation_s``, ``w_local``...) or of :class:`ViewParams` (``window_s``,
+    ``baselines``, ``n_views``...).
+
+    Parameters
+    ----------
+    options : mapping of str to value
+        Field names and values; missing fields keep their defaults.
+
+    Returns
+    -------
+    (PoseParams, ViewParams)
+
+    Raises
+    ------
+    ValueError
+        A key that is a field of neither (one line naming it and the known ones), or a
+        paper-only option with another pose method
+        (:class:`~snapcore.select.pose_methods.PaperOptionError`).
+
+    Examples
+    --------
+    >>> from snapcore.pipeline import snapshot_params
+    >>> pose, view = snapshot_params({"pose_method": "paper", "k": 2, "window_s": 0.5})
+    >>> pose.method, pose.k, view.window_s, view.baselines
+    ('paper', 2, 0.5, True)
+    >>> try:
+    ...     snapshot_params({"top_k": 3})
+    ... except ValueError as err:
+    ...     print(str(err).split(" (")[0])
+    unknown selection option(s) top_k
+    """
+    pose_names = [f.name for f in fields(PoseParams)]
+    view_names = [f.name for f in fields(ViewParams)]
+    unknown = [k for k in options if k not in pose_names and k not in view_names]
+    if unknown:
+        raise ValueError(
+            f"unknown selection option(s) {', '.join(map(str, unknown))} "
+            f"(pose: {', '.join(pose_names)}; view: {', '.join(view_names)})"
+        )
+    pose = PoseParams(**{k: v for k, v in options.items() if k in pose_names})
+    view = ViewParams(**{k: v for k, v in options.items() if k in view_names})
+    return pose, view
+
+
 def take_snapshot(
     scene,
-    pose_params: PoseParams | None = None,
     *,
-    view: bool = True,
-    window_s: float | None = None,
-    baselines: bool = True,
-    n_views: int = 2562,
-    **pose_options,
+    pose: PoseParams | None = None,
+    view: ViewParams | None = DEFAULT_VIEW,
 ) -> Snapshot:
     """Run the pipeline on ``scene``: select the pose, then the view.
 
     Parameters
     ----------
     scene : Scene
-    pose_params : PoseParams, optional
-        The pose stage's options (default: ``PoseParams()``).
-    view : bool
-        Run the view stage : PMA view of the whole
-        sequence or of ``window_s``, and the baselines.
-    window_s : float, optional
-        Score the view over the selected pose ± this many seconds (pose-specific view).
-    baselines : bool
-        Also compute the motion-area and viewpoint-entropy views.
-    n_views : int
-        Samples of the view sphere.
-    **pose_options
-        Fields of :class:`~snapcore.select.pose_methods.PoseParams` that override
-        ``pose_params`` (``pose_method``, ``k``, ``min_separation_s``, the paper's
-        ``w_local``, ``w_global``, ``events``, ``smooth_s``, ``rest_speed``,
-        ``tolerances``, ``story``, ``seed``): so a study config's ``selection`` table
-        passes them by name.
+        The motion to analyse.
+    pose : PoseParams, optional
+        The pose stage's options (None: ``PoseParams()``, the default ``story``
+        selector). A paper-only option with another method already fails when the
+        PoseParams is made.
+    view : ViewParams or None
+        The view stage's options (default: ``ViewParams()``, the whole sequence with
+        both baselines); None skips the view stage (pose only).
 
     Returns
     -------
@@ -340,35 +389,38 @@ def take_snapshot(
     Raises
     ------
     TypeError
-        An option that is not a field of PoseParams.
+        ``pose`` or ``view`` that is not a parameter object.
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from snapcore import take_snapshot
+    >>> from snapcore import PoseParams, ViewParams, take_snapshot
     >>> from snapcore.motion.synth import synth_scene
-    >>> snap = take_snapshot(synth_scene("walk"), k=2, baselines=False)
+    >>> scene = synth_scene("walk")
+    >>> snap = take_snapshot(scene, pose=PoseParams(k=2), view=ViewParams(baselines=False))
     >>> len(snap.pose.indices), snap.motion_area is None
     (2, True)
     >>> bool(abs(snap.view_selection.view[0]) > 0.9)  # a walk along +Z, seen from the side
     True
+    >>> take_snapshot(scene, view=None).view is None  # the pose stage only
+    True
     """
-    known = {f.name for f in fields(PoseParams)}
-    unknown = sorted(set(pose_options) - known)
-    if unknown:
+    if pose is None:
+        pose = PoseParams()
+    if not isinstance(pose, PoseParams):
+        raise TypeError(f"take_snapshot: pose must be a PoseParams, got {pose!r}")
+    if view is not None and not isinstance(view, ViewParams):
         raise TypeError(
-            f"take_snapshot: unknown option(s) {', '.join(unknown)} (pose options "
-            f"are {', '.join(sorted(known))})"
+            f"take_snapshot: view must be a ViewParams (run the view stage) or None "
+            f"(skip it), got {view!r}"
         )
-    params = replace(pose_params or PoseParams(), **pose_options)
-    kwargs = params.kwargs()
+    kwargs = pose.kwargs()
     t0 = time.perf_counter()
     sel = select_pose(scene, **kwargs)
     t1 = time.perf_counter()
     options = {
         "pose_method": sel.method,
-        "k": int(params.k),
-        "min_separation_s": float(params.min_separation_s),
+        "k": int(pose.k),
+        "min_separation_s": float(pose.min_separation_s),
     }
     options.update(
         {
@@ -387,7 +439,7 @@ def take_snapshot(
             "min_duration_s": tol.min_duration,
         }
     elif sel.method == "story":  # every ingredient of the run, for the record
-        options["story"] = asdict(params.story or DEFAULT_STORY)
+        options["story"] = asdict(pose.story or DEFAULT_STORY)
     timings = {
         key: sel.timings_s[key]
         for key in ("contacts", "local", "global", "story", "select")
@@ -395,12 +447,11 @@ def take_snapshot(
     }
     timings["pose"] = t1 - t0
     snap = Snapshot(scene=scene, pose=sel, options=options, timings_s=timings)
-    if view:
-        view_params = ViewParams(window_s=window_s, baselines=bool(baselines), n_views=int(n_views))
+    if view is not None:
         options.update(
-            window_s=window_s, baselines=view_params.baselines, n_views=view_params.n_views
+            window_s=view.window_s, baselines=bool(view.baselines), n_views=int(view.n_views)
         )
-        _view_stage(snap, view_params)
+        _view_stage(snap, view)
     timings["total"] = time.perf_counter() - t0
     return snap
 

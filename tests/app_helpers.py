@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.design.protocol import study_from_dict
 from study_app.design.stimuli import write_manifest
 

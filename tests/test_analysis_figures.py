@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import lazy_module
 
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 # the modules under test, imported when a test first uses them (fast collection)
 fg = lazy_module("analysis.figures")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import lazy_module
 
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.design.scenes import StudyScene
 
 # the modules under test, imported when a test first uses them (fast collection)

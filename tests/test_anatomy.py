@@ -284,3 +284,19 @@ def test_the_story_pick_does_not_depend_on_the_naming(tmp_path, motion):
         c: pick(_renamed_clip(tmp_path, c, motion, seconds=None)[0]) for c in sorted(CONVENTIONS)
     }
     assert got == dict.fromkeys(got, want)
+
+
+def test_roles_and_sides_are_a_cached_property_of_the_skeleton():
+    """Skeleton.roles/.sides are joint_roles/joint_sides of its names, computed once per
+    skeleton and shared by the characters that share it (a scaled copy keeps its own)."""
+    from snapcore.motion.anatomy import joint_roles, joint_sides
+    from snapcore.motion.synth import synth_scene
+
+    c = synth_scene("walk").characters[0]
+    sk = c.skeleton
+    assert list(sk.roles) == joint_roles(sk.names, sk.parents)
+    assert list(sk.sides) == joint_sides(sk.names)
+    assert {"foot", "hand", "pelvis"} <= set(sk.roles) and {"L", "R"} <= set(sk.sides)
+    assert sk.roles is sk.roles and sk.sides is sk.sides  # computed once
+    assert c.frames(0, 10).skeleton.roles is sk.roles  # a cut shares the skeleton
+    assert c.rescaled(2.0).skeleton.roles == sk.roles  # a new skeleton, the same names

@@ -8,7 +8,7 @@ import pytest
 from app_helpers import fixture_study_doc, write_fixture_stimuli
 
 from snapcore.errors import SchemaError
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.data.store import Store
 from study_app.design.protocol import (
     AnswerError,

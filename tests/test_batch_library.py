@@ -30,13 +30,13 @@ def test_a_processed_scene_is_freed_with_its_bodies(tmp_path):
     cache once kept every scene alive (its values, the bodies, hold the scene), 10-18
     MB a scene in a batch worker."""
     from snapcore.motion.load import load_scene
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import ViewParams, take_snapshot
     from snapcore.render.renderer import render_still
 
     path = tmp_path / "walk.bvh"
     write_bvh(synth.humanoid_document("walk", seconds=1.0), path)
     scene = load_scene([str(path)])
-    snap = take_snapshot(scene, view=True, baselines=False)
+    snap = take_snapshot(scene, view=ViewParams(baselines=False))
     render_still(scene, snap.index, snap.view, size=(80, 90))
     alive = weakref.ref(scene)
     del scene, snap

@@ -11,7 +11,7 @@ from snapcore import load_scene
 from snapcore.motion import synth
 from snapcore.motion.anatomy import ROLE_RADII, joint_roles, joint_sides
 from snapcore.motion.scene import Character, Scene, Skeleton
-from snapcore.render.body import (
+from snapcore.render.mannequin import (
     CHARACTER_COLORS,
     CharacterBody,
     SceneBody,
@@ -372,7 +372,7 @@ def test_two_characters_get_distinct_colours(push):
     tm = scene_trimesh(push, 10)
     assert len(tm.faces) == len(m.faces) and tm.visual.face_colors.shape == (len(m.faces), 4)
     assert scene_body(push) is scene_body(push)  # built once per scene
-    from snapcore.render.body import TESSELLATION_FINE
+    from snapcore.render.mannequin import TESSELLATION_FINE
 
     fine = scene_body(push, TESSELLATION_FINE)  # once per scene and tessellation
     assert fine is scene_body(push, TESSELLATION_FINE) and fine is not scene_body(push)
@@ -431,7 +431,7 @@ def test_fine_tessellation_hugs_the_capsules(walk):
     """Reliefs carve the body's depth, so facets would show as ridges: the fine
     tessellation keeps every face within 1.5 mm of the round capsule it stands for, at
     least three times closer than the default one."""
-    from snapcore.render.body import TESSELLATION, TESSELLATION_FINE, CharacterBody
+    from snapcore.render.mannequin import TESSELLATION, TESSELLATION_FINE, CharacterBody
 
     ch = walk.characters[0]
     fine = _facet_depth(CharacterBody(ch, tessellation=TESSELLATION_FINE))
@@ -487,15 +487,15 @@ def test_helper_joints_draw_no_blobs(walk):
 
 
 def test_the_mannequin_cache_and_the_scene_body_cache_do_not_collide():
-    """A scene drawn as a mannequin (``body.scene_body``, as the viewpoint-entropy baseline
+    """A scene drawn as a mannequin (``mannequin.scene_body``, as the viewpoint-entropy baseline
     does) can then be drawn with its scene body: the two caches kept on the scene are
     separate (they shared one dict, and the second lookup failed on the first's keys)."""
     from snapcore.motion.synth import synth_scene
-    from snapcore.render import bodies, body
+    from snapcore.render import bodies, mannequin
 
     scene = synth_scene("kick")
-    mannequin = body.scene_body(scene)
+    capsules = mannequin.scene_body(scene)
     dressed = bodies.scene_body(scene)
-    assert body.scene_body(scene) is mannequin
+    assert mannequin.scene_body(scene) is capsules
     assert bodies.scene_body(scene) is dressed
-    assert dressed is not mannequin
+    assert dressed is not capsules

@@ -17,6 +17,11 @@ REFUSED = {
         ["select", W, "--min-separation", "nan"],
         ["'--min-separation'", "finite"],
     ),
+    # the paper's options with another method: refused by PoseParams, named as flags
+    "paper-flags-with-story": (
+        ["select", W, "--w-local", "0.5", "--smooth", "0", "-o", "s.json"],
+        ["--pose-method", "--w-local, --smooth apply to --pose-method paper only, not story"],
+    ),
 }
 
 

@@ -19,7 +19,7 @@ from snapcore.select.capsules import body_near, bone_radii, segment_distance
 from snapcore.select.contacts import (
     DEFAULT_TOLERANCES,
     GROUND,
-    ContactTolerances,
+    ContactParams,
     detect_interactions,
     merge_adjacent,
     prop_distance,
@@ -97,7 +97,7 @@ def test_prop_distances():
 def test_tolerances_are_checked():
     """Tolerances must be positive; durations become at least two frames."""
     with pytest.raises(ValueError, match="ground_distance"):
-        ContactTolerances(ground_distance=-0.1)
+        ContactParams(ground_distance=-0.1)
     assert DEFAULT_TOLERANCES.min_frames(120) == 12
     assert DEFAULT_TOLERANCES.min_frames(30) == 3
     assert DEFAULT_TOLERANCES.min_frames(10) == 2

@@ -55,3 +55,31 @@ def test_entry_point_docstring_and_examples(name):
     for test in found:
         runner.run(test, out=report.append)
     assert runner.failures == 0, "".join(report)
+
+
+#: Examples beyond the entry points: the parameter objects and the options table.
+MORE_EXAMPLES = {
+    "snapcore.select.pose_methods": ["PoseParams"],
+    "snapcore.pipeline": ["snapshot_params"],
+    "snapcore.select.view_methods": ["view_label"],
+}
+
+
+@pytest.mark.parametrize(
+    "module,name", [(m, n) for m, names in MORE_EXAMPLES.items() for n in names]
+)
+def test_parameter_object_examples(module, name):
+    """The parameter objects' examples (a wrong option combination failing at
+    construction, a table split by field name) run as doctests too."""
+    import importlib
+
+    mod = importlib.import_module(module)
+    found = doctest.DocTestFinder(recurse=False).find(
+        getattr(mod, name), name, module=mod, globs={"__name__": module}
+    )
+    assert sum(len(t.examples) for t in found) > 0, f"{name}: no examples"
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    report: list[str] = []
+    for test in found:
+        runner.run(test, out=report.append)
+    assert runner.failures == 0, "".join(report)

@@ -47,7 +47,7 @@ from test_e2e import (
     watch_through,
 )
 
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.design.protocol import estimated_minutes, trial_plan
 from study_app.design.stimuli import load_stimuli
 

@@ -222,7 +222,7 @@ def test_unknown_skeleton_falls_back_to_the_mannequin_with_a_warning():
     """A skeleton with no recognisable limbs wears capsules; the warning names what is
     missing and the joints no role was found for."""
     from snapcore.render.bodies import MixedSceneBody
-    from snapcore.render.body import CharacterBody
+    from snapcore.render.mannequin import CharacterBody
 
     names = ("Hips", "blob_a", "blob_b", "blob_c")
     parents = np.array([-1, 0, 1, 0])

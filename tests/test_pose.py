@@ -22,7 +22,7 @@ from snapcore import load_scene
 from snapcore.motion import synth
 from snapcore.motion.scene import Character, Scene, Skeleton
 from snapcore.select.contacts import DEFAULT_TOLERANCES, bone_radii
-from snapcore.select.pose import (
+from snapcore.select.paper import (
     REST_SPEED,
     SAVGOL_POLYORDER,
     SMOOTH_S,
@@ -35,9 +35,9 @@ from snapcore.select.pose import (
     pose_entropy,
     rotation_change,
     smooth_positions,
-    top_peaks,
 )
 from snapcore.select.pose_methods import select_pose
+from snapcore.select.pose_selection import top_peaks
 
 SALSA_PAIRS = [
     ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),
@@ -580,26 +580,57 @@ def test_local_term_needs_no_quaternions(motions_dir):
 
 
 def test_pose_params_are_the_pose_options():
-    """take_snapshot(scene, PoseParams(...)) equals the keyword form; Snapshot.options
-    records the method and its parameters; an unknown option is a TypeError naming it."""
-    from snapcore.pipeline import take_snapshot
-    from snapcore.select.pose_methods import PoseParams
+    """take_snapshot(scene, pose=PoseParams(...)) runs select_pose with those options, and
+    a flat options table (a study config's ``selection``) gives the same parameter
+    objects by field name; Snapshot.options records the method and its parameters."""
+    from snapcore.pipeline import ViewParams, snapshot_params, take_snapshot
+    from snapcore.select.pose_methods import PoseParams, select_pose
 
     scene = synth.synth_scene("walk", fps=30)
     paper = dict(pose_method="paper", w_local=0.5, smooth_s=0.0)
-    a = take_snapshot(scene, PoseParams(k=2, **paper), view=False)
-    b = take_snapshot(scene, k=2, **paper, view=False)
-    c = take_snapshot(
-        scene, PoseParams(k=5, w_local=0.5, pose_method="paper"), k=2, smooth_s=0.0, view=False
-    )
-    assert a.indices == b.indices == c.indices and len(a.indices) == 2
+    a = take_snapshot(scene, pose=PoseParams(k=2, **paper), view=None)
+    pose, view = snapshot_params({"k": 2, **paper, "window_s": 0.25, "n_views": 162})
+    assert pose == PoseParams(k=2, **paper) and view == ViewParams(window_s=0.25, n_views=162)
+    b = take_snapshot(scene, pose=pose, view=None)
+    direct = _quiet(select_pose, scene, method="paper", k=2, w_local=0.5, smooth_s=0.0)
+    assert a.indices == b.indices == direct.indices and len(a.indices) == 2
     np.testing.assert_array_equal(a.pose.entropy.total, b.pose.entropy.total)
+    np.testing.assert_array_equal(a.pose.entropy.total, direct.entropy.total)
     fields = set(PoseParams(pose_method="paper").kwargs()) - {"tolerances", "method"}
     assert fields | {"pose_method", "contact_tolerances"} == set(a.options)
     assert a.options["w_local"] == 0.5 and a.options["k"] == 2
     assert a.options["pose_method"] == "paper"
-    # the paper's options are refused for another selector, not silently dropped
-    with pytest.raises(ValueError, match="w_local apply to the 'paper' pose method only"):
-        PoseParams(w_local=0.5).kwargs()
-    with pytest.raises(TypeError, match="top_k"):
-        take_snapshot(scene, top_k=3, view=False)
+    assert a.view_params is None and a.view is None  # view=None: no view stage
+
+
+def test_paper_options_are_refused_once_at_construction():
+    """A paper-only option with another method fails when the PoseParams is made (not
+    later, not silently dropped), and select_pose's keywords follow the same rule."""
+    from snapcore.select.pose_methods import PaperOptionError, PoseParams, select_pose
+
+    with pytest.raises(PaperOptionError, match="w_local apply to the 'paper' pose method only"):
+        PoseParams(w_local=0.5)
+    with pytest.raises(PaperOptionError, match="events, smooth_s .* not 'fastest'") as err:
+        PoseParams(pose_method="fastest", smooth_s=0.0, events="state")
+    assert err.value.names == ("events", "smooth_s") and isinstance(err.value, ValueError)
+    PoseParams(pose_method="story", w_local=1.0)  # a default value is not a choice
+    assert PoseParams(pose_method="paper", w_local=0.5).kwargs()["w_local"] == 0.5
+    scene = synth.synth_scene("walk", fps=30)
+    with pytest.raises(PaperOptionError, match="rest_speed"):
+        select_pose(scene, method="middle", rest_speed=0.2)
+
+
+def test_snapshot_params_name_an_unknown_key():
+    """A key that is a field of neither parameter object is one ValueError naming it
+    (an old keyword spelling, a typo); take_snapshot takes only parameter objects."""
+    from snapcore.pipeline import snapshot_params, take_snapshot
+
+    with pytest.raises(ValueError, match=r"^unknown selection option\(s\) top_k \(pose: "):
+        snapshot_params({"k": 2, "top_k": 3})
+    scene = synth.synth_scene("walk", fps=30)
+    with pytest.raises(TypeError, match="view must be a ViewParams"):
+        take_snapshot(scene, view=True)  # the old boolean spelling
+    with pytest.raises(TypeError, match="pose must be a PoseParams"):
+        take_snapshot(scene, pose={"k": 2})
+    with pytest.raises(TypeError):
+        take_snapshot(scene, k=2)  # type: ignore[call-arg]

@@ -241,7 +241,7 @@ def test_still_shows_the_body_where_the_camera_projects_it(walk):
 
 def test_still_of_two_people_shows_both_colours():
     """The push scene: both characters' colours appear in the picture."""
-    from snapcore.render.body import CHARACTER_COLORS
+    from snapcore.render.mannequin import CHARACTER_COLORS
 
     scene = synth.synth_scene("push", fps=30)
     img = render_still(scene, 20, size=(240, 180)).astype(float) / 255
@@ -485,3 +485,22 @@ def test_candidate_views_share_one_background(walk):
         top = above[PANEL_GAP : PANEL_GAP + h // 4, x : x + w].astype(float)
         lines = np.abs(top - np.array(GRID_COLOR) * 255).max(axis=-1) < 25
         assert lines.sum() > 20, f"panel {i}: no grid"
+
+
+def test_views_are_keyed_by_the_method_and_labelled_only_on_the_picture(walk):
+    """pipeline_picks keys its views by ViewMethod (no display labels in the data), and
+    compare_views draws an enum key under its label: the same pixels as the label
+    written out as a free-form name, different from the stored identifier."""
+    from snapcore.cli.render import pipeline_picks
+    from snapcore.render.composites import compare_views
+    from snapcore.select.view_methods import ViewMethod, view_label
+
+    picks = pipeline_picks(walk, k=1, baselines=False)
+    assert list(picks["views"]) == [ViewMethod.OURS]
+    v = picks["views"][ViewMethod.OURS]
+    by_enum = compare_views(walk, 40, {ViewMethod.MOTION_AREA: v}, size=(120, 140))
+    by_label = compare_views(walk, 40, {"motion area": v}, size=(120, 140))
+    by_value = compare_views(walk, 40, {"motion_area": v}, size=(120, 140))
+    assert view_label(ViewMethod.MOTION_AREA) == "motion area"
+    assert np.array_equal(by_enum, by_label)
+    assert not np.array_equal(by_enum, by_value)  # the caption text differs

@@ -14,9 +14,10 @@ from click.testing import CliRunner
 from snapcore import load_scene
 from snapcore.cli.main import cli
 from snapcore.motion import synth
-from snapcore.pipeline import VIEW_FIELDS, Snapshot, take_snapshot
+from snapcore.pipeline import VIEW_FIELDS, Snapshot, ViewParams, take_snapshot
 from snapcore.schema import validate
-from snapcore.select.methods import ViewMethod
+from snapcore.select.pose_methods import PoseParams
+from snapcore.select.view_methods import ViewMethod
 
 
 def _run(args):
@@ -35,7 +36,7 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
     assert doc["pose_method"] == "paper"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(load_scene(path), pose_method="paper", k=2, view=False)
+        snap = take_snapshot(load_scene(path), pose=PoseParams(pose_method="paper", k=2), view=None)
     assert doc["frame_offset"] == 1 and doc["n_frames"] == 173 and doc["fps"] == 120
     assert doc["frame"] == snap.index + 1 == snap.frame
     assert doc["frames"] == [i + 1 for i in snap.indices] and len(doc["frames"]) == 2
@@ -139,7 +140,7 @@ def test_select_errors_are_one_line(tmp_path):
 
 def test_plot_entropy_writes_a_figure(tmp_path):
     """plot-entropy writes the library's figure of the scene's snapshot: the same pixels as
-    plot_entropy(take_snapshot(scene, k=2), strip=4) at the command's dpi, whose bottom
+    plot_entropy(take_snapshot(scene, pose=PoseParams(k=2)), strip=4) at the command's dpi, whose bottom
     curve is the pose score and whose reported frames are the (up to) top-2 picks."""
     from PIL import Image
 
@@ -152,7 +153,7 @@ def test_plot_entropy_writes_a_figure(tmp_path):
     out = tmp_path / "push.png"
     r = _run(["plot-entropy", str(manifest), "-o", str(out), "-k", "2", "--strip", "4"])
     assert r.exit_code == 0, r.output
-    snap = take_snapshot(load_scene(manifest), k=2, view=False)
+    snap = take_snapshot(load_scene(manifest), pose=PoseParams(k=2), view=None)
     fig = plot_entropy(snap, strip=4)
     total = [ln for ln in fig.axes[1].lines if ln.get_label().startswith("total")]
     np.testing.assert_array_equal(total[0].get_ydata(), snap.pose.scores.total)
@@ -172,14 +173,14 @@ def test_snapshot_to_dict_includes_view_fields_when_set():
     scene = synth.synth_scene("kick", fps=30)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(scene, k=1, view=False)
+        snap = take_snapshot(scene, pose=PoseParams(k=1), view=None)
     doc = snap.to_dict()
     assert not set(VIEW_FIELDS) & set(doc)
     assert snap.views == {}
     validate(doc, "snapshot")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(scene, k=1, n_views=162)
+        snap = take_snapshot(scene, pose=PoseParams(k=1), view=ViewParams(n_views=162))
     doc = snap.to_dict()
     validate(doc, "snapshot")
     assert set(VIEW_FIELDS) <= set(doc)
@@ -198,7 +199,7 @@ def test_synthetic_kick_pose_is_near_the_kick():
     scene = synth.synth_scene("kick", fps=60)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(scene, k=3, view=False)
+        snap = take_snapshot(scene, pose=PoseParams(k=3), view=None)
     times = np.array(snap.indices) / scene.fps
     assert np.min(np.abs(times - synth.KICK_IMPACT_S)) <= 0.2, times
 
@@ -210,4 +211,4 @@ def test_bad_options_raise_value_errors(bad):
     """Options are checked at the boundary with a message naming the parameter."""
     scene = synth.synth_scene("idle", fps=30)
     with pytest.raises(ValueError, match=next(iter(bad)).split("_")[0]):
-        take_snapshot(scene, view=False, **bad)
+        take_snapshot(scene, pose=PoseParams(**bad), view=None)

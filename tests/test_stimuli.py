@@ -219,6 +219,20 @@ def test_build_records_the_selection(built):
     np.testing.assert_allclose(sc.entry["views"]["ours"]["direction"], snap["view"], atol=1e-9)
 
 
+def test_selection_table_with_an_unknown_key_is_one_clear_error():
+    """The config's ``selection`` table becomes the pipeline's parameter objects by field
+    name; a key that is no field (an old spelling, a typo) is a StimuliError naming it,
+    and a paper-only option with another method one naming that option."""
+    from snapcore.motion.synth import synth_scene
+    from study_app.design.stimuli import select_scene
+
+    scene = synth_scene("walk", fps=30)
+    with pytest.raises(StimuliError, match=r"\[selection\]: unknown selection option\(s\) top_k"):
+        select_scene(scene, {"pose_method": "story", "top_k": 3})
+    with pytest.raises(StimuliError, match=r"\[selection\]: option\(s\) w_local apply to"):
+        select_scene(scene, {"w_local": 0.5})
+
+
 def test_build_refuses_to_overwrite(built, tiny_config):
     r = subprocess.run(
         [SNAPSHOT, "stimuli", "build", str(tiny_config), "-o", str(built), "-q"],
@@ -280,7 +294,7 @@ def test_view_stills_share_one_background(tmp_path):
 
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
-    from snapcore.select.methods import VIEW_METHODS
+    from snapcore.select.view_methods import VIEW_METHODS
     from study_app.design.stimuli import write_views
 
     scene = synth.synth_scene("walk", fps=30)

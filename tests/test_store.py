@@ -27,7 +27,7 @@ import study_app
 from snapcore.cli.main import cli
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 from study_app.data.database import SQLITE_BUSY_TIMEOUT_MS
 from study_app.data.errors import StoreError
 from study_app.data.export import export_columns, read_export, write_export

@@ -17,7 +17,7 @@ from snapcore.select.pose_baselines import interpolation_error_table, middle_fra
 from snapcore.select.pose_methods import POSE_METHODS
 from snapcore.select.story import (
     DEFAULT_STORY,
-    StoryParameters,
+    StoryParams,
     debounced_contacts,
     enforce_min_durations,
     event_surprisal,
@@ -95,13 +95,13 @@ def test_pose_surprisal_peaks_at_the_outlier_and_is_zero_when_static():
 def test_parameters_are_checked():
     """Negative, inverted hysteresis, unknown model, both weights 0: ValueError."""
     with pytest.raises(ValueError, match="support_s"):
-        StoryParameters(support_s=-1)
+        StoryParams(support_s=-1)
     with pytest.raises(ValueError, match="hysteresis"):
-        StoryParameters(release_height=0.05)
+        StoryParams(release_height=0.05)
     with pytest.raises(ValueError, match="event_model"):
-        StoryParameters(event_model="bogus")
+        StoryParams(event_model="bogus")
     with pytest.raises(ValueError, match="w_pose"):
-        StoryParameters(w_pose=0, w_event=0)
+        StoryParams(w_pose=0, w_event=0)
 
 
 def test_limb_groups_one_contactor_per_leg():

@@ -104,7 +104,7 @@ def test_cube_baseline_picks_a_corner_view():
 def test_body_baseline_on_a_real_clip(motions_dir):
     """The posed body of a walk: a finite best view, more faces seen than a face-on view of
     a cube, entropy within [0, log2(pixels)]."""
-    pytest.importorskip("snapcore.render.body")
+    pytest.importorskip("snapcore.render.mannequin")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = load_scene(motions_dir / "walk_run/02_01.bvh")

@@ -52,9 +52,10 @@ class BatchOptions:
     Attributes
     ----------
     snapshot : dict
-        Keyword arguments of :func:`snapcore.pipeline.take_snapshot` (``k``,
-        ``min_separation_s``, ``w_local``, ``window_s``, ``baselines``...); the view
-        stage always runs (the thumbnail shows the chosen view).
+        Fields of the pipeline's ``PoseParams`` and ``ViewParams`` by name (``k``,
+        ``min_separation_s``, ``w_local``, ``window_s``, ``baselines``...), read by
+        :func:`snapcore.pipeline.snapshot_params`; the view stage always runs (the
+        thumbnail shows the chosen view). A plain table, as the options hash covers it.
     fps : float or None
         Frame-rate override for every scene (None: each file's or manifest's own).
     scale : float or None
@@ -327,10 +328,11 @@ def _run_scene(task: SceneTask) -> SceneResult:
 
 def _select(scene, opts: BatchOptions):
     """The snapshot document (bytes) and the index fields it gives."""
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import snapshot_params, take_snapshot
     from snapcore.schema import validate
 
-    snap = take_snapshot(scene, view=True, **opts.snapshot)
+    pose, view = snapshot_params(opts.snapshot)
+    snap = take_snapshot(scene, pose=pose, view=view)
     doc = snap.to_dict()
     validate(doc, "snapshot", source=f"{scene.name} snapshot")
     data = (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()

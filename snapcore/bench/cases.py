@@ -14,14 +14,14 @@ from snapcore.motion.load import load_scene
 from snapcore.motion.synth import humanoid_document, synth_scene
 from snapcore.relief.height_field import ReliefParams, height_from_depth, relief_from_height_field
 from snapcore.relief.scene import height_field_from_scene
-from snapcore.render.body import posed_mesh
 from snapcore.render.buffers import render_depth, render_face_ids
 from snapcore.render.camera import default_view, fit_camera, motion_points
+from snapcore.render.mannequin import posed_mesh
 from snapcore.render.renderer import SceneRenderer
 from snapcore.render.video import render_video
 from snapcore.render.viewpoint_entropy import select_view_entropy
 from snapcore.select.contacts import detect_interactions
-from snapcore.select.pose import local_information
+from snapcore.select.paper import local_information
 from snapcore.select.pose_methods import select_pose
 from snapcore.select.view import motion_triangles, select_view
 

@@ -9,17 +9,19 @@ import click
 
 from snapcore.cli.common import POSITIVE, FiniteFloatRange
 from snapcore.cli.render import parse_size
-from snapcore.cli.select import pose_options
+from snapcore.cli.select import pose_options, pose_params_from_options
 
 __all__ = ["batch", "snapshot_kwargs"]
 
-#: ``snapshot select`` option names → :func:`snapcore.pipeline.take_snapshot` keywords
-#: (an option not listed here is passed on under its own name).
+#: ``snapshot select`` option names → field names of the pipeline's parameter objects
+#: (``PoseParams``, ``ViewParams``; an option not listed here keeps its own name).
 _SNAPSHOT_KW = {"min_separation": "min_separation_s", "smooth": "smooth_s"}
 
 
 def snapshot_kwargs(pose: dict, *, window=None, baselines=True) -> dict:
-    """The pipeline's keyword arguments from the pose options of ``snapshot select``."""
+    """The batch's options table (:attr:`BatchOptions.snapshot`, read by
+    :func:`snapcore.pipeline.snapshot_params`) from the pose options of
+    ``snapshot select``: a plain dict, so the options hash of a library stays the same."""
     kw = {_SNAPSHOT_KW.get(k, k): v for k, v in pose.items()}
     kw.update(window_s=window, baselines=bool(baselines))
     return kw
@@ -273,6 +275,7 @@ def batch(
         )
     if not found.scenes:
         raise BatchError(f"no scenes (BVH, glTF or scene manifests) in {', '.join(sources)}")
+    pose_params_from_options(**pose)  # a paper-only flag with another method: exit 2 here
     options = BatchOptions(
         snapshot=snapshot_kwargs(pose, window=window, baselines=baselines),
         fps=fps,

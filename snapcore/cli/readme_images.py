@@ -22,7 +22,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 __all__ = ["make_readme_images", "make_body_images", "CLIP", "BODY_CLIPS"]
 
@@ -80,13 +80,13 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
         scene = load_scene(path)
     picks = pipeline_picks(scene, k=3)
     views = picks["views"]
-    missing = [m.label for m in VIEW_METHODS if m.label not in views]
+    missing = [m.label for m in VIEW_METHODS if m not in views]
     if missing:
         print(f"note: no {', '.join(missing)} view available; shown without it", file=sys.stderr)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     name = Path(clip).stem
-    sheet_view = views.get("ours")
+    sheet_view = views.get(ViewMethod.OURS)
     sheet = contact_sheet(
         scene,
         picks["indices"],
@@ -96,11 +96,11 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
         title=f"CMU {name}: the three most informative poses (story information), selected view",
     )
     frame = picks["index"]
-    labels = {ViewMethod.OURS.label: "ours (projected motion area)"}
+    labels = {ViewMethod.OURS: "ours (projected motion area)"}  # the README's panel names
     cmp = compare_views(
         scene,
         frame,
-        {labels.get(k, k): v for k, v in views.items()},
+        {labels.get(m, m.label): v for m, v in views.items()},
         size=panel,
         title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "
         "the selected pose from each method's view",

@@ -50,9 +50,9 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     the baselines are not needed here and are skipped: viewpoint entropy renders).
     Returns ``(source_frame or None, view or None)`` for what was asked.
     """
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import ViewParams, take_snapshot
 
-    snap = take_snapshot(scene, view=need_view, baselines=False)
+    snap = take_snapshot(scene, view=ViewParams(baselines=False) if need_view else None)
     frame = int(snap.frame) if need_frame else None
     view = np.asarray(snap.view, float) if need_view else None
     return frame, view

@@ -27,6 +27,7 @@ from snapcore.cli.common import (
     scene_from_options,
     view_callback,
 )
+from snapcore.select.view_methods import ViewMethod
 
 __all__ = ["render", "video", "sheet", "parse_size", "pipeline_picks"]
 
@@ -73,14 +74,20 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
     -------
     dict
         ``index`` (into the scene's arrays), ``indices`` (top-k), ``captions`` (each
-        pick's score in its method's terms, :meth:`PoseScores.caption`), ``views`` (``{"ours": v, "viewpoint entropy": v,
-        "motion area": v}`` as computed, unit vectors), ``how`` (one line).
+        pick's score in its method's terms, :meth:`PoseScores.caption`), ``views``
+        (unit vectors by :class:`~snapcore.select.view_methods.ViewMethod`, those
+        computed), ``how`` (one line).
     """
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import ViewParams, take_snapshot
+    from snapcore.select.pose_methods import PoseParams
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        snap = take_snapshot(scene, k=k, view=views, baselines=views and baselines)
+        snap = take_snapshot(
+            scene,
+            pose=PoseParams(k=k),
+            view=ViewParams(baselines=baselines) if views else None,
+        )
     sc = snap.pose.scores
     out = {
         "index": int(snap.index),
@@ -91,7 +98,7 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
     }
     if not views:
         return out
-    out["views"] = {m.label: v / np.linalg.norm(v) for m, v in snap.views.items()}
+    out["views"] = {m: v / np.linalg.norm(v) for m, v in snap.views.items()}
     return out
 
 
@@ -104,7 +111,7 @@ def _view_option(value, scene, *, default="auto"):
     if isinstance(value, str) and value == "default":
         return default_view(scene), "default 3/4 view"
     if isinstance(value, str) and value == "auto":
-        view = pipeline_picks(scene, baselines=False)["views"]["ours"]
+        view = pipeline_picks(scene, baselines=False)["views"][ViewMethod.OURS]
         return view, "selected view (projected motion area)"
     if isinstance(value, str):
         value = parse_vector(value, "--view")

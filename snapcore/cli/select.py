@@ -14,10 +14,18 @@ from snapcore.cli.common import (
     scene_arguments,
     scene_from_options,
 )
-from snapcore.select.pose import EVENT_MODES, MIN_SEPARATION_S, SMOOTH_S
-from snapcore.select.pose_methods import PoseParams
+from snapcore.select.paper import EVENT_MODES, SMOOTH_S
+from snapcore.select.pose_methods import PaperOptionError, PoseParams
+from snapcore.select.pose_selection import MIN_SEPARATION_S
 
-__all__ = ["select", "plot_entropy", "pose_options", "snapshot_from_options", "format_snapshot"]
+__all__ = [
+    "select",
+    "plot_entropy",
+    "pose_options",
+    "pose_params_from_options",
+    "snapshot_from_options",
+    "format_snapshot",
+]
 
 
 def pose_options(f):
@@ -89,6 +97,35 @@ def pose_options(f):
     return f
 
 
+#: The pose stage's fields that ``snapshot select`` sets under another flag name.
+_FLAGS = {"min_separation_s": "--min-separation", "smooth_s": "--smooth"}
+
+
+def pose_params_from_options(
+    pose_method, k, min_separation, w_local, w_global, events, smooth
+) -> PoseParams:
+    """The pose stage's :class:`~snapcore.select.pose_methods.PoseParams` from the
+    command's options. The paper's options set to anything but their defaults with
+    another method are refused by PoseParams; here the refusal names the flags (one
+    line, exit 2)."""
+    try:
+        return PoseParams(
+            pose_method=pose_method,
+            k=k,
+            min_separation_s=min_separation,
+            w_local=w_local,
+            w_global=w_global,
+            events=events,
+            smooth_s=smooth,
+        )
+    except PaperOptionError as err:
+        flags = ", ".join(_FLAGS.get(n, "--" + n.replace("_", "-")) for n in err.names)
+        raise click.BadParameter(
+            f"{flags} apply to --pose-method paper only, not {err.method}",
+            param_hint="--pose-method",
+        ) from None
+
+
 def snapshot_from_options(
     scene,
     pose_method,
@@ -104,23 +141,14 @@ def snapshot_from_options(
     baselines=True,
 ):
     """Run :func:`snapcore.pipeline.take_snapshot` with the command's options
-    (the view stage only with ``view=True``). The paper's options are passed to the
-    ``paper`` method only; set to anything but their defaults with another method they
-    are refused (one line, exit 2)."""
-    from snapcore.pipeline import take_snapshot
+    (the view stage only with ``view=True``)."""
+    from snapcore.pipeline import ViewParams, take_snapshot
 
-    paper = {"w_local": w_local, "w_global": w_global, "events": events, "smooth_s": smooth}
-    if pose_method != "paper":
-        defaults = {"w_local": 1.0, "w_global": 1.0, "events": "transitions", "smooth_s": SMOOTH_S}
-        changed = [k for k, v in paper.items() if v != defaults[k]]
-        if changed:
-            flags = ", ".join("--" + k.replace("_s", "").replace("_", "-") for k in changed)
-            raise click.BadParameter(
-                f"{flags} apply to --pose-method paper only, not {pose_method}",
-                param_hint="--pose-method",
-            )
-    params = PoseParams(pose_method=pose_method, k=k, min_separation_s=min_separation, **paper)
-    return take_snapshot(scene, params, view=view, window_s=window, baselines=baselines)
+    pose = pose_params_from_options(
+        pose_method, k, min_separation, w_local, w_global, events, smooth
+    )
+    view_params = ViewParams(window_s=window, baselines=bool(baselines)) if view else None
+    return take_snapshot(scene, pose=pose, view=view_params)
 
 
 def format_snapshot(doc: dict) -> list[str]:

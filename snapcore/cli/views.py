@@ -75,7 +75,7 @@ def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no
     if frame is None:
         from snapcore.pipeline import take_snapshot
 
-        index = take_snapshot(scene, view=False).index
+        index = take_snapshot(scene, view=None).index
     else:
         index = frame - scene.frame_offset
         if not 0 <= index < scene.n_frames:

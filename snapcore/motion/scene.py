@@ -33,7 +33,7 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
 from snapcore.motion.bvh import BVHDocument
 from snapcore.motion.kinematics import (
     channel_layout,
@@ -126,6 +126,19 @@ class Skeleton:
         return tuple(tuple(k) for k in kids)
 
     @cached_property
+    def roles(self) -> tuple[str, ...]:
+        """Anatomical role of each joint, length J (``"pelvis"``, ``"thigh"``, ``"foot"``,
+        ``"hand"``, ``"hidden"``...): :func:`snapcore.motion.anatomy.joint_roles` of the
+        names and parents, computed once per skeleton."""
+        return tuple(joint_roles(self.names, self.parents))
+
+    @cached_property
+    def sides(self) -> tuple[str, ...]:
+        """Side of each joint read from its name, length J: ``"L"``, ``"R"`` or ``""``
+        (:func:`snapcore.motion.anatomy.joint_sides`), computed once per skeleton."""
+        return tuple(joint_sides(self.names))
+
+    @cached_property
     def links(self) -> np.ndarray:
         """Bones as (parent, child) joint pairs with non-zero rest length, shape (L, 2)."""
         j = np.flatnonzero((self.parents >= 0) & (np.linalg.norm(self.offsets, axis=1) > 1e-9))
@@ -154,7 +167,7 @@ class Character:
         The file content this character was built from (file units), for writing back.
     local_quaternions : ndarray of shape (F, J, 4) or None
         ``local_rotations`` as unit quaternions ``(w, x, y, z)``, when the builder has
-        them (FK does); None otherwise (:func:`snapcore.select.pose.local_information` then
+        them (FK does); None otherwise (:func:`snapcore.select.paper.local_information` then
         converts the matrices).
     """
 

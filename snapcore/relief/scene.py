@@ -21,9 +21,9 @@ from snapcore.relief.height_field import (
     height_from_depth,
     relief_from_height_field,
 )
-from snapcore.render.body import TESSELLATION_FINE
 from snapcore.render.buffers import render_depth
 from snapcore.render.camera import view_basis
+from snapcore.render.mannequin import TESSELLATION_FINE
 
 __all__ = [
     "frame_extent",
@@ -78,17 +78,17 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
 
 def relief_body(scene, frame: int):
     """The body mesh a relief carves: every character at internal ``frame``, finely
-    tessellated (:data:`snapcore.render.body.TESSELLATION_FINE`: a relief is read as geometry,
+    tessellated (:data:`snapcore.render.mannequin.TESSELLATION_FINE`: a relief is read as geometry,
     and the facets of the rendering body would stand out as ridges in raking light), in the
     scene's body kind (:func:`snapcore.render.bodies.scene_body`: by default the human
     mesh, smooth as it is).
 
     Returns
     -------
-    snapcore.render.body.PosedMesh
+    snapcore.render.mannequin.PosedMesh
     """
     from snapcore.render.bodies import scene_body
-    from snapcore.render.body import CharacterBody
+    from snapcore.render.mannequin import CharacterBody
 
     body = scene_body(scene, TESSELLATION_FINE)
     frame = _check_frame(scene, frame)
@@ -100,14 +100,14 @@ def relief_body(scene, frame: int):
 def _smoothed(body, frame: int):
     """The posed bodies with the human meshes Loop-subdivided once (4x the faces): their
     flat facets would otherwise show as ridges in the relief's raking light, as the
-    mannequin's would without :data:`~snapcore.render.body.TESSELLATION_FINE`. glTF
+    mannequin's would without :data:`~snapcore.render.mannequin.TESSELLATION_FINE`. glTF
     meshes are carved as they are (a low-poly fox is faceted by design, and its
     unwelded triangles would come apart under subdivision)."""
     import trimesh
 
     from snapcore.motion.skinning import vertex_normals
-    from snapcore.render.body import PosedMesh
     from snapcore.render.human import HumanBody
+    from snapcore.render.mannequin import PosedMesh
 
     verts, faces, cols, who = [], [], [], []
     n0 = 0

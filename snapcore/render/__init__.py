@@ -6,7 +6,7 @@
 - :mod:`~snapcore.render.bodies` picks each character's body: the human mesh
   (:mod:`~snapcore.render.human`, data in :mod:`~snapcore.render.human_asset`) by default,
   a glTF character's own skinned mesh, or the capsule mannequin of
-  :mod:`~snapcore.render.body` (``--body mannequin``);
+  :mod:`~snapcore.render.mannequin` (``--body mannequin``);
 - :mod:`~snapcore.render.video` writes videos, :mod:`~snapcore.render.composites` contact
   sheets and view comparisons;
 - :mod:`~snapcore.render.viewpoint_entropy` is the rendered view baseline;

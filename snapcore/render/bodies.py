@@ -10,9 +10,9 @@ gets its mesh from :func:`scene_body`. The *body kind* is a scene setting,
   falls back to the mannequin, with a warning naming what is missing and the joints no
   role was found for;
 - ``"mannequin"``: capsules and spheres on the joints for everyone
-  (:class:`snapcore.render.body.CharacterBody`, the body of earlier versions).
+  (:class:`snapcore.render.mannequin.CharacterBody`, the body of earlier versions).
 
-:class:`MixedSceneBody` has the interface of :class:`snapcore.render.body.SceneBody`
+:class:`MixedSceneBody` has the interface of :class:`snapcore.render.mannequin.SceneBody`
 (``vertices``/``normals``/``pose``/``trimesh``, merged ``faces`` and colours), so the
 renderer, camera, relief and viewpoint entropy need not know which kinds they draw.
 Skinned bodies ignore the tessellation (their mesh is what it is); the shadow pass and
@@ -27,14 +27,14 @@ import warnings
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.render.body import (
+from snapcore.render.human import HumanBody, RetargetError
+from snapcore.render.mannequin import (
     CHARACTER_COLORS,
     TESSELLATION,
     CharacterBody,
     PosedMesh,
     SceneBody,
 )
-from snapcore.render.human import HumanBody, RetargetError
 from snapcore.render.skinned import FrameBlocks
 
 __all__ = [

@@ -26,6 +26,7 @@ from snapcore.render.camera import (
     view_basis,
 )
 from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer
+from snapcore.select.view_methods import view_label
 
 __all__ = [
     "contact_sheet",
@@ -277,7 +278,7 @@ def contact_sheet(
         caption as ``entropy <value>``.
     captions : sequence of str, optional
         Instead of ``entropy``: a caption per frame naming its score in the pose
-        method's own terms (:meth:`snapcore.select.pose.PoseScores.caption`, e.g.
+        method's own terms (:meth:`snapcore.select.pose_selection.PoseScores.caption`, e.g.
         ``story 14.9 bits``).
     size : (int, int)
         Size of each panel, pixels.
@@ -364,9 +365,10 @@ def compare_views(
     scene : Scene
     frame : int
         Internal frame.
-    views : dict of str to array of shape (3,)
-        Panel label → view direction (scene to camera), in display order, e.g.
-        ``{"ours": v1, "viewpoint entropy": v2, "motion area": v3}``.
+    views : dict of ViewMethod or str to array of shape (3,)
+        Panel → view direction (scene to camera), in display order: keyed by
+        :class:`~snapcore.select.view_methods.ViewMethod` (``Snapshot.views``; the panel
+        shows its label, e.g. "viewpoint entropy") or by a free-form name shown as is.
     size : (int, int)
         Size of each panel, pixels (the same for all).
     projection : {"orthographic", "perspective"}
@@ -376,8 +378,8 @@ def compare_views(
     labels : bool
         Caption each panel with its label and direction.
     ground, shadows : bool
-    captions : dict of str to str, optional
-        Extra caption line per label (e.g. a score).
+    captions : dict of ViewMethod or str to str, optional
+        Extra caption line per key of ``views`` (e.g. a score).
 
     Returns
     -------
@@ -431,7 +433,7 @@ def compare_views(
             line2 = f"view ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f})"
             if captions and name in captions:
                 line2 = f"{captions[name]}   {line2}"
-            caps.append([str(name), line2])
+            caps.append([view_label(name), line2])
     if title is None and labels:
         title = f"{scene.name}: frame {int(scene.source_frame(frame))} ({frame / scene.fps:.2f} s)"
     return tile_panels(panels, caps, columns=columns, title=title)

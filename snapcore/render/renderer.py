@@ -219,7 +219,7 @@ class SceneRenderer:
     """Renders one scene's bodies, floor, shadows and lights, frame after frame.
 
     Build it once (floor, lights, colours), then call :meth:`render` per frame; the body
-    pieces are re-posed (a gather and one matrix product, see :mod:`snapcore.render.body`) and
+    pieces are re-posed (a gather and one matrix product, see :mod:`snapcore.render.mannequin`) and
     uploaded as one mesh per character. Use it on the thread that created it.
 
     Parameters
@@ -279,7 +279,7 @@ class SceneRenderer:
         self._faces = self.body.faces.astype(np.uint32)
         if self.shadows:
             from snapcore.render.bodies import MixedSceneBody, shadow_body
-            from snapcore.render.body import TESSELLATION_COARSE, SceneBody
+            from snapcore.render.mannequin import TESSELLATION_COARSE, SceneBody
 
             # a coarse mannequin, or a glTF character's own mesh (posed once for both)
             self._shadow_body = (

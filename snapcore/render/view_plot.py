@@ -23,8 +23,8 @@ import math
 import numpy as np
 
 from snapcore.render.viewpoint_entropy import select_view_entropy
-from snapcore.select.methods import ViewMethod
 from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
+from snapcore.select.view_methods import ViewMethod
 
 __all__ = ["plot_views", "sphere_heatmap", "view_maps", "lon_lat", "PROJECTIONS", "MARKERS"]
 

@@ -2,27 +2,28 @@
 
 - :mod:`~snapcore.select.capsules` and :mod:`~snapcore.select.contacts` find interaction
   events (ground, other bodies, props);
-- :mod:`~snapcore.select.pose_methods` runs a named pose selector: the default
+- :mod:`~snapcore.select.pose_methods` runs a named pose selector, each returning a
+  :class:`~snapcore.select.pose_selection.PoseSelection`: the default
   :mod:`~snapcore.select.story` (departure from the neutral stance of
   :mod:`~snapcore.select.stance`, novelty and debounced events, in bits), the paper's
-  pose entropy (:mod:`~snapcore.select.pose`, §3.1) or a baseline
+  pose entropy (:mod:`~snapcore.select.paper`, §3.1) or a baseline
   (:mod:`~snapcore.select.pose_baselines`); every one reports a
-  :class:`~snapcore.select.pose.PoseScores`;
+  :class:`~snapcore.select.pose_selection.PoseScores`;
 - :mod:`~snapcore.select.view` scores views (Projected Motion Area, paper §3.2, and the
   motion-area baseline) over the sample sphere of :mod:`~snapcore.select.sphere`;
-- :mod:`~snapcore.select.methods` names the view methods the study compares.
+- :mod:`~snapcore.select.view_methods` names the view methods the study compares.
 """
 
 from importlib import import_module
 
-# Imported on first use (PEP 562): `snapcore.select.pose` is needed by every command's
+# Imported on first use (PEP 562): `snapcore.select.pose_selection` is needed by every command's
 # option parsing, the view search's trimesh only by the commands that search views.
 _WHERE = {
-    "PoseSelection": "pose",
+    "PoseSelection": "pose_selection",
     "select_pose": "pose_methods",
     "POSE_METHODS": "pose_methods",
-    "VIEW_METHODS": "methods",
-    "ViewMethod": "methods",
+    "VIEW_METHODS": "view_methods",
+    "ViewMethod": "view_methods",
     "ViewSelection": "view",
     "select_view": "view",
 }

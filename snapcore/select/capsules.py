@@ -14,11 +14,9 @@ contiguous planes, and gathers take whole rows with :meth:`numpy.ndarray.take`.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
-from snapcore.motion.anatomy import DEFAULT_ROLE, ROLE_RADII, bone_role, joint_roles
+from snapcore.motion.anatomy import DEFAULT_ROLE, ROLE_RADII, bone_role
 
 __all__ = ["segment_distance", "bone_radii", "body_near", "BODY_BLOCK_S"]
 
@@ -83,11 +81,6 @@ def _segment_distance_planes(p, a, b) -> np.ndarray:
     return np.sqrt(d[0] + d[1] + d[2])
 
 
-@lru_cache(maxsize=64)
-def _roles(names: tuple, parents: tuple) -> tuple:
-    return tuple(joint_roles(list(names), np.asarray(parents)))
-
-
 def bone_radii(character) -> np.ndarray:
     """Capsule radius (m) of each bone of ``character.skeleton.links``, shape (L,).
 
@@ -98,7 +91,7 @@ def bone_radii(character) -> np.ndarray:
     are not part of the surface and never touch anything.
     """
     sk = character.skeleton
-    roles = _roles(tuple(sk.names), tuple(int(p) for p in sk.parents))
+    roles = sk.roles
     k = character.height  # radii are fractions of the stature
     out = np.empty(sk.links.shape[0])
     for i, (p, c) in enumerate(np.asarray(sk.links).reshape(-1, 2)):

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "GROUND",
-    "ContactTolerances",
+    "ContactParams",
     "DEFAULT_TOLERANCES",
     "Event",
     "Interactions",
@@ -69,7 +69,7 @@ _FAR = 1e150
 
 
 @dataclass(frozen=True)
-class ContactTolerances:
+class ContactParams:
     """Tolerances of interaction detection, metres and seconds.
 
     Lengths are given for a person of :attr:`reference_stature` and scaled by the
@@ -119,9 +119,9 @@ class ContactTolerances:
         ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"ContactTolerances.{name} must be a positive number, got {v}")
+                raise ValueError(f"ContactParams.{name} must be a positive number, got {v}")
         if self.reference_stature is not None and not self.reference_stature > 0:
-            raise ValueError("ContactTolerances.reference_stature must be positive or None")
+            raise ValueError("ContactParams.reference_stature must be positive or None")
 
     def length_scale(self, scene) -> float:
         """Factor applied to the lengths for ``scene`` (mean stature / reference)."""
@@ -134,7 +134,7 @@ class ContactTolerances:
         """Frames the conditions must hold: ``min_duration`` at ``fps``, at least 2."""
         return max(2, int(math.ceil(self.min_duration * fps - 1e-9)))
 
-    def scaled(self, factor: float) -> ContactTolerances:
+    def scaled(self, factor: float) -> ContactParams:
         """A copy with every length multiplied by ``factor`` and no further scaling."""
         return replace(
             self,
@@ -147,7 +147,7 @@ class ContactTolerances:
 
 
 #: The defaults used everywhere unless a caller passes its own.
-DEFAULT_TOLERANCES = ContactTolerances()
+DEFAULT_TOLERANCES = ContactParams()
 
 
 @dataclass(frozen=True)
@@ -185,7 +185,7 @@ class Interactions:
         Object names considered (ground, other characters, props).
     n_frames : int
     fps : float
-    tolerances : ContactTolerances
+    tolerances : ContactParams
         The tolerances actually used (already scaled, in metres).
     """
 
@@ -194,7 +194,7 @@ class Interactions:
     objects: list[str]
     n_frames: int
     fps: float
-    tolerances: ContactTolerances
+    tolerances: ContactParams
     timings_s: dict = field(default_factory=dict)
 
     def for_character(self, c: int) -> list[Event]:
@@ -669,7 +669,7 @@ def merge_adjacent(joints, starts, ends):
 def detect_interactions(
     scene,
     *,
-    tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+    tolerances: ContactParams = DEFAULT_TOLERANCES,
     ground: bool = True,
     bodies: bool = True,
     props: bool = True,
@@ -680,7 +680,7 @@ def detect_interactions(
     Parameters
     ----------
     scene : Scene
-    tolerances : ContactTolerances, optional
+    tolerances : ContactParams, optional
         Distances in metres for a person of ``tolerances.reference_stature`` (scaled
         to the scene's people), durations in seconds.
     ground, bodies, props : bool, optional

@@ -2,7 +2,7 @@
 
 Each is a pure function of a scene returning a per-frame score ``(F,)`` (higher is
 better) or the frames themselves; :mod:`snapcore.select.pose_methods` turns them into the
-same :class:`~snapcore.select.pose.PoseSelection` as the paper's pose entropy and the story
+same :class:`~snapcore.select.pose_selection.PoseSelection` as the paper's pose entropy and the story
 selector, so they can be compared on annotated key moments (``snapshot keymoments``).
 
 - ``stretch``: the most stretched pose, the mean distance of the joints from their
@@ -20,8 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapcore.motion.anatomy import joint_roles
-from snapcore.select.pose import smooth_positions
+from snapcore.select.paper import smooth_positions
 
 __all__ = [
     "stretch_score",
@@ -40,7 +39,7 @@ SALIENT_MAX_CANDIDATES = 400
 
 def _visible(character) -> np.ndarray:
     """Joints that belong to the body (not hidden helper joints such as a floor root)."""
-    roles = joint_roles(character.joint_names, tuple(np.asarray(character.parents).tolist()))
+    roles = character.skeleton.roles
     keep = np.array([r != "hidden" for r in roles])
     return np.flatnonzero(keep) if keep.any() else np.arange(character.n_joints)
 

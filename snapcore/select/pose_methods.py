@@ -1,14 +1,14 @@
 """Named pose selectors behind one interface (``select_pose(scene, method=...)``).
 
-Methods, each returning the same :class:`~snapcore.select.pose.PoseSelection`:
+Methods, each returning the same :class:`~snapcore.select.pose_selection.PoseSelection`:
 
 - ``story`` (the default): story information, :mod:`snapcore.select.story`;
-- ``paper``: the paper's pose entropy as METHOD §1 reads it, :mod:`snapcore.select.pose`,
+- ``paper``: the paper's pose entropy as METHOD §1 reads it, :mod:`snapcore.select.paper`,
   unchanged (what the paper's figures and study conditions use);
 - baselines from :mod:`snapcore.select.pose_baselines`: ``stretch``, ``fastest``, ``middle``,
   ``random`` (seeded), ``salient``.
 
-Every method reports its per-frame score as a :class:`~snapcore.select.pose.PoseScores`:
+Every method reports its per-frame score as a :class:`~snapcore.select.pose_selection.PoseScores`:
 named terms that add up to the total, in the method's own unit (the paper's normalised
 entropy ``local`` + ``global``; the story's bits ``stance`` + ``novelty`` + ``events``;
 the baselines' statures, statures per second or rank). Only ``paper`` also fills
@@ -19,20 +19,13 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from snapcore.errors import SnapshotError
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
-from snapcore.select.pose import (
-    MIN_SEPARATION_S,
-    REST_SPEED,
-    SMOOTH_S,
-    PoseScores,
-    PoseSelection,
-    select_pose_paper,
-    top_peaks,
-)
+from snapcore.select.paper import REST_SPEED, SMOOTH_S, select_pose_paper
 from snapcore.select.pose_baselines import (
     middle_frames,
     random_frames,
@@ -40,12 +33,14 @@ from snapcore.select.pose_baselines import (
     speed_score,
     stretch_score,
 )
-from snapcore.select.story import DEFAULT_STORY, StoryParameters, _roles_sides, story_information
+from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
+from snapcore.select.story import DEFAULT_STORY, StoryParams, story_information
 
 __all__ = [
     "POSE_METHODS",
     "DEFAULT_POSE_METHOD",
     "PAPER_OPTIONS",
+    "PaperOptionError",
     "PoseParams",
     "select_pose",
     "run_pose_method",
@@ -68,6 +63,47 @@ PAPER_OPTIONS = (
 )
 
 
+class PaperOptionError(SnapshotError):
+    """Options of the ``paper`` pose method given with another method.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The paper-only options given (:data:`PAPER_OPTIONS`), in the order given.
+    method : str
+        The method that was asked for instead.
+    """
+
+    def __init__(self, names, method: str):
+        self.names = tuple(names)
+        self.method = method
+        super().__init__(
+            f"option(s) {', '.join(self.names)} apply to the 'paper' pose "
+            f"method only, not {method!r}"
+        )
+
+
+def check_paper_options(method: str, given) -> None:
+    """Refuse paper-only options for another pose method (the one place this rule lives).
+
+    Parameters
+    ----------
+    method : str
+        The pose method that runs (the default resolved).
+    given : iterable of str
+        The options the caller set: for :class:`PoseParams` those changed from their
+        defaults, for :func:`select_pose` the keywords passed.
+
+    Raises
+    ------
+    PaperOptionError
+        When ``method`` is not ``paper`` and ``given`` names a paper-only option.
+    """
+    names = [name for name in given if name in PAPER_OPTIONS]
+    if names and method != "paper":
+        raise PaperOptionError(names, method)
+
+
 @dataclass(frozen=True)
 class PoseParams:
     """Options of the pose stage, as one value (:func:`select_pose`'s arguments).
@@ -88,15 +124,26 @@ class PoseParams:
         ``paper`` only: Savitzky-Golay window (s) for the trajectories; 0 for none.
     rest_speed : float
         ``paper`` only: rest threshold (m/s) for a person of the reference stature.
-    tolerances : ContactTolerances
+    tolerances : ContactParams
         ``paper`` only: for :func:`snapcore.select.contacts.detect_interactions`.
-    story : StoryParameters or None
+    story : StoryParams or None
         ``story`` only (None: :data:`~snapcore.select.story.DEFAULT_STORY`).
     seed : int
         ``random`` only.
 
     Values are checked where they are used (:func:`select_pose`); a paper-only option
-    changed from its default with another method is a ``ValueError`` (:meth:`kwargs`).
+    changed from its default with another method fails here, at construction, with a
+    :class:`PaperOptionError` (a ``ValueError``) naming the options.
+
+    Examples
+    --------
+    >>> from snapcore import PoseParams
+    >>> PoseParams(pose_method="paper", w_local=0.5).kwargs()["w_local"]
+    0.5
+    >>> PoseParams(w_local=0.5)  # the default method is 'story'
+    Traceback (most recent call last):
+    ...
+    snapcore.select.pose_methods.PaperOptionError: option(s) w_local apply to the 'paper' pose method only, not 'story'
     """
 
     pose_method: str | None = None
@@ -107,9 +154,18 @@ class PoseParams:
     events: str = "transitions"
     smooth_s: float = SMOOTH_S
     rest_speed: float = REST_SPEED
-    tolerances: object = DEFAULT_TOLERANCES  # a ContactTolerances
-    story: StoryParameters | None = None
+    tolerances: object = DEFAULT_TOLERANCES  # a ContactParams
+    story: StoryParams | None = None
     seed: int = 0
+
+    def __post_init__(self):
+        # a field left at its default was not set: only changed ones count as given
+        changed = [
+            name
+            for name in PAPER_OPTIONS
+            if name in _PARAM_DEFAULTS and getattr(self, name) != _PARAM_DEFAULTS[name]
+        ]
+        check_paper_options(self.method, changed)
 
     @property
     def method(self) -> str:
@@ -120,16 +176,6 @@ class PoseParams:
         """Keyword arguments of :func:`select_pose`: the method, ``k``,
         ``min_separation_s`` and the options of that method only."""
         out = {"method": self.method, "k": self.k, "min_separation_s": self.min_separation_s}
-        changed = [
-            name
-            for name in PAPER_OPTIONS
-            if name != "interactions" and getattr(self, name) != getattr(_DEFAULT_PARAMS, name)
-        ]
-        if changed and self.method != "paper":
-            raise ValueError(
-                f"option(s) {', '.join(changed)} apply to the 'paper' pose "
-                f"method only, not {self.method!r}"
-            )
         if self.method == "paper":
             out.update(
                 {name: getattr(self, name) for name in PAPER_OPTIONS if name != "interactions"}
@@ -141,7 +187,8 @@ class PoseParams:
         return out
 
 
-_DEFAULT_PARAMS = PoseParams()
+#: Field defaults of PoseParams (what "changed" is measured against).
+_PARAM_DEFAULTS = {f.name: f.default for f in fields(PoseParams)}
 
 
 def story_interactions(scene, info):
@@ -167,7 +214,7 @@ def story_interactions(scene, info):
 
 
 def _representative(character, joints) -> int:
-    roles = _roles_sides(character)[0]
+    roles = character.skeleton.roles
     for want in ("foot", "hand", "head", "pelvis"):
         for j in joints:
             if roles[int(j)] == want:
@@ -222,21 +269,28 @@ def select_pose(
     method : str, optional
         One of :data:`POSE_METHODS`; default :data:`DEFAULT_POSE_METHOD` (``"story"``,
         story information). ``"paper"`` is the paper's pose entropy
-        (:func:`snapcore.select.pose.select_pose_paper`), unchanged.
+        (:func:`snapcore.select.paper.select_pose_paper`), unchanged.
     k : int
         How many distinct peaks to return (at least 1).
     min_separation_s : float
         Minimum time (s) between two returned poses.
     **options
-        ``paper``: passed to :func:`~snapcore.select.pose.pose_entropy` (``w_local``,
+        ``paper``: passed to :func:`~snapcore.select.paper.pose_entropy` (``w_local``,
         ``w_global``, ``events``, ``smooth_s``, ``rest_speed``, ``tolerances``,
         ``interactions``); ``story``: ``story`` (a
-        :class:`~snapcore.select.story.StoryParameters`); ``random``: ``seed``.
+        :class:`~snapcore.select.story.StoryParams`); ``random``: ``seed``.
 
     Returns
     -------
     PoseSelection
         Frames are internal indices; report ``scene.source_frame(frame)``.
+
+    Raises
+    ------
+    PaperOptionError
+        A paper-only option (:data:`PAPER_OPTIONS`) passed with another method.
+    ValueError
+        ``k`` or ``min_separation_s`` out of range, an unknown ``method``.
 
     Warns
     -----
@@ -260,6 +314,7 @@ def select_pose(
     if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
         raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
     method = DEFAULT_POSE_METHOD if method is None else method
+    check_paper_options(method, options)
     if method == "paper":
         return select_pose_paper(scene, k=int(k), min_separation_s=min_separation_s, **options)
     return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s, **options)
@@ -273,7 +328,6 @@ def run_pose_method(
     min_separation_s: float = 0.3,
     story=None,
     seed: int = 0,
-    **options,
 ):
     """Run the named selector (see the module docstring).
 
@@ -282,15 +336,13 @@ def run_pose_method(
     scene : Scene
     method : str
         One of :data:`POSE_METHODS` other than ``paper`` (which
-        :func:`select_pose` runs through :func:`~snapcore.select.pose.select_pose_paper`).
+        :func:`select_pose` runs through :func:`~snapcore.select.paper.select_pose_paper`).
     k : int
     min_separation_s : float
-    story : StoryParameters, optional
+    story : StoryParams, optional
         For ``story``.
     seed : int
         For ``random``.
-    **options
-        Paper-only options (:data:`PAPER_OPTIONS`) are refused with a ``ValueError``.
 
     Returns
     -------
@@ -298,11 +350,6 @@ def run_pose_method(
     """
     if method not in POSE_METHODS or method == "paper":
         raise ValueError(f"method must be one of {', '.join(POSE_METHODS)}, got {method!r}")
-    if options:
-        raise ValueError(
-            f"option(s) {', '.join(sorted(options))} apply to the 'paper' pose "
-            f"method only, not {method!r}"
-        )
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
     sep = int(round(min_separation_s * fps))

@@ -1,6 +1,6 @@
 """Story information: the default pose selector, a repair of pose entropy (paper §3.1).
 
-The paper's pose entropy (:mod:`snapcore.select.pose`, method ``paper``) often lands on a
+The paper's pose entropy (:mod:`snapcore.select.paper`, method ``paper``) often lands on a
 footfall beside the action: contact events flicker (dozens of onsets and releases per
 clip, every ankle, toe and toe-end joint its own event), each event frame gets the
 normalised global term ~1, and ``-p log2 p`` of a contact *state* rewards contacts that
@@ -51,11 +51,11 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
    ``combine="normalised"`` min-max normalises the pose and event terms first, as the
    paper's eq. 9 does (for ablation). The pose is the argmax; the top-k are distinct
-   peaks (:func:`snapcore.select.pose.top_peaks`).
+   peaks (:func:`snapcore.select.pose_selection.top_peaks`).
 
 Nothing depends on a frame's position in the clip (no preference for the middle), and
 every ingredient can be switched off or replaced for ablation through
-:class:`StoryParameters` (the README's ablation table). Everything is vectorised over
+:class:`StoryParams` (the README's ablation table). Everything is vectorised over
 frames and joints; the Python loops run over characters and limbs.
 
 References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
@@ -74,7 +74,7 @@ import numpy as np
 from snapcore.motion.anatomy import (
     REFERENCE_STATURE_M,
 )
-from snapcore.select.pose import minmax, smooth_positions
+from snapcore.select.paper import minmax, smooth_positions
 from snapcore.select.stance import (
     _roles_sides_of,
     _stature,
@@ -86,7 +86,7 @@ from snapcore.select.stance import (
 )
 
 __all__ = [
-    "StoryParameters",
+    "StoryParams",
     "DEFAULT_STORY",
     "StoryInformation",
     "LimbContacts",
@@ -118,7 +118,7 @@ _ARM_ROLES = frozenset({"upperarm", "forearm", "hand", "finger"})
 _CONTACT_ROLES = frozenset(
     {"shin", "foot", "toe", "forearm", "hand", "pelvis", "spine", "chest", "head"}
 )
-#: How the pose and event terms are combined (:class:`StoryParameters`).
+#: How the pose and event terms are combined (:class:`StoryParams`).
 COMBINE_MODES = ("bits", "normalised")
 #: Event-information models.
 EVENT_MODELS = ("surprisal", "entropy")
@@ -128,7 +128,7 @@ ZERO_BITS = 1e-9
 
 
 @dataclass(frozen=True)
-class StoryParameters:
+class StoryParams:
     """Every choice of the story selector, with the switches used for ablation.
 
     Lengths are metres for a person of :data:`REFERENCE_STATURE_M` and scale with the
@@ -223,36 +223,36 @@ class StoryParameters:
             if isinstance(v, bool) or isinstance(v, str):
                 continue
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"StoryParameters.{f.name} must be a non-negative number, got {v}")
+                raise ValueError(f"StoryParams.{f.name} must be a non-negative number, got {v}")
         if self.combine not in COMBINE_MODES:
             raise ValueError(
-                f"StoryParameters.combine must be one of "
+                f"StoryParams.combine must be one of "
                 f"{', '.join(COMBINE_MODES)}, got {self.combine!r}"
             )
         if not self.stance_spread > 0:
-            raise ValueError(f"StoryParameters.stance_spread must be > 0, got {self.stance_spread}")
+            raise ValueError(f"StoryParams.stance_spread must be > 0, got {self.stance_spread}")
         if self.event_model not in EVENT_MODELS:
             raise ValueError(
-                f"StoryParameters.event_model must be one of "
+                f"StoryParams.event_model must be one of "
                 f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}"
             )
         if not self.shrinkage <= 1:
-            raise ValueError(f"StoryParameters.shrinkage must be in [0, 1], got {self.shrinkage}")
+            raise ValueError(f"StoryParams.shrinkage must be in [0, 1], got {self.shrinkage}")
         if self.release_height < self.support_height or self.release_speed < self.support_speed:
             raise ValueError(
-                "StoryParameters: release thresholds must not be below the "
+                "StoryParams: release thresholds must not be below the "
                 "support thresholds (hysteresis)"
             )
         if self.w_pose + self.w_event <= 0:
-            raise ValueError("StoryParameters: at least one of w_pose, w_event must be > 0")
+            raise ValueError("StoryParams: at least one of w_pose, w_event must be > 0")
 
-    def with_(self, **changes) -> StoryParameters:
+    def with_(self, **changes) -> StoryParams:
         """A copy with ``changes`` (for ablation)."""
         return replace(self, **changes)
 
 
 #: The defaults of ``snapshot select``.
-DEFAULT_STORY = StoryParameters()
+DEFAULT_STORY = StoryParams()
 
 
 @dataclass
@@ -296,7 +296,7 @@ class StoryInformation:
         The score whose argmax is the pose.
     contacts : list of LimbContacts
         Per character.
-    params : StoryParameters
+    params : StoryParams
     timings_s : dict
     """
 
@@ -306,7 +306,7 @@ class StoryInformation:
     terms: dict
     total: np.ndarray
     contacts: list[LimbContacts]
-    params: StoryParameters
+    params: StoryParams
     timings_s: dict = field(default_factory=dict)
 
 
@@ -417,7 +417,7 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
 
 
 def debounced_contacts(
-    character, *, ground: float, fps: float, params: StoryParameters = DEFAULT_STORY
+    character, *, ground: float, fps: float, params: StoryParams = DEFAULT_STORY
 ) -> LimbContacts:
     """Ground contacts of one character, one per limb, debounced.
 
@@ -427,7 +427,7 @@ def debounced_contacts(
     ground : float
         Height of the ground plane (m, world Y).
     fps : float
-    params : StoryParameters
+    params : StoryParams
 
     Returns
     -------
@@ -641,13 +641,13 @@ def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
     )
 
 
-def story_information(scene, params: StoryParameters = DEFAULT_STORY) -> StoryInformation:
+def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInformation:
     """Per-frame story information of ``scene`` (see the module docstring).
 
     Parameters
     ----------
     scene : Scene
-    params : StoryParameters
+    params : StoryParams
 
     Returns
     -------

@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.schema import read_document, validate
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 
 __all__ = [
     "DEMO_CONFIG",
@@ -338,7 +338,7 @@ def trial_plan(
         The participant's seed (stored with the participant): one seed, one plan.
     methods : sequence of ViewMethod
         Methods whose views each view task shows (default: the three of
-        :data:`snapcore.select.methods.VIEW_METHODS`, the paper's Fig. 8–10 and Table 2).
+        :data:`snapcore.select.view_methods.VIEW_METHODS`, the paper's Fig. 8–10 and Table 2).
     attention : bool
         Append the attention check.
 

@@ -10,7 +10,7 @@ this module (480×360) motion area's picture was nearly ours in 4 of 5 scenes: I
 0.85 (punch, 9.8°) and 0.89 (push, 169.2°); every other pair scored 0.27–0.63.
 
 With ``study.near_duplicate = "replace"`` (the default) the stimuli builder keeps ours
-and, baseline by baseline in :data:`~snapcore.select.methods.VIEW_METHODS` order
+and, baseline by baseline in :data:`~snapcore.select.view_methods.VIEW_METHODS` order
 (viewpoint entropy, then motion area), replaces a picture that is too alike to one
 already kept by the best view *of that baseline's own score* whose picture is not:
 
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import SnapshotError
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 from .similarity import NEAR_DUPLICATE_IOU, mask_iou, silhouette
 
@@ -118,7 +118,7 @@ def ranked_views(snap, method: ViewMethod | str) -> tuple[np.ndarray, np.ndarray
     Parameters
     ----------
     snap : snapcore.pipeline.Snapshot
-        With its baselines (``take_snapshot(..., baselines=True)``).
+        With its baselines (``take_snapshot(scene, view=ViewParams(baselines=True))``).
     method : ViewMethod
         ``MOTION_AREA`` or ``VIEWPOINT_ENTROPY``.
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from snapcore.select.methods import VIEW_METHODS
+from snapcore.select.view_methods import VIEW_METHODS
 
 __all__ = [
     "NEAR_DUPLICATE_IOU",

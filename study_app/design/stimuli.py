@@ -45,7 +45,7 @@ import numpy as np
 
 from snapcore.errors import SchemaError, SnapshotError
 from snapcore.schema import validate
-from snapcore.select.methods import VIEW_METHODS, ViewMethod
+from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 from .protocol import Study, study_from_dict
 from .scenes import StudyScene
@@ -475,9 +475,13 @@ def select_scene(scene, options: dict | None = None) -> tuple[dict, dict]:
 def _select(scene, options: dict | None = None):
     """:func:`select_scene`, and the snapshot it came from (the baselines' scored views,
     for replacing a view whose picture is nearly another's)."""
-    from snapcore.pipeline import take_snapshot
+    from snapcore.pipeline import snapshot_params, take_snapshot
 
-    snap = take_snapshot(scene, **(options or {}))
+    try:
+        pose, view = snapshot_params(options or {})
+    except ValueError as err:
+        raise StimuliError(f"study config [selection]: {err}") from None
+    snap = take_snapshot(scene, pose=pose, view=view)
     views = snap.views
     missing = [m for m in VIEW_METHODS if m not in views]
     if missing:
@@ -754,7 +758,7 @@ def write_views(
     -------
     dict
         ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
-        :data:`~snapcore.select.methods.VIEW_METHODS`.
+        :data:`~snapcore.select.view_methods.VIEW_METHODS`.
     """
     from snapcore.render.renderer import save_png
 

@@ -1,4 +1,4 @@
-"""Pose entropy and pose selection (paper §3.1, METHOD §1).
+"""The paper's pose selector: pose entropy (paper §3.1, METHOD §1; method ``paper``).
 
 The informative pose of a motion is the frame of highest *pose entropy*
 
@@ -16,8 +16,11 @@ where ``H*`` is min-max normalisation over the frames of the scene and
   :mod:`snapcore.select.contacts`.
 
 Several characters: per-character terms are summed per frame before normalising.
-The selected pose is the argmax; :func:`select_pose` also returns the top-k distinct
-peaks (non-maximum suppression with a minimum separation in seconds).
+The selected pose is the argmax; :func:`select_pose_paper` also returns the top-k
+distinct peaks (:func:`~snapcore.select.pose_selection.top_peaks`). It is not the
+default selector (that is :mod:`snapcore.select.story`); what every selector returns
+lives in :mod:`snapcore.select.pose_selection`. The trajectory smoothing here
+(:func:`smooth_positions`) is shared with the other selectors.
 
 Everything is vectorised over frames and joints (one Python loop over characters).
 """
@@ -27,7 +30,6 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -36,21 +38,24 @@ from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.select.contacts import (
     DEFAULT_TOLERANCES,
-    ContactTolerances,
+    ContactParams,
     Interactions,
     detect_interactions,
+)
+from snapcore.select.pose_selection import (
+    MIN_SEPARATION_S,
+    PoseEntropy,
+    PoseScores,
+    PoseSelection,
+    top_peaks,
 )
 
 __all__ = [
     "SMOOTH_S",
     "SAVGOL_POLYORDER",
     "REST_SPEED",
-    "MIN_SEPARATION_S",
     "EVENT_MODES",
     "ZERO_INFORMATION",
-    "PoseEntropy",
-    "PoseScores",
-    "PoseSelection",
     "savgol_matrix",
     "smooth_positions",
     "joint_curvature",
@@ -60,7 +65,6 @@ __all__ = [
     "local_entropy",
     "global_entropy",
     "minmax",
-    "top_peaks",
     "pose_entropy",
     "select_pose_paper",
 ]
@@ -74,8 +78,6 @@ SAVGOL_POLYORDER = 2
 #: Below this speed (m/s, for a 1.70 m person; scaled with stature) a joint is at rest
 #: and its curvature is 0: the direction of a jittering, resting joint means nothing.
 REST_SPEED = 0.05
-#: Default minimum separation (s) of the top-k poses.
-MIN_SEPARATION_S = 0.3
 #: What counts as an event in the global term: onset/release (default) or the whole
 #: interaction.
 EVENT_MODES = ("transitions", "state")
@@ -88,136 +90,6 @@ ZERO_INFORMATION = 1e-12
 #: per-call overhead, whole clips leave the cache; 2 MB was as fast with the allocator
 #: tuned, see snapcore._memory, but up to 2x slower without).
 _CHUNK_VALUES = 131072
-
-
-# ----------------------------------------------------------------------- results
-
-
-@dataclass
-class PoseEntropy:
-    """Pose entropy of every frame of a scene.
-
-    Attributes
-    ----------
-    local : ndarray of shape (F,)
-        Normalised local term ``H*_local`` in [0, 1].
-    global_ : ndarray of shape (F,)
-        Normalised global term ``H*_global`` in [0, 1] (``global`` is a keyword).
-    total : ndarray of shape (F,)
-        ``w_local * local + w_global * global_``.
-    local_by_character, global_by_character : ndarray of shape (C, F)
-        Per-character terms before summing and normalising (bits).
-    information : ndarray of shape (C, F)
-        Per-character ``p_i = sum_j l_j |dm_ji| kappa_ji`` before normalisation.
-    interactions : Interactions
-        The events behind the global term.
-    weights : tuple of float
-        ``(w_local, w_global)``.
-    events_mode : str
-    fps : float
-    timings_s : dict
-        Seconds spent in ``contacts``, ``local``, ``global``.
-    """
-
-    local: np.ndarray
-    global_: np.ndarray
-    total: np.ndarray
-    local_by_character: np.ndarray
-    global_by_character: np.ndarray
-    information: np.ndarray
-    interactions: Interactions
-    weights: tuple[float, float]
-    events_mode: str
-    fps: float
-    timings_s: dict = field(default_factory=dict)
-
-    @property
-    def n_frames(self) -> int:
-        return int(self.total.shape[0])
-
-
-@dataclass
-class PoseScores:
-    """The per-frame score of any pose selector, as named terms that add up to it.
-
-    Attributes
-    ----------
-    method : str
-        The selector (:data:`snapcore.select.pose_methods.POSE_METHODS`).
-    total : ndarray of shape (F,)
-        The score whose top peaks are the poses.
-    terms : dict of str to ndarray of shape (F,)
-        Named terms, weighted, with ``sum(terms.values()) == total`` (to rounding):
-        ``paper``: ``local``, ``global`` (normalised entropy times its weight);
-        ``story``: ``stance``, ``novelty``, ``events`` (bits); ``stretch``: ``stretch``
-        (statures); ``fastest``: ``speed`` (statures per second); ``middle``,
-        ``random``, ``salient``: ``rank`` (1 for the first pick down to 0.5 for the
-        last, 0 elsewhere).
-    unit : str
-        What the numbers are: ``"normalised entropy"``, ``"bits"``, ``"statures"``,
-        ``"statures/s"``, ``"rank"``.
-    interactions : Interactions
-        The events behind an event term (the paper's contacts, the story's debounced
-        limb contacts; none for the baselines).
-    fps : float
-    """
-
-    method: str
-    total: np.ndarray
-    terms: dict
-    unit: str
-    interactions: Interactions
-    fps: float
-
-    @property
-    def n_frames(self) -> int:
-        return int(self.total.shape[0])
-
-    def caption(self, value: float) -> str:
-        """A value of the total as a short caption: ``"entropy 1.1"`` for the paper,
-        ``"story 14.9 bits"``, ``"stretch 0.236 statures"``..."""
-        if self.method == "paper":
-            return f"entropy {float(value):.3g}"
-        return f"{self.method} {float(value):.3g} {self.unit}"
-
-    @property
-    def label(self) -> str:
-        """How plots name the total: ``"pose entropy"`` for the paper, else
-        ``"<method> score (<unit>)"``."""
-        return "pose entropy" if self.method == "paper" else f"{self.method} score ({self.unit})"
-
-
-@dataclass
-class PoseSelection:
-    """The selected pose(s) of a scene.
-
-    Frames here are *indices* into the scene's (cut) arrays; the file's own frame
-    numbers are ``scene.source_frame(index)`` (``Snapshot.source_frame``).
-
-    Attributes
-    ----------
-    index : int
-        Index of the selected frame in the scene's arrays (the top peak of the score).
-    indices : list of int
-        Top-k distinct peaks, best first (``indices[0] == index``).
-    scores : PoseScores
-        The method's per-frame score and its terms.
-    min_separation_s : float
-    timings_s : dict
-        Seconds: ``contacts``, ``local``, ``global``, ``select``, ``total``.
-    method : str
-        The selector that ran (:data:`snapcore.select.pose_methods.POSE_METHODS`).
-    entropy : PoseEntropy or None
-        The paper's pose entropy (``paper`` only).
-    """
-
-    index: int
-    indices: list[int]
-    scores: PoseScores
-    min_separation_s: float
-    timings_s: dict = field(default_factory=dict)
-    method: str = "paper"
-    entropy: PoseEntropy | None = None
 
 
 # ----------------------------------------------------------------------- local term
@@ -593,32 +465,6 @@ def minmax(values: np.ndarray, *, name: str = "values") -> np.ndarray:
     return (v - lo) / (hi - lo)
 
 
-def top_peaks(values: np.ndarray, k: int, *, min_separation: int) -> list[int]:
-    """Indices of the ``k`` highest distinct peaks, best first.
-
-    Candidates are local maxima (not lower than either neighbour); taken in
-    decreasing value (ties: earlier first), each suppresses every candidate closer
-    than ``min_separation`` frames. Fewer than ``k`` come back when the clip has
-    fewer distinct peaks.
-    """
-    v = np.asarray(values, dtype=float)
-    n = v.size
-    if n == 0 or k < 1:
-        return []
-    left = np.r_[True, v[1:] >= v[:-1]]
-    right = np.r_[v[:-1] >= v[1:], True]
-    cand = np.flatnonzero(left & right)
-    order = cand[np.lexsort((cand, -v[cand]))]
-    chosen: list[int] = []
-    sep = max(int(min_separation), 1)
-    for i in order.tolist():
-        if all(abs(i - c) >= sep for c in chosen):
-            chosen.append(i)
-            if len(chosen) == k:
-                break
-    return chosen
-
-
 def _rest_speed_for(scene, rest_speed: float) -> float:
     h = float(np.mean([c.height for c in scene.characters]))
     return rest_speed * (h / REFERENCE_STATURE_M if np.isfinite(h) and h > 0 else 1.0)
@@ -632,7 +478,7 @@ def pose_entropy(
     events: str = "transitions",
     smooth_s: float = SMOOTH_S,
     rest_speed: float = REST_SPEED,
-    tolerances: ContactTolerances = DEFAULT_TOLERANCES,
+    tolerances: ContactParams = DEFAULT_TOLERANCES,
     interactions: Interactions | None = None,
 ) -> PoseEntropy:
     """Pose entropy of every frame of ``scene``.
@@ -649,7 +495,7 @@ def pose_entropy(
     rest_speed : float
         Rest threshold (m/s) for a 1.70 m person, scaled by the scene's mean stature
         so the result does not depend on the unit.
-    tolerances : ContactTolerances
+    tolerances : ContactParams
         For :func:`snapcore.select.contacts.detect_interactions`.
     interactions : Interactions, optional
         Precomputed events (skips detection).

@@ -1,4 +1,4 @@
-"""Body meshes for skeletons without skin: a capsule per bone, spheres at joints.
+"""The mannequin: body meshes for skeletons without skin, a capsule per bone, spheres at joints.
 
 Motion capture gives joints, not a body. This module dresses every character in a
 mannequin built from rigid pieces, like the articulated models of the Action Snapshot
@@ -51,8 +51,6 @@ from snapcore.motion.anatomy import (
     ROLE_RADII,
     TORSO_ROLES,
     bone_role,
-    joint_roles,
-    joint_sides,
     per_stature,
 )
 
@@ -297,8 +295,8 @@ class CharacterBody:
         self.character = character
         sk = character.skeleton
         names, parents = sk.names, np.asarray(sk.parents)
-        self.roles = joint_roles(names, parents)
-        self.sides = joint_sides(names)
+        self.roles = list(sk.roles)
+        self.sides = list(sk.sides)  # a copy: sides are inherited below
         # inherit a side from the parent chain (Daz fingers "lIndex1" have one, but
         # e.g. "LeftHandIndex1_End" or unnamed children may not)
         for j in range(len(names)):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 
-__all__ = ["ViewMethod", "VIEW_METHODS"]
+__all__ = ["ViewMethod", "VIEW_METHODS", "view_label"]
 
 
 class ViewMethod(StrEnum):
@@ -56,3 +56,27 @@ _FIGURES = {
 
 #: The three methods in the paper's order (ours first, then the baselines).
 VIEW_METHODS: tuple[ViewMethod, ...] = tuple(ViewMethod)
+
+
+def view_label(key) -> str:
+    """How a view key is shown on a picture: a :class:`ViewMethod` by its
+    :attr:`~ViewMethod.label`, any other key (a free-form name) as given.
+
+    Dicts of views are keyed by the enum, never by display labels; this turns a key into
+    text at display time only.
+
+    Parameters
+    ----------
+    key : ViewMethod or str
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from snapcore.select.view_methods import ViewMethod, view_label
+    >>> view_label(ViewMethod.VIEWPOINT_ENTROPY), view_label("side")
+    ('viewpoint entropy', 'side')
+    """
+    return key.label if isinstance(key, ViewMethod) else str(key)
