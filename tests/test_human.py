@@ -54,7 +54,7 @@ def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
     since skeletons' "neck" joints sit anywhere from mid-chest (CMU) to the neck). The
     ankles are allowed the foot's planting shift on top (the soles, not the joints,
     stand on the floor: :meth:`Retarget.foot_shifts`), itself at most ``PLANT_MAX_M``."""
-    from snapcore.render.human import PLANT_MAX_M
+    from snapcore.render.soles import PLANT_MAX_M
 
     worst = {}
     for name, body in retargeted:

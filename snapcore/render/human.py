@@ -55,6 +55,7 @@ from snapcore.render.segments import (
     unit,
 )
 from snapcore.render.skinned import FrameBlocks
+from snapcore.render.soles import SoleFit
 
 __all__ = [
     "RetargetError",
@@ -88,23 +89,6 @@ LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
 #: Precision of the vertices drawn (stills, videos, reliefs, viewpoint entropy): the GL
 #: pipeline is float32 anyway.
 DRAW_DTYPE = np.float32
-#: Percentile of the ankle's height over frames taken as its standing height, and the
-#: range of the foot's depth scale that puts the sole there (see Retarget._sole_scale).
-SOLE_PERCENTILE = 10.0
-SOLE_SCALE_RANGE = (0.75, 1.35)
-#: Foot planting (Retarget._plant_shifts), metres: the largest shift of a foot (a foot pointed
-#: on its toes puts the mesh's longer toes 6-8 cm under the floor on CMU 01_01 and
-#: 05_06); the sole's height above the floor up to which it is put on the floor, and
-#: from which it is left.
-PLANT_MAX_M = 0.08
-PLANT_FULL_M = 0.02
-PLANT_FADE_M = 0.05
-#: A foot whose ankle is within PLANT_ANKLE_FULL_M of its standing height (and whose
-#: sole is within PLANT_REACH_M of the floor) stands: its sole is put on the floor; the
-#: correction fades out by PLANT_ANKLE_FADE_M above the standing height.
-PLANT_ANKLE_FULL_M = 0.02
-PLANT_ANKLE_FADE_M = 0.04
-PLANT_REACH_M = 0.08
 #: Nearest rest vertices whose skin weights a landmark borrows.
 LANDMARK_NEIGHBOURS = 8
 
@@ -251,7 +235,7 @@ def _ancestors(parents, j):
     return out
 
 
-class Retarget:
+class Retarget(SoleFit):
     """The fit of the human rig to one skeleton: per-bone transforms for any pose.
 
     Parameters
@@ -611,109 +595,6 @@ class Retarget:
                 want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
                 self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
 
-    def _sole_scale(self, positions) -> np.ndarray:
-        """Per group, the scale of its depth axis (z: the foot's top → sole) that puts
-        the soles on the floor: (G,), 1 except for feet and toes.
-
-        Skeletons put the ankle joint at different heights inside the foot (CMU's lower
-        than the rig's x k: the soles sank 1.5-3 cm; Bandai's higher: they floated 1-3
-        cm). Standing, the ankle is its height above the floor: the 10th percentile
-        over frames of the ankle's height above the ground (the heel down in stance;
-        frames in the air or on the toes are higher). The foot's depth below the ankle
-        is scaled from the rig's (x k) to it, within [0.75, 1.35] (a foot no flatter or
-        deeper than that; the rest is left to the per-frame planting, :meth:`_plant_shifts`).
-        """
-        from scipy import sparse
-        from scipy.spatial import ConvexHull
-
-        a = self.asset
-        w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
-        out = np.ones(len(self.groups))
-        self._soles = {}
-        self._ankle_stand: dict[str, float] = {}
-        for s, side in _SIDES.items():
-            bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
-            foot_v = w[:, bones].sum(axis=1) > 0.5
-            ankle_rig = a.heads[bones[0]][1]
-            depth = (ankle_rig - a.vertices[foot_v, 1].min()) * self.k  # rig: ankle over sole
-            h = np.percentile(
-                positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground, SOLE_PERCENTILE
-            )
-            scale = float(np.clip(h / depth, *SOLE_SCALE_RANGE)) if depth > 0 else 1.0
-            groups = [
-                i
-                for i, g in enumerate(self.groups)
-                if g.bones[0] in (f"{side}Foot", f"{side}ToeBase")
-            ]
-            out[groups] = scale
-            self._ankle_stand[s] = self.ground + h
-            # the sole: foot vertices within 1.5 cm of its lowest, with their skin
-            # weights (for the per-frame contact in _plant_shifts)
-            sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < a.vertices[foot_v, 1].min() + 0.015))
-            # the lowest point of a (nearly rigidly) moved point set is on its hull:
-            # ~1/5 of the sole's points, the planting's cost with it
-            sole = sole[ConvexHull(a.vertices[sole]).vertices]
-            # only the bones that carry the sole: the planting skins a few hundred
-            # points with a handful of matrices, not the whole rig's
-            ws = sparse.csr_matrix(w[sole])
-            cols = np.unique(ws.indices)
-            self._soles[s] = (
-                a.vertices[sole],
-                ws[:, cols],
-                self.stretch_weights(a.vertices[sole], ws)[:, cols],
-                self.bone_group[cols],
-                w[sole][:, bones].sum(axis=1),  # the foot's share of each point
-                np.array(groups),
-            )
-        return out
-
-    def _plant_shifts(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
-        """Foot planting, as game engines do after a retarget: how far to move each foot
-        up or down (F, 2; left, right; metres) to put it on the floor where it is in
-        contact, from the unplanted group matrices ``m`` (F, G, 3, 4), their stretch
-        term ``st`` (F, G, 3) and the poses ``positions`` (F, J, 3).
-
-        A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
-        sliding into the floor, a foot pitched on its heel or toes), so no fixed foot
-        keeps the soles on the floor. Per frame and foot, ``r`` = the lowest sole
-        point's height above the floor. A sole below the floor is lifted onto it (by at
-        most :data:`PLANT_MAX_M`). Above it, the foot is lowered onto the floor with a
-        weight that is the larger of two cues of standing, both read from the pose:
-
-        - the sole is low: weight 1 up to :data:`PLANT_FULL_M`, fading out by
-          :data:`PLANT_FADE_M` (a foot lifting off rises from the floor, no jump);
-        - the ankle is at its standing height (``positions``; the 10th percentile of
-          the clip's ankle heights, see :meth:`_sole_scale`): weight 1 within
-          :data:`PLANT_ANKLE_FULL_M` of it, fading out by :data:`PLANT_ANKLE_FADE_M`,
-          for soles within :data:`PLANT_REACH_M` of the floor. A foot resting on its
-          heel with the toes up, or a skeleton whose stance is a little higher in one
-          step than another, keeps its ankle there while its sole hovers 1-4 cm up
-          (measured on CMU and Bandai clips); a swinging foot's ankle is higher.
-
-        The foot and toe groups move by the same vertical shift; the skin at the ankle
-        blends it into the shank.
-        """
-        lm = self.landmarks
-        out = np.zeros((m.shape[0], len(self._soles)))
-        for i, s in enumerate(self._soles):
-            pts, ws, stretch_w, owners, foot_share, _ = self._soles[s]
-            # the sole points as the skin will place them (blend and stretch): a
-            # point's rigid move with one bone misses the shank's share at the heel
-            y = blend_skin(pts, ws, m[:, owners])[..., 1]
-            y += np.asarray(stretch_w @ st[:, owners, 1].T).T
-            low_point = y.argmin(axis=1)
-            r = y[np.arange(len(y)), low_point] - self.ground
-            low = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
-            dh = positions[:, lm[f"ankle_{s}"], 1] - self._ankle_stand[s]
-            standing = np.clip(
-                (PLANT_ANKLE_FADE_M - dh) / (PLANT_ANKLE_FADE_M - PLANT_ANKLE_FULL_M), 0.0, 1.0
-            ) * (r < PLANT_REACH_M)
-            fade = np.maximum(low, standing)
-            # the lowest point moves by its foot share of the shift
-            shift = np.where(r < 0, -r, -r * fade) / foot_share[low_point]
-            out[:, i] = np.clip(shift, -PLANT_MAX_M, PLANT_MAX_M)
-        return out
-
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
         segment frames of poses ``positions`` (F, J, 3)."""
@@ -845,14 +726,6 @@ class Retarget:
         if stretch:
             return m, st
         return m
-
-    def foot_shifts(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-        """How far foot planting moves each foot up (+) or down (-): (F, 2) metres,
-        left then right, for poses (F, J, 3) / (F, J, 3, 3); see :meth:`_plant_shifts`.
-        The body's ankles leave the skeleton's by this much, on purpose: the soles, not
-        the joints, stand on the floor."""
-        m, st = self._unplanted(positions, rotations)
-        return self._plant_shifts(m, st, positions)
 
     def _unplanted(self, positions, rotations):
         """Group matrices before foot planting (F, G, 3, 4) and the stretch term
