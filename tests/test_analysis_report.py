@@ -235,6 +235,7 @@ def test_simulate_store_analyze_end_to_end(tmp_path):
     assert "SIMULATED" in html and html.count("data:image/png;base64,") == 4
 
 
+@pytest.mark.slow
 def test_analyze_export_file_and_attention(tmp_path):
     """--input reads an export; failed attention checks are counted and can be excluded."""
     rows = _rows(30, seed=9, model=sim.ObserverModel(attention_pass=0.5))
@@ -315,6 +316,7 @@ def test_frames_print_as_whole_numbers():
     assert list(t["share"]) == ["0.500", "0.250"]
 
 
+@pytest.mark.slow
 def test_completed_participants_only_by_default(tmp_path):
     """Participants who left before the end are counted as started, not analysed; with
     include-incomplete they are; the participants table shows both counts."""
@@ -359,6 +361,7 @@ def _near_duplicate_manifest(scenes) -> dict:
     return {"study": {"study": {"id": "paper", "near_duplicate_deg": 15}}, "scenes": entries}
 
 
+@pytest.mark.slow
 def test_near_duplicate_scenes_reported_with_sensitivity(tmp_path):
     """With a stimuli manifest whose candidates nearly coincide, the report names the
     scene, counts the pair as one option, and restates the claims without it."""
@@ -380,6 +383,7 @@ def test_near_duplicate_scenes_reported_with_sensitivity(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_analyze_uses_the_study_stimuli_by_default(tmp_path, monkeypatch):
     """Without --stimuli, the study's stimuli folder (var/stimuli/<study id>) is used."""
     from analysis import report

@@ -380,6 +380,7 @@ def test_a_dask_cluster_gives_the_same_index(local_run, library, tmp_path):
             f.close()
 
 
+@pytest.mark.slow
 def test_cli_runs_resumes_and_refuses_bad_input(library, tmp_path):
     """The command: a summary line, exit 0 with scene errors in the index; a re-run
     does nothing; a missing SOURCE or an output that is a file is one line, exit 2."""

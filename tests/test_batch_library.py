@@ -189,6 +189,7 @@ def test_a_json_with_a_characters_list_is_not_taken_for_a_manifest(tmp_path):
     assert [s.kind for s in discover([lib / "select.json"]).scenes] == ["manifest"]
 
 
+@pytest.mark.slow
 def test_a_sub_folder_run_updates_its_rows_of_the_library_index(tmp_path):
     """`snapshot batch LIB/sub -o OUT` after `snapshot batch LIB -o OUT`: the sub-folder's
     scenes keep their keys (`sub/...`), their rows are updated in place (no copies

@@ -934,7 +934,8 @@ def test_firefox_esr_video_failing_for_good_falls_back_and_failing_once_plays(se
             {"context": ff.ctx, "actions": [{"type": "key", "id": "kb", "actions": keys}]},
         )
         ff.wait(f"{slider}.value === '{start + 4}'")
-        time.sleep(1.0)  # the slider sends its value when the keys stop
+        # the slider sends its value when the keys stop; the app's rerun captions it
+        ff.wait(f"document.body.innerText.includes('Frame {start + 4} / ')")
         ff.wait(f"({SETTLED})()")
         # Failing once: the next trial's first WebM request (the copy this Firefox
         # plays: it asks for the MP4 first and gives up on H.264) fails.

@@ -275,6 +275,7 @@ def test_silhouette_iou_sees_mirror_images(tmp_path):
     assert silhouette_iou(ell, bar) < 0.5
 
 
+@pytest.mark.slow
 def test_tiny_build_replaces_alike_candidates(tmp_path_factory):
     """Issue 29 item 7: with the default ``near_duplicate = "replace"``, no two of the
     three candidate pictures of the tiny study are nearly the same — measured again here

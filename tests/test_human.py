@@ -119,6 +119,7 @@ def _facing(body, frames):
     return float(pelvis.max()), float(chest.max())
 
 
+@pytest.mark.slow
 def test_the_body_faces_the_skeletons_way_in_every_frame(retargeted):
     """On every shared clip, in every frame, the body's pelvis and chest face across
     the skeleton's hip and shoulder lines, within 20° (the Bandai torso was turned
@@ -171,6 +172,7 @@ def _contact_frames(ch, side: str, lm) -> np.ndarray:
     return np.flatnonzero((speed < 0.15) & (ankle < np.percentile(ankle, 10) + 0.02))
 
 
+@pytest.mark.slow
 def test_soles_stand_on_the_floor_in_contact_frames(all_bvh):
     """In the frames where a foot stands (by its joints), the body's sole (the lowest
     vertex carried mostly by the foot and toe bones) is on the scene's floor: within

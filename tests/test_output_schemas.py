@@ -263,6 +263,7 @@ def test_analysis_summary_of_paper_table2_follows_schema(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
     """analyze on simulated responses: votes, frames and the participant counts."""
     from analysis import simulate as sim

@@ -501,6 +501,7 @@ def _shared_scenes(motions_dir):
         yield " + ".join(pair), [motions_dir / p for p in pair], 60.0
 
 
+@pytest.mark.slow
 def test_fast_equals_loop_reference_on_every_shared_clip(motions_dir, all_bvh):
     """On every BVH under the data folder and both salsa pairs: the vectorised pose
     entropy equals the per-frame loop reference to 1e-9, events and top-3 included."""

@@ -174,6 +174,7 @@ def tiny_config(built):
     return built.parent / "tiny.toml"
 
 
+@pytest.mark.slow
 def test_build_writes_a_verified_folder(built, tiny_config):
     """Every scene: a decodable H.264 video, one image per video frame, three same-size views."""
     import imageio.v3 as iio

@@ -260,6 +260,7 @@ def shared_clips(motions_dir):
     return scenes
 
 
+@pytest.mark.slow
 def test_every_clip_beats_a_dense_brute_force_search(motions_dir, all_bvh):
     """PMA of the returned view >= 99.5 % of the best of 20,000 directions, every clip.
 
