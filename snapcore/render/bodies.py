@@ -78,7 +78,7 @@ class SkinnedBody(FrameBlocks):
     Parameters
     ----------
     character : Character
-        Read by :func:`snapcore.motion.gltf.read_gltf` (``meta["mesh"]``).
+        One that carries its own ``mesh`` (:func:`snapcore.motion.gltf.read_gltf`).
     color : tuple of 3 floats
         RGB 0-1 for the faces whose material has no colour of its own (a textured
         or untextured white material; characters are told apart by it).
@@ -88,7 +88,9 @@ class SkinnedBody(FrameBlocks):
 
     def __init__(self, character, *, color=CHARACTER_COLORS[0]):
         self.character = character
-        self.mesh = character.meta["mesh"]
+        if character.mesh is None:
+            raise SceneError(f"character {character.name!r} carries no skinned mesh")
+        self.mesh = character.mesh
         self.faces = self.mesh.faces
         rgb = np.tile(np.clip(np.asarray(color, float), 0, 1), (len(self.faces), 1))
         own = self.mesh.face_rgb
@@ -123,7 +125,7 @@ def character_body(
     picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
     the floor height its soles stand on (default: inferred from its joints)."""
     if kind == "human":
-        if "mesh" in character.meta:
+        if character.mesh is not None:
             return SkinnedBody(character, color=color)
         try:
             return HumanBody(character, color=color, detail=detail, ground=ground)
