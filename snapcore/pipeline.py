@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from snapcore.errors import SnapshotError
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind, check_body
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.pose_methods import PoseParams, select_pose
 from snapcore.select.pose_selection import PoseSelection
@@ -73,6 +74,10 @@ class ViewParams:
         Refine the best sample exactly (L1 fixed point, METHOD.md §2).
     floor_m2 : float
         Quads sweeping less than this area (m²) do not vote (:data:`MA_FLOOR_M2`).
+    body : {"human", "mannequin"}
+        The body the viewpoint-entropy baseline renders and scores
+        (:data:`snapcore.render.bodies.BodyKind`; the CLI's ``--body``). The other
+        views come from the joints and do not depend on it.
     """
 
     window_s: float | None = None
@@ -80,6 +85,10 @@ class ViewParams:
     n_views: int = 2562
     refine: bool = True
     floor_m2: float = MA_FLOOR_M2
+    body: BodyKind = DEFAULT_BODY
+
+    def __post_init__(self) -> None:
+        check_body(self.body)  # refused here, not after the pose stage has run
 
 
 @dataclass(eq=False)
@@ -316,7 +325,8 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
     What a study config's ``selection`` table and a batch's options give: each key is a
     field of :class:`~snapcore.select.pose_methods.PoseParams` (``pose_method``, ``k``,
     ``min_separation_s``, ``w_local``...) or of :class:`ViewParams` (``window_s``,
-    ``baselines``, ``n_views``...).
+    ``baselines``, ``n_views``...) other than ``body``, a render option given beside the
+    table.
 
     Parameters
     ----------
@@ -347,7 +357,9 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
     unknown selection option(s) top_k
     """
     pose_names = [f.name for f in fields(PoseParams)]
-    view_names = [f.name for f in fields(ViewParams)]
+    # not the body kind: a render option, given beside the selection (``--body``,
+    # ``BatchOptions.body``), so a selection table cannot set it for one baseline alone
+    view_names = [f.name for f in fields(ViewParams) if f.name != "body"]
     unknown = [k for k in options if k not in pose_names and k not in view_names]
     if unknown:
         raise ValueError(
@@ -484,7 +496,7 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     t2 = time.perf_counter()
     timings["motion_area"] = t2 - t1
     try:
-        snap.viewpoint_entropy = select_view_entropy(scene, frame)
+        snap.viewpoint_entropy = select_view_entropy(scene, frame, body=params.body)
     except (SnapshotError, RuntimeError) as err:
         warnings.warn(f"viewpoint-entropy baseline skipped: {err}", stacklevel=3)
     else:

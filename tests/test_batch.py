@@ -512,7 +512,7 @@ def test_a_subset_run_keeps_the_other_rows_and_prune_drops_them(local_run, libra
 
 def test_the_body_option_reaches_the_thumbnail(library):
     """--body mannequin draws capsules: the thumbnail is the one `render_still` gives
-    for the scene set to wear the mannequin, and not the human body's."""
+    with ``body="mannequin"``, and not the human body's; the scene is not told."""
     from PIL import Image
 
     from snapcore.motion.load import load_scene
@@ -538,9 +538,12 @@ def test_the_body_option_reaches_the_thumbnail(library):
         ).outputs["json"]
     )
     scene = load_scene([walk.path])
-    scene.meta["body"] = "mannequin"
     expected = render_still(
-        scene, scene.internal_frame(doc["frame"]), np.asarray(doc["view"]), size=FAST.size
+        scene,
+        scene.internal_frame(doc["frame"]),
+        np.asarray(doc["view"]),
+        size=FAST.size,
+        body="mannequin",
     )
     assert np.abs(thumbs["mannequin"].astype(int) - expected[..., :3]).max() <= 1
     assert np.abs(thumbs["human"].astype(int) - thumbs["mannequin"]).mean() > 1.0

@@ -257,7 +257,7 @@ def test_two_bone_file_gives_hand_computed_vertices(tmp_path):
     """Interleaved, normalised-uint8, sparse accessors; two skins; LINEAR/STEP channels."""
     c = read_gltf(_write(tmp_path, _two_bone_document()), fps=4.0)  # t = 0, .25, .5, .75, 1
     assert c.n_frames == 5 and c.joint_names == ("root", "arm")
-    mesh = c.meta["mesh"]
+    mesh = c.mesh
     v = mesh.vertices(c, np.arange(5))  # (5, 6, 3): mesh A's 3 vertices, then mesh B's
     w0, w1 = 128 / 255, 127 / 255
     # bind pose (t = 0): the mesh as stored, the sparse vertex corrected
@@ -281,6 +281,21 @@ def test_two_bone_file_gives_hand_computed_vertices(tmp_path):
     np.testing.assert_allclose(c.positions[4], [[0, 0, 2], [0, 1, 2]], atol=1e-6)
 
 
+def test_the_mesh_is_a_typed_field_that_survives_a_frame_cut(tmp_path):
+    """The skinned mesh is ``Character.mesh`` (not a ``meta`` key), and a scene cut to a
+    frame range, moved or rescaled keeps it, posed at the frames it kept."""
+    from snapcore.motion.scene import Scene
+    from snapcore.motion.skinning import SkinnedMesh
+
+    c = read_gltf(_write(tmp_path, _two_bone_document()), fps=4.0)
+    assert isinstance(c.mesh, SkinnedMesh) and "mesh" not in c.meta
+    cut = Scene([c], fps=c.fps).frames(2, 5).characters[0]
+    assert cut.mesh is c.mesh and "mesh" not in cut.meta
+    np.testing.assert_allclose(cut.mesh.vertices(cut, 0), c.mesh.vertices(c, 2), atol=1e-12)
+    for copy in (c.transformed(yaw_deg=30.0), c.rescaled(2.0), c.frames(1, 3)):
+        assert copy.mesh is c.mesh
+
+
 def test_accessors_read_interleaved_normalised_and_sparse_data(tmp_path):
     """The stride-20 view gives each attribute; uint8 weights normalise to k/255; the
     sparse accessor replaces vertex 2's stored (9, 9, 9)."""
@@ -301,7 +316,7 @@ def test_accessors_read_interleaved_normalised_and_sparse_data(tmp_path):
 def test_missing_inverse_bind_matrices_mean_identity(tmp_path):
     """Without inverseBindMatrices the vertices are in joint space (spec: identity)."""
     c = read_gltf(_write(tmp_path, _two_bone_document(ibm=False)), fps=4.0)
-    v = c.meta["mesh"].vertices(c, 0)
+    v = c.mesh.vertices(c, 0)
     # v1 (1, 1, 0) on the arm joint at (0, 1, 0) with no inverse bind: (1, 2, 0)
     np.testing.assert_allclose(v[1], [1, 2, 0], atol=1e-6)
     np.testing.assert_allclose(v[0], [0.5, 0.5, 0], atol=1e-6)  # the root is at the origin
@@ -313,7 +328,7 @@ def test_bind_pose_skinning_gives_the_bind_mesh(motions_dir):
     from dataclasses import replace
 
     c = read_gltf(motions_dir / "gltf" / "CesiumMan.glb")
-    mesh = c.meta["mesh"]
+    mesh = c.mesh
     bind = np.linalg.inv(mesh.inverse_bind)  # (K, 4, 4): joint world at bind
     pos = c.positions[:1].copy()
     rot = c.rotations[:1].copy()
@@ -545,14 +560,14 @@ def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
     assert any("read in cm" in str(w.message) for w in rec)
     assert scene.n_frames == min(dancer.n_frames, fox.n_frames)
     # the fox is fox-sized: 0.5-1 m tall, and its mesh carries the offset
-    v = fox.meta["mesh"].vertices(fox, 0)
+    v = fox.mesh.vertices(fox, 0)
     assert 0.5 < np.ptp(v[:, 1]) < 1.0 and 1.5 < v[:, 0].mean() < 2.5
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         alone = load_scene(motions_dir / "gltf" / "Fox.glb", animation="Walk")
     f = alone.characters[0]
     # the ground is where the mesh's lowest points (the paws) are, below every joint
-    low = f.meta["mesh"].vertices(f, np.arange(alone.n_frames))[..., 1].min(axis=1)
+    low = f.mesh.vertices(f, np.arange(alone.n_frames))[..., 1].min(axis=1)
     assert abs(np.percentile(low, 5) - alone.ground) < 1e-9
     assert f.positions[..., 1].min() > alone.ground + 0.005
 
@@ -654,9 +669,9 @@ def test_two_skinned_characters_in_one_file_are_two_characters(tmp_path):
     a, b = scene.characters
     assert (a.name, b.name) == ("pair_root", "pair_arm2")
     assert a.joint_names == ("root", "arm") and b.joint_names == ("arm2",)
-    assert a.meta["mesh"].n_vertices == 3 and b.meta["mesh"].n_vertices == 3
+    assert a.mesh.n_vertices == 3 and b.mesh.n_vertices == 3
     # mesh B on arm2: its bind pose at y = 2 (joint at y = 1, IBM one down), 5 m along X
-    vb = b.meta["mesh"].vertices(b, 0)
+    vb = b.mesh.vertices(b, 0)
     np.testing.assert_allclose(vb, [[5.0, 2.0, 0.0], [6.0, 2.0, 0.0], [5.0, 2.0, 1.0]], atol=1e-6)
     with pytest.raises(GLTFError, match="holds 2 skinned characters"):
         read_gltf(path)

@@ -251,14 +251,14 @@ def test_unknown_skeleton_falls_back_to_the_mannequin_with_a_warning():
 
 def test_default_body_is_human_and_mannequin_on_request(motions_dir):
     """Stills, reliefs and the viewpoint-entropy baseline draw the human mesh by default
-    (26,756 triangles a person); ``body = mannequin`` brings back the capsules."""
-    from snapcore.render.bodies import posed_mesh, with_body
+    (26,756 triangles a person); ``kind="mannequin"`` brings back the capsules."""
+    from snapcore.render.bodies import posed_mesh
     from snapcore.render.human_asset import human_asset
 
     scene = _quiet_load(motions_dir / "walk_run" / "02_01.bvh")
     n = human_asset().faces.shape[0]
     assert posed_mesh(scene, 5).faces.shape == (n, 3)
-    assert posed_mesh(with_body(scene, "mannequin"), 5).faces.shape[0] != n
+    assert posed_mesh(scene, 5, kind="mannequin").faces.shape[0] != n
 
 
 @pytest.mark.slow

@@ -504,3 +504,50 @@ def test_views_are_keyed_by_the_method_and_labelled_only_on_the_picture(walk):
     assert view_label(ViewMethod.MOTION_AREA) == "motion area"
     assert np.array_equal(by_enum, by_label)
     assert not np.array_equal(by_enum, by_value)  # the caption text differs
+
+
+def test_the_body_option_reaches_the_picture_and_stays_out_of_the_scene(
+    motions_dir, tmp_path, monkeypatch
+):
+    """`snapshot render --body mannequin` and `--body human` draw different pictures,
+    each the one `render_still(..., body=...)` gives; the loaded scene is not told."""
+    from click.testing import CliRunner
+    from PIL import Image
+
+    import snapcore.cli.render as cli_render
+    from snapcore.cli.main import cli
+
+    loaded = []
+    load = cli_render.scene_from_options
+
+    def spy(*args, **kwargs):
+        loaded.append(load(*args, **kwargs))
+        return loaded[-1]
+
+    monkeypatch.setattr(cli_render, "scene_from_options", spy)
+    clip = str(motions_dir / "walk_run" / "02_01.bvh")
+    pictures = {}
+    for body in ("mannequin", "human"):
+        out = tmp_path / f"{body}.png"
+        args = ["render", clip, "--body", body, "--frame", "40", "--view", "1,0.3,0.5"]
+        res = CliRunner().invoke(cli, [*args, "--size", "160x120", "-o", str(out)])
+        assert res.exit_code == 0, res.output
+        pictures[body] = np.asarray(Image.open(out).convert("RGB")).astype(int)
+        scene = loaded[-1]
+        assert "body" not in scene.meta
+        expected = render_still(
+            scene, scene.internal_frame(40), [1, 0.3, 0.5], size=(160, 120), body=body
+        )
+        assert np.abs(pictures[body] - expected).max() <= 1
+    assert np.abs(pictures["human"] - pictures["mannequin"]).mean() > 1.0
+
+
+def test_an_unknown_body_kind_is_refused_naming_the_kinds(walk):
+    """A typo in the body kind fails at once, naming the kinds (no silent default)."""
+    from snapcore.errors import SceneError
+    from snapcore.pipeline import ViewParams
+
+    with pytest.raises(SceneError, match="human, mannequin.*'dummy'"):
+        render_still(walk, 0, size=(64, 48), body="dummy")  # type: ignore[arg-type]
+    with pytest.raises(SceneError, match="human, mannequin"):
+        ViewParams(body="dummy")  # type: ignore[arg-type]

@@ -23,10 +23,14 @@ import os
 import signal
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+from typing import TYPE_CHECKING
 
 from snapcore.batch.discover import SceneSource
 from snapcore.errors import SceneError, SnapshotError
+
+if TYPE_CHECKING:  # the worker imports rendering where it renders
+    from snapcore.render.bodies import BodyKind
 
 __all__ = [
     "BatchOptions",
@@ -80,7 +84,7 @@ class BatchOptions:
     size: tuple[int, int] = (320, 360)
     sheet: bool = False
     sheet_size: tuple[int, int] = (320, 360)
-    body: str | None = None
+    body: BodyKind | None = None
     animation: str | None = None
 
     def to_dict(self) -> dict:
@@ -217,10 +221,7 @@ def _load(task: SceneTask):
             f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
             "scene manifest .toml/.json)"
         )
-    scene = load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
-    if opts.body is not None:
-        scene.meta["body"] = opts.body  # read by snapcore.render.bodies.body_kind
-    return scene
+    return load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
 
 
 def _png(image) -> bytes:
@@ -332,6 +333,8 @@ def _select(scene, opts: BatchOptions):
     from snapcore.schema import validate
 
     pose, view = snapshot_params(opts.snapshot)
+    if opts.body is not None:  # what the viewpoint-entropy baseline renders
+        view = replace(view, body=opts.body)
     snap = take_snapshot(scene, pose=pose, view=view)
     doc = snap.to_dict()
     validate(doc, "snapshot", source=f"{scene.name} snapshot")
@@ -373,8 +376,9 @@ def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, b
     view (and the top-k sheet)."""
     from snapcore.render.renderer import render_still
 
+    body = snap.view_params.body  # the one the view stage saw (opts.body, else default)
     frame = snap.indices[thumb_pose - 1] if thumb_pose > 1 else snap.index
-    out = {"thumb": _png(render_still(scene, frame, snap.view, size=opts.size))}
+    out = {"thumb": _png(render_still(scene, frame, snap.view, size=opts.size, body=body))}
     if opts.sheet:
         from snapcore.render.composites import contact_sheet
 
@@ -388,6 +392,7 @@ def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, b
                 captions=captions,
                 size=opts.sheet_size,
                 title=scene.name,
+                body=body,
             )
         )
     return out

@@ -18,10 +18,12 @@ import click
 import numpy as np
 
 from snapcore.motion.load import load_scene
+from snapcore.render.bodies import BODY_KINDS, DEFAULT_BODY, BodyKind
 
 __all__ = [
     "scene_arguments",
     "scene_from_options",
+    "body_option",
     "echo_json",
     "parse_vector",
     "PositiveFloat",
@@ -71,15 +73,17 @@ class FiniteFloatRange(click.FloatRange):
 
 
 def _stash(ctx, param, value):
-    """Keep ``--body``/``--animation`` for :func:`scene_from_options` (not passed to the
-    command function: every command gets them without changing its signature)."""
+    """Keep ``--body``/``--animation`` in the click context for :func:`body_option` and
+    :func:`scene_from_options` (not passed to the command function: every command gets
+    them without changing its signature)."""
     ctx.meta[f"snapshot.{param.name}"] = value
     return value
 
 
 def body_options(f):
     """Decorate a command with ``--body`` and ``--animation`` (kept for
-    :func:`scene_from_options`, not passed to the command function)."""
+    :func:`body_option` and :func:`scene_from_options`, not passed to the command
+    function)."""
     f = click.option(
         "--animation",
         default=None,
@@ -91,7 +95,7 @@ def body_options(f):
     )(f)
     f = click.option(
         "--body",
-        type=click.Choice(["human", "mannequin"]),
+        type=click.Choice(BODY_KINDS),
         default=None,
         expose_value=False,
         callback=_stash,
@@ -121,16 +125,22 @@ def scene_arguments(f):
     return f
 
 
+def _stashed(name: str):
+    ctx = click.get_current_context(silent=True)
+    return ctx.meta.get(f"snapshot.{name}") if ctx is not None else None
+
+
 def scene_from_options(paths, fps=None, scale=None):
     """Load the scene named by a command's PATH arguments and options (``--animation``
-    and ``--body`` are read from the click context when a command is running)."""
-    ctx = click.get_current_context(silent=True)
-    meta = ctx.meta if ctx is not None else {}
-    scene = load_scene(list(paths), fps=fps, scale=scale, animation=meta.get("snapshot.animation"))
-    body = meta.get("snapshot.body")
-    if body is not None:
-        scene.meta["body"] = body  # read by snapcore.render.bodies.body_kind
-    return scene
+    is read from the click context when a command is running)."""
+    return load_scene(list(paths), fps=fps, scale=scale, animation=_stashed("animation"))
+
+
+def body_option() -> BodyKind:
+    """The running command's ``--body`` (:data:`~snapcore.render.bodies.DEFAULT_BODY`
+    when not given, or outside a command): the commands pass it as ``body=`` to what
+    they render. A render option, so it stays out of the scene."""
+    return _stashed("body") or DEFAULT_BODY
 
 
 def _default(o):

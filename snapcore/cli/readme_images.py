@@ -119,7 +119,7 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
     import numpy as np
 
     from snapcore.motion.load import data_dir, load_scene
-    from snapcore.render.bodies import scene_body, with_body
+    from snapcore.render.bodies import BODY_KINDS, scene_body
     from snapcore.render.camera import default_view, fit_camera
     from snapcore.render.composites import tile_panels
     from snapcore.render.renderer import SceneRenderer, save_png
@@ -133,10 +133,10 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
             warnings.simplefilter("ignore")
             scene = load_scene([root / f for f in files], fps=fps)
         frame = int(source_frame) - scene.frame_offset
-        kinds = ("human", "mannequin")
-        pts = np.vstack([scene_body(with_body(scene, k)).vertices(frame) for k in kinds])
+        bodies = [scene_body(scene, kind=k) for k in BODY_KINDS]  # one loaded scene, both kinds
+        pts = np.vstack([b.vertices(frame) for b in bodies])
         cam = fit_camera(pts, default_view(scene), size=panel)
-        panels = [SceneRenderer(with_body(scene, k), size=panel).render(frame, cam) for k in kinds]
+        panels = [SceneRenderer(scene, size=panel, body=b).render(frame, cam) for b in bodies]
         sheet = tile_panels(panels, ["human body", "mannequin"], title=title)
         paths.append(out / name)
         save_png(sheet, paths[-1])

@@ -9,6 +9,7 @@ import numpy as np
 
 from snapcore.cli.common import (
     POSITIVE,
+    body_option,
     echo_json,
     internal_frame,
     output_callback,
@@ -187,7 +188,7 @@ def relief(
             view = auto_view / np.linalg.norm(auto_view)
             picked.append("view")
     internal = internal_frame(scene, frame)
-    rel = relief_from_scene(scene, internal, view, params=params)
+    rel = relief_from_scene(scene, internal, view, params=params, body=body_option())
     rel.write_stl(out)
     rel.write_preview(png)
     summary = {

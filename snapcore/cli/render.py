@@ -18,6 +18,7 @@ import numpy as np
 from snapcore.cli.common import (
     POSITIVE,
     FiniteFloatRange,
+    body_option,
     body_options,
     internal_frame,
     output_callback,
@@ -27,6 +28,7 @@ from snapcore.cli.common import (
     scene_from_options,
     view_callback,
 )
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind
 from snapcore.select.view_methods import ViewMethod
 
 __all__ = ["render", "video", "sheet", "parse_size", "pipeline_picks"]
@@ -51,23 +53,30 @@ def _note(text: str) -> None:
     click.echo(text, err=True)
 
 
-def _frame_option(scene, frame, *, views: bool):
+def _frame_option(scene, frame, *, views: bool, body: BodyKind = DEFAULT_BODY):
     """Internal frame of ``--frame`` (source numbering), else the selected pose.
 
     Returns ``(index, picks)``; ``picks`` is the pipeline's result when it ran, else None.
     """
     if frame is not None:
         return internal_frame(scene, frame), None
-    picks = pipeline_picks(scene, views=views)
+    picks = pipeline_picks(scene, views=views, body=body)
     _note(f"frame {int(scene.source_frame(picks['index']))} ({picks['how']})")
     return picks["index"], picks
 
 
-def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = True) -> dict:
+def pipeline_picks(
+    scene,
+    *,
+    k: int = 3,
+    views: bool = True,
+    baselines: bool = True,
+    body: BodyKind = DEFAULT_BODY,
+) -> dict:
     """What the pipeline (:func:`snapcore.pipeline.take_snapshot`) picks for a scene.
 
     ``views=False`` skips the view stage, ``baselines=False`` the two baseline views
-    (viewpoint entropy renders the body: the slow part). The pipeline's warnings (a
+    (viewpoint entropy renders the ``body`` kind: the slow part). The pipeline's warnings (a
     static clip, a skipped baseline) are silenced: pictures only need the picks.
 
     Returns
@@ -86,7 +95,7 @@ def pipeline_picks(scene, *, k: int = 3, views: bool = True, baselines: bool = T
         snap = take_snapshot(
             scene,
             pose=PoseParams(k=k),
-            view=ViewParams(baselines=baselines) if views else None,
+            view=ViewParams(baselines=baselines, body=body) if views else None,
         )
     sc = snap.pose.scores
     out = {
@@ -217,6 +226,7 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
         fit=fit,
         ground=not no_ground,
         shadows=not (no_shadows or no_ground),
+        body=body_option(),
     )
     save_png(img, output)
     click.echo(output)
@@ -356,6 +366,7 @@ def video(
         frame_range=rng,
         ground=not no_ground,
         shadows=not (no_shadows or no_ground),
+        body=body_option(),
         detail=detail,
     )
     if frame_map:
@@ -505,20 +516,22 @@ def sheet(
     w, h = size
     proj = "perspective" if perspective else "orthographic"
     scene = scene_from_options(paths, fps, scale)
+    body = body_option()
     common = dict(
         size=(w, h),
         projection=proj,
         ground=not no_ground,
         shadows=not (no_shadows or no_ground),
         columns=columns,
+        body=body,
     )
     picks = None
     if named_views or compare:
-        i, picks = _frame_option(scene, frame, views=compare)
+        i, picks = _frame_option(scene, frame, views=compare, body=body)
         if named_views:
             views = dict(named_views)
         else:
-            views = (picks or pipeline_picks(scene))["views"]
+            views = (picks or pipeline_picks(scene, body=body))["views"]
         img = compare_views(scene, i, views, title=title, **common)
     else:
         captions = None

@@ -8,12 +8,14 @@ import click
 
 from snapcore.cli.common import (
     FiniteFloatRange,
+    body_option,
     echo_json,
     output_callback,
     refuse_inputs,
     scene_arguments,
     scene_from_options,
 )
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind
 from snapcore.select.paper import EVENT_MODES, SMOOTH_S
 from snapcore.select.pose_methods import PaperOptionError, PoseParams
 from snapcore.select.pose_selection import MIN_SEPARATION_S
@@ -139,15 +141,19 @@ def snapshot_from_options(
     view=False,
     window=None,
     baselines=True,
+    body: BodyKind = DEFAULT_BODY,
 ):
     """Run :func:`snapcore.pipeline.take_snapshot` with the command's options
-    (the view stage only with ``view=True``)."""
+    (the view stage only with ``view=True``; ``body``: what the viewpoint-entropy
+    baseline renders)."""
     from snapcore.pipeline import ViewParams, take_snapshot
 
     pose = pose_params_from_options(
         pose_method, k, min_separation, w_local, w_global, events, smooth
     )
-    view_params = ViewParams(window_s=window, baselines=bool(baselines)) if view else None
+    view_params = (
+        ViewParams(window_s=window, baselines=bool(baselines), body=body) if view else None
+    )
     return take_snapshot(scene, pose=pose, view=view_params)
 
 
@@ -324,6 +330,7 @@ def select(
         view=not no_view,
         window=window,
         baselines=not no_baselines,
+        body=body_option(),
     )
     doc = snap.to_dict()
     from snapcore.schema import validate

@@ -8,6 +8,7 @@ import click
 
 from snapcore.cli.common import (
     FiniteFloatRange,
+    body_option,
     output_callback,
     scene_arguments,
     scene_from_options,
@@ -87,7 +88,14 @@ def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no
     from snapcore.render.view_plot import plot_views as draw
     from snapcore.render.view_plot import view_maps
 
-    maps = view_maps(scene, frame=index, window_s=window, n_views=n_views, entropy=not no_entropy)
+    maps = view_maps(
+        scene,
+        frame=index,
+        window_s=window,
+        n_views=n_views,
+        entropy=not no_entropy,
+        body=body_option(),
+    )
     fig = draw(scene, frame=index, window_s=window, projection=projection, maps=maps)
     out = Path(output)
     fig.savefig(out, dpi=dpi)

@@ -9,8 +9,9 @@ translation/rotation/scale by its channel's interpolation
 (:mod:`snapcore.motion.gltf_sample`), then world transforms are composed down the node
 tree for all frames at once (a loop over nodes, never over frames).
 
-The character carries its own skinned mesh, :class:`SkinnedMesh` in
-``character.meta["mesh"]``: bind-pose vertices, faces, sparse weights over *slots*
+The character carries its own skinned mesh, a
+:class:`~snapcore.motion.skinning.SkinnedMesh` in ``character.mesh``: bind-pose
+vertices, faces, sparse weights over *slots*
 (one per (skin, joint) pair, with that skin's inverse bind matrix — optional in the
 spec, identity when absent) and the character joint of each slot. Posing it is
 :func:`snapcore.motion.skinning.blend_skin` with ``M_k = G_joint(k) · IBM_k``, where the
@@ -27,21 +28,16 @@ scene manifest or ``--scale`` says otherwise. Y is up, as in the rest of the sui
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
-    from scipy import sparse
 
 from snapcore.errors import GLTFError
 from snapcore.motion.gltf_access import Buffers
 from snapcore.motion.gltf_sample import INTERPOLATIONS, quat_normalize, sample_curve
 from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.motion.scene import Character, Skeleton
-from snapcore.motion.skinning import blend_skin, weight_matrix
+from snapcore.motion.skinning import SkinnedMesh, weight_matrix
 
 __all__ = [
     "read_gltf",
@@ -76,56 +72,6 @@ _HARMLESS_EXTENSIONS = (
     "KHR_lights_",
     "KHR_mesh_quantization",
 )
-
-
-@dataclass(eq=False)
-class SkinnedMesh:
-    """A character's own skinned mesh.
-
-    Attributes
-    ----------
-    rest : ndarray of shape (V, 3)
-        Bind-pose vertices (file units, the space inverse bind matrices map from).
-    faces : ndarray of int, shape (M, 3)
-    weights : scipy.sparse.csr_matrix of shape (V, K)
-        Skin weights over K slots, rows summing to 1.
-    slot_joint : ndarray of int, shape (K,)
-        Character joint index of each slot.
-    inverse_bind : ndarray of shape (K, 4, 4)
-        Inverse bind matrix of each slot.
-    joint_scale : ndarray of shape (J,)
-        Each joint's world scale in the file (the rotations are pure; glTF nodes may
-        scale), a constant per joint.
-    face_rgb : ndarray of shape (M, 3), optional
-        Each face's own colour from its material (sRGB 0-1; NaN where the material
-        gives none), None when no material has a colour.
-    """
-
-    rest: np.ndarray
-    faces: np.ndarray
-    weights: sparse.csr_matrix
-    slot_joint: np.ndarray
-    inverse_bind: np.ndarray
-    joint_scale: np.ndarray
-    face_rgb: np.ndarray | None = None
-
-    @property
-    def n_vertices(self) -> int:
-        return int(self.rest.shape[0])
-
-    def matrices(self, character, frames) -> np.ndarray:
-        """Skinning matrices of every slot at ``frames``: (F, K, 3, 4) (or (K, 3, 4))."""
-        rot = character.rotations[frames][..., self.slot_joint, :, :]
-        pos = character.positions[frames][..., self.slot_joint, :]
-        s = (character.scale * self.joint_scale[self.slot_joint])[:, None, None]
-        g = np.concatenate([rot * s, pos[..., None]], axis=-1)  # (..., K, 3, 4)
-        return g[..., :3] @ self.inverse_bind[:, :3, :] + np.concatenate(
-            [np.zeros(g.shape[:-1] + (3,)), g[..., 3:]], axis=-1
-        )
-
-    def vertices(self, character, frames) -> np.ndarray:
-        """World vertices (metres) at ``frames``: (V, 3) for one frame, (F, V, 3) for many."""
-        return blend_skin(self.rest, self.weights, self.matrices(character, frames))
 
 
 # --------------------------------------------------------------------------- nodes
@@ -584,9 +530,10 @@ def read_gltf(
     Returns
     -------
     Character
-        Positions (F, J, 3) and rotations in the file's unit (``scale`` 1), ``meta``
-        with ``mesh`` (:class:`SkinnedMesh`), ``animation`` (the chosen name),
-        ``animations`` (all names) and ``format`` ``"gltf"``.
+        Positions (F, J, 3) and rotations in the file's unit (``scale`` 1), its
+        ``mesh`` (:class:`~snapcore.motion.skinning.SkinnedMesh`), ``meta`` with
+        ``animation`` (the chosen name), ``animations`` (all names) and ``format``
+        ``"gltf"``.
 
     Raises
     ------
@@ -682,11 +629,11 @@ def read_gltf(
         meta={
             "format": "gltf",
             "path": str(path),
-            "mesh": mesh,
             "animation": a_name,
             "animations": gltf_animations(g),
         },
         local_quaternions=matrix_to_quat(local_rot),
+        mesh=mesh,
     )
 
 
@@ -705,6 +652,12 @@ def _unique_names(names: list[str]) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _mesh_of(character) -> SkinnedMesh:
+    if character.mesh is None:
+        raise GLTFError(f"character {character.name!r} carries no skinned mesh")
+    return character.mesh
+
+
 def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np.ndarray:
     """World positions of the mesh vertices that can touch the floor, at every frame.
 
@@ -712,7 +665,7 @@ def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np
     ``max_frames`` sampled frames, skinned at all frames: (F, n, 3), metres. Cheap
     where skinning the whole mesh at every frame is not (BrainStem: 34k vertices).
     """
-    mesh = character.meta["mesh"]
+    mesh = _mesh_of(character)
     f = np.unique(
         np.linspace(0, character.n_frames - 1, min(character.n_frames, max_frames))
         .round()
@@ -735,7 +688,7 @@ def lowest_points(character, *, max_frames: int = 60, per_frame: int = 16) -> np
 def gltf_unit(character) -> tuple[float, str]:
     """Metres per unit of a glTF character: 1 (``"m"``, as the spec says) unless its
     mesh is taller than :data:`MAX_HEIGHT_M`, then centimetres or millimetres."""
-    mesh = character.meta["mesh"]
+    mesh = _mesh_of(character)
     height = float(np.ptp(mesh.vertices(character, 0)[:, 1]))
     for unit, metres in (("m", 1.0), ("cm", 0.01), ("mm", 0.001)):
         if height * metres <= MAX_HEIGHT_M:

@@ -44,6 +44,7 @@ from snapcore.motion.kinematics import (
     quat_to_matrix,
     rest_positions,
 )
+from snapcore.motion.skinning import SkinnedMesh
 
 __all__ = [
     "Skeleton",
@@ -169,6 +170,11 @@ class Character:
         ``local_rotations`` as unit quaternions ``(w, x, y, z)``, when the builder has
         them (FK does); None otherwise (:func:`snapcore.select.paper.local_information` then
         converts the matrices).
+    mesh : SkinnedMesh or None
+        The character's own skinned mesh (a glTF character,
+        :func:`snapcore.motion.gltf.read_gltf`), posed by its joints; None for a
+        skeleton (BVH), which the renderer dresses itself. Copies (``transformed``,
+        ``rescaled``, ``frames``) share it.
     """
 
     name: str
@@ -181,6 +187,7 @@ class Character:
     source: BVHDocument | None = None
     meta: dict = field(default_factory=dict)
     local_quaternions: np.ndarray | None = field(default=None, repr=False)
+    mesh: SkinnedMesh | None = field(default=None, repr=False)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -229,6 +236,7 @@ class Character:
                     _yaw_quaternion(yaw_deg) if rotation is None else matrix_to_quat(r),
                 )
             ),
+            mesh=self.mesh,
         )
 
     def rescaled(self, scale: float) -> Character:
@@ -250,6 +258,7 @@ class Character:
             source=self.source,
             meta=dict(self.meta),
             local_quaternions=self.local_quaternions,
+            mesh=self.mesh,
         )
 
     def frames(self, start: int, stop: int) -> Character:
@@ -267,6 +276,7 @@ class Character:
             local_quaternions=(
                 None if self.local_quaternions is None else self.local_quaternions[start:stop]
             ),
+            mesh=self.mesh,
         )
 
 

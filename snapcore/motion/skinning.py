@@ -16,6 +16,7 @@ frames; chunks only bound the memory of the (V, F, 12) intermediate).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -24,6 +25,7 @@ if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
     from scipy import sparse
 
 __all__ = [
+    "SkinnedMesh",
     "weight_matrix",
     "blend_skin",
     "vertex_normals",
@@ -182,3 +184,60 @@ def vertex_normals(
     up = np.broadcast_to(np.array([0.0, 1.0, 0.0], dtype=n.dtype), n.shape)
     n = np.where(norm > 1e-20, n / np.where(norm > 1e-20, norm, 1.0), up)
     return n[0] if single else n
+
+
+@dataclass(frozen=True, eq=False)
+class SkinnedMesh:
+    """A character's own skinned mesh, posed by its joints (``Character.mesh``).
+
+    What :func:`snapcore.motion.gltf.read_gltf` builds from a glTF file's skins; the
+    renderer draws it as the character's body. Posing is :func:`blend_skin` with
+    ``M_k = G_joint(k) · IBM_k``, ``G`` the joint's world transform rebuilt from the
+    character's ``positions``/``rotations``/``scale``, so the mesh follows a character
+    moved, turned, rescaled or cut to a frame range. Frozen: characters cut from one
+    another share it.
+
+    Attributes
+    ----------
+    rest : ndarray of shape (V, 3)
+        Bind-pose vertices (file units, the space inverse bind matrices map from).
+    faces : ndarray of int, shape (M, 3)
+    weights : scipy.sparse.csr_matrix of shape (V, K)
+        Skin weights over K slots, rows summing to 1.
+    slot_joint : ndarray of int, shape (K,)
+        Character joint index of each slot.
+    inverse_bind : ndarray of shape (K, 4, 4)
+        Inverse bind matrix of each slot.
+    joint_scale : ndarray of shape (J,)
+        Each joint's world scale in the file (the rotations are pure; glTF nodes may
+        scale), a constant per joint.
+    face_rgb : ndarray of shape (M, 3), optional
+        Each face's own colour from its material (sRGB 0-1; NaN where the material
+        gives none), None when no material has a colour.
+    """
+
+    rest: np.ndarray
+    faces: np.ndarray
+    weights: sparse.csr_matrix
+    slot_joint: np.ndarray
+    inverse_bind: np.ndarray
+    joint_scale: np.ndarray
+    face_rgb: np.ndarray | None = None
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.rest.shape[0])
+
+    def matrices(self, character, frames) -> np.ndarray:
+        """Skinning matrices of every slot at ``frames``: (F, K, 3, 4) (or (K, 3, 4))."""
+        rot = character.rotations[frames][..., self.slot_joint, :, :]
+        pos = character.positions[frames][..., self.slot_joint, :]
+        s = (character.scale * self.joint_scale[self.slot_joint])[:, None, None]
+        g = np.concatenate([rot * s, pos[..., None]], axis=-1)  # (..., K, 3, 4)
+        return g[..., :3] @ self.inverse_bind[:, :3, :] + np.concatenate(
+            [np.zeros(g.shape[:-1] + (3,)), g[..., 3:]], axis=-1
+        )
+
+    def vertices(self, character, frames) -> np.ndarray:
+        """World vertices (metres) at ``frames``: (V, 3) for one frame, (F, V, 3) for many."""
+        return blend_skin(self.rest, self.weights, self.matrices(character, frames))

@@ -21,6 +21,7 @@ from snapcore.relief.height_field import (
     height_from_depth,
     relief_from_height_field,
 )
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
 from snapcore.render.buffers import render_depth
 from snapcore.render.camera import view_basis
 from snapcore.render.mannequin import TESSELLATION_FINE
@@ -76,25 +77,24 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
     return metres_per_mm * w / 2.0, metres_per_mm * d / 2.0
 
 
-def relief_body(scene, frame: int):
+def relief_body(scene, frame: int, *, body: BodyKind = DEFAULT_BODY):
     """The body mesh a relief carves: every character at internal ``frame``, finely
     tessellated (:data:`snapcore.render.mannequin.TESSELLATION_FINE`: a relief is read as geometry,
     and the facets of the rendering body would stand out as ridges in raking light), in the
-    scene's body kind (:func:`snapcore.render.bodies.scene_body`: by default the human
+    body kind ``body`` (:data:`snapcore.render.bodies.BodyKind`; by default the human
     mesh, smooth as it is).
 
     Returns
     -------
     snapcore.render.mannequin.PosedMesh
     """
-    from snapcore.render.bodies import scene_body
     from snapcore.render.mannequin import CharacterBody
 
-    body = scene_body(scene, TESSELLATION_FINE)
+    mesh = scene_body(scene, TESSELLATION_FINE, kind=body)
     frame = _check_frame(scene, frame)
-    if all(isinstance(b, CharacterBody) for b in body.characters):
-        return body.pose(frame)
-    return _smoothed(body, frame)
+    if all(isinstance(b, CharacterBody) for b in mesh.characters):
+        return mesh.pose(frame)
+    return _smoothed(mesh, frame)
 
 
 def _smoothed(body, frame: int):
@@ -127,7 +127,13 @@ def _smoothed(body, frame: int):
 
 
 def height_field_from_scene(
-    scene, frame: int, view, *, params: ReliefParams | None = None, up=None
+    scene,
+    frame: int,
+    view,
+    *,
+    params: ReliefParams | None = None,
+    up=None,
+    body: BodyKind = DEFAULT_BODY,
 ):
     """Orthographic depth render of all characters' body meshes at one frame.
 
@@ -142,6 +148,8 @@ def height_field_from_scene(
         ``size_mm`` (aspect), ``resolution`` and ``margin`` are used.
     up : array of shape (3,), optional
         Up hint for the image (default world +Y; see :func:`snapcore.render.camera.view_basis`).
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -150,14 +158,20 @@ def height_field_from_scene(
         ``params.shape()``.
     """
     p = params or ReliefParams()
-    mesh = relief_body(scene, frame)
+    mesh = relief_body(scene, frame, body=body)
     extent = frame_extent(mesh.vertices, view, size_mm=p.size_mm, margin=p.margin, up=up)
     ny, nx = p.shape()
     return render_depth(mesh.vertices, mesh.faces, view, resolution=(nx, ny), extent=extent, up=up)
 
 
 def relief_from_scene(
-    scene, frame: int, view, *, params: ReliefParams | None = None, up=None
+    scene,
+    frame: int,
+    view,
+    *,
+    params: ReliefParams | None = None,
+    up=None,
+    body: BodyKind = DEFAULT_BODY,
 ) -> Relief:
     """The bas-relief of the scene's pose at ``frame`` seen along ``view``.
 
@@ -173,6 +187,8 @@ def relief_from_scene(
         Print box and compression settings (default :class:`ReliefParams`).
     up : array of shape (3,), optional
         Up hint for the image.
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -197,7 +213,7 @@ def relief_from_scene(
     True
     """
     p = params or ReliefParams()
-    dm = height_field_from_scene(scene, frame, view, params=p, up=up)
+    dm = height_field_from_scene(scene, frame, view, params=p, up=up, body=body)
     height, mask = height_from_depth(dm.depth)
     v = np.asarray(view, float)
     meta = {
@@ -223,6 +239,7 @@ def relief_comparison_figure(
     up=None,
     title: str | None = None,
     panel_inches: float = 3.2,
+    body: BodyKind = DEFAULT_BODY,
 ):
     """One pose carved from several views side by side (the paper's Fig. 11).
 
@@ -244,6 +261,8 @@ def relief_comparison_figure(
         Figure title (default: scene name and source frame).
     panel_inches : float
         Width of one panel in inches.
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -276,7 +295,7 @@ def relief_comparison_figure(
     reliefs = {}
     for r, rp in enumerate(rows):
         for c, (name, view) in enumerate(views.items()):
-            rel = relief_from_scene(scene, frame, view, params=rp, up=up)
+            rel = relief_from_scene(scene, frame, view, params=rp, up=up, body=body)
             reliefs[name if r == 0 else f"{name} (linear)"] = rel
             ax = axes[r, c]
             ax.imshow(rel.shaded(), cmap="gray", vmin=0, vmax=1, interpolation="lanczos")

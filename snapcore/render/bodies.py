@@ -1,11 +1,27 @@
 """Which body each character wears, merged into one posable scene mesh.
 
 Every picture, video, stimulus, contact sheet, relief and the viewpoint-entropy baseline
-gets its mesh from :func:`scene_body`. The *body kind* is a scene setting,
-``scene.meta["body"]`` (the CLI's ``--body``), default :data:`DEFAULT_BODY`:
+gets its mesh from :func:`scene_body`. The *body kind* (:data:`BodyKind`) is a render
+option, not scene data: each public entry point that draws or measures the body takes
+one keyword, ``body=`` (default :data:`DEFAULT_BODY`), and hands it down to
+:func:`scene_body` — :func:`~snapcore.render.renderer.render_still`,
+:class:`~snapcore.render.renderer.SceneRenderer`,
+:func:`~snapcore.render.video.render_video`,
+:func:`~snapcore.render.composites.contact_sheet`,
+:func:`~snapcore.render.composites.compare_views`,
+:func:`~snapcore.relief.scene.relief_from_scene`,
+:func:`~snapcore.render.viewpoint_entropy.select_view_entropy` and
+:func:`~snapcore.render.view_plot.view_maps`; the pipeline's view stage reads it from
+``ViewParams.body``. One keyword at the entry points rather than a field on the scene:
+the same loaded scene can be drawn both ways (the README's comparison, a batch run with
+``--body``), nothing about the motion changes, and a copy or cut of a scene cannot
+silently lose or keep the option. Below the entry points the built body object travels
+(``SceneRenderer(body=...)`` also takes one, :func:`~snapcore.render.camera.motion_points`
+reads it), so no other function needs the keyword. The CLI's ``--body`` and the batch's
+``BatchOptions.body`` give it.
 
-- ``"human"``: a glTF character wears its own skinned mesh (:class:`SkinnedBody`);
-  a BVH skeleton wears the MakeHuman body retargeted onto it
+- ``"human"``: a glTF character wears its own skinned mesh (:class:`SkinnedBody`,
+  ``Character.mesh``); a BVH skeleton wears the MakeHuman body retargeted onto it
   (:class:`snapcore.render.human.HumanBody`); a skeleton the retargeting cannot map
   falls back to the mannequin, with a warning naming what is missing and the joints no
   role was found for;
@@ -23,11 +39,11 @@ the stills then share one body object, and its block of posed frames
 from __future__ import annotations
 
 import warnings
+from typing import Literal, get_args
 
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.render.human import HumanBody, RetargetError
 from snapcore.render.mannequin import (
     CHARACTER_COLORS,
     TESSELLATION,
@@ -38,10 +54,10 @@ from snapcore.render.mannequin import (
 from snapcore.render.skinned import FrameBlocks
 
 __all__ = [
+    "BodyKind",
     "BODY_KINDS",
     "DEFAULT_BODY",
-    "body_kind",
-    "with_body",
+    "check_body",
     "SkinnedBody",
     "MixedSceneBody",
     "character_body",
@@ -51,25 +67,25 @@ __all__ = [
     "scene_trimesh",
 ]
 
-BODY_KINDS = ("human", "mannequin")
-DEFAULT_BODY = "human"
+#: What a character is drawn as: its own or the MakeHuman body, or the capsule mannequin.
+BodyKind = Literal["human", "mannequin"]
+#: Every :data:`BodyKind`, in the order the CLI lists them.
+BODY_KINDS: tuple[BodyKind, ...] = get_args(BodyKind)
+#: The body kind when none is given.
+DEFAULT_BODY: BodyKind = "human"
 
 
-def body_kind(scene) -> str:
-    """The scene's body kind: ``scene.meta["body"]``, default :data:`DEFAULT_BODY`."""
-    kind = scene.meta.get("body", DEFAULT_BODY)
+def check_body(kind) -> BodyKind:
+    """``kind`` when it is one of :data:`BODY_KINDS`.
+
+    Raises
+    ------
+    SceneError
+        One line naming the kinds (a ``ValueError``).
+    """
     if kind not in BODY_KINDS:
         raise SceneError(f"body must be one of {', '.join(BODY_KINDS)}, got {kind!r}")
     return kind
-
-
-def with_body(scene, kind: str | None):
-    """``scene`` set to wear ``kind`` bodies (None: unchanged); returns the scene."""
-    if kind is not None:
-        if kind not in BODY_KINDS:
-            raise SceneError(f"body must be one of {', '.join(BODY_KINDS)}, got {kind!r}")
-        scene.meta["body"] = kind
-    return scene
 
 
 class SkinnedBody(FrameBlocks):
@@ -78,7 +94,7 @@ class SkinnedBody(FrameBlocks):
     Parameters
     ----------
     character : Character
-        Read by :func:`snapcore.motion.gltf.read_gltf` (``meta["mesh"]``).
+        One that carries its own ``mesh`` (:func:`snapcore.motion.gltf.read_gltf`).
     color : tuple of 3 floats
         RGB 0-1 for the faces whose material has no colour of its own (a textured
         or untextured white material; characters are told apart by it).
@@ -88,7 +104,9 @@ class SkinnedBody(FrameBlocks):
 
     def __init__(self, character, *, color=CHARACTER_COLORS[0]):
         self.character = character
-        self.mesh = character.meta["mesh"]
+        if character.mesh is None:
+            raise SceneError(f"character {character.name!r} carries no skinned mesh")
+        self.mesh = character.mesh
         self.faces = self.mesh.faces
         rgb = np.tile(np.clip(np.asarray(color, float), 0, 1), (len(self.faces), 1))
         own = self.mesh.face_rgb
@@ -113,7 +131,7 @@ class SkinnedBody(FrameBlocks):
 def character_body(
     character,
     *,
-    kind: str = DEFAULT_BODY,
+    kind: BodyKind = DEFAULT_BODY,
     color=CHARACTER_COLORS[0],
     tessellation=TESSELLATION,
     detail: str = "full",
@@ -123,8 +141,12 @@ def character_body(
     picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
     the floor height its soles stand on (default: inferred from its joints)."""
     if kind == "human":
-        if "mesh" in character.meta:
+        if character.mesh is not None:
             return SkinnedBody(character, color=color)
+        # imported here: the MakeHuman body takes ~1 s to import, and the renderer,
+        # camera and relief import this module for its body kinds alone
+        from snapcore.render.human import HumanBody, RetargetError
+
         try:
             return HumanBody(character, color=color, detail=detail, ground=ground)
         except RetargetError as err:
@@ -138,8 +160,8 @@ class MixedSceneBody(SceneBody):
     Parameters
     ----------
     scene : Scene
-    kind : {"human", "mannequin"}, optional
-        Default :func:`body_kind` of the scene.
+    kind : {"human", "mannequin"}
+        The body kind (:data:`BodyKind`, default :data:`DEFAULT_BODY`).
     colors : sequence of RGB tuples, optional
         One base colour per character (default :data:`CHARACTER_COLORS` in order).
     tessellation : tuple, optional
@@ -154,13 +176,13 @@ class MixedSceneBody(SceneBody):
         self,
         scene,
         *,
-        kind=None,
+        kind: BodyKind = DEFAULT_BODY,
         colors=None,
         tessellation=TESSELLATION,
         bodies=None,
         detail="full",
     ):
-        self.kind = kind or body_kind(scene)
+        self.kind: BodyKind = check_body(kind)
         colors = list(colors) if colors is not None else list(CHARACTER_COLORS)
         self._merge(
             scene,
@@ -188,15 +210,18 @@ def _bodies_of(scene) -> dict:
 
 
 def scene_body(
-    scene, tessellation=TESSELLATION, *, kind: str | None = None, detail: str = "full"
+    scene, tessellation=TESSELLATION, *, kind: BodyKind = DEFAULT_BODY, detail: str = "full"
 ) -> MixedSceneBody:
     """The (cached) body of ``scene``: built once per scene, kind, tessellation and
     level of detail (``detail="reduced"``: the human mesh videos draw).
 
+    ``kind`` is the body kind to draw (:data:`BodyKind`; a ``SceneError`` names the
+    kinds for anything else); the entry points that render pass their ``body=`` here.
+
     Skinned bodies are shared between tessellations (only mannequin pieces differ), so
     the renderer's coarse shadow body reuses the posed human mesh.
     """
-    kind = kind or body_kind(scene)
+    kind = check_body(kind)
     bodies = _bodies_of(scene)
     body = bodies.get((kind, tessellation, detail))
     if body is None:
@@ -239,8 +264,9 @@ def shadow_body(body: MixedSceneBody, tessellation) -> MixedSceneBody:
     )
 
 
-def posed_mesh(scene, frame: int, *, kind: str | None = None) -> PosedMesh:
-    """Merged body mesh of every character of ``scene`` at internal frame ``frame``.
+def posed_mesh(scene, frame: int, *, kind: BodyKind = DEFAULT_BODY) -> PosedMesh:
+    """Merged body mesh of every character of ``scene`` at internal frame ``frame``,
+    each wearing a ``kind`` body (:data:`BodyKind`).
 
     Returns
     -------
@@ -251,6 +277,6 @@ def posed_mesh(scene, frame: int, *, kind: str | None = None) -> PosedMesh:
     return scene_body(scene, kind=kind).pose(frame)
 
 
-def scene_trimesh(scene, frame: int, *, kind: str | None = None):
+def scene_trimesh(scene, frame: int, *, kind: BodyKind = DEFAULT_BODY):
     """:func:`posed_mesh` as a :class:`trimesh.Trimesh` (face colours set)."""
     return posed_mesh(scene, frame, kind=kind).trimesh()

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from snapcore.errors import RenderError
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind
 from snapcore.render.camera import (
     FRAME_MARGIN,
     Camera,
@@ -262,6 +263,7 @@ def contact_sheet(
     ground=True,
     shadows=True,
     captions=None,
+    body: BodyKind = DEFAULT_BODY,
 ) -> np.ndarray:
     """Poses of a clip side by side, one view, one scale, the floor on one row across
     the panels (the paper's Fig. 5 strip).
@@ -292,6 +294,8 @@ def contact_sheet(
         ``frames`` are ranked (best first) and captions start with ``#1``, ``#2``...;
         False for frames picked by hand (no rank shown).
     ground, shadows : bool
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -323,7 +327,7 @@ def contact_sheet(
     if view is None:
         view = default_view(scene)
     view_basis(view)  # validates
-    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
+    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, body=body)
     pts = [sr.body.vertices(f) for f in frames]
     cams = common_cameras(pts, [view] * len(frames), size=size, projection=projection)
     # the floor on one row across the panels: under each pose's mean root position
@@ -357,6 +361,7 @@ def compare_views(
     ground=True,
     shadows=True,
     captions: dict | None = None,
+    body: BodyKind = DEFAULT_BODY,
 ) -> np.ndarray:
     """One pose from several directions, side by side (the paper's Fig. 8-10).
 
@@ -380,6 +385,8 @@ def compare_views(
     ground, shadows : bool
     captions : dict of ViewMethod or str to str, optional
         Extra caption line per key of ``views`` (e.g. a score).
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -417,7 +424,7 @@ def compare_views(
     # them does, each showing the floor as a horizon at the feet instead.
     low = [float(np.degrees(np.arcsin(np.clip(d[1], -1, 1)))) < ORTHO_HORIZON_DEG for d in dirs]
     floor = "horizon" if ground and any(low) else "auto"
-    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, floor=floor)
+    sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, floor=floor, body=body)
     pts = sr.body.vertices(frame)
     cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
     if floor == "horizon":

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from snapcore.errors import RenderError
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
 from snapcore.render.camera import (
     POLE_COS,
     Camera,
@@ -38,6 +39,7 @@ from snapcore.render.camera import (
     view_basis,
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
+from snapcore.render.mannequin import SceneBody
 
 __all__ = [
     "SceneRenderer",
@@ -232,8 +234,10 @@ class SceneRenderer:
     shadows : bool
         Draw each body's shadow on the floor (a planar projection along a mostly
         overhead light: cheap, exact, and it shows where feet touch the floor).
-    body : SceneBody, optional
-        Default :func:`snapcore.render.bodies.scene_body` (the scene's body kind).
+    body : {"human", "mannequin"} or SceneBody
+        The body kind to draw (:data:`snapcore.render.bodies.BodyKind`, default
+        :data:`~snapcore.render.bodies.DEFAULT_BODY`), or a body already built for the
+        scene (:func:`snapcore.render.bodies.scene_body`).
     floor : {"auto", "horizon"}
         How the floor shows (with ``ground``): "auto", the grid and shadows from above
         and a horizon at the feet in almost level orthographic views; "horizon", a
@@ -242,14 +246,19 @@ class SceneRenderer:
     """
 
     def __init__(
-        self, scene, *, size=(640, 480), ground=True, shadows=True, body=None, floor: str = "auto"
+        self,
+        scene,
+        *,
+        size=(640, 480),
+        ground=True,
+        shadows=True,
+        body: BodyKind | SceneBody = DEFAULT_BODY,
+        floor: str = "auto",
     ):
-        from snapcore.render.bodies import scene_body
-
         pyrender = load_pyrender()
         self.scene = scene
         self.size = check_size(size)
-        self.body = body or scene_body(scene)
+        self.body = scene_body(scene, kind=body) if isinstance(body, str) else body
         self.ground = bool(ground)
         if floor not in FLOOR_STYLES:
             raise RenderError(f"floor must be one of {', '.join(FLOOR_STYLES)}, got {floor!r}")
@@ -541,6 +550,7 @@ def render_still(
     ground=True,
     shadows=True,
     camera=None,
+    body: BodyKind = DEFAULT_BODY,
     renderer=None,
 ) -> np.ndarray:
     """One frame of a scene as an image.
@@ -562,6 +572,9 @@ def render_still(
         Draw the floor grid / the bodies' shadows (ignored with ``renderer``: its own).
     camera : Camera, optional
         Use this camera instead of fitting one (``view``, ``projection``, ``fit`` ignored).
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`; ignored with
+        ``renderer``: its own).
     renderer : SceneRenderer, optional
         Reuse one (same thread, same size) when rendering many stills of a scene.
 
@@ -590,7 +603,7 @@ def render_still(
             f"0..{scene.n_frames - 1} (source frames {scene.frame_offset}.."
             f"{scene.frame_offset + scene.n_frames - 1})"
         )
-    sr = renderer or SceneRenderer(scene, size=size, ground=ground, shadows=shadows)
+    sr = renderer or SceneRenderer(scene, size=size, ground=ground, shadows=shadows, body=body)
     if camera is None:
         if view is None:
             view = default_view(scene)

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from snapcore.errors import RenderError
-from snapcore.render.bodies import scene_body
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
 from snapcore.render.camera import check_size, default_view, fit_camera, motion_points
 from snapcore.render.renderer import SceneRenderer
 
@@ -115,6 +115,7 @@ def render_video(
     preset: str = VIDEO_PRESET,
     camera=None,
     webm=None,
+    body: BodyKind = DEFAULT_BODY,
     detail: str = "reduced",
 ) -> np.ndarray:
     """Render a scene to an H.264 MP4.
@@ -149,6 +150,8 @@ def render_video(
     webm : str or Path, optional
         Also write the same frames as WebM/VP9 here (same frame count and rate), for
         browsers without H.264.
+    body : {"human", "mannequin"}
+        What the characters wear (:data:`snapcore.render.bodies.BodyKind`).
     detail : {"reduced", "full"}
         Level of detail of human bodies: the reduced mesh (a third of the triangles,
         the same picture at video sizes, ~40% less time a frame; see
@@ -197,7 +200,11 @@ def render_video(
         raise FileNotFoundError(2, "no such folder", str(path.parent))
 
     sr = SceneRenderer(
-        scene, size=(w, h), ground=ground, shadows=shadows, body=scene_body(scene, detail=detail)
+        scene,
+        size=(w, h),
+        ground=ground,
+        shadows=shadows,
+        body=scene_body(scene, kind=body, detail=detail),
     )
     if camera is None:
         if view is None:

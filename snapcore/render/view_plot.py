@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind
 from snapcore.render.viewpoint_entropy import select_view_entropy
 from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
 from snapcore.select.view_methods import ViewMethod
@@ -196,7 +197,13 @@ def sphere_heatmap(
 
 
 def view_maps(
-    scene, *, frame: int, window_s: float | None = None, n_views: int = 2562, entropy: bool = True
+    scene,
+    *,
+    frame: int,
+    window_s: float | None = None,
+    n_views: int = 2562,
+    entropy: bool = True,
+    body: BodyKind = DEFAULT_BODY,
 ) -> dict:
     """Exact scores over the sphere of every method, and their picks.
 
@@ -211,6 +218,9 @@ def view_maps(
         Samples for PMA and motion area.
     entropy : bool
         Include viewpoint entropy (renders the posed body; needs OpenGL).
+    body : {"human", "mannequin"}
+        What the characters wear for viewpoint entropy
+        (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -232,7 +242,7 @@ def view_maps(
             "facing": sel.facing,
         }
     if entropy:
-        ve = select_view_entropy(scene, frame, score_all=True)
+        ve = select_view_entropy(scene, frame, score_all=True, body=body)
         out["viewpoint_entropy"] = {
             "views": ve.views,
             "scores": ve.scores,
@@ -252,6 +262,7 @@ def plot_views(
     projection: str = "mollweide",
     entropy: bool = True,
     maps: dict | None = None,
+    body: BodyKind = DEFAULT_BODY,
 ):
     """Heat maps of PMA, motion area and viewpoint entropy with all picks marked.
 
@@ -268,6 +279,9 @@ def plot_views(
         Include the viewpoint-entropy map (renders the body).
     maps : dict, optional
         Precomputed :func:`view_maps` output.
+    body : {"human", "mannequin"}
+        What the characters wear for viewpoint entropy (ignored with ``maps``)
+        (:data:`snapcore.render.bodies.BodyKind`).
 
     Returns
     -------
@@ -276,7 +290,9 @@ def plot_views(
     _check_projection(projection)
     plt = _pyplot()
     if maps is None:
-        maps = view_maps(scene, frame=frame, window_s=window_s, n_views=n_views, entropy=entropy)
+        maps = view_maps(
+            scene, frame=frame, window_s=window_s, n_views=n_views, entropy=entropy, body=body
+        )
     names = [m for m in ("pma", "motion_area", "viewpoint_entropy") if m in maps]
     fig = plt.figure(figsize=(8.5, 3.9 * len(names)))
     picks = {m: maps[m]["pick"] for m in names}

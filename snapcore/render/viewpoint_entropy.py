@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import SnapshotError
-from snapcore.render.bodies import posed_mesh
+from snapcore.render.bodies import DEFAULT_BODY, BodyKind, posed_mesh
 from snapcore.render.buffers import render_face_ids
 from snapcore.select.view import view_sphere
 
@@ -163,6 +163,7 @@ def select_view_entropy(
     resolution: int = VE_RESOLUTION,
     min_elevation_deg: float | None = MIN_ELEVATION_DEG,
     score_all: bool = False,
+    body: BodyKind = DEFAULT_BODY,
     mesh=None,
 ) -> EntropySelection:
     """The view of maximal viewpoint entropy of the posed body at ``frame``.
@@ -183,9 +184,11 @@ def select_view_entropy(
     score_all : bool
         Render and score the views below ``min_elevation_deg`` too (for maps); by
         default they are skipped (NaN scores).
+    body : {"human", "mannequin"}
+        The body kind whose posed mesh is scored (:data:`snapcore.render.bodies.BodyKind`;
+        ignored with ``mesh``).
     mesh : object with ``vertices`` (N, 3) and ``faces`` (M, 3), optional
-        The mesh to use instead of :func:`snapcore.render.bodies.posed_mesh` of the scene
-        (the scene's body kind: the human body by default).
+        The mesh to use instead of :func:`snapcore.render.bodies.posed_mesh` of the scene.
 
     Returns
     -------
@@ -195,7 +198,7 @@ def select_view_entropy(
     if mesh is None:
         if not 0 <= int(frame) < scene.n_frames:
             raise EntropyError(f"frame {frame} is outside 0..{scene.n_frames - 1}")
-        mesh = posed_mesh(scene, int(frame))
+        mesh = posed_mesh(scene, int(frame), kind=body)
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     if len(faces) == 0:
         raise EntropyError("the posed mesh has no faces")

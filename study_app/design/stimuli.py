@@ -697,9 +697,14 @@ def write_video(
     characters' facing, slightly above): not from any of the three candidate views,
     so the video does not make one of them look familiar in the view task.
     """
+    from snapcore.render.bodies import DEFAULT_BODY
     from snapcore.render.video import render_video
 
-    vmap = render_video(scene, path, fps=fps, size=size, view=view, progress=progress, webm=webm)
+    # the study shows the default body everywhere (videos, views, and the
+    # viewpoint-entropy baseline, ViewParams' default): no config option changes it
+    vmap = render_video(
+        scene, path, fps=fps, size=size, view=view, progress=progress, webm=webm, body=DEFAULT_BODY
+    )
     return [int(m) for m in np.asarray(vmap, dtype=int)]
 
 
@@ -737,9 +742,10 @@ def _has_pyav() -> bool:
 def view_renderer(scene, size: tuple[int, int]):
     """The renderer of the candidate pictures: no floor and no shadows (see
     :func:`write_views`)."""
+    from snapcore.render.bodies import DEFAULT_BODY
     from snapcore.render.renderer import SceneRenderer
 
-    return SceneRenderer(scene, size=size, ground=False, shadows=False)
+    return SceneRenderer(scene, size=size, ground=False, shadows=False, body=DEFAULT_BODY)
 
 
 def _render_view(scene, frame: int, direction, renderer) -> np.ndarray:
