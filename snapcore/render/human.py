@@ -41,7 +41,7 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_roles, joint_sides
+from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
 from snapcore.motion.skinning import blend_skin
@@ -217,9 +217,8 @@ _HEAD_TOP = re.compile(r"top", re.I)
 _EYE = re.compile(r"eye", re.I)
 
 
-def _eyes(names, parents, head: int):
-    """(left, right) eye joints below the head, or None."""
-    sides = joint_sides(names)
+def _eyes(names, parents, sides, head: int):
+    """(left, right) eye joints below the head, or None (``sides``: the skeleton's)."""
     below = [j for j in range(len(names)) if head in _ancestors(parents, j)]
     left = [j for j in below if _EYE.search(names[j]) and sides[j] == "L"]
     right = [j for j in below if _EYE.search(names[j]) and sides[j] == "R"]
@@ -259,15 +258,14 @@ class Retarget(SoleFit):
         lm = body_landmarks(names, parents)
         missing = [k for k in REQUIRED_LANDMARKS if lm[k] is None]
         if missing or len(lm["spine"]) < 2:
-            roles = joint_roles(names, parents)
-            unmapped = [n for n, r in zip(names, roles) if r == "other"]
+            unmapped = [n for n, r in zip(names, sk.roles) if r == "other"]
             raise RetargetError(character.name, missing or ["spine (pelvis → neck)"], unmapped)
         self.landmarks = lm
         self.offsets = motion_offsets(character)
         # only lengths are read from it (arc lengths along chains, bone lengths): the
         # same whatever pose the rest convention puts the skeleton in
         self.rest = rest = rest_positions(parents, self.offsets)
-        self.eyes = _eyes(names, parents, lm["head"])
+        self.eyes = _eyes(names, parents, sk.sides, lm["head"])
         self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
         sample = np.unique(
             np.linspace(0, character.n_frames - 1, min(character.n_frames, 200)).round().astype(int)
@@ -366,7 +364,7 @@ class Retarget(SoleFit):
                 _Group([b], np_[i], np_[i + 1], np_[i].a, neck_rig[i], neck_rig[i + 1], ("neck",))
             )
         hd = lm["head"]
-        roles = joint_roles(sk.names, sk.parents)
+        roles = sk.roles
         neck1 = len(groups) - 1
         # an eye-less head is calibrated against the chest: the neck's own line leans
         # differently on every skeleton (CMU's forward), the chest's frame does not

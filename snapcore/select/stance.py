@@ -17,7 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
 from snapcore.select.paper import smooth_positions
 
 __all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor", "stance_departure"]
@@ -45,11 +45,6 @@ def _stature(character) -> float:
     return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
 
 
-@lru_cache(maxsize=64)
-def _roles_sides_of(names: tuple, parents: tuple):
-    return tuple(joint_roles(names, parents)), tuple(joint_sides(names))
-
-
 def key_joints(character) -> np.ndarray:
     """Head, pelvis, left/right wrist and ankle joints, shape (K,).
 
@@ -58,7 +53,8 @@ def key_joints(character) -> np.ndarray:
     else the first joint of each role (those found); with fewer than four, the root and
     every end joint (a joint without children).
     """
-    return _key_joints_of(*_skeleton_key(character))
+    sk = character.skeleton
+    return _key_joints_of(*_skeleton_key(character), sk.roles, sk.sides)
 
 
 def _skeleton_key(character):
@@ -66,14 +62,13 @@ def _skeleton_key(character):
 
 
 @lru_cache(maxsize=64)
-def _key_joints_of(names: tuple, parents: tuple) -> np.ndarray:
+def _key_joints_of(names: tuple, parents: tuple, roles: tuple, sides: tuple) -> np.ndarray:
     lm = body_landmarks(names, parents)
     full = [lm.get(k) for k in _KEY_LANDMARKS]
     if all(j is not None for j in full):
         out = np.asarray(full, dtype=np.int64)
         out.flags.writeable = False
         return out
-    roles, sides = _roles_sides_of(names, parents)
     found = []
     for role, side in _KEY_ROLES:
         for j, (r, s) in enumerate(zip(roles, sides)):

@@ -76,7 +76,6 @@ from snapcore.motion.anatomy import (
 )
 from snapcore.select.paper import minmax, smooth_positions
 from snapcore.select.stance import (
-    _roles_sides_of,
     _stature,
     descriptor_of,
     key_joints,
@@ -635,10 +634,8 @@ def temporal_support(values: np.ndarray, *, fps: float, support_s: float) -> np.
 
 
 def _roles_sides(character) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """Body role and side of each joint, read from the names (cached per skeleton)."""
-    return _roles_sides_of(
-        tuple(character.joint_names), tuple(np.asarray(character.parents).tolist())
-    )
+    """Body role and side of each joint (the skeleton's cached ``roles``, ``sides``)."""
+    return character.skeleton.roles, character.skeleton.sides
 
 
 def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInformation:
