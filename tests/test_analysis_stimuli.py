@@ -153,6 +153,7 @@ def test_simulate_cli_with_manifest(tmp_path):
     assert res.exit_code == 2 and "unknown method 'best'" in res.output
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:stimuli scene")
 def test_replaced_views_and_builder_pairs_reach_the_report(tmp_path):
     """A manifest whose builder replaced motion area's view in one scene (it was ours'

@@ -250,6 +250,7 @@ def test_simulated_strengths_recovered_within_ci():
         assert abs(st.loc[m, "strength"] - s) < 0.06
 
 
+@pytest.mark.slow
 def test_strength_interval_coverage_over_seeds():
     """Across 30 simulated studies the 95% bootstrap intervals cover the truth >= 80% of the time."""
     true = np.array([0.45, 0.25, 0.30])

@@ -47,6 +47,7 @@ def retargeted(all_bvh):
     return [(p.name, HumanBody(_quiet_load(p).characters[0])) for p in all_bvh]
 
 
+@pytest.mark.slow
 def test_landmarks_stay_on_the_skeleton_in_every_frame(retargeted):
     """On every shared clip, in every frame, each skinned rig joint (the bone head moved
     with the surface around it) is within 3 cm of the skeleton joint it stands for (for the

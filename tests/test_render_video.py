@@ -252,6 +252,7 @@ def test_cli_sheet_frames_and_views(walk_bvh, tmp_path):
     assert Image.open(b).size[0] == 3 * 96 + 4 * 8
 
 
+@pytest.mark.slow
 def test_readme_images_command(motions_dir, tmp_path):
     """`python -m snapcore.cli.readme_images OUT` writes the contact sheet (three panels)
     and the three-view comparison of the README."""
