@@ -108,6 +108,12 @@ def shot(page, name: str) -> None:
 
 
 def pid_of(page) -> str:
+    """The participant id in the address bar, once the app has written it there (after
+    Back the browser shows the older address until the app's rerun replaces it)."""
+    try:
+        page.wait_for_url(re.compile(r"[?&]pid=[A-Za-z0-9_-]+"), timeout=10_000)
+    except Exception:
+        pass  # the assertion below names the address
     m = re.search(r"[?&]pid=([A-Za-z0-9_-]+)", page.url)
     assert m, page.url
     return m.group(1)
