@@ -112,11 +112,16 @@ def _facing(body, frames):
     lm = body_landmarks(sk.names, np.asarray(sk.parents))
     pf, pb = _midline_vertices(a, a.heads[a.bone("Hips")][1] + 0.03)
     cf, cb = _midline_vertices(a, a.heads[a.bone("Spine1")][1] + 0.06)
-    v = body.skin(ch.positions[frames], ch.rotations[frames])
+    # the four vertices alone, skinned as body.skin skins every vertex (each vertex's
+    # blend and stretch depend on its own weights only), not the whole mesh per frame
+    idx = np.array([pf, pb, cf, cb])
+    pts, w = a.vertices[idx], a.weights[idx]
+    r = body.retarget
+    v = r.skin_points(pts, w, r.stretch_weights(pts, w), ch.positions[frames], ch.rotations[frames])
     p = ch.positions[frames]
     up = p[:, lm["spine"][-1]] - p[:, lm["pelvis"]]
-    pelvis = _twist_deg(v[:, pf] - v[:, pb], p[:, lm["hip_L"]] - p[:, lm["hip_R"]], up)
-    chest = _twist_deg(v[:, cf] - v[:, cb], p[:, lm["shoulder_L"]] - p[:, lm["shoulder_R"]], up)
+    pelvis = _twist_deg(v[:, 0] - v[:, 1], p[:, lm["hip_L"]] - p[:, lm["hip_R"]], up)
+    chest = _twist_deg(v[:, 2] - v[:, 3], p[:, lm["shoulder_L"]] - p[:, lm["shoulder_R"]], up)
     return float(pelvis.max()), float(chest.max())
 
 
