@@ -55,7 +55,7 @@ from snapcore.render.segments import (
     unit,
 )
 from snapcore.render.skinned import FrameBlocks
-from snapcore.render.soles import SoleFit
+from snapcore.render.soles import SIDES, SoleFit
 
 __all__ = [
     "RetargetError",
@@ -72,11 +72,10 @@ __all__ = [
 #: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
 LEFT_LIGHTEN = 0.22
 RIGHT_DARKEN = 0.12
-_SIDES = {"L": "Left", "R": "Right"}
 #: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
 LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
     f"{limb}_{s}": f"{side}{bone}"
-    for s, side in _SIDES.items()
+    for s, side in SIDES.items()
     for limb, bone in (
         ("hip", "UpLeg"),
         ("knee", "Leg"),
@@ -201,7 +200,7 @@ class _Group:
 #: (bone head) that stands for each.
 _FRAME_JOINTS = {
     f"{n}_{s}": f"{side}{b}"
-    for s, side in _SIDES.items()
+    for s, side in SIDES.items()
     for n, b in (
         ("hip", "UpLeg"),
         ("knee", "Leg"),
@@ -401,7 +400,7 @@ class Retarget(SoleFit):
                     ("calibrated", spine1),
                 )
             )
-        for s, side in _SIDES.items():
+        for s, side in SIDES.items():
             short = s  # LHipJoint, LThumb
             j = {
                 n: lm[f"{n}_{s}"]
@@ -649,7 +648,7 @@ class Retarget(SoleFit):
             done[i] = True
         hinges = {}
         rig_f = None if rig else self.frames_rig
-        for s, side in _SIDES.items():
+        for s, side in SIDES.items():
             sh, el, wr = pts[f"shoulder_{s}"], pts[f"elbow_{s}"], pts[f"wrist_{s}"]
             upper, fore = el - sh, wr - el
             chest = out[:, self._spine1]
@@ -718,9 +717,7 @@ class Retarget(SoleFit):
             so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
         m, st = self._unplanted(positions, rotations)
-        shifts = self._plant_shifts(m, st, positions)
-        for s, (*_, groups) in enumerate(self._soles.values()):
-            m[:, groups, 1, 3] += shifts[:, s, None]
+        m = self._planted(m, st, positions)
         if stretch:
             return m, st
         return m

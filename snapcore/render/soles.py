@@ -18,9 +18,10 @@ import numpy as np
 
 from snapcore.motion.skinning import blend_skin
 
-__all__ = ["SoleFit", "PLANT_MAX_M"]
+__all__ = ["SoleFit", "SIDES", "PLANT_MAX_M"]
 
-_SIDES = {"L": "Left", "R": "Right"}
+#: Side letters of the skeleton landmarks and the rig's bone-name prefixes.
+SIDES = {"L": "Left", "R": "Right"}
 #: Percentile of the ankle's height over frames taken as its standing height, and the
 #: range of the foot's depth scale that puts the sole there (see SoleFit._sole_scale).
 SOLE_PERCENTILE = 10.0
@@ -78,7 +79,7 @@ class SoleFit:
         out = np.ones(len(self.groups))
         self._soles = {}
         self._ankle_stand: dict[str, float] = {}
-        for s, side in _SIDES.items():
+        for s, side in SIDES.items():
             bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
             foot_v = w[:, bones].sum(axis=1) > 0.5
             ankle_rig = a.heads[bones[0]][1]
@@ -160,6 +161,14 @@ class SoleFit:
             shift = np.where(r < 0, -r, -r * fade) / foot_share[low_point]
             out[:, i] = np.clip(shift, -PLANT_MAX_M, PLANT_MAX_M)
         return out
+
+    def _planted(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """The group matrices ``m`` (F, G, 3, 4) with each foot and toe group moved by
+        its :meth:`_plant_shifts` (in place; ``m`` is returned)."""
+        shifts = self._plant_shifts(m, st, positions)
+        for s, (*_, groups) in enumerate(self._soles.values()):
+            m[:, groups, 1, 3] += shifts[:, s, None]
+        return m
 
     def foot_shifts(self, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
         """How far foot planting moves each foot up (+) or down (-): (F, 2) metres,
