@@ -24,20 +24,17 @@ from snapcore.motion.scene import Character, Scene, Skeleton
 from snapcore.select.contacts import DEFAULT_TOLERANCES, bone_radii
 from snapcore.select.paper import (
     REST_SPEED,
-    SAVGOL_POLYORDER,
-    SMOOTH_S,
     global_entropy,
     joint_curvature,
     limb_lengths,
     local_entropy,
     local_information,
-    minmax,
     pose_entropy,
     rotation_change,
-    smooth_positions,
 )
 from snapcore.select.pose_methods import select_pose
 from snapcore.select.pose_selection import top_peaks
+from snapcore.select.signals import SAVGOL_POLYORDER, SMOOTH_S, minmax, smooth_positions
 
 SALSA_PAIRS = [
     ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"),

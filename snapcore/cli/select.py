@@ -16,9 +16,10 @@ from snapcore.cli.common import (
     scene_from_options,
 )
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind
-from snapcore.select.paper import EVENT_MODES, SMOOTH_S
+from snapcore.select.paper import EVENT_MODES
 from snapcore.select.pose_methods import PaperOptionError, PoseParams
 from snapcore.select.pose_selection import MIN_SEPARATION_S
+from snapcore.select.signals import SMOOTH_S
 
 __all__ = [
     "select",

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapcore.select.paper import smooth_positions
+from snapcore.select.signals import smooth_positions
 
 __all__ = [
     "stretch_score",

@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
-from snapcore.select.paper import REST_SPEED, SMOOTH_S, select_pose_paper
+from snapcore.select.paper import REST_SPEED, select_pose_paper
 from snapcore.select.pose_baselines import (
     middle_frames,
     random_frames,
@@ -34,6 +34,7 @@ from snapcore.select.pose_baselines import (
     stretch_score,
 )
 from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
+from snapcore.select.signals import SMOOTH_S
 from snapcore.select.story import DEFAULT_STORY, StoryParams, story_information
 
 __all__ = [

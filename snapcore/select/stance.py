@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
-from snapcore.select.paper import smooth_positions
+from snapcore.select.signals import smooth_positions
 
 __all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor", "stance_departure"]
 

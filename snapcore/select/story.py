@@ -74,7 +74,7 @@ import numpy as np
 from snapcore.motion.anatomy import (
     REFERENCE_STATURE_M,
 )
-from snapcore.select.paper import minmax, smooth_positions
+from snapcore.select.signals import minmax, smooth_positions
 from snapcore.select.stance import (
     _stature,
     descriptor_of,
