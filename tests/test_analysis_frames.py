@@ -127,6 +127,21 @@ def test_paired_test_against_scipy_with_ties_and_zeros():
     assert t.loc["middle", "difference_high"] == pytest.approx(ci.high, abs=0.02)
 
 
+def test_paired_test_small_samples_with_ties_equal_scipy():
+    """Known answer for the small-sample branch: with ties and at most 13 non-zero
+    differences scipy's signed-rank test enumerates all 2^n sign patterns; the p-value is
+    that same exact one (sizes around the switch at 13, and a sample without ties)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(11)
+    samples = [rng.integers(-3, 6, size=n) / 10.0 for n in (1, 4, 8, 12, 15, 16)]
+    samples.append(np.array([0.3, -0.1, 0.5, 0.2, 0.9, -0.4, 0.7]))  # no ties: exact
+    for d in samples:  # ties and zeros, mostly positive
+        nz = d[d != 0]
+        want = stats.wilcoxon(nz, alternative="greater", zero_method="wilcox").pvalue
+        assert fr.paired_closeness(d)["p_value"] == pytest.approx(want, rel=1e-12), d
+
+
 def test_simulated_300_near_the_algorithm_are_significant_after_holm():
     """The simulated case of issue 27: 300 participants whose picks cluster near the
     algorithm's (±0.3 s) in four scenes → every test that can differ is significant after
