@@ -3,7 +3,7 @@
 ``write_fixture_stimuli`` writes, per scene, a short H.264 video whose frames show their
 own number (large digits, so a screenshot or a decoded frame can be checked by eye),
 the matching frame images, three candidate-view images and a real manifest (via
-``study_app.design.stimuli.write_manifest``), so the app, the session logic and the browser
+``study_app.design.build.write_manifest``), so the app, the session logic and the browser
 test run on the same kind of folder ``snapshot stimuli build`` produces.
 """
 
@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from snapcore.select.view_methods import VIEW_METHODS
+from study_app.design.build import write_manifest
 from study_app.design.protocol import study_from_dict
-from study_app.design.stimuli import write_manifest
 
 #: Motion frames per fixture scene and the motion/video rates: 48 motion frames at
 #: 48 fps are 1 s, i.e. 24 video frames at 24 fps; video frame i shows motion frame 2i.

@@ -24,7 +24,8 @@ import test_e2e
 from app_helpers import tiny_demo_stimuli
 from test_e2e import heading, picker_ready, settle, start_study, stop_process, watch_through
 
-from study_app.design.stimuli import load_stimuli, publish_set, sha256_file
+from study_app.design.build import publish_set
+from study_app.design.stimuli import load_stimuli, sha256_file
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

@@ -17,7 +17,8 @@ from test_app import component, consent_and_background, new_app, players, send_t
 
 from study_app.data.export import validate_rows
 from study_app.data.store import Store
-from study_app.design.stimuli import load_stimuli, publish_set
+from study_app.design.build import publish_set
+from study_app.design.stimuli import load_stimuli
 from study_app.session import MEDIA_FAILED_EVENT, ParticipantSession, UnknownParticipant
 from study_app.web.picker import FRAME_PICKER, VIEW_CHOOSER
 from study_app.web.screens import keys
@@ -46,8 +47,8 @@ def sets(tmp_path_factory):
 
 def write_fixture_stimuli_manifest(folder, doc) -> None:
     """Rewrite a fixture folder's manifest after a file changed (new sha256)."""
+    from study_app.design.build import write_manifest
     from study_app.design.protocol import study_from_dict
-    from study_app.design.stimuli import write_manifest
 
     m = json.loads((folder / "manifest.json").read_text())
     entries = []

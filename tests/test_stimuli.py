@@ -225,7 +225,7 @@ def test_selection_table_with_an_unknown_key_is_one_clear_error():
     name; a key that is no field (an old spelling, a typo) is a StimuliError naming it,
     and a paper-only option with another method one naming that option."""
     from snapcore.motion.synth import synth_scene
-    from study_app.design.stimuli import select_scene
+    from study_app.design.candidates import select_scene
 
     scene = synth_scene("walk", fps=30)
     with pytest.raises(StimuliError, match=r"\[selection\]: unknown selection option\(s\) top_k"):
@@ -296,7 +296,7 @@ def test_view_stills_share_one_background(tmp_path):
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
     from snapcore.select.view_methods import VIEW_METHODS
-    from study_app.design.stimuli import write_views
+    from study_app.design.media import write_views
 
     scene = synth.synth_scene("walk", fps=30)
     dirs = [
@@ -457,8 +457,9 @@ def test_near_duplicate_error_stops_the_build():
     build with the angles named; "warn" warns and records them."""
     import warnings
 
+    from study_app.design.candidates import check_near_duplicates
     from study_app.design.protocol import study_from_dict
-    from study_app.design.stimuli import StimuliError, check_near_duplicates
+    from study_app.design.stimuli import StimuliError
 
     picks = {
         "view": [1.0, 0.0, 0.0],

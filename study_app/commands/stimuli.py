@@ -43,8 +43,9 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     study_app/configs/demo.toml (synthetic scenes) or study_app/configs/paper.toml
     (the paper's six analogues, needs SNAPSHOT_DATA).
     """
+    from study_app.design.build import build_stimuli
     from study_app.design.protocol import load_study
-    from study_app.design.stimuli import build_stimuli, load_stimuli
+    from study_app.design.stimuli import load_stimuli
 
     study = load_study(config)
     manifest = build_stimuli(study, out, force=force, quiet=quiet)

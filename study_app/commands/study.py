@@ -65,13 +65,9 @@ def study(config, stimuli_dir, db, port, address, build, quiet):
     $SNAPSHOT_ADMIN_TOKEN (without it the page stays empty).
     """
     from study_app.data.store import Store
+    from study_app.design.build import build_stimuli
     from study_app.design.protocol import DEMO_CONFIG, load_study
-    from study_app.design.stimuli import (
-        StimuliError,
-        build_stimuli,
-        default_stimuli_dir,
-        load_stimuli,
-    )
+    from study_app.design.stimuli import StimuliError, default_stimuli_dir, load_stimuli
     from study_app.web.server import streamlit_command
 
     if config is None and stimuli_dir is not None:

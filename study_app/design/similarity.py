@@ -2,7 +2,7 @@
 
 Two candidate views are near-duplicates when their *pictures* are: the angle between
 view directions misses mirror images near (but not at) 180° and symmetric poses. Used
-by the stimuli builder (:mod:`study_app.design.stimuli`) on the rendered candidates, and
+by the stimuli builder (:mod:`study_app.design.candidates`) on the rendered candidates, and
 to pick a replacement view (:mod:`study_app.design.replacement`).
 """
 

@@ -1,18 +1,6 @@
-"""One participant's way through the study: the app's logic layer (no Streamlit here).
-
-The flow is a small state machine driven entirely by what the store holds, so a reload,
-a second tab or a return days later lands on the same step::
-
-    CONSENT ──(agree: participant created, id goes in the URL)──▶ BACKGROUND
-    BACKGROUND ──(answers stored)──▶ first unanswered trial (POSE / VIEW / ATTENTION)
-    ... every trial answered ──▶ DONE (completion code)
-
-:class:`ParticipantSession` checks every answer against the participant's seeded plan
-and the stimuli manifest *before* calling the store: a tampered or unknown id, an
-answer to a trial that is not the current one, an out-of-range frame or a forged
-method label raises a :class:`SessionError` with a message for the participant, and
-nothing is written.
-"""
+"""The participant's session: :class:`ParticipantSession`, the only way to read or change
+where a participant is, and :class:`Stage`, the steps of the walk through the study
+(see :mod:`study_app.session`)."""
 
 from __future__ import annotations
 
@@ -23,7 +11,6 @@ from datetime import UTC, datetime
 from enum import StrEnum
 from functools import lru_cache
 
-from snapcore.errors import SnapshotError
 from study_app.data.withdraw import withdrawal_of
 from study_app.design.protocol import (
     AnswerError,
@@ -36,64 +23,32 @@ from study_app.design.protocol import (
 )
 from study_app.design.stimuli import Stimuli, app_version, find_stimulus_set
 
-__all__ = [
-    "Stage",
-    "SessionError",
-    "UnknownParticipant",
-    "Withdrawn",
-    "MaterialsChanged",
-    "InvalidAnswer",
-    "TooEarly",
-    "prolific_problems",
-    "resume_url",
-    "describe_value",
-    "WATCHED_ENOUGH",
-    "ParticipantSession",
-    "prolific_params",
-    "PROLIFIC_KEYS",
-    "EVENT_KINDS",
-    "MEDIA_FAILED_EVENT",
-    "PICKED_WITH",
-    "client_fields",
-    "SHOWN_EVENT",
-    "MAX_EVENTS_PER_TRIAL",
-    "STALE_TAB_TEXT",
-]
+from .errors import InvalidAnswer, MaterialsChanged, TooEarly, UnknownParticipant, Withdrawn
+from .events import (
+    _TAB,
+    MAX_EVENTS_PER_TRIAL,
+    MEDIA_FAILED_EVENT,
+    SHOWN_EVENT,
+    WATCHED_ENOUGH,
+    _picker_items,
+    _ranges,
+    _share,
+    _unite,
+    client_fields,
+)
+from .links import prolific_params
 
-#: URL parameters Prolific appends to a study link; recorded when present.
-PROLIFIC_KEYS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
-#: Prolific ids are 24 hex characters; accept any short token of safe characters.
-_PROLIFIC_VALUE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+__all__ = ["Stage", "ParticipantSession", "STALE_TAB_TEXT"]
+
 #: Participant ids are ``secrets.token_urlsafe(16)`` (22 characters); refuse anything
 #: that could not be one before asking the database.
 _PID = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
-#: Picker interactions worth keeping (plays, pauses, seeks, frame steps, scrubbing).
-EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select", "watch")
-#: The event the server stores when a trial's media did not load in the participant's
-#: browser after retries (nothing is answered: the chooser stays closed, the player
-#: falls back to the frame slider, whose answers say so).
-MEDIA_FAILED_EVENT = "media_failed"
-#: How a pose answer's frame was picked: in the video player, or on the frame slider
-#: (the fallback when the video cannot be played, or the study's ``picker = "frames"``).
-PICKED_WITH = ("player", "slider")
-#: Input types a browser reports for the click that answered.
-INPUT_TYPES = ("mouse", "touch", "pen", "keyboard")
-_TAB = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
-#: Share of the animation that must have been played (the video's played ranges) for
-#: "watched through once": a little under 1, as the last frame's interval and a
-#: dropped frame at the start are not counted as played by every browser.
-WATCHED_ENOUGH = 0.9
-#: The event the server stores when a trial is first shown: its response time counts
-#: from there, across reloads and tabs (never sent by the browser).
-SHOWN_EVENT = "shown"
 #: What a tab says when the step it showed was answered elsewhere (another tab or
 #: browser) first, so what it sent for that step was not stored.
 STALE_TAB_TEXT = (
     "This question had already been answered in another window or tab, so "
     "the answer given here was not saved. Here is the next step."
 )
-#: A cap on stored events per trial, so a runaway client cannot flood the store.
-MAX_EVENTS_PER_TRIAL = 500
 #: Longest plausible response time (s) stored; longer ones (a tab left open) are clipped.
 MAX_RESPONSE_TIME_S = 24 * 3600.0
 #: Background questions: answer key → the study's choices key.
@@ -121,100 +76,6 @@ class Stage(StrEnum):
     VIEW = "view"
     ATTENTION = "attention"
     DONE = "done"
-
-
-class SessionError(SnapshotError):
-    """Something a participant did that cannot be accepted; the message is for them."""
-
-
-class UnknownParticipant(SessionError):
-    """A participant id (from the URL) that is malformed, unknown or from another study."""
-
-
-class MaterialsChanged(UnknownParticipant):
-    """A participant whose stimulus set is no longer on the server (what they answered
-    so far is stored; nothing more can be)."""
-
-
-class Withdrawn(UnknownParticipant):
-    """A participant link (or Prolific id) whose data were withdrawn and deleted."""
-
-    def __init__(self, when):
-        super().__init__(
-            f"Your data were withdrawn from this study on {when:%d %B %Y} and "
-            "deleted, as you asked. Nothing more is recorded from this link. "
-            "Thank you for your interest in the study."
-        )
-
-
-class InvalidAnswer(SessionError):
-    """An answer that does not fit the current trial (nothing was written)."""
-
-
-class TooEarly(InvalidAnswer):
-    """An answer that came before its trial was on screen for the study's minimum time
-    (e.g. the second click of a double click landing on the next trial)."""
-
-
-def prolific_problems(query: dict) -> list[str]:
-    """What is wrong with the Prolific parameters of a URL query (empty when nothing is).
-
-    A present but malformed ``PROLIFIC_PID``, ``STUDY_ID`` or ``SESSION_ID`` (too long,
-    characters a Prolific id never has, given twice) must stop the participant on the
-    first page: storing the participant without it would lose who they are.
-
-    Returns
-    -------
-    list of str
-        One participant-facing sentence per malformed parameter.
-    """
-    out = []
-    for k in PROLIFIC_KEYS:
-        if k not in query:
-            continue
-        v = query.get(k)
-        if isinstance(v, list) and len(v) == 1:
-            v = v[0]
-        if not isinstance(v, str) or not _PROLIFIC_VALUE.match(v):
-            out.append(
-                f"The study link's {k} is not a valid Prolific value (expected up to 64 "
-                "letters, digits, '-' or '_')."
-            )
-    return out
-
-
-def resume_url(base_url: str, participant_id: str) -> str:
-    """The participant's personal link: the app's address with only ``?pid=``."""
-    from urllib.parse import urlencode, urlsplit, urlunsplit
-
-    parts = urlsplit(base_url or "/")
-    path = parts.path
-    for suffix in ("/study", "/researcher"):  # the page's own address, not the app's
-        if path.endswith(suffix):
-            path = path[: -len(suffix)]
-    return urlunsplit(
-        (parts.scheme, parts.netloc, path.rstrip("/") + "/", urlencode({"pid": participant_id}), "")
-    )
-
-
-def describe_value(value, limit: int = 80) -> str:
-    """A safe one-line rendering of a value from the URL for the researcher's log."""
-    text = ascii(value)
-    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
-
-
-def prolific_params(query: dict) -> dict:
-    """The Prolific parameters of a URL query (``PROLIFIC_PID``, ``STUDY_ID``, ``SESSION_ID``).
-
-    Values that could not be Prolific ids (wrong characters, too long, a list) are
-    dropped rather than stored.
-    """
-    out = {}
-    for k in PROLIFIC_KEYS:
-        v = query.get(k)
-        if isinstance(v, str) and _PROLIFIC_VALUE.match(v):
-            out[k] = v
-    return out
 
 
 class ParticipantSession:
@@ -736,99 +597,3 @@ class ParticipantSession:
         only: the page gets the images by position)."""
         sc = self.stimuli.scenes[trial.scene]
         return [(m, sc.views[m]) for m in trial.shown_order]
-
-
-def _picker_items(events, *, n_video_frames: int) -> list[tuple[str, dict]]:
-    """The picker's log entries as ``(kind, payload)`` for the store: known kinds only,
-    well-formed fields only (frames inside the video), at most
-    :data:`MAX_EVENTS_PER_TRIAL`."""
-    items = []
-    for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
-        if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
-            continue
-        payload = {}
-        t = ev.get("t")
-        if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
-            payload["t"] = round(float(t), 3)
-        for key in ("frame", "from"):
-            f = ev.get(key)
-            if isinstance(f, int) and not isinstance(f, bool) and 0 <= f < n_video_frames:
-                payload[key] = f
-        if ev.get("by") in (-1, 1) and not isinstance(ev.get("by"), bool):
-            payload["by"] = ev["by"]
-        w = ev.get("watched")
-        if isinstance(w, (int, float)) and not isinstance(w, bool) and 0 <= w <= 1:
-            payload["watched"] = round(float(w), 3)
-        ranges = _ranges(ev.get("ranges"), limit=n_video_frames + 1)
-        if ranges:
-            payload["ranges"] = ranges
-        if isinstance(ev.get("tab"), str) and _TAB.match(ev["tab"]):
-            payload["tab"] = ev["tab"]
-        items.append((ev["kind"], payload))
-    return items
-
-
-def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _ranges(value, *, limit: float = 1e6) -> list[list[float]]:
-    """Well-formed ``[[from, to], ...]`` video-frame ranges (at most 64, inside
-    ``[0, limit]``), united; anything else is dropped."""
-    if not isinstance(value, list):
-        return []
-    out = [
-        [round(float(r[0]), 2), round(float(r[1]), 2)]
-        for r in value[:64]
-        if isinstance(r, list)
-        and len(r) == 2
-        and all(_number(x) for x in r)
-        and 0 <= r[0] < r[1] <= limit
-    ]
-    return _unite(out)
-
-
-def _unite(ranges) -> list[list[float]]:
-    """Sorted ranges with overlaps merged."""
-    out: list[list[float]] = []
-    for a, b in sorted(ranges):
-        if out and a <= out[-1][1]:
-            out[-1][1] = max(out[-1][1], b)
-        else:
-            out.append([a, b])
-    return out
-
-
-def _share(ranges, n_video_frames: int, more=()) -> float:
-    """Share of an ``n_video_frames`` animation the ranges (with ``more``) cover."""
-    covered = sum(
-        min(b, n_video_frames) - max(a, 0.0)
-        for a, b in _unite(list(ranges) + list(more))
-        if b > 0 and a < n_video_frames
-    )
-    return min(covered / n_video_frames, 1.0) if n_video_frames > 0 else 0.0
-
-
-def client_fields(client, response_time_s: float) -> dict:
-    """The response columns of what an answer was given on, from the widget's ``client``
-    report (``{viewport: [w, h], dpr, input, active_s, tab}``): well-formed values only
-    (None otherwise); the active time at most the response time."""
-    c = client if isinstance(client, dict) else {}
-    vp = c.get("viewport")
-    ok_vp = (
-        isinstance(vp, list)
-        and len(vp) == 2
-        and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x < 100_000 for x in vp)
-    )
-    dpr = c.get("dpr")
-    active = c.get("active_s")
-    return {
-        "viewport_width": vp[0] if ok_vp else None,
-        "viewport_height": vp[1] if ok_vp else None,
-        "device_pixel_ratio": round(float(dpr), 3) if _number(dpr) and 0 < dpr <= 16 else None,
-        "input_type": c.get("input") if c.get("input") in INPUT_TYPES else None,
-        "active_time_s": min(round(float(active), 3), response_time_s)
-        if _number(active) and active >= 0
-        else None,
-        "tab_id": c.get("tab") if isinstance(c.get("tab"), str) and _TAB.match(c["tab"]) else None,
-    }

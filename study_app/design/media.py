@@ -1,0 +1,136 @@
+"""The media of a scene's stimuli: the animation video (MP4 and WebM), the pickable
+frames decoded from it, and the candidate view pictures.
+
+Rendering uses ``snapcore.render.renderer`` (EGL, offline: see PLATFORM-NOTES, renderers
+do not cross threads). Every picture of the study shows the default body.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from snapcore.select.view_methods import VIEW_METHODS
+
+from .stimuli import PICK_KEYS, StimuliError
+
+__all__ = [
+    "FRAME_JPEG_QUALITY",
+    "write_video",
+    "write_frames",
+    "view_renderer",
+    "render_view",
+    "write_views",
+]
+
+#: JPEG quality of the pickable frames: visually lossless at study sizes, ~20 kB a frame.
+FRAME_JPEG_QUALITY = 88
+
+
+def write_video(
+    scene,
+    path: str | Path,
+    *,
+    fps: float,
+    size: tuple[int, int],
+    view=None,
+    progress: bool = False,
+    webm: str | Path | None = None,
+) -> list[int]:
+    """Stage 3: the animation video; returns the motion frame (source numbering) per video frame.
+
+    ``webm``: also write the same frames as WebM/VP9 there (for browsers without H.264).
+
+    ``view=None`` films from the renderer's neutral default (3/4 front of the
+    characters' facing, slightly above): not from any of the three candidate views,
+    so the video does not make one of them look familiar in the view task.
+    """
+    from snapcore.render.bodies import DEFAULT_BODY
+    from snapcore.render.video import render_video
+
+    # the study shows the default body everywhere (videos, views, and the
+    # viewpoint-entropy baseline, ViewParams' default): no config option changes it
+    vmap = render_video(
+        scene, path, fps=fps, size=size, view=view, progress=progress, webm=webm, body=DEFAULT_BODY
+    )
+    return [int(m) for m in np.asarray(vmap, dtype=int)]
+
+
+def write_frames(video: str | Path, folder: str | Path) -> list[Path]:
+    """Stage 4: decode the video into one JPEG per frame (what the picker shows).
+
+    Decoding the written video (instead of rendering again) makes each image exactly
+    the frame the participant sees in the player.
+    """
+    import imageio.v3 as iio
+    from PIL import Image
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, frame in enumerate(
+        iio.imiter(video, plugin="pyav") if _has_pyav() else iio.imiter(video)
+    ):
+        p = out / f"{i:05d}.jpg"
+        Image.fromarray(np.asarray(frame)[..., :3]).save(p, quality=FRAME_JPEG_QUALITY)
+        paths.append(p)
+    if not paths:
+        raise StimuliError(f"{video}: the video has no frames")
+    return paths
+
+
+def _has_pyav() -> bool:
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def view_renderer(scene, size: tuple[int, int]):
+    """The renderer of the candidate pictures: no floor and no shadows (see
+    :func:`write_views`)."""
+    from snapcore.render.bodies import DEFAULT_BODY
+    from snapcore.render.renderer import SceneRenderer
+
+    return SceneRenderer(scene, size=size, ground=False, shadows=False, body=DEFAULT_BODY)
+
+
+def render_view(scene, frame: int, direction, renderer) -> np.ndarray:
+    """One candidate picture (internal ``frame``), framed as all candidates are."""
+    from snapcore.render.renderer import render_still
+
+    return render_still(scene, frame, direction, fit="frame", renderer=renderer)
+
+
+def write_views(
+    scene, picks: dict, folder: str | Path, *, size: tuple[int, int], renderer=None
+) -> dict:
+    """Stage 5: the selected pose seen along each method's direction (same size and framing).
+
+    Returns
+    -------
+    dict
+        ``{method: {"file": Path, "direction": [x, y, z]}}`` for each of
+        :data:`~snapcore.select.view_methods.VIEW_METHODS`.
+    """
+    from snapcore.render.renderer import save_png
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    directions = {m: picks[PICK_KEYS[m]] for m in VIEW_METHODS}
+    frame = int(picks["frame"]) - scene.frame_offset
+    # Same size and the same framing rule for all three (the pose fitted tightly with
+    # the same margin from each direction), so no view wins by being bigger. No floor
+    # and no shadows: a tightly framed orthographic view shows the floor grid from
+    # above, nothing of it near the horizon and the grid through the legs from below
+    # (the methods may pick views down to 10 degrees under the horizon), so the
+    # background alone would tell the three methods apart.
+    renderer = renderer or view_renderer(scene, size)
+    views = {}
+    for m in VIEW_METHODS:
+        p = out / f"view_{m}.png"
+        save_png(render_view(scene, frame, directions[m], renderer), p)
+        views[m.value] = {"file": p, "direction": directions[m]}
+    return views
