@@ -4,8 +4,9 @@ Load responses (the store or an export file) into tidy frames (:mod:`analysis.lo
 test the view votes of Table 2 (:mod:`analysis.votes`), compare chosen frames with the
 algorithm's pick and simple baselines (:mod:`analysis.frames`), simulate participants
 (:mod:`analysis.simulate`), plan sample sizes (:mod:`analysis.power`), and write
-everything as CSV/Markdown/LaTeX tables, figures and an HTML report
-(:mod:`analysis.report`, ``snapshot analyze``). Plotting (matplotlib) is imported only
+everything as CSV/Markdown/LaTeX tables (:mod:`analysis.tables`), figures and an HTML
+report (:mod:`analysis.report`, ``snapshot analyze``, with its sections in
+:mod:`analysis.sections` and the page in :mod:`analysis.html_page`). Plotting (matplotlib) is imported only
 when a figure is drawn.
 
 Direction: analysis reads the study's data through the study logic — the store
@@ -44,7 +45,8 @@ _WHERE = {
         "view_choices",
     ),
     ".power": ("power_chisquare", "power_curve", "power_pairwise", "power_table", "sample_size"),
-    ".report": ("analyze", "analyze_counts", "write_table"),
+    ".report": ("analyze", "analyze_counts"),
+    ".tables": ("write_table",),
     ".simulate": (
         "ObserverModel",
         "paper_design",

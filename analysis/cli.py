@@ -455,13 +455,13 @@ def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
         table = pw.power_table(
             third=third, alpha=alpha, power=target, comparisons=sorted({1, comparisons})
         )
-        from .report import to_markdown
+        from .tables import to_markdown
 
         click.echo(to_markdown(table), nl=False)
         curve = None
     if out_dir is not None:
         from .plots import plot_power_curve, save_figure
-        from .report import write_table
+        from .tables import write_table
 
         out = Path(out_dir)
         if table is not None:

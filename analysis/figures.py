@@ -152,7 +152,7 @@ def _labels() -> dict:
 
 def _table2(ctx: _Context) -> list[Path]:
     from .plots import plot_votes, save_figure
-    from .report import write_table
+    from .tables import write_table
     from .votes import ours_vs_baselines, paper_counts, vote_table
 
     counts = paper_counts()
@@ -305,7 +305,7 @@ def _timings(snap) -> dict:
 
 
 def _table1(ctx: _Context) -> list[Path]:
-    from .report import write_table
+    from .tables import write_table
 
     t = measure_table1(repeats=ctx.repeats, data_dir=ctx.data_dir, progress=ctx.progress)
     return write_table(

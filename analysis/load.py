@@ -49,6 +49,7 @@ __all__ = [
     "pose_choices",
     "view_choices",
     "attention_summary",
+    "completed_participants",
     "PAPER_SCENES",
     "ordered_scenes",
     "exclude_unverified",
@@ -277,6 +278,12 @@ def attention_summary(df: pd.DataFrame) -> pd.DataFrame:
     )
     out["passed"] = out["n_correct"] == out["n_checks"]
     return out.reset_index()
+
+
+def completed_participants(df: pd.DataFrame) -> set:
+    """Participants who finished the study: they answered its last trial, the attention
+    check (every plan ends with it, ``study_app.design.protocol.trial_plan``)."""
+    return set(df.loc[df["task"] == "attention", "participant_id"])
 
 
 def exclude_unverified(

@@ -277,7 +277,7 @@ def test_selector_agreement_and_timeline(tmp_path):
     """Every selector's top pick against people's choices: hit rate within ±0.5 s and
     median distance per scene and over all; the report section writes the table and the
     timeline figure."""
-    from analysis.report import _selector_section
+    from analysis.sections import _selector_section
 
     info = StudyScene(
         scene="kick",

@@ -64,7 +64,7 @@ def test_fig13_pdf_has_truetype_fonts_a_seconds_label_and_no_paper_numbers(tmp_p
 
 
 def test_selector_timeline_title_says_what_is_drawn(tmp_path, saved_texts):
-    from analysis import report
+    from analysis import sections
 
     pose = pd.DataFrame(
         {
@@ -81,7 +81,7 @@ def test_selector_timeline_title_says_what_is_drawn(tmp_path, saved_texts):
         selector_frames={"ours": [44, 60], "fastest": [61]},
     )
     (tmp_path / "tables").mkdir()
-    report._selector_section(pose, tmp_path, scenes={"kick": info})
+    sections._selector_section(pose, tmp_path, scenes={"kick": info})
     texts = saved_texts["selector_timeline"]
     assert not [t for t in texts if "green" in t.lower()], texts
     assert any("chosen frames" in t for t in texts)

@@ -118,7 +118,7 @@ def test_analysis_reads_exports_with_the_study_codec(tmp_path):
 def test_tables_as_markdown_and_latex():
     """Markdown: a pipe table whose cells read back as the formatted cells (| escaped,
     numbers right-aligned); LaTeX: booktabs, one row per line, specials escaped."""
-    from analysis.report import format_table, to_latex, to_markdown
+    from analysis.tables import format_table, to_latex, to_markdown
 
     df = pd.DataFrame(
         {"scene": ["a|b", "c_d"], "p_value": [1e-5, 0.5], "n": [3, 4], "significant": [True, False]}
@@ -307,7 +307,7 @@ def test_figures_cli_table2_and_fig13(tmp_path):
 
 def test_frames_print_as_whole_numbers():
     """Frame numbers and counts print as 54, not 54.000 (even in float columns)."""
-    from analysis.report import format_table
+    from analysis.tables import format_table
 
     t = format_table(
         pd.DataFrame({"algorithm_frame": [54.0, np.nan], "votes": [3.0, 1.0], "share": [0.5, 0.25]})

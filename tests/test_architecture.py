@@ -207,7 +207,7 @@ def test_sql_appears_only_in_the_data_layer():
 def test_the_sql_pattern_finds_sql():
     """Known answers: the store's own statements are found, and so are the kinds of SQL
     the pattern names (the replica supervisor's old database check among them)."""
-    assert _sql_lines(ROOT / "study_app" / "data" / "store.py")
+    assert _sql_lines(ROOT / "study_app" / "data" / "participant_records.py")
     for line in (
         "rows = conn.execute(sa.select(participants.c.id))",
         "from sqlalchemy import delete, select",

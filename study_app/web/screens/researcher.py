@@ -160,8 +160,7 @@ def _live(ctx) -> None:
 
 def _analysed_rows(ctx) -> list[dict]:
     """The rows the report analyses: participants who finished, none excluded."""
-    from analysis.load import tidy_responses
-    from analysis.report import completed_participants
+    from analysis.load import completed_participants, tidy_responses
 
     left_out = monitor.excluded_ids(ctx.store, ctx.stimuli.study.id)
     rows = [r for r in ctx.store.export_rows() if r["participant_id"] not in left_out]

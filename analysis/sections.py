@@ -1,0 +1,412 @@
+"""The sections of ``snapshot analyze``'s report: for the view votes, the chosen frames,
+the pose selectors, near-duplicate candidates and replaced views, each writes its tables
+and figures and returns its HTML sections (and summary entries); also the participants
+table, the page's compact versions of wide tables, and the Methods text.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+
+import numpy as np
+import pandas as pd
+
+from . import frames as fr
+from . import votes as vt
+from .load import completed_participants
+from .tables import _fmt, write_table
+
+
+def _ci(v, lo, hi) -> str:
+    return f"{v:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def _compact_pairwise(pair: pd.DataFrame) -> pd.DataFrame:
+    """The pairwise table narrowed for the page (the CSV keeps every column)."""
+    return pd.DataFrame(
+        {
+            "scene": pair["scene"],
+            "baseline": pair["baseline"],
+            "votes ours : baseline": [
+                f"{a} : {b}"
+                for a, b in zip(pair["reference_votes"], pair["baseline_votes"], strict=True)
+            ],
+            "share of ours [95% CP]": [
+                _ci(v, lo, hi)
+                for v, lo, hi in zip(
+                    pair["share_reference"], pair["ci_low"], pair["ci_high"], strict=True
+                )
+            ],
+            "p_value": pair["p_value"],
+            "p_holm": pair["p_holm"],
+            "verdict": pair["verdict"],
+        }
+    )
+
+
+def _pct(v, lo=None, hi=None) -> str:
+    if lo is None or (isinstance(lo, float) and math.isnan(lo)):
+        return f"{100 * v:.0f}%"
+    return f"{100 * v:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
+def _compact_hits(hits: pd.DataFrame, tolerances=fr.TOLERANCES_S) -> pd.DataFrame:
+    """Hit rates for the page: one ``rate [low, high]`` cell per tolerance."""
+    out = pd.DataFrame(
+        {
+            "scene": hits["scene"],
+            "predictor": hits["predictor"],
+            "frame": hits["predicted_frame"],
+            "mean |Δ| s": hits["mean_abs_error_s"],
+            "median |Δ| s": hits["median_abs_error_s"],
+        }
+    )
+    for t in tolerances:
+        c = f"hit_{t:g}s"
+        out[f"within ±{t:g} s"] = [
+            _pct(v, lo, hi)
+            for v, lo, hi in zip(hits[c], hits[c + "_low"], hits[c + "_high"], strict=True)
+        ]
+    return out
+
+
+def _compact_tests(tests: pd.DataFrame) -> pd.DataFrame:
+    """Permutation tests for the page."""
+    return pd.DataFrame(
+        {
+            "scene": tests["scene"],
+            "baseline": tests["baseline"],
+            "n": tests["n"],
+            "mean |Δ| algorithm s": tests["algorithm_mean_abs_s"],
+            "mean |Δ| baseline s": tests["baseline_mean_abs_s"],
+            "closer by s [95% CI]": [
+                _ci(v, lo, hi)
+                for v, lo, hi in zip(
+                    tests["difference_s"],
+                    tests["difference_low"],
+                    tests["difference_high"],
+                    strict=True,
+                )
+            ],
+            "r (rank-biserial)": tests["rank_biserial"],
+            "p_value": tests["p_value"],
+            "p_holm": tests["p_holm"],
+            "algorithm closer": tests["significant"],
+            "test": tests["method"] + np.where(tests["note"] != "", " (" + tests["note"] + ")", ""),
+        }
+    )
+
+
+def _compact_strengths(strengths: pd.DataFrame) -> pd.DataFrame:
+    """Strengths as scenes × methods, each cell ``value [low, high]``."""
+    cell = strengths.assign(
+        text=[
+            _ci(v, lo, hi)
+            for v, lo, hi in zip(
+                strengths["strength"], strengths["ci_low"], strengths["ci_high"], strict=True
+            )
+        ]
+    )
+    wide = cell.pivot(index="scene", columns="method", values="text")
+    wide = wide.loc[
+        list(dict.fromkeys(strengths["scene"])), list(dict.fromkeys(strengths["method"]))
+    ]
+    wide.columns.name = None
+    return wide.reset_index()
+
+
+def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
+    """Every vote table and figure; returns (html sections, summary dict)."""
+    from .plots import plot_strengths, plot_votes, save_figure
+
+    tables, figs = out / "tables", out / "figures"
+    table = vt.vote_table(counts)
+    chi = vt.chisquare_no_preference(counts, alpha=alpha)
+    pair = vt.ours_vs_baselines(counts, alpha=alpha)
+    choices = vt.choices_from_counts(counts) if choices is None else choices
+    strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed, order=list(counts.index))
+    kappa = vt.fleiss_kappa(counts)
+    claims = vt.claim_summary(pair, alpha=alpha, labels=labels)
+    write_table(
+        table,
+        tables / "votes",
+        caption="Votes per method per scene with shares and 95% Wilson intervals.",
+    )
+    write_table(
+        chi,
+        tables / "chisquare",
+        caption="Chi-square goodness-of-fit test against no preference, per scene.",
+    )
+    write_table(
+        pair,
+        tables / "pairwise",
+        caption="Ours vs each baseline: exact two-sided binomial test among the two "
+        "methods' votes, Holm-adjusted over all scenes and baselines.",
+    )
+    write_table(
+        strengths,
+        tables / "strengths",
+        caption=f"Luce strengths (choix ilsr_top1) with 95% percentile bootstrap "
+        f"intervals ({n_boot} resamples, seed {seed}).",
+    )
+    write_table(kappa, tables / "agreement", caption="Fleiss' kappa over scenes.")
+    f_votes = save_figure(plot_votes(table, pairwise=pair, labels=labels), figs / "votes")[0]
+    f_str = save_figure(plot_strengths(strengths, labels=labels), figs / "strengths")[0]
+    k = kappa.iloc[0]
+    wide = counts.copy()
+    wide.insert(0, "scene", [labels.get(s, s) for s in counts.index])
+    sections = [
+        (
+            "Views: which method's view do people prefer?",
+            [wide.reset_index(drop=True), f_votes]
+            + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims],
+        ),
+        ("No preference? Chi-square per scene", [chi]),
+        ("Ours vs each baseline (exact binomial, Holm)", [_compact_pairwise(pair)]),
+        (
+            "Method strengths (Luce model: probability of being chosen, 95% bootstrap CI)",
+            [_compact_strengths(strengths), f_str],
+        ),
+        (
+            "Agreement",
+            [
+                f"Fleiss' kappa over {int(k['n_items'])} scenes = {k['kappa']:.3f} "
+                f"(chance-corrected agreement on the best view; 0 = chance, 1 = all "
+                f"agree); z = {k['z']:.2f}, one-sided p = {_fmt('p_value', k['p_value'])}."
+            ],
+        ),
+    ]
+    summary = {
+        "claims": claims,
+        "votes": {s: {m: int(v) for m, v in row.items()} for s, row in counts.iterrows()},
+        "chisquare_p": dict(zip(chi["scene"], chi["p_value"].astype(float), strict=True)),
+        "pairwise": pair[["scene", "baseline", "p_value", "p_holm", "verdict"]].to_dict(
+            orient="records"
+        ),
+        "fleiss_kappa": float(k["kappa"]),
+    }
+    return sections, summary
+
+
+def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
+    del n_permutations  # the frame tests are Wilcoxon signed-rank tests now
+    from .plots import plot_error_distributions, plot_frame_histograms, save_figure
+
+    tables, figs = out / "tables", out / "figures"
+    hits = fr.hit_rates(pose, scenes)
+    tests = fr.closeness_tests(pose, scenes, seed=seed, alpha=alpha)
+    dist = fr.frame_distances(pose, scenes)
+    write_table(
+        hits,
+        tables / "frame_hits",
+        caption="Distance of chosen frames to each predictor and hit rates within "
+        "±0.25/0.5/1 s (Wilson 95% intervals).",
+    )
+    write_table(
+        tests,
+        tables / "frame_tests",
+        caption="Is the algorithm closer to people than each baseline? Per scene, "
+        "each participant's distance to the baseline's frame minus their "
+        "distance to the algorithm's: one-sided Wilcoxon signed-rank over "
+        "participants, mean difference (s) with a 95% bootstrap interval over "
+        "participants, rank-biserial r; Holm over the tests that can differ "
+        "(a baseline on the algorithm's frame is not tested).",
+    )
+    f_hist = save_figure(plot_frame_histograms(pose, scenes), figs / "fig13_frame_histograms")[0]
+    f_err = save_figure(
+        plot_error_distributions(dist, scenes, hits=hits), figs / "frame_distances"
+    )[0]
+    algo = hits[hits["predictor"] == "algorithm"]
+    lines = [
+        f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
+        f"{r['median_abs_error_s']:.2f} s; {100 * r['hit_0.5s']:.0f}% of people within "
+        f"±0.5 s, {100 * r['hit_1s']:.0f}% within ±1 s."
+        for r in algo.to_dict(orient="records")
+    ]
+    better = tests[tests["significant"]]
+    worse = tests[~tests["significant"] & tests["p_value"].notna()]
+    verdict = (
+        f"The algorithm is significantly closer to people (Holm, α = {alpha:g}) than: "
+        + (
+            ", ".join(
+                f"{b} in {scenes[s].title or s}"
+                for s, b in zip(better["scene"], better["baseline"], strict=True)
+            )
+            or "none"
+        )
+        + ". Not significantly closer than: "
+        + (
+            ", ".join(
+                f"{b} in {scenes[s].title or s}"
+                for s, b in zip(worse["scene"], worse["baseline"], strict=True)
+            )
+            or "none"
+        )
+        + "."
+    )
+    missing = [s for s, i in scenes.items() if not i.baseline_frames]
+    note = (
+        "The fastest and most-stretched baselines are the selectors' picks recorded in "
+        f"the stimuli manifest; they are missing for {', '.join(missing)} (pass "
+        "--stimuli manifest.json)."
+        if missing
+        else ""
+    )
+    sections = [
+        (
+            "Poses: which frame do people pick?",
+            [
+                f_hist,
+                *lines,
+                f"<div class='claim'>{html.escape(verdict)}</div>",
+                _compact_hits(hits),
+                _compact_tests(tests),
+                f_err,
+            ]
+            + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []),
+        )
+    ]
+    summary = {
+        "frames": algo[
+            ["scene", "n", "median_abs_error_s", "hit_0.25s", "hit_0.5s", "hit_1s"]
+        ].to_dict(orient="records"),
+        "frame_verdict": verdict,
+    }
+    sections += _selector_section(pose, out, scenes=scenes)
+    return sections, summary
+
+
+def _selector_section(pose, out, *, scenes):
+    """Every pose selector against the people's choices (when the manifest has them)."""
+    agree = fr.selector_agreement(pose, scenes)
+    if agree.empty:
+        return []
+    write_table(
+        agree,
+        out / "tables" / "selector_agreement",
+        caption="Each pose selector's top pick against the people's chosen frames: "
+        "share of choices within ±0.5 s (Wilson 95%) and median distance.",
+    )
+    overall = agree[agree["scene"] == "ALL"].sort_values(
+        ["hit", "median_abs_error_s"], ascending=[False, True]
+    )
+    best = overall.iloc[0]
+    text = (
+        f"Across scenes, the selector whose pick agrees with people best is "
+        f"{best['selector']}: {100 * best['hit']:.0f}% of choices within ±0.5 s "
+        f"(median distance {best['median_abs_error_s']:.2f} s)."
+    )
+    parts = [text, overall.round(3)]
+    doc = fr.selector_timeline_document(pose, scenes)
+    if doc is not None:
+        from snapcore.render.keymoments_plot import plot_keymoment_timelines
+
+        from .plots import save_figure
+
+        extra = {
+            s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist() for s in scenes
+        }
+        fig = plot_keymoment_timelines(doc, extra=extra)
+        # The shared plot's title describes key-moment intervals (green), which this
+        # figure has none of: say what is drawn.
+        fig.axes[0].set_title(
+            "each selector's picks (filled: top pick, hollow: picks 2..k) "
+            "and the people's chosen frames (grey ticks)",
+            fontsize=9,
+        )
+        parts.insert(0, save_figure(fig, out / "figures" / "selector_timeline")[0])
+    return [("Poses: which selector agrees with people?", parts)]
+
+
+_METHODS_TEXT = (
+    "Methods. Vote shares: Wilson score 95% intervals. No preference: Pearson chi-square "
+    "goodness of fit against equal shares. Ours vs each baseline: exact two-sided binomial test "
+    "of ours' share among the votes for the two (null 1/2), Clopper–Pearson intervals, Holm "
+    "adjustment over every scene × baseline. Strengths: Luce choice model fitted by iterative "
+    "Luce spectral ranking (choix.ilsr_top1), percentile bootstrap over choices. Agreement: "
+    "Fleiss' kappa (scenes = items, methods = categories). Frames: distances in seconds; hit "
+    "rates within ±0.25/0.5/1 s; baselines middle frame, uniform random frame (exact "
+    "expectation), the fastest and most-stretched poses (the pose selectors' picks); "
+    "per scene and baseline, a one-sided Wilcoxon signed-rank test over participants of "
+    "each person's distance to the baseline's frame (to a uniform random frame: its "
+    "expectation) minus their distance to the algorithm's, effect sizes the mean "
+    "difference (percentile bootstrap over participants) and the rank-biserial "
+    "correlation; Holm over the tests that can differ (a baseline on the algorithm's "
+    "frame is reported, not tested). Rows pooled over scenes: intervals from a bootstrap "
+    "over participants."
+)
+
+
+def _duplicate_section(counts, dupes, out, *, labels, alpha):
+    """Near-duplicate candidates: which scenes, and the votes with each pair as one option."""
+    pairs = {}
+    for r in dupes.itertuples():
+        pairs.setdefault(r.scene, []).append((r.method_a, r.method_b))
+    merged = vt.merge_near_duplicates(counts, pairs)
+    write_table(
+        dupes,
+        out / "tables" / "near_duplicates",
+        caption="Candidate views that are nearly the same picture (angle between their "
+        "directions; over 90° means a near mirror image).",
+    )
+    write_table(
+        merged,
+        out / "tables" / "votes_duplicates_merged",
+        caption="Sensitivity analysis: near-duplicate candidates counted as one option; "
+        "chi-square against equal votes per distinct picture.",
+    )
+    keep = [s for s in counts.index if s not in pairs]
+    text = [
+        f"In {len(pairs)} scene(s) two candidates are nearly the same picture "
+        f"({', '.join(labels.get(s, s) for s in pairs)}); votes may split between them."
+    ]
+    items = [dupes, *text, merged]
+    if keep and len(keep) < len(counts):
+        claims = vt.claim_summary(
+            vt.ours_vs_baselines(counts.loc[keep], alpha=alpha), alpha=alpha, labels=labels
+        )
+        items += ["Without those scenes:"] + [
+            f"<div class='claim'>{html.escape(c)}</div>" for c in claims
+        ]
+    return [("Near-duplicate candidates: sensitivity analysis", items)]
+
+
+def _replaced_section(replaced, out):
+    """Baseline views replaced at build time: which, why, and how far down its ranking."""
+    write_table(
+        replaced,
+        out / "tables" / "replaced_views",
+        caption="Baseline views replaced by the stimuli builder because their picture was "
+        "nearly another candidate's (silhouette IoU, mirror images included): each by the "
+        "best view of the same method's score whose picture is not.",
+    )
+    text = (
+        f"{len(replaced)} baseline view(s) were replaced because their picture was nearly "
+        "another candidate's; in those scenes a vote for that baseline is a vote for its "
+        "best view unlike the others, not for its own pick."
+    )
+    return [("Replaced candidate views", [text, replaced])]
+
+
+def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:
+    g = df.groupby("simulated")
+    rows = []
+    done = completed_participants(df)
+    for sim, part in g:
+        rows.append(
+            {
+                "participants": "simulated" if sim else "real",
+                "n": int(part["participant_id"].nunique()),
+                "started": int(part["participant_id"].nunique()),
+                "completed": len(set(part["participant_id"]) & done),
+                "responses": len(part),
+                "pose_choices": int((part["task"] == "pose").sum()),
+                "view_choices": int((part["task"] == "view").sum()),
+                "attention_passed": int(
+                    att[att["participant_id"].isin(part["participant_id"])]["passed"].sum()
+                ),
+                "median_response_time_s": float(part["response_time_s"].median()),
+            }
+        )
+    return pd.DataFrame(rows)
