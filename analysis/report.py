@@ -68,8 +68,12 @@ def analyze_counts(
     n_boot: int = DEFAULT_BOOT,
     seed: int = 0,
     alpha: float = vt.ALPHA,
+    figures: bool = True,
 ) -> dict:
     """The vote analysis on a count table alone (e.g. the paper's Table 2).
+
+    ``figures=False`` writes the tables, summary and report without drawing the
+    figures (as :func:`analyze`).
 
     Returns
     -------
@@ -80,7 +84,7 @@ def analyze_counts(
     out.mkdir(parents=True, exist_ok=True)
     labels = labels or {}
     sections, summary = _vote_section(
-        counts, out, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha
+        counts, out, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha, figures=figures
     )
     sections.append(("Methods", [_METHODS_TEXT]))
     meta = (
@@ -121,6 +125,7 @@ def analyze(
     title: str | None = None,
     completed_only: bool = True,
     exclude_unwatched: bool = False,
+    figures: bool = True,
 ) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
@@ -145,6 +150,10 @@ def analyze(
         Leave out pose answers picked on the frame slider or before the animation was
         watched (:func:`analysis.load.exclude_unverified`); the summary's
         ``excluded_answers`` says how many.
+    figures : bool
+        Draw the figures (PNG and PDF, in the report too; the default). False writes the
+        tables, ``summary.json`` and the report without them: drawing is most of the
+        time of an analysis (seconds per figure), the numbers are the same.
     """
     from snapcore.errors import SnapshotError
 
@@ -206,7 +215,14 @@ def analyze(
     if not views.empty:
         counts = vt.vote_counts(views, order=order)
         s, summ = _vote_section(
-            counts, out, labels=labels, n_boot=n_boot, seed=seed, alpha=alpha, choices=views
+            counts,
+            out,
+            labels=labels,
+            n_boot=n_boot,
+            seed=seed,
+            alpha=alpha,
+            choices=views,
+            figures=figures,
         )
         sections += s
         summary.update(summ)
@@ -227,7 +243,13 @@ def analyze(
         }
         scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
         s, summ = _frame_section(
-            pose, out, scenes=scenes, n_permutations=n_permutations, seed=seed, alpha=alpha
+            pose,
+            out,
+            scenes=scenes,
+            n_permutations=n_permutations,
+            seed=seed,
+            alpha=alpha,
+            figures=figures,
         )
         sections += s
         summary.update(summ)

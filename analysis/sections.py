@@ -116,9 +116,19 @@ def _compact_strengths(strengths: pd.DataFrame) -> pd.DataFrame:
     return wide.reset_index()
 
 
-def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
+def _figure(make, stem, *, figures: bool) -> list:
+    """``[the PNG's path]`` of the figure ``make()`` draws, written as PNG and PDF at
+    ``stem``; ``[]`` when the report is made without figures (nothing is drawn)."""
+    if not figures:
+        return []
+    from .plots import save_figure
+
+    return [save_figure(make(), stem)[0]]
+
+
+def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None, figures=True):
     """Every vote table and figure; returns (html sections, summary dict)."""
-    from .plots import plot_strengths, plot_votes, save_figure
+    from .plots import plot_strengths, plot_votes
 
     tables, figs = out / "tables", out / "figures"
     table = vt.vote_table(counts)
@@ -151,22 +161,26 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
         f"intervals ({n_boot} resamples, seed {seed}).",
     )
     write_table(kappa, tables / "agreement", caption="Fleiss' kappa over scenes.")
-    f_votes = save_figure(plot_votes(table, pairwise=pair, labels=labels), figs / "votes")[0]
-    f_str = save_figure(plot_strengths(strengths, labels=labels), figs / "strengths")[0]
+    f_votes = _figure(
+        lambda: plot_votes(table, pairwise=pair, labels=labels), figs / "votes", figures=figures
+    )
+    f_str = _figure(
+        lambda: plot_strengths(strengths, labels=labels), figs / "strengths", figures=figures
+    )
     k = kappa.iloc[0]
     wide = counts.copy()
     wide.insert(0, "scene", [labels.get(s, s) for s in counts.index])
     sections = [
         (
             "Views: which method's view do people prefer?",
-            [wide.reset_index(drop=True), f_votes]
+            [wide.reset_index(drop=True), *f_votes]
             + [f"<div class='claim'>{html.escape(c)}</div>" for c in claims],
         ),
         ("No preference? Chi-square per scene", [chi]),
         ("Ours vs each baseline (exact binomial, Holm)", [_compact_pairwise(pair)]),
         (
             "Method strengths (Luce model: probability of being chosen, 95% bootstrap CI)",
-            [_compact_strengths(strengths), f_str],
+            [_compact_strengths(strengths), *f_str],
         ),
         (
             "Agreement",
@@ -189,9 +203,9 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None):
     return sections, summary
 
 
-def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
+def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha, figures=True):
     del n_permutations  # the frame tests are Wilcoxon signed-rank tests now
-    from .plots import plot_error_distributions, plot_frame_histograms, save_figure
+    from .plots import plot_error_distributions, plot_frame_histograms
 
     tables, figs = out / "tables", out / "figures"
     hits = fr.hit_rates(pose, scenes)
@@ -213,10 +227,16 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
         "participants, rank-biserial r; Holm over the tests that can differ "
         "(a baseline on the algorithm's frame is not tested).",
     )
-    f_hist = save_figure(plot_frame_histograms(pose, scenes), figs / "fig13_frame_histograms")[0]
-    f_err = save_figure(
-        plot_error_distributions(dist, scenes, hits=hits), figs / "frame_distances"
-    )[0]
+    f_hist = _figure(
+        lambda: plot_frame_histograms(pose, scenes),
+        figs / "fig13_frame_histograms",
+        figures=figures,
+    )
+    f_err = _figure(
+        lambda: plot_error_distributions(dist, scenes, hits=hits),
+        figs / "frame_distances",
+        figures=figures,
+    )
     algo = hits[hits["predictor"] == "algorithm"]
     lines = [
         f"{scenes[r['scene']].title or r['scene']}: median |chosen − algorithm| = "
@@ -257,12 +277,12 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
         (
             "Poses: which frame do people pick?",
             [
-                f_hist,
+                *f_hist,
                 *lines,
                 f"<div class='claim'>{html.escape(verdict)}</div>",
                 _compact_hits(hits),
                 _compact_tests(tests),
-                f_err,
+                *f_err,
             ]
             + ([f"<p class='note'>{html.escape(note)}</p>"] if note else []),
         )
@@ -273,11 +293,11 @@ def _frame_section(pose, out, *, scenes, n_permutations, seed, alpha):
         ].to_dict(orient="records"),
         "frame_verdict": verdict,
     }
-    sections += _selector_section(pose, out, scenes=scenes)
+    sections += _selector_section(pose, out, scenes=scenes, figures=figures)
     return sections, summary
 
 
-def _selector_section(pose, out, *, scenes):
+def _selector_section(pose, out, *, scenes, figures=True):
     """Every pose selector against the people's choices (when the manifest has them)."""
     agree = fr.selector_agreement(pose, scenes)
     if agree.empty:
@@ -299,7 +319,7 @@ def _selector_section(pose, out, *, scenes):
     )
     parts = [text, overall.round(3)]
     doc = fr.selector_timeline_document(pose, scenes)
-    if doc is not None:
+    if doc is not None and figures:
         from snapcore.render.keymoments_plot import plot_keymoment_timelines
 
         from .plots import save_figure

@@ -137,7 +137,7 @@ frames = [10, 70]
 
 
 def tiny_demo_stimuli(tmp_path_factory):
-    """Build the tiny study with `snapshot stimuli build` once per session.
+    """Build the tiny study with `snapshot stimuli build` once per test run.
 
     Returns
     -------
@@ -146,21 +146,28 @@ def tiny_demo_stimuli(tmp_path_factory):
         built earlier in the session). Runs in a subprocess so the tests' own process
         never holds an EGL context, with relative paths as a person would type them.
     """
+    import fcntl
+    import os
     import subprocess
     import sys
 
-    root = tmp_path_factory.getbasetemp() / "tiny-demo"
+    base = tmp_path_factory.getbasetemp()
+    # every xdist worker of this run shares the build: their temp folders sit side by
+    # side under the run's own (one build instead of one per worker)
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "tiny-demo"
     out = root / "stimuli"
-    if (out / "manifest.json").exists():
-        return out, None
     root.mkdir(parents=True, exist_ok=True)
-    (root / "tiny.toml").write_text(TINY_STUDY)
-    snapshot = str(Path(sys.executable).with_name("snapshot"))
-    r = subprocess.run(
-        [snapshot, "stimuli", "build", "tiny.toml", "-o", "stimuli", "-q"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=root,
-    )
+    with open(root / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # a worker that finds it building waits
+        if (out / "manifest.json").exists():
+            return out, None
+        (root / "tiny.toml").write_text(TINY_STUDY)
+        snapshot = str(Path(sys.executable).with_name("snapshot"))
+        r = subprocess.run(
+            [snapshot, "stimuli", "build", "tiny.toml", "-o", "stimuli", "-q"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            cwd=root,
+        )
     return out, r

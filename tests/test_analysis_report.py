@@ -197,6 +197,7 @@ def test_analyze_paper_table2_cli(tmp_path):
     assert summary["votes"]["basketball_shooting"]["viewpoint_entropy"] == 0
 
 
+@pytest.mark.slow
 def test_simulate_store_analyze_end_to_end(tmp_path):
     """simulate → SQLite store (marked simulated) → analyze, via the CLI."""
     url = f"sqlite:///{tmp_path / 'study.db'}"
@@ -233,6 +234,21 @@ def test_simulate_store_analyze_end_to_end(tmp_path):
     )
     html = (out / "report.html").read_text()
     assert "SIMULATED" in html and html.count("data:image/png;base64,") == 4
+    # --no-figures: the same numbers (summary and every table), nothing drawn
+    quick = tmp_path / "quick"
+    res = r.invoke(
+        cli,
+        ["analyze", "--db", url, "--include-simulated", "-o", str(quick), "--boot", "50"]
+        + ["--no-figures"],
+    )
+    assert res.exit_code == 0, res.output
+    assert json.loads((quick / "summary.json").read_text()) == summary
+    tables = sorted(p.name for p in (out / "tables").iterdir())
+    assert sorted(p.name for p in (quick / "tables").iterdir()) == tables
+    for name in tables:
+        assert (quick / "tables" / name).read_bytes() == (out / "tables" / name).read_bytes()
+    assert not (quick / "figures").exists()
+    assert "data:image/png" not in (quick / "report.html").read_text()
 
 
 @pytest.mark.slow
@@ -326,7 +342,7 @@ def test_completed_participants_only_by_default(tmp_path):
     left = rows["participant_id"].unique()[:2]
     # two participants left after their first three answers (no attention check)
     rows = rows[~rows["participant_id"].isin(left) | (rows["trial_index"] < 3)]
-    s = analyze(rows, tmp_path / "a", include_simulated=True, n_boot=10)
+    s = analyze(rows, tmp_path / "a", include_simulated=True, n_boot=10, figures=False)
     assert (s["participants"], s["started_participants"], s["completed_participants"]) == (
         10,
         12,
@@ -335,7 +351,9 @@ def test_completed_participants_only_by_default(tmp_path):
     assert sum(s["votes"]["dancing"].values()) <= 10
     parts = pd.read_csv(tmp_path / "a" / "tables" / "participants.csv")
     assert (parts["started"].sum(), parts["completed"].sum()) == (12, 10)
-    s = analyze(rows, tmp_path / "b", include_simulated=True, n_boot=10, completed_only=False)
+    s = analyze(
+        rows, tmp_path / "b", include_simulated=True, n_boot=10, completed_only=False, figures=False
+    )
     assert s["participants"] == 12
 
 
@@ -373,7 +391,9 @@ def test_near_duplicate_scenes_reported_with_sensitivity(tmp_path):
     manifest = _near_duplicate_manifest(scenes)
     d = near_duplicate_scenes(manifest)
     assert list(d["scene"]) == [scenes[0]] and d["angle_deg"].iloc[0] == pytest.approx(3.5)
-    s = analyze(rows, tmp_path / "r", include_simulated=True, n_boot=50, stimuli=manifest)
+    s = analyze(
+        rows, tmp_path / "r", include_simulated=True, n_boot=50, stimuli=manifest, figures=False
+    )
     assert s["near_duplicate_scenes"] == [scenes[0]]
     merged = pd.read_csv(tmp_path / "r" / "tables" / "votes_duplicates_merged.csv")
     assert "ours = motion_area" in set(merged.loc[merged["scene"] == scenes[0], "option"])
@@ -396,5 +416,5 @@ def test_analyze_uses_the_study_stimuli_by_default(tmp_path, monkeypatch):
     assert report.default_stimuli(rows, root=tmp_path) == tmp_path / study
     manifest = _near_duplicate_manifest(list(dict.fromkeys(rows["scene"])))
     monkeypatch.setattr(report, "default_stimuli", lambda df: manifest)
-    s = report.analyze(rows, tmp_path / "o", include_simulated=True, n_boot=50)
+    s = report.analyze(rows, tmp_path / "o", include_simulated=True, n_boot=50, figures=False)
     assert s["near_duplicate_scenes"]  # the default manifest was read

@@ -109,7 +109,7 @@ def test_analyze_with_stimuli_adds_motion_baselines(tmp_path):
     design = sim.design_from_stimuli(doc)
     assert design[0].salient_frames == (e["picks"]["frames"][1],)
     rows = sim.simulated_rows(sim.simulate_participants(design, 25, seed=4))
-    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20)
+    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20, figures=False)
     hits = __import__("pandas").read_csv(tmp_path / "tables" / "frame_hits.csv")
     assert {"fastest", "stretch"} <= set(hits["predictor"])
     assert summary["participants"] == 25
@@ -205,7 +205,7 @@ def test_replaced_views_and_builder_pairs_reach_the_report(tmp_path):
     r = st.replaced_views(doc)
     assert list(r["scene"]) == [scenes[0]] and list(r["method"]) == ["motion_area"]
     assert (r["iou_before"].iloc[0], r["iou_after"].iloc[0]) == (0.954, 0.6)
-    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20)
+    summary = analyze(rows, tmp_path, include_simulated=True, stimuli=doc, n_boot=20, figures=False)
     assert summary["near_duplicate_scenes"] == [scenes[1]]
     assert summary["replaced_views"] == [
         {"scene": scenes[0], "method": "motion_area", "iou_before": 0.954}

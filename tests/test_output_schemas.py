@@ -250,7 +250,7 @@ def test_video_frame_map_follows_schema(walk_bvh, tmp_path):
 def test_analysis_summary_of_paper_table2_follows_schema(tmp_path):
     """--paper-table2: the vote part only (no participants)."""
     out = tmp_path / "paper"
-    _run(["analyze", "--paper-table2", "-o", str(out), "--boot", "20", "-q"])
+    _run(["analyze", "--paper-table2", "-o", str(out), "--boot", "20", "--no-figures", "-q"])
     doc = json.loads((out / "summary.json").read_text())
     _valid(doc, "analysis_summary")
     assert "participants" not in doc and len(doc["pairwise"]) == 12
@@ -271,7 +271,7 @@ def test_analysis_summary_of_study_responses_follows_schema(tmp_path):
 
     rows = sim.simulated_rows(sim.simulate_participants(sim.paper_design(), 12, seed=3))
     out = tmp_path / "sim"
-    analyze(rows, out, include_simulated=True, n_boot=20, n_permutations=200)
+    analyze(rows, out, include_simulated=True, n_boot=20, n_permutations=200, figures=False)
     doc = json.loads((out / "summary.json").read_text())
     _valid(doc, "analysis_summary")
     assert doc["participants"] == doc["simulated_participants"] == 12
@@ -318,7 +318,7 @@ def test_analysis_summary_of_one_participant_is_strict_json(tmp_path):
     rows = sim.simulated_rows(sim.simulate_participants(sim.paper_design(), 1, seed=5))
     out = tmp_path / "one"
     with pytest.warns(UserWarning, match="no scene with two or more votes"):
-        analyze(rows, out, include_simulated=True, n_boot=20, n_permutations=200)
+        analyze(rows, out, include_simulated=True, n_boot=20, n_permutations=200, figures=False)
     doc = json.loads((out / "summary.json").read_text(), parse_constant=no_constants)
     _valid(doc, "analysis_summary")
     assert doc["participants"] == 1 and doc["fleiss_kappa"] is None
