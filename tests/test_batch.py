@@ -369,9 +369,11 @@ def test_a_dask_cluster_gives_the_same_index(local_run, library, tmp_path):
         # the local pool's set-up reached the Dask workers: one Mesa rasteriser thread
         assert {w["lp_threads"] for w in report.workers} == {"1"}
     finally:
+        # workers first, each gone before the scheduler is stopped: a worker told to
+        # stop while its scheduler goes too can hang in its close (distributed's rpc
+        # close is cancelled) until it is killed, 20 s later
         for p in reversed(procs):
             p.terminate()
-        for p in procs:
             try:
                 p.wait(timeout=20)
             except subprocess.TimeoutExpired:
