@@ -64,25 +64,17 @@ class ParticipantRecords(StoreEngine):
         """
         self._check_new(study_id, manifest_sha256, app_version, seed)
         values = self._prolific_values(prolific)
-        pid = secrets.token_urlsafe(16)
-        self._write(
-            lambda conn: (
-                ensure_secret(conn, study_id),
-                conn.execute(
-                    participants.insert().values(
-                        participant_id=pid,
-                        study_id=study_id,
-                        seed=seed,
-                        app_version=app_version,
-                        manifest_sha256=manifest_sha256,
-                        simulated=bool(simulated),
-                        created_at=_utcnow(),
-                        **values,
-                    )
-                ),
+        return self._write(
+            partial(
+                _insert_participant,
+                study_id=study_id,
+                seed=seed,
+                app_version=app_version,
+                manifest_sha256=manifest_sha256,
+                simulated=bool(simulated),
+                values=values,
             )
         )
-        return pid
 
     @staticmethod
     def _check_new(study_id, manifest_sha256, app_version, seed) -> None:
@@ -193,19 +185,14 @@ class ParticipantRecords(StoreEngine):
         )
         if found is not None:
             return found, False
-        pid = secrets.token_urlsafe(16)
-        ensure_secret(conn, study_id)  # the pseudonym key exists from the first participant
-        conn.execute(
-            participants.insert().values(
-                participant_id=pid,
-                study_id=study_id,
-                seed=seed,
-                app_version=app_version,
-                manifest_sha256=manifest_sha256,
-                simulated=False,
-                created_at=_utcnow(),
-                **values,
-            )
+        pid = _insert_participant(
+            conn,
+            study_id=study_id,
+            seed=seed,
+            app_version=app_version,
+            manifest_sha256=manifest_sha256,
+            simulated=False,
+            values=values,
         )
         return pid, True
 
@@ -317,3 +304,25 @@ def _participant_dict(row) -> dict:
         "manifest_sha256": row["manifest_sha256"],
         "app_version": row["app_version"],
     }
+
+
+def _insert_participant(
+    conn, *, study_id, seed, app_version, manifest_sha256, simulated, values
+) -> str:
+    """Insert a new participant with a fresh random id (in the caller's transaction) and
+    return the id; the study's pseudonym key is made with its first participant."""
+    pid = secrets.token_urlsafe(16)
+    ensure_secret(conn, study_id)
+    conn.execute(
+        participants.insert().values(
+            participant_id=pid,
+            study_id=study_id,
+            seed=seed,
+            app_version=app_version,
+            manifest_sha256=manifest_sha256,
+            simulated=simulated,
+            created_at=_utcnow(),
+            **values,
+        )
+    )
+    return pid
