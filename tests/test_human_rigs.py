@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.synth import synth_scene
+from snapcore.render.rig_groups import ancestors
 
 #: Vertices of one motion under two rest conventions agree within this, metres.
 SAME_BODY_M = 0.001
@@ -156,7 +157,7 @@ def test_a_bent_elbow_keeps_the_arms_volume():
     names, parents = sk.names, np.asarray(sk.parents)
     rest = rest_positions(parents, sk.offsets) + np.array([0.0, 1.0, 0.0])
     el = names.index("LeftForeArm")
-    below = [j for j in range(len(names)) if j == el or el in _ancestors(parents, j)]
+    below = [j for j in range(len(names)) if j == el or el in ancestors(parents, j)]
     bend = Rotation.from_euler("y", -50, degrees=True).as_matrix()  # +X towards +Z
     pos, rot = np.stack([rest, rest]), np.broadcast_to(np.eye(3), (2, len(names), 3, 3)).copy()
     pos[1, below] = rest[el] + (rest[below] - rest[el]) @ bend.T
@@ -178,15 +179,6 @@ def test_a_bent_elbow_keeps_the_arms_volume():
         * np.cos(np.radians(25))
     )
     assert elbow >= 0.7, f"elbow section {elbow:.0%} of a bent cylinder's"
-
-
-def _ancestors(parents, j):
-    out = []
-    j = int(parents[j])
-    while j >= 0:
-        out.append(j)
-        j = int(parents[j])
-    return out
 
 
 def test_segment_frames_are_rotations_and_hinges_follow_the_bend():
