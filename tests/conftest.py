@@ -12,6 +12,10 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # before anything imports Ope
 
 import pytest  # noqa: E402
 
+# PostgreSQL for the store tests: one throw-away server per test worker, shared by every
+# module that asks for it (imported into each module, it was one server per module)
+from pg import pg_server, pg_url  # noqa: E402, F401 - fixtures, requested by name
+
 from snapcore.motion.load import data_dir  # noqa: E402
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")

@@ -10,7 +10,7 @@ PostgreSQL refuses to run as root. When the tests run as root (containers, CI), 
 server binaries run as the ``postgres`` system user (created by Debian's ``postgresql``
 package) through ``runuser``, and the temp folder is handed to that user.
 
-Fixtures (import them into a test module: ``from pg import pg_server, pg_url``):
+Fixtures (registered in ``conftest.py``, so each test worker starts one server):
 
 - ``pg_server`` (session): the running :class:`PostgresServer`; skips locally and
   fails in CI (``tests/conftest.py``'s ``need``) when PostgreSQL is not installed.

@@ -18,7 +18,6 @@ import zipfile
 import pytest
 import sqlalchemy as sa
 from app_helpers import tiny_demo_stimuli
-from pg import pg_server  # noqa: F401 - fixture, requested by name
 from test_e2e import CHROMIUM, CHROMIUM_ARGS, IDLE, TOKEN, start_study, stop_process
 
 from study_app.data.database import normalize_url

@@ -25,7 +25,6 @@ import pytest
 import sqlalchemy as sa
 from app_helpers import fixture_study_doc, write_fixture_stimuli
 from click.testing import CliRunner
-from pg import pg_server, pg_url  # noqa: F401 - fixtures, requested by name
 
 from data_schema import schema_path
 from snapcore.cli.main import cli

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from pg import pg_server, pg_url  # noqa: F401 - fixtures, requested by name
 from test_open_data import PROLIFIC, populate
 
 from snapcore.cli.main import cli
@@ -206,7 +205,7 @@ def test_analyze_takes_a_bare_db_path_like_export(db, tmp_path):
     assert (tmp_path / "out" / "report.html").is_file()
 
 
-def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):  # noqa: F811 - the fixture
+def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):
     import sqlalchemy as sa
 
     from study_app.data.database import normalize_url
