@@ -319,23 +319,25 @@ def _selector_section(pose, out, *, scenes, figures=True):
     )
     parts = [text, overall.round(3)]
     doc = fr.selector_timeline_document(pose, scenes)
-    if doc is not None and figures:
-        from snapcore.render.keymoments_plot import plot_keymoment_timelines
+    if doc is not None:
 
-        from .plots import save_figure
+        def timeline():
+            from snapcore.render.keymoments_plot import plot_keymoment_timelines
 
-        extra = {
-            s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist() for s in scenes
-        }
-        fig = plot_keymoment_timelines(doc, extra=extra)
-        # The shared plot's title describes key-moment intervals (green), which this
-        # figure has none of: say what is drawn.
-        fig.axes[0].set_title(
-            "each selector's picks (filled: top pick, hollow: picks 2..k) "
-            "and the people's chosen frames (grey ticks)",
-            fontsize=9,
-        )
-        parts.insert(0, save_figure(fig, out / "figures" / "selector_timeline")[0])
+            extra = {
+                s: pose.loc[pose["scene"] == s, "chosen_frame"].astype(int).tolist() for s in scenes
+            }
+            fig = plot_keymoment_timelines(doc, extra=extra)
+            # The shared plot's title describes key-moment intervals (green), which this
+            # figure has none of: say what is drawn.
+            fig.axes[0].set_title(
+                "each selector's picks (filled: top pick, hollow: picks 2..k) "
+                "and the people's chosen frames (grey ticks)",
+                fontsize=9,
+            )
+            return fig
+
+        parts[:0] = _figure(timeline, out / "figures" / "selector_timeline", figures=figures)
     return [("Poses: which selector agrees with people?", parts)]
 
 
