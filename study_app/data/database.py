@@ -150,6 +150,8 @@ study_secrets = sa.Table(
     sa.Column("study_id", _TEXT, primary_key=True),
     sa.Column("secret", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    # When `snapshot anonymise` destroyed the secret (then the empty string); NULL before.
+    sa.Column("anonymised_at", sa.DateTime(timezone=True)),
 )
 
 #: A participant the researcher excluded from the analysis (an attention failure, a

@@ -8,7 +8,9 @@ when, the participant link id, the study, the Prolific id if they had one, and w
 it (``"cli"``: ``snapshot withdraw``; ``"page"``: the researcher page). Nothing they
 answered is kept.
 
-The record is what lets the app honour the withdrawal later: their personal link says
+The same record is appended to the withdrawal log outside the database
+(:mod:`study_app.data.withdrawal_log`) before the transaction commits, so that a restore
+after the database is lost still knows it. The record is what lets the app honour the withdrawal later: their personal link says
 that their data were withdrawn (:func:`withdrawal_of`), and the study link with their
 Prolific id does not enrol them again.
 """
@@ -24,6 +26,7 @@ import sqlalchemy as sa
 from .database import events, exclusions, participants, responses, withdrawals
 from .errors import StoreError
 from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
+from .withdrawal_log import append_log, log_path
 
 __all__ = ["WITHDRAWN_BY", "Withdrawal", "withdraw", "withdrawal_of", "withdrawal_plan"]
 
@@ -109,6 +112,20 @@ def _by_pseudonym(store, participant_id, prolific_pid, pseudonym_value, study_id
         )
     named = participants_by_pseudonym(store, value, study_id=study_id)
     if not named:
+        from .anonymise import anonymised_studies
+
+        gone = {
+            sid: at
+            for sid, at in anonymised_studies(store).items()
+            if study_id is None or sid == study_id
+        }
+        if gone:
+            sid, at = sorted(gone.items())[0]
+            raise StoreError(
+                f"pseudonym {value!r} cannot be traced: study {sid!r} was anonymised on "
+                f"{at.date().isoformat()} (its pseudonyms lead to nobody any more); "
+                "withdraw by link id or Prolific id; nothing was deleted"
+            )
         raise StoreError(
             f"unknown pseudonym {value!r}: no participant of "
             + (f"study {study_id!r}" if study_id else "this database")
@@ -268,6 +285,21 @@ def withdraw(
                     pid, row["study_id"], row["prolific_pid"], by, now, int(n_resp), int(n_ev)
                 )
             )
+        # Before the commit: a withdrawal the log cannot keep is not made (a lost
+        # database would take it along, and a restore bring the person back).
+        append_log(
+            log_path(store._url),
+            [
+                {
+                    "participant_id": w.participant_id,
+                    "study_id": w.study_id,
+                    "prolific_pid": w.prolific_pid,
+                    "requested_by": w.requested_by,
+                    "withdrawn_at": w.withdrawn_at,
+                }
+                for w in done
+            ],
+        )
     return done
 
 
