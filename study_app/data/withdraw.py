@@ -5,7 +5,9 @@ how: the study config's ``contact``). :func:`withdraw` deletes, in one transacti
 their responses, their interaction events and their participant row (background
 answers, seed, Prolific ids, completion code), and adds one row to ``withdrawals``:
 when, the participant link id, the study, the Prolific id if they had one, and who did
-it (``"cli"``: ``snapshot withdraw``; ``"page"``: the researcher page). Nothing they
+it (``"cli"``: ``snapshot withdraw``; ``"page"``: the researcher page); for someone who
+had finished, also their completion code and when they finished, for payment only
+(:func:`study_app.data.monitor.completion_codes`; never exported). Nothing they
 answered is kept.
 
 The same record is appended to the withdrawal log outside the database
@@ -28,7 +30,14 @@ from .errors import StoreError
 from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
 from .withdrawal_log import append_log, log_path
 
-__all__ = ["WITHDRAWN_BY", "Withdrawal", "withdraw", "withdrawal_of", "withdrawal_plan"]
+__all__ = [
+    "WITHDRAWN_BY",
+    "Withdrawal",
+    "withdraw",
+    "withdrawal_of",
+    "withdrawal_plan",
+    "withdrawals_of_study",
+]
 
 #: Who can withdraw a participant: the command line or the researcher page.
 WITHDRAWN_BY = ("cli", "page")
@@ -262,6 +271,10 @@ def withdraw(
         rows = _targets(conn, participant_id, prolific_pid, study_id, named)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
+        # A database made before the payment columns keeps working (without them).
+        keeps_codes = "completion_code" in {
+            c["name"] for c in sa.inspect(conn).get_columns("withdrawals")
+        }
         for row in rows:
             pid = row["participant_id"]
             # Children first: responses and events refer to the participant row.
@@ -271,6 +284,11 @@ def withdraw(
             n_ev = conn.execute(events.delete().where(events.c.participant_id == pid)).rowcount
             conn.execute(exclusions.delete().where(exclusions.c.participant_id == pid))
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
+            payment = (
+                {"completion_code": row["completion_code"], "completed_at": row["completed_at"]}
+                if keeps_codes and row["completed_at"] is not None
+                else {}
+            )
             conn.execute(
                 withdrawals.insert().values(
                     participant_id=pid,
@@ -278,6 +296,7 @@ def withdraw(
                     prolific_pid=row["prolific_pid"],
                     requested_by=by,
                     withdrawn_at=now,
+                    **payment,
                 )
             )
             done.append(
@@ -327,3 +346,19 @@ def withdrawal_of(
             .first()
         )
     return None if row is None else _record(row)
+
+
+def withdrawals_of_study(store, study_id: str) -> list[Withdrawal]:
+    """Every withdrawal recorded for ``study_id``, oldest first (the researcher page's
+    list: when, by whom, whose link id and Prolific id)."""
+    with store.transaction(write=False) as conn:
+        rows = (
+            conn.execute(
+                sa.select(withdrawals)
+                .where(withdrawals.c.study_id == study_id)
+                .order_by(withdrawals.c.withdrawn_at)
+            )
+            .mappings()
+            .all()
+        )
+    return [_record(r) for r in rows]
