@@ -257,7 +257,13 @@ def test_researcher_page_end_to_end(server, browser):
     code_c = rows(
         engine, "SELECT completion_code FROM participants WHERE participant_id = :p", p=pids["C"]
     )[0][0]
-    assert [(c["Prolific id"], c["completion code"]) for c in codes] == [(PROLIFIC["C"], code_c)]
+    # A finished, then withdrew: still owed, so still listed (marked), for payment only.
+    code_a = rows(
+        engine, "SELECT completion_code FROM withdrawals WHERE participant_id = :p", p=pids["A"]
+    )[0][0]
+    assert sorted(
+        (c["Prolific id"], c["completion code"], c["withdrawn (UTC)"] != "") for c in codes
+    ) == sorted([(PROLIFIC["A"], code_a, True), (PROLIFIC["C"], code_c, False)])
     page.context.close()
 
 

@@ -562,3 +562,15 @@ def test_failed_exports_and_backups_leave_nothing_and_blame_the_right_file(tmp_p
     assert code == 2 and "no responses" in err
     assert not (tmp_path / "none").exists()
     assert os.listdir(tmp_path / "full") == ["x"]
+
+
+def test_a_damaged_backup_is_named_in_one_line():
+    """An integrity report of many lines (one row per problem, or one row of many lines)
+    becomes one line: its first problem and how many more."""
+    from study_app.data.backup import _first_problem
+
+    report = ["*** in database main ***\nPage 5: never used\nPage 6: never used"]
+    assert _first_problem(report) == "Page 5: never used; 1 more problems"
+    rows = [f"row {i} missing from index" for i in range(12)]
+    assert _first_problem(rows) == "row 0 missing from index; 11 more problems"
+    assert "\n" not in _first_problem(["database disk image is malformed"])

@@ -300,6 +300,15 @@ def _kind(path: Path) -> str:
     raise StoreError(f"{path}: not a backup (neither a SQLite file nor a pg_dump archive)")
 
 
+def _first_problem(report) -> str:
+    """The first problem of an integrity report, as one short line (SQLite may give
+    one row per problem, or one row of many lines, headed ``*** in database main ***``)."""
+    lines = [ln.strip() for row in report for ln in str(row).splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not ln.startswith("***")] or lines or ["unknown"]
+    more = f"; {len(lines) - 1} more problems" if len(lines) > 1 else ""
+    return lines[0][:200] + more
+
+
 def verify_backup(backup_file) -> BackupResult:
     """Check that a backup file can be restored, without restoring it.
 
@@ -341,7 +350,7 @@ def verify_backup(backup_file) -> BackupResult:
         try:
             bad = [r[0] for r in con.execute("PRAGMA integrity_check")]
             if bad != ["ok"]:
-                raise StoreError(f"{path}: damaged SQLite file ({bad[0]})")
+                raise StoreError(f"{path}: damaged SQLite file ({_first_problem(bad)})")
             names = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             missing = [t for t in STUDY_TABLES if t not in names]
             if missing:
@@ -374,7 +383,7 @@ def verify_backup(backup_file) -> BackupResult:
         finally:
             con.close()
     except sqlite3.Error as err:
-        raise StoreError(f"{path}: damaged SQLite file ({err})") from None
+        raise StoreError(f"{path}: damaged SQLite file ({_first_problem([str(err)])})") from None
     return BackupResult(path, "sqlite", rows)
 
 
