@@ -110,7 +110,12 @@ def server(request, stimuli_dir, tmp_path_factory):
         url = request.getfixturevalue("pg_server").create_database()
     stim = load_stimuli(stimuli_dir)
     pids = populate(url, stim)
-    proc, base = start_study(stimuli_dir, url, tmp_path_factory.mktemp("log") / "server.log")
+    logs = tmp_path_factory.mktemp("log")
+    with pytest.MonkeyPatch.context() as mp:
+        # The page's withdrawals are logged here, not in the project's var/ (PostgreSQL
+        # has no file to log beside).
+        mp.setenv("SNAPSHOT_WITHDRAWAL_LOG", str(logs / "withdrawals.jsonl"))
+        proc, base = start_study(stimuli_dir, url, logs / "server.log")
     engine = sa.create_engine(normalize_url(url))
     yield base, engine, pids, stim
     engine.dispose()
