@@ -154,7 +154,10 @@ def test_withdraw_leaves_only_the_withdrawal_record(url):
         "prolific_pid",
         "requested_by",
         "withdrawn_at",
+        "completion_code",  # A had finished: kept for payment only (issue 37)
+        "completed_at",
     }
+    assert rec["completion_code"] in {r[-1] for r in before["participants"]}
     # Everyone else's rows are exactly as before.
     for table in ("participants", "responses", "events"):
         assert [r for r in before[table] if not any(g in c for g in gone for c in r)] == after[

@@ -452,9 +452,12 @@ def test_anonymise_leaves_the_secret_in_no_file_or_table_and_the_analysis_runs(t
 
 
 @pytest.mark.postgres
-def test_anonymise_on_postgres_leaves_the_secret_in_no_table_or_relation_file(pg_url, pg_server):
+def test_anonymise_on_postgres_leaves_the_secret_in_no_table_or_relation_file(
+    pg_url, pg_server, tmp_path, monkeypatch
+):
     """PostgreSQL: after anonymise no table holds the secret, nor any relation file of
     the server's data folder (the old row version is gone with VACUUM FULL); exports run."""
+    monkeypatch.setenv("SNAPSHOT_WITHDRAWAL_LOG", str(tmp_path / "log.jsonl"))
     with Store(pg_url) as s:
         populate(s)
         with s.engine.connect() as conn:
@@ -574,3 +577,29 @@ def test_a_damaged_backup_is_named_in_one_line():
     rows = [f"row {i} missing from index" for i in range(12)]
     assert _first_problem(rows) == "row 0 missing from index; 11 more problems"
     assert "\n" not in _first_problem(["database disk image is malformed"])
+
+
+def test_a_restore_from_before_anonymise_destroys_the_secret_again(tmp_path):
+    """A backup made before `snapshot anonymise` holds the secret; restoring it after the
+    database is lost (in place, or elsewhere with the log) leaves it in no table and
+    no file of the restored database."""
+    db = tmp_path / "study.db"
+    with Store(f"sqlite:///{db}") as s:
+        populate(s)
+    secret = sqlite_secret(db, "fixture")
+    old = tmp_path / "old" / "before.db"
+    old.parent.mkdir()
+    assert cli_run("backup", "--db", db, "-o", old)[0] == 0
+    assert cli_run("anonymise", "--db", db, "--yes")[0] == 0
+    lose(db)
+    for target in (db, tmp_path / "new" / "r.db"):
+        target.parent.mkdir(exist_ok=True)
+        extra = [] if target == db else ["--withdrawals-from", f"{db}.withdrawals.jsonl"]
+        code, _, err = cli_run("restore", old, "--db", f"sqlite:///{target}", *extra)
+        assert code == 0 and "destroyed again" in err, err
+        assert sqlite_secret(target, "fixture") == ""
+        beside = [f for f in target.parent.glob(f"{target.name}*") if f.is_file()]
+        assert beside and not [f for f in beside if secret.encode() in f.read_bytes()], target
+    assert files_holding(old.parent, secret) == [
+        str(old)
+    ]  # the old backup: the researcher's to delete

@@ -137,6 +137,12 @@ def restore(backup_file, db_url, withdrawals_from, without_log, quiet):
             f"({result.method}{': ' + rows if rows else ''})",
             err=True,
         )
+        if result.anonymised:
+            click.echo(
+                f"destroyed again the pseudonym secret of {', '.join(result.anonymised)}, "
+                "anonymised after the backup",
+                err=True,
+            )
         if result.withdrawn:
             click.echo(
                 f"re-applied {len(result.withdrawn)} withdrawals recorded after the "

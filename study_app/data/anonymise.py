@@ -14,6 +14,10 @@ participant row, its Prolific id and its completion code. :func:`anonymise` ends
   of one export still agree with each other, but no pseudonym can be traced, not even by
   the researcher.
 
+The anonymisation is logged outside the database too (the withdrawal log,
+:mod:`study_app.data.withdrawal_log`): restoring a backup made before it destroys the
+restored secret again (:func:`reapply_anonymisations`).
+
 What it costs: a withdrawal can no longer be asked by pseudonym (by link id or Prolific
 id it still can, while the database keeps them), and two exports made after it give
 the same person different pseudonyms. Backups made *before* it still hold the secret:
@@ -34,7 +38,7 @@ from sqlalchemy import exc as sa_exc
 from .database import one_line, participants, study_secrets
 from .errors import StoreError
 
-__all__ = ["Anonymisation", "anonymise", "anonymised_studies"]
+__all__ = ["Anonymisation", "anonymise", "anonymised_studies", "reapply_anonymisations"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +82,10 @@ def anonymised_studies(store) -> dict[str, datetime]:
 def anonymise(store, *, study_id: str | None = None) -> list[Anonymisation]:
     """Destroy the pseudonym secret of ``study_id`` (or of every study in the database).
 
+    The anonymisation is also appended to the withdrawal log outside the database
+    (:mod:`study_app.data.withdrawal_log`), so that restoring a backup made before it
+    destroys the restored secret again.
+
     Parameters
     ----------
     store : study_app.data.store.Store
@@ -92,9 +100,30 @@ def anonymise(store, *, study_id: str | None = None) -> list[Anonymisation]:
     Raises
     ------
     StoreError
-        An unknown study (no participant, no secret), nothing to anonymise, or the
-        database cannot be rewritten (another process holds it: stop the app first).
+        An unknown study (no participant, no secret), nothing to anonymise, the log
+        cannot be written (nothing is changed then), or the database cannot be
+        rewritten (another process holds it: stop the app first).
     """
+    return _anonymise(store, None if study_id is None else {study_id: None}, log=True)
+
+
+def reapply_anonymisations(store, studies: dict) -> list[Anonymisation]:
+    """Destroy again, with their first time kept, the secrets of ``studies`` (study id →
+    when it was anonymised) that a restored backup brought back; the studies the
+    database does not know are skipped."""
+    with store.transaction(write=False) as conn:
+        known = set(conn.execute(sa.select(study_secrets.c.study_id)).scalars()) | set(
+            conn.execute(sa.select(participants.c.study_id).distinct()).scalars()
+        )
+    wanted = {sid: at for sid, at in studies.items() if sid in known}
+    return _anonymise(store, wanted, log=False) if wanted else []
+
+
+def _anonymise(store, wanted: dict | None, *, log: bool) -> list[Anonymisation]:
+    """Blank the secrets of ``wanted`` (study id → time, None for now; None: every
+    study), log them, then scrub the storage."""
+    from .withdrawal_log import append_log, log_path
+
     now = datetime.now(UTC)
     done = []
     with store.transaction(write=True) as conn:
@@ -110,15 +139,18 @@ def anonymise(store, *, study_id: str | None = None) -> list[Anonymisation]:
             ).all()
         }
         studies = set(conn.execute(sa.select(participants.c.study_id).distinct()).scalars())
-        wanted = sorted(set(held) | studies) if study_id is None else [study_id]
-        if study_id is not None and study_id not in held and study_id not in studies:
-            raise StoreError(
-                f"unknown study {study_id!r}: no participant and no pseudonym secret "
-                "in this database; nothing was changed"
-            )
+        if wanted is None:
+            wanted = dict.fromkeys(sorted(set(held) | studies))
+        for sid in wanted:
+            if sid not in held and sid not in studies:
+                raise StoreError(
+                    f"unknown study {sid!r}: no participant and no pseudonym secret "
+                    "in this database; nothing was changed"
+                )
         if not wanted:
             raise StoreError("the database holds no study to anonymise; nothing was changed")
-        for sid in wanted:
+        for sid, when in sorted(wanted.items()):
+            when = _utc(when) if when is not None else now
             secret, at = held.get(sid, (None, None))
             if secret == "" and at is not None:
                 done.append(Anonymisation(sid, _utc(at), already=True))
@@ -126,16 +158,23 @@ def anonymise(store, *, study_id: str | None = None) -> list[Anonymisation]:
             if secret is None:  # no participant yet: keep any later one from making one
                 conn.execute(
                     study_secrets.insert().values(
-                        study_id=sid, secret="", created_at=now, anonymised_at=now
+                        study_id=sid, secret="", created_at=when, anonymised_at=when
                     )
                 )
             else:
                 conn.execute(
                     study_secrets.update()
                     .where(study_secrets.c.study_id == sid)
-                    .values(secret="", anonymised_at=now)
+                    .values(secret="", anonymised_at=when)
                 )
-            done.append(Anonymisation(sid, now))
+            done.append(Anonymisation(sid, when))
+        new = [
+            {"study_id": a.study_id, "anonymised_at": a.anonymised_at}
+            for a in done
+            if not a.already
+        ]
+        if log and new:  # before the commit, like a withdrawal
+            append_log(log_path(store._url), new)
     _scrub(store)  # also after an earlier run whose scrub failed
     return done
 

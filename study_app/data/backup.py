@@ -51,10 +51,18 @@ from .database import (
     one_snapshot,
     table_counts,
     table_names,
+    upgrade_columns,
 )
 from .database import _utc as _as_utc
 from .errors import StoreError
-from .withdrawal_log import BACKUP_LOG_NAME, LOG_ENV, log_path, merge_into, read_log
+from .withdrawal_log import (
+    BACKUP_LOG_NAME,
+    LOG_ENV,
+    log_path,
+    merge_into,
+    read_anonymised,
+    read_log,
+)
 
 __all__ = [
     "BACKUP_METHODS",
@@ -96,6 +104,8 @@ class BackupResult:
     rows: dict = field(default_factory=dict)
     #: Participants whose later withdrawal a restore re-applied (``withdrawals_from``).
     withdrawn: list = field(default_factory=list)
+    #: Studies whose secret a restore destroyed again (anonymised after the backup).
+    anonymised: list = field(default_factory=list)
 
 
 def find_pg_tool(name: str) -> Path | None:
@@ -388,17 +398,22 @@ def verify_backup(backup_file) -> BackupResult:
 
 
 def _withdrawal_records(url) -> list[dict]:
-    """The withdrawal records of the database (or SQLite backup) at ``url``."""
+    """The withdrawal records of the database (or SQLite backup) at ``url``, and one
+    ``{"study_id", "anonymised_at"}`` record per study whose secret was destroyed."""
+    from .anonymise import anonymised_studies
     from .database import withdrawals
     from .store import Store
 
-    with Store(url, create=False) as src, src.transaction(write=False) as conn:
-        if not sa.inspect(conn).has_table("withdrawals"):
-            return []
-        return [
-            {k: _as_utc(v) for k, v in r.items()}
-            for r in conn.execute(sa.select(withdrawals)).mappings()
-        ]
+    with Store(url, create=False) as src:
+        with src.transaction(write=False) as conn:
+            if not sa.inspect(conn).has_table("withdrawals"):
+                return []
+            out = [
+                {k: _as_utc(v) for k, v in r.items() if k != "id"}
+                for r in conn.execute(sa.select(withdrawals)).mappings()
+            ]
+        gone = anonymised_studies(src) if sa.inspect(src.engine).has_table("study_secrets") else {}
+    return out + [{"study_id": sid, "anonymised_at": at} for sid, at in sorted(gone.items())]
 
 
 def _reapply(conn, records) -> list[str]:
@@ -446,18 +461,22 @@ def _records_of(source) -> list[dict]:
                 "a database and give that database's URL)"
             )
         if not head.startswith(_SQLITE_MAGIC):
-            return read_log(candidate)
+            return read_log(candidate) + [
+                {"study_id": sid, "anonymised_at": at}
+                for sid, at in read_anonymised(candidate).items()
+            ]
     elif "://" not in text and candidate.suffix.lower() == ".jsonl":
         raise StoreError(f"{candidate}: no such withdrawal log")
     return _withdrawal_records(source)
 
 
 def _unique(records) -> list[dict]:
-    """One record per participant (the first given)."""
+    """One withdrawal per participant, one anonymisation per study (the first given)."""
     seen, out = set(), []
     for r in records:
-        if r["participant_id"] not in seen:
-            seen.add(r["participant_id"])
+        key = ("p", r["participant_id"]) if r.get("participant_id") else ("s", r["study_id"])
+        if key not in seen:
+            seen.add(key)
             out.append(r)
     return out
 
@@ -525,11 +544,13 @@ def restore(
             f"<db>.withdrawals.jsonl, or ${LOG_ENV}), its database or a later backup, "
             "or --without-withdrawal-log to restore anyway"
         )
-    records = [r for src in sources for r in _records_of(src)]
+    known = [r for src in sources for r in _records_of(src)]
     for extra in (target_log, path.parent / BACKUP_LOG_NAME):
         if extra.is_file():
-            records += read_log(extra)
-    records = _unique(records)
+            known += _records_of(extra)
+    known = _unique(known)
+    records = [r for r in known if r.get("participant_id")]
+    anonymised = {r["study_id"]: r["anonymised_at"] for r in known if not r.get("participant_id")}
     new_file = None
     if target.get_backend_name() == "sqlite" and target.database not in (None, "", ":memory:"):
         new_file = None if Path(target.database).exists() else Path(target.database)
@@ -537,6 +558,12 @@ def restore(
     store = Store(url)
     try:
         result = _restore_into(store, path, kind, target, records)
+        if anonymised:  # a backup made before `snapshot anonymise` brought a secret back
+            from .anonymise import reapply_anonymisations
+
+            result.anonymised = [
+                a.study_id for a in reapply_anonymisations(store, anonymised) if not a.already
+            ]
     except BaseException:
         store.close()
         if new_file is not None:  # a failed restore leaves no empty database behind
@@ -544,8 +571,9 @@ def restore(
                 Path(f"{new_file}{extra}").unlink(missing_ok=True)
         raise
     store.close()
-    # The restored database's log holds every withdrawal it knows of, from here on.
-    merge_into(target_log, _unique([*_withdrawal_records(url), *records]))
+    # The restored database's log holds every withdrawal (and anonymisation) it knows
+    # of, from here on.
+    merge_into(target_log, _unique([*_withdrawal_records(url), *known]))
     return result
 
 
@@ -585,6 +613,7 @@ def _restore_into(store, path, kind, target, records) -> BackupResult:
         raise err
     if kind == "pg_dump":
         result = _pg_restore(path, target, clean=bool(counts))
+        upgrade_columns(store.engine)  # an archive of an older version lacks new columns
         if records:
             with store.transaction(write=True) as conn:
                 result.withdrawn = _reapply(conn, records)

@@ -266,7 +266,7 @@ def withdraw(
         raise StoreError(f"withdrawn by must be one of {', '.join(WITHDRAWN_BY)}, got {by!r}")
     named = _by_pseudonym(store, participant_id, prolific_pid, pseudonym, study_id)
     now = datetime.now(UTC)
-    done = []
+    done, logged = [], []
     with store.transaction(write=True) as conn:
         rows = _targets(conn, participant_id, prolific_pid, study_id, named)
         if not rows:
@@ -286,19 +286,18 @@ def withdraw(
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
             payment = (
                 {"completion_code": row["completion_code"], "completed_at": row["completed_at"]}
-                if keeps_codes and row["completed_at"] is not None
+                if row["completed_at"] is not None
                 else {}
             )
-            conn.execute(
-                withdrawals.insert().values(
-                    participant_id=pid,
-                    study_id=row["study_id"],
-                    prolific_pid=row["prolific_pid"],
-                    requested_by=by,
-                    withdrawn_at=now,
-                    **payment,
-                )
-            )
+            record = {
+                "participant_id": pid,
+                "study_id": row["study_id"],
+                "prolific_pid": row["prolific_pid"],
+                "requested_by": by,
+                "withdrawn_at": now,
+            }
+            conn.execute(withdrawals.insert().values(**record, **(payment if keeps_codes else {})))
+            logged.append({**record, **payment})
             done.append(
                 Withdrawal(
                     pid, row["study_id"], row["prolific_pid"], by, now, int(n_resp), int(n_ev)
@@ -306,19 +305,7 @@ def withdraw(
             )
         # Before the commit: a withdrawal the log cannot keep is not made (a lost
         # database would take it along, and a restore bring the person back).
-        append_log(
-            log_path(store._url),
-            [
-                {
-                    "participant_id": w.participant_id,
-                    "study_id": w.study_id,
-                    "prolific_pid": w.prolific_pid,
-                    "requested_by": w.requested_by,
-                    "withdrawn_at": w.withdrawn_at,
-                }
-                for w in done
-            ],
-        )
+        append_log(log_path(store._url), logged)
     return done
 
 

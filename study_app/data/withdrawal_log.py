@@ -18,8 +18,11 @@ the backup and any ``withdrawals_from`` source, and refuses when it has no log m
 after the backup (one line), unless the researcher waives it.
 
 A line: ``{"participant_id", "study_id", "prolific_pid", "requested_by",
-"withdrawn_at"}`` (ISO 8601, UTC). It holds the ids the ``withdrawals`` table holds
-and nothing the participant answered.
+"withdrawn_at", "completion_code", "completed_at"}`` (times ISO 8601, UTC; the code and
+finishing time only for someone who had finished, for payment). It holds the ids the
+``withdrawals`` table holds and nothing the participant answered. ``snapshot
+anonymise`` appends ``{"study_id", "anonymised_at"}``: a restore of a backup made
+before it destroys the restored secret again (:func:`read_anonymised`).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ __all__ = [
     "log_path",
     "append_log",
     "read_log",
+    "read_anonymised",
     "merge_into",
 ]
 
@@ -48,7 +52,16 @@ LOG_ENV = "SNAPSHOT_WITHDRAWAL_LOG"
 LOG_SUFFIX = ".withdrawals.jsonl"
 #: The list of withdrawals beside a backup file (one per folder of backups).
 BACKUP_LOG_NAME = "withdrawals.jsonl"
-_FIELDS = ("participant_id", "study_id", "prolific_pid", "requested_by", "withdrawn_at")
+_FIELDS = (
+    "participant_id",
+    "study_id",
+    "prolific_pid",
+    "requested_by",
+    "withdrawn_at",
+    "completion_code",
+    "completed_at",
+)
+_TIMES = ("withdrawn_at", "completed_at", "anonymised_at")
 
 
 def log_path(url) -> Path:
@@ -65,13 +78,25 @@ def log_path(url) -> Path:
     return Path(__file__).resolve().parents[2] / "var" / f"{name}{LOG_SUFFIX}"
 
 
+def _iso(value):
+    if isinstance(value, datetime):
+        value = value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+        return value.isoformat()
+    return value
+
+
 def _line(record: dict) -> str:
-    out = {k: record.get(k) for k in _FIELDS}
-    at = out["withdrawn_at"]
-    if isinstance(at, datetime):
-        at = at.replace(tzinfo=UTC) if at.tzinfo is None else at.astimezone(UTC)
-        out["withdrawn_at"] = at.isoformat()
+    """One log line: a withdrawal, or (no ``participant_id``) an anonymisation."""
+    keys = _FIELDS if record.get("participant_id") else ("study_id", "anonymised_at")
+    out = {k: _iso(record.get(k)) for k in keys}
     return json.dumps(out, ensure_ascii=False) + "\n"
+
+
+def _time(value):
+    if value in (None, ""):
+        return None
+    at = datetime.fromisoformat(str(value))
+    return at.replace(tzinfo=UTC) if at.tzinfo is None else at
 
 
 def append_log(path, records) -> None:
@@ -94,17 +119,18 @@ def append_log(path, records) -> None:
     except OSError as err:
         raise StoreError(
             f"cannot write the withdrawal log {path}: {err.strerror or err} "
-            f"(set ${LOG_ENV} to a writable file); nothing was deleted"
+            f"(set ${LOG_ENV} to a writable file); nothing was changed"
         ) from None
 
 
-def read_log(path) -> list[dict]:
-    """The records of a withdrawal log (``withdrawn_at`` as an aware datetime).
+def _entries(path) -> list[dict]:
+    """Every line of the log at ``path``, times as aware datetimes.
 
     Raises
     ------
     StoreError
-        The file cannot be read, or a line is not a withdrawal record (file:line).
+        The file cannot be read, or a line is neither a withdrawal nor an
+        anonymisation record (file:line).
     """
     path = Path(path)
     try:
@@ -117,31 +143,61 @@ def read_log(path) -> list[dict]:
             continue
         try:
             rec = json.loads(line)
-            if not isinstance(rec, dict) or not rec.get("participant_id"):
-                raise ValueError("no participant_id")
-            at = datetime.fromisoformat(str(rec["withdrawn_at"]))
-        except (ValueError, KeyError, TypeError) as err:
+            if not isinstance(rec, dict):
+                raise ValueError("not an object")
+            if rec.get("participant_id"):
+                rec = {k: rec.get(k) for k in _FIELDS}
+                if rec["withdrawn_at"] is None:
+                    raise ValueError("no withdrawn_at")
+                rec["study_id"] = rec["study_id"] or ""
+                rec["requested_by"] = rec["requested_by"] or "cli"
+            elif rec.get("study_id") and rec.get("anonymised_at"):
+                rec = {"study_id": rec["study_id"], "anonymised_at": rec["anonymised_at"]}
+            else:
+                raise ValueError("neither a participant_id nor an anonymised study")
+            for k in _TIMES:
+                if k in rec:
+                    rec[k] = _time(rec[k])
+        except (ValueError, TypeError) as err:
             msg = getattr(err, "msg", None) or str(err)
             raise StoreError(f"{path}:{lineno}: not a withdrawal record ({msg})") from None
-        rec["withdrawn_at"] = at.replace(tzinfo=UTC) if at.tzinfo is None else at
-        rec.setdefault("study_id", "")
-        rec.setdefault("requested_by", "cli")
-        out.append({k: rec.get(k) for k in _FIELDS})
+        out.append(rec)
     return out
 
 
+def read_log(path) -> list[dict]:
+    """The withdrawal records of a log (times as aware datetimes; missing fields None).
+
+    Raises
+    ------
+    StoreError
+        See :func:`_entries`.
+    """
+    return [r for r in _entries(path) if r.get("participant_id")]
+
+
+def read_anonymised(path) -> dict:
+    """Study id → when ``snapshot anonymise`` destroyed its secret, from a log."""
+    return {r["study_id"]: r["anonymised_at"] for r in _entries(path) if "anonymised_at" in r}
+
+
 def merge_into(path, records) -> int:
-    """Add to the log at ``path`` the records whose participant it lacks; return how
-    many were added. The file is rewritten atomically (a temp file renamed)."""
+    """Add to the log at ``path`` the records it lacks (a withdrawal per participant, an
+    anonymisation per study); return how many were added. The file is rewritten
+    atomically (a temp file renamed)."""
     from .export import _write_atomic
 
     path = Path(path)
-    have = read_log(path) if path.exists() else []
-    known = {r["participant_id"] for r in have}
+    have = _entries(path) if path.exists() else []
+
+    def key(r):
+        return ("p", r["participant_id"]) if r.get("participant_id") else ("s", r["study_id"])
+
+    known = {key(r) for r in have}
     new = []
     for r in records:
-        if r["participant_id"] not in known:
-            known.add(r["participant_id"])
+        if key(r) not in known:
+            known.add(key(r))
             new.append(r)
     if new:
         _write_atomic(path, "".join(_line(r) for r in [*have, *new]))
