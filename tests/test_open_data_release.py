@@ -239,8 +239,8 @@ def join_attack(open_rows, private_rows, column, truth, coarsen=lambda v: v) -> 
 def test_joins_with_the_identifiers_file_match_no_better_than_chance(tmp_path):
     """Joining each open file to the --identifiers file of the same table on every
     shared column that is not an observation (ids, codes, tab ids, times, durations,
-    shares watched, event payloads), exactly and with times cut to the open file's
-    dates, links no more participants than guessing (1 in expectation per column,
+    shares watched, event payloads), exactly and with times cut to dates and months,
+    links no more participants than guessing (1 in expectation per column,
     Poisson bound at ALPHA); the raw tab_id alone would link all 24."""
     db = tmp_path / "study.db"
     with Store(f"sqlite:///{db}") as s:
@@ -257,9 +257,10 @@ def test_joins_with_the_identifiers_file_match_no_better_than_chance(tmp_path):
         for column in sorted(shared):
             results[(table, column, "exact")] = join_attack(open_rows, private_rows, column, truth)
             if column in ("created_at", "completed_at"):
-                results[(table, column, "date")] = join_attack(
-                    open_rows, private_rows, column, truth, coarsen=lambda v: v[:10]
-                )
+                for cut, n in (("date", 10), ("month", 7)):
+                    results[(table, column, cut)] = join_attack(
+                        open_rows, private_rows, column, truth, coarsen=lambda v, n=n: v[:n]
+                    )
     tested = {c for _, c, _ in results}
     assert {"participant_id", "prolific_pid", "tab_id", "response_time_s", "active_time_s",
             "watched", "created_at", "completed_at", "completion_code", "payload",

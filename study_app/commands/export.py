@@ -101,7 +101,7 @@ def export(
     digits of a keyed hash (HMAC-SHA256 with a secret kept in the database, never
     exported), the same in every export, so an analysis can be re-run and files
     joined. Such shared exports also leave out each participant's seed, give times as
-    UTC dates, round durations to 0.1 s and order rows by pseudonym (not by arrival),
+    UTC months, round durations to 0.1 s and order rows by pseudonym (not by arrival),
     so that neither order nor a time nor a technical id matches a row to Prolific's
     records or to an identifiers file (docs/open-data.md). --identifiers gives the
     raw ids, seeds, exact times and arrival order, with a warning. Every file is
@@ -198,11 +198,11 @@ def export(
         staged.clear()
     except OSError as err:
         raise StoreError(f"cannot write {err.filename or 'the output'}: {err.strerror}") from None
-    except StoreError as err:  # name the file asked for, not its temp name
+    except SnapshotError as err:  # name the file asked for, not its temp name
         text = str(err)
         for tmp, final in staged:
             text = text.replace(str(tmp), str(final))
-        raise StoreError(text) from None
+        raise type(err)(text) from None
     finally:
         for tmp, _ in staged:  # a failed export leaves no file behind
             try:

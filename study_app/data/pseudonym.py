@@ -17,8 +17,9 @@ does, and exporting from a backup reads it instead of writing a new one.
 Open exports also leave out or coarsen every column that could link a row back to
 Prolific's records or to an identifiers file without the ids (docs/open-data.md): the
 participant's ``seed`` (62 random bits, unique per person) is left out; times
-(``created_at``/``completed_at``, to the microsecond) become their UTC date
-(``YYYY-MM-DD``); durations (``response_time_s``, ``active_time_s``) are rounded to 0.1 s
+(``created_at``/``completed_at``, to the microsecond) become their UTC month
+(``YYYY-MM``: days would group people whom Prolific's start dates tell apart, and
+the analysis uses no date); durations (``response_time_s``, ``active_time_s``) are rounded to 0.1 s
 and shares watched floored to 0.001 (what the analysis uses: medians in seconds, a watch
 threshold such as 0.9); the browser tab's random id (``tab_id``, and ``tab`` in events)
 is pseudonymised like an identifier; and rows come ordered by pseudonym
@@ -70,7 +71,7 @@ PSEUDONYM_RE = r"^p-[0-9a-f]{16}$"
 _HEX_DIGITS = 16
 #: Columns left out of open exports: the seed is unique per person (a join key).
 OPEN_DROPPED = ("seed",)
-#: Timestamp columns, given as their UTC date in open exports.
+#: Timestamp columns, given as their UTC month (``YYYY-MM``) in open exports.
 TIME_COLUMNS = ("created_at", "completed_at")
 #: Durations (s), rounded to :data:`DURATION_DECIMALS` places in open exports: 15 digits
 #: are the same in an identifiers file and join a row to it.
@@ -214,7 +215,7 @@ class Pseudonymiser:
 
     def record(self, record: dict) -> dict:
         """A copy of ``record`` for an open export: every non-empty identifier column
-        and the tab id pseudonymised, ``seed`` left out, times as their UTC date,
+        and the tab id pseudonymised, ``seed`` left out, times as their UTC month,
         durations and shares coarsened (:func:`open_value`)."""
         out = {k: open_value(k, v) for k, v in record.items() if k not in OPEN_DROPPED}
         present = [c for c in (*IDENTIFIER_COLUMNS, TAB_COLUMN) if out.get(c) not in (None, "")]
@@ -241,13 +242,13 @@ class Pseudonymiser:
 
 
 def open_value(column: str, value):
-    """``value`` of ``column`` as an open export gives it: times as their UTC date,
+    """``value`` of ``column`` as an open export gives it: times as their UTC month,
     durations rounded to 0.1 s, shares floored to 0.001, event payload times and
     ranges to 0.01; anything else as it is."""
     if value is None or isinstance(value, bool):
         return value
     if column in TIME_COLUMNS and isinstance(value, str):
-        return _date(value)
+        return _month(value)
     if column in DURATION_COLUMNS and isinstance(value, int | float):
         return round(float(value), DURATION_DECIMALS)
     if column == "watched" and isinstance(value, int | float):
@@ -273,10 +274,10 @@ def _floor(value: float, decimals: int) -> float:
     return math.floor(value * scale + 1e-9) / scale
 
 
-def _date(value: str) -> str:
-    """The UTC date (``YYYY-MM-DD``) of an ISO 8601 time."""
+def _month(value: str) -> str:
+    """The UTC month (``YYYY-MM``, an ISO 8601 calendar month) of an ISO 8601 time."""
     t = datetime.fromisoformat(value)
-    return (t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)).date().isoformat()
+    return (t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)).strftime("%Y-%m")
 
 
 def participants_by_pseudonym(store, value: str, *, study_id: str | None = None) -> list[str]:

@@ -329,7 +329,7 @@ def _description(study, studies, columns, pseudonymise) -> tuple[dict, list[str]
         "with the video player); materials/ the stimulus manifest (scenes, frame maps, "
         "file checksums). Frames are 0-based in the source motion's numbering; times are "
         + (
-            "UTC dates (YYYY-MM-DD; the seed of each participant's trial order is left out, "
+            "UTC months (YYYY-MM; the seed of each participant's trial order is left out, "
             "so that no column links a row to the study's private records)"
             if pseudonymise
             else "ISO 8601 in UTC"

@@ -488,7 +488,7 @@ def _downloads(ctx) -> None:
     # A download does not re-run the page (on_click="ignore"): a re-run while the browser
     # fetches the file would replace it under the download (Chromium: canceled).
     st.caption(
-        "Shared exports: ids are pseudonyms, no seeds, times as UTC dates (the raw "
+        "Shared exports: ids are pseudonyms, no seeds, times as UTC months (the raw "
         "ids only from `snapshot export --identifiers`). Built now, after every "
         "action above."
     )
