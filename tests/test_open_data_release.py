@@ -387,6 +387,7 @@ def drop_database(pg_server, url: str) -> None:
         conn.execute(f'DROP DATABASE "{name}"')
 
 
+@pytest.mark.slow
 @pytest.mark.postgres
 def test_restore_after_the_database_is_lost_keeps_withdrawn_out_postgres(
     pg_server, tmp_path, monkeypatch
