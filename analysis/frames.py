@@ -495,8 +495,8 @@ def cluster_bootstrap_ci(
     if stat is np.mean:
         # The mean of a resample is (Σ times drawn × cluster sum) / (Σ times drawn ×
         # cluster size): one matrix product instead of n_boot concatenations.
-        drawn = np.zeros((n_boot, k))
-        np.add.at(drawn, (np.arange(n_boot)[:, None], picks), 1.0)
+        flat = (picks + k * np.arange(n_boot)[:, None]).ravel()
+        drawn = np.bincount(flat, minlength=n_boot * k).reshape(n_boot, k).astype(float)
         boots = (drawn @ np.bincount(inverse, weights=values, minlength=k)) / (
             drawn @ np.bincount(inverse, minlength=k)
         )

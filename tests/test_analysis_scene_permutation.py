@@ -37,6 +37,12 @@ CHOICES = {
     "p2": [("a", 6), ("c", 100)],
     "p3": [("a", 2), ("a", 0), ("b", 23), ("c", 103)],
 }
+# The same without p3's second choice in "a": one choice per participant and scene,
+# the case the app produces (tested by independent draws instead of a sort).
+STUDIES = {
+    "repeats": CHOICES,
+    "once": {**CHOICES, "p3": [("a", 2), ("b", 23), ("c", 103)]},
+}
 
 
 def _pose(choices=CHOICES):
@@ -103,13 +109,15 @@ def _comparisons(info):
 
 
 @functools.cache
-def _exact():
-    """Observed statistics and exact p-values by enumerating all 3!·3!·2!·4! = 1728."""
-    obs = np.array([_reference_statistic(CHOICES, s, b) for s, b in _tests()])
+def _exact(study="repeats"):
+    """Observed statistics and every permuted one, enumerating all 3!·3!·2!·4! = 1728
+    within-participant permutations (432 for the study without repeats)."""
+    choices = STUDIES[study]
+    obs = np.array([_reference_statistic(choices, s, b) for s, b in _tests()])
     null = np.array(
         [
             [_reference_statistic(arr, s, b) for s, b in _tests()]
-            for arr in _all_arrangements(CHOICES)
+            for arr in _all_arrangements(choices)
         ]
     )
     return obs, null
@@ -128,12 +136,15 @@ def test_observed_statistics_equal_plain_loops():
     np.testing.assert_allclose(got, want[_ordered(design)], atol=1e-12)
 
 
-def test_monte_carlo_pvalue_matches_exact_enumeration():
-    """With B = 40 000 the Monte-Carlo p-value is the exact enumerated p-value (all 1728
-    within-participant permutations) within 4 Monte-Carlo standard errors, and the mean
-    of the permuted statistics is the exact null mean."""
-    groups, u, design = sp.design_from_rows(_pose(), SCENES, _comparisons)
-    obs, null = _exact()
+@pytest.mark.parametrize("study", sorted(STUDIES))
+def test_monte_carlo_pvalue_matches_exact_enumeration(study):
+    """With B = 40 000 the Monte-Carlo p-value is the exact enumerated p-value (every
+    within-participant permutation) within 4 Monte-Carlo standard errors, and the mean
+    of the permuted statistics is the exact null mean; with and without a participant
+    who chose twice in one scene (the sorted permutation and the independent draws)."""
+    groups, u, design = sp.design_from_rows(_pose(STUDIES[study]), SCENES, _comparisons)
+    assert any(t["repeated"] for t in design) == (study == "repeats")
+    obs, null = _exact(study)
     idx = _ordered(design)
     exact_p = (null >= obs - 1e-9).mean(axis=0)[idx]
     b = 40_000
