@@ -54,6 +54,8 @@ __all__ = [
     "calibrate",
     "summarise",
     "markdown_report",
+    "console_table",
+    "docs_header",
 ]
 
 #: The report's test families: (task, family), the frame families being the rows of
@@ -243,8 +245,12 @@ def calibrate(
     alpha: float = vt.ALPHA,
     seed: int = 0,
     progress: bool = False,
+    n_studies_alternative: int | None = None,
 ) -> pd.DataFrame:
     """Run the report's tests on ``n_studies`` simulated studies per condition.
+
+    Under an alternative only the task it is an alternative for is analysed (its other
+    task repeats a null the null conditions measure already).
 
     Parameters
     ----------
@@ -255,7 +261,9 @@ def calibrate(
     n_participants : int
         Observers per study (all finish).
     n_studies : int
-        Studies per condition.
+        Studies per null condition.
+    n_studies_alternative : int, optional
+        Studies per alternative (default ``n_studies``).
     n_permutations : int
         Permutations of each frame test (the report's default is
         :data:`analysis.frames.N_PERMUTATIONS`; the Monte-Carlo p-value is valid at
@@ -281,16 +289,30 @@ def calibrate(
     order = list(stimuli_scenes(manifest)["scene"])
     extra = fr.baselines_from_stimuli(manifest)
     out = []
+    n_alt = n_studies if n_studies_alternative is None else n_studies_alternative
+
+    def studies(c):
+        return n_studies if c.pose_null and c.view_null else n_alt
+
     bar = tqdm(
-        total=len(conditions) * n_studies, desc="calibrate", unit="study", disable=not progress
+        total=sum(studies(CONDITIONS[c]) for c in conditions),
+        desc="calibrate",
+        unit="study",
+        disable=not progress,
     )
     for ci, name in enumerate(conditions):
         cond = CONDITIONS[name]
-        for j in range(n_studies):
+        scenes = None
+        for j in range(studies(cond)):
             study_seed = int(np.random.SeedSequence([seed, ci, j]).generate_state(1)[0])
             df = simulate_study(design, cond, n_participants, study_seed)
             pose, views = pose_choices(df), view_choices(df)
-            scenes = fr.scene_frames_from_rows(pose, extra=extra, order=order)
+            if not cond.pose_null:
+                views = views.iloc[:0]
+            elif not cond.view_null:
+                pose = pose.iloc[:0]
+            if scenes is None:  # the same for every study of the design: read once
+                scenes = fr.scene_frames_from_rows(pose_choices(df), extra=extra, order=order)
             t = report_tests(
                 pose,
                 views,
@@ -417,3 +439,39 @@ def markdown_report(summary: pd.DataFrame, *, header: str = "") -> str:
             )
         lines.append("")
     return "\n".join(lines)
+
+
+def console_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """The summary narrowed for the terminal (rates rounded, ``holds`` as yes / NO)."""
+    return summary.assign(
+        family=summary["task"] + ": " + summary["family"],
+        holds=summary["holds"].map({True: "yes", False: "NO"}).fillna(""),
+    )[
+        [
+            "condition",
+            "role",
+            "family",
+            "tests",
+            "rate",
+            "rate_low",
+            "rate_high",
+            "unadjusted",
+            "any_study",
+            "holds",
+        ]
+    ].round(3)
+
+
+def docs_header(command: str, manifest: dict, conditions) -> str:
+    """The Markdown header of the docs table: the command, the stimuli, the conditions."""
+    from datetime import UTC, datetime
+
+    scenes = [s["id"] for s in manifest.get("scenes", [])]
+    return (
+        "<!-- written by `snapshot calibrate --write-docs`; do not edit by hand -->\n"
+        "## Calibration of the report's tests\n\n"
+        f"`{command}` on {datetime.now(UTC):%Y-%m-%d}, over the {len(scenes)} scenes of "
+        f"the stimuli ({', '.join(scenes)}). Conditions: "
+        + "; ".join(f"**{n}**: {CONDITIONS[n].text}" for n in conditions)
+        + ". How the tests work and why: [frame-tests.md](frame-tests.md).\n"
+    )

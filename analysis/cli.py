@@ -654,6 +654,13 @@ def figures(out_dir, only, db, input_path, include_simulated, repeats, quiet):
     help="Simulated studies per condition.",
 )
 @click.option(
+    "--alternative-studies",
+    "n_alt",
+    type=click.IntRange(1),
+    default=None,
+    help="Simulated studies per alternative (default: --studies).",
+)
+@click.option(
     "--permutations",
     "n_permutations",
     type=click.IntRange(19),
@@ -691,6 +698,7 @@ def calibrate(
     conditions,
     n_participants,
     n_studies,
+    n_alt,
     n_permutations,
     alpha,
     seed,
@@ -726,7 +734,6 @@ def calibrate(
       snapshot calibrate --conditions uniform,centre --participants 300 --studies 8
     """
     import sys
-    from datetime import UTC, datetime
 
     from . import calibrate as cb
     from .stimuli import read_stimuli
@@ -745,48 +752,31 @@ def calibrate(
         conditions=names,
         n_participants=n_participants,
         n_studies=n_studies,
+        n_studies_alternative=n_alt,
         n_permutations=n_permutations,
         alpha=alpha,
         seed=seed,
         progress=not quiet,
     )
     summary = cb.summarise(results, alpha=alpha)
-    shown = summary.assign(
-        family=summary["task"] + ": " + summary["family"],
-        holds=summary["holds"].map({True: "yes", False: "NO"}).fillna(""),
-    )[
-        [
-            "condition",
-            "role",
-            "family",
-            "tests",
-            "rate",
-            "rate_low",
-            "rate_high",
-            "unadjusted",
-            "any_study",
-            "holds",
-        ]
-    ]
-    click.echo(to_markdown(shown.round(3)), nl=False)
+    click.echo(to_markdown(cb.console_table(summary)), nl=False)
     if csv_path:
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         summary.to_csv(csv_path, index=False)
         click.echo(f"wrote {csv_path}")
     if docs:
-        header = (
-            f"<!-- written by `snapshot calibrate --write-docs`; do not edit by hand -->\n"
-            f"## Calibration of the report's tests\n\n"
-            f"`snapshot calibrate --stimuli {stimuli} --participants {n_participants} "
-            f"--studies {n_studies} --permutations {n_permutations} --alpha {alpha:g} "
-            f"--seed {seed}` on {datetime.now(UTC):%Y-%m-%d}: {n_studies} simulated "
-            f"studies of {n_participants} participants per condition over the "
-            f"{len(doc.get('scenes', []))} scenes of the stimuli "
-            f"({', '.join(s['id'] for s in doc.get('scenes', []))}), α = {alpha:g}. "
-            "Conditions: " + "; ".join(f"**{n}**: {cb.CONDITIONS[n].text}" for n in names) + ".\n"
+        command = (
+            f"snapshot calibrate --stimuli {stimuli} --participants {n_participants} "
+            f"--studies {n_studies}"
+            + (f" --alternative-studies {n_alt}" if n_alt else "")
+            + f" --permutations {n_permutations} --alpha {alpha:g} --seed {seed}"
+            + (f" --conditions {','.join(names)}" if conditions else "")
         )
         Path(docs).parent.mkdir(parents=True, exist_ok=True)
-        Path(docs).write_text(cb.markdown_report(summary, header=header), encoding="utf-8")
+        Path(docs).write_text(
+            cb.markdown_report(summary, header=cb.docs_header(command, doc, names)),
+            encoding="utf-8",
+        )
         click.echo(f"wrote {docs}")
     bad = summary[summary["holds"] == False]  # noqa: E712 (None for alternatives)
     if not bad.empty:

@@ -83,9 +83,7 @@ def test_screen_positions_are_uniform_and_drawn_per_trial():
         assert stats.chisquare(counts).pvalue > 0.001, (m, counts)
     first = [vs[0].shown_order for vs in views]
     second = [vs[1].shown_order for vs in views]
-    table = __import__("pandas").crosstab(
-        [str(o) for o in first], [str(o) for o in second]
-    )
+    table = __import__("pandas").crosstab([str(o) for o in first], [str(o) for o in second])
     assert table.shape == (6, 6)
     assert stats.chi2_contingency(table).pvalue > 0.001
 
