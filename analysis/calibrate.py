@@ -55,6 +55,7 @@ __all__ = [
     "summarise",
     "markdown_report",
     "console_table",
+    "power_by_scene",
     "docs_header",
 ]
 
@@ -67,6 +68,8 @@ FAMILIES = (
     ("view", "ours vs motion_area"),
     ("view", "agreement (Fleiss kappa)"),
 )
+#: The family of the Fleiss' kappa test (a null under every condition, see summarise).
+KAPPA = "agreement (Fleiss kappa)"
 
 
 @dataclass(frozen=True)
@@ -358,7 +361,9 @@ def summarise(results: pd.DataFrame, *, alpha: float = vt.ALPHA) -> pd.DataFrame
     rows = []
     for (cond, task, family), g in results.groupby(["condition", "task", "family"], sort=False):
         c = CONDITIONS[cond]
-        null = c.pose_null if task == "pose" else c.view_null
+        # Fleiss' kappa asks whether scenes differ in their vote shares; every condition
+        # here gives every scene the same strengths, so its null holds in all of them.
+        null = (c.pose_null if task == "pose" else c.view_null) or family == KAPPA
         hit = g["significant"] if null else g["for_algorithm"]
         raw = g["p_value"] < alpha
         per_study = hit.groupby(g["study"]).mean()
@@ -390,12 +395,39 @@ def summarise(results: pd.DataFrame, *, alpha: float = vt.ALPHA) -> pd.DataFrame
     return pd.DataFrame(rows)
 
 
+def power_by_scene(results: pd.DataFrame) -> pd.DataFrame:
+    """Under each alternative, the power of each family in each scene (rows: condition
+    and family; columns: scenes) — where a family's power comes from."""
+    alt = results[
+        [
+            not (CONDITIONS[c].pose_null if t == "pose" else CONDITIONS[c].view_null) and f != KAPPA
+            for c, t, f in zip(
+                results["condition"], results["task"], results["family"], strict=True
+            )
+        ]
+    ]
+    if alt.empty:
+        return pd.DataFrame()
+    out = alt.pivot_table(
+        index=["condition", "task", "family"],
+        columns="scene",
+        values="for_algorithm",
+        aggfunc="mean",
+        sort=False,
+    )
+    out.columns.name = None
+    return out.reset_index()
+
+
 def _cell(v, lo, hi) -> str:
     return f"{v:.3f} [{lo:.3f}, {hi:.3f}]"
 
 
-def markdown_report(summary: pd.DataFrame, *, header: str = "") -> str:
-    """The calibration tables as Markdown: false-positive rates under the nulls, then power."""
+def markdown_report(
+    summary: pd.DataFrame, *, header: str = "", by_scene: pd.DataFrame | None = None
+) -> str:
+    """The calibration tables as Markdown: false-positive rates under the nulls, then
+    power (and, given :func:`power_by_scene`, the power per scene)."""
     lines = [header.rstrip(), ""] if header else []
     nulls = summary[summary["role"] == "null"]
     alts = summary[summary["role"] == "alternative"]
@@ -436,6 +468,23 @@ def markdown_report(summary: pd.DataFrame, *, header: str = "") -> str:
                 f"| {r.condition} | {r.task}: {r.family} | {r.tests} | "
                 f"{_cell(r.rate, r.rate_low, r.rate_high)} | "
                 f"{_cell(r.any_study, r.any_study_low, r.any_study_high)} |"
+            )
+        lines.append("")
+    if by_scene is not None and not by_scene.empty:
+        scenes = [c for c in by_scene.columns if c not in ("condition", "task", "family")]
+        lines += [
+            "### Power per scene",
+            "",
+            "Share of studies in which the scene's test is significant in favour of the "
+            "algorithm / ours (empty: not tested, e.g. a baseline on the algorithm's frame).",
+            "",
+            "| alternative | family | " + " | ".join(scenes) + " |",
+            "|---|---|" + "---:|" * len(scenes),
+        ]
+        for r in by_scene.to_dict(orient="records"):
+            cells = ["" if pd.isna(r[s]) else f"{r[s]:.2f}" for s in scenes]
+            lines.append(
+                f"| {r['condition']} | {r['task']}: {r['family']} | " + " | ".join(cells) + " |"
             )
         lines.append("")
     return "\n".join(lines)

@@ -774,7 +774,11 @@ def calibrate(
         )
         Path(docs).parent.mkdir(parents=True, exist_ok=True)
         Path(docs).write_text(
-            cb.markdown_report(summary, header=cb.docs_header(command, doc, names)),
+            cb.markdown_report(
+                summary,
+                header=cb.docs_header(command, doc, names),
+                by_scene=cb.power_by_scene(results),
+            ),
             encoding="utf-8",
         )
         click.echo(f"wrote {docs}")
