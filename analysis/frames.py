@@ -20,12 +20,16 @@ Predictors compared with the people's choices, per scene:
   guessed).
 
 Distances are in seconds, ``|chosen − predictor| / fps``. Hit rates count choices within
-±0.25, ±0.5 and ±1 s (``TOLERANCES_S``). :func:`closeness_tests` asks whether the
-algorithm is closer to people than each baseline with a paired test over participants:
-each person's distance to the baseline's frame (for ``uniform_random``, their expected
-distance to a random frame) minus their distance to the algorithm's, one-sided
-Wilcoxon signed-rank, the mean difference with a bootstrap interval over participants
-and the rank-biserial correlation as effect sizes, Holm over the tests that can differ.
+±0.25, ±0.5 and ±1 s (``TOLERANCES_S``); they describe, they do not test (a central
+frame is near many picks whatever people think). :func:`closeness_tests` asks, per
+scene, whether people's picks gather at the algorithm's frame (*agreement*) and whether
+they are closer to it than to each deterministic baseline (*closer than X*), each
+beyond what the same people's clip-position habits explain: a within-participant
+permutation over scenes (:mod:`analysis.scene_permutation`), valid for random
+clickers, centre-biased clickers and personal habits alike, Holm over the table.
+Effects are the mean excess over the habits' prediction with a bootstrap interval over
+participants. The uniform-random predictor stays in the hit-rate table as a reference,
+not as a test: "closer than a random frame" measures how central picks are.
 Rows pooled over scenes (``scene == "ALL"``) have intervals from a bootstrap over
 participants (:func:`cluster_bootstrap_ci`): one person's choices are not independent.
 
@@ -42,7 +46,9 @@ import pandas as pd
 
 from study_app.design.scenes import StudyScene
 
+from . import scene_permutation as sp
 from .load import ordered_scenes
+from .scene_permutation import N_PERMUTATIONS
 from .votes import holm_adjust, wilson_interval
 
 __all__ = [
@@ -58,18 +64,16 @@ __all__ = [
     "frame_distances",
     "hit_rates",
     "closeness_tests",
-    "paired_closeness",
+    "COMPARISONS",
     "cluster_bootstrap_ci",
     "frame_histogram",
 ]
 
 #: Hit-rate windows, seconds either side of the predicted frame.
 TOLERANCES_S = (0.25, 0.5, 1.0)
-#: Kept for older callers (the tests are Wilcoxon signed-rank tests now).
-N_PERMUTATIONS = 10_000
 #: Bootstrap resamples (over participants) of effect intervals and pooled rows.
 N_BOOT = 2000
-#: Baselines that predict one frame (tested by paired sign flips).
+#: Baselines that predict one frame (each gets a "closer than X" test).
 DETERMINISTIC_BASELINES = ("middle", "fastest", "stretch")
 #: The pose selectors (:data:`snapcore.select.pose_methods.POSE_METHODS`) whose top pick
 #: is a baseline here.
@@ -485,78 +489,44 @@ def cluster_bootstrap_ci(
     if values.size == 0 or n_boot <= 0:
         return float("nan"), float("nan")
     _, inverse = np.unique(clusters, return_inverse=True)
-    members = [np.flatnonzero(inverse == k) for k in range(inverse.max() + 1)]
+    k = int(inverse.max()) + 1
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, len(members), size=(n_boot, len(members)))
-    boots = np.array([stat(values[np.concatenate([members[k] for k in row])]) for row in picks])
+    picks = rng.integers(0, k, size=(n_boot, k))
+    if stat is np.mean:
+        # The mean of a resample is (Σ times drawn × cluster sum) / (Σ times drawn ×
+        # cluster size): one matrix product instead of n_boot concatenations.
+        flat = (picks + k * np.arange(n_boot)[:, None]).ravel()
+        drawn = np.bincount(flat, minlength=n_boot * k).reshape(n_boot, k).astype(float)
+        boots = (drawn @ np.bincount(inverse, weights=values, minlength=k)) / (
+            drawn @ np.bincount(inverse, minlength=k)
+        )
+    else:
+        members = [np.flatnonzero(inverse == m) for m in range(k)]
+        boots = np.array([stat(values[np.concatenate([members[m] for m in row])]) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)
 
 
-#: Up to this many non-zero differences with ties, the signed-rank test's null
-#: distribution is enumerated (all 2^n sign patterns: scipy.stats.wilcoxon's rule).
-WILCOXON_ENUMERATED = 13
+#: The comparisons of :func:`closeness_tests`, in table order: agreement with the
+#: algorithm's frame, then "closer to the algorithm than to X" per deterministic baseline.
+COMPARISONS = ("agreement", *DETERMINISTIC_BASELINES)
+#: What each comparison asks, for the table and the report.
+QUESTIONS = {
+    "agreement": "do picks gather at the algorithm's frame more than position habits explain?",
+    **{
+        b: f"are picks closer to the algorithm's frame than to the {b} frame, "
+        "more than position habits explain?"
+        for b in DETERMINISTIC_BASELINES
+    },
+}
+METHOD = "within-participant permutation over scenes (one-sided, Monte Carlo)"
 
 
-def _rank_sum_positive(d: np.ndarray, axis: int = -1) -> np.ndarray:
-    """The signed-rank statistic W+ along ``axis``: the sum of the ranks of ``|d|``
-    (ties averaged) over the positive values."""
-    from scipy import stats
-
-    ranks = stats.rankdata(np.abs(d), axis=axis)
-    return np.sum(np.where(d > 0, ranks, 0.0), axis=axis)
-
-
-def paired_closeness(d) -> dict:
-    """One-sided Wilcoxon signed-rank test that ``d > 0`` (the algorithm is closer), and
-    the matched-pairs rank-biserial correlation.
-
-    Parameters
-    ----------
-    d : array-like, shape (n,)
-        One paired difference per participant: their distance to the baseline minus
-        their distance to the algorithm, in seconds.
-
-    Returns
-    -------
-    dict
-        ``p_value`` (``scipy.stats.wilcoxon(d, alternative="greater")``: zero
-        differences dropped, exact null distribution for small samples without ties,
-        else the normal approximation), ``rank_biserial`` ((W+ − W−)/(W+ + W−) over
-        the non-zero differences, in [−1, 1]; > 0 = the algorithm closer), ``n_nonzero``.
-        ``p_value`` is NaN when every difference is 0 (nothing to test).
-    """
-    from scipy import stats
-
-    # Rounded to 1e-9 s: equal distances computed by different float paths (0.3 as
-    # 0.7 - 0.4) must tie and cancel, or rounding noise would order the ranks.
-    d = np.round(np.asarray(d, dtype=float), 9)
-    nz = d[d != 0]
-    if nz.size == 0:
-        return {"p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
-    ranks = stats.rankdata(np.abs(nz))
-    w_plus, w_minus = ranks[nz > 0].sum(), ranks[nz < 0].sum()
-    if nz.size <= WILCOXON_ENUMERATED and np.unique(np.abs(nz)).size < nz.size:
-        # With ties and at most 13 values scipy's wilcoxon enumerates the 2^n sign
-        # patterns through permutation_test with a statistic it cannot vectorise: about
-        # a second per test, a dozen seconds per report. The same enumeration with the
-        # signed-rank sum computed over all patterns at once gives the same p-value
-        # (the ranks of |d| do not change when signs flip).
-        p = stats.permutation_test(
-            (nz,),
-            _rank_sum_positive,
-            permutation_type="samples",
-            vectorized=True,
-            alternative="greater",
-        ).pvalue
-    else:
-        p = stats.wilcoxon(nz, alternative="greater", zero_method="wilcox").pvalue
-    return {
-        "p_value": float(p),
-        "rank_biserial": float((w_plus - w_minus) / (w_plus + w_minus)),
-        "n_nonzero": int(nz.size),
-    }
+def _comparisons(info: StudyScene) -> list[tuple[str, int | None]]:
+    preds = predictor_frames(info)
+    preds.pop("algorithm")
+    return [("agreement", None), *preds.items()]
 
 
 def closeness_tests(
@@ -567,89 +537,105 @@ def closeness_tests(
     seed: int = 0,
     alpha: float = 0.05,
     confidence: float = 0.95,
-    n_permutations: int | None = None,
+    n_permutations: int = N_PERMUTATIONS,
 ) -> pd.DataFrame:
-    """Is the algorithm closer to people than each baseline? Paired tests over participants.
+    """Do people's picks follow the algorithm's frame of each scene? Permutation tests.
 
-    Per scene and baseline, each participant gives one paired difference
-    ``d_i = |c_i − b| − |c_i − a|`` in seconds (their choice ``c_i``, the baseline's
-    frame ``b``, the algorithm's ``a``; for ``uniform_random`` the first term is their
-    expected distance to a uniformly drawn frame of the clip; a participant with several
-    choices of a scene gives the mean). The test is a one-sided Wilcoxon signed-rank test
-    over participants (:func:`paired_closeness`), so its p-value shrinks with the number
-    of people (the old randomisation test against a uniform frame could not go below
-    1/n_frames). Holm's adjustment runs over the tests that can come out either way: a
-    baseline whose frame is the algorithm's gives ``d = 0`` for everyone and is reported,
-    not tested.
+    Per scene, an *agreement* test (are the picks closer to the algorithm's frame than
+    the same people's clip-position habits predict?) and, per deterministic baseline X,
+    a *closer than X* test (is "distance to X minus distance to the algorithm" larger
+    than the habits predict?). Both are one-sided within-participant permutation tests
+    over scenes (:mod:`analysis.scene_permutation`): valid whenever a participant's clip
+    position does not depend on the scene — random clickers, clickers who prefer the
+    middle of the clip, participant-specific habits — so they do not reward centrality.
+    Holm's adjustment runs over every test of the table; a baseline on the algorithm's
+    frame gives ``d = 0`` for everyone and is reported, not tested, and so is a scene
+    whose participants chose in no other scene (nothing to permute). A *closer than X*
+    test is ``significant`` only when Holm rejects *and* the people are on average closer
+    to the algorithm than to X (``difference_s > 0``): a pull toward the algorithm that
+    still leaves them nearer X is not "closer than X" (requiring both can only lower the
+    false-positive rate).
 
     Parameters
     ----------
     n_boot : int
-        Resamples of the bootstrap (over participants) of the effect's interval.
-    n_permutations : int, optional
-        Accepted for older callers; unused.
+        Resamples of the bootstrap (over participants) of the effects' intervals (0:
+        no intervals; the tests do not depend on it).
+    seed : int
+        Seed of the permutations (and, plus the scene's index, of the bootstrap).
+    n_permutations : int
+        Monte-Carlo permutations B; p-values are ``(1 + #{T* ≥ T}) / (1 + B)``.
 
     Returns
     -------
     DataFrame
-        ``scene``, ``baseline``, ``n`` (participants), ``algorithm_mean_abs_s``,
-        ``baseline_mean_abs_s``, ``difference_s`` (mean ``d``: > 0 = the algorithm is
-        closer), ``difference_low``/``difference_high`` (percentile bootstrap over
-        participants), ``rank_biserial`` (effect size), ``p_value``, ``method``,
-        ``p_holm`` (NaN for rows not tested), ``significant`` (p_holm < alpha),
-        ``note``.
+        ``scene``, ``comparison`` (:data:`COMPARISONS`), ``question``, ``n``
+        (participants), ``algorithm_mean_abs_s`` (mean distance to the algorithm's
+        frame), ``baseline_mean_abs_s`` (to X; NaN for agreement), ``difference_s``
+        (mean of |c − X| − |c − algorithm|: > 0 = closer to the algorithm; NaN for
+        agreement), ``habit_s`` (the statistic the participants' own positions in all
+        their scenes predict), ``beyond_habit_s`` (statistic − habit prediction: > 0 =
+        closer to the algorithm than habits explain) with ``beyond_habit_low`` /
+        ``beyond_habit_high`` (percentile bootstrap over participants), ``p_value``,
+        ``method``, ``p_holm`` (NaN for rows not tested), ``significant``, ``note``.
     """
-    del n_permutations
+    groups, u, design = sp.design_from_rows(pose, scenes, _comparisons)
+    tested = [t for t in design if t["baseline"] != t["algorithm"] and t["informative"]]
+    _, _, p = sp.permutation_pvalues(groups, u, tested, n_permutations=n_permutations, seed=seed)
+    p_of = {(t["scene"], t["comparison"]): float(v) for t, v in zip(tested, p, strict=True)}
+    index = {s: k for k, s in enumerate(scenes)}
     rows = []
-    for k, (scene, info) in enumerate(scenes.items()):
-        c, who = _per_participant(pose, scene)
-        if c.size == 0:
-            continue
-        preds = predictor_frames(info)
-        a = preds.pop("algorithm")
-        da = np.abs(c - a) / info.fps
-        against = {name: (np.abs(c - b) / info.fps, b) for name, b in preds.items()}
-        against["uniform_random"] = (_uniform_distance_matrix(c, info).mean(axis=1), None)
-        for name, (db, b) in against.items():
-            d = _participant_means(db - da, who)
-            same = b is not None and b == a
-            test = (
-                paired_closeness(d)
-                if not same
-                else {"p_value": float("nan"), "rank_biserial": float("nan"), "n_nonzero": 0}
-            )
-            lo, hi = cluster_bootstrap_ci(
-                db - da, who, n_boot=n_boot, seed=seed + k, confidence=confidence
-            )
-            rows.append(
-                {
-                    "scene": scene,
-                    "baseline": name,
-                    "n": int(d.size),
-                    "algorithm_mean_abs_s": float(_participant_means(da, who).mean()),
-                    "baseline_mean_abs_s": float(_participant_means(db, who).mean()),
-                    "difference_s": float(d.mean()),
-                    "difference_low": lo,
-                    "difference_high": hi,
-                    "rank_biserial": test["rank_biserial"],
-                    "p_value": test["p_value"],
-                    "method": "Wilcoxon signed-rank over participants (one-sided)",
-                    "note": (
-                        "same frame as the algorithm: not tested"
-                        if same
-                        else "every participant equally close: not tested"
-                        if np.isnan(test["p_value"])
-                        else ""
-                    ),
-                }
-            )
+    for t in design:
+        obs, habit = sp.habit_effects(groups, u, t)
+        x = t["first"] + u[t["rows"]] * t["span"]  # the chosen frames
+        da = sp.per_participant(np.abs(x - t["algorithm"]) / t["fps"], t)
+        db = (
+            sp.per_participant(np.abs(x - t["baseline"]) / t["fps"], t)
+            if t["baseline"] is not None
+            else np.full(da.size, np.nan)
+        )
+        lo, hi = cluster_bootstrap_ci(
+            obs - habit,
+            np.arange(obs.size),
+            n_boot=n_boot,
+            seed=seed + index[t["scene"]],
+            confidence=confidence,
+        )
+        key = (t["scene"], t["comparison"])
+        rows.append(
+            {
+                "scene": t["scene"],
+                "comparison": t["comparison"],
+                "question": QUESTIONS[t["comparison"]],
+                "n": int(obs.size),
+                "algorithm_mean_abs_s": float(da.mean()),
+                "baseline_mean_abs_s": float(db.mean()),
+                "difference_s": float((db - da).mean()),
+                "habit_s": float(habit.mean()),
+                "beyond_habit_s": float((obs - habit).mean()),
+                "beyond_habit_low": lo,
+                "beyond_habit_high": hi,
+                "p_value": p_of.get(key, float("nan")),
+                "method": f"{METHOD}, B = {n_permutations}",
+                "note": ""
+                if key in p_of
+                else "same frame as the algorithm: not tested"
+                if t["baseline"] == t["algorithm"]
+                else "no participant chose in another scene: not tested",
+            }
+        )
     out = pd.DataFrame(rows)
     if out.empty:
         return out
-    tested = out["p_value"].notna()
+    tested_rows = out["p_value"].notna()
     out["p_holm"] = np.nan
-    out.loc[tested, "p_holm"] = holm_adjust(out.loc[tested, "p_value"])
-    out["significant"] = out["p_holm"] < alpha  # NaN (not tested) compares False
+    out.loc[tested_rows, "p_holm"] = holm_adjust(out.loc[tested_rows, "p_value"])
+    closer = (out["comparison"] == "agreement") | (out["difference_s"] > 0)
+    out["significant"] = (out["p_holm"] < alpha) & closer  # NaN (not tested) is False
+    pulled = (out["p_holm"] < alpha) & ~closer
+    out.loc[pulled, "note"] = (
+        "closer to the algorithm than habits explain, yet on average nearer this baseline"
+    )
     return out
 
 

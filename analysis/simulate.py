@@ -6,23 +6,37 @@ study store with ``simulated=True`` and every real analysis leaves them out unle
 
 The observer model (:class:`ObserverModel`), one participant at a time:
 
-- **Pose task** (per scene): with probability ``lapse`` the observer picks a frame
-  uniformly at random from the clip; otherwise they pick one of the scene's *salient
-  moments* — the algorithm's pick with probability ``algorithm_weight``, else one of
-  the other salient frames (``StudyScene.salient_frames``: the top-k entropy peaks of the
-  manifest, or moments the paper's text names) uniformly — and land
-  ``round(N(0, spread_s) · fps)`` frames from it, clipped to the clip.
-- **View task** (per scene): the three methods' views appear in a random left-to-right
-  order; the observer chooses by Luce's choice axiom, ``P(m) = s_m / Σ_shown s_j``,
-  from the scene's method strengths (``StudyScene.strengths``, else the model's).
+- **Pose task** (per scene), by ``pose_model``:
+
+  - ``"salient"`` (the default): with probability ``lapse`` a frame uniformly at random
+    from the clip; otherwise one of the scene's *salient moments* — the algorithm's pick
+    with probability ``algorithm_weight``, else one of the other salient frames
+    (``StudyScene.salient_frames``: the top-k entropy peaks of the manifest, or moments
+    the paper's text names) uniformly — landing ``round(N(0, spread_s) · fps)`` frames
+    from it, clipped to the clip;
+  - ``"uniform"``: a frame uniformly at random (a random clicker);
+  - ``"centre"``: the frame at clip position ``u ~ Beta(2, 2)`` (an observer who ignores
+    the motion but prefers the middle of the clip);
+  - ``"habit"``: the frame at ``u ~ Beta(a, b)``, with ``a, b ~ U(0.5, 4)`` drawn once per
+    observer (a personal position habit, the same in every scene).
+
+  The last three are the null observers of ``snapshot calibrate``: their clip position
+  does not depend on the scene.
+- **View task** (per scene): the three methods' views appear in the left-to-right
+  order the app's own trial plan gives the participant's seed
+  (:func:`study_app.design.protocol.trial_plan`); the observer chooses by Luce's choice
+  axiom, ``P(m) = s_m / Σ_shown s_j``, from the scene's method strengths
+  (``StudyScene.strengths``, else the model's) — or, with ``view_position`` set, always
+  takes that screen position (0 = left), whatever is shown there.
 - **Attention check**: answered right with probability ``attention_pass``, else a
   random wrong option.
 - Response times: log-normal with medians ``pose_time_s`` / ``view_time_s`` and log-SD
   0.5. Background answers: uniform over the study's choices.
 
-Trial order follows the app's protocol: pose tasks in a random scene order, then view
-tasks in another, then the attention check; stimulus ids ``<scene>/pose``,
-``<scene>/view``, ``attention``. Everything is drawn from one seeded
+Trial order is the app's protocol for the participant's seed (drawn first): pose tasks
+in a random scene order, then view tasks in another, each with its own random screen
+order of the methods, then the attention check; stimulus ids ``<scene>/pose``,
+``<scene>/view``, ``attention``. Everything else is drawn from one seeded
 ``numpy.random.Generator``.
 """
 
@@ -37,6 +51,7 @@ import numpy as np
 import pandas as pd
 
 from snapcore.select.view_methods import VIEW_METHODS
+from study_app.design.protocol import trial_plan
 from study_app.design.scenes import StudyScene
 
 __all__ = [
@@ -50,7 +65,11 @@ __all__ = [
     "design_sha256",
     "SIM_APP_VERSION",
     "with_strengths",
+    "POSE_MODELS",
 ]
+
+#: The observers' pose-task models (see the module docstring).
+POSE_MODELS = ("salient", "uniform", "centre", "habit")
 
 #: ``app_version`` stored with simulated participants.
 SIM_APP_VERSION = "simulate-1"
@@ -89,6 +108,11 @@ class ObserverModel:
         Probability of answering the attention check right.
     pose_time_s, view_time_s : float
         Median response times, seconds.
+    pose_model : str
+        One of :data:`POSE_MODELS`.
+    view_position : int or None
+        Always take this screen position (0 = left) in the view task instead of the
+        Luce choice (a position-bias null).
     """
 
     spread_s: float = 0.5
@@ -98,8 +122,17 @@ class ObserverModel:
     attention_pass: float = 0.95
     pose_time_s: float = 12.0
     view_time_s: float = 5.0
+    pose_model: str = "salient"
+    view_position: int | None = None
 
     def __post_init__(self):
+        if self.pose_model not in POSE_MODELS:
+            raise ValueError(f"pose_model: expected one of {POSE_MODELS}, got {self.pose_model!r}")
+        if self.view_position is not None and not 0 <= self.view_position < len(VIEW_METHODS):
+            raise ValueError(
+                f"view_position: expected 0..{len(VIEW_METHODS) - 1} (screen positions, "
+                f"0 = left), got {self.view_position}"
+            )
         for name in ("lapse", "algorithm_weight", "attention_pass"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
@@ -203,9 +236,12 @@ def design_sha256(design, model: ObserverModel) -> str:
 # ----------------------------------------------------------------- the observer
 
 
-def _pose_choice(rng, s: StudyScene, model: ObserverModel) -> int:
+def _pose_choice(rng, s: StudyScene, model: ObserverModel, habit: tuple) -> int:
     lo, hi = s.frame_offset, s.frame_offset + s.n_frames - 1
-    if rng.random() < model.lapse:
+    if model.pose_model in ("centre", "habit"):
+        u = rng.beta(*habit)
+        return int(np.clip(np.rint(lo + u * (hi - lo)), lo, hi))
+    if model.pose_model == "uniform" or rng.random() < model.lapse:
         return int(rng.integers(lo, hi + 1))
     target = s.algorithm_frame
     if s.salient_frames and rng.random() >= model.algorithm_weight:
@@ -214,11 +250,12 @@ def _pose_choice(rng, s: StudyScene, model: ObserverModel) -> int:
     return int(np.clip(np.rint(f), lo, hi))
 
 
-def _view_choice(rng, strengths: dict) -> tuple[tuple, int, str]:
-    shown = tuple(VIEW_METHODS[i] for i in rng.permutation(len(VIEW_METHODS)))
+def _view_choice(rng, shown: tuple, strengths: dict, position: int | None) -> tuple[int, str]:
+    if position is not None:
+        return position, shown[position]
     w = np.array([strengths[m] for m in shown], dtype=float)
     pos = int(rng.choice(len(shown), p=w / w.sum()))
-    return shown, pos, shown[pos]
+    return pos, shown[pos]
 
 
 def simulate_participants(
@@ -265,12 +302,18 @@ def simulate_participants(
     attention = attention or _ATTENTION
     background = background or _BACKGROUND
     rng = np.random.default_rng(seed)
+    by_id = {s.scene: s for s in design}
+    if len(by_id) != len(design):
+        raise ValueError("design: scene ids repeat")
     out = []
     for _ in range(n):
+        pseed = int(rng.integers(2**62))
+        plan = trial_plan(list(by_id), pseed, attention=False)
+        habit = tuple(rng.uniform(0.5, 4.0, 2)) if model.pose_model == "habit" else (2.0, 2.0)
         rows = []
-        for k in rng.permutation(len(design)):
-            s = design[k]
-            f = _pose_choice(rng, s, model)
+        for trial in (t for t in plan if t.task == "pose"):
+            s = by_id[trial.scene]
+            f = _pose_choice(rng, s, model, habit)
             rows.append(
                 {
                     "task": "pose",
@@ -283,9 +326,12 @@ def simulate_participants(
                     "response_time_s": float(model.pose_time_s * rng.lognormal(0, 0.5)),
                 }
             )
-        for k in rng.permutation(len(design)):
-            s = design[k]
-            shown, pos, method = _view_choice(rng, s.strengths or model.strengths)
+        for trial in (t for t in plan if t.task == "view"):
+            s = by_id[trial.scene]
+            shown = trial.shown_order
+            pos, method = _view_choice(
+                rng, shown, s.strengths or model.strengths, model.view_position
+            )
             rows.append(
                 {
                     "task": "view",
@@ -313,7 +359,7 @@ def simulate_participants(
         for i, r in enumerate(rows):
             r["trial_index"] = i
         bg = {k: v[int(rng.integers(len(v)))] for k, v in background.items()}
-        out.append({"seed": int(rng.integers(2**62)), "background": bg, "rows": rows})
+        out.append({"seed": pseed, "background": bg, "rows": rows})
     return out
 
 

@@ -306,9 +306,12 @@ def ours_vs_baselines(
             k, j = int(row[reference]), int(row[b])
             n = k + j
             if n > 0:
-                test = stats.binomtest(k, n, 0.5)
-                ci = test.proportion_ci(confidence, method="exact")
-                lo, hi, p = ci.low, ci.high, test.pvalue
+                p = stats.binomtest(k, n, 0.5).pvalue
+                # Clopper-Pearson as beta quantiles: binomtest's proportion_ci(method=
+                # "exact") finds the same bounds by root search, 50x slower.
+                q = (1 - confidence) / 2
+                lo = stats.beta.ppf(q, k, n - k + 1) if k > 0 else 0.0
+                hi = stats.beta.ppf(1 - q, k + 1, n - k) if k < n else 1.0
             else:
                 lo, hi, p = 0.0, 1.0, 1.0
             rows.append(

@@ -164,6 +164,52 @@ def test_observer_model_frames():
     assert far == pytest.approx(0.45, abs=0.04)
 
 
+def test_null_observers_ignore_the_motion():
+    """Uniform, centre (Beta(2,2)) and habit observers: clip positions with the stated
+    distribution whatever the algorithm's frame; habits differ between observers and
+    hold across scenes; always-left viewers take position 0 whatever is shown there."""
+    from scipy import stats
+
+    design = [StudyScene("a", 30.0, 1001, 100), StudyScene("b", 30.0, 1001, 900)]
+
+    def positions(**kw):
+        people = sim.simulate_participants(design, 1500, seed=3, model=sim.ObserverModel(**kw))
+        rows = sim.simulated_rows(people)
+        pose = rows[rows["task"] == "pose"]
+        return pose.pivot(index="participant_id", columns="scene", values="chosen_frame") / 1000
+
+    u = positions(pose_model="uniform")
+    assert stats.kstest(u.to_numpy().ravel(), "uniform").pvalue > 0.001
+    c = positions(pose_model="centre")
+    assert stats.kstest(c.to_numpy().ravel(), stats.beta(2, 2).cdf).pvalue > 0.001
+    assert abs(c["a"].mean() - c["b"].mean()) < 0.02  # the algorithm's frame plays no part
+    h = positions(pose_model="habit")
+    assert stats.spearmanr(h["a"], h["b"]).statistic > 0.3  # one habit in both scenes
+    left = sim.simulated_rows(
+        sim.simulate_participants(design, 200, seed=4, model=sim.ObserverModel(view_position=0))
+    )
+    views = left[left["task"] == "view"]
+    assert (views["chosen_position"] == 0).all()
+    assert set(views["chosen_method"]) == {str(m) for m in sim.VIEW_METHODS}
+    for bad in ({"pose_model": "random"}, {"view_position": 3}):
+        with pytest.raises(ValueError):
+            sim.ObserverModel(**bad)
+
+
+def test_simulated_orders_are_the_apps_trial_plan():
+    """A simulated participant sees the trial order and screen orders the app's
+    trial_plan gives their stored seed (so the position null tests the app's own
+    randomisation)."""
+    from study_app.design.protocol import trial_plan
+
+    design = sim.paper_design()
+    for p in sim.simulate_participants(design, 20, seed=8):
+        plan = trial_plan([s.scene for s in design], p["seed"])
+        got = [(r["task"], r["scene"], tuple(r.get("shown_order") or ())) for r in p["rows"]]
+        want = [(t.task, t.scene, tuple(t.shown_order or ())) for t in plan]
+        assert got == want
+
+
 # ----------------------------------------------------------------- commands
 
 

@@ -67,6 +67,27 @@ def test_trial_orders_vary_between_participants():
     assert positions == {(m, k) for m in VIEW_METHODS for k in range(3)}
 
 
+def test_screen_positions_are_uniform_and_drawn_per_trial():
+    """Over 3000 participants each method sits at each screen position a third of the
+    time (chi-square), and a participant's screen orders in two view trials are
+    independent (a fixed order per participant would make a position habit a method
+    preference)."""
+    from scipy import stats
+
+    scenes = ["a", "b", "c", "d", "e"]
+    plans = [trial_plan(scenes, seed) for seed in range(3000)]
+    views = [[t for t in p if t.task == "view"] for p in plans]
+    for m in VIEW_METHODS:
+        at = [v.shown_order.index(m) for vs in views for v in vs]
+        counts = [at.count(k) for k in range(len(VIEW_METHODS))]
+        assert stats.chisquare(counts).pvalue > 0.001, (m, counts)
+    first = [vs[0].shown_order for vs in views]
+    second = [vs[1].shown_order for vs in views]
+    table = __import__("pandas").crosstab([str(o) for o in first], [str(o) for o in second])
+    assert table.shape == (6, 6)
+    assert stats.chi2_contingency(table).pvalue > 0.001
+
+
 def test_check_video_frame_converts_and_refuses():
     """Video frame v maps through the manifest; out of range or non-integers are refused."""
     vmap = [10, 12, 15, 17]
