@@ -29,6 +29,7 @@ __all__ = [
     "copy_button",
     "confirmed",
     "chosen",
+    "skipped",
     "media_url",
     "pin_files",
     "FRAME_PICKER",
@@ -59,6 +60,7 @@ DEFAULT_LABELS = {
     "not_saved": "The connection was lost: your answer was not saved. Please press Confirm again.",
     "not_saved_choice": "The connection was lost: your choice was not saved. Please choose again.",
     "image_error": "A picture could not be loaded, so this question cannot be answered yet.",
+    "skip": "I can't see the pictures: skip this question",
 }
 _MIME = {
     ".mp4": "video/mp4",
@@ -278,10 +280,12 @@ def view_chooser(
     on_choice=None,
     args: tuple = (),
     tab_key: str = "",
+    on_skip=None,
 ):
     """Mount the view chooser; return ``{"trial", "position", "client"}`` when one is
     chosen (without ``on_choice``), ``{"trial", "failed": [positions]}`` in the run
-    after pictures failed to load (retried; the buttons stay off), else None.
+    after pictures failed to load (retried; the buttons stay off; ``[]`` once they all
+    loaded again), else None.
 
     Parameters
     ----------
@@ -302,6 +306,9 @@ def view_chooser(
     tab_key : str
         Names this participant's trial in the browser tab (its active time is kept
         across reloads under it).
+    on_skip : callable, optional
+        Called with ``args`` when, after a picture failed to load, the participant
+        presses "I can't see the pictures" (read it with :func:`skipped`).
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
@@ -316,9 +323,13 @@ def view_chooser(
         ],
     }
     result = chooser(
-        key=key, data=[data], on_choice_change=_bound(on_choice, args), on_failed_change=_noop
+        key=key,
+        data=[data],
+        on_choice_change=_bound(on_choice, args),
+        on_failed_change=_noop,
+        on_skip_change=_bound(on_skip, args),
     )
-    if result.get("failed"):
+    if result.get("failed") is not None:
         got = result["failed"] or {}
         return {
             "trial": got.get("trial"),
@@ -368,6 +379,11 @@ def confirmed(key: str) -> dict | None:
 def chosen(key: str) -> dict | None:
     """In an ``on_choice`` callback: the view chooser's ``{"trial", "position"}``, or None."""
     return _trigger(key, "choice")
+
+
+def skipped(key: str) -> dict | None:
+    """In an ``on_skip`` callback: the view chooser's ``{"trial", "client"}``, or None."""
+    return _trigger(key, "skip")
 
 
 def _noop():
