@@ -132,7 +132,7 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None, fig
 
     tables, figs = out / "tables", out / "figures"
     table = vt.vote_table(counts)
-    chi = vt.chisquare_no_preference(counts, alpha=alpha)
+    chi = vt.chisquare_no_preference(counts, alpha=alpha, choices=choices)
     pair = vt.ours_vs_baselines(counts, alpha=alpha, choices=choices)
     choices = vt.choices_from_counts(counts) if choices is None else choices
     strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed, order=list(counts.index))

@@ -296,8 +296,15 @@ def vote_table(counts: pd.DataFrame, *, confidence: float = 0.95) -> pd.DataFram
     return long.reset_index(drop=True)
 
 
-def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd.DataFrame:
+def chisquare_no_preference(
+    counts: pd.DataFrame, *, alpha: float = ALPHA, choices: pd.DataFrame | None = None
+) -> pd.DataFrame:
     """Pearson's chi-square test per scene against "every method equally often chosen".
+
+    With ``choices`` whose pictures were merged (``shown_groups``), a scene's test is of
+    its pictures as shown ("every picture equally often chosen", one cell per picture:
+    a merged picture's choice counted once), since its method counts credit one choice
+    to several methods and are no sample of choices.
 
     Returns
     -------
@@ -312,6 +319,10 @@ def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd
     distribution with ``k − 1`` degrees of freedom (same as
     ``scipy.stats.chisquare(observed)``).
     """
+    if choices is not None and any(
+        len(g) > 1 for r in choices.to_dict("records") for g in _groups(r)
+    ):
+        return _chisquare_pictures(counts, choices, alpha=alpha)
     obs = counts.to_numpy(dtype=float)
     k = obs.shape[1]
     n = obs.sum(axis=1)
@@ -337,6 +348,40 @@ def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd
             "note": note,
         }
     )
+
+
+def _chisquare_pictures(counts: pd.DataFrame, choices: pd.DataFrame, *, alpha: float):
+    """:func:`chisquare_no_preference` over each scene's pictures as shown."""
+    rows = []
+    chosen = choices[choices["chosen_method"].notna()].to_dict("records")
+    for scene in counts.index:
+        mine = [r for r in chosen if r["scene"] == scene]
+        options = sorted({g for r in mine for g in _groups(r)})
+        obs = np.array([sum(credited_methods(r) == g for r in mine) for g in options], float)
+        n, k = obs.sum(), max(len(options), 1)
+        e = n / k
+        chi2 = float(((obs - e) ** 2 / e).sum()) if n > 0 and k > 1 else 0.0
+        p = float(stats.chi2.sf(chi2, k - 1)) if n > 0 and k > 1 else 1.0
+        rows.append(
+            {
+                "scene": scene,
+                "n": int(n),
+                "chi2": chi2,
+                "dof": k - 1,
+                "p_value": p,
+                "min_expected": e,
+                "significant": p < alpha,
+                "note": (
+                    f"expected count below {MIN_EXPECTED:g}: chi-square approximation is rough"
+                    if e < MIN_EXPECTED
+                    else ""
+                )
+                + (
+                    f"; {k} pictures shown (alike candidates merged)" if k < counts.shape[1] else ""
+                ),
+            }
+        )
+    return pd.DataFrame(rows)
 
 
 def ours_vs_baselines(

@@ -8,7 +8,13 @@ import pytest
 from app_helpers import fixture_study_doc, write_fixture_stimuli
 
 from analysis.load import tidy_responses, view_choices
-from analysis.votes import ours_vs_baselines, pair_votes, vote_counts, vote_table
+from analysis.votes import (
+    chisquare_no_preference,
+    ours_vs_baselines,
+    pair_votes,
+    vote_counts,
+    vote_table,
+)
 from study_app.data.store import Store
 from study_app.design.protocol import trial_plan
 from study_app.design.stimuli import load_stimuli
@@ -113,6 +119,12 @@ def test_simulated_study_votes_match_hand_counts(tmp_path, stimuli):
         2,
     ]
     assert pair.loc[("jump", "motion_area"), "p_value"] == pytest.approx(1.0)
+    # No preference: walk's two pictures chosen 4 and 2 times -> chi2 = (1 + 1) / 3 on
+    # 1 degree of freedom; jump's three 3, 1, 2 -> chi2 = (1 + 1 + 0) / 2 on 2.
+    chi = chisquare_no_preference(counts, choices=choices).set_index("scene")
+    assert (chi.loc["walk", "n"], chi.loc["walk", "dof"]) == (6, 1)
+    assert chi.loc["walk", "chi2"] == pytest.approx(2 / 3)
+    assert (chi.loc["jump", "dof"], chi.loc["jump", "chi2"]) == (2, pytest.approx(1.0))
 
 
 def test_pair_votes_leave_out_shared_trials_only():

@@ -377,8 +377,10 @@ class ParticipantSession:
             Share of the animation played in the video player (0-1, the largest the
             player reported in this or an earlier page load of the trial). With the
             study's ``require_watch`` it must reach :data:`WATCHED_ENOUGH`; None means
-            the participant used the frame slider, where nothing plays (stored as
-            ``picked_with = "slider"``, so the analysis can leave it out).
+            the participant used the frame slider (stored as ``picked_with =
+            "slider"``, so the analysis can leave it out), and the row's ``watched`` is
+            what the stored log says the player played before the video failed (None
+            if nothing).
         ranges : list of [float, float], optional
             The video frames played (the player's played ranges), united with the
             stored ones to give the share watched.
@@ -400,6 +402,11 @@ class ParticipantSession:
             v, m = check_video_frame(video_frame, sc.video_to_motion)
         except AnswerError as err:
             raise InvalidAnswer(f"That frame cannot be stored: {err}.") from None
+        slider_watched = None
+        if watched is None:
+            # The slider (the video failed, or the study's picker): what the player did
+            # play before it failed stays on the row, not only in its log.
+            slider_watched = self.watched(trial.index) or None
         if watched is not None:
             if (
                 isinstance(watched, bool)
@@ -416,6 +423,7 @@ class ParticipantSession:
                 raise InvalidAnswer(
                     "Please watch the whole animation once before choosing a frame."
                 )
+        share = watched if watched is not None else slider_watched
         row = {
             "trial_index": trial.index,
             "task": "pose",
@@ -428,7 +436,7 @@ class ParticipantSession:
             "n_frames": sc.n_frames,
             "response_time_s": self._time(response_time_s),
             "picked_with": "slider" if watched is None else "player",
-            "watched": None if watched is None else round(min(watched, 1.0), 3),
+            "watched": None if share is None else round(min(share, 1.0), 3),
         }
         row.update(client_fields(client, row["response_time_s"]))
         # The picker's log goes with the answer (its "select" entry carries how much was
@@ -629,8 +637,11 @@ class ParticipantSession:
         row["skipped"] = "media_failed"
         return self._record(row)
 
-    def submit_attention(self, trial_index: int, answer, *, response_time_s: float) -> bool:
-        """Answer the attention check (stored with whether it was right)."""
+    def submit_attention(
+        self, trial_index: int, answer, *, response_time_s: float, client: dict | None = None
+    ) -> bool:
+        """Answer the attention check (stored with whether it was right, and what it was
+        given on: :func:`client_fields`)."""
         trial = self._trial_for(trial_index, "attention")
         if trial is None:
             return False
@@ -647,6 +658,7 @@ class ParticipantSession:
             "correct": correct,
             "response_time_s": self._time(response_time_s),
         }
+        row.update(client_fields(client, row["response_time_s"]))
         return self._record(row)
 
     def finish(self) -> str:

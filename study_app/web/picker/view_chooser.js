@@ -24,32 +24,6 @@ const RESEND_MS = 4000;
 const RESENDS = 3;
 const IMAGE_RETRIES = 2;
 
-function tabId() {
-  try {
-    let id = sessionStorage.getItem("snap-tab");
-    if (!id) {
-      id = Math.random().toString(36).slice(2, 12);
-      sessionStorage.setItem("snap-tab", id);
-    }
-    return id;
-  } catch (e) { return "unknown"; }
-}
-
-function activeClock(key) {
-  const store = key ? `snap-active:${key}` : null;
-  let before = 0;
-  if (store) { try { before = Number(sessionStorage.getItem(store)) || 0; } catch (e) { before = 0; } }
-  let since = document.visibilityState === "visible" ? performance.now() : null;
-  const ms = () => before + (since === null ? 0 : performance.now() - since);
-  const save = () => { if (store) { try { sessionStorage.setItem(store, String(ms())); } catch (e) { /* full */ } } };
-  document.addEventListener("visibilitychange", () => {
-    if (document.visibilityState === "visible") { if (since === null) since = performance.now(); }
-    else if (since !== null) { before += performance.now() - since; since = null; save(); }
-  });
-  window.addEventListener("pagehide", save);
-  return { ms, clear: () => { if (store) sessionStorage.removeItem(store); } };
-}
-
 function withQuery(src, q) {
   return q ? `${src}${src.includes("?") ? "&" : "?"}${q}` : src;
 }
@@ -63,8 +37,7 @@ function buildChooser(root, data) {
   const buttons = [];
   const imgs = [];
   const clock = activeClock(data.tab_key);
-  const pointer = { type: null, at: -1e9 };
-  root.addEventListener("pointerdown", (e) => { pointer.type = e.pointerType || "mouse"; pointer.at = performance.now(); }, true);
+  const pointer = pointerTracker(root);
   const errorBox = document.createElement("div");
   errorBox.className = "snap-views-error";
   errorBox.dataset.testid = "views-error";
@@ -125,13 +98,7 @@ function buildChooser(root, data) {
     status.forEach((s, i) => { if (s === "failed") { tries[i] = 0; load(i, `again=${Date.now()}`); } });
   });
 
-  const client = (ev) => {
-    const keyboard = ev.detail === 0 && performance.now() - pointer.at > 1500;
-    return {
-      viewport: [window.innerWidth, window.innerHeight], dpr: window.devicePixelRatio || 1,
-      input: keyboard ? "keyboard" : (pointer.type || "mouse"),
-      active_s: Math.round(clock.ms()) / 1000, tab: tabId() };
-  };
+  const client = (ev) => clientInfo(ev, pointer, clock);
   skip.addEventListener("click", (ev) => {
     if (root.dataset.sent) return;
     root.dataset.sent = "1";
