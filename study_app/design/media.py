@@ -178,7 +178,8 @@ def shown_sheet(manifest: dict, folder: str | Path, path: str | Path) -> Path:
             fontsize=10,
         )
     fig.suptitle(
-        f"Study {manifest['study'].get('id', '')}: the pictures each view task shows, "
+        f"Study {(manifest['study'].get('study') or {}).get('id', '')}: the pictures each "
+        "view task shows, "
         "titled with the methods each stands for",
         fontsize=10,
     )
