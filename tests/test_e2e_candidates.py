@@ -16,6 +16,7 @@ import pytest
 import test_e2e
 from app_helpers import fixture_study_doc, write_fixture_stimuli
 from test_e2e import SETTLED, heading, settle, start_study, stop_process
+from test_e2e_described import ff_press
 from test_e2e_firefox import DEEP, InterceptingBidi, ff_heading, ff_no_traceback, firefox
 
 from study_app.design.stimuli import load_stimuli
@@ -276,7 +277,7 @@ def test_firefox_esr_picture_never_loading_leaves_a_way_on(study):
         ff.wait(f"{radio}.querySelector('input').checked")
         ff.wait(f"({SETTLED})()")
         time.sleep(1.2)  # the study's min_answer_s
-        ff.click("button", "Continue")
+        ff_press(ff, "(() => {" + DEEP + "return deep('[data-testid=attention-submit]'); })()")
         ff_heading(ff, "Thank you!")
         part = store.get_participant(pid)
         assert part["completion_code"] and part["completed_at"] is not None
