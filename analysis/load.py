@@ -21,7 +21,8 @@ Columns of the frame returned by :func:`load_responses` (dtypes in brackets) —
 schema's fields plus derived ones:
 
 - every schema field; integers as nullable ``Int64``, ``correct`` as nullable
-  ``boolean``, ``shown_order`` as a tuple of method names (or None),
+  ``boolean``, ``shown_order`` as a tuple of method names (or None), ``shown_groups`` as
+  a tuple of such tuples (or None),
   ``created_at`` as UTC datetimes;
 - ``chosen_s``, ``algorithm_s`` [float]: the chosen and the algorithm's frame in seconds
   (frame / fps), pose task only;
@@ -150,6 +151,8 @@ def tidy_responses(
     for r in records:  # JSON has lists; a DataFrame may already hold tuples
         if isinstance(r.get("shown_order"), tuple):
             r["shown_order"] = list(r["shown_order"])
+        if isinstance(r.get("shown_groups"), tuple):
+            r["shown_groups"] = [list(g) for g in r["shown_groups"]]
         for k in list(r):
             if isinstance(r[k], np.generic):
                 r[k] = r[k].item()
@@ -178,6 +181,16 @@ def tidy_responses(
     df["shown_order"] = [
         tuple(v) if isinstance(v, list | tuple) else None for v in df["shown_order"]
     ]
+    # Which methods each shown picture stood for (merged candidates): tuples, or None
+    # in rows before merging, whatever the source (an all-empty CSV column reads as NaN).
+    df["shown_groups"] = pd.Series(
+        [
+            tuple(tuple(g) for g in v) if isinstance(v, list | tuple) else None
+            for v in df["shown_groups"]
+        ],
+        index=df.index,
+        dtype=object,
+    )
     df["created_at"] = pd.to_datetime(df["created_at"], utc=True, errors="coerce", format="ISO8601")
     if not include_simulated:
         df = df[~df["simulated"]]

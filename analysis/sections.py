@@ -135,8 +135,8 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None, fig
 
     tables, figs = out / "tables", out / "figures"
     table = vt.vote_table(counts)
-    chi = vt.chisquare_no_preference(counts, alpha=alpha)
-    pair = vt.ours_vs_baselines(counts, alpha=alpha)
+    chi = vt.chisquare_no_preference(counts, alpha=alpha, choices=choices)
+    pair = vt.ours_vs_baselines(counts, alpha=alpha, choices=choices)
     choices = vt.choices_from_counts(counts) if choices is None else choices
     strengths = vt.luce_strengths(choices, n_boot=n_boot, seed=seed, order=list(counts.index))
     kappa = vt.fleiss_kappa(counts)
@@ -144,7 +144,15 @@ def _vote_section(counts, out, *, labels, n_boot, seed, alpha, choices=None, fig
     write_table(
         table,
         tables / "votes",
-        caption="Votes per method per scene with shares and 95% Wilson intervals.",
+        caption="Votes per method per scene with shares and 95% Wilson intervals."
+        + (
+            " Alike candidate pictures were shown once: a choice of such a picture is a "
+            "vote for each method it stood for (so a scene's votes can exceed its "
+            "choices, n, and shares are of choices); a test between two methods leaves "
+            "out the trials where they shared a picture."
+            if (table["n"] < table.groupby("scene")["votes"].transform("sum")).any()
+            else ""
+        ),
     )
     write_table(
         chi,

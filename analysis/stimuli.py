@@ -82,6 +82,8 @@ def stimuli_scenes(manifest) -> pd.DataFrame:
 def near_duplicate_scenes(manifest) -> pd.DataFrame:
     """Scenes whose candidate views, as shown, are nearly the same picture.
 
+    A scene whose alike pictures were merged (the manifest's ``shown``: each shown
+    once, standing for its methods) has none: no vote was split between alike pictures.
     The pairs are the builder's ``near_duplicates`` when the manifest records them
     (judged on the views shown, after any replacement: by angle or by silhouette IoU,
     mirror images included; empty when every alike view was replaced). Older manifests
@@ -106,6 +108,8 @@ def near_duplicate_scenes(manifest) -> pd.DataFrame:
     )
     rows = []
     for e in doc.get("scenes", []):
+        if "shown" in e:  # merged (issue 36): alike pictures were shown once, no split votes
+            continue
         ious = e.get("view_iou") or {}
         if "near_duplicates" in e and ious:  # judged by the builder on the pictures shown
             angles = e.get("view_angles") or {}

@@ -12,6 +12,11 @@ Choices of method made here, stated once:
 - Per-method vote shares get **Wilson score** 95% intervals (no continuity
   correction): ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``.
 - "No preference" is Pearson's chi-square goodness-of-fit test against equal shares.
+- Merged candidates (``study.near_duplicate = "merge"``: alike pictures shown once, the
+  row's ``shown_groups`` says which methods each picture stood for): a choice of such a
+  picture is a vote for **each** method it stood for in the vote table (so a scene's
+  votes may sum to more than its choices; shares are of choices, ``n``), and a pairwise
+  test between two methods takes nothing from a trial where they shared a picture.
 - Ours vs each baseline is the **exact two-sided binomial test** of ours' share among the
   votes cast for the two (conditional on ``ours + baseline`` votes; null share 1/2), with
   a **Clopper–Pearson** interval for that share, and the **Holm** step-down adjustment
@@ -44,6 +49,8 @@ __all__ = [
     "paper_table2",
     "paper_counts",
     "vote_counts",
+    "credited_methods",
+    "pair_votes",
     "choices_from_counts",
     "wilson_interval",
     "merge_near_duplicates",
@@ -92,13 +99,40 @@ def paper_counts() -> pd.DataFrame:
     return wide.astype(int)
 
 
+def _groups(row) -> list[tuple[str, ...]]:
+    """The methods each picture of a view trial stood for: the row's ``shown_groups``,
+    else each method of ``shown_order`` alone (rows before merging), else the chosen
+    method alone (a count table)."""
+    groups = row.get("shown_groups")
+    if isinstance(groups, list | tuple) and len(groups):
+        return [tuple(g) for g in groups]
+    order = row.get("shown_order")
+    if isinstance(order, list | tuple) and len(order):
+        return [(m,) for m in order]
+    return [(row["chosen_method"],)]
+
+
+def credited_methods(row) -> tuple[str, ...]:
+    """The methods a view-task choice is a vote for: every method the chosen picture
+    stood for (its ``shown_groups`` entry), else the chosen method alone."""
+    for g in _groups(row):
+        if row["chosen_method"] in g:
+            return g
+    return (row["chosen_method"],)
+
+
 def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> pd.DataFrame:
     """View-task choices → wide counts (scenes × ``methods``).
+
+    A choice of a merged picture (alike candidates shown once, ``shown_groups``) counts
+    for each method it stood for (:func:`credited_methods`); ``counts.attrs["choices"]``
+    keeps the choices per scene (the shares' denominator, :func:`vote_table`).
 
     Parameters
     ----------
     choices : DataFrame
-        Rows with ``scene`` and ``chosen_method`` (e.g. :func:`analysis.load.view_choices`).
+        Rows with ``scene`` and ``chosen_method``, optionally ``shown_groups`` and
+        ``shown_order`` (e.g. :func:`analysis.load.view_choices`).
     order : sequence of str, optional
         Preferred scene order (see :func:`analysis.load.ordered_scenes`).
     """
@@ -107,10 +141,52 @@ def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> p
     if unknown:
         raise ValueError(f"chosen_method: unknown method(s) {sorted(unknown)}; expected {methods}")
     scenes = ordered_scenes(choices["scene"], order)
-    tab = pd.crosstab(choices["scene"], choices["chosen_method"])
+    rows = choices[choices["chosen_method"].notna()]
+    credit = [
+        (scene, m)
+        for scene, row in zip(rows["scene"], rows.to_dict("records"), strict=True)
+        for m in credited_methods(row)
+    ]
+    tab = pd.crosstab(
+        pd.Series([c[0] for c in credit], dtype=object, name="scene"),
+        pd.Series([c[1] for c in credit], dtype=object, name="chosen_method"),
+    )
     tab = tab.reindex(index=scenes, columns=methods, fill_value=0)
     tab.index.name, tab.columns.name = "scene", None
-    return tab.astype(int)
+    tab = tab.astype(int)
+    tab.attrs["choices"] = rows.groupby("scene").size().reindex(scenes, fill_value=0).to_dict()
+    return tab
+
+
+def pair_votes(choices: pd.DataFrame, reference: str, baselines, *, order=None) -> pd.DataFrame:
+    """Votes for ``reference`` and each baseline, from the trials where the two had
+    pictures of their own: a trial where they shared a picture (alike candidates merged)
+    gives neither a vote (its choice says nothing about one against the other).
+
+    Returns
+    -------
+    DataFrame
+        ``scene``, ``baseline``, ``reference_votes``, ``baseline_votes``, ``shared``
+        (trials left out because the two shared a picture).
+    """
+    scenes = ordered_scenes(choices["scene"], order)
+    tally = {(s, b): [0, 0, 0] for s in scenes for b in baselines}
+    for row in choices[choices["chosen_method"].notna()].to_dict("records"):
+        credited = credited_methods(row)
+        for b in baselines:
+            t = tally[(row["scene"], b)]
+            if any(reference in g and b in g for g in _groups(row)):
+                t[2] += 1
+            elif reference in credited:
+                t[0] += 1
+            elif b in credited:
+                t[1] += 1
+    return pd.DataFrame(
+        [
+            {"scene": s, "baseline": b, "reference_votes": k, "baseline_votes": j, "shared": n}
+            for (s, b), (k, j, n) in tally.items()
+        ]
+    )
 
 
 def choices_from_counts(counts: pd.DataFrame) -> pd.DataFrame:
@@ -191,9 +267,12 @@ def vote_table(counts: pd.DataFrame, *, confidence: float = 0.95) -> pd.DataFram
     Returns
     -------
     DataFrame
-        ``scene``, ``method``, ``votes``, ``n`` (votes in the scene), ``share``
-        (votes / n), ``ci_low``, ``ci_high`` (Wilson score interval of the share at
-        ``confidence``), ``rank`` (1 = most votes; ties share the best rank).
+        ``scene``, ``method``, ``votes``, ``n`` (choices in the scene:
+        ``counts.attrs["choices"]`` when a merged picture's choice counted for several
+        methods, else the votes' sum), ``share`` (votes / n: the share of choices that
+        went to a picture standing for the method), ``ci_low``, ``ci_high`` (Wilson
+        score interval of the share at ``confidence``), ``rank`` (1 = most votes; ties
+        share the best rank).
     """
     long = counts.reset_index().melt(
         id_vars=counts.index.name or "index", var_name="method", value_name="votes"
@@ -206,6 +285,9 @@ def vote_table(counts: pd.DataFrame, *, confidence: float = 0.95) -> pd.DataFram
         key=lambda c: c.map(scene_order if c.name == "scene" else method_order),
     )
     n = long.groupby("scene")["votes"].transform("sum")
+    choices = counts.attrs.get("choices")
+    if choices:
+        n = long["scene"].map(choices).fillna(n)
     long["n"] = n.astype(int)
     long["share"] = long["votes"] / long["n"].where(long["n"] > 0)
     low, high = wilson_interval(long["votes"], long["n"], confidence=confidence)
@@ -214,8 +296,15 @@ def vote_table(counts: pd.DataFrame, *, confidence: float = 0.95) -> pd.DataFram
     return long.reset_index(drop=True)
 
 
-def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd.DataFrame:
+def chisquare_no_preference(
+    counts: pd.DataFrame, *, alpha: float = ALPHA, choices: pd.DataFrame | None = None
+) -> pd.DataFrame:
     """Pearson's chi-square test per scene against "every method equally often chosen".
+
+    With ``choices`` whose pictures were merged (``shown_groups``), a scene's test is of
+    its pictures as shown ("every picture equally often chosen", one cell per picture:
+    a merged picture's choice counted once), since its method counts credit one choice
+    to several methods and are no sample of choices.
 
     Returns
     -------
@@ -230,6 +319,10 @@ def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd
     distribution with ``k − 1`` degrees of freedom (same as
     ``scipy.stats.chisquare(observed)``).
     """
+    if choices is not None and any(
+        len(g) > 1 for r in choices.to_dict("records") for g in _groups(r)
+    ):
+        return _chisquare_pictures(counts, choices, alpha=alpha)
     obs = counts.to_numpy(dtype=float)
     k = obs.shape[1]
     n = obs.sum(axis=1)
@@ -257,6 +350,40 @@ def chisquare_no_preference(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd
     )
 
 
+def _chisquare_pictures(counts: pd.DataFrame, choices: pd.DataFrame, *, alpha: float):
+    """:func:`chisquare_no_preference` over each scene's pictures as shown."""
+    rows = []
+    chosen = choices[choices["chosen_method"].notna()].to_dict("records")
+    for scene in counts.index:
+        mine = [r for r in chosen if r["scene"] == scene]
+        options = sorted({g for r in mine for g in _groups(r)})
+        obs = np.array([sum(credited_methods(r) == g for r in mine) for g in options], float)
+        n, k = obs.sum(), max(len(options), 1)
+        e = n / k
+        chi2 = float(((obs - e) ** 2 / e).sum()) if n > 0 and k > 1 else 0.0
+        p = float(stats.chi2.sf(chi2, k - 1)) if n > 0 and k > 1 else 1.0
+        rows.append(
+            {
+                "scene": scene,
+                "n": int(n),
+                "chi2": chi2,
+                "dof": k - 1,
+                "p_value": p,
+                "min_expected": e,
+                "significant": p < alpha,
+                "note": (
+                    f"expected count below {MIN_EXPECTED:g}: chi-square approximation is rough"
+                    if e < MIN_EXPECTED
+                    else ""
+                )
+                + (
+                    f"; {k} pictures shown (alike candidates merged)" if k < counts.shape[1] else ""
+                ),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
 def ours_vs_baselines(
     counts: pd.DataFrame,
     *,
@@ -265,6 +392,7 @@ def ours_vs_baselines(
     alpha: float = ALPHA,
     family: str = "all",
     confidence: float = 0.95,
+    choices: pd.DataFrame | None = None,
 ) -> pd.DataFrame:
     """Exact binomial tests of ``reference`` against each baseline, Holm-adjusted.
 
@@ -282,6 +410,10 @@ def ours_vs_baselines(
         Holm over every scene × baseline test (default), or within each scene.
     confidence : float
         Coverage of the Clopper–Pearson interval of ``share_reference``.
+    choices : DataFrame, optional
+        The choices ``counts`` came from: the pair's votes are then taken from the
+        trials where the two methods did not share a picture (:func:`pair_votes`; with
+        merged candidates the counts credit a shared picture to both).
 
     Returns
     -------
@@ -300,10 +432,21 @@ def ours_vs_baselines(
     baselines = (
         [m for m in counts.columns if m != reference] if baselines is None else list(baselines)
     )
+    pairs = (
+        None
+        if choices is None
+        else pair_votes(choices, reference, baselines, order=list(counts.index)).set_index(
+            ["scene", "baseline"]
+        )
+    )
     rows = []
     for scene, row in counts.iterrows():
         for b in baselines:
-            k, j = int(row[reference]), int(row[b])
+            if pairs is None:
+                k, j = int(row[reference]), int(row[b])
+            else:
+                got = pairs.loc[(scene, b)]
+                k, j = int(got["reference_votes"]), int(got["baseline_votes"])
             n = k + j
             if n > 0:
                 p = stats.binomtest(k, n, 0.5).pvalue

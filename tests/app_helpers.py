@@ -54,8 +54,9 @@ def _digits_image(text: str, size, colour=(30, 30, 30)) -> np.ndarray:
     return np.asarray(img)
 
 
-def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
-    """Write a complete, valid stimuli folder for ``doc`` (default: two scenes)."""
+def write_fixture_stimuli(folder, doc: dict | None = None, *, shown: dict | None = None) -> Path:
+    """Write a complete, valid stimuli folder for ``doc`` (default: two scenes);
+    ``shown``: per scene, the manifest's merged pictures (each the methods it stands for)."""
     import imageio.v3 as iio
     from PIL import Image
 
@@ -109,6 +110,7 @@ def write_fixture_stimuli(folder, doc: dict | None = None) -> Path:
                     "motion_area": [0.0, 1.0, 0.0],
                 },
                 "views": views,
+                **({"shown": shown[sc["id"]]} if shown and sc["id"] in shown else {}),
             }
         )
     return write_manifest(root, study, entries)
@@ -124,6 +126,9 @@ id = "tiny"
 title = "Tiny demo"
 video_fps = 12
 size = [160, 120]
+# Three pictures in every view task (the browser tests of the chooser need them): alike
+# ones replaced, not merged (merged pictures: tests/test_e2e_candidates.py).
+near_duplicate = "replace"
 
 [[scenes]]
 id = "jump"

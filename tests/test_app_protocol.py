@@ -448,7 +448,7 @@ def test_new_study_options_are_validated_by_the_schema():
         1.0,
         True,
         15.0,
-        "replace",
+        "merge",  # issue 36: alike pictures shown once
     )
     s = study_from_dict(
         fixture_study_doc(

@@ -360,9 +360,10 @@ def test_build_warnings_name_their_scene(tmp_path):
 
 
 def test_near_duplicate_error_refuses_alike_pictures(tmp_path):
-    """near_duplicate = "error": a scene whose rendered candidates are too alike (the
-    demo jump: motion area's view is ours' mirror image, 163.6° apart, which the angle
-    cut-off misses) is refused, in one line naming the scene and the measure."""
+    """near_duplicate = "error": a scene whose candidates are too alike (the demo jump:
+    motion area's view is 3.5° from ours; it was a mirror image 163.6° apart, caught by
+    the silhouettes, under an earlier selection) is refused, in one line naming the
+    scene and the measure."""
     (tmp_path / "jump.toml").write_text(
         '[study]\nid = "j"\ntitle = "J"\nvideo_fps = 12\nsize = [160, 120]\n'
         'near_duplicate = "error"\n\n[[scenes]]\nid = "jump"\ndemo = "jump"\n'
@@ -379,7 +380,8 @@ def test_near_duplicate_error_refuses_alike_pictures(tmp_path):
     assert "Traceback" not in r.stderr
     assert re.search(
         r"scene jump: nearly the same picture from ours and motion_area "
-        r"\(silhouette IoU 0\.9\d, mirror images included\) \(threshold IoU 0\.8",
+        r"\((\d+\.\d° apart\) \(threshold 15°|silhouette IoU 0\.9\d, mirror images "
+        r"included\) \(threshold IoU 0\.8)",
         line,
     ), line
     assert not (tmp_path / "stim").exists()

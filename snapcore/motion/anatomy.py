@@ -45,6 +45,7 @@ __all__ = [
     "LIMB_ROLES",
     "REQUIRED_LANDMARKS",
     "body_landmarks",
+    "mirror_permutation",
 ]
 
 #: Stature (m) of the reference adult: tolerances given "for a 1.70 m person" scale by
@@ -402,3 +403,26 @@ def body_landmarks(names, parents) -> dict[str, Any]:
             out[f"{limb}_{side}"] = j
             prev = j if j is not None else prev
     return out
+
+
+def mirror_permutation(names) -> np.ndarray:
+    """Each joint's mirror twin: the index of the joint with the same name on the other
+    side (``LeftHand`` ↔ ``RightHand``), itself for a centre joint or one without a twin.
+
+    Parameters
+    ----------
+    names : sequence of str, length J
+
+    Returns
+    -------
+    ndarray of int, shape (J,)
+        A permutation (an involution): ``positions[..., perm, :]`` swaps left and right.
+    """
+    # An end site keeps its own key: _split_side drops "_end" (LeftToe and LeftToe_End).
+    split = [(*_split_side(n), str(n).lower().endswith("_end")) for n in names]
+    where = {(s, b, e): j for j, (s, b, e) in enumerate(split)}
+    other = {"L": "R", "R": "L"}
+    return np.array(
+        [where.get((other[s], b, e), j) if s in other else j for j, (s, b, e) in enumerate(split)],
+        dtype=int,
+    )

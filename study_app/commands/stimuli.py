@@ -55,7 +55,13 @@ def build(config: Path, out: Path, force: bool, quiet: bool):
     # The angle between every pair of candidate views as shown: near-duplicates split votes.
     for e in s.manifest["scenes"]:
         angles = e.get("view_angles") or {}
-        flag = "  NEAR-DUPLICATE" if e.get("near_duplicates") else ""
+        flag = "  NEAR-DUPLICATE" if e.get("near_duplicates") and "shown" not in e else ""
+        if "shown" in e:  # merged: what the view task shows, each picture once
+            flag = (
+                "  shown: "
+                + " | ".join(" = ".join(g) for g in e["shown"])
+                + (" (view task skipped: all alike)" if e.get("view_task") == "skipped" else "")
+            )
         click.echo(
             f"  {e['id']}: "
             + ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
@@ -84,3 +90,23 @@ def verify(folder: Path):
         f"{folder}: ok ({len(s.manifest['files'])} files, study {s.study.id}, "
         f"manifest sha256 {s.sha256})"
     )
+
+
+@stimuli.command("sheet")
+@click.argument("folder", type=click.Path(file_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="PNG to write.",
+)
+def sheet(folder: Path, out: Path):
+    """Write a sheet of every scene's view-task pictures of stimuli FOLDER as shown (alike
+    candidates once, titled with the methods each stands for)."""
+    from study_app.design.media import shown_sheet
+    from study_app.design.stimuli import load_stimuli
+
+    s = load_stimuli(folder)
+    click.echo(shown_sheet(s.manifest, s.folder, out))

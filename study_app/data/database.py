@@ -111,6 +111,10 @@ responses = sa.Table(
     sa.Column("input_type", sa.String(16)),
     sa.Column("active_time_s", sa.Float),
     sa.Column("tab_id", sa.String(32)),
+    # Which methods each shown picture stands for (alike candidates merged), and a view
+    # trial passed on because its pictures never loaded (issue 36); NULL in older rows.
+    sa.Column("shown_groups", sa.JSON),
+    sa.Column("skipped", sa.String(32)),
     # The guarantee that a re-sent answer cannot become a second row.
     sa.UniqueConstraint("participant_id", "trial_index", name="uq_responses_participant_trial"),
 )

@@ -41,6 +41,8 @@ TRIAL_FIELDS = (
     "input_type",
     "active_time_s",
     "tab_id",
+    "shown_groups",
+    "skipped",
 )
 
 
@@ -78,6 +80,23 @@ def checked_response(row: dict) -> dict:
                 f"{method!r} was not shown at chosen_position {pos!r} "
                 f"(shown_order {order!r})"
             )
+    groups = full["shown_groups"]
+    if groups is not None and (
+        not isinstance(order, list)
+        or not isinstance(groups, list)
+        or len(groups) != len(order)
+        or any(not isinstance(g, list) or not g or g[0] != m for g, m in zip(groups, order))
+    ):
+        # Each shown picture stands for its own method first (and maybe alike ones).
+        raise StoreError(
+            f"response to trial {row.get('trial_index')!r}: shown_groups {groups!r} "
+            f"does not match shown_order {order!r}"
+        )
+    if full["skipped"] is not None and (method is not None or pos is not None):
+        raise StoreError(
+            f"response to trial {row.get('trial_index')!r}: a skipped trial "
+            f"({full['skipped']}) has no chosen method or position"
+        )
     # Validate as a complete export row (placeholders for the store's own fields).
     probe = {
         **full,

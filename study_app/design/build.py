@@ -26,6 +26,7 @@ from snapcore.select.view_methods import VIEW_METHODS
 from .candidates import (
     check_alike_pictures,
     check_near_duplicates,
+    merge_alike_views,
     replace_alike_views,
     select_scene_snapshot,
 )
@@ -300,10 +301,16 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         # The record describes the views shown (the picks keep each method's own).
         shown = {PICK_KEYS[m]: views[m.value]["direction"] for m in VIEW_METHODS}
         angles, dupes = check_near_duplicates(study, sc["id"], {**picks, **shown}, action="warn")
-    # Judged on the pictures themselves too: two views far apart in angle can still
-    # show the same shape (a mirror image, a symmetric pose).
-    ious, alike = check_alike_pictures(study, sc["id"], views)
-    dupes = dupes + [p for p in alike if p not in dupes]
+    merged = None
+    if study.near_duplicate == "merge":
+        # Alike pictures are shown once, standing for each method that proposed them.
+        merged = merge_alike_views(study, scene, picks, views, dupes)
+        ious, dupes = merged["view_iou"], merged["alike"]
+    else:
+        # Judged on the pictures themselves too: two views far apart in angle can still
+        # show the same shape (a mirror image, a symmetric pose).
+        ious, alike = check_alike_pictures(study, sc["id"], views)
+        dupes = dupes + [p for p in alike if p not in dupes]
     t4 = time.perf_counter()
     source = {k: sc[k] for k in ("demo", "files", "manifest", "fps", "scale", "frames") if k in sc}
     return {
@@ -326,6 +333,11 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         "near_duplicates": dupes,
         "view_iou": ious,
         "replacements": replacements,
+        **(
+            {}
+            if merged is None
+            else {k: merged[k] for k in ("shown", "pose_distance", "view_task")}
+        ),
         "timings_s": {
             "load": t1 - t0,
             "select": t2 - t1,

@@ -1,11 +1,13 @@
 """Choosing each scene's candidate views: the pose and the three methods' view directions
 (:func:`select_scene`), how far apart they are (:func:`check_near_duplicates`), whether
 their pictures are nearly the same (:func:`check_alike_pictures`), and a baseline's view
-replaced when its picture nearly repeats an earlier candidate's
+merged when their pictures are alike: shown once, standing for each method that proposed
+it (:func:`merge_alike_views`, ``study.near_duplicate = "merge"``, the default), or a
+baseline's view replaced when its picture nearly repeats an earlier candidate's
 (:func:`replace_alike_views`, ``study.near_duplicate = "replace"``).
 
-What the study config asks when candidates are near-duplicates (``warn``, ``error`` or
-``replace``) is acted on here; the builder (:mod:`study_app.design.build`) records the
+What the study config asks when candidates are near-duplicates (``merge``, ``warn``,
+``error`` or ``replace``) is acted on here; the builder (:mod:`study_app.design.build`) records the
 outcome in the manifest.
 """
 
@@ -19,7 +21,14 @@ from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
 from .media import render_view, view_renderer
 from .protocol import Study
-from .similarity import NEAR_DUPLICATE_IOU, candidate_ious
+from .similarity import (
+    ALIKE_ANGLE_DEG,
+    NEAR_DUPLICATE_IOU,
+    POSE_ALIKE_DISTANCE,
+    candidate_ious,
+    candidate_pose_distances,
+    pose_points,
+)
 from .stimuli import PICK_KEYS, StimuliError
 
 __all__ = [
@@ -29,6 +38,8 @@ __all__ = [
     "check_near_duplicates",
     "check_alike_pictures",
     "replace_alike_views",
+    "alike_groups",
+    "merge_alike_views",
 ]
 
 
@@ -132,7 +143,7 @@ def check_near_duplicates(
     """
     action = action or study.near_duplicate
     angles, dupes = candidate_angles(picks, threshold_deg=study.near_duplicate_deg)
-    if dupes and action != "replace":
+    if dupes and action not in ("replace", "merge"):
         report = ", ".join(f"{k.replace('|', '/')} {v:.1f}°" for k, v in angles.items())
         which = "; ".join(f"{a} and {b} ({angles[f'{a}|{b}']:.1f}° apart)" for a, b in dupes)
         text = (
@@ -156,7 +167,7 @@ def check_alike_pictures(study: Study, scene_id: str, views: dict) -> tuple[dict
     :func:`check_near_duplicates`, with the measure in the message)."""
     ious = candidate_ious(views)
     pairs = [k.split("|") for k, v in ious.items() if v >= NEAR_DUPLICATE_IOU]
-    if pairs:
+    if pairs and study.near_duplicate != "merge":
         which = "; ".join(
             f"{a} and {b} (silhouette IoU {ious[f'{a}|{b}']:.2f}, mirror images included)"
             for a, b in pairs
@@ -254,3 +265,104 @@ def replace_alike_views(
 def _unit(v) -> list[float]:
     a = np.asarray(v, dtype=float).reshape(3)
     return (a / np.linalg.norm(a)).tolist()
+
+
+def alike_groups(pairs) -> list[list[str]]:
+    """The candidates grouped by alike pictures: the connected components of ``pairs``
+    (a method alike to one of a group joins it), every method of
+    :data:`VIEW_METHODS` in one group, each group and the groups in that order.
+
+    >>> alike_groups([["ours", "motion_area"]])
+    [['ours', 'motion_area'], ['viewpoint_entropy']]
+    >>> alike_groups([["viewpoint_entropy", "motion_area"], ["ours", "motion_area"]])
+    [['ours', 'viewpoint_entropy', 'motion_area']]
+    """
+    names = [m.value for m in VIEW_METHODS]
+    root = {m: m for m in names}
+
+    def find(m: str) -> str:
+        while root[m] != m:
+            m = root[m]
+        return m
+
+    for a, b in pairs:
+        ra, rb = find(a), find(b)
+        if ra != rb:  # the earlier method in VIEW_METHODS order heads the group
+            first, second = sorted((ra, rb), key=names.index)
+            root[second] = first
+    groups: dict[str, list[str]] = {}
+    for m in names:
+        groups.setdefault(find(m), []).append(m)
+    return list(groups.values())
+
+
+def merge_alike_views(study: Study, scene, picks: dict, views: dict, angle_pairs=()) -> dict:
+    """Which candidate pictures are alike, and the pictures the view task shows: each
+    group of alike ones once (``study.near_duplicate = "merge"``).
+
+    Two candidates are alike when their pictures are by the validated measure
+    (:mod:`study_app.design.similarity`): projected-joint distance at or under
+    :data:`~study_app.design.similarity.POSE_ALIKE_DISTANCE`, or silhouette IoU at or
+    above :data:`~study_app.design.similarity.NEAR_DUPLICATE_IOU` (mirror images
+    included in both), or their directions at most
+    :data:`~study_app.design.similarity.ALIKE_ANGLE_DEG` apart or from opposite (or under
+    ``study.near_duplicate_deg``: ``angle_pairs``). A group's picture is its first method's (ours
+    when ours is in it) and stands for every method of the group: no method is handed
+    another view than its own.
+
+    Parameters
+    ----------
+    study : Study
+    scene : Scene
+    picks : dict
+        :func:`select_scene`'s picks (the frame, source numbering).
+    views : dict
+        :func:`~study_app.design.media.write_views`'s pictures and directions.
+    angle_pairs : sequence of (str, str)
+        Pairs near-duplicate by angle (:func:`check_near_duplicates`).
+
+    Returns
+    -------
+    dict
+        ``shown`` (:func:`alike_groups`: the pictures shown, each the methods it stands
+        for, its own first), ``alike`` (the alike pairs), ``view_iou`` and
+        ``pose_distance`` (per pair), ``view_task`` (``"shown"``, or ``"skipped"`` when
+        all three pictures are alike: nothing to compare).
+    """
+    frame = int(picks["frame"]) - scene.frame_offset
+    points, mirror = pose_points(scene, frame)
+    dist = candidate_pose_distances(points, mirror, views)
+    ious = candidate_ious(views)
+    angles, near = candidate_angles(
+        {**picks, **{PICK_KEYS[m]: views[m.value]["direction"] for m in VIEW_METHODS}},
+        threshold_deg=ALIKE_ANGLE_DEG,
+    )
+    by_angle = {tuple(p) for p in [*near, *angle_pairs]}
+    alike = [
+        k.split("|")
+        for k in dist
+        if dist[k] <= POSE_ALIKE_DISTANCE
+        or ious[k] >= NEAR_DUPLICATE_IOU
+        or tuple(k.split("|")) in by_angle
+    ]
+    groups = alike_groups(alike)
+    if len(groups) < len(VIEW_METHODS):
+        warnings.warn(
+            "alike pictures shown once for their methods: "
+            + "; ".join(" = ".join(g) for g in groups if len(g) > 1)
+            + " (pose distance "
+            + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in dist.items())
+            + f", threshold {POSE_ALIKE_DISTANCE:g}; silhouette IoU "
+            + ", ".join(f"{k.replace('|', '/')} {v:.2f}" for k, v in ious.items())
+            + f", threshold {NEAR_DUPLICATE_IOU:g}; angles "
+            + ", ".join(f"{k.replace('|', '/')} {v:.0f}°" for k, v in angles.items())
+            + f", alike within {ALIKE_ANGLE_DEG:g}° of each other or of opposite)",
+            stacklevel=2,
+        )
+    return {
+        "shown": groups,
+        "alike": alike,
+        "view_iou": ious,
+        "pose_distance": dist,
+        "view_task": "shown" if len(groups) > 1 else "skipped",
+    }

@@ -22,6 +22,7 @@ __all__ = [
     "view_renderer",
     "render_view",
     "write_views",
+    "shown_sheet",
 ]
 
 #: JPEG quality of the pickable frames: visually lossless at study sizes, ~20 kB a frame.
@@ -134,3 +135,57 @@ def write_views(
         save_png(render_view(scene, frame, directions[m], renderer), p)
         views[m.value] = {"file": p, "direction": directions[m]}
     return views
+
+
+def shown_sheet(manifest: dict, folder: str | Path, path: str | Path) -> Path:
+    """A sheet of every scene's view-task pictures as shown, one row per scene, each
+    picture titled with the methods it stands for (alike candidates merged), a scene
+    without a view task marked so: to look at what participants compare.
+
+    Parameters
+    ----------
+    manifest : dict
+        The stimuli manifest (:attr:`~study_app.design.stimuli.Stimuli.manifest`).
+    folder : path
+        The stimuli folder (the manifest's paths are relative to it).
+    path : path
+        The PNG to write.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    root = Path(folder)
+    scenes = manifest["scenes"]
+    fig, axes = plt.subplots(len(scenes), 3, figsize=(9, 2.6 * len(scenes)), squeeze=False)
+    for row, e in enumerate(scenes):
+        groups = e.get("shown") or [[m.value] for m in VIEW_METHODS]
+        for col, ax in enumerate(axes[row]):
+            ax.axis("off")
+            if col < len(groups):
+                ax.imshow(Image.open(root / e["views"][groups[col][0]]["file"]))
+                ax.set_title(" = ".join(m.replace("_", " ") for m in groups[col]), fontsize=9)
+        note = "view task skipped" if e.get("view_task") == "skipped" else f"{len(groups)} pictures"
+        axes[row][0].text(
+            -0.05,
+            0.5,
+            f"{e['id']}\n({note})",
+            transform=axes[row][0].transAxes,
+            ha="right",
+            va="center",
+            fontsize=10,
+        )
+    fig.suptitle(
+        f"Study {(manifest['study'].get('study') or {}).get('id', '')}: the pictures each "
+        "view task shows, "
+        "titled with the methods each stands for",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+    return out

@@ -108,7 +108,7 @@ DEFAULT_CONTACT = "the researchers (on Prolific: through Prolific's messages)"
 #: "replace" (the default: a baseline's view by its best-scoring view whose picture is
 #: unlike the others, :mod:`study_app.design.replacement`), "error" (stop) or "warn"
 #: (build, warn, and let the analysis report it).
-NEAR_DUPLICATE_ACTIONS = ("replace", "error", "warn")
+NEAR_DUPLICATE_ACTIONS = ("merge", "replace", "error", "warn")
 #: Seconds a participant needs per study step beyond watching (estimates for the consent
 #: page's duration: reading the consent and background, choosing a view, the check).
 _SECONDS_CONSENT, _SECONDS_BACKGROUND, _SECONDS_VIEW, _SECONDS_ATTENTION = 60, 45, 15, 15
@@ -187,7 +187,7 @@ class Study:
     min_answer_s: float = 1.0
     require_watch: bool = True
     near_duplicate_deg: float = 15.0
-    near_duplicate: str = "replace"
+    near_duplicate: str = "merge"
     background: dict = field(default_factory=lambda: dict(DEFAULT_BACKGROUND))
     attention: dict = field(default_factory=lambda: dict(DEFAULT_ATTENTION))
     selection: dict = field(default_factory=dict)
@@ -249,7 +249,11 @@ class Trial:
     stimulus_id : str
         ``"<scene>/pose"``, ``"<scene>/view"`` or ``"attention"``.
     shown_order : tuple of str or None
-        View task: the method shown at each screen position, left to right.
+        View task: the method whose picture is shown at each screen position, left to
+        right.
+    shown_groups : tuple of tuple of str or None
+        View task: the methods each shown picture stands for (its own first): alike
+        candidates share one picture (``study.near_duplicate = "merge"``).
     """
 
     index: int
@@ -257,6 +261,7 @@ class Trial:
     scene: str
     stimulus_id: str
     shown_order: tuple[str, ...] | None = None
+    shown_groups: tuple[tuple[str, ...], ...] | None = None
 
 
 def load_study(path: str | Path) -> Study:
@@ -316,7 +321,7 @@ def study_from_dict(
         min_answer_s=float(s.get("min_answer_s", 1.0)),
         require_watch=bool(s.get("require_watch", True)),
         near_duplicate_deg=float(s.get("near_duplicate_deg", 15.0)),
-        near_duplicate=s.get("near_duplicate", "replace"),
+        near_duplicate=s.get("near_duplicate", "merge"),
         background=background,
         attention=attention,
         selection=dict(doc.get("selection") or {}),
@@ -326,7 +331,7 @@ def study_from_dict(
 
 
 def trial_plan(
-    scene_ids, seed: int, *, methods=VIEW_METHODS, attention: bool = True
+    scene_ids, seed: int, *, methods=VIEW_METHODS, attention: bool = True, shown=None
 ) -> list[Trial]:
     """The ordered trials of one participant.
 
@@ -341,6 +346,11 @@ def trial_plan(
         :data:`snapcore.select.view_methods.VIEW_METHODS`, the paper's Fig. 8–10 and Table 2).
     attention : bool
         Append the attention check.
+    shown : dict of str to sequence of sequence of str, optional
+        Per scene, the pictures its view task shows, each the methods it stands for
+        (its own first; the manifest's ``shown``, :attr:`Stimuli.view_groups`). Absent
+        scenes show each method's own picture. A scene with a single picture (all alike)
+        has no view task.
 
     Returns
     -------
@@ -352,8 +362,10 @@ def trial_plan(
     Notes
     -----
     One ``numpy.random.Generator`` from ``seed`` draws, in a fixed sequence, the pose
-    order, the view order and each view trial's method order, so the plan is a pure
-    function of ``(scene_ids, seed)``.
+    order, the view order and each view trial's picture order (a uniform permutation of
+    the pictures shown, so a merged picture is no likelier on the left), so the plan is
+    a pure function of ``(scene_ids, seed, shown)``; without merged pictures it is the
+    plan of earlier versions.
     """
     ids = list(scene_ids)
     if not ids:
@@ -365,8 +377,20 @@ def trial_plan(
     for k in pose_order:
         trials.append(Trial(len(trials), "pose", ids[k], f"{ids[k]}/pose"))
     for k in view_order:
-        shown = tuple(methods[m] for m in rng.permutation(len(methods)))
-        trials.append(Trial(len(trials), "view", ids[k], f"{ids[k]}/view", shown))
+        groups = [tuple(g) for g in (shown or {}).get(ids[k], ())] or [(m,) for m in methods]
+        if len(groups) < 2:
+            continue  # every candidate the same picture: nothing to compare
+        perm = rng.permutation(len(groups))
+        trials.append(
+            Trial(
+                len(trials),
+                "view",
+                ids[k],
+                f"{ids[k]}/view",
+                tuple(groups[i][0] for i in perm),
+                tuple(groups[i] for i in perm),
+            )
+        )
     if attention:
         trials.append(Trial(len(trials), "attention", "attention", "attention"))
     return trials

@@ -136,6 +136,15 @@ class SceneStimulus(StudyScene):
     video_webm: Path | None = None
 
     @property
+    def shown_groups(self) -> tuple[tuple[str, ...], ...]:
+        """The pictures its view task shows, each the methods it stands for (its own
+        first): the manifest's ``shown``, else every method its own picture."""
+        shown = self.entry.get("shown")
+        if shown:
+            return tuple(tuple(g) for g in shown)
+        return tuple((m.value,) for m in VIEW_METHODS if m.value in self.views)
+
+    @property
     def videos(self) -> list[Path]:
         """The video's encodings in the order a browser should try them."""
         return [self.video] + ([self.video_webm] if self.video_webm else [])
@@ -190,6 +199,14 @@ class Stimuli:
     @property
     def scene_ids(self) -> list[str]:
         return list(self.scenes)
+
+    @property
+    def view_groups(self) -> tuple:
+        """``((scene, shown groups), ...)`` of the scenes whose view task merges alike
+        pictures (:attr:`SceneStimulus.shown_groups`): the plan's ``shown``, hashable."""
+        return tuple(
+            (sid, sc.shown_groups) for sid, sc in self.scenes.items() if sc.entry.get("shown")
+        )
 
 
 def _referenced_files(entry: dict) -> list[str]:

@@ -13,6 +13,7 @@ import re
 __all__ = [
     "EVENT_KINDS",
     "MEDIA_FAILED_EVENT",
+    "MEDIA_LOADED_EVENT",
     "PICKED_WITH",
     "INPUT_TYPES",
     "WATCHED_ENOUGH",
@@ -27,6 +28,9 @@ EVENT_KINDS = ("play", "pause", "seek", "step", "scrub", "ended", "select", "wat
 #: browser after retries (nothing is answered: the chooser stays closed, the player
 #: falls back to the frame slider, whose answers say so).
 MEDIA_FAILED_EVENT = "media_failed"
+#: The event stored when "Try again" brought every picture of a view trial back after a
+#: :data:`MEDIA_FAILED_EVENT`: the positions it named can be chosen again.
+MEDIA_LOADED_EVENT = "media_loaded"
 #: How a pose answer's frame was picked: in the video player, or on the frame slider
 #: (the fallback when the video cannot be played, or the study's ``picker = "frames"``).
 PICKED_WITH = ("player", "slider")

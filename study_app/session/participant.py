@@ -28,6 +28,7 @@ from .events import (
     _TAB,
     MAX_EVENTS_PER_TRIAL,
     MEDIA_FAILED_EVENT,
+    MEDIA_LOADED_EVENT,
     SHOWN_EVENT,
     WATCHED_ENOUGH,
     _picker_items,
@@ -58,8 +59,8 @@ BACKGROUND_NAMES = {"age_band": "age", "gender": "gender", "experience": "experi
 
 
 @lru_cache(maxsize=4096)
-def _plan(scene_ids: tuple, seed: int) -> tuple[Trial, ...]:
-    return tuple(trial_plan(scene_ids, seed))
+def _plan(scene_ids: tuple, seed: int, shown: tuple = ()) -> tuple[Trial, ...]:
+    return tuple(trial_plan(scene_ids, seed, shown=dict(shown)))
 
 
 def _join(words: list[str]) -> str:
@@ -104,7 +105,9 @@ class ParticipantSession:
         self._shown: dict[int, float] = {}
         # The plan is a pure function of (scenes, seed): made once per participant and
         # process, not on every script run that resumes them.
-        self.plan: list[Trial] = list(_plan(tuple(stimuli.scene_ids), int(participant["seed"])))
+        self.plan: list[Trial] = list(
+            _plan(tuple(stimuli.scene_ids), int(participant["seed"]), stimuli.view_groups)
+        )
 
     # -- construction --------------------------------------------------------------
     @classmethod
@@ -374,8 +377,10 @@ class ParticipantSession:
             Share of the animation played in the video player (0-1, the largest the
             player reported in this or an earlier page load of the trial). With the
             study's ``require_watch`` it must reach :data:`WATCHED_ENOUGH`; None means
-            the participant used the frame slider, where nothing plays (stored as
-            ``picked_with = "slider"``, so the analysis can leave it out).
+            the participant used the frame slider (stored as ``picked_with =
+            "slider"``, so the analysis can leave it out), and the row's ``watched`` is
+            what the stored log says the player played before the video failed (None
+            if nothing).
         ranges : list of [float, float], optional
             The video frames played (the player's played ranges), united with the
             stored ones to give the share watched.
@@ -397,6 +402,11 @@ class ParticipantSession:
             v, m = check_video_frame(video_frame, sc.video_to_motion)
         except AnswerError as err:
             raise InvalidAnswer(f"That frame cannot be stored: {err}.") from None
+        slider_watched = None
+        if watched is None:
+            # The slider (the video failed, or the study's picker): what the player did
+            # play before it failed stays on the row, not only in its log.
+            slider_watched = self.watched(trial.index) or None
         if watched is not None:
             if (
                 isinstance(watched, bool)
@@ -413,6 +423,7 @@ class ParticipantSession:
                 raise InvalidAnswer(
                     "Please watch the whole animation once before choosing a frame."
                 )
+        share = watched if watched is not None else slider_watched
         row = {
             "trial_index": trial.index,
             "task": "pose",
@@ -425,7 +436,7 @@ class ParticipantSession:
             "n_frames": sc.n_frames,
             "response_time_s": self._time(response_time_s),
             "picked_with": "slider" if watched is None else "player",
-            "watched": None if watched is None else round(min(watched, 1.0), 3),
+            "watched": None if share is None else round(min(share, 1.0), 3),
         }
         row.update(client_fields(client, row["response_time_s"]))
         # The picker's log goes with the answer (its "select" entry carries how much was
@@ -462,7 +473,11 @@ class ParticipantSession:
         share watched and the video frames played (``[[from, to], ...]``, united)."""
         frame, watched, ranges = 0, 0.0, []
         for e in self.store.events(self.participant_id):
-            if e["trial_index"] != trial_index or e["kind"] in (SHOWN_EVENT, MEDIA_FAILED_EVENT):
+            if e["trial_index"] != trial_index or e["kind"] in (
+                SHOWN_EVENT,
+                MEDIA_FAILED_EVENT,
+                MEDIA_LOADED_EVENT,
+            ):
                 continue
             p = e["payload"] or {}
             if isinstance(p.get("frame"), int):
@@ -485,7 +500,9 @@ class ParticipantSession:
 
     def record_media_failure(self, trial_index, what: str, positions=(), tab=None) -> bool:
         """Record that the current trial's media did not load in the participant's
-        browser after retries (:data:`MEDIA_FAILED_EVENT`); nothing is answered. False
+        browser after retries (:data:`MEDIA_FAILED_EVENT`); nothing is answered. An
+        image report without positions says they all loaded again after "Try again"
+        (:data:`MEDIA_LOADED_EVENT`: their positions can be chosen again). False
         (nothing stored) for a trial that is not the current one."""
         t = self.current_trial
         if (
@@ -505,11 +522,16 @@ class ParticipantSession:
         }
         if isinstance(tab, str) and _TAB.match(tab):
             payload["tab"] = tab
+        kind = MEDIA_FAILED_EVENT
+        if what == "image" and not payload["positions"]:
+            if not self.failed_positions(t.index):
+                return False  # nothing had failed: nothing to clear
+            kind = MEDIA_LOADED_EVENT
         return (
             self.store.record_events(
                 self.participant_id,
                 t.index,
-                [(MEDIA_FAILED_EVENT, payload)],
+                [(kind, payload)],
                 limit=MAX_EVENTS_PER_TRIAL,
             )
             > 0
@@ -543,6 +565,18 @@ class ParticipantSession:
             p, m = check_view_choice(trial, position, method)
         except AnswerError as err:
             raise InvalidAnswer(f"That choice cannot be stored: {err}.") from None
+        if p in self.failed_positions(trial.index):
+            raise InvalidAnswer(
+                "That picture did not load in your browser, so it cannot be chosen. Please "
+                "press “Try again”, or “I can't see the pictures” to go on."
+            )
+        row = self._view_row(trial, self._time(response_time_s), client)
+        row.update({"chosen_method": m, "chosen_position": p})
+        return self._record(row)
+
+    def _view_row(self, trial: Trial, response_time_s: float, client) -> dict:
+        """A view trial's row without its answer: what was shown (each picture with the
+        methods it stands for), when, on what."""
         sc = self.stimuli.scenes[trial.scene]
         row = {
             "trial_index": trial.index,
@@ -552,16 +586,62 @@ class ParticipantSession:
             "algorithm_frame": sc.algorithm_frame,
             "fps": sc.fps,
             "n_frames": sc.n_frames,
-            "chosen_method": m,
-            "chosen_position": p,
-            "shown_order": list(trial.shown_order),
-            "response_time_s": self._time(response_time_s),
+            "shown_order": list(trial.shown_order or ()),
+            "shown_groups": [
+                list(g) for g in trial.shown_groups or [(m,) for m in trial.shown_order or ()]
+            ],
+            "response_time_s": response_time_s,
         }
         row.update(client_fields(client, row["response_time_s"]))
+        return row
+
+    def failed_positions(self, trial_index: int) -> set[int]:
+        """The positions whose pictures the browser last reported as not loading after
+        retries (:data:`MEDIA_FAILED_EVENT`; a later :data:`MEDIA_LOADED_EVENT` clears
+        them)."""
+        last: list = []
+        for e in self.store.events(self.participant_id):
+            p = e["payload"] or {}
+            if e["trial_index"] != trial_index or p.get("what") != "image":
+                continue
+            if e["kind"] == MEDIA_FAILED_EVENT:
+                last = [x for x in p.get("positions") or () if isinstance(x, int)]
+            elif e["kind"] == MEDIA_LOADED_EVENT:
+                last = []
+        return set(last)
+
+    def skip_view(self, trial_index, *, response_time_s: float, client: dict | None = None) -> bool:
+        """Pass on a view trial whose pictures did not load: stored as a row with
+        ``skipped = "media_failed"`` and no choice (never a vote), so the participant
+        can finish. Returns True if stored, False if the trial was already answered.
+
+        Raises
+        ------
+        InvalidAnswer
+            The browser reported no picture of this trial as failed (the way on is
+            offered only then), or the trial is not the current view trial.
+        """
+        trial = self._trial_for(trial_index, "view")
+        if trial is None:
+            return False
+        if not self.failed_positions(trial.index):
+            raise InvalidAnswer(
+                "All pictures of this question have loaded: please choose the one that "
+                "shows best what the figure is doing."
+            )
+        # Not held to min_answer_s: there was no full set of pictures to look at.
+        t = float(response_time_s)
+        if not math.isfinite(t) or t < 0:
+            raise InvalidAnswer("The response time is not valid.")
+        row = self._view_row(trial, min(t, MAX_RESPONSE_TIME_S), client)
+        row["skipped"] = "media_failed"
         return self._record(row)
 
-    def submit_attention(self, trial_index: int, answer, *, response_time_s: float) -> bool:
-        """Answer the attention check (stored with whether it was right)."""
+    def submit_attention(
+        self, trial_index: int, answer, *, response_time_s: float, client: dict | None = None
+    ) -> bool:
+        """Answer the attention check (stored with whether it was right, and what it was
+        given on: :func:`client_fields`)."""
         trial = self._trial_for(trial_index, "attention")
         if trial is None:
             return False
@@ -578,6 +658,7 @@ class ParticipantSession:
             "correct": correct,
             "response_time_s": self._time(response_time_s),
         }
+        row.update(client_fields(client, row["response_time_s"]))
         return self._record(row)
 
     def finish(self) -> str:

@@ -262,7 +262,11 @@ class _Run:
             self.r.answers[_attention_index(self.r)] = d
             await self.think(0.25)
             b = page.widget(K_ATT_SUBMIT)
-            return await self.submit("attention_submit", b, self.c.click(b))
+            # "Continue" is the answer button (a component): its press reports the client.
+            press = {"client": {"viewport": [1366, 768], "dpr": 1, "input": "mouse"}}
+            return await self.submit(
+                "attention_submit", b, self.c.component_event(b, "press", press)
+            )
         raise ProtocolError(f"unexpected page: {page.texts()[:3]}")
 
     async def submit(self, action: str, widget, trigger) -> Page:

@@ -29,6 +29,9 @@ __all__ = [
     "copy_button",
     "confirmed",
     "chosen",
+    "skipped",
+    "answer_button",
+    "pressed",
     "media_url",
     "pin_files",
     "FRAME_PICKER",
@@ -41,6 +44,7 @@ HERE = Path(__file__).resolve().parent
 FRAME_PICKER = "snapshot_frame_picker"
 VIEW_CHOOSER = "snapshot_view_chooser"
 COPY_LINK = "snapshot_copy_link"
+ANSWER_BUTTON = "snapshot_answer_button"
 #: Text shown by the widgets (English defaults; pass ``labels`` to translate).
 DEFAULT_LABELS = {
     "play": "Play",
@@ -59,6 +63,7 @@ DEFAULT_LABELS = {
     "not_saved": "The connection was lost: your answer was not saved. Please press Confirm again.",
     "not_saved_choice": "The connection was lost: your choice was not saved. Please choose again.",
     "image_error": "A picture could not be loaded, so this question cannot be answered yet.",
+    "skip": "I can't see the pictures: skip this question",
 }
 _MIME = {
     ".mp4": "video/mp4",
@@ -80,13 +85,56 @@ def _components():
     import streamlit as st
 
     css = (HERE / "picker.css").read_text(encoding="utf-8")
-    picker = st.components.v2.component(
-        FRAME_PICKER, js=(HERE / "frame_picker.js").read_text(encoding="utf-8"), css=css
-    )
-    chooser = st.components.v2.component(
-        VIEW_CHOOSER, js=(HERE / "view_chooser.js").read_text(encoding="utf-8"), css=css
-    )
+    picker = st.components.v2.component(FRAME_PICKER, js=_script("frame_picker.js"), css=css)
+    chooser = st.components.v2.component(VIEW_CHOOSER, js=_script("view_chooser.js"), css=css)
     return picker, chooser
+
+
+def _script(name: str) -> str:
+    """A component's JavaScript with the shared client report (client.js) before it."""
+    return (
+        (HERE / "client.js").read_text(encoding="utf-8")
+        + "\n"
+        + (HERE / name).read_text(encoding="utf-8")
+    )
+
+
+@cache
+def _answer_component():
+    import streamlit as st
+
+    css = (HERE / "picker.css").read_text(encoding="utf-8")
+    return st.components.v2.component(ANSWER_BUTTON, js=_script("answer_button.js"), css=css)
+
+
+def answer_button(
+    label: str, *, key: str, tab_key: str, on_press, args: tuple = (), testid: str = ""
+) -> None:
+    """A button whose press is an answer, reporting what it was given on (viewport,
+    device pixel ratio, input, active time, tab id) as the pickers do; ``on_press(*args)``
+    runs before the script run it causes (read the report with :func:`pressed`).
+
+    Parameters
+    ----------
+    label : str
+    key : str
+        Streamlit element key.
+    tab_key : str
+        Names the participant's trial in the browser tab (the active time counted under
+        it by the trial's pickers goes on).
+    testid : str
+        The button's ``data-testid``.
+    """
+    _answer_component()(
+        key=key,
+        data=[{"label": label, "tab_key": str(tab_key), "testid": testid}],
+        on_press_change=_bound(on_press, args),
+    )
+
+
+def pressed(key: str) -> dict | None:
+    """In an ``on_press`` callback: the answer button's ``{"client"}``, or None."""
+    return _trigger(key, "press")
 
 
 #: {absolute path: sha256} of the stimulus files the server serves (:func:`pin_files`).
@@ -278,10 +326,12 @@ def view_chooser(
     on_choice=None,
     args: tuple = (),
     tab_key: str = "",
+    on_skip=None,
 ):
     """Mount the view chooser; return ``{"trial", "position", "client"}`` when one is
     chosen (without ``on_choice``), ``{"trial", "failed": [positions]}`` in the run
-    after pictures failed to load (retried; the buttons stay off), else None.
+    after pictures failed to load (retried; the buttons stay off; ``[]`` once they all
+    loaded again), else None.
 
     Parameters
     ----------
@@ -302,6 +352,9 @@ def view_chooser(
     tab_key : str
         Names this participant's trial in the browser tab (its active time is kept
         across reloads under it).
+    on_skip : callable, optional
+        Called with ``args`` when, after a picture failed to load, the participant
+        presses "I can't see the pictures" (read it with :func:`skipped`).
     """
     _, chooser = _components()
     captions = captions or [f"View {chr(65 + i)}" for i in range(len(images))]
@@ -316,9 +369,13 @@ def view_chooser(
         ],
     }
     result = chooser(
-        key=key, data=[data], on_choice_change=_bound(on_choice, args), on_failed_change=_noop
+        key=key,
+        data=[data],
+        on_choice_change=_bound(on_choice, args),
+        on_failed_change=_noop,
+        on_skip_change=_bound(on_skip, args),
     )
-    if result.get("failed"):
+    if result.get("failed") is not None:
         got = result["failed"] or {}
         return {
             "trial": got.get("trial"),
@@ -341,7 +398,12 @@ def _copy_component():
 
 def copy_button(text: str, *, key: str, labels: dict | None = None) -> None:
     """A button that copies ``text`` to the clipboard (and then says so)."""
-    labels = {"copy": "Copy the link", "copied": "Copied", **(labels or {})}
+    labels = {
+        "copy": "Copy the link",
+        "copied": "Copied",
+        "copy_failed": "Could not copy: please select the link and copy it",
+        **(labels or {}),
+    }
     _copy_component()(key=key, data=[{"text": str(text), "labels": labels}])
 
 
@@ -368,6 +430,11 @@ def confirmed(key: str) -> dict | None:
 def chosen(key: str) -> dict | None:
     """In an ``on_choice`` callback: the view chooser's ``{"trial", "position"}``, or None."""
     return _trigger(key, "choice")
+
+
+def skipped(key: str) -> dict | None:
+    """In an ``on_skip`` callback: the view chooser's ``{"trial", "client"}``, or None."""
+    return _trigger(key, "skip")
 
 
 def _noop():

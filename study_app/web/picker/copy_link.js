@@ -14,23 +14,28 @@ export default function (component) {
     b.dataset.testid = "copy-link";
     b.addEventListener("click", async () => {
       const text = b.dataset.text;
+      let copied = false;
       try {
         await navigator.clipboard.writeText(text);
+        copied = true;
       } catch (e) {
-        // No clipboard API (an insecure origin): the old way.
+        // No clipboard API (an insecure origin) or no permission: the old way, which
+        // says whether it copied.
         const ta = document.createElement("textarea");
         ta.value = text;
         document.body.appendChild(ta);
         ta.select();
-        document.execCommand("copy");
+        try { copied = document.execCommand("copy") === true; } catch (e2) { copied = false; }
         ta.remove();
       }
-      b.textContent = b.dataset.copied;
-      b.dataset.done = "1";
+      // "Copied" only when it was: otherwise the participant is told to copy it by hand.
+      b.textContent = copied ? b.dataset.copied : b.dataset.failed;
+      if (copied) b.dataset.done = "1"; else b.dataset.done = "failed";
     });
     parentElement.appendChild(b);
   }
   b.dataset.text = data.text;
   b.dataset.copied = L.copied || "Copied";
+  b.dataset.failed = L.copy_failed || "Could not copy: please select the link and copy it";
   if (!b.dataset.done) b.textContent = L.copy || "Copy the link";
 }

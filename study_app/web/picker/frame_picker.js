@@ -24,7 +24,8 @@
 // An answer sent while the connection is down is lost by the browser: if the page has
 // not moved on RESEND_MS after Confirm, the answer is sent again (the server stores it
 // once), and after RESENDS tries Confirm opens again with a message that nothing was
-// saved. A video that fails to load is loaded again (VIDEO_RETRIES) before the error.
+// saved. A video that fails to load, or stalls while playing (STALL_MS), is loaded
+// again (VIDEO_RETRIES) and resumed before the error.
 //
 // A reload (or leaving the page) before a batch went out keeps its entries in the tab's
 // sessionStorage under log_key (participant and trial); the player mounted again for
@@ -46,49 +47,12 @@
 const RESEND_MS = 4000;
 const RESENDS = 3;
 const VIDEO_RETRIES = 2;
-
-// The tab's id (kept across reloads of the tab, new in another tab).
-function tabId() {
-  try {
-    let id = sessionStorage.getItem("snap-tab");
-    if (!id) {
-      id = Math.random().toString(36).slice(2, 12);
-      sessionStorage.setItem("snap-tab", id);
-    }
-    return id;
-  } catch (e) { return "unknown"; }
-}
-
-// Time the page was visible (ms), across reloads of this tab (kept under key).
-function activeClock(key) {
-  const store = key ? `snap-active:${key}` : null;
-  let before = 0;
-  if (store) { try { before = Number(sessionStorage.getItem(store)) || 0; } catch (e) { before = 0; } }
-  let since = document.visibilityState === "visible" ? performance.now() : null;
-  const ms = () => before + (since === null ? 0 : performance.now() - since);
-  const save = () => { if (store) { try { sessionStorage.setItem(store, String(ms())); } catch (e) { /* full */ } } };
-  document.addEventListener("visibilitychange", () => {
-    if (document.visibilityState === "visible") { if (since === null) since = performance.now(); }
-    else if (since !== null) { before += performance.now() - since; since = null; save(); }
-  });
-  window.addEventListener("pagehide", save);
-  return { ms, clear: () => { if (store) sessionStorage.removeItem(store); } };
-}
-
-// What an answer was given on; input from the event that gave it.
-function clientInfo(ev, lastPointer, clock) {
-  const keyboard = ev && ev.detail === 0 && !lastPointer.recent();
-  return { viewport: [window.innerWidth, window.innerHeight],
-           dpr: window.devicePixelRatio || 1,
-           input: keyboard ? "keyboard" : (lastPointer.type || "mouse"),
-           active_s: Math.round(clock.ms()) / 1000, tab: tabId() };
-}
-
-function pointerTracker(root) {
-  const p = { type: null, at: -1e9, recent: () => performance.now() - p.at < 1500 };
-  root.addEventListener("pointerdown", (e) => { p.type = e.pointerType || "mouse"; p.at = performance.now(); }, true);
-  return p;
-}
+// A video playing whose picture has not moved this long has stopped loading (its body
+// cut midway): it is loaded again and resumed where it was, as a failed load is, and
+// after the retries the trial turns to the slider, without any press of Play.
+const STALL_MS = 3000;
+// Windows this short or shorter (CSS px) get the short layout (picker.css).
+const SHORT_WINDOW_PX = 520;
 
 // United [from, to] ranges (sorted, overlaps merged).
 function unite(ranges) {
@@ -243,11 +207,36 @@ function buildPicker(root, data) {
   }
 
   video.addEventListener("loadeddata", () => {
+    if (!state.ready && window.innerHeight <= SHORT_WINDOW_PX) {
+      // A short window (200% zoom, a landscape phone): the player to the top, so the
+      // video and its controls fill it and the sticky controls cover nothing.
+      root.scrollIntoView({ block: "start" });
+    }
     state.ready = true;
     root.dataset.ready = "1";
     seek(state.frame);
     refreshConfirm();
+    if (state.resume) { state.resume = false; video.play(); }  // loaded again after a stall
   });
+  // The stall watchdog: playing, not ended, and the picture has not moved.
+  let lastTime = -1, lastMove = performance.now();
+  const stallTimer = setInterval(() => {
+    if (!root.isConnected) { clearInterval(stallTimer); return; }
+    const now = performance.now();
+    if (video.paused || video.ended || root.dataset.error || video.currentTime !== lastTime) {
+      lastTime = video.currentTime;
+      lastMove = now;
+      return;
+    }
+    if (now - lastMove > STALL_MS) {
+      lastMove = now;
+      root.dataset.stalls = String(Number(root.dataset.stalls || 0) + 1);
+      log("watch");
+      flush();  // what was watched is stored before the retries (or the slider)
+      state.resume = true;
+      fail("the video stopped loading");
+    }
+  }, 500);
   // Re-check what Confirm may do while the clock and the playback run.
   const ticker = setInterval(() => {
     if (!root.isConnected) { clearInterval(ticker); return; }

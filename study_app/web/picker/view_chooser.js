@@ -5,7 +5,10 @@
 //   "choice": {trial, position, client, resend}  the picture chosen, and what it was
 //             chosen on (viewport, device pixel ratio, input, active time, tab id);
 //   "failed": {trial, positions, tab}  pictures that did not load after retries (the
-//             server records it; nothing is answered).
+//             server records it; nothing is answered); positions [] once "Try again"
+//             brought them all back;
+//   "skip":   {trial, client}  "I can't see the pictures": after a picture failed, the
+//             way on (the server stores the trial as skipped, never as a choice).
 // The page knows positions only: which method made which picture stays on the server
 // (it maps the position through the participant's seeded order), so nothing in the DOM
 // can reveal or forge a method.
@@ -13,38 +16,13 @@
 // again, IMAGE_RETRIES times) and has been on screen min_answer_s seconds: a double
 // click on the previous trial cannot answer this one, and no answer is ever given
 // without every picture seen. A picture still failing keeps the buttons off and offers
-// "Try again". A choice the connection lost is sent again (RESEND_MS, RESENDS), then
+// "Try again" and "I can't see the pictures" (skip: the trial is stored as skipped and
+// the study goes on to its end and its completion code). A choice the connection lost is sent again (RESEND_MS, RESENDS), then
 // the buttons open again with a message that nothing was saved.
 
 const RESEND_MS = 4000;
 const RESENDS = 3;
 const IMAGE_RETRIES = 2;
-
-function tabId() {
-  try {
-    let id = sessionStorage.getItem("snap-tab");
-    if (!id) {
-      id = Math.random().toString(36).slice(2, 12);
-      sessionStorage.setItem("snap-tab", id);
-    }
-    return id;
-  } catch (e) { return "unknown"; }
-}
-
-function activeClock(key) {
-  const store = key ? `snap-active:${key}` : null;
-  let before = 0;
-  if (store) { try { before = Number(sessionStorage.getItem(store)) || 0; } catch (e) { before = 0; } }
-  let since = document.visibilityState === "visible" ? performance.now() : null;
-  const ms = () => before + (since === null ? 0 : performance.now() - since);
-  const save = () => { if (store) { try { sessionStorage.setItem(store, String(ms())); } catch (e) { /* full */ } } };
-  document.addEventListener("visibilitychange", () => {
-    if (document.visibilityState === "visible") { if (since === null) since = performance.now(); }
-    else if (since !== null) { before += performance.now() - since; since = null; save(); }
-  });
-  window.addEventListener("pagehide", save);
-  return { ms, clear: () => { if (store) sessionStorage.removeItem(store); } };
-}
 
 function withQuery(src, q) {
   return q ? `${src}${src.includes("?") ? "&" : "?"}${q}` : src;
@@ -59,8 +37,7 @@ function buildChooser(root, data) {
   const buttons = [];
   const imgs = [];
   const clock = activeClock(data.tab_key);
-  const pointer = { type: null, at: -1e9 };
-  root.addEventListener("pointerdown", (e) => { pointer.type = e.pointerType || "mouse"; pointer.at = performance.now(); }, true);
+  const pointer = pointerTracker(root);
   const errorBox = document.createElement("div");
   errorBox.className = "snap-views-error";
   errorBox.dataset.testid = "views-error";
@@ -73,6 +50,13 @@ function buildChooser(root, data) {
   retry.textContent = L.retry || "Try again";
   retry.hidden = true;
   errorBox.appendChild(retry);
+  const skip = document.createElement("button");
+  skip.type = "button";
+  skip.dataset.testid = "views-skip";
+  skip.textContent = L.skip || "I can't see the pictures: skip this question";
+  skip.hidden = true;
+  errorBox.appendChild(skip);
+  let reportedFailure = false;
 
   let openTimer = null;
   const update = () => {
@@ -80,6 +64,12 @@ function buildChooser(root, data) {
     if (status.every((s) => s === "loaded")) {
       errorBox.hidden = true;
       retry.hidden = true;
+      skip.hidden = true;
+      delete root.dataset.failed;
+      if (reportedFailure) {  // "Try again" brought them back: the server unblocks them
+        reportedFailure = false;
+        root._api.setTriggerValue("failed", { trial: data.trial, positions: [], tab: tabId() });
+      }
       if (openTimer === null && !root.dataset.ready) {
         // Counted from the moment every picture is on screen.
         openTimer = setTimeout(() => {
@@ -92,6 +82,8 @@ function buildChooser(root, data) {
       message.textContent = L.image_error || "A picture could not be loaded, so this question cannot be answered yet.";
       errorBox.hidden = false;
       retry.hidden = false;
+      skip.hidden = false;
+      reportedFailure = true;
       root.dataset.failed = status.map((s, i) => (s === "failed" ? i : null)).filter((i) => i !== null).join(",");
       const positions = status.map((s, i) => (s === "failed" ? i : -1)).filter((i) => i >= 0);
       root._api.setTriggerValue("failed", { trial: data.trial, positions, tab: tabId() });
@@ -104,6 +96,15 @@ function buildChooser(root, data) {
   retry.addEventListener("click", () => {
     retry.hidden = true;
     status.forEach((s, i) => { if (s === "failed") { tries[i] = 0; load(i, `again=${Date.now()}`); } });
+  });
+
+  const client = (ev) => clientInfo(ev, pointer, clock);
+  skip.addEventListener("click", (ev) => {
+    if (root.dataset.sent) return;
+    root.dataset.sent = "1";
+    skip.disabled = true;
+    retry.disabled = true;
+    root._api.setTriggerValue("skip", { trial: data.trial, client: client(ev) });
   });
 
   data.views.forEach((v, i) => {
@@ -137,11 +138,7 @@ function buildChooser(root, data) {
       errorBox.hidden = true;
       buttons.forEach((b) => { b.disabled = true; });
       fig.classList.add("snap-chosen");
-      const keyboard = ev.detail === 0 && performance.now() - pointer.at > 1500;
-      const payload = { trial: data.trial, position: i, client: {
-        viewport: [window.innerWidth, window.innerHeight], dpr: window.devicePixelRatio || 1,
-        input: keyboard ? "keyboard" : (pointer.type || "mouse"),
-        active_s: Math.round(clock.ms()) / 1000, tab: tabId() } };
+      const payload = { trial: data.trial, position: i, client: client(ev) };
       root._api.setTriggerValue("choice", payload);
       let resends = 0;
       clearInterval(root._resend);

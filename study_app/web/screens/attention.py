@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import streamlit as st
 
+from study_app.web.picker import answer_button, pressed
 from study_app.web.screens import answers, context, keys, widgets
 
 
@@ -15,12 +16,13 @@ def render() -> None:
     widgets.show_flash()
     widgets.trial_clock(session, trial)
     _choice(att["question"], tuple(att["options"]))
-    st.button(
+    answer_button(
         "Continue",
         key=keys.KEY_ATTENTION_SUBMIT,
-        type="primary",
-        on_click=_on_submit,
+        tab_key=f"{session.participant_id}:{trial.index}",
+        on_press=_on_submit,
         args=(session.participant_id, trial.index),
+        testid="attention-submit",
     )
 
 
@@ -41,11 +43,12 @@ def _on_submit(pid: str, trial_index: int) -> None:
     if choice is None:
         widgets.flash("warning", "Please choose one of the options.")
         return
+    client = (pressed(keys.KEY_ATTENTION_SUBMIT) or {}).get("client")
     answers.store_answer(
         session,
         trial.index,
         lambda: session.submit_attention(
-            trial.index, choice, response_time_s=widgets.elapsed_s(session, trial)
+            trial.index, choice, response_time_s=widgets.elapsed_s(session, trial), client=client
         ),
         lambda err: widgets.flash("warning", str(err)),
     )

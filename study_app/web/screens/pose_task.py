@@ -5,7 +5,7 @@ from __future__ import annotations
 import streamlit as st
 
 from study_app.session import WATCHED_ENOUGH
-from study_app.web.picker import confirmed, frame_picker
+from study_app.web.picker import answer_button, confirmed, frame_picker, pressed
 from study_app.web.screens import answers, context, keys, widgets
 
 #: Instructions for the video player, and for the frame slider (the fallback when the
@@ -22,6 +22,12 @@ SLIDER_TEXT = (
     "**one moment that best shows what the figure is doing** and press **Confirm this "
     "frame**."
 )
+#: Said before the slider's instructions when it stands in for a video the browser
+#: could not play (one paragraph: the frame and Confirm below keep their room).
+VIDEO_FAILED_TEXT = (
+    "⚠️ **The animation could not be played in your browser**, so here it is picture by "
+    "picture instead. "
+)
 
 
 def render() -> None:
@@ -31,14 +37,14 @@ def render() -> None:
     n_pose = sum(t.task == "pose" for t in session.plan)
     st.header(f"Animation {trial.index + 1} of {n_pose}")
     study = session.stimuli.study
-    use_frames = session.stimuli.study.picker == "frames" or (
-        session.participant_id,
-        trial.index,
-    ) in st.session_state.get(keys.KEY_FRAMES_FALLBACK, set())
+    failed = (session.participant_id, trial.index) in st.session_state.get(
+        keys.KEY_FRAMES_FALLBACK, set()
+    )
+    use_frames = session.stimuli.study.picker == "frames" or failed
     # The instructions name only the controls the participant has (the slider when the
     # browser cannot play the video).
     st.markdown(
-        SLIDER_TEXT
+        (VIDEO_FAILED_TEXT if failed else "") + SLIDER_TEXT
         if use_frames
         else PLAYER_TEXT.format(watch=WATCH_TEXT if study.require_watch else "")
     )
@@ -47,10 +53,7 @@ def render() -> None:
     if not use_frames:
         _player(session.participant_id, trial.index)
         return
-    answer = _frames_picker(sc, trial)
-    if answer is not None:
-        _submit(session, trial, answer)
-        st.rerun()
+    _frames_picker(session.participant_id, sc, trial)
 
 
 @widgets.timed_fragment
@@ -129,8 +132,10 @@ def _submit(session, trial, answer: dict) -> None:
     )
 
 
-def _frames_picker(sc, trial):
-    """Fallback picker: a slider over the pre-extracted frames (pure Streamlit)."""
+def _frames_picker(pid: str, sc, trial) -> None:
+    """Fallback picker: a slider over the pre-extracted frames, the frame (its height
+    capped so Confirm stays on screen: ``SLIDER_CSS``) and Confirm, which reports what
+    the answer was given on as the player does."""
     n = sc.n_video_frames
     k = st.slider(
         "Frame",
@@ -139,9 +144,37 @@ def _frames_picker(sc, trial):
         value=1,
         key=widgets.widget_key(keys.KEY_FRAME_SLIDER, trial),
     )
+    st.html(SLIDER_CSS)
     st.image(str(sc.frames[k - 1]), caption=f"Frame {k} / {n}", width="stretch")
-    if st.button(
-        "Confirm this frame", key=widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial), type="primary"
-    ):
-        return {"trial": trial.index, "frame": k - 1, "events": []}
-    return None
+    answer_button(
+        "Confirm this frame",
+        key=widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial),
+        tab_key=f"{pid}:{trial.index}",
+        on_press=_on_slider_confirm,
+        args=(pid, trial.index),
+        testid="slider-confirm",
+    )
+
+
+#: The slider's frame no taller than what a 1280×720 window leaves under the page's
+#: header, instructions and slider, so Confirm below it stays on screen (it was at
+#: y = 894 px at 1366×768).
+SLIDER_CSS = """<style>
+[data-testid=stImage] img { max-height: max(8rem, calc(100vh - 28rem)); width: auto;
+  max-width: 100%; object-fit: contain; }
+</style>"""
+
+
+def _on_slider_confirm(pid: str, trial_index: int) -> None:
+    """The slider's Confirm, stored before the run it causes (which shows the next step)."""
+    session = context.answering_session(pid)
+    if session is None:
+        return
+    trial = session.plan[trial_index]
+    k = st.session_state.get(widgets.widget_key(keys.KEY_FRAME_SLIDER, trial), 1)
+    press = pressed(widgets.widget_key(keys.KEY_FRAME_CONFIRM, trial)) or {}
+    _submit(
+        session,
+        trial,
+        {"trial": trial.index, "frame": int(k) - 1, "events": [], "client": press.get("client")},
+    )

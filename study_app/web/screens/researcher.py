@@ -112,7 +112,7 @@ def _say(kind: str, text: str) -> None:
 def _n_trials(ctx) -> int:
     from study_app.design.protocol import trial_plan
 
-    return len(trial_plan(ctx.stimuli.scene_ids, 0))
+    return len(trial_plan(ctx.stimuli.scene_ids, 0, shown=dict(ctx.stimuli.view_groups)))
 
 
 # ----------------------------------------------------------------------------- live
