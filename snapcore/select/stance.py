@@ -20,7 +20,15 @@ import numpy as np
 from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
 from snapcore.select.signals import smooth_positions
 
-__all__ = ["key_joints", "neutral_stance", "descriptor_of", "pose_descriptor", "stance_departure"]
+__all__ = [
+    "key_joints",
+    "neutral_stance",
+    "key_positions",
+    "descriptor_of",
+    "pose_descriptor",
+    "stance_departure",
+    "trunk_departure",
+]
 
 #: Key joints of the pose descriptor where landmarks are missing: (role, side), the
 #: first joint of each found.
@@ -302,9 +310,14 @@ def pose_descriptor(
         head-to-pelvis distance is rigid; at 30 degrees the head drops 4 % of the
         stature but moves 16 % forward), a guiding hand reaching out.
     """
-    kj = key_joints(character)
-    x = smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
+    x = key_positions(character, fps=fps, smooth_s=smooth_s)
     return descriptor_of(x, ground=ground, stature=_stature(character), horizontal=horizontal)
+
+
+def key_positions(character, *, fps: float, smooth_s: float = 0.05) -> np.ndarray:
+    """Smoothed positions (m) of the :func:`key_joints`, shape (F, K, 3)."""
+    kj = key_joints(character)
+    return smooth_positions(character.positions[:, kj], fps=fps, smooth_s=smooth_s)
 
 
 def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float) -> np.ndarray:
@@ -328,3 +341,60 @@ def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
     """
     z = np.asarray(features, dtype=float) - np.asarray(neutral, dtype=float)
     return 0.5 * np.square(z).sum(axis=1) / (spread**2 * math.log(2.0))
+
+
+def trunk_departure(
+    points: np.ndarray, neutral: np.ndarray, *, stature: float, spread: float
+) -> np.ndarray:
+    """Self-information (bits) of the trunk's flexion for a person at rest, shape (F,).
+
+    Parameters
+    ----------
+    points : ndarray of shape (F, K, 3)
+        Key-joint positions (:func:`key_positions`, m): the head first, the pelvis second.
+    neutral : ndarray of shape (6, 3)
+        The :func:`neutral_stance` (m): where the head stands above the pelvis.
+    stature : float
+        Metres.
+    spread : float
+        Standard deviation (statures) of the head around its place above the pelvis
+        for a person at rest.
+
+    Returns
+    -------
+    ndarray of shape (F,)
+        ``1/2 (d_i / spread)^2 / ln 2`` with ``d_i`` the distance (statures) of the
+        head from where it stands over the pelvis in the neutral stance, ``head -
+        pelvis - (neutral head - neutral pelvis)``: 0 upright; a bow's drop and forward
+        lean (a 30 degree flexion moves the head by half the spine's length, 15 % of
+        the stature), a lean back, a crouch's forward trunk. Yaw-invariant (a length);
+        a bent knee or a step moves head and pelvis together and does not count.
+
+    Notes
+    -----
+    The trunk gets its own spread because a person at rest holds it far more tightly
+    than the arms and legs: the head sways a few centimetres over the pelvis, the hands
+    tens of centimetres. Under :func:`stance_departure`'s one spread (set for the
+    limbs) a bow of 5-12 cm head drop carries a bit or two, less than the arms of a
+    style that holds its hands at the chest throughout.
+    """
+    x = np.asarray(points, dtype=float)
+    n = np.asarray(neutral, dtype=float)
+    d = x[:, 0] - x[:, 1] - (n[0] - n[1])
+    dist2 = np.einsum("fi,fi->f", d, d) / stature**2
+    legs = _leg_departure(x, n) / stature**2
+    return 0.5 * dist2 / (spread**2 + legs) / math.log(2.0)
+
+
+def _leg_departure(x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Mean squared change (m^2) of the ankles' place below the pelvis from the stance,
+    shape (F,): vertical (a bent knee, a raised foot) and horizontal distance (a lunge,
+    a kick)."""
+    out = np.zeros(x.shape[0])
+    for a in (4, 5):
+        v = x[:, a] - x[:, 1]
+        nv = n[a] - n[1]
+        dv = v[:, 1] - nv[1]
+        dh = np.hypot(v[:, 0], v[:, 2]) - math.hypot(nv[0], nv[2])
+        out += 0.5 * (dv * dv + dh * dh)
+    return out

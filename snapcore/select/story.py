@@ -79,9 +79,11 @@ from snapcore.select.stance import (
     _stature,
     descriptor_of,
     key_joints,
+    key_positions,
     neutral_stance,
     pose_descriptor,
     stance_departure,
+    trunk_departure,
 )
 
 __all__ = [
@@ -211,6 +213,8 @@ class StoryParams:
     support_s: float = 0.1
     stance: bool = True
     stance_spread: float = 0.15
+    trunk: bool = True
+    trunk_spread: float = 0.03
     novelty: bool = True
     w_novelty: float = 0.25
     horizontal: bool = True
@@ -307,6 +311,7 @@ class StoryInformation:
     contacts: list[LimbContacts]
     params: StoryParams
     timings_s: dict = field(default_factory=dict)
+    trunk_bits: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 # ----------------------------------------------------------------------- contacts
@@ -662,34 +667,40 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
     stance_bits = np.zeros(n_f)
+    trunk_bits = np.zeros(n_f)
     novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
-        if p.w_pose > 0 and (p.novelty or p.stance):
-            feats = pose_descriptor(
-                c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s, horizontal=p.horizontal
+        if p.w_pose > 0 and (p.novelty or p.stance or p.trunk):
+            x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
+            feats = descriptor_of(
+                x, ground=scene.ground, stature=_stature(c), horizontal=p.horizontal
             )
             if p.novelty:
                 novelty_bits += tail_surprisal(
                     pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
                 )
-            if p.stance:
-                neutral = neutral_stance(c, ground=scene.ground)
-                if neutral is None:
-                    warnings.warn(
-                        f"{c.name}: the skeleton does not name a head, pelvis, arms "
-                        "and legs; its pose term leaves out the departure from "
-                        "a neutral stance",
-                        stacklevel=2,
-                    )
-                else:
+            neutral = neutral_stance(c, ground=scene.ground) if p.stance or p.trunk else None
+            if neutral is None and (p.stance or p.trunk):
+                warnings.warn(
+                    f"{c.name}: the skeleton does not name a head, pelvis, arms "
+                    "and legs; its pose term leaves out the departure from "
+                    "a neutral stance",
+                    stacklevel=2,
+                )
+            elif neutral is not None:
+                if p.stance:
                     nd = descriptor_of(
                         neutral[None], ground=0.0, stature=_stature(c), horizontal=p.horizontal
                     )[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
+                if p.trunk:
+                    trunk_bits += trunk_departure(
+                        x, neutral, stature=_stature(c), spread=p.trunk_spread
+                    )
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
         contacts.append(lc)
@@ -702,10 +713,10 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
                 event_bits += contact_state_entropy(lc.state)
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
-    for bits in (stance_bits, novelty_bits, event_bits):
+    for bits in (stance_bits, trunk_bits, novelty_bits, event_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
-    pose_bits = stance_bits + novelty_bits
+    pose_bits = stance_bits + trunk_bits + novelty_bits
     if p.w_pose > 0 and not pose_bits.any():
         warnings.warn(
             "story pose information is constant over the clip (static clip?); it contributes 0",
@@ -718,6 +729,7 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     if p.combine == "bits":
         terms = {
             "stance": support(p.w_pose * stance_bits),
+            "trunk": support(p.w_pose * trunk_bits),
             "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
             "events": support(p.w_event * event_bits),
         }
@@ -730,5 +742,5 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     total = np.sum(list(terms.values()), axis=0)
     timings = {"pose_term": t_pose, "contacts_events": t_event, "story": time.perf_counter() - t0}
     return StoryInformation(
-        stance_bits, novelty_bits, event_bits, terms, total, contacts, p, timings
+        stance_bits, novelty_bits, event_bits, terms, total, contacts, p, timings, trunk_bits
     )
