@@ -6,8 +6,9 @@ pelvis, wrists, ankles), their pairwise distances and their pairwise horizontal
 distances, over the character's stature.
 :func:`neutral_stance` builds the same joints for the character standing at rest with
 its arms down, from its own bone lengths and rigid body measurements, and
-:func:`stance_departure` gives the self-information (bits) of departing from it. See
-:mod:`snapcore.select.story` for how they are used.
+:func:`stance_departure` gives the self-information (bits) of departing from it;
+:func:`trunk_departure` that of the trunk's flexion (a bow), under the trunk's own,
+tighter spread. See :mod:`snapcore.select.story` for how they are used.
 """
 
 from __future__ import annotations
@@ -350,8 +351,9 @@ def trunk_departure(
 
     Parameters
     ----------
-    points : ndarray of shape (F, K, 3)
-        Key-joint positions (:func:`key_positions`, m): the head first, the pelvis second.
+    points : ndarray of shape (F, 6, 3)
+        Key-joint positions (:func:`key_positions`, m) in the order of
+        :func:`neutral_stance`: head, pelvis, wrists, ankles.
     neutral : ndarray of shape (6, 3)
         The :func:`neutral_stance` (m): where the head stands above the pelvis.
     stature : float
@@ -363,12 +365,14 @@ def trunk_departure(
     Returns
     -------
     ndarray of shape (F,)
-        ``1/2 (d_i / spread)^2 / ln 2`` with ``d_i`` the distance (statures) of the
-        head from where it stands over the pelvis in the neutral stance, ``head -
-        pelvis - (neutral head - neutral pelvis)``: 0 upright; a bow's drop and forward
-        lean (a 30 degree flexion moves the head by half the spine's length, 15 % of
-        the stature), a lean back, a crouch's forward trunk. Yaw-invariant (a length);
-        a bent knee or a step moves head and pelvis together and does not count.
+        ``1/2 d_i^2 / (spread^2 + l_i^2) / ln 2`` with ``d_i`` the distance
+        (statures) of the head from where it stands over the pelvis in the neutral
+        stance, ``|head - pelvis - (neutral head - neutral pelvis)|``: 0 upright; a
+        bow's drop and forward lean (a 30 degree flexion moves the head by about 15 %
+        of the stature), a lean back. ``l_i^2`` is the legs' departure: the mean over
+        the two legs of the squared change (statures^2) of the ankle's place below the
+        pelvis, vertical and horizontal distance, from the neutral stance.
+        Yaw-invariant (lengths).
 
     Notes
     -----
@@ -377,6 +381,13 @@ def trunk_departure(
     tens of centimetres. Under :func:`stance_departure`'s one spread (set for the
     limbs) a bow of 5-12 cm head drop carries a bit or two, less than the arms of a
     style that holds its hands at the chest throughout.
+
+    The spread widens with the legs' departure because a trunk that leans while the
+    knees bend (the crouch before a jump, a landing, a lunge) or a leg rises (a kick)
+    is carried by the legs' motion -- it leans to keep the weight over the feet --
+    and is not a gesture of its own; the stance term already counts that pose. Only
+    the legs weigh: a bow is made with the arms anywhere (hanging, along the thighs,
+    clasped in front).
     """
     x = np.asarray(points, dtype=float)
     n = np.asarray(neutral, dtype=float)

@@ -21,6 +21,14 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    frames (a clip may start mid-action). This is what finds the action whatever share
    of the clip it fills: a raised hand, a bow, a kick depart from it; the rest pose
    does not.
+   **The trunk** (``trunk``) gets its own, tighter spread (:func:`trunk_departure`): a
+   person at rest holds the head over the pelvis within a few centimetres
+   (``trunk_spread``, 0.03 statures), the hands within tens, so a bow -- the head
+   dropping 5-12 cm and leaning forward while the rest of the body barely moves --
+   carries tens of bits even where the arms depart more throughout (hands clasped at
+   the chest). The spread widens by the legs' own departure (bent knees, a lunge, a
+   raised foot): a trunk that leans with the legs in a crouch, a landing or a kick is
+   carried by them, and the stance term already counts that pose.
 2. **Novelty in the clip** (``novelty``): how unusual the pose is among the clip's own
    poses -- the Mahalanobis distance under a Gaussian of all the clip's poses
    (covariance shrunk towards a multiple of the identity and widened by the capture
@@ -44,9 +52,9 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    support on the side where the limb is free (``event_support_s``,
    ``sided_support``): a release credits the frames after it (the swing, the flight),
    an onset the frames before it (the approach).
-4. **Combination** (``combine``): the pose bits (1 + 2) weighted by ``w_pose`` plus the
-   event bits weighted by ``w_event``, then averaged over a Gaussian window of
-   ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
+4. **Combination** (``combine``): the pose bits (1 + 2: stance, trunk, novelty)
+   weighted by ``w_pose`` plus the event bits weighted by ``w_event``, then averaged
+   over a Gaussian window of ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
    surroundings the clip does not show has less support). Averaging is linear, so the
    supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
    ``combine="normalised"`` min-max normalises the pose and event terms first, as the
@@ -102,6 +110,7 @@ __all__ = [
     "neutral_stance",
     "descriptor_of",
     "stance_departure",
+    "trunk_departure",
     "COMBINE_MODES",
     "event_surprisal",
     "contact_state_entropy",
@@ -138,7 +147,7 @@ class StoryParams:
     Attributes
     ----------
     w_pose, w_event : float
-        Weights of the pose (stance + novelty) and event terms (eq. 9's weights, on
+        Weights of the pose (stance + trunk + novelty) and event terms (eq. 9's weights, on
         bits, or on the normalised terms with ``combine="normalised"``); 0 switches a
         term off.
     smooth_s : float
@@ -182,6 +191,11 @@ class StoryParams:
     stance_spread : float
         Spread (statures) of a person at rest around the neutral stance; the smaller,
         the more a departure weighs against novelty and events.
+    trunk : bool
+        Count the trunk's flexion from upright (:func:`trunk_departure`): a bow.
+    trunk_spread : float
+        Spread (statures) of the head around its place above the pelvis for a person
+        at rest (0.03: about 5 cm); widened by the legs' departure.
     novelty : bool
         Count the pose's novelty in the clip (:func:`tail_surprisal` of
         :func:`pose_surprisal`).
@@ -289,12 +303,12 @@ class StoryInformation:
 
     Attributes
     ----------
-    stance_bits, novelty_bits, event_bits : ndarray of shape (F,)
+    stance_bits, trunk_bits, novelty_bits, event_bits : ndarray of shape (F,)
         The ingredients (bits, summed over characters), before weights and support.
     terms : dict of str to ndarray of shape (F,)
         The weighted, supported terms, which add up to ``total`` exactly:
-        ``stance``, ``novelty``, ``events`` (bits) with ``combine="bits"``; ``pose`` and
-        ``events`` (normalised) with ``combine="normalised"``.
+        ``stance``, ``trunk``, ``novelty``, ``events`` (bits) with ``combine="bits"``;
+        ``pose`` and ``events`` (normalised) with ``combine="normalised"``.
     total : ndarray of shape (F,)
         The score whose argmax is the pose.
     contacts : list of LimbContacts
@@ -304,6 +318,7 @@ class StoryInformation:
     """
 
     stance_bits: np.ndarray
+    trunk_bits: np.ndarray
     novelty_bits: np.ndarray
     event_bits: np.ndarray
     terms: dict
@@ -311,7 +326,6 @@ class StoryInformation:
     contacts: list[LimbContacts]
     params: StoryParams
     timings_s: dict = field(default_factory=dict)
-    trunk_bits: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 # ----------------------------------------------------------------------- contacts
@@ -742,5 +756,5 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     total = np.sum(list(terms.values()), axis=0)
     timings = {"pose_term": t_pose, "contacts_events": t_event, "story": time.perf_counter() - t0}
     return StoryInformation(
-        stance_bits, novelty_bits, event_bits, terms, total, contacts, p, timings, trunk_bits
+        stance_bits, trunk_bits, novelty_bits, event_bits, terms, total, contacts, p, timings
     )
