@@ -391,21 +391,18 @@ def trunk_departure(
     """
     x = np.asarray(points, dtype=float)
     n = np.asarray(neutral, dtype=float)
-    d = x[:, 0] - x[:, 1] - (n[0] - n[1])
-    dist2 = np.einsum("fi,fi->f", d, d) / stature**2
-    legs = _leg_departure(x, n) / stature**2
-    return 0.5 * dist2 / (spread**2 + legs) / math.log(2.0)
-
-
-def _leg_departure(x: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Mean squared change (m^2) of the ankles' place below the pelvis from the stance,
-    shape (F,): vertical (a bent knee, a raised foot) and horizontal distance (a lunge,
-    a kick)."""
-    out = np.zeros(x.shape[0])
+    # components first, each (F, K) contiguous: the arithmetic below is on 1-D rows
+    xs, ys, zs = np.ascontiguousarray(np.moveaxis(x, -1, 0))
+    off = n[0] - n[1]
+    dx = xs[:, 0] - xs[:, 1] - off[0]
+    dy = ys[:, 0] - ys[:, 1] - off[1]
+    dz = zs[:, 0] - zs[:, 1] - off[2]
+    head = dx * dx + dy * dy + dz * dz
+    # the legs: each ankle's vertical and horizontal distance from the pelvis
+    legs = np.zeros(x.shape[0])
     for a in (4, 5):
-        v = x[:, a] - x[:, 1]
         nv = n[a] - n[1]
-        dv = v[:, 1] - nv[1]
-        dh = np.hypot(v[:, 0], v[:, 2]) - math.hypot(nv[0], nv[2])
-        out += 0.5 * (dv * dv + dh * dh)
-    return out
+        dv = ys[:, a] - ys[:, 1] - nv[1]
+        dh = np.hypot(xs[:, a] - xs[:, 1], zs[:, a] - zs[:, 1]) - math.hypot(nv[0], nv[2])
+        legs += 0.5 * (dv * dv + dh * dh)
+    return 0.5 * head / (spread**2 * stature**2 + legs) / math.log(2.0)
