@@ -177,3 +177,53 @@ def test_a_cut_late_in_the_clip_with_a_follow_through_to_the_end():
     iv = slash_intervals(scene)
     f = _picks(scene)[0]
     assert _hits([f], iv, fps)[0], (f, iv)
+
+
+# --------------------------------------------------------------------------- strikes
+
+
+def test_strike_surprisal_known_answer():
+    """A wrist that strikes twice (speed peaks of 5 statures/s) in 100 frames: each
+    strike carries -log2(2/100) bits at its peak (no support); with support they go to
+    the frames before the peak only, and a slow hand (1 stature/s) is no strike."""
+    from snapcore.select.strikes import strike_surprisal
+
+    fps, stature, n = 100.0, 1.0, 100
+    from scipy.special import erf
+
+    t = np.arange(n) / fps
+    sig = 0.03
+    # the left wrist moves forward with speed 5 exp(-(t - c)^2 / 2 sig^2) around c = 0.3,
+    # 0.7 s: its position is the integral of that
+    x = np.zeros((n, 6, 3))
+    for c in (0.3, 0.7):
+        x[:, 2, 2] += 5.0 * sig * math.sqrt(math.pi / 2) * erf((t - c) / (sig * math.sqrt(2)))
+    bits = strike_surprisal(x, fps=fps, stature=stature, support_s=0.0)
+    peaks = np.flatnonzero(bits)
+    assert peaks.tolist() == [30, 70]
+    assert bits[peaks] == pytest.approx(-math.log2(2 / n))
+    spread = strike_surprisal(x, fps=fps, stature=stature, support_s=0.05)
+    assert spread[25:31].min() > 0 and np.all(spread[31:40] == 0)
+    x[:, 2, 2] *= 0.2
+    assert not strike_surprisal(x, fps=fps, stature=stature).any()
+
+
+def test_strikes_credit_the_approach_to_the_cut():
+    """On three cuts with long follow-throughs, the strike term credits the approach --
+    it is largest at or before the hands' speed peak (the raise is fast too) and
+    positive through the rule-9 interval -- and gives the follow-through (0.2-1.5 s
+    after the speed peak) nothing; a bow has no strike."""
+    from snapcore.select.story import story_information
+
+    fps = 60.0
+    scene = slash_scene(cuts_s=(0.9, 3.6, 6.3), seconds=8.6, follow_s=1.8, step_m=0.3, fps=fps)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        strikes = story_information(scene).strike_bits
+    for a, b in slash_intervals(scene):
+        f = a - int(0.3 * fps) + int(np.argmax(strikes[a - int(0.3 * fps) : b + int(fps)]))
+        assert f <= b and strikes[a : b + 1].min() > 0, (f, a, b)
+        assert np.all(strikes[b + int(0.2 * fps) : b + int(1.5 * fps)] == 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert not story_information(_shallow_bow("sides", fps, 0)).strike_bits.any()
