@@ -87,7 +87,14 @@ def test_trunk_departure_known_answer():
     both knees bent (ankles 20 cm nearer the pelvis) carries fewer bits."""
     stature, spread, spine = 1.75, 0.03, 0.55
     neutral = np.array(
-        [[0, 1.5, 0], [0, 0.95, 0], [0.25, 0.8, 0], [-0.25, 0.8, 0], [0.1, 0.08, 0], [-0.1, 0.08, 0]],
+        [
+            [0, 1.5, 0],
+            [0, 0.95, 0],
+            [0.25, 0.8, 0],
+            [-0.25, 0.8, 0],
+            [0.1, 0.08, 0],
+            [-0.1, 0.08, 0],
+        ],
         dtype=float,
     )
     up = neutral.copy()

@@ -245,7 +245,9 @@ def slash_scene(
         cut = _ramp(t, c, cut_s)
         st = _ramp(t, c + cut_s, 0.4)
         back = _ramp(t, c + cut_s + follow_s, back_s)
-        ang += (top - guard) * up + (end - top) * cut + (settle - end) * st + (guard - settle) * back
+        ang += (
+            (top - guard) * up + (end - top) * cut + (settle - end) * st + (guard - settle) * back
+        )
         rad += (
             (r_top - r_guard) * up
             + (r_end - r_top) * cut
@@ -325,8 +327,8 @@ def slash_intervals(scene: Scene) -> list[tuple[int, int]]:
     speed = np.linalg.norm(np.gradient(x, axis=0), axis=2).mean(axis=1) * scene.fps
     big = rise >= 0.8 * rise.max()
     d = np.diff(np.r_[0, big.astype(np.int8), 0])
-    out = []
-    for s, e in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+    out: list[tuple[int, int]] = []
+    for s, e in zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()):
         peak = float(rise[s:e].max())
         a = s + int(np.flatnonzero(rise[s:e] >= 0.95 * peak)[0])
         k = s + int(np.argmax(rise[s:e]))
