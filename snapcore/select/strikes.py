@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from snapcore.select.signals import half_gaussian
 
@@ -68,6 +67,10 @@ def strike_frames(speed: np.ndarray, *, threshold: float) -> list[np.ndarray]:
     list of ndarray of int
         One array of frames per effector.
     """
+    # scipy only when strikes are looked for: importing the selectors stays light (a
+    # `snapshot batch` run with nothing to do loads no heavy library)
+    from scipy.signal import find_peaks
+
     v = np.asarray(speed, dtype=float)
     return [
         find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold)[0]
