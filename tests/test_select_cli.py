@@ -87,7 +87,7 @@ def test_select_human_output(motions_dir, tmp_path):
     text = result.stdout
     doc = json.loads(out.read_text())
     assert f"pose        frame {doc['frame']}" in text
-    assert "rank   frame   time_s   total   stance  novelty   events" in text
+    assert "rank   frame   time_s   total   stance    trunk  novelty   events  strikes" in text
     for rank, frame in enumerate(doc["frames"], start=1):
         assert any(line.split()[:2] == [str(rank), str(frame)] for line in text.splitlines())
     assert "61_12_scaled: ground" in text and "60_12_scaled" in text

@@ -162,18 +162,26 @@ def test_story_finds_synthetic_actions(fps):
 
 
 def test_ablation_switches_change_the_ingredients():
-    """Each switch removes its ingredient: w_event=0 leaves a zero event term, w_pose=0
-    zero pose terms, stance/novelty off their own term; the terms add up to the total."""
+    """Each switch removes its ingredient: w_event=0 leaves zero event and strike terms,
+    w_pose=0 zero pose terms, stance/trunk/novelty/strikes off their
+    own term; the terms add up to the total."""
     scene = synth.synth_scene("jump", fps=60)
     full = _quiet(story_information, scene)
-    assert set(full.terms) == {"stance", "novelty", "events"}
+    assert set(full.terms) == {"stance", "trunk", "novelty", "events", "strikes"}
     assert all(full.terms[k].max() > 0 for k in full.terms)
     np.testing.assert_allclose(sum(full.terms.values()), full.total, rtol=1e-12)
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(w_event=0.0))
     assert np.all(info.terms["events"] == 0) and info.terms["stance"].max() > 0
+    assert np.all(info.terms["strikes"] == 0)
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(w_pose=0.0))
     assert np.all(info.terms["stance"] == 0) and np.all(info.terms["novelty"] == 0)
+    assert np.all(info.terms["trunk"] == 0)
     assert info.terms["events"].max() > 0
+    info = _quiet(story_information, scene, DEFAULT_STORY.with_(strikes=False))
+    assert np.all(info.terms["strikes"] == 0) and info.terms["events"].max() > 0
+    info = _quiet(story_information, scene, DEFAULT_STORY.with_(trunk=False))
+    assert np.all(info.trunk_bits == 0) and np.all(info.terms["trunk"] == 0)
+    assert info.stance_bits.max() > 0
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(stance=False))
     assert np.all(info.stance_bits == 0) and info.novelty_bits.max() > 0
     info = _quiet(story_information, scene, DEFAULT_STORY.with_(novelty=False))

@@ -4,8 +4,9 @@ clip of rest, and a kick repeated three times; several seeds and frame rates. Th
 pick must lie on the action (the frames where the gesture or kick is within 20 % of its
 peak, widened by 0.1 s as in ``snapshot keymoments``).
 
-The clips are built here from the procedural rig (:mod:`snapcore.motion.synth_rig`): a
-person standing with breathing and sway, so that no frame is exactly still."""
+The clips are built here from the procedural rig (:mod:`snapcore.motion.synth_rig`) on
+the person standing at rest of :func:`snapcore.motion.synth_actions.standing` (breathing
+and sway, so that no frame is exactly still)."""
 
 from __future__ import annotations
 
@@ -14,48 +15,12 @@ import warnings
 import numpy as np
 import pytest
 
-from snapcore.motion.scene import Scene, character_from_bvh
-from snapcore.motion.synth_rig import (
-    ANKLE_HEIGHT,
-    BALL,
-    ROOT_HEIGHT_M,
-    SIDES,
-    Pose,
-    arm_fk,
-    pchip,
-    plant_feet,
-    rx,
-    to_document,
-    zxy,
-)
+from snapcore.motion.synth_actions import pose_scene as _scene
+from snapcore.motion.synth_actions import standing as _standing
+from snapcore.motion.synth_rig import ANKLE_HEIGHT, ROOT_HEIGHT_M, SIDES, arm_fk, pchip, rx, zxy
 from snapcore.select.pose_methods import select_pose
 
 WIDEN_S = 0.1
-
-
-def _standing(t, rng) -> Pose:
-    """A person standing at rest: breathing, swaying, feet planted, arms hanging."""
-    n = t.size
-    pose = Pose(n)
-    breath = np.sin(2 * np.pi * t / (3.0 + rng.uniform(0, 0.6)))
-    sway = np.sin(2 * np.pi * t / (4.0 + rng.uniform(0, 1.0)) + rng.uniform(0, 2 * np.pi))
-    pose.root = np.stack(
-        [0.02 * sway, ROOT_HEIGHT_M - 0.006 + 0.002 * breath, 0.004 * breath], axis=1
-    )
-    pose.local["Hips"] = zxy(1.5 * sway, 1.0, 2.0 * sway)
-    pose.local["Spine"] = zxy(-1.5 * sway, 1.0 + breath, -sway)
-    plant_feet(
-        pose, [0.1, ANKLE_HEIGHT + BALL[1], BALL[2]], [-0.1, ANKLE_HEIGHT + BALL[1], BALL[2] - 0.03]
-    )
-    for side in SIDES:
-        arm_fk(pose, side, 8.0 + 1.5 * breath, 4.0 + 2.0 * sway * SIDES[side], 14.0)
-    return pose
-
-
-def _scene(pose: Pose, fps: float, name: str) -> Scene:
-    doc = to_document(pose, fps, path=f"{name}.bvh")
-    c = character_from_bvh(doc, scale=1.0, name="actor", fps=fps)
-    return Scene(characters=[c], fps=float(fps), ground=0.0, name=name)
 
 
 def _gesture(fps: float, seed: int, *, seconds: float, start_s: float, end_s: float):

@@ -57,7 +57,7 @@ def plot_curves(snapshot, *, axes=None):
     paper = sc.method == "paper"
     # the paper's terms keep their entropy names; other methods' terms are named after
     # what they hold (PoseScores.terms), in the method's own unit
-    colours = [_TERM_COLOURS["local"], _TERM_COLOURS["global"], "#27ae60", "#8e44ad"]
+    colours = [_TERM_COLOURS["local"], _TERM_COLOURS["global"], "#27ae60", "#8e44ad", "#17becf"]
     for k, (name, values) in enumerate(sc.terms.items()):
         label = (
             {"local": "local $w H^*_{local}$", "global": "global $w H^*_{global}$"}.get(name, name)

@@ -1,4 +1,5 @@
-"""Signal helpers the pose selectors share: trajectory smoothing and min-max scaling.
+"""Signal helpers the pose selectors share: trajectory smoothing, min-max scaling and
+the (half-)Gaussian that spreads an event's information over time.
 
 Joint trajectories are smoothed with a Savitzky-Golay filter before anything
 differentiates them (mocap jitter at 60-120 fps would otherwise dominate speeds and
@@ -13,6 +14,7 @@ and the ``paper`` method's regression cases are recorded against this arithmetic
 
 from __future__ import annotations
 
+import math
 import warnings
 from functools import lru_cache
 
@@ -25,6 +27,7 @@ __all__ = [
     "savgol_matrix",
     "smooth_positions",
     "minmax",
+    "half_gaussian",
 ]
 
 #: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
@@ -118,3 +121,20 @@ def minmax(values: np.ndarray, *, name: str = "values") -> np.ndarray:
         warnings.warn(f"{name} is constant over the clip ({lo:g}); it contributes 0", stacklevel=3)
         return np.zeros_like(v)
     return (v - lo) / (hi - lo)
+
+
+def half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
+    """A Gaussian kernel of peak 1 over offsets ``-r..r`` and its radius ``r``.
+
+    ``sided``: zero at negative offsets (convolved with a signal of events, it credits
+    the frames after each event; reversed, the frames before). ``sigma_frames <= 0``
+    gives the one-frame kernel ``[1]`` and ``r = 0``.
+    """
+    if sigma_frames <= 0:
+        return np.ones(1), 0
+    r = int(math.ceil(3 * sigma_frames))
+    off = np.arange(-r, r + 1)
+    k = np.exp(-0.5 * (off / sigma_frames) ** 2)
+    if sided:
+        k = np.where(off >= 0, k, 0.0)
+    return k, r

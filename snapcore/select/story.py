@@ -21,6 +21,14 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    frames (a clip may start mid-action). This is what finds the action whatever share
    of the clip it fills: a raised hand, a bow, a kick depart from it; the rest pose
    does not.
+   **The trunk** (``trunk``) gets its own, tighter spread (:func:`trunk_departure`): a
+   person at rest holds the head over the pelvis within a few centimetres
+   (``trunk_spread``, 0.03 statures), the hands within tens, so a bow -- the head
+   dropping 5-12 cm and leaning forward while the rest of the body barely moves --
+   carries tens of bits even where the arms depart more throughout (hands clasped at
+   the chest). The spread widens by the legs' own departure (bent knees, a lunge, a
+   raised foot): a trunk that leans with the legs in a crouch, a landing or a kick is
+   carried by them, and the stance term already counts that pose.
 2. **Novelty in the clip** (``novelty``): how unusual the pose is among the clip's own
    poses -- the Mahalanobis distance under a Gaussian of all the clip's poses
    (covariance shrunk towards a multiple of the identity and widened by the capture
@@ -44,9 +52,15 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
    support on the side where the limb is free (``event_support_s``,
    ``sided_support``): a release credits the frames after it (the swing, the flight),
    an onset the frames before it (the approach).
-4. **Combination** (``combine``): the pose bits (1 + 2) weighted by ``w_pose`` plus the
-   event bits weighted by ``w_event``, then averaged over a Gaussian window of
-   ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
+   **Strikes** (``strikes``, :mod:`snapcore.select.strikes`) are events too: a speed
+   peak of a wrist or an ankle above ``strike_speed`` (a punch, a kick, a cut -- not a
+   gesture) carries ``-log2(n / F)`` bits and credits the frames before it, the
+   approach (raise, backswing) that the annotations call the action; the settling after
+   it, however long it is held, is not credited.
+4. **Combination** (``combine``): the pose bits (1 + 2: stance, trunk, novelty)
+   weighted by ``w_pose`` plus the event bits (contacts, strikes) weighted by
+   ``w_event``, then averaged
+   over a Gaussian window of ``support_s`` with nothing outside the clip (``temporal_support``: a frame whose
    surroundings the clip does not show has less support). Averaging is linear, so the
    supported terms add up to the total exactly (:attr:`StoryInformation.terms`).
    ``combine="normalised"`` min-max normalises the pose and event terms first, as the
@@ -74,15 +88,18 @@ import numpy as np
 from snapcore.motion.anatomy import (
     REFERENCE_STATURE_M,
 )
-from snapcore.select.signals import minmax, smooth_positions
+from snapcore.select.signals import half_gaussian, minmax, smooth_positions
 from snapcore.select.stance import (
     _stature,
     descriptor_of,
     key_joints,
+    key_positions,
     neutral_stance,
     pose_descriptor,
     stance_departure,
+    trunk_departure,
 )
+from snapcore.select.strikes import strike_surprisal
 
 __all__ = [
     "StoryParams",
@@ -100,6 +117,7 @@ __all__ = [
     "neutral_stance",
     "descriptor_of",
     "stance_departure",
+    "trunk_departure",
     "COMBINE_MODES",
     "event_surprisal",
     "contact_state_entropy",
@@ -136,7 +154,7 @@ class StoryParams:
     Attributes
     ----------
     w_pose, w_event : float
-        Weights of the pose (stance + novelty) and event terms (eq. 9's weights, on
+        Weights of the pose (stance + trunk + novelty) and event terms (eq. 9's weights, on
         bits, or on the normalised terms with ``combine="normalised"``); 0 switches a
         term off.
     smooth_s : float
@@ -180,6 +198,17 @@ class StoryParams:
     stance_spread : float
         Spread (statures) of a person at rest around the neutral stance; the smaller,
         the more a departure weighs against novelty and events.
+    trunk : bool
+        Count the trunk's flexion from upright (:func:`trunk_departure`): a bow.
+    trunk_spread : float
+        Spread (statures) of the head around its place above the pelvis for a person
+        at rest (0.03: about 5 cm); widened by the legs' departure.
+    strikes : bool
+        Count the strikes (:func:`~snapcore.select.strikes.strike_surprisal`): speed
+        peaks of a wrist or an ankle, credited to their approach; part of the event
+        term.
+    strike_speed : float
+        Least peak speed of a strike, statures per second (2.5: 4.4 m/s at 1.75 m).
     novelty : bool
         Count the pose's novelty in the clip (:func:`tail_surprisal` of
         :func:`pose_surprisal`).
@@ -211,6 +240,10 @@ class StoryParams:
     support_s: float = 0.1
     stance: bool = True
     stance_spread: float = 0.15
+    trunk: bool = True
+    trunk_spread: float = 0.03
+    strikes: bool = True
+    strike_speed: float = 2.5
     novelty: bool = True
     w_novelty: float = 0.25
     horizontal: bool = True
@@ -285,12 +318,13 @@ class StoryInformation:
 
     Attributes
     ----------
-    stance_bits, novelty_bits, event_bits : ndarray of shape (F,)
+    stance_bits, trunk_bits, novelty_bits, event_bits, strike_bits : ndarray of shape (F,)
         The ingredients (bits, summed over characters), before weights and support.
     terms : dict of str to ndarray of shape (F,)
         The weighted, supported terms, which add up to ``total`` exactly:
-        ``stance``, ``novelty``, ``events`` (bits) with ``combine="bits"``; ``pose`` and
-        ``events`` (normalised) with ``combine="normalised"``.
+        ``stance``, ``trunk``, ``novelty``, ``events``, ``strikes`` (bits) with
+        ``combine="bits"``;
+        ``pose`` and ``events`` (normalised) with ``combine="normalised"``.
     total : ndarray of shape (F,)
         The score whose argmax is the pose.
     contacts : list of LimbContacts
@@ -300,8 +334,10 @@ class StoryInformation:
     """
 
     stance_bits: np.ndarray
+    trunk_bits: np.ndarray
     novelty_bits: np.ndarray
     event_bits: np.ndarray
+    strike_bits: np.ndarray
     terms: dict
     total: np.ndarray
     contacts: list[LimbContacts]
@@ -537,18 +573,6 @@ def tail_surprisal(values: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------- event term
 
 
-def _half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
-    """Kernel (peak 1 at offset 0) over offsets -r..r and r; one-sided: offsets >= 0."""
-    if sigma_frames <= 0:
-        return np.ones(1), 0
-    r = int(math.ceil(3 * sigma_frames))
-    off = np.arange(-r, r + 1)
-    k = np.exp(-0.5 * (off / sigma_frames) ** 2)
-    if sided:
-        k = np.where(off >= 0, k, 0.0)
-    return k, r
-
-
 def event_surprisal(
     state: np.ndarray, *, fps: float, support_s: float = 0.2, sided: bool = True
 ) -> np.ndarray:
@@ -586,7 +610,7 @@ def event_surprisal(
         n = hit.sum(axis=1)  # events per contactor
         bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
         out[1:] += (hit * bits[:, None]).sum(axis=0)
-    kernel, r = _half_gaussian(support_s * fps, sided)
+    kernel, r = half_gaussian(support_s * fps, sided)
     if r == 0:
         return onset + release
     # np.convolve(x, k)[i + r] = sum_t x[t] k[i - t + r]: kernel index r + (i - t), so the
@@ -662,34 +686,44 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     t0 = time.perf_counter()
     n_f, fps = scene.n_frames, float(scene.fps)
     stance_bits = np.zeros(n_f)
+    trunk_bits = np.zeros(n_f)
     novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
+    strike_bits = np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
-        if p.w_pose > 0 and (p.novelty or p.stance):
-            feats = pose_descriptor(
-                c, ground=scene.ground, fps=fps, smooth_s=p.smooth_s, horizontal=p.horizontal
+        pose_on = p.w_pose > 0 and (p.novelty or p.stance or p.trunk)
+        strikes_on = p.w_event > 0 and p.strikes and p.event_model == "surprisal"
+        if pose_on or strikes_on:
+            x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
+        if pose_on:
+            feats = descriptor_of(
+                x, ground=scene.ground, stature=_stature(c), horizontal=p.horizontal
             )
             if p.novelty:
                 novelty_bits += tail_surprisal(
                     pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
                 )
-            if p.stance:
-                neutral = neutral_stance(c, ground=scene.ground)
-                if neutral is None:
-                    warnings.warn(
-                        f"{c.name}: the skeleton does not name a head, pelvis, arms "
-                        "and legs; its pose term leaves out the departure from "
-                        "a neutral stance",
-                        stacklevel=2,
-                    )
-                else:
+            neutral = neutral_stance(c, ground=scene.ground) if p.stance or p.trunk else None
+            if neutral is None and (p.stance or p.trunk):
+                warnings.warn(
+                    f"{c.name}: the skeleton does not name a head, pelvis, arms "
+                    "and legs; its pose term leaves out the departure from "
+                    "a neutral stance",
+                    stacklevel=2,
+                )
+            elif neutral is not None:
+                if p.stance:
                     nd = descriptor_of(
                         neutral[None], ground=0.0, stature=_stature(c), horizontal=p.horizontal
                     )[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
+                if p.trunk:
+                    trunk_bits += trunk_departure(
+                        x, neutral, stature=_stature(c), spread=p.trunk_spread
+                    )
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
         contacts.append(lc)
@@ -700,12 +734,20 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
                 )
             else:
                 event_bits += contact_state_entropy(lc.state)
+        if strikes_on:
+            strike_bits += strike_surprisal(
+                x,
+                fps=fps,
+                stature=_stature(c),
+                threshold=p.strike_speed,
+                support_s=p.event_support_s,
+            )
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
-    for bits in (stance_bits, novelty_bits, event_bits):
+    for bits in (stance_bits, trunk_bits, novelty_bits, event_bits, strike_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
-    pose_bits = stance_bits + novelty_bits
+    pose_bits = stance_bits + trunk_bits + novelty_bits
     if p.w_pose > 0 and not pose_bits.any():
         warnings.warn(
             "story pose information is constant over the clip (static clip?); it contributes 0",
@@ -718,17 +760,28 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     if p.combine == "bits":
         terms = {
             "stance": support(p.w_pose * stance_bits),
+            "trunk": support(p.w_pose * trunk_bits),
             "novelty": support(p.w_pose * p.w_novelty * novelty_bits),
             "events": support(p.w_event * event_bits),
+            "strikes": support(p.w_event * strike_bits),
         }
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # constant terms warned about above
             pose = minmax(pose_bits)
-            event = minmax(event_bits)
+            event = minmax(event_bits + strike_bits)
         terms = {"pose": support(p.w_pose * pose), "events": support(p.w_event * event)}
     total = np.sum(list(terms.values()), axis=0)
     timings = {"pose_term": t_pose, "contacts_events": t_event, "story": time.perf_counter() - t0}
     return StoryInformation(
-        stance_bits, novelty_bits, event_bits, terms, total, contacts, p, timings
+        stance_bits,
+        trunk_bits,
+        novelty_bits,
+        event_bits,
+        strike_bits,
+        terms,
+        total,
+        contacts,
+        p,
+        timings,
     )
