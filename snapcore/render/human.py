@@ -204,6 +204,7 @@ class Retarget(SoleFit):
         )
         self.groups, self.neck_base = fit.groups, fit.neck_base
         self._spine1, self._head_group, self._neck1 = fit.spine1, fit.head_group, fit.neck1
+        self._spine_offsets(character.positions[sample])
         self._calibrate(character.positions[sample], character.rotations[sample])
         self.ground = float(infer_ground([character.positions]) if ground is None else ground)
         self.sole_scale = self._sole_scale(character.positions)
@@ -226,6 +227,56 @@ class Retarget(SoleFit):
             ]
         )
         return float(sk_leg / rig_leg)
+
+    def _chord(self, positions):
+        """The torso's chord on poses (F, J, 3): the pelvis (F, 3) and the chord's
+        frame (F, 3, 3): y from the pelvis to the neck base, x the mean of the hip and
+        shoulder lines, z forward."""
+        lm = self.landmarks
+        pel = positions[:, lm["pelvis"]]
+        lat = unit(positions[:, lm["hip_L"]] - positions[:, lm["hip_R"]]) + unit(
+            positions[:, lm["shoulder_L"]] - positions[:, lm["shoulder_R"]]
+        )
+        return pel, frame_x(self._point(positions, self.neck_base) - pel, lat)
+
+    def _spine_offsets(self, pos_sample):
+        """Where the rig's spine curve puts its torso bone heads, off the skeleton's chain.
+
+        Skeletons run their spine joints up the middle of the trunk in a nearly straight
+        line (CC_Base, CMU), the rig's spine curves (its lumbar bone leans 26° back,
+        its chest bone forward): aiming each rig bone along the skeleton's chain
+        tipped the rig's pelvis 25-35° forward and its chest back, an arched back. The
+        torso's inner points (the heads of LowerBack, Spine, Spine1) are moved, in the
+        frame of the torso's chord (pelvis → neck base), by a constant offset: the rig's
+        curve (scaled to the chord's length) less the skeleton's chain in its median
+        pose over the clip. In that pose the torso is the rig's, upright where the
+        chord is; away from it the chain's own bending adds on. Only the sagittal
+        (up, forward) part is taken: the lateral one of both is nil.
+        """
+        g_all = self.groups
+        self._off_head = np.zeros((len(g_all), 3))
+        self._off_tip = np.zeros((len(g_all), 3))
+        a = self.asset
+        rig_pel = a.heads[a.bone("Hips")]
+        rig_top = a.heads[a.bone("Neck")]
+        rig_t = frame_x(rig_top - rig_pel, np.array([1.0, 0.0, 0.0]))
+        pel, t = self._chord(pos_sample)
+        top = self._point(pos_sample, self.neck_base)
+        s = float(np.median(np.linalg.norm(top - pel, axis=-1))) / np.linalg.norm(
+            rig_top - rig_pel
+        )
+
+        def offset(p: Point, rig_p):
+            q = np.median(np.einsum("fji,fj->fi", t, self._point(pos_sample, p) - pel), axis=0)
+            out = s * rig_t.T @ (rig_p - rig_pel) - q
+            out[0] = 0.0
+            return out
+
+        torso = [i for i, g in enumerate(g_all) if g.recipe[0] == "torso"]
+        for i in torso[1:]:
+            self._off_head[i] = offset(g_all[i].head, g_all[i].rig_head)
+        for i in torso[:-1]:
+            self._off_tip[i] = offset(g_all[i].tip, g_all[i].rig_tip)
 
     def _calibrate(self, pos_sample, rot_sample):
         g_all = self.groups
@@ -256,7 +307,7 @@ class Retarget(SoleFit):
                 "eye_R": a.eyes[1][None],
                 "head": a.heads[a.bone("Head")][None],
             }
-        self._calib, self._rig_arm = {}, {}
+        self._calib, self._rig_arm, self._nod = {}, {}, {}
         self.frames_rig = self._frames(rig_pts, rig_d, None, {}, rig=True)[0]  # (G, 3, 3)
         # calibrated groups: the constant X of R_joint X, from the clip's frames
         sk_pts, sk_d, fingers = self._inputs(pos_sample)
@@ -266,6 +317,17 @@ class Retarget(SoleFit):
                 p = g.recipe[1]
                 want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
                 self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
+            elif g.recipe[0] == "eyes":
+                # The eyes give the head's eye line, not its pitch: the head → eyes
+                # direction depends on where a rig puts its head joint (CC_Base's 9 cm
+                # below the eyes, at the skull's base; the rig's 3 cm, so the head
+                # looked 30° up). The head's nod about the eye line is taken, relative
+                # to the chest, as the rig's in the clip's median pose; per frame the
+                # skeleton's nod adds on.
+                c = self._spine1
+                rel = np.swapaxes(parent[:, c], -1, -2) @ parent[:, i]  # (S, 3, 3)
+                q = np.swapaxes(rel, -1, -2) @ (self.frames_rig[c].T @ self.frames_rig[i])
+                self._nod[i] = float(np.median(np.arctan2(q[:, 2, 1], q[:, 1, 1])))
 
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
@@ -292,6 +354,10 @@ class Retarget(SoleFit):
         h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
         tt = self._tip_t[None, :, None]
         tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
+        # the rig's spine curve about the chord (see _spine_offsets)
+        _, chord = self._chord(positions)
+        h = h + np.einsum("fij,gj->fgi", chord, self._off_head)
+        tip = tip + np.einsum("fij,gj->fgi", chord, self._off_tip[self._tracked])
         return h, tip
 
     def _frames(self, pts, d, rotations, fingers, *, rig=False, calibrating=False):
@@ -358,6 +424,9 @@ class Retarget(SoleFit):
                 )
                 # the frame above has the eye line as y: turn it so x is the eye line
                 out[:, i] = out[:, i][..., [1, 2, 0]]
+                if i in self._nod:  # the rig's nod (see _calibrate)
+                    c, s_ = np.cos(self._nod[i]), np.sin(self._nod[i])
+                    out[:, i] = out[:, i] @ np.array([[1.0, 0, 0], [0, c, -s_], [0, s_, c]])
             elif kind == "calibrated":
                 if rig or calibrating:
                     out[:, i] = _frame(g.rig_tip - g.rig_head)
