@@ -205,9 +205,11 @@ class Retarget(SoleFit):
         self.groups, self.neck_base = fit.groups, fit.neck_base
         self._spine1, self._head_group, self._neck1 = fit.spine1, fit.head_group, fit.neck1
         self._spine_offsets(character.positions[sample])
+        self._drop: dict[str, tuple[int, int, float]] = {}
         self._calibrate(character.positions[sample], character.rotations[sample])
         self.ground = float(infer_ground([character.positions]) if ground is None else ground)
         self.sole_scale = self._sole_scale(character.positions)
+        self._ball_drops(character.positions)
 
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
@@ -277,6 +279,32 @@ class Retarget(SoleFit):
             self._off_head[i] = offset(g_all[i].head, g_all[i].rig_head)
         for i in torso[:-1]:
             self._off_tip[i] = offset(g_all[i].tip, g_all[i].rig_tip)
+
+    def _ball_drops(self, positions):
+        """How far below the skeleton's toe joint the rig's ball of the foot goes.
+
+        Skeletons put the toe joint at their own height inside the foot: CC_Base's
+        stands 6.8 cm above the floor, the rig's ball 2.8 cm (x k) above its sole, so a
+        foot aimed at it stood on its heel with the toes 3-8 cm up (folded onto the
+        instep in pictures). Standing (the 10th percentile of the toe joint's height
+        above the floor, as the ankle's in :meth:`_sole_scale`), the ball is put the
+        rig's height (x the foot's depth scale) above the floor: the toe point moves
+        along the foot's down direction (the shank's, square to the foot) by the
+        difference, within ±5 cm.
+        """
+        a = self.asset
+        for s, side in SIDES.items():
+            toe = self.landmarks[f"toe_{s}"]
+            foot = next(i for i, g in enumerate(self.groups) if g.bones[0] == f"{side}Foot")
+            toes = [i for i, g in enumerate(self.groups) if g.bones[0] == f"{side}ToeBase"]
+            if toe is None or self.groups[foot].tip is None or not toes:
+                continue
+            w = a.weights[:, [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]]
+            foot_v = np.asarray(w.sum(axis=1)).ravel() > 0.5
+            rig = (a.heads[a.bone(f"{side}ToeBase")][1] - a.vertices[foot_v, 1].min()) * self.k
+            rig *= self.sole_scale[foot]
+            h = np.percentile(positions[:, toe, 1] - self.ground, 10.0)
+            self._drop[s] = (foot, toes[0], float(np.clip(h - rig, -0.05, 0.05)))
 
     def _calibrate(self, pos_sample, rot_sample):
         g_all = self.groups
@@ -358,6 +386,14 @@ class Retarget(SoleFit):
         _, chord = self._chord(positions)
         h = h + np.einsum("fij,gj->fgi", chord, self._off_head)
         tip = tip + np.einsum("fij,gj->fgi", chord, self._off_tip[self._tracked])
+        lm = self.landmarks
+        for s, (foot, toes, drop) in self._drop.items():  # the ball (_ball_drops)
+            ankle = positions[:, lm[f"ankle_{s}"]]
+            along = unit(positions[:, lm[f"toe_{s}"]] - ankle)
+            shank = ankle - positions[:, lm[f"knee_{s}"]]
+            down = unit(shank - along * np.sum(shank * along, axis=-1, keepdims=True))
+            tip[:, np.flatnonzero(self._tracked == foot)[0]] += drop * down
+            h[:, toes] += drop * down  # the toes start there
         return h, tip
 
     def _frames(self, pts, d, rotations, fingers, *, rig=False, calibrating=False):

@@ -164,16 +164,6 @@ def rig_groups(lm, pos, rest, offsets, sk, rig: HumanAsset, *, k: float, eyes) -
     def far(kids):  # joints that are not at their parent's place
         return [c for c in kids if np.linalg.norm(offsets[c]) > 1e-3]
 
-    def ahead(kids, j, parent):
-        """Of ``kids`` of joint ``j``, the one that continues ``parent`` → ``j`` most
-        nearly straight over the sampled poses (a toe base's middle toe, not the little
-        toe that CC_Base lists first on one foot), or None."""
-        if not kids:
-            return None
-        d = unit(pos[:, j] - pos[:, parent])[:, None]  # (S, 1, 3)
-        cos = np.sum(unit(pos[:, kids] - pos[:, j, None]) * d, axis=-1)  # (S, K)
-        return kids[int(np.argmax(np.median(cos, axis=0)))]
-
     children = sk.children
     groups: list[Group] = []
     # torso and neck: rig points at the same arc-length fractions of the skeleton chain
@@ -310,8 +300,12 @@ def rig_groups(lm, pos, rest, offsets, sk, rig: HumanAsset, *, k: float, eyes) -
                     ("leg", s),
                 )
             )
-            tk = ahead(far(children[j["toe"]]), j["toe"], j["ankle"])
-            # no toe end: the toes turn with the foot (its direction, the leg's hinge)
+            # one toe end gives the toes' direction; none, or several (CC_Base's five
+            # toe bases, fanned 28-80° off the foot's line across its width, none
+            # pointing along the toes): the toes turn with the foot (its direction,
+            # the leg's hinge)
+            kids = far(children[j["toe"]])
+            tk = kids[0] if len(kids) == 1 else None
             groups.append(
                 Group(
                     [toe],
