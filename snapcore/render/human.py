@@ -19,8 +19,8 @@ At frame ``f`` the group's frame is ``W = F_skeleton(f) F_rig^T``: the same reci
 line, limbs from their bone and bend plane, feet from ankle → toe, the head from the
 eyes) applied to the skeleton's joint positions and to the rig's rest pose, so no rest
 convention enters. Lengths: along the axis, the skeleton's head-tip distance over the
-rig's; across it, ``k`` = the skeleton's thigh + shank over the rig's (so a taller
-person is also broader); untracked groups (head, hands) scale by ``k`` all round; a
+rig's; across it, ``k`` = the person's size over the rig's (the mean of the legs' and
+the standing head height's ratios: :meth:`Retarget._size_ratio`); untracked groups (head, hands) scale by ``k`` all round; a
 foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
 to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
 lands on its skeleton joint, feet are planted on the floor where they stand
@@ -139,6 +139,20 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
     return out
 
 
+#: Segments turned about one of their axes (0: x, the left; 2: z, the front) to sit as
+#: the rig's relative to the chest in the clip's median pose (see Retarget._calibrate).
+TURNED = {"eyes": 0, "clavicle": 2}
+
+
+def _about(axis: int, angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (radians) about coordinate axis ``axis``: (3, 3)."""
+    u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
+    m = np.eye(3)
+    m[u, u] = m[v, v] = np.cos(angle)
+    m[v, u], m[u, v] = np.sin(angle), -np.sin(angle)
+    return m
+
+
 def _frame(axis: np.ndarray) -> np.ndarray:
     """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``."""
     y = unit(axis)
@@ -195,7 +209,8 @@ class Retarget(SoleFit):
         # same whatever pose the rest convention puts the skeleton in
         self.rest = rest = rest_positions(parents, self.offsets)
         self.eyes = eye_joints(names, parents, sk.sides, lm["head"])
-        self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
+        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
+        self.k = self._size_ratio(lm, rest, asset, character.positions)  # the girth scale
         sample = np.unique(
             np.linspace(0, character.n_frames - 1, min(character.n_frames, 200)).round().astype(int)
         )
@@ -207,9 +222,23 @@ class Retarget(SoleFit):
         self._spine_offsets(character.positions[sample])
         self._drop: dict[str, tuple[int, int, float]] = {}
         self._calibrate(character.positions[sample], character.rotations[sample])
-        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
         self.sole_scale = self._sole_scale(character.positions)
         self._ball_drops(character.positions)
+
+    def _size_ratio(self, lm, rest, rig, positions) -> float:
+        """The person's size over the rig's: the mean of two ratios, the legs' (thigh +
+        shank, both legs' mean) and the standing head's (the head joint's 95th
+        percentile height above the floor over the rig's head joint above its soles),
+        the second kept within 10% of the first (a clip that never stands up).
+
+        The legs alone misjudge a long-legged figure: CC_Base's legs are 52% of its
+        stature, the rig's 48%, and a body scaled by them stood 2.03 m for a 1.87 m
+        figure (8% too broad, the head too big); a head joint alone sits at a
+        different height in the skull on every rig."""
+        leg = self._leg_ratio(lm, rest, rig)
+        head = np.percentile(positions[:, lm["head"], 1] - self.ground, 95.0)
+        rig_head = rig.heads[rig.bone("Head")][1] - rig.vertices[:, 1].min()
+        return float(0.5 * (leg + np.clip(head / rig_head, 0.9 * leg, 1.1 * leg)))
 
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
@@ -335,7 +364,7 @@ class Retarget(SoleFit):
                 "eye_R": a.eyes[1][None],
                 "head": a.heads[a.bone("Head")][None],
             }
-        self._calib, self._rig_arm, self._nod = {}, {}, {}
+        self._calib, self._rig_arm, self._turn = {}, {}, {}
         self.frames_rig = self._frames(rig_pts, rig_d, None, {}, rig=True)[0]  # (G, 3, 3)
         # calibrated groups: the constant X of R_joint X, from the clip's frames
         sk_pts, sk_d, fingers = self._inputs(pos_sample)
@@ -345,17 +374,21 @@ class Retarget(SoleFit):
                 p = g.recipe[1]
                 want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
                 self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
-            elif g.recipe[0] == "eyes":
-                # The eyes give the head's eye line, not its pitch: the head → eyes
-                # direction depends on where a rig puts its head joint (CC_Base's 9 cm
-                # below the eyes, at the skull's base; the rig's 3 cm, so the head
-                # looked 30° up). The head's nod about the eye line is taken, relative
+            elif g.recipe[0] in TURNED:
+                # Joints say a segment's line, not always where it sits about it: the
+                # head → eyes direction depends on where a rig puts its head joint
+                # (CC_Base's 9 cm below the eyes, at the skull's base; the rig's 3 cm:
+                # the head looked 30° up), the clavicle's on where its inner joint is
+                # (CMU's 7 cm below the shoulders: the rig's clavicle raised 22-36°, a
+                # shrug that peaked the shoulders). That turn (the head's nod about the
+                # eye line, the clavicle's lift about the front axis) is taken, relative
                 # to the chest, as the rig's in the clip's median pose; per frame the
-                # skeleton's nod adds on.
-                c = self._spine1
+                # skeleton's own turn adds on.
+                axis, c = TURNED[g.recipe[0]], self._spine1
                 rel = np.swapaxes(parent[:, c], -1, -2) @ parent[:, i]  # (S, 3, 3)
                 q = np.swapaxes(rel, -1, -2) @ (self.frames_rig[c].T @ self.frames_rig[i])
-                self._nod[i] = float(np.median(np.arctan2(q[:, 2, 1], q[:, 1, 1])))
+                u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
+                self._turn[i] = _about(axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u]))))
 
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
@@ -460,9 +493,6 @@ class Retarget(SoleFit):
                 )
                 # the frame above has the eye line as y: turn it so x is the eye line
                 out[:, i] = out[:, i][..., [1, 2, 0]]
-                if i in self._nod:  # the rig's nod (see _calibrate)
-                    c, s_ = np.cos(self._nod[i]), np.sin(self._nod[i])
-                    out[:, i] = out[:, i] @ np.array([[1.0, 0, 0], [0, c, -s_], [0, s_, c]])
             elif kind == "calibrated":
                 if rig or calibrating:
                     out[:, i] = _frame(g.rig_tip - g.rig_head)
@@ -472,6 +502,9 @@ class Retarget(SoleFit):
                 if target is not None:  # the axis onto the top of the head / the fingers
                     fr = swing_matrices(fr[..., 1], target) @ fr
                 out[:, i] = fr
+        if not (rig or calibrating):
+            for i, turn in self._turn.items():  # the rig's turn about the line (_calibrate)
+                out[:, i] = out[:, i] @ turn
         return out
 
     @staticmethod
