@@ -20,17 +20,29 @@ line, limbs from their bone and bend plane, feet from ankle → toe, the head fr
 eyes) applied to the skeleton's joint positions and to the rig's rest pose, so no rest
 convention enters. Lengths: along the axis, the skeleton's head-tip distance over the
 rig's; across it, ``k`` = the person's size over the rig's (the mean of the legs' and
-the standing head height's ratios: :meth:`Retarget._size_ratio`); untracked groups (head, hands) scale by ``k`` all round; a
-foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
-to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
-lands on its skeleton joint, feet are planted on the floor where they stand
-(:meth:`Retarget._plant_shifts`), and linear blend skinning
-(:func:`snapcore.motion.skinning.blend_skin`) deforms the mesh between them. Linear
-blend skinning is kept (not dual quaternions): the elbows that collapsed bent across
-the mesh's crease because the rig's hinge was turned away from the skeleton's bend
-plane; with the hinge in that plane an elbow bent 50° keeps 92-95% of the upper arm's
-cross-section (``tests/test_human_rigs.py``), and the skinning matrices stay affine
-(the stretch along bones needs that) at the same cost.
+the standing head height's ratios: :meth:`Retarget._size_ratio`); untracked groups
+(head, hands) scale by ``k`` all round; a foot's depth follows the skeleton's standing
+ankle height. A rig point ``x`` then moves to ``h(f) + W diag(k, s, k) A_g^T (x -
+head_g)`` (``A_g`` = ``F_rig``): every bone head lands on its skeleton joint, feet are
+planted on the floor where they stand (:meth:`Retarget._plant_shifts`), and
+dual-quaternion skinning (:func:`snapcore.motion.skinning.dq_skin`) deforms the mesh
+between them.
+
+Where a skeleton's joints say a segment's line but not how it sits about it, the
+rig's posture is kept in the clip's median pose and the skeleton's changes add on:
+the torso keeps the rig's spine curve about its chord (:meth:`Retarget._spine_offsets`),
+the head its nod and the clavicle its lift relative to the chest (:data:`TURNED`), the
+ball of the foot its height above the floor (:meth:`Retarget._ball_drops`). Each had
+followed one rig's joint placement onto another's: CC_Base's body arched back and
+looked up, CMU's shoulders shrugged.
+
+Skinning: linear blending took the chord of the arc between two bones, so an elbow
+folded to 17° ended in an open stump, a knee at 16° pinched into a flap (the upper
+arm kept 68% of its cross-section, thigh and shank 40-51%), and the top of a shoulder
+whose arm hangs where the rig's was raised 45° came to a corner. Dual quaternions keep
+the skin on the arc (93-156% there, ``tests/test_human_rigs.py``); the bones' stretch
+and girth scale, which a rigid motion cannot carry, are blended linearly in the rest
+pose first (Kavan et al. 2008), at about twice the cost of linear blending.
 """
 
 from __future__ import annotations
@@ -43,7 +55,7 @@ from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
-from snapcore.motion.skinning import blend_skin
+from snapcore.motion.skinning import dq_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
@@ -139,6 +151,12 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
     return out
 
 
+#: Rig bones whose skin is blended linearly, not as dual quaternions: the pelvis and
+#: hip pieces, whose short stretched bones meet the thigh at up to 120° (a dancer's
+#: kick), where dual quaternions bulge the hip joint 3 cm out of place (CMU 05_06);
+#: a vertex shared with other bones takes its weight's share of linear blending.
+LINEAR_BONES = ("Hips", "LHipJoint", "RHipJoint")
+
 #: Segments turned about one of their axes (0: x, the left; 2: z, the front) to sit as
 #: the rig's relative to the chest in the clip's median pose (see Retarget._calibrate).
 TURNED = {"eyes": 0, "clavicle": 2}
@@ -219,6 +237,8 @@ class Retarget(SoleFit):
         )
         self.groups, self.neck_base = fit.groups, fit.neck_base
         self._spine1, self._head_group, self._neck1 = fit.spine1, fit.head_group, fit.neck1
+        # per rig bone, 1 where the skin is blended linearly (see LINEAR_BONES)
+        self._linear_bones = np.array([float(b in LINEAR_BONES) for b in asset.bone_names])
         self._spine_offsets(character.positions[sample])
         self._drop: dict[str, tuple[int, int, float]] = {}
         self._calibrate(character.positions[sample], character.rotations[sample])
@@ -596,16 +616,25 @@ class Retarget(SoleFit):
     ) -> np.ndarray:
         """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
 
-        Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
-        :meth:`stretch_weights`; frames in chunks to bound memory.
+        Dual-quaternion skinning (:func:`dq_skin`) plus the stretch correction of
+        :meth:`stretch_weights`; frames in chunks to bound memory (dq_skin holds
+        ~10 float64 per point and frame).
         """
         f = positions.shape[0]
         out = np.empty((f, len(points), 3), dtype=dtype)
-        step = max(1, int(2**25 // max(1, 24 * len(points))))
+        step = max(1, int(2**24 // max(1, 24 * len(points))))
+        linear = np.asarray(weights @ self._linear_bones).ravel()
         for a in range(0, f, step):
             b = min(f, a + step)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
-            out[a:b] = blend_skin(points, weights, m[:, self.bone_group], dtype=dtype)
+            out[a:b] = dq_skin(
+                points,
+                weights,
+                m[:, self.bone_group],
+                self.asset.heads,
+                linear=linear,
+                dtype=dtype,
+            )
             sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
             corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
             out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
