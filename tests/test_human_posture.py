@@ -119,7 +119,9 @@ def test_both_feet_rest_their_toes_on_the_floor(all_bvh):
             )
             heights.append(float(np.median(v[..., 1].min(axis=1) - scene.ground)))
         rows.append((path.name, *heights))
-    report = "\n".join(f"{n}: left {lh * 100:.1f} cm, right {rh * 100:.1f} cm" for n, lh, rh in rows)
+    report = "\n".join(
+        f"{n}: left {lh * 100:.1f} cm, right {rh * 100:.1f} cm" for n, lh, rh in rows
+    )
     print("\nlowest toe point above the floor, standing (median):\n" + report)
     assert all(max(lh, rh) <= TOE_FLOOR_M for _, lh, rh in rows), report
     assert all(abs(lh - rh) <= TOE_SIDES_M for _, lh, rh in rows), report

@@ -20,8 +20,7 @@ def _panels(image: np.ndarray, n: int) -> list[np.ndarray]:
 
     w, h = SIZE
     return [
-        image[PANEL_GAP : PANEL_GAP + h, PANEL_GAP + i * (w + PANEL_GAP) :][:, :w]
-        for i in range(n)
+        image[PANEL_GAP : PANEL_GAP + h, PANEL_GAP + i * (w + PANEL_GAP) :][:, :w] for i in range(n)
     ]
 
 
@@ -65,9 +64,7 @@ def test_every_figure_stands_on_its_panels_floor(motions_dir, files, frame, fps,
         "front": (0.07, 0.02, 1.0),
         "below": (0.70, -0.16, 0.69),
     }
-    image = compare_views(
-        scene, frame, views, size=SIZE, labels=False, title=None, body=body
-    )
+    image = compare_views(scene, frame, views, size=SIZE, labels=False, title=None, body=body)
     for name, panel in zip(views, _panels(image, len(views))):
         feet, band = _feet_and_band(panel)
         assert abs(feet - band) <= ON_FLOOR_PX, f"{files[0]} {name}: feet row {feet}, floor {band}"

@@ -356,10 +356,10 @@ def body_landmarks(names, parents) -> dict[str, Any]:
     def ancestors(j):
         return _ancestors(parents, j)
 
-    kids = [[] for _ in range(n)]
-    for j in range(n):
-        if parents[j] >= 0:
-            kids[int(parents[j])].append(j)
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for c in range(n):
+        if parents[c] >= 0:
+            kids[int(parents[c])].append(c)
 
     def descendants(j):
         stack, count = list(kids[j]), 0

@@ -313,9 +313,7 @@ class Retarget(SoleFit):
         rig_t = frame_x(rig_top - rig_pel, np.array([1.0, 0.0, 0.0]))
         pel, t = self._chord(pos_sample)
         top = self._point(pos_sample, self.neck_base)
-        s = float(np.median(np.linalg.norm(top - pel, axis=-1))) / np.linalg.norm(
-            rig_top - rig_pel
-        )
+        s = float(np.median(np.linalg.norm(top - pel, axis=-1))) / np.linalg.norm(rig_top - rig_pel)
 
         def offset(p: Point, rig_p):
             q = np.median(np.einsum("fji,fj->fi", t, self._point(pos_sample, p) - pel), axis=0)
