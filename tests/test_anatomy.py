@@ -300,3 +300,25 @@ def test_roles_and_sides_are_a_cached_property_of_the_skeleton():
     assert sk.roles is sk.roles and sk.sides is sk.sides  # computed once
     assert c.frames(0, 10).skeleton.roles is sk.roles  # a cut shares the skeleton
     assert c.rescaled(2.0).skeleton.roles == sk.roles  # a new skeleton, the same names
+
+
+def test_toes_named_like_fingers_are_toes_whatever_the_order_of_children():
+    """Reallusion's foot: a ToeBaseShareBone helper beside ToeBase and its toes named
+    like fingers (PinkyToe1, IndexToe1). The toes take the toe role, and the toe
+    landmark is ToeBase (the joint with the toes below it) with the foot's children
+    in either order; a JawRoot under the head is no pelvis."""
+    from snapcore.motion.anatomy import joint_roles
+
+    for share_first in (True, False):
+        names = ["RL_BoneRoot", "CC_Base_Hip", "CC_Base_L_Thigh", "CC_Base_L_Calf"]
+        names += ["CC_Base_L_Foot"]
+        kids = ["CC_Base_L_ToeBaseShareBone", "CC_Base_L_ToeBase"]
+        names += kids if share_first else kids[::-1]
+        toe_base = names.index("CC_Base_L_ToeBase")
+        names += ["CC_Base_L_PinkyToe1", "CC_Base_L_IndexToe1", "CC_Base_L_BigToe1"]
+        names += ["CC_Base_Waist", "CC_Base_Head", "CC_Base_JawRoot"]
+        parents = [-1, 0, 1, 2, 3, 4, 4, toe_base, toe_base, toe_base, 1, 10, 11]
+        roles = joint_roles(names, parents)
+        assert roles[7:10] == ["toe"] * 3, roles
+        assert roles[names.index("CC_Base_JawRoot")] != "pelvis"
+        assert body_landmarks(names, parents)["toe_L"] == toe_base

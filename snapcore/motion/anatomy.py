@@ -99,7 +99,9 @@ TORSO_ROLES = ("spine", "chest")
 
 # Patterns on the lower-cased joint name with its side marker removed, first match wins.
 _ROLE_PATTERNS = (
-    ("hidden", r"root|eye|jaw|tongue|nose|ear$"),
+    ("hidden", r"root|eye|jaw|tongue|teeth|tooth|facial|nose|ear$"),
+    # before the fingers: Reallusion names its toes like fingers (PinkyToe1, IndexToe1)
+    ("toe", r"toe"),
     ("hand", r"fingerbase|handbase|palm|metacarp|carpal"),
     ("finger", r"thumb|index|middle|mid\d|ring|pinky|little|finger|digit"),
     ("head", r"head"),
@@ -195,9 +197,10 @@ def joint_roles(names, parents) -> list[str]:
         if re.search(r"_end$", name, re.I) and p >= 0:
             role = roles[p]
         roles.append(role)
-    # a root called "Root" is the pelvis unless one of its children is
+    # a root called "Root" is the pelvis unless one of its children is (only the
+    # hierarchy's root: CC_Base's JawRoot is a jaw)
     for j, name in enumerate(names):
-        if roles[j] == "hidden" and "root" in name.lower():
+        if roles[j] == "hidden" and "root" in name.lower() and parents[j] < 0:
             kids = [k for k in range(len(names)) if parents[k] == j]
             if not any(roles[k] == "pelvis" for k in kids):
                 roles[j] = "pelvis"
@@ -354,16 +357,34 @@ def body_landmarks(names, parents) -> dict[str, Any]:
     def ancestors(j):
         return _ancestors(parents, j)
 
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for c in range(n):
+        if parents[c] >= 0:
+            kids[int(parents[c])].append(c)
+
+    def descendants(j):
+        stack, count = list(kids[j]), 0
+        while stack:
+            count += 1
+            stack.extend(kids[stack.pop()])
+        return count
+
     def first(role, side="", below=None):
-        for j in range(n):
-            if (
-                roles[j] == role
-                and sides[j] == side
-                and not end[j]
-                and (below is None or below in ancestors(j))
-            ):
-                return j
-        return None
+        """The joint of ``role`` nearest ``below`` (or the root) in the hierarchy; of
+        joints as near, the one with the most joints below it (CC_Base's ToeBase with its
+        toes, not the ToeBaseShareBone helper beside it): whatever order the children
+        come in (CC_Base lists a foot's children in another order on each side)."""
+        found = [
+            j
+            for j in range(n)
+            if roles[j] == role
+            and sides[j] == side
+            and not end[j]
+            and (below is None or below in ancestors(j))
+        ]
+        if not found:
+            return None
+        return min(found, key=lambda j: (len(ancestors(j)), -descendants(j), j))
 
     # values: int | None, but "spine" is a tuple (keys are built from names: no TypedDict)
     out: dict[str, Any] = {"pelvis": first("pelvis"), "head": first("head")}

@@ -34,6 +34,7 @@ __all__ = [
     "compare_views",
     "common_cameras",
     "floor_aligned",
+    "floor_contacts",
     "tile_panels",
     "PANEL_GAP",
     "CAPTION_HEIGHT",
@@ -139,22 +140,42 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
     return out
 
 
-def _horizon_aligned(cams: list[Camera], pts, foot) -> list[Camera]:
-    """Orthographic cameras moved along their own up so the floor point ``foot`` (where
-    the renderer's horizon passes) falls on the same image row in each: one horizon
-    across panels of different views. The half-height grows as needed to keep the pose
-    inside the margin, the same for all panels."""
+def floor_contacts(pts, ground: float, cams: list[Camera]) -> list[np.ndarray]:
+    """Per camera, the floor point under the pose that its picture shows lowest: of the
+    pose's points within :data:`CONTACT_M` of its lowest (the feet that stand), the one
+    lowest along the camera's up, dropped onto the floor ``y = ground``. Where a
+    "horizon" picture puts its horizon, every standing figure's feet are on it (for a
+    pair, the nearer one's in a view from above)."""
+    p = np.asarray(pts, float).reshape(-1, 3)
+    low = p[p[:, 1] <= p[:, 1].min() + CONTACT_M]
+    out = []
+    for c in cams:
+        f = low[np.argmin(low @ c.up)].copy()
+        f[1] = ground
+        out.append(f)
+    return out
+
+
+#: Points of a pose this close to its lowest (metres) stand on the floor.
+CONTACT_M = 0.03
+
+
+def _horizon_aligned(cams: list[Camera], pts, feet) -> list[Camera]:
+    """Orthographic cameras moved along their own up so each panel's floor point
+    ``feet[i]`` (where the renderer's horizon passes) falls on the same image row: one
+    horizon across panels of different views. The half-height grows as needed to keep
+    the pose inside the margin, the same for all panels."""
     if not cams or cams[0].projection != "orthographic":
         return cams
     p = np.asarray(pts, float).reshape(-1, 3)
-    foot = np.asarray(foot, float)
+    feet = [np.asarray(f, float) for f in feet]
     fill = max(1.0 - 2.0 * FRAME_MARGIN, 0.05)
     # per panel: the pose's extent along the camera's up, measured from the floor point
-    rel = [(p - foot) @ c.up for c in cams]
+    rel = [(p - f) @ c.up for c, f in zip(cams, feet)]
     lo, hi = min(float(r.min()) for r in rel), max(float(r.max()) for r in rel)
     hh = max(max(c.half_height for c in cams), (hi - lo) / 2 / fill)
     out = []
-    for c in cams:
+    for c, foot in zip(cams, feet):
         shift = (float(foot @ c.up) + (lo + hi) / 2) - float(c.position @ c.up)
         out.append(
             Camera(
@@ -427,12 +448,15 @@ def compare_views(
     sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, floor=floor, body=body)
     pts = sr.body.vertices(frame)
     cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
+    feet = floor_contacts(pts, scene.ground, cams)
     if floor == "horizon":
-        b = scene.bounds()  # the renderer's horizon passes over the motion's centre
-        cams = _horizon_aligned(
-            cams, pts, np.array([(b[0, 0] + b[1, 0]) / 2, scene.ground, (b[0, 2] + b[1, 2]) / 2])
-        )
-    panels = [sr.render(frame, c) for c in cams]
+        # each panel's horizon at its own figure's feet (the floor under the middle of
+        # the motion is elsewhere: a dancer 50 px above it in a view from above)
+        cams = _horizon_aligned(cams, pts, feet)
+    panels = []
+    for c, foot in zip(cams, feet):
+        sr.horizon_point = foot
+        panels.append(sr.render(frame, c))
     caps = None
     if labels:
         caps = []

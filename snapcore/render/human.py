@@ -19,18 +19,30 @@ At frame ``f`` the group's frame is ``W = F_skeleton(f) F_rig^T``: the same reci
 line, limbs from their bone and bend plane, feet from ankle → toe, the head from the
 eyes) applied to the skeleton's joint positions and to the rig's rest pose, so no rest
 convention enters. Lengths: along the axis, the skeleton's head-tip distance over the
-rig's; across it, ``k`` = the skeleton's thigh + shank over the rig's (so a taller
-person is also broader); untracked groups (head, hands) scale by ``k`` all round; a
-foot's depth follows the skeleton's standing ankle height. A rig point ``x`` then moves
-to ``h(f) + W diag(k, s, k) A_g^T (x - head_g)`` (``A_g`` = ``F_rig``): every bone head
-lands on its skeleton joint, feet are planted on the floor where they stand
-(:meth:`Retarget._plant_shifts`), and linear blend skinning
-(:func:`snapcore.motion.skinning.blend_skin`) deforms the mesh between them. Linear
-blend skinning is kept (not dual quaternions): the elbows that collapsed bent across
-the mesh's crease because the rig's hinge was turned away from the skeleton's bend
-plane; with the hinge in that plane an elbow bent 50° keeps 92-95% of the upper arm's
-cross-section (``tests/test_human_rigs.py``), and the skinning matrices stay affine
-(the stretch along bones needs that) at the same cost.
+rig's; across it, ``k`` = the person's size over the rig's (the mean of the legs' and
+the standing head height's ratios: :meth:`Retarget._size_ratio`); untracked groups
+(head, hands) scale by ``k`` all round; a foot's depth follows the skeleton's standing
+ankle height. A rig point ``x`` then moves to ``h(f) + W diag(k, s, k) A_g^T (x -
+head_g)`` (``A_g`` = ``F_rig``): every bone head lands on its skeleton joint, feet are
+planted on the floor where they stand (:meth:`Retarget._plant_shifts`), and
+dual-quaternion skinning (:func:`snapcore.motion.skinning.dq_skin`) deforms the mesh
+between them.
+
+Where a skeleton's joints say a segment's line but not how it sits about it, the
+rig's posture is kept in the clip's median pose and the skeleton's changes add on:
+the torso keeps the rig's spine curve about its chord (:meth:`Retarget._spine_offsets`),
+the head its nod and the clavicle its lift relative to the chest (:data:`TURNED`), the
+ball of the foot its height above the floor (:meth:`Retarget._ball_drops`). Each had
+followed one rig's joint placement onto another's: CC_Base's body arched back and
+looked up, CMU's shoulders shrugged.
+
+Skinning: linear blending took the chord of the arc between two bones, so an elbow
+folded to 17° ended in an open stump, a knee at 16° pinched into a flap (the upper
+arm kept 68% of its cross-section, thigh and shank 40-51%), and the top of a shoulder
+whose arm hangs where the rig's was raised 45° came to a corner. Dual quaternions keep
+the skin on the arc (93-156% there, ``tests/test_human_rigs.py``); the bones' stretch
+and girth scale, which a rigid motion cannot carry, are blended linearly in the rest
+pose first (Kavan et al. 2008), at about twice the cost of linear blending.
 """
 
 from __future__ import annotations
@@ -43,7 +55,7 @@ from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
-from snapcore.motion.skinning import blend_skin
+from snapcore.motion.skinning import dq_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
@@ -139,6 +151,26 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
     return out
 
 
+#: Rig bones whose skin is blended linearly, not as dual quaternions: the pelvis and
+#: hip pieces, whose short stretched bones meet the thigh at up to 120° (a dancer's
+#: kick), where dual quaternions bulge the hip joint 3 cm out of place (CMU 05_06);
+#: a vertex shared with other bones takes its weight's share of linear blending.
+LINEAR_BONES = ("Hips", "LHipJoint", "RHipJoint")
+
+#: Segments turned about one of their axes (0: x, the left; 2: z, the front) to sit as
+#: the rig's relative to the chest in the clip's median pose (see Retarget._calibrate).
+TURNED = {"eyes": 0, "clavicle": 2}
+
+
+def _about(axis: int, angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (radians) about coordinate axis ``axis``: (3, 3)."""
+    u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
+    m = np.eye(3)
+    m[u, u] = m[v, v] = np.cos(angle)
+    m[v, u], m[u, v] = np.sin(angle), -np.sin(angle)
+    return m
+
+
 def _frame(axis: np.ndarray) -> np.ndarray:
     """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``."""
     y = unit(axis)
@@ -195,7 +227,8 @@ class Retarget(SoleFit):
         # same whatever pose the rest convention puts the skeleton in
         self.rest = rest = rest_positions(parents, self.offsets)
         self.eyes = eye_joints(names, parents, sk.sides, lm["head"])
-        self.k = self._leg_ratio(lm, rest, asset)  # girth scale: the legs' length ratio
+        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
+        self.k = self._size_ratio(lm, rest, asset, character.positions)  # the girth scale
         sample = np.unique(
             np.linspace(0, character.n_frames - 1, min(character.n_frames, 200)).round().astype(int)
         )
@@ -204,9 +237,28 @@ class Retarget(SoleFit):
         )
         self.groups, self.neck_base = fit.groups, fit.neck_base
         self._spine1, self._head_group, self._neck1 = fit.spine1, fit.head_group, fit.neck1
+        # per rig bone, 1 where the skin is blended linearly (see LINEAR_BONES)
+        self._linear_bones = np.array([float(b in LINEAR_BONES) for b in asset.bone_names])
+        self._spine_offsets(character.positions[sample])
+        self._drop: dict[str, tuple[int, int, float]] = {}
         self._calibrate(character.positions[sample], character.rotations[sample])
-        self.ground = float(infer_ground([character.positions]) if ground is None else ground)
         self.sole_scale = self._sole_scale(character.positions)
+        self._ball_drops(character.positions)
+
+    def _size_ratio(self, lm, rest, rig, positions) -> float:
+        """The person's size over the rig's: the mean of two ratios, the legs' (thigh +
+        shank, both legs' mean) and the standing head's (the head joint's 95th
+        percentile height above the floor over the rig's head joint above its soles),
+        the second kept within 10% of the first (a clip that never stands up).
+
+        The legs alone misjudge a long-legged figure: CC_Base's legs are 52% of its
+        stature, the rig's 48%, and a body scaled by them stood 2.03 m for a 1.87 m
+        figure (8% too broad, the head too big); a head joint alone sits at a
+        different height in the skull on every rig."""
+        leg = self._leg_ratio(lm, rest, rig)
+        head = np.percentile(positions[:, lm["head"], 1] - self.ground, 95.0)
+        rig_head = rig.heads[rig.bone("Head")][1] - rig.vertices[:, 1].min()
+        return float(0.5 * (leg + np.clip(head / rig_head, 0.9 * leg, 1.1 * leg)))
 
     @staticmethod
     def _leg_ratio(lm, rest, rig) -> float:
@@ -226,6 +278,80 @@ class Retarget(SoleFit):
             ]
         )
         return float(sk_leg / rig_leg)
+
+    def _chord(self, positions):
+        """The torso's chord on poses (F, J, 3): the pelvis (F, 3) and the chord's
+        frame (F, 3, 3): y from the pelvis to the neck base, x the mean of the hip and
+        shoulder lines, z forward."""
+        lm = self.landmarks
+        pel = positions[:, lm["pelvis"]]
+        lat = unit(positions[:, lm["hip_L"]] - positions[:, lm["hip_R"]]) + unit(
+            positions[:, lm["shoulder_L"]] - positions[:, lm["shoulder_R"]]
+        )
+        return pel, frame_x(self._point(positions, self.neck_base) - pel, lat)
+
+    def _spine_offsets(self, pos_sample):
+        """Where the rig's spine curve puts its torso bone heads, off the skeleton's chain.
+
+        Skeletons run their spine joints up the middle of the trunk in a nearly straight
+        line (CC_Base, CMU), the rig's spine curves (its lumbar bone leans 26° back,
+        its chest bone forward): aiming each rig bone along the skeleton's chain
+        tipped the rig's pelvis 25-35° forward and its chest back, an arched back. The
+        torso's inner points (the heads of LowerBack, Spine, Spine1) are moved, in the
+        frame of the torso's chord (pelvis → neck base), by a constant offset: the rig's
+        curve (scaled to the chord's length) less the skeleton's chain in its median
+        pose over the clip. In that pose the torso is the rig's, upright where the
+        chord is; away from it the chain's own bending adds on. Only the sagittal
+        (up, forward) part is taken: the lateral one of both is nil.
+        """
+        g_all = self.groups
+        self._off_head = np.zeros((len(g_all), 3))
+        self._off_tip = np.zeros((len(g_all), 3))
+        a = self.asset
+        rig_pel = a.heads[a.bone("Hips")]
+        rig_top = a.heads[a.bone("Neck")]
+        rig_t = frame_x(rig_top - rig_pel, np.array([1.0, 0.0, 0.0]))
+        pel, t = self._chord(pos_sample)
+        top = self._point(pos_sample, self.neck_base)
+        s = float(np.median(np.linalg.norm(top - pel, axis=-1))) / np.linalg.norm(rig_top - rig_pel)
+
+        def offset(p: Point, rig_p):
+            q = np.median(np.einsum("fji,fj->fi", t, self._point(pos_sample, p) - pel), axis=0)
+            out = s * rig_t.T @ (rig_p - rig_pel) - q
+            out[0] = 0.0
+            return out
+
+        torso = [i for i, g in enumerate(g_all) if g.recipe[0] == "torso"]
+        for i in torso[1:]:
+            self._off_head[i] = offset(g_all[i].head, g_all[i].rig_head)
+        for i in torso[:-1]:
+            self._off_tip[i] = offset(g_all[i].tip, g_all[i].rig_tip)
+
+    def _ball_drops(self, positions):
+        """How far below the skeleton's toe joint the rig's ball of the foot goes.
+
+        Skeletons put the toe joint at their own height inside the foot: CC_Base's
+        stands 6.8 cm above the floor, the rig's ball 2.8 cm (x k) above its sole, so a
+        foot aimed at it stood on its heel with the toes 3-8 cm up (folded onto the
+        instep in pictures). Standing (the 10th percentile of the toe joint's height
+        above the floor, as the ankle's in :meth:`_sole_scale`), the ball is put the
+        rig's height (x the foot's depth scale) above the floor: the toe point moves
+        along the foot's down direction (the shank's, square to the foot) by the
+        difference, within ±5 cm.
+        """
+        a = self.asset
+        for s, side in SIDES.items():
+            toe = self.landmarks[f"toe_{s}"]
+            foot = next(i for i, g in enumerate(self.groups) if g.bones[0] == f"{side}Foot")
+            toes = [i for i, g in enumerate(self.groups) if g.bones[0] == f"{side}ToeBase"]
+            if toe is None or self.groups[foot].tip is None or not toes:
+                continue
+            w = a.weights[:, [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]]
+            foot_v = np.asarray(w.sum(axis=1)).ravel() > 0.5
+            rig = (a.heads[a.bone(f"{side}ToeBase")][1] - a.vertices[foot_v, 1].min()) * self.k
+            rig *= self.sole_scale[foot]
+            h = np.percentile(positions[:, toe, 1] - self.ground, 10.0)
+            self._drop[s] = (foot, toes[0], float(np.clip(h - rig, -0.05, 0.05)))
 
     def _calibrate(self, pos_sample, rot_sample):
         g_all = self.groups
@@ -256,7 +382,7 @@ class Retarget(SoleFit):
                 "eye_R": a.eyes[1][None],
                 "head": a.heads[a.bone("Head")][None],
             }
-        self._calib, self._rig_arm = {}, {}
+        self._calib, self._rig_arm, self._turn = {}, {}, {}
         self.frames_rig = self._frames(rig_pts, rig_d, None, {}, rig=True)[0]  # (G, 3, 3)
         # calibrated groups: the constant X of R_joint X, from the clip's frames
         sk_pts, sk_d, fingers = self._inputs(pos_sample)
@@ -266,6 +392,21 @@ class Retarget(SoleFit):
                 p = g.recipe[1]
                 want = parent[:, p] @ (self.frames_rig[p].T @ self.frames_rig[i])  # (S, 3, 3)
                 self._calib[i] = mean_rotation(np.swapaxes(rot_sample[:, g.ref], -1, -2) @ want)
+            elif g.recipe[0] in TURNED:
+                # Joints say a segment's line, not always where it sits about it: the
+                # head → eyes direction depends on where a rig puts its head joint
+                # (CC_Base's 9 cm below the eyes, at the skull's base; the rig's 3 cm:
+                # the head looked 30° up), the clavicle's on where its inner joint is
+                # (CMU's 7 cm below the shoulders: the rig's clavicle raised 22-36°, a
+                # shrug that peaked the shoulders). That turn (the head's nod about the
+                # eye line, the clavicle's lift about the front axis) is taken, relative
+                # to the chest, as the rig's in the clip's median pose; per frame the
+                # skeleton's own turn adds on.
+                axis, c = TURNED[g.recipe[0]], self._spine1
+                rel = np.swapaxes(parent[:, c], -1, -2) @ parent[:, i]  # (S, 3, 3)
+                q = np.swapaxes(rel, -1, -2) @ (self.frames_rig[c].T @ self.frames_rig[i])
+                u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
+                self._turn[i] = _about(axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u]))))
 
     def _inputs(self, positions):
         """Skeleton points, group directions (tip - head) and finger directions for the
@@ -292,6 +433,18 @@ class Retarget(SoleFit):
         h = (1 - t) * positions[:, self._head_a] + t * positions[:, self._head_b]  # (F, G, 3)
         tt = self._tip_t[None, :, None]
         tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
+        # the rig's spine curve about the chord (see _spine_offsets)
+        _, chord = self._chord(positions)
+        h = h + np.einsum("fij,gj->fgi", chord, self._off_head)
+        tip = tip + np.einsum("fij,gj->fgi", chord, self._off_tip[self._tracked])
+        lm = self.landmarks
+        for s, (foot, toes, drop) in self._drop.items():  # the ball (_ball_drops)
+            ankle = positions[:, lm[f"ankle_{s}"]]
+            along = unit(positions[:, lm[f"toe_{s}"]] - ankle)
+            shank = ankle - positions[:, lm[f"knee_{s}"]]
+            down = unit(shank - along * np.sum(shank * along, axis=-1, keepdims=True))
+            tip[:, np.flatnonzero(self._tracked == foot)[0]] += drop * down
+            h[:, toes] += drop * down  # the toes start there
         return h, tip
 
     def _frames(self, pts, d, rotations, fingers, *, rig=False, calibrating=False):
@@ -367,6 +520,9 @@ class Retarget(SoleFit):
                 if target is not None:  # the axis onto the top of the head / the fingers
                     fr = swing_matrices(fr[..., 1], target) @ fr
                 out[:, i] = fr
+        if not (rig or calibrating):
+            for i, turn in self._turn.items():  # the rig's turn about the line (_calibrate)
+                out[:, i] = out[:, i] @ turn
         return out
 
     @staticmethod
@@ -458,16 +614,25 @@ class Retarget(SoleFit):
     ) -> np.ndarray:
         """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
 
-        Linear blend skinning (:func:`blend_skin`) plus the stretch correction of
-        :meth:`stretch_weights`; frames in chunks to bound memory.
+        Dual-quaternion skinning (:func:`dq_skin`) plus the stretch correction of
+        :meth:`stretch_weights`; frames in chunks to bound memory (dq_skin holds
+        ~10 float64 per point and frame).
         """
         f = positions.shape[0]
         out = np.empty((f, len(points), 3), dtype=dtype)
-        step = max(1, int(2**25 // max(1, 24 * len(points))))
+        step = max(1, int(2**24 // max(1, 24 * len(points))))
+        linear = np.asarray(weights @ self._linear_bones).ravel()
         for a in range(0, f, step):
             b = min(f, a + step)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
-            out[a:b] = blend_skin(points, weights, m[:, self.bone_group], dtype=dtype)
+            out[a:b] = dq_skin(
+                points,
+                weights,
+                m[:, self.bone_group],
+                self.asset.heads,
+                linear=linear,
+                dtype=dtype,
+            )
             sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
             corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
             out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)

@@ -263,6 +263,10 @@ class SceneRenderer:
         if floor not in FLOOR_STYLES:
             raise RenderError(f"floor must be one of {', '.join(FLOOR_STYLES)}, got {floor!r}")
         self.floor = floor
+        #: Where the "horizon" floor style puts the horizon (a floor point, metres):
+        #: default, the floor under the middle of the motion; a picture of one pose
+        #: passes the pose's own floor contact, where the figure stands.
+        self.horizon_point: np.ndarray | None = None
         self.shadows = bool(shadows) and self.ground and floor == "auto"
         self._thread = threading.get_ident()
         # cleared to the floor colour: the floor is everything the sky does not cover
@@ -358,9 +362,8 @@ class SceneRenderer:
                 self.pscene.remove_node(self._sky_node)
                 self._sky_node = None
             b = self.scene.bounds()
-            sky = _sky_mesh(
-                (b[0] + b[1]) / 2, cam, self.scene.ground, horizon=self.floor == "horizon"
-            )
+            centre = (b[0] + b[1]) / 2 if self.horizon_point is None else self.horizon_point
+            sky = _sky_mesh(centre, cam, self.scene.ground, horizon=self.floor == "horizon")
             if sky is not None:
                 self._sky_node = self.pscene.add(sky)
             # an almost level orthographic view sees the grid edge-on: a row of dashes

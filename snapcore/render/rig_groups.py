@@ -300,17 +300,21 @@ def rig_groups(lm, pos, rest, offsets, sk, rig: HumanAsset, *, k: float, eyes) -
                     ("leg", s),
                 )
             )
-            tk = far(children[j["toe"]])
-            # no toe end: the toes turn with the foot (its direction, the leg's hinge)
+            # one toe end gives the toes' direction; none, or several (CC_Base's five
+            # toe bases, fanned 28-80° off the foot's line across its width, none
+            # pointing along the toes): the toes turn with the foot (its direction,
+            # the leg's hinge)
+            kids = far(children[j["toe"]])
+            tk = kids[0] if len(kids) == 1 else None
             groups.append(
                 Group(
                     [toe],
                     at(j["toe"]),
-                    at(tk[0]) if tk else None,
+                    at(tk) if tk is not None else None,
                     j["toe"],
                     head(toe),
                     tail(toe),
-                    ("leg", s) if tk else ("leg", s, len(groups) - 1),
+                    ("leg", s) if tk is not None else ("leg", s, len(groups) - 1),
                 )
             )
         else:  # foot and toes one piece, from the ankle to the foot's end

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from snapcore.motion.skinning import blend_skin
+from snapcore.motion.skinning import dq_skin
 
 __all__ = ["SoleFit", "SIDES", "PLANT_MAX_M"]
 
@@ -52,6 +52,7 @@ class SoleFit:
     landmarks: dict[str, Any]
     groups: list
     bone_group: np.ndarray
+    _linear_bones: np.ndarray
 
     def stretch_weights(self, points: np.ndarray, weights) -> Any:
         raise NotImplementedError
@@ -112,6 +113,8 @@ class SoleFit:
                 self.bone_group[cols],
                 w[sole][:, bones].sum(axis=1),  # the foot's share of each point
                 np.array(groups),
+                self.asset.heads[cols],
+                np.asarray(ws @ self._linear_bones).ravel(),
             )
         return out
 
@@ -144,10 +147,10 @@ class SoleFit:
         lm = self.landmarks
         out = np.zeros((m.shape[0], len(self._soles)))
         for i, s in enumerate(self._soles):
-            pts, ws, stretch_w, owners, foot_share, _ = self._soles[s]
+            pts, ws, stretch_w, owners, foot_share, _, centres, linear = self._soles[s]
             # the sole points as the skin will place them (blend and stretch): a
             # point's rigid move with one bone misses the shank's share at the heel
-            y = blend_skin(pts, ws, m[:, owners])[..., 1]
+            y = dq_skin(pts, ws, m[:, owners], centres, linear=linear)[..., 1]
             y += np.asarray(stretch_w @ st[:, owners, 1].T).T
             low_point = y.argmin(axis=1)
             r = y[np.arange(len(y)), low_point] - self.ground
@@ -166,7 +169,7 @@ class SoleFit:
         """The group matrices ``m`` (F, G, 3, 4) with each foot and toe group moved by
         its :meth:`_plant_shifts` (in place; ``m`` is returned)."""
         shifts = self._plant_shifts(m, st, positions)
-        for s, (*_, groups) in enumerate(self._soles.values()):
+        for s, (*_, groups, _, _) in enumerate(self._soles.values()):
             m[:, groups, 1, 3] += shifts[:, s, None]
         return m
 
