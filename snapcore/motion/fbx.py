@@ -45,7 +45,7 @@ from snapcore.motion.kinematics import joints_from_world, matrix_to_quat, trs_ma
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.skinning import SkinnedMesh, weight_matrix
 
-__all__ = ["read_fbx", "fbx_characters", "FBX_SUFFIXES", "EXTRACT_TIMEOUT_S"]
+__all__ = ["read_fbx", "fbx_characters", "fbx_unit_name", "FBX_SUFFIXES", "EXTRACT_TIMEOUT_S"]
 
 FBX_SUFFIXES = (".fbx",)
 #: Seconds the extraction worker may take before the file is refused.
@@ -55,6 +55,19 @@ EXTRACT_TIMEOUT_S = 300.0
 _IGNORE_PARENT_SCALE = 1
 #: ufbx's skinning methods that are not linear (dual quaternion, blended).
 _DQ_METHODS = (2, 3)
+
+
+#: The units ``snapshot info`` names (data_schema/info.schema.json), in metres.
+_UNIT_NAMES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
+
+
+def fbx_unit_name(unit_meters: float) -> str:
+    """The name of an FBX file's unit (``UnitScaleFactor``, in metres): ``"cm"`` for
+    0.01...; ``"given"`` for a unit without a name (taken as written all the same)."""
+    for unit, metres in _UNIT_NAMES.items():
+        if abs(unit_meters - metres) <= 1e-9 * metres:
+            return unit
+    return "given"
 
 
 def _extract(path: Path, animation: str | None, fps: float | None) -> dict:
