@@ -24,6 +24,8 @@ characters found, the skinned mesh built.
   characters wear theirs (:class:`~snapcore.motion.skinning.SkinnedMesh`: a cluster's
   ``geometry_to_bone`` is its inverse bind matrix); a mesh without a skin below a joint
   moves rigidly with it. Dual-quaternion skins are skinned linearly (with a warning).
+- **End sites**: leaf joints named ``*_end`` (the tips Blender's exporter adds, where a
+  BVH's end sites were) are end sites, as in BVH.
 """
 
 from __future__ import annotations
@@ -258,6 +260,14 @@ def _mesh(z: dict, joints: list[int], rest_world: np.ndarray, joint_scale, path)
     )
 
 
+def _end_sites(names: list[str], parents: np.ndarray) -> np.ndarray:
+    """Which joints are end sites: leaves named ``*_end`` (Blender's exporter adds one
+    at each bone's tip; a BVH's end sites come back as them)."""
+    leaf = np.ones(len(names), dtype=bool)
+    leaf[parents[parents >= 0]] = False
+    return leaf & np.array([n.lower().endswith("_end") for n in names], dtype=bool)
+
+
 def read_fbx(
     path,
     *,
@@ -349,7 +359,7 @@ def read_fbx(
             names=_unique_names(names),
             parents=np.asarray(jparent, dtype=int),
             offsets=frames["offsets"],
-            end_site=np.zeros(len(joints), dtype=bool),
+            end_site=_end_sites(names, np.asarray(jparent)),
         ),
         positions=frames["positions"],
         rotations=frames["rotations"],

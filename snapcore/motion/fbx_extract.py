@@ -110,8 +110,14 @@ def extract(path: str, out: str, animation: str | None, fps: float | None) -> No
     stacks = [scene.anim_stacks[i] for i in range(len(scene.anim_stacks))]
     _KEEP.extend(stacks)
     settings = scene.settings
-    file_fps = float(settings.frames_per_second or 0.0)
+    raw_fps = float(settings.frames_per_second or 0.0)
+    file_fps = raw_fps
+    if file_fps and abs(file_fps - round(file_fps)) < 1e-4 * file_fps:
+        # a whole rate written as a custom float (Blender: 120 fps as 120.0048); the
+        # file's key times are on its own time base, so it is sampled on that one
+        file_fps = float(round(file_fps))
     rate = float(fps or file_fps or 30.0)
+    step = float(fps or raw_fps or 30.0)
     meta = {
         "version": int(md.version),
         "ascii": bool(md.ascii),
@@ -130,8 +136,10 @@ def extract(path: str, out: str, animation: str | None, fps: float | None) -> No
         anim = stack.anim
         _KEEP.append(anim)
         t0, t1 = float(stack.time_begin), float(stack.time_end)
-        count = max(1, int(np.floor((t1 - t0) * rate + 1e-6)) + 1)
-        times = t0 + np.arange(count) / rate
+        # key times are often stored in single precision (67 frames as 66.99993): a
+        # thousandth of a frame short of a whole frame is that frame
+        count = max(1, int(np.floor((t1 - t0) * step + 1e-3)) + 1)
+        times = t0 + np.arange(count) / step
         local = np.empty((count, len(nodes), 10))
         for fi, t in enumerate(times):  # ufbx evaluates one time per call
             for ni, n in enumerate(nodes):
