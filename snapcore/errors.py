@@ -7,7 +7,15 @@ callers that only know the standard library still catch bad input.
 
 from __future__ import annotations
 
-__all__ = ["SnapshotError", "BVHError", "GLTFError", "FBXError", "SceneError", "SchemaError", "RenderError"]
+__all__ = [
+    "SnapshotError",
+    "BVHError",
+    "GLTFError",
+    "FBXError",
+    "SceneError",
+    "SchemaError",
+    "RenderError",
+]
 
 
 class SnapshotError(ValueError):

@@ -33,21 +33,27 @@ def _angle_deg(a, b) -> float:
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
-def _select(path: Path) -> dict:
-    r = subprocess.run(
+def _start_select(path: Path) -> subprocess.Popen:
+    """`snapshot select` on a file, started (it runs beside Blender)."""
+    return subprocess.Popen(
         [SNAPSHOT, "select", str(path), "--json", "--no-baselines", "-k", "3"],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         text=True,
-        timeout=600,
     )
-    assert r.returncode == 0, r.stderr
-    return json.loads(r.stdout)
+
+
+def _finish_select(proc: subprocess.Popen) -> dict:
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    return json.loads(out)
 
 
 @pytest.fixture(scope="module")
 def blender_run(motions_dir, tmp_path_factory):
     """One Blender process: each clip imported by Blender's BVH importer, exported by its
-    FBX exporter, and snapshot by the add-on's operator (what Blender shows, per clip)."""
+    FBX exporter, and snapshot by the add-on's operator (what Blender shows, per clip),
+    with `snapshot select` on the BVH file itself (run beside it)."""
     need(importlib.util.find_spec("bpy") is not None, "bpy is not installed (make test does)")
     folder = tmp_path_factory.mktemp("blender")
     clips = []
@@ -68,6 +74,8 @@ def blender_run(motions_dir, tmp_path_factory):
         "clips": clips,
     }
     (folder / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
+    # `snapshot select` on each BVH file itself, beside the Blender process
+    selects = {key: _start_select(motions_dir / rel) for key, rel in CLIPS.items()}
     r = subprocess.run(
         [sys.executable, str(DRIVER), str(folder / "spec.json")],
         capture_output=True,
@@ -76,13 +84,8 @@ def blender_run(motions_dir, tmp_path_factory):
     )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     results = json.loads((folder / "result.json").read_text(encoding="utf-8"))
-    return {c["key"]: (c, res) for c, res in zip(clips, results)}
-
-
-@pytest.fixture(scope="module")
-def bvh_selections(motions_dir):
-    """`snapshot select` on each shared BVH file itself."""
-    return {key: _select(motions_dir / rel) for key, rel in CLIPS.items()}
+    chosen = {key: _finish_select(p) for key, p in selects.items()}
+    return {c["key"]: (c, res, chosen[c["key"]]) for c, res in zip(clips, results)}
 
 
 @pytest.mark.slow
@@ -90,7 +93,7 @@ def bvh_selections(motions_dir):
 def test_blender_fbx_export_reads_back_to_the_bvhs_own_kinematics(blender_run, key):
     """Blender's FBX of the imported BVH: every BVH joint within 1 mm of the BVH's own
     forward kinematics on every frame, same frame count, rate and T-pose cut."""
-    clip, _ = blender_run[key]
+    clip, _, _ = blender_run[key]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         bvh = load_scene(clip["bvh"], drop_tpose=False)
@@ -108,12 +111,11 @@ def test_blender_fbx_export_reads_back_to_the_bvhs_own_kinematics(blender_run, k
 
 @pytest.mark.slow
 @pytest.mark.parametrize("key", list(CLIPS))
-def test_addon_markers_are_snapshot_selects_top_k(blender_run, bvh_selections, key):
+def test_addon_markers_are_snapshot_selects_top_k(blender_run, key):
     """The add-on's timeline markers sit on `snapshot select`'s top-k of the BVH file,
     Blender frame = the action's first frame + snapshot's 0-based source frame; the
     operator's own selection (on the FBX it exported) is the same story pick."""
-    _, res = blender_run[key]
-    sel = bvh_selections[key]
+    _, res, sel = blender_run[key]
     assert res["operator"] == ["FINISHED"]
     markers = [frame for _, frame in res["markers"]]
     assert markers == [res["action_start"] + f for f in sel["frames"]]
@@ -137,11 +139,11 @@ def test_addon_markers_are_snapshot_selects_top_k(blender_run, bvh_selections, k
         "bandai",
     ],
 )
-def test_addon_camera_looks_along_the_pma_view(blender_run, bvh_selections, key):
+def test_addon_camera_looks_along_the_pma_view(blender_run, key):
     """The add-on's camera looks along `snapshot select`'s PMA view of the BVH file
     (within 2 degrees), at the character (its bones' centre within 10 degrees of the
     line of sight)."""
-    _, res = blender_run[key]
+    _, res, sel = blender_run[key]
     assert _angle_deg(res["camera_view"], res["result"]["view"]) < 0.01  # placed as computed
     assert res["centre_angle_deg"] < 10
-    assert _angle_deg(res["camera_view"], bvh_selections[key]["view"]) < 2.0
+    assert _angle_deg(res["camera_view"], sel["view"]) < 2.0

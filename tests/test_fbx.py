@@ -65,7 +65,7 @@ def test_every_shared_fbx_loads_or_is_refused_in_one_line(fbx_dir, tmp_path):
     lists the character, joints, frames and animations, or one error line, exit 2."""
     files = sorted(fbx_dir.glob("*.fbx"))
     cut = tmp_path / "truncated.fbx"
-    cut.write_bytes((fbx_dir / KENNEY).read_bytes()[: 300_000])
+    cut.write_bytes((fbx_dir / KENNEY).read_bytes()[:300_000])
     for f in [*files, cut]:
         r = subprocess.run([SNAPSHOT, "info", str(f)], capture_output=True, text=True, timeout=120)
         out = r.stdout + r.stderr

@@ -101,9 +101,7 @@ def _extract_cached(path: str, mtime: int, size: int, animation, fps) -> dict:
             lines = done.stderr.strip().splitlines()
             raise FBXError(lines[-1] if lines else "refused by the FBX loader", path=path)
         if done.returncode != 0 or not os.path.exists(out):
-            how = (
-                f"signal {-done.returncode}" if done.returncode < 0 else f"exit {done.returncode}"
-            )
+            how = f"signal {-done.returncode}" if done.returncode < 0 else f"exit {done.returncode}"
             raise FBXError(f"the FBX loader failed on this file ({how})", path=path)
         with np.load(out, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
@@ -330,9 +328,7 @@ def read_fbx(
     order = _order(parent)
     local = z["local"]
     if not np.all(np.isfinite(local)):
-        raise FBXError(
-            "its animation has non-finite transforms (NaN or infinity)", path=str(path)
-        )
+        raise FBXError("its animation has non-finite transforms (NaN or infinity)", path=str(path))
     world = _world(local, parent, z["node_inherit"], order)
     joint_index = {n: j for j, n in enumerate(joints)}
     jparent = []
@@ -352,14 +348,14 @@ def read_fbx(
     mesh = _mesh(z, joints, z["rest_world"], frames["joint_scale"], path)
     rate = float(meta["fps"])
     t0 = float(z["times"][0])
-    names = [str(z["node_name"][n]) for n in joints]
+    joint_names = [str(z["node_name"][n]) for n in joints]
     return Character(
         name=name or path.stem,
         skeleton=Skeleton(
-            names=_unique_names(names),
+            names=_unique_names(joint_names),
             parents=np.asarray(jparent, dtype=int),
             offsets=frames["offsets"],
-            end_site=_end_sites(names, np.asarray(jparent)),
+            end_site=_end_sites(joint_names, np.asarray(jparent)),
         ),
         positions=frames["positions"],
         rotations=frames["rotations"],

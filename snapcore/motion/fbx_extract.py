@@ -118,7 +118,7 @@ def extract(path: str, out: str, animation: str | None, fps: float | None) -> No
         file_fps = float(round(file_fps))
     rate = float(fps or file_fps or 30.0)
     step = float(fps or raw_fps or 30.0)
-    meta = {
+    meta: dict = {
         "version": int(md.version),
         "ascii": bool(md.ascii),
         "unit_meters": float(settings.unit_meters),
@@ -150,7 +150,7 @@ def extract(path: str, out: str, animation: str | None, fps: float | None) -> No
         arrays["local"], arrays["times"] = local, times
         meta["animation"] = stack.name
         meta["animation_index"] = k
-    used_bones = set()
+    used_bones: set[int] = set()
     m = 0
     for mi in range(len(scene.meshes)):
         mesh = scene.meshes[mi]
@@ -189,7 +189,7 @@ def extract(path: str, out: str, animation: str | None, fps: float | None) -> No
     arrays["node_bone"] = bone
     arrays["meta"] = np.array(json.dumps(meta))
     with open(out, "wb") as fh:
-        np.savez(fh, **arrays)
+        np.savez(fh, **arrays)  # type: ignore[arg-type]
 
 
 def main(argv: list[str]) -> None:

@@ -226,7 +226,9 @@ class ActionSnapshotSettings(bpy.types.PropertyGroup):
         default=False,
     )
     output: bpy.props.StringProperty(  # type: ignore[valid-type]
-        name="Still", description="Where Render still writes", default="//snapshot.png",
+        name="Still",
+        description="Where Render still writes",
+        default="//snapshot.png",
         subtype="FILE_PATH",
     )
 
