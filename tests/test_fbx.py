@@ -15,21 +15,19 @@ import pytest
 
 from snapcore import load_scene
 from snapcore.errors import FBXError
-from snapcore.motion.fbx import fbx_characters, read_fbx
+from snapcore.motion.fbx import fbx_characters, fbx_unit, read_fbx
 from tests.conftest import need
 
 SNAPSHOT = str(Path(sys.executable).with_name("snapshot"))
 KENNEY = "maya_kenney_character_7700_binary.fbx"
-#: The files of ../shared/fbx/ that hold an animated skeleton (the rest are refused).
+#: The files of ../shared/fbx/ that hold an animated skeleton; the rest are refused: the
+#: fuzzed ones, three without a skeleton, and four rigs whose take moves nothing.
 READABLE = {
     "blender_293_barbarian_7400_binary.fbx",
-    "maya_character_6100_ascii.fbx",
-    "maya_character_7500_binary.fbx",
     "maya_dq_weights_7500_ascii.fbx",
-    "maya_human_ik_6100_ascii.fbx",
-    "maya_human_ik_7400_binary.fbx",
     KENNEY,
 }
+STILL = ("maya_character_7500_binary.fbx", "maya_human_ik_7400_binary.fbx")
 
 
 @pytest.fixture(scope="module")
@@ -80,14 +78,23 @@ def test_every_shared_fbx_loads_or_is_refused_in_one_line(fbx_dir, tmp_path):
 
 
 def test_units_are_the_files_and_a_misstated_unit_is_caught(fbx_dir):
-    """The Maya character in cm is a 1.6-1.9 m person; HumanIK's samples state metres
-    for a rig in cm and are read in cm with a warning, the same person."""
-    cm = load_scene(fbx_dir / "maya_character_7500_binary.fbx")
-    assert cm.characters[0].meta["unit"] == "cm"
-    assert 1.6 < cm.characters[0].height < 1.9
-    with pytest.warns(UserWarning, match="read in centimetres"):
-        ik = load_scene(fbx_dir / "maya_human_ik_7400_binary.fbx")
-    assert ik.characters[0].height == pytest.approx(cm.characters[0].height, rel=0.05)
+    """Kenney's file is in cm and read so; HumanIK's sample states metres for a rig in cm
+    (174 m tall) and is read in cm with the reason, the same person as the Maya rig."""
+    assert load_scene(fbx_dir / KENNEY).characters[0].meta["unit"] == "cm"
+    rig = read_fbx(fbx_dir / "maya_character_7500_binary.fbx")
+    ik = read_fbx(fbx_dir / "maya_human_ik_7400_binary.fbx")
+    assert fbx_unit(rig) == (0.01, "cm", None)
+    metres, unit, why = fbx_unit(ik)
+    assert (metres, unit) == (0.01, "cm") and "would be 174 m tall" in why
+    assert ik.rescaled(metres).height == pytest.approx(rig.rescaled(0.01).height, rel=0.05)
+    assert 1.6 < rig.rescaled(0.01).height < 1.9
+
+
+@pytest.mark.parametrize("name", STILL)
+def test_a_take_that_moves_nothing_is_refused(fbx_dir, name):
+    """A rig saved with an empty take (every joint still) is no animation: one line."""
+    with pytest.raises(FBXError, match="moves no joint: there is no animation"):
+        load_scene(fbx_dir / name)
 
 
 def test_binary_and_ascii_of_one_rig_read_alike(fbx_dir):
@@ -120,15 +127,16 @@ def test_up_axis_is_turned_to_y(fbx_dir):
     assert np.all(head - foot > 100)  # cm
 
 
-def test_two_skeletons_in_one_file_are_two_characters(fbx_dir, tmp_path):
-    """A scene of one FBX file listed twice keeps both; a file's skeletons are listed
-    by their root joint."""
+def test_two_fbx_files_are_one_scene_each_wearing_its_own_mesh(fbx_dir):
+    """Two FBX files make a two-character scene, each character with its own skinned
+    mesh; a file's skeletons are listed by their root joint."""
     assert fbx_characters(fbx_dir / KENNEY) == ["LeftFootCtrl"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        s = load_scene([fbx_dir / KENNEY, fbx_dir / "maya_character_7500_binary.fbx"], fps=24)
+        s = load_scene([fbx_dir / KENNEY, fbx_dir / "maya_dq_weights_7500_ascii.fbx"])
     assert len(s.characters) == 2
-    assert s.characters[0].mesh is not None and s.characters[1].mesh is None
+    assert all(c.mesh is not None for c in s.characters)
+    assert s.characters[0].mesh.n_vertices != s.characters[1].mesh.n_vertices
 
 
 @pytest.mark.slow
@@ -139,7 +147,7 @@ def test_batch_indexes_a_folder_mixing_bvh_gltf_and_fbx(fbx_dir, motions_dir, tm
     shutil.copy(motions_dir / "walk_run" / "02_01.bvh", lib / "walk.bvh")
     shutil.copy(motions_dir / "gltf" / "CesiumMan.glb", lib / "cesium.glb")
     shutil.copy(fbx_dir / KENNEY, lib / "kenney.fbx")
-    shutil.copy(fbx_dir / "maya_character_7500_binary.fbx", lib / "maya.fbx")
+    shutil.copy(fbx_dir / "maya_dq_weights_7500_ascii.fbx", lib / "maya.fbx")
     out = tmp_path / "out"
     args = ["--no-baselines", "--size", "160x180", "-q"]
     r = subprocess.run(

@@ -47,7 +47,16 @@ from snapcore.motion.kinematics import joints_from_world, matrix_to_quat, trs_ma
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.skinning import SkinnedMesh, weight_matrix
 
-__all__ = ["read_fbx", "fbx_characters", "fbx_unit_name", "FBX_SUFFIXES", "EXTRACT_TIMEOUT_S"]
+__all__ = [
+    "read_fbx",
+    "fbx_characters",
+    "fbx_unit",
+    "fbx_unit_name",
+    "still_fbx",
+    "FBX_SUFFIXES",
+    "EXTRACT_TIMEOUT_S",
+    "MAX_STATURE_M",
+]
 
 FBX_SUFFIXES = (".fbx",)
 #: Seconds the extraction worker may take before the file is refused.
@@ -70,6 +79,48 @@ def fbx_unit_name(unit_meters: float) -> str:
         if abs(unit_meters - metres) <= 1e-9 * metres:
             return unit
     return "given"
+
+
+#: An FBX character taller than this (metres) in the unit its file states is read in
+#: centimetres: no creature an animator rigs is that tall, while files that misstate
+#: their unit are off by 100x (a 1.7 m person read as 170 m).
+MAX_STATURE_M = 20.0
+
+
+def fbx_unit(character) -> tuple[float, str, str | None]:
+    """Metres per unit of a character read by :func:`read_fbx`, its name, and why it
+    is not the file's own (None when it is).
+
+    The file's ``UnitScaleFactor``, unless the character would then be taller than
+    :data:`MAX_STATURE_M`: FBX 6100 files have no ``UnitScaleFactor`` and some exporters
+    write 1 (m) for a rig in centimetres (Maya's HumanIK samples: 174 "m" tall).
+    """
+    metres = float(character.meta["unit_meters"])
+    height = character.height * metres / character.scale
+    if height <= MAX_STATURE_M:
+        return metres, fbx_unit_name(metres), None
+    why = (
+        f"{character.meta['path']}: in the unit the file states ({metres:g} m) "
+        f"'{character.name}' would be {height:.0f} m tall; read in centimetres. "
+        "Pass --scale to override."
+    )
+    return metres * 0.01, fbx_unit_name(metres * 0.01), why
+
+
+def still_fbx(character) -> None:
+    """Refuse a character whose take moves no joint (a rig saved with an empty take:
+    there is no animation to take a snapshot of).
+
+    Raises
+    ------
+    FBXError
+    """
+    if np.ptp(character.positions, axis=0).max() == 0.0:
+        raise FBXError(
+            f"its take '{character.meta['animation']}' moves no joint: there is no "
+            "animation (a rig saved with an empty take)",
+            path=character.meta["path"],
+        )
 
 
 def _extract(path: Path, animation: str | None, fps: float | None) -> dict:

@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.bvh import BVHDocument, read_bvh, split_roots
-from snapcore.motion.fbx import FBX_SUFFIXES, fbx_characters, fbx_unit_name, read_fbx
+from snapcore.motion.fbx import FBX_SUFFIXES, fbx_characters, fbx_unit, read_fbx, still_fbx
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
@@ -54,10 +54,6 @@ MANIFEST_SUFFIXES = (".toml", ".json")
 #: this factor are taken for files in different units: a child and an adult differ by
 #: less than 1.8x; the shared motion files' units differ by 20x and more.
 MAX_STATURE_RATIO = 2.0
-#: An FBX character taller than this (metres) in the unit its file states is read in
-#: centimetres: no creature an animator rigs is that tall, while files that misstate
-#: their unit are off by 100x (a 1.7 m person read as 170 m).
-FBX_MAX_STATURE_M = 20.0
 #: A BVH root with fewer joints (end sites not counted) is a prop, not a person: the
 #: scene's unit is inferred from the people alone.
 MIN_PERSON_JOINTS = 5
@@ -314,22 +310,14 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     chars: list[Character] = []
     used_names: set[str] = set()
     for probe, e, g, fb in zip(probes, entries, is_gltf, is_fbx):
+        if fb:
+            still_fbx(probe)  # a take that moves nothing is no animation: refused
         if fb and not (scale or e.get("scale") or spec.get("scale")):
-            # FBX says its unit (UnitScaleFactor): taken as written
-            metres = probe.meta["unit_meters"]
+            metres, unit, why = fbx_unit(probe)
+            if why:
+                warnings.warn(why, stacklevel=3)
             c = probe.rescaled(metres)
-            if c.height > FBX_MAX_STATURE_M:
-                # FBX 6100 files have no UnitScaleFactor and some exporters write 1 (m)
-                # for a rig in centimetres (Maya's HumanIK samples: 174 "m" tall)
-                warnings.warn(
-                    f"{probe.meta['path']}: in the unit the file states ({metres:g} m) "
-                    f"'{probe.name}' would be {c.height:.0f} m tall; read in centimetres. "
-                    "Pass --scale to override.",
-                    stacklevel=3,
-                )
-                metres *= 0.01
-                c = probe.rescaled(metres)
-            c.meta["unit"] = fbx_unit_name(metres)
+            c.meta["unit"] = unit
         elif g and not (scale or e.get("scale") or spec.get("scale")):
             metres, unit = gltf_unit(probe)
             c = probe.rescaled(metres)
