@@ -4,7 +4,8 @@ exporter, run the Action Snapshot add-on's operator, and write what Blender show
 
 Usage: ``python tests/blender_driver.py SPEC.json`` with SPEC ``{"addon": zip,
 "snapshot": command, "out": result.json, "clips": [{"bvh": path, "scale": metres per
-unit, "fbx": path}, ...]}``. Run by ``tests/test_blender.py`` in its own process (bpy
+unit, "fbx": path}, ...], "pair": path}``; ``pair`` (optional): the first two clips'
+armatures side by side, exported to one FBX file. Run by ``tests/test_blender.py`` in its own process (bpy
 is a whole Blender: kept out of the test process).
 """
 
@@ -67,6 +68,19 @@ def main(spec_path: str) -> None:
                 "centre_angle_deg": float(forward.angle(to_centre)) * 57.29577951308232,
                 "result": json.loads(scene["action_snapshot_result"]),
             }
+        )
+    if spec.get("pair"):  # two armatures in one scene, exported to one FBX file
+        bpy.ops.wm.read_homefile(use_empty=True)
+        for k, clip in enumerate(spec["clips"][:2]):
+            bpy.ops.import_anim.bvh(filepath=clip["bvh"], global_scale=float(clip["scale"]))
+            bpy.context.view_layer.objects.active.location.x = 2.0 * k
+        bpy.ops.export_scene.fbx(
+            filepath=spec["pair"],
+            object_types={"ARMATURE"},
+            add_leaf_bones=False,
+            bake_anim_use_all_actions=False,  # one take playing both armatures' actions
+            bake_anim_use_nla_strips=False,
+            bake_anim_simplify_factor=0.0,  # every frame's key, none reduced
         )
     with open(spec["out"], "w", encoding="utf-8") as fh:
         json.dump(results, fh)

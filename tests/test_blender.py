@@ -72,6 +72,7 @@ def blender_run(motions_dir, tmp_path_factory):
         "snapshot": SNAPSHOT,
         "out": str(folder / "result.json"),
         "clips": clips,
+        "pair": str(folder / "pair.fbx"),
     }
     (folder / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
     # `snapshot select` on each BVH file itself, beside the Blender process
@@ -85,7 +86,9 @@ def blender_run(motions_dir, tmp_path_factory):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     results = json.loads((folder / "result.json").read_text(encoding="utf-8"))
     chosen = {key: _finish_select(p) for key, p in selects.items()}
-    return {c["key"]: (c, res, chosen[c["key"]]) for c, res in zip(clips, results)}
+    out = {c["key"]: (c, res, chosen[c["key"]]) for c, res in zip(clips, results)}
+    out["pair"] = spec["pair"]
+    return out
 
 
 @pytest.mark.slow
@@ -147,3 +150,25 @@ def test_addon_camera_looks_along_the_pma_view(blender_run, key):
     assert _angle_deg(res["camera_view"], res["result"]["view"]) < 0.01  # placed as computed
     assert res["centre_angle_deg"] < 10
     assert _angle_deg(res["camera_view"], sel["view"]) < 2.0
+
+
+@pytest.mark.slow
+def test_two_armatures_in_one_fbx_file_are_two_characters(blender_run):
+    """Blender's FBX of two armatures (the CMU clip, the Daz clip moved 2 m along x):
+    two characters, each one's joints within 1 mm of its own BVH's on every frame."""
+    from snapcore.motion.fbx import fbx_characters
+
+    path = blender_run["pair"]
+    assert len(fbx_characters(path)) == 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pair = load_scene(path, drop_tpose=False).characters
+        for k, key in enumerate(("cmu", "daz")):
+            bvh = load_scene(blender_run[key][0]["bvh"], drop_tpose=False).characters[0]
+            joints = [n for n, end in zip(bvh.joint_names, bvh.skeleton.end_site) if not end]
+            fbx = next(c for c in pair if set(joints) <= set(c.joint_names))
+            ib = [bvh.joint_names.index(n) for n in joints]
+            jf = [fbx.joint_names.index(n) for n in joints]
+            moved = bvh.positions[:, ib] + np.array([2.0 * k, 0.0, 0.0])
+            n = min(fbx.n_frames, bvh.n_frames)
+            assert np.abs(fbx.positions[:n, jf] - moved[:n]).max() < 1e-3

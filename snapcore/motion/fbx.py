@@ -107,19 +107,22 @@ def fbx_unit(character) -> tuple[float, str, str | None]:
     return metres * 0.01, fbx_unit_name(metres * 0.01), why
 
 
-def still_fbx(character) -> None:
-    """Refuse a character whose take moves no joint (a rig saved with an empty take:
-    there is no animation to take a snapshot of).
+def still_fbx(characters) -> None:
+    """Refuse FBX characters of which none moves a joint in its take (a rig saved with
+    an empty take: there is no animation to take a snapshot of). One still character
+    beside moving ones is kept: standing still is part of a scene.
 
     Raises
     ------
     FBXError
+        Naming the first character's file and take.
     """
-    if np.ptp(character.positions, axis=0).max() == 0.0:
+    if characters and all(np.ptp(c.positions, axis=0).max() == 0.0 for c in characters):
+        c = characters[0]
         raise FBXError(
-            f"its take '{character.meta['animation']}' moves no joint: there is no "
+            f"its take '{c.meta['animation']}' moves no joint: there is no "
             "animation (a rig saved with an empty take)",
-            path=character.meta["path"],
+            path=c.meta["path"],
         )
 
 

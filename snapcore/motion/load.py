@@ -285,6 +285,8 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
             probes.append(c)
     is_gltf = [k == "gltf" for k in kinds]
     is_fbx = [k == "fbx" for k in kinds]
+    # FBX takes that move nothing are no animation: refused
+    still_fbx([p for p, fb in zip(probes, is_fbx) if fb])
     # One scale for the scene unless given per character: people captured together
     # must keep their distances. glTF is in metres (its own rule, gltf_unit).
     scene_scale = scale or spec.get("scale")
@@ -310,8 +312,6 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     chars: list[Character] = []
     used_names: set[str] = set()
     for probe, e, g, fb in zip(probes, entries, is_gltf, is_fbx):
-        if fb:
-            still_fbx(probe)  # a take that moves nothing is no animation: refused
         if fb and not (scale or e.get("scale") or spec.get("scale")):
             metres, unit, why = fbx_unit(probe)
             if why:
