@@ -7,7 +7,15 @@ callers that only know the standard library still catch bad input.
 
 from __future__ import annotations
 
-__all__ = ["SnapshotError", "BVHError", "GLTFError", "SceneError", "SchemaError", "RenderError"]
+__all__ = [
+    "SnapshotError",
+    "BVHError",
+    "GLTFError",
+    "FBXError",
+    "SceneError",
+    "SchemaError",
+    "RenderError",
+]
 
 
 class SnapshotError(ValueError):
@@ -52,6 +60,23 @@ class GLTFError(SnapshotError):
         self.path = path
         self.reason = message
         super().__init__(f"{path or '<gltf>'}: {message}")
+
+
+class FBXError(SnapshotError):
+    """An FBX file that cannot be read (damaged, truncated, no skeleton, no animation).
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    path : str, optional
+        The file, as given by the caller.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None):
+        self.path = path
+        self.reason = message
+        super().__init__(f"{path or '<fbx>'}: {message}")
 
 
 class SceneError(SnapshotError):

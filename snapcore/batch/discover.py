@@ -38,7 +38,8 @@ __all__ = [
 #: Motion files run as one scene each.
 BVH_SUFFIXES = (".bvh",)
 GLTF_SUFFIXES = (".glb", ".gltf")
-MOTION_SUFFIXES = BVH_SUFFIXES + GLTF_SUFFIXES
+FBX_SUFFIXES = (".fbx",)
+MOTION_SUFFIXES = BVH_SUFFIXES + GLTF_SUFFIXES + FBX_SUFFIXES
 #: Scene manifests (the same suffixes :func:`snapcore.motion.load.load_scene` accepts).
 MANIFEST_SUFFIXES = (".toml", ".json")
 #: A SOURCE with one of these suffixes is a list of paths, one per line (``#`` comments).
@@ -59,7 +60,7 @@ class SceneSource:
     key : str
         Path relative to its SOURCE, POSIX separators (``walk_run/02_01.bvh``): the
         scene's name in the index and its outputs' name.
-    kind : {"bvh", "gltf", "manifest", "unknown"}
+    kind : {"bvh", "gltf", "fbx", "manifest", "unknown"}
         ``"unknown"``: a file named explicitly whose suffix is none of these.
     path : str
         The file to load (absolute).
@@ -108,6 +109,8 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if s in GLTF_SUFFIXES:
         return "gltf"
+    if s in FBX_SUFFIXES:
+        return "fbx"
     if s in MANIFEST_SUFFIXES:
         return "manifest"
     return None

@@ -218,7 +218,7 @@ def _load(task: SceneTask):
     s, opts = task.scene, task.options
     if s.kind == "unknown":
         raise SceneError(
-            f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
+            f"{s.key}: not a motion file (expected .bvh, .glb, .gltf, .fbx or a "
             "scene manifest .toml/.json)"
         )
     return load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)

@@ -237,7 +237,7 @@ def batch(
     thumbnail of the chosen pose from the chosen view; an index and a gallery.
 
     SOURCE is a folder (walked recursively), a glob ('lib/**/*.bvh', quoted), a list
-    file (.txt: one path per line) or a file. BVH and glTF files are scenes, and so
+    file (.txt: one path per line) or a file. BVH, glTF and FBX files are scenes, and so
     are scene manifests (.toml/.json) for multi-character scenes; files a manifest
     names are not also run alone.
 

@@ -90,7 +90,7 @@ def body_options(f):
         metavar="NAME",
         expose_value=False,
         callback=_stash,
-        help="glTF/GLB characters: the animation to play (name or index; "
+        help="glTF/GLB and FBX characters: the animation (FBX: the take) to play (name or index; "
         "default the first; `snapshot info` lists them).",
     )(f)
     f = click.option(

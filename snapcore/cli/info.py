@@ -49,8 +49,9 @@ def scene_summary(scene) -> dict:
 def info(paths, fps, scale, as_json):
     """Summarise a scene: characters, joints, frames, fps, duration, height, bounds.
 
-    PATH is one or more BVH or glTF/GLB files (several = one multi-character scene) or
-    one scene manifest (.toml/.json). For glTF characters it lists the animations.
+    PATH is one or more BVH, glTF/GLB or FBX files (several = one multi-character scene)
+    or one scene manifest (.toml/.json). For glTF and FBX characters it lists the
+    animations.
     """
     scene = scene_from_options(paths, fps, scale)
     s = scene_summary(scene)

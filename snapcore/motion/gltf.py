@@ -35,7 +35,7 @@ import numpy as np
 from snapcore.errors import GLTFError
 from snapcore.motion.gltf_access import Buffers
 from snapcore.motion.gltf_sample import INTERPOLATIONS, quat_normalize, sample_curve
-from snapcore.motion.kinematics import matrix_to_quat
+from snapcore.motion.kinematics import joints_from_world, matrix_to_quat, trs_matrix
 from snapcore.motion.scene import Character, Skeleton
 from snapcore.motion.skinning import SkinnedMesh, weight_matrix
 
@@ -94,26 +94,6 @@ def _local_trs(node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     q = np.asarray(node.rotation if node.rotation is not None else (0, 0, 0, 1), float)
     s = np.asarray(node.scale if node.scale is not None else (1, 1, 1), float)
     return t, quat_normalize(q), s
-
-
-def _trs_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """4 x 4 matrices ``T · R · S`` from (..., 3), (..., 4) xyzw, (..., 3)."""
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    r = np.empty(q.shape[:-1] + (3, 3))
-    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    r[..., 0, 1] = 2 * (x * y - w * z)
-    r[..., 0, 2] = 2 * (x * z + w * y)
-    r[..., 1, 0] = 2 * (x * y + w * z)
-    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    r[..., 1, 2] = 2 * (y * z - w * x)
-    r[..., 2, 0] = 2 * (x * z - w * y)
-    r[..., 2, 1] = 2 * (y * z + w * x)
-    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    m = np.zeros(q.shape[:-1] + (4, 4))
-    m[..., :3, :3] = r * s[..., None, :]
-    m[..., :3, 3] = t
-    m[..., 3, 3] = 1.0
-    return m
 
 
 def _node_parents(gltf, buffers: Buffers) -> np.ndarray:
@@ -581,35 +561,18 @@ def read_gltf(
     rest = [np.array(x) for x in zip(*[_local_trs(n) for n in nodes])]  # T, R, S: (N, ·)
     a_idx, a_name = _pick_animation(g, animation, buffers)
     t, r, s = _sample_animation(g, a_idx, buffers, rest, fps, a_name)
-    world = node_world_matrices(_trs_matrix(t, r, s), parent, order)  # (F, N, 4, 4)
-    rest_world = node_world_matrices(_trs_matrix(*rest)[None], parent, order)[0]
+    world = node_world_matrices(trs_matrix(t, r, s), parent, order)  # (F, N, 4, 4)
+    rest_world = node_world_matrices(trs_matrix(*rest)[None], parent, order)[0]
 
-    jw = world[:, joints]  # (F, J, 4, 4)
-    lin = jw[..., :3, :3]
-    # pure rotations by polar decomposition (glTF nodes may scale); the scale is kept apart
-    u, sv, vt = np.linalg.svd(lin)
-    rot = u @ vt
-    flip = np.linalg.det(rot) < 0
-    if np.any(flip):
-        u[flip, :, -1] *= -1
-        rot = u @ vt
-    scale_fj = np.cbrt(np.abs(np.linalg.det(lin)))  # (F, J) isotropic world scale
-    joint_scale = np.median(scale_fj, axis=0)
-    if np.any(np.abs(scale_fj / np.where(joint_scale > 0, joint_scale, 1) - 1) > 1e-3) or np.any(
-        sv.max(-1) > sv.min(-1) * (1 + 1e-3)
-    ):
+    frames = joints_from_world(world[:, joints], jparent)  # world: (F, N, 4, 4)
+    if not frames["uniform"]:
         warnings.warn(
             f"{path}: joints scale non-uniformly or over time; the mesh follows their "
             "median uniform scale",
             stacklevel=2,
         )
-    pos = jw[..., :3, 3]
-    par_rot = np.where(
-        (jparent >= 0)[None, :, None, None], rot[:, np.maximum(jparent, 0)], np.eye(3)
-    )
-    local_rot = np.swapaxes(par_rot, -1, -2) @ rot
-    rel = pos - np.where((jparent >= 0)[None, :, None], pos[:, np.maximum(jparent, 0)], 0.0)
-    offsets = np.median(np.einsum("fjki,fjk->fji", par_rot, rel), axis=0)
+    pos, rot, local_rot = frames["positions"], frames["rotations"], frames["local_rotations"]
+    joint_scale, offsets = frames["joint_scale"], frames["offsets"]
     skeleton = Skeleton(
         names=_unique_names([nodes[i].name or f"node_{i}" for i in joints]),
         parents=jparent,

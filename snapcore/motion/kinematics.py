@@ -22,6 +22,8 @@ __all__ = [
     "quat_rotate",
     "quat_to_matrix",
     "matrix_to_quat",
+    "joints_from_world",
+    "trs_matrix",
 ]
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
@@ -253,3 +255,78 @@ def joint_depths(parents) -> np.ndarray:
             raise ValueError(f"parents: joint {j} has parent {p}; parents must precede children")
         depth[j] = 0 if p < 0 else depth[p] + 1
     return depth
+
+
+def joints_from_world(world: np.ndarray, parents) -> dict:
+    """Joint frames of a skeleton from its joints' world matrices (glTF, FBX).
+
+    Scene-graph formats give each joint a full 4 × 4 world matrix that may scale (glTF
+    node scale, an FBX armature scaled by 100); the suite's characters keep pure
+    rotations and one uniform scale per joint apart, the scale constant over time.
+
+    Parameters
+    ----------
+    world : ndarray of shape (F, J, 4, 4)
+        World matrices of every joint at every frame.
+    parents : ndarray of int, shape (J,)
+        Parent joint of each joint (``-1`` for a root); parents precede children.
+
+    Returns
+    -------
+    dict
+        ``positions`` (F, J, 3); ``rotations`` (F, J, 3, 3), pure rotations by polar
+        decomposition; ``local_rotations`` (F, J, 3, 3), relative to the parent's;
+        ``offsets`` (J, 3), each joint's median position in its parent's frame;
+        ``joint_scale`` (J,), the median isotropic world scale; ``uniform`` (bool),
+        False when a joint scales non-uniformly or over time (by more than 0.1 %).
+    """
+    parents = np.asarray(parents, dtype=int)
+    lin = world[..., :3, :3]
+    u, sv, vt = np.linalg.svd(lin)
+    rot = u @ vt
+    flip = np.linalg.det(rot) < 0
+    if np.any(flip):
+        u[flip, :, -1] *= -1
+        rot = u @ vt
+    scale_fj = np.cbrt(np.abs(np.linalg.det(lin)))  # (F, J) isotropic world scale
+    joint_scale = np.median(scale_fj, axis=0)
+    uniform = not (
+        np.any(np.abs(scale_fj / np.where(joint_scale > 0, joint_scale, 1) - 1) > 1e-3)
+        or np.any(sv.max(-1) > sv.min(-1) * (1 + 1e-3))
+    )
+    pos = world[..., :3, 3]
+    has_parent = parents >= 0
+    par = np.maximum(parents, 0)
+    par_rot = np.where(has_parent[None, :, None, None], rot[:, par], np.eye(3))
+    local_rot = np.swapaxes(par_rot, -1, -2) @ rot
+    rel = pos - np.where(has_parent[None, :, None], pos[:, par], 0.0)
+    offsets = np.median(np.einsum("fjki,fjk->fji", par_rot, rel), axis=0)
+    return {
+        "positions": pos,
+        "rotations": rot,
+        "local_rotations": local_rot,
+        "offsets": offsets,
+        "joint_scale": joint_scale,
+        "uniform": uniform,
+    }
+
+
+def trs_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """4 x 4 matrices ``T · R · S`` from translations (..., 3), unit quaternions (..., 4)
+    in (x, y, z, w) order (glTF, FBX via ufbx) and scales (..., 3)."""
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    r = np.empty(q.shape[:-1] + (3, 3))
+    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    r[..., 0, 1] = 2 * (x * y - w * z)
+    r[..., 0, 2] = 2 * (x * z + w * y)
+    r[..., 1, 0] = 2 * (x * y + w * z)
+    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    r[..., 1, 2] = 2 * (y * z - w * x)
+    r[..., 2, 0] = 2 * (x * z - w * y)
+    r[..., 2, 1] = 2 * (y * z + w * x)
+    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    m = np.zeros(q.shape[:-1] + (4, 4))
+    m[..., :3, :3] = r * s[..., None, :]
+    m[..., :3, 3] = t
+    m[..., 3, 3] = 1.0
+    return m

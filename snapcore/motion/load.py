@@ -1,10 +1,11 @@
-"""Loading scenes: BVH/glTF files or a scene manifest → :class:`~snapcore.motion.scene.Scene`.
+"""Loading scenes: BVH/glTF/FBX files or a scene manifest → :class:`~snapcore.motion.scene.Scene`.
 
 This is the I/O edge of the motion core. ``load_scene`` accepts
 
-- one or more BVH or skinned glTF/GLB paths (several files = one multi-character scene
-  sharing a world frame, e.g. a two-person capture; glTF characters carry their own
-  mesh, :mod:`snapcore.motion.gltf`), or
+- one or more BVH, skinned glTF/GLB or FBX paths (several files = one multi-character
+  scene sharing a world frame, e.g. a two-person capture; glTF characters carry their
+  own mesh, :mod:`snapcore.motion.gltf`, and so do FBX characters with a skinned mesh,
+  :mod:`snapcore.motion.fbx`), or
 - one scene manifest (``.toml`` or ``.json``, schema ``data_schema/scene.schema.json``)
   naming files with per-character offset, yaw, fps and scale, the ground height and
   optional props.
@@ -24,6 +25,7 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.bvh import BVHDocument, read_bvh, split_roots
+from snapcore.motion.fbx import FBX_SUFFIXES, fbx_characters, fbx_unit, read_fbx, still_fbx
 from snapcore.motion.gltf import (
     GLTF_SUFFIXES,
     MAX_HEIGHT_M,
@@ -153,7 +155,7 @@ def load_scene(
     name : str, optional
         Scene name (default: the manifest's name or the first file's stem).
     animation : str, optional
-        The animation of every glTF character (name or index; default each entry's
+        The animation of every glTF or FBX character (name or index; default each entry's
         ``animation``, else the file's first).
 
     Returns
@@ -162,7 +164,7 @@ def load_scene(
 
     Raises
     ------
-    BVHError, GLTFError, SchemaError, SceneError
+    BVHError, GLTFError, FBXError, SchemaError, SceneError
         With a one-line message naming the file and what is wrong.
 
     Examples
@@ -216,24 +218,28 @@ def load_scene(
     )
 
 
-def _is_gltf(path) -> bool:
-    return Path(path).suffix.lower() in GLTF_SUFFIXES
+def _kind(path) -> str:
+    """How a character file is read, by its suffix (the one dispatch by extension)."""
+    suffix = Path(path).suffix.lower()
+    return "gltf" if suffix in GLTF_SUFFIXES else "fbx" if suffix in FBX_SUFFIXES else "bvh"
 
 
 def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animation) -> Scene:
-    docs: list[BVHDocument | None] = []  # None: a glTF character, read by its entry
-    paths, entries = [], []
+    docs: list[BVHDocument | None] = []  # None: a glTF or FBX character, read by its entry
+    paths, entries, kinds = [], [], []
     for e in spec["characters"]:
         path = resolve_data_path(e["file"], base)
         if not path.exists():
             where = f"{source}: " if source else ""
             raise SceneError(f"{where}{e['file']}: no such file")
-        if _is_gltf(path):
+        kind = _kind(path)
+        if kind != "bvh":
             # one character per skeleton of the file, named after it when there are more
-            roots = gltf_characters(path)
+            roots = gltf_characters(path) if kind == "gltf" else fbx_characters(path)
             for k, root in enumerate(roots):
                 paths.append(path)
                 docs.append(None)
+                kinds.append(kind)
                 entries.append(
                     e
                     if len(roots) == 1
@@ -244,6 +250,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         for d in parts:
             paths.append(path)
             docs.append(d)
+            kinds.append("bvh")
             # one character per ROOT, named after the file (or the entry) and its root
             entries.append(
                 e
@@ -253,11 +260,12 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     # Forward kinematics once, in file units; positions scale linearly afterwards.
     bvh_fps = [d.fps for d in docs if d is not None]
     probes = []
-    for d, e, path in zip(docs, entries, paths):
+    for d, e, path, kind in zip(docs, entries, paths, kinds):
         rate = fps or e.get("fps") or spec.get("fps")
-        if d is None:  # glTF: sampled at the BVH characters' rate when mixed with them
+        if d is None:  # glTF, FBX: sampled at the BVH characters' rate when mixed with them
+            reader = read_gltf if kind == "gltf" else read_fbx
             probes.append(
-                read_gltf(
+                reader(
                     path,
                     animation=animation or e.get("animation"),
                     fps=rate or (round(bvh_fps[0]) if bvh_fps else None),
@@ -275,16 +283,19 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                 )
                 c = c.transformed(rotation=Z_UP_TO_Y_UP)
             probes.append(c)
-    is_gltf = [d is None for d in docs]
+    is_gltf = [k == "gltf" for k in kinds]
+    is_fbx = [k == "fbx" for k in kinds]
+    # FBX takes that move nothing are no animation: refused
+    still_fbx([p for p, fb in zip(probes, is_fbx) if fb])
     # One scale for the scene unless given per character: people captured together
     # must keep their distances. glTF is in metres (its own rule, gltf_unit).
     scene_scale = scale or spec.get("scale")
     how = "given"
-    bvh_probes = [p for p, g in zip(probes, is_gltf) if not g]
+    bvh_probes = [p for p, k in zip(probes, kinds) if k == "bvh"]
     if (
         scene_scale is None
         and bvh_probes
-        and not all("scale" in e for e, g in zip(entries, is_gltf) if not g)
+        and not all("scale" in e for e, k in zip(entries, kinds) if k == "bvh")
     ):
         # props (a ball: a root with a joint or two) do not say what the unit is
         people = [p for p in bvh_probes if np.sum(~p.skeleton.end_site) >= MIN_PERSON_JOINTS]
@@ -300,8 +311,14 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
             )
     chars: list[Character] = []
     used_names: set[str] = set()
-    for probe, e, g in zip(probes, entries, is_gltf):
-        if g and not (scale or e.get("scale") or spec.get("scale")):
+    for probe, e, g, fb in zip(probes, entries, is_gltf, is_fbx):
+        if fb and not (scale or e.get("scale") or spec.get("scale")):
+            metres, unit, why = fbx_unit(probe)
+            if why:
+                warnings.warn(why, stacklevel=3)
+            c = probe.rescaled(metres)
+            c.meta["unit"] = unit
+        elif g and not (scale or e.get("scale") or spec.get("scale")):
             metres, unit = gltf_unit(probe)
             c = probe.rescaled(metres)
             c.meta["unit"] = unit
@@ -358,7 +375,8 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
         why_cut = "the scene manifest's frames range starts there"
     drop = drop_tpose if drop_tpose is not None else spec.get("drop_tpose", True)
     if drop and offset == 0:
-        # glTF animations have no added T-pose; only BVH characters are checked
+        # glTF animations have no added T-pose; BVH and FBX (skeleton takes, BVH
+        # converted in Blender or MotionBuilder) are checked
         cut = tpose_lead_in([c.positions for c, g in zip(chars, is_gltf) if not g], chars[0].fps)
         if cut:
             chars = [c.frames(cut, c.n_frames) for c in chars]
@@ -373,7 +391,7 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
     if ground_y is None:
         # a glTF character stands on its mesh (soles, paws), not on its joints
         ground_y = infer_ground(
-            [lowest_points(c) if gl else c.positions for c, gl in zip(chars, is_gltf)]
+            [lowest_points(c) if c.mesh is not None else c.positions for c in chars]
         )
     scene_name = name or spec.get("name") or chars[0].name
     return Scene(
