@@ -282,10 +282,12 @@ def discover(sources, *, exclude=(), root=None) -> Discovery:
                     out.skipped.append((str(f), why))
                     continue
                 members = found or ()
-            if lib is not None and _is_under(f, lib):
-                key = f.resolve().relative_to(lib).as_posix()
-            else:
-                key = f.relative_to(root).as_posix() if _is_under(f, root) else f.name
+            # resolved on both sides: a list named by a relative path ('clips.txt', its
+            # folder '.') holding the absolute paths `find` prints
+            base = lib if lib is not None and _is_under(f, lib) else root
+            key = (
+                f.resolve().relative_to(base.resolve()).as_posix() if _is_under(f, base) else f.name
+            )
             by_file[resolved] = SceneSource(key=key, kind=kind, path=resolved, members=members)
     taken = {m for s in by_file.values() for m in s.members}
     scenes = []
