@@ -44,6 +44,8 @@ MANIFEST_SUFFIXES = (".toml", ".json")
 #: A SOURCE with one of these suffixes is a list of paths, one per line (``#`` comments).
 LIST_SUFFIXES = (".txt", ".list", ".lst")
 _CHUNK = 1 << 20
+#: Why a manifest's member file is not a scene of its own.
+MEMBER = "part of a scene manifest"
 
 
 class BatchError(SnapshotError):
@@ -100,6 +102,12 @@ class Discovery:
 
     scenes: list[SceneSource] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def left_out(self) -> list[tuple[str, str]]:
+        """The skipped files worth a look: those that are not a manifest's members (a
+        ``.json`` that does not parse, a JSON that is not a scene manifest)."""
+        return [(p, why) for p, why in self.skipped if why != MEMBER]
 
 
 def _kind(path: Path) -> str | None:
@@ -293,7 +301,7 @@ def discover(sources, *, exclude=(), root=None) -> Discovery:
     scenes = []
     for resolved, s in by_file.items():
         if resolved in taken:
-            out.skipped.append((s.path, "part of a scene manifest"))
+            out.skipped.append((s.path, MEMBER))
         else:
             scenes.append(s)
     out.scenes = _unique_keys(scenes)

@@ -371,13 +371,16 @@ function step(d) {
   const at = shown.indexOf(current);
   if (at >= 0 && shown[at + d]) open_(shown[at + d]);
 }
-async function copyPath() {
+function copyPath() {
   const text = meta.root ? `${meta.root}/${current.path}` : current.path;
-  try { await navigator.clipboard.writeText(text); }
-  catch (e) {  // no clipboard API (an insecure origin): the old way
-    const ta = document.createElement('textarea'); ta.value = text; document.body.appendChild(ta);
-    ta.select(); document.execCommand('copy'); ta.remove();
-  }
+  // a selected text area copies on every origin, file:// included, and at once (the
+  // clipboard API may wait on a permission); the API only where that fails
+  const ta = document.createElement('textarea'); ta.value = text;
+  $('detail').appendChild(ta); ta.select();
+  let ok = false;
+  try { ok = document.execCommand('copy'); } catch (e) { ok = false; }
+  ta.remove();
+  if (!ok && navigator.clipboard) navigator.clipboard.writeText(text).catch(() => {});
   $('copied').textContent = `copied: ${text}`;
 }
 

@@ -282,8 +282,7 @@ def batch(
 
     root = library_root(out, sources)
     found = discover(sources, exclude=[out], root=root)
-    # a manifest's members are skipped as they should be; the rest is worth a look
-    manifests = [(p, why) for p, why in found.skipped if why.startswith("not a scene manifest")]
+    manifests = found.left_out
     if manifests:
         click.echo(
             f"{len(manifests)} .json/.toml file(s) skipped, not scene manifests "
