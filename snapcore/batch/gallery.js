@@ -201,6 +201,24 @@ function byNumber(key, dir) {  // rows without the number (failed scenes) last e
   };
 }
 let shown = [];
+// the grid gets its cards a screenful or so at a time, the next ones as the end comes
+// into view: 2,500 cards made and laid out at once cost well over a second
+const CHUNK = 120;
+let placed = 0;
+const more = document.createElement('div'); more.id = 'more-cards';
+function placeMore() {
+  if (placed >= shown.length) return;
+  const next = shown.slice(placed, placed + CHUNK).map(cardOf);
+  placed += next.length;
+  more.before(...next);
+  requestAnimationFrame(fill);
+}
+// the observer speaks only when the end enters view: a tall screen may need more at once
+function fill() {
+  if (placed < shown.length && more.getBoundingClientRect().top < innerHeight + 800) placeMore();
+}
+new IntersectionObserver((es) => { if (es.some(e => e.isIntersecting)) placeMore(); },
+                         {rootMargin: '800px'}).observe(more);
 function render() {
   const q = $('filter').value.trim().toLowerCase();
   const st = $('status').value, kind = $('kind').value, rig = $('rig').value;
@@ -222,7 +240,10 @@ function render() {
   else if (s === '-score') shown.sort(byNumber('score', -1));
   else if (s === 'score') shown.sort(byNumber('score', 1));
   else shown.sort((a, b) => (a.path < b.path ? -1 : a.path > b.path ? 1 : 0));
-  $('grid').replaceChildren(...shown.map(cardOf));
+  placed = Math.min(CHUNK, shown.length);
+  $('grid').replaceChildren(...shown.slice(0, placed).map(cardOf));
+  $('grid').appendChild(more);
+  requestAnimationFrame(fill);
   $('count').textContent = `${shown.length} of ${rows.length} scenes` + (folder ? ` in ${folder}/` : '');
 }
 
@@ -412,6 +433,7 @@ setSize();
 const head = () => document.documentElement.style.setProperty('--head', `${document.querySelector('header').offsetHeight}px`);
 window.addEventListener('resize', head);
 buildTree(); markFolder(); summary(); render(); head(); showChoices();
+performance.mark('gallery-ready');  // read by the 2,500-card measurement
 if (served) {  // choices saved since the page was written
   fetch('choices').then(r => r.ok ? r.json() : {}).then(all => {
     Object.assign(saved, all);
