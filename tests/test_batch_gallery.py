@@ -247,7 +247,9 @@ def test_names_are_text_not_markup():
 
     parser = Tags()
     parser.feed(gallery_html([row], skipped=[("y/</script><i>.json", "why <u>")]))
-    assert not {"b", "i", "u"} & set(parser.tags) and "img" in parser.tags  # the dialog's own <img> only
+    assert (
+        not {"b", "i", "u"} & set(parser.tags) and "img" in parser.tags
+    )  # the dialog's own <img> only
     assert parser.tags.count("img") == 1 and parser.tags.count("script") == 3
     assert json.loads(parser.data)[0]["path"] == row["path"]
 

@@ -136,7 +136,9 @@ def test_a_choice_the_clip_no_longer_has_is_reported_and_kept(tmp_path):
     run_batch(discover([lib]).scenes, out, opts)
     row = _row(out, "walk.bvh")
     assert row["thumb_choice"] == 55 and row["thumb_frame"] == row["frame"]
-    assert any("thumbnail frame 55 chosen in the gallery is not in the clip" in w for w in row["warnings"])
+    assert any(
+        "thumbnail frame 55 chosen in the gallery is not in the clip" in w for w in row["warnings"]
+    )
     write_choices(out, {"walk.bvh": None})
     run_batch(discover([lib]).scenes, out, opts)
     row = _row(out, "walk.bvh")
