@@ -120,8 +120,9 @@ def test_a_chosen_frame_survives_force_and_another_pose_method(tmp_path):
 
 def test_a_choice_the_clip_no_longer_has_is_reported_and_kept(tmp_path):
     """A chosen frame past the end of a clip that got shorter: the thumbnail shows the
-    chosen pose, the row's warnings say why, and the choice stays in the index (the
-    longer file may come back); a cleared entry (empty frame) removes it."""
+    chosen pose, the row's warnings say why, and the choice stays in the index, also
+    while the file is broken, so the longer take coming back shows it again; a cleared
+    entry (empty frame) removes it."""
     from snapcore.batch import BatchOptions, run_batch
     from snapcore.batch.choices import write_choices
 
@@ -139,6 +140,14 @@ def test_a_choice_the_clip_no_longer_has_is_reported_and_kept(tmp_path):
     assert any(
         "thumbnail frame 55 chosen in the gallery is not in the clip" in w for w in row["warnings"]
     )
+    (out / "thumb-choices.csv").unlink()  # from here on the index alone holds it
+    (lib / "walk.bvh").write_text("broken for a while\n")
+    run_batch(discover([lib]).scenes, out, opts)
+    row = _row(out, "walk.bvh")
+    assert row["status"] == "error" and row["thumb_choice"] == 55
+    _clips(tmp_path / "lib", ("walk",), seconds=2.0)  # the long take is back
+    run_batch(discover([lib]).scenes, out, opts)
+    assert _row(out, "walk.bvh")["thumb_frame"] == 55
     write_choices(out, {"walk.bvh": None})
     run_batch(discover([lib]).scenes, out, opts)
     row = _row(out, "walk.bvh")

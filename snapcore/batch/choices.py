@@ -74,7 +74,8 @@ def read_choices(out, rows: Iterable[Mapping] = ()) -> dict[str, int | None]:
                 if value > len(top.get(key, [])):
                     raise BatchError(
                         f"{path}:{n}: pose #{value} of {key} (an older file of ranks) is "
-                        "not in the index: choose its frame again in the gallery"
+                        "not in the index: choose its frame again in the gallery (move "
+                        "this file away to run without it)"
                     )
                 value = top[key][value - 1]
             choices[key] = value

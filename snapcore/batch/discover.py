@@ -35,7 +35,8 @@ __all__ = [
     "LIST_SUFFIXES",
 ]
 
-#: Motion files run as one scene each.
+#: Motion files run as one scene each: the one place the batch lists the formats it
+#: reads (discovery, the error for another file named explicitly).
 BVH_SUFFIXES = (".bvh",)
 GLTF_SUFFIXES = (".glb", ".gltf")
 MOTION_SUFFIXES = BVH_SUFFIXES + GLTF_SUFFIXES

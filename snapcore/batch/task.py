@@ -246,9 +246,11 @@ def _load(task: SceneTask):
 
     s, opts = task.scene, task.options
     if s.kind == "unknown":
+        from snapcore.batch.discover import MANIFEST_SUFFIXES, MOTION_SUFFIXES
+
         raise SceneError(
-            f"{s.key}: not a motion file (expected .bvh, .glb, .gltf or a "
-            "scene manifest .toml/.json)"
+            f"{s.key}: not a motion file (expected {', '.join(MOTION_SUFFIXES)} or a "
+            f"scene manifest {'/'.join(MANIFEST_SUFFIXES)})"
         )
     return load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
 
@@ -273,6 +275,8 @@ def _base_row(task: SceneTask) -> dict:
         "status": "error",
         "error": None,
         "warnings": None,
+        # kept on a failed row too: a clip broken for one run keeps its animator's choice
+        "thumb_choice": task.thumb_choice,
     }
 
 
