@@ -8,6 +8,7 @@ is tested in the browser in tests/test_batch_gallery.py.
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -229,18 +230,41 @@ def test_the_preview_strip_holds_the_whole_motion(tmp_path):
 def test_a_renamed_clip_gets_a_prune_hint_and_the_summary_counts_this_runs_errors(tmp_path):
     """After renaming a clip the run says its old row is stale and that --prune drops
     it; a sub-folder run counts only its own scenes' errors (errors of other folders are
-    said to be among the kept rows)."""
+    said to be among the kept rows); a JSON that does not parse reaches the gallery."""
     lib = tmp_path / "lib"
     _clips(lib / "walks")
     (lib / "broken").mkdir()
     (lib / "broken" / "bad.bvh").write_text("not a bvh\n")
+    (lib / "broken" / "scene.json").write_text('{"characters": [')
     out = tmp_path / "out"
     base = [SNAPSHOT, "batch", "-o", str(out), *FAST_ARGS, "--preview", "0"]
     r = subprocess.run([*base, str(lib)], capture_output=True, text=True)
     assert "1 with errors" in r.stdout, r.stdout
+    # the JSON that does not parse goes to the gallery's summary (the page's data)
+    page = (out / "index.html").read_text()
+    meta = json.loads(
+        page.split('<script id="meta" type="application/json">')[1].split("</script>")[0]
+    )
+    assert [(Path(p).name, why) for p, why in meta["skipped"]] == [
+        ("scene.json", "not a scene manifest (does not parse)")
+    ]
     (lib / "walks" / "walk.bvh").rename(lib / "walks" / "walk_v2.bvh")
     r = subprocess.run([*base, str(lib / "walks")], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "0 with errors" in r.stdout and "1 of them with errors" in r.stdout, r.stdout
     assert "walks/walk.bvh" in r.stderr and "--prune drops them" in r.stderr, r.stderr
     assert "broken/bad.bvh" not in r.stderr  # a folder this run did not walk
+
+
+def test_snapshot_gallery_refuses_a_folder_without_a_gallery(tmp_path):
+    """`snapshot gallery` on a folder that holds no batch output: one line naming the
+    folder, exit code 2, no server."""
+    r = subprocess.run(
+        [SNAPSHOT, "gallery", str(tmp_path), "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().count("\n") == 0 and "no batch gallery here" in r.stderr
+    assert str(tmp_path) in r.stderr
