@@ -334,7 +334,7 @@ def test_moving_over_a_card_scrubs_through_the_whole_motion(page, gallery):
 
 def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(page, gallery):
     """At 390x844 (a phone): two cards a row, a header that is not sticky and takes
-    less than a fifth of the screen."""
+    less than a fifth of the screen; the folder tree opens folder by folder."""
     pg = page.context.browser.new_page(
         viewport={"width": 390, "height": 844}, device_scale_factor=2
     )
@@ -354,6 +354,12 @@ def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(page, g
         )
         assert max(widths) <= 390
         pg.screenshot(path=str(ARTIFACTS / "phone.png"))
+        # the tree starts with the top folders; a tapped folder opens and filters
+        day1 = '#tree .node[data-folder="studio/day1"]'
+        assert not pg.is_visible(day1)
+        pg.click('#tree .node[data-folder="studio"] .label')
+        assert pg.is_visible(day1)
+        assert shown(pg) == ["studio/day1/take.bvh"]
     finally:
         pg.close()
 

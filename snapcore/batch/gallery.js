@@ -43,6 +43,8 @@ fillSelect('chars', distinct('characters'));
 
 // ---- folder tree: a folder holds its sub-folders' scenes -----------------------------
 let folder = '';  // '' = the whole library
+// a phone starts with the top folders only: the tree sits above the grid there
+const phone = matchMedia('(max-width: 600px)').matches;
 function buildTree() {
   const root = {name: '', path: '', kids: new Map(), n: 0, e: 0};
   for (const r of rows) {
@@ -65,7 +67,11 @@ function buildTree() {
     d.addEventListener('click', (ev) => {
       if (hasKids && ev.target === tw) return;  // the triangle only opens or closes
       folder = node.path; markFolder(); render();
-      if (hasKids) ev.preventDefault();
+      if (hasKids) {  // choosing a folder opens it (its triangle alone only toggles)
+        ev.preventDefault();
+        const det = d.closest('details');
+        if (det && !det.open) det.open = true;
+      }
     });
     return d;
   };
@@ -74,7 +80,7 @@ function buildTree() {
     for (const kid of [...node.kids.values()].sort((a, b) => a.name.localeCompare(b.name))) {
       const li = document.createElement('li');
       if (kid.kids.size) {
-        const det = document.createElement('details'); det.open = depth < 1;
+        const det = document.createElement('details'); det.open = depth < 1 && !phone;
         const sum = document.createElement('summary'); sum.appendChild(line(kid, kid.name, true));
         det.appendChild(sum);
         det.addEventListener('toggle', () => { if (det.open && !det.lastChild.tagName.match(/UL/)) det.appendChild(list(kid, depth + 1)); }, {once: false});
