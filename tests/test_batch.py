@@ -162,8 +162,8 @@ def test_content_hash_follows_every_file_of_a_scene(tmp_path):
 
 
 def test_index_round_trips_and_the_schema_lists_its_columns(tmp_path):
-    """The CSV reads back to the values written (nulls included); the schema documents
-    exactly the index's columns."""
+    """The CSV reads back to the values written (nulls and lists included); the schema
+    documents exactly the index's columns."""
     assert set(load_schema("batch_index")["properties"]) == set(COLUMNS)
     row = {c: None for c in COLUMNS} | {
         "path": "a/b c,d.bvh",
@@ -178,7 +178,8 @@ def test_index_round_trips_and_the_schema_lists_its_columns(tmp_path):
         "fps": 30.0,
         "frame": 3,
         "view_x": -0.5,
-        "top_frames": "3;7",
+        "top_frames": [3, 7],
+        "warnings": ["one, with a comma", 'two "quoted"'],
         "error": 'quote " and, comma',
     }
     write_index(tmp_path / "index.csv", [row])

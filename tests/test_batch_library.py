@@ -227,7 +227,7 @@ def test_a_sub_folder_run_updates_its_rows_of_the_library_index(tmp_path):
 
 def test_the_parquet_index_holds_the_csv_rows_with_the_schema_types(tmp_path):
     """OUT/index.parquet has the CSV's columns in the same order, the same rows, and
-    typed columns (integers, floats, strings; nulls as nulls)."""
+    typed columns (integers, floats, strings, lists of frames; nulls as nulls)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -241,6 +241,12 @@ def test_the_parquet_index_holds_the_csv_rows_with_the_schema_types(tmp_path):
     assert table.schema.field("n_frames").type == pa.int64()
     assert table.schema.field("duration_s").type == pa.float64()
     assert table.schema.field("path").type == pa.string()
+    # frame lists and warnings are lists, not ';'-joined strings
+    assert table.schema.field("top_frames").type == pa.list_(pa.int64())
+    assert table.schema.field("preview_frames").type == pa.list_(pa.int64())
+    assert table.schema.field("warnings").type == pa.list_(pa.string())
+    good = next(r for r in read_parquet(tmp_path / "out" / "index.parquet") if r["status"] == "ok")
+    assert isinstance(good["top_frames"], list) and good["frame"] == good["top_frames"][0]
     assert read_parquet(tmp_path / "out" / "index.parquet") == read_index(
         tmp_path / "out" / "index.csv"
     )
@@ -248,7 +254,7 @@ def test_the_parquet_index_holds_the_csv_rows_with_the_schema_types(tmp_path):
 
 def test_lost_dask_workers_are_reported():
     """The Dask executor's watch says how many workers were lost and how many are left
-    (the bar once froze for 90 s without a word)."""
+    (the bar once froze for 90 s without a word), and how many joined."""
     from snapcore.batch.run import _watch_workers
 
     class Client:
@@ -265,5 +271,8 @@ def test_lost_dask_workers_are_reported():
     assert said == [
         "Dask: 1 worker(s) lost (tcp://a); their scenes run again on the others; 1 left"
     ]
-    _watch_workers(Client([]), now, said.append)
+    now = _watch_workers(Client([]), now, said.append)
     assert "none left: waiting for a worker to join" in said[-1]
+    # the first to come back after none were left is reported too (it once was not)
+    _watch_workers(Client(["tcp://c", "tcp://d"]), now, said.append)
+    assert said[-1] == "Dask: 2 worker(s) joined; 2 now"

@@ -35,7 +35,8 @@ __all__ = [
     "LIST_SUFFIXES",
 ]
 
-#: Motion files run as one scene each.
+#: Motion files run as one scene each: the one place the batch lists the formats it
+#: reads (discovery, the error for another file named explicitly).
 BVH_SUFFIXES = (".bvh",)
 GLTF_SUFFIXES = (".glb", ".gltf")
 FBX_SUFFIXES = (".fbx",)
@@ -45,6 +46,8 @@ MANIFEST_SUFFIXES = (".toml", ".json")
 #: A SOURCE with one of these suffixes is a list of paths, one per line (``#`` comments).
 LIST_SUFFIXES = (".txt", ".list", ".lst")
 _CHUNK = 1 << 20
+#: Why a manifest's member file is not a scene of its own.
+MEMBER = "part of a scene manifest"
 
 
 class BatchError(SnapshotError):
@@ -101,6 +104,12 @@ class Discovery:
 
     scenes: list[SceneSource] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def left_out(self) -> list[tuple[str, str]]:
+        """The skipped files worth a look: those that are not a manifest's members (a
+        ``.json`` that does not parse, a JSON that is not a scene manifest)."""
+        return [(p, why) for p, why in self.skipped if why != MEMBER]
 
 
 def _kind(path: Path) -> str | None:
@@ -285,16 +294,18 @@ def discover(sources, *, exclude=(), root=None) -> Discovery:
                     out.skipped.append((str(f), why))
                     continue
                 members = found or ()
-            if lib is not None and _is_under(f, lib):
-                key = f.resolve().relative_to(lib).as_posix()
-            else:
-                key = f.relative_to(root).as_posix() if _is_under(f, root) else f.name
+            # resolved on both sides: a list named by a relative path ('clips.txt', its
+            # folder '.') holding the absolute paths `find` prints
+            base = lib if lib is not None and _is_under(f, lib) else root
+            key = (
+                f.resolve().relative_to(base.resolve()).as_posix() if _is_under(f, base) else f.name
+            )
             by_file[resolved] = SceneSource(key=key, kind=kind, path=resolved, members=members)
     taken = {m for s in by_file.values() for m in s.members}
     scenes = []
     for resolved, s in by_file.items():
         if resolved in taken:
-            out.skipped.append((s.path, "part of a scene manifest"))
+            out.skipped.append((s.path, MEMBER))
         else:
             scenes.append(s)
     out.scenes = _unique_keys(scenes)

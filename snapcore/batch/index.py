@@ -3,7 +3,9 @@
 The columns, their types and meaning are in ``data_schema/batch_index.schema.json``
 (one row as a JSON object); :data:`COLUMNS` is their order in the file. Every row is
 validated against the schema before it is written, and a file read back is parsed to
-the schema's types (empty cell = null).
+the schema's types (empty cell = null). List columns (:data:`LIST_COLUMNS`: frame
+numbers, warnings) are lists in a row and in the Parquet file, and one cell joined by
+their separator in the CSV.
 
 Every file of a batch is written under a temporary name in the same folder and then
 renamed over the real one (:func:`atomic_write`): a run killed at any moment leaves
@@ -19,6 +21,7 @@ from pathlib import Path
 
 __all__ = [
     "COLUMNS",
+    "LIST_COLUMNS",
     "TIMING_COLUMNS",
     "INDEX_NAME",
     "PARQUET_NAME",
@@ -45,20 +48,25 @@ COLUMNS = (
     "content_hash",
     "options_hash",
     "characters",
+    "rig",
     "n_frames",
     "fps",
     "duration_s",
     "frame",
     "time_s",
+    "first_frame",
     "top_frames",
     "score",
-    "thumb_pose",
+    "thumb_frame",
+    "thumb_choice",
     "view_x",
     "view_y",
     "view_z",
     "json",
     "thumb",
     "sheet",
+    "preview",
+    "preview_frames",
     "t_load_s",
     "t_select_s",
     "t_render_s",
@@ -66,7 +74,11 @@ COLUMNS = (
 )
 #: Columns that differ between two runs of the same batch (wall-clock seconds).
 TIMING_COLUMNS = ("t_load_s", "t_select_s", "t_render_s", "t_total_s")
-_INT = ("characters", "n_frames", "frame", "thumb_pose")
+_INT = ("characters", "n_frames", "frame", "first_frame", "thumb_frame", "thumb_choice")
+#: List columns and their separator in a CSV cell (a warning is one line, and never
+#: holds " | " itself in practice; frame numbers are digits).
+LIST_COLUMNS = {"top_frames": ";", "preview_frames": ";", "warnings": " | "}
+_INT_LISTS = ("top_frames", "preview_frames")
 _FLOAT = ("fps", "duration_s", "time_s", "score", "view_x", "view_y", "view_z", *TIMING_COLUMNS)
 #: Text columns that are never null: an empty cell is the empty string (a top folder).
 _TEXT = ("path", "folder", "name", "kind", "status", "content_hash", "options_hash")
@@ -96,9 +108,11 @@ def validate_row(row: dict) -> None:
     validate(row, "batch_index", source=f"index row {row.get('path')}")
 
 
-def _cell(value) -> str:
+def _cell(value, column: str = "") -> str:
     if value is None:
         return ""
+    if isinstance(value, (list, tuple)):
+        return LIST_COLUMNS[column].join(str(v) for v in value) if value else ""
     if isinstance(value, float):
         return repr(round(value, 6)) if value == value else ""
     return str(value)
@@ -111,13 +125,16 @@ def write_index(path, rows) -> None:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(COLUMNS)
     for row in sorted(rows, key=lambda r: r["path"]):
-        w.writerow([_cell(row.get(c)) for c in COLUMNS])
+        w.writerow([_cell(row.get(c), c) for c in COLUMNS])
     atomic_write(path, buf.getvalue())
 
 
 def _parse(column: str, text: str):
     if text == "":
         return "" if column in _TEXT else None
+    if column in LIST_COLUMNS:
+        parts = text.split(LIST_COLUMNS[column])
+        return [int(p) for p in parts] if column in _INT_LISTS else parts
     if column in _INT:
         return int(text)
     if column in _FLOAT:
@@ -157,6 +174,8 @@ def _arrow_schema():
     import pyarrow as pa
 
     def kind(c):
+        if c in LIST_COLUMNS:
+            return pa.list_(pa.int64() if c in _INT_LISTS else pa.string())
         return pa.int64() if c in _INT else pa.float64() if c in _FLOAT else pa.string()
 
     return pa.schema([pa.field(c, kind(c), nullable=c not in _TEXT) for c in COLUMNS])
@@ -167,7 +186,8 @@ def write_parquet(path, rows) -> None:
     DuckDB: typed columns, no parsing), sorted by path, atomically.
 
     The columns, their order and their types are the schema's (integer columns int64,
-    number columns float64, the rest strings); a null is a null."""
+    number columns float64, frame lists lists of int64, warnings lists of strings, the
+    rest strings); a null is a null."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 

@@ -29,9 +29,10 @@ import time
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import closing, contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from snapcore.batch.choices import choices_for
 from snapcore.batch.discover import BatchError, SceneSource, content_hash
 from snapcore.batch.index import (
     COLUMNS,
@@ -53,9 +54,7 @@ __all__ = [
     "run_batch",
     "output_paths",
     "library_root",
-    "read_choices",
     "LIBRARY_NAME",
-    "CHOICES_NAME",
     "SCENES_DIR",
     "INDEX_EVERY_S",
 ]
@@ -63,11 +62,9 @@ __all__ = [
 SCENES_DIR = "scenes"
 #: ``OUT/library.json``: the library root the index's keys are relative to.
 LIBRARY_NAME = "library.json"
-#: ``OUT/thumb-choices.csv``: thumbnail poses chosen in the gallery (see read_choices).
-CHOICES_NAME = "thumb-choices.csv"
 #: Seconds between two rewrites of the index while a batch runs.
 INDEX_EVERY_S = 5.0
-_SUFFIX = {"json": ".json", "thumb": ".png", "sheet": ".sheet.png"}
+_SUFFIX = {"json": ".json", "thumb": ".png", "sheet": ".sheet.png", "preview": ".preview.png"}
 
 
 @dataclass
@@ -84,7 +81,9 @@ class BatchReport:
         Scenes of this run skipped because an earlier run had done them with the same
         options (rows of other scenes kept from the index are not counted).
     errors : int
-        Rows with status ``error`` (this run or kept).
+        Scenes of this run (processed or skipped as done) with status ``error``.
+    errors_elsewhere : int
+        Rows with status ``error`` kept from earlier runs of other scenes.
     elapsed_s : float
         Wall-clock seconds of the processing (not discovery).
     interrupted : bool
@@ -97,6 +96,7 @@ class BatchReport:
     done: int = 0
     reused: int = 0
     errors: int = 0
+    errors_elsewhere: int = 0
     elapsed_s: float = 0.0
     interrupted: bool = False
     workers: list = field(default_factory=list)
@@ -153,7 +153,8 @@ class _CtrlC:
 
 def output_paths(key: str) -> dict[str, str]:
     """Output files of a scene, relative to OUT: ``scenes/<key>.json``, ``.png``,
-    ``.sheet.png`` (the key keeps its suffix, so ``a.bvh`` and ``a.glb`` do not clash)."""
+    ``.sheet.png``, ``.preview.png`` (the key keeps its suffix, so ``a.bvh`` and
+    ``a.glb`` do not clash)."""
     return {what: f"{SCENES_DIR}/{key}{suffix}" for what, suffix in _SUFFIX.items()}
 
 
@@ -222,7 +223,11 @@ def plan_batch(
     A previous row of one of ``scenes`` is kept when its content hash and options hash
     match and it is finished: ``ok`` with its outputs still there, or ``error`` (the same
     file with the same options fails the same way) unless ``retry_errors``. ``force``
-    redoes them all.
+    redoes them all. A finished row that lacks only a picture (a thumbnail choice made
+    since, a sheet or preview asked for now) becomes a task that renders just that.
+
+    The thumbnail choices (:func:`~snapcore.batch.choices.choices_for`) come from the
+    previous index and ``OUT/thumb-choices.csv``, with ``force`` too.
 
     Rows of scenes that are not in ``scenes`` are kept too (a run over one folder of a
     library leaves the rest of its index alone), unless ``prune``: then the index
@@ -236,72 +241,68 @@ def plan_batch(
     out = Path(out)
     scenes = list(scenes)
     prev = _previous(out)
+    choices = choices_for(out, prev.values())
     keys = {s.key for s in scenes}
     tasks = []
     kept = [] if prune else [r for k, r in prev.items() if k not in keys]
     if force:
         prev = {}
     opt_hash = options.key()
-    choices = read_choices(out)
     for s in scenes:
         h = content_hash(s)
         row = prev.get(s.key)
-        # the thumbnail's pose: a choice made in the gallery, else the one shown so far
-        pose = choices.get(s.key) or (row or {}).get("thumb_pose") or 1
+        task = SceneTask(
+            scene=s,
+            options=options,
+            content_hash=h,
+            options_hash=opt_hash,
+            thumb_choice=choices.get(s.key),
+        )
         if row and row["content_hash"] == h and row["options_hash"] == opt_hash:
-            outputs = [row[c] for c in ("json", "thumb", "sheet") if row[c]]
-            finished = (
-                row["status"] == "ok"
-                and row["json"]
-                and row["thumb"]
-                and all((out / p).is_file() for p in outputs)
-                and (row["thumb_pose"] or 1) == pose
-            )
-            if finished or (row["status"] == "error" and not retry_errors):
+            if row["status"] == "error" and not retry_errors:
                 kept.append(row)
                 continue
-        tasks.append(
-            SceneTask(
-                scene=s, options=options, content_hash=h, options_hash=opt_hash, thumb_pose=pose
-            )
-        )
+            todo = _missing(out, row, task)
+            if todo == ():
+                kept.append(row)
+                continue
+            if todo is not None:
+                captions = _captions(out, row) if "sheet" in todo else ()
+                if captions is not None:
+                    task = replace(task, reuse=row, render=todo, captions=captions)
+        tasks.append(task)
     return tasks, kept
 
 
-def read_choices(out) -> dict[str, int]:
-    """The thumbnail choices in ``OUT/thumb-choices.csv`` (scene key → pose rank).
+def _missing(out: Path, row: dict, task: SceneTask) -> tuple[str, ...] | None:
+    """The pictures a finished ``ok`` row lacks for ``task`` (``()``: none), or None
+    when the row cannot be reused (not ``ok``, its document or thumbnail gone)."""
+    if row["status"] != "ok" or not row["json"] or not (out / row["json"]).is_file():
+        return None
+    todo = []
+    if row["thumb_choice"] != task.thumb_choice or not (
+        row["thumb"] and (out / row["thumb"]).is_file()
+    ):
+        todo.append("thumb")
+    for extra in task.options.extras():
+        if not row[extra] or not (out / row[extra]).is_file():
+            todo.append(extra)
+    return tuple(todo)
 
-    The gallery writes that file (one ``path,pose`` line per choice, a header line
-    first); a re-run renders each chosen pose as its scene's thumbnail and keeps the
-    choice in the index (``thumb_pose``), also through later runs.
 
-    Raises
-    ------
-    BatchError
-        A line that is not ``path,rank`` with a rank of at least 1 (file and line named).
-    """
-    import csv
+def _captions(out: Path, row: dict) -> tuple[str, ...] | None:
+    """The sheet captions of a row's top poses, from its snapshot document (None: the
+    document does not give them, so the scene is redone)."""
+    from snapcore.select.pose_selection import score_caption
 
-    path = Path(out) / CHOICES_NAME
-    if not path.is_file():
-        return {}
-    choices: dict[str, int] = {}
-    with open(path, encoding="utf-8", newline="") as fh:
-        for n, cells in enumerate(csv.reader(fh), start=1):
-            if not cells or cells == ["path", "pose"]:
-                continue
-            try:
-                key, rank_text = cells
-                rank = int(rank_text)
-                if rank < 1:
-                    raise ValueError
-            except ValueError:
-                raise BatchError(
-                    f"{path}:{n}: expected 'path,pose' with a pose rank of 1 "
-                    f"or more, got {','.join(cells)!r}"
-                ) from None
-            choices[key] = rank
-    return choices
+    try:
+        ps = json.loads((out / row["json"]).read_text(encoding="utf-8"))["pose_scores"]
+        return tuple(
+            score_caption(ps["method"], ps["unit"], ps["total"][f - ps["first_frame"]])
+            for f in row["top_frames"]
+        )
+    except (OSError, ValueError, KeyError, IndexError, TypeError):
+        return None
 
 
 def prune_outputs(out, keep: Iterable[str]) -> list[str]:
@@ -330,6 +331,9 @@ def _store(out: Path, result: SceneResult) -> dict:
     paths = output_paths(key)
     for what, rel in paths.items():
         target = out / rel
+        if what in result.kept:  # a partial re-render: the earlier file stays
+            row[what] = rel if target.is_file() else None
+            continue
         data = result.outputs.get(what)
         if data is None:
             # a scene that fails now, or has no sheet this time, keeps no stale picture
@@ -549,7 +553,7 @@ def _watch_workers(client, before: set, notify: Callable[[str], None]) -> set:
             f"Dask: {len(lost)} worker(s) lost ({', '.join(sorted(lost))}); their scenes "
             f"run again on the others; {left}"
         )
-    if joined and before:
+    if joined:  # also the first to come back after none were left
         notify(f"Dask: {len(joined)} worker(s) joined; {len(now)} now")
     return now
 
@@ -580,6 +584,7 @@ def run_batch(
     title: str = "Action Snapshot gallery",
     root=None,
     notify: Callable[[str], None] | None = None,
+    skipped: Iterable[tuple[str, str]] = (),
 ) -> BatchReport:
     """Process a library's scenes into ``out``: outputs, index and gallery.
 
@@ -612,6 +617,9 @@ def run_batch(
     notify : callable, optional
         Called with a one-line message when the executor loses (or gains) workers
         (default: a warning).
+    skipped : iterable of (str, str)
+        Files the discovery left out and why (``Discovery.skipped``): the gallery lists
+        them beside the run's summary.
 
     Returns
     -------
@@ -628,6 +636,7 @@ def run_batch(
 
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
+    skipped = list(skipped)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if prune:
@@ -645,11 +654,12 @@ def run_batch(
 
     def finish():
         report.rows.sort(key=lambda r: r["path"])
-        report.errors = sum(r["status"] == "error" for r in report.rows)
+        failed = [r["path"] in keys for r in report.rows if r["status"] == "error"]
+        report.errors, report.errors_elsewhere = sum(failed), failed.count(False)
         report.elapsed_s = time.perf_counter() - t0
         write_index(index, report.rows)
         write_parquet(out / PARQUET_NAME, report.rows)
-        write_gallery(out, report.rows, title=title, size=options.size)
+        write_gallery(out, report.rows, title=title, size=options.size, skipped=skipped, root=root)
         if root is not None:
             atomic_write(out / LIBRARY_NAME, json.dumps({"root": str(Path(root).resolve())}) + "\n")
 

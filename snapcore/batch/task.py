@@ -44,7 +44,7 @@ __all__ = [
 
 #: Bumped when the outputs of a scene change meaning: part of every options hash, so a
 #: new format redoes the library instead of mixing old and new outputs.
-OUTPUT_FORMAT = "action-snapshot/batch@2"
+OUTPUT_FORMAT = "action-snapshot/batch@3"
 #: Longest error text kept in the index (characters).
 MAX_ERROR = 400
 
@@ -70,6 +70,9 @@ class BatchOptions:
         Also render the top-k contact sheet.
     sheet_size : (int, int)
         Size of each contact-sheet panel, pixels.
+    preview : int
+        Panels of the preview strip (the whole motion at evenly spaced frames, small,
+        for scrubbing in the gallery); 0: none.
     body : {"human", "mannequin"} or None
         Body drawn on skeletons (glTF characters wear their own with "human"); it also
         changes the viewpoint-entropy baseline, which renders the body. None: the
@@ -86,6 +89,7 @@ class BatchOptions:
     sheet_size: tuple[int, int] = (320, 360)
     body: BodyKind | None = None
     animation: str | None = None
+    preview: int = 12
 
     def to_dict(self) -> dict:
         """JSON-ready options (what the options hash covers)."""
@@ -95,9 +99,23 @@ class BatchOptions:
 
     def key(self) -> str:
         """SHA-256 (hex) of the options and :data:`OUTPUT_FORMAT`: a scene done with
-        the same content hash and the same key is not redone."""
+        the same content hash and the same key is not redone.
+
+        The extra pictures (``sheet``, ``preview``) are left out: they change no number
+        of the row, so asking for them again only renders those a row lacks, and
+        dropping them redoes nothing (:data:`EXTRAS`)."""
         doc = {"format": OUTPUT_FORMAT, **self.to_dict()}
+        for name in EXTRAS:
+            doc.pop(name)
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+    def extras(self) -> tuple[str, ...]:
+        """The extra pictures asked for (outputs named as in :data:`EXTRAS`)."""
+        return tuple(name for name in EXTRAS if getattr(self, name))
+
+
+#: Optional pictures of a scene, outside the options hash: option name = output name.
+EXTRAS = ("sheet", "preview")
 
 
 @dataclass(frozen=True)
@@ -108,8 +126,15 @@ class SceneTask:
     options: BatchOptions
     content_hash: str
     options_hash: str
-    #: Rank among the top-k poses the thumbnail shows (1: the chosen pose).
-    thumb_pose: int = 1
+    #: The source frame chosen as the thumbnail in the gallery (None: the chosen pose).
+    thumb_choice: int | None = None
+    #: A finished row of this scene with the same hashes: the selection is not redone,
+    #: only what ``render`` names is rendered again from the row's frames and view.
+    reuse: dict | None = None
+    #: With ``reuse``: the outputs to render ("thumb", "sheet", "preview").
+    render: tuple[str, ...] = ()
+    #: With ``reuse`` and "sheet": the caption of each top pose (from its document).
+    captions: tuple[str, ...] = ()
 
 
 @dataclass
@@ -122,7 +147,10 @@ class SceneResult:
         The scene's index row without output paths (see :mod:`snapcore.batch.index`).
     outputs : dict of str to bytes
         ``"json"`` (the ``select --json`` document), ``"thumb"`` (PNG), ``"sheet"``
-        (PNG, with ``--sheet``); empty for a failed scene.
+        (PNG, with ``--sheet``), ``"preview"`` (PNG); empty for a failed scene.
+    kept : tuple of str
+        Outputs of the previous run that stay as they are (a re-render of part of a
+        row): neither rewritten nor deleted.
     worker : dict
         ``pid``, ``renderer`` (id of the thread's GL renderer) and ``lp_threads`` (Mesa
         rasteriser threads, ``LP_NUM_THREADS``) of whoever ran it.
@@ -131,6 +159,7 @@ class SceneResult:
     row: dict
     outputs: dict = field(default_factory=dict)
     worker: dict = field(default_factory=dict)
+    kept: tuple[str, ...] = ()
 
 
 def init_worker(
@@ -217,9 +246,11 @@ def _load(task: SceneTask):
 
     s, opts = task.scene, task.options
     if s.kind == "unknown":
+        from snapcore.batch.discover import MANIFEST_SUFFIXES, MOTION_SUFFIXES
+
         raise SceneError(
-            f"{s.key}: not a motion file (expected .bvh, .glb, .gltf, .fbx or a "
-            "scene manifest .toml/.json)"
+            f"{s.key}: not a motion file (expected {', '.join(MOTION_SUFFIXES)} or a "
+            f"scene manifest {'/'.join(MANIFEST_SUFFIXES)})"
         )
     return load_scene([s.path], fps=opts.fps, scale=opts.scale, animation=opts.animation)
 
@@ -244,6 +275,8 @@ def _base_row(task: SceneTask) -> dict:
         "status": "error",
         "error": None,
         "warnings": None,
+        # kept on a failed row too: a clip broken for one run keeps its animator's choice
+        "thumb_choice": task.thumb_choice,
     }
 
 
@@ -299,6 +332,8 @@ def _run_scene(task: SceneTask) -> SceneResult:
         (thumbnail and sheet), ``t_total_s``.
     """
     opts = task.options
+    if task.reuse is not None:
+        return _rerender(task)
     row = _base_row(task)
     outputs: dict[str, bytes] = {}
     t0 = time.perf_counter()
@@ -307,11 +342,15 @@ def _run_scene(task: SceneTask) -> SceneResult:
         try:
             scene = _load(task)
             t1 = time.perf_counter()
-            outputs["json"], row_fields, snap = _select(scene, opts)
+            outputs["json"], row_fields, captions = _select(scene, opts)
             t2 = time.perf_counter()
-            thumb_pose = _thumb_pose(task, snap)
-            outputs.update(_render(scene, snap, opts, thumb_pose))
-            row_fields["thumb_pose"] = thumb_pose
+            row_fields["thumb_choice"] = task.thumb_choice
+            row_fields["thumb_frame"] = _thumb_frame(scene, row_fields, task.thumb_choice)
+            pictures, preview = _render(
+                scene, row_fields, opts, ("thumb", *opts.extras()), captions
+            )
+            outputs.update(pictures)
+            row_fields["preview_frames"] = preview
             t3 = time.perf_counter()
         except Exception as err:  # one bad scene must not stop a library of thousands
             row["error"] = _one_line(err, task.scene)
@@ -321,14 +360,52 @@ def _run_scene(task: SceneTask) -> SceneResult:
                 row_fields, status="ok", t_load_s=t1 - t0, t_select_s=t2 - t1, t_render_s=t3 - t2
             )
     row["t_total_s"] = time.perf_counter() - t0
-    notes = list(dict.fromkeys(str(w.message).splitlines()[0] for w in caught))
-    if notes:
-        row["warnings"] = " | ".join(n.replace(task.scene.path, task.scene.key) for n in notes)
+    row["warnings"] = _notes(caught, task.scene) or None
     return SceneResult(row=row, outputs=outputs, worker=_worker(opts))
 
 
+def _notes(caught, scene: SceneSource) -> list[str]:
+    """The warnings caught, one line each, once each, the scene's path as its key."""
+    notes = dict.fromkeys(str(w.message).splitlines()[0] for w in caught)
+    return [n.replace(scene.path, scene.key) for n in notes]
+
+
+#: Warnings of a row that were about its thumbnail choice (re-made on every render).
+_CHOICE_NOTE = "thumbnail frame "
+
+
+def _rerender(task: SceneTask) -> SceneResult:
+    """Render again only what ``task.render`` names, from the previous row's frames and
+    view (no selection): a new thumbnail choice, a sheet or preview asked for now."""
+    prev = dict(task.reuse or {})
+    row = {k: v for k, v in prev.items() if k not in ("json", "thumb", "sheet", "preview")}
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            scene = _load(task)
+            t1 = time.perf_counter()
+            row["thumb_choice"] = task.thumb_choice
+            row["thumb_frame"] = _thumb_frame(scene, row, task.thumb_choice)
+            pictures, preview = _render(scene, row, task.options, task.render, task.captions)
+            if "preview" in task.render:
+                row["preview_frames"] = preview
+            t2 = time.perf_counter()
+        except Exception as err:  # the files changed under us: the row becomes the error
+            row = _base_row(task)
+            row.update(error=_one_line(err, task.scene), t_total_s=time.perf_counter() - t0)
+            return SceneResult(row=row, worker=_worker(task.options))
+    row.update(t_load_s=t1 - t0, t_select_s=0.0, t_render_s=t2 - t1, t_total_s=t2 - t0)
+    # warnings of the selection stay; those about the choice are made anew
+    old = [w for w in prev.get("warnings") or [] if not w.startswith(_CHOICE_NOTE)]
+    row["warnings"] = list(dict.fromkeys(old + _notes(caught, task.scene))) or None
+    kept = tuple(k for k in ("json", "thumb", "sheet", "preview") if k not in pictures)
+    return SceneResult(row=row, outputs=pictures, worker=_worker(task.options), kept=kept)
+
+
 def _select(scene, opts: BatchOptions):
-    """The snapshot document (bytes) and the index fields it gives."""
+    """The snapshot document (bytes), the index fields it gives and the captions of
+    its top poses (for the sheet)."""
     from snapcore.pipeline import snapshot_params, take_snapshot
     from snapcore.schema import validate
 
@@ -344,58 +421,118 @@ def _select(scene, opts: BatchOptions):
     fields = {
         "score": round(float(totals[at]), 6) if 0 <= at < len(totals) else None,
         "characters": len(doc["characters"]),
+        "rig": " + ".join(dict.fromkeys(_rig(c) for c in scene.characters)),
         "n_frames": doc["n_frames"],
         "fps": doc["fps"],
         "duration_s": round(doc["duration_s"], 6),
         "frame": doc["frame"],
         "time_s": doc["time_s"],
-        "top_frames": ";".join(str(f) for f in doc["frames"]),
+        "first_frame": doc["pose_scores"]["first_frame"],
+        "top_frames": [int(f) for f in doc["frames"]],
         "view_x": round(float(doc["view"][0]), 6),
         "view_y": round(float(doc["view"][1]), 6),
         "view_z": round(float(doc["view"][2]), 6),
     }
-    return data, fields, snap
+    sc = snap.pose.scores
+    return data, fields, tuple(sc.caption(sc.total[i]) for i in snap.indices)
 
 
-def _thumb_pose(task: SceneTask, snap) -> int:
-    """The rank the thumbnail shows: the task's choice, or 1 when the clip has fewer
-    poses than that (with a warning, kept in the row)."""
-    k = len(snap.indices)
-    if task.thumb_pose > k:
-        warnings.warn(
-            f"thumbnail pose #{task.thumb_pose} asked for, but the clip has "
-            f"{k} top pose(s): #1 shown",
-            stacklevel=2,
-        )
-        return 1
-    return task.thumb_pose
+def _rig(character) -> str:
+    """A skeleton's family as an animator names it: root joint and joint count."""
+    roots = [i for i, p in enumerate(character.parents) if p < 0] or [0]
+    return f"{character.joint_names[roots[0]]}, {len(character.joint_names)} joints"
 
 
-def _render(scene, snap, opts: BatchOptions, thumb_pose: int = 1) -> dict[str, bytes]:
-    """Thumbnail of the pose ranked ``thumb_pose`` (1: the chosen pose) from the chosen
-    view (and the top-k sheet)."""
+def _thumb_frame(scene, row: dict, choice: int | None) -> int:
+    """The source frame the thumbnail shows: the animator's choice when the clip has
+    it, else the chosen pose, with a warning (kept in the row) that the choice is not
+    there. The choice itself is kept either way: the file may come back."""
+    if choice is None:
+        return int(row["frame"])
+    first, last = scene.frame_offset, scene.frame_offset + scene.n_frames - 1
+    if first <= choice <= last:
+        return int(choice)
+    warnings.warn(
+        f"{_CHOICE_NOTE}{choice} chosen in the gallery is not in the clip now (it keeps "
+        f"source frames {first}..{last}): the chosen pose, frame {row['frame']}, is shown",
+        stacklevel=2,
+    )
+    return int(row["frame"])
+
+
+def preview_size(size: tuple[int, int]) -> tuple[int, int]:
+    """Panel size of the preview strip for thumbnails of ``size``: 3/8 of it, at least
+    48 pixels wide (a card's width at the smallest thumbnail setting)."""
+    w = max(48, size[0] * 3 // 8)
+    return w, max(1, round(w * size[1] / size[0]))
+
+
+def _render(scene, row: dict, opts: BatchOptions, what, captions=()):
+    """The pictures ``what`` names, from the row's frames and view (source frames).
+
+    Returns
+    -------
+    pictures : dict of str to bytes
+        ``"thumb"``: frame ``thumb_frame``; ``"sheet"``: the top poses with their
+        ``captions``; ``"preview"``: ``opts.preview`` evenly spaced frames of the whole
+        motion side by side, at one scale, no gap (a card pans across it), on the
+        mannequin body (cheap; the preview is small).
+    preview_frames : list of int or None
+        The preview's source frames.
+    """
+    import numpy as np
+
+    from snapcore.render.bodies import DEFAULT_BODY
     from snapcore.render.renderer import render_still
 
-    body = snap.view_params.body  # the one the view stage saw (opts.body, else default)
-    frame = snap.indices[thumb_pose - 1] if thumb_pose > 1 else snap.index
-    out = {"thumb": _png(render_still(scene, frame, snap.view, size=opts.size, body=body))}
-    if opts.sheet:
+    body = opts.body or DEFAULT_BODY
+    view = np.array([row["view_x"], row["view_y"], row["view_z"]], dtype=float)
+    out = {}
+    if "thumb" in what:
+        frame = scene.internal_frame(row["thumb_frame"])
+        out["thumb"] = _png(render_still(scene, frame, view, size=opts.size, body=body))
+    if "sheet" in what:
         from snapcore.render.composites import contact_sheet
 
-        sc = snap.pose.scores
-        captions = [sc.caption(sc.total[i]) for i in snap.indices]
+        top = [scene.internal_frame(f) for f in row["top_frames"]]
         out["sheet"] = _png(
             contact_sheet(
                 scene,
-                snap.indices,
-                view=snap.view,
-                captions=captions,
+                top,
+                view=view,
+                captions=list(captions) if len(captions) == len(top) else None,
                 size=opts.sheet_size,
                 title=scene.name,
                 body=body,
             )
         )
-    return out
+    frames = None
+    if "preview" in what and opts.preview > 0:
+        n = min(opts.preview, scene.n_frames)
+        internal = np.unique(np.linspace(0, scene.n_frames - 1, n).round().astype(int))
+        # the capsule mannequin: 12 panels cost about what the thumbnail does (the
+        # skinned human body, 0.3 s a frame on one core, would cost ten times that)
+        out["preview"] = _png(_strip(scene, internal, view, preview_size(opts.size), "mannequin"))
+        frames = [int(f) for f in scene.source_frame(internal)]
+    return out, frames
+
+
+def _strip(scene, frames, view, size, body):
+    """Panels of ``frames`` (internal) side by side at one scale, the floor level across
+    them, no caption or gap: panel ``i`` is columns ``i*W .. (i+1)*W``."""
+    import numpy as np
+
+    from snapcore.render.composites import common_cameras, floor_aligned
+    from snapcore.render.renderer import SceneRenderer
+
+    sr = SceneRenderer(scene, size=size, body=body)
+    pts = [sr.body.vertices(f) for f in frames]
+    cams = common_cameras(pts, [view] * len(frames), size=size)
+    feet = [np.mean([c.positions[f, 0] for c in scene.characters], axis=0) for f in frames]
+    for ft in feet:
+        ft[1] = scene.ground
+    cams = floor_aligned(cams, pts, feet)
+    return np.hstack([sr.render(f, c)[..., :3] for f, c in zip(frames, cams)])
 
 
 def _worker(opts: BatchOptions) -> dict:

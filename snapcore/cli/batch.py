@@ -117,7 +117,21 @@ def _progress(quiet: bool):
     help="Run on this Dask distributed cluster instead (workers need the library "
     "at the same path; start them with --nthreads 1).",
 )
-@click.option("--sheet", is_flag=True, help="Also render each scene's top-k contact sheet.")
+@click.option(
+    "--sheet",
+    is_flag=True,
+    help="Also render each scene's top-k contact sheet (added later, only the sheets "
+    "are rendered; dropped, nothing is redone).",
+)
+@click.option(
+    "--preview",
+    type=click.IntRange(min=0),
+    default=12,
+    show_default=True,
+    metavar="N",
+    help="Panels of each scene's preview strip: the whole motion at N evenly spaced "
+    "frames, small, scrubbed through in the gallery by moving over a card (0: none).",
+)
 @click.option(
     "--size",
     default="320x360",
@@ -216,6 +230,7 @@ def batch(
     jobs,
     scheduler,
     sheet,
+    preview,
     size,
     sheet_size,
     fps,
@@ -244,10 +259,11 @@ def batch(
     \b
     OUT/index.csv   one row per scene (data_schema/batch_index.schema.json)
     OUT/index.parquet  the same index as Parquet
-    OUT/index.html  the gallery: open it in a browser, no server needed
-    OUT/scenes/     <path>.json, <path>.png and, with --sheet, <path>.sheet.png
+    OUT/index.html  the gallery: open it in a browser (or `snapshot gallery OUT`)
+    OUT/scenes/     <path>.json, .png, .preview.png and, with --sheet, .sheet.png
     OUT/library.json   the library root scene keys are relative to (sub-folder runs)
-    OUT/thumb-choices.csv  poses chosen as thumbnails in the gallery (read by a re-run)
+    OUT/thumb-choices.csv  frames chosen as thumbnails in the gallery: a re-run
+                    renders them and keeps them, also with --force or another method
 
     A re-run skips scenes whose files and options are unchanged (--force redoes them).
     Rows of scenes an earlier run did and this one does not cover stay in the index
@@ -266,11 +282,11 @@ def batch(
 
     root = library_root(out, sources)
     found = discover(sources, exclude=[out], root=root)
-    manifests = [(p, why) for p, why in found.skipped if why.startswith("not a scene manifest")]
+    manifests = found.left_out
     if manifests:
         click.echo(
             f"{len(manifests)} .json/.toml file(s) skipped, not scene manifests "
-            f"(first: {manifests[0][0]}: {manifests[0][1]})",
+            f"(first: {manifests[0][0]}: {manifests[0][1]}); the gallery's summary lists them",
             err=True,
         )
     if not found.scenes:
@@ -282,6 +298,7 @@ def batch(
         scale=scale,
         size=size,
         sheet=sheet,
+        preview=preview,
         sheet_size=sheet_size,
         body=body,
         animation=animation,
@@ -310,6 +327,7 @@ def batch(
             title=title,
             root=root,
             notify=_notify,
+            skipped=manifests,
         )
     except BatchInterrupted as stop:
         close()
@@ -323,10 +341,40 @@ def batch(
     close()
     rate = f", {report.done / report.elapsed_s:.2f} scenes/s" if report.done else ""
     others = len(report.rows) - report.done - report.reused
-    # no --prune hint: after a run over one folder it would delete the rest of the library
-    kept = f" (+{others} rows of other scenes kept from earlier runs)" if others else ""
+    # no --prune hint for other folders' rows: after a run over one folder it would
+    # delete the rest of the library; only for rows whose files are gone from the
+    # folders this run walked (renamed or deleted clips)
+    kept = f" (+{others} rows of other scenes kept from earlier runs" if others else ""
+    if others and report.errors_elsewhere:
+        kept += f", {report.errors_elsewhere} of them with errors"
+    kept += ")" if others else ""
     click.echo(
         f"{report.done + report.reused} scenes: {report.done} processed{rate}, "
         f"{report.reused} already done, {report.errors} with errors{kept}; index "
         f"{out / 'index.csv'}, gallery {out / 'index.html'}"
     )
+    gone = stale_rows(report.rows, {s.key for s in found.scenes}, sources, root)
+    if gone:
+        click.echo(
+            f"{len(gone)} row(s) of clips no longer under {', '.join(sources)} (renamed or "
+            f"deleted? first: {gone[0]}); --prune drops them and their pictures",
+            err=True,
+        )
+
+
+def stale_rows(rows, keys, sources, root) -> list[str]:
+    """Keys of index rows that are not among this run's scenes although their file would
+    lie inside one of the folders this run walked, and is not there: a clip renamed or
+    deleted since. Rows of folders the run did not walk are not stale."""
+    if root is None:
+        return []
+    folders = [Path(s).expanduser().resolve() for s in sources if Path(s).is_dir()]
+    base = Path(root).resolve()
+    gone = []
+    for r in rows:
+        if r["path"] in keys:
+            continue
+        f = base / r["path"]
+        if any(f.is_relative_to(d) for d in folders) and not f.exists():
+            gone.append(r["path"])
+    return gone

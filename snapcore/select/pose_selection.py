@@ -15,10 +15,26 @@ import numpy as np
 
 from snapcore.select.contacts import Interactions
 
-__all__ = ["MIN_SEPARATION_S", "PoseEntropy", "PoseScores", "PoseSelection", "top_peaks"]
+__all__ = [
+    "MIN_SEPARATION_S",
+    "PoseEntropy",
+    "PoseScores",
+    "PoseSelection",
+    "score_caption",
+    "top_peaks",
+]
 
 #: Default minimum separation (s) of the top-k poses.
 MIN_SEPARATION_S = 0.3
+
+
+def score_caption(method: str, unit: str, value: float) -> str:
+    """A pose score as a short caption: ``"entropy 1.1"`` for the paper, ``"story 14.9
+    bits"``, ``"stretch 0.236 statures"``... (also from a snapshot document's
+    ``pose_scores``, where only the method, the unit and the numbers are left)."""
+    if method == "paper":
+        return f"entropy {float(value):.3g}"
+    return f"{method} {float(value):.3g} {unit}"
 
 
 # ----------------------------------------------------------------------- results
@@ -105,11 +121,8 @@ class PoseScores:
         return int(self.total.shape[0])
 
     def caption(self, value: float) -> str:
-        """A value of the total as a short caption: ``"entropy 1.1"`` for the paper,
-        ``"story 14.9 bits"``, ``"stretch 0.236 statures"``..."""
-        if self.method == "paper":
-            return f"entropy {float(value):.3g}"
-        return f"{self.method} {float(value):.3g} {self.unit}"
+        """A value of the total as a short caption (see :func:`score_caption`)."""
+        return score_caption(self.method, self.unit, value)
 
     @property
     def label(self) -> str:
