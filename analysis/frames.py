@@ -473,22 +473,36 @@ def cluster_bootstrap_ci(
         participants with replacement and keeps all their observations, so that the
         interval counts people, not choices.
     stat : callable
-        Statistic of the pooled values of a resample.
+        Statistic of the pooled values of a resample (``np.mean``: computed for all
+        resamples at once from per-cluster sums).
 
     Returns
     -------
     (low, high) : tuple of float
         NaN when there are no values.
+
+    Notes
+    -----
+    Clusters are drawn from a list sorted by their values, not by their labels, so the
+    interval does not depend on how participants are named (raw ids, pseudonyms) or on
+    the order of the rows.
     """
     values = np.asarray(values, dtype=float)
     clusters = np.asarray(clusters)
     if values.size == 0 or n_boot <= 0:
         return float("nan"), float("nan")
     _, inverse = np.unique(clusters, return_inverse=True)
-    members = [np.flatnonzero(inverse == k) for k in range(inverse.max() + 1)]
+    inverse = inverse.reshape(-1)
+    members = [np.sort(values[inverse == k]) for k in range(inverse.max() + 1)]
+    members.sort(key=lambda v: (v.size, tuple(np.nan_to_num(v, nan=np.inf))))
     rng = np.random.default_rng(seed)
     picks = rng.integers(0, len(members), size=(n_boot, len(members)))
-    boots = np.array([stat(values[np.concatenate([members[k] for k in row])]) for row in picks])
+    if stat is np.mean:
+        sums = np.array([v.sum() for v in members])
+        sizes = np.array([v.size for v in members], dtype=float)
+        boots = sums[picks].sum(axis=1) / sizes[picks].sum(axis=1)
+    else:
+        boots = np.array([stat(np.concatenate([members[k] for k in row])) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)

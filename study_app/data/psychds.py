@@ -15,7 +15,10 @@ database)::
 ``dataset_description.json`` holds the fields Psych-DS requires (``@context``,
 ``@type: Dataset``, ``name``, ``description``, ``variableMeasured``) and some it
 recommends (``keywords``, ``dateCreated``; ``license``, ``creator`` and ``citation``
-when the study config gives ``license``, ``creators`` and ``citation``). ``variableMeasured`` lists every column of
+when the study config gives ``license``, ``creators`` and ``citation``), and
+``withdrawals``: study id → how many participants withdrew (a count only; their data
+are deleted), so that an analysis of the dataset says who was left out as one of the
+database does. ``variableMeasured`` lists every column of
 every data file as a ``PropertyValue`` whose description comes from the column's
 schema (``data_schema/response.schema.json``, ``participant.schema.json``,
 ``event.schema.json``), so a column cannot be added without being described. File
@@ -257,7 +260,10 @@ def write_psych_ds(
             else "ISO 8601 in UTC"
         )
         + "; in CSV, lists and objects are JSON strings and empty cells are "
-        "missing values." + (_PSEUDONYM_NOTE if pseudonymise else "")
+        "missing values. Participants who withdrew are not in any file (their data were "
+        "deleted); `withdrawals` counts them per study. The participants file's "
+        "`excluded` column names those the researcher left out of the analysis, with "
+        "the reason." + (_PSEUDONYM_NOTE if pseudonymise else "")
     )
     doc = {
         "@context": "https://schema.org/",
@@ -268,6 +274,12 @@ def write_psych_ds(
         "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
         "variableMeasured": variable_measured(),
     }
+    # Who withdrew is part of who was left out (snapshot analyze --input reports it as
+    # --db does): per study, a count only; their data are deleted, none is here.
+    from .withdraw import withdrawal_counts
+
+    gone = withdrawal_counts(store)
+    doc["withdrawals"] = {sid: gone.get(sid, 0) for sid in studies}
     if study is not None:  # what the study config says about its dataset
         if study.license:
             doc["license"] = study.license

@@ -25,7 +25,14 @@ from .database import events, exclusions, participants, responses, withdrawals
 from .errors import StoreError
 from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
 
-__all__ = ["WITHDRAWN_BY", "Withdrawal", "withdraw", "withdrawal_of", "withdrawal_plan"]
+__all__ = [
+    "WITHDRAWN_BY",
+    "Withdrawal",
+    "withdraw",
+    "withdrawal_of",
+    "withdrawal_plan",
+    "withdrawal_counts",
+]
 
 #: Who can withdraw a participant: the command line or the researcher page.
 WITHDRAWN_BY = ("cli", "page")
@@ -295,3 +302,12 @@ def withdrawal_of(
             .first()
         )
     return None if row is None else _record(row)
+
+
+def withdrawal_counts(store) -> dict[str, int]:
+    """Study id → how many participants withdrew (the log's rows; their data are gone)."""
+    with store.transaction(write=False) as conn:
+        if not sa.inspect(conn).has_table("withdrawals"):  # a database older than the log
+            return {}
+        query = sa.select(withdrawals.c.study_id, sa.func.count()).group_by(withdrawals.c.study_id)
+        return {sid: int(n) for sid, n in conn.execute(query).all()}
