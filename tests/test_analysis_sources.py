@@ -128,6 +128,7 @@ def check_same(sa, sb, a, b) -> None:
     same_tables(a, b)
 
 
+@pytest.mark.slow
 def test_the_open_dataset_reproduces_the_store_analysis(tmp_path, stimuli):
     """--input on the Psych-DS export == --db on the store: every summary number and
     table (votes, tests, intervals), after one exclusion and one withdrawal (SQLite)."""
@@ -139,6 +140,7 @@ def test_the_open_dataset_reproduces_the_store_analysis(tmp_path, stimuli):
     check_same(sa, sb, a, b)
 
 
+@pytest.mark.slow
 def test_row_order_and_ids_do_not_change_the_numbers(tmp_path, stimuli):
     """Rows shuffled and participant ids swapped in the export: the same numbers, so the
     analysis rests on column names and the participants file, not on order or ids."""
@@ -147,12 +149,14 @@ def test_row_order_and_ids_do_not_change_the_numbers(tmp_path, stimuli):
     check_same(*analyses(url, stimuli, tmp_path, shuffle=True))
 
 
+@pytest.mark.slow
 def test_the_open_dataset_reproduces_the_store_analysis_on_postgresql(tmp_path, stimuli, pg_url):
     """The same equality on PostgreSQL."""
     populate(pg_url, stimuli)
     check_same(*analyses(pg_url, stimuli, tmp_path))
 
 
+@pytest.mark.slow
 def test_report_says_who_was_left_out_with_the_page_counts(tmp_path, stimuli):
     """summary.json and report.html give started, finished, excluded (with the reason)
     and withdrawn, the same counts the researcher page shows, from either source."""
