@@ -493,16 +493,26 @@ def cluster_bootstrap_ci(
         return float("nan"), float("nan")
     _, inverse = np.unique(clusters, return_inverse=True)
     inverse = inverse.reshape(-1)
-    members = [np.sort(values[inverse == k]) for k in range(inverse.max() + 1)]
-    members.sort(key=lambda v: (v.size, tuple(np.nan_to_num(v, nan=np.inf))))
+    by_value = np.lexsort((values, inverse))  # each cluster's values together, sorted
+    sizes = np.bincount(inverse)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    sums = np.add.reduceat(values[by_value], starts)
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, len(members), size=(n_boot, len(members)))
+    picks = rng.integers(0, sizes.size, size=(n_boot, sizes.size))
     if stat is np.mean:
-        sums = np.array([v.sum() for v in members])
-        sizes = np.array([v.size for v in members], dtype=float)
-        boots = sums[picks].sum(axis=1) / sizes[picks].sum(axis=1)
-    else:
-        boots = np.array([stat(np.concatenate([members[k] for k in row])) for row in picks])
+        # Clusters of equal size and sum add the same to every resample's mean: ordered
+        # by (size, sum) they are in a canonical order for it.
+        order = np.lexsort((sums, sizes))
+        boots = sums[order][picks].sum(axis=1) / sizes[order][picks].sum(axis=1)
+    else:  # the same order, ties broken by the values themselves
+        members = np.split(values[by_value], starts[1:])
+        order = sorted(
+            range(sizes.size),
+            key=lambda k: (sizes[k], sums[k], tuple(np.nan_to_num(members[k], nan=np.inf))),
+        )
+        boots = np.array(
+            [stat(np.concatenate([members[order[k]] for k in row])) for row in picks]
+        )
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)

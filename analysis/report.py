@@ -13,7 +13,10 @@ Tables (columns documented in :mod:`analysis.votes` and :mod:`analysis.frames`):
 ``votes`` (Table 2 with shares and Wilson CIs), ``chisquare`` (no preference),
 ``pairwise`` (ours vs each baseline, exact binomial + Holm), ``strengths`` (Luce model,
 bootstrap CIs), ``agreement`` (Fleiss' kappa), ``frame_hits`` (hit rates of the
-algorithm and baselines), ``frame_tests`` (permutation tests), ``participants``.
+algorithm and baselines), ``frame_tests`` (is the algorithm closer than each baseline:
+:func:`analysis.frames.closeness_tests`), ``participants``; the report's "Who was left
+out" and the summary's ``left_out`` count exclusions, withdrawals and unfinished
+participants as the researcher page does.
 
 This module runs the analysis and writes the folder; the sections' tables, figures and
 text are in :mod:`analysis.sections`, table formatting and writing in
@@ -217,7 +220,9 @@ def analyze(
         stimuli = default_stimuli(df, source=source)
     dupes, replaced = pd.DataFrame(), pd.DataFrame()
     if stimuli is not None:
-        from .stimuli import stimuli_scenes
+        from .stimuli import read_stimuli, stimuli_scenes
+
+        stimuli, _ = read_stimuli(stimuli)  # read and checked once, not once per use
 
         st = stimuli_scenes(stimuli)
         order = list(st["scene"])

@@ -72,7 +72,7 @@ def _compact_hits(hits: pd.DataFrame, tolerances=fr.TOLERANCES_S) -> pd.DataFram
 
 
 def _compact_tests(tests: pd.DataFrame) -> pd.DataFrame:
-    """Permutation tests for the page."""
+    """The frame tests (:func:`analysis.frames.closeness_tests`) for the page."""
     return pd.DataFrame(
         {
             "scene": tests["scene"],

@@ -185,3 +185,52 @@ def test_report_says_who_was_left_out_with_the_page_counts(tmp_path, stimuli):
         html = (folder / "report.html").read_text()
         assert "Who was left out" in html and EXCLUSION_REASON in html
         assert "withdrew" in html
+
+
+def test_quick_row_check_agrees_with_jsonschema():
+    """The compiled check that speeds up reading thousands of rows never accepts a row
+    jsonschema refuses (one breach of each kind the schema states) and accepts a valid
+    one; a row it refuses goes on to jsonschema, which decides and words the error."""
+    import jsonschema
+
+    from snapcore.schema import _validator, quick_check
+
+    row = {
+        "participant_id": "9QRsdvyZKL-P6PZRfz3OiQ",
+        "study_id": "demo",
+        "trial_index": 1,
+        "task": "view",
+        "scene": "walk",
+        "stimulus_id": "walk/view",
+        "chosen_method": "ours",
+        "chosen_position": 0,
+        "shown_order": ["ours", "motion_area", "viewpoint_entropy"],
+        "fps": 30.0,
+        "n_frames": 91,
+        "response_time_s": 3.2,
+        "created_at": "2026-12-03",
+        "app_version": "t",
+        "manifest_sha256": "0" * 64,
+        "simulated": False,
+    }
+    breaches = [
+        ("trial_index", True),
+        ("trial_index", -1),
+        ("trial_index", 1.5),
+        ("task", "dance"),
+        ("fps", 0),
+        ("shown_order", ["ours", "ours", "motion_area"]),
+        ("participant_id", "x"),
+        ("extra", 1),
+        ("chosen_method", "best"),
+        ("simulated", "no"),
+        ("manifest_sha256", "z" * 64),
+    ]
+    quick = quick_check("response")
+    assert quick is not None
+    variants = [row, {**row, "trial_index": 2.0}] + [{**row, k: v} for k, v in breaches]
+    variants.append({k: v for k, v in row.items() if k != "task"})
+    for doc in variants:
+        valid = jsonschema.exceptions.best_match(_validator("response").iter_errors(doc)) is None
+        assert quick(doc) <= valid, doc
+    assert quick(row) and sum(quick(d) for d in variants) <= 2

@@ -21,7 +21,7 @@ import secrets
 from pathlib import Path
 
 from snapcore.errors import SchemaError
-from snapcore.schema import load_schema, validate
+from snapcore.schema import load_schema, quick_check, validate
 
 from .errors import StoreError
 
@@ -83,7 +83,10 @@ def validate_rows(rows, *, source: str = "export") -> None:
     SchemaError
         Naming the row (1-based), its participant and trial, and the field.
     """
+    quick = quick_check("response")  # thousands of rows: the compiled check first
     for i, row in enumerate(rows, start=1):
+        if quick is not None and quick(row):
+            continue
         where = (
             f"{source}: row {i} (participant {row.get('participant_id')!r}, "
             f"trial {row.get('trial_index')!r})"
