@@ -510,9 +510,7 @@ def cluster_bootstrap_ci(
             range(sizes.size),
             key=lambda k: (sizes[k], sums[k], tuple(np.nan_to_num(members[k], nan=np.inf))),
         )
-        boots = np.array(
-            [stat(np.concatenate([members[order[k]] for k in row])) for row in picks]
-        )
+        boots = np.array([stat(np.concatenate([members[order[k]] for k in row])) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)
