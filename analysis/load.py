@@ -28,7 +28,9 @@ participants (``simulated`` true, written by ``snapshot simulate``) are dropped 
 Columns of the frame returned by :func:`load_responses` (dtypes in brackets) — the
 schema's fields plus derived ones:
 
-- every schema field; integers as nullable ``Int64``, ``correct`` as nullable
+- every schema field (durations rounded to 0.1 s and ``watched`` floored to 0.001, as
+  open exports give them: :func:`study_app.data.pseudonym.open_value`); integers as
+  nullable ``Int64``, ``correct`` as nullable
   ``boolean``, ``shown_order`` as a tuple of method names (or None),
   ``created_at`` as UTC datetimes;
 - ``chosen_s``, ``algorithm_s`` [float]: the chosen and the algorithm's frame in seconds
@@ -50,6 +52,7 @@ import pandas as pd
 
 from snapcore.errors import SnapshotError
 from study_app.data.export import export_columns, export_types, read_export, validate_rows
+from study_app.data.pseudonym import DURATION_COLUMNS, open_value
 from study_app.data.store import Store
 
 __all__ = [
@@ -274,6 +277,12 @@ def tidy_responses(
         for k in ("created_at",):
             if isinstance(r.get(k), pd.Timestamp):
                 r[k] = r[k].isoformat()
+        # Durations and shares watched at the precision an open export gives them (0.1 s,
+        # 0.001): all the analysis needs, and the same numbers from the store and from
+        # its published dataset.
+        for k in (*DURATION_COLUMNS, "watched"):
+            if k in r:
+                r[k] = open_value(k, r[k])
     if validate:
         try:
             validate_rows(records, source=source)

@@ -421,3 +421,42 @@ def test_fallback_text_matches_its_controls(store):
     text = " ".join(m.value for m in at.markdown)
     assert "**Frame** slider" in text
     assert "Play" not in text and "arrow" not in text and "space bar" not in text
+
+
+def test_a_withdrawn_finisher_stays_payable_and_the_page_lists_withdrawals(store, monkeypatch):
+    """Someone who finished and then withdrew keeps their completion code in the page's
+    completion codes (marked withdrawn, their data gone) and the page lists every
+    withdrawal; the code is in no export."""
+    from click.testing import CliRunner
+
+    from snapcore.cli.main import cli
+    from study_app.data.withdraw import withdraw
+
+    ppid = "5f1e2d3c4b5a69788796d0d0"
+    pid = store.create_participant(
+        "fixture", "ab" * 32, app_version="0.1.0", seed=1, prolific={"PROLIFIC_PID": ppid}
+    )
+    code = store.complete(pid)
+    started = store.create_participant("fixture", "ab" * 32, app_version="0.1.0", seed=2)
+    withdraw(store, participant_id=pid)
+    withdraw(store, participant_id=started)  # never finished: owed nothing
+    monkeypatch.setenv(keys.ENV_ADMIN_TOKEN, "s3cret-token-0123456789")
+    a = AppTest.from_file(APP, default_timeout=TIMEOUT)
+    a.switch_page("screens/researcher.py")
+    a.run()
+    a.text_input(key=keys.KEY_ADMIN_TOKEN).input("s3cret-token-0123456789").run()
+    assert not a.exception
+    tables = [d.value for d in a.dataframe]
+    codes = next(t for t in tables if "completion code" in t.columns)
+    assert list(codes["completion code"]) == [code] and list(codes["Prolific id"]) == [ppid]
+    assert codes["withdrawn (UTC)"].iloc[0] != ""
+    listed = next(t for t in tables if "link id" in t.columns)
+    assert set(listed["link id"]) == {pid, started}
+    out = store.url.removeprefix("sqlite:///")
+    result = CliRunner().invoke(
+        cli,
+        ["export", "--db", out, "-o", f"{out}.csv", "--participants", f"{out}.p.csv", "-q"]
+        + ["--identifiers"],
+    )
+    assert result.exit_code == 0, result.output
+    assert not [f for f in (f"{out}.csv", f"{out}.p.csv") if code in open(f).read()]

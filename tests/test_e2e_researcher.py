@@ -110,7 +110,12 @@ def server(request, stimuli_dir, tmp_path_factory):
         url = request.getfixturevalue("pg_server").create_database()
     stim = load_stimuli(stimuli_dir)
     pids = populate(url, stim)
-    proc, base = start_study(stimuli_dir, url, tmp_path_factory.mktemp("log") / "server.log")
+    logs = tmp_path_factory.mktemp("log")
+    with pytest.MonkeyPatch.context() as mp:
+        # The page's withdrawals are logged here, not in the project's var/ (PostgreSQL
+        # has no file to log beside).
+        mp.setenv("SNAPSHOT_WITHDRAWAL_LOG", str(logs / "withdrawals.jsonl"))
+        proc, base = start_study(stimuli_dir, url, logs / "server.log")
     engine = sa.create_engine(normalize_url(url))
     yield base, engine, pids, stim
     engine.dispose()
@@ -241,7 +246,7 @@ def test_researcher_page_end_to_end(server, browser):
     # -- the other downloads
     people = list(csv.DictReader(io.StringIO(download(page, "Download participants").decode())))
     assert len(people) == 2 and "seed" not in people[0]
-    assert all(len(p["created_at"]) == 10 for p in people)
+    assert all(len(p["created_at"]) == 7 for p in people)  # the UTC month
     events = [json.loads(line) for line in download(page, "Download events").decode().splitlines()]
     assert len(events) == 2 and gone not in {e["participant_id"] for e in events}
     with zipfile.ZipFile(io.BytesIO(download(page, "Download Psych-DS"))) as z:
@@ -257,7 +262,13 @@ def test_researcher_page_end_to_end(server, browser):
     code_c = rows(
         engine, "SELECT completion_code FROM participants WHERE participant_id = :p", p=pids["C"]
     )[0][0]
-    assert [(c["Prolific id"], c["completion code"]) for c in codes] == [(PROLIFIC["C"], code_c)]
+    # A finished, then withdrew: still owed, so still listed (marked), for payment only.
+    code_a = rows(
+        engine, "SELECT completion_code FROM withdrawals WHERE participant_id = :p", p=pids["A"]
+    )[0][0]
+    assert sorted(
+        (c["Prolific id"], c["completion code"], c["withdrawn (UTC)"] != "") for c in codes
+    ) == sorted([(PROLIFIC["A"], code_a, True), (PROLIFIC["C"], code_c, False)])
     page.context.close()
 
 

@@ -154,7 +154,10 @@ def test_withdraw_leaves_only_the_withdrawal_record(url):
         "prolific_pid",
         "requested_by",
         "withdrawn_at",
+        "completion_code",  # A had finished: kept for payment only (issue 37)
+        "completed_at",
     }
+    assert rec["completion_code"] in {r[-1] for r in before["participants"]}
     # Everyone else's rows are exactly as before.
     for table in ("participants", "responses", "events"):
         assert [r for r in before[table] if not any(g in c for g in gone for c in r)] == after[
@@ -376,7 +379,7 @@ def test_psych_ds_checks_are_not_vacuous(url, tmp_path):
         data = renamed.rename(data)
     desc_path = ds / "dataset_description.json"
     good = desc_path.read_text()
-    for key in ("name", "variableMeasured", "@type"):
+    for key in ("name", "schemaVersion", "variableMeasured", "@type"):
         doc = json.loads(good)
         del doc[key]
         desc_path.write_text(json.dumps(doc))
@@ -530,7 +533,7 @@ def test_backup_during_concurrent_writes_restores_a_consistent_copy(
     assert result.method == expected_method
     # pg_dump archives go back into PostgreSQL; SQLite backups into SQLite.
     target = restore_target(backend, request, tmp_path)
-    restored = restore(out, target)
+    restored = restore(out, target, withdrawals_from=source)
     n = check_snapshot(target, log, t0, t1)
     with Store(source, create=False) as live, Store(target, create=False) as back:
         assert n < len(live.export_rows())

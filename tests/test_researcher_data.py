@@ -107,11 +107,11 @@ def test_open_exports_cannot_be_joined_to_the_identifiers_file(db, tmp_path):
     for shared in (read_csv(open_), read_csv(ds)):
         assert "seed" not in shared[0]
         for column in ("created_at", "completed_at"):
-            assert all(len(r[column]) == 10 for r in shared), column  # YYYY-MM-DD
+            assert all(len(r[column]) == 7 for r in shared), column  # YYYY-MM
             joined = {r[column] for r in shared} & {r[column] for r in secret_rows}
             assert not joined, column
     responses = read_csv(tmp_path / "r2.csv")
-    assert all(len(r["created_at"]) == 10 for r in responses)
+    assert all(len(r["created_at"]) == 7 for r in responses)
 
 
 # ----------------------------------------------------------------------------- item 5
@@ -141,7 +141,8 @@ def test_restore_reapplies_withdrawals_made_after_the_backup(db, tmp_path):
     assert run("withdraw", "--db", db, "--prolific-pid", PROLIFIC["A"])[0] == 0
     plain = tmp_path / "plain.db"
     code, err = run("restore", copy, "--db", plain)
-    assert code == 0 and "--withdrawals-from" in err  # said, not silent
+    # No withdrawal log of the new target and no source named: refused, not silent.
+    assert code == 2 and "--withdrawals-from" in err and not plain.exists()
     kept = tmp_path / "kept.db"
     code, err = run("restore", copy, "--db", kept, "--withdrawals-from", db)
     assert code == 0, err
@@ -243,7 +244,7 @@ def test_psych_ds_metadata_comes_from_the_study_config(tmp_path):
     assert run("export", "--db", db, "--psych-ds", tmp_path / "ds", "--stimuli", stim_dir)[0] == 0
     desc = json.loads((tmp_path / "ds" / "dataset_description.json").read_text())
     assert desc["license"] == "CC-BY-4.0"
-    assert [c["name"] for c in desc["creator"]] == ["A. Researcher", "B. Researcher"]
+    assert [c["name"] for c in desc["author"]] == ["A. Researcher", "B. Researcher"]
     assert desc["citation"].startswith("Researcher et al.")
     assert "Thank you" not in desc["description"]
 

@@ -212,9 +212,16 @@ def test_cli_bad_row_names_row_and_field(sqlite_url, tmp_path):
                 "WHERE task = 'view' AND chosen_position = 2"
             )
     out = tmp_path / "r.csv"
-    code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out))
-    assert code == 2 and err.count("\n") == 1
+    # With --identifiers the rows are in arrival order: the forged one is the second.
+    code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out), "--identifiers")
+    assert code == 2 and err.count("\n") == 2  # the identifiers warning, the error
     assert "row 2" in err and "chosen_method" in err and "'forged'" in err
+    assert f"{out}: row" in err  # the file asked for, not a temp name
+    assert not out.exists()
+    # A shared export (rows ordered by pseudonym) names the row by its pseudonym.
+    code, _, err = run_cli("export", "--db", sqlite_url, "-o", str(out))
+    assert code == 2 and err.count("\n") == 1 and f"{out}: row" in err
+    assert "(participant 'p-" in err and "chosen_method" in err and "'forged'" in err
     assert not out.exists()
 
 

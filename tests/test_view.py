@@ -705,3 +705,18 @@ def test_view_angles_and_near_duplicates_known_answers():
     assert near_duplicate_views(ang, 5.0) == [("a", "d")]
     with pytest.raises(ValueError, match="zero vector"):
         view_angles_deg({"a": [0, 0, 0], "b": [1, 0, 0]})
+
+
+def test_select_view_takes_its_own_view_vocabulary():
+    """ViewMethod.OURS means PMA and MOTION_AREA the motion area; entropy is refused clearly."""
+    from snapcore.select.view_methods import ViewMethod
+
+    scene = synth.synth_scene("walk")
+    ours = select_view(scene, method=ViewMethod.OURS, n_views=162)
+    pma = select_view(scene, method="pma", n_views=162)
+    assert ours.method == "pma"
+    np.testing.assert_array_equal(ours.view, pma.view)
+    area = select_view(scene, method=ViewMethod.MOTION_AREA, n_views=162)
+    assert area.method == "motion_area"
+    with pytest.raises(ViewError, match="select_view_entropy"):
+        select_view(scene, method=ViewMethod.VIEWPOINT_ENTROPY)

@@ -130,7 +130,8 @@ def cli():
     """Action Snapshot: one still image that tells the story of a character animation.
 
     Reads motion capture (BVH, one or two characters, or a scene manifest), picks the
-    most informative pose (pose entropy) and view (Projected Motion Area), renders
+    most informative pose (story information; the paper's pose entropy with
+    --pose-method paper) and view (Projected Motion Area), renders
     stills, videos and bas-reliefs, runs the user study and analyses it.
 
     Run `snapshot COMMAND --help` for each command. Real motion data is found through

@@ -3,7 +3,7 @@
 Writes into ``docs/images/`` (or OUT_DIR), from the real CMU modern-dance clip
 ``dance/05_06.bvh`` of the motion data folder (``SNAPSHOT_DATA``):
 
-- ``contact_sheet.png`` — the three most informative poses (pose entropy), side by side,
+- ``contact_sheet.png`` — the three most informative poses (story information), side by side,
   seen from the selected view (the paper's Fig. 5 strip);
 - ``three_views.png`` — the selected pose from ours (projected motion area), viewpoint
   entropy and motion area, same panel size and scale (the paper's Fig. 8-10);

@@ -47,7 +47,7 @@ def parse_size(text: str) -> tuple[float, float]:
 def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     """The selected pose (source frame number) and view of ``scene`` from the pipeline.
 
-    Uses :func:`snapcore.pipeline.take_snapshot` (pose entropy + Projected Motion Area;
+    Uses :func:`snapcore.pipeline.take_snapshot` (story information + Projected Motion Area;
     the baselines are not needed here and are skipped: viewpoint entropy renders).
     Returns ``(source_frame or None, view or None)`` for what was asked.
     """
@@ -67,7 +67,7 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     type=int,
     default=None,
     help="Pose: frame number in the source file's numbering (0-based). "
-    "Default: the pose selected by pose entropy.",
+    "Default: the pose selected by story information (the default pose method).",
 )
 @click.option(
     "--view",

@@ -437,7 +437,7 @@ def _frames_callback(ctx, param, value):
     type=click.IntRange(min=1, max=12),
     default=3,
     show_default=True,
-    help="Contact sheet of the K most informative poses (pose entropy).",
+    help="Contact sheet of the K most informative poses (story information).",
 )
 @click.option(
     "--view",

@@ -382,12 +382,13 @@ def plot_entropy(
     strip,
     dpi,
 ):
-    """Plot pose entropy over time with events and the chosen poses (paper Fig. 5-6).
+    """Plot the pose score over time with events and the chosen poses (paper Fig. 5-6).
 
-    Top: local, global and total pose entropy over time, the top-k peaks marked;
-    interaction events as ticks per character and object (onset and release).
-    Bottom: a film strip of stick figures seen from the side, coloured by entropy,
-    the top-k poses drawn bold.
+    Top: the --pose-method's terms and total score over time, the top-k peaks marked:
+    by default the story information's terms; with '--pose-method paper' the local,
+    global and total pose entropy of the paper's Fig. 5-6. Interaction events as ticks
+    per character and object (onset and release). Bottom: a film strip of stick
+    figures seen from the side, coloured by the score, the top-k poses drawn bold.
     """
     scene = scene_from_options(paths, fps, scale)
     snap = snapshot_from_options(

@@ -31,7 +31,7 @@ __all__ = ["plot_views"]
     "--frame",
     type=click.IntRange(min=0),
     default=None,
-    help="Source frame of the pose (default: the pose-entropy pick).",
+    help="Source frame of the pose (default: the story-information pick).",
 )
 @click.option(
     "--window",

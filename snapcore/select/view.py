@@ -44,6 +44,7 @@ from snapcore.select.sphere import (
     sphere_samples,
     sphere_search,
 )
+from snapcore.select.view_methods import ViewMethod
 
 __all__ = [
     "view_angles_deg",
@@ -211,6 +212,25 @@ class MotionTriangles:
 def _check_weighting(weighting):
     if weighting not in WEIGHTINGS:
         raise ViewError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
+
+
+def _weighting_of(method: str) -> str:
+    """The triangle weighting a view method searches with.
+
+    :class:`ViewMethod` is the suite's vocabulary for view methods; ``select_view``
+    also keeps the weighting names (``"pma"``, ``"motion_area"``) it always took.
+    Viewpoint entropy scores rendered bodies, not swept triangles, so it is refused
+    here with a pointer to the function that computes it.
+    """
+    if method == ViewMethod.OURS:
+        return "pma"
+    if method == ViewMethod.VIEWPOINT_ENTROPY:
+        raise ViewError(
+            "viewpoint entropy scores a rendered body, not the motion's triangles: "
+            "use snapcore.render.viewpoint_entropy.select_view_entropy"
+        )
+    _check_weighting(method)
+    return str(method)
 
 
 def _motion_sources(source, links):
@@ -555,7 +575,9 @@ def select_view(
     window_s : float, optional
         Score frames ``frame ± window_s`` seconds (the pose-specific view); default the
         whole sequence (the global view, eq. 10).
-    method : {"pma", "motion_area"}
+    method : ViewMethod or {"pma", "motion_area"}
+        ``ViewMethod.OURS`` (the same as ``"pma"``) or ``ViewMethod.MOTION_AREA``
+        (``"motion_area"``); the returned ``method`` is the weighting name.
     n_views : int
         Samples of the view sphere (:func:`view_sphere`).
     refine : bool
@@ -593,7 +615,7 @@ def select_view(
     >>> sel.method, bool(abs(sel.view[0]) > 0.9), round(float(np.linalg.norm(sel.view)), 6)
     ('pma', True, 1.0)
     """
-    _check_weighting(method)
+    method = _weighting_of(method)
     frames = window_frames(scene, frame, window_s)
     if triangles is None:
         triangles = motion_triangles(scene, frames=frames, floor=floor)

@@ -87,27 +87,49 @@ def backup(db_url, output, verify, method, force, quiet):
 @click.option(
     "--withdrawals-from",
     "withdrawals_from",
-    metavar="URL",
-    default=None,
-    help="The database the backup was taken from (or a later backup): every "
-    "withdrawal recorded there is applied to the restored data.",
+    metavar="LOG|URL",
+    multiple=True,
+    help="Where the withdrawals made after the backup are: the lost database's "
+    "withdrawal log (<db>.withdrawals.jsonl beside it, or $SNAPSHOT_WITHDRAWAL_LOG), "
+    "the database itself, or a later backup. Repeatable.",
+)
+@click.option(
+    "--without-withdrawal-log",
+    "without_log",
+    is_flag=True,
+    help="Restore even though no withdrawal log made after the backup is found "
+    "(only if you know that nobody withdrew since).",
 )
 @click.option("-q", "--quiet", is_flag=True, help="Do not print the summary line.")
-def restore(backup_file, db_url, withdrawals_from, quiet):
-    """Restore a backup made by snapshot backup into an empty database.
+def restore(backup_file, db_url, withdrawals_from, without_log, quiet):
+    """Restore a backup made by snapshot backup into an empty database, keeping
+    everybody who withdrew since out.
 
     A SQLite backup restores into SQLite or PostgreSQL (every row, ids kept, in one
     transaction); a pg_dump archive into PostgreSQL (pg_restore). A database that
     already holds data is refused: a restore never mixes with or replaces data.
-    The backup is verified first (snapshot backup --verify). With --withdrawals-from,
-    the withdrawals recorded since the backup are applied to it.
+    The backup is verified first (snapshot backup --verify).
 
-    Example: snapshot restore backups/study-2025-01-31.db --db sqlite:///var/restored.db
+    Withdrawals made after the backup are applied in the same transaction, from the
+    withdrawal log (written outside the database by every withdrawal: beside a SQLite
+    database as <db>.withdrawals.jsonl, or at $SNAPSHOT_WITHDRAWAL_LOG), from
+    withdrawals.jsonl beside the backup (every backup updates it) and from
+    --withdrawals-from. Without any log made after the backup the restore refuses,
+    unless --without-withdrawal-log.
+
+    Example: snapshot restore backups/study-2025-01-31.db --db sqlite:///var/study.db
+
+    snapshot restore backups/b.db --db sqlite:///var/new.db --withdrawals-from var/study.db.withdrawals.jsonl
     """
     from study_app.data.backup import restore as restore_database
     from study_app.data.store import mask_url
 
-    result = restore_database(backup_file, db_url, withdrawals_from=withdrawals_from)
+    result = restore_database(
+        backup_file,
+        db_url,
+        withdrawals_from=list(withdrawals_from),
+        without_withdrawal_log=without_log,
+    )
     if not quiet:
         rows = ", ".join(f"{n} {t}" for t, n in result.rows.items())
         click.echo(
@@ -115,16 +137,22 @@ def restore(backup_file, db_url, withdrawals_from, quiet):
             f"({result.method}{': ' + rows if rows else ''})",
             err=True,
         )
+        if result.anonymised:
+            click.echo(
+                f"destroyed again the pseudonym secret of {', '.join(result.anonymised)}, "
+                "anonymised after the backup",
+                err=True,
+            )
         if result.withdrawn:
             click.echo(
                 f"re-applied {len(result.withdrawn)} withdrawals recorded after the "
                 f"backup: deleted participants {', '.join(result.withdrawn)}",
                 err=True,
             )
-    if withdrawals_from is None:
+    if without_log:
         # Always said (also with -q): the restored data may hold people who withdrew.
         click.echo(
-            "warning: withdrawals recorded after this backup was taken are not in it; "
-            "give --withdrawals-from URL (the database it was taken from) to apply them",
+            "warning: --without-withdrawal-log: anybody who withdrew after this backup "
+            "and is in no withdrawal log is back in the restored data",
             err=True,
         )

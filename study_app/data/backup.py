@@ -51,9 +51,18 @@ from .database import (
     one_snapshot,
     table_counts,
     table_names,
+    upgrade_columns,
 )
 from .database import _utc as _as_utc
 from .errors import StoreError
+from .withdrawal_log import (
+    BACKUP_LOG_NAME,
+    LOG_ENV,
+    log_path,
+    merge_into,
+    read_anonymised,
+    read_log,
+)
 
 __all__ = [
     "BACKUP_METHODS",
@@ -95,6 +104,8 @@ class BackupResult:
     rows: dict = field(default_factory=dict)
     #: Participants whose later withdrawal a restore re-applied (``withdrawals_from``).
     withdrawn: list = field(default_factory=list)
+    #: Studies whose secret a restore destroyed again (anonymised after the backup).
+    anonymised: list = field(default_factory=list)
 
 
 def find_pg_tool(name: str) -> Path | None:
@@ -157,9 +168,17 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
     path = _check_output(output, force)
     parsed = normalize_url(url)
     dialect = parsed.get_backend_name()
-    store = _store(url)
-    engine = store.engine
     tmp = _tmp_beside(path)
+    try:  # the output's folder is tried first: its failure is not the database's
+        tmp.touch(exist_ok=False)
+    except OSError as err:
+        raise StoreError(f"cannot write the backup {path}: {err.strerror or err}") from None
+    try:
+        store = _store(url)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    engine = store.engine
     try:
         if dialect == "sqlite" and method in ("auto", "native"):
             result = _sqlite_backup(store, tmp)
@@ -185,7 +204,18 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
     finally:
         store.close()
     result.path = path
+    _list_withdrawals_beside(url, path)
     return result
+
+
+def _list_withdrawals_beside(url, path: Path) -> None:
+    """Merge the database's withdrawals into ``withdrawals.jsonl`` beside the backup,
+    so that a folder of backups carries every withdrawal up to its newest backup."""
+    beside = path.parent / BACKUP_LOG_NAME
+    try:
+        merge_into(beside, _withdrawal_records(url))
+    except StoreError as err:
+        warnings.warn(f"the backup is made, but {err}", stacklevel=3)
 
 
 def _sqlite_backup(store, tmp: Path) -> BackupResult:
@@ -280,6 +310,15 @@ def _kind(path: Path) -> str:
     raise StoreError(f"{path}: not a backup (neither a SQLite file nor a pg_dump archive)")
 
 
+def _first_problem(report) -> str:
+    """The first problem of an integrity report, as one short line (SQLite may give
+    one row per problem, or one row of many lines, headed ``*** in database main ***``)."""
+    lines = [ln.strip() for row in report for ln in str(row).splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not ln.startswith("***")] or lines or ["unknown"]
+    more = f"; {len(lines) - 1} more problems" if len(lines) > 1 else ""
+    return lines[0][:200] + more
+
+
 def verify_backup(backup_file) -> BackupResult:
     """Check that a backup file can be restored, without restoring it.
 
@@ -321,7 +360,7 @@ def verify_backup(backup_file) -> BackupResult:
         try:
             bad = [r[0] for r in con.execute("PRAGMA integrity_check")]
             if bad != ["ok"]:
-                raise StoreError(f"{path}: damaged SQLite file ({bad[0]})")
+                raise StoreError(f"{path}: damaged SQLite file ({_first_problem(bad)})")
             names = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             missing = [t for t in STUDY_TABLES if t not in names]
             if missing:
@@ -354,22 +393,27 @@ def verify_backup(backup_file) -> BackupResult:
         finally:
             con.close()
     except sqlite3.Error as err:
-        raise StoreError(f"{path}: damaged SQLite file ({err})") from None
+        raise StoreError(f"{path}: damaged SQLite file ({_first_problem([str(err)])})") from None
     return BackupResult(path, "sqlite", rows)
 
 
 def _withdrawal_records(url) -> list[dict]:
-    """The withdrawal records of the database (or SQLite backup) at ``url``."""
+    """The withdrawal records of the database (or SQLite backup) at ``url``, and one
+    ``{"study_id", "anonymised_at"}`` record per study whose secret was destroyed."""
+    from .anonymise import anonymised_studies
     from .database import withdrawals
     from .store import Store
 
-    with Store(url, create=False) as src, src.transaction(write=False) as conn:
-        if not sa.inspect(conn).has_table("withdrawals"):
-            return []
-        return [
-            {k: _as_utc(v) for k, v in r.items()}
-            for r in conn.execute(sa.select(withdrawals)).mappings()
-        ]
+    with Store(url, create=False) as src:
+        with src.transaction(write=False) as conn:
+            if not sa.inspect(conn).has_table("withdrawals"):
+                return []
+            out = [
+                {k: _as_utc(v) for k, v in r.items() if k != "id"}
+                for r in conn.execute(sa.select(withdrawals)).mappings()
+            ]
+        gone = anonymised_studies(src) if sa.inspect(src.engine).has_table("study_secrets") else {}
+    return out + [{"study_id": sid, "anonymised_at": at} for sid, at in sorted(gone.items())]
 
 
 def _reapply(conn, records) -> list[str]:
@@ -400,8 +444,54 @@ def _reapply(conn, records) -> list[str]:
     return done
 
 
-def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
-    """Load a backup made by :func:`backup` into the empty database at ``url``.
+def _records_of(source) -> list[dict]:
+    """The withdrawal records of a source: a withdrawal log (JSON lines), a database
+    URL, or a SQLite backup."""
+    text = str(source)
+    candidate = Path(text).expanduser()
+    if "://" not in text and candidate.is_file():
+        try:
+            with open(candidate, "rb") as f:
+                head = f.read(len(_SQLITE_MAGIC))
+        except OSError as err:
+            raise StoreError(f"cannot read {candidate}: {err.strerror or err}") from None
+        if head.startswith(_PGDUMP_MAGIC):
+            raise StoreError(
+                f"{candidate}: a pg_dump archive cannot give withdrawals (restore it into "
+                "a database and give that database's URL)"
+            )
+        if not head.startswith(_SQLITE_MAGIC):
+            return read_log(candidate) + [
+                {"study_id": sid, "anonymised_at": at}
+                for sid, at in read_anonymised(candidate).items()
+            ]
+    elif "://" not in text and candidate.suffix.lower() == ".jsonl":
+        raise StoreError(f"{candidate}: no such withdrawal log")
+    return _withdrawal_records(source)
+
+
+def _unique(records) -> list[dict]:
+    """One withdrawal per participant, one anonymisation per study (the first given)."""
+    seen, out = set(), []
+    for r in records:
+        key = ("p", r["participant_id"]) if r.get("participant_id") else ("s", r["study_id"])
+        if key not in seen:
+            seen.add(key)
+            out.append(r)
+    return out
+
+
+def restore(
+    backup_file, url, *, withdrawals_from=None, without_withdrawal_log: bool = False
+) -> BackupResult:
+    """Load a backup made by :func:`backup` into the empty database at ``url``, with
+    every withdrawal made since.
+
+    A backup predates the withdrawals made after it. They are taken from the
+    withdrawal log (:mod:`study_app.data.withdrawal_log`) of the target (restoring in
+    place, or ``$SNAPSHOT_WITHDRAWAL_LOG``), from ``withdrawals.jsonl`` beside the
+    backup, and from ``withdrawals_from``, and applied in the restore's transaction;
+    the target's log then holds them all.
 
     Parameters
     ----------
@@ -411,18 +501,19 @@ def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
     url : str
         The target. Its study tables must be absent or empty: a restore never mixes
         with, or replaces, data already there.
-    withdrawals_from : str, optional
-        The database the backup was taken from (or any later backup of it): every
-        withdrawal recorded there is applied to the restored rows, in the restore's
-        transaction, so that nobody who withdrew after the backup comes back. The
-        ids re-withdrawn are in ``BackupResult.withdrawn``.
+    withdrawals_from : str or list of str, optional
+        More sources of withdrawals: a withdrawal log (the lost database's), the
+        database the backup was taken from, or any later backup of it.
+    without_withdrawal_log : bool
+        Restore even when no log made after the backup is found (the researcher
+        vouches that nobody withdrew since, or accepts it).
 
     Raises
     ------
     StoreError
         Not a backup, a target that holds rows, a ``pg_dump`` archive for a database
-        that is not PostgreSQL, or a failed copy (nothing is left half-restored: the
-        copy is one transaction).
+        that is not PostgreSQL, no withdrawal log (and no waiver), or a failed copy
+        (nothing is left half-restored: the copy is one transaction).
     """
     from .store import Store
 
@@ -437,7 +528,29 @@ def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
             f"not {target.get_backend_name()}"
         )
     verify_backup(path)  # a damaged backup is named before the target is touched
-    records = None if withdrawals_from is None else _withdrawal_records(withdrawals_from)
+    sources = (
+        []
+        if withdrawals_from is None
+        else [withdrawals_from]
+        if isinstance(withdrawals_from, str | Path)
+        else list(withdrawals_from)
+    )
+    _refuse_held(url, target)
+    target_log = log_path(target)
+    if not sources and not target_log.exists() and not without_withdrawal_log:
+        raise StoreError(
+            f"{path}: withdrawals made after this backup are unknown (no withdrawal log "
+            f"{target_log}); give --withdrawals-from the lost database's log (beside it as "
+            f"<db>.withdrawals.jsonl, or ${LOG_ENV}), its database or a later backup, "
+            "or --without-withdrawal-log to restore anyway"
+        )
+    known = [r for src in sources for r in _records_of(src)]
+    for extra in (target_log, path.parent / BACKUP_LOG_NAME):
+        if extra.is_file():
+            known += _records_of(extra)
+    known = _unique(known)
+    records = [r for r in known if r.get("participant_id")]
+    anonymised = {r["study_id"]: r["anonymised_at"] for r in known if not r.get("participant_id")}
     new_file = None
     if target.get_backend_name() == "sqlite" and target.database not in (None, "", ":memory:"):
         new_file = None if Path(target.database).exists() else Path(target.database)
@@ -445,6 +558,12 @@ def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
     store = Store(url)
     try:
         result = _restore_into(store, path, kind, target, records)
+        if anonymised:  # a backup made before `snapshot anonymise` brought a secret back
+            from .anonymise import reapply_anonymisations
+
+            result.anonymised = [
+                a.study_id for a in reapply_anonymisations(store, anonymised) if not a.already
+            ]
     except BaseException:
         store.close()
         if new_file is not None:  # a failed restore leaves no empty database behind
@@ -452,21 +571,49 @@ def restore(backup_file, url, *, withdrawals_from=None) -> BackupResult:
                 Path(f"{new_file}{extra}").unlink(missing_ok=True)
         raise
     store.close()
+    # The restored database's log holds every withdrawal (and anonymisation) it knows
+    # of, from here on.
+    merge_into(target_log, _unique([*_withdrawal_records(url), *known]))
     return result
+
+
+def _held_error(url, counts) -> StoreError | None:
+    held = {t: n for t, n in counts.items() if n}
+    if not held:
+        return None
+    return StoreError(
+        f"database {url} already holds data ("
+        + ", ".join(f"{n} {t}" for t, n in held.items())
+        + "); restore only into an empty database"
+    )
+
+
+def _refuse_held(url, target) -> None:
+    """Refuse, before anything else is asked or made, a target that holds rows."""
+    if target.get_backend_name() == "sqlite" and (
+        target.database in (None, "", ":memory:") or not Path(target.database).exists()
+    ):
+        return
+    engine = sa.create_engine(target)
+    try:
+        err = _held_error(target.render_as_string(hide_password=True), table_counts(engine))
+    except sa_exc.SQLAlchemyError:
+        return  # unreachable or odd: opening the store names the problem
+    finally:
+        engine.dispose()
+    if err is not None:
+        raise err
 
 
 def _restore_into(store, path, kind, target, records) -> BackupResult:
     """Refuse a target with rows, then load the backup (and the later withdrawals)."""
     counts = table_counts(store.engine)
-    held = {t: n for t, n in counts.items() if n}
-    if held:
-        raise StoreError(
-            f"database {store.url} already holds data ("
-            + ", ".join(f"{n} {t}" for t, n in held.items())
-            + "); restore only into an empty database"
-        )
+    err = _held_error(store.url, counts)
+    if err is not None:
+        raise err
     if kind == "pg_dump":
         result = _pg_restore(path, target, clean=bool(counts))
+        upgrade_columns(store.engine)  # an archive of an older version lacks new columns
         if records:
             with store.transaction(write=True) as conn:
                 result.withdrawn = _reapply(conn, records)

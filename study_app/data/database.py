@@ -139,6 +139,10 @@ withdrawals = sa.Table(
     sa.Column("prolific_pid", _TEXT),
     sa.Column("requested_by", sa.String(16), nullable=False),
     sa.Column("withdrawn_at", sa.DateTime(timezone=True), nullable=False),
+    # A finisher's code and finishing time, kept for payment only (issue 37): someone
+    # who finished and then withdrew is still owed; NULL for the others.
+    sa.Column("completion_code", sa.String(64)),
+    sa.Column("completed_at", sa.DateTime(timezone=True)),
 )
 sa.Index("ix_withdrawals_prolific", withdrawals.c.study_id, withdrawals.c.prolific_pid)
 
@@ -150,6 +154,8 @@ study_secrets = sa.Table(
     sa.Column("study_id", _TEXT, primary_key=True),
     sa.Column("secret", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    # When `snapshot anonymise` destroyed the secret (then the empty string); NULL before.
+    sa.Column("anonymised_at", sa.DateTime(timezone=True)),
 )
 
 #: A participant the researcher excluded from the analysis (an attention failure, a

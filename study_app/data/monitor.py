@@ -24,7 +24,15 @@ from datetime import UTC, datetime
 
 import sqlalchemy as sa
 
-from .database import _utc, events, exclusions, participants, responses, study_controls
+from .database import (
+    _utc,
+    events,
+    exclusions,
+    participants,
+    responses,
+    study_controls,
+    withdrawals,
+)
 from .errors import StoreError
 
 __all__ = [
@@ -308,8 +316,11 @@ def enrolment(store, study_id: str) -> str | None:
 
 def completion_codes(store, study_id: str) -> list[dict]:
     """Who finished: ``participant_id``, ``prolific_pid``, ``completion_code``,
-    ``completed_at`` (UTC), ``excluded`` (the reason, or None), oldest first — the list
-    to approve submissions by on Prolific."""
+    ``completed_at`` (UTC), ``excluded`` (the reason, or None), ``withdrawn`` (when they
+    withdrew, or None), oldest first — the list to approve submissions by on Prolific.
+
+    Someone who finished and then withdrew is listed from their withdrawal record
+    (their data are gone; the code is kept for payment only): they are owed."""
     p = participants
     query = (
         sa.select(
@@ -323,14 +334,38 @@ def completion_codes(store, study_id: str) -> list[dict]:
         .where(p.c.study_id == study_id, p.c.completed_at.is_not(None), p.c.simulated.is_(False))
         .order_by(p.c.completed_at)
     )
+    w = withdrawals
     with store.transaction(write=False) as conn:
-        return [
+        out = [
             {
                 "participant_id": r["participant_id"],
                 "prolific_pid": r["prolific_pid"],
                 "completion_code": r["completion_code"],
                 "completed_at": _utc(r["completed_at"]),
                 "excluded": r["reason"],
+                "withdrawn": None,
             }
             for r in conn.execute(query).mappings()
         ]
+        if "completed_at" in {c["name"] for c in sa.inspect(conn).get_columns("withdrawals")}:
+            gone = conn.execute(
+                sa.select(
+                    w.c.participant_id,
+                    w.c.prolific_pid,
+                    w.c.completion_code,
+                    w.c.completed_at,
+                    w.c.withdrawn_at,
+                ).where(w.c.study_id == study_id, w.c.completed_at.is_not(None))
+            ).mappings()
+            out += [
+                {
+                    "participant_id": r["participant_id"],
+                    "prolific_pid": r["prolific_pid"],
+                    "completion_code": r["completion_code"],
+                    "completed_at": _utc(r["completed_at"]),
+                    "excluded": None,
+                    "withdrawn": _utc(r["withdrawn_at"]),
+                }
+                for r in gone
+            ]
+    return sorted(out, key=lambda r: r["completed_at"])

@@ -14,17 +14,28 @@ participant (:func:`ensure_secret`, called by the store): a backup taken at any 
 after that carries it (a restored database exports the same pseudonyms), no export
 does, and exporting from a backup reads it instead of writing a new one.
 
-Open exports also drop what could link a row back to an identifiers file without the
-ids: the participant's ``seed`` (62 random bits, unique per person) and exact times
-(``created_at``/``completed_at`` to the microsecond). :meth:`Pseudonymiser.record`
-leaves ``seed`` out and gives every time as its UTC date (``YYYY-MM-DD``);
-``snapshot export --identifiers`` keeps both exact.
+Open exports also leave out or coarsen every column that could link a row back to
+Prolific's records or to an identifiers file without the ids (docs/open-data.md): the
+participant's ``seed`` (62 random bits, unique per person) is left out; times
+(``created_at``/``completed_at``, to the microsecond) become their UTC month
+(``YYYY-MM``: days would group people whom Prolific's start dates tell apart, and
+the analysis uses no date); durations (``response_time_s``, ``active_time_s``) are rounded to 0.1 s
+and shares watched floored to 0.001 (what the analysis uses: medians in seconds, a watch
+threshold such as 0.9); the browser tab's random id (``tab_id``, and ``tab`` in events)
+is pseudonymised like an identifier; and rows come ordered by pseudonym
+(:meth:`Pseudonymiser.records`), not in arrival order, which Prolific's start times
+would match rank for rank. ``snapshot export --identifiers`` keeps everything exact.
+
+:func:`anonymise` destroys a study's secret for good: its row keeps an empty secret
+and the time (``anonymised_at``), exports then draw a fresh secret per export that is
+never stored, and no pseudonym of a published dataset can be traced to anybody again.
 """
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import math
 import secrets
 from datetime import UTC, datetime
 
@@ -46,6 +57,9 @@ __all__ = [
     "ensure_secret",
     "Pseudonymiser",
     "participants_by_pseudonym",
+    "DURATION_COLUMNS",
+    "TAB_COLUMN",
+    "open_value",
 ]
 
 #: Columns of any export that identify a person (or link to their Prolific record).
@@ -57,8 +71,20 @@ PSEUDONYM_RE = r"^p-[0-9a-f]{16}$"
 _HEX_DIGITS = 16
 #: Columns left out of open exports: the seed is unique per person (a join key).
 OPEN_DROPPED = ("seed",)
-#: Timestamp columns, given as their UTC date in open exports.
+#: Timestamp columns, given as their UTC month (``YYYY-MM``) in open exports.
 TIME_COLUMNS = ("created_at", "completed_at")
+#: Durations (s), rounded to :data:`DURATION_DECIMALS` places in open exports: 15 digits
+#: are the same in an identifiers file and join a row to it.
+DURATION_COLUMNS = ("response_time_s", "active_time_s")
+DURATION_DECIMALS = 1
+#: Shares of the animation watched (0-1), floored to :data:`SHARE_DECIMALS` places (a
+#: floor keeps ``watched >= 0.9`` as it was for any threshold of up to 3 decimals).
+SHARE_DECIMALS = 3
+#: The browser tab's random id: pseudonymised in open exports (the hashed message uses
+#: this name for ``tab`` in event payloads too, so responses and events still agree).
+TAB_COLUMN = "tab_id"
+#: Event payload floats: video time and played ranges (s, frames) to 2 places.
+_PAYLOAD_DECIMALS = 2
 #: What ``--identifiers`` prints: the files then hold personal data.
 IDENTIFIERS_WARNING = (
     "warning: --identifiers: the export holds raw participant, Prolific and "
@@ -170,7 +196,9 @@ class Pseudonymiser:
 
     def _secret(self, study_id: str) -> str:
         if study_id not in self._secrets:
-            self._secrets[study_id] = study_secret(self.store, study_id)
+            # An anonymised study keeps an empty secret: this export gets a fresh one
+            # that is never stored (consistent across its files, traceable by nobody).
+            self._secrets[study_id] = study_secret(self.store, study_id) or secrets.token_hex(32)
         return self._secrets[study_id]
 
     def _study(self, record: dict) -> str:
@@ -187,27 +215,69 @@ class Pseudonymiser:
 
     def record(self, record: dict) -> dict:
         """A copy of ``record`` for an open export: every non-empty identifier column
-        pseudonymised, ``seed`` left out, times as their UTC date."""
-        out = {k: v for k, v in record.items() if k not in OPEN_DROPPED}
-        for column in TIME_COLUMNS:
-            if isinstance(out.get(column), str):
-                out[column] = _date(out[column])
-        present = [c for c in IDENTIFIER_COLUMNS if out.get(c) not in (None, "")]
-        if present:
+        and the tab id pseudonymised, ``seed`` left out, times as their UTC month,
+        durations and shares coarsened (:func:`open_value`)."""
+        out = {k: open_value(k, v) for k, v in record.items() if k not in OPEN_DROPPED}
+        present = [c for c in (*IDENTIFIER_COLUMNS, TAB_COLUMN) if out.get(c) not in (None, "")]
+        payload = out.get("payload")
+        tab = payload.get("tab") if isinstance(payload, dict) else None
+        if present or tab:
             secret = self._secret(self._study(record))
             for column in present:
                 out[column] = pseudonym(secret, column, str(out[column]))
+            if tab:
+                out["payload"] = {**payload, "tab": pseudonym(secret, TAB_COLUMN, str(tab))}
         return out
 
     def records(self, records) -> list[dict]:
-        """:meth:`record` of each record, in order."""
-        return [self.record(r) for r in records]
+        """:meth:`record` of each record, ordered by the (pseudonymised) participant id.
+
+        The sort is stable: one participant's rows keep their order (trials, events in
+        time order), while the order of the participants, which would be their arrival
+        order, is the pseudonyms' (a keyed hash: as good as shuffled for anyone without
+        the secret, and the same in every export of the study).
+        """
+        out = [self.record(r) for r in records]
+        return sorted(out, key=lambda r: str(r.get("participant_id") or ""))
 
 
-def _date(value: str) -> str:
-    """The UTC date (``YYYY-MM-DD``) of an ISO 8601 time."""
+def open_value(column: str, value):
+    """``value`` of ``column`` as an open export gives it: times as their UTC month,
+    durations rounded to 0.1 s, shares floored to 0.001, event payload times and
+    ranges to 0.01; anything else as it is."""
+    if value is None or isinstance(value, bool):
+        return value
+    if column in TIME_COLUMNS and isinstance(value, str):
+        return _month(value)
+    if column in DURATION_COLUMNS and isinstance(value, int | float):
+        return round(float(value), DURATION_DECIMALS)
+    if column == "watched" and isinstance(value, int | float):
+        return _floor(float(value), SHARE_DECIMALS)
+    if column == "payload" and isinstance(value, dict):
+        out = dict(value)
+        if isinstance(out.get("watched"), int | float) and not isinstance(out["watched"], bool):
+            out["watched"] = _floor(float(out["watched"]), SHARE_DECIMALS)
+        if isinstance(out.get("t"), int | float) and not isinstance(out["t"], bool):
+            out["t"] = round(float(out["t"]), _PAYLOAD_DECIMALS)
+        if isinstance(out.get("ranges"), list):
+            out["ranges"] = [
+                [round(float(x), _PAYLOAD_DECIMALS) for x in r] if isinstance(r, list) else r
+                for r in out["ranges"]
+            ]
+        return out
+    return value
+
+
+def _floor(value: float, decimals: int) -> float:
+    """``value`` floored to ``decimals`` places (a tiny tolerance keeps 0.9 at 0.9)."""
+    scale = 10**decimals
+    return math.floor(value * scale + 1e-9) / scale
+
+
+def _month(value: str) -> str:
+    """The UTC month (``YYYY-MM``, an ISO 8601 calendar month) of an ISO 8601 time."""
     t = datetime.fromisoformat(value)
-    return (t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)).date().isoformat()
+    return (t.replace(tzinfo=UTC) if t.tzinfo is None else t.astimezone(UTC)).strftime("%Y-%m")
 
 
 def participants_by_pseudonym(store, value: str, *, study_id: str | None = None) -> list[str]:
@@ -224,7 +294,7 @@ def participants_by_pseudonym(store, value: str, *, study_id: str | None = None)
     found = []
     for row in rows:
         secret = keys.get(row["study_id"])
-        if secret is None:
+        if not secret:  # no secret yet, or destroyed (anonymise): nothing to compare
             continue
         if any(
             row.get(c) not in (None, "")

@@ -12,16 +12,19 @@ database)::
       materials/
         manifest.json                                the stimulus manifest they saw
 
-``dataset_description.json`` holds the fields Psych-DS requires (``@context``,
-``@type: Dataset``, ``name``, ``description``, ``variableMeasured``) and some it
-recommends (``keywords``, ``dateCreated``; ``license``, ``creator`` and ``citation``
-when the study config gives ``license``, ``creators`` and ``citation``), and
-``withdrawals``: study id → how many participants withdrew (a count only; their data
-are deleted), so that an analysis of the dataset says who was left out as one of the
-database does. ``variableMeasured`` lists every column of
-every data file as a ``PropertyValue`` whose description comes from the column's
-schema (``data_schema/response.schema.json``, ``participant.schema.json``,
-``event.schema.json``), so a column cannot be added without being described. File
+``dataset_description.json`` holds the fields Psych-DS 1.0.0 requires (``@context``,
+``@type: Dataset``, ``name``, ``schemaVersion``, ``description``, ``variableMeasured``)
+and some it recommends (``keywords``, ``dateCreated``; ``license``, ``author`` and
+``citation`` from the study config's ``license``, ``creators`` and ``citation``, with
+a warning for each one missing), and ``withdrawals``: study id → how many participants
+withdrew (a count only; their data are deleted), so that an analysis of the dataset
+says who was left out as one of the database does. ``variableMeasured`` lists every column of the data
+files written, no other, as a ``PropertyValue`` whose description comes from the
+column's schema (``data_schema/response.schema.json``, ``participant.schema.json``,
+``event.schema.json``), so a column cannot be added without being described. A table
+without rows for a study (its events, or the stimuli's own study with no participant)
+gets no file. The folder is written beside and renamed into place at the end: a
+failed export leaves nothing. File
 names are Psych-DS keyword names (official keywords ``study`` and ``description``;
 values only letters and digits, so a study id's ``-``, ``_`` and ``.`` are dropped, and
 two ids that then coincide are told apart by a hash, :func:`study_file_keys`).
@@ -31,7 +34,9 @@ Identifiers are pseudonymised (:mod:`study_app.data.pseudonym`) unless asked oth
 from __future__ import annotations
 
 import json
+import os
 import re
+import secrets
 import shutil
 from datetime import UTC, datetime
 from pathlib import Path
@@ -41,11 +46,20 @@ from snapcore.schema import load_schema
 from study_app.design.protocol import Study, study_from_dict
 
 from .errors import StoreError
-from .export import _write_atomic, write_events, write_export, write_participants
+from .export import (
+    _write_atomic,
+    events_columns,
+    export_columns,
+    participants_columns,
+    write_events,
+    write_export,
+    write_participants,
+)
 from .pseudonym import OPEN_DROPPED, Pseudonymiser
 
 __all__ = [
     "DESCRIPTION_NAME",
+    "SCHEMA_VERSION",
     "data_file_name",
     "study_file_keys",
     "variable_measured",
@@ -53,13 +67,18 @@ __all__ = [
 ]
 
 DESCRIPTION_NAME = "dataset_description.json"
+#: The Psych-DS version whose rules the dataset follows (its required ``schemaVersion``).
+SCHEMA_VERSION = "Psych-DS 1.0.0"
 #: The data files of one study: Psych-DS ``description`` keyword value → columns' schema.
 _TABLES = {None: "response", "participants": "participant", "events": "event"}
 _PSEUDONYM_NOTE = (
     " In this dataset every participant, Prolific and session id and every "
     "per-participant completion code is a pseudonym: p- and 16 hex digits of a "
     "keyed hash (HMAC-SHA256 with a secret the study keeps), the same in every "
-    "file and every export of the study."
+    "file and every export of the study; the browser tab ids are pseudonyms too. "
+    "Rows are ordered by pseudonym (not by when people took part), durations are "
+    "rounded to 0.1 s and shares watched floored to 0.001, so that no file can be "
+    "matched to the study's private records by order, time or a technical id."
 )
 
 
@@ -105,12 +124,21 @@ def study_file_keys(study_ids) -> dict[str, str]:
     }
 
 
-def variable_measured() -> list[dict]:
+def variable_measured(columns: dict | None = None) -> list[dict]:
     """The ``variableMeasured`` list: every column of the data files, described.
 
-    One ``PropertyValue`` per column name, in the order responses, participants,
-    events, with the description its schema gives it; a name shared by several files
-    (``participant_id``) is listed once, with the first schema's description.
+    Parameters
+    ----------
+    columns : dict of str to list of str, optional
+        Schema name (``"response"``, ``"participant"``, ``"event"``) → the columns its
+        files have; only these are listed. All of each schema's columns when None.
+
+    Returns
+    -------
+    list of dict
+        One ``PropertyValue`` per column name, in the order responses, participants,
+        events, with the description its schema gives it; a name shared by several
+        files (``participant_id``) is listed once, with the first schema's description.
 
     Raises
     ------
@@ -119,8 +147,11 @@ def variable_measured() -> list[dict]:
     """
     out, seen = [], set()
     for schema_name in _TABLES.values():
+        if columns is not None and schema_name not in columns:
+            continue
+        wanted = None if columns is None else set(columns[schema_name])
         for name, spec in load_schema(schema_name)["properties"].items():
-            if name in seen:
+            if name in seen or (wanted is not None and name not in wanted):
                 continue
             if not spec.get("description"):
                 raise SchemaError(
@@ -170,7 +201,7 @@ def write_psych_ds(
         The dataset folder: created; if it exists it must be empty (or ``force``).
     stimuli_dir : str or Path, optional
         The stimuli folder: its ``manifest.json`` goes to ``materials/`` and names the
-        dataset (the study's title and description).
+        dataset (the study's title and description, licence, creators, citation).
     pseudonymise : bool
         Replace identifiers by pseudonyms (default). False: the raw ids.
     include_simulated : bool
@@ -181,18 +212,20 @@ def write_psych_ds(
     Returns
     -------
     dict
-        ``{"folder", "files": [relative paths], "responses", "participants", "events"}``.
+        ``{"folder", "files": [relative paths], "responses", "participants", "events",
+        "warnings": [text]}``; the warnings name the recommended metadata missing
+        (licence, creators, citation).
 
     Raises
     ------
     StoreError
         The folder is not empty, the manifest cannot be read, there is no response to
         export (Psych-DS treats a dataset without data as an error), or a row breaks its
-        schema.
+        schema. Nothing is written then.
     """
     root = Path(folder)
     if root.exists() and (not root.is_dir() or (any(root.iterdir()) and not force)):
-        raise StoreError(f"{root}: not an empty folder (choose a new one, or --force)")
+        raise StoreError(f"{root}: not an empty folder (choose a new one)")
     manifest = _manifest(stimuli_dir)
     from .monitor import with_exclusions
 
@@ -205,8 +238,6 @@ def write_psych_ds(
         rows, people, events = anon.records(rows), anon.records(people), anon.records(events)
     study_of = {p["participant_id"]: p["study_id"] for p in people}
     studies = sorted({p["study_id"] for p in people})
-    if manifest is not None:
-        studies = sorted(set(studies) | {manifest[1].id})
     if not rows:
         # Psych-DS requires at least one data file with rows: an empty export is an error.
         raise StoreError(
@@ -218,33 +249,85 @@ def write_psych_ds(
             )
         )
     file_keys = study_file_keys(studies)
-    (root / "data").mkdir(parents=True, exist_ok=True)
-    files = []
+    # Written in a folder beside, renamed into place at the end: a failure leaves nothing.
+    work = root.parent / f".{root.name}.{secrets.token_hex(4)}.tmp"
+    try:
+        files, columns = _write_data(
+            work, studies, file_keys, rows, people, events, study_of, pseudonymise
+        )
+        if manifest is not None:
+            (work / "materials").mkdir()
+            shutil.copyfile(manifest[0], work / "materials" / manifest[0].name)
+            files.append(f"materials/{manifest[0].name}")
+        study = manifest[1] if manifest is not None else None
+        doc, warnings = _description(study, studies, columns, pseudonymise)
+        # Who withdrew is part of who was left out (snapshot analyze --input reports it
+        # as --db does): per study, a count only; their data are deleted, none is here.
+        from .withdraw import withdrawal_counts
+
+        gone = withdrawal_counts(store)
+        doc["withdrawals"] = {sid: gone.get(sid, 0) for sid in studies}
+        _write_atomic(work / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+        files.insert(0, DESCRIPTION_NAME)
+        _move_into(work, root)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return {
+        "folder": root,
+        "files": files,
+        "responses": len(rows),
+        "participants": len(people),
+        "events": len(events),
+        "warnings": warnings,
+    }
+
+
+def _write_data(work, studies, file_keys, rows, people, events, study_of, pseudonymise):
+    """The data files of every study in ``work/data``; their paths and columns."""
+    try:
+        (work / "data").mkdir(parents=True)
+    except OSError as err:
+        raise StoreError(f"cannot write {work.parent}: {err.strerror or err}") from None
+    dropped = OPEN_DROPPED if pseudonymise else ()
+    files: list[str] = []
+    columns: dict[str, list[str]] = {}
     for sid in studies:
-        for description, records, write in (
-            (None, [r for r in rows if r["study_id"] == sid], write_export),
+        for description, records, write, schema_name, names in (
+            (
+                None,
+                [r for r in rows if r["study_id"] == sid],
+                write_export,
+                "response",
+                export_columns(),
+            ),
             (
                 "participants",
                 [p for p in people if p["study_id"] == sid],
-                lambda recs, path: write_participants(
-                    recs, path, drop=OPEN_DROPPED if pseudonymise else ()
-                ),
+                lambda recs, path: write_participants(recs, path, drop=dropped),
+                "participant",
+                [c for c in participants_columns() if c not in dropped],
             ),
             (
                 "events",
                 [e for e in events if study_of.get(e["participant_id"]) == sid],
                 lambda recs, path: write_events(recs, path, fmt="csv"),
+                "event",
+                events_columns(),
             ),
         ):
+            if not records:  # Psych-DS: no header-only files
+                continue
             rel = Path("data") / data_file_name(file_keys[sid], description)
-            write(records, root / rel)
+            write(records, work / rel)
             files.append(rel.as_posix())
-    if manifest is not None:
-        (root / "materials").mkdir(exist_ok=True)
-        shutil.copyfile(manifest[0], root / "materials" / manifest[0].name)
-        files.append(f"materials/{manifest[0].name}")
-    study = manifest[1] if manifest is not None else None
-    title = study.title if study else f"Action Snapshot study {', '.join(studies) or '(empty)'}"
+            columns.setdefault(schema_name, names)
+    return files, columns
+
+
+def _description(study, studies, columns, pseudonymise) -> tuple[dict, list[str]]:
+    """``dataset_description.json`` and the warnings about missing metadata."""
+    title = study.title if study else f"Action Snapshot study {', '.join(studies)}"
     # The dataset's own description; the study's description is the text participants read.
     description = (
         "Responses of an Action Snapshot user study: for each animation, participants picked "
@@ -254,7 +337,7 @@ def write_psych_ds(
         "with the video player); materials/ the stimulus manifest (scenes, frame maps, "
         "file checksums). Frames are 0-based in the source motion's numbering; times are "
         + (
-            "UTC dates (YYYY-MM-DD; the seed of each participant's trial order is left out, "
+            "UTC months (YYYY-MM; the seed of each participant's trial order is left out, "
             "so that no column links a row to the study's private records)"
             if pseudonymise
             else "ISO 8601 in UTC"
@@ -269,30 +352,55 @@ def write_psych_ds(
         "@context": "https://schema.org/",
         "@type": "Dataset",
         "name": title,
+        "schemaVersion": SCHEMA_VERSION,
         "description": description,
         "keywords": ["motion perception", "key poses", "viewpoint selection", "user study"],
         "dateCreated": datetime.now(UTC).isoformat(timespec="seconds"),
-        "variableMeasured": variable_measured(),
+        "variableMeasured": variable_measured(columns),
     }
-    # Who withdrew is part of who was left out (snapshot analyze --input reports it as
-    # --db does): per study, a count only; their data are deleted, none is here.
-    from .withdraw import withdrawal_counts
+    missing = []
+    if study is not None and study.license:
+        doc["license"] = study.license
+    else:
+        missing.append("license")
+    if study is not None and study.creators:
+        doc["author"] = [{"@type": "Person", "name": n} for n in study.creators]
+    else:
+        missing.append("creators")
+    if study is not None and study.citation:
+        doc["citation"] = study.citation
+    else:
+        missing.append("citation")
+    warnings = []
+    if missing:
+        where = (
+            "the study config's [study] table"
+            if study is not None
+            else "the study config (give --stimuli to use it)"
+        )
+        warnings.append(
+            f"dataset_description.json has no {', '.join(missing)}: set "
+            f"{', '.join(missing)} in {where} (Psych-DS recommends them; a repository "
+            "needs the licence to publish the data)"
+        )
+    return doc, warnings
 
-    gone = withdrawal_counts(store)
-    doc["withdrawals"] = {sid: gone.get(sid, 0) for sid in studies}
-    if study is not None:  # what the study config says about its dataset
-        if study.license:
-            doc["license"] = study.license
-        if study.creators:
-            doc["creator"] = [{"@type": "Person", "name": n} for n in study.creators]
-        if study.citation:
-            doc["citation"] = study.citation
-    _write_atomic(root / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
-    files.insert(0, DESCRIPTION_NAME)
-    return {
-        "folder": root,
-        "files": files,
-        "responses": len(rows),
-        "participants": len(people),
-        "events": len(events),
-    }
+
+def _move_into(work: Path, root: Path) -> None:
+    """Rename the finished folder ``work`` to ``root`` (which is absent or empty), or,
+    with ``force`` into a non-empty ``root``, move its entries over."""
+    try:
+        if root.exists() and any(root.iterdir()):
+            for src in sorted(work.rglob("*")):
+                dst = root / src.relative_to(work)
+                if src.is_dir():
+                    dst.mkdir(exist_ok=True)
+                else:
+                    os.replace(src, dst)
+            shutil.rmtree(work, ignore_errors=True)
+            return
+        if root.exists():
+            root.rmdir()
+        os.replace(work, root)
+    except OSError as err:
+        raise StoreError(f"cannot write {root}: {err.strerror or err}") from None

@@ -5,10 +5,14 @@ how: the study config's ``contact``). :func:`withdraw` deletes, in one transacti
 their responses, their interaction events and their participant row (background
 answers, seed, Prolific ids, completion code), and adds one row to ``withdrawals``:
 when, the participant link id, the study, the Prolific id if they had one, and who did
-it (``"cli"``: ``snapshot withdraw``; ``"page"``: the researcher page). Nothing they
+it (``"cli"``: ``snapshot withdraw``; ``"page"``: the researcher page); for someone who
+had finished, also their completion code and when they finished, for payment only
+(:func:`study_app.data.monitor.completion_codes`; never exported). Nothing they
 answered is kept.
 
-The record is what lets the app honour the withdrawal later: their personal link says
+The same record is appended to the withdrawal log outside the database
+(:mod:`study_app.data.withdrawal_log`) before the transaction commits, so that a restore
+after the database is lost still knows it. The record is what lets the app honour the withdrawal later: their personal link says
 that their data were withdrawn (:func:`withdrawal_of`), and the study link with their
 Prolific id does not enrol them again.
 """
@@ -24,6 +28,7 @@ import sqlalchemy as sa
 from .database import events, exclusions, participants, responses, withdrawals
 from .errors import StoreError
 from .pseudonym import PSEUDONYM_RE, participants_by_pseudonym
+from .withdrawal_log import append_log, log_path
 
 __all__ = [
     "WITHDRAWN_BY",
@@ -31,6 +36,7 @@ __all__ = [
     "withdraw",
     "withdrawal_of",
     "withdrawal_plan",
+    "withdrawals_of_study",
     "withdrawal_counts",
 ]
 
@@ -116,6 +122,20 @@ def _by_pseudonym(store, participant_id, prolific_pid, pseudonym_value, study_id
         )
     named = participants_by_pseudonym(store, value, study_id=study_id)
     if not named:
+        from .anonymise import anonymised_studies
+
+        gone = {
+            sid: at
+            for sid, at in anonymised_studies(store).items()
+            if study_id is None or sid == study_id
+        }
+        if gone:
+            sid, at = sorted(gone.items())[0]
+            raise StoreError(
+                f"pseudonym {value!r} cannot be traced: study {sid!r} was anonymised on "
+                f"{at.date().isoformat()} (its pseudonyms lead to nobody any more); "
+                "withdraw by link id or Prolific id; nothing was deleted"
+            )
         raise StoreError(
             f"unknown pseudonym {value!r}: no participant of "
             + (f"study {study_id!r}" if study_id else "this database")
@@ -247,11 +267,15 @@ def withdraw(
         raise StoreError(f"withdrawn by must be one of {', '.join(WITHDRAWN_BY)}, got {by!r}")
     named = _by_pseudonym(store, participant_id, prolific_pid, pseudonym, study_id)
     now = datetime.now(UTC)
-    done = []
+    done, logged = [], []
     with store.transaction(write=True) as conn:
         rows = _targets(conn, participant_id, prolific_pid, study_id, named)
         if not rows:
             raise _unknown(conn, participant_id, prolific_pid)
+        # A database made before the payment columns keeps working (without them).
+        keeps_codes = "completion_code" in {
+            c["name"] for c in sa.inspect(conn).get_columns("withdrawals")
+        }
         for row in rows:
             pid = row["participant_id"]
             # Children first: responses and events refer to the participant row.
@@ -261,20 +285,28 @@ def withdraw(
             n_ev = conn.execute(events.delete().where(events.c.participant_id == pid)).rowcount
             conn.execute(exclusions.delete().where(exclusions.c.participant_id == pid))
             conn.execute(participants.delete().where(participants.c.participant_id == pid))
-            conn.execute(
-                withdrawals.insert().values(
-                    participant_id=pid,
-                    study_id=row["study_id"],
-                    prolific_pid=row["prolific_pid"],
-                    requested_by=by,
-                    withdrawn_at=now,
-                )
+            payment = (
+                {"completion_code": row["completion_code"], "completed_at": row["completed_at"]}
+                if row["completed_at"] is not None
+                else {}
             )
+            record = {
+                "participant_id": pid,
+                "study_id": row["study_id"],
+                "prolific_pid": row["prolific_pid"],
+                "requested_by": by,
+                "withdrawn_at": now,
+            }
+            conn.execute(withdrawals.insert().values(**record, **(payment if keeps_codes else {})))
+            logged.append({**record, **payment})
             done.append(
                 Withdrawal(
                     pid, row["study_id"], row["prolific_pid"], by, now, int(n_resp), int(n_ev)
                 )
             )
+        # Before the commit: a withdrawal the log cannot keep is not made (a lost
+        # database would take it along, and a restore bring the person back).
+        append_log(log_path(store._url), logged)
     return done
 
 
@@ -302,6 +334,22 @@ def withdrawal_of(
             .first()
         )
     return None if row is None else _record(row)
+
+
+def withdrawals_of_study(store, study_id: str) -> list[Withdrawal]:
+    """Every withdrawal recorded for ``study_id``, oldest first (the researcher page's
+    list: when, by whom, whose link id and Prolific id)."""
+    with store.transaction(write=False) as conn:
+        rows = (
+            conn.execute(
+                sa.select(withdrawals)
+                .where(withdrawals.c.study_id == study_id)
+                .order_by(withdrawals.c.withdrawn_at)
+            )
+            .mappings()
+            .all()
+        )
+    return [_record(r) for r in rows]
 
 
 def withdrawal_counts(store) -> dict[str, int]:

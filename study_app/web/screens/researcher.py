@@ -29,7 +29,12 @@ import streamlit as st
 from snapcore.errors import SnapshotError
 from study_app.data import monitor
 from study_app.data.pseudonym import OPEN_DROPPED, PSEUDONYM_RE, Pseudonymiser
-from study_app.data.withdraw import withdraw, withdrawal_counts, withdrawal_plan
+from study_app.data.withdraw import (
+    withdraw,
+    withdrawal_counts,
+    withdrawal_plan,
+    withdrawals_of_study,
+)
 from study_app.web.screens import context, keys, widgets
 from study_app.web.screens import token_guard as guard
 
@@ -335,6 +340,22 @@ def _withdrawal(ctx) -> None:
         "Deletes their responses, events and background answers; only a record "
         "that they withdrew is kept, and their link says so."
     )
+    done = withdrawals_of_study(ctx.store, ctx.stimuli.study.id)
+    if done:
+        st.caption(f"Withdrawals so far: {len(done)} (who finished is still in Completion codes)")
+        st.dataframe(
+            [
+                {
+                    "withdrawn (UTC)": w.withdrawn_at.strftime("%Y-%m-%d %H:%M"),
+                    "by": w.requested_by,
+                    "link id": w.participant_id,
+                    "Prolific id": w.prolific_pid or "",
+                }
+                for w in done
+            ],
+            hide_index=True,
+            width="stretch",
+        )
     st.radio("They gave their", list(WITHDRAW_BY), key=keys.KEY_WITHDRAW_KIND, horizontal=True)
     given = st.text_input("Id", key=keys.KEY_WITHDRAW_ID).strip()
     if not given:
@@ -387,7 +408,9 @@ def _completion_codes(ctx) -> None:
     st.subheader("Completion codes")
     st.caption(
         "Who finished, with their Prolific id and code: approve these submissions on "
-        "Prolific (an excluded participant is marked; the decision is yours)."
+        "Prolific (an excluded participant is marked; the decision is yours). Someone "
+        "who finished and then withdrew is listed with the date of the withdrawal: "
+        "their data are deleted, they are still owed."
     )
     if not rows:
         st.write("Nobody has finished yet.")
@@ -401,6 +424,9 @@ def _completion_codes(ctx) -> None:
                 "completion code": r["completion_code"] or "",
                 "finished (UTC)": r["completed_at"].strftime("%Y-%m-%d %H:%M"),
                 "excluded": r["excluded"] or "",
+                "withdrawn (UTC)": (
+                    r["withdrawn"].strftime("%Y-%m-%d %H:%M") if r.get("withdrawn") else ""
+                ),
             }
             for r in rows
         ]
@@ -469,7 +495,7 @@ def _downloads(ctx) -> None:
     # A download does not re-run the page (on_click="ignore"): a re-run while the browser
     # fetches the file would replace it under the download (Chromium: canceled).
     st.caption(
-        "Shared exports: ids are pseudonyms, no seeds, times as UTC dates (the raw "
+        "Shared exports: ids are pseudonyms, no seeds, times as UTC months (the raw "
         "ids only from `snapshot export --identifiers`). Built now, after every "
         "action above."
     )
