@@ -65,7 +65,20 @@ def _parse_strengths(text: str | None) -> dict | None:
     "input_path",
     type=click.Path(dir_okay=False),
     default=None,
-    help="An export file (snapshot export: .csv or .jsonl) instead of the store.",
+    help="An export file (snapshot export: .csv or .jsonl) instead of the store. A "
+    "Psych-DS data file (data/study-<id>_data.csv) brings its participants file (who "
+    "finished, who was excluded and why), the dataset's withdrawals and its "
+    "materials/manifest.json: the same analysis as --db on the database it came from.",
+)
+@click.option(
+    "--participants",
+    "participants_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="With --input: the participants export (snapshot export --participants) that "
+    "says who finished and who was excluded (default: the Psych-DS participants file "
+    "beside --input; without one, finished = answered the last trial and exclusions "
+    "are unknown).",
 )
 @click.option(
     "--paper-table2",
@@ -124,7 +137,8 @@ def _parse_strengths(text: str | None) -> dict | None:
     type=int,
     default=0,
     show_default=True,
-    help="Seed of the bootstrap and permutation tests.",
+    help="Seed of the bootstrap resamples (the intervals of the strengths and of the "
+    "frame differences).",
 )
 @click.option(
     "--alpha",
@@ -145,6 +159,7 @@ def _parse_strengths(text: str | None) -> dict | None:
 def analyze(
     db,
     input_path,
+    participants_path,
     paper_table2,
     out_dir,
     stimuli,
@@ -178,6 +193,8 @@ def analyze(
 
     if sum(x is not None and x is not False for x in (db, input_path, paper_table2 or None)) > 1:
         raise click.UsageError("give one of --db, --input and --paper-table2")
+    if participants_path is not None and input_path is None:
+        raise click.UsageError("--participants goes with --input")
     if paper_table2:
         from .votes import paper_counts
         from .votes import paper_table2 as table
@@ -209,6 +226,7 @@ def analyze(
             completed_only=not include_incomplete,
             exclude_unwatched=exclude_unwatched,
             figures=figures,
+            participants=participants_path,
         )
     if not quiet:
         if "participants" in summary:
@@ -227,6 +245,8 @@ def analyze(
                 )
                 + f", {summary['responses']} responses"
             )
+        if "left_out" in summary:
+            click.echo(_left_out_line(summary["left_out"]))
         if "excluded_answers" in summary:
             ex = summary["excluded_answers"]
             click.echo(
@@ -238,6 +258,25 @@ def analyze(
         if "frame_verdict" in summary:
             click.echo(summary["frame_verdict"])
     click.echo(f"wrote {Path(out_dir) / 'report.html'}")
+
+
+def _left_out_line(c: dict) -> str:
+    """One line: who was left out (summary ``left_out``)."""
+    parts = []
+    if c["excluded"] is not None:
+        why = ", ".join(f"{r}: {n}" for r, n in c["exclusion_reasons"].items())
+        parts.append(f"{c['excluded']} excluded" + (f" ({why})" if why else ""))
+    if c["withdrawn"] is not None:
+        parts.append(f"{c['withdrawn']} withdrawn")
+    parts.append(f"{c['unfinished']} not finished")
+    if c["failed_attention_excluded"]:
+        parts.append(f"{c['failed_attention_excluded']} failed the attention check")
+    unknown = " (exclusions and withdrawals unknown: no participants file)"
+    return (
+        f"{c['started']} started, {c['analysed']} analysed; "
+        + ", ".join(parts)
+        + (unknown if c["excluded"] is None else "")
+    )
 
 
 def _store_url(db):

@@ -477,32 +477,44 @@ def cluster_bootstrap_ci(
         participants with replacement and keeps all their observations, so that the
         interval counts people, not choices.
     stat : callable
-        Statistic of the pooled values of a resample.
+        Statistic of the pooled values of a resample (``np.mean``: computed for all
+        resamples at once from per-cluster sums).
 
     Returns
     -------
     (low, high) : tuple of float
         NaN when there are no values.
+
+    Notes
+    -----
+    Clusters are drawn from a list sorted by their values, not by their labels, so the
+    interval does not depend on how participants are named (raw ids, pseudonyms) or on
+    the order of the rows.
     """
     values = np.asarray(values, dtype=float)
     clusters = np.asarray(clusters)
     if values.size == 0 or n_boot <= 0:
         return float("nan"), float("nan")
     _, inverse = np.unique(clusters, return_inverse=True)
-    k = int(inverse.max()) + 1
+    inverse = inverse.reshape(-1)
+    by_value = np.lexsort((values, inverse))  # each cluster's values together, sorted
+    sizes = np.bincount(inverse)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    sums = np.add.reduceat(values[by_value], starts)
     rng = np.random.default_rng(seed)
-    picks = rng.integers(0, k, size=(n_boot, k))
+    picks = rng.integers(0, sizes.size, size=(n_boot, sizes.size))
     if stat is np.mean:
-        # The mean of a resample is (Σ times drawn × cluster sum) / (Σ times drawn ×
-        # cluster size): one matrix product instead of n_boot concatenations.
-        flat = (picks + k * np.arange(n_boot)[:, None]).ravel()
-        drawn = np.bincount(flat, minlength=n_boot * k).reshape(n_boot, k).astype(float)
-        boots = (drawn @ np.bincount(inverse, weights=values, minlength=k)) / (
-            drawn @ np.bincount(inverse, minlength=k)
+        # Clusters of equal size and sum add the same to every resample's mean: ordered
+        # by (size, sum) they are in a canonical order for it.
+        order = np.lexsort((sums, sizes))
+        boots = sums[order][picks].sum(axis=1) / sizes[order][picks].sum(axis=1)
+    else:  # the same order, ties broken by the values themselves
+        members = np.split(values[by_value], starts[1:])
+        order = sorted(
+            range(sizes.size),
+            key=lambda k: (sizes[k], sums[k], tuple(np.nan_to_num(members[k], nan=np.inf))),
         )
-    else:
-        members = [np.flatnonzero(inverse == m) for m in range(k)]
-        boots = np.array([stat(values[np.concatenate([members[m] for m in row])]) for row in picks])
+        boots = np.array([stat(np.concatenate([members[order[k]] for k in row])) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)

@@ -10,6 +10,14 @@ Sources (all give the same frame):
   :func:`study_app.data.export.read_export`;
 - rows already in memory (a list of dicts or a DataFrame).
 
+Who took part beside the responses — every participant record with its completion and
+exclusion, and the withdrawals — comes from :func:`load_participants`: the store's
+records and withdrawal log, or an export's participants file (for a Psych-DS data file
+``study-<id>_data.csv``, ``study-<id>_description-participants_data.csv`` beside it and the
+withdrawals in ``../dataset_description.json``). Only documented column names are read
+(``participant_id``, ``study_id``, ``completed_at``, ``excluded``, ``simulated``), never
+row order or the form of the ids.
+
 Every row follows ``data_schema/response.schema.json``; rows are validated
 (:func:`study_app.data.export.validate_rows`) and a bad row raises :class:`LoadError` naming
 the file, the row and the field. Column types come from the schema
@@ -20,9 +28,10 @@ participants (``simulated`` true, written by ``snapshot simulate``) are dropped 
 Columns of the frame returned by :func:`load_responses` (dtypes in brackets) — the
 schema's fields plus derived ones:
 
-- every schema field; integers as nullable ``Int64``, ``correct`` as nullable
-  ``boolean``, ``shown_order`` as a tuple of method names (or None), ``shown_groups`` as
-  a tuple of such tuples (or None),
+- every schema field (durations rounded to 0.1 s and ``watched`` floored to 0.001, as
+  open exports give them: :func:`study_app.data.pseudonym.open_value`); integers as
+  nullable ``Int64``, ``correct`` as nullable ``boolean``, ``shown_order`` as a tuple of
+  method names (or None), ``shown_groups`` as a tuple of such tuples (or None),
   ``created_at`` as UTC datetimes;
 - ``chosen_s``, ``algorithm_s`` [float]: the chosen and the algorithm's frame in seconds
   (frame / fps), pose task only;
@@ -32,18 +41,26 @@ schema's fields plus derived ones:
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
 from study_app.data.export import export_columns, export_types, read_export, validate_rows
+from study_app.data.pseudonym import DURATION_COLUMNS, open_value
 from study_app.data.store import Store
 
 __all__ = [
     "LoadError",
     "load_responses",
+    "Participants",
+    "load_participants",
+    "participants_file",
     "rows_from_store",
     "ANALYSIS_COLUMNS",
     "tidy_responses",
@@ -112,6 +129,109 @@ def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list
         ]
 
 
+@dataclass(frozen=True)
+class Participants:
+    """Who took part, from the same source as the responses.
+
+    Attributes
+    ----------
+    records : list of dict or None
+        One per participant with a record (started), with ``participant_id``,
+        ``study_id``, ``completed_at`` and ``excluded`` (the reason or None); None when
+        the source has no participant records (a bare responses file).
+    withdrawn : dict or None
+        Study id → participants who withdrew (their data are deleted); None when the
+        source does not say.
+    source : str
+        Where they were read from (for the report).
+    """
+
+    records: list[dict] | None
+    withdrawn: dict[str, int] | None
+    source: str
+
+
+#: A Psych-DS responses file: ``<keywords>_data.csv`` without a ``description`` keyword.
+_PSYCHDS_DATA = re.compile(r"^(?P<stem>(?:[a-z]+-[A-Za-z0-9]+_)*[a-z]+-[A-Za-z0-9]+)_data\.csv$")
+
+
+def participants_file(path) -> Path | None:
+    """The participants file of an export: beside a Psych-DS responses file
+    ``study-<id>_data.csv``, its ``study-<id>_description-participants_data.csv``."""
+    path = Path(path)
+    m = _PSYCHDS_DATA.match(path.name)
+    if m is None or "description-" in m["stem"]:
+        return None
+    candidate = path.with_name(f"{m['stem']}_description-participants_data.csv")
+    return candidate if candidate.is_file() else None
+
+
+def _dataset_withdrawals(data_file: Path) -> dict[str, int] | None:
+    """The ``withdrawals`` a Psych-DS ``dataset_description.json`` records (the dataset
+    folder holds ``data/``), or None."""
+    desc = data_file.parent.parent / "dataset_description.json"
+    if data_file.parent.name != "data" or not desc.is_file():
+        return None
+    try:
+        doc = json.loads(desc.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise LoadError(f"{desc}: cannot read it ({err})") from None
+    value = doc.get("withdrawals") if isinstance(doc, dict) else None
+    if value is None:
+        return None
+    if not isinstance(value, dict) or not all(
+        isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in value.values()
+    ):
+        raise LoadError(f"{desc}: withdrawals: expected study id → count, got {value!r}")
+    return {str(k): int(n) for k, n in value.items()}
+
+
+def load_participants(
+    source, *, participants=None, include_simulated: bool = False
+) -> Participants:
+    """The participant records and withdrawals of ``source`` (as :func:`load_responses`).
+
+    Parameters
+    ----------
+    source : str, Path, list or DataFrame
+        A store URL, an export file, or rows in memory (no records).
+    participants : str or Path, optional
+        The participants export (``snapshot export --participants``) of an export file;
+        default: the Psych-DS participants file beside it (:func:`participants_file`).
+    include_simulated : bool
+        Keep simulated participants' records.
+    """
+    if isinstance(source, pd.DataFrame | list | tuple):
+        if participants is None:
+            return Participants(None, None, "")
+        records, withdrawn, where = _read_participants(Path(participants)), None, str(participants)
+    elif "://" in str(source):
+        from study_app.data.monitor import with_exclusions
+        from study_app.data.withdraw import withdrawal_counts
+
+        with Store(str(source), create=False) as store:
+            records = with_exclusions(store, store.participants(include_simulated=True))
+            withdrawn = withdrawal_counts(store)
+        where = "the store"
+    else:
+        found = Path(participants) if participants is not None else participants_file(source)
+        if found is None:
+            return Participants(None, None, "")
+        records, where = _read_participants(found), str(found)
+        withdrawn = _dataset_withdrawals(Path(source))
+    if not include_simulated:
+        records = [r for r in records if not r.get("simulated")]
+    return Participants(records, withdrawn, where)
+
+
+def _read_participants(path: Path) -> list[dict]:
+    try:
+        records = read_export(path, schema="participant")
+    except SnapshotError as err:
+        raise LoadError(str(err)) from err
+    return records
+
+
 def _check_columns(rows, source) -> None:
     missing = [c for c in ANALYSIS_COLUMNS if rows and not any(c in r for r in rows)]
     if missing:
@@ -159,6 +279,12 @@ def tidy_responses(
         for k in ("created_at",):
             if isinstance(r.get(k), pd.Timestamp):
                 r[k] = r[k].isoformat()
+        # Durations and shares watched at the precision an open export gives them (0.1 s,
+        # 0.001): all the analysis needs, and the same numbers from the store and from
+        # its published dataset.
+        for k in (*DURATION_COLUMNS, "watched"):
+            if k in r:
+                r[k] = open_value(k, r[k])
     if validate:
         try:
             validate_rows(records, source=source)
@@ -294,8 +420,10 @@ def attention_summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def completed_participants(df: pd.DataFrame) -> set:
-    """Participants who finished the study: they answered its last trial, the attention
-    check (every plan ends with it, ``study_app.design.protocol.trial_plan``)."""
+    """Participants who answered the study's last trial, the attention check (every plan
+    ends with it, ``study_app.design.protocol.trial_plan``): who finished, as far as
+    responses alone can tell. With participant records, finished is
+    :func:`study_app.data.monitor.participant_state` (the store's completion)."""
     return set(df.loc[df["task"] == "attention", "participant_id"])
 
 

@@ -13,7 +13,10 @@ Tables (columns documented in :mod:`analysis.votes` and :mod:`analysis.frames`):
 ``votes`` (Table 2 with shares and Wilson CIs), ``chisquare`` (no preference),
 ``pairwise`` (ours vs each baseline, exact binomial + Holm), ``strengths`` (Luce model,
 bootstrap CIs), ``agreement`` (Fleiss' kappa), ``frame_hits`` (hit rates of the
-algorithm and baselines), ``frame_tests`` (permutation tests), ``participants``.
+algorithm and baselines), ``frame_tests`` (is the algorithm closer than each baseline:
+:func:`analysis.frames.closeness_tests`), ``participants``; the report's "Who was left
+out" and the summary's ``left_out`` count exclusions, withdrawals and unfinished
+participants as the researcher page does.
 
 This module runs the analysis and writes the folder; the sections' tables, figures and
 text are in :mod:`analysis.sections`, table formatting and writing in
@@ -36,6 +39,7 @@ from .html_page import html_report
 from .load import (
     attention_summary,
     completed_participants,
+    load_participants,
     load_responses,
     ordered_scenes,
     pose_choices,
@@ -101,9 +105,18 @@ def analyze_counts(
 DEFAULT_STIMULI_ROOT = Path(__file__).resolve().parents[1] / "var" / "stimuli"
 
 
-def default_stimuli(df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT) -> Path | None:
-    """The stimuli folder ``snapshot study`` serves by default for the data's study
-    (``<root>/<study id>``), if there is exactly one study and its manifest exists."""
+def default_stimuli(
+    df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT, source=None
+) -> Path | None:
+    """The stimuli of the data: a Psych-DS dataset's own ``materials/manifest.json``
+    when ``source`` is a file in its ``data/``; else the folder ``snapshot study``
+    serves by default for the data's study (``<root>/<study id>``), if there is exactly
+    one study and its manifest exists."""
+    if isinstance(source, str | Path) and "://" not in str(source):
+        data = Path(source).parent
+        materials = data.parent / "materials" / "manifest.json"
+        if data.name == "data" and materials.is_file():
+            return materials
     ids = sorted(df["study_id"].dropna().unique())
     if len(ids) != 1:
         return None
@@ -126,6 +139,7 @@ def analyze(
     completed_only: bool = True,
     exclude_unwatched: bool = False,
     figures: bool = True,
+    participants=None,
 ) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
@@ -154,11 +168,23 @@ def analyze(
         Draw the figures (PNG and PDF, in the report too; the default). False writes the
         tables, ``summary.json`` and the report without them: drawing is most of the
         time of an analysis (seconds per figure), the numbers are the same.
+    participants : str or Path, optional
+        The participants export of an export file ``source`` (default: the Psych-DS
+        participants file beside it): its ``excluded`` participants are left out and
+        its ``completed_at`` says who finished, as the store's records do for a URL
+        (:func:`analysis.load.load_participants`).
+
+    Who was left out — excluded by the researcher (with the reasons), withdrawn, not
+    finished — is counted by :func:`study_app.data.monitor.participation` (the
+    researcher page's definitions) into the summary's ``left_out`` and the report.
     """
     from snapcore.errors import SnapshotError
 
     out = Path(out_dir)
     df = load_responses(source, include_simulated=include_simulated)
+    people = load_participants(
+        source, participants=participants, include_simulated=include_simulated
+    )
     out.mkdir(parents=True, exist_ok=True)  # after the load: bad input leaves no folder
     if df.empty:
         raise SnapshotError(
@@ -169,11 +195,12 @@ def analyze(
                 else " (simulated participants are excluded; add --include-simulated)"
             )
         )
+    left_out, done, records = _left_out(df, people)
+    df = df[~df["participant_id"].isin(left_out["excluded_ids"])]
     att = attention_summary(df)
     failed = set(att.loc[~att["passed"], "participant_id"])
-    parts = _participants_table(df, att)
-    started = int(df["participant_id"].nunique())
-    done = completed_participants(df)
+    parts = _participants_table(df, att, done=done, records=records)
+    started = left_out["started"]
     if completed_only:
         df = df[df["participant_id"].isin(done)]
         if df.empty:
@@ -190,10 +217,12 @@ def analyze(
         df, excluded = exclude_unverified(df)
     order, extra, labels = None, {}, {}
     if stimuli is None:
-        stimuli = default_stimuli(df)
+        stimuli = default_stimuli(df, source=source)
     dupes, replaced = pd.DataFrame(), pd.DataFrame()
     if stimuli is not None:
-        from .stimuli import stimuli_scenes
+        from .stimuli import read_stimuli, stimuli_scenes
+
+        stimuli, _ = read_stimuli(stimuli)  # read and checked once, not once per use
 
         st = stimuli_scenes(stimuli)
         order = list(st["scene"])
@@ -260,6 +289,15 @@ def analyze(
         out / "tables" / "participants",
         caption="Participants (started and completed) and their responses.",
     )
+    analysed = int(df["participant_id"].nunique())
+    left_out = {k: v for k, v in left_out.items() if k != "excluded_ids"}
+    left_out.update(
+        {
+            "analysed": analysed,
+            "failed_attention_excluded": len(failed) if exclude_failed_attention else 0,
+        }
+    )
+    sections.insert(0, ("Who was left out", [_left_out_text(left_out, completed_only)]))
     sections.insert(0, ("Participants", [parts]))
     sections.append(("Methods", [_METHODS_TEXT]))
     n_sim = int(df.loc[df["simulated"], "participant_id"].nunique())
@@ -298,10 +336,80 @@ def analyze(
             "failed_attention": len(failed),
             "started_participants": started,
             "completed_participants": len(done),
+            "left_out": left_out,
         }
     )
     _write_summary(out, summary)
     return summary
+
+
+def _left_out(df: pd.DataFrame, people) -> tuple[dict, set, list | None]:
+    """Who was left out and who finished, by the page's definitions
+    (:func:`study_app.data.monitor.participation`), for the studies in ``df``.
+
+    Returns
+    -------
+    (dict, set, list or None)
+        The counts (plus ``excluded_ids``, ``counted_from``), the finished ids and the
+        participant records of the studies in ``df``. Without
+        participant records (a bare responses file) started is who answered, finished
+        who answered the last trial, and nobody is known to be excluded or withdrawn.
+    """
+    from study_app.data.monitor import participant_state, participation
+
+    studies = set(df["study_id"].dropna())
+    if people.records is None:
+        done = completed_participants(df)
+        n = int(df["participant_id"].nunique())
+        counts = {
+            "started": n,
+            "finished": len(done),
+            "excluded": None,
+            "exclusion_reasons": {},
+            "unfinished": n - len(done),
+            "withdrawn": None,
+            "counted_from": "responses",
+            "excluded_ids": set(),
+        }
+        return counts, done, None
+    records = [r for r in people.records if r.get("study_id") in studies]
+    state = {
+        r["participant_id"]: participant_state(r.get("completed_at"), r.get("excluded"))
+        for r in records
+    }
+    gone = None if people.withdrawn is None else sum(people.withdrawn.get(s, 0) for s in studies)
+    counts = participation(records, withdrawn=gone)
+    counts["counted_from"] = "participant records"
+    counts["excluded_ids"] = {p for p, s in state.items() if s == "excluded"}
+    return counts, {p for p, s in state.items() if s == "finished"}, records
+
+
+def _left_out_text(c: dict, completed_only: bool) -> str:
+    """The report's sentence on who was left out."""
+    reasons = "; ".join(f"{r}: {n}" for r, n in c["exclusion_reasons"].items())
+    parts = [f"{c['started']} started", f"{c['finished']} finished"]
+    if c["excluded"] is not None:
+        parts.append(
+            f"{c['excluded']} excluded by the researcher" + (f" ({reasons})" if reasons else "")
+        )
+    if c["withdrawn"] is not None:
+        parts.append(f"{c['withdrawn']} withdrew (their data were deleted)")
+    if c["unfinished"]:
+        parts.append(
+            f"{c['unfinished']} did not finish"
+            + (" (left out)" if completed_only else " (analysed)")
+        )
+    if c["failed_attention_excluded"]:
+        parts.append(f"{c['failed_attention_excluded']} failed the attention check (left out)")
+    return (
+        "; ".join(parts)
+        + f"; {c['analysed']} analysed. Counted from the {c['counted_from']}."
+        + (
+            ""
+            if c["excluded"] is not None
+            else " Without participant records nobody is known to be excluded or withdrawn."
+        )
+    )
 
 
 def _plain(value):

@@ -443,16 +443,25 @@ def _replaced_section(replaced, out):
     return [("Replaced candidate views", [text, replaced])]
 
 
-def _participants_table(df: pd.DataFrame, att: pd.DataFrame) -> pd.DataFrame:
+def _participants_table(
+    df: pd.DataFrame, att: pd.DataFrame, *, done=None, records=None
+) -> pd.DataFrame:
+    """Participants (real, simulated): started (every record, else who answered),
+    completed (``done``: finished, not excluded), their responses and attention."""
     g = df.groupby("simulated")
     rows = []
-    done = completed_participants(df)
+    done = completed_participants(df) if done is None else done
     for sim, part in g:
+        started = (
+            int(part["participant_id"].nunique())
+            if records is None
+            else sum(bool(r.get("simulated")) == bool(sim) for r in records)
+        )
         rows.append(
             {
                 "participants": "simulated" if sim else "real",
                 "n": int(part["participant_id"].nunique()),
-                "started": int(part["participant_id"].nunique()),
+                "started": started,
                 "completed": len(set(part["participant_id"]) & done),
                 "responses": len(part),
                 "pose_choices": int((part["task"] == "pose").sum()),

@@ -524,15 +524,6 @@ def claim_summary(
 # ----------------------------------------------------------------- Luce model
 
 
-def _top1_data(chosen, shown, index):
-    """Choices → choix top-1 tuples ``(winner, (losers...))``."""
-    data = []
-    for c, s in zip(chosen, shown, strict=True):
-        losers = tuple(index[m] for m in s if m != c)
-        data.append((index[c], losers))
-    return data
-
-
 def _fit_shares(n_items, data, alpha, initial=None):
     import choix
 
@@ -585,51 +576,71 @@ def luce_strengths(
     Luce's choice axiom: ``P(m | shown S) = s_m / Σ_{j∈S} s_j``. Maximum likelihood by
     iterative Luce spectral ranking (``choix.ilsr_top1``; Maystre & Grossglauser 2015).
     When all methods are always shown, the ML strengths equal the vote shares.
+
+    A resample is drawn as counts per choice type (winner, shown set) — a multinomial
+    over the scene's types, or over the distinct participants' count vectors for the
+    pooled row — and all resamples are fitted at once (:mod:`analysis.luce`): the same
+    bootstrap distribution as drawing rows, independent of row order and participant
+    labels.
     """
+    from . import luce
+
     methods = [str(m) for m in methods]
     index = {m: i for i, m in enumerate(methods)}
     rng = np.random.default_rng(seed)
     shown_col = choices["shown_order"] if "shown_order" in choices else [None] * len(choices)
-    shown = [
-        tuple(s) if isinstance(s, list | tuple) and len(s) else tuple(methods) for s in shown_col
-    ]
-    chosen = list(choices["chosen_method"])
-    scenes = list(choices["scene"])
-    groups = {s: [i for i, t in enumerate(scenes) if t == s] for s in ordered_scenes(scenes, order)}
-    data_all = _top1_data(chosen, shown, index)
+    shown = np.zeros((len(choices), len(methods)), dtype=bool)
+    for i, s in enumerate(shown_col):
+        on_screen = s if isinstance(s, list | tuple) and len(s) else methods
+        shown[i, [index[m] for m in on_screen]] = True
+    chosen = np.array([index[m] for m in choices["chosen_method"]], dtype=int)
+    shown[np.arange(len(chosen)), chosen] = True
+    scenes = np.asarray(list(choices["scene"]), dtype=object)
+    type_winner, type_shown, of_choice = luce.choice_types(chosen, shown)
+    n_types = len(type_winner)
     q = (1 - confidence) / 2
     rows = []
 
-    def emit(scene, idx_by_stratum, clusters=None):
-        flat = [i for idx in idx_by_stratum for i in idx]
-        share, theta = _fit_shares(len(methods), [data_all[i] for i in flat], luce_alpha)
-        boots = np.empty((n_boot, len(methods)))
-        for b in range(n_boot):
-            if clusters is not None:  # whole participants, with all their choices
-                pick = [
-                    i for k in rng.integers(0, len(clusters), len(clusters)) for i in clusters[k]
-                ]
-            else:
-                pick = [i for idx in idx_by_stratum for i in rng.choice(idx, size=len(idx))]
-            # Starting from the full-data estimate only saves iterations (same optimum).
-            boots[b], _ = _fit_shares(
-                len(methods), [data_all[i] for i in pick], luce_alpha, initial=theta
+    def emit(scene, strata, clusters=None):
+        """One model over the choices ``strata`` (a list of index arrays, one per
+        stratum resampled on its own, or whole ``clusters``)."""
+        flat = np.concatenate(strata)
+        n_of = np.bincount(of_choice[flat], minlength=n_types)
+        # The estimate by choix itself: every type as often as it was chosen.
+        data = [
+            (
+                int(type_winner[t]),
+                tuple(int(j) for j in np.flatnonzero(type_shown[t]) if j != type_winner[t]),
             )
-        lo, hi = (
-            np.quantile(boots, [q, 1 - q], axis=0)
-            if n_boot > 0
-            else (np.full(len(methods), np.nan),) * 2
-        )
-        if n_boot > 0 and flat:
+            for t in range(n_types)
+            for _ in range(n_of[t])
+        ]
+        share, theta = _fit_shares(len(methods), data, luce_alpha)
+        if n_boot > 0:
+            if clusters is not None:  # whole participants, with all their choices
+                vectors, mult = luce.cluster_counts(of_choice[flat], clusters[flat], n_types)
+                draws = rng.multinomial(mult.sum(), mult / mult.sum(), size=n_boot)
+                counts = draws @ vectors
+            else:
+                counts = np.zeros((n_boot, n_types), dtype=np.int64)
+                for idx in strata:
+                    k = np.bincount(of_choice[idx], minlength=n_types)
+                    counts += rng.multinomial(len(idx), k / len(idx), size=n_boot)
+            # Starting from the full-data estimate only saves iterations (same optimum).
+            boots = luce.shares(
+                luce.fit_counts(counts, type_winner, type_shown, alpha=luce_alpha, initial=theta)
+            )
+            lo, hi = np.quantile(boots, [q, 1 - q], axis=0)
             # A method chosen by none (or by all) of n: every resample repeats that, so
             # the percentile interval collapses to [0, 0] (or [1, 1]) as if the share
             # were known exactly. Use the exact Clopper-Pearson end instead:
             # 1 - (q)^(1/n) for k = 0 (and q^(1/n) for k = n).
-            k = np.bincount([index[chosen[i]] for i in flat], minlength=len(methods))
+            k = np.bincount(chosen[flat], minlength=len(methods))
             n_flat = len(flat)
-            lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
             lo[k == 0], hi[k == 0] = 0.0, 1 - q ** (1 / n_flat)
             lo[k == n_flat], hi[k == n_flat] = q ** (1 / n_flat), 1.0
+        else:
+            lo = hi = np.full(len(methods), np.nan)
         for m, i in index.items():
             rows.append(
                 {
@@ -643,16 +654,14 @@ def luce_strengths(
                 }
             )
 
+    groups = {s: np.flatnonzero(scenes == s) for s in ordered_scenes(list(scenes), order)}
     for scene, idx in groups.items():
-        emit(scene, [np.asarray(idx)])
+        emit(scene, [idx])
     if pooled and len(groups) > 1:
         clusters = None
         if "participant_id" in choices and choices["participant_id"].notna().all():
-            who = pd.Series(range(len(choices))).groupby(
-                choices["participant_id"].to_numpy(), sort=False
-            )
-            clusters = [np.asarray(v) for v in who.groups.values()]
-        emit("all", [np.asarray(idx) for idx in groups.values()], clusters)
+            clusters = choices["participant_id"].to_numpy()
+        emit("all", list(groups.values()), clusters)
     return pd.DataFrame(rows)
 
 

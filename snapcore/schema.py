@@ -17,7 +17,7 @@ import jsonschema
 from data_schema import schema_path
 from snapcore.errors import SchemaError
 
-__all__ = ["load_schema", "validate", "read_document", "field_path"]
+__all__ = ["load_schema", "validate", "quick_check", "read_document", "field_path"]
 
 
 @cache
@@ -35,6 +35,62 @@ def load_schema(name: str) -> dict:
 def _validator(name: str) -> jsonschema.Draft202012Validator:
     # One per schema and process: the study server validates every stored answer.
     return jsonschema.Draft202012Validator(load_schema(name))
+
+
+#: Keywords whose meaning is the same in Draft 7 (what fastjsonschema compiles) and Draft
+#: 2020-12 (what jsonschema checks): a schema using only these gets the compiled check.
+_SAME_IN_DRAFT7 = frozenset(
+    {"$schema", "$id", "title", "description", "type", "properties", "required"}
+    | {"additionalProperties", "enum", "const", "minimum", "maximum", "exclusiveMinimum"}
+    | {"exclusiveMaximum", "minLength", "maxLength", "pattern", "format", "uniqueItems"}
+    | {"minItems", "maxItems", "items"}
+)
+
+
+def _keywords(schema) -> set:
+    """Every keyword a schema uses (property names and ``items`` schemas descended)."""
+    if isinstance(schema, list):
+        return set().union(*(_keywords(s) for s in schema)) if schema else set()
+    if not isinstance(schema, dict):
+        return set()
+    out = set(schema)
+    for key, value in schema.items():
+        if key == "properties":
+            out |= set().union(*(_keywords(s) for s in value.values())) if value else set()
+        elif key in ("items", "additionalProperties") and isinstance(value, dict):
+            out |= _keywords(value)
+        elif key == "items":  # a list of schemas means something else in 2020-12
+            out.add("items-list")
+    return out
+
+
+@cache
+def quick_check(name: str):
+    """A fast yes/no check of schema ``name`` (fastjsonschema), or None when the schema
+    uses a keyword that could mean something else there: ``check(doc)`` is True when
+    ``doc`` is valid. Use it before :func:`validate`, which words the error.
+
+    ``format`` is not checked, as :func:`validate` does not check it (jsonschema leaves
+    formats to an opt-in checker).
+    """
+    import fastjsonschema
+
+    schema = load_schema(name)
+    if not _keywords(schema) <= _SAME_IN_DRAFT7:
+        return None
+    compiled = fastjsonschema.compile(
+        {k: v for k, v in schema.items() if k != "$schema"},
+        formats={f: (lambda _value: True) for f in ("date-time", "date", "uri", "email")},
+    )
+
+    def check(doc) -> bool:
+        try:
+            compiled(doc)
+        except fastjsonschema.JsonSchemaException:
+            return False
+        return True
+
+    return check
 
 
 def field_path(parts) -> str:

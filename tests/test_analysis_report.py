@@ -461,6 +461,6 @@ def test_analyze_uses_the_study_stimuli_by_default(tmp_path, monkeypatch):
     (tmp_path / study / "manifest.json").write_text("{}")
     assert report.default_stimuli(rows, root=tmp_path) == tmp_path / study
     manifest = _near_duplicate_manifest(list(dict.fromkeys(rows["scene"])))
-    monkeypatch.setattr(report, "default_stimuli", lambda df: manifest)
+    monkeypatch.setattr(report, "default_stimuli", lambda df, **kw: manifest)
     s = report.analyze(rows, tmp_path / "o", include_simulated=True, n_boot=50, figures=False)
     assert s["near_duplicate_scenes"]  # the default manifest was read

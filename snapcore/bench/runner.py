@@ -17,7 +17,21 @@ from dataclasses import dataclass
 from snapcore.bench import cases, cases_bodies, library  # noqa: F401  (registers every case)
 from snapcore.bench.registry import CASES, BenchContext
 
-__all__ = ["BenchResult", "run_cases", "select_cases"]
+__all__ = ["BenchResult", "run_cases", "select_cases", "PLUGIN_GROUP"]
+
+#: Entry-point group of the modules of higher layers that register cases (the analysis's:
+#: ``analysis.bench``); loaded by name, since this layer may not import them.
+PLUGIN_GROUP = "action_snapshot.bench"
+
+
+def _load_plugins() -> None:
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=PLUGIN_GROUP):
+        ep.load()
+
+
+_load_plugins()
 
 
 @dataclass

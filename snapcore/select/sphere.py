@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import trimesh
 from threadpoolctl import ThreadpoolController
 
 __all__ = [
@@ -101,7 +100,11 @@ def _sphere(n: int) -> np.ndarray:
     """Unit views, shape (n, 3), read-only; rows n/2.. are the antipodes of rows ..n/2."""
     if n in ICOSPHERE_COUNTS:
         # trimesh subdivides the same icosahedron (vertices agree to 3e-16 with the
-        # hand-written subdivision this replaced)
+        # hand-written subdivision this replaced). Imported here: it costs about a second
+        # (networkx...), which every user of this module's view helpers (the analysis's
+        # near-duplicate check) paid without building a sphere.
+        import trimesh
+
         v = np.asarray(trimesh.creation.icosphere(subdivisions=ICOSPHERE_COUNTS[n]).vertices)
         tol = 1e-9
         upper = (v[:, 1] > tol) | (

@@ -3,10 +3,13 @@ recruitment (a cap and a close switch), the completion codes to approve.
 
 What researchers get from JATOS, oTree or Gorilla:
 
-- :func:`monitor_rows`: each participant's state (``started``, ``finished``,
-  ``timed out`` — no activity for :data:`TIMEOUT_S` —, ``excluded``), the step they are
-  on, how long they have been on it and their last activity (their latest answer or
-  player event);
+- :func:`monitor_rows`: each participant's state (:func:`participant_state`: ``started``,
+  ``finished``, ``timed out`` — no activity for :data:`TIMEOUT_S` —, ``excluded``), the
+  step they are on, how long they have been on it and their last activity (their latest
+  answer or player event);
+- :func:`participation`: the counts the page, ``snapshot analyze`` (report and
+  ``summary.json``) and the exports' columns share — started, finished, excluded (with
+  reasons), withdrawn — from participant records, the store's or an export file's;
 - :func:`exclude`: leave a participant out of the analysis with a reason, keeping their
   data (unlike a withdrawal, which deletes them). ``snapshot analyze`` and the page's
   tables leave excluded participants out; exports keep them;
@@ -36,6 +39,8 @@ __all__ = [
     "TIMEOUT_S",
     "STATES",
     "monitor_rows",
+    "participant_state",
+    "participation",
     "exclude",
     "excluded_ids",
     "with_exclusions",
@@ -54,6 +59,74 @@ STATES = ("started", "finished", "timed out", "excluded")
 
 def _now() -> datetime:
     return datetime.now(UTC)
+
+
+def participant_state(
+    completed_at, excluded, *, idle_s: float | None = None, timeout_s: float = TIMEOUT_S
+) -> str:
+    """The one definition of where a participant stands (:data:`STATES`).
+
+    Everyone with a participant record has *started* (agreed to take part). They have
+    *finished* when the store recorded their completion (``completed_at``: they answered
+    the plan's last trial and got their code). They are *excluded* when the researcher
+    left them out of the analysis with a reason, whether or not they finished; this
+    state wins over the others. Someone neither finished nor excluded is *timed out*
+    after ``timeout_s`` without activity (only when ``idle_s`` is known: a live view),
+    else still *started*. A withdrawn participant has no record left: they are counted
+    from the withdrawal log (:func:`study_app.data.withdraw.withdrawal_counts`).
+
+    Parameters
+    ----------
+    completed_at : datetime, str or None
+        The record's ``completed_at`` (any non-empty value: finished).
+    excluded : str or None
+        The exclusion reason (the participants export's ``excluded`` column), or None.
+    idle_s : float, optional
+        Seconds since their last activity.
+    """
+    if excluded:
+        return "excluded"
+    if completed_at is not None and completed_at != "":
+        return "finished"
+    if idle_s is not None and idle_s > timeout_s:
+        return "timed out"
+    return "started"
+
+
+def participation(records, *, withdrawn: int | None = None) -> dict:
+    """Who started, finished, was excluded (and why) and withdrew.
+
+    Parameters
+    ----------
+    records : iterable of dict
+        Participant records with ``completed_at`` and ``excluded`` (the reason or None):
+        :func:`with_exclusions` of :meth:`Store.participants`, or the rows of a
+        participants export (:func:`study_app.data.export.read_export` with
+        ``schema="participant"``).
+    withdrawn : int, optional
+        Withdrawals (their records are deleted; the log counts them), None if unknown.
+
+    Returns
+    -------
+    dict
+        ``started`` (every record: the page's "Participants"), ``finished`` (finished
+        and not excluded), ``excluded`` (excluded, finished or not),
+        ``exclusion_reasons`` (reason → count), ``unfinished`` (neither: in progress,
+        timed out or gone), ``withdrawn``.
+    """
+    states = [(participant_state(r.get("completed_at"), r.get("excluded")), r) for r in records]
+    reasons: dict[str, int] = {}
+    for state, r in states:
+        if state == "excluded":
+            reasons[str(r["excluded"])] = reasons.get(str(r["excluded"]), 0) + 1
+    return {
+        "started": len(states),
+        "finished": sum(s == "finished" for s, _ in states),
+        "excluded": sum(s == "excluded" for s, _ in states),
+        "exclusion_reasons": dict(sorted(reasons.items())),
+        "unfinished": sum(s == "started" for s, _ in states),
+        "withdrawn": withdrawn,
+    }
 
 
 def monitor_rows(
@@ -128,14 +201,7 @@ def monitor_rows(
         ]
         last = max(times)
         idle = 0.0 if r["completed_at"] is not None else max(0.0, (now - last).total_seconds())
-        if r["reason"] is not None:
-            state = "excluded"
-        elif r["completed_at"] is not None:
-            state = "finished"
-        elif idle > timeout_s:
-            state = "timed out"
-        else:
-            state = "started"
+        state = participant_state(r["completed_at"], r["reason"], idle_s=idle, timeout_s=timeout_s)
         out.append(
             {
                 "participant_id": r["participant_id"],

@@ -16,7 +16,9 @@ database)::
 ``@type: Dataset``, ``name``, ``schemaVersion``, ``description``, ``variableMeasured``)
 and some it recommends (``keywords``, ``dateCreated``; ``license``, ``author`` and
 ``citation`` from the study config's ``license``, ``creators`` and ``citation``, with
-a warning for each one missing). ``variableMeasured`` lists every column of the data
+a warning for each one missing), and ``withdrawals``: study id → how many participants
+withdrew (a count only; their data are deleted), so that an analysis of the dataset
+says who was left out as one of the database does. ``variableMeasured`` lists every column of the data
 files written, no other, as a ``PropertyValue`` whose description comes from the
 column's schema (``data_schema/response.schema.json``, ``participant.schema.json``,
 ``event.schema.json``), so a column cannot be added without being described. A table
@@ -259,6 +261,12 @@ def write_psych_ds(
             files.append(f"materials/{manifest[0].name}")
         study = manifest[1] if manifest is not None else None
         doc, warnings = _description(study, studies, columns, pseudonymise)
+        # Who withdrew is part of who was left out (snapshot analyze --input reports it
+        # as --db does): per study, a count only; their data are deleted, none is here.
+        from .withdraw import withdrawal_counts
+
+        gone = withdrawal_counts(store)
+        doc["withdrawals"] = {sid: gone.get(sid, 0) for sid in studies}
         _write_atomic(work / DESCRIPTION_NAME, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
         files.insert(0, DESCRIPTION_NAME)
         _move_into(work, root)
@@ -335,7 +343,10 @@ def _description(study, studies, columns, pseudonymise) -> tuple[dict, list[str]
             else "ISO 8601 in UTC"
         )
         + "; in CSV, lists and objects are JSON strings and empty cells are "
-        "missing values." + (_PSEUDONYM_NOTE if pseudonymise else "")
+        "missing values. Participants who withdrew are not in any file (their data were "
+        "deleted); `withdrawals` counts them per study. The participants file's "
+        "`excluded` column names those the researcher left out of the analysis, with "
+        "the reason." + (_PSEUDONYM_NOTE if pseudonymise else "")
     )
     doc = {
         "@context": "https://schema.org/",

@@ -37,6 +37,7 @@ __all__ = [
     "withdrawal_of",
     "withdrawal_plan",
     "withdrawals_of_study",
+    "withdrawal_counts",
 ]
 
 #: Who can withdraw a participant: the command line or the researcher page.
@@ -349,3 +350,12 @@ def withdrawals_of_study(store, study_id: str) -> list[Withdrawal]:
             .all()
         )
     return [_record(r) for r in rows]
+
+
+def withdrawal_counts(store) -> dict[str, int]:
+    """Study id → how many participants withdrew (the log's rows; their data are gone)."""
+    with store.transaction(write=False) as conn:
+        if not sa.inspect(conn).has_table("withdrawals"):  # a database older than the log
+            return {}
+        query = sa.select(withdrawals.c.study_id, sa.func.count()).group_by(withdrawals.c.study_id)
+        return {sid: int(n) for sid, n in conn.execute(query).all()}

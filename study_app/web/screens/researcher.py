@@ -29,7 +29,12 @@ import streamlit as st
 from snapcore.errors import SnapshotError
 from study_app.data import monitor
 from study_app.data.pseudonym import OPEN_DROPPED, PSEUDONYM_RE, Pseudonymiser
-from study_app.data.withdraw import withdraw, withdrawal_plan, withdrawals_of_study
+from study_app.data.withdraw import (
+    withdraw,
+    withdrawal_counts,
+    withdrawal_plan,
+    withdrawals_of_study,
+)
 from study_app.web.screens import context, keys, widgets
 from study_app.web.screens import token_guard as guard
 
@@ -121,13 +126,15 @@ def _live(ctx) -> None:
     rows = monitor.monitor_rows(ctx.store, ctx.stimuli.study.id, n_trials=_n_trials(ctx))
     states = {s: sum(r["state"] == s for r in rows) for s in monitor.STATES}
     p = ctx.store.progress()
-    c = st.columns(6)
+    c = st.columns(7)
     c[0].metric("Participants", len(rows))
     c[1].metric("Finished", states["finished"])
     c[2].metric("In progress", states["started"])
     c[3].metric("Timed out", states["timed out"])
     c[4].metric("Excluded", states["excluded"])
-    c[5].metric("Responses", p["responses"])
+    # the same counts as `snapshot analyze`'s "Who was left out" (monitor.participation)
+    c[5].metric("Withdrawn", withdrawal_counts(ctx.store).get(ctx.stimuli.study.id, 0))
+    c[6].metric("Responses", p["responses"])
     st.subheader("Monitor")
     st.caption(
         f"Each participant (newest first; pseudonyms as in the exports): state, the "
@@ -159,15 +166,15 @@ def _live(ctx) -> None:
 
 
 def _analysed_rows(ctx) -> list[dict]:
-    """The rows the report analyses: participants who finished, none excluded."""
-    from analysis.load import completed_participants, tidy_responses
-
-    left_out = monitor.excluded_ids(ctx.store, ctx.stimuli.study.id)
-    rows = [r for r in ctx.store.export_rows() if r["participant_id"] not in left_out]
-    if not rows:
-        return []
-    done = completed_participants(tidy_responses(rows, validate=False))
-    return [r for r in rows if r["participant_id"] in done]
+    """The rows the report analyses: participants who finished, none excluded (the
+    state "finished" of :func:`monitor.participant_state`, as ``snapshot analyze``)."""
+    done = {
+        p["participant_id"]
+        for p in monitor.with_exclusions(ctx.store, ctx.store.participants())
+        if p["study_id"] == ctx.stimuli.study.id
+        and monitor.participant_state(p["completed_at"], p["excluded"]) == "finished"
+    }
+    return [r for r in ctx.store.export_rows() if r["participant_id"] in done]
 
 
 def _votes(ctx) -> None:
