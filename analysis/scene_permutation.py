@@ -251,9 +251,12 @@ def design_from_rows(pose: pd.DataFrame, scenes: dict, comparisons) -> tuple:
     """
     keep = pose[pose["scene"].isin(list(scenes))]
     who = keep["participant_id"].astype(str).to_numpy()
-    order = np.argsort(who, kind="stable")
+    ids, groups = _canonical_participants(who, keep)
+    order = np.lexsort(
+        (keep["chosen_frame"].to_numpy(dtype=float), keep["scene"].astype(str).to_numpy(), groups)
+    )
     keep = keep.iloc[order].reset_index(drop=True)
-    ids, groups = np.unique(who[order], return_inverse=True)
+    groups = groups[order]
     first = keep["scene"].map({s: float(i.frame_offset) for s, i in scenes.items()})
     n_frames = keep["scene"].map({s: float(i.n_frames) for s, i in scenes.items()})
     u = clip_positions(keep["chosen_frame"].to_numpy(dtype=float), first, n_frames)
@@ -289,6 +292,39 @@ def design_from_rows(pose: pd.DataFrame, scenes: dict, comparisons) -> tuple:
                 }
             )
     return groups, u, design
+
+
+def _canonical_participants(who: np.ndarray, rows: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Participants numbered in an order set by their answers, not by their ids.
+
+    The Monte-Carlo draws are made participant by participant, so the order of the
+    participants decides which draw each gets. Ordering them by their answers (the
+    sorted ``(scene, chosen frame)`` pairs) makes the p-values the same whatever the
+    ids and the row order are — the database's ids and an open file's pseudonyms give
+    the same numbers. Participants with the same answers are interchangeable, so how
+    their tie is broken changes nothing.
+
+    Returns
+    -------
+    ids : ndarray of str, shape (P,)
+        The participant id of each code, in canonical order.
+    codes : ndarray of int, shape (N,)
+        Each row's participant code.
+    """
+    answers = pd.DataFrame(
+        {
+            "who": who,
+            "scene": rows["scene"].astype(str).to_numpy(),
+            "frame": rows["chosen_frame"].to_numpy(dtype=float),
+        }
+    ).sort_values(["who", "scene", "frame"], kind="stable")
+    signature = {
+        w: tuple(zip(d["scene"], d["frame"], strict=True))
+        for w, d in answers.groupby("who", sort=True)
+    }
+    ids = np.array(sorted(signature, key=lambda w: (signature[w], w)), dtype=object)
+    code = {w: i for i, w in enumerate(ids)}
+    return ids, np.array([code[w] for w in who], dtype=np.int64)
 
 
 def per_participant(values: np.ndarray, test: dict) -> np.ndarray:
