@@ -22,7 +22,7 @@ from app_helpers import (
 
 from study_app.data.store import Store
 from study_app.design.protocol import trial_plan
-from study_app.web.picker import FRAME_PICKER, VIEW_CHOOSER
+from study_app.web.picker import ANSWER_BUTTON, FRAME_PICKER, VIEW_CHOOSER
 from study_app.web.screens import keys
 
 pytest.importorskip("streamlit.testing.v1")
@@ -93,6 +93,15 @@ def send_trigger(at: AppTest, name: str, event: str, value) -> AppTest:
         )
     )
     return at._run(states)
+
+
+#: What answer_button.js reports with a press (client.js clientInfo): a desktop browser.
+CLIENT = {"viewport": [1280, 720], "dpr": 1, "input": "mouse", "active_s": 3.0, "tab": "k3x9q2m7za"}
+
+
+def press_answer(at: AppTest) -> AppTest:
+    """Press the page's answer button (Continue, Confirm on the slider) as a browser does."""
+    return send_trigger(at, ANSWER_BUTTON, "press", {"client": dict(CLIENT)})
 
 
 def texts(at: AppTest) -> str:
@@ -166,7 +175,7 @@ def test_whole_session_stores_every_answer(store):
             )
         else:
             at.radio(key=keys.KEY_ATTENTION_CHOICE).set_value("A purple circle")
-            at.button(key=keys.KEY_ATTENTION_SUBMIT).click().run()
+            at = press_answer(at)
     assert not at.exception
     assert "Thank you" in texts(at)
     assert progress_value(at) == 100
@@ -178,6 +187,9 @@ def test_whole_session_stores_every_answer(store):
 
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == list(range(len(plan)))
+    # The attention answer is described like the others: what the button reported.
+    (att,) = [r for r in rows if r["task"] == "attention"]
+    assert (att["viewport_width"], att["tab_id"]) == (1280, CLIENT["tab"])
     for r, trial in zip(rows, plan):
         assert (r["task"], r["scene"], r["stimulus_id"]) == (
             trial.task,
@@ -280,7 +292,7 @@ def test_frames_picker_mode(store, stimuli_dir, tmp_path, monkeypatch):
     assert (slider.min, slider.max) == (1, 24)
     slider.set_value(7).run()
     assert len(at.image) == 1  # the frame is shown
-    at.button(key=f"{keys.KEY_FRAME_CONFIRM}.0.0").click().run()
+    at = press_answer(at)
     (row,) = store.responses(pid)
     assert row["chosen_video_frame"] == 6 and row["chosen_frame"] == 12  # 1-based slider
 

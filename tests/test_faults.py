@@ -13,7 +13,15 @@ import pandas as pd
 import pytest
 import sqlalchemy as sa
 from app_helpers import fixture_study_doc, write_fixture_stimuli
-from test_app import component, consent_and_background, new_app, players, send_trigger, texts
+from test_app import (
+    component,
+    consent_and_background,
+    new_app,
+    players,
+    press_answer,
+    send_trigger,
+    texts,
+)
 
 from study_app.data.export import validate_rows
 from study_app.data.store import Store
@@ -151,7 +159,7 @@ def test_failed_video_falls_back_for_that_trial_only_and_says_so(app_store):
     pid = consent_and_background(at)
     at = send_trigger(at, FRAME_PICKER, "error", {"trial": 0, "message": "network"})
     assert not players(at) and at.slider
-    at.button(key=f"{keys.KEY_FRAME_CONFIRM}.0.0").click().run()
+    at = press_answer(at)
     (row,) = app_store.responses(pid)
     assert row["picked_with"] == "slider" and row["watched"] is None
     failed = [e for e in app_store.events(pid) if e["kind"] == MEDIA_FAILED_EVENT]
