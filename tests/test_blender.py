@@ -115,14 +115,21 @@ def test_blender_fbx_export_reads_back_to_the_bvhs_own_kinematics(blender_run, k
 @pytest.mark.slow
 @pytest.mark.parametrize("key", list(CLIPS))
 def test_addon_markers_are_snapshot_selects_top_k(blender_run, key):
-    """The add-on's timeline markers sit on `snapshot select`'s top-k of the BVH file,
-    Blender frame = the action's first frame + snapshot's 0-based source frame; the
-    operator's own selection (on the FBX it exported) is the same story pick."""
+    """The add-on's timeline markers sit on `snapshot select`'s top-k of the FBX it
+    exported, Blender frame = the action's first frame + snapshot's 0-based source frame;
+    that selection's story pick is the BVH file's, and its other top-k poses within one
+    frame of the BVH's."""
     _, res, sel = blender_run[key]
     assert res["operator"] == ["FINISHED"]
     markers = [frame for _, frame in res["markers"]]
-    assert markers == [res["action_start"] + f for f in sel["frames"]]
-    assert res["result"]["snapshot_frames"] == sel["frames"]
+    picked = res["result"]["snapshot_frames"]
+    assert markers == [res["action_start"] + f for f in picked]
+    assert picked[0] == sel["frames"][0]
+    # The re-exported joints differ from the BVH's by micrometres (test_blender_fbx_export_reads_back_to_the_bvhs_own_kinematics);
+    # a speed peak between two nearly equal frames (the story's strikes term) may then
+    # fall one frame over, so the lesser poses may move by a frame, never further.
+    assert len(picked) == len(sel["frames"])
+    assert all(abs(a - b) <= 1 for a, b in zip(picked, sel["frames"], strict=True))
 
 
 @pytest.mark.slow
