@@ -6,8 +6,8 @@ pose selection, the view selection (Projected Motion Area) and the two baseline 
 one place where selection meets rendering). :meth:`Snapshot.to_dict` is the JSON
 document ``snapshot select --json`` prints (schema ``data_schema/snapshot.schema.json``).
 Like every output, a Snapshot reports frames in the *source* numbering
-(``scene.source_frame(i) = i + frame_offset``): ``Snapshot.frame``/``frames`` and every
-frame number in ``to_dict``; the per-frame arrays start at source frame
+(``scene.source_frame(i) = i + frame_offset``): ``Snapshot.source_frame``/``source_frames``
+and every frame number in ``to_dict``; the per-frame arrays start at source frame
 ``frame_offset``. ``Snapshot.index``/``indices`` (and ``Snapshot.pose``, a
 :class:`~snapcore.select.pose_selection.PoseSelection`) hold internal indices into the scene's
 arrays. :attr:`Snapshot.views` gives the three methods' directions by
@@ -219,10 +219,6 @@ class Snapshot:
     def source_frames(self) -> list[int]:
         """The top-k poses as the file's own frame numbers, best first."""
         return [int(self.scene.source_frame(i)) for i in self.pose.indices]
-
-    #: Older names of :attr:`source_frame` and :attr:`source_frames`.
-    frame = source_frame
-    frames = source_frames
 
     @property
     def index(self) -> int:

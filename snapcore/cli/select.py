@@ -400,6 +400,6 @@ def plot_entropy(
     out = Path(output)
     fig.savefig(out, dpi=dpi)
     click.echo(
-        f"wrote {out}  (pose: frame {snap.frame}, top {len(snap.frames)}: "
-        f"{', '.join(str(f) for f in snap.frames)})"
+        f"wrote {out}  (pose: frame {snap.source_frame}, top {len(snap.source_frames)}: "
+        f"{', '.join(str(f) for f in snap.source_frames)})"
     )

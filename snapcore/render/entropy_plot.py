@@ -381,7 +381,7 @@ def plot_entropy(snapshot, *, strip: int = 8, title: str | None = None):
     if title is None:
         title = (
             f"{scene.name}: {scene.n_frames} frames at {scene.fps:g} fps, "
-            f"selected frame {snapshot.frame} (source numbering)"
+            f"selected frame {snapshot.source_frame} (source numbering)"
         )
     fig.suptitle(title, fontsize=11)
     return fig
