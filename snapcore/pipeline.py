@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import SelectionError, SnapshotError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, check_body
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.pose_methods import PoseParams, select_pose
@@ -335,7 +335,7 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
 
     Raises
     ------
-    ValueError
+    SelectionError
         A key that is a field of neither (one line naming it and the known ones), or a
         paper-only option with another pose method
         (:class:`~snapcore.select.pose_methods.PaperOptionError`).
@@ -358,7 +358,7 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
     view_names = [f.name for f in fields(ViewParams) if f.name != "body"]
     unknown = [k for k in options if k not in pose_names and k not in view_names]
     if unknown:
-        raise ValueError(
+        raise SelectionError(
             f"unknown selection option(s) {', '.join(map(str, unknown))} "
             f"(pose: {', '.join(pose_names)}; view: {', '.join(view_names)})"
         )

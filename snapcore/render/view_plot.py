@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from snapcore.errors import RenderError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind
 from snapcore.render.viewpoint_entropy import select_view_entropy
 from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
@@ -49,7 +50,7 @@ MAP_SIZE = (360, 180)
 def _check_projection(projection: str) -> None:
     """Refuse an unknown map projection before any work is done."""
     if projection not in PROJECTIONS:
-        raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+        raise RenderError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
 
 
 def _pyplot():

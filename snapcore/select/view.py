@@ -691,7 +691,7 @@ def view_angles_deg(directions: dict) -> dict:
         v = np.asarray(directions[n], dtype=float).reshape(3)
         norm = np.linalg.norm(v)
         if not norm > 0:
-            raise ValueError(f"directions[{n!r}] is a zero vector")
+            raise ViewError(f"directions[{n!r}] is a zero vector")
         unit[n] = v / norm
     out = {}
     for i, a in enumerate(names):
@@ -721,7 +721,7 @@ def near_duplicate_views(angles: dict, threshold_deg: float) -> list[tuple[str, 
         The pairs, in the order of ``angles``.
     """
     if not 0 <= threshold_deg <= 90:
-        raise ValueError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
+        raise ViewError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
     return [
         tuple(k.split("|", 1))
         for k, a in angles.items()
