@@ -222,7 +222,7 @@ def format_snapshot(doc: dict) -> list[str]:
     ]
     lines.append("timings     " + ", ".join(f"{k} {1000 * t[k]:.1f} ms" for k in keys))
     # one cold run: imports, caches and first-touched memory count here, not in
-    # `snapshot bench` (warm, repeated), whose numbers the README quotes
+    # `snapshot bench` (warm, repeated), whose numbers docs/speed.md quotes
     lines.append("            (one first run, set-up included; `snapshot bench` times warm runs)")
     return lines
 

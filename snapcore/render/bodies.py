@@ -13,7 +13,7 @@ one keyword, ``body=`` (default :data:`DEFAULT_BODY`), and hands it down to
 :func:`~snapcore.render.viewpoint_entropy.select_view_entropy` and
 :func:`~snapcore.render.view_plot.view_maps`; the pipeline's view stage reads it from
 ``ViewParams.body``. One keyword at the entry points rather than a field on the scene:
-the same loaded scene can be drawn both ways (the README's comparison, a batch run with
+the same loaded scene can be drawn both ways (docs/method.md's comparison, a batch run with
 ``--body``), nothing about the motion changes, and a copy or cut of a scene cannot
 silently lose or keep the option. Below the entry points the built body object travels
 (``SceneRenderer(body=...)`` also takes one, :func:`~snapcore.render.camera.motion_points`

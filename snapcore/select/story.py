@@ -69,7 +69,7 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
 
 Nothing depends on a frame's position in the clip (no preference for the middle), and
 every ingredient can be switched off or replaced for ablation through
-:class:`StoryParams` (the README's ablation table). Everything is vectorised over
+:class:`StoryParams` (the ablation table of docs/method.md). Everything is vectorised over
 frames and joints; the Python loops run over characters and limbs.
 
 References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
