@@ -175,11 +175,6 @@ class MotionTriangles:
         quads below the noise floor."""
         return self.vectors("motion_area")
 
-    @property
-    def vector_areas(self) -> np.ndarray:
-        """``areas`` as shape (K, 3)."""
-        return self.areas.T
-
     def vectors(self, weighting: str = "pma") -> np.ndarray:
         """``b_k`` of ``score(v) = Σ_k |b_k·v|``, shape (3, K), read-only.
 
