@@ -92,9 +92,8 @@ def _relief(scene, frame):
 
 
 def _height_field(scene, frame):
-    from snapcore.relief.scene import height_field_from_scene
-
     from snapcore import ReliefParams
+    from snapcore.relief.scene import height_field_from_scene
 
     return height_field_from_scene(scene, frame, VIEW, params=ReliefParams(resolution=64)).depth
 
@@ -106,9 +105,8 @@ def _relief_body(scene, frame):
 
 
 def _relief_figure(scene, frame):
-    from snapcore.relief.scene import relief_comparison_figure
-
     from snapcore import ReliefParams
+    from snapcore.relief.scene import relief_comparison_figure
 
     fig = relief_comparison_figure(scene, frame, {"side": VIEW}, params=ReliefParams(resolution=48))
     return fig.reliefs["side"].height_mm
