@@ -626,6 +626,7 @@ def test_select_without_view_or_baselines(motions_dir):
     assert "view" in text and "PMA" in text and "baselines" in text
 
 
+@pytest.mark.slow  # over 10 s on 2 cores
 @pytest.mark.parametrize("projection", ["mollweide", "equirect"])
 def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
     """`snapshot plot-views` writes an image with one map per method (entropy optional)."""
