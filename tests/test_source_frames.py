@@ -112,6 +112,14 @@ def _relief_figure(scene, frame):
     return fig.reliefs["side"].height_mm
 
 
+def _view_maps(scene, frame):
+    """The scores plot-views draws, over ±0.05 s around the frame (pose-specific)."""
+    from snapcore.render.view_plot import view_maps
+
+    maps = view_maps(scene, frame=frame, window_s=0.05, n_views=162, entropy=False)
+    return np.concatenate([maps[m]["scores"] for m in ("pma", "motion_area")])
+
+
 DRAWERS = {
     "render_still": _still,
     "contact_sheet": _sheet,
@@ -121,6 +129,7 @@ DRAWERS = {
     "height_field_from_scene": _height_field,
     "relief_body": _relief_body,
     "relief_comparison_figure": _relief_figure,
+    "view_maps": _view_maps,
 }
 
 
