@@ -1,8 +1,8 @@
 """``snapshot render``, ``snapshot video`` and ``snapshot sheet``: pictures of a scene.
 
 Frame numbers on the command line and in every output are SOURCE frame numbers (as in
-the BVH file; ``snapshot select`` prints the same numbers); they are converted to the
-scene's internal frames with ``scene.frame_offset``.
+the BVH file; ``snapshot select`` prints the same numbers), as the drawing functions
+take them; each is checked against the frames the scene keeps first (one line, exit 2).
 """
 
 from __future__ import annotations
