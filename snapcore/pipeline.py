@@ -152,7 +152,7 @@ class Snapshot:
         if sel is None:
             return None
         if params is None:  # the view stage sets both
-            raise ValueError("Snapshot.pma: view_selection is set without its view_params")
+            raise SnapshotError("Snapshot.pma: view_selection is set without its view_params")
         return {
             "score": sel.score,
             "mean_ratio": sel.mean_ratio,
