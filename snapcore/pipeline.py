@@ -470,12 +470,12 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     A baseline that cannot run (no OpenGL for the face-id renders) is left out with a
     warning rather than failing the whole selection.
     """
-    scene, frame, timings = snap.scene, snap.pose.index, snap.timings_s
+    scene, index, timings = snap.scene, snap.pose.index, snap.timings_s
     t0 = time.perf_counter()
-    frames = window_frames(scene, frame if params.window_s is not None else None, params.window_s)
+    frames = window_frames(scene, index if params.window_s is not None else None, params.window_s)
     tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)
     common = dict(
-        frame=frame,
+        index=index,
         window_s=params.window_s,
         n_views=params.n_views,
         refine=params.refine,
@@ -492,7 +492,7 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     t2 = time.perf_counter()
     timings["motion_area"] = t2 - t1
     try:
-        snap.viewpoint_entropy = select_view_entropy(scene, frame, body=params.body)
+        snap.viewpoint_entropy = select_view_entropy(scene, index, body=params.body)
     except (SnapshotError, RuntimeError) as err:
         warnings.warn(f"viewpoint-entropy baseline skipped: {err}", stacklevel=3)
     else:

@@ -236,7 +236,7 @@ def view_maps(
     out = {}
     for method in ("pma", "motion_area"):
         sel = select_view(
-            scene, frame=index, window_s=window_s, method=method, n_views=n_views, triangles=tri
+            scene, index=index, window_s=window_s, method=method, n_views=n_views, triangles=tri
         )
         out[method] = {
             "views": sel.views,
