@@ -88,8 +88,8 @@ lint: install
 # Lint, format check and type check: what CI runs before the tests (the paths and options
 # are in pyproject.toml: [tool.ruff], [tool.mypy]).
 check: install
-	$(VENV)/bin/ruff check snapcore study_app analysis data_schema tests
-	$(VENV)/bin/ruff format --check snapcore study_app analysis data_schema tests
+	$(VENV)/bin/ruff check snapcore study_app analysis data_schema tests examples
+	$(VENV)/bin/ruff format --check snapcore study_app analysis data_schema tests examples
 	$(VENV)/bin/mypy
 
 clean:

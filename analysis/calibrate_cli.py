@@ -12,6 +12,8 @@ from pathlib import Path
 
 import click
 
+from snapcore.cli.common import FiniteFloatRange
+
 __all__ = ["calibrate"]
 
 
@@ -64,7 +66,7 @@ __all__ = ["calibrate"]
 )
 @click.option(
     "--alpha",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=0.05,
     show_default=True,
     help="Significance level, as in snapshot analyze.",

@@ -10,10 +10,12 @@ parse options, call the library, print a short summary. Errors are
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 
 import click
 
+from snapcore.cli.common import FiniteFloatRange
 from snapcore.errors import SnapshotError
 
 __all__ = ["analyze", "simulate", "power", "figures"]
@@ -44,9 +46,9 @@ def _parse_strengths(text: str | None) -> dict | None:
             raise click.BadParameter(
                 f"'{part}' is not method=number", param_hint="--strengths"
             ) from None
-    if set(out) != set(VIEW_METHODS) or any(not v > 0 for v in out.values()):
+    if set(out) != set(VIEW_METHODS) or any(not 0 < v < math.inf for v in out.values()):
         raise click.BadParameter(
-            f"give a positive strength for each of {', '.join(VIEW_METHODS)}",
+            f"give a positive finite strength for each of {', '.join(VIEW_METHODS)}",
             param_hint="--strengths",
         )
     return out
@@ -143,7 +145,7 @@ def _parse_strengths(text: str | None) -> dict | None:
 )
 @click.option(
     "--alpha",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=0.05,
     show_default=True,
     help="Significance level (family-wise, Holm).",
@@ -321,21 +323,21 @@ def _store_url(db):
 @click.option(
     "--spread",
     "spread_s",
-    type=click.FloatRange(0),
+    type=FiniteFloatRange(0),
     default=0.5,
     show_default=True,
     help="SD (seconds) of a frame choice around the salient moment aimed at.",
 )
 @click.option(
     "--lapse",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=0.1,
     show_default=True,
     help="Probability of a uniformly random frame.",
 )
 @click.option(
     "--algorithm-weight",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=0.7,
     show_default=True,
     help="Probability that the moment aimed at is the algorithm's pick (else another "
@@ -444,27 +446,27 @@ def simulate(
 @click.option(
     "--ours",
     "p_ours",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=None,
     help="True vote share of ours (with --baseline).",
 )
 @click.option(
     "--baseline",
     "p_baseline",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=None,
     help="True vote share of the baseline (the third method gets the rest).",
 )
 @click.option(
     "--third",
-    type=click.FloatRange(0, 1, max_open=True),
+    type=FiniteFloatRange(0, 1, max_open=True),
     default=1 / 3,
     show_default="1/3",
     help="Share of the third method in the difference table.",
 )
 @click.option(
     "--alpha",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=0.05,
     show_default=True,
     help="Family-wise significance level.",
@@ -472,7 +474,7 @@ def simulate(
 @click.option(
     "--power",
     "target",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=0.8,
     show_default=True,
     help="Target power.",
@@ -605,7 +607,7 @@ def power(p_ours, p_baseline, third, alpha, target, comparisons, out_dir):
 @click.option(
     "--input",
     "input_path",
-    type=click.Path(dir_okay=False),
+    type=click.Path(exists=True, dir_okay=False),
     default=None,
     help="Export file for Fig. 13 instead of the store.",
 )
@@ -643,6 +645,11 @@ def figures(out_dir, only, db, input_path, include_simulated, repeats, quiet):
             param_hint="--only",
         )
     source = input_path if input_path is not None else db
+    if input_path is None and db is not None:
+        from study_app.data.store import Store
+
+        with Store(db, create=False):  # a wrong URL: one line, before minutes of figures
+            pass
     results = fg.make_figures(
         out_dir,
         names=names,

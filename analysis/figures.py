@@ -347,7 +347,7 @@ def _fig5(ctx: _Context) -> list[Path]:
         plot_strip(snap, strip=8, ax=ax)
         ax.set_title(
             f"{labels.get(sid, sid)} — stand-in clip {_clip_name(sid)}: selected "
-            f"frame {snap.frame}",
+            f"frame {snap.source_frame}",
             fontsize=9,
             loc="left",
         )
@@ -428,9 +428,9 @@ def _fig8_10(ctx: _Context) -> list[Path]:
         views = snapshot_views(snap)
         img = compare_views(
             snap.scene,
-            snap.index,
+            snap.source_frame,
             {m.panel: v for m, v in views.items()},
-            title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.frame}",
+            title=f"{labels.get(sid, sid)} ({_clip_name(sid)}), frame {snap.source_frame}",
         )
         images.append(np.asarray(img))
         names.append(sid)
@@ -462,9 +462,9 @@ def _fig11(ctx: _Context) -> list[Path]:
     views = snapshot_views(snap)
     fig = relief_figure(
         snap.scene,
-        snap.index,
+        snap.source_frame,
         {m.panel: v for m, v in views.items()},
-        title=f"Reliefs of the dance pose (frame {snap.frame}, "
+        title=f"Reliefs of the dance pose (frame {snap.source_frame}, "
         f"{_clip_name(FEATURE_SCENE)}) from each method's view",
     )
     return _figure_paths(fig, ctx.out / "fig11_reliefs")

@@ -457,12 +457,6 @@ def _per_participant(pose: pd.DataFrame, scene: str) -> tuple[np.ndarray, np.nda
     return g["chosen_frame"].to_numpy(dtype=float), who
 
 
-def _participant_means(values: np.ndarray, who: np.ndarray) -> np.ndarray:
-    """Mean of ``values`` per participant (one number per person: repeated choices of
-    one person are not independent observations)."""
-    return pd.Series(values).groupby(pd.Series(who)).mean().to_numpy()
-
-
 def cluster_bootstrap_ci(
     values, clusters, *, stat=np.mean, n_boot: int = N_BOOT, seed: int = 0, confidence: float = 0.95
 ) -> tuple[float, float]:

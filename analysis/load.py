@@ -54,6 +54,7 @@ from snapcore.errors import SnapshotError
 from study_app.data.export import export_columns, export_types, read_export, validate_rows
 from study_app.data.pseudonym import DURATION_COLUMNS, open_value
 from study_app.data.store import Store
+from study_app.session.events import WATCHED_ENOUGH  # the study's own bar: one home
 
 __all__ = [
     "LoadError",
@@ -74,9 +75,6 @@ __all__ = [
     "WATCHED_ENOUGH",
 ]
 
-#: Share of the animation a pose answer's participant must have played for it to count
-#: as watched (the study's own bar, :data:`study_app.session.WATCHED_ENOUGH`).
-WATCHED_ENOUGH = 0.9
 
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
 PAPER_SCENES = (

@@ -15,6 +15,8 @@ __all__ = [
     "SceneError",
     "SchemaError",
     "RenderError",
+    "SelectionError",
+    "ReliefError",
 ]
 
 
@@ -92,3 +94,12 @@ class SchemaError(SnapshotError):
 
 class RenderError(SnapshotError):
     """A render that cannot be made (no GL context, bad size, bad view)."""
+
+
+class SelectionError(SnapshotError):
+    """A pose or view selection that cannot be made: an option out of range, an unknown
+    method or option name."""
+
+
+class ReliefError(SnapshotError):
+    """A relief that cannot be made (empty silhouette, bad print size, bad parameters)."""

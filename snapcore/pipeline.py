@@ -6,8 +6,8 @@ pose selection, the view selection (Projected Motion Area) and the two baseline 
 one place where selection meets rendering). :meth:`Snapshot.to_dict` is the JSON
 document ``snapshot select --json`` prints (schema ``data_schema/snapshot.schema.json``).
 Like every output, a Snapshot reports frames in the *source* numbering
-(``scene.source_frame(i) = i + frame_offset``): ``Snapshot.frame``/``frames`` and every
-frame number in ``to_dict``; the per-frame arrays start at source frame
+(``scene.source_frame(i) = i + frame_offset``): ``Snapshot.source_frame``/``source_frames``
+and every frame number in ``to_dict``; the per-frame arrays start at source frame
 ``frame_offset``. ``Snapshot.index``/``indices`` (and ``Snapshot.pose``, a
 :class:`~snapcore.select.pose_selection.PoseSelection`) hold internal indices into the scene's
 arrays. :attr:`Snapshot.views` gives the three methods' directions by
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import SelectionError, SnapshotError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, check_body
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.pose_methods import PoseParams, select_pose
@@ -152,7 +152,7 @@ class Snapshot:
         if sel is None:
             return None
         if params is None:  # the view stage sets both
-            raise ValueError("Snapshot.pma: view_selection is set without its view_params")
+            raise SnapshotError("Snapshot.pma: view_selection is set without its view_params")
         return {
             "score": sel.score,
             "mean_ratio": sel.mean_ratio,
@@ -219,10 +219,6 @@ class Snapshot:
     def source_frames(self) -> list[int]:
         """The top-k poses as the file's own frame numbers, best first."""
         return [int(self.scene.source_frame(i)) for i in self.pose.indices]
-
-    #: Older names of :attr:`source_frame` and :attr:`source_frames`.
-    frame = source_frame
-    frames = source_frames
 
     @property
     def index(self) -> int:
@@ -339,7 +335,7 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
 
     Raises
     ------
-    ValueError
+    SelectionError
         A key that is a field of neither (one line naming it and the known ones), or a
         paper-only option with another pose method
         (:class:`~snapcore.select.pose_methods.PaperOptionError`).
@@ -362,7 +358,7 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
     view_names = [f.name for f in fields(ViewParams) if f.name != "body"]
     unknown = [k for k in options if k not in pose_names and k not in view_names]
     if unknown:
-        raise ValueError(
+        raise SelectionError(
             f"unknown selection option(s) {', '.join(map(str, unknown))} "
             f"(pose: {', '.join(pose_names)}; view: {', '.join(view_names)})"
         )
@@ -474,12 +470,12 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     A baseline that cannot run (no OpenGL for the face-id renders) is left out with a
     warning rather than failing the whole selection.
     """
-    scene, frame, timings = snap.scene, snap.pose.index, snap.timings_s
+    scene, index, timings = snap.scene, snap.pose.index, snap.timings_s
     t0 = time.perf_counter()
-    frames = window_frames(scene, frame if params.window_s is not None else None, params.window_s)
+    frames = window_frames(scene, index if params.window_s is not None else None, params.window_s)
     tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)
     common = dict(
-        frame=frame,
+        index=index,
         window_s=params.window_s,
         n_views=params.n_views,
         refine=params.refine,
@@ -496,7 +492,7 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     t2 = time.perf_counter()
     timings["motion_area"] = t2 - t1
     try:
-        snap.viewpoint_entropy = select_view_entropy(scene, frame, body=params.body)
+        snap.viewpoint_entropy = select_view_entropy(scene, index, body=params.body)
     except (SnapshotError, RuntimeError) as err:
         warnings.warn(f"viewpoint-entropy baseline skipped: {err}", stacklevel=3)
     else:

@@ -69,6 +69,20 @@ def all_bvh(motions_dir):
     return files
 
 
+#: The fixtures that start PostgreSQL (tests/pg.py): a test that asks for one by name
+#: carries the ``postgres`` mark, so ``-m "not postgres"`` never starts the server. (A
+#: fixture that asks for one inside, with ``request.getfixturevalue``, marks its
+#: PostgreSQL parameter itself: ``pytest.param("postgresql", marks=pytest.mark.postgres)``.)
+PG_FIXTURES = ("pg_server", "pg_url")
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if any(f in getattr(item, "fixturenames", ()) for f in PG_FIXTURES):
+            item.add_marker(pytest.mark.postgres)
+
+
 #: Tests slower than this (seconds, setup + call + teardown) carry the ``slow`` mark;
 #: the end of every run lists those that do not, so the mark keeps up with the suite.
 SLOW_S = 10.0

@@ -44,6 +44,7 @@ def test_paper_tables_are_package_data():
     ]
 
 
+@pytest.mark.slow  # over 10 s on 2 cores
 def test_missing_data_is_a_reason_not_a_crash(tmp_path):
     """No motion folder: the clip figures are skipped with a reason, Table 2 is still made."""
     res = fg.make_figures(
@@ -85,6 +86,7 @@ def test_view_panels_are_named_by_the_method_vocabulary():
     ]
 
 
+@pytest.mark.slow  # over 10 s on 2 cores
 def test_fig6_and_table1_from_the_motion_data(tmp_path, motions_dir):
     """Fig. 6 of the dance is drawn (not blank); Table 1 times two clips beside the paper."""
     pytest.importorskip("snapcore.pipeline")

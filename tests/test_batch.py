@@ -543,7 +543,7 @@ def test_the_body_option_reaches_the_thumbnail(library):
     scene = load_scene([walk.path])
     expected = render_still(
         scene,
-        scene.internal_frame(doc["frame"]),
+        doc["frame"],
         np.asarray(doc["view"]),
         size=FAST.size,
         body="mannequin",

@@ -37,7 +37,7 @@ def test_a_processed_scene_is_freed_with_its_bodies(tmp_path):
     write_bvh(synth.humanoid_document("walk", seconds=1.0), path)
     scene = load_scene([str(path)])
     snap = take_snapshot(scene, view=ViewParams(baselines=False))
-    render_still(scene, snap.index, snap.view, size=(80, 90))
+    render_still(scene, snap.source_frame, snap.view, size=(80, 90))
     alive = weakref.ref(scene)
     del scene, snap
     gc.collect()

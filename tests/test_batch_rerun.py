@@ -80,7 +80,7 @@ def _thumb_is_frame(out: Path, row: dict, clip: Path, frame: int, size) -> bool:
     scene = load_scene([str(clip)])
     expected = render_still(
         scene,
-        scene.internal_frame(frame),
+        frame,
         np.array([row["view_x"], row["view_y"], row["view_z"]]),
         size=size,
     )[..., :3]

@@ -101,7 +101,9 @@ def populate(url, stim) -> dict:
     return pids
 
 
-@pytest.fixture(scope="module", params=["sqlite", "postgresql"])
+@pytest.fixture(
+    scope="module", params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)]
+)
 def server(request, stimuli_dir, tmp_path_factory):
     """`snapshot study` on a fresh database of either kind, three participants in it."""
     if request.param == "sqlite":

@@ -104,6 +104,7 @@ def test_missing_file_and_interval_outside_the_clip(tmp_path, motions_dir):
     assert r.exit_code == 2 and "best" in r.stderr
 
 
+@pytest.mark.slow  # over 10 s on 2 cores
 def test_keymoments_outputs(tmp_path, motions_dir):
     """Table on stdout; CSV, Markdown, schema-valid JSON and the timeline PNG in -o;
     the middle baseline's pick on a 68-frame clip is frame 33 (hit: 30-40)."""

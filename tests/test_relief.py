@@ -479,10 +479,10 @@ def test_cli_writes_watertight_stl_and_preview(salsa, motions_dir, tmp_path):
     assert np.allclose(m.bounds, [[0, 0, 0], [90, 60, 4.5]], atol=0.01)
     png = np.asarray(Image.open(out.with_suffix(".png")), float) / 255
     assert png.shape == (100, 150) and png.std() > 0.02
-    # source frame 903 is internal frame 903 - frame_offset: the same relief from the library
+    # the library takes the source frame the CLI was given: the same relief
     lib = relief_from_scene(
         salsa,
-        903 - salsa.frame_offset,
+        903,
         (0.3, 0.2, 1.0),
         params=ReliefParams(size_mm=(90, 60), depth_mm=3, base_mm=1.5, resolution=150),
     )
@@ -513,7 +513,7 @@ def test_cli_default_pose_is_the_selected_one(salsa, motions_dir, tmp_path):
     assert r.exit_code == 0, r.output
     summary = json.loads(r.output[r.output.index("{") :])
     assert summary["selected"] == ["frame"]
-    assert summary["frame"] == snapshot.take_snapshot(salsa).frame
+    assert summary["frame"] == snapshot.take_snapshot(salsa).source_frame
 
 
 def test_cli_rejects_frame_outside_scene(motions_dir, tmp_path):
@@ -567,7 +567,7 @@ def test_comparison_figure_has_one_panel_per_view(salsa, tmp_path):
         "viewpoint entropy (linear)",
     }
     a, b = fig.reliefs["ours"], fig.reliefs["viewpoint entropy"]
-    assert a.meta["frame"] == b.meta["frame"] == salsa.source_frame(900)
+    assert a.meta["frame"] == b.meta["frame"] == 900
     assert not np.array_equal(a.mask, b.mask)  # different views, different silhouettes
     # Each panel shows its relief's shaded preview under its name; the carving is shaded,
     # not flat, inside the silhouette.

@@ -206,6 +206,7 @@ def test_analyze_takes_a_bare_db_path_like_export(db, tmp_path):
     assert (tmp_path / "out" / "report.html").is_file()
 
 
+@pytest.mark.postgres
 def test_analyze_on_an_empty_postgresql_database_creates_nothing(pg_url, tmp_path):
     import sqlalchemy as sa
 

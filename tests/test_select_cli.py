@@ -38,7 +38,7 @@ def test_select_json_follows_the_schema_in_source_numbering(motions_dir):
         warnings.simplefilter("ignore")
         snap = take_snapshot(load_scene(path), pose=PoseParams(pose_method="paper", k=2), view=None)
     assert doc["frame_offset"] == 1 and doc["n_frames"] == 173 and doc["fps"] == 120
-    assert doc["frame"] == snap.index + 1 == snap.frame
+    assert doc["frame"] == snap.index + 1 == snap.source_frame
     assert doc["frames"] == [i + 1 for i in snap.indices] and len(doc["frames"]) == 2
     assert [p["frame"] for p in doc["peaks"]] == doc["frames"]
     assert doc["pose_entropy"]["first_frame"] == 1
@@ -163,8 +163,9 @@ def test_plot_entropy_writes_a_figure(tmp_path):
     want = np.asarray(Image.open(tmp_path / "direct.png").convert("RGB"))
     assert got.shape == want.shape and np.array_equal(got, want)
     # up to k=2 distinct peaks (the story score of the push has one hump: one pick)
-    assert 1 <= len(snap.frames) <= 2
-    assert f"top {len(snap.frames)}: {', '.join(map(str, snap.frames))}" in r.stdout
+    assert 1 <= len(snap.source_frames) <= 2
+    frames = snap.source_frames
+    assert f"top {len(frames)}: {', '.join(map(str, frames))}" in r.stdout
 
 
 def test_snapshot_to_dict_includes_view_fields_when_set():
@@ -190,7 +191,7 @@ def test_snapshot_to_dict_includes_view_fields_when_set():
         assert doc["baselines"][m.value]["view"] == snap.views[m].tolist()
         assert type(doc["baselines"][m.value]["score"]) is float
     json.dumps(doc, allow_nan=False)  # plain JSON types throughout
-    assert isinstance(snap, Snapshot) and snap.frames == [snap.frame]
+    assert isinstance(snap, Snapshot) and snap.source_frames == [snap.source_frame]
 
 
 def test_synthetic_kick_pose_is_near_the_kick():

@@ -207,6 +207,7 @@ def test_build_writes_a_verified_folder(built, tiny_config):
     assert push.entry["source"]["demo"] == "push"
 
 
+@pytest.mark.slow  # over 20 s: builds stimuli
 def test_build_records_the_selection(built):
     """The manifest's picks and view directions are those take_snapshot gives for the scene."""
     from snapcore.motion.load import load_scene
@@ -244,6 +245,7 @@ def test_build_refuses_to_overwrite(built, tiny_config):
     assert r.returncode == 2 and "already exists" in r.stderr
 
 
+@pytest.mark.slow  # over 20 s: builds stimuli
 def test_study_command_builds_missing_stimuli_then_serves(
     built, tiny_config, tmp_path, monkeypatch
 ):
@@ -318,6 +320,7 @@ def test_view_stills_share_one_background(tmp_path):
         assert (np.abs(img - bg).max(axis=-1) > 30).mean() > 0.05, m  # the figure is there
 
 
+@pytest.mark.slow  # over 20 s: builds stimuli
 def test_build_warnings_name_their_scene(tmp_path):
     """A warning raised while one scene is built says which scene it is about; the angle
     between every pair of candidates is reported; a scene without contacts (the demo
@@ -359,6 +362,7 @@ def test_build_warnings_name_their_scene(tmp_path):
     )
 
 
+@pytest.mark.slow  # over 20 s: builds stimuli
 def test_near_duplicate_error_refuses_alike_pictures(tmp_path):
     """near_duplicate = "error": a scene whose candidates are too alike (the demo jump:
     motion area's view is 3.5° from ours; it was a mirror image 163.6° apart, caught by

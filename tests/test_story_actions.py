@@ -178,12 +178,13 @@ def test_neutral_stance_of_the_synthetic_rig():
 def test_rest_departs_little_and_a_raised_hand_much():
     """Standing at rest is within a few bits of the neutral stance; the raised hand of
     the gesture clip departs by tens of bits."""
-    from snapcore.select.stance import _stature, descriptor_of, neutral_stance, pose_descriptor
+    from snapcore.motion.anatomy import stature_of
+    from snapcore.select.stance import descriptor_of, neutral_stance, pose_descriptor
     from snapcore.select.story import stance_departure
 
     scene, action = _gesture(30.0, 0, seconds=4.0, start_s=0.4, end_s=3.6)
     c = scene.characters[0]
-    nd = descriptor_of(neutral_stance(c, ground=0.0)[None], ground=0.0, stature=_stature(c))[0]
+    nd = descriptor_of(neutral_stance(c, ground=0.0)[None], ground=0.0, stature=stature_of(c))[0]
     bits = stance_departure(pose_descriptor(c, ground=0.0, fps=30.0), nd, spread=0.1)
     assert bits[:5].max() < 3.0 and bits[-5:].max() < 3.0
     assert bits[action].min() > 30.0

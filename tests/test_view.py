@@ -491,8 +491,8 @@ def test_window_picks_the_pose_specific_view():
     """±W s around a frame scores only those frames; the whole sequence sums all."""
     scene = two_phase_scene()
     whole = select_view(scene)
-    first = select_view(scene, frame=30, window_s=0.5)
-    second = select_view(scene, frame=110, window_s=0.5)
+    first = select_view(scene, index=30, window_s=0.5)
+    second = select_view(scene, index=110, window_s=0.5)
     assert first.frames == (15, 46) and second.frames == (95, 126)
     assert angle_deg(first.view, (0, 0, 1), up_to_sign=True) < 0.5
     assert angle_deg(second.view, (1, 0, 0), up_to_sign=True) < 0.5
@@ -510,7 +510,7 @@ def test_window_errors():
     with pytest.raises(ViewError, match="needs a frame"):
         select_view(scene, window_s=1.0)
     with pytest.raises(ViewError, match="outside"):
-        select_view(scene, frame=10_000, window_s=1.0)
+        select_view(scene, index=10_000, window_s=1.0)
     with pytest.raises(ViewError, match="weighting"):
         select_view(scene, method="entropy")
 
@@ -626,6 +626,7 @@ def test_select_without_view_or_baselines(motions_dir):
     assert "view" in text and "PMA" in text and "baselines" in text
 
 
+@pytest.mark.slow  # over 10 s on 2 cores
 @pytest.mark.parametrize("projection", ["mollweide", "equirect"])
 def test_plot_views_writes_a_figure(motions_dir, tmp_path, projection):
     """`snapshot plot-views` writes an image with one map per method (entropy optional)."""

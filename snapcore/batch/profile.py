@@ -161,7 +161,7 @@ def profile_batch(
 
 
 def format_profile(result: dict) -> list[str]:
-    """The measurement as a Markdown table (what the README shows)."""
+    """The measurement as a Markdown table (what docs/library.md shows)."""
     lines = [
         f"{result['scenes']} scenes, {result['cpus']} CPUs",
         "",

@@ -635,7 +635,7 @@ def run_batch(
     from snapcore.batch.gallery import write_gallery
 
     if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
+        raise BatchError(f"jobs must be at least 1, got {jobs}")
     skipped = list(skipped)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -489,12 +489,12 @@ def _render(scene, row: dict, opts: BatchOptions, what, captions=()):
     view = np.array([row["view_x"], row["view_y"], row["view_z"]], dtype=float)
     out = {}
     if "thumb" in what:
-        frame = scene.internal_frame(row["thumb_frame"])
+        frame = row["thumb_frame"]  # source numbering, as render_still takes it
         out["thumb"] = _png(render_still(scene, frame, view, size=opts.size, body=body))
     if "sheet" in what:
         from snapcore.render.composites import contact_sheet
 
-        top = [scene.internal_frame(f) for f in row["top_frames"]]
+        top = [int(f) for f in row["top_frames"]]  # source numbering
         out["sheet"] = _png(
             contact_sheet(
                 scene,

@@ -299,7 +299,12 @@ def _video_case(ctx: BenchContext, n_frames: int):
     out = Path(tempfile.mkdtemp(prefix="snapcore-bench-")) / "salsa.mp4"
     # the motion is 60 fps: a 60 fps video of n motion frames has n video frames
     return lambda: render_video(
-        scene, out, fps=scene.fps, size=(1280, 720), frame_range=(0, n_frames), progress=False
+        scene,
+        out,
+        fps=scene.fps,
+        size=(1280, 720),
+        frame_range=(scene.frame_offset, scene.frame_offset + n_frames),
+        progress=False,
     )
 
 
@@ -337,7 +342,7 @@ def _relief_height_field(ctx: BenchContext, resolution: int):
         try:
             dm = height_field_from_scene(
                 scene,
-                900 - scene.frame_offset,
+                900,
                 (0.3, 0.2, 1.0),
                 params=ReliefParams(resolution=resolution),
             )

@@ -253,7 +253,7 @@ def run_library(
 
 
 def format_library(result: dict) -> list[str]:
-    """The report as text lines (what the README's scale section shows)."""
+    """The report as text lines (what docs/library.md's scale section shows)."""
     lines = [
         f"{result['scenes']} scenes ({result['ok']} ok, {result['errors']} errors), "
         f"--jobs {result['jobs']} on {result['cpus']} CPUs (load average "

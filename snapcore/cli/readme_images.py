@@ -89,21 +89,20 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     sheet_view = views.get(ViewMethod.OURS)
     sheet = contact_sheet(
         scene,
-        picks["indices"],
+        picks["frames"],
         view=sheet_view,
         captions=picks["captions"],
         size=panel,
         title=f"CMU {name}: the three most informative poses (story information), selected view",
     )
-    frame = picks["index"]
+    frame = picks["frame"]
     labels = {ViewMethod.OURS: "ours (projected motion area)"}  # the README's panel names
     cmp = compare_views(
         scene,
         frame,
         {labels.get(m, m.label): v for m, v in views.items()},
         size=panel,
-        title=f"CMU {name}, frame {int(scene.source_frame(frame))}: "
-        "the selected pose from each method's view",
+        title=f"CMU {name}, frame {frame}: the selected pose from each method's view",
     )
     paths = [out / "contact_sheet.png", out / "three_views.png", out / "relief.png"]
     save_png(sheet, paths[0])

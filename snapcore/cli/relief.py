@@ -54,7 +54,7 @@ def default_pose_and_view(scene, *, need_frame: bool, need_view: bool):
     from snapcore.pipeline import ViewParams, take_snapshot
 
     snap = take_snapshot(scene, view=ViewParams(baselines=False) if need_view else None)
-    frame = int(snap.frame) if need_frame else None
+    frame = snap.source_frame if need_frame else None
     view = np.asarray(snap.view, float) if need_view else None
     return frame, view
 
@@ -187,8 +187,7 @@ def relief(
         if view is None:
             view = auto_view / np.linalg.norm(auto_view)
             picked.append("view")
-    internal = internal_frame(scene, frame)
-    rel = relief_from_scene(scene, internal, view, params=params, body=body_option())
+    rel = relief_from_scene(scene, frame, view, params=params, body=body_option())
     rel.write_stl(out)
     rel.write_preview(png)
     summary = {

@@ -1,8 +1,8 @@
 """``snapshot render``, ``snapshot video`` and ``snapshot sheet``: pictures of a scene.
 
 Frame numbers on the command line and in every output are SOURCE frame numbers (as in
-the BVH file; ``snapshot select`` prints the same numbers); they are converted to the
-scene's internal frames with ``scene.frame_offset``.
+the BVH file; ``snapshot select`` prints the same numbers), as the drawing functions
+take them; each is checked against the frames the scene keeps first (one line, exit 2).
 """
 
 from __future__ import annotations
@@ -54,15 +54,16 @@ def _note(text: str) -> None:
 
 
 def _frame_option(scene, frame, *, views: bool, body: BodyKind = DEFAULT_BODY):
-    """Internal frame of ``--frame`` (source numbering), else the selected pose.
+    """The source frame of ``--frame`` (checked against the scene), else the selected pose's.
 
-    Returns ``(index, picks)``; ``picks`` is the pipeline's result when it ran, else None.
+    Returns ``(frame, picks)``; ``picks`` is the pipeline's result when it ran, else None.
     """
     if frame is not None:
-        return internal_frame(scene, frame), None
+        internal_frame(scene, frame)  # a frame the scene does not keep: one line, exit 2
+        return int(frame), None
     picks = pipeline_picks(scene, views=views, body=body)
-    _note(f"frame {int(scene.source_frame(picks['index']))} ({picks['how']})")
-    return picks["index"], picks
+    _note(f"frame {picks['frame']} ({picks['how']})")
+    return picks["frame"], picks
 
 
 def pipeline_picks(
@@ -82,7 +83,8 @@ def pipeline_picks(
     Returns
     -------
     dict
-        ``index`` (into the scene's arrays), ``indices`` (top-k), ``captions`` (each
+        ``frame`` (source numbering), ``frames`` (top-k, source numbering), ``index`` and
+        ``indices`` (the same into the scene's arrays), ``captions`` (each
         pick's score in its method's terms, :meth:`PoseScores.caption`), ``views``
         (unit vectors by :class:`~snapcore.select.view_methods.ViewMethod`, those
         computed), ``how`` (one line).
@@ -99,6 +101,8 @@ def pipeline_picks(
         )
     sc = snap.pose.scores
     out = {
+        "frame": snap.source_frame,
+        "frames": snap.source_frames,
         "index": int(snap.index),
         "indices": [int(i) for i in snap.indices],
         "captions": [sc.caption(sc.total[i]) for i in snap.indices],
@@ -214,12 +218,12 @@ def render(paths, fps, scale, frame, view, output, size, fit, perspective, no_gr
 
     w, h = size
     scene = scene_from_options(paths, fps, scale)
-    i, _ = _frame_option(scene, frame, views=False)
+    f, _ = _frame_option(scene, frame, views=False)
     v, how = _view_option(view, scene)
     _note(f"view {np.round(v, 3).tolist()} ({how})")
     img = render_still(
         scene,
-        i,
+        f,
         v,
         size=(w, h),
         projection="perspective" if perspective else "orthographic",
@@ -350,7 +354,9 @@ def video(
     rng = None
     if frame_range:
         a, b = frame_range
-        rng = (internal_frame(scene, a, "--frames"), internal_frame(scene, b, "--frames") + 1)
+        internal_frame(scene, a, "--frames")  # frames the scene does not keep: one line
+        internal_frame(scene, b, "--frames")
+        rng = (a, b + 1)
     v, how = _view_option(view, scene, default="default")
     if not quiet:
         _note(f"view {np.round(v, 3).tolist()} ({how})")
@@ -527,19 +533,20 @@ def sheet(
     )
     picks = None
     if named_views or compare:
-        i, picks = _frame_option(scene, frame, views=compare, body=body)
+        f, picks = _frame_option(scene, frame, views=compare, body=body)
         if named_views:
             views = dict(named_views)
         else:
             views = (picks or pipeline_picks(scene, body=body))["views"]
-        img = compare_views(scene, i, views, title=title, **common)
+        img = compare_views(scene, f, views, title=title, **common)
     else:
         captions = None
         if frames:
-            frames = [internal_frame(scene, f, "--frames") for f in frames]
+            for f in frames:  # frames the scene does not keep: one line, exit 2
+                internal_frame(scene, f, "--frames")
         else:
             picks = pipeline_picks(scene, k=top, views=False)
-            frames, captions = picks["indices"], picks["captions"]
+            frames, captions = picks["frames"], picks["captions"]
         v, how = _view_option(view, scene)
         _note(f"view {np.round(v, 3).tolist()} ({how})")
         img = contact_sheet(

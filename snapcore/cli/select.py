@@ -222,7 +222,7 @@ def format_snapshot(doc: dict) -> list[str]:
     ]
     lines.append("timings     " + ", ".join(f"{k} {1000 * t[k]:.1f} ms" for k in keys))
     # one cold run: imports, caches and first-touched memory count here, not in
-    # `snapshot bench` (warm, repeated), whose numbers the README quotes
+    # `snapshot bench` (warm, repeated), whose numbers docs/speed.md quotes
     lines.append("            (one first run, set-up included; `snapshot bench` times warm runs)")
     return lines
 
@@ -400,6 +400,6 @@ def plot_entropy(
     out = Path(output)
     fig.savefig(out, dpi=dpi)
     click.echo(
-        f"wrote {out}  (pose: frame {snap.frame}, top {len(snap.frames)}: "
-        f"{', '.join(str(f) for f in snap.frames)})"
+        f"wrote {out}  (pose: frame {snap.source_frame}, top {len(snap.source_frames)}: "
+        f"{', '.join(str(f) for f in snap.source_frames)})"
     )

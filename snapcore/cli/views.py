@@ -76,10 +76,9 @@ def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no
     if frame is None:
         from snapcore.pipeline import take_snapshot
 
-        index = take_snapshot(scene, view=None).index
+        frame = take_snapshot(scene, view=None).source_frame
     else:
-        index = frame - scene.frame_offset
-        if not 0 <= index < scene.n_frames:
+        if not 0 <= frame - scene.frame_offset < scene.n_frames:
             raise click.BadParameter(
                 f"source frame {frame} is outside {scene.frame_offset}.."
                 f"{scene.frame_offset + scene.n_frames - 1}",
@@ -90,14 +89,14 @@ def plot_views(paths, fps, scale, output, frame, window, projection, n_views, no
 
     maps = view_maps(
         scene,
-        frame=index,
+        frame=frame,
         window_s=window,
         n_views=n_views,
         entropy=not no_entropy,
         body=body_option(),
     )
-    fig = draw(scene, frame=index, window_s=window, projection=projection, maps=maps)
+    fig = draw(scene, frame=frame, window_s=window, projection=projection, maps=maps)
     out = Path(output)
     fig.savefig(out, dpi=dpi)
     picks = ", ".join(f"{m} ({', '.join(f'{x:+.2f}' for x in d['pick'])})" for m, d in maps.items())
-    click.echo(f"wrote {out}  (frame {int(scene.source_frame(index))}: {picks})")
+    click.echo(f"wrote {out}  (frame {frame}: {picks})")

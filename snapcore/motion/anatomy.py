@@ -33,6 +33,7 @@ import numpy as np
 
 __all__ = [
     "REFERENCE_STATURE_M",
+    "stature_of",
     "ROLE_RADII",
     "DEFAULT_ROLE",
     "HIDDEN_ROLES",
@@ -52,6 +53,25 @@ __all__ = [
 #: ``stature / REFERENCE_STATURE_M``, and a file whose unit cannot be recognised is
 #: scaled so its people are this tall (the mean adult stature, both sexes).
 REFERENCE_STATURE_M = 1.70
+
+
+def stature_of(character) -> float:
+    """A character's stature (m), or :data:`REFERENCE_STATURE_M` for one without a
+    measurable height (no positions, a degenerate skeleton).
+
+    Parameters
+    ----------
+    character : Character
+        Anything with a ``height`` attribute (metres).
+
+    Returns
+    -------
+    float
+        Positive and finite.
+    """
+    h = float(character.height)
+    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
+
 
 #: Stature (m) of the figure on which the body's radii below were measured.
 _MEASURED_ON_M = 1.75

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from snapcore.errors import SceneError
+
 __all__ = [
     "ChannelLayout",
     "channel_layout",
@@ -252,7 +254,7 @@ def joint_depths(parents) -> np.ndarray:
     depth = np.zeros(parents.size, dtype=int)
     for j, p in enumerate(parents):
         if p >= j:
-            raise ValueError(f"parents: joint {j} has parent {p}; parents must precede children")
+            raise SceneError(f"parents: joint {j} has parent {p}; parents must precede children")
         depth[j] = 0 if p < 0 else depth[p] + 1
     return depth
 

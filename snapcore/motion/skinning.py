@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from snapcore.errors import SceneError
+
 if TYPE_CHECKING:  # scipy.sparse is imported where skinning runs
     from scipy import sparse
 
@@ -67,10 +69,10 @@ def weight_matrix(
     bones = np.asarray(bones, dtype=np.int64)
     w = np.asarray(weights, dtype=np.float64)
     if bones.shape != w.shape or bones.ndim != 2:
-        raise ValueError(f"bones {bones.shape} and weights {w.shape} must both be (V, n)")
+        raise SceneError(f"bones {bones.shape} and weights {w.shape} must both be (V, n)")
     keep = w != 0
     if np.any(bones[keep] < 0) or np.any(bones[keep] >= n_bones):
-        raise ValueError(f"bone indices must lie in 0..{n_bones - 1}")
+        raise SceneError(f"bone indices must lie in 0..{n_bones - 1}")
     rows = np.broadcast_to(np.arange(bones.shape[0])[:, None], bones.shape)[keep]
     m = sparse.csr_matrix((w[keep], (rows, bones[keep])), shape=(bones.shape[0], n_bones))
     m.sum_duplicates()
@@ -112,7 +114,7 @@ def blend_skin(
         m = m[None]
     f, k = m.shape[:2]
     if m.shape[2:] != (3, 4) or weights.shape[1] != k:
-        raise ValueError(f"matrices {m.shape} do not fit weights {weights.shape}")
+        raise SceneError(f"matrices {m.shape} do not fit weights {weights.shape}")
     v = weights.shape[0]
     rest = np.asarray(rest, dtype=dtype)
     # A dense (V, K) weight matrix makes W M one BLAS product, ~5x faster than SciPy's
@@ -191,7 +193,7 @@ def dq_skin(
     m = np.asarray(matrices, dtype=np.float64)
     f, k = m.shape[:2]
     if m.shape[2:] != (3, 4) or weights.shape[1] != k:
-        raise ValueError(f"matrices {m.shape} do not fit weights {weights.shape}")
+        raise SceneError(f"matrices {m.shape} do not fit weights {weights.shape}")
     c = np.asarray(centres, dtype=np.float64)
     u, _, vt = np.linalg.svd(m[..., :3])
     flip = np.linalg.det(u @ vt) < 0  # a mirror is no rotation: leave it to the rest

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from snapcore.errors import SceneError
 from snapcore.motion.bvh import BVHDocument, write_bvh
 from snapcore.motion.scene import Scene, character_from_bvh, yaw_matrix
 from snapcore.motion.synth_rig import (
@@ -517,10 +518,10 @@ def _push(t, rng):
 
 def _times(name: str, seconds: float | None, fps: float) -> np.ndarray:
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be a positive number, got {fps!r}")
+        raise SceneError(f"fps must be a positive number, got {fps!r}")
     secs = DEFAULT_SECONDS[name] if seconds is None else float(seconds)
     if not (math.isfinite(secs) and secs > 0):
-        raise ValueError(f"seconds must be a positive number, got {seconds!r}")
+        raise SceneError(f"seconds must be a positive number, got {seconds!r}")
     n = int(round(secs * fps)) + 1
     return np.arange(n) / fps
 
@@ -555,7 +556,7 @@ def humanoid_document(
         Xrotation Yrotation``; ``round(seconds * fps) + 1`` frames.
     """
     if motion not in _MAKERS:
-        raise ValueError(f"unknown motion {motion!r}; expected one of {', '.join(MOTIONS)}")
+        raise SceneError(f"unknown motion {motion!r}; expected one of {', '.join(MOTIONS)}")
     t = _times(motion, seconds, fps)
     pose = _MAKERS[motion](t, np.random.default_rng(seed))
     return to_document(pose, fps, facing_deg=facing_deg, path=f"{motion}.bvh")
@@ -600,7 +601,7 @@ def synth_scene(name: str, *, fps: float = 30.0, seed: int = 0, facing_deg: floa
         docs = (humanoid_document(name, fps=fps, seed=seed, facing_deg=facing_deg),)
         names = ("actor",)
     else:
-        raise ValueError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)}")
+        raise SceneError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)}")
     chars = []
     for doc, cname in zip(docs, names):
         c = character_from_bvh(doc, scale=1.0, name=cname, fps=fps)
@@ -696,7 +697,7 @@ def events(name: str, *, seconds: float | None = None) -> dict:
         every seed and frame rate.
     """
     if name not in SCENES:
-        raise ValueError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)}")
+        raise SceneError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)}")
     secs = DEFAULT_SECONDS[name] if seconds is None else float(seconds)
     if name == "walk":
         strikes = walk_heel_strikes(secs)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from snapcore.errors import SceneError
 from snapcore.motion.scene import Scene, character_from_bvh
 from snapcore.motion.synth_rig import (
     ANKLE_HEIGHT,
@@ -50,7 +51,7 @@ BOW_HANDS = ("sides", "hang", "clasped")
 
 def _times(seconds: float, fps: float) -> np.ndarray:
     if not (np.isfinite(fps) and fps > 0 and np.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"seconds and fps must be positive numbers, got {seconds!r}, {fps!r}")
+        raise SceneError(f"seconds and fps must be positive numbers, got {seconds!r}, {fps!r}")
     return np.arange(int(round(seconds * fps)) + 1) / fps
 
 
@@ -132,7 +133,7 @@ def bow_scene(
         Seeds the rest pose's breathing and sway and the sway's phase.
     """
     if hands not in BOW_HANDS:
-        raise ValueError(f"hands must be one of {', '.join(BOW_HANDS)}, got {hands!r}")
+        raise SceneError(f"hands must be one of {', '.join(BOW_HANDS)}, got {hands!r}")
     t = _times(seconds, fps)
     rng = np.random.default_rng(seed)
     pose = standing(t, rng)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import ReliefError
 from snapcore.relief.mesh import relief_mesh, shade_relief, write_png, write_relief_stl
 from snapcore.relief.poisson import poisson_solve, poisson_solve_attached, poisson_solve_masked
 
@@ -56,10 +56,6 @@ __all__ = [
     "poisson_solve_masked",
     "poisson_solve_attached",
 ]
-
-
-class ReliefError(SnapshotError):
-    """A relief that cannot be made (empty silhouette, bad print size, bad parameters)."""
 
 
 #: Scale of "small-scale detail" for :func:`detail_energy`: Gaussian sigma in pixels.

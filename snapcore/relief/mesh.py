@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from snapcore.errors import ReliefError
+
 __all__ = [
     "relief_mesh",
     "stl_array",
@@ -58,16 +60,16 @@ def _perimeter(ny: int, nx: int) -> np.ndarray:
 def _check_height(height_mm, size_mm, base_mm) -> np.ndarray:
     h = np.asarray(height_mm, dtype=float)
     if h.ndim != 2 or min(h.shape) < 2:
-        raise ValueError(
+        raise ReliefError(
             f"height_mm: expected a (ny, nx) array with ny, nx >= 2, got shape {h.shape}"
         )
     if not np.all(np.isfinite(h)):
-        raise ValueError("height_mm: contains NaN or infinity")
+        raise ReliefError("height_mm: contains NaN or infinity")
     w, d = (float(s) for s in size_mm)
     if not (w > 0 and d > 0):
-        raise ValueError(f"size_mm: both sides must be > 0, got {size_mm}")
+        raise ReliefError(f"size_mm: both sides must be > 0, got {size_mm}")
     if not base_mm > 0:
-        raise ValueError(f"base_mm: must be > 0, got {base_mm}")
+        raise ReliefError(f"base_mm: must be > 0, got {base_mm}")
     return h
 
 

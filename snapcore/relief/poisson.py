@@ -19,6 +19,8 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
+from snapcore.errors import ReliefError
+
 __all__ = ["poisson_solve", "poisson_solve_masked", "poisson_solve_attached", "pixel_pair"]
 
 
@@ -26,7 +28,7 @@ def pixel_pair(pixel) -> tuple[float, float]:
     """``(dx, dy)`` from one number or a pair, both > 0 (ValueError otherwise)."""
     p = np.broadcast_to(np.asarray(pixel, float), (2,))
     if not np.all(p > 0):
-        raise ValueError(f"pixel size must be > 0, got {pixel}")
+        raise ReliefError(f"pixel size must be > 0, got {pixel}")
     return float(p[0]), float(p[1])
 
 
@@ -60,7 +62,7 @@ def poisson_solve(gx, gy, *, pixel=(1.0, 1.0)):
     gx = np.array(gx, dtype=float)
     gy = np.array(gy, dtype=float)
     if gx.shape != gy.shape or gx.ndim != 2:
-        raise ValueError(
+        raise ReliefError(
             f"gx, gy: expected two arrays of one (ny, nx) shape, got {gx.shape} and {gy.shape}"
         )
     ny, nx = gx.shape
@@ -118,7 +120,7 @@ def poisson_solve_masked(gx, gy, mask, *, pixel=(1.0, 1.0), outside=None):
     gx = np.array(gx, dtype=float)
     gy = np.array(gy, dtype=float)
     if not (gx.shape == gy.shape == m.shape) or m.ndim != 2:
-        raise ValueError(
+        raise ReliefError(
             f"gx, gy, mask: expected one (ny, nx) shape, got {gx.shape}, {gy.shape}, {m.shape}"
         )
     if m.all():

@@ -35,14 +35,16 @@ __all__ = [
 ]
 
 
-def _check_frame(scene, frame) -> int:
+def _index(scene, frame) -> int:
+    """The internal index of source frame ``frame``, or a :class:`ReliefError`."""
     f = int(frame)
-    if not 0 <= f < scene.n_frames:
+    first = int(scene.frame_offset)
+    if not 0 <= f - first < scene.n_frames:
         raise ReliefError(
-            f"frame {scene.source_frame(f) if hasattr(scene, 'source_frame') else f} is outside the "
-            f"scene (source frames {scene.frame_offset}..{scene.frame_offset + scene.n_frames - 1})"
+            f"frame {f} is not in the scene, which keeps source frames "
+            f"{first}..{first + scene.n_frames - 1}"
         )
-    return f
+    return f - first
 
 
 def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None):
@@ -78,7 +80,7 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
 
 
 def relief_body(scene, frame: int, *, body: BodyKind = DEFAULT_BODY):
-    """The body mesh a relief carves: every character at internal ``frame``, finely
+    """The body mesh a relief carves: every character at source frame ``frame``, finely
     tessellated (:data:`snapcore.render.mannequin.TESSELLATION_FINE`: a relief is read as geometry,
     and the facets of the rendering body would stand out as ridges in raking light), in the
     body kind ``body`` (:data:`snapcore.render.bodies.BodyKind`; by default the human
@@ -91,13 +93,13 @@ def relief_body(scene, frame: int, *, body: BodyKind = DEFAULT_BODY):
     from snapcore.render.mannequin import CharacterBody
 
     mesh = scene_body(scene, TESSELLATION_FINE, kind=body)
-    frame = _check_frame(scene, frame)
+    index = _index(scene, frame)
     if all(isinstance(b, CharacterBody) for b in mesh.characters):
-        return mesh.pose(frame)
-    return _smoothed(mesh, frame)
+        return mesh.pose(index)
+    return _smoothed(mesh, index)
 
 
-def _smoothed(body, frame: int):
+def _smoothed(body, index: int):
     """The posed bodies with the human meshes Loop-subdivided once (4x the faces): their
     flat facets would otherwise show as ridges in the relief's raking light, as the
     mannequin's would without :data:`~snapcore.render.mannequin.TESSELLATION_FINE`. glTF
@@ -112,7 +114,7 @@ def _smoothed(body, frame: int):
     verts, faces, cols, who = [], [], [], []
     n0 = 0
     for i, b in enumerate(body.characters):
-        v = np.asarray(b.vertices(frame), float)
+        v = np.asarray(b.vertices(index), float)
         f, c = b.faces, b.face_colors
         if isinstance(b, HumanBody):  # a closed, smooth mesh; glTF ones may be unwelded
             v, f = trimesh.remesh.subdivide_loop(v, f, iterations=1)
@@ -141,7 +143,7 @@ def height_field_from_scene(
     ----------
     scene : Scene
     frame : int
-        Internal frame index (source frame minus ``scene.frame_offset``).
+        Source frame (the file's own number, ``Snapshot.source_frame``).
     view : array of shape (3,)
         Unit vector from the scene centre towards the viewer (the snapshot's view).
     params : ReliefParams, optional
@@ -180,7 +182,7 @@ def relief_from_scene(
     scene : Scene
         One or more characters (all are carved together).
     frame : int
-        Internal frame index.
+        Source frame (the file's own number, ``Snapshot.source_frame``).
     view : array of shape (3,)
         From the scene centre towards the viewer.
     params : ReliefParams, optional
@@ -218,7 +220,7 @@ def relief_from_scene(
     v = np.asarray(view, float)
     meta = {
         "scene": getattr(scene, "name", None),
-        "frame": int(scene.source_frame(int(frame))),
+        "frame": int(frame),
         "view": (v / np.linalg.norm(v)).tolist(),
         "pixel_size_m": float(dm.pixel_size),
         "method": p.method,
@@ -247,7 +249,7 @@ def relief_comparison_figure(
     ----------
     scene : Scene
     frame : int
-        Internal frame index (titles show the source frame number).
+        Source frame (the file's own number, as the title shows it).
     views : dict of str -> array of shape (3,)
         Panel name (e.g. the method: "ours (PMA)", "viewpoint entropy", "motion area")
         → view direction from the scene centre towards the viewer. Order is kept.
@@ -306,7 +308,7 @@ def relief_comparison_figure(
             if with_linear:
                 label += "\nlinear" if r else "\ncompressed"
             ax.set_title(label, fontsize=9)
-    src = scene.source_frame(int(frame))
+    src = int(frame)
     fig.suptitle(
         title
         or f"{getattr(scene, 'name', '') or 'scene'} — frame {src}: "

@@ -13,7 +13,7 @@ one keyword, ``body=`` (default :data:`DEFAULT_BODY`), and hands it down to
 :func:`~snapcore.render.viewpoint_entropy.select_view_entropy` and
 :func:`~snapcore.render.view_plot.view_maps`; the pipeline's view stage reads it from
 ``ViewParams.body``. One keyword at the entry points rather than a field on the scene:
-the same loaded scene can be drawn both ways (the README's comparison, a batch run with
+the same loaded scene can be drawn both ways (docs/method.md's comparison, a batch run with
 ``--body``), nothing about the motion changes, and a copy or cut of a scene cannot
 silently lose or keep the option. Below the entry points the built body object travels
 (``SceneRenderer(body=...)`` also takes one, :func:`~snapcore.render.camera.motion_points`
@@ -264,8 +264,8 @@ def shadow_body(body: MixedSceneBody, tessellation) -> MixedSceneBody:
     )
 
 
-def posed_mesh(scene, frame: int, *, kind: BodyKind = DEFAULT_BODY) -> PosedMesh:
-    """Merged body mesh of every character of ``scene`` at internal frame ``frame``,
+def posed_mesh(scene, index: int, *, kind: BodyKind = DEFAULT_BODY) -> PosedMesh:
+    """Merged body mesh of every character of ``scene`` at internal index ``index``,
     each wearing a ``kind`` body (:data:`BodyKind`).
 
     Returns
@@ -274,9 +274,9 @@ def posed_mesh(scene, frame: int, *, kind: BodyKind = DEFAULT_BODY) -> PosedMesh
         ``vertices`` (N, 3) metres, ``faces`` (M, 3), ``face_colors`` (M, 4) uint8,
         ``normals`` (N, 3), ``face_character`` (M,).
     """
-    return scene_body(scene, kind=kind).pose(frame)
+    return scene_body(scene, kind=kind).pose(index)
 
 
-def scene_trimesh(scene, frame: int, *, kind: BodyKind = DEFAULT_BODY):
+def scene_trimesh(scene, index: int, *, kind: BodyKind = DEFAULT_BODY):
     """:func:`posed_mesh` as a :class:`trimesh.Trimesh` (face colours set)."""
-    return posed_mesh(scene, frame, kind=kind).trimesh()
+    return posed_mesh(scene, index, kind=kind).trimesh()

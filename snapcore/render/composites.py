@@ -9,7 +9,8 @@
   by being bigger.
 
 Both return an (H, W, 3) uint8 image; :func:`snapcore.render.renderer.save_png` writes it.
-Frames are *internal* indices; labels show ``scene.source_frame``.
+Frames are *source* frames, the file's own numbers (``Snapshot.source_frames``, the
+JSON's ``frames``), as the captions show them.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from snapcore.render.camera import (
     fit_camera,
     view_basis,
 )
-from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer
+from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer, scene_index
 from snapcore.select.view_methods import view_label
 
 __all__ = [
@@ -293,7 +294,8 @@ def contact_sheet(
     ----------
     scene : Scene
     frames : sequence of int
-        Internal frames, in display order (e.g. the top-k poses, best first).
+        Source frames (the file's own numbers, ``Snapshot.source_frames``), in display
+        order (e.g. the top-k poses, best first).
     view : array of shape (3,), optional
         From the scene to the camera; default :func:`snapcore.render.camera.default_view`.
     entropy : sequence of float, optional
@@ -336,9 +338,7 @@ def contact_sheet(
     frames = [int(f) for f in np.asarray(frames).reshape(-1)]
     if not frames:
         raise RenderError("contact_sheet needs at least one frame")
-    bad = [f for f in frames if not 0 <= f < scene.n_frames]
-    if bad:
-        raise RenderError(f"frames {bad} are outside the internal frames 0..{scene.n_frames - 1}")
+    indices = [scene_index(scene, f) for f in frames]
     if entropy is not None and len(entropy) != len(frames):
         raise RenderError(f"entropy has {len(entropy)} values for {len(frames)} frames")
     if captions is not None and len(captions) != len(frames):
@@ -349,20 +349,20 @@ def contact_sheet(
         view = default_view(scene)
     view_basis(view)  # validates
     sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, body=body)
-    pts = [sr.body.vertices(f) for f in frames]
+    pts = [sr.body.vertices(i) for i in indices]
     cams = common_cameras(pts, [view] * len(frames), size=size, projection=projection)
     # the floor on one row across the panels: under each pose's mean root position
-    feet = [np.mean([c.positions[f, 0] for c in scene.characters], axis=0) for f in frames]
+    feet = [np.mean([c.positions[i, 0] for c in scene.characters], axis=0) for i in indices]
     for ft in feet:  # fresh arrays from np.mean: set their height in place
         ft[1] = scene.ground
     cams = floor_aligned(cams, pts, feet)
-    panels = [sr.render(f, c) for f, c in zip(frames, cams)]
+    panels = [sr.render(i, c) for i, c in zip(indices, cams)]
     lines = None
     if labels:
         lines = []
-        for k, f in enumerate(frames):
-            first = (f"#{k + 1}   " if ranked else "") + f"frame {int(scene.source_frame(f))}"
-            second = f"{f / scene.fps:.2f} s"
+        for k, (f, i) in enumerate(zip(frames, indices)):
+            first = (f"#{k + 1}   " if ranked else "") + f"frame {f}"
+            second = f"{i / scene.fps:.2f} s"
             if captions is not None:
                 second += f"   {captions[k]}"
             lines.append([first, second])
@@ -390,7 +390,7 @@ def compare_views(
     ----------
     scene : Scene
     frame : int
-        Internal frame.
+        Source frame (the file's own number, ``Snapshot.source_frame``).
     views : dict of ViewMethod or str to array of shape (3,)
         Panel → view direction (scene to camera), in display order: keyed by
         :class:`~snapcore.select.view_methods.ViewMethod` (``Snapshot.views``; the panel
@@ -430,9 +430,7 @@ def compare_views(
     ('uint8', True, True)
     """
     size = check_size(size)
-    frame = int(frame)
-    if not 0 <= frame < scene.n_frames:
-        raise RenderError(f"frame {frame} is outside the internal frames 0..{scene.n_frames - 1}")
+    index = scene_index(scene, frame)
     if not views:
         raise RenderError("compare_views needs at least one view")
     names = list(views)
@@ -446,7 +444,7 @@ def compare_views(
     low = [float(np.degrees(np.arcsin(np.clip(d[1], -1, 1)))) < ORTHO_HORIZON_DEG for d in dirs]
     floor = "horizon" if ground and any(low) else "auto"
     sr = SceneRenderer(scene, size=size, ground=ground, shadows=shadows, floor=floor, body=body)
-    pts = sr.body.vertices(frame)
+    pts = sr.body.vertices(index)
     cams = common_cameras([pts] * len(dirs), dirs, size=size, projection=projection)
     feet = floor_contacts(pts, scene.ground, cams)
     if floor == "horizon":
@@ -456,7 +454,7 @@ def compare_views(
     panels = []
     for c, foot in zip(cams, feet):
         sr.horizon_point = foot
-        panels.append(sr.render(frame, c))
+        panels.append(sr.render(index, c))
     caps = None
     if labels:
         caps = []
@@ -466,5 +464,5 @@ def compare_views(
                 line2 = f"{captions[name]}   {line2}"
             caps.append([view_label(name), line2])
     if title is None and labels:
-        title = f"{scene.name}: frame {int(scene.source_frame(frame))} ({frame / scene.fps:.2f} s)"
+        title = f"{scene.name}: frame {int(frame)} ({index / scene.fps:.2f} s)"
     return tile_panels(panels, caps, columns=columns, title=title)

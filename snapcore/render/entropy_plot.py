@@ -152,8 +152,9 @@ def plot_events(snapshot, *, ax=None):
     return ax.figure
 
 
-def side_axis(scene, frame: int) -> np.ndarray:
-    """Horizontal screen axis (unit, world) for a side view of ``scene`` at ``frame``.
+def side_axis(scene, index: int) -> np.ndarray:
+    """Horizontal screen axis (unit, world) for a side view of ``scene`` at internal
+    index ``index``.
 
     Two or more characters: the direction from the first character's root to the
     second's, so both stand side by side. One character: its facing (hips and
@@ -162,19 +163,19 @@ def side_axis(scene, frame: int) -> np.ndarray:
     """
     chars = scene.characters
     if len(chars) > 1:
-        d = chars[1].positions[frame, 0] - chars[0].positions[frame, 0]
+        d = chars[1].positions[index, 0] - chars[0].positions[index, 0]
         d = np.array([d[0], 0.0, d[2]])
         if np.linalg.norm(d) > 0.15:
             return d / np.linalg.norm(d)
 
     half = max(1, int(0.125 * scene.fps))
-    a, b = max(0, frame - half), min(scene.n_frames, frame + half + 1)
+    a, b = max(0, index - half), min(scene.n_frames, index + half + 1)
     f = np.zeros(3)
     for c in chars:
         f += character_facing(c.positions[a:b], c.joint_names, c.parents).sum(axis=0)
     if np.linalg.norm(f) > 1e-6:
         return f / np.linalg.norm(f)
-    pts = np.concatenate([c.positions[frame] for c in chars])[:, [0, 2]]
+    pts = np.concatenate([c.positions[index] for c in chars])[:, [0, 2]]
     pts = pts - pts.mean(axis=0)
     _, _, vt = np.linalg.svd(pts, full_matrices=False)
     return np.array([vt[0, 0], 0.0, vt[0, 1]])
@@ -381,7 +382,7 @@ def plot_entropy(snapshot, *, strip: int = 8, title: str | None = None):
     if title is None:
         title = (
             f"{scene.name}: {scene.n_frames} frames at {scene.fps:g} fps, "
-            f"selected frame {snapshot.frame} (source numbering)"
+            f"selected frame {snapshot.source_frame} (source numbering)"
         )
     fig.suptitle(title, fontsize=11)
     return fig

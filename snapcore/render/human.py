@@ -582,10 +582,6 @@ class Retarget(SoleFit):
         st = (self.k - length)[..., None] * w[..., 1]
         return np.concatenate([lin, trans[..., None]], axis=-1), st
 
-    def bone_matrices(self, positions, rotations) -> np.ndarray:
-        """Skinning matrices of the rig's bones: (F, B, 3, 4)."""
-        return self.group_matrices(positions, rotations)[:, self.bone_group]
-
     def stretch_weights(self, points: np.ndarray, weights):
         """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
 

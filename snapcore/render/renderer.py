@@ -13,8 +13,11 @@ Conventions
   camera bases follow :func:`~snapcore.render.camera.view_basis` (Y up in the picture, −Z up
   when looking straight down).
 - Images are row-major ``(H, W[, 3])`` uint8 with row 0 at the top.
-- Frames are *internal* scene frames (0 = first frame after the lead-in cut); callers
-  that show numbers to people convert with ``scene.source_frame(i)``.
+- The public functions (:func:`render_still`, the composites, the video, the relief)
+  take *source* frames, the file's own numbering (``Snapshot.source_frame``,
+  ``scene.source_frame(i)``): a frame a user reads is the frame a user passes. Internal
+  indices into the scene's (cut) arrays (0 = first frame after the lead-in cut) are
+  named ``index`` (:meth:`SceneRenderer.render`, the bodies' ``vertices``).
 - A :class:`SceneRenderer` must be used on the thread that made it (EGL contexts are
   thread-bound); every thread gets its own context.
 """
@@ -44,6 +47,7 @@ from snapcore.render.mannequin import SceneBody
 __all__ = [
     "SceneRenderer",
     "render_still",
+    "scene_index",
     "render_mesh",
     "save_png",
     "BACKGROUND",
@@ -421,15 +425,15 @@ class SceneRenderer:
             raise RenderError("internal: SceneRenderer used before its camera was set")
         return self._gl_cam
 
-    def _update_bodies(self, frame: int):
+    def _update_bodies(self, index: int):
         # All characters in one mesh and all shadows in another: each draw call costs
         # ~1 ms of Python and GL state in pyrender, the triangles themselves are cheap.
         pyrender = load_pyrender()
-        verts = self.body.vertices(frame)
+        verts = self.body.vertices(index)
         drawn = [verts]
         prim = pyrender.Primitive(
             positions=verts.astype(np.float32),
-            normals=self.body.normals(frame).astype(np.float32),
+            normals=self.body.normals(index).astype(np.float32),
             color_0=self._vcols,
             indices=self._faces,
             material=self._material,
@@ -442,7 +446,7 @@ class SceneRenderer:
             # a coarse stand-in, and only its faces turned to the light: every closed piece
             # then covers its shadow once (a tenth of the triangles, no overdraw)
             sb = self._shadow_body
-            cv = sb.vertices(frame)
+            cv = sb.vertices(index)
             tri = cv[sb.faces]
             lit = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) @ self._shadow_dir > 0
             sv = shadow_vertices(cv, self._shadow_dir, self.scene.ground + 3e-3)
@@ -461,8 +465,9 @@ class SceneRenderer:
                 drawn.append(sv)
         return drawn
 
-    def render(self, frame: int, camera: Camera, *, crop: bool = False) -> np.ndarray:
-        """The image of internal frame ``frame`` seen by ``camera``: (H, W, 3) uint8.
+    def render(self, index: int, camera: Camera, *, crop: bool = False) -> np.ndarray:
+        """The image of the pose at internal index ``index`` (``frame - scene.frame_offset``)
+        seen by ``camera``: (H, W, 3) uint8.
 
         ``crop=True`` (for many frames seen by one orthographic camera, as in videos):
         the picture without the bodies is rendered once per camera, and each frame
@@ -480,10 +485,10 @@ class SceneRenderer:
             )
         if tuple(camera.size) != self.size:
             raise RenderError(f"camera size {camera.size} differs from the renderer's {self.size}")
-        self.body._check(frame)
+        self.body._check(index)
         if camera is not self._last_cam:
             self._set_camera(camera)
-        drawn = self._update_bodies(int(frame))
+        drawn = self._update_bodies(int(index))
         window = self._crop_window(camera, drawn) if crop else None
         gl_cam = self._full_camera()
         if window is None:
@@ -542,6 +547,34 @@ class SceneRenderer:
         return self._background
 
 
+def scene_index(scene, frame, what: str = "frame") -> int:
+    """The internal index of source frame ``frame``, or a :class:`RenderError` naming the
+    source frames the scene keeps.
+
+    Parameters
+    ----------
+    scene : Scene
+    frame : int
+        Source frame number (the file's own, ``scene.source_frame(index)``).
+    what : str
+        How the message names the value (``"frame"``, ``"frame_range"``...).
+
+    Returns
+    -------
+    int
+        ``frame - scene.frame_offset``, in ``0 .. scene.n_frames - 1``.
+    """
+    f = int(frame)
+    index = f - int(scene.frame_offset)
+    if not 0 <= index < scene.n_frames:
+        first = int(scene.frame_offset)
+        raise RenderError(
+            f"{what} {f} is not in the scene, which keeps source frames "
+            f"{first}..{first + scene.n_frames - 1}"
+        )
+    return index
+
+
 def render_still(
     scene,
     frame: int,
@@ -562,7 +595,8 @@ def render_still(
     ----------
     scene : Scene
     frame : int
-        Internal frame (``source frame - scene.frame_offset``).
+        Source frame: the file's own number (``Snapshot.source_frame``, what the JSON's
+        ``frame`` says), not an index into the cut arrays.
     view : array of shape (3,), optional
         From the scene towards the camera; default :func:`default_view`.
     size : (int, int), optional
@@ -599,25 +633,19 @@ def render_still(
     if size is None:
         size = renderer.size if renderer is not None else (800, 600)
     size = check_size(size)
-    frame = int(frame)
-    if not 0 <= frame < scene.n_frames:
-        raise RenderError(
-            f"frame {frame} is outside the scene's internal frames "
-            f"0..{scene.n_frames - 1} (source frames {scene.frame_offset}.."
-            f"{scene.frame_offset + scene.n_frames - 1})"
-        )
+    index = scene_index(scene, frame)
     sr = renderer or SceneRenderer(scene, size=size, ground=ground, shadows=shadows, body=body)
     if camera is None:
         if view is None:
             view = default_view(scene)
         if fit == "frame":
-            pts = sr.body.vertices(frame)
+            pts = sr.body.vertices(index)
         elif fit == "motion":
             pts = motion_points(scene, body=sr.body)
         else:
             raise RenderError(f"fit must be 'frame' or 'motion', got {fit!r}")
         camera = fit_camera(pts, view, size=size, projection=projection)
-    return sr.render(frame, camera)
+    return sr.render(index, camera)
 
 
 def render_mesh(

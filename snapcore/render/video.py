@@ -137,7 +137,8 @@ def render_video(
     progress : bool
         Show a tqdm progress bar on stderr.
     frame_range : (int, int), optional
-        Internal frames ``start, stop`` (stop exclusive) to render; default all.
+        Source frames ``start, stop`` (stop exclusive; the file's own numbers, as
+        ``Snapshot.source_frame`` and the returned map) to render; default all.
     ground, shadows : bool
         Floor grid and shadows.
     crf : int
@@ -191,9 +192,15 @@ def render_video(
         raise RenderError(f"video width and height must be even (yuv420p), got {w}x{h}")
     if not (np.isfinite(fps) and 0 < fps <= 240):
         raise RenderError(f"fps must be in (0, 240], got {fps}")
-    start, stop = (
-        (0, scene.n_frames) if frame_range is None else (int(frame_range[0]), int(frame_range[1]))
-    )
+    start, stop = (0, scene.n_frames)
+    if frame_range is not None:
+        first, end = int(scene.frame_offset), int(scene.frame_offset) + scene.n_frames
+        a, b = int(frame_range[0]), int(frame_range[1])
+        if not first <= a < b <= end:
+            raise RenderError(
+                f"frame_range {a}:{b} is not within the scene's source frames {first}:{end}"
+            )
+        start, stop = a - first, b - first
     frames = video_frame_map(scene.n_frames, scene.fps, fps, start=start, stop=stop)
     path = Path(path)
     if not path.parent.exists():

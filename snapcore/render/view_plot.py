@@ -22,7 +22,9 @@ import math
 
 import numpy as np
 
+from snapcore.errors import RenderError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind
+from snapcore.render.renderer import scene_index
 from snapcore.render.viewpoint_entropy import select_view_entropy
 from snapcore.select.view import motion_triangles, pma_scores, select_view, window_frames
 from snapcore.select.view_methods import ViewMethod
@@ -49,7 +51,7 @@ MAP_SIZE = (360, 180)
 def _check_projection(projection: str) -> None:
     """Refuse an unknown map projection before any work is done."""
     if projection not in PROJECTIONS:
-        raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+        raise RenderError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
 
 
 def _pyplot():
@@ -211,7 +213,8 @@ def view_maps(
     ----------
     scene : Scene
     frame : int
-        Internal frame: the posed body for viewpoint entropy, the window's centre.
+        Source frame (the file's own number, ``Snapshot.source_frame``): the posed body
+        for viewpoint entropy, the window's centre.
     window_s : float, optional
         Score PMA and motion area over ``frame ± window_s`` (default: the whole sequence).
     n_views : int
@@ -227,12 +230,13 @@ def view_maps(
     dict
         Method → ``{"views", "scores", "pick", "score", "facing"}``.
     """
-    frames = window_frames(scene, frame if window_s is not None else None, window_s)
+    index = scene_index(scene, frame)
+    frames = window_frames(scene, index if window_s is not None else None, window_s)
     tri = motion_triangles(scene, frames=frames)
     out = {}
     for method in ("pma", "motion_area"):
         sel = select_view(
-            scene, frame=frame, window_s=window_s, method=method, n_views=n_views, triangles=tri
+            scene, index=index, window_s=window_s, method=method, n_views=n_views, triangles=tri
         )
         out[method] = {
             "views": sel.views,
@@ -242,7 +246,7 @@ def view_maps(
             "facing": sel.facing,
         }
     if entropy:
-        ve = select_view_entropy(scene, frame, score_all=True, body=body)
+        ve = select_view_entropy(scene, index, score_all=True, body=body)
         out["viewpoint_entropy"] = {
             "views": ve.views,
             "scores": ve.scores,
@@ -270,7 +274,8 @@ def plot_views(
     ----------
     scene : Scene
     frame : int
-        Internal frame of the pose (viewpoint entropy; window centre).
+        Source frame of the pose (``Snapshot.source_frame``; viewpoint entropy, window
+        centre).
     window_s : float, optional
         PMA and motion area over ``frame ± window_s`` seconds (default: whole sequence).
     n_views : int
@@ -310,7 +315,7 @@ def plot_views(
             title=_TITLES[m],
             symmetric=("pma", "motion_area"),
         )
-    when = f"frame {int(scene.source_frame(frame))}"
+    when = f"frame {int(frame)}"
     span = "whole sequence" if window_s is None else f"frame ± {window_s:g} s"
     fig.suptitle(
         f"{scene.name}: view scores over the sphere (PMA and motion area: {span}; "

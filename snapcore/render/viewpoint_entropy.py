@@ -126,7 +126,8 @@ class EntropySelection:
         Entropy of every view (bits; NaN for views below ``min_elevation_deg``, which
         were not rendered unless ``score_all``).
     frame : int
-        Internal frame of the posed mesh.
+        Internal index of the posed mesh (``scene.source_frame(frame)`` is the file's
+        frame number, what the JSON reports).
     n_faces : int
         Faces of the posed mesh.
     resolution : int
@@ -157,7 +158,7 @@ class EntropySelection:
 
 def select_view_entropy(
     scene,
-    frame: int,
+    index: int,
     *,
     n_views: int = VE_VIEWS,
     resolution: int = VE_RESOLUTION,
@@ -166,13 +167,14 @@ def select_view_entropy(
     body: BodyKind = DEFAULT_BODY,
     mesh=None,
 ) -> EntropySelection:
-    """The view of maximal viewpoint entropy of the posed body at ``frame``.
+    """The view of maximal viewpoint entropy of the posed body at ``index``.
 
     Parameters
     ----------
     scene : Scene
-    frame : int
-        Internal frame (the selected pose).
+    index : int
+        Internal index of the pose (``Snapshot.index``: source frame minus
+        ``scene.frame_offset``).
     n_views : int
         Sample views (:func:`snapcore.select.view.view_sphere`; 162 by default).
     resolution : int
@@ -196,9 +198,9 @@ def select_view_entropy(
         Ties go to the first view in the sphere's order (deterministic).
     """
     if mesh is None:
-        if not 0 <= int(frame) < scene.n_frames:
-            raise EntropyError(f"frame {frame} is outside 0..{scene.n_frames - 1}")
-        mesh = posed_mesh(scene, int(frame), kind=body)
+        if not 0 <= int(index) < scene.n_frames:
+            raise EntropyError(f"index {index} is outside 0..{scene.n_frames - 1}")
+        mesh = posed_mesh(scene, int(index), kind=body)
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     if len(faces) == 0:
         raise EntropyError("the posed mesh has no faces")
@@ -217,7 +219,7 @@ def select_view_entropy(
         score=float(scores[best]),
         views=views,
         scores=scores,
-        frame=int(frame),
+        frame=int(index),
         n_faces=int(len(faces)),
         resolution=int(resolution),
         visible_faces=visible,

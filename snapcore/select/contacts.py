@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from snapcore.errors import SceneError
+from snapcore.errors import SceneError, SelectionError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.select.capsules import BODY_BLOCK_S, body_near, bone_radii, segment_distance
 
@@ -119,9 +119,9 @@ class ContactParams:
         ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"ContactParams.{name} must be a positive number, got {v}")
+                raise SelectionError(f"ContactParams.{name} must be a positive number, got {v}")
         if self.reference_stature is not None and not self.reference_stature > 0:
-            raise ValueError("ContactParams.reference_stature must be positive or None")
+            raise SelectionError("ContactParams.reference_stature must be positive or None")
 
     def length_scale(self, scene) -> float:
         """Factor applied to the lengths for ``scene`` (mean stature / reference)."""

@@ -33,6 +33,7 @@ import warnings
 
 import numpy as np
 
+from snapcore.errors import SelectionError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.motion.kinematics import matrix_to_quat
 from snapcore.select.contacts import (
@@ -354,7 +355,7 @@ def global_entropy(
     joint counted once per frame.
     """
     if mode not in EVENT_MODES:
-        raise ValueError(f"mode must be one of {', '.join(EVENT_MODES)}, got {mode!r}")
+        raise SelectionError(f"mode must be one of {', '.join(EVENT_MODES)}, got {mode!r}")
     active = np.asarray(active, dtype=bool)
     n_f, n_j = active.shape
     p = active.sum(axis=0) / max(n_f, 1)
@@ -422,10 +423,10 @@ def pose_entropy(
         it is set to 0 rather than NaN.
     """
     if events not in EVENT_MODES:
-        raise ValueError(f"events must be one of {', '.join(EVENT_MODES)}, got {events!r}")
+        raise SelectionError(f"events must be one of {', '.join(EVENT_MODES)}, got {events!r}")
     for name, w in (("w_local", w_local), ("w_global", w_global)):
         if not (np.isfinite(w) and w >= 0):
-            raise ValueError(f"{name} must be a non-negative number, got {w}")
+            raise SelectionError(f"{name} must be a non-negative number, got {w}")
     timings = {}
     t0 = time.perf_counter()
     if interactions is None:

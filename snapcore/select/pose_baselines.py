@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from snapcore.motion.anatomy import stature_of
 from snapcore.select.signals import smooth_positions
 
 __all__ = [
@@ -44,11 +45,6 @@ def _visible(character) -> np.ndarray:
     return np.flatnonzero(keep) if keep.any() else np.arange(character.n_joints)
 
 
-def _stature(character) -> float:
-    h = float(character.height)
-    return h if np.isfinite(h) and h > 0 else 1.70
-
-
 def stretch_score(scene) -> np.ndarray:
     """Mean joint distance from the joints' centroid over the stature, shape (F,).
 
@@ -58,7 +54,7 @@ def stretch_score(scene) -> np.ndarray:
     for c in scene.characters:
         x = c.positions[:, _visible(c)]
         d = np.sqrt(np.square(x - x.mean(axis=1, keepdims=True)).sum(-1))
-        out += d.mean(axis=1) / _stature(c)
+        out += d.mean(axis=1) / stature_of(c)
     return out
 
 
@@ -70,7 +66,7 @@ def speed_score(scene, *, smooth_s: float = 0.1) -> np.ndarray:
     for c in scene.characters:
         x = smooth_positions(c.positions[:, _visible(c)], fps=scene.fps, smooth_s=smooth_s)
         v = np.sqrt(np.square(np.gradient(x, axis=0)).sum(-1)) * scene.fps
-        out += v.mean(axis=1) / _stature(c)
+        out += v.mean(axis=1) / stature_of(c)
     return out
 
 
@@ -111,7 +107,7 @@ def random_frames(n_frames: int, k: int, *, seed: int = 0, min_separation: int =
 def _trajectories(scene) -> np.ndarray:
     """All characters' visible joints, flattened per frame, over the stature: (F, D)."""
     parts = [
-        c.positions[:, _visible(c)].reshape(scene.n_frames, -1) / _stature(c)
+        c.positions[:, _visible(c)].reshape(scene.n_frames, -1) / stature_of(c)
         for c in scene.characters
     ]
     return np.concatenate(parts, axis=1)

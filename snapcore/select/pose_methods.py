@@ -23,7 +23,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from snapcore.errors import SnapshotError
+from snapcore.errors import SelectionError, SnapshotError
 from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
 from snapcore.select.paper import REST_SPEED, select_pose_paper
 from snapcore.select.pose_baselines import (
@@ -48,8 +48,6 @@ __all__ = [
     "story_interactions",
 ]
 
-#: Every selector, the default first.
-POSE_METHODS = ("story", "paper", "stretch", "fastest", "middle", "random", "salient")
 #: What ``select_pose`` and ``snapshot select`` use unless told otherwise.
 DEFAULT_POSE_METHOD = "story"
 #: Options that only the ``paper`` method takes.
@@ -62,6 +60,20 @@ PAPER_OPTIONS = (
     "tolerances",
     "interactions",
 )
+#: Every selector, the default first, with the options it takes besides ``k`` and
+#: ``min_separation_s``: the one table :meth:`PoseParams.kwargs` reads (the runners
+#: that take them are in ``_RUNNERS``, below them).
+METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
+    "story": ("story",),
+    "paper": PAPER_OPTIONS,
+    "stretch": (),
+    "fastest": (),
+    "middle": (),
+    "random": ("seed",),
+    "salient": (),
+}
+#: Every selector, the default first.
+POSE_METHODS = tuple(METHOD_OPTIONS)
 
 
 class PaperOptionError(SnapshotError):
@@ -177,14 +189,10 @@ class PoseParams:
         """Keyword arguments of :func:`select_pose`: the method, ``k``,
         ``min_separation_s`` and the options of that method only."""
         out = {"method": self.method, "k": self.k, "min_separation_s": self.min_separation_s}
-        if self.method == "paper":
-            out.update(
-                {name: getattr(self, name) for name in PAPER_OPTIONS if name != "interactions"}
-            )
-        elif self.method == "story" and self.story is not None:
-            out["story"] = self.story
-        elif self.method == "random":
-            out["seed"] = self.seed
+        for name in METHOD_OPTIONS.get(self.method, ()):  # an unknown method: select_pose says
+            # ``interactions`` is computed data, no parameter; story=None is the default
+            if name in _PARAM_DEFAULTS and not (name == "story" and self.story is None):
+                out[name] = getattr(self, name)
         return out
 
 
@@ -290,7 +298,7 @@ def select_pose(
     ------
     PaperOptionError
         A paper-only option (:data:`PAPER_OPTIONS`) passed with another method.
-    ValueError
+    SelectionError
         ``k`` or ``min_separation_s`` out of range, an unknown ``method``.
 
     Warns
@@ -311,14 +319,23 @@ def select_pose(
     True
     """
     if int(k) != k or k < 1:
-        raise ValueError(f"k must be a positive integer, got {k}")
+        raise SelectionError(f"k must be a positive integer, got {k}")
     if not (np.isfinite(min_separation_s) and min_separation_s >= 0):
-        raise ValueError(f"min_separation_s must be a non-negative number, got {min_separation_s}")
+        raise SelectionError(
+            f"min_separation_s must be a non-negative number, got {min_separation_s}"
+        )
     method = DEFAULT_POSE_METHOD if method is None else method
     check_paper_options(method, options)
-    if method == "paper":
-        return select_pose_paper(scene, k=int(k), min_separation_s=min_separation_s, **options)
-    return run_pose_method(scene, method, k=int(k), min_separation_s=min_separation_s, **options)
+    return _runner(method, POSE_METHODS)(
+        scene, k=int(k), min_separation_s=min_separation_s, **options
+    )
+
+
+def _runner(method: str, allowed):
+    """The function that runs ``method`` (``_RUNNERS``), checked against ``allowed``."""
+    if method not in allowed:
+        raise SelectionError(f"method must be one of {', '.join(allowed)}, got {method!r}")
+    return _RUNNERS[method]
 
 
 def run_pose_method(
@@ -326,7 +343,7 @@ def run_pose_method(
     method: str,
     *,
     k: int = 3,
-    min_separation_s: float = 0.3,
+    min_separation_s: float = MIN_SEPARATION_S,
     story=None,
     seed: int = 0,
 ):
@@ -349,63 +366,81 @@ def run_pose_method(
     -------
     PoseSelection
     """
-    if method not in POSE_METHODS or method == "paper":
-        raise ValueError(f"method must be one of {', '.join(POSE_METHODS)}, got {method!r}")
+    others = tuple(m for m in POSE_METHODS if m != "paper")
+    return _runner(method, others)(
+        scene, k=int(k), min_separation_s=min_separation_s, story=story, seed=seed
+    )
+
+
+def _story(scene, *, k, min_separation_s, story=None, seed=0):
     t0 = time.perf_counter()
-    n_f, fps = scene.n_frames, float(scene.fps)
-    sep = int(round(min_separation_s * fps))
-    zeros = np.zeros(n_f)
-    if method == "story":
-        params = DEFAULT_STORY if story is None else story
-        info = story_information(scene, params)
-        total = info.total
-        frames = top_peaks(total, int(k), min_separation=sep)
-        if not float(total.max()) > float(total.min()):
-            warnings.warn(
-                "story information is the same at every frame (static clip?); "
-                "choosing the first frame",
-                stacklevel=3,
-            )
-        t1 = time.perf_counter()
-        timings = {
-            "story": info.timings_s["story"],
-            "select": t1 - t0 - info.timings_s["story"],
-            "total": t1 - t0,
-        }
-        return _selection(
-            scene,
-            method,
-            frames,
-            terms=info.terms,
-            unit="bits" if params.combine == "bits" else "normalised",
-            interactions=story_interactions(scene, info),
-            k=k,
-            sep_s=min_separation_s,
-            timings=timings,
+    params = DEFAULT_STORY if story is None else story
+    info = story_information(scene, params)
+    total = info.total
+    frames = top_peaks(total, int(k), min_separation=_separation(scene, min_separation_s))
+    if not float(total.max()) > float(total.min()):
+        warnings.warn(
+            "story information is the same at every frame (static clip?); choosing the first frame",
+            stacklevel=3,
         )
-    if method in ("stretch", "fastest"):
-        raw = stretch_score(scene) if method == "stretch" else speed_score(scene)
+    t1 = time.perf_counter()
+    timings = {
+        "story": info.timings_s["story"],
+        "select": t1 - t0 - info.timings_s["story"],
+        "total": t1 - t0,
+    }
+    return _selection(
+        scene,
+        "story",
+        frames,
+        terms=info.terms,
+        unit="bits" if params.combine == "bits" else "normalised",
+        interactions=story_interactions(scene, info),
+        k=k,
+        sep_s=min_separation_s,
+        timings=timings,
+    )
+
+
+def _scored(method: str, score, term: str, unit: str):
+    """A runner that takes the top peaks of a per-frame score (``stretch``, ``fastest``)."""
+
+    def run(scene, *, k, min_separation_s, story=None, seed=0):
+        t0 = time.perf_counter()
+        raw = score(scene)
         if not float(raw.max()) > float(raw.min()):
             warnings.warn(
                 f"the {method} score is the same at every frame (static clip?); "
                 "choosing the first frame",
                 stacklevel=3,
             )
-        frames = top_peaks(raw, int(k), min_separation=sep)
-        terms = {"stretch": raw} if method == "stretch" else {"speed": raw}
-        unit = "statures" if method == "stretch" else "statures/s"
-    else:
-        if method == "middle":
-            frames = middle_frames(n_f, int(k))
-        elif method == "random":
-            frames = random_frames(n_f, int(k), seed=seed, min_separation=sep)
-        else:
-            frames = salient_frames(scene, int(k))
-        score = zeros.copy()
+        frames = top_peaks(raw, int(k), min_separation=_separation(scene, min_separation_s))
+        return _ranked(scene, method, frames, {term: raw}, unit, k, min_separation_s, t0)
+
+    return run
+
+
+def _picked(method: str, pick):
+    """A runner whose frames are picked, not scored (``middle``, ``random``, ``salient``):
+    its score is the rank, 1 for the first pick down to 0.5 for the last."""
+
+    def run(scene, *, k, min_separation_s, story=None, seed=0):
+        t0 = time.perf_counter()
+        frames = pick(scene, int(k), seed, _separation(scene, min_separation_s))
+        score = np.zeros(scene.n_frames)
         score[frames] = np.linspace(1.0, 0.5, len(frames)) if len(frames) > 1 else 1.0
-        terms, unit = {"rank": score}, "rank"
+        return _ranked(scene, method, frames, {"rank": score}, "rank", k, min_separation_s, t0)
+
+    return run
+
+
+def _separation(scene, min_separation_s: float) -> int:
+    """The minimum separation in frames."""
+    return int(round(min_separation_s * float(scene.fps)))
+
+
+def _ranked(scene, method, frames, terms, unit, k, sep_s, t0):
     t1 = time.perf_counter()
-    timings = {"select": t1 - t0, "total": t1 - t0}
     return _selection(
         scene,
         method,
@@ -414,6 +449,22 @@ def run_pose_method(
         unit=unit,
         interactions=_empty_interactions(scene),
         k=k,
-        sep_s=min_separation_s,
-        timings=timings,
+        sep_s=sep_s,
+        timings={"select": t1 - t0, "total": t1 - t0},
     )
+
+
+#: Method → the function that runs it (keywords: ``k``, ``min_separation_s`` and the
+#: method's :data:`METHOD_OPTIONS`): the one dispatch.
+_RUNNERS = {
+    "story": _story,
+    "paper": select_pose_paper,
+    "stretch": _scored("stretch", stretch_score, "stretch", "statures"),
+    "fastest": _scored("fastest", speed_score, "speed", "statures/s"),
+    "middle": _picked("middle", lambda scene, k, seed, sep: middle_frames(scene.n_frames, k)),
+    "random": _picked(
+        "random",
+        lambda scene, k, seed, sep: random_frames(scene.n_frames, k, seed=seed, min_separation=sep),
+    ),
+    "salient": _picked("salient", lambda scene, k, seed, sep: salient_frames(scene, k)),
+}

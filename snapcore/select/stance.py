@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks
+from snapcore.motion.anatomy import body_landmarks, stature_of
 from snapcore.select.signals import smooth_positions
 
 __all__ = [
@@ -47,11 +47,6 @@ _KEY_LANDMARKS = ("head", "pelvis", "wrist_L", "wrist_R", "ankle_L", "ankle_R")
 _MEASURE_FRAMES = 256
 #: How far (statures) a hanging hand lies outside its shoulder joint (:func:`neutral_stance`).
 _HAND_OUTSET = 0.04
-
-
-def _stature(character) -> float:
-    h = float(character.height)
-    return h if np.isfinite(h) and h > 0 else REFERENCE_STATURE_M
 
 
 def key_joints(character) -> np.ndarray:
@@ -141,7 +136,7 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     if geometry is None:
         return None
     idx, leg, spine, to_branch, arm = geometry
-    stature = _stature(character)
+    stature = stature_of(character)
     # one gather of the 8 joints used: hips, shoulders, ankles (L, R), pelvis, branch, on
     # at most ~256 evenly spaced frames (medians of body measurements need no more):
     # (F', 8, 3)
@@ -312,7 +307,7 @@ def pose_descriptor(
         stature but moves 16 % forward), a guiding hand reaching out.
     """
     x = key_positions(character, fps=fps, smooth_s=smooth_s)
-    return descriptor_of(x, ground=ground, stature=_stature(character), horizontal=horizontal)
+    return descriptor_of(x, ground=ground, stature=stature_of(character), horizontal=horizontal)
 
 
 def key_positions(character, *, fps: float, smooth_s: float = 0.05) -> np.ndarray:

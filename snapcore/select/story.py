@@ -69,7 +69,7 @@ plus an event term, the pose is the argmax -- and measures every ingredient as
 
 Nothing depends on a frame's position in the clip (no preference for the middle), and
 every ingredient can be switched off or replaced for ablation through
-:class:`StoryParams` (the README's ablation table). Everything is vectorised over
+:class:`StoryParams` (the ablation table of docs/method.md). Everything is vectorised over
 frames and joints; the Python loops run over characters and limbs.
 
 References: Assa, Caspi & Cohen-Or 2005 (*Action Synopsis*: poses that stand out of
@@ -85,12 +85,10 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from snapcore.motion.anatomy import (
-    REFERENCE_STATURE_M,
-)
+from snapcore.errors import SelectionError
+from snapcore.motion.anatomy import REFERENCE_STATURE_M, stature_of
 from snapcore.select.signals import half_gaussian, minmax, smooth_positions
 from snapcore.select.stance import (
-    _stature,
     descriptor_of,
     key_joints,
     key_positions,
@@ -255,28 +253,28 @@ class StoryParams:
             if isinstance(v, bool) or isinstance(v, str):
                 continue
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"StoryParams.{f.name} must be a non-negative number, got {v}")
+                raise SelectionError(f"StoryParams.{f.name} must be a non-negative number, got {v}")
         if self.combine not in COMBINE_MODES:
-            raise ValueError(
+            raise SelectionError(
                 f"StoryParams.combine must be one of "
                 f"{', '.join(COMBINE_MODES)}, got {self.combine!r}"
             )
         if not self.stance_spread > 0:
-            raise ValueError(f"StoryParams.stance_spread must be > 0, got {self.stance_spread}")
+            raise SelectionError(f"StoryParams.stance_spread must be > 0, got {self.stance_spread}")
         if self.event_model not in EVENT_MODELS:
-            raise ValueError(
+            raise SelectionError(
                 f"StoryParams.event_model must be one of "
                 f"{', '.join(EVENT_MODELS)}, got {self.event_model!r}"
             )
         if not self.shrinkage <= 1:
-            raise ValueError(f"StoryParams.shrinkage must be in [0, 1], got {self.shrinkage}")
+            raise SelectionError(f"StoryParams.shrinkage must be in [0, 1], got {self.shrinkage}")
         if self.release_height < self.support_height or self.release_speed < self.support_speed:
-            raise ValueError(
+            raise SelectionError(
                 "StoryParams: release thresholds must not be below the "
                 "support thresholds (hysteresis)"
             )
         if self.w_pose + self.w_event <= 0:
-            raise ValueError("StoryParams: at least one of w_pose, w_event must be > 0")
+            raise SelectionError("StoryParams: at least one of w_pose, w_event must be > 0")
 
     def with_(self, **changes) -> StoryParams:
         """A copy with ``changes`` (for ablation)."""
@@ -478,7 +476,7 @@ def debounced_contacts(
     ``min(h_off / h_on, v_off / v_on)``. Then :func:`enforce_min_durations`.
     """
     p = params
-    scale = _stature(character) / REFERENCE_STATURE_M
+    scale = stature_of(character) / REFERENCE_STATURE_M
     if p.per_limb:
         names, joints = limb_groups(character)
     else:
@@ -700,7 +698,7 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
         if pose_on:
             feats = descriptor_of(
-                x, ground=scene.ground, stature=_stature(c), horizontal=p.horizontal
+                x, ground=scene.ground, stature=stature_of(c), horizontal=p.horizontal
             )
             if p.novelty:
                 novelty_bits += tail_surprisal(
@@ -717,12 +715,12 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             elif neutral is not None:
                 if p.stance:
                     nd = descriptor_of(
-                        neutral[None], ground=0.0, stature=_stature(c), horizontal=p.horizontal
+                        neutral[None], ground=0.0, stature=stature_of(c), horizontal=p.horizontal
                     )[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
                 if p.trunk:
                     trunk_bits += trunk_departure(
-                        x, neutral, stature=_stature(c), spread=p.trunk_spread
+                        x, neutral, stature=stature_of(c), spread=p.trunk_spread
                     )
         tb = time.perf_counter()
         lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
@@ -738,7 +736,7 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             strike_bits += strike_surprisal(
                 x,
                 fps=fps,
-                stature=_stature(c),
+                stature=stature_of(c),
                 threshold=p.strike_speed,
                 support_s=p.event_support_s,
             )

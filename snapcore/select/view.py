@@ -175,11 +175,6 @@ class MotionTriangles:
         quads below the noise floor."""
         return self.vectors("motion_area")
 
-    @property
-    def vector_areas(self) -> np.ndarray:
-        """``areas`` as shape (K, 3)."""
-        return self.areas.T
-
     def vectors(self, weighting: str = "pma") -> np.ndarray:
         """``b_k`` of ``score(v) = Σ_k |b_k·v|``, shape (3, K), read-only.
 
@@ -527,14 +522,15 @@ class ViewSelection:
         }
 
 
-def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
-    """Internal ``(start, stop)`` frames of the whole sequence or of ``frame ± window_s``.
+def window_frames(scene, index=None, window_s=None) -> tuple[int, int]:
+    """Internal ``(start, stop)`` indices of the whole sequence or of ``index ± window_s``.
 
     Parameters
     ----------
     scene : Scene
-    frame : int, optional
-        Internal frame index (required with ``window_s``).
+    index : int, optional
+        Internal index of the window's centre (``PoseSelection.index``; required with
+        ``window_s``).
     window_s : float, optional
         Half-width in seconds; the window is clipped to the sequence and holds at least
         the frame and one neighbour.
@@ -542,13 +538,13 @@ def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
     n = scene.n_frames
     if window_s is None:
         return 0, n
-    if frame is None:
-        raise ViewError("a window needs a frame: pass frame= with window_s=")
+    if index is None:
+        raise ViewError("a window needs a frame: pass index= with window_s=")
     if not (np.isfinite(window_s) and window_s >= 0):
         raise ViewError(f"window_s must be a non-negative number of seconds, got {window_s}")
-    f = int(frame)
+    f = int(index)
     if not 0 <= f < n:
-        raise ViewError(f"frame {f} is outside 0..{n - 1}")
+        raise ViewError(f"index {f} is outside 0..{n - 1}")
     half = max(1, int(round(window_s * scene.fps)))
     return max(0, f - half), min(n, f + half + 1)
 
@@ -557,7 +553,7 @@ def window_frames(scene, frame=None, window_s=None) -> tuple[int, int]:
 def select_view(
     scene,
     *,
-    frame=None,
+    index=None,
     window_s=None,
     method: str = "pma",
     n_views: int = 2562,
@@ -570,10 +566,11 @@ def select_view(
     Parameters
     ----------
     scene : Scene
-    frame : int, optional
-        Internal frame at the centre of the window (used only with ``window_s``).
+    index : int, optional
+        Internal index of the window's centre (``Snapshot.index``, ``PoseSelection.index``:
+        the source frame minus ``scene.frame_offset``; used only with ``window_s``).
     window_s : float, optional
-        Score frames ``frame ± window_s`` seconds (the pose-specific view); default the
+        Score frames ``index ± window_s`` seconds (the pose-specific view); default the
         whole sequence (the global view, eq. 10).
     method : ViewMethod or {"pma", "motion_area"}
         ``ViewMethod.OURS`` (the same as ``"pma"``) or ``ViewMethod.MOTION_AREA``
@@ -616,7 +613,7 @@ def select_view(
     ('pma', True, 1.0)
     """
     method = _weighting_of(method)
-    frames = window_frames(scene, frame, window_s)
+    frames = window_frames(scene, index, window_s)
     if triangles is None:
         triangles = motion_triangles(scene, frames=frames, floor=floor)
     elif tuple(triangles.frames) != tuple(frames):
@@ -691,7 +688,7 @@ def view_angles_deg(directions: dict) -> dict:
         v = np.asarray(directions[n], dtype=float).reshape(3)
         norm = np.linalg.norm(v)
         if not norm > 0:
-            raise ValueError(f"directions[{n!r}] is a zero vector")
+            raise ViewError(f"directions[{n!r}] is a zero vector")
         unit[n] = v / norm
     out = {}
     for i, a in enumerate(names):
@@ -721,7 +718,7 @@ def near_duplicate_views(angles: dict, threshold_deg: float) -> list[tuple[str, 
         The pairs, in the order of ``angles``.
     """
     if not 0 <= threshold_deg <= 90:
-        raise ValueError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
+        raise ViewError(f"threshold_deg must be in [0, 90], got {threshold_deg}")
     return [
         tuple(k.split("|", 1))
         for k, a in angles.items()

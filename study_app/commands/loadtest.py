@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from snapcore.cli.common import FiniteFloatRange
 from snapcore.errors import SnapshotError
 
 __all__ = ["loadtest", "LoadTestError", "format_report"]
@@ -106,14 +107,14 @@ def format_report(report: dict) -> str:
 )
 @click.option(
     "--ramp",
-    type=click.FloatRange(0),
+    type=FiniteFloatRange(0),
     default=30.0,
     show_default=True,
     help="Seconds over which they arrive (evenly).",
 )
 @click.option(
     "--think",
-    type=click.FloatRange(0),
+    type=FiniteFloatRange(0),
     default=2.0,
     show_default=True,
     help="Mean seconds before each answer (uniform 0.5-1.5 x this).",
@@ -128,7 +129,7 @@ def format_report(report: dict) -> str:
 @click.option(
     "--reload",
     "reload_share",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=0.1,
     show_default=True,
     help="Share of participants who reload once mid-study.",
@@ -136,7 +137,7 @@ def format_report(report: dict) -> str:
 @click.option(
     "--back",
     "back_share",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=0.1,
     show_default=True,
     help="Share who go Back to the study link once.",
@@ -144,7 +145,7 @@ def format_report(report: dict) -> str:
 @click.option(
     "--double-click",
     "double_share",
-    type=click.FloatRange(0, 1),
+    type=FiniteFloatRange(0, 1),
     default=0.1,
     show_default=True,
     help="Share who double-click one answer.",
@@ -190,7 +191,7 @@ def format_report(report: dict) -> str:
 @click.option(
     "--timeout",
     "timeout_s",
-    type=click.FloatRange(1),
+    type=FiniteFloatRange(1),
     default=120.0,
     show_default=True,
     help="Longest wait for one interaction (s).",

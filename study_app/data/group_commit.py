@@ -6,8 +6,7 @@ write from a Streamlit script thread, and all those threads share one interprete
 module releases it around every call into SQLite) and waits for it to come back, so under
 load a write transaction holds the database for many GIL turns, not for its few hundred
 microseconds of work, and the writers queue behind it (measured at 100 participants:
-~11 ms per commit, almost all of it waiting for the GIL; see the README's capacity
-section).
+~11 ms per commit, almost all of it waiting for the GIL; see docs/capacity.md).
 
 :class:`GroupCommit` makes that queue useful. A writer enqueues its work, a function of
 an open connection. If no transaction is running, it becomes the *leader*: it opens one

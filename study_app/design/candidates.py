@@ -82,8 +82,8 @@ def select_scene_snapshot(scene, options: dict | None = None):
             "view (a baseline was skipped: see the warning above)"
         )
     picks = {
-        "frame": snap.frame,
-        "frames": snap.frames,
+        "frame": snap.source_frame,
+        "frames": snap.source_frames,
         "pose_method": snap.pose.method,
         "by_method": _picks_by_method(scene),
     }
@@ -231,7 +231,7 @@ def replace_alike_views(
 
     scene = snap.scene
     renderer = renderer or view_renderer(scene, study.size)
-    frame = int(picks["frame"]) - scene.frame_offset
+    frame = int(picks["frame"])
 
     def render(direction) -> np.ndarray:
         return render_view(scene, frame, direction, renderer)

@@ -99,7 +99,8 @@ def view_renderer(scene, size: tuple[int, int]):
 
 
 def render_view(scene, frame: int, direction, renderer) -> np.ndarray:
-    """One candidate picture (internal ``frame``), framed as all candidates are."""
+    """One candidate picture (source ``frame``, the file's own number), framed as all
+    candidates are."""
     from snapcore.render.renderer import render_still
 
     return render_still(scene, frame, direction, fit="frame", renderer=renderer)
@@ -121,7 +122,7 @@ def write_views(
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     directions = {m: picks[PICK_KEYS[m]] for m in VIEW_METHODS}
-    frame = int(picks["frame"]) - scene.frame_offset
+    frame = int(picks["frame"])
     # Same size and the same framing rule for all three (the pose fitted tightly with
     # the same margin from each direction), so no view wins by being bigger. No floor
     # and no shadows: a tightly framed orthographic view shows the floor grid from

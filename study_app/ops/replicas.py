@@ -40,7 +40,7 @@ import subprocess
 import sys
 import time
 import urllib.request
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from snapcore.errors import SnapshotError
@@ -487,9 +487,6 @@ class ReplicaSet:
         state = self.root / STATE_FILE
         if state.exists():
             state.unlink()
-
-    def describe(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if k in ("n", "port", "db_url")}
 
 
 def main_loop(rs: ReplicaSet) -> None:

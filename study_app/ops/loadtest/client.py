@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import time
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl, urlsplit
 
@@ -383,10 +382,3 @@ class StreamlitClient:
 def _close_code(err) -> str:
     frame = err.rcvd or err.sent
     return "no close frame" if frame is None else str(frame.code)
-
-
-async def timed(coro) -> tuple[float, object]:
-    """``(seconds, result)`` of awaiting ``coro``."""
-    t0 = time.perf_counter()
-    out = await coro
-    return time.perf_counter() - t0, out

@@ -21,7 +21,6 @@ import asyncio
 import random
 import threading
 import time
-from dataclasses import asdict
 
 from .participant import Behaviour, ParticipantResult, run_participant
 
@@ -443,11 +442,6 @@ def _matches(sent: dict, row: dict) -> bool:
     if sent["task"] == "view":
         return row.get("chosen_position") == sent["position"]
     return row.get("chosen_value") == sent["value"]
-
-
-def result_dicts(results) -> list[dict]:
-    """The per-participant results as plain dicts (for ``--details``)."""
-    return [asdict(r) for r in results]
 
 
 def warm_up(url: str, *, timeout_s: float = 120.0) -> None:
