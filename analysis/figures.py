@@ -240,7 +240,9 @@ def measure_table1(
     rows = []
     for sid in scenes or list(analogues.index):
         sc = load_analogue(sid, data_dir=data_dir)
-        times = {k: [] for k in ("pose", "view", "motion_area", "viewpoint_entropy")}
+        times: dict[str, list[float]] = {
+            k: [] for k in ("pose", "view", "motion_area", "viewpoint_entropy")
+        }
         for _ in range(repeats):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

@@ -198,7 +198,9 @@ def baselines_from_stimuli(manifest) -> dict:
     for entry in doc.get("scenes", []):
         sid = entry["id"]
         picks = entry.get("picks") or {}
-        info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
+        info: dict[str, object] = {
+            "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())
+        }
         by_method = {
             m: [int(f) for f in fs] for m, fs in (picks.get("by_method") or {}).items() if fs
         }
@@ -361,7 +363,8 @@ def selector_agreement(
         bootstrap over participants (:func:`cluster_bootstrap_ci`; one person's choices
         in several scenes are not independent). Empty when no scene has selector picks.
     """
-    rows, pooled = [], {}
+    rows: list[dict] = []
+    pooled: dict[str, list] = {}
     for scene, info in scenes.items():
         if not info.selector_frames:
             continue
@@ -510,11 +513,11 @@ def cluster_bootstrap_ci(
         boots = sums[order][picks].sum(axis=1) / sizes[order][picks].sum(axis=1)
     else:  # the same order, ties broken by the values themselves
         members = np.split(values[by_value], starts[1:])
-        order = sorted(
+        ranked = sorted(
             range(sizes.size),
             key=lambda k: (sizes[k], sums[k], tuple(np.nan_to_num(members[k], nan=np.inf))),
         )
-        boots = np.array([stat(np.concatenate([members[order[k]] for k in row])) for row in picks])
+        boots = np.array([stat(np.concatenate([members[ranked[k]] for k in row])) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)

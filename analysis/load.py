@@ -42,21 +42,25 @@ schema's fields plus derived ones:
 from __future__ import annotations
 
 import json
+import os
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeAlias
 
 import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
+from study_app.data.answer import ResponseRow
 from study_app.data.export import export_columns, export_types, read_export, validate_rows
 from study_app.data.pseudonym import DURATION_COLUMNS, open_value
 from study_app.data.store import Store
 
 __all__ = [
     "LoadError",
+    "ResponseSource",
     "load_responses",
     "Participants",
     "load_participants",
@@ -73,6 +77,10 @@ __all__ = [
     "exclude_unverified",
     "WATCHED_ENOUGH",
 ]
+
+#: What responses are loaded from: a store URL (``...://...``), an export file, or the
+#: answer records (or a frame of them) in memory.
+ResponseSource: TypeAlias = str | os.PathLike[str] | Sequence[ResponseRow] | pd.DataFrame
 
 #: Share of the animation a pose answer's participant must have played for it to count
 #: as watched (the study's own bar, :data:`study_app.session.WATCHED_ENOUGH`).
@@ -112,7 +120,7 @@ ANALYSIS_COLUMNS = (
 )
 
 
-def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
+def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[ResponseRow]:
     """Export rows from the study store at ``url`` (None: the store's default URL).
 
     The store is opened as a reader: a missing SQLite file or folder, or a database
@@ -245,7 +253,7 @@ def _check_columns(rows, source) -> None:
 
 
 def tidy_responses(
-    rows: Iterable[Mapping] | pd.DataFrame,
+    rows: Iterable[ResponseRow] | Iterable[Mapping[str, object]] | pd.DataFrame,
     *,
     include_simulated: bool = False,
     validate: bool = True,
@@ -333,7 +341,7 @@ def tidy_responses(
 
 
 def load_responses(
-    source, *, include_simulated: bool = False, validate: bool = True
+    source: ResponseSource, *, include_simulated: bool = False, validate: bool = True
 ) -> pd.DataFrame:
     """Load responses from a store URL, an export file, or rows in memory.
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import html
 import json
+import os
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -37,6 +38,7 @@ from . import frames as fr
 from . import votes as vt
 from .html_page import html_report
 from .load import (
+    ResponseSource,
     attention_summary,
     completed_participants,
     load_participants,
@@ -125,11 +127,11 @@ def default_stimuli(
 
 
 def analyze(
-    source,
-    out_dir,
+    source: ResponseSource,
+    out_dir: str | os.PathLike[str],
     *,
     include_simulated: bool = False,
-    stimuli=None,
+    stimuli: str | os.PathLike[str] | dict | None = None,
     exclude_failed_attention: bool = False,
     n_boot: int = DEFAULT_BOOT,
     seed: int = 0,
@@ -139,7 +141,7 @@ def analyze(
     completed_only: bool = True,
     exclude_unwatched: bool = False,
     figures: bool = True,
-    participants=None,
+    participants: str | os.PathLike[str] | None = None,
 ) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
@@ -361,7 +363,7 @@ def _left_out(df: pd.DataFrame, people) -> tuple[dict, set, list | None]:
     if people.records is None:
         done = completed_participants(df)
         n = int(df["participant_id"].nunique())
-        counts = {
+        counts: dict[str, object] = {
             "started": n,
             "finished": len(done),
             "excluded": None,

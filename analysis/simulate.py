@@ -328,7 +328,7 @@ def simulate_participants(
             )
         for trial in (t for t in plan if t.task == "view"):
             s = by_id[trial.scene]
-            shown = trial.shown_order
+            shown = trial.shown_order or ()  # every view trial has its screen order
             pos, method = _view_choice(
                 rng, shown, s.strengths or model.strengths, model.view_position
             )

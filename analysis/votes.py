@@ -502,7 +502,7 @@ def claim_summary(
         Scene id → display name.
     """
     labels = labels or {}
-    name = lambda s: labels.get(s, s)  # noqa: E731
+    name = lambda s: str(labels.get(s, s))  # noqa: E731
     lines = []
     for b, g in pairwise.groupby("baseline", sort=False):
         yes = [name(s) for s in g.loc[g["verdict"] == f"{reference} preferred", "scene"]]

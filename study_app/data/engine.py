@@ -21,7 +21,7 @@ from contextlib import contextmanager, nullcontext
 from datetime import UTC, datetime
 from functools import partial
 from pathlib import Path
-from typing import Self
+from typing import Any, Self
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
@@ -126,7 +126,8 @@ class StoreEngine:
 
     # -- engine ------------------------------------------------------------------------
     def _make_engine(self) -> sa.engine.Engine:
-        url, kwargs = self._url, {}
+        url = self._url
+        kwargs: dict[str, Any] = {}  # create_engine's options for this dialect
         if self.dialect == "sqlite":
             database = url.database or ""
             in_memory = database in ("", ":memory:") or database.startswith("file::memory:")
@@ -196,8 +197,11 @@ class StoreEngine:
     def copy_sqlite(self, dest) -> None:
         """Copy this SQLite database into the new file ``dest`` with SQLite's online
         backup while the app may write, and make the copy standalone (a backup)."""
+        database = self.engine.url.database
+        if not database:
+            raise StoreError(f"cannot back up {self.url}: an in-memory database has no file")
         try:
-            src = sqlite3.connect(self.engine.url.database, timeout=30)
+            src = sqlite3.connect(database, timeout=30)
             dst = sqlite3.connect(dest)
             try:
                 # pages=-1: one step, one read snapshot (more steps restart on every write)

@@ -103,7 +103,9 @@ class EventRecords(StoreEngine):
             conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
             return self._first_event(conn, pid, trial_index, kind)
 
-        return _utc(self._write(work))
+        at = _utc(self._write(work))
+        assert at is not None, "the event was just written"
+        return at
 
     def _first_event(self, conn, pid: str, trial_index: int | None, kind: str):
         if trial_index is not None:  # the common case: one statement, built once

@@ -18,11 +18,14 @@ import io
 import json
 import os
 import secrets
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any, Literal, overload
 
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, quick_check, validate
 
+from .answer import ResponseRow
 from .errors import StoreError
 
 __all__ = [
@@ -147,7 +150,9 @@ def _write_atomic(path: Path, text: str) -> None:
         raise StoreError(f"cannot write {path}: {err.strerror or err}") from None
 
 
-def write_export(rows, path, *, fmt: str | None = None) -> int:
+def write_export(
+    rows: Sequence[ResponseRow], path: str | os.PathLike[str], *, fmt: str | None = None
+) -> int:
     """Validate ``rows`` and write them to ``path`` (CSV or JSON lines); return the count.
 
     ``path`` ``"-"`` writes to stdout. Nothing is written if any row is invalid.
@@ -250,9 +255,29 @@ def _typed_cell(name: str, text: str, spec: dict):
     return text
 
 
+@overload
 def read_export(
-    path, *, fmt: str | None = None, validate: bool = True, schema: str = "response"
-) -> list[dict]:
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: Literal["response"] = "response",
+) -> list[ResponseRow]: ...
+@overload
+def read_export(
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: Literal["participant"],
+) -> list[dict[str, Any]]: ...
+def read_export(
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: str = "response",
+) -> list[ResponseRow] | list[dict[str, Any]]:
     """Read a file written by :func:`write_export` back into typed rows (or, with
     ``schema="participant"``, one written by :func:`write_participants`).
 
@@ -271,8 +296,9 @@ def read_export(
 
     Returns
     -------
-    list of dict
-        One dict per row with JSON types: CSV cells are turned back into the schema's
+    list of ResponseRow, or of dict (``schema="participant"``)
+        One dict per row with JSON types (the answer record of
+        :mod:`study_app.data.answer`, checked when ``validate``): CSV cells are turned back into the schema's
         types (``shown_order`` parsed from its JSON string, ``true``/``false`` to bool,
         empty cell to None, numbers to int/float).
 

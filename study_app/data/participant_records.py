@@ -93,7 +93,7 @@ class ParticipantRecords(StoreEngine):
 
     @staticmethod
     def _prolific_values(prolific: dict | None) -> dict:
-        values = {v: None for v in PROLIFIC_KEYS.values()}
+        values: dict[str, str | None] = {v: None for v in PROLIFIC_KEYS.values()}
         for key, value in (prolific or {}).items():
             if key not in PROLIFIC_KEYS:
                 raise StoreError(

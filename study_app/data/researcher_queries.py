@@ -8,8 +8,11 @@ recruitment cap are in :mod:`study_app.data.monitor`.
 
 from __future__ import annotations
 
+from typing import cast
+
 import sqlalchemy as sa
 
+from .answer import ResponseRow
 from .database import participants, responses
 from .engine import StoreEngine, _iso
 from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
@@ -20,7 +23,7 @@ __all__ = ["ResearcherQueries"]
 class ResearcherQueries(StoreEngine):
     """Export rows and progress counts (one read transaction per call)."""
 
-    def responses(self, pid: str) -> list[dict]:
+    def responses(self, pid: str) -> list[ResponseRow]:
         """This participant's stored responses (export rows), by trial index."""
         self._check_pid(pid)
         with self.transaction(write=False) as conn:
@@ -48,7 +51,9 @@ class ResearcherQueries(StoreEngine):
             )
         )
 
-    def export_rows(self, *, include_simulated: bool = False, validate: bool = False) -> list[dict]:
+    def export_rows(
+        self, *, include_simulated: bool = False, validate: bool = False
+    ) -> list[ResponseRow]:
         """Every response as a ``response.schema.json`` row (background joined in).
 
         Ordered by participant (oldest first) then trial index. Every schema field is a
@@ -98,8 +103,8 @@ class ResearcherQueries(StoreEngine):
         }
 
 
-def _export_row(r) -> dict:
-    out = {}
+def _export_row(r) -> ResponseRow:
+    out: dict[str, object] = {}
     for name in export_columns():
         if name in BACKGROUND_FIELDS:
             out[name] = _background_value((r["background"] or {}).get(name))
@@ -111,4 +116,4 @@ def _export_row(r) -> dict:
             out[name] = None if r[name] is None else bool(r[name])
         else:
             out[name] = r[name]
-    return out
+    return cast(ResponseRow, out)  # the schema's columns, as stored (checked on the way in)

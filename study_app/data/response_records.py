@@ -10,6 +10,7 @@ from datetime import datetime
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
+from .answer import Answer
 from .database import events, responses
 from .engine import _DUPLICATE_RETRIES, _PARTICIPANT, PARTICIPANT_ID_RE, StoreEngine, _utcnow
 from .errors import StoreError
@@ -28,7 +29,7 @@ class ResponseRecords(StoreEngine):
     trials are answered."""
 
     def record_response(
-        self, pid: str, row: dict, *, with_events=(), at: datetime | None = None
+        self, pid: str, row: Answer, *, with_events=(), at: datetime | None = None
     ) -> bool:
         """Append one trial's answer; False (and nothing changed) if that trial is stored.
 
@@ -36,7 +37,7 @@ class ResponseRecords(StoreEngine):
         ----------
         pid : str
             Participant id.
-        row : dict
+        row : Answer
             The trial fields of ``data_schema/response.schema.json``: ``trial_index``,
             ``task``, ``scene``, ``stimulus_id``, ``response_time_s`` and any of
             ``chosen_frame``, ``chosen_video_frame``, ``algorithm_frame``, ``fps``,
@@ -65,7 +66,7 @@ class ResponseRecords(StoreEngine):
         return self.record_responses(pid, [row], with_events=with_events, at=at) == 1
 
     def record_responses(
-        self, pid: str, rows: list[dict], *, with_events=(), at: datetime | None = None
+        self, pid: str, rows: list[Answer], *, with_events=(), at: datetime | None = None
     ) -> int:
         """Append several trials of one participant in one transaction; return how many were new.
 

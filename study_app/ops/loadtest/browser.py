@@ -201,7 +201,10 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                     await player.get_by_test_id("picker-back").click()
                 await page.wait_for_timeout(think * 300)
                 text = await player.get_by_test_id("picker-frame").inner_text()
-                frame = int(re.match(r"Frame (\d+)", text).group(1)) - 1
+                shown = re.match(r"Frame (\d+)", text)
+                if shown is None:
+                    raise ValueError(f"the picker shows {text!r}, not a frame number")
+                frame = int(shown.group(1)) - 1
                 r.answers[trial] = {"task": "pose", "video_frame": frame}
                 await _timed_click(
                     r,

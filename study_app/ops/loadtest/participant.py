@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from study_app.session import STALE_TAB_TEXT
 
-from .client import Page, ProtocolError, StreamlitClient
+from .client import Element, Page, ProtocolError, StreamlitClient
 
 __all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
 
@@ -103,6 +103,14 @@ def page_kind(page: Page) -> str:
     if page.has_text("Thank you"):
         return "done"
     return "unknown"
+
+
+def _need(page: Page, key: str) -> Element:
+    """The page's widget ``key``; a page without it is not the page its kind promised."""
+    w = page.widget(key)
+    if w is None:
+        raise ProtocolError(f"no widget {key!r} on the page: {page.texts()[:3]}")
+    return w
 
 
 def _attention_index(result: ParticipantResult) -> int:
@@ -192,13 +200,13 @@ class _Run:
             return page
         if kind == "consent":
             await self.think(0.5)
-            self.c.set_value(page.widget(K_AGREE), True)
+            self.c.set_value(_need(page, K_AGREE), True)
             page = await self.act("consent_agree")
             await self.think(0.25)
-            return await self.act("consent_start", triggers=[self.c.click(page.widget(K_START))])
+            return await self.act("consent_start", triggers=[self.c.click(_need(page, K_START))])
         if kind == "background":
             for key in (K_AGE, K_GENDER, K_EXP):
-                w = page.widget(key)
+                w = _need(page, key)
                 options = [o for o in w.options if o != SELF_DESCRIBE]
                 await self.think(0.3)
                 self.c.set_value(w, self.rng.choice(options))
@@ -206,11 +214,11 @@ class _Run:
             await self.think(0.3)
             return await self.submit(
                 "background_submit",
-                page.widget(K_BG_SUBMIT),
-                self.c.click(page.widget(K_BG_SUBMIT)),
+                _need(page, K_BG_SUBMIT),
+                self.c.click(_need(page, K_BG_SUBMIT)),
             )
         if kind == "pose":
-            w = page.widget(K_PICKER)
+            w = _need(page, K_PICKER)
             d = w.data or {}
             trial, n = int(d["trial"]), int(d["n_frames"])
             frame = self.rng.randrange(n)
@@ -241,7 +249,7 @@ class _Run:
             self.r.answers[trial] = {"task": "pose", "video_frame": frame}
             return await self.submit("pose_confirm", w, self.c.component_event(w, "confirm", value))
         if kind == "view":
-            w = page.widget(K_CHOOSER)
+            w = _need(page, K_CHOOSER)
             d = w.data or {}
             trial = int(d["trial"])
             position = self.rng.randrange(len(d["views"]))
@@ -253,7 +261,7 @@ class _Run:
                 self.c.component_event(w, "choice", {"trial": trial, "position": position}),
             )
         if kind == "attention":
-            w = page.widget(K_ATT_CHOICE)
+            w = _need(page, K_ATT_CHOICE)
             choice = self.rng.choice(w.options)
             await self.think()
             self.c.set_value(w, choice)
@@ -261,7 +269,7 @@ class _Run:
             page = await self.act("attention_choice")
             self.r.answers[_attention_index(self.r)] = d
             await self.think(0.25)
-            b = page.widget(K_ATT_SUBMIT)
+            b = _need(page, K_ATT_SUBMIT)
             # "Continue" is the answer button (a component): its press reports the client.
             press = {"client": {"viewport": [1366, 768], "dpr": 1, "input": "mouse"}}
             return await self.submit(
