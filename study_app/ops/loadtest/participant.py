@@ -2,7 +2,10 @@
 
 The participant acts as a person on the study's pages would, one widget at a time (each
 change of a widget is a script run, as in the browser), thinking ``think_s`` seconds
-(drawn around the mean, seeded) before each answer. Choices are valid and random: an age
+(drawn around the mean, seeded) before each answer. Its answers come from the suite's one
+participant model, :class:`analysis.simulate.SimulatedParticipant` with
+:data:`LOADTEST_OBSERVER` (the page tells neither the algorithm's pick, nor which method
+is where, nor the attention check's answer, so choices are valid and uniform): an age
 band, a gender and an experience from the page's own options, a frame inside the video
 after a log batch that says the animation was watched, a view position, an attention
 option. A share of participants also reload the page, go Back to the study link, or
@@ -18,11 +21,22 @@ import asyncio
 import random
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from analysis.simulate import ObserverModel, SimulatedParticipant
 from study_app.session import STALE_TAB_TEXT
 
 from .client import Element, Page, ProtocolError, StreamlitClient
 
-__all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
+__all__ = [
+    "Behaviour",
+    "ParticipantResult",
+    "run_participant",
+    "page_kind",
+    "ACTIONS",
+    "LOADTEST_OBSERVER",
+    "answering_person",
+]
 
 #: Action names in the latency report.
 ACTIONS = (
@@ -51,6 +65,15 @@ K_ATT_CHOICE, K_ATT_SUBMIT = "attention.choice", "attention.submit"
 SELF_DESCRIBE = "Prefer to self-describe"
 #: Most pages a correct run can take (consent, background, trials, stale pages).
 MAX_STEPS = 200
+#: How a load-test participant answers: a frame anywhere in the clip (the page does not
+#: tell the algorithm's pick), views by equal strengths (nor which method is where).
+LOADTEST_OBSERVER = ObserverModel(pose_model="uniform")
+
+
+def answering_person(rng: random.Random) -> SimulatedParticipant:
+    """The participant model behind one load-test participant's answers, seeded from its
+    own ``rng`` (so a run's seed gives the same answers)."""
+    return SimulatedParticipant(np.random.default_rng(rng.getrandbits(64)), LOADTEST_OBSERVER)
 
 
 @dataclass(frozen=True)
@@ -134,6 +157,7 @@ class _Run:
         reconnect,
     ):
         self.c, self.r, self.rng = client, result, rng
+        self.person = answering_person(rng)  # the answers; rng: timing and behaviour
         self.think_s, self.b, self.reconnect = think_s, behaviour, reconnect
         self.did_reload = self.did_back = self.did_double = False
 
@@ -209,7 +233,7 @@ class _Run:
                 w = _need(page, key)
                 options = [o for o in w.options if o != SELF_DESCRIBE]
                 await self.think(0.3)
-                self.c.set_value(w, self.rng.choice(options))
+                self.c.set_value(w, self.person.choose(options))
                 page = await self.act("background_field")
             await self.think(0.3)
             return await self.submit(
@@ -221,7 +245,7 @@ class _Run:
             w = _need(page, K_PICKER)
             d = w.data or {}
             trial, n = int(d["trial"]), int(d["n_frames"])
-            frame = self.rng.randrange(n)
+            frame = self.person.pose_frame(0, n - 1)
             await self.think()
             # The player sends its log while the participant watches and steps.
             log = [
@@ -252,7 +276,7 @@ class _Run:
             w = _need(page, K_CHOOSER)
             d = w.data or {}
             trial = int(d["trial"])
-            position = self.rng.randrange(len(d["views"]))
+            position = self.person.view_position(len(d["views"]))
             await self.think()
             self.r.answers[trial] = {"task": "view", "position": position}
             return await self.submit(
@@ -262,7 +286,7 @@ class _Run:
             )
         if kind == "attention":
             w = _need(page, K_ATT_CHOICE)
-            choice = self.rng.choice(w.options)
+            choice = self.person.attention_answer(w.options)
             await self.think()
             self.c.set_value(w, choice)
             d = {"task": "attention", "value": choice}
