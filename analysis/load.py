@@ -61,6 +61,7 @@ from study_app.data.store import Store
 __all__ = [
     "LoadError",
     "ResponseSource",
+    "SceneOrder",
     "load_responses",
     "Participants",
     "load_participants",
@@ -81,6 +82,9 @@ __all__ = [
 #: What responses are loaded from: a store URL (``...://...``), an export file, or the
 #: answer records (or a frame of them) in memory.
 ResponseSource: TypeAlias = str | os.PathLike[str] | Sequence[ResponseRow] | pd.DataFrame
+
+#: An order of scene ids to put first (:func:`ordered_scenes`), or None.
+SceneOrder: TypeAlias = Iterable[str] | None
 
 #: Share of the animation a pose answer's participant must have played for it to count
 #: as watched (the study's own bar, :data:`study_app.session.WATCHED_ENOUGH`).
@@ -163,7 +167,7 @@ class Participants:
 _PSYCHDS_DATA = re.compile(r"^(?P<stem>(?:[a-z]+-[A-Za-z0-9]+_)*[a-z]+-[A-Za-z0-9]+)_data\.csv$")
 
 
-def participants_file(path) -> Path | None:
+def participants_file(path: str | os.PathLike[str]) -> Path | None:
     """The participants file of an export: beside a Psych-DS responses file
     ``study-<id>_data.csv``, its ``study-<id>_description-participants_data.csv``."""
     path = Path(path)
@@ -195,7 +199,10 @@ def _dataset_withdrawals(data_file: Path) -> dict[str, int] | None:
 
 
 def load_participants(
-    source, *, participants=None, include_simulated: bool = False
+    source: ResponseSource,
+    *,
+    participants: str | os.PathLike[str] | None = None,
+    include_simulated: bool = False,
 ) -> Participants:
     """The participant records and withdrawals of ``source`` (as :func:`load_responses`).
 
@@ -222,11 +229,11 @@ def load_participants(
             withdrawn = withdrawal_counts(store)
         where = "the store"
     else:
-        found = Path(participants) if participants is not None else participants_file(source)
+        found = Path(participants) if participants is not None else participants_file(str(source))
         if found is None:
             return Participants(None, None, "")
         records, where = _read_participants(found), str(found)
-        withdrawn = _dataset_withdrawals(Path(source))
+        withdrawn = _dataset_withdrawals(Path(str(source)))
     if not include_simulated:
         records = [r for r in records if not r.get("simulated")]
     return Participants(records, withdrawn, where)
@@ -240,7 +247,7 @@ def _read_participants(path: Path) -> list[dict]:
     return records
 
 
-def _check_columns(rows, source) -> None:
+def _check_columns(rows: Sequence[Mapping[str, object]], source: str) -> None:
     missing = [c for c in ANALYSIS_COLUMNS if rows and not any(c in r for r in rows)]
     if missing:
         raise LoadError(
@@ -379,7 +386,7 @@ def load_responses(
 # ----------------------------------------------------------------- task views
 
 
-def ordered_scenes(scenes, order=None) -> list[str]:
+def ordered_scenes(scenes: Iterable[str], order: SceneOrder = None) -> list[str]:
     """Distinct scene ids in a stable order: ``order`` first (e.g. the stimuli manifest's),
     then the paper's order for its scene ids, then the rest alphabetically."""
     distinct = list(dict.fromkeys(str(s) for s in scenes))

@@ -38,6 +38,7 @@ from . import frames as fr
 from . import votes as vt
 from .html_page import html_report
 from .load import (
+    Participants,
     ResponseSource,
     attention_summary,
     completed_participants,
@@ -66,7 +67,7 @@ DEFAULT_BOOT = 1000
 
 def analyze_counts(
     counts: pd.DataFrame,
-    out_dir,
+    out_dir: str | os.PathLike[str],
     *,
     labels: dict | None = None,
     title: str = "Vote analysis",
@@ -108,7 +109,7 @@ DEFAULT_STIMULI_ROOT = Path(__file__).resolve().parents[1] / "var" / "stimuli"
 
 
 def default_stimuli(
-    df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT, source=None
+    df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT, source: object = None
 ) -> Path | None:
     """The stimuli of the data: a Psych-DS dataset's own ``materials/manifest.json``
     when ``source`` is a file in its ``data/``; else the folder ``snapshot study``
@@ -345,7 +346,7 @@ def analyze(
     return summary
 
 
-def _left_out(df: pd.DataFrame, people) -> tuple[dict, set, list | None]:
+def _left_out(df: pd.DataFrame, people: Participants) -> tuple[dict, set, list | None]:
     """Who was left out and who finished, by the page's definitions
     (:func:`study_app.data.monitor.participation`), for the studies in ``df``.
 
@@ -414,7 +415,7 @@ def _left_out_text(c: dict, completed_only: bool) -> str:
     )
 
 
-def _plain(value):
+def _plain(value: object) -> object:
     """``value`` as plain JSON: NumPy scalars as Python numbers, NaN and inf as None
     (an undefined statistic, e.g. Fleiss' kappa when no scene has two votes; strict
     JSON has no NaN), tuples as lists."""
@@ -438,7 +439,7 @@ def _write_summary(out: Path, summary: dict) -> None:
     (out / "summary.json").write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
 
 
-def _source_name(source) -> str:
+def _source_name(source: object) -> str:
     if isinstance(source, pd.DataFrame | list | tuple):
         return "rows in memory"
     text = str(source)

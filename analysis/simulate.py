@@ -46,10 +46,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import pandas as pd
@@ -59,9 +60,13 @@ from study_app.data.answer import Answer
 from study_app.design.protocol import trial_plan
 from study_app.design.scenes import StudyScene
 
+if TYPE_CHECKING:  # the store (SQLAlchemy) only when a simulation is stored
+    from study_app.data.store import Store
+
 __all__ = [
     "ObserverModel",
     "SimulatedParticipant",
+    "SimulatedPerson",
     "paper_design",
     "design_from_stimuli",
     "simulate_participants",
@@ -93,6 +98,15 @@ _BACKGROUND = {
         "Experienced (animation, 3D or art is part of my work or studies)",
     ],
 }
+
+
+class SimulatedPerson(TypedDict):
+    """One simulated participant (:func:`simulate_participants`): the seed of its trial
+    plan, its background answers and its answers in trial order."""
+
+    seed: int
+    background: dict[str, str]
+    rows: list[Answer]
 
 
 @dataclass(frozen=True)
@@ -131,7 +145,7 @@ class ObserverModel:
     pose_model: str = "salient"
     view_position: int | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.pose_model not in POSE_MODELS:
             raise ValueError(f"pose_model: expected one of {POSE_MODELS}, got {self.pose_model!r}")
         if self.view_position is not None and not 0 <= self.view_position < len(VIEW_METHODS):
@@ -197,7 +211,9 @@ def paper_design() -> list[StudyScene]:
     return out
 
 
-def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[StudyScene]:
+def design_from_stimuli(
+    manifest: str | Path | Mapping[str, Any], *, strengths: dict | None = None
+) -> list[StudyScene]:
     """Scenes of a stimuli manifest as a simulation design (top-k picks as salient moments)."""
     from .stimuli import stimuli_scenes
 
@@ -230,7 +246,7 @@ _DESIGN_FIELDS = (
 )
 
 
-def design_sha256(design, model: ObserverModel) -> str:
+def design_sha256(design: Iterable[StudyScene], model: ObserverModel) -> str:
     """A stable sha256 of a design + model (the store's ``manifest_sha256`` for them)."""
     doc = {
         "design": [{k: getattr(s, k) for k in _DESIGN_FIELDS} for s in design],
@@ -346,14 +362,14 @@ class SimulatedParticipant:
 
 
 def simulate_participants(
-    design,
+    design: Iterable[StudyScene],
     n: int,
     *,
     seed: int = 0,
     model: ObserverModel | None = None,
     attention: dict | None = None,
     background: dict | None = None,
-) -> list:
+) -> list[SimulatedPerson]:
     """Simulate ``n`` participants answering every trial of ``design``.
 
     Parameters
@@ -392,7 +408,7 @@ def simulate_participants(
     by_id = {s.scene: s for s in design}
     if len(by_id) != len(design):
         raise ValueError("design: scene ids repeat")
-    out = []
+    out: list[SimulatedPerson] = []
     for _ in range(n):
         pseed = int(rng.integers(2**62))
         plan = trial_plan(list(by_id), pseed, attention=False)
@@ -455,7 +471,10 @@ def simulate_participants(
 
 
 def simulated_rows(
-    participants, *, study_id: str = "simulated", manifest_sha256: str = "0" * 64
+    participants: Iterable[SimulatedPerson],
+    *,
+    study_id: str = "simulated",
+    manifest_sha256: str = "0" * 64,
 ) -> pd.DataFrame:
     """Simulated participants → export-shaped rows (no database), ``simulated`` true.
 
@@ -484,8 +503,8 @@ def simulated_rows(
 
 
 def store_simulation(
-    store,
-    participants,
+    store: Store,
+    participants: Iterable[SimulatedPerson],
     *,
     study_id: str,
     manifest_sha256: str,
@@ -507,14 +526,16 @@ def store_simulation(
             study_id, manifest_sha256, app_version=app_version, seed=p["seed"], simulated=True
         )
         store.set_background(pid, p["background"])
-        rows = [{k: v for k, v in r.items()} for r in p["rows"]]
+        rows = [r.copy() for r in p["rows"]]
         store.record_responses(pid, rows)
         store.complete(pid)
         ids.append(pid)
     return ids
 
 
-def simulate_vote_counts(n: int, strengths, *, n_sims: int, seed: int = 0) -> np.ndarray:
+def simulate_vote_counts(
+    n: int, strengths: Sequence[float] | np.ndarray, *, n_sims: int, seed: int = 0
+) -> np.ndarray:
     """Vote counts of ``n`` participants, all methods shown, ``n_sims`` times (numpy only).
 
     Parameters
@@ -533,6 +554,6 @@ def simulate_vote_counts(n: int, strengths, *, n_sims: int, seed: int = 0) -> np
     return rng.multinomial(n, p / p.sum(), size=n_sims)
 
 
-def with_strengths(design, strengths: dict | None):
+def with_strengths(design: Iterable[StudyScene], strengths: dict | None) -> list[StudyScene]:
     """The design with every scene's strengths replaced (None: use the model's)."""
     return [replace(s, strengths=strengths) for s in design]

@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 
 mypy_api = pytest.importorskip("mypy.api")
+# mypy reads the three packages: 10-15 s with a cold cache (under a second warm)
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("snapcore", "snapcore.select", "study_app", "analysis")

@@ -36,7 +36,7 @@ class ResearcherQueries(StoreEngine):
         return [_export_row(r) for r in rows]
 
     @staticmethod
-    def _export_query():
+    def _export_query() -> sa.Select:
         return (
             sa.select(
                 responses,
@@ -79,14 +79,16 @@ class ResearcherQueries(StoreEngine):
         p, r = participants, responses
         real = sa.true() if include_simulated else p.c.simulated.is_(False)
         with self.transaction(write=False) as conn:
-            n_part = conn.execute(sa.select(sa.func.count()).select_from(p).where(real)).scalar()
+            n_part = conn.execute(
+                sa.select(sa.func.count()).select_from(p).where(real)
+            ).scalar_one()
             n_done = conn.execute(
                 sa.select(sa.func.count()).select_from(p).where(real, p.c.completed_at.is_not(None))
-            ).scalar()
+            ).scalar_one()
             n_sim = conn.execute(
                 sa.select(sa.func.count()).select_from(p).where(p.c.simulated.is_(True))
-            ).scalar()
-            by_task = dict(
+            ).scalar_one()
+            by_task: dict[str, int] = dict(
                 conn.execute(
                     sa.select(r.c.task, sa.func.count())
                     .select_from(r.join(p, r.c.participant_id == p.c.participant_id))
@@ -103,7 +105,7 @@ class ResearcherQueries(StoreEngine):
         }
 
 
-def _export_row(r) -> ResponseRow:
+def _export_row(r: sa.RowMapping) -> ResponseRow:
     out: dict[str, object] = {}
     for name in export_columns():
         if name in BACKGROUND_FIELDS:

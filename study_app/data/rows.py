@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import cast
+from typing import Any, cast
 
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
@@ -96,7 +96,7 @@ def checked_response(row: Answer) -> Answer:
     return cast(Answer, full)  # every key of Answer, the values checked by the schema
 
 
-def checked_event(trial_index, kind, payload) -> dict:
+def checked_event(trial_index: object, kind: object, payload: Any) -> dict:
     """An event row ``{"trial_index", "kind", "payload"}``, checked: a 1-32 character
     kind, a trial index >= 0 or None, a plain-JSON payload (no NaN/inf). Raises
     :class:`~study_app.data.errors.StoreError`."""
