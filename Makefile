@@ -34,7 +34,7 @@ serve-replicas: install sysdeps
 	@test -f var/stimuli/demo/manifest.json || $(VENV)/bin/snapshot stimuli build study_app/configs/demo.toml -o var/stimuli/demo -q
 	$(VENV)/bin/snapshot serve --replicas $(N) --port $(REPLICA_PORT)
 
-# The checks run beside the tests (mypy is one core for ~17 s, the tests' start waits on
+# The checks run beside the tests (mypy is one core for ~30 s, the tests' start waits on
 # servers and browsers); either failing fails the target.
 test: install blender sysdeps
 	@$(MAKE) --no-print-directory check & checks=$$!; \

@@ -20,6 +20,7 @@ results. ``tests/test_architecture.py`` holds the layer table that enforces this
 from __future__ import annotations
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 # The names below are imported on first use (PEP 562), not here: importing one
 # analysis module (say analysis.power) runs this file, and importing them all up front
@@ -72,8 +73,56 @@ _WHERE = {
 }
 _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
+# The type checker reads the same names from their modules (a PEP 562 `__getattr__`
+# alone would make every public name `Any` to it); these lines never run.
+if TYPE_CHECKING:
+    from .figures import FIGURES, make_figures, measure_table1, paper_analogues, paper_table1
+    from .frames import (
+        baselines_from_stimuli,
+        closeness_tests,
+        frame_distances,
+        frame_histogram,
+        hit_rates,
+        motion_baselines,
+        scene_frames_from_rows,
+    )
+    from .load import (
+        LoadError,
+        attention_summary,
+        load_responses,
+        ordered_scenes,
+        pose_choices,
+        tidy_responses,
+        view_choices,
+    )
+    from .power import power_chisquare, power_curve, power_pairwise, power_table, sample_size
+    from .report import analyze, analyze_counts
+    from .simulate import (
+        ObserverModel,
+        paper_design,
+        simulate_participants,
+        simulate_vote_counts,
+        simulated_rows,
+        store_simulation,
+    )
+    from .tables import write_table
+    from .votes import (
+        chisquare_no_preference,
+        choices_from_counts,
+        claim_summary,
+        fleiss_kappa,
+        holm_adjust,
+        luce_strengths,
+        ours_vs_baselines,
+        paper_counts,
+        paper_table2,
+        vote_counts,
+        vote_table,
+        wilson_interval,
+    )
 
-def __getattr__(name: str):
+
+def __getattr__(name: str) -> object:
     module = _MODULE_OF.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -82,7 +131,7 @@ def __getattr__(name: str):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(__all__)
 
 

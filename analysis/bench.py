@@ -29,8 +29,9 @@ N_PARTICIPANTS = 300
 DEMO_STIMULI = Path(__file__).resolve().parents[1] / "var" / "stimuli" / "demo"
 
 
-def _store(ctx: BenchContext) -> str | None:
-    """A SQLite store with the simulated participants (made once per bench run)."""
+def _store(ctx: BenchContext) -> tuple[str, Path] | None:
+    """A SQLite store with the simulated participants (made once per bench run): its URL
+    and the folder it is in."""
     if "analysis_store" not in ctx.cache:
         if not (DEMO_STIMULI / "manifest.json").is_file():
             ctx.cache["analysis_store"] = None

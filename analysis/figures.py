@@ -27,15 +27,26 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from importlib.resources import files
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from snapcore.errors import SnapshotError
 from snapcore.select.view_methods import VIEW_METHODS
+
+if TYPE_CHECKING:  # imported where a figure needs them (snapcore's pipeline, matplotlib)
+    from matplotlib.figure import Figure
+
+    from snapcore.motion.scene import Scene
+    from snapcore.pipeline import Snapshot
+
+    from .load import ResponseSource
 
 __all__ = [
     "FIGURES",
@@ -81,7 +92,7 @@ def paper_table1() -> pd.DataFrame:
         return pd.read_csv(fh)
 
 
-def load_analogue(scene_id: str, *, data_dir=None):
+def load_analogue(scene_id: str, *, data_dir: str | Path | None = None) -> Scene:
     """Load the paper-analogue clip of ``scene_id`` as a :class:`snapcore.Scene`."""
     from snapcore import load_scene
     from snapcore.motion.load import data_dir as find_data
@@ -112,16 +123,16 @@ class _Context:
     include_simulated: bool = False
     repeats: int = 3
     progress: bool = True
-    data_dir: object = None
+    data_dir: str | Path | None = None
     scenes: dict = field(default_factory=dict)
     snapshots: dict = field(default_factory=dict)
 
-    def scene(self, sid):
+    def scene(self, sid: str) -> Scene:
         if sid not in self.scenes:
             self.scenes[sid] = load_analogue(sid, data_dir=self.data_dir)
         return self.scenes[sid]
 
-    def snapshot(self, sid):
+    def snapshot(self, sid: str) -> Snapshot:
         if sid not in self.snapshots:
             from snapcore.pipeline import take_snapshot
             from snapcore.select.pose_methods import PoseParams
@@ -133,7 +144,7 @@ class _Context:
                 )
         return self.snapshots[sid]
 
-    def log(self, text):
+    def log(self, text: str) -> None:
         if self.progress:
             import click
 
@@ -216,7 +227,11 @@ def _fig13(ctx: _Context) -> list[Path]:
 
 
 def measure_table1(
-    *, repeats: int = 3, data_dir=None, progress: bool = False, scenes=None
+    *,
+    repeats: int = 3,
+    data_dir: str | Path | None = None,
+    progress: bool = False,
+    scenes: Iterable[str] | None = None,
 ) -> pd.DataFrame:
     """Time our pose and view selection on the paper-analogue clips (Table 1).
 
@@ -240,7 +255,9 @@ def measure_table1(
     rows = []
     for sid in scenes or list(analogues.index):
         sc = load_analogue(sid, data_dir=data_dir)
-        times = {k: [] for k in ("pose", "view", "motion_area", "viewpoint_entropy")}
+        times: dict[str, list[float]] = {
+            k: [] for k in ("pose", "view", "motion_area", "viewpoint_entropy")
+        }
         for _ in range(repeats):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -276,14 +293,14 @@ def measure_table1(
     return pd.DataFrame(rows)
 
 
-def _median(values) -> float:
+def _median(values: ArrayLike) -> float:
     """Median of the finite values; NaN (no warning) when a stage never ran."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     return float(np.median(v)) if v.size else float("nan")
 
 
-def _timings(snap) -> dict:
+def _timings(snap: Snapshot) -> dict:
     """Pose and view seconds from a snapshot's ``timings_s`` (dict or attribute).
 
     The pipeline reports each stage under its own key (``pose`` for the whole pose stage,
@@ -317,7 +334,7 @@ def _table1(ctx: _Context) -> list[Path]:
     )
 
 
-def _figure_paths(fig, stem) -> list[Path]:
+def _figure_paths(fig: Figure, stem: Path) -> list[Path]:
     from .plots import save_figure
 
     return save_figure(fig, stem)
@@ -383,7 +400,7 @@ def _clip_name(sid: str) -> str:
     return f"{name}, {row['caveat']}" if row["caveat"] else name
 
 
-def snapshot_views(snap) -> dict:
+def snapshot_views(snap: Snapshot) -> dict:
     """The three methods' view directions of a snapshot, in the paper's order.
 
     Parameters
@@ -482,14 +499,14 @@ _MAKERS = {
 
 
 def make_figures(
-    out_dir,
+    out_dir: str | Path,
     *,
-    names=FIGURES,
-    source=None,
+    names: Iterable[str] = FIGURES,
+    source: ResponseSource | None = None,
     include_simulated: bool = False,
     repeats: int = 3,
     progress: bool = True,
-    data_dir=None,
+    data_dir: str | Path | None = None,
 ) -> dict:
     """Make the named figures in ``out_dir``.
 

@@ -40,11 +40,18 @@ frame_offset + n_frames − 1`` (``frame_offset`` 0 unless the stimuli manifest 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from study_app.design.scenes import StudyScene
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Scene
 
 from . import scene_permutation as sp
 from .load import ordered_scenes
@@ -80,7 +87,7 @@ DETERMINISTIC_BASELINES = ("middle", "fastest", "stretch")
 SELECTOR_BASELINES = ("fastest", "stretch")
 
 
-def _mode(values, name, scene):
+def _mode(values: ArrayLike, name: str, scene: str) -> Any:
     v = pd.Series(values).dropna()
     if v.empty:
         return None
@@ -94,7 +101,9 @@ def _mode(values, name, scene):
     return counts.index[0]
 
 
-def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None, order=None) -> dict:
+def scene_frames_from_rows(
+    pose: pd.DataFrame, *, extra: dict | None = None, order: Iterable[str] | None = None
+) -> dict:
     """Per-scene :class:`~study_app.design.scenes.StudyScene` from pose-task rows (fps, n_frames, algorithm_frame).
 
     Parameters
@@ -132,7 +141,7 @@ def scene_frames_from_rows(pose: pd.DataFrame, *, extra: dict | None = None, ord
 # ----------------------------------------------------------------- motion baselines
 
 
-def motion_baselines(scene, *, window=None) -> dict:
+def motion_baselines(scene: Scene, *, window: tuple[int, int] | None = None) -> dict:
     """The selector baselines of a scene at hand, in source numbering.
 
     Parameters
@@ -160,7 +169,7 @@ def motion_baselines(scene, *, window=None) -> dict:
         keep = (source >= window[0]) & (source < window[1])
     if not keep.any():
         raise ValueError(
-            f"scene '{scene.name}': window {tuple(window)} holds no frame of the "
+            f"scene '{scene.name}': window {tuple(window or ())} holds no frame of the "
             f"motion (source frames {source[0]}..{source[-1]})"
         )
     frames = source[keep]
@@ -174,7 +183,7 @@ def motion_baselines(scene, *, window=None) -> dict:
     }
 
 
-def baselines_from_stimuli(manifest) -> dict:
+def baselines_from_stimuli(manifest: str | Path | Mapping[str, Any]) -> dict:
     """The selector baselines, picks and frame offsets of each scene of a stimuli manifest.
 
     Parameters
@@ -198,7 +207,9 @@ def baselines_from_stimuli(manifest) -> dict:
     for entry in doc.get("scenes", []):
         sid = entry["id"]
         picks = entry.get("picks") or {}
-        info = {"algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())}
+        info: dict[str, object] = {
+            "algorithm_frames": tuple(int(f) for f in picks.get("frames", ()) or ())
+        }
         by_method = {
             m: [int(f) for f in fs] for m, fs in (picks.get("by_method") or {}).items() if fs
         }
@@ -279,13 +290,17 @@ def frame_distances(pose: pd.DataFrame, scenes: dict) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def _uniform_distance_matrix(c, info):
+def _uniform_distance_matrix(c: np.ndarray, info: StudyScene) -> np.ndarray:
     """|c_i − f| / fps for every choice i and every clip frame f, shape (n, n_frames)."""
     return np.abs(c[:, None] - info.source_frames[None, :]) / info.fps
 
 
 def hit_rates(
-    pose: pd.DataFrame, scenes: dict, *, tolerances=TOLERANCES_S, confidence: float = 0.95
+    pose: pd.DataFrame,
+    scenes: dict,
+    *,
+    tolerances: Sequence[float] = TOLERANCES_S,
+    confidence: float = 0.95,
 ) -> pd.DataFrame:
     """Hit rates and mean distances of every predictor, per scene.
 
@@ -361,7 +376,8 @@ def selector_agreement(
         bootstrap over participants (:func:`cluster_bootstrap_ci`; one person's choices
         in several scenes are not independent). Empty when no scene has selector picks.
     """
-    rows, pooled = [], {}
+    rows: list[dict] = []
+    pooled: dict[str, list] = {}
     for scene, info in scenes.items():
         if not info.selector_frames:
             continue
@@ -390,7 +406,7 @@ def selector_agreement(
         d = np.concatenate([p[0] for p in parts])
         who = np.concatenate([p[1] for p in parts])
         hit = (d <= tolerance_s + 1e-9).astype(float)
-        lo, hi = cluster_bootstrap_ci(hit, who)
+        low, high = cluster_bootstrap_ci(hit, who)
         rows.append(
             {
                 "scene": "ALL",
@@ -399,8 +415,8 @@ def selector_agreement(
                 "n": int(d.size),
                 "participants": len(set(who)),
                 "hit": float(hit.mean()),
-                "hit_low": lo,
-                "hit_high": hi,
+                "hit_low": low,
+                "hit_high": high,
                 "median_abs_error_s": float(np.median(d)),
             }
         )
@@ -458,7 +474,13 @@ def _per_participant(pose: pd.DataFrame, scene: str) -> tuple[np.ndarray, np.nda
 
 
 def cluster_bootstrap_ci(
-    values, clusters, *, stat=np.mean, n_boot: int = N_BOOT, seed: int = 0, confidence: float = 0.95
+    values: ArrayLike,
+    clusters: ArrayLike,
+    *,
+    stat: Callable[[np.ndarray], float] = np.mean,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+    confidence: float = 0.95,
 ) -> tuple[float, float]:
     """Percentile bootstrap interval of ``stat(values)``, resampling whole clusters.
 
@@ -504,11 +526,11 @@ def cluster_bootstrap_ci(
         boots = sums[order][picks].sum(axis=1) / sizes[order][picks].sum(axis=1)
     else:  # the same order, ties broken by the values themselves
         members = np.split(values[by_value], starts[1:])
-        order = sorted(
+        ranked = sorted(
             range(sizes.size),
             key=lambda k: (sizes[k], sums[k], tuple(np.nan_to_num(members[k], nan=np.inf))),
         )
-        boots = np.array([stat(np.concatenate([members[order[k]] for k in row])) for row in picks])
+        boots = np.array([stat(np.concatenate([members[ranked[k]] for k in row])) for row in picks])
     q = (1 - confidence) / 2
     lo, hi = np.quantile(boots, [q, 1 - q])
     return float(lo), float(hi)
@@ -645,7 +667,9 @@ def closeness_tests(
     return out
 
 
-def frame_histogram(pose: pd.DataFrame, info: StudyScene, *, bins: int | None = None):
+def frame_histogram(
+    pose: pd.DataFrame, info: StudyScene, *, bins: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Histogram of one scene's chosen frames over the whole clip.
 
     Parameters

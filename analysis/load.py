@@ -42,15 +42,18 @@ schema's fields plus derived ones:
 from __future__ import annotations
 
 import json
+import os
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeAlias
 
 import numpy as np
 import pandas as pd
 
 from snapcore.errors import SnapshotError
+from study_app.data.answer import ResponseRow
 from study_app.data.export import export_columns, export_types, read_export, validate_rows
 from study_app.data.pseudonym import DURATION_COLUMNS, open_value
 from study_app.data.store import Store
@@ -58,6 +61,8 @@ from study_app.session.events import WATCHED_ENOUGH  # the study's own bar: one 
 
 __all__ = [
     "LoadError",
+    "ResponseSource",
+    "SceneOrder",
     "load_responses",
     "Participants",
     "load_participants",
@@ -75,6 +80,12 @@ __all__ = [
     "WATCHED_ENOUGH",
 ]
 
+#: What responses are loaded from: a store URL (``...://...``), an export file, or the
+#: answer records (or a frame of them) in memory.
+ResponseSource: TypeAlias = str | os.PathLike[str] | Sequence[ResponseRow] | pd.DataFrame
+
+#: An order of scene ids to put first (:func:`ordered_scenes`), or None.
+SceneOrder: TypeAlias = Iterable[str] | None
 
 #: The paper's six animations (Table 2's columns), in its order (a)–(f).
 PAPER_SCENES = (
@@ -110,7 +121,7 @@ ANALYSIS_COLUMNS = (
 )
 
 
-def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[dict]:
+def rows_from_store(url: str | None, *, include_simulated: bool = False) -> list[ResponseRow]:
     """Export rows from the study store at ``url`` (None: the store's default URL).
 
     The store is opened as a reader: a missing SQLite file or folder, or a database
@@ -153,7 +164,7 @@ class Participants:
 _PSYCHDS_DATA = re.compile(r"^(?P<stem>(?:[a-z]+-[A-Za-z0-9]+_)*[a-z]+-[A-Za-z0-9]+)_data\.csv$")
 
 
-def participants_file(path) -> Path | None:
+def participants_file(path: str | os.PathLike[str]) -> Path | None:
     """The participants file of an export: beside a Psych-DS responses file
     ``study-<id>_data.csv``, its ``study-<id>_description-participants_data.csv``."""
     path = Path(path)
@@ -185,7 +196,10 @@ def _dataset_withdrawals(data_file: Path) -> dict[str, int] | None:
 
 
 def load_participants(
-    source, *, participants=None, include_simulated: bool = False
+    source: ResponseSource,
+    *,
+    participants: str | os.PathLike[str] | None = None,
+    include_simulated: bool = False,
 ) -> Participants:
     """The participant records and withdrawals of ``source`` (as :func:`load_responses`).
 
@@ -212,11 +226,11 @@ def load_participants(
             withdrawn = withdrawal_counts(store)
         where = "the store"
     else:
-        found = Path(participants) if participants is not None else participants_file(source)
+        found = Path(participants) if participants is not None else participants_file(str(source))
         if found is None:
             return Participants(None, None, "")
         records, where = _read_participants(found), str(found)
-        withdrawn = _dataset_withdrawals(Path(source))
+        withdrawn = _dataset_withdrawals(Path(str(source)))
     if not include_simulated:
         records = [r for r in records if not r.get("simulated")]
     return Participants(records, withdrawn, where)
@@ -230,7 +244,7 @@ def _read_participants(path: Path) -> list[dict]:
     return records
 
 
-def _check_columns(rows, source) -> None:
+def _check_columns(rows: Sequence[Mapping[str, object]], source: str) -> None:
     missing = [c for c in ANALYSIS_COLUMNS if rows and not any(c in r for r in rows)]
     if missing:
         raise LoadError(
@@ -243,7 +257,7 @@ def _check_columns(rows, source) -> None:
 
 
 def tidy_responses(
-    rows: Iterable[Mapping] | pd.DataFrame,
+    rows: Iterable[ResponseRow] | Iterable[Mapping[str, object]] | pd.DataFrame,
     *,
     include_simulated: bool = False,
     validate: bool = True,
@@ -331,7 +345,7 @@ def tidy_responses(
 
 
 def load_responses(
-    source, *, include_simulated: bool = False, validate: bool = True
+    source: ResponseSource, *, include_simulated: bool = False, validate: bool = True
 ) -> pd.DataFrame:
     """Load responses from a store URL, an export file, or rows in memory.
 
@@ -369,7 +383,7 @@ def load_responses(
 # ----------------------------------------------------------------- task views
 
 
-def ordered_scenes(scenes, order=None) -> list[str]:
+def ordered_scenes(scenes: Iterable[str], order: SceneOrder = None) -> list[str]:
     """Distinct scene ids in a stable order: ``order`` first (e.g. the stimuli manifest's),
     then the paper's order for its scene ids, then the rest alphabetically."""
     distinct = list(dict.fromkeys(str(s) for s in scenes))

@@ -26,8 +26,11 @@ from which every larger N (up to ``n_max``) reaches it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 from scipy import stats
 
 from .votes import ALPHA
@@ -59,7 +62,7 @@ def _check_shares(p_ours: float, p_baseline: float) -> None:
         raise ValueError("shares: p_ours + p_baseline must be > 0")
 
 
-def _two_sided_p_half(k, m):
+def _two_sided_p_half(k: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``scipy.stats.binomtest(k, m, 0.5).pvalue`` for arrays of ``k`` and ``m``.
 
     The power search evaluates it for every pair size up to ``n_max`` (thousands of
@@ -103,7 +106,7 @@ def _conditional_power(m_max: int, q: float, level: float) -> np.ndarray:
 
 
 def power_pairwise(
-    n, p_ours: float, p_baseline: float, *, alpha: float = ALPHA, comparisons: int = 1
+    n: ArrayLike, p_ours: float, p_baseline: float, *, alpha: float = ALPHA, comparisons: int = 1
 ) -> np.ndarray:
     """Exact power of "ours preferred to the baseline" with ``n`` participants.
 
@@ -146,7 +149,7 @@ def power_pairwise(
     return by_n[n_arr].reshape(np.shape(n))
 
 
-def power_chisquare(n, shares, *, alpha: float = ALPHA) -> np.ndarray:
+def power_chisquare(n: ArrayLike, shares: ArrayLike, *, alpha: float = ALPHA) -> np.ndarray:
     """Approximate power of the chi-square "no preference" test (noncentral chi-square).
 
     Parameters
@@ -166,7 +169,12 @@ def power_chisquare(n, shares, *, alpha: float = ALPHA) -> np.ndarray:
 
 
 def power_curve(
-    p_ours: float, p_baseline: float, *, n_values=None, alpha: float = ALPHA, comparisons: int = 1
+    p_ours: float,
+    p_baseline: float,
+    *,
+    n_values: ArrayLike | None = None,
+    alpha: float = ALPHA,
+    comparisons: int = 1,
 ) -> pd.DataFrame:
     """Power against the number of participants.
 
@@ -242,12 +250,12 @@ def shares_for_difference(difference: float, *, third: float = 1 / 3) -> tuple[f
 
 
 def power_table(
-    differences=(0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40),
+    differences: Sequence[float] = (0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40),
     *,
     third: float = 1 / 3,
     alpha: float = ALPHA,
     power: float = TARGET_POWER,
-    comparisons=(1, 12),
+    comparisons: Sequence[int] = (1, 12),
     n_max: int = N_MAX,
 ) -> pd.DataFrame:
     """Participants needed per vote-share difference (ours − baseline).
@@ -286,6 +294,6 @@ def power_table(
                 }
             )
     out = pd.DataFrame(rows)
-    for c in ("n_first", "n_stable"):
-        out[c] = out[c].astype("Int64")
+    for column in ("n_first", "n_stable"):
+        out[column] = out[column].astype("Int64")
     return out

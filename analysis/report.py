@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import html
 import json
+import os
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -37,6 +38,8 @@ from . import frames as fr
 from . import votes as vt
 from .html_page import html_report
 from .load import (
+    Participants,
+    ResponseSource,
     attention_summary,
     completed_participants,
     load_participants,
@@ -64,7 +67,7 @@ DEFAULT_BOOT = 1000
 
 def analyze_counts(
     counts: pd.DataFrame,
-    out_dir,
+    out_dir: str | os.PathLike[str],
     *,
     labels: dict | None = None,
     title: str = "Vote analysis",
@@ -106,7 +109,7 @@ DEFAULT_STIMULI_ROOT = Path(__file__).resolve().parents[1] / "var" / "stimuli"
 
 
 def default_stimuli(
-    df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT, source=None
+    df: pd.DataFrame, *, root: Path = DEFAULT_STIMULI_ROOT, source: object = None
 ) -> Path | None:
     """The stimuli of the data: a Psych-DS dataset's own ``materials/manifest.json``
     when ``source`` is a file in its ``data/``; else the folder ``snapshot study``
@@ -125,11 +128,11 @@ def default_stimuli(
 
 
 def analyze(
-    source,
-    out_dir,
+    source: ResponseSource,
+    out_dir: str | os.PathLike[str],
     *,
     include_simulated: bool = False,
-    stimuli=None,
+    stimuli: str | os.PathLike[str] | dict | None = None,
     exclude_failed_attention: bool = False,
     n_boot: int = DEFAULT_BOOT,
     seed: int = 0,
@@ -139,7 +142,7 @@ def analyze(
     completed_only: bool = True,
     exclude_unwatched: bool = False,
     figures: bool = True,
-    participants=None,
+    participants: str | os.PathLike[str] | None = None,
 ) -> dict:
     """The whole analysis of study responses → tables, figures, ``report.html``.
 
@@ -343,7 +346,7 @@ def analyze(
     return summary
 
 
-def _left_out(df: pd.DataFrame, people) -> tuple[dict, set, list | None]:
+def _left_out(df: pd.DataFrame, people: Participants) -> tuple[dict, set, list | None]:
     """Who was left out and who finished, by the page's definitions
     (:func:`study_app.data.monitor.participation`), for the studies in ``df``.
 
@@ -361,7 +364,7 @@ def _left_out(df: pd.DataFrame, people) -> tuple[dict, set, list | None]:
     if people.records is None:
         done = completed_participants(df)
         n = int(df["participant_id"].nunique())
-        counts = {
+        counts: dict[str, object] = {
             "started": n,
             "finished": len(done),
             "excluded": None,
@@ -412,7 +415,7 @@ def _left_out_text(c: dict, completed_only: bool) -> str:
     )
 
 
-def _plain(value):
+def _plain(value: object) -> object:
     """``value`` as plain JSON: NumPy scalars as Python numbers, NaN and inf as None
     (an undefined statistic, e.g. Fleiss' kappa when no scene has two votes; strict
     JSON has no NaN), tuples as lists."""
@@ -436,7 +439,7 @@ def _write_summary(out: Path, summary: dict) -> None:
     (out / "summary.json").write_text(json.dumps(doc, indent=2, allow_nan=False), encoding="utf-8")
 
 
-def _source_name(source) -> str:
+def _source_name(source: object) -> str:
     if isinstance(source, pd.DataFrame | list | tuple):
         return "rows in memory"
     text = str(source)

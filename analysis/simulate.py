@@ -4,7 +4,9 @@ Until real people have taken the study — and to check that the analysis recove
 it should — simulated observers answer the same trials. They are stored through the
 study store with ``simulated=True`` and every real analysis leaves them out unless asked.
 
-The observer model (:class:`ObserverModel`), one participant at a time:
+The observer model (:class:`ObserverModel` its parameters, :class:`SimulatedParticipant`
+the one implementation, which the load test's drivers answer through too), one
+participant at a time:
 
 - **Pose task** (per scene), by ``pose_model``:
 
@@ -44,18 +46,27 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import pandas as pd
 
 from snapcore.select.view_methods import VIEW_METHODS
+from study_app.data.answer import Answer
 from study_app.design.protocol import trial_plan
 from study_app.design.scenes import StudyScene
 
+if TYPE_CHECKING:  # the store (SQLAlchemy) only when a simulation is stored
+    from study_app.data.store import Store
+
 __all__ = [
     "ObserverModel",
+    "SimulatedParticipant",
+    "SimulatedPerson",
     "paper_design",
     "design_from_stimuli",
     "simulate_participants",
@@ -74,7 +85,7 @@ POSE_MODELS = ("salient", "uniform", "centre", "habit")
 #: ``app_version`` stored with simulated participants.
 SIM_APP_VERSION = "simulate-1"
 #: Fallback attention check when the design names none (mirrors the app's default).
-_ATTENTION = {
+_ATTENTION: dict[str, Any] = {
     "options": ["A red square", "A purple circle", "A green triangle", "I am not sure"],
     "answer": "A purple circle",
 }
@@ -87,6 +98,15 @@ _BACKGROUND = {
         "Experienced (animation, 3D or art is part of my work or studies)",
     ],
 }
+
+
+class SimulatedPerson(TypedDict):
+    """One simulated participant (:func:`simulate_participants`): the seed of its trial
+    plan, its background answers and its answers in trial order."""
+
+    seed: int
+    background: dict[str, str]
+    rows: list[Answer]
 
 
 @dataclass(frozen=True)
@@ -125,7 +145,7 @@ class ObserverModel:
     pose_model: str = "salient"
     view_position: int | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.pose_model not in POSE_MODELS:
             raise ValueError(f"pose_model: expected one of {POSE_MODELS}, got {self.pose_model!r}")
         if self.view_position is not None and not 0 <= self.view_position < len(VIEW_METHODS):
@@ -191,7 +211,9 @@ def paper_design() -> list[StudyScene]:
     return out
 
 
-def design_from_stimuli(manifest, *, strengths: dict | None = None) -> list[StudyScene]:
+def design_from_stimuli(
+    manifest: str | Path | Mapping[str, Any], *, strengths: dict | None = None
+) -> list[StudyScene]:
     """Scenes of a stimuli manifest as a simulation design (top-k picks as salient moments)."""
     from .stimuli import stimuli_scenes
 
@@ -224,7 +246,7 @@ _DESIGN_FIELDS = (
 )
 
 
-def design_sha256(design, model: ObserverModel) -> str:
+def design_sha256(design: Iterable[StudyScene], model: ObserverModel) -> str:
     """A stable sha256 of a design + model (the store's ``manifest_sha256`` for them)."""
     doc = {
         "design": [{k: getattr(s, k) for k in _DESIGN_FIELDS} for s in design],
@@ -236,37 +258,118 @@ def design_sha256(design, model: ObserverModel) -> str:
 # ----------------------------------------------------------------- the observer
 
 
-def _pose_choice(rng, s: StudyScene, model: ObserverModel, habit: tuple) -> int:
-    lo, hi = s.frame_offset, s.frame_offset + s.n_frames - 1
-    if model.pose_model in ("centre", "habit"):
-        u = rng.beta(*habit)
-        return int(np.clip(np.rint(lo + u * (hi - lo)), lo, hi))
-    if model.pose_model == "uniform" or rng.random() < model.lapse:
-        return int(rng.integers(lo, hi + 1))
-    target = s.algorithm_frame
-    if s.salient_frames and rng.random() >= model.algorithm_weight:
-        target = s.salient_frames[int(rng.integers(len(s.salient_frames)))]
-    f = target + rng.normal(0.0, model.spread_s) * s.fps
-    return int(np.clip(np.rint(f), lo, hi))
+class SimulatedParticipant:
+    """One simulated observer's answers: the one participant model of the suite.
 
+    ``snapshot simulate`` (:func:`simulate_participants`) and the load test's two drivers
+    (:mod:`study_app.ops.loadtest`: the protocol client and the browser) all answer
+    through it, so the behaviour the module docstring describes is written once. Every
+    draw comes from ``rng``, in the order the methods are called: the same seed and calls
+    give the same answers.
 
-def _view_choice(rng, shown: tuple, strengths: dict, position: int | None) -> tuple[int, str]:
-    if position is not None:
-        return position, shown[position]
-    w = np.array([strengths[m] for m in shown], dtype=float)
-    pos = int(rng.choice(len(shown), p=w / w.sum()))
-    return pos, shown[pos]
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        This participant's random draws.
+    model : ObserverModel, optional
+        The observer's parameters (default :class:`ObserverModel()`). A ``"habit"``
+        observer draws its Beta(a, b) position habit here, once.
+
+    Notes
+    -----
+    A driver that cannot know what the page means (the load test sees neither the
+    algorithm's pick nor which method is where, nor the attention check's answer) says
+    so: no ``aim``, a count of positions, no ``answer``; the model then chooses uniformly
+    (a ``"uniform"`` pose model, equal strengths, a random option).
+    """
+
+    def __init__(self, rng: np.random.Generator, model: ObserverModel | None = None) -> None:
+        self.rng = rng
+        self.model = model or ObserverModel()
+        self.habit: tuple[float, float] = (2.0, 2.0)
+        if self.model.pose_model == "habit":
+            a, b = rng.uniform(0.5, 4.0, 2)
+            self.habit = (float(a), float(b))
+
+    def pose_frame(
+        self,
+        first: int,
+        last: int,
+        *,
+        fps: float = 30.0,
+        aim: int | None = None,
+        salient: Sequence[int] = (),
+    ) -> int:
+        """The frame chosen in a clip of frames ``first..last`` (inclusive, any numbering).
+
+        Parameters
+        ----------
+        fps : float
+            Frames per second of the clip (the spread of a salient choice is in seconds).
+        aim : int, optional
+            The algorithm's pick, aimed at with probability ``algorithm_weight`` by the
+            ``"salient"`` model (required by it); else one of ``salient`` is.
+        salient : sequence of int
+            The clip's other salient frames.
+        """
+        model, rng = self.model, self.rng
+        if model.pose_model in ("centre", "habit"):
+            u = rng.beta(*self.habit)
+            return int(np.clip(np.rint(first + u * (last - first)), first, last))
+        if model.pose_model == "uniform" or rng.random() < model.lapse:
+            return int(rng.integers(first, last + 1))
+        if aim is None:
+            raise ValueError("pose_frame: the salient model aims at a frame; none given")
+        target = aim
+        if salient and rng.random() >= model.algorithm_weight:
+            target = salient[int(rng.integers(len(salient)))]
+        f = target + rng.normal(0.0, model.spread_s) * fps
+        return int(np.clip(np.rint(f), first, last))
+
+    def view_position(
+        self, shown: Sequence[str] | int, strengths: Mapping[str, float] | None = None
+    ) -> int:
+        """The screen position chosen (0 = left) among the ``shown`` methods, by Luce's
+        choice axiom with ``strengths`` (default the model's); a count of positions when
+        the methods are not known (equal strengths). The model's ``view_position``, when
+        set, wins."""
+        if self.model.view_position is not None:
+            return self.model.view_position
+        if isinstance(shown, int):
+            return int(self.rng.integers(shown))
+        s = strengths or self.model.strengths
+        w = np.array([s[m] for m in shown], dtype=float)
+        return int(self.rng.choice(len(shown), p=w / w.sum()))
+
+    def attention_answer(self, options: Sequence[str], answer: str | None = None) -> str:
+        """The option chosen in the attention check: ``answer`` with probability
+        ``attention_pass``, else a wrong option; any option when the answer is not known."""
+        if answer is None:
+            return options[int(self.rng.integers(len(options)))]
+        right = self.rng.random() < self.model.attention_pass
+        wrong = [o for o in options if o != answer]
+        return answer if right or not wrong else wrong[int(self.rng.integers(len(wrong)))]
+
+    def choose(self, options: Sequence[str]) -> str:
+        """A background answer: one of ``options``, uniformly."""
+        return options[int(self.rng.integers(len(options)))]
+
+    def response_time(self, task: str) -> float:
+        """Seconds to answer a ``task`` trial: log-normal, log-SD 0.5, around the model's
+        median (``pose_time_s``, ``view_time_s``; 4 s for the attention check)."""
+        median = {"pose": self.model.pose_time_s, "view": self.model.view_time_s}.get(task, 4.0)
+        return float(median * self.rng.lognormal(0, 0.5))
 
 
 def simulate_participants(
-    design,
+    design: Iterable[StudyScene],
     n: int,
     *,
     seed: int = 0,
     model: ObserverModel | None = None,
     attention: dict | None = None,
     background: dict | None = None,
-) -> list:
+) -> list[SimulatedPerson]:
     """Simulate ``n`` participants answering every trial of ``design``.
 
     Parameters
@@ -305,15 +408,22 @@ def simulate_participants(
     by_id = {s.scene: s for s in design}
     if len(by_id) != len(design):
         raise ValueError("design: scene ids repeat")
-    out = []
+    out: list[SimulatedPerson] = []
     for _ in range(n):
         pseed = int(rng.integers(2**62))
         plan = trial_plan(list(by_id), pseed, attention=False)
-        habit = tuple(rng.uniform(0.5, 4.0, 2)) if model.pose_model == "habit" else (2.0, 2.0)
-        rows = []
+        person = SimulatedParticipant(rng, model)
+        rows: list[Answer] = []
         for trial in (t for t in plan if t.task == "pose"):
             s = by_id[trial.scene]
-            f = _pose_choice(rng, s, model, habit)
+            first = s.frame_offset
+            f = person.pose_frame(
+                first,
+                first + s.n_frames - 1,
+                fps=s.fps,
+                aim=s.algorithm_frame,
+                salient=s.salient_frames,
+            )
             rows.append(
                 {
                     "task": "pose",
@@ -323,29 +433,27 @@ def simulate_participants(
                     "algorithm_frame": s.algorithm_frame,
                     "fps": float(s.fps),
                     "n_frames": int(s.n_frames),
-                    "response_time_s": float(model.pose_time_s * rng.lognormal(0, 0.5)),
+                    "response_time_s": person.response_time("pose"),
+                    "trial_index": len(rows),
                 }
             )
         for trial in (t for t in plan if t.task == "view"):
             s = by_id[trial.scene]
-            shown = trial.shown_order
-            pos, method = _view_choice(
-                rng, shown, s.strengths or model.strengths, model.view_position
-            )
+            shown = trial.shown_order or ()  # every view trial has its screen order
+            pos = person.view_position(shown, s.strengths)
             rows.append(
                 {
                     "task": "view",
                     "scene": s.scene,
                     "stimulus_id": f"{s.scene}/view",
-                    "chosen_method": method,
+                    "chosen_method": shown[pos],
                     "chosen_position": pos,
                     "shown_order": list(shown),
-                    "response_time_s": float(model.view_time_s * rng.lognormal(0, 0.5)),
+                    "response_time_s": person.response_time("view"),
+                    "trial_index": len(rows),
                 }
             )
-        right = rng.random() < model.attention_pass
-        wrong = [o for o in attention["options"] if o != attention["answer"]]
-        value = attention["answer"] if right or not wrong else wrong[int(rng.integers(len(wrong)))]
+        value = person.attention_answer(attention["options"], attention["answer"])
         rows.append(
             {
                 "task": "attention",
@@ -353,18 +461,20 @@ def simulate_participants(
                 "stimulus_id": "attention",
                 "chosen_value": value,
                 "correct": value == attention["answer"],
-                "response_time_s": float(4.0 * rng.lognormal(0, 0.5)),
+                "response_time_s": person.response_time("attention"),
+                "trial_index": len(rows),
             }
         )
-        for i, r in enumerate(rows):
-            r["trial_index"] = i
-        bg = {k: v[int(rng.integers(len(v)))] for k, v in background.items()}
+        bg = {k: person.choose(v) for k, v in background.items()}
         out.append({"seed": pseed, "background": bg, "rows": rows})
     return out
 
 
 def simulated_rows(
-    participants, *, study_id: str = "simulated", manifest_sha256: str = "0" * 64
+    participants: Iterable[SimulatedPerson],
+    *,
+    study_id: str = "simulated",
+    manifest_sha256: str = "0" * 64,
 ) -> pd.DataFrame:
     """Simulated participants → export-shaped rows (no database), ``simulated`` true.
 
@@ -393,8 +503,8 @@ def simulated_rows(
 
 
 def store_simulation(
-    store,
-    participants,
+    store: Store,
+    participants: Iterable[SimulatedPerson],
     *,
     study_id: str,
     manifest_sha256: str,
@@ -416,14 +526,16 @@ def store_simulation(
             study_id, manifest_sha256, app_version=app_version, seed=p["seed"], simulated=True
         )
         store.set_background(pid, p["background"])
-        rows = [{k: v for k, v in r.items()} for r in p["rows"]]
+        rows = [r.copy() for r in p["rows"]]
         store.record_responses(pid, rows)
         store.complete(pid)
         ids.append(pid)
     return ids
 
 
-def simulate_vote_counts(n: int, strengths, *, n_sims: int, seed: int = 0) -> np.ndarray:
+def simulate_vote_counts(
+    n: int, strengths: Sequence[float] | np.ndarray, *, n_sims: int, seed: int = 0
+) -> np.ndarray:
     """Vote counts of ``n`` participants, all methods shown, ``n_sims`` times (numpy only).
 
     Parameters
@@ -442,6 +554,6 @@ def simulate_vote_counts(n: int, strengths, *, n_sims: int, seed: int = 0) -> np
     return rng.multinomial(n, p / p.sum(), size=n_sims)
 
 
-def with_strengths(design, strengths: dict | None):
+def with_strengths(design: Iterable[StudyScene], strengths: dict | None) -> list[StudyScene]:
     """The design with every scene's strengths replaced (None: use the model's)."""
     return [replace(s, strengths=strengths) for s in design]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ import pandas as pd
 __all__ = ["format_table", "to_markdown", "to_latex", "write_table"]
 
 
-def _fmt(col: str, v) -> str:
+def _fmt(col: str, v: object) -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)) or v is pd.NA:
         return ""
     if isinstance(v, bool | np.bool_):
@@ -102,7 +103,7 @@ def to_latex(df: pd.DataFrame, *, caption: str = "", label: str = "") -> str:
     )
 
 
-def _is_numeric(cells) -> bool:
+def _is_numeric(cells: Iterable[str]) -> bool:
     """Whether a column of formatted cells holds only numbers (and blanks)."""
     return all(_is_number(v) for v in cells if v != "")
 
@@ -115,7 +116,7 @@ def _is_number(s: str) -> bool:
         return False
 
 
-def write_table(df: pd.DataFrame, stem, *, caption: str = "") -> list[Path]:
+def write_table(df: pd.DataFrame, stem: str | Path, *, caption: str = "") -> list[Path]:
     """Write ``df`` as ``<stem>.csv`` (raw values), ``.md`` and ``.tex`` (formatted)."""
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)

@@ -32,15 +32,18 @@ Choices of method made here, stated once:
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable, Mapping, Sequence
 from importlib.resources import files
+from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 from scipy import stats
 
 from snapcore.select.view_methods import VIEW_METHODS
 
-from .load import ordered_scenes
+from .load import SceneOrder, ordered_scenes
 
 __all__ = [
     "ALPHA",
@@ -99,7 +102,7 @@ def paper_counts() -> pd.DataFrame:
     return wide.astype(int)
 
 
-def _groups(row) -> list[tuple[str, ...]]:
+def _groups(row: Mapping[str, Any]) -> list[tuple[str, ...]]:
     """The methods each picture of a view trial stood for: the row's ``shown_groups``,
     else each method of ``shown_order`` alone (rows before merging), else the chosen
     method alone (a count table)."""
@@ -112,7 +115,7 @@ def _groups(row) -> list[tuple[str, ...]]:
     return [(row["chosen_method"],)]
 
 
-def credited_methods(row) -> tuple[str, ...]:
+def credited_methods(row: Mapping[str, Any]) -> tuple[str, ...]:
     """The methods a view-task choice is a vote for: every method the chosen picture
     stood for (its ``shown_groups`` entry), else the chosen method alone."""
     for g in _groups(row):
@@ -121,7 +124,9 @@ def credited_methods(row) -> tuple[str, ...]:
     return (row["chosen_method"],)
 
 
-def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> pd.DataFrame:
+def vote_counts(
+    choices: pd.DataFrame, *, methods: Sequence[str] = VIEW_METHODS, order: SceneOrder = None
+) -> pd.DataFrame:
     """View-task choices → wide counts (scenes × ``methods``).
 
     A choice of a merged picture (alike candidates shown once, ``shown_groups``) counts
@@ -158,7 +163,9 @@ def vote_counts(choices: pd.DataFrame, *, methods=VIEW_METHODS, order=None) -> p
     return tab
 
 
-def pair_votes(choices: pd.DataFrame, reference: str, baselines, *, order=None) -> pd.DataFrame:
+def pair_votes(
+    choices: pd.DataFrame, reference: str, baselines: Iterable[str], *, order: SceneOrder = None
+) -> pd.DataFrame:
     """Votes for ``reference`` and each baseline, from the trials where the two had
     pictures of their own: a trial where they shared a picture (alike candidates merged)
     gives neither a vote (its choice says nothing about one against the other).
@@ -211,7 +218,9 @@ def choices_from_counts(counts: pd.DataFrame) -> pd.DataFrame:
 # ----------------------------------------------------------------- small kernels
 
 
-def wilson_interval(k, n, *, confidence: float = 0.95):
+def wilson_interval(
+    k: ArrayLike, n: ArrayLike, *, confidence: float = 0.95
+) -> tuple[np.ndarray, np.ndarray]:
     """Wilson score interval for a binomial proportion ``k / n``.
 
     Parameters
@@ -240,7 +249,7 @@ def wilson_interval(k, n, *, confidence: float = 0.95):
     return low, high
 
 
-def holm_adjust(pvalues) -> np.ndarray:
+def holm_adjust(pvalues: ArrayLike) -> np.ndarray:
     """Holm (1979) step-down adjusted p-values, in the input's order.
 
     Sort ascending ``p_(1) <= ... <= p_(m)``; ``adj_(i) = max_{j<=i} min(1, (m-j+1) p_(j))``.
@@ -350,7 +359,9 @@ def chisquare_no_preference(
     )
 
 
-def _chisquare_pictures(counts: pd.DataFrame, choices: pd.DataFrame, *, alpha: float):
+def _chisquare_pictures(
+    counts: pd.DataFrame, choices: pd.DataFrame, *, alpha: float
+) -> pd.DataFrame:
     """:func:`chisquare_no_preference` over each scene's pictures as shown."""
     rows = []
     chosen = choices[choices["chosen_method"].notna()].to_dict("records")
@@ -388,7 +399,7 @@ def ours_vs_baselines(
     counts: pd.DataFrame,
     *,
     reference: str = "ours",
-    baselines=None,
+    baselines: Sequence[str] | None = None,
     alpha: float = ALPHA,
     family: str = "all",
     confidence: float = 0.95,
@@ -502,7 +513,7 @@ def claim_summary(
         Scene id → display name.
     """
     labels = labels or {}
-    name = lambda s: labels.get(s, s)  # noqa: E731
+    name = lambda s: str(labels.get(s, s))  # noqa: E731
     lines = []
     for b, g in pairwise.groupby("baseline", sort=False):
         yes = [name(s) for s in g.loc[g["verdict"] == f"{reference} preferred", "scene"]]
@@ -524,7 +535,9 @@ def claim_summary(
 # ----------------------------------------------------------------- Luce model
 
 
-def _fit_shares(n_items, data, alpha, initial=None):
+def _fit_shares(
+    n_items: int, data: list, alpha: float, initial: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     import choix
 
     theta = choix.ilsr_top1(n_items, data, alpha=alpha, max_iter=1000, initial_params=initial)
@@ -535,13 +548,13 @@ def _fit_shares(n_items, data, alpha, initial=None):
 def luce_strengths(
     choices: pd.DataFrame,
     *,
-    methods=VIEW_METHODS,
+    methods: Sequence[str] = VIEW_METHODS,
     n_boot: int = 1000,
     seed: int = 0,
     confidence: float = 0.95,
     pooled: bool = True,
     luce_alpha: float = LUCE_ALPHA,
-    order=None,
+    order: SceneOrder = None,
 ) -> pd.DataFrame:
     """Luce (Plackett–Luce top-1 / Bradley–Terry) method strengths with bootstrap CIs.
 
@@ -601,7 +614,7 @@ def luce_strengths(
     q = (1 - confidence) / 2
     rows = []
 
-    def emit(scene, strata, clusters=None):
+    def emit(scene: str, strata: list[np.ndarray], clusters: np.ndarray | None = None) -> None:
         """One model over the choices ``strata`` (a list of index arrays, one per
         stratum resampled on its own, or whole ``clusters``)."""
         flat = np.concatenate(strata)

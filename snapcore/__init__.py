@@ -8,6 +8,7 @@ No Streamlit, no SQL here (DESIGN: data flows one way).
 from __future__ import annotations
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 # The public API: the stages of the pipeline (load, interactions, pose, view, the whole
 # snapshot, renders, relief), their parameter objects and their result types. Everything
@@ -33,8 +34,25 @@ _WHERE = {
 }
 _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
+# The type checker reads the same names from their modules (a PEP 562 `__getattr__`
+# alone would make every public name `Any` to it); these lines never run.
+if TYPE_CHECKING:
+    from snapcore.errors import BVHError, SceneError, SnapshotError
+    from snapcore.motion.load import load_scene
+    from snapcore.motion.scene import Character, Scene, Skeleton
+    from snapcore.pipeline import Snapshot, ViewParams, take_snapshot
+    from snapcore.relief.height_field import Relief, ReliefParams
+    from snapcore.relief.scene import relief_from_scene
+    from snapcore.render.composites import compare_views, contact_sheet
+    from snapcore.render.renderer import render_still
+    from snapcore.render.video import render_video
+    from snapcore.select.contacts import ContactParams, Interactions, detect_interactions
+    from snapcore.select.pose_methods import PoseParams, select_pose
+    from snapcore.select.pose_selection import PoseScores, PoseSelection
+    from snapcore.select.view import ViewSelection, select_view
 
-def __getattr__(name: str):
+
+def __getattr__(name: str) -> object:
     module = _MODULE_OF.get(name)
     if module is None:
         raise AttributeError(f"module 'snapcore' has no attribute {name!r}")
@@ -43,7 +61,7 @@ def __getattr__(name: str):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(__all__)
 
 

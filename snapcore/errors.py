@@ -37,7 +37,7 @@ class BVHError(SnapshotError):
         1-based line number in the file where the problem is.
     """
 
-    def __init__(self, message: str, *, path: str | None = None, line: int | None = None):
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None) -> None:
         self.path = path
         self.line = line
         self.reason = message
@@ -58,7 +58,7 @@ class GLTFError(SnapshotError):
         The file, as given by the caller.
     """
 
-    def __init__(self, message: str, *, path: str | None = None):
+    def __init__(self, message: str, *, path: str | None = None) -> None:
         self.path = path
         self.reason = message
         super().__init__(f"{path or '<gltf>'}: {message}")
@@ -75,7 +75,7 @@ class FBXError(SnapshotError):
         The file, as given by the caller.
     """
 
-    def __init__(self, message: str, *, path: str | None = None):
+    def __init__(self, message: str, *, path: str | None = None) -> None:
         self.path = path
         self.reason = message
         super().__init__(f"{path or '<fbx>'}: {message}")

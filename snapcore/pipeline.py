@@ -474,7 +474,7 @@ def _view_stage(snap: Snapshot, params: ViewParams) -> None:
     t0 = time.perf_counter()
     frames = window_frames(scene, index if params.window_s is not None else None, params.window_s)
     tri = motion_triangles(scene, frames=frames, floor=params.floor_m2)
-    common = dict(
+    common: dict[str, Any] = dict(
         index=index,
         window_s=params.window_s,
         n_views=params.n_views,

@@ -18,6 +18,7 @@ So data flows one way: design → data → session → analysis → UI → opera
 """
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 # The names below are imported on first use (PEP 562), not here: importing any
 # study module runs this file, and the store (SQLAlchemy) cost every test module that
@@ -29,8 +30,15 @@ _WHERE = {
 }
 _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
+# The type checker reads the same names from their modules (a PEP 562 `__getattr__`
+# alone would make every public name `Any` to it); these lines never run.
+if TYPE_CHECKING:
+    from .data.errors import StoreError
+    from .data.export import read_export, write_export
+    from .data.store import Store
 
-def __getattr__(name: str):
+
+def __getattr__(name: str) -> object:
     module = _MODULE_OF.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -39,7 +47,7 @@ def __getattr__(name: str):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(__all__)
 
 

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal, overload
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -59,7 +60,7 @@ MAX_STATURE_RATIO = 2.0
 MIN_PERSON_JOINTS = 5
 
 
-def _warn_unit_mismatch(probes, statures) -> None:
+def _warn_unit_mismatch(probes: Sequence[Character], statures: Sequence[float]) -> None:
     """Warn when characters that will share one scale look like different units."""
     s = np.asarray(statures, float)
     if s.size < 2 or not np.all(np.isfinite(s) & (s > 0)):
@@ -129,7 +130,7 @@ def infer_ground(positions: list[np.ndarray]) -> float:
 
 
 def load_scene(
-    paths_or_manifest,
+    paths_or_manifest: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     *,
     fps: float | None = None,
     scale: float | None = None,
@@ -218,13 +219,24 @@ def load_scene(
     )
 
 
-def _kind(path) -> str:
+def _kind(path: Path) -> str:
     """How a character file is read, by its suffix (the one dispatch by extension)."""
     suffix = Path(path).suffix.lower()
     return "gltf" if suffix in GLTF_SUFFIXES else "fbx" if suffix in FBX_SUFFIXES else "bvh"
 
 
-def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animation) -> Scene:
+def _build(
+    spec: dict[str, Any],
+    base: Path | None,
+    *,
+    fps: float | None,
+    scale: float | None,
+    ground: float | None,
+    drop_tpose: bool | None,
+    name: str | None,
+    source: str | None,
+    animation: str | None,
+) -> Scene:
     docs: list[BVHDocument | None] = []  # None: a glTF or FBX character, read by its entry
     paths, entries, kinds = [], [], []
     for e in spec["characters"]:
@@ -330,7 +342,8 @@ def _build(spec, base, *, fps, scale, ground, drop_tpose, name, source, animatio
                     stacklevel=3,
                 )
         else:
-            c = probe.rescaled(scale or e.get("scale") or scene_scale)
+            # a BVH without a scene scale has its own (the check above)
+            c = probe.rescaled(cast(float, scale or e.get("scale") or scene_scale))
             c.meta["unit"] = how if not (scale or e.get("scale")) else "given"
         if c.name in used_names:
             c.name = f"{c.name}_{len(chars)}"

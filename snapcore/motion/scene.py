@@ -27,10 +27,12 @@ people captured in one world frame keep their distances (hands that touch still 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_roles, joint_sides
@@ -211,7 +213,11 @@ class Character:
         return stature_units(self.skeleton, self.positions)
 
     def transformed(
-        self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None
+        self,
+        *,
+        yaw_deg: float = 0.0,
+        offset: ArrayLike = (0.0, 0.0, 0.0),
+        rotation: np.ndarray | None = None,
     ) -> Character:
         """A copy rotated about +Y by ``yaw_deg`` (or by the 3×3 ``rotation``) then
         translated by ``offset`` (metres)."""
@@ -280,7 +286,7 @@ class Character:
         )
 
 
-def _rotate_roots(local_rot, parents, r):
+def _rotate_roots(local_rot: np.ndarray, parents: ArrayLike, r: np.ndarray) -> np.ndarray:
     out = local_rot.copy()
     roots = np.flatnonzero(np.asarray(parents) < 0)
     out[:, roots] = r @ local_rot[:, roots]
@@ -293,7 +299,7 @@ def _yaw_quaternion(yaw_deg: float) -> np.ndarray:
     return np.array([np.cos(half), 0.0, np.sin(half), 0.0])
 
 
-def _rotate_root_quaternions(local_q, parents, q):
+def _rotate_root_quaternions(local_q: np.ndarray, parents: ArrayLike, q: ArrayLike) -> np.ndarray:
     """:func:`_rotate_roots` on quaternions: roots turned by the unit quaternion ``q``."""
     out = local_q.copy()
     roots = np.flatnonzero(np.asarray(parents) < 0)
@@ -328,7 +334,7 @@ class Scene:
     frame_offset: int = 0
     meta: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not self.characters:
             raise SceneError("a scene needs at least one character")
         counts = {c.n_frames for c in self.characters}
@@ -359,7 +365,7 @@ class Scene:
         hi = np.max([c.positions.max(axis=(0, 1)) for c in self.characters], axis=0)
         return np.stack([lo, hi])
 
-    def source_frame(self, i):
+    def source_frame(self, i: ArrayLike) -> np.ndarray:
         """Source-file frame number of internal frame(s) ``i``."""
         return np.asarray(i) + self.frame_offset
 
@@ -384,7 +390,9 @@ class Scene:
             )
         return i
 
-    def transformed(self, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), scale: float = 1.0):
+    def transformed(
+        self, *, yaw_deg: float = 0.0, offset: ArrayLike = (0.0, 0.0, 0.0), scale: float = 1.0
+    ) -> Scene:
         """The whole scene rotated about +Y, scaled about the origin, then translated."""
         chars = []
         for c in self.characters:
@@ -422,7 +430,7 @@ class Scene:
         )
 
 
-def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset) -> dict:
+def _transform_prop(prop: dict, r: np.ndarray, scale: float, offset: ArrayLike) -> dict:
     """A prop moved like its scene: points rotated, scaled, translated; sizes scaled.
 
     Boxes stay axis-aligned (props are static and a yaw of a box is not modelled), so
@@ -573,7 +581,7 @@ def stands_along_z(skeleton: Skeleton, positions: np.ndarray) -> bool:
         return False
     rest = rest_positions(skeleton.parents, skeleton.offsets)
 
-    def unit(v):
+    def unit(v: np.ndarray) -> np.ndarray:
         n = np.linalg.norm(v, axis=-1, keepdims=True)
         return v / np.where(n > 0, n, 1.0)
 
@@ -583,7 +591,7 @@ def stands_along_z(skeleton: Skeleton, positions: np.ndarray) -> bool:
     return bool(up[2] > 0.8 and leg[2] < -0.8 and moving[2] > 0.5)
 
 
-def infer_scale(statures_units) -> tuple[float, str]:
+def infer_scale(statures_units: Sequence[float] | np.ndarray) -> tuple[float, str]:
     """Metres per file unit for characters of the given statures (file units).
 
     Returns

@@ -26,10 +26,13 @@ offsets only.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Literal, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 
 from snapcore.errors import ReliefError
@@ -63,6 +66,8 @@ DETAIL_SIGMA_PX = 3.0
 #: Pixels dropped next to the silhouette by :func:`detail_energy`, so the outline step of
 #: the linear relief (one big jump) is not counted as "detail".
 DETAIL_ERODE_PX = 6
+#: A pixel size: ``(dx, dy)``, or one number for square pixels.
+Pixel = float | tuple[float, float]
 #: Kernel samples per spatial sigma in :func:`cross_bilateral` (tap spacing sigma/4).
 CBF_TAPS_PER_SIGMA = 4.0
 
@@ -151,7 +156,7 @@ class ReliefParams:
     plate: str = "attached"
     plate_grid: int = 256
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         size = tuple(float(s) for s in np.broadcast_to(np.asarray(self.size_mm, float), (2,)))
         object.__setattr__(self, "size_mm", size)
         checks = [
@@ -198,7 +203,7 @@ class ReliefParams:
 # --------------------------------------------------------------------- height field
 
 
-def height_from_depth(depth):
+def height_from_depth(depth: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Height field and foreground mask from a depth map.
 
     Parameters
@@ -225,7 +230,9 @@ def height_from_depth(depth):
     return height, mask
 
 
-def _forward_slopes(height, mask, pixel):
+def _forward_slopes(
+    height: np.ndarray, mask: np.ndarray, pixel: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
     """Forward-difference slopes on the staggered grid, zero across the mask boundary."""
     px, py = pixel
     gx = np.zeros_like(height)
@@ -241,8 +248,13 @@ def _forward_slopes(height, mask, pixel):
 
 
 def clamped_gradients(
-    height, mask, *, pixel=(1.0, 1.0), max_slope: float = 5.0, jump: str = "zero"
-):
+    height: np.ndarray,
+    mask: np.ndarray,
+    *,
+    pixel: Pixel = (1.0, 1.0),
+    max_slope: float = 5.0,
+    jump: str = "zero",
+) -> tuple[np.ndarray, np.ndarray]:
     """Slopes of a height field with silhouette and occlusion jumps removed.
 
     Parameters
@@ -276,7 +288,9 @@ def clamped_gradients(
     return gx, gy
 
 
-def attenuate_gradients(gx, gy, *, alpha: float):
+def attenuate_gradients(
+    gx: np.ndarray, gy: np.ndarray, *, alpha: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Non-linear attenuation of gradient magnitude (Weyrich et al. 2007, eq. 2).
 
     ``g ← g · C(|g|) / |g|`` with ``C(x) = log(1 + alpha·x) / alpha``: small slopes pass
@@ -293,7 +307,7 @@ def attenuate_gradients(gx, gy, *, alpha: float):
     return gx * f, gy * f
 
 
-def view_angle(height, mask, *, pixel=(1.0, 1.0)):
+def view_angle(height: np.ndarray, mask: np.ndarray, *, pixel: Pixel = (1.0, 1.0)) -> np.ndarray:
     """Angle (radians) between the surface normal and the view direction, per pixel.
 
     The view looks down the height axis, so for the unit normal ``(-hx, -hy, 1)/|…|`` the
@@ -308,7 +322,15 @@ def view_angle(height, mask, *, pixel=(1.0, 1.0)):
     return np.where(mask, np.arctan(np.hypot(cx, cy)), 0.0)
 
 
-def cross_bilateral(values, mask, guides, *, sigma_spatial: float, sigmas, mode: str = "separable"):
+def cross_bilateral(
+    values: np.ndarray,
+    mask: np.ndarray,
+    guides: Sequence[np.ndarray] | np.ndarray,
+    *,
+    sigma_spatial: float,
+    sigmas: Sequence[float] | np.ndarray,
+    mode: str = "separable",
+) -> np.ndarray:
     """Masked cross-bilateral filter of one or more images guided by other images.
 
     Parameters
@@ -354,7 +376,15 @@ def cross_bilateral(values, mask, guides, *, sigma_spatial: float, sigmas, mode:
     return _cbf_offsets(out, m, gs, inv, [(d, 0) for d in taps], sigma_spatial, r)
 
 
-def _cbf_offsets(v, m, guides, inv, offsets, sigma_spatial, r):
+def _cbf_offsets(
+    v: np.ndarray,
+    m: np.ndarray,
+    guides: Sequence[np.ndarray],
+    inv: Sequence[np.floating | float] | np.ndarray,
+    offsets: Sequence[tuple[int, int]],
+    sigma_spatial: float,
+    r: int,
+) -> np.ndarray:
     c, ny, nx = v.shape
     pad = ((r, r), (r, r))
     vp = np.pad(v, ((0, 0),) + pad)
@@ -386,14 +416,14 @@ def _cbf_offsets(v, m, guides, inv, offsets, sigma_spatial, r):
 # --------------------------------------------------------------------- compression
 
 
-def _pixel_of(pixel):
+def _pixel_of(pixel: Pixel) -> tuple[float, float]:
     p = np.broadcast_to(np.asarray(pixel, float), (2,))
     if not np.all(p > 0):
         raise ReliefError(f"pixel size must be > 0, got {pixel}")
     return float(p[0]), float(p[1])
 
 
-def _normalise_relief(h, mask, *, what: str):
+def _normalise_relief(h: np.ndarray, mask: np.ndarray, *, what: str) -> np.ndarray:
     """Put the plate at 0, keep the figure >= 0, scale the highest point to 1."""
     top = h[mask].max() if mask.any() else 0.0
     if not top > 0:
@@ -405,7 +435,7 @@ def _normalise_relief(h, mask, *, what: str):
     return np.where(mask, np.clip(h / top, 0.0, 1.0), 0.0)
 
 
-def linear_height_field(height, mask):
+def linear_height_field(height: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Plain linear compression: the figure's depth range scaled to [0, 1].
 
     The farthest figure point lands on the plate (0), the nearest at 1, the background
@@ -419,14 +449,32 @@ def linear_height_field(height, mask):
     return _normalise_relief(np.where(m, h - lo, 0.0), m, what="linear relief")
 
 
+@overload
 def compress_height_field(
-    height,
-    mask,
+    height: np.ndarray,
+    mask: np.ndarray,
     *,
-    pixel=(1.0, 1.0),
+    pixel: Pixel = ...,
+    params: ReliefParams | None = ...,
+    return_layers: Literal[False] = ...,
+) -> np.ndarray: ...
+@overload
+def compress_height_field(
+    height: np.ndarray,
+    mask: np.ndarray,
+    *,
+    pixel: Pixel = ...,
+    params: ReliefParams | None = ...,
+    return_layers: Literal[True],
+) -> tuple[np.ndarray, dict[str, Any]]: ...
+def compress_height_field(
+    height: np.ndarray,
+    mask: np.ndarray,
+    *,
+    pixel: Pixel = (1.0, 1.0),
     params: ReliefParams | None = None,
     return_layers: bool = False,
-):
+) -> np.ndarray | tuple[np.ndarray, dict[str, Any]]:
     """Gradient-domain bas-relief compression of a height field (Weyrich et al. 2007).
 
     Parameters
@@ -562,26 +610,31 @@ class Relief:
         ny, nx = self.height_mm.shape
         return 2 * (ny - 1) * (nx - 1) + 3 * (2 * (nx - 1) + 2 * (ny - 1))
 
-    def mesh(self):
+    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
         """``(vertices, faces)`` of the watertight solid (see :func:`relief_mesh`)."""
         return relief_mesh(self.height_mm, size_mm=self.params.size_mm, base_mm=self.params.base_mm)
 
-    def shaded(self, **light) -> np.ndarray:
+    def shaded(self, **light: Any) -> np.ndarray:
         """Lambert-shaded preview image (ny, nx) in [0, 1] (see :func:`shade_relief`)."""
         return shade_relief(self.height_mm, pixel_mm=self.pixel_mm, **light)
 
-    def write_stl(self, path) -> Path:
+    def write_stl(self, path: str | Path) -> Path:
         """Write the solid as binary STL (millimetres; see :func:`write_relief_stl`)."""
         p = self.params
         return write_relief_stl(path, self.height_mm, size_mm=p.size_mm, base_mm=p.base_mm)
 
-    def write_preview(self, path, **light) -> Path:
+    def write_preview(self, path: str | Path, **light: Any) -> Path:
         """Write the shaded preview as PNG."""
         return write_png(path, self.shaded(**light))
 
 
 def relief_from_height_field(
-    height, mask, *, pixel=(1.0, 1.0), params: ReliefParams | None = None, meta: dict | None = None
+    height: np.ndarray,
+    mask: np.ndarray,
+    *,
+    pixel: Pixel = (1.0, 1.0),
+    params: ReliefParams | None = None,
+    meta: dict | None = None,
 ) -> Relief:
     """Compress a height field (or scale it linearly) into a :class:`Relief`.
 
@@ -598,8 +651,13 @@ def relief_from_height_field(
 
 
 def detail_region(
-    mask, *, height=None, pixel=(1.0, 1.0), max_slope: float = 5.0, erode_px: int = DETAIL_ERODE_PX
-):
+    mask: np.ndarray,
+    *,
+    height: np.ndarray | None = None,
+    pixel: Pixel = (1.0, 1.0),
+    max_slope: float = 5.0,
+    erode_px: int = DETAIL_ERODE_PX,
+) -> np.ndarray:
     """Where :func:`detail_energy` looks: the silhouette minus bands around its edges.
 
     Pixels within ``erode_px`` of the outline are dropped and, when the original
@@ -626,13 +684,13 @@ def detail_region(
 
 
 def detail_energy(
-    relief,
-    mask,
+    relief: np.ndarray,
+    mask: np.ndarray,
     *,
     sigma_px: float = DETAIL_SIGMA_PX,
     erode_px: int = DETAIL_ERODE_PX,
     depth: float | None = None,
-    region=None,
+    region: np.ndarray | None = None,
 ) -> float:
     """Small-scale gradient energy of a relief inside its silhouette, per unit depth.
 

@@ -15,6 +15,7 @@
 """
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 # Imported on first use (PEP 562): `snapcore.select.pose_selection` is needed by every command's
 # option parsing, the view search's trimesh only by the commands that search views.
@@ -28,6 +29,14 @@ _WHERE = {
     "select_view": "view",
 }
 
+# The type checker reads the same names from their modules (a PEP 562 `__getattr__`
+# alone would make every public name `Any` to it); these lines never run.
+if TYPE_CHECKING:
+    from snapcore.select.pose_methods import POSE_METHODS, select_pose
+    from snapcore.select.pose_selection import PoseSelection
+    from snapcore.select.view import ViewSelection, select_view
+    from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
+
 __all__ = [
     "POSE_METHODS",
     "PoseSelection",
@@ -39,7 +48,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
     if name not in _WHERE:
         raise AttributeError(f"module 'snapcore.select' has no attribute {name!r}")
     value = getattr(import_module(f"snapcore.select.{_WHERE[name]}"), name)

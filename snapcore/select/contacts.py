@@ -38,7 +38,7 @@ from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.select.capsules import BODY_BLOCK_S, body_near, bone_radii, segment_distance
 
 if TYPE_CHECKING:
-    from snapcore.motion.scene import Character
+    from snapcore.motion.scene import Character, Scene
 
 __all__ = [
     "GROUND",
@@ -109,7 +109,7 @@ class ContactParams:
     min_duration: float = 0.1
     reference_stature: float | None = REFERENCE_STATURE_M
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in (
             "ground_distance",
             "body_distance",
@@ -123,7 +123,7 @@ class ContactParams:
         if self.reference_stature is not None and not self.reference_stature > 0:
             raise SelectionError("ContactParams.reference_stature must be positive or None")
 
-    def length_scale(self, scene) -> float:
+    def length_scale(self, scene: Scene) -> float:
         """Factor applied to the lengths for ``scene`` (mean stature / reference)."""
         if self.reference_stature is None:
             return 1.0
@@ -200,7 +200,7 @@ class Interactions:
     def for_character(self, c: int) -> list[Event]:
         return [e for e in self.events if e.character == c]
 
-    def records(self, scene) -> list[dict]:
+    def records(self, scene: Scene) -> list[dict]:
         """Events as JSON-ready dicts with names and SOURCE frame numbers."""
         out = []
         for e in self.events:
@@ -217,7 +217,7 @@ class Interactions:
             out.append(rec)
         return out
 
-    def counts(self, scene) -> dict[tuple[str, str], int]:
+    def counts(self, scene: Scene) -> dict[tuple[str, str], int]:
         """Number of events per (character name, object)."""
         out: dict[tuple[str, str], int] = {}
         for e in self.events:
@@ -589,14 +589,14 @@ def _norm(d: np.ndarray) -> np.ndarray:
 class _StaticDisplacement:
     """Relative displacement against a static object: world positions ``x (F, J, 3)``."""
 
-    def __init__(self, x: np.ndarray):
+    def __init__(self, x: np.ndarray) -> None:
         self.x = x
 
-    def __call__(self, j, s, g):
+    def __call__(self, j: np.ndarray, s: np.ndarray, g: np.ndarray) -> np.ndarray:
         d = self.x[g, j] - self.x[s, j]
         return np.sqrt(np.einsum("ni,ni->n", d, d))
 
-    def relative(self, j, f):
+    def relative(self, j: np.ndarray, f: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(self.x.reshape(-1, 3).take(f * self.x.shape[1] + j, axis=0).T)
 
 
@@ -610,12 +610,12 @@ class _BodyDisplacement:
     nearest at that frame.
     """
 
-    def __init__(self, x: np.ndarray, other, bone: np.ndarray):
+    def __init__(self, x: np.ndarray, other: Character, bone: np.ndarray) -> None:
         self.x, self.bone = x, bone
         self.parent_of = other.skeleton.links[:, 0]
         self.y, self.rot = other.positions, other.rotations
 
-    def _rel(self, frames, j, parent) -> np.ndarray:
+    def _rel(self, frames: np.ndarray, j: np.ndarray, parent: np.ndarray) -> np.ndarray:
         """``R_p^T (x_j - y_p)`` at ``frames``, component-first (3, n)."""
         rows = frames * self.y.shape[1] + parent
         r = self.rot.reshape(-1, 9).take(rows, axis=0).T  # r[3k + i] = R[k, i]
@@ -628,16 +628,16 @@ class _BodyDisplacement:
         out += r[6:9] * v[2]
         return out
 
-    def __call__(self, j, s, g):
+    def __call__(self, j: np.ndarray, s: np.ndarray, g: np.ndarray) -> np.ndarray:
         n = np.size(j)
         parent = np.tile(self.parent_of.take(self.bone[s, j]), 2)
         rel = self._rel(np.concatenate([g, s]), np.tile(j, 2), parent)  # both frames at once
         return _norm(rel[:, :n] - rel[:, n:])
 
-    def reference(self, j, f):
+    def reference(self, j: np.ndarray, f: np.ndarray) -> np.ndarray:
         return self.parent_of.take(self.bone[f, j])
 
-    def relative(self, j, f):
+    def relative(self, j: np.ndarray, f: np.ndarray) -> np.ndarray:
         return self._rel(f, j, self.reference(j, f))
 
 
@@ -667,7 +667,7 @@ def merge_adjacent(joints, starts, ends):
 
 
 def detect_interactions(
-    scene,
+    scene: Scene,
     *,
     tolerances: ContactParams = DEFAULT_TOLERANCES,
     ground: bool = True,

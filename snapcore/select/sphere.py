@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import ParamSpec, TypeVar
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
@@ -75,14 +77,16 @@ SCORE_BLOCK = (16, 16384)
 CHUNK = 32768
 
 _BLAS = None
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 
-def one_blas_thread(func):
+def one_blas_thread(func: Callable[_P, _R]) -> Callable[_P, _R]:
     """Run ``func`` with one BLAS thread: its products are small (inner dimension 3),
     and multi-threaded OpenBLAS made them ~20x slower on a busy 2-core machine."""
 
     @functools.wraps(func)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         global _BLAS
         if _BLAS is None:  # built on first use: it inspects the loaded BLAS libraries
             _BLAS = ThreadpoolController()

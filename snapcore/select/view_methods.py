@@ -58,7 +58,7 @@ _FIGURES = {
 VIEW_METHODS: tuple[ViewMethod, ...] = tuple(ViewMethod)
 
 
-def view_label(key) -> str:
+def view_label(key: str) -> str:
     """How a view key is shown on a picture: a :class:`ViewMethod` by its
     :attr:`~ViewMethod.label`, any other key (a free-form name) as given.
 

@@ -184,15 +184,14 @@ def backup(url, output, *, method: str = "auto", force: bool = False) -> BackupR
             result = _sqlite_backup(store, tmp)
         elif dialect == "postgresql" and method in ("auto", "native"):
             tool = find_pg_tool("pg_dump")
-            result = None
+            dumped = None
             if tool is None and method == "native":
                 raise StoreError(
                     "pg_dump is not installed (install postgresql-client, or use --method logical)"
                 )
             if tool is not None:
-                result = _pg_dump(tool, parsed, tmp, fallback=method == "auto")
-            if result is None:
-                result = _logical_backup(engine, tmp)
+                dumped = _pg_dump(tool, parsed, tmp, fallback=method == "auto")
+            result = dumped if dumped is not None else _logical_backup(engine, tmp)
         elif dialect not in ("sqlite", "postgresql") and method == "native":
             raise StoreError(f"no native backup for {dialect} databases (use --method logical)")
         else:
@@ -567,8 +566,8 @@ def restore(
     except BaseException:
         store.close()
         if new_file is not None:  # a failed restore leaves no empty database behind
-            for extra in ("", "-wal", "-shm", "-journal"):
-                Path(f"{new_file}{extra}").unlink(missing_ok=True)
+            for suffix in ("", "-wal", "-shm", "-journal"):
+                Path(f"{new_file}{suffix}").unlink(missing_ok=True)
         raise
     store.close()
     # The restored database's log holds every withdrawal (and anonymisation) it knows

@@ -17,11 +17,12 @@ import re
 import sqlite3
 import threading
 import warnings
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext
 from datetime import UTC, datetime
 from functools import partial
 from pathlib import Path
-from typing import Self
+from typing import Any, Self, TypeVar
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
@@ -50,13 +51,14 @@ CONNECT_TIMEOUT_S = 10
 PARTICIPANT_ID_RE = re.compile(r"^[A-Za-z0-9_-]{16,64}$")
 #: Retries of a write that lost a race on the (participant, trial) unique key.
 _DUPLICATE_RETRIES = 3
+_T = TypeVar("_T")
 
 
 def _utcnow() -> datetime:
     return datetime.now(UTC)
 
 
-def _utc(value) -> datetime | None:
+def _utc(value: datetime | str | None) -> datetime | None:
     """A stored timestamp as an aware UTC datetime (SQLite gives naive UTC ones back,
     sometimes as text)."""
     if value is None:
@@ -68,7 +70,7 @@ def _utc(value) -> datetime | None:
     return value.astimezone(UTC)
 
 
-def _iso(value) -> str | None:
+def _iso(value: datetime | str | None) -> str | None:
     """A stored timestamp as ISO 8601 in UTC."""
     value = _utc(value)
     return None if value is None else value.isoformat(timespec="microseconds")
@@ -86,7 +88,7 @@ class StoreEngine:
     Parameters and errors as :class:`~study_app.data.store.Store`, which adds the queries.
     """
 
-    def __init__(self, url: str | None = None, *, create: bool = True):
+    def __init__(self, url: str | None = None, *, create: bool = True) -> None:
         self._url = normalize_url(url)
         self.url = self._url.render_as_string(hide_password=True)
         self.dialect = self._url.get_backend_name()
@@ -126,7 +128,8 @@ class StoreEngine:
 
     # -- engine ------------------------------------------------------------------------
     def _make_engine(self) -> sa.engine.Engine:
-        url, kwargs = self._url, {}
+        url = self._url
+        kwargs: dict[str, Any] = {}  # create_engine's options for this dialect
         if self.dialect == "sqlite":
             database = url.database or ""
             in_memory = database in ("", ":memory:") or database.startswith("file::memory:")
@@ -193,11 +196,14 @@ class StoreEngine:
         """Release every pooled connection."""
         self.engine.dispose()
 
-    def copy_sqlite(self, dest) -> None:
+    def copy_sqlite(self, dest: str | Path) -> None:
         """Copy this SQLite database into the new file ``dest`` with SQLite's online
         backup while the app may write, and make the copy standalone (a backup)."""
+        database = self.engine.url.database
+        if not database:
+            raise StoreError(f"cannot back up {self.url}: an in-memory database has no file")
         try:
-            src = sqlite3.connect(self.engine.url.database, timeout=30)
+            src = sqlite3.connect(database, timeout=30)
             dst = sqlite3.connect(dest)
             try:
                 # pages=-1: one step, one read snapshot (more steps restart on every write)
@@ -212,14 +218,14 @@ class StoreEngine:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def __repr__(self) -> str:
         return f"Store({self.url!r})"
 
     @contextmanager
-    def transaction(self, *, write: bool):
+    def transaction(self, *, write: bool) -> Iterator[sa.Connection]:
         """One transaction; database failures become a one-line :class:`StoreError`."""
         lock = self._write_lock if write and self._write_lock is not None else nullcontext()
         try:
@@ -231,7 +237,7 @@ class StoreEngine:
         except sa_exc.SQLAlchemyError as err:
             raise StoreError(f"database {self.url}: {one_line(err)}") from err
 
-    def _write(self, work):
+    def _write(self, work: Callable[[sa.Connection], _T]) -> _T:
         """``work(conn)`` in a committed write transaction (shared with other threads'
         writes on SQLite); its value. ``work`` must touch nothing but ``conn``."""
         if self._group is not None:
@@ -240,12 +246,12 @@ class StoreEngine:
             return work(conn)
 
     @staticmethod
-    def _check_pid(pid) -> str:
+    def _check_pid(pid: object) -> str:
         if not isinstance(pid, str) or not PARTICIPANT_ID_RE.match(pid):
             raise StoreError(f"unknown participant id {str(pid)[:70]!r}")
         return pid
 
-    def _participant_row(self, conn, pid: str):
+    def _participant_row(self, conn: sa.Connection, pid: str) -> sa.RowMapping:
         row = conn.execute(_PARTICIPANT, {"pid": self._check_pid(pid)}).mappings().first()
         if row is None:
             raise StoreError(f"unknown participant id {pid!r}")

@@ -5,7 +5,9 @@ pauses, seeks, steps, page views) appended with a JSON payload, the first event 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from datetime import datetime
+from typing import Any
 
 import sqlalchemy as sa
 
@@ -48,7 +50,12 @@ class EventRecords(StoreEngine):
         self.record_events(pid, trial_index, [(kind, payload)])
 
     def record_events(
-        self, pid: str, trial_index: int | None, items, *, limit: int | None = None
+        self,
+        pid: str,
+        trial_index: int | None,
+        items: Iterable[tuple[str, Any]],
+        *,
+        limit: int | None = None,
     ) -> int:
         """Append several events of one trial in one transaction; return how many.
 
@@ -63,7 +70,7 @@ class EventRecords(StoreEngine):
             raise StoreError("an event limit counts the events of one trial")
         now = _utcnow()
 
-        def work(conn) -> int:
+        def work(conn: sa.Connection) -> int:
             self._participant_row(conn, pid)
             room = (
                 len(rows)
@@ -71,7 +78,9 @@ class EventRecords(StoreEngine):
                 else max(
                     0,
                     limit
-                    - conn.execute(_TRIAL_EVENT_COUNT, {"pid": pid, "trial": trial_index}).scalar(),
+                    - conn.execute(
+                        _TRIAL_EVENT_COUNT, {"pid": pid, "trial": trial_index}
+                    ).scalar_one(),
                 )
             )
             if room:
@@ -98,14 +107,18 @@ class EventRecords(StoreEngine):
             return at
         row = checked_event(trial_index, kind, payload)
 
-        def work(conn):
+        def work(conn: sa.Connection) -> datetime | str | None:
             self._participant_row(conn, pid)
             conn.execute(events.insert().values(participant_id=pid, created_at=_utcnow(), **row))
             return self._first_event(conn, pid, trial_index, kind)
 
-        return _utc(self._write(work))
+        at = _utc(self._write(work))
+        assert at is not None, "the event was just written"
+        return at
 
-    def _first_event(self, conn, pid: str, trial_index: int | None, kind: str):
+    def _first_event(
+        self, conn: sa.Connection, pid: str, trial_index: int | None, kind: str
+    ) -> datetime | str | None:
         if trial_index is not None:  # the common case: one statement, built once
             return conn.execute(
                 _FIRST_EVENT, {"pid": self._check_pid(pid), "kind": kind, "trial": trial_index}

@@ -18,11 +18,14 @@ import io
 import json
 import os
 import secrets
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, Literal, overload
 
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, quick_check, validate
 
+from .answer import ResponseRow
 from .errors import StoreError
 
 __all__ = [
@@ -44,7 +47,7 @@ EXPORT_FORMATS = {".csv": "csv", ".jsonl": "jsonl", ".ndjson": "jsonl", ".json":
 BACKGROUND_FIELDS = ("age_band", "gender", "experience")
 
 
-def _background_value(value):
+def _background_value(value: object) -> str | None:
     if value is None or isinstance(value, str):
         return value
     if isinstance(value, list):
@@ -75,7 +78,7 @@ def participants_columns() -> list[str]:
     return list(load_schema("participant")["properties"])
 
 
-def validate_rows(rows, *, source: str = "export") -> None:
+def validate_rows(rows: Iterable[Mapping[str, Any]], *, source: str = "export") -> None:
     """Check every row against ``response.schema.json``.
 
     Raises
@@ -94,7 +97,7 @@ def validate_rows(rows, *, source: str = "export") -> None:
         validate(row, "response", source=where)
 
 
-def export_format(path, fmt: str | None = None) -> str:
+def export_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
     """``"csv"`` or ``"jsonl"``: ``fmt`` if given, else from the file suffix."""
     if fmt is not None:
         if fmt not in ("csv", "jsonl"):
@@ -109,7 +112,7 @@ def export_format(path, fmt: str | None = None) -> str:
     return EXPORT_FORMATS[suffix]
 
 
-def _csv_cell(value) -> str:
+def _csv_cell(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -119,7 +122,7 @@ def _csv_cell(value) -> str:
     return str(value)
 
 
-def _render(rows, columns, fmt: str) -> str:
+def _render(rows: Iterable[Mapping[str, Any]], columns: Sequence[str], fmt: str) -> str:
     buf = io.StringIO()
     if fmt == "csv":
         writer = csv.writer(buf, lineterminator="\n")
@@ -147,7 +150,9 @@ def _write_atomic(path: Path, text: str) -> None:
         raise StoreError(f"cannot write {path}: {err.strerror or err}") from None
 
 
-def write_export(rows, path, *, fmt: str | None = None) -> int:
+def write_export(
+    rows: Sequence[ResponseRow], path: str | os.PathLike[str], *, fmt: str | None = None
+) -> int:
     """Validate ``rows`` and write them to ``path`` (CSV or JSON lines); return the count.
 
     ``path`` ``"-"`` writes to stdout. Nothing is written if any row is invalid.
@@ -164,13 +169,19 @@ def write_export(rows, path, *, fmt: str | None = None) -> int:
     return len(rows)
 
 
-def _validate_each(rows, name: str, source) -> None:
+def _validate_each(rows: Iterable[Mapping[str, Any]], name: str, source: object) -> None:
     """Check every row against ``<name>.schema.json``, naming the row and participant."""
     for i, row in enumerate(rows, start=1):
         validate(row, name, source=f"{source}: row {i} (participant {row.get('participant_id')!r})")
 
 
-def write_participants(records, path, *, fmt: str | None = None, drop=()) -> int:
+def write_participants(
+    records: Sequence[Mapping[str, Any]],
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    drop: Iterable[str] = (),
+) -> int:
     """Validate and write :meth:`Store.participants` records (background flattened) to
     CSV/JSON lines (``data_schema/participant.schema.json``); return the count.
 
@@ -192,7 +203,9 @@ def events_columns() -> list[str]:
     return list(load_schema("event")["properties"])
 
 
-def write_events(records, path, *, fmt: str = "jsonl") -> int:
+def write_events(
+    records: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], *, fmt: str = "jsonl"
+) -> int:
     """Validate and write :meth:`Store.events` records (``data_schema/event.schema.json``)
     as JSON lines, or as CSV (``fmt="csv"``: the payload cell is its JSON object as a
     string); return the count."""
@@ -205,7 +218,7 @@ def write_events(records, path, *, fmt: str = "jsonl") -> int:
     return len(records)
 
 
-def _typed(name: str, text: str, spec: dict):
+def _typed(name: str, text: str, spec: dict) -> Any:
     """:func:`_typed_cell`, naming the column in the error."""
     try:
         return _typed_cell(name, text, spec)
@@ -215,7 +228,7 @@ def _typed(name: str, text: str, spec: dict):
         raise SchemaError(f"{name}: {err}") from None
 
 
-def _typed_cell(name: str, text: str, spec: dict):
+def _typed_cell(name: str, text: str, spec: dict) -> Any:
     """One CSV cell back to the type the schema gives ``name``.
 
     Integers are also read from integer-valued decimals (``"20.0"``, as pandas writes a
@@ -250,9 +263,29 @@ def _typed_cell(name: str, text: str, spec: dict):
     return text
 
 
+@overload
 def read_export(
-    path, *, fmt: str | None = None, validate: bool = True, schema: str = "response"
-) -> list[dict]:
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: Literal["response"] = "response",
+) -> list[ResponseRow]: ...
+@overload
+def read_export(
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: Literal["participant"],
+) -> list[dict[str, Any]]: ...
+def read_export(
+    path: str | os.PathLike[str],
+    *,
+    fmt: str | None = None,
+    validate: bool = True,
+    schema: str = "response",
+) -> list[ResponseRow] | list[dict[str, Any]]:
     """Read a file written by :func:`write_export` back into typed rows (or, with
     ``schema="participant"``, one written by :func:`write_participants`).
 
@@ -271,8 +304,9 @@ def read_export(
 
     Returns
     -------
-    list of dict
-        One dict per row with JSON types: CSV cells are turned back into the schema's
+    list of ResponseRow, or of dict (``schema="participant"``)
+        One dict per row with JSON types (the answer record of
+        :mod:`study_app.data.answer`, checked when ``validate``): CSV cells are turned back into the schema's
         types (``shown_order`` parsed from its JSON string, ``true``/``false`` to bool,
         empty cell to None, numbers to int/float).
 

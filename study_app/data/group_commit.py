@@ -68,7 +68,8 @@ class GroupCommit:
         self._cv = threading.Condition(threading.Lock())
         self._queue: list[_Job] = []
         self._leading = False
-        self._leader = None  # the thread running a batch (a job may not write again)
+        # the thread running a batch (a job may not write again)
+        self._leader: threading.Thread | None = None
         self.batches = 0
         self.jobs = 0
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 import secrets
 from functools import partial
+from typing import Any
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
@@ -77,7 +78,9 @@ class ParticipantRecords(StoreEngine):
         )
 
     @staticmethod
-    def _check_new(study_id, manifest_sha256, app_version, seed) -> None:
+    def _check_new(
+        study_id: object, manifest_sha256: object, app_version: object, seed: object
+    ) -> None:
         if not isinstance(study_id, str) or not study_id or len(study_id) > 200:
             raise StoreError(f"study_id must be a non-empty string, got {study_id!r}")
         if not isinstance(manifest_sha256, str) or not re.fullmatch(
@@ -93,7 +96,7 @@ class ParticipantRecords(StoreEngine):
 
     @staticmethod
     def _prolific_values(prolific: dict | None) -> dict:
-        values = {v: None for v in PROLIFIC_KEYS.values()}
+        values: dict[str, str | None] = {v: None for v in PROLIFIC_KEYS.values()}
         for key, value in (prolific or {}).items():
             if key not in PROLIFIC_KEYS:
                 raise StoreError(
@@ -169,7 +172,13 @@ class ParticipantRecords(StoreEngine):
 
     @staticmethod
     def _find_or_insert_prolific(
-        conn, *, study_id, seed, app_version, manifest_sha256, values
+        conn: sa.Connection,
+        *,
+        study_id: str,
+        seed: int,
+        app_version: str,
+        manifest_sha256: str,
+        values: dict[str, Any],
     ) -> tuple[str, bool]:
         found = (
             conn.execute(
@@ -245,7 +254,7 @@ class ParticipantRecords(StoreEngine):
                     f"list of text, got {value!r}"
                 )
 
-        def work(conn) -> bool:
+        def work(conn: sa.Connection) -> bool:
             if self._participant_row(conn, pid)["background"] is not None:
                 return False
             conn.execute(
@@ -273,7 +282,7 @@ class ParticipantRecords(StoreEngine):
             secrets.choice(COMPLETION_ALPHABET) for _ in range(COMPLETION_CODE_LENGTH)
         )
 
-        def work(conn) -> str:
+        def work(conn: sa.Connection) -> str:
             row = self._participant_row(conn, pid)
             if row["completed_at"] is not None:
                 return row["completion_code"]
@@ -288,7 +297,7 @@ class ParticipantRecords(StoreEngine):
         return self._write(work)
 
 
-def _participant_dict(row) -> dict:
+def _participant_dict(row: sa.RowMapping) -> dict:
     return {
         "participant_id": row["participant_id"],
         "study_id": row["study_id"],
@@ -307,7 +316,14 @@ def _participant_dict(row) -> dict:
 
 
 def _insert_participant(
-    conn, *, study_id, seed, app_version, manifest_sha256, simulated, values
+    conn: sa.Connection,
+    *,
+    study_id: str,
+    seed: int,
+    app_version: str,
+    manifest_sha256: str,
+    simulated: bool,
+    values: dict[str, Any],
 ) -> str:
     """Insert a new participant with a fresh random id (in the caller's transaction) and
     return the id; the study's pseudonym key is made with its first participant."""

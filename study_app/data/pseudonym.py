@@ -37,7 +37,9 @@ import hashlib
 import hmac
 import math
 import secrets
+from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
+from typing import Any, TypeVar, cast
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
@@ -71,6 +73,9 @@ PSEUDONYM_RE = r"^p-[0-9a-f]{16}$"
 _HEX_DIGITS = 16
 #: Columns left out of open exports: the seed is unique per person (a join key).
 OPEN_DROPPED = ("seed",)
+#: A record of any kind (an export row, a participant, an event): pseudonymised, it
+#: keeps its kind (the same keys, less :data:`OPEN_DROPPED`, none of them an answer's).
+_Record = TypeVar("_Record", bound=Mapping[str, Any])
 #: Timestamp columns, given as their UTC month (``YYYY-MM``) in open exports.
 TIME_COLUMNS = ("created_at", "completed_at")
 #: Durations (s), rounded to :data:`DURATION_DECIMALS` places in open exports: 15 digits
@@ -125,7 +130,8 @@ def ensure_secret(conn, study_id: str) -> None:
     if conn.dialect.name == "postgresql":
         from sqlalchemy.dialects.postgresql import insert
     elif conn.dialect.name == "sqlite":
-        from sqlalchemy.dialects.sqlite import insert
+        # the same construct as PostgreSQL's (on_conflict_do_nothing), another class
+        from sqlalchemy.dialects.sqlite import insert  # type: ignore[assignment]
     else:  # pragma: no cover - other databases: look first (no upsert construct)
         if (
             conn.execute(
@@ -201,7 +207,7 @@ class Pseudonymiser:
             self._secrets[study_id] = study_secret(self.store, study_id) or secrets.token_hex(32)
         return self._secrets[study_id]
 
-    def _study(self, record: dict) -> str:
+    def _study(self, record: Mapping[str, Any]) -> str:
         if record.get("study_id"):
             return record["study_id"]
         if self._study_of is None:
@@ -213,7 +219,7 @@ class Pseudonymiser:
                 )
         return self._study_of[record["participant_id"]]
 
-    def record(self, record: dict) -> dict:
+    def record(self, record: Mapping[str, Any]) -> dict[str, Any]:
         """A copy of ``record`` for an open export: every non-empty identifier column
         and the tab id pseudonymised, ``seed`` left out, times as their UTC month,
         durations and shares coarsened (:func:`open_value`)."""
@@ -225,11 +231,11 @@ class Pseudonymiser:
             secret = self._secret(self._study(record))
             for column in present:
                 out[column] = pseudonym(secret, column, str(out[column]))
-            if tab:
+            if tab and isinstance(payload, dict):  # a tab is only read from a dict
                 out["payload"] = {**payload, "tab": pseudonym(secret, TAB_COLUMN, str(tab))}
         return out
 
-    def records(self, records) -> list[dict]:
+    def records(self, records: Iterable[_Record]) -> list[_Record]:
         """:meth:`record` of each record, ordered by the (pseudonymised) participant id.
 
         The sort is stable: one participant's rows keep their order (trials, events in
@@ -237,7 +243,7 @@ class Pseudonymiser:
         order, is the pseudonyms' (a keyed hash: as good as shuffled for anyone without
         the secret, and the same in every export of the study).
         """
-        out = [self.record(r) for r in records]
+        out = [cast(_Record, self.record(r)) for r in records]
         return sorted(out, key=lambda r: str(r.get("participant_id") or ""))
 
 

@@ -8,8 +8,11 @@ recruitment cap are in :mod:`study_app.data.monitor`.
 
 from __future__ import annotations
 
+from typing import cast
+
 import sqlalchemy as sa
 
+from .answer import ResponseRow
 from .database import participants, responses
 from .engine import StoreEngine, _iso
 from .export import BACKGROUND_FIELDS, _background_value, export_columns, validate_rows
@@ -20,7 +23,7 @@ __all__ = ["ResearcherQueries"]
 class ResearcherQueries(StoreEngine):
     """Export rows and progress counts (one read transaction per call)."""
 
-    def responses(self, pid: str) -> list[dict]:
+    def responses(self, pid: str) -> list[ResponseRow]:
         """This participant's stored responses (export rows), by trial index."""
         self._check_pid(pid)
         with self.transaction(write=False) as conn:
@@ -33,7 +36,7 @@ class ResearcherQueries(StoreEngine):
         return [_export_row(r) for r in rows]
 
     @staticmethod
-    def _export_query():
+    def _export_query() -> sa.Select:
         return (
             sa.select(
                 responses,
@@ -48,7 +51,9 @@ class ResearcherQueries(StoreEngine):
             )
         )
 
-    def export_rows(self, *, include_simulated: bool = False, validate: bool = False) -> list[dict]:
+    def export_rows(
+        self, *, include_simulated: bool = False, validate: bool = False
+    ) -> list[ResponseRow]:
         """Every response as a ``response.schema.json`` row (background joined in).
 
         Ordered by participant (oldest first) then trial index. Every schema field is a
@@ -74,14 +79,16 @@ class ResearcherQueries(StoreEngine):
         p, r = participants, responses
         real = sa.true() if include_simulated else p.c.simulated.is_(False)
         with self.transaction(write=False) as conn:
-            n_part = conn.execute(sa.select(sa.func.count()).select_from(p).where(real)).scalar()
+            n_part = conn.execute(
+                sa.select(sa.func.count()).select_from(p).where(real)
+            ).scalar_one()
             n_done = conn.execute(
                 sa.select(sa.func.count()).select_from(p).where(real, p.c.completed_at.is_not(None))
-            ).scalar()
+            ).scalar_one()
             n_sim = conn.execute(
                 sa.select(sa.func.count()).select_from(p).where(p.c.simulated.is_(True))
-            ).scalar()
-            by_task = dict(
+            ).scalar_one()
+            by_task: dict[str, int] = dict(
                 conn.execute(
                     sa.select(r.c.task, sa.func.count())
                     .select_from(r.join(p, r.c.participant_id == p.c.participant_id))
@@ -98,8 +105,8 @@ class ResearcherQueries(StoreEngine):
         }
 
 
-def _export_row(r) -> dict:
-    out = {}
+def _export_row(r: sa.RowMapping) -> ResponseRow:
+    out: dict[str, object] = {}
     for name in export_columns():
         if name in BACKGROUND_FIELDS:
             out[name] = _background_value((r["background"] or {}).get(name))
@@ -111,4 +118,4 @@ def _export_row(r) -> dict:
             out[name] = None if r[name] is None else bool(r[name])
         else:
             out[name] = r[name]
-    return out
+    return cast(ResponseRow, out)  # the schema's columns, as stored (checked on the way in)

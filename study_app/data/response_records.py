@@ -5,11 +5,14 @@ resumes from.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from datetime import datetime
+from typing import Any
 
 import sqlalchemy as sa
 from sqlalchemy import exc as sa_exc
 
+from .answer import Answer
 from .database import events, responses
 from .engine import _DUPLICATE_RETRIES, _PARTICIPANT, PARTICIPANT_ID_RE, StoreEngine, _utcnow
 from .errors import StoreError
@@ -28,7 +31,12 @@ class ResponseRecords(StoreEngine):
     trials are answered."""
 
     def record_response(
-        self, pid: str, row: dict, *, with_events=(), at: datetime | None = None
+        self,
+        pid: str,
+        row: Answer,
+        *,
+        with_events: Iterable[tuple[int | None, str, Any]] = (),
+        at: datetime | None = None,
     ) -> bool:
         """Append one trial's answer; False (and nothing changed) if that trial is stored.
 
@@ -36,7 +44,7 @@ class ResponseRecords(StoreEngine):
         ----------
         pid : str
             Participant id.
-        row : dict
+        row : Answer
             The trial fields of ``data_schema/response.schema.json``: ``trial_index``,
             ``task``, ``scene``, ``stimulus_id``, ``response_time_s`` and any of
             ``chosen_frame``, ``chosen_video_frame``, ``algorithm_frame``, ``fps``,
@@ -65,7 +73,12 @@ class ResponseRecords(StoreEngine):
         return self.record_responses(pid, [row], with_events=with_events, at=at) == 1
 
     def record_responses(
-        self, pid: str, rows: list[dict], *, with_events=(), at: datetime | None = None
+        self,
+        pid: str,
+        rows: list[Answer],
+        *,
+        with_events: Iterable[tuple[int | None, str, Any]] = (),
+        at: datetime | None = None,
     ) -> int:
         """Append several trials of one participant in one transaction; return how many were new.
 
@@ -84,7 +97,7 @@ class ResponseRecords(StoreEngine):
         if at is not None and (not isinstance(at, datetime) or at.tzinfo is None):
             raise StoreError(f"the time of an answer must be an aware datetime, got {at!r}")
 
-        def work(conn) -> int:
+        def work(conn: sa.Connection) -> int:
             part = self._participant_row(conn, pid)
             stored = self._answered(conn, pid)
             new = [r for r in checked if r["trial_index"] not in stored]
@@ -127,7 +140,7 @@ class ResponseRecords(StoreEngine):
                 attempt += 1
 
     @staticmethod
-    def _answered(conn, pid: str) -> set[int]:
+    def _answered(conn: sa.Connection, pid: str) -> set[int]:
         return set(conn.execute(_ANSWERED, {"pid": pid}).scalars())
 
     def participant_state(self, pid: str) -> tuple[dict | None, set[int]]:

@@ -8,45 +8,22 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any, cast
 
 from snapcore.errors import SchemaError
 from snapcore.schema import load_schema, validate
 
+from .answer import Answer
 from .errors import StoreError
 
 __all__ = ["TRIAL_FIELDS", "checked_response", "checked_event"]
 
-#: Fields of a response row that the caller gives (the store fills the others).
-TRIAL_FIELDS = (
-    "trial_index",
-    "task",
-    "scene",
-    "stimulus_id",
-    "chosen_frame",
-    "chosen_video_frame",
-    "algorithm_frame",
-    "fps",
-    "n_frames",
-    "chosen_method",
-    "chosen_position",
-    "shown_order",
-    "chosen_value",
-    "correct",
-    "response_time_s",
-    "picked_with",
-    "watched",
-    "viewport_width",
-    "viewport_height",
-    "device_pixel_ratio",
-    "input_type",
-    "active_time_s",
-    "tab_id",
-    "shown_groups",
-    "skipped",
-)
+#: Fields of a response row that the caller gives (the store fills the others): the keys
+#: of the answer record.
+TRIAL_FIELDS = tuple(Answer.__annotations__)
 
 
-def checked_response(row: dict) -> dict:
+def checked_response(row: Answer) -> Answer:
     """The response ``row`` with every trial field (None where not given), checked: known
     fields only, finite numbers, the chosen method shown at the chosen position, and the
     response schema. Raises :class:`~study_app.data.errors.StoreError` naming the field."""
@@ -116,10 +93,10 @@ def checked_response(row: dict) -> dict:
         validate(probe, "response", source=f"response to trial {row.get('trial_index')!r}")
     except SchemaError as err:
         raise StoreError(str(err)) from None
-    return full
+    return cast(Answer, full)  # every key of Answer, the values checked by the schema
 
 
-def checked_event(trial_index, kind, payload) -> dict:
+def checked_event(trial_index: object, kind: object, payload: Any) -> dict:
     """An event row ``{"trial_index", "kind", "payload"}``, checked: a 1-32 character
     kind, a trial index >= 0 or None, a plain-JSON payload (no NaN/inf). Raises
     :class:`~study_app.data.errors.StoreError`."""

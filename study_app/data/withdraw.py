@@ -88,6 +88,7 @@ def _record(row) -> Withdrawal:
 def _targets(conn, participant_id, prolific_pid, study_id, named=None) -> list:
     """The participant rows named by exactly one of the two ids (or, ``named``, the link
     ids a pseudonym stands for)."""
+    cond: sa.ColumnElement[bool]
     if named is not None:
         cond = participants.c.participant_id.in_(named)
     elif (participant_id is None) == (prolific_pid is None):

@@ -72,6 +72,7 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
     base = study.base
+    src_base: Path | None  # where the scene's files are named from (None: the data dir)
     if "demo" in entry:
         doc = _demo_scene_document(entry["demo"], work.parent / ".demo")
         src_base = work.parent / ".demo"

@@ -297,6 +297,7 @@ def study_from_dict(
                 f"{source}: scenes[{k}].frames: {sc['frames']} is an empty window "
                 "(need start < stop)"
             )
+    width, height = (int(v) for v in s.get("size", (640, 480)))  # two: the schema's
     attention = dict(doc.get("attention") or DEFAULT_ATTENTION)
     if attention["answer"] not in attention["options"]:
         raise StudyError(
@@ -309,7 +310,7 @@ def study_from_dict(
         title=s["title"],
         description=s.get("description", ""),
         video_fps=float(s.get("video_fps", 24.0)),
-        size=tuple(int(v) for v in s.get("size", (640, 480))),
+        size=(width, height),
         picker=s.get("picker", "video"),
         completion_code=s.get("completion_code") or None,
         redirect_url=s.get("redirect_url") or None,

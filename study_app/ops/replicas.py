@@ -107,12 +107,13 @@ class Postgres:
     def __init__(self, root: Path, port: int):
         self.root = Path(root)
         self.port = port
-        self.bin = find_pg_bin()
-        if self.bin is None:
+        found = find_pg_bin()
+        if found is None:
             raise ReplicaError(
                 "PostgreSQL server binaries (initdb, pg_ctl) not found: "
                 "apt-get install postgresql (make sysdeps)"
             )
+        self.bin: Path = found
         self.as_root = os.geteuid() == 0
 
     def _run(self, *args: str) -> subprocess.CompletedProcess:

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import math
 import re
+from typing import Any
+
+from study_app.data.answer import ClientFields
 
 __all__ = [
     "EVENT_KINDS",
@@ -57,7 +60,7 @@ def _picker_items(events, *, n_video_frames: int) -> list[tuple[str, dict]]:
     for ev in list(events or [])[:MAX_EVENTS_PER_TRIAL]:
         if not isinstance(ev, dict) or ev.get("kind") not in EVENT_KINDS:
             continue
-        payload = {}
+        payload: dict[str, Any] = {}  # plain JSON for the store
         t = ev.get("t")
         if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
             payload["t"] = round(float(t), 3)
@@ -120,19 +123,19 @@ def _share(ranges, n_video_frames: int, more=()) -> float:
     return min(covered / n_video_frames, 1.0) if n_video_frames > 0 else 0.0
 
 
-def client_fields(client, response_time_s: float) -> dict:
+def client_fields(client, response_time_s: float) -> ClientFields:
     """The response columns of what an answer was given on, from the widget's ``client``
     report (``{viewport: [w, h], dpr, input, active_s, tab}``): well-formed values only
     (None otherwise); the active time at most the response time."""
-    c = client if isinstance(client, dict) else {}
-    vp = c.get("viewport")
+    c: dict[str, Any] = client if isinstance(client, dict) else {}
+    vp: Any = c.get("viewport")  # the browser's report: any JSON, checked below
     ok_vp = (
         isinstance(vp, list)
         and len(vp) == 2
         and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x < 100_000 for x in vp)
     )
-    dpr = c.get("dpr")
-    active = c.get("active_s")
+    dpr: Any = c.get("dpr")
+    active: Any = c.get("active_s")
     return {
         "viewport_width": vp[0] if ok_vp else None,
         "viewport_height": vp[1] if ok_vp else None,

@@ -11,6 +11,7 @@ from datetime import UTC, datetime
 from enum import StrEnum
 from functools import lru_cache
 
+from study_app.data.answer import Answer
 from study_app.data.withdraw import withdrawal_of
 from study_app.design.protocol import (
     AnswerError,
@@ -317,7 +318,8 @@ class ParticipantSession:
             return None  # a re-sent answer: harmless, nothing changes
         if self.participant.get("background") is None:
             raise InvalidAnswer("Please answer the questions about yourself first.")
-        if trial_index != self.current_trial.index:
+        current = self.current_trial  # not None: this trial is not answered yet
+        if current is None or trial_index != current.index:
             raise InvalidAnswer("Please answer the questions in order; this page was out of date.")
         return trial
 
@@ -335,7 +337,7 @@ class ParticipantSession:
             )
         return min(t, MAX_RESPONSE_TIME_S)
 
-    def _record(self, row: dict, trial_events=()) -> bool:
+    def _record(self, row: Answer, trial_events=()) -> bool:
         """Store an answer with ``trial_events`` (``(kind, payload)`` of its trial) and,
         when another trial follows, that trial's :data:`SHOWN_EVENT`, in one transaction:
         the run after an answer shows the next trial at once, so its clock starts with
@@ -424,7 +426,7 @@ class ParticipantSession:
                     "Please watch the whole animation once before choosing a frame."
                 )
         share = watched if watched is not None else slider_watched
-        row = {
+        row: Answer = {
             "trial_index": trial.index,
             "task": "pose",
             "scene": trial.scene,
@@ -438,7 +440,7 @@ class ParticipantSession:
             "picked_with": "slider" if watched is None else "player",
             "watched": None if share is None else round(min(share, 1.0), 3),
         }
-        row.update(client_fields(client, row["response_time_s"]))
+        row = {**row, **client_fields(client, row["response_time_s"])}
         # The picker's log goes with the answer (its "select" entry carries how much was
         # watched), in the same transaction.
         return self._record(row, _picker_items(events, n_video_frames=sc.n_video_frames))
@@ -574,11 +576,11 @@ class ParticipantSession:
         row.update({"chosen_method": m, "chosen_position": p})
         return self._record(row)
 
-    def _view_row(self, trial: Trial, response_time_s: float, client) -> dict:
+    def _view_row(self, trial: Trial, response_time_s: float, client) -> Answer:
         """A view trial's row without its answer: what was shown (each picture with the
         methods it stands for), when, on what."""
         sc = self.stimuli.scenes[trial.scene]
-        row = {
+        row: Answer = {
             "trial_index": trial.index,
             "task": "view",
             "scene": trial.scene,
@@ -592,7 +594,7 @@ class ParticipantSession:
             ],
             "response_time_s": response_time_s,
         }
-        row.update(client_fields(client, row["response_time_s"]))
+        row = {**row, **client_fields(client, row["response_time_s"])}
         return row
 
     def failed_positions(self, trial_index: int) -> set[int]:
@@ -649,7 +651,7 @@ class ParticipantSession:
             correct = check_attention_answer(self.stimuli.study, answer)
         except AnswerError:
             raise InvalidAnswer("Please choose one of the options.") from None
-        row = {
+        row: Answer = {
             "trial_index": trial.index,
             "task": "attention",
             "scene": trial.scene,
@@ -658,7 +660,7 @@ class ParticipantSession:
             "correct": correct,
             "response_time_s": self._time(response_time_s),
         }
-        row.update(client_fields(client, row["response_time_s"]))
+        row = {**row, **client_fields(client, row["response_time_s"])}
         return self._record(row)
 
     def finish(self) -> str:
@@ -677,4 +679,4 @@ class ParticipantSession:
         """``[(method, image path), ...]`` in the participant's screen order (server side
         only: the page gets the images by position)."""
         sc = self.stimuli.scenes[trial.scene]
-        return [(m, sc.views[m]) for m in trial.shown_order]
+        return [(m, sc.views[m]) for m in trial.shown_order or ()]

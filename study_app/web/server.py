@@ -154,7 +154,7 @@ def index_config_sections() -> None:
         return {option.name: option.value for option in by_section.get(section, ())}
 
     get_options_for_section.__doc__ = config.get_options_for_section.__doc__
-    get_options_for_section.snapshot_indexed = True
+    get_options_for_section.snapshot_indexed = True  # type: ignore[attr-defined]  # a marker
     config.get_options_for_section = get_options_for_section
 
 
@@ -220,7 +220,7 @@ def redirect_deep_page_paths() -> None:
         )
         return app
 
-    create_starlette_app.snapshot_redirects = True
+    create_starlette_app.snapshot_redirects = True  # type: ignore[attr-defined]  # a marker
     starlette_server.create_starlette_app = create_starlette_app
 
 
@@ -235,4 +235,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -99,6 +99,8 @@ class RunClock:
         self._outer = getattr(_local, "clock", None) is None
         if self._outer:
             _local.clock = self
+            self._t0: float
+            self._c0: float
             self._t0, self._c0 = getattr(_local, "callback", None) or (
                 time.perf_counter(),
                 time.thread_time(),

@@ -2,7 +2,8 @@
 
 It checks the protocol driver's numbers the way a participant's browser sees them: the
 same flow (consent, background, each pose task watched through and confirmed, each view
-chosen, the attention check, the completion code), with seeded random choices, every
+chosen, the attention check, the completion code), with seeded choices from the same
+participant model as the protocol driver (:func:`~.participant.answering_person`), every
 click timed until the script run it caused has finished (read from the page's own
 websocket, see :class:`RunWatch`) and, for an answer, until the next step's page is
 drawn, and the same report and database check (:func:`study_app.ops.loadtest.run.check_database`). Each participant is a
@@ -20,7 +21,7 @@ import random
 import re
 import time
 
-from .participant import ParticipantResult
+from .participant import ParticipantResult, answering_person
 from .run import ServerSampler, build_report
 
 __all__ = ["run_browsers", "CHROMIUM", "CHROMIUM_ARGS"]
@@ -123,6 +124,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
     rng = random.Random(f"{seed}:{index}")
     n_pose = n_view = 0  # read from the headings ("Animation k of N")
     prolific_pid = f"{rng.getrandbits(96):024x}"
+    person = answering_person(rng)  # the answers, as the protocol driver's; rng: timing
     r = ParticipantResult(index=index, prolific_pid=prolific_pid)
     ctx = await browser.new_context(viewport={"width": 1366, "height": 768})
     page = await ctx.new_page()
@@ -164,7 +166,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                     watch,
                     "background_field",
                     page,
-                    page.get_by_role("option", name=rng.choice(options)),
+                    page.get_by_role("option", name=person.choose(options)),
                 )
                 for group in range(2):
                     labels = page.get_by_test_id("stRadioGroup").nth(group).locator("label")
@@ -175,7 +177,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                         "background_field",
                         page,
                         labels.filter(
-                            has_text=re.compile("^" + re.escape(rng.choice(texts)) + "$")
+                            has_text=re.compile("^" + re.escape(person.choose(texts)) + "$")
                         ).first,
                     )
                 await _timed_click(
@@ -197,11 +199,18 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                 await page.wait_for_selector(
                     f"{mine} [data-testid=picker-confirm]:enabled", timeout=60_000
                 )
-                for _ in range(rng.randrange(0, 6)):  # step back a few frames
+                # The played clip ends on its last frame; the frame is chosen among the
+                # last six (a few steps back: clicks, not a drag of the scrub bar).
+                last = int(await player.get_by_test_id("picker-scrub").get_attribute("max") or 0)
+                target = person.pose_frame(max(0, last - 5), last)
+                for _ in range(last - target):  # step back to it
                     await player.get_by_test_id("picker-back").click()
                 await page.wait_for_timeout(think * 300)
                 text = await player.get_by_test_id("picker-frame").inner_text()
-                frame = int(re.match(r"Frame (\d+)", text).group(1)) - 1
+                shown = re.match(r"Frame (\d+)", text)
+                if shown is None:
+                    raise ValueError(f"the picker shows {text!r}, not a frame number")
+                frame = int(shown.group(1)) - 1
                 r.answers[trial] = {"task": "pose", "video_frame": frame}
                 await _timed_click(
                     r,
@@ -218,7 +227,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
                 await page.wait_for_selector(f"{mine}[data-ready='1']", timeout=60_000)
                 views = page.locator(mine)
                 n = await views.locator("[data-testid^=view-choose-]").count()
-                position = rng.randrange(n)
+                position = person.view_position(n)
                 await page.wait_for_timeout(think * 1000)
                 r.answers[trial] = {"task": "view", "position": position}
                 await _timed_click(
@@ -232,7 +241,7 @@ async def _participant(browser, url, index, *, seed, think_s) -> ParticipantResu
             elif "One more question" in h:
                 labels = page.get_by_test_id("stRadioGroup").locator("label")
                 texts = await labels.all_inner_texts()
-                choice = rng.choice(texts)
+                choice = person.attention_answer(texts)
                 await page.wait_for_timeout(think * 1000)
                 await _timed_click(
                     r, watch, "attention_choice", page, labels.nth(texts.index(choice))

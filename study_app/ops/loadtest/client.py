@@ -20,7 +20,11 @@ from __future__ import annotations
 import asyncio
 import json
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl, urlsplit
+
+if TYPE_CHECKING:
+    from websockets.asyncio.client import ClientConnection
 
 __all__ = ["Element", "Page", "StreamlitClient", "ProtocolError", "trigger_id"]
 
@@ -171,7 +175,7 @@ class StreamlitClient:
         self.cookies = dict(cookies or {})
         self.timeout_s = timeout_s
         self.load_page = load_page
-        self.ws = None
+        self.ws: ClientConnection | None = None
         #: Current value of every stateful widget, by widget id (sent with every rerun,
         #: as the browser does).
         self.values: dict[str, tuple[str, object]] = {}
@@ -202,6 +206,7 @@ class StreamlitClient:
     async def connect(self) -> None:
         """Open the page (HTML, when ``load_page``) and its websocket."""
         import websockets
+        from websockets.typing import Subprotocol
 
         if self.load_page:
             await asyncio.to_thread(self._get_page)
@@ -210,7 +215,7 @@ class StreamlitClient:
             headers["Cookie"] = "; ".join(f"{k}={v}" for k, v in self.cookies.items())
         self.ws = await websockets.connect(
             self.ws_url,
-            subprotocols=["streamlit"],
+            subprotocols=[Subprotocol("streamlit")],
             additional_headers=headers,
             max_size=None,
             open_timeout=self.timeout_s,
@@ -293,6 +298,7 @@ class StreamlitClient:
         import websockets
         from streamlit.proto.ForwardMsg_pb2 import ForwardMsg
 
+        assert self.ws is not None, "connect() first"
         elements = self._elements
         fragments: set[str] = set()  # the fragments this run redraws (empty: the app)
         drawn: set[tuple] = set()

@@ -2,7 +2,10 @@
 
 The participant acts as a person on the study's pages would, one widget at a time (each
 change of a widget is a script run, as in the browser), thinking ``think_s`` seconds
-(drawn around the mean, seeded) before each answer. Choices are valid and random: an age
+(drawn around the mean, seeded) before each answer. Its answers come from the suite's one
+participant model, :class:`analysis.simulate.SimulatedParticipant` with
+:data:`LOADTEST_OBSERVER` (the page tells neither the algorithm's pick, nor which method
+is where, nor the attention check's answer, so choices are valid and uniform): an age
 band, a gender and an experience from the page's own options, a frame inside the video
 after a log batch that says the animation was watched, a view position, an attention
 option. A share of participants also reload the page, go Back to the study link, or
@@ -18,11 +21,22 @@ import asyncio
 import random
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from analysis.simulate import ObserverModel, SimulatedParticipant
 from study_app.session import STALE_TAB_TEXT
 
-from .client import Page, ProtocolError, StreamlitClient
+from .client import Element, Page, ProtocolError, StreamlitClient
 
-__all__ = ["Behaviour", "ParticipantResult", "run_participant", "page_kind", "ACTIONS"]
+__all__ = [
+    "Behaviour",
+    "ParticipantResult",
+    "run_participant",
+    "page_kind",
+    "ACTIONS",
+    "LOADTEST_OBSERVER",
+    "answering_person",
+]
 
 #: Action names in the latency report.
 ACTIONS = (
@@ -51,6 +65,15 @@ K_ATT_CHOICE, K_ATT_SUBMIT = "attention.choice", "attention.submit"
 SELF_DESCRIBE = "Prefer to self-describe"
 #: Most pages a correct run can take (consent, background, trials, stale pages).
 MAX_STEPS = 200
+#: How a load-test participant answers: a frame anywhere in the clip (the page does not
+#: tell the algorithm's pick), views by equal strengths (nor which method is where).
+LOADTEST_OBSERVER = ObserverModel(pose_model="uniform")
+
+
+def answering_person(rng: random.Random) -> SimulatedParticipant:
+    """The participant model behind one load-test participant's answers, seeded from its
+    own ``rng`` (so a run's seed gives the same answers)."""
+    return SimulatedParticipant(np.random.default_rng(rng.getrandbits(64)), LOADTEST_OBSERVER)
 
 
 @dataclass(frozen=True)
@@ -105,6 +128,14 @@ def page_kind(page: Page) -> str:
     return "unknown"
 
 
+def _need(page: Page, key: str) -> Element:
+    """The page's widget ``key``; a page without it is not the page its kind promised."""
+    w = page.widget(key)
+    if w is None:
+        raise ProtocolError(f"no widget {key!r} on the page: {page.texts()[:3]}")
+    return w
+
+
 def _attention_index(result: ParticipantResult) -> int:
     """The attention check's trial index: the trial after the last pose or view trial
     answered (the page does not show its index; the plan puts it after them). An answer
@@ -126,6 +157,7 @@ class _Run:
         reconnect,
     ):
         self.c, self.r, self.rng = client, result, rng
+        self.person = answering_person(rng)  # the answers; rng: timing and behaviour
         self.think_s, self.b, self.reconnect = think_s, behaviour, reconnect
         self.did_reload = self.did_back = self.did_double = False
 
@@ -192,28 +224,28 @@ class _Run:
             return page
         if kind == "consent":
             await self.think(0.5)
-            self.c.set_value(page.widget(K_AGREE), True)
+            self.c.set_value(_need(page, K_AGREE), True)
             page = await self.act("consent_agree")
             await self.think(0.25)
-            return await self.act("consent_start", triggers=[self.c.click(page.widget(K_START))])
+            return await self.act("consent_start", triggers=[self.c.click(_need(page, K_START))])
         if kind == "background":
             for key in (K_AGE, K_GENDER, K_EXP):
-                w = page.widget(key)
+                w = _need(page, key)
                 options = [o for o in w.options if o != SELF_DESCRIBE]
                 await self.think(0.3)
-                self.c.set_value(w, self.rng.choice(options))
+                self.c.set_value(w, self.person.choose(options))
                 page = await self.act("background_field")
             await self.think(0.3)
             return await self.submit(
                 "background_submit",
-                page.widget(K_BG_SUBMIT),
-                self.c.click(page.widget(K_BG_SUBMIT)),
+                _need(page, K_BG_SUBMIT),
+                self.c.click(_need(page, K_BG_SUBMIT)),
             )
         if kind == "pose":
-            w = page.widget(K_PICKER)
+            w = _need(page, K_PICKER)
             d = w.data or {}
             trial, n = int(d["trial"]), int(d["n_frames"])
-            frame = self.rng.randrange(n)
+            frame = self.person.pose_frame(0, n - 1)
             await self.think()
             # The player sends its log while the participant watches and steps.
             log = [
@@ -241,10 +273,10 @@ class _Run:
             self.r.answers[trial] = {"task": "pose", "video_frame": frame}
             return await self.submit("pose_confirm", w, self.c.component_event(w, "confirm", value))
         if kind == "view":
-            w = page.widget(K_CHOOSER)
+            w = _need(page, K_CHOOSER)
             d = w.data or {}
             trial = int(d["trial"])
-            position = self.rng.randrange(len(d["views"]))
+            position = self.person.view_position(len(d["views"]))
             await self.think()
             self.r.answers[trial] = {"task": "view", "position": position}
             return await self.submit(
@@ -253,15 +285,15 @@ class _Run:
                 self.c.component_event(w, "choice", {"trial": trial, "position": position}),
             )
         if kind == "attention":
-            w = page.widget(K_ATT_CHOICE)
-            choice = self.rng.choice(w.options)
+            w = _need(page, K_ATT_CHOICE)
+            choice = self.person.attention_answer(w.options)
             await self.think()
             self.c.set_value(w, choice)
             d = {"task": "attention", "value": choice}
             page = await self.act("attention_choice")
             self.r.answers[_attention_index(self.r)] = d
             await self.think(0.25)
-            b = page.widget(K_ATT_SUBMIT)
+            b = _need(page, K_ATT_SUBMIT)
             # "Continue" is the answer button (a component): its press reports the client.
             press = {"client": {"viewport": [1366, 768], "dpr": 1, "input": "mouse"}}
             return await self.submit(

@@ -21,6 +21,7 @@ import asyncio
 import random
 import threading
 import time
+from typing import Any
 
 from .participant import Behaviour, ParticipantResult, run_participant
 
@@ -359,11 +360,12 @@ def check_database(db_url: str, results) -> dict:
 
     store = Store(db_url)
     try:
-        found = {}
+        found: dict[str, list[dict]] = {}
         for p in store.participants(include_simulated=True):
             if p.get("prolific_pid"):
                 found.setdefault(p["prolific_pid"], []).append(p)
-        out = {
+        # counts, the ok flag and the problems: one JSON object of the report
+        out: dict[str, Any] = {
             "participants_expected": len(results),
             "participants_found": 0,
             "answers_sent": 0,

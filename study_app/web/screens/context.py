@@ -12,12 +12,17 @@ import threading
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import streamlit as st
 
 from study_app.web.timing import callback_started
 
 from .keys import ENV_DB, ENV_STIMULI, KEY_FRESH_SESSION, KEY_SESSION
+
+if TYPE_CHECKING:  # imported when the context is first made (see _load_context)
+    from study_app.data.store import Store
+    from study_app.design.stimuli import Stimuli
 
 __all__ = [
     "AppContext",
@@ -37,8 +42,8 @@ DEFAULT_STIMULI = REPO / "var" / "stimuli" / "demo"
 class AppContext:
     """What the server holds for every participant: verified stimuli and the store."""
 
-    stimuli: object
-    store: object
+    stimuli: Stimuli
+    store: Store
 
 
 #: {(stimuli folder, database URL): AppContext}, one per server process. A plain dict
