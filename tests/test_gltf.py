@@ -432,6 +432,9 @@ BAD_CASES = {
     # issue 26: garbage bytes over a mesh's positions, inside a valid GLB container
     # (was read: exit 0 and a picture of nothing)
     "garbage": "the binary data is damaged",
+    # issue 40: garbage that holds signalling NaNs printed numpy's "invalid value
+    # encountered in cast" warning before the error line
+    "nan_garbage": "holds non-finite numbers",
 }
 
 
@@ -457,6 +460,15 @@ def _bad_file(tmp_path: Path, case: str) -> Path:
     elif case == "no_keys":
         doc["accessors"][10].update(count=0, min=None, max=None)
         doc["accessors"][10] = {k: v for k, v in doc["accessors"][10].items() if v is not None}
+    elif case == "nan_garbage":
+        # signalling NaNs (exponent all ones, quiet bit clear) over mesh B's positions
+        raw = bytearray(base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1]))
+        view = doc["bufferViews"][4]
+        snan = np.full(view["byteLength"] // 4, 0x7F800001, "<u4").tobytes()
+        raw[view["byteOffset"] : view["byteOffset"] + view["byteLength"]] = snan
+        p = tmp_path / f"{case}.glb"
+        p.write_bytes(_glb(doc, bytes(raw)))
+        return p
     elif case == "garbage":
         # mesh B's positions carry their bounds (as the spec requires), then garbage
         doc["accessors"][4].update(min=[0.0, 2.0, 0.0], max=[1.0, 2.0, 1.0])
