@@ -551,3 +551,25 @@ def test_an_unknown_body_kind_is_refused_naming_the_kinds(walk):
         render_still(walk, 0, size=(64, 48), body="dummy")  # type: ignore[arg-type]
     with pytest.raises(SceneError, match="human, mannequin"):
         ViewParams(body="dummy")  # type: ignore[arg-type]
+
+
+def test_a_long_sheet_title_is_wrapped_not_cut_off():
+    """A title wider than the sheet (issue 40: a long ``sheet --title`` was cut at the
+    right edge) is drawn whole: its ink, counted over the title band, is the same as
+    the same title drawn on one line of a wide canvas in the same font, and no ink
+    reaches the sheet's right margin."""
+    from PIL import Image, ImageDraw
+
+    from snapcore.render.composites import _INK, _PAPER, PANEL_GAP, _font, tile_panels
+
+    panels = [np.full((120, 160, 3), 200, np.uint8)] * 2
+    title = "A very long title for a comparison sheet of two dancers " * 3
+    sheet = tile_panels(panels, title=title).astype(int)
+    band = sheet[: sheet.shape[0] - 120 - 2 * PANEL_GAP]  # above the panels
+    ink = band.sum(axis=-1) < 3 * 128
+    assert not ink[:, -PANEL_GAP:].any(), "the title runs into the right margin"
+    font = _font(int(max(int(120 * 0.045), 11) * 1.2))
+    canvas = Image.new("RGB", (int(font.getlength(title)) + 40, 60), _PAPER)
+    ImageDraw.Draw(canvas).text((10, 30), title, fill=_INK, font=font, anchor="lm")
+    want = int((np.asarray(canvas).astype(int).sum(axis=-1) < 3 * 128).sum())
+    assert abs(int(ink.sum()) - want) <= 0.03 * want, (int(ink.sum()), want)
