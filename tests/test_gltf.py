@@ -584,6 +584,32 @@ def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
     assert f.positions[..., 1].min() > alone.ground + 0.005
 
 
+def test_a_study_scene_chooses_a_gltf_animation(motions_dir, tmp_path, monkeypatch):
+    """A study config's scene takes ``animation`` for its glTF characters, as a scene
+    manifest and ``--animation`` do (issue 40: the study schema refused it): the Fox's
+    "Run" is loaded, not its first animation; on a scene of BVH files only, the key is
+    one error naming the scene."""
+    from study_app.design.build import load_study_scene
+    from study_app.design.protocol import load_study
+    from study_app.design.stimuli import StimuliError
+
+    monkeypatch.setenv("SNAPSHOT_DATA", str(motions_dir))
+    config = tmp_path / "fox.toml"
+    config.write_text(
+        '[study]\nid = "fox"\ntitle = "Fox"\ndescription = "A fox."\nvideo_fps = 12\n'
+        'size = [160, 120]\npicker = "video"\n\n'
+        '[[scenes]]\nid = "fox"\nfiles = ["gltf/Fox.glb"]\nanimation = "Run"\n\n'
+        '[[scenes]]\nid = "walk"\nfiles = ["walk_run/02_01.bvh"]\nanimation = "Run"\n',
+        encoding="utf-8",
+    )
+    study = load_study(config)
+    scene, doc = load_study_scene(study, study.scenes[0], tmp_path / "work" / "fox")
+    assert scene.characters[0].meta["animation"] == "Run"
+    assert doc["characters"][0]["animation"] == "Run"
+    with pytest.raises(StimuliError, match="scene walk: 'animation'"):
+        load_study_scene(study, study.scenes[1], tmp_path / "work" / "walk")
+
+
 @pytest.mark.slow
 def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
     """`snapshot stimuli build` on the glTF Fox: a verified folder whose video has one
