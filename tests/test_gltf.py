@@ -715,6 +715,30 @@ def test_two_skinned_characters_in_one_file_are_two_characters(tmp_path):
         read_gltf(path)
 
 
+def test_each_character_of_a_merged_file_plays_its_own_animation(tmp_path):
+    """Two characters merged into one file, each with its animation ("raise" moves the
+    first's joints, "wave" the second's arm): by default each plays the first animation
+    that moves it, and says so (issue 40: the second was reported as playing the first
+    character's animation, and stood still); a name given plays for both."""
+    import warnings
+
+    from snapcore.motion.load import load_scene
+
+    doc = _two_character_document()
+    wave = json.loads(json.dumps(doc["animations"][0]))
+    wave["name"] = "wave"
+    wave["channels"] = [{"sampler": 0, "target": {"node": 5, "path": "rotation"}}]
+    doc["animations"].append(wave)
+    path = _write(tmp_path, doc, "merged.gltf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a, b = load_scene(path, fps=4.0, ground=0.0).characters
+        named = load_scene(path, fps=4.0, ground=0.0, animation="raise").characters[1]
+    assert (a.meta["animation"], b.meta["animation"]) == ("raise", "wave")
+    assert not np.allclose(b.local_rotations[-1, 0], np.eye(3))  # arm2 turns
+    assert named.meta["animation"] == "raise"
+
+
 def test_material_colours_are_drawn(tmp_path):
     """Mesh A's material is red: its face is drawn red; mesh B has no material and
     wears the character colour (glTF characters used to be one flat colour)."""
