@@ -206,6 +206,46 @@ class MixedSceneBody(SceneBody):
             ],
         )
 
+    def _yielding(self):
+        """Per character: (contact yield, vertex neighbours) of a MakeHuman body, or
+        (None, None) (see :mod:`snapcore.render.contacts`)."""
+        if getattr(self, "_contact", None) is None:
+            from snapcore.render.contacts import contact_yield, vertex_neighbours
+
+            self._contact = [
+                (contact_yield(b.asset), vertex_neighbours(b.faces, b.n_vertices))
+                if getattr(b, "kind", None) == "human"
+                else (None, None)
+                for b in self.characters
+            ]
+        return self._contact
+
+    def vertices(self, frame) -> np.ndarray:
+        """Merged world vertices at internal frame(s): (N, 3) or (K, N, 3); two or more
+        MakeHuman bodies are pushed out of each other where they meet
+        (:func:`snapcore.render.contacts.resolve_contacts`)."""
+        self._check(frame)
+        if sum(getattr(b, "kind", None) == "human" for b in self.characters) < 2:
+            return super().vertices(frame)
+        key = np.asarray(frame)
+        if key.ndim > 0:
+            return np.stack([self.vertices(int(f)) for f in key])
+        memo = getattr(self, "_memo", None)
+        if memo is not None and memo[0] == int(key):
+            return memo[1]
+        from snapcore.render.contacts import resolve_contacts
+
+        ys, ns = zip(*self._yielding())
+        v = resolve_contacts(
+            [b.vertices(int(key)) for b in self.characters],
+            [b.normals(int(key)) for b in self.characters],
+            list(ys),
+            list(ns),
+        )
+        out = np.concatenate(v, axis=-2).astype(self.characters[0].vertices(int(key)).dtype)
+        self._memo = (int(key), out)
+        return out
+
 
 def _bodies_of(scene) -> dict:
     """The scene's body cache, kept on the scene object itself. (A module-level
