@@ -132,7 +132,7 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
     import numpy as np
 
     from snapcore.motion.load import data_dir, load_scene
-    from snapcore.render.bodies import scene_body
+    from snapcore.render.bodies import BodyKind, scene_body
     from snapcore.render.camera import default_view, fit_camera
     from snapcore.render.composites import tile_panels
     from snapcore.render.renderer import SceneRenderer, save_png
@@ -146,7 +146,7 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
             warnings.simplefilter("ignore")
             scene = load_scene([root / f for f in files], fps=fps)
         frame = int(source_frame) - scene.frame_offset
-        kinds = ("human", "mannequin")
+        kinds: tuple[BodyKind, ...] = ("human", "mannequin")
         bodies = [scene_body(scene, kind=k) for k in kinds]  # one loaded scene, both kinds
         pts = np.vstack([b.vertices(frame) for b in bodies])
         cam = fit_camera(pts, default_view(scene), size=panel)

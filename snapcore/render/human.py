@@ -647,8 +647,10 @@ class Retarget(SoleFit):
         :mod:`snapcore.render.shoulders`."""
         lm = self.landmarks
         up = self._point(positions, self.neck_base) - positions[:, lm["pelvis"]]
-        ends = [positions[:, [lm[f"{j}_L"], lm[f"{j}_R"]]] for j in ("shoulder", "elbow")]
-        return shoulder_drops(*ends, up, self._rig_elevation, self.k)
+        shoulders, elbows = (
+            positions[:, [lm[f"{j}_L"], lm[f"{j}_R"]]] for j in ("shoulder", "elbow")
+        )
+        return shoulder_drops(shoulders, elbows, up, self._rig_elevation, self.k)
 
 
 class HumanBody(FrameBlocks):
