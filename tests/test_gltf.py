@@ -432,6 +432,9 @@ BAD_CASES = {
     # issue 26: garbage bytes over a mesh's positions, inside a valid GLB container
     # (was read: exit 0 and a picture of nothing)
     "garbage": "the binary data is damaged",
+    # issue 40: garbage that holds signalling NaNs printed numpy's "invalid value
+    # encountered in cast" warning before the error line
+    "nan_garbage": "holds non-finite numbers",
 }
 
 
@@ -457,6 +460,15 @@ def _bad_file(tmp_path: Path, case: str) -> Path:
     elif case == "no_keys":
         doc["accessors"][10].update(count=0, min=None, max=None)
         doc["accessors"][10] = {k: v for k, v in doc["accessors"][10].items() if v is not None}
+    elif case == "nan_garbage":
+        # signalling NaNs (exponent all ones, quiet bit clear) over mesh B's positions
+        raw = bytearray(base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1]))
+        view = doc["bufferViews"][4]
+        snan = np.full(view["byteLength"] // 4, 0x7F800001, "<u4").tobytes()
+        raw[view["byteOffset"] : view["byteOffset"] + view["byteLength"]] = snan
+        p = tmp_path / f"{case}.glb"
+        p.write_bytes(_glb(doc, bytes(raw)))
+        return p
     elif case == "garbage":
         # mesh B's positions carry their bounds (as the spec requires), then garbage
         doc["accessors"][4].update(min=[0.0, 2.0, 0.0], max=[1.0, 2.0, 1.0])
@@ -572,6 +584,32 @@ def test_manifest_mixes_bvh_and_gltf(motions_dir, tmp_path):
     assert f.positions[..., 1].min() > alone.ground + 0.005
 
 
+def test_a_study_scene_chooses_a_gltf_animation(motions_dir, tmp_path, monkeypatch):
+    """A study config's scene takes ``animation`` for its glTF characters, as a scene
+    manifest and ``--animation`` do (issue 40: the study schema refused it): the Fox's
+    "Run" is loaded, not its first animation; on a scene of BVH files only, the key is
+    one error naming the scene."""
+    from study_app.design.build import load_study_scene
+    from study_app.design.protocol import load_study
+    from study_app.design.stimuli import StimuliError
+
+    monkeypatch.setenv("SNAPSHOT_DATA", str(motions_dir))
+    config = tmp_path / "fox.toml"
+    config.write_text(
+        '[study]\nid = "fox"\ntitle = "Fox"\ndescription = "A fox."\nvideo_fps = 12\n'
+        'size = [160, 120]\npicker = "video"\n\n'
+        '[[scenes]]\nid = "fox"\nfiles = ["gltf/Fox.glb"]\nanimation = "Run"\n\n'
+        '[[scenes]]\nid = "walk"\nfiles = ["walk_run/02_01.bvh"]\nanimation = "Run"\n',
+        encoding="utf-8",
+    )
+    study = load_study(config)
+    scene, doc = load_study_scene(study, study.scenes[0], tmp_path / "work" / "fox")
+    assert scene.characters[0].meta["animation"] == "Run"
+    assert doc["characters"][0]["animation"] == "Run"
+    with pytest.raises(StimuliError, match="scene walk: 'animation'"):
+        load_study_scene(study, study.scenes[1], tmp_path / "work" / "walk")
+
+
 @pytest.mark.slow
 def test_stimuli_builder_takes_a_gltf_character(motions_dir, tmp_path):
     """`snapshot stimuli build` on the glTF Fox: a verified folder whose video has one
@@ -675,6 +713,30 @@ def test_two_skinned_characters_in_one_file_are_two_characters(tmp_path):
     np.testing.assert_allclose(vb, [[5.0, 2.0, 0.0], [6.0, 2.0, 0.0], [5.0, 2.0, 1.0]], atol=1e-6)
     with pytest.raises(GLTFError, match="holds 2 skinned characters"):
         read_gltf(path)
+
+
+def test_each_character_of_a_merged_file_plays_its_own_animation(tmp_path):
+    """Two characters merged into one file, each with its animation ("raise" moves the
+    first's joints, "wave" the second's arm): by default each plays the first animation
+    that moves it, and says so (issue 40: the second was reported as playing the first
+    character's animation, and stood still); a name given plays for both."""
+    import warnings
+
+    from snapcore.motion.load import load_scene
+
+    doc = _two_character_document()
+    wave = json.loads(json.dumps(doc["animations"][0]))
+    wave["name"] = "wave"
+    wave["channels"] = [{"sampler": 0, "target": {"node": 5, "path": "rotation"}}]
+    doc["animations"].append(wave)
+    path = _write(tmp_path, doc, "merged.gltf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a, b = load_scene(path, fps=4.0, ground=0.0).characters
+        named = load_scene(path, fps=4.0, ground=0.0, animation="raise").characters[1]
+    assert (a.meta["animation"], b.meta["animation"]) == ("raise", "wave")
+    assert not np.allclose(b.local_rotations[-1, 0], np.eye(3))  # arm2 turns
+    assert named.meta["animation"] == "raise"
 
 
 def test_material_colours_are_drawn(tmp_path):

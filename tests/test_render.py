@@ -551,3 +551,74 @@ def test_an_unknown_body_kind_is_refused_naming_the_kinds(walk):
         render_still(walk, 0, size=(64, 48), body="dummy")  # type: ignore[arg-type]
     with pytest.raises(SceneError, match="human, mannequin"):
         ViewParams(body="dummy")  # type: ignore[arg-type]
+
+
+def test_a_long_sheet_title_is_wrapped_not_cut_off():
+    """A title wider than the sheet (issue 40: a long ``sheet --title`` was cut at the
+    right edge) is drawn whole: its ink, counted over the title band, is the same as
+    the same title drawn on one line of a wide canvas in the same font, and no ink
+    reaches the sheet's right margin."""
+    from PIL import Image, ImageDraw
+
+    from snapcore.render.composites import _INK, _PAPER, PANEL_GAP, _font, tile_panels
+
+    panels = [np.full((120, 160, 3), 200, np.uint8)] * 2
+    title = "A very long title for a comparison sheet of two dancers " * 3
+    sheet = tile_panels(panels, title=title).astype(int)
+    band = sheet[: sheet.shape[0] - 120 - 2 * PANEL_GAP]  # above the panels
+    ink = band.sum(axis=-1) < 3 * 128
+    assert not ink[:, -PANEL_GAP:].any(), "the title runs into the right margin"
+    font = _font(int(max(int(120 * 0.045), 11) * 1.2))
+    canvas = Image.new("RGB", (int(font.getlength(title)) + 40, 60), _PAPER)
+    ImageDraw.Draw(canvas).text((10, 30), title, fill=_INK, font=font, anchor="lm")
+    want = int((np.asarray(canvas).astype(int).sum(axis=-1) < 3 * 128).sum())
+    assert abs(int(ink.sum()) - want) <= 0.03 * want, (int(ink.sum()), want)
+
+
+def test_makehuman_dresses_a_skeleton_that_carries_its_own_mesh():
+    """``body="makehuman"`` (``--body makehuman``) puts the MakeHuman body on a character
+    that carries its own skinned mesh, where ``"human"`` draws that mesh (issue 40: no
+    option dressed a glTF skeleton in the MakeHuman body); a BVH skeleton wears the
+    MakeHuman body either way."""
+    import dataclasses
+
+    from scipy import sparse
+
+    from snapcore.motion.skinning import SkinnedMesh
+    from snapcore.motion.synth import synth_scene
+    from snapcore.render.bodies import SkinnedBody, character_body
+    from snapcore.render.human import HumanBody
+
+    bvh = synth_scene("walk").characters[0]
+    own = SkinnedMesh(  # one triangle on the root: a character's own mesh
+        rest=np.eye(3),
+        faces=np.array([[0, 1, 2]]),
+        weights=sparse.csr_matrix(np.ones((3, 1))),
+        slot_joint=np.array([0]),
+        inverse_bind=np.eye(4)[None],
+        joint_scale=np.ones(len(bvh.joint_names)),
+    )
+    dressed = dataclasses.replace(bvh, mesh=own)
+    assert isinstance(character_body(dressed, kind="human"), SkinnedBody)
+    assert isinstance(character_body(dressed, kind="makehuman"), HumanBody)
+    assert isinstance(character_body(bvh, kind="makehuman"), HumanBody)
+    assert isinstance(character_body(bvh, kind="human"), HumanBody)
+
+
+def test_body_pictures_name_a_gltf_characters_own_mesh(motions_dir):
+    """The README's body pictures caption a glTF character's own mesh as its own, not
+    "human body" (issue 40: docs/images/body_gltf.png said "human body" under the
+    BrainStem robot); a BVH skeleton's is the human body."""
+    import warnings
+
+    from snapcore.cli.readme_images import body_caption
+    from snapcore.motion.load import load_scene
+    from snapcore.motion.synth import synth_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gltf = load_scene(motions_dir / "gltf" / "CesiumMan.glb")
+    assert body_caption(gltf, "human") == "its own mesh"
+    assert body_caption(synth_scene("walk"), "human") == "human body"
+    assert body_caption(gltf, "makehuman") == "human body"
+    assert body_caption(gltf, "mannequin") == "mannequin"

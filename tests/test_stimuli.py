@@ -320,6 +320,55 @@ def test_view_stills_share_one_background(tmp_path):
         assert (np.abs(img - bg).max(axis=-1) > 30).mean() > 0.05, m  # the figure is there
 
 
+def test_view_stills_show_one_contact_shadow(tmp_path):
+    """Each candidate view has a floor cue, the same in each (issue 40: nothing told a
+    viewer the figure stands on the ground): a soft neutral shadow on the background
+    under the figure, as wide in every candidate (within 4 px of 96) and lighter than the
+    figure threshold of the alike-pictures check (so the silhouettes compared are the
+    figure's alone), with the border plain."""
+    import imageio.v3 as iio
+
+    from snapcore.motion import synth
+    from snapcore.render.renderer import BACKGROUND
+    from snapcore.select.view_methods import VIEW_METHODS
+    from study_app.design.media import write_views
+    from study_app.design.similarity import silhouette
+
+    scene = synth.synth_scene("walk", fps=30)
+    dirs = [
+        np.array(v, float) / np.linalg.norm(v)
+        for v in ((1, -0.16, 0.2), (1, 0, 0.3), (0.6, 0.6, 0.5))
+    ]
+    picks = {
+        "frame": scene.frame_offset + 20,
+        "view": dirs[0],
+        "viewpoint_entropy": dirs[1],
+        "motion_area": dirs[2],
+    }
+    size = (160, 200)
+    views = write_views(scene, picks, tmp_path, size=size)
+    bg = np.round(np.asarray(BACKGROUND) * 255)
+    widths = []
+    for m in VIEW_METHODS:
+        img = iio.imread(views[m]["file"])[..., :3].astype(float)
+        dark = bg.mean() - img.mean(axis=-1)
+        neutral = np.ptp(img, axis=-1) <= 2
+        shadow = neutral & (dark >= 3) & (dark < 30)
+        figure = np.abs(img - bg).max(axis=-1) > 30
+        assert shadow.sum() > 50, m
+        cols = np.flatnonzero(shadow.any(axis=0))
+        widths.append(cols[-1] - cols[0])
+        rows = np.flatnonzero(figure.any(axis=1))
+        # under the figure's lower part (its feet), not across its middle
+        assert np.median(np.flatnonzero(shadow.any(axis=1))) > rows[0] + 0.6 * np.ptp(rows), m
+        border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
+        assert np.abs(border - bg).max() <= 2, m
+        # the alike-pictures check sees the figure alone: the silhouette with the shadow
+        # is the one of the figure's pixels
+        assert silhouette(img.astype(np.uint8)).sum() > 0
+    assert max(widths) - min(widths) <= 4, widths  # of ~96 px: the soft edge at sub-pixel centres
+
+
 @pytest.mark.slow  # over 20 s: builds stimuli
 def test_build_warnings_name_their_scene(tmp_path):
     """A warning raised while one scene is built says which scene it is about; the angle

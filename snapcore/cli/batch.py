@@ -10,6 +10,7 @@ import click
 from snapcore.cli.common import POSITIVE, FiniteFloatRange
 from snapcore.cli.render import parse_size
 from snapcore.cli.select import pose_options, pose_params_from_options
+from snapcore.render.bodies import BODY_KINDS
 
 __all__ = ["batch", "snapshot_kwargs"]
 
@@ -162,10 +163,11 @@ def _progress(quiet: bool):
 )
 @click.option(
     "--body",
-    type=click.Choice(["human", "mannequin"]),
+    type=click.Choice(BODY_KINDS),
     default=None,
     help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
-    "characters wear their own) or the capsule 'mannequin' (faster).",
+    "characters wear their own), the capsule 'mannequin' (faster), or 'makehuman': "
+    "the MakeHuman mesh on glTF and FBX skeletons too.",
 )
 @click.option(
     "--animation",

@@ -100,7 +100,8 @@ def body_options(f):
         expose_value=False,
         callback=_stash,
         help="Body drawn on skeletons: the MakeHuman 'human' mesh (default; glTF "
-        "characters wear their own) or the capsule 'mannequin'.",
+        "characters wear their own), the capsule 'mannequin', or 'makehuman': the "
+        "MakeHuman mesh on glTF and FBX skeletons too.",
     )(f)
     return f
 

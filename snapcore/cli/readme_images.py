@@ -24,7 +24,7 @@ from pathlib import Path
 
 from snapcore.select.view_methods import VIEW_METHODS, ViewMethod
 
-__all__ = ["make_readme_images", "make_body_images", "CLIP", "BODY_CLIPS"]
+__all__ = ["make_readme_images", "make_body_images", "body_caption", "CLIP", "BODY_CLIPS"]
 
 #: The clip shown in the README (relative to the motion data folder).
 CLIP = "dance/05_06.bvh"
@@ -112,13 +112,26 @@ def make_readme_images(out_dir="docs/images", *, clip: str = CLIP, panel=PANEL) 
     return [p for p in paths if p.exists()]
 
 
+def body_caption(scene, kind: str) -> str:
+    """What a body picture of ``scene`` drawn as ``kind`` shows: a glTF character's own
+    mesh is not the MakeHuman "human body" (the glTF picture said it was)."""
+    if kind == "mannequin":
+        return "mannequin"
+    own = [c.mesh is not None for c in scene.characters]
+    if kind == "human" and all(own):
+        return "its own mesh"
+    if kind == "human" and any(own):
+        return "own meshes and human body"
+    return "human body"
+
+
 def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
     """Render the README's body pictures (:data:`BODY_CLIPS`): on each, the human body
     (a glTF character's own mesh) and the mannequin, from one camera fitted to both."""
     import numpy as np
 
     from snapcore.motion.load import data_dir, load_scene
-    from snapcore.render.bodies import BODY_KINDS, scene_body
+    from snapcore.render.bodies import BodyKind, scene_body
     from snapcore.render.camera import default_view, fit_camera
     from snapcore.render.composites import tile_panels
     from snapcore.render.renderer import SceneRenderer, save_png
@@ -132,11 +145,12 @@ def make_body_images(out_dir="docs/images", *, panel=BODY_PANEL) -> list[Path]:
             warnings.simplefilter("ignore")
             scene = load_scene([root / f for f in files], fps=fps)
         frame = int(source_frame) - scene.frame_offset
-        bodies = [scene_body(scene, kind=k) for k in BODY_KINDS]  # one loaded scene, both kinds
+        kinds: tuple[BodyKind, ...] = ("human", "mannequin")
+        bodies = [scene_body(scene, kind=k) for k in kinds]  # one loaded scene, both kinds
         pts = np.vstack([b.vertices(frame) for b in bodies])
         cam = fit_camera(pts, default_view(scene), size=panel)
         panels = [SceneRenderer(scene, size=panel, body=b).render(frame, cam) for b in bodies]
-        sheet = tile_panels(panels, ["human body", "mannequin"], title=title)
+        sheet = tile_panels(panels, [body_caption(scene, k) for k in kinds], title=title)
         paths.append(out / name)
         save_png(sheet, paths[-1])
     return paths

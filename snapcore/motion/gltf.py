@@ -158,6 +158,22 @@ def _pick_animation(gltf, animation, buffers: Buffers):
     raise buffers.error(f"no animation '{animation}' (it has: {', '.join(names)})")
 
 
+def _own_animation(gltf, joints, parent) -> int | None:
+    """The first animation that moves one of ``joints`` or a node above them, by index
+    (None: none does, or the file has none): in a file holding several characters, each
+    merged with its own animation, the first animation moves only the first character,
+    and the others stood still while reported as playing it."""
+    moved = set()
+    for j in joints:
+        while j >= 0 and j not in moved:
+            moved.add(j)
+            j = parent[j]
+    for k, anim in enumerate(gltf.animations or []):
+        if any(ch.target.node in moved for ch in anim.channels or []):
+            return k
+    return None
+
+
 def _sample_animation(gltf, index, buffers: Buffers, rest_trs, fps: float, name: str):
     """Local T, R (xyzw), S of every node at the sample times: (F, N, 3|4|3)."""
     n = len(rest_trs[0])
@@ -559,6 +575,8 @@ def read_gltf(
     jparent = np.asarray(jparent_list, dtype=int)
 
     rest = [np.array(x) for x in zip(*[_local_trs(n) for n in nodes])]  # T, R, S: (N, ·)
+    if animation is None and len(groups) > 1:
+        animation = _own_animation(g, joints, parent)
     a_idx, a_name = _pick_animation(g, animation, buffers)
     t, r, s = _sample_animation(g, a_idx, buffers, rest, fps, a_name)
     world = node_world_matrices(trs_matrix(t, r, s), parent, order)  # (F, N, 4, 4)

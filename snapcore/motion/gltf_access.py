@@ -185,7 +185,10 @@ class Buffers:
         if a.normalized and dtype.kind in "iu":
             out = _normalise(out)
         elif dtype.kind == "f":
-            out = out.astype(np.float64)
+            # garbage bytes can be signalling NaNs, whose cast warns: non-finite data is
+            # refused with one error line by floats(), not announced by numpy first
+            with np.errstate(invalid="ignore"):
+                out = out.astype(np.float64)
         if a.type.startswith("MAT"):
             n = int(round(size**0.5))
             out = out.reshape(count, n, n).transpose(0, 2, 1)  # column-major → row-major

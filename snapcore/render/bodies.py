@@ -26,7 +26,11 @@ reads it), so no other function needs the keyword. The CLI's ``--body`` and the 
   falls back to the mannequin, with a warning naming what is missing and the joints no
   role was found for;
 - ``"mannequin"``: capsules and spheres on the joints for everyone
-  (:class:`snapcore.render.mannequin.CharacterBody`, the body of earlier versions).
+  (:class:`snapcore.render.mannequin.CharacterBody`, the body of earlier versions);
+- ``"makehuman"``: the MakeHuman body on every skeleton, a glTF or FBX character's too
+  (its own mesh set aside: a robot or a stylised figure drawn as the human the BVH
+  characters wear, or two sources compared in one body); the mannequin where the
+  retargeting cannot map the skeleton, as for ``"human"``.
 
 :class:`MixedSceneBody` has the interface of :class:`snapcore.render.mannequin.SceneBody`
 (``vertices``/``normals``/``pose``/``trimesh``, merged ``faces`` and colours), so the
@@ -67,8 +71,9 @@ __all__ = [
     "scene_trimesh",
 ]
 
-#: What a character is drawn as: its own or the MakeHuman body, or the capsule mannequin.
-BodyKind = Literal["human", "mannequin"]
+#: What a character is drawn as: its own or the MakeHuman body, the capsule mannequin,
+#: or the MakeHuman body whatever mesh the character carries.
+BodyKind = Literal["human", "mannequin", "makehuman"]
 #: Every :data:`BodyKind`, in the order the CLI lists them.
 BODY_KINDS: tuple[BodyKind, ...] = get_args(BodyKind)
 #: The body kind when none is given.
@@ -140,8 +145,8 @@ def character_body(
     """The body one character wears (see the module notes for the rules); ``detail``
     picks the human mesh's level of detail (:mod:`snapcore.render.human_asset`), ``ground``
     the floor height its soles stand on (default: inferred from its joints)."""
-    if kind == "human":
-        if character.mesh is not None:
+    if kind in ("human", "makehuman"):
+        if character.mesh is not None and kind == "human":
             return SkinnedBody(character, color=color)
         # imported here: the MakeHuman body takes ~1 s to import, and the renderer,
         # camera and relief import this module for its body kinds alone
@@ -160,7 +165,7 @@ class MixedSceneBody(SceneBody):
     Parameters
     ----------
     scene : Scene
-    kind : {"human", "mannequin"}
+    kind : {"human", "mannequin", "makehuman"}
         The body kind (:data:`BodyKind`, default :data:`DEFAULT_BODY`).
     colors : sequence of RGB tuples, optional
         One base colour per character (default :data:`CHARACTER_COLORS` in order).
@@ -200,6 +205,46 @@ class MixedSceneBody(SceneBody):
                 for i, ch in enumerate(scene.characters)
             ],
         )
+
+    def _yielding(self):
+        """Per character: (contact yield, vertex neighbours) of a MakeHuman body, or
+        (None, None) (see :mod:`snapcore.render.contacts`)."""
+        if getattr(self, "_contact", None) is None:
+            from snapcore.render.contacts import contact_yield, vertex_neighbours
+
+            self._contact = [
+                (contact_yield(b.asset), vertex_neighbours(b.faces, b.n_vertices))
+                if getattr(b, "kind", None) == "human"
+                else (None, None)
+                for b in self.characters
+            ]
+        return self._contact
+
+    def vertices(self, frame) -> np.ndarray:
+        """Merged world vertices at internal frame(s): (N, 3) or (K, N, 3); two or more
+        MakeHuman bodies are pushed out of each other where they meet
+        (:func:`snapcore.render.contacts.resolve_contacts`)."""
+        self._check(frame)
+        if sum(getattr(b, "kind", None) == "human" for b in self.characters) < 2:
+            return super().vertices(frame)
+        key = np.asarray(frame)
+        if key.ndim > 0:
+            return np.stack([self.vertices(int(f)) for f in key])
+        memo = getattr(self, "_memo", None)
+        if memo is not None and memo[0] == int(key):
+            return memo[1]
+        from snapcore.render.contacts import resolve_contacts
+
+        ys, ns = zip(*self._yielding())
+        v = resolve_contacts(
+            [b.vertices(int(key)) for b in self.characters],
+            [b.normals(int(key)) for b in self.characters],
+            list(ys),
+            list(ns),
+        )
+        out = np.concatenate(v, axis=-2).astype(self.characters[0].vertices(int(key)).dtype)
+        self._memo = (int(key), out)
+        return out
 
 
 def _bodies_of(scene) -> dict:

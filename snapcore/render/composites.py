@@ -209,6 +209,31 @@ def _font(px: int):
     return ImageFont.load_default(size=max(int(px), 8))
 
 
+def _wrap(text: str, font, width: int) -> list[str]:
+    """``text`` broken into lines no wider than ``width`` pixels in ``font``: at
+    spaces, and inside a word only where the word alone is wider."""
+    lines: list[str] = []
+    line = ""
+    for word in text.split():
+        while font.getlength(word) > width and len(word) > 1:
+            if line:
+                lines.append(line)
+                line = ""
+            fits = [k for k in range(2, len(word)) if font.getlength(word[:k]) <= width]
+            cut = fits[-1] if fits else 1
+            lines.append(word[:cut])
+            word = word[cut:]
+        trial = f"{line} {word}" if line else word
+        if line and font.getlength(trial) > width:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    if line:
+        lines.append(line)
+    return lines
+
+
 def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarray:
     """Lay out equally sized (H, W, 3) uint8 panels in a grid with captions under each.
 
@@ -220,7 +245,7 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
     columns : int, optional
         Panels per row (default: all in one row).
     title : str, optional
-        A line above the grid.
+        A line above the grid (wrapped onto more lines where wider than the grid).
 
     Returns
     -------
@@ -241,17 +266,21 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
     if captions is not None:
         lines = [c if isinstance(c, (list, tuple)) else [c] for c in captions]
         cap_h = max(cap_h, int(round(h * 0.055 * max(len(x) for x in lines) + h * 0.035)))
-    title_h = int(round(h * 0.10)) if title else 0
     gap = PANEL_GAP
     W = cols * w + (cols + 1) * gap
+    fpx = max(int(h * 0.045), 11)
+    font = _font(fpx)
+    tf = _font(int(fpx * 1.2))
+    # a title wider than the sheet is wrapped onto more lines (it was cut off)
+    title_lines = _wrap(str(title), tf, W - 2 * gap) if title else []
+    step = int(round(fpx * 1.2 * 1.3))
+    title_h = max(int(round(h * 0.10)), len(title_lines) * step + gap) if title else 0
     H = title_h + rows * (h + cap_h) + (rows + 1) * gap
     sheet = Image.new("RGB", (W, H), _PAPER)
     draw = ImageDraw.Draw(sheet)
-    fpx = max(int(h * 0.045), 11)
-    font = _font(fpx)
-    if title:
-        tf = _font(int(fpx * 1.2))
-        draw.text((gap, gap + title_h // 2), title, fill=_INK, font=tf, anchor="lm")
+    top = gap + (title_h - len(title_lines) * step) // 2
+    for k, text in enumerate(title_lines):
+        draw.text((gap, top + k * step + step // 2), text, fill=_INK, font=tf, anchor="lm")
     for i, p in enumerate(panels):
         r, c = divmod(i, cols)
         x = gap + c * (w + gap)

@@ -66,6 +66,7 @@ from snapcore.render.segments import (
     swing_matrices,
     unit,
 )
+from snapcore.render.shoulders import rig_elevation, shoulder_drops, shoulder_masks
 from snapcore.render.skinned import FrameBlocks
 from snapcore.render.soles import SIDES, SoleFit
 
@@ -239,6 +240,7 @@ class Retarget(SoleFit):
         self._spine1, self._head_group, self._neck1 = fit.spine1, fit.head_group, fit.neck1
         # per rig bone, 1 where the skin is blended linearly (see LINEAR_BONES)
         self._linear_bones = np.array([float(b in LINEAR_BONES) for b in asset.bone_names])
+        self._rig_elevation = rig_elevation(asset)
         self._spine_offsets(character.positions[sample])
         self._drop: dict[str, tuple[int, int, float]] = {}
         self._calibrate(character.positions[sample], character.rotations[sample])
@@ -618,6 +620,7 @@ class Retarget(SoleFit):
         out = np.empty((f, len(points), 3), dtype=dtype)
         step = max(1, int(2**24 // max(1, 24 * len(points))))
         linear = np.asarray(weights @ self._linear_bones).ravel()
+        drop_w = shoulder_masks(self.asset, points, weights)  # (P, 2)
         for a in range(0, f, step):
             b = min(f, a + step)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
@@ -632,7 +635,18 @@ class Retarget(SoleFit):
             sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
             corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
             out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
+            out[a:b] += np.einsum("ps,fsi->fpi", drop_w, self._shoulder_drops(positions[a:b]))
         return out
+
+    def _shoulder_drops(self, positions) -> np.ndarray:
+        """The top of each shoulder's drop as the arm hangs (F, 2, 3): see
+        :mod:`snapcore.render.shoulders`."""
+        lm = self.landmarks
+        up = self._point(positions, self.neck_base) - positions[:, lm["pelvis"]]
+        shoulders, elbows = (
+            positions[:, [lm[f"{j}_L"], lm[f"{j}_R"]]] for j in ("shoulder", "elbow")
+        )
+        return shoulder_drops(shoulders, elbows, up, self._rig_elevation, self.k)
 
 
 class HumanBody(FrameBlocks):

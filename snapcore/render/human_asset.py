@@ -36,6 +36,7 @@ and the viewpoint-entropy baseline use the full mesh).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import importlib.util
@@ -49,6 +50,7 @@ from scipy import sparse
 
 from snapcore.errors import RenderError, SnapshotError
 from snapcore.motion.skinning import weight_matrix
+from snapcore.render.shoulders import shoulder_weights
 
 __all__ = [
     "HumanAsset",
@@ -266,7 +268,7 @@ def human_asset(detail: str = "full") -> HumanAsset:
     wts = np.zeros((v.shape[0], width))
     bones[arrays["w_rows"][order], slot] = arrays["w_cols"][order]
     wts[arrays["w_rows"][order], slot] = arrays["w_vals"][order]
-    return HumanAsset(
+    rig = HumanAsset(
         vertices=v,
         faces=arrays["faces"].astype(np.int64),
         weights=weight_matrix(bones, wts, n_b),
@@ -276,6 +278,9 @@ def human_asset(detail: str = "full") -> HumanAsset:
         tails=arrays["tails"],
         eyes=arrays["eyes"],
     )
+    # the shoulders' clavicle/arm split redone (snapcore.render.shoulders): the rig's
+    # put the top of a hanging arm's shoulder out over the arm, a boxy corner
+    return dataclasses.replace(rig, weights=shoulder_weights(rig))
 
 
 def surface_weights(asset: HumanAsset, points: np.ndarray, k: int) -> sparse.csr_matrix:

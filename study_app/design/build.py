@@ -66,6 +66,8 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     (Scene, dict)
         The scene and the manifest document that produced it.
     """
+    from snapcore.motion.fbx import FBX_SUFFIXES
+    from snapcore.motion.gltf import GLTF_SUFFIXES
     from snapcore.motion.load import data_dir, load_scene, resolve_data_path
     from snapcore.schema import read_document
 
@@ -107,6 +109,18 @@ def load_study_scene(study: Study, entry: dict, work_dir: str | Path):
     for key in ("fps", "scale", "frames"):
         if key in entry:
             doc[key] = entry[key]
+    if "animation" in entry:
+        animated = GLTF_SUFFIXES + FBX_SUFFIXES
+        # the animation (take) of every glTF/FBX character, as `--animation` does; a
+        # scene manifest took it per character, a study config not at all (issue 40)
+        moving = [c for c in doc["characters"] if Path(c["file"]).suffix.lower() in animated]
+        if not moving:
+            raise StimuliError(
+                f"scene {entry['id']}: 'animation' names a glTF/GLB or FBX animation, "
+                "and the scene has no such character"
+            )
+        for c in moving:
+            c["animation"] = entry["animation"]
     doc["name"] = entry["id"]
     spath = work / "scene.json"
     spath.write_text(json.dumps(doc, indent=2), encoding="utf-8")
@@ -313,7 +327,8 @@ def _build_scene(study: Study, sc: dict, root: Path) -> dict:
         ious, alike = check_alike_pictures(study, sc["id"], views)
         dupes = dupes + [p for p in alike if p not in dupes]
     t4 = time.perf_counter()
-    source = {k: sc[k] for k in ("demo", "files", "manifest", "fps", "scale", "frames") if k in sc}
+    keys = ("demo", "files", "manifest", "fps", "scale", "frames", "animation")
+    source = {k: sc[k] for k in keys if k in sc}
     return {
         "id": sc["id"],
         "title": sc.get("title", sc["id"]),

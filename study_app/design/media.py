@@ -21,6 +21,7 @@ __all__ = [
     "write_frames",
     "view_renderer",
     "render_view",
+    "contact_cue",
     "write_views",
     "shown_sheet",
 ]
@@ -91,19 +92,60 @@ def _has_pyav() -> bool:
 
 def view_renderer(scene, size: tuple[int, int]):
     """The renderer of the candidate pictures: no floor and no shadows (see
-    :func:`write_views`)."""
+    :func:`write_views`; :func:`render_view` adds the same contact shadow to each)."""
     from snapcore.render.bodies import DEFAULT_BODY
     from snapcore.render.renderer import SceneRenderer
 
     return SceneRenderer(scene, size=size, ground=False, shadows=False, body=DEFAULT_BODY)
 
 
+#: The contact shadow under the figure in the candidate pictures: half axes as fractions
+#: of the picture's width (across) and height (up and down), and its darkest shade, in
+#: 0-255 levels under the background. Under the 30 levels at which
+#: :func:`study_app.design.similarity.silhouette` counts a pixel as figure, so the
+#: shadow is no part of the silhouettes compared.
+CUE_HALF_WIDTH = 0.3
+CUE_HALF_HEIGHT = 0.03
+CUE_DEPTH = 24.0
+
+
+def contact_cue(image: np.ndarray, centre, background) -> np.ndarray:
+    """``image`` (H, W, 3) uint8 with a soft elliptical shadow centred at pixel
+    ``centre`` (x, y) on its background pixels (the figure stays in front of it).
+
+    The same ellipse, in size and shape, whatever the view: a floor or a shadow drawn
+    in 3D is seen from above in one candidate, edge on in another and from below in a
+    third, and the picture would tell the methods apart; a fixed flat ellipse says only
+    that the figure stands on the ground there. It is kept inside the picture (2 px
+    clear of the border), so every candidate has a plain border.
+    """
+    img = np.asarray(image[..., :3], float)
+    h, w = img.shape[:2]
+    rx, ry = CUE_HALF_WIDTH * w, max(CUE_HALF_HEIGHT * h, 1.5)
+    cx = float(np.clip(centre[0], rx + 2, w - rx - 2))
+    cy = float(np.clip(centre[1], ry + 2, h - ry - 2))
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5
+    r = np.sqrt(((xx - cx) / rx) ** 2 + ((yy - cy) / ry) ** 2)
+    shade = CUE_DEPTH * np.clip(1.0 - r, 0.0, 1.0) ** 0.7  # soft edge, darkest at the centre
+    bg = np.round(np.asarray(background, float) * 255)
+    plain = np.abs(img - bg).max(axis=-1) <= 3
+    out = np.where(plain[..., None], img - shade[..., None], img)
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)
+
+
 def render_view(scene, frame: int, direction, renderer) -> np.ndarray:
     """One candidate picture (source ``frame``, the file's own number), framed as all
-    candidates are."""
-    from snapcore.render.renderer import render_still
+    candidates are, with the contact shadow (:func:`contact_cue`) on the floor under the
+    figure: the projection of the floor point under its lowest vertices."""
+    from snapcore.render.camera import fit_camera
+    from snapcore.render.renderer import BACKGROUND, render_still
 
-    return render_still(scene, frame, direction, fit="frame", renderer=renderer)
+    pts = np.asarray(renderer.body.vertices(frame - scene.frame_offset), float)
+    camera = fit_camera(pts, direction, size=renderer.size)
+    image = render_still(scene, frame, camera=camera, renderer=renderer)
+    low = pts[pts[:, 1] <= np.percentile(pts[:, 1], 2.0)]
+    under = np.array([low[:, 0].mean(), scene.ground, low[:, 2].mean()])
+    return contact_cue(image, camera.project(under), BACKGROUND)
 
 
 def write_views(
@@ -128,7 +170,9 @@ def write_views(
     # and no shadows: a tightly framed orthographic view shows the floor grid from
     # above, nothing of it near the horizon and the grid through the legs from below
     # (the methods may pick views down to 10 degrees under the horizon), so the
-    # background alone would tell the three methods apart.
+    # background alone would tell the three methods apart. What tells a viewer that the
+    # figure stands on the ground is one flat contact shadow, the same in every
+    # candidate (render_view, contact_cue).
     renderer = renderer or view_renderer(scene, size)
     views = {}
     for m in VIEW_METHODS:
