@@ -13,3 +13,39 @@ def test_only_picks_whole_words_not_a_longer_number():
     assert [c.name for c in select_cases(hundred)] == [hundred]
     assert len(select_cases("two salsa dancers")) >= 3  # a phrase still picks a family
     assert select_cases("salsa dancers, 10") == []
+
+
+#: Issue 41's table: a case's name (what --only finds) and the target it must carry (ms).
+ISSUE_41 = {
+    "skin: two salsa human bodies, all 2242 frames": 1000.0,
+    "render: video 1280x720 two salsa dancers, 1000 frames": 20000.0,
+    "viewpoint entropy 162 views, two human bodies": 500.0,
+    "render: still 1280x720, two salsa dancers (per frame)": 50.0,
+    "parse+FK salsa pair (2x2242 frames, 2x57 joints)": 100.0,
+    "pose selection (story, the default) salsa pair": 5.0,
+    "view PMA salsa pair (2562 views + refinement)": 15.0,
+    "`snapshot select FILE`": 1200.0,
+    "`snapshot render FILE`": 1000.0,
+    "library: CPU per scene": 150.0,
+    "library: --jobs 2 wall per 1000 ms of --jobs 1": 1000.0 / 1.8,
+}
+
+
+def test_every_row_of_issue_41_has_a_case_with_its_target():
+    for name, target in ISSUE_41.items():
+        found = select_cases(name)
+        assert len(found) == 1, (name, [c.name for c in found])
+        assert found[0].target_ms == target, name
+
+
+def test_a_case_may_report_its_own_figure(monkeypatch):
+    """A case whose work returns ``Measured`` (CPU per scene, a ratio) is reported by
+    that figure, not by the wall time of its work."""
+    from snapcore.bench import registry, runner
+    from snapcore.bench.registry import BenchCase, BenchContext, Measured
+
+    cases = [BenchCase("figure", lambda ctx: lambda: Measured(123.0), 200.0, "", 3)]
+    monkeypatch.setattr(registry, "CASES", cases)
+    monkeypatch.setattr(runner, "CASES", cases)
+    (r,) = runner.run_cases(BenchContext(data=None), repeats=3)
+    assert (r.min_ms, r.median_ms, r.status) == (123.0, 123.0, "ok")

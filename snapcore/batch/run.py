@@ -44,7 +44,14 @@ from snapcore.batch.index import (
     write_index,
     write_parquet,
 )
-from snapcore.batch.task import BatchOptions, SceneResult, SceneTask, error_result, run_scene
+from snapcore.batch.task import (
+    BatchOptions,
+    SceneResult,
+    SceneTask,
+    error_result,
+    run_scene,
+    worker_env,
+)
 
 __all__ = [
     "BatchReport",
@@ -368,6 +375,29 @@ def _plain_main():
         sys.modules["__main__"] = real
 
 
+@contextmanager
+def _environ(values: dict[str, str]):
+    """This process's environment with ``values`` set, for processes started meanwhile.
+
+    A spawned worker starts with its parent's environment and imports NumPy and SciPy
+    (each with its own OpenBLAS) before its initializer could set anything: their
+    thread counts must be in the environment it starts with. The parent's own
+    libraries, loaded already, are not affected.
+    """
+    import os
+
+    before = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _local(
     tasks: list[SceneTask], jobs: int, notify: Callable[[str], None]
 ) -> Iterator[SceneResult]:
@@ -459,7 +489,7 @@ class _Pool:
         try:
             # every submit may start a worker (the pool spawns them one per submit, up to
             # max_workers, while none is idle), so each is made without __main__
-            with _plain_main():
+            with _plain_main(), _environ(worker_env(1)):
                 future = self.ex.submit(run_scene, task)
             # kept: a broken executor forgets its processes, and how they ended
             self.procs.update(getattr(self.ex, "_processes", None) or {})

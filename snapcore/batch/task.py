@@ -38,6 +38,8 @@ __all__ = [
     "SceneResult",
     "run_scene",
     "init_worker",
+    "worker_env",
+    "blas_threads",
     "error_result",
     "OUTPUT_FORMAT",
 ]
@@ -152,14 +154,36 @@ class SceneResult:
         Outputs of the previous run that stay as they are (a re-render of part of a
         row): neither rewritten nor deleted.
     worker : dict
-        ``pid``, ``renderer`` (id of the thread's GL renderer) and ``lp_threads`` (Mesa
-        rasteriser threads, ``LP_NUM_THREADS``) of whoever ran it.
+        ``pid``, ``renderer`` (id of the thread's GL renderer), ``lp_threads`` (Mesa
+        rasteriser threads, ``LP_NUM_THREADS``) and ``blas_threads`` (each loaded BLAS
+        library's threads, by file name, after the task) of whoever ran it.
     """
 
     row: dict
     outputs: dict = field(default_factory=dict)
     worker: dict = field(default_factory=dict)
     kept: tuple[str, ...] = ()
+
+
+#: Environment variables that set a BLAS's or OpenMP's thread count when it loads.
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def worker_env(threads: int = 1) -> dict[str, str]:
+    """The environment that gives a process ``threads`` BLAS and Mesa rasteriser threads.
+
+    Read by each BLAS when it loads and by Mesa's llvmpipe (``LP_NUM_THREADS``) when a
+    GL context is made: set before either happens. ``threads`` must be at least 1.
+    """
+    n = str(int(threads))
+    return {var: n for var in BLAS_THREAD_VARS} | {"LP_NUM_THREADS": n}
+
+
+def blas_threads() -> dict[str, int]:
+    """Threads of each BLAS (or OpenMP) library loaded in this process, by file name."""
+    from threadpoolctl import threadpool_info
+
+    return {os.path.basename(i["filepath"]): int(i["num_threads"]) for i in threadpool_info()}
 
 
 def init_worker(
@@ -197,11 +221,16 @@ def init_worker(
     if parent is not None:
         _watch_parent(parent)
     if threads is not None:
+        # A BLAS reads its thread count once, when it loads; threadpoolctl can change
+        # only the libraries already loaded. NumPy and SciPy (each with its own
+        # OpenBLAS) load later, in the first task, so the environment is what limits
+        # them (a local pool's parent also sets it around the spawn: see
+        # :func:`worker_env`); the call below is for a process (a Dask worker) that
+        # loaded them before.
+        os.environ.update(worker_env(threads))
         from threadpoolctl import threadpool_limits
 
         threadpool_limits(threads)
-        # read by Mesa when a GL context is created (just below, or on a task's thread)
-        os.environ.setdefault("LP_NUM_THREADS", str(threads))
     if not renderer:
         return
     try:
@@ -547,4 +576,5 @@ def _worker(opts: BatchOptions) -> dict:
         "pid": os.getpid(),
         "renderer": renderer,
         "lp_threads": os.environ.get("LP_NUM_THREADS"),
+        "blas_threads": blas_threads(),
     }

@@ -14,7 +14,15 @@ from pathlib import Path
 
 from snapcore.motion.load import load_scene
 
-__all__ = ["case", "CASES", "BenchCase", "BenchContext"]
+__all__ = ["case", "CASES", "BenchCase", "BenchContext", "Measured"]
+
+
+@dataclass(frozen=True)
+class Measured:
+    """What a case's work returns when its figure is not its own wall time (a CPU time
+    per scene, a ratio): the runner reports ``ms`` instead of the time it measured."""
+
+    ms: float
 
 
 @dataclass

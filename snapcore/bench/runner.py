@@ -3,7 +3,8 @@
 The cases live in :mod:`snapcore.bench.cases`, registered in
 :mod:`snapcore.bench.registry`. Every case is
 run ``repeats`` times after one warm-up; the table shows min and median wall time in
-milliseconds and the target where the issue sets one. Timings use one thread of
+milliseconds (or the figure a case reports as :class:`~snapcore.bench.registry.Measured`:
+CPU per scene, a ratio) and the target where the issue sets one. Timings use one thread of
 BLAS (set before NumPy loads, in :func:`run`'s caller) so numbers are "on one core".
 """
 
@@ -14,8 +15,8 @@ import statistics
 import time
 from dataclasses import dataclass
 
-from snapcore.bench import cases, cases_bodies, library  # noqa: F401  (registers every case)
-from snapcore.bench.registry import CASES, BenchContext
+from snapcore.bench import cases, cases_bodies, cases_speed, library  # noqa: F401  (registers)
+from snapcore.bench.registry import CASES, BenchContext, Measured
 
 __all__ = ["BenchResult", "run_cases", "select_cases", "PLUGIN_GROUP"]
 
@@ -89,8 +90,9 @@ def run_cases(
         times = []
         for _ in range(n):
             t0 = time.perf_counter()
-            work()
-            times.append((time.perf_counter() - t0) * 1000.0)
+            got = work()
+            wall = (time.perf_counter() - t0) * 1000.0
+            times.append(got.ms if isinstance(got, Measured) else wall)
         results.append(
             BenchResult(c.name, min(times), statistics.median(times), n, c.target_ms, c.note)
         )

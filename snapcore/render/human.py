@@ -53,9 +53,9 @@ import numpy as np
 
 from snapcore.errors import SceneError
 from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
+from snapcore.motion.dq_kernel import dq_plan, dq_skin_planned
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
-from snapcore.motion.skinning import dq_skin
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
@@ -151,6 +151,10 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
     out[~has] = np.median(pos[:, ~has], axis=0)
     return out
 
+
+#: Frames whose bone matrices are made at a time when skinning (bounds their memory;
+#: the kernel itself works in smaller chunks).
+SKIN_FRAMES = 256
 
 #: Rig bones whose skin is blended linearly, not as dual quaternions: the pelvis and
 #: hip pieces, whose short stretched bones meet the thigh at up to 120° (a dancer's
@@ -608,34 +612,32 @@ class Retarget(SoleFit):
         return sparse.csr_matrix((w.data * c, w.indices, w.indptr), shape=w.shape)
 
     def skin_points(
-        self, points, weights, stretch_w, positions, rotations, *, dtype=np.float64
+        self, points, weights, stretch_w, positions, rotations, *, dtype=np.float64, plan=None
     ) -> np.ndarray:
         """Rig-space ``points`` (P, 3) skinned to poses (F, J, 3) / (F, J, 3, 3): (F, P, 3).
 
         Dual-quaternion skinning (:func:`dq_skin`) plus the stretch correction of
-        :meth:`stretch_weights`; frames in chunks to bound memory (dq_skin holds
-        ~10 float64 per point and frame).
+        :meth:`stretch_weights`, in one kernel (the stretch terms are its ``shifts``);
+        frames in chunks to bound the memory of the bones' tables. ``plan``:
+        :meth:`skin_plan` of the same points and weights (made here when None).
         """
+        if plan is None:
+            plan = self.skin_plan(points, weights, stretch_w, dtype=dtype)
         f = positions.shape[0]
-        out = np.empty((f, len(points), 3), dtype=dtype)
-        step = max(1, int(2**24 // max(1, 24 * len(points))))
-        linear = np.asarray(weights @ self._linear_bones).ravel()
+        out = np.empty((f, len(points), 3), dtype=plan.dtype)
         drop_w = shoulder_masks(self.asset, points, weights)  # (P, 2)
-        for a in range(0, f, step):
-            b = min(f, a + step)
+        # only the shoulders' points move with the drop: add it to those alone
+        dropped = np.flatnonzero(np.any(drop_w != 0, axis=1))
+        drop_w = drop_w[dropped]
+        for a in range(0, f, SKIN_FRAMES):
+            b = min(f, a + SKIN_FRAMES)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
-            out[a:b] = dq_skin(
-                points,
-                weights,
-                m[:, self.bone_group],
-                self.asset.heads,
-                linear=linear,
-                dtype=dtype,
+            dq_skin_planned(
+                plan, m[:, self.bone_group], self.asset.heads, st[:, self.bone_group], out=out[a:b]
             )
-            sb = st[:, self.bone_group].astype(dtype)  # (chunk, B, 3)
-            corr = stretch_w @ sb.transpose(1, 0, 2).reshape(sb.shape[1], -1)  # (P, chunk*3)
-            out[a:b] += np.asarray(corr).reshape(len(points), b - a, 3).transpose(1, 0, 2)
-            out[a:b] += np.einsum("ps,fsi->fpi", drop_w, self._shoulder_drops(positions[a:b]))
+            if dropped.size:
+                drops = self._shoulder_drops(positions[a:b])  # (chunk, 2, 3)
+                out[a:b, dropped] += np.einsum("ps,fsi->fpi", drop_w, drops).astype(out.dtype)
         return out
 
     def _shoulder_drops(self, positions) -> np.ndarray:
@@ -647,6 +649,12 @@ class Retarget(SoleFit):
             positions[:, [lm[f"{j}_L"], lm[f"{j}_R"]]] for j in ("shoulder", "elbow")
         )
         return shoulder_drops(shoulders, elbows, up, self._rig_elevation, self.k)
+
+    def skin_plan(self, points, weights, stretch_w, *, dtype=np.float64):
+        """The :func:`~snapcore.motion.dq_kernel.dq_plan` of :meth:`skin_points`:
+        ``points`` (P, 3) with ``weights`` (P, B) and ``stretch_w`` (P, B)."""
+        linear = np.asarray(weights @ self._linear_bones).ravel()
+        return dq_plan(points, weights, linear, shift_weights=stretch_w, dtype=dtype)
 
 
 class HumanBody(FrameBlocks):
@@ -682,6 +690,7 @@ class HumanBody(FrameBlocks):
     ):
         self.character = character
         self.detail = detail
+        self._plans: dict = {}
         self.asset = asset = human_asset(detail)
         self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
@@ -713,11 +722,21 @@ class HumanBody(FrameBlocks):
     def _stretch(self):
         return self.retarget.stretch_weights(self.asset.vertices, self.asset.weights)
 
+    def _plan(self, dtype):
+        """The skinning plan of the mesh in ``dtype`` (made once per dtype)."""
+        key = np.dtype(dtype).name
+        if key not in self._plans:
+            a = self.asset
+            self._plans[key] = self.retarget.skin_plan(
+                a.vertices, a.weights, self._stretch, dtype=dtype
+            )
+        return self._plans[key]
+
     def skin(self, positions: np.ndarray, rotations: np.ndarray, *, dtype=np.float64) -> np.ndarray:
         """Skinned vertices for poses given as arrays: (F, J, 3), (F, J, 3, 3) → (F, V, 3).
 
         ``dtype=np.float32`` is what drawing uses (:meth:`vertices`): half the memory
-        traffic, errors ~1e-7 m.
+        traffic, errors below 1e-6 m.
         """
         return self.retarget.skin_points(
             self.asset.vertices,
@@ -725,7 +744,7 @@ class HumanBody(FrameBlocks):
             self._stretch,
             positions,
             rotations,
-            dtype=dtype,
+            plan=self._plan(dtype),
         )
 
     def _pose(self, frames: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from snapcore.motion.skinning import dq_skin
+from snapcore.motion.dq_kernel import dq_plan, dq_skin_planned
 
 __all__ = ["SoleFit", "SIDES", "PLANT_MAX_M"]
 
@@ -150,8 +150,10 @@ class SoleFit:
             pts, ws, stretch_w, owners, foot_share, _, centres, linear = self._soles[s]
             # the sole points as the skin will place them (blend and stretch): a
             # point's rigid move with one bone misses the shank's share at the heel
-            y = dq_skin(pts, ws, m[:, owners], centres, linear=linear)[..., 1]
-            y += np.asarray(stretch_w @ st[:, owners, 1].T).T
+            plans = self.__dict__.setdefault("_sole_plans", {})  # made once per foot
+            if s not in plans:
+                plans[s] = dq_plan(pts, ws, linear, shift_weights=stretch_w)
+            y = dq_skin_planned(plans[s], m[:, owners], centres, st[:, owners])[..., 1]
             low_point = y.argmin(axis=1)
             r = y[np.arange(len(y)), low_point] - self.ground
             low = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)

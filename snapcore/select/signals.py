@@ -28,6 +28,7 @@ __all__ = [
     "smooth_positions",
     "minmax",
     "half_gaussian",
+    "find_peaks",
 ]
 
 #: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
@@ -138,3 +139,50 @@ def half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
     if sided:
         k = np.where(off >= 0, k, 0.0)
     return k, r
+
+
+def find_peaks(x: np.ndarray, *, height: float, prominence: float) -> np.ndarray:
+    """Indices of the peaks of ``x`` at least ``height`` high and ``prominence``
+    prominent: ``scipy.signal.find_peaks(x, height=..., prominence=...)[0]``, the same
+    indices (a test compares them on many arrays with plateaus and NaN).
+
+    Written here because importing ``scipy.signal`` costs 1-3 s, more than all of a
+    ``snapshot select`` run's work. SciPy's definitions: a peak is a sample (the middle
+    of a plateau, rounded down) higher than both neighbours, never the first or last;
+    its prominence is its height over the higher of the lowest points on either side
+    before the signal rises above it (or ends, or reaches a NaN).
+
+    Parameters
+    ----------
+    x : ndarray of shape (N,)
+    height, prominence : float
+        Lower bounds, inclusive.
+
+    Returns
+    -------
+    ndarray of int
+    """
+    x = np.asarray(x, dtype=np.float64)
+    n = x.shape[0]
+    if n < 3:
+        return np.zeros(0, dtype=np.intp)
+    # runs of equal values (NaN never equals, so each NaN is its own run)
+    start = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
+    end = np.r_[start[1:], n] - 1
+    v = x[start]
+    inner = np.arange(1, len(start) - 1)
+    up = v[inner - 1] < v[inner]
+    down = v[inner + 1] < v[inner]
+    runs = inner[up & down]
+    peaks = (start[runs] + end[runs]) // 2
+    peaks = peaks[height <= x[peaks]]
+    keep = np.zeros(len(peaks), dtype=bool)
+    for i, p in enumerate(peaks):
+        top = x[p]
+        # the scan stops before the first sample that is not <= the peak (higher, NaN)
+        stop_l = np.flatnonzero(~(x[:p] <= top))
+        lo = stop_l[-1] + 1 if len(stop_l) else 0
+        stop_r = np.flatnonzero(~(x[p + 1 :] <= top))
+        hi = p + 1 + stop_r[0] if len(stop_r) else n
+        keep[i] = prominence <= top - max(x[lo : p + 1].min(), x[p:hi].min())
+    return peaks[keep].astype(np.intp)

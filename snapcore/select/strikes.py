@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from snapcore.select.signals import half_gaussian
+from snapcore.select.signals import find_peaks, half_gaussian
 
 __all__ = ["strike_speeds", "strike_frames", "strike_surprisal"]
 
@@ -67,13 +67,9 @@ def strike_frames(speed: np.ndarray, *, threshold: float) -> list[np.ndarray]:
     list of ndarray of int
         One array of frames per effector.
     """
-    # scipy only when strikes are looked for: importing the selectors stays light (a
-    # `snapshot batch` run with nothing to do loads no heavy library)
-    from scipy.signal import find_peaks
-
     v = np.asarray(speed, dtype=float)
     return [
-        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold)[0]
+        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold)
         for e in range(v.shape[1])
     ]
 

@@ -1,0 +1,402 @@
+"""Dual-quaternion skinning as sparse array work: the kernel behind
+:func:`snapcore.motion.skinning.dq_skin`.
+
+Dual-quaternion blending (Kavan et al. 2008) normalises each vertex's blended dual
+quaternion ``b = Σ_k a_k d_k`` (``a_k = w_k s_k``, ``s_k = ±1`` putting bone ``k``'s
+quaternion in the hemisphere of the vertex's heaviest bone, its *pivot*) and moves the
+vertex by the rigid motion ``b / |b_0|``. Its moved point is a ratio of two quadratic
+forms of ``b``::
+
+    x' = N(b) [x; 1] / |b_0|²,   N(b) = [ R(b_0) | t(b) ]  (3 × 4)
+
+with ``R(q) = (w² - v·v) I + 2 v vᵀ + 2 w [v]×`` (a rotation matrix times ``|q|²``) and
+``t(b) = 2 (w v_ε - w_ε v + v × v_ε)`` for ``b = (w, v; w_ε, v_ε)``. Both are quadratic,
+so with the symmetric bilinear forms ``N(d_k, d_l)`` and ``c(d_k, d_l) = q_k · q_l``::
+
+    N(b) = Σ_k w_k² T_k + Σ_{k<l} 2 w_k w_l s_k s_l N(d_k, d_l)
+    |b_0|² = Σ_k w_k² + Σ_{k<l} 2 w_k w_l s_k s_l c(d_k, d_l)
+
+where ``T_k = N(d_k, d_k)`` is bone ``k``'s rigid transform. The sums run over *pair
+keys* ``(k, l, pivot)`` that many vertices share (a body of 13,380 vertices has a few
+hundred), each with a (3 × 4) matrix and a scalar per frame computed once. Per vertex
+and frame, the blend is then what linear blend skinning does: one sparse product of
+per-vertex coefficients ``w_k w_l`` with the keys' matrices, one matrix-vector product
+and a division — exact algebra, no approximation. A vertex on one bone with weight 1
+moves by its bone's matrix ``M_k`` alone (the rigid part and the rest agree there), so
+it needs no dual quaternion at all: on a body that is most vertices.
+
+The signs ``s_k s_l`` depend only on the quaternions and the pivot: for a pair holding
+the pivot it is ``sign(q_k · q_l)`` (the key drops the pivot), otherwise
+``sign(q_k · q_p) sign(q_l · q_p)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from scipy import sparse
+
+__all__ = ["DQPlan", "dq_plan", "dq_skin_planned", "polar_rotation", "KERNEL_CHUNK_BYTES"]
+
+#: Memory budget (bytes) of one chunk of skinned vertices (V × frames × 3 of the
+#: dtype): the sparse products' outputs stay near the cache (2-4 MB measured best).
+KERNEL_CHUNK_BYTES = 3 * 2**20
+#: A vertex whose one weight is within this of 1 moves by its bone's matrix alone.
+ONE_BONE_TOL = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class DQPlan:
+    """Dual-quaternion skinning of one mesh, prepared: sparse coefficient matrices.
+
+    Each product has the vertex's ``[x, y, z, 1]`` folded into its coefficients, so a
+    product with a table of matrices' columns gives moved points directly (no
+    per-vertex matrix is formed).
+
+    Attributes
+    ----------
+    n_vertices, n_bones, n_shifts : int
+        V, K and S (the columns of ``shift_weights``; 0 without).
+    pair_keys : ndarray of int, shape (P, 3)
+        ``(k, l, p)`` per key, ``k <= l``; ``p = -1`` where the sign needs no pivot
+        (``k == l``, or the pair holds the vertex's pivot).
+    dq_rows : ndarray of int, shape (D,)
+        Vertices with a dual-quaternion part (all but those on one bone with weight 1
+        and those without weights).
+    pair_x : scipy.sparse.csr_matrix of shape (D, 4P)
+        ``α_vp x̃_vj`` at column ``4p + j``: ``α = w_k²`` or ``2 w_k w_l``, times the
+        vertex's share ``1 - linear`` of dual-quaternion skinning.
+    pair_w : scipy.sparse.csr_matrix of shape (D, P)
+        ``α_vp`` (the squared norm of the blended quaternion is ``pair_w @ c``).
+    lin_x : scipy.sparse.csr_matrix of shape (V, 4(2K + 1) + S)
+        The linear part over the table ``[M_k - T_k; M_k; I; shifts]``, times ``x̃``:
+        ``w (1 - linear)`` and ``w linear``; 1 on ``M_k`` for a vertex on one bone; 1 on
+        the identity for a vertex without weights (it stays where it is).
+    dtype : numpy dtype
+    """
+
+    n_vertices: int
+    n_bones: int
+    n_shifts: int
+    pair_keys: np.ndarray
+    dq_rows: np.ndarray
+    pair_x: sparse.csr_matrix
+    pair_w: sparse.csr_matrix
+    lin_x: sparse.csr_matrix
+    dtype: np.dtype
+
+
+def _times_point(rows, cols, coef, xh, shape):
+    """Sparse matrix with ``coef · xh[:, j]`` at ``(rows, 4 cols + j)``, j = 0..3
+    (one entry per ``rows[i]``, ``cols[i]``, ``coef[i]``, ``xh[i]`` of shape (n, 4))."""
+    import scipy.sparse as sp
+
+    r = np.repeat(rows, 4)
+    c = (4 * cols[:, None] + np.arange(4)).ravel()
+    d = (coef[:, None] * xh).ravel()
+    keep = d != 0
+    m = sp.csr_matrix((d[keep], (r[keep], c[keep])), shape=shape)
+    m.sum_duplicates()
+    return m
+
+
+def dq_plan(
+    rest: np.ndarray,
+    weights,
+    linear: np.ndarray | None = None,
+    *,
+    shift_weights=None,
+    dtype=np.float64,
+) -> DQPlan:
+    """The :class:`DQPlan` of a mesh: rest vertices, weights, linear shares.
+
+    Parameters
+    ----------
+    rest : ndarray of shape (V, 3)
+        Vertices in the bind pose.
+    weights : sparse or dense matrix of shape (V, K)
+        Skin weights (:func:`snapcore.motion.skinning.weight_matrix`).
+    linear : ndarray of shape (V,), optional
+        Per vertex, the share (0-1) of linear blend skinning mixed in.
+    shift_weights : sparse matrix of shape (V, S), optional
+        Coefficients of per-frame translations added to the result
+        (``shifts`` of :func:`dq_skin_planned`).
+    dtype : numpy dtype
+        Precision of the per-vertex arithmetic.
+    """
+    import scipy.sparse as sp
+
+    w = sp.csr_matrix(weights, dtype=np.float64, copy=True)  # pruned below: not theirs
+    w.eliminate_zeros()
+    w.sort_indices()
+    v, k = w.shape
+    xh = np.concatenate([np.asarray(rest, dtype=np.float64), np.ones((v, 1))], axis=1)
+    lin = np.zeros(v) if linear is None else np.asarray(linear, dtype=np.float64).ravel()
+    count = np.diff(w.indptr)
+    rows_all = np.repeat(np.arange(v), count)
+    first = w.data[w.indptr[:-1].clip(max=max(w.nnz - 1, 0))] if w.nnz else np.zeros(v)
+    one = (count == 1) & (np.abs(first - 1.0) <= ONE_BONE_TOL)
+    empty = count == 0
+    dq = ~one & ~empty
+    dq_rows = np.flatnonzero(dq)
+    # pivot: the heaviest bone, the first of equals (as np.argmax over the dense row)
+    pivot = np.argmax(w.toarray(), axis=1)
+
+    # -- pair coefficients: for each vertex with n bones, its n(n+1)/2 pairs
+    parts = []
+    for n in np.unique(count[dq]):
+        rows = np.flatnonzero(dq & (count == n))
+        at = w.indptr[rows][:, None]
+        iu, ju = np.triu_indices(n)
+        alpha = w.data[at + iu] * w.data[at + ju] * np.where(iu == ju, 1.0, 2.0)
+        parts.append((np.repeat(rows, len(iu)), w.indices[at + iu], w.indices[at + ju], alpha))
+    prow, pk, pl, palpha = (
+        np.concatenate([p[i].ravel() for p in parts]) if parts else np.zeros(0, int)
+        for i in range(4)
+    )
+    piv = pivot[prow]
+    ppiv = np.where((pk == pl) | (pk == piv) | (pl == piv), -1, piv)
+    code = (pk * k + pl) * (k + 1) + (ppiv + 1)
+    uniq, key_of = np.unique(code, return_inverse=True)
+    keys = np.stack([uniq // (k + 1) // k, uniq // (k + 1) % k, uniq % (k + 1) - 1], axis=1)
+    key_of = key_of.ravel()
+    slot = np.full(v, -1)
+    slot[dq_rows] = np.arange(len(dq_rows))
+    d, p = len(dq_rows), len(uniq)
+    pair_w = sp.csr_matrix((palpha, (slot[prow], key_of)), shape=(d, p))
+    pair_w.sum_duplicates()
+    pair_x = _times_point(slot[prow], key_of, palpha * (1.0 - lin[prow]), xh[prow], (d, 4 * p))
+
+    # -- linear part over [M - T (K); M (K); identity (1)] and the shifts
+    in_dq = dq[rows_all]
+    coef = np.concatenate(
+        [
+            (w.data * (1.0 - lin[rows_all]))[in_dq],
+            (w.data * lin[rows_all])[in_dq],
+            np.ones(int(one.sum())),
+            np.ones(int(empty.sum())),
+        ]
+    )
+    lrow = np.concatenate(
+        [rows_all[in_dq], rows_all[in_dq], np.flatnonzero(one), np.flatnonzero(empty)]
+    )
+    lcol = np.concatenate(
+        [w.indices[in_dq], k + w.indices[in_dq], k + pivot[one], np.full(int(empty.sum()), 2 * k)]
+    )
+    n_table = 4 * (2 * k + 1)
+    lin_x = _times_point(lrow, lcol, coef, xh[lrow], (v, n_table))
+    s = 0
+    if shift_weights is not None:
+        sw = sp.csr_matrix(shift_weights, dtype=np.float64, copy=True)
+        sw.eliminate_zeros()
+        s = sw.shape[1]
+        lin_x = sp.hstack([lin_x, sw], format="csr")
+    return DQPlan(
+        n_vertices=v,
+        n_bones=k,
+        n_shifts=s,
+        pair_keys=keys,
+        dq_rows=dq_rows,
+        pair_x=pair_x.astype(dtype),
+        pair_w=pair_w.astype(dtype),
+        lin_x=lin_x.astype(dtype),
+        dtype=np.dtype(dtype),
+    )
+
+
+def polar_rotation(a: np.ndarray, *, tol: float = 1e-13, max_iter: int = 30) -> np.ndarray:
+    """The rotation ``R`` of the polar decomposition ``A = R S`` of (..., 3, 3) matrices.
+
+    Newton's iteration ``X <- (g X + X^-T / g) / 2`` with the determinant scaling
+    ``g = |det X|^(-1/3)`` (Higham 1986), vectorised with the cofactor inverse: a few
+    passes over the array where a batched SVD takes microseconds per matrix. A matrix
+    with ``det A <= 0`` (a mirror, or singular) gets the SVD's nearest rotation, as the
+    dual-quaternion skinning always did.
+    """
+    x = np.array(a, dtype=np.float64, copy=True)
+    shape = x.shape
+    x = x.reshape(-1, 3, 3)
+    det = np.linalg.det(x)
+    good = det > 1e-12 * np.maximum(np.abs(x).max(axis=(1, 2), initial=0.0) ** 3, 1e-300)
+    y = x[good]
+    for _ in range(max_iter):
+        r0, r1, r2 = y[:, 0], y[:, 1], y[:, 2]
+        cof = np.stack([_cross(r1, r2), _cross(r2, r0), _cross(r0, r1)], axis=1)
+        d = np.einsum("ni,ni->n", r0, cof[:, 0])
+        g = np.abs(d) ** (-1.0 / 3.0)
+        new = 0.5 * (g[:, None, None] * y + cof / (g * d)[:, None, None])
+        step = np.abs(new - y).max(initial=0.0)
+        y = new
+        if step < tol:
+            break
+    out = np.empty_like(x)
+    out[good] = y
+    if not good.all():
+        u, _, vt = np.linalg.svd(x[~good])
+        flip = np.linalg.det(u @ vt) < 0
+        u[flip, :, -1] *= -1
+        out[~good] = u @ vt
+    return out.reshape(shape)
+
+
+def _quaternions(r: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(w, x, y, z)`` of rotation matrices (..., 3, 3): (..., 4)."""
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_quat()  # (x, y, z, w)
+    return q[:, [3, 0, 1, 2]].reshape(*r.shape[:-2], 4)
+
+
+def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
+    """Each key's signed bilinear forms per frame, componentwise over (P, F) arrays.
+
+    Parameters
+    ----------
+    q, qd : ndarray of shape (4, K, F)
+        The bones' real and dual quaternions ``(w, x, y, z)``, component first.
+    keys : ndarray of int, shape (P, 3)
+    dtype : numpy dtype
+        Of the returned tables (the signs are decided in float64).
+
+    Returns
+    -------
+    n : ndarray of shape (P, 4, 3, F)
+        ``σ N(d_k, d_l)``: column ``j``, row ``i``, frame (the products' layout).
+    c : ndarray of shape (P, F)
+        ``σ q_k · q_l``.
+    """
+    k, j, p = keys[:, 0], keys[:, 1], keys[:, 2]
+    # signs first, in float64: s_k s_l; with the pivot in the pair (or k == l),
+    # sign(q_k · q_l)
+    c64 = np.einsum("apf,apf->pf", q[:, k], q[:, j])
+    sign = np.where(c64 < 0, -1.0, 1.0)
+    far = p >= 0
+    if far.any():
+        qp = q[:, p[far]]
+        sk = np.einsum("apf,apf->pf", q[:, k[far]], qp) < 0
+        sl = np.einsum("apf,apf->pf", q[:, j[far]], qp) < 0
+        sign[far] = np.where(sk ^ sl, -1.0, 1.0)
+    sign[k == j] = 1.0
+    q = q.astype(dtype, copy=False)
+    qd = qd.astype(dtype, copy=False)
+    sign = sign.astype(dtype)
+    w1, x1, y1, z1 = q[:, k] * sign  # the sign folded into one factor of each product
+    w2, x2, y2, z2 = q[:, j]
+    e1, a1, b1, c1 = qd[:, k] * sign  # dual parts: (w_e, x_e, y_e, z_e)
+    e2, a2, b2, c2 = qd[:, j]
+    vv = x1 * x2 + y1 * y2 + z1 * z2
+    s = w1 * w2 - vv
+    wx, wy, wz = w1 * x2 + w2 * x1, w1 * y2 + w2 * y1, w1 * z2 + w2 * z1
+    xy, xz, yz = x1 * y2 + x2 * y1, x1 * z2 + x2 * z1, y1 * z2 + y2 * z1
+    n = np.empty((len(keys), 4, 3, q.shape[2]), dtype=dtype)
+    # R(q, q') = (w w' - v·v') I + v v'ᵀ + v' vᵀ + w [v']× + w' [v]×
+    n[:, 0, 0] = s + 2 * x1 * x2
+    n[:, 1, 0] = xy - wz
+    n[:, 2, 0] = xz + wy
+    n[:, 0, 1] = xy + wz
+    n[:, 1, 1] = s + 2 * y1 * y2
+    n[:, 2, 1] = yz - wx
+    n[:, 0, 2] = xz - wy
+    n[:, 1, 2] = yz + wx
+    n[:, 2, 2] = s + 2 * z1 * z2
+    # t(d, d') = w v_ε' + w' v_ε - w_ε v' - w_ε' v + v × v_ε' + v' × v_ε
+    n[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
+    n[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
+    n[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
+    return n, (c64 * sign).astype(dtype)
+
+
+def _table(m: np.ndarray) -> np.ndarray:
+    """Matrices (F, N, 3, 4) as product rows: (N, 4, 3, F): column ``j``, row ``i``, frame."""
+    return m.transpose(1, 3, 2, 0)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` of (N, 3) arrays (np.cross's checks cost more than the products)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
+def dq_skin_planned(
+    plan: DQPlan,
+    matrices: np.ndarray,
+    centres: np.ndarray,
+    shifts: np.ndarray | None = None,
+    *,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Dual-quaternion skinning (see :func:`snapcore.motion.skinning.dq_skin`) by a plan.
+
+    Parameters
+    ----------
+    plan : DQPlan
+        :func:`dq_plan` of the mesh.
+    matrices : ndarray of shape (F, K, 3, 4)
+        Each bone's skinning transform.
+    centres : ndarray of shape (K, 3)
+        Each bone's centre in the rest pose.
+    shifts : ndarray of shape (F, S, 3), optional
+        Translations added as ``shift_weights @ shifts`` (the plan's ``shift_weights``).
+    out : ndarray of shape (F, V, 3), optional
+        Where to write the result (of the plan's dtype).
+
+    Returns
+    -------
+    ndarray of shape (F, V, 3), of the plan's dtype
+        Per-vertex arithmetic in that dtype; the bones' own (per frame) in float64.
+    """
+    m = np.asarray(matrices, dtype=np.float64)
+    f, k = m.shape[:2]
+    v, dtype = plan.n_vertices, plan.dtype
+    if k != plan.n_bones:
+        raise ValueError(f"matrices {m.shape} do not fit a plan of {plan.n_bones} bones")
+    if out is None:
+        out = np.empty((f, v, 3), dtype=dtype)
+    if f == 0 or v == 0:
+        return out
+    # -- per bone and frame (float64, F × K small): rigid part T x = R x + t, tables
+    r = polar_rotation(m[..., :3])
+    t = np.einsum("fkij,kj->fki", m[..., :3] - r, np.asarray(centres, float)) + m[..., 3]
+    rigid = np.concatenate([r, t[..., None]], axis=-1)
+    rows = [_table(m - rigid), _table(m), _table(np.broadcast_to(np.eye(3, 4), (f, 1, 3, 4)))]
+    rows = [x.reshape(-1, 3, f) for x in rows]
+    if plan.n_shifts:
+        rows.append(np.asarray(shifts, dtype=np.float64).transpose(1, 2, 0))
+    lin_table = np.concatenate(rows, axis=0).astype(dtype)  # (rows, 3, F)
+    d = len(plan.dq_rows)
+    if d:
+        q = _quaternions(r).transpose(2, 1, 0)  # (4, K, F)
+        tt = t.transpose(2, 1, 0)  # (3, K, F)
+        # dual part q_ε = ½ (0, t) q
+        qd = 0.5 * np.stack(
+            [
+                -(tt * q[1:]).sum(axis=0),
+                q[0] * tt[0] + tt[1] * q[3] - tt[2] * q[2],
+                q[0] * tt[1] + tt[2] * q[1] - tt[0] * q[3],
+                q[0] * tt[2] + tt[0] * q[2] - tt[1] * q[1],
+            ]
+        )
+        n_tab, c_tab = _pair_table(q, qd, plan.pair_keys, dtype)
+        diag = np.flatnonzero(plan.pair_keys[:, 0] == plan.pair_keys[:, 1])
+        n_tab[diag] = _table(rigid[:, plan.pair_keys[diag, 0]])  # exactly T_k
+        pair_table = n_tab.reshape(-1, 3, f)
+    step = max(1, int(KERNEL_CHUNK_BYTES // max(1, v * 3 * np.dtype(dtype).itemsize)))
+    for a in range(0, f, step):  # chunks: each product's output stays small
+        b = min(f, a + step)
+        nf = b - a
+        # columns (row i of the 3 x 4 matrices, frame): each coordinate is one block
+        y = plan.lin_x @ lin_table[..., a:b].reshape(-1, 3 * nf)  # (V, 3 nf)
+        if d:
+            num = plan.pair_x @ pair_table[..., a:b].reshape(-1, 3 * nf)
+            den = plan.pair_w @ np.ascontiguousarray(c_tab[:, a:b])  # (D, nf)
+            num = num.reshape(d, 3, nf)
+            num /= den[:, None]
+            y[plan.dq_rows] += num.reshape(d, -1)
+        for i in range(3):  # three 2-D transposes: faster than one of (V, nf, 3)
+            out[a:b, :, i] = y[:, i * nf : (i + 1) * nf].T
+    return out

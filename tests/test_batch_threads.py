@@ -1,0 +1,82 @@
+"""One BLAS thread in every local batch worker (issue 41).
+
+A BLAS reads its thread count when it loads; NumPy and SciPy each bring an OpenBLAS,
+loaded by a worker's first scene, after its initializer ran. ``threadpool_limits(1)``
+in the initializer (before either was loaded) did nothing: both reported 2 threads on
+this 2-core machine and the helper threads took a quarter of each worker's CPU.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from snapcore.batch.discover import discover
+from snapcore.batch.run import run_batch
+from snapcore.batch.task import BatchOptions, worker_env
+from snapcore.motion import synth
+from snapcore.motion.bvh import write_bvh
+
+# a machine with one core would give one thread anyway: the test would prove nothing
+pytestmark = pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="needs 2+ cores")
+
+
+def _clean_env() -> dict:
+    """This environment without any thread setting (as a user's shell would be)."""
+    drop = set(worker_env(1))
+    return {k: v for k, v in os.environ.items() if k not in drop}
+
+
+def test_a_plain_process_has_several_blas_threads():
+    """The premise: without a setting, NumPy's and SciPy's OpenBLAS start a thread per
+    core, so the checks below can fail."""
+    code = (
+        "import numpy, scipy.linalg\n"
+        "from snapcore.batch.task import blas_threads\n"
+        "print(max(blas_threads().values()))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=_clean_env(), capture_output=True, text=True, check=True
+    )
+    assert int(out.stdout) >= 2
+
+
+def test_init_worker_limits_libraries_loaded_after_it():
+    """A process set up by ``init_worker`` (as a Dask worker is) before NumPy and SciPy
+    load: every BLAS they bring has one thread."""
+    code = (
+        "from snapcore.batch.task import init_worker, blas_threads\n"
+        "init_worker(ignore_sigint=False, threads=1, renderer=False)\n"
+        "import numpy, scipy.linalg, scipy.sparse\n"
+        "numpy.ones((50, 50)) @ numpy.ones((50, 50))\n"
+        "print(blas_threads())\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=_clean_env(), capture_output=True, text=True, check=True
+    )
+    threads = eval(out.stdout)  # a dict literal printed above
+    assert len(threads) >= 2 and set(threads.values()) == {1}, threads
+
+
+@pytest.mark.slow
+def test_every_local_worker_runs_one_blas_thread(tmp_path, monkeypatch):
+    """``--jobs 2``: in each worker, after its scenes (NumPy, SciPy, the renderer all
+    loaded), every BLAS library reports one thread, and Mesa one rasteriser thread;
+    this process's environment is as it was."""
+    for var in worker_env(1):
+        monkeypatch.delenv(var, raising=False)
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    for name in ("walk", "jump"):  # two short scenes: one for each worker
+        write_bvh(synth.humanoid_document(name, seconds=1.0), lib / f"{name}.bvh")
+    opts = BatchOptions(size=(96, 108), sheet=False)
+    report = run_batch(discover([lib]).scenes, tmp_path / "out", opts, jobs=2)
+    assert report.workers and all(os.getpid() != w["pid"] for w in report.workers)
+    for w in report.workers:
+        assert w["lp_threads"] == "1"
+        assert len(w["blas_threads"]) >= 2, w  # NumPy's and SciPy's
+        assert set(w["blas_threads"].values()) == {1}, w
+    assert not set(worker_env(1)) & set(os.environ)
