@@ -21,6 +21,7 @@ from skin_reference import dq_reference
 
 from snapcore.motion.dq_kernel import dq_plan, dq_skin_planned, polar_rotation
 from snapcore.motion.skinning import dq_skin
+from snapcore.render.shoulders import shoulder_masks
 
 #: float64 agreement with the reference (metres).
 TOL64 = 1e-9
@@ -133,6 +134,10 @@ def test_the_human_body_equals_the_reference_on_a_real_clip(motions_dir):
     linear = np.asarray(a.weights @ r._linear_bones).ravel()
     want = dq_reference(a.vertices, a.weights, m[:, r.bone_group], a.heads, linear=linear)
     want += np.einsum("vb,fbi->fvi", body._stretch.toarray(), st[:, r.bone_group])
+    # the shoulders' drop as the arms hang (snapcore.render.shoulders), added after the
+    # blend: the reference adds it densely, over every vertex
+    drop_w = shoulder_masks(a, a.vertices, a.weights)
+    want += np.einsum("vs,fsi->fvi", drop_w, r._shoulder_drops(c.positions[frames]))
     got32 = body.skin(c.positions[frames], c.rotations[frames], dtype=np.float32)
     assert got32.dtype == np.float32 and got32.shape == want.shape
     assert np.abs(got32 - want).max() < TOL32

@@ -18,6 +18,7 @@ import pytest
 from skin_reference import dq_reference
 
 from snapcore.render.human import HumanBody
+from snapcore.render.shoulders import shoulder_masks
 
 pytestmark = pytest.mark.slow
 
@@ -42,6 +43,8 @@ def _reference_skin(self, positions, rotations, *, dtype=np.float64):
     linear = np.asarray(a.weights @ r._linear_bones).ravel()
     out = dq_reference(a.vertices, a.weights, m[:, r.bone_group], a.heads, linear=linear)
     out += np.einsum("vb,fbi->fvi", self._stretch.toarray(), st[:, r.bone_group])
+    drop_w = shoulder_masks(a, a.vertices, a.weights)  # the shoulders' drop, densely
+    out += np.einsum("vs,fsi->fvi", drop_w, r._shoulder_drops(positions))
     return out.astype(dtype)
 
 
