@@ -23,8 +23,10 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import SelectionError, SnapshotError
+from snapcore.motion.scene import Scene
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, check_body
 from snapcore.render.viewpoint_entropy import EntropySelection, select_view_entropy
 from snapcore.select.pose_methods import PoseParams, select_pose
@@ -236,10 +238,10 @@ class Snapshot:
         scores = self.pose.scores
         fps = float(scene.fps)
 
-        def src(i) -> int:
+        def src(i: int) -> int:
             return int(scene.source_frame(int(i)))
 
-        def rnd(a) -> list[float]:
+        def rnd(a: ArrayLike) -> list[float]:
             return np.round(np.asarray(a, dtype=float), _DECIMALS).tolist()
 
         # each peak: its source frame, time, total and the terms that add up to it
@@ -298,7 +300,7 @@ class Snapshot:
         return doc
 
 
-def _jsonable(value):
+def _jsonable(value: Any) -> Any:
     """NumPy arrays and scalars → lists and Python numbers, recursively."""
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
@@ -368,7 +370,7 @@ def snapshot_params(options: Mapping[str, Any]) -> tuple[PoseParams, ViewParams]
 
 
 def take_snapshot(
-    scene,
+    scene: Scene,
     *,
     pose: PoseParams | None = None,
     view: ViewParams | None = DEFAULT_VIEW,

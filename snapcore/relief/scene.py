@@ -11,8 +11,10 @@ like the paper's Fig. 11 (one relief per method's view).
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.relief.height_field import (
     Relief,
@@ -22,9 +24,14 @@ from snapcore.relief.height_field import (
     relief_from_height_field,
 )
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
-from snapcore.render.buffers import render_depth
+from snapcore.render.buffers import DepthMap, render_depth
 from snapcore.render.camera import view_basis
-from snapcore.render.mannequin import TESSELLATION_FINE
+from snapcore.render.mannequin import TESSELLATION_FINE, PosedMesh, SceneBody
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from snapcore.motion.scene import Scene
 
 __all__ = [
     "frame_extent",
@@ -35,7 +42,7 @@ __all__ = [
 ]
 
 
-def _index(scene, frame) -> int:
+def _index(scene: Scene, frame: int) -> int:
     """The internal index of source frame ``frame``, or a :class:`ReliefError`."""
     f = int(frame)
     first = int(scene.frame_offset)
@@ -47,7 +54,14 @@ def _index(scene, frame) -> int:
     return f - first
 
 
-def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None):
+def frame_extent(
+    vertices: np.ndarray,
+    view: ArrayLike,
+    *,
+    size_mm: tuple[float, float] = (100.0, 100.0),
+    margin: float = 0.05,
+    up: ArrayLike | None = None,
+) -> tuple[float, float]:
     """Half width and half height (metres) of an image with the footprint's aspect that holds the mesh.
 
     Parameters
@@ -79,7 +93,7 @@ def frame_extent(vertices, view, *, size_mm=(100.0, 100.0), margin=0.05, up=None
     return metres_per_mm * w / 2.0, metres_per_mm * d / 2.0
 
 
-def relief_body(scene, frame: int, *, body: BodyKind = DEFAULT_BODY):
+def relief_body(scene: Scene, frame: int, *, body: BodyKind = DEFAULT_BODY) -> PosedMesh:
     """The body mesh a relief carves: every character at source frame ``frame``, finely
     tessellated (:data:`snapcore.render.mannequin.TESSELLATION_FINE`: a relief is read as geometry,
     and the facets of the rendering body would stand out as ridges in raking light), in the
@@ -99,7 +113,7 @@ def relief_body(scene, frame: int, *, body: BodyKind = DEFAULT_BODY):
     return _smoothed(mesh, index)
 
 
-def _smoothed(body, index: int):
+def _smoothed(body: SceneBody, index: int) -> PosedMesh:
     """The posed bodies with the human meshes Loop-subdivided once (4x the faces): their
     flat facets would otherwise show as ridges in the relief's raking light, as the
     mannequin's would without :data:`~snapcore.render.mannequin.TESSELLATION_FINE`. glTF
@@ -129,14 +143,14 @@ def _smoothed(body, index: int):
 
 
 def height_field_from_scene(
-    scene,
+    scene: Scene,
     frame: int,
-    view,
+    view: ArrayLike,
     *,
     params: ReliefParams | None = None,
-    up=None,
+    up: ArrayLike | None = None,
     body: BodyKind = DEFAULT_BODY,
-):
+) -> DepthMap:
     """Orthographic depth render of all characters' body meshes at one frame.
 
     Parameters
@@ -167,12 +181,12 @@ def height_field_from_scene(
 
 
 def relief_from_scene(
-    scene,
+    scene: Scene,
     frame: int,
-    view,
+    view: ArrayLike,
     *,
     params: ReliefParams | None = None,
-    up=None,
+    up: ArrayLike | None = None,
     body: BodyKind = DEFAULT_BODY,
 ) -> Relief:
     """The bas-relief of the scene's pose at ``frame`` seen along ``view``.
@@ -232,17 +246,17 @@ def relief_from_scene(
 
 
 def relief_comparison_figure(
-    scene,
+    scene: Scene,
     frame: int,
     views: dict,
     *,
     params: ReliefParams | None = None,
     with_linear: bool = False,
-    up=None,
+    up: ArrayLike | None = None,
     title: str | None = None,
     panel_inches: float = 3.2,
     body: BodyKind = DEFAULT_BODY,
-):
+) -> Figure:
     """One pose carved from several views side by side (the paper's Fig. 11).
 
     Parameters

@@ -15,7 +15,11 @@ JSON's ``frames``), as the captions show them.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import RenderError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind
@@ -29,6 +33,9 @@ from snapcore.render.camera import (
 )
 from snapcore.render.renderer import ORTHO_HORIZON_DEG, SceneRenderer, scene_index
 from snapcore.select.view_methods import view_label
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Scene
 
 __all__ = [
     "contact_sheet",
@@ -50,7 +57,12 @@ _INK = (35, 35, 35)
 
 
 def common_cameras(
-    points_per_panel, views, *, size, projection="orthographic", margin=None
+    points_per_panel: Sequence[np.ndarray],
+    views: Sequence[ArrayLike],
+    *,
+    size: tuple[int, int],
+    projection: str = "orthographic",
+    margin: float | None = None,
 ) -> list[Camera]:
     """One camera per panel, all at the same scale, each centred on its own points.
 
@@ -98,7 +110,13 @@ def common_cameras(
     ]
 
 
-def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) -> list[Camera]:
+def floor_aligned(
+    cams: list[Camera],
+    points_per_panel: Sequence[np.ndarray],
+    feet: Sequence[np.ndarray],
+    *,
+    margin: float | None = None,
+) -> list[Camera]:
     """Orthographic cameras of one view moved up or down so that every panel's floor
     point (``feet[i]``, on the floor under panel i's pose) falls on the same image row.
 
@@ -141,7 +159,7 @@ def floor_aligned(cams: list[Camera], points_per_panel, feet, *, margin=None) ->
     return out
 
 
-def floor_contacts(pts, ground: float, cams: list[Camera]) -> list[np.ndarray]:
+def floor_contacts(pts: np.ndarray, ground: float, cams: list[Camera]) -> list[np.ndarray]:
     """Per camera, the floor point under the pose that its picture shows lowest: of the
     pose's points within :data:`CONTACT_M` of its lowest (the feet that stand), the one
     lowest along the camera's up, dropped onto the floor ``y = ground``. Where a
@@ -161,7 +179,9 @@ def floor_contacts(pts, ground: float, cams: list[Camera]) -> list[np.ndarray]:
 CONTACT_M = 0.03
 
 
-def _horizon_aligned(cams: list[Camera], pts, feet) -> list[Camera]:
+def _horizon_aligned(
+    cams: list[Camera], pts: np.ndarray, feet: Sequence[np.ndarray]
+) -> list[Camera]:
     """Orthographic cameras moved along their own up so each panel's floor point
     ``feet[i]`` (where the renderer's horizon passes) falls on the same image row: one
     horizon across panels of different views. The half-height grows as needed to keep
@@ -195,7 +215,7 @@ def _horizon_aligned(cams: list[Camera], pts, feet) -> list[Camera]:
     return out
 
 
-def _target(cam: Camera, pts) -> np.ndarray:
+def _target(cam: Camera, pts: np.ndarray) -> np.ndarray:
     """The point a fitted camera looks at (centre of the points along its axis)."""
     p = np.asarray(pts, float).reshape(-1, 3)
     z = p @ cam.back
@@ -203,7 +223,7 @@ def _target(cam: Camera, pts) -> np.ndarray:
     return cam.position - cam.back * (cam.position @ cam.back - zc)
 
 
-def _font(px: int):
+def _font(px: int) -> Any:
     from PIL import ImageFont
 
     return ImageFont.load_default(size=max(int(px), 8))
@@ -234,7 +254,13 @@ def _wrap(text: str, font, width: int) -> list[str]:
     return lines
 
 
-def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarray:
+def tile_panels(
+    panels: Sequence[np.ndarray],
+    captions: Sequence[str | Sequence[str]] | None = None,
+    *,
+    columns: int | None = None,
+    title: str | None = None,
+) -> np.ndarray:
     """Lay out equally sized (H, W, 3) uint8 panels in a grid with captions under each.
 
     Parameters
@@ -300,20 +326,20 @@ def tile_panels(panels, captions=None, *, columns=None, title=None) -> np.ndarra
 
 
 def contact_sheet(
-    scene,
-    frames,
+    scene: Scene,
+    frames: Sequence[int],
     *,
-    view=None,
-    entropy=None,
-    size=(480, 540),
-    projection="orthographic",
-    columns=None,
-    title=None,
-    labels=True,
-    ranked=True,
-    ground=True,
-    shadows=True,
-    captions=None,
+    view: ArrayLike | None = None,
+    entropy: Sequence[float] | np.ndarray | None = None,
+    size: tuple[int, int] = (480, 540),
+    projection: str = "orthographic",
+    columns: int | None = None,
+    title: str | None = None,
+    labels: bool = True,
+    ranked: bool = True,
+    ground: bool = True,
+    shadows: bool = True,
+    captions: Sequence[str | Sequence[str]] | None = None,
     body: BodyKind = DEFAULT_BODY,
 ) -> np.ndarray:
     """Poses of a clip side by side, one view, one scale, the floor on one row across
@@ -399,17 +425,17 @@ def contact_sheet(
 
 
 def compare_views(
-    scene,
+    scene: Scene,
     frame: int,
-    views: dict,
+    views: Mapping[str, ArrayLike],
     *,
-    size=(480, 540),
-    projection="orthographic",
-    columns=None,
-    title=None,
-    labels=True,
-    ground=True,
-    shadows=True,
+    size: tuple[int, int] = (480, 540),
+    projection: str = "orthographic",
+    columns: int | None = None,
+    title: str | None = None,
+    labels: bool = True,
+    ground: bool = True,
+    shadows: bool = True,
     captions: dict | None = None,
     body: BodyKind = DEFAULT_BODY,
 ) -> np.ndarray:

@@ -25,10 +25,13 @@ Conventions
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import RenderError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
@@ -43,6 +46,9 @@ from snapcore.render.camera import (
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
 from snapcore.render.mannequin import SceneBody
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Scene
 
 __all__ = [
     "SceneRenderer",
@@ -92,11 +98,11 @@ CROP_STEP_PX = 64
 CROP_MAX_AREA = 0.7
 
 
-def _srgb_to_linear(c):
+def _srgb_to_linear(c: ArrayLike) -> np.ndarray:
     return np.asarray(c, np.float32) ** 2.2
 
 
-def _ground_mesh(centre_xz, height):
+def _ground_mesh(centre_xz: Sequence[float] | np.ndarray, height: float) -> Any:
     """The floor grid at ``height``: lines every :data:`GRID_SPACING` around
     ``centre_xz`` that fade into the floor colour within :data:`GRID_FADE_RADIUS`;
     thin unlit quads (no normals), one mesh.
@@ -157,7 +163,7 @@ def _ground_mesh(centre_xz, height):
     return pyrender.Mesh([prim])
 
 
-def _sky_mesh(centre, cam: Camera, height, *, horizon: bool = False):
+def _sky_mesh(centre: np.ndarray, cam: Camera, height: float, *, horizon: bool = False) -> Any:
     """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour,
     :data:`SKY_DISTANCE` metres behind ``centre`` as seen along the camera axis; None
     when the picture has no horizon.
@@ -209,7 +215,7 @@ def _sky_mesh(centre, cam: Camera, height, *, horizon: bool = False):
     return pyrender.Mesh([prim])
 
 
-def shadow_vertices(vertices, light, ground):
+def shadow_vertices(vertices: np.ndarray, light: ArrayLike, ground: float) -> np.ndarray:
     """Planar shadow: ``vertices`` (N, 3) projected onto the floor ``y = ground`` along
     the direction ``light`` (towards the light, ``light[1] > 0``); points under the
     floor drop straight down. Returns (N, 3)."""
@@ -251,14 +257,14 @@ class SceneRenderer:
 
     def __init__(
         self,
-        scene,
+        scene: Scene,
         *,
-        size=(640, 480),
-        ground=True,
-        shadows=True,
+        size: tuple[int, int] = (640, 480),
+        ground: bool = True,
+        shadows: bool = True,
         body: BodyKind | SceneBody = DEFAULT_BODY,
         floor: str = "auto",
-    ):
+    ) -> None:
         pyrender = load_pyrender()
         self.scene = scene
         self.size = check_size(size)
@@ -318,14 +324,14 @@ class SceneRenderer:
         self._light_nodes: list[Any] = []
         self._shadow_dir = np.array([0.0, 1.0, 0.0])
 
-    def _vertex_colors(self, i):
+    def _vertex_colors(self, i: int) -> np.ndarray:
         b = self.body.characters[i]
         c = np.zeros((b.n_vertices, 4), np.float32)
         c[b.faces.ravel()] = np.repeat(b.face_colors, 3, axis=0) / 255.0
         c[:, :3] = c[:, :3] ** 2.2  # colours are sRGB; the shader multiplies in linear light
         return c
 
-    def _set_camera(self, cam: Camera):
+    def _set_camera(self, cam: Camera) -> None:
         pyrender = load_pyrender()
         # The floor reaches far beyond the characters: extend the depth range so it is
         # not clipped (an orthographic eye can move back freely without changing the
@@ -405,12 +411,12 @@ class SceneRenderer:
         hb = cam.back - y * (cam.back @ y)
         hb = hb / np.linalg.norm(hb) if np.linalg.norm(hb) > 1e-6 else cam.up
         hr = np.cross(y, hb)
-        a, b, c = SHADOW_LIGHT
-        d = a * hb + b * y + c * hr
+        la, lb, lc = SHADOW_LIGHT
+        d = la * hb + lb * y + lc * hr
         self._shadow_dir = d / np.linalg.norm(d)
         self._last_cam = cam
 
-    def _point_camera(self, gl_cam: Camera):
+    def _point_camera(self, gl_cam: Camera) -> None:
         """Set the scene's camera node (its projection and pose) to ``gl_cam``."""
         if self._cam_node is None:
             self._cam_node = self.pscene.add(gl_cam.pyrender_camera(), pose=gl_cam.pose)
@@ -425,7 +431,7 @@ class SceneRenderer:
             raise RenderError("internal: SceneRenderer used before its camera was set")
         return self._gl_cam
 
-    def _update_bodies(self, index: int):
+    def _update_bodies(self, index: int) -> list[np.ndarray]:
         # All characters in one mesh and all shadows in another: each draw call costs
         # ~1 ms of Python and GL state in pyrender, the triangles themselves are cheap.
         pyrender = load_pyrender()
@@ -509,7 +515,9 @@ class SceneRenderer:
         image[y0 : y0 + ch, x0 : x0 + cw] = part
         return image
 
-    def _crop_window(self, camera: Camera, drawn) -> tuple[int, int, int, int] | None:
+    def _crop_window(
+        self, camera: Camera, drawn: list[np.ndarray]
+    ) -> tuple[int, int, int, int] | None:
         """``(x0, y0, width, height)`` in pixels of a rectangle holding every drawn
         point (bodies, shadows) of this frame, or None to render the whole frame."""
         if camera.projection != "orthographic":
@@ -576,18 +584,18 @@ def scene_index(scene, frame, what: str = "frame") -> int:
 
 
 def render_still(
-    scene,
+    scene: Scene,
     frame: int,
-    view=None,
+    view: ArrayLike | None = None,
     *,
-    size=None,
-    projection="orthographic",
-    fit="frame",
-    ground=True,
-    shadows=True,
-    camera=None,
+    size: tuple[int, int] | None = None,
+    projection: str = "orthographic",
+    fit: str = "frame",
+    ground: bool = True,
+    shadows: bool = True,
+    camera: Camera | None = None,
     body: BodyKind = DEFAULT_BODY,
-    renderer=None,
+    renderer: SceneRenderer | None = None,
 ) -> np.ndarray:
     """One frame of a scene as an image.
 
@@ -649,7 +657,13 @@ def render_still(
 
 
 def render_mesh(
-    vertices, faces, view, *, size=(512, 512), face_colors=None, projection="orthographic"
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    view: ArrayLike,
+    *,
+    size: tuple[int, int] = (512, 512),
+    face_colors: np.ndarray | None = None,
+    projection: str = "orthographic",
 ) -> np.ndarray:
     """Render any triangle mesh (e.g. a relief) lit like the stills, no floor:
     (H, W, 3) uint8. ``face_colors`` (M, 3|4) uint8, default light grey."""
@@ -676,7 +690,7 @@ def render_mesh(
     return np.ascontiguousarray(color)
 
 
-def save_png(image: np.ndarray, path) -> None:
+def save_png(image: np.ndarray, path: str | Path) -> None:
     """Write an (H, W, 3|4) uint8 image as PNG."""
     from PIL import Image
 

@@ -26,13 +26,19 @@ from __future__ import annotations
 import queue
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import RenderError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, scene_body
 from snapcore.render.camera import check_size, default_view, fit_camera, motion_points
 from snapcore.render.renderer import SceneRenderer
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Scene
+    from snapcore.render.camera import Camera
 
 __all__ = ["render_video", "video_frame_map", "draw_label", "VIDEO_CRF", "VIDEO_PRESET", "VP9_CRF"]
 
@@ -99,22 +105,22 @@ def draw_label(
 
 
 def render_video(
-    scene,
-    path,
+    scene: Scene,
+    path: str | Path,
     *,
     fps: float = 24.0,
-    size=(1280, 720),
-    view=None,
+    size: tuple[int, int] = (1280, 720),
+    view: ArrayLike | None = None,
     projection: str = "orthographic",
     frame_numbers: bool = False,
     progress: bool = True,
-    frame_range=None,
+    frame_range: tuple[int, int] | None = None,
     ground: bool = True,
     shadows: bool = True,
     crf: int = VIDEO_CRF,
     preset: str = VIDEO_PRESET,
-    camera=None,
-    webm=None,
+    camera: Camera | None = None,
+    webm: str | Path | None = None,
     body: BodyKind = DEFAULT_BODY,
     detail: str = "reduced",
 ) -> np.ndarray:
@@ -277,7 +283,7 @@ def render_video(
     q: queue.Queue = queue.Queue(maxsize=6)
     failure: list[BaseException] = []
 
-    def feed():
+    def feed() -> None:
         try:
             while True:
                 item = q.get()

@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,7 +37,10 @@ from snapcore.select.pose_baselines import (
 )
 from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
 from snapcore.select.signals import SMOOTH_S
-from snapcore.select.story import DEFAULT_STORY, StoryParams, story_information
+from snapcore.select.story import DEFAULT_STORY, StoryInformation, StoryParams, story_information
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Character, Scene
 
 __all__ = [
     "POSE_METHODS",
@@ -87,7 +92,7 @@ class PaperOptionError(SnapshotError):
         The method that was asked for instead.
     """
 
-    def __init__(self, names, method: str):
+    def __init__(self, names: Iterable[str], method: str) -> None:
         self.names = tuple(names)
         self.method = method
         super().__init__(
@@ -96,7 +101,7 @@ class PaperOptionError(SnapshotError):
         )
 
 
-def check_paper_options(method: str, given) -> None:
+def check_paper_options(method: str, given: Iterable[str]) -> None:
     """Refuse paper-only options for another pose method (the one place this rule lives).
 
     Parameters
@@ -171,7 +176,7 @@ class PoseParams:
     story: StoryParams | None = None
     seed: int = 0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # a field left at its default was not set: only changed ones count as given
         changed = [
             name
@@ -200,7 +205,7 @@ class PoseParams:
 _PARAM_DEFAULTS = {f.name: f.default for f in fields(PoseParams)}
 
 
-def story_interactions(scene, info):
+def story_interactions(scene: Scene, info: StoryInformation) -> Interactions:
     """The story selector's debounced limb contacts as an ``Interactions`` record.
 
     One :class:`~snapcore.select.contacts.Event` per contact of a contactor with the ground;
@@ -222,7 +227,7 @@ def story_interactions(scene, info):
     )
 
 
-def _representative(character, joints) -> int:
+def _representative(character: Character, joints: Sequence[int] | np.ndarray) -> int:
     roles = character.skeleton.roles
     for want in ("foot", "hand", "head", "pelvis"):
         for j in joints:
@@ -231,7 +236,7 @@ def _representative(character, joints) -> int:
     return int(joints[0])
 
 
-def _empty_interactions(scene):
+def _empty_interactions(scene: Scene) -> Interactions:
     return Interactions(
         [],
         [np.zeros((scene.n_frames, c.n_joints), dtype=bool) for c in scene.characters],
@@ -242,7 +247,18 @@ def _empty_interactions(scene):
     )
 
 
-def _selection(scene, method, frames, *, terms, unit, interactions, k, sep_s, timings):
+def _selection(
+    scene: Scene,
+    method: str,
+    frames: Sequence[int] | np.ndarray,
+    *,
+    terms: dict[str, np.ndarray],
+    unit: str,
+    interactions: Interactions,
+    k: int,
+    sep_s: float,
+    timings: dict[str, float],
+) -> PoseSelection:
     total = np.sum(list(terms.values()), axis=0)
     scores = PoseScores(
         method=method,
@@ -263,12 +279,12 @@ def _selection(scene, method, frames, *, terms, unit, interactions, k, sep_s, ti
 
 
 def select_pose(
-    scene,
+    scene: Scene,
     *,
     method: str | None = None,
     k: int = 3,
     min_separation_s: float = MIN_SEPARATION_S,
-    **options,
+    **options: Any,
 ) -> PoseSelection:
     """The most informative pose of ``scene`` by a named selector, and the top-k runners-up.
 
@@ -339,14 +355,14 @@ def _runner(method: str, allowed):
 
 
 def run_pose_method(
-    scene,
+    scene: Scene,
     method: str,
     *,
     k: int = 3,
     min_separation_s: float = MIN_SEPARATION_S,
-    story=None,
+    story: StoryParams | None = None,
     seed: int = 0,
-):
+) -> PoseSelection:
     """Run the named selector (see the module docstring).
 
     Parameters

@@ -26,9 +26,12 @@ camera; frames are internal indices (``scene.source_frame`` converts for output)
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from snapcore.errors import SnapshotError
 from snapcore.motion.facing import choose_side, scene_facing
@@ -45,6 +48,9 @@ from snapcore.select.sphere import (
     sphere_search,
 )
 from snapcore.select.view_methods import ViewMethod
+
+if TYPE_CHECKING:
+    from snapcore.motion.scene import Character, Scene
 
 __all__ = [
     "view_angles_deg",
@@ -204,7 +210,7 @@ class MotionTriangles:
         return self._cache[weighting][1]
 
 
-def _check_weighting(weighting):
+def _check_weighting(weighting: str) -> None:
     if weighting not in WEIGHTINGS:
         raise ViewError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
 
@@ -228,12 +234,14 @@ def _weighting_of(method: str) -> str:
     return str(method)
 
 
-def _motion_sources(source, links):
+def _motion_sources(
+    source: Scene | Character | np.ndarray | Sequence, links: np.ndarray | None
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """[(positions (F, J, 3), links (L, 2))] from a Scene, Character, array or list."""
     if hasattr(source, "characters"):
         return [(c.positions, c.skeleton.links) for c in source.characters]
     if hasattr(source, "skeleton"):
-        return [(source.positions, source.skeleton.links)]
+        return [(source.positions, source.skeleton.links)]  # type: ignore[union-attr]
     if isinstance(source, np.ndarray):
         if links is None:
             raise ViewError("links (L, 2) are required with a positions array")
@@ -246,7 +254,11 @@ def _motion_sources(source, links):
 
 
 def motion_triangles(
-    source, links=None, *, frames=None, floor: float = MA_FLOOR_M2
+    source: Scene | Character | np.ndarray | Sequence,
+    links: np.ndarray | None = None,
+    *,
+    frames: tuple[int, int] | None = None,
+    floor: float = MA_FLOOR_M2,
 ) -> MotionTriangles:
     """Triangles swept by every link between consecutive frames (all characters).
 
@@ -307,7 +319,14 @@ def motion_triangles(
     )
 
 
-def _swept_block(x, links, floor, b_pma, n_pma, quads):
+def _swept_block(
+    x: np.ndarray,
+    links: np.ndarray,
+    floor: float,
+    b_pma: np.ndarray,
+    n_pma: np.ndarray,
+    quads: np.ndarray,
+) -> None:
     """Fill one character's PMA vectors (3, K), their norms (K,) and quad areas (K/2,).
 
     Works on chunks of :data:`CHUNK` triangles so temporaries stay in cache (large
@@ -345,7 +364,7 @@ def _swept_block(x, links, floor, b_pma, n_pma, quads):
         np.multiply(nc, w, out=pn3[:, s0:s1])
 
 
-def _cross_into(u, w, out):
+def _cross_into(u: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:
     tmp = np.empty_like(out[0])
     for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
         np.multiply(u[j], w[k], out=out[i])
@@ -356,7 +375,7 @@ def _cross_into(u, w, out):
 # -------------------------------------------------------------------- exact scores
 
 
-def _as_views(views) -> np.ndarray:
+def _as_views(views: ArrayLike) -> np.ndarray:
     v = np.asarray(views, dtype=float)
     if v.ndim == 1:
         v = v[None]
@@ -368,7 +387,9 @@ def _as_views(views) -> np.ndarray:
 
 
 @one_blas_thread
-def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> np.ndarray:
+def pma_scores(
+    views: ArrayLike, triangles: MotionTriangles, *, weighting: str = "pma"
+) -> np.ndarray:
     """Exact score of every view: ``Σ_k |b_k · v|``.
 
     Parameters
@@ -395,7 +416,11 @@ def pma_scores(views, triangles: MotionTriangles, *, weighting: str = "pma") -> 
 
 @one_blas_thread
 def refine_view(
-    view, triangles: MotionTriangles, *, weighting: str = "pma", max_iter: int = REFINE_MAX_ITER
+    view: ArrayLike,
+    triangles: MotionTriangles,
+    *,
+    weighting: str = "pma",
+    max_iter: int = REFINE_MAX_ITER,
 ) -> RefineResult:
     """Climb from ``view`` to a local maximum of ``Σ_k |b_k · v|``.
 
@@ -522,7 +547,9 @@ class ViewSelection:
         }
 
 
-def window_frames(scene, index=None, window_s=None) -> tuple[int, int]:
+def window_frames(
+    scene: Scene, index: int | None = None, window_s: float | None = None
+) -> tuple[int, int]:
     """Internal ``(start, stop)`` indices of the whole sequence or of ``index ± window_s``.
 
     Parameters
@@ -551,10 +578,10 @@ def window_frames(scene, index=None, window_s=None) -> tuple[int, int]:
 
 @one_blas_thread
 def select_view(
-    scene,
+    scene: Scene,
     *,
-    index=None,
-    window_s=None,
+    index: int | None = None,
+    window_s: float | None = None,
     method: str = "pma",
     n_views: int = 2562,
     refine: bool = True,
@@ -621,7 +648,7 @@ def select_view(
     facing = scene_facing(scene, frames=frames)
     views = view_sphere(n_views)
     n = views.shape[0]
-    base = dict(
+    base: dict[str, Any] = dict(
         method=method,
         views=np.array(views),
         frames=frames,
