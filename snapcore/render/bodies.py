@@ -227,24 +227,33 @@ class MixedSceneBody(SceneBody):
         self._check(frame)
         if sum(getattr(b, "kind", None) == "human" for b in self.characters) < 2:
             return super().vertices(frame)
-        key = np.asarray(frame)
-        if key.ndim > 0:
-            return np.stack([self.vertices(int(f)) for f in key])
-        memo = getattr(self, "_memo", None)
-        if memo is not None and memo[0] == int(key):
-            return memo[1]
         from snapcore.render.contacts import resolve_contacts
 
+        key = np.asarray(frame)
+        memo = getattr(self, "_memo", None)
+        if key.ndim == 0 and memo is not None and memo[0] == int(key):
+            return memo[1]
+        # many frames are posed together (as the bodies pose them), then resolved one
+        # by one: asking frame by frame would skin a block of frames for each
+        verts = [np.asarray(b.vertices(key)) for b in self.characters]
+        norms = [np.asarray(b.normals(key)) for b in self.characters]
         ys, ns = zip(*self._yielding())
-        v = resolve_contacts(
-            [b.vertices(int(key)) for b in self.characters],
-            [b.normals(int(key)) for b in self.characters],
-            list(ys),
-            list(ns),
+        if key.ndim == 0:
+            out = np.concatenate(resolve_contacts(verts, norms, list(ys), list(ns)), axis=-2)
+            out = out.astype(verts[0].dtype)
+            self._memo = (int(key), out)
+            return out
+        return np.stack(
+            [
+                np.concatenate(
+                    resolve_contacts(
+                        [v[k] for v in verts], [n[k] for n in norms], list(ys), list(ns)
+                    ),
+                    axis=-2,
+                ).astype(verts[0].dtype)
+                for k in range(len(key))
+            ]
         )
-        out = np.concatenate(v, axis=-2).astype(self.characters[0].vertices(int(key)).dtype)
-        self._memo = (int(key), out)
-        return out
 
 
 def _bodies_of(scene) -> dict:

@@ -1,9 +1,10 @@
 """Shoulders that round over when the arms hang: the MakeHuman rig's skin weights and a
 pose-driven drop of the top of the shoulder.
 
-The rig is in an A-pose, its upper arms 48° out from the trunk. Two things made the
-shoulder of a hanging arm a box with a corner on top (issue 40: CMU 01_01 frame 197
-and every other family, in a front view):
+The rig is in an A-pose, its upper arms 48° below the horizontal (42° out from the
+trunk's pelvis → neck line). Two things made the shoulder of a hanging arm a box with
+a corner on top (issue 40: CMU 01_01 frame 197 and every other family, in a front
+view):
 
 - **Weights.** The top of the shoulder, up to 7 cm above the shoulder joint and 8 cm
   in towards the neck, is skinned 30-80% to the upper arm. When the arm turns down
@@ -160,7 +161,7 @@ def shoulder_masks(asset, points: np.ndarray, weights) -> np.ndarray:
 
 def rig_elevation(asset) -> float:
     """The rig's upper arms' angle from the trunk's down direction (pelvis → neck
-    reversed), degrees, both sides' mean (48° for the MakeHuman A-pose)."""
+    reversed), degrees, both sides' mean (42° for the MakeHuman A-pose)."""
     down = asset.heads[asset.bone("Hips")] - asset.heads[asset.bone("Neck")]
     down = down / np.linalg.norm(down)
     return float(
