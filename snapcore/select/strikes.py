@@ -69,8 +69,7 @@ def strike_frames(speed: np.ndarray, *, threshold: float) -> list[np.ndarray]:
     """
     v = np.asarray(speed, dtype=float)
     return [
-        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold)
-        for e in range(v.shape[1])
+        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold) for e in range(v.shape[1])
     ]
 
 
