@@ -229,7 +229,7 @@ def _font(px: int) -> Any:
     return ImageFont.load_default(size=max(int(px), 8))
 
 
-def _wrap(text: str, font, width: int) -> list[str]:
+def _wrap(text: str, font: Any, width: int) -> list[str]:
     """``text`` broken into lines no wider than ``width`` pixels in ``font``: at
     spaces, and inside a word only where the word alone is wider."""
     lines: list[str] = []

@@ -555,7 +555,7 @@ class SceneRenderer:
         return self._background
 
 
-def scene_index(scene, frame, what: str = "frame") -> int:
+def scene_index(scene: Scene, frame: int, what: str = "frame") -> int:
     """The internal index of source frame ``frame``, or a :class:`RenderError` naming the
     source frames the scene keeps.
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +41,9 @@ from snapcore.select.story import DEFAULT_STORY, StoryInformation, StoryParams, 
 
 if TYPE_CHECKING:
     from snapcore.motion.scene import Character, Scene
+
+    #: A pose method's runner: ``(scene, *, k, min_separation_s, story, seed)``.
+    Runner = Callable[..., PoseSelection]
 
 __all__ = [
     "POSE_METHODS",
@@ -347,7 +350,7 @@ def select_pose(
     )
 
 
-def _runner(method: str, allowed):
+def _runner(method: str, allowed: Sequence[str]) -> Runner:
     """The function that runs ``method`` (``_RUNNERS``), checked against ``allowed``."""
     if method not in allowed:
         raise SelectionError(f"method must be one of {', '.join(allowed)}, got {method!r}")
@@ -388,7 +391,14 @@ def run_pose_method(
     )
 
 
-def _story(scene, *, k, min_separation_s, story=None, seed=0):
+def _story(
+    scene: Scene,
+    *,
+    k: int,
+    min_separation_s: float,
+    story: StoryParams | None = None,
+    seed: int = 0,
+) -> PoseSelection:
     t0 = time.perf_counter()
     params = DEFAULT_STORY if story is None else story
     info = story_information(scene, params)
@@ -418,10 +428,17 @@ def _story(scene, *, k, min_separation_s, story=None, seed=0):
     )
 
 
-def _scored(method: str, score, term: str, unit: str):
+def _scored(method: str, score: Callable[[Scene], np.ndarray], term: str, unit: str) -> Runner:
     """A runner that takes the top peaks of a per-frame score (``stretch``, ``fastest``)."""
 
-    def run(scene, *, k, min_separation_s, story=None, seed=0):
+    def run(
+        scene: Scene,
+        *,
+        k: int,
+        min_separation_s: float,
+        story: StoryParams | None = None,
+        seed: int = 0,
+    ) -> PoseSelection:
         t0 = time.perf_counter()
         raw = score(scene)
         if not float(raw.max()) > float(raw.min()):
@@ -436,11 +453,18 @@ def _scored(method: str, score, term: str, unit: str):
     return run
 
 
-def _picked(method: str, pick):
+def _picked(method: str, pick: Callable[[Scene, int, int, int], Sequence[int]]) -> Runner:
     """A runner whose frames are picked, not scored (``middle``, ``random``, ``salient``):
     its score is the rank, 1 for the first pick down to 0.5 for the last."""
 
-    def run(scene, *, k, min_separation_s, story=None, seed=0):
+    def run(
+        scene: Scene,
+        *,
+        k: int,
+        min_separation_s: float,
+        story: StoryParams | None = None,
+        seed: int = 0,
+    ) -> PoseSelection:
         t0 = time.perf_counter()
         frames = pick(scene, int(k), seed, _separation(scene, min_separation_s))
         score = np.zeros(scene.n_frames)
@@ -450,12 +474,21 @@ def _picked(method: str, pick):
     return run
 
 
-def _separation(scene, min_separation_s: float) -> int:
+def _separation(scene: Scene, min_separation_s: float) -> int:
     """The minimum separation in frames."""
     return int(round(min_separation_s * float(scene.fps)))
 
 
-def _ranked(scene, method, frames, terms, unit, k, sep_s, t0):
+def _ranked(
+    scene: Scene,
+    method: str,
+    frames: Sequence[int] | np.ndarray,
+    terms: dict[str, np.ndarray],
+    unit: str,
+    k: int,
+    sep_s: float,
+    t0: float,
+) -> PoseSelection:
     t1 = time.perf_counter()
     return _selection(
         scene,
