@@ -358,7 +358,14 @@ def test_on_a_phone_the_grid_has_two_columns_and_the_header_scrolls_away(page, g
         day1 = '#tree .node[data-folder="studio/day1"]'
         assert not pg.is_visible(day1)
         pg.click('#tree .node[data-folder="studio"] .label')
-        assert pg.is_visible(day1)
+        # the tree opens in the page's click handler: wait for it (on a loaded machine
+        # the check ran before the handler had)
+        pg.wait_for_selector(day1, state="visible", timeout=10_000)
+        pg.wait_for_function(
+            "() => [...document.querySelectorAll('.card')].map(c => c.dataset.path).join()"
+            " === 'studio/day1/take.bvh'",
+            timeout=10_000,
+        )
         assert shown(pg) == ["studio/day1/take.bvh"]
     finally:
         pg.close()
