@@ -144,15 +144,24 @@ def euler_to_quat(order: str, angles: np.ndarray) -> np.ndarray:
         Radians, in ``order`` order.
     """
     angles = np.asarray(angles, dtype=float)
-    q = np.zeros(angles.shape[:-1] + (4,))
-    q[..., 0] = 1.0  # the identity, composed with each axis's rotation in turn
+    shape = angles.shape[:-1]
+    zero = np.zeros(shape)
+    # the identity, composed with each axis's rotation in turn: quat_mul(q, e) term by
+    # term on separate component arrays (no moveaxis and stack per axis), zero terms
+    # included so that every sum, the sign of a zero too, is the one quat_mul gives
+    qw, qx, qy, qz = np.ones(shape), zero, zero, zero
     for k, axis in enumerate(order):
         half = 0.5 * angles[..., k]
-        e = np.zeros(angles.shape[:-1] + (4,))
-        e[..., 0] = np.cos(half)
-        e[..., 1 + _AXIS[axis]] = np.sin(half)
-        q = quat_mul(q, e)
-    return q
+        e = [np.cos(half), zero, zero, zero]
+        e[1 + _AXIS[axis]] = np.sin(half)
+        bw, bx, by, bz = e
+        qw, qx, qy, qz = (
+            qw * bw - qx * bx - qy * by - qz * bz,
+            qw * bx + qx * bw + qy * bz - qz * by,
+            qw * by - qx * bz + qy * bw + qz * bx,
+            qw * bz + qx * by - qy * bx + qz * bw,
+        )
+    return np.stack([qw, qx, qy, qz], axis=-1)
 
 
 def euler_to_matrix(order: str, angles: np.ndarray) -> np.ndarray:
