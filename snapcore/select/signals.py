@@ -223,9 +223,9 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     rows = st.reshape(-1, st.shape[-1]) if st.ndim else st.reshape(1, 1)
     n = rows.shape[1]
     width = n + 1
-    b = np.zeros((rows.shape[0], width), dtype=bool)
-    b[:, :n] = rows
-    b = b.reshape(-1)
+    padded = np.zeros((rows.shape[0], width), dtype=bool)
+    padded[:, :n] = rows
+    b = padded.reshape(-1)  # a view: the rows end to end
     s, e = true_runs(~b)
     # interior: the gap starts after its row's first frame and ends before its last
     short = (e - s < min_off) & (s % width > 0) & (e - (s // width) * width < n)
@@ -233,4 +233,4 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     s, e = true_runs(b)
     short = e - s < min_on
     _set_runs(b, s[short], e[short], False)
-    return b.reshape(-1, width)[:, :n].reshape(st.shape).copy()
+    return padded[:, :n].reshape(st.shape).copy()

@@ -390,8 +390,8 @@ def _limb_groups_of(roles: tuple, sides: tuple) -> tuple[tuple[str, ...], tuple[
     order = ["legL", "legR", "armL", "armR", "trunk"]
     names = tuple(n for n in order if n in groups)
     joints = tuple(np.asarray(groups[n], dtype=np.int64) for n in names)
-    for j in joints:
-        j.flags.writeable = False
+    for js in joints:
+        js.flags.writeable = False
     return names, joints
 
 
