@@ -52,6 +52,28 @@ def test_min_durations_close_gaps_then_drop_short_contacts():
     assert out.tolist() == [False] + [True] * 7 + [False] * 8
 
 
+def test_min_durations_rows_are_independent():
+    """Rows of a (L, F) state are debounced each on its own: a gap at the end of one
+    row and one at the start of the next touch clip edges (kept, not one interior gap),
+    and a contact running into the next row's start is two contacts."""
+    rows = np.array(
+        [
+            [1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1, 0],  # a 3-frame gap stays; the edge gap too
+            [0, 1, 1, 1, 0, 0, 1, 1, 1, 1, 1, 1],  # the edge gap stays; a 2-frame gap closes
+            [1, 1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0],  # the 2-frame contact at the start goes
+        ],
+        dtype=bool,
+    )
+    out = enforce_min_durations(rows, min_on=3, min_off=3)
+    assert out.astype(int).tolist() == [
+        [1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1, 0],
+        [0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1],
+        [0, 0, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0],
+    ]
+    for row, want in zip(rows, out):  # the same as one row at a time
+        np.testing.assert_array_equal(enforce_min_durations(row, 3, 3), want)
+
+
 def test_event_surprisal_known_answer():
     """One release in F frames carries log2(F) bits, credited from the release on (the
     free phase), nothing before; an onset credits the frames before it."""

@@ -14,6 +14,8 @@ under rotating the scene about the vertical axis; see its docstring for the deta
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from snapcore.motion.anatomy import left_right_pairs
@@ -68,7 +70,7 @@ def character_facing(positions, names, parents) -> np.ndarray:
     """
     x = np.asarray(positions, dtype=float)
     total = np.zeros((x.shape[0], 3))
-    for pair in left_right_pairs(names, parents).values():
+    for pair in _left_right(tuple(names), tuple(np.asarray(parents).tolist())):
         if pair is None:
             continue
         left, right = pair
@@ -82,6 +84,14 @@ def character_facing(positions, names, parents) -> np.ndarray:
     total[ok] /= n[ok]
     total[~ok] = 0.0
     return total
+
+
+@lru_cache(maxsize=64)
+def _left_right(names: tuple, parents: tuple) -> tuple:
+    """The values of :func:`left_right_pairs`, once per skeleton: it reads every joint
+    name with regular expressions (about 1 ms for the salsa pair's 2 x 57 joints, at
+    every call of :func:`scene_facing`)."""
+    return tuple(left_right_pairs(names, np.asarray(parents, dtype=int)).values())
 
 
 def scene_facing(scene, *, frames=None) -> np.ndarray:

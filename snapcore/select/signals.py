@@ -1,6 +1,9 @@
 """Signal helpers the pose selectors share: trajectory smoothing, min-max scaling and
 the (half-)Gaussian that spreads an event's information over time.
 
+:func:`hysteresis` and :func:`enforce_min_durations` debounce the story selector's
+contact signals (:mod:`snapcore.select.story`).
+
 Joint trajectories are smoothed with a Savitzky-Golay filter before anything
 differentiates them (mocap jitter at 60-120 fps would otherwise dominate speeds and
 curvatures); every selector (``paper``, ``story``, the stance model and the baselines)
@@ -29,6 +32,9 @@ __all__ = [
     "minmax",
     "half_gaussian",
     "find_peaks",
+    "hysteresis",
+    "true_runs",
+    "enforce_min_durations",
 ]
 
 #: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
@@ -186,3 +192,93 @@ def find_peaks(x: np.ndarray, *, height: float, prominence: float) -> np.ndarray
         hi = p + 1 + stop_r[0] if len(stop_r) else n
         keep[i] = prominence <= top - max(x[lo : p + 1].min(), x[p:hi].min())
     return peaks[keep].astype(np.intp)
+
+
+def hysteresis(score: np.ndarray, on: float, off: float) -> np.ndarray:
+    """Two-threshold switch along the first axis.
+
+    Parameters
+    ----------
+    score : ndarray of shape (F, ...)
+        Low means "in contact".
+    on, off : float
+        The state switches on where ``score <= on`` and off where ``score > off``
+        (``off >= on``); in between it keeps its previous value. It starts off.
+
+    Returns
+    -------
+    ndarray of bool, the shape of ``score``
+
+    Notes
+    -----
+    Vectorised: the state at frame i is the one set by the last frame ``<= i`` where
+    the score was outside the band, found with a running maximum of indices.
+    """
+    s = np.asarray(score, dtype=float)
+    n = s.shape[0]
+    decided = (s <= on) | (s > off)
+    idx = np.where(decided, np.arange(n).reshape((n,) + (1,) * (s.ndim - 1)), -1)
+    last = np.maximum.accumulate(idx, axis=0)
+    val = np.take_along_axis(s <= on, np.maximum(last, 0), axis=0)
+    return val & (last >= 0)
+
+
+def true_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops (exclusive) of the True runs of a 1-D bool array."""
+    padded = np.zeros(b.size + 2, dtype=np.int8)  # False at both ends: every run closes
+    padded[1:-1] = b
+    d = padded[1:] - padded[:-1]
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def _set_runs(b: np.ndarray, starts, stops, value: bool) -> None:
+    """``b[s:e] = value`` for every run (disjoint runs), without a Python loop over them."""
+    if starts.size == 0:
+        return
+    # +1 at each start, -1 at each stop: the running sum is 1 inside a run, 0 outside
+    edge = np.zeros(b.size + 1, dtype=np.int8)
+    edge[starts] = 1
+    edge[stops] -= 1
+    b[np.cumsum(edge[:-1], dtype=np.int8).view(bool)] = value
+
+
+def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.ndarray:
+    """Close short gaps, then drop short contacts, of contact signals.
+
+    Parameters
+    ----------
+    state : ndarray of bool, shape (F,) or (L, F)
+        One signal, or one per row (each row on its own).
+    min_on, min_off : int
+        Minimum contact and gap lengths (frames).
+
+    Returns
+    -------
+    ndarray of bool, the shape of ``state``
+        Gaps inside the clip shorter than ``min_off`` are filled (a gap touching a clip
+        edge is left: what lies beyond is unknown); then contacts shorter than
+        ``min_on`` are removed. Afterwards no contact is shorter than ``min_on`` and no
+        interior gap shorter than ``min_off`` unless removing a short contact opened
+        it next to a clip edge.
+
+    Notes
+    -----
+    All rows at once: they are laid end to end with one free frame after each, so that
+    no contact runs from one row into the next, and a gap that reaches that frame
+    touches its row's end.
+    """
+    st = np.asarray(state, dtype=bool)
+    rows = st.reshape(-1, st.shape[-1]) if st.ndim else st.reshape(1, 1)
+    n = rows.shape[1]
+    width = n + 1
+    padded = np.zeros((rows.shape[0], width), dtype=bool)
+    padded[:, :n] = rows
+    b = padded.reshape(-1)  # a view: the rows end to end
+    s, e = true_runs(~b)
+    # interior: the gap starts after its row's first frame and ends before its last
+    short = (e - s < min_off) & (s % width > 0) & (e - (s // width) * width < n)
+    _set_runs(b, s[short], e[short], True)
+    s, e = true_runs(b)
+    short = e - s < min_on
+    _set_runs(b, s[short], e[short], False)
+    return padded[:, :n].reshape(st.shape).copy()
