@@ -29,13 +29,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from snapcore.errors import SceneError, SelectionError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.select.capsules import BODY_BLOCK_S, body_near, bone_radii, segment_distance
+from snapcore.select.signals import merge_adjacent
 
 if TYPE_CHECKING:
     from snapcore.motion.scene import Character, Scene
@@ -263,7 +264,13 @@ def prop_distance(points: np.ndarray, prop: dict) -> np.ndarray:
 # ----------------------------------------------------------------------- the scan
 
 
-def scan_interactions(near: np.ndarray, displacement, *, min_frames: int, tolerance: float):
+def scan_interactions(
+    near: np.ndarray,
+    displacement: _StaticDisplacement | _BodyDisplacement,
+    *,
+    min_frames: int,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Interactions of every joint with one object: the seed-and-propagate rule.
 
     Parameters
@@ -418,7 +425,7 @@ class _Distances:
     the displacement itself. Otherwise every distance asks the displacement.
     """
 
-    def __init__(self, displacements, sizes, prob, joint, frame):
+    def __init__(self, displacements: list, sizes: list, prob: Any, joint: Any, frame: Any) -> None:
         self.displacements, self.prob, self.joint, self.frame = displacements, prob, joint, frame
         self.offsets = np.cumsum([0] + list(sizes))
         self.rel = self.ref = None
@@ -499,7 +506,7 @@ class _Distances:
             ok &= w
         return ok
 
-    def band_ends(self, starts, stops, m: int, band: int, tol: float) -> np.ndarray:
+    def band_ends(self, starts: Any, stops: Any, m: int, band: int, tol: float) -> np.ndarray:
         """Where an interaction starting at each entry of some runs would end.
 
         For every entry ``i`` of ``starts[r] .. stops[r] - 1`` of each run r (runs
@@ -644,28 +651,6 @@ class _BodyDisplacement:
 # ----------------------------------------------------------------------- public
 
 
-def merge_adjacent(joints, starts, ends):
-    """Join interactions of one joint that follow each other without a free frame.
-
-    When an interaction ends because the relative position drifted beyond the
-    tolerance and a new one starts on the very next frame, the joint never left the
-    object: the contact slid and re-anchored (a landing foot settling, a pivot). The
-    interaction *state* is continuous, so its onset and release are those of the
-    union. Inputs sorted by joint, then start (as :func:`scan_interactions` returns).
-
-    Returns
-    -------
-    joints, starts, ends, first : ndarray of int
-        The merged interactions and, for each, the index of its first input piece.
-    """
-    if joints.size == 0:
-        return joints, starts, ends, np.zeros(0, dtype=np.int64)
-    new = np.r_[True, (joints[1:] != joints[:-1]) | (starts[1:] != ends[:-1] + 1)]
-    first = np.flatnonzero(new)
-    last = np.r_[first[1:] - 1, joints.size - 1]
-    return joints[first], starts[first], ends[last], first
-
-
 def detect_interactions(
     scene: Scene,
     *,
@@ -788,7 +773,7 @@ def detect_interactions(
     return Interactions(events, active, objects, n_f, float(scene.fps), tol, timings)
 
 
-def _event(character: int, joint: int, obj: str, start: int, end: int, part) -> Event:
+def _event(character: int, joint: int, obj: str, start: int, end: int, part: str | None) -> Event:
     """``Event(character, joint, obj, start, end, part)`` without the frozen dataclass's
     per-field ``object.__setattr__`` (a third of the time for the hundreds of events of
     a long clip); the object is the same."""

@@ -35,6 +35,7 @@ __all__ = [
     "hysteresis",
     "true_runs",
     "enforce_min_durations",
+    "merge_adjacent",
 ]
 
 #: Savitzky-Golay window (s) for smoothing joint trajectories before the curvature:
@@ -231,7 +232,7 @@ def true_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
-def _set_runs(b: np.ndarray, starts, stops, value: bool) -> None:
+def _set_runs(b: np.ndarray, starts: np.ndarray, stops: np.ndarray, value: bool) -> None:
     """``b[s:e] = value`` for every run (disjoint runs), without a Python loop over them."""
     if starts.size == 0:
         return
@@ -282,3 +283,27 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     short = e - s < min_on
     _set_runs(b, s[short], e[short], False)
     return padded[:, :n].reshape(st.shape).copy()
+
+
+def merge_adjacent(
+    joints: np.ndarray, starts: np.ndarray, ends: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Join interactions of one joint that follow each other without a free frame.
+
+    When an interaction ends because the relative position drifted beyond the
+    tolerance and a new one starts on the very next frame, the joint never left the
+    object: the contact slid and re-anchored (a landing foot settling, a pivot). The
+    interaction *state* is continuous, so its onset and release are those of the
+    union. Inputs sorted by joint, then start (as :func:`snapcore.select.contacts.scan_interactions` returns).
+
+    Returns
+    -------
+    joints, starts, ends, first : ndarray of int
+        The merged interactions and, for each, the index of its first input piece.
+    """
+    if joints.size == 0:
+        return joints, starts, ends, np.zeros(0, dtype=np.int64)
+    new = np.r_[True, (joints[1:] != joints[:-1]) | (starts[1:] != ends[:-1] + 1)]
+    first = np.flatnonzero(new)
+    last = np.r_[first[1:] - 1, joints.size - 1]
+    return joints[first], starts[first], ends[last], first
