@@ -721,3 +721,20 @@ def test_select_view_takes_its_own_view_vocabulary():
     assert area.method == "motion_area"
     with pytest.raises(ViewError, match="select_view_entropy"):
         select_view(scene, method=ViewMethod.VIEWPOINT_ENTROPY)
+
+
+def test_stored_icosphere_vertices_are_trimesh_s_bit_for_bit():
+    """The sphere's icosphere points come from a stored file (no trimesh import at
+    start-up): each stored level must equal trimesh's icosphere exactly, in order."""
+    import trimesh
+
+    from snapcore.select.sphere import _ICOSPHERE_FILE, _icosphere_vertices
+
+    with np.load(_ICOSPHERE_FILE) as stored:
+        levels = sorted(int(k.rsplit("_", 1)[1]) for k in stored.files)
+    assert levels == [0, 1, 2, 3, 4]
+    for k in [*levels, 5]:  # 5: not stored, built by trimesh
+        expected = np.asarray(trimesh.creation.icosphere(subdivisions=k).vertices)
+        got = _icosphere_vertices(k)
+        assert got.dtype == np.float64 and got.shape == (10 * 4**k + 2, 3)
+        assert np.array_equal(got, expected)

@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 from typing import ParamSpec, TypeVar
 
 import numpy as np
@@ -99,17 +100,33 @@ def one_blas_thread(func: Callable[_P, _R]) -> Callable[_P, _R]:
 # ----------------------------------------------------------------------- sphere
 
 
+#: trimesh's icosphere vertices for 0..4 subdivisions (12..2562 points), stored bit for
+#: bit (tests/test_sphere_views.py compares them with trimesh): importing trimesh costs
+#: ~0.6 s (networkx, scipy.spatial), which ``snapshot select`` paid for this sphere alone.
+_ICOSPHERE_FILE = Path(__file__).with_name("icosphere_vertices.npz")
+
+
+def _icosphere_vertices(subdivisions: int) -> np.ndarray:
+    """Vertices (n, 3) of ``trimesh.creation.icosphere(subdivisions)``, unit radius.
+
+    From :data:`_ICOSPHERE_FILE` up to 4 subdivisions, else from trimesh (imported only
+    then). Its vertices agree to 3e-16 with a hand-written subdivision of the same
+    icosahedron, but not bit for bit, and their order decides ties between views.
+    """
+    key = f"subdivisions_{int(subdivisions)}"
+    with np.load(_ICOSPHERE_FILE) as stored:
+        if key in stored.files:
+            return np.array(stored[key], dtype=np.float64)
+    import trimesh
+
+    return np.asarray(trimesh.creation.icosphere(subdivisions=int(subdivisions)).vertices)
+
+
 @lru_cache(maxsize=8)
 def _sphere(n: int) -> np.ndarray:
     """Unit views, shape (n, 3), read-only; rows n/2.. are the antipodes of rows ..n/2."""
     if n in ICOSPHERE_COUNTS:
-        # trimesh subdivides the same icosahedron (vertices agree to 3e-16 with the
-        # hand-written subdivision this replaced). Imported here: it costs about a second
-        # (networkx...), which every user of this module's view helpers (the analysis's
-        # near-duplicate check) paid without building a sphere.
-        import trimesh
-
-        v = np.asarray(trimesh.creation.icosphere(subdivisions=ICOSPHERE_COUNTS[n]).vertices)
+        v = _icosphere_vertices(ICOSPHERE_COUNTS[n])
         tol = 1e-9
         upper = (v[:, 1] > tol) | (
             (np.abs(v[:, 1]) <= tol)
