@@ -9,7 +9,8 @@ internals lives in this module, applied once in :func:`load_pyrender`:
 - a colour-only framebuffer read (pyrender always reads and linearises depth too);
 - EGL context deletion that leaves the process-wide display up (pyrender terminates
   it, which breaks every other thread's context);
-- cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names.
+- cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names;
+- no interactive viewer (:func:`_stub_viewer`: pyglet is not imported).
 
 Threads: an EGL context works only on the thread that created it, and a pyrender mesh
 stays bound to its first context. :func:`gl_renderer` keeps one renderer per thread;
@@ -41,6 +42,7 @@ def load_pyrender():
     if _PYRENDER is None:
         if not hasattr(np, "infty"):
             np.infty = np.inf  # noqa: NPY201 -- pyrender 0.1.45 uses np.infty, gone in NumPy 2
+        _stub_viewer()
         try:
             import pyrender
             import pyrender.renderer as prr
@@ -70,6 +72,28 @@ def load_pyrender():
         prr.Renderer._read_main_framebuffer = _read_colour_only(prr.Renderer._read_main_framebuffer)
         _PYRENDER = pyrender
     return _PYRENDER
+
+
+def _stub_viewer() -> None:
+    """Put a stand-in for ``pyrender.viewer`` in :data:`sys.modules` before pyrender loads.
+
+    pyrender's ``__init__`` imports its interactive viewer, which imports pyglet (its X11
+    window, GLX and tkinter bindings) and imageio: ~0.1-0.25 s of every ``snapshot
+    render``'s start-up, for a window this package never opens (it renders offscreen).
+    """
+    import sys
+    import types
+
+    if "pyrender.viewer" in sys.modules:
+        return
+    stub = types.ModuleType("pyrender.viewer", "Stand-in: snapcore renders offscreen only.")
+
+    class Viewer:
+        def __init__(self, *args, **kwargs):
+            raise RenderError("pyrender's interactive viewer is not loaded (offscreen only)")
+
+    stub.Viewer = Viewer  # type: ignore[attr-defined]
+    sys.modules["pyrender.viewer"] = stub
 
 
 # Shaders. pyrender's physically based shader costs ~1 µs per pixel on llvmpipe (a
