@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -681,3 +683,18 @@ def test_release_renderer_frees_the_bare_id_context():
     t.start()
     t.join()
     assert box == {**box, "registered": True, "released": True, "fresh": True, "same_ids": True}
+
+
+def test_pyrender_loads_without_its_interactive_viewer():
+    """load_pyrender gives a working pyrender without importing pyglet, tkinter or
+    imageio (its viewer's imports: start-up time of ``snapshot render``)."""
+    code = (
+        "import sys\n"
+        "from snapcore.render.gl import load_pyrender\n"
+        "pyrender = load_pyrender()\n"
+        "assert pyrender.OffscreenRenderer and pyrender.Scene and pyrender.Mesh\n"
+        "print([m for m in ('pyglet', 'tkinter', 'imageio') if m in sys.modules])\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "[]"
