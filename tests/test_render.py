@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -622,3 +624,77 @@ def test_body_pictures_name_a_gltf_characters_own_mesh(motions_dir):
     assert body_caption(synth_scene("walk"), "human") == "human body"
     assert body_caption(gltf, "makehuman") == "human body"
     assert body_caption(gltf, "mannequin") == "mannequin"
+
+
+def test_gl_matrices_equal_pyrender_s_bit_for_bit():
+    """The face-id pass computes its view and projection matrices without pyrender: they
+    must equal pyrender's (a scene node's pose, the camera's projection) exactly, or ids
+    at face edges would change."""
+    import pyrender
+
+    from snapcore.render.camera import Camera, gl_camera_pose, gl_projection, view_basis
+
+    rng = np.random.default_rng(7)
+    for i in range(400):
+        v = rng.normal(size=3)
+        if i % 10 == 0:  # near the poles, where view_basis switches its reference axis
+            v = np.array([0.0, rng.choice([-1.0, 1.0]), 0.0]) + rng.normal(size=3) * 1e-9
+        right, up, back = view_basis(v / np.linalg.norm(v))
+        size = (int(rng.integers(1, 2000)), int(rng.integers(1, 2000)))
+        cam = Camera(
+            rng.normal(size=3) * 5,
+            right,
+            up,
+            back,
+            size,
+            "orthographic" if i % 2 else "perspective",
+            half_height=float(rng.uniform(0.1, 5)),
+            yfov=float(rng.uniform(0.2, 2)),
+            znear=float(rng.uniform(0.01, 1)),
+            zfar=float(rng.uniform(2, 100)),
+        )
+        assert np.array_equal(gl_camera_pose(cam), pyrender.Node(matrix=cam.pose).matrix)
+        expected = cam.pyrender_camera().get_projection_matrix(width=size[0], height=size[1])
+        assert np.array_equal(gl_projection(cam), expected)
+
+
+def test_release_renderer_frees_the_bare_id_context():
+    """Without a pyrender renderer on the thread, the id pass runs in a bare EGL context;
+    release_renderer frees it and the next pass makes a new one that still draws."""
+    import threading
+
+    from snapcore.render import gl
+    from snapcore.render.buffers import render_face_ids
+
+    def work(box):
+        tri = (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+        a = render_face_ids(*tri, [[0.0, 0.0, 1.0]], resolution=16)
+        box["ctx"] = gl._THREAD.raw_context
+        box["registered"] = gl._RAW_CONTEXTS.get(threading.current_thread()) is box["ctx"]
+        gl.release_renderer()
+        box["released"] = getattr(gl._THREAD, "raw_context", None) is None
+        b = render_face_ids(*tri, [[0.0, 0.0, 1.0]], resolution=16)
+        box["fresh"] = gl._THREAD.raw_context is not box["ctx"]
+        box["same_ids"] = np.array_equal(a, b) and (np.asarray(a) == 1).any()
+        gl.release_renderer()
+
+    box: dict = {}
+    t = threading.Thread(target=work, args=(box,))  # a thread without a pyrender renderer
+    t.start()
+    t.join()
+    assert box == {**box, "registered": True, "released": True, "fresh": True, "same_ids": True}
+
+
+def test_pyrender_loads_without_its_interactive_viewer():
+    """load_pyrender gives a working pyrender without importing pyglet, tkinter or
+    imageio (its viewer's imports: start-up time of ``snapshot render``)."""
+    code = (
+        "import sys\n"
+        "from snapcore.render.gl import load_pyrender\n"
+        "pyrender = load_pyrender()\n"
+        "assert pyrender.OffscreenRenderer and pyrender.Scene and pyrender.Mesh\n"
+        "print([m for m in ('pyglet', 'tkinter', 'imageio') if m in sys.modules])\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "[]"

@@ -213,3 +213,48 @@ def test_bad_options_raise_value_errors(bad):
     scene = synth.synth_scene("idle", fps=30)
     with pytest.raises(ValueError, match=next(iter(bad)).split("_")[0]):
         take_snapshot(scene, pose=PoseParams(**bad), view=None)
+
+
+#: Modules ``snapshot select`` must not import: pyrender imports trimesh, networkx and
+#: PIL (~0.7 s of start-up); the face-id pass of the viewpoint-entropy baseline draws
+#: with raw GL in a bare EGL context, and the view sphere is stored.
+_NOT_FOR_SELECT = ("pyrender", "trimesh", "networkx", "PIL", "pandas", "matplotlib")
+
+
+def test_select_with_its_baselines_imports_no_pyrender_nor_trimesh(motions_dir, tmp_path):
+    """A whole ``snapshot select`` (both baseline views, so GL runs) in a fresh process,
+    then the modules it loaded: guards the start-up time against an eager import."""
+    clip = str(motions_dir / "walk_run" / "02_01.bvh")
+    out = tmp_path / "modules.json"
+    code = (
+        "import json, sys\n"
+        "from snapcore.cli.main import cli\n"
+        f"cli.main(['select', {clip!r}, '--json'], standalone_mode=False)\n"
+        f"heavy = [m for m in {_NOT_FOR_SELECT!r} if m in sys.modules]\n"
+        f"open({str(out)!r}, 'w').write(json.dumps(heavy))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    entropy = result["baselines"]["viewpoint_entropy"]
+    assert entropy["n_views"] > 0 and entropy["score"] > 0  # the GL pass did run
+    assert json.loads(out.read_text()) == []
+
+
+def test_help_imports_no_rendering_stack():
+    """``snapshot --help`` and ``snapshot select --help`` load no GL, mesh or plotting
+    module."""
+    heavy = (*_NOT_FOR_SELECT, "OpenGL", "scipy")
+    code = (
+        "import sys\n"
+        "from snapcore.cli.main import cli\n"
+        "for args in (['--help'], ['select', '--help'], ['render', '--help']):\n"
+        "    try:\n"
+        "        cli.main(args, standalone_mode=False)\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        f"print([m for m in {heavy!r} if m in sys.modules], file=sys.stderr)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1] == "[]"

@@ -721,3 +721,39 @@ def test_select_view_takes_its_own_view_vocabulary():
     assert area.method == "motion_area"
     with pytest.raises(ViewError, match="select_view_entropy"):
         select_view(scene, method=ViewMethod.VIEWPOINT_ENTROPY)
+
+
+def test_stored_icosphere_vertices_are_trimesh_s_bit_for_bit():
+    """The sphere's icosphere points come from a stored file (no trimesh import at
+    start-up): each stored level must equal trimesh's icosphere exactly, in order."""
+    import trimesh
+
+    from snapcore.select.sphere import _ICOSPHERE_FILE, _icosphere_vertices
+
+    with np.load(_ICOSPHERE_FILE) as stored:
+        levels = sorted(int(k.rsplit("_", 1)[1]) for k in stored.files if "subdiv" in k)
+    assert levels == [0, 1, 2, 3, 4]
+    for k in [*levels, 5]:  # 5: not stored, built by trimesh
+        expected = np.asarray(trimesh.creation.icosphere(subdivisions=k).vertices)
+        got = _icosphere_vertices(k)
+        assert got.dtype == np.float64 and got.shape == (10 * 4**k + 2, 3)
+        assert np.array_equal(got, expected)
+
+
+def test_stored_neighbours_are_the_computed_ones():
+    """Each view's 6 nearest views are stored for the icosphere counts: they must be
+    what the computation gives (same indices, same order), and be the nearest."""
+    from snapcore.select.sphere import _ICOSPHERE_FILE, _nearest_six, _neighbours, _sphere
+
+    with np.load(_ICOSPHERE_FILE) as stored:
+        counts = sorted(int(k.rsplit("_", 1)[1]) for k in stored.files if "neigh" in k)
+    assert counts == [12, 42, 162, 642, 2562]
+    for n in [*counts, 500]:  # 500: not an icosphere count, computed
+        got = _neighbours.__wrapped__(n)
+        assert got.shape == (n, 6) and np.array_equal(got, _nearest_six(n))
+        v = _sphere(n)
+        d = v @ v.T
+        np.fill_diagonal(d, -np.inf)
+        sixth = np.sort(d, axis=1)[:, -6]  # the 6th largest dot product of each view
+        assert np.all(d[np.arange(n)[:, None], got] >= sixth[:, None] - 1e-12)
+        assert np.all(got != np.arange(n)[:, None])

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapcore.errors import RenderError
-from snapcore.render.camera import Camera, view_basis
-from snapcore.render.gl import current_gl_context, load_pyrender
+from snapcore.render.camera import Camera, gl_camera_pose, gl_projection, view_basis
+from snapcore.render.gl import current_gl_context
 
 __all__ = ["DepthMap", "render_face_ids", "face_id_camera", "render_depth", "FACE_ID_RESOLUTION"]
 
@@ -113,11 +113,10 @@ def _view_projection(cam: Camera) -> tuple[np.ndarray, np.ndarray]:
     """World → camera and camera → clip matrices (float32) of ``cam``, computed as
     pyrender computes them for a render (the pose through a scene node, then inverted),
     so ids are the same, to the pixel, as the pyrender pass this replaced."""
-    pyrender = load_pyrender()
-    w, h = cam.size
-    pose = pyrender.Node(matrix=cam.pose).matrix
-    proj = cam.pyrender_camera().get_projection_matrix(width=w, height=h)
-    return np.linalg.inv(pose).astype(np.float32), proj.astype(np.float32)
+    return (
+        np.linalg.inv(gl_camera_pose(cam)).astype(np.float32),
+        gl_projection(cam).astype(np.float32),
+    )
 
 
 def _id_program(renderer):

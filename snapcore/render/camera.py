@@ -22,6 +22,8 @@ from snapcore.motion.facing import scene_facing
 from snapcore.render.gl import load_pyrender
 
 __all__ = [
+    "gl_camera_pose",
+    "gl_projection",
     "RenderError",
     "Camera",
     "view_basis",
@@ -155,6 +157,93 @@ class Camera:
         else:
             s = z * np.tan(self.yfov / 2)
         return np.stack([(x / (s * self.aspect) + 1) * w / 2, (1 - y / s) * h / 2], axis=-1)
+
+
+# The matrices a pyrender render of a Camera uses, computed here without importing
+# pyrender (it imports trimesh, networkx and scipy.spatial: ~0.7 s of start-up), for
+# passes that draw with raw GL (the face ids of :mod:`snapcore.render.buffers`). The
+# arithmetic is pyrender 0.1.45's and trimesh's operation for operation, so the
+# matrices are equal bit for bit (tests/test_render.py compares them).
+
+_QUAT_EPS = np.finfo(float).eps * 4.0  # trimesh.transformations._EPS
+
+
+def _quaternion_from_rotation(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a 3×3 rotation: trimesh's
+    ``quaternion_from_matrix`` (not ``isprecise``), the eigenvector of Bar-Itzhack's K."""
+    m00, m01, m02 = r[0, 0], r[0, 1], r[0, 2]
+    m10, m11, m12 = r[1, 0], r[1, 1], r[1, 2]
+    m20, m21, m22 = r[2, 0], r[2, 1], r[2, 2]
+    k = np.array(
+        [
+            [m00 - m11 - m22, 0.0, 0.0, 0.0],
+            [m01 + m10, m11 - m00 - m22, 0.0, 0.0],
+            [m02 + m20, m12 + m21, m22 - m00 - m11, 0.0],
+            [m21 - m12, m02 - m20, m10 - m01, m00 + m11 + m22],
+        ]
+    )
+    k /= 3.0
+    w, v = np.linalg.eigh(k)
+    q = v[[3, 0, 1, 2], np.argmax(w)]
+    if q[0] < 0.0:
+        np.negative(q, q)
+    return q
+
+
+def _rotation_from_quaternion(quaternion: np.ndarray) -> np.ndarray:
+    """3×3 rotation of a quaternion (w, x, y, z): trimesh's ``quaternion_matrix``."""
+    q = np.array(quaternion, dtype=np.float64).reshape((-1, 4))
+    n = np.dot(q * q, [1.0] * 4)
+    if n[0] < _QUAT_EPS:
+        return np.eye(3)
+    q *= np.sqrt(2.0 / n[:, None])
+    q = (q[:, None, :] * q[:, :, None])[0]
+    return np.array(
+        [
+            [1.0 - q[2, 2] - q[3, 3], q[1, 2] - q[3, 0], q[1, 3] + q[2, 0]],
+            [q[1, 2] + q[3, 0], 1.0 - q[1, 1] - q[3, 3], q[2, 3] - q[1, 0]],
+            [q[1, 3] - q[2, 0], q[2, 3] + q[1, 0], 1.0 - q[1, 1] - q[2, 2]],
+        ]
+    )
+
+
+def gl_camera_pose(cam: Camera) -> np.ndarray:
+    """The 4×4 camera-to-world matrix a pyrender scene node holding ``cam`` renders with:
+    :attr:`Camera.pose` decomposed into translation, quaternion and scale and composed
+    again (``pyrender.Node(matrix=cam.pose).matrix``), float64."""
+    m = cam.pose
+    u = m[:3, :3]
+    rotation = u / np.linalg.norm(u.T, axis=1)
+    q = _quaternion_from_rotation(rotation)
+    scale, translation = np.linalg.norm(m[:3, :3].T, axis=1), m[:3, 3]
+    s, r, t = np.eye(4), np.eye(4), np.eye(4)
+    s[:3, :3] = np.diag(scale)
+    r[:3, :3] = _rotation_from_quaternion(q)
+    t[:3, 3] = translation
+    return t.dot(r.dot(s))
+
+
+def gl_projection(cam: Camera) -> np.ndarray:
+    """The 4×4 OpenGL projection matrix pyrender uses for ``cam`` at its own size,
+    float64 (``cam.pyrender_camera().get_projection_matrix(*cam.size)``)."""
+    w, h = cam.size
+    n, f = float(cam.znear), float(cam.zfar)
+    p = np.zeros((4, 4))
+    if cam.projection == "orthographic":
+        ymag = float(cam.half_height)
+        p[0][0] = 1.0 / (w / h * ymag)
+        p[1][1] = 1.0 / ymag
+        p[2][2] = 2.0 / (n - f)
+        p[2][3] = (f + n) / (n - f)
+        p[3][3] = 1.0
+        return p
+    a, t = float(cam.aspect), np.tan(float(cam.yfov) / 2.0)
+    p[0][0] = 1.0 / (a * t)
+    p[1][1] = 1.0 / t
+    p[3][2] = -1.0
+    p[2][2] = (f + n) / (n - f)
+    p[2][3] = (2 * f * n) / (n - f)
+    return p
 
 
 def check_size(size) -> tuple[int, int]:

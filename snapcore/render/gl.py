@@ -9,7 +9,8 @@ internals lives in this module, applied once in :func:`load_pyrender`:
 - a colour-only framebuffer read (pyrender always reads and linearises depth too);
 - EGL context deletion that leaves the process-wide display up (pyrender terminates
   it, which breaks every other thread's context);
-- cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names.
+- cheaper shaders (:data:`_MESH_FRAG`) under pyrender's uniform names;
+- no interactive viewer (:func:`_stub_viewer`: pyglet is not imported).
 
 Threads: an EGL context works only on the thread that created it, and a pyrender mesh
 stays bound to its first context. :func:`gl_renderer` keeps one renderer per thread;
@@ -41,6 +42,7 @@ def load_pyrender():
     if _PYRENDER is None:
         if not hasattr(np, "infty"):
             np.infty = np.inf  # noqa: NPY201 -- pyrender 0.1.45 uses np.infty, gone in NumPy 2
+        _stub_viewer()
         try:
             import pyrender
             import pyrender.renderer as prr
@@ -70,6 +72,28 @@ def load_pyrender():
         prr.Renderer._read_main_framebuffer = _read_colour_only(prr.Renderer._read_main_framebuffer)
         _PYRENDER = pyrender
     return _PYRENDER
+
+
+def _stub_viewer() -> None:
+    """Put a stand-in for ``pyrender.viewer`` in :data:`sys.modules` before pyrender loads.
+
+    pyrender's ``__init__`` imports its interactive viewer, which imports pyglet (its X11
+    window, GLX and tkinter bindings) and imageio: ~0.1-0.25 s of every ``snapshot
+    render``'s start-up, for a window this package never opens (it renders offscreen).
+    """
+    import sys
+    import types
+
+    if "pyrender.viewer" in sys.modules:
+        return
+    stub = types.ModuleType("pyrender.viewer", "Stand-in: snapcore renders offscreen only.")
+
+    class Viewer:
+        def __init__(self, *args, **kwargs):
+            raise RenderError("pyrender's interactive viewer is not loaded (offscreen only)")
+
+    stub.Viewer = Viewer  # type: ignore[attr-defined]
+    sys.modules["pyrender.viewer"] = stub
 
 
 # Shaders. pyrender's physically based shader costs ~1 µs per pixel on llvmpipe (a
@@ -220,10 +244,20 @@ def _free(r) -> None:
 
 def _sweep_dead() -> None:
     with _RENDERERS_LOCK:
-        dead = [t for t in _RENDERERS if not t.is_alive()]
-        victims = [_RENDERERS.pop(t) for t in dead]
+        victims = [_RENDERERS.pop(t) for t in list(_RENDERERS) if not t.is_alive()]
+        raw = [_RAW_CONTEXTS.pop(t) for t in list(_RAW_CONTEXTS) if not t.is_alive()]
     for r in victims:
         _free(r)
+    for ctx in raw:
+        _free_raw(ctx)
+
+
+def _free_raw(ctx) -> None:
+    """Delete a bare context (its GL objects go with it; the display stays up)."""
+    try:
+        ctx.delete()
+    except Exception:  # a context that is already gone: nothing left to free
+        pass
 
 
 def gl_renderer(width: int, height: int):
@@ -255,10 +289,131 @@ def gl_renderer(width: int, height: int):
     return r
 
 
+class _EGLContext:
+    """A bare EGL context (OpenGL 4.1 core, no surface) for raw GL passes, made as
+    pyrender's ``EGLPlatform`` makes its own (same device, config and attributes) but
+    without importing pyrender. Deleting it leaves the display up (see the module
+    docstring)."""
+
+    def __init__(self) -> None:
+        import ctypes
+
+        from OpenGL import EGL as egl
+        from OpenGL import arrays
+
+        display = None
+        query = egl.eglGetProcAddress("eglQueryDevicesEXT")
+        get_display = egl.eglGetProcAddress("eglGetPlatformDisplayEXT")
+        if query is not None and get_display is not None:
+            # pyrender's default device: the first one the device extension lists
+            device_t = _opaque_pointer("EGLDeviceEXT")
+            query_devices = ctypes.CFUNCTYPE(egl.EGLBoolean)(query)
+            query_devices.argtypes = (egl.EGLint, ctypes.POINTER(device_t), ctypes.c_void_p)
+            count = egl.EGLint()
+            if query_devices(0, None, ctypes.byref(count)) and count.value > 0:
+                devices = (device_t * count.value)()
+                if query_devices(count.value, devices, ctypes.byref(count)) and count.value:
+                    platform_display = ctypes.CFUNCTYPE(egl.EGLDisplay)(get_display)
+                    display = platform_display(_EGL_PLATFORM_DEVICE_EXT, devices[0], None)
+        if display is None:
+            saved = os.environ.pop("DISPLAY", None)  # offscreen even under X, like pyrender
+            try:
+                display = egl.eglGetDisplay(egl.EGL_DEFAULT_DISPLAY)
+            finally:
+                if saved is not None:
+                    os.environ["DISPLAY"] = saved
+        config_attributes = arrays.GLintArray.asArray(
+            [
+                egl.EGL_SURFACE_TYPE, egl.EGL_PBUFFER_BIT,
+                egl.EGL_BLUE_SIZE, 8,
+                egl.EGL_RED_SIZE, 8,
+                egl.EGL_GREEN_SIZE, 8,
+                egl.EGL_DEPTH_SIZE, 24,
+                egl.EGL_COLOR_BUFFER_TYPE, egl.EGL_RGB_BUFFER,
+                egl.EGL_RENDERABLE_TYPE, egl.EGL_OPENGL_BIT,
+                egl.EGL_CONFORMANT, egl.EGL_OPENGL_BIT,
+                egl.EGL_NONE,
+            ]
+        )  # fmt: skip
+        context_attributes = arrays.GLintArray.asArray(
+            [
+                egl.EGL_CONTEXT_MAJOR_VERSION, 4,
+                egl.EGL_CONTEXT_MINOR_VERSION, 1,
+                egl.EGL_CONTEXT_OPENGL_PROFILE_MASK, egl.EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                egl.EGL_NONE,
+            ]
+        )  # fmt: skip
+        major, minor, n_configs = ctypes.c_long(), ctypes.c_long(), ctypes.c_long()
+        configs = (egl.EGLConfig * 1)()
+        if not egl.eglInitialize(display, major, minor):
+            raise RuntimeError("eglInitialize failed")
+        if not egl.eglChooseConfig(display, config_attributes, configs, 1, n_configs):
+            raise RuntimeError("eglChooseConfig found no RGB pbuffer config with depth")
+        if not egl.eglBindAPI(egl.EGL_OPENGL_API):
+            raise RuntimeError("eglBindAPI(EGL_OPENGL_API) failed")
+        context = egl.eglCreateContext(display, configs[0], egl.EGL_NO_CONTEXT, context_attributes)
+        if not context:
+            raise RuntimeError("eglCreateContext failed (OpenGL 4.1 core)")
+        self._display, self._context = display, context
+        self.make_current()
+
+    def make_current(self) -> None:
+        from OpenGL import EGL as egl
+
+        if not egl.eglMakeCurrent(
+            self._display, egl.EGL_NO_SURFACE, egl.EGL_NO_SURFACE, self._context
+        ):
+            raise RenderError("eglMakeCurrent failed")
+
+    def delete(self) -> None:
+        from OpenGL import EGL as egl
+
+        if self._context is not None:
+            egl.eglDestroyContext(self._display, self._context)
+        self._context = None
+
+
+_EGL_PLATFORM_DEVICE_EXT = 0x313F
+
+
+def _opaque_pointer(name: str):
+    from OpenGL._opaque import opaque_pointer_cls
+
+    return opaque_pointer_cls(name)
+
+
+#: Every thread's bare context (see :data:`_RENDERERS` for why they are held here).
+_RAW_CONTEXTS: dict = {}
+
+
 def current_gl_context(width: int, height: int):
-    """Make this thread's GL context current for raw GL calls (a pass that draws without
-    pyrender, e.g. the face ids of :mod:`snapcore.render.buffers`); return its renderer,
-    which identifies the context (objects compiled in it stay valid while it lives)."""
+    """Make a GL context of this thread current for raw GL calls (a pass that draws
+    without pyrender, e.g. the face ids of :mod:`snapcore.render.buffers`); return an
+    object that identifies the context (objects compiled in it stay valid while it lives).
+
+    The thread's pyrender renderer's context if it has one; else a bare EGL context
+    (:class:`_EGLContext`), so that a command that only draws face ids (``snapshot
+    select``'s viewpoint-entropy baseline) never imports pyrender and trimesh (~0.7 s).
+    Other GL platforms (``PYOPENGL_PLATFORM=osmesa``) use pyrender's context.
+    """
+    r = getattr(_THREAD, "renderer", None)
+    if r is None and os.environ.get("PYOPENGL_PLATFORM") == "egl":
+        ctx = getattr(_THREAD, "raw_context", None)
+        if ctx is None:
+            _sweep_dead()
+            try:
+                ctx = _EGLContext()
+            except Exception as err:
+                raise RenderError(
+                    f"cannot create an offscreen OpenGL context ({type(err).__name__}: {err});"
+                    " is Mesa EGL installed (apt-get install libegl1 libegl-mesa0"
+                    " libgl1-mesa-dri)?"
+                ) from err
+            _THREAD.raw_context = ctx
+            with _RENDERERS_LOCK:
+                _RAW_CONTEXTS[threading.current_thread()] = ctx
+        ctx.make_current()
+        return ctx
     r = gl_renderer(width, height)
     r._platform.make_current()
     return r
@@ -273,3 +428,9 @@ def release_renderer() -> None:
         with _RENDERERS_LOCK:
             _RENDERERS.pop(threading.current_thread(), None)
         _free(r)
+    ctx = getattr(_THREAD, "raw_context", None)
+    if ctx is not None:
+        _THREAD.raw_context = None
+        with _RENDERERS_LOCK:
+            _RAW_CONTEXTS.pop(threading.current_thread(), None)
+        _free_raw(ctx)

@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 from typing import ParamSpec, TypeVar
 
 import numpy as np
@@ -99,17 +100,33 @@ def one_blas_thread(func: Callable[_P, _R]) -> Callable[_P, _R]:
 # ----------------------------------------------------------------------- sphere
 
 
+#: trimesh's icosphere vertices for 0..4 subdivisions (12..2562 points), stored bit for
+#: bit (tests/test_sphere_views.py compares them with trimesh): importing trimesh costs
+#: ~0.6 s (networkx, scipy.spatial), which ``snapshot select`` paid for this sphere alone.
+_ICOSPHERE_FILE = Path(__file__).with_name("icosphere_vertices.npz")
+
+
+def _icosphere_vertices(subdivisions: int) -> np.ndarray:
+    """Vertices (n, 3) of ``trimesh.creation.icosphere(subdivisions)``, unit radius.
+
+    From :data:`_ICOSPHERE_FILE` up to 4 subdivisions, else from trimesh (imported only
+    then). Its vertices agree to 3e-16 with a hand-written subdivision of the same
+    icosahedron, but not bit for bit, and their order decides ties between views.
+    """
+    key = f"subdivisions_{int(subdivisions)}"
+    with np.load(_ICOSPHERE_FILE) as stored:
+        if key in stored.files:
+            return np.array(stored[key], dtype=np.float64)
+    import trimesh
+
+    return np.asarray(trimesh.creation.icosphere(subdivisions=int(subdivisions)).vertices)
+
+
 @lru_cache(maxsize=8)
 def _sphere(n: int) -> np.ndarray:
     """Unit views, shape (n, 3), read-only; rows n/2.. are the antipodes of rows ..n/2."""
     if n in ICOSPHERE_COUNTS:
-        # trimesh subdivides the same icosahedron (vertices agree to 3e-16 with the
-        # hand-written subdivision this replaced). Imported here: it costs about a second
-        # (networkx...), which every user of this module's view helpers (the analysis's
-        # near-duplicate check) paid without building a sphere.
-        import trimesh
-
-        v = np.asarray(trimesh.creation.icosphere(subdivisions=ICOSPHERE_COUNTS[n]).vertices)
+        v = _icosphere_vertices(ICOSPHERE_COUNTS[n])
         tol = 1e-9
         upper = (v[:, 1] > tol) | (
             (np.abs(v[:, 1]) <= tol)
@@ -137,7 +154,22 @@ def sphere_samples(n: int) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _neighbours(n: int) -> np.ndarray:
-    """Indices of the 6 nearest other views of every view, shape (n, 6)."""
+    """Indices of the 6 nearest other views of every view, shape (n, 6).
+
+    Stored in :data:`_ICOSPHERE_FILE` for the icosphere counts up to 2,562 (computing
+    them for 2,562 views is ~2,600 × 2,600 dot products and a partition: ~50 ms of
+    every ``snapshot select`` and ``render``), equal to :func:`_nearest_six`'s, which
+    computes any other count.
+    """
+    with np.load(_ICOSPHERE_FILE) as stored:
+        if f"neighbours_{n}" in stored.files:
+            return np.array(stored[f"neighbours_{n}"], dtype=np.intp)
+    return _nearest_six(n)
+
+
+def _nearest_six(n: int) -> np.ndarray:
+    """:func:`_neighbours` computed: per block of 256 views, the 6 largest dot products
+    with the other views (``np.argpartition``: their order within the 6 is its own)."""
     v = _sphere(n)
     out = np.empty((n, 6), dtype=np.intp)
     for i in range(0, n, 256):
