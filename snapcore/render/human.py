@@ -502,12 +502,13 @@ class Retarget(SoleFit):
             hinges["leg", s] = hinge(thigh, shank, np.cross(foot, thigh))
             if rig:
                 self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
-        for i, g in enumerate(g_all):
-            kind = g.recipe[0]
-            if kind in ("arm", "leg"):
-                dir_g = g.recipe[2] if len(g.recipe) > 2 else i
-                out[:, i] = frame_x(d[:, dir_g], hinges[kind, g.recipe[1]])
-                done[i] = True
+        # the limbs' frames in one call (frame_x works point by point: the same values)
+        limb = [(i, g.recipe) for i, g in enumerate(g_all) if g.recipe[0] in ("arm", "leg")]
+        if limb:
+            idx = [i for i, _ in limb]
+            dirs = d[:, [r[2] if len(r) > 2 else i for i, r in limb]]
+            out[:, idx] = frame_x(dirs, np.stack([hinges[r[0], r[1]] for _, r in limb], 1))
+            done[idx] = True
         for i, g in enumerate(g_all):
             kind = g.recipe[0]
             if kind == "eyes":
