@@ -502,12 +502,13 @@ class Retarget(SoleFit):
             hinges["leg", s] = hinge(thigh, shank, np.cross(foot, thigh))
             if rig:
                 self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
-        for i, g in enumerate(g_all):
-            kind = g.recipe[0]
-            if kind in ("arm", "leg"):
-                dir_g = g.recipe[2] if len(g.recipe) > 2 else i
-                out[:, i] = frame_x(d[:, dir_g], hinges[kind, g.recipe[1]])
-                done[i] = True
+        # the limbs' frames in one call (frame_x works point by point: the same values)
+        limb = [(i, g.recipe) for i, g in enumerate(g_all) if g.recipe[0] in ("arm", "leg")]
+        if limb:
+            idx = [i for i, _ in limb]
+            dirs = d[:, [r[2] if len(r) > 2 else i for i, r in limb]]
+            out[:, idx] = frame_x(dirs, np.stack([hinges[r[0], r[1]] for _, r in limb], 1))
+            done[idx] = True
         for i, g in enumerate(g_all):
             kind = g.recipe[0]
             if kind == "eyes":
@@ -625,10 +626,7 @@ class Retarget(SoleFit):
             plan = self.skin_plan(points, weights, stretch_w, dtype=dtype)
         f = positions.shape[0]
         out = np.empty((f, len(points), 3), dtype=plan.dtype)
-        drop_w = shoulder_masks(self.asset, points, weights)  # (P, 2)
-        # only the shoulders' points move with the drop: add it to those alone
-        dropped = np.flatnonzero(np.any(drop_w != 0, axis=1))
-        drop_w = drop_w[dropped]
+        dropped, drop_w = self._drop_weights(points, weights)
         for a in range(0, f, SKIN_FRAMES):
             b = min(f, a + SKIN_FRAMES)
             m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
@@ -639,6 +637,17 @@ class Retarget(SoleFit):
                 drops = self._shoulder_drops(positions[a:b])  # (chunk, 2, 3)
                 out[a:b, dropped] += np.einsum("ps,fsi->fpi", drop_w, drops).astype(out.dtype)
         return out
+
+    def _drop_weights(self, points, weights) -> tuple[np.ndarray, np.ndarray]:
+        """The points the shoulder drop moves (D,) and their masks (D, 2): only they take
+        it. Fixed by the rest points and weights, so kept for the last ones asked (a
+        still poses one frame per call, where the masks cost as much as the skinning)."""
+        c = getattr(self, "_drops_memo", None)
+        if c is None or c[0] is not points or c[1] is not weights:
+            w = shoulder_masks(self.asset, points, weights)  # (P, 2)
+            keep = np.flatnonzero(np.any(w != 0, axis=1))
+            c = self._drops_memo = (points, weights, keep, w[keep])
+        return c[2], c[3]
 
     def _shoulder_drops(self, positions) -> np.ndarray:
         """The top of each shoulder's drop as the arm hangs (F, 2, 3): see

@@ -95,18 +95,22 @@ def _entropy_visible(ids, n_faces):
     if ids.size and ids.max() >= n_bins:
         raise EntropyError(f"face id {int(ids.max()) - 1} is not below n_faces={n_faces}")
     v, h, w = ids.shape
-    flat = ids.reshape(v, h * w).astype(np.int64)
+    flat = ids.reshape(v, h * w)
     entropy = np.empty(v)
     visible = np.empty(v, dtype=np.int64)
     step = max(1, _HIST_BLOCK // max(n_bins, h * w))
     for i in range(0, v, step):
-        blk = flat[i : i + step]
-        keys = blk + (np.arange(blk.shape[0]) * n_bins)[:, None]
-        counts = np.bincount(keys.ravel(), minlength=blk.shape[0] * n_bins).reshape(-1, n_bins)
-        p = counts / float(h * w)
-        safe = np.where(p > 0, p, 1.0)
-        entropy[i : i + step] = -(p * np.log2(safe)).sum(axis=1)
-        visible[i : i + step] = np.count_nonzero(counts[:, 1:], axis=1)
+        blk = flat[i : i + step].astype(np.int64)
+        nv = blk.shape[0]
+        keys = blk + (np.arange(nv) * n_bins)[:, None]
+        counts = np.bincount(keys.ravel(), minlength=nv * n_bins)
+        # only the bins that occur (a view shows a few thousand of the faces): the log
+        # of every empty bin cost ~3/4 of the time; the sum's order changes, ~1e-15
+        (hit,) = np.nonzero(counts)
+        view = hit // n_bins
+        p = counts[hit] / float(h * w)
+        entropy[i : i + nv] = -np.bincount(view, weights=p * np.log2(p), minlength=nv)
+        visible[i : i + nv] = np.bincount(view[hit % n_bins != 0], minlength=nv)
     return entropy, visible
 
 
