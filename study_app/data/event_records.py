@@ -113,7 +113,8 @@ class EventRecords(StoreEngine):
             return self._first_event(conn, pid, trial_index, kind)
 
         at = _utc(self._write(work))
-        assert at is not None, "the event was just written"
+        if at is None:  # written in the same transaction: only a broken store gets here
+            raise StoreError(f"participant {pid!r}: the event just written was not read back")
         return at
 
     def _first_event(

@@ -298,7 +298,8 @@ class StreamlitClient:
         import websockets
         from streamlit.proto.ForwardMsg_pb2 import ForwardMsg
 
-        assert self.ws is not None, "connect() first"
+        if self.ws is None:
+            raise ProtocolError("not connected")
         elements = self._elements
         fragments: set[str] = set()  # the fragments this run redraws (empty: the app)
         drawn: set[tuple] = set()
