@@ -289,15 +289,11 @@ def test_study_command_builds_missing_stimuli_then_serves(
     assert r.exit_code != 0 and "snapshot stimuli build" in str(r.exception)
 
 
-def test_view_stills_share_one_background(tmp_path):
-    """The three candidate views of a view task are drawn on the same plain background,
-    whatever their elevation (from below the floor, level, from above), so the floor
-    cannot give a method away; each still shows the figure."""
-    import imageio.v3 as iio
-
+def _three_views(tmp_path, *, size):
+    """The candidate stills of a synthetic walk from below the floor, level and from
+    above (``write_views``), and the background colour in 0-255 levels."""
     from snapcore.motion import synth
     from snapcore.render.renderer import BACKGROUND
-    from snapcore.select.view_methods import VIEW_METHODS
     from study_app.design.media import write_views
 
     scene = synth.synth_scene("walk", fps=30)
@@ -311,8 +307,18 @@ def test_view_stills_share_one_background(tmp_path):
         "viewpoint_entropy": dirs[1],
         "motion_area": dirs[2],
     }
-    views = write_views(scene, picks, tmp_path, size=(96, 128))
-    bg = np.round(np.asarray(BACKGROUND) * 255)
+    return write_views(scene, picks, tmp_path, size=size), np.round(np.asarray(BACKGROUND) * 255)
+
+
+def test_view_stills_share_one_background(tmp_path):
+    """The three candidate views of a view task are drawn on the same plain background,
+    whatever their elevation (from below the floor, level, from above), so the floor
+    cannot give a method away; each still shows the figure."""
+    import imageio.v3 as iio
+
+    from snapcore.select.view_methods import VIEW_METHODS
+
+    views, bg = _three_views(tmp_path, size=(96, 128))
     for m in VIEW_METHODS:
         img = iio.imread(views[m]["file"])[..., :3].astype(float)
         border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
@@ -328,26 +334,10 @@ def test_view_stills_show_one_contact_shadow(tmp_path):
     figure's alone), with the border plain."""
     import imageio.v3 as iio
 
-    from snapcore.motion import synth
-    from snapcore.render.renderer import BACKGROUND
     from snapcore.select.view_methods import VIEW_METHODS
-    from study_app.design.media import write_views
     from study_app.design.similarity import silhouette
 
-    scene = synth.synth_scene("walk", fps=30)
-    dirs = [
-        np.array(v, float) / np.linalg.norm(v)
-        for v in ((1, -0.16, 0.2), (1, 0, 0.3), (0.6, 0.6, 0.5))
-    ]
-    picks = {
-        "frame": scene.frame_offset + 20,
-        "view": dirs[0],
-        "viewpoint_entropy": dirs[1],
-        "motion_area": dirs[2],
-    }
-    size = (160, 200)
-    views = write_views(scene, picks, tmp_path, size=size)
-    bg = np.round(np.asarray(BACKGROUND) * 255)
+    views, bg = _three_views(tmp_path, size=(160, 200))
     widths = []
     for m in VIEW_METHODS:
         img = iio.imread(views[m]["file"])[..., :3].astype(float)
