@@ -45,21 +45,32 @@ _SAME_IN_DRAFT7 = frozenset(
     {"$schema", "$id", "title", "description", "type", "properties", "required"}
     | {"additionalProperties", "enum", "const", "minimum", "maximum", "exclusiveMinimum"}
     | {"exclusiveMaximum", "minLength", "maxLength", "pattern", "format", "uniqueItems"}
-    | {"minItems", "maxItems", "items"}
+    | {"minItems", "maxItems", "items", "$ref", "$defs", "oneOf", "anyOf", "allOf", "not"}
+    | {"minProperties", "maxProperties", "default", "examples", "$comment"}
 )
+#: Keywords that only annotate: beside a ``$ref`` they change nothing in either draft
+#: (any other keyword beside ``$ref`` is ignored by Draft 7 and applied by 2020-12).
+_ANNOTATIONS = frozenset({"description", "title", "$comment", "default", "examples"})
 
 
 def _keywords(schema) -> set:
-    """Every keyword a schema uses (property names and ``items`` schemas descended)."""
+    """Every keyword a schema uses, its subschemas descended (``properties``, ``$defs``,
+    ``items``, ``additionalProperties``, ``not`` and the ``oneOf``/``anyOf``/``allOf``
+    lists), plus ``items-list`` and ``$ref-with-siblings`` for the two forms whose
+    meaning changed between Draft 7 and 2020-12."""
     if isinstance(schema, list):
         return set().union(*(_keywords(s) for s in schema)) if schema else set()
     if not isinstance(schema, dict):
         return set()
     out = set(schema)
+    if "$ref" in schema and set(schema) - {"$ref"} - _ANNOTATIONS:
+        out.add("$ref-with-siblings")
     for key, value in schema.items():
-        if key == "properties":
+        if key in ("properties", "$defs") and isinstance(value, dict):
             out |= set().union(*(_keywords(s) for s in value.values())) if value else set()
-        elif key in ("items", "additionalProperties") and isinstance(value, dict):
+        elif key in ("items", "additionalProperties", "not") and isinstance(value, dict):
+            out |= _keywords(value)
+        elif key in ("oneOf", "anyOf", "allOf"):
             out |= _keywords(value)
         elif key == "items":  # a list of schemas means something else in 2020-12
             out.add("items-list")
@@ -115,6 +126,11 @@ def validate(instance, name: str, *, source: str = "document") -> None:
     source : str
         Where the document came from (a file name), for the message.
     """
+    quick = quick_check(name)
+    if quick is not None and quick(instance):
+        # The compiled check never accepts what jsonschema refuses (tests/test_schema_quick.py),
+        # and is ~20x faster on a valid document (a batch validates one per scene).
+        return
     error = jsonschema.exceptions.best_match(_validator(name).iter_errors(instance))
     if error is not None:
         raise SchemaError(f"{source}: {field_path(error.absolute_path)}: {error.message}")
