@@ -66,12 +66,25 @@ def test_the_compiled_check_never_accepts_what_jsonschema_refuses(snapshot_doc):
         assert not quick(doc), doc
 
 
-def test_validate_words_the_error_as_jsonschema_does(snapshot_doc):
+def test_validate_words_the_error_as_jsonschema_does(snapshot_doc, monkeypatch):
+    """Before and after the schema is compiled (from the :data:`QUICK_AFTER`-th document
+    on), a refused document gets jsonschema's line, and a valid one passes."""
+    import snapcore.schema as schema
+
+    compiled = []
+    monkeypatch.setattr(schema, "_seen", {})
+    monkeypatch.setattr(
+        schema, "quick_check", lambda name: compiled.append(name) or quick_check(name)
+    )
     doc = copy.deepcopy(snapshot_doc)
     doc["window"]["frame"] = -3
-    with pytest.raises(SchemaError, match=r"^walk\.json: window\.frame: "):
-        validate(doc, "snapshot", source="walk.json")
-    validate(snapshot_doc, "snapshot")  # valid: no error
+    for _ in range(schema.QUICK_AFTER + 1):
+        with pytest.raises(SchemaError, match=r"^walk\.json: window\.frame: "):
+            validate(doc, "snapshot", source="walk.json")
+        validate(snapshot_doc, "snapshot")  # valid: no error
+    assert compiled, "the compiled check was never tried"
+    # 2 (Q + 1) documents, the first Q - 1 by jsonschema alone
+    assert len(compiled) == 2 * (schema.QUICK_AFTER + 1) - (schema.QUICK_AFTER - 1)
 
 
 def test_forms_that_changed_between_drafts_are_flagged():
