@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -137,22 +137,59 @@ RIGHT_DARKEN = 0.12
 # --------------------------------------------------------------------------- geometry
 
 
+@lru_cache(maxsize=64)
+def _capsule_template(around: int, rings: int, ellipsoid: bool):
+    """What every capsule of one tessellation shares: the rings' angles (cosines and
+    sines, broadcastable), the top half's rows, and the faces. Read-only arrays.
+
+    A library's scenes build their bodies' capsules thousands of times, from a handful
+    of tessellations; only the lengths and radii differ."""
+    bottom = np.linspace(-np.pi / 2, 0.0, rings + 1)[1:]  # rings up to the equator
+    top = np.linspace(0.0, np.pi / 2, rings + 1)[:-1]  # equator up to below the pole
+    if ellipsoid:
+        top = top[1:]  # an ellipsoid has one equator, not two coincident ones
+    phis = np.concatenate([bottom, top])
+    is_top = np.concatenate([np.zeros(len(bottom)), np.ones(len(top))])
+    theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
+    cp, sp = np.cos(phis)[:, None], np.sin(phis)[:, None]
+    ct, st = np.cos(theta)[None, :], np.sin(theta)[None, :]
+    n_rows = len(phis)
+    pole = 1 + n_rows * around  # the top pole's vertex
+    i = np.arange(around)
+    i1 = (i + 1) % around
+    lo = (1 + np.arange(n_rows - 1) * around)[:, None]  # each band's lower ring
+    hi = lo + around
+    band = np.stack(  # per band: the two triangles of each quad, in that order
+        [
+            np.stack([lo + i, lo + i1, hi + i1], axis=-1),
+            np.stack([lo + i, hi + i1, hi + i], axis=-1),
+        ],
+        axis=1,
+    ).reshape(-1, 3)
+    last = 1 + (n_rows - 1) * around
+    faces = np.vstack(
+        [
+            np.stack([np.zeros(around, int), 1 + i1, 1 + i], axis=1),  # bottom fan
+            band,
+            np.stack([last + i, last + i1, np.full(around, pole)], axis=1),  # top fan
+        ]
+    )
+    parts = (cp, sp, ct, st, is_top, faces)
+    for a in parts:
+        a.flags.writeable = False
+    return parts
+
+
 def _capsule(length: float, a: float, b: float, c: float, around: int, rings: int):
     """Closed capsule along +z from 0 to ``length``: elliptical cross-section (a along x,
     b along y), half-ellipsoid caps of height c. ``length=0`` gives an ellipsoid.
 
     Returns vertices (n, 3), normals (n, 3), faces (m, 3) with outward normals and
     counter-clockwise faces; 4·around·rings faces (2·around fewer for an ellipsoid).
+    The faces array is shared between capsules of one tessellation (read-only).
     """
-    bottom = np.linspace(-np.pi / 2, 0.0, rings + 1)[1:]  # rings up to the equator
-    top = np.linspace(0.0, np.pi / 2, rings + 1)[:-1]  # equator up to below the pole
-    if length <= 0:
-        top = top[1:]  # an ellipsoid has one equator, not two coincident ones
-    phis = np.concatenate([bottom, top])
-    zoff = np.concatenate([np.zeros(len(bottom)), np.full(len(top), max(length, 0.0))])
-    theta = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
-    cp, sp = np.cos(phis)[:, None], np.sin(phis)[:, None]
-    ct, st = np.cos(theta)[None, :], np.sin(theta)[None, :]
+    cp, sp, ct, st, is_top, faces = _capsule_template(around, rings, length <= 0)
+    zoff = is_top * max(length, 0.0)
     x = a * cp * ct
     y = b * cp * st
     z = c * sp + zoff[:, None] + 0 * ct
@@ -161,18 +198,7 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     verts = np.vstack([[0.0, 0.0, -c], ring_v, [0.0, 0.0, length + c]])
     normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    n_rows = len(phis)
-    pole = 1 + n_rows * around  # the top pole's vertex
-    i = np.arange(around)
-    i1 = (i + 1) % around
-    faces = [np.stack([np.zeros(around, int), 1 + i1, 1 + i], axis=1)]  # bottom fan
-    for r in range(n_rows - 1):
-        lo, hi = 1 + r * around, 1 + (r + 1) * around
-        faces.append(np.stack([lo + i, lo + i1, hi + i1], axis=1))
-        faces.append(np.stack([lo + i, hi + i1, hi + i], axis=1))
-    last = 1 + (n_rows - 1) * around
-    faces.append(np.stack([last + i, last + i1, np.full(around, pole)], axis=1))  # top fan
-    return verts, normals, np.vstack(faces)
+    return verts, normals, faces
 
 
 def _tessellation(radius: float, table=TESSELLATION) -> tuple[int, int]:
