@@ -4,8 +4,10 @@
 ``snapshot render``'s path). The reference (tests/render_reference.py) draws the same
 meshes, lights and camera through pyrender as the renderer did before. Both use the
 same shaders, uniforms and GL state on the same llvmpipe, so the tolerance is tight:
-at most :data:`MAX_CHANGED` pixels may differ per picture, by at most :data:`RGB_TOL`
-levels (measured: identical on every picture below). Face-id and depth buffers are
+every pixel identical but at most :data:`MAX_CHANGED` per picture. Those few are exact
+depth ties (a foot on the shadow's plane): which mesh wins one depends on the draw
+order, and pyrender draws its meshes in the iteration order of a Python set, which
+changes from run to run (measured: 0 differing pixels in most runs, 1 in some). Face-id and depth buffers are
 not drawn by this renderer (:mod:`snapcore.render.buffers`), so they are unchanged.
 """
 
@@ -24,9 +26,8 @@ from snapcore.render.renderer import SceneRenderer
 
 pytestmark = pytest.mark.slow
 
-#: Pixels that may differ per picture, and by how many RGB levels (of 255).
+#: Pixels that may differ per picture (exact depth ties, see above).
 MAX_CHANGED = 4
-RGB_TOL = 2
 
 SCENES = {
     "salsa pair": (["two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh"], 900),
@@ -59,7 +60,6 @@ def _agree(ours, ref):
     assert ours.shape == ref.shape and ours.dtype == ref.dtype == np.uint8
     diff = np.abs(ours.astype(int) - ref.astype(int)).max(axis=-1)
     assert np.count_nonzero(diff) <= MAX_CHANGED, np.sort(diff.ravel())[-10:]
-    assert diff.max() <= RGB_TOL
 
 
 @pytest.mark.parametrize("name", list(SCENES))
@@ -77,26 +77,33 @@ def test_stills_agree_with_pyrender(name, motions_dir):
         _agree(ours, ref)
 
 
-def test_cropped_frames_agree_with_pyrender(motions_dir):
-    """A video's cropped frame (a shifted orthographic camera of another size) and the
-    background it is pasted into."""
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_frames_drawn_in_their_rectangle_agree_with_pyrender(projection, motions_dir):
+    """Frames after the first with one camera (a video's, or ``crop=True``) draw only
+    their bodies' rectangle (a scissor) into a copy of the background: still the full
+    picture, pixel for pixel, as pyrender draws it whole."""
+    from snapcore.render.camera import motion_points
+
     files, frame = SCENES["salsa pair"]
     scene = _load(motions_dir, files)
     sr = SceneRenderer(scene, size=(640, 360))
-    from snapcore.render.camera import motion_points
-
-    cam = fit_camera(motion_points(scene, body=sr.body), [0.6, 0.45, 1.0], size=sr.size)
-    for index in (frame, frame + 40):
-        ours = sr.render(index, cam, crop=True)
-        window = sr._crop_window(cam, [sr.body.vertices(index)])
-        assert window is not None  # the check covers the cropped path
+    view = [0.6, 0.45, 1.0]
+    cam = fit_camera(motion_points(scene, body=sr.body), view, size=sr.size, projection=projection)
+    for i, index in enumerate((frame, frame + 40, frame + 80)):
+        ours = sr.render(index, cam, crop=i == 1)
+        drawn = [sr.body.vertices(index), sr.draw_list()[-1].positions]
+        window = sr._crop_window(cam, drawn)
+        assert window is not None  # the rectangle path is what this checks
         full = pyrender_picture(sr, cam, sr._full_camera())
-        background = pyrender_picture(sr, cam, sr._full_camera(), bodies=False)
-        _agree(sr._background_image(), background)
-        # pasted crops differ from a full render at a few edge pixels (their own
-        # rounding, as before): compared with the full picture more loosely
-        diff = np.abs(ours.astype(int) - full.astype(int)).max(axis=-1)
-        assert np.count_nonzero(diff > 2) <= 40
+        _agree(ours, full)
+        if i == 0:  # the first frame with a camera is drawn whole, without a background
+            assert sr._background is None
+        else:
+            x0, y0, w, h = window
+            assert w * h < 0.7 * ours.shape[0] * ours.shape[1]
+            outside = np.ones(ours.shape[:2], bool)
+            outside[y0 : y0 + h, x0 : x0 + w] = False
+            assert np.array_equal(ours[outside], sr._background[outside])
 
 
 def test_render_does_not_load_pyrender(tmp_path, motions_dir):

@@ -319,6 +319,7 @@ def draw(
     lights: list[Light],
     ambient: float,
     clear: tuple[float, float, float],
+    window: tuple[int, int, int, int] | None = None,
 ) -> np.ndarray:
     """Rasterise ``meshes`` into an RGB image, as pyrender's forward pass would.
 
@@ -338,10 +339,14 @@ def draw(
         Ambient light, the same in each channel.
     clear : (r, g, b)
         The colour every pixel starts with (sRGB 0-1, written as is).
+    window : (x0, y0, width, height), optional
+        Draw, resolve and read back only this rectangle of the picture (pixels, row 0
+        at the top), through a scissor: the same viewport and matrices, so its pixels
+        are the full picture's, bit for bit; llvmpipe skips the tiles outside it.
 
     Returns
     -------
-    ndarray of uint8, shape (H, W, 3)
+    ndarray of uint8, shape (H, W, 3), or (height, width, 3) with ``window``
         Row 0 at the top.
     """
     from OpenGL import GL as gl
@@ -355,6 +360,14 @@ def draw(
     gl.glDepthMask(gl.GL_TRUE)
     gl.glDepthFunc(gl.GL_LESS)
     gl.glDepthRange(0.0, 1.0)
+    if window is None:
+        rx, ry, rw, rh = 0, 0, w, h
+        gl.glDisable(gl.GL_SCISSOR_TEST)
+    else:
+        x0, y0, rw, rh = (int(v) for v in window)
+        rx, ry = x0, h - y0 - rh  # GL rows run bottom-up
+        gl.glEnable(gl.GL_SCISSOR_TEST)
+        gl.glScissor(rx, ry, rw, rh)
     gl.glClearColor(*(float(np.float32(c)) for c in clear), 1.0)
     gl.glClear(gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT)
     gl.glEnable(gl.GL_MULTISAMPLE)
@@ -398,9 +411,11 @@ def draw(
     gl.glUseProgram(0)
     gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb_ms)
     gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb)
-    gl.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
+    gl.glDisable(gl.GL_SCISSOR_TEST)
+    x1, y1 = rx + rw, ry + rh
+    gl.glBlitFramebuffer(rx, ry, x1, y1, rx, ry, x1, y1, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
     gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb)
     gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 1)
-    buf = gl.glReadPixels(0, 0, w, h, gl.GL_RGB, gl.GL_UNSIGNED_BYTE)
+    buf = gl.glReadPixels(rx, ry, rw, rh, gl.GL_RGB, gl.GL_UNSIGNED_BYTE)
     gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
-    return np.frombuffer(buf, np.uint8).reshape(h, w, 3)[::-1]
+    return np.frombuffer(buf, np.uint8).reshape(rh, rw, 3)[::-1]

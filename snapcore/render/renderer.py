@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -290,6 +289,7 @@ class SceneRenderer:
             b = scene.bounds()
             self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
         self._last_cam: Camera | None = None
+        self._camera_uses = 0  # renders with the last camera
         self._gl_cam: Camera | None = None  # set with the first camera, see _set_camera
         self._background: np.ndarray | None = None
         self._lights: list[Light] = []
@@ -396,9 +396,14 @@ class SceneRenderer:
         """The directional lights of the last camera (ambient: :data:`AMBIENT`)."""
         return list(self._lights)
 
-    def _draw(self, gl_cam: Camera, bodies: bool = True) -> np.ndarray:
-        """The picture ``gl_cam`` sees, (H, W, 3) uint8 (a view of this scene's GL camera
-        or a crop of it: its own size)."""
+    def _draw(
+        self,
+        gl_cam: Camera,
+        bodies: bool = True,
+        window: tuple[int, int, int, int] | None = None,
+    ) -> np.ndarray:
+        """The picture ``gl_cam`` sees, (H, W, 3) uint8, or its rectangle ``window``
+        (``x0, y0, width, height``)."""
         pose = gl_camera_pose(gl_cam)
         return draw(
             self.draw_list(bodies),
@@ -409,6 +414,7 @@ class SceneRenderer:
             lights=self._lights,
             ambient=AMBIENT,
             clear=self._clear,
+            window=window,
         )
 
     def _update_bodies(self, index: int) -> list[np.ndarray]:
@@ -450,13 +456,15 @@ class SceneRenderer:
         """The image of the pose at internal index ``index`` (``frame - scene.frame_offset``)
         seen by ``camera``: (H, W, 3) uint8.
 
-        ``crop=True`` (for many frames seen by one orthographic camera, as in videos):
-        the picture without the bodies is rendered once per camera, and each frame
-        renders only the rectangle its bodies and shadows cover, through a camera that
-        sees exactly those pixels of the full view (an orthographic view shifted within
-        its image plane), pasted into a copy of it. The result is the full render's up
-        to rasterisation rounding at a few edge pixels; software GL pays per pixel
-        (multisampled), so this is 2-4x less work when the bodies fill part of the frame.
+        Many frames seen by one camera (a video, or ``crop=True`` from the first
+        frame; otherwise from the second frame with the same camera object): the
+        picture without the bodies is rendered once per camera, and each frame draws,
+        resolves and reads back only the rectangle its bodies and shadows cover (a
+        scissor in the full view: the same matrices, so those pixels are the full
+        render's bit for bit), pasted into a copy of it. The result equals the full
+        render; software GL pays per pixel (multisampled), so this is 2-4x less work
+        when the bodies fill part of the frame. A camera used once (a still, a
+        thumbnail) renders the whole frame: a background would cost a frame more.
         """
         if threading.get_ident() != self._thread:
             raise RenderError(
@@ -468,21 +476,18 @@ class SceneRenderer:
         self.body._check(index)
         if camera is not self._last_cam:
             self._set_camera(camera)
+            self._camera_uses = 0
+        self._camera_uses += 1
         drawn = self._update_bodies(int(index))
-        window = self._crop_window(camera, drawn) if crop else None
+        many = crop or self._camera_uses > 1
+        window = self._crop_window(camera, drawn) if many else None
         gl_cam = self._full_camera()
         if window is None:
             return np.ascontiguousarray(self._draw(gl_cam))
         background = self._background_image()
         x0, y0, cw, ch = window
-        p = gl_cam.pixel_size
-        w, h = self.size
-        shift = gl_cam.right * (x0 + cw / 2 - w / 2) * p + gl_cam.up * (h / 2 - y0 - ch / 2) * p
-        part = self._draw(
-            replace(gl_cam, position=gl_cam.position + shift, size=(cw, ch), half_height=ch * p / 2)
-        )
         image = background.copy()
-        image[y0 : y0 + ch, x0 : x0 + cw] = part
+        image[y0 : y0 + ch, x0 : x0 + cw] = self._draw(gl_cam, window=window)
         return image
 
     def _crop_window(
@@ -490,14 +495,16 @@ class SceneRenderer:
     ) -> tuple[int, int, int, int] | None:
         """``(x0, y0, width, height)`` in pixels of a rectangle holding every drawn
         point (bodies, shadows) of this frame, or None to render the whole frame."""
-        if camera.projection != "orthographic":
-            return None  # a shifted perspective view is another picture
         w, h = self.size
-        xy = camera.project(np.concatenate([np.asarray(d, float) for d in drawn]))
+        points = np.concatenate([np.asarray(d, float) for d in drawn])
+        if camera.projection != "orthographic":
+            depth = (camera.position - points) @ camera.back
+            if not np.all(depth > camera.znear):  # beside or behind the eye: no box
+                return None
+        xy = camera.project(points)
         lo = np.floor(xy.min(axis=0)) - CROP_PAD_PX
         hi = np.ceil(xy.max(axis=0)) + CROP_PAD_PX
-        # sizes in steps of CROP_STEP_PX: the renderer's framebuffers are reallocated
-        # only when the step changes, not every frame
+        # sizes in steps of CROP_STEP_PX (llvmpipe draws in 64-pixel tiles)
         cw, ch = (
             int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
             for a, b, n in zip(lo, hi, (w, h))
