@@ -443,6 +443,23 @@ def test_a_cropped_render_is_the_full_render(walk):
     assert sr._crop_window(eye, [sr.body.vertices(0)]) is None
 
 
+def test_pipelined_frames_are_the_frames_rendered_one_by_one(walk):
+    """``render_frames`` (videos: a frame posed while the one before rasterises) gives
+    each frame exactly as a renderer drawing it alone, across a camera change."""
+    from dataclasses import replace
+
+    pts = motion_points(walk)
+    cams = [fit_camera(pts, v, size=(320, 180)) for v in ([1.0, 0.8, 2.0], [-1.0, 0.3, 0.5])]
+    indices = [0, 7, walk.n_frames // 2, walk.n_frames - 1]
+    sr, ref = SceneRenderer(walk, size=(320, 180)), SceneRenderer(walk, size=(320, 180))
+    for cam in cams:
+        frames = list(sr.render_frames(indices, cam))
+        assert len(frames) == len(indices)
+        for f, img in zip(indices, frames):
+            assert np.array_equal(img, ref.render(f, replace(cam))), f
+        assert not np.array_equal(frames[0], frames[-1])  # the walker moved
+
+
 def _elevated(azimuth_deg, elevation_deg):
     a, e = np.radians(azimuth_deg), np.radians(elevation_deg)
     return np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])

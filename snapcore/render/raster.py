@@ -38,7 +38,7 @@ import numpy as np
 
 from snapcore.render.gl import bare_gl_context
 
-__all__ = ["DrawMesh", "Light", "draw", "MAX_LIGHTS"]
+__all__ = ["DrawMesh", "Light", "Pending", "draw", "submit", "MAX_LIGHTS"]
 
 #: pyrender's ``MAX_N_LIGHTS``: the size of the shaders' light array.
 MAX_LIGHTS = 4
@@ -243,6 +243,9 @@ class _Framebuffers:
         from OpenGL import GL as gl
 
         self.size = (w, h)
+        self.bg_fb: int | None = None  # the kept background (see keep)
+        self.bg_rb: list[int] = []
+        self.bg_key: object = None
         self.rb = list(gl.glGenRenderbuffers(3))
         self.fb_ms, self.fb = gl.glGenFramebuffers(2)
         for rb, fmt, samples in zip(
@@ -266,11 +269,54 @@ class _Framebuffers:
         )
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
 
+    def keep(self, key: object) -> None:
+        """Copy the multisampled colour and depth (every sample) into a second
+        multisampled framebuffer, for :meth:`restore`, under ``key``."""
+        from OpenGL import GL as gl
+
+        w, h = self.size
+        if self.bg_fb is None:
+            self.bg_rb = list(gl.glGenRenderbuffers(2))
+            for rb, fmt in zip(self.bg_rb, (gl.GL_RGBA, gl.GL_DEPTH_COMPONENT24)):
+                gl.glBindRenderbuffer(gl.GL_RENDERBUFFER, rb)
+                gl.glRenderbufferStorageMultisample(gl.GL_RENDERBUFFER, SAMPLES, fmt, w, h)
+            self.bg_fb = gl.glGenFramebuffers(1)
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, self.bg_fb)
+            for att, rb in zip((gl.GL_COLOR_ATTACHMENT0, gl.GL_DEPTH_ATTACHMENT), self.bg_rb):
+                gl.glFramebufferRenderbuffer(gl.GL_FRAMEBUFFER, att, gl.GL_RENDERBUFFER, rb)
+        self._copy(self.fb_ms, self.bg_fb, (0, 0, w, h))
+        self.bg_key = key
+
+    def restore(self, key: object, rect: tuple[int, int, int, int]) -> bool:
+        """Put the kept samples of ``key`` back into ``rect`` (x, y from the bottom, w,
+        h) of the multisampled framebuffer; False if another picture is kept."""
+        if self.bg_fb is None or self.bg_key is not key:
+            return False
+        self._copy(self.bg_fb, self.fb_ms, rect)
+        return True
+
+    @staticmethod
+    def _copy(src: int, dst: int, rect: tuple[int, int, int, int]) -> None:
+        # multisampled to multisampled with the same sample count and rectangle: the
+        # samples are copied as they are (no resolve, no filtering)
+        from OpenGL import GL as gl
+
+        x, y, w, h = rect
+        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, src)
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, dst)
+        gl.glBlitFramebuffer(
+            x, y, x + w, y + h, x, y, x + w, y + h,
+            gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST,
+        )  # fmt: skip
+
     def delete(self) -> None:
         from OpenGL import GL as gl
 
         gl.glDeleteFramebuffers(2, [self.fb_ms, self.fb])
         gl.glDeleteRenderbuffers(3, self.rb)
+        if self.bg_fb is not None:
+            gl.glDeleteFramebuffers(1, [self.bg_fb])
+            gl.glDeleteRenderbuffers(2, self.bg_rb)
 
 
 class _Canvas:
@@ -309,7 +355,12 @@ def _canvas() -> _Canvas:
     return canvas
 
 
-def draw(
+def draw(meshes: list[DrawMesh], **kwargs) -> np.ndarray:
+    """:func:`submit` and wait: the picture, (H, W, 3) uint8 (see :func:`submit`)."""
+    return submit(meshes, **kwargs).read()
+
+
+def submit(
     meshes: list[DrawMesh],
     *,
     size: tuple[int, int],
@@ -320,8 +371,11 @@ def draw(
     ambient: float,
     clear: tuple[float, float, float],
     window: tuple[int, int, int, int] | None = None,
-) -> np.ndarray:
-    """Rasterise ``meshes`` into an RGB image, as pyrender's forward pass would.
+    keep: object = None,
+    background: tuple[object, int] | None = None,
+) -> Pending:
+    """Rasterise ``meshes`` into an RGB image, as pyrender's forward pass would;
+    :meth:`Pending.read` of the result waits for it and reads it back.
 
     Parameters
     ----------
@@ -343,11 +397,18 @@ def draw(
         Draw, resolve and read back only this rectangle of the picture (pixels, row 0
         at the top), through a scissor: the same viewport and matrices, so its pixels
         are the full picture's, bit for bit; llvmpipe skips the tiles outside it.
+    keep : object, optional
+        Keep this picture's samples (colour and depth, multisampled) under this key.
+    background : (key, n), optional
+        The first ``n`` meshes are the picture kept under ``key``: if it is still kept
+        (same size), its samples are copied into the window instead of clearing and
+        drawing those meshes again (the same samples: exact), else they are drawn.
 
     Returns
     -------
-    ndarray of uint8, shape (H, W, 3), or (height, width, 3) with ``window``
-        Row 0 at the top.
+    Pending
+        Its ``read()``: ndarray of uint8, shape (H, W, 3), or (height, width, 3) with
+        ``window``; row 0 at the top.
     """
     from OpenGL import GL as gl
 
@@ -368,8 +429,12 @@ def draw(
         rx, ry = x0, h - y0 - rh  # GL rows run bottom-up
         gl.glEnable(gl.GL_SCISSOR_TEST)
         gl.glScissor(rx, ry, rw, rh)
-    gl.glClearColor(*(float(np.float32(c)) for c in clear), 1.0)
-    gl.glClear(gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT)
+    if background is not None and fb.restore(background[0], (rx, ry, rw, rh)):
+        meshes = meshes[background[1] :]
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb_ms)
+    else:
+        gl.glClearColor(*(float(np.float32(c)) for c in clear), 1.0)
+        gl.glClear(gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT)
     gl.glEnable(gl.GL_MULTISAMPLE)
     gl.glEnable(gl.GL_BLEND)
     gl.glBlendFunc(gl.GL_ONE, gl.GL_ZERO)
@@ -409,13 +474,37 @@ def draw(
         gl.glDrawElementsInstanced(gl.GL_TRIANGLES, slot.n_indices, gl.GL_UNSIGNED_INT, None, 1)
     gl.glBindVertexArray(0)
     gl.glUseProgram(0)
-    gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb_ms)
-    gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb)
     gl.glDisable(gl.GL_SCISSOR_TEST)
-    x1, y1 = rx + rw, ry + rh
-    gl.glBlitFramebuffer(rx, ry, x1, y1, rx, ry, x1, y1, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
-    gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb)
-    gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 1)
-    buf = gl.glReadPixels(rx, ry, rw, rh, gl.GL_RGB, gl.GL_UNSIGNED_BYTE)
-    gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
-    return np.frombuffer(buf, np.uint8).reshape(rh, rw, 3)[::-1]
+    if keep is not None:
+        fb.keep(keep)
+    gl.glFlush()  # llvmpipe's threads start on the fragments now
+    return Pending(canvas, fb, (rx, ry, rw, rh))
+
+
+class Pending:
+    """A picture submitted by :func:`submit`, rasterised by llvmpipe's threads while
+    the caller does other work (posing the next frame); :meth:`read` waits for it."""
+
+    def __init__(self, canvas: _Canvas, fb: _Framebuffers, rect: tuple[int, int, int, int]):
+        self._canvas, self._fb, self._rect = canvas, fb, rect
+
+    def read(self) -> np.ndarray:
+        """Resolve the multisampled picture (a linear blit) and read it back: (H, W, 3)
+        uint8, row 0 at the top (a view of an RGBA array)."""
+        from OpenGL import GL as gl
+
+        if _canvas() is not self._canvas:
+            raise RuntimeError("internal: a picture read back in another GL context")
+        fb = self._fb
+        rx, ry, rw, rh = self._rect
+        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb_ms)
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb)
+        x1, y1 = rx + rw, ry + rh
+        gl.glBlitFramebuffer(rx, ry, x1, y1, rx, ry, x1, y1, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
+        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb)
+        gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 1)
+        # RGBA: the renderbuffer's own layout, copied without a per-pixel conversion
+        out = np.empty((rh, rw, 4), np.uint8)
+        gl.glReadPixels(rx, ry, rw, rh, gl.GL_RGBA, gl.GL_UNSIGNED_BYTE, out)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
+        return out[::-1, :, :3]

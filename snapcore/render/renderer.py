@@ -25,7 +25,7 @@ Conventions
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -48,7 +48,7 @@ from snapcore.render.camera import (
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
 from snapcore.render.mannequin import SceneBody
-from snapcore.render.raster import DrawMesh, Light, draw
+from snapcore.render.raster import DrawMesh, Light, Pending, submit
 
 if TYPE_CHECKING:
     from snapcore.motion.scene import Scene
@@ -290,6 +290,7 @@ class SceneRenderer:
             self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
         self._last_cam: Camera | None = None
         self._camera_uses = 0  # renders with the last camera
+        self._background_key: object = None  # its samples in GL (see _background_image)
         self._gl_cam: Camera | None = None  # set with the first camera, see _set_camera
         self._background: np.ndarray | None = None
         self._lights: list[Light] = []
@@ -404,9 +405,22 @@ class SceneRenderer:
     ) -> np.ndarray:
         """The picture ``gl_cam`` sees, (H, W, 3) uint8, or its rectangle ``window``
         (``x0, y0, width, height``)."""
+        return self._submit_draw(gl_cam, bodies, window).read()
+
+    def _submit_draw(
+        self,
+        gl_cam: Camera,
+        bodies: bool = True,
+        window: tuple[int, int, int, int] | None = None,
+        keep: object = None,
+        background: object = None,
+    ) -> Pending:
         pose = gl_camera_pose(gl_cam)
-        return draw(
+        under = len(self.draw_list(False))
+        return submit(
             self.draw_list(bodies),
+            keep=keep,
+            background=None if background is None else (background, under),
             size=gl_cam.size,
             view=np.linalg.inv(pose),
             projection=gl_projection(gl_cam),
@@ -466,6 +480,34 @@ class SceneRenderer:
         when the bodies fill part of the frame. A camera used once (a still, a
         thumbnail) renders the whole frame: a background would cost a frame more.
         """
+        return self._submit(index, camera, crop)()
+
+    def render_frames(
+        self, indices: Iterable[int], camera: Camera, *, crop: bool = True
+    ) -> Iterator[np.ndarray]:
+        """The images of the poses at ``indices`` seen by ``camera``, one after the
+        other, each as :meth:`render` gives it (the same pixels), pipelined: a frame's
+        bodies are posed while llvmpipe's threads rasterise the frame before. Videos
+        draw this way."""
+        pending = None
+        for index in indices:
+            frame = self._submit(int(index), camera, crop, previous=pending)
+            if pending is not None:
+                yield pending()
+            pending = frame
+        if pending is not None:
+            yield pending()
+
+    def _submit(
+        self,
+        index: int,
+        camera: Camera,
+        crop: bool,
+        previous: _Frame | None = None,
+    ) -> _Frame:
+        """Pose ``index``, draw it and return the frame (call it for the image).
+        ``previous``: the frame before, still rasterising: posing this one overlaps it,
+        and it is read back (kept for the caller) before this one's meshes upload."""
         if threading.get_ident() != self._thread:
             raise RenderError(
                 "a SceneRenderer must be used on the thread that created it "
@@ -481,14 +523,14 @@ class SceneRenderer:
         drawn = self._update_bodies(int(index))
         many = crop or self._camera_uses > 1
         window = self._crop_window(camera, drawn) if many else None
+        if previous is not None:
+            previous()  # read back before the GL buffers and framebuffer are reused
         gl_cam = self._full_camera()
         if window is None:
-            return np.ascontiguousarray(self._draw(gl_cam))
+            return _Frame(self._submit_draw(gl_cam), None, None)
         background = self._background_image()
-        x0, y0, cw, ch = window
-        image = background.copy()
-        image[y0 : y0 + ch, x0 : x0 + cw] = self._draw(gl_cam, window=window)
-        return image
+        pending = self._submit_draw(gl_cam, window=window, background=self._background_key)
+        return _Frame(pending, background, window)
 
     def _crop_window(
         self, camera: Camera, drawn: list[np.ndarray]
@@ -516,10 +558,34 @@ class SceneRenderer:
         return x0, y0, cw, ch
 
     def _background_image(self) -> np.ndarray:
-        """The full view without bodies and shadows (once per camera)."""
+        """The full view without bodies and shadows (once per camera). Its samples are
+        kept in GL too: a frame's rectangle starts from them (a copy) instead of
+        clearing and drawing the floor and sky again."""
         if self._background is None:
-            self._background = np.ascontiguousarray(self._draw(self._full_camera(), bodies=False))
+            self._background_key = object()
+            pending = self._submit_draw(self._full_camera(), False, keep=self._background_key)
+            self._background = np.ascontiguousarray(pending.read())
         return self._background
+
+
+class _Frame:
+    """A submitted frame: calling it waits for the picture (once; later calls return
+    the same image), pasted into the background when only a rectangle was drawn."""
+
+    def __init__(self, pending: Pending, background: np.ndarray | None, window) -> None:
+        self._pending, self._background, self._window = pending, background, window
+        self._image: np.ndarray | None = None
+
+    def __call__(self) -> np.ndarray:
+        if self._image is None:
+            part = self._pending.read()
+            if self._background is None:
+                self._image = np.ascontiguousarray(part)
+            else:
+                x0, y0, cw, ch = self._window
+                self._image = self._background.copy()
+                self._image[y0 : y0 + ch, x0 : x0 + cw] = part
+        return self._image
 
 
 def scene_index(scene: Scene, frame: int, what: str = "frame") -> int:
