@@ -572,19 +572,25 @@ class _Frame:
     """A submitted frame: calling it waits for the picture (once; later calls return
     the same image), pasted into the background when only a rectangle was drawn."""
 
-    def __init__(self, pending: Pending, background: np.ndarray | None, window) -> None:
+    def __init__(
+        self,
+        pending: Pending,
+        background: np.ndarray | None,
+        window: tuple[int, int, int, int] | None,
+    ) -> None:
         self._pending, self._background, self._window = pending, background, window
         self._image: np.ndarray | None = None
 
     def __call__(self) -> np.ndarray:
         if self._image is None:
             part = self._pending.read()
-            if self._background is None:
+            if self._background is None or self._window is None:
                 self._image = np.ascontiguousarray(part)
             else:
                 x0, y0, cw, ch = self._window
-                self._image = self._background.copy()
-                self._image[y0 : y0 + ch, x0 : x0 + cw] = part
+                image = self._background.copy()
+                image[y0 : y0 + ch, x0 : x0 + cw] = part
+                self._image = image
         return self._image
 
 
