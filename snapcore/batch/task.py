@@ -9,8 +9,9 @@ library goes on. It writes nothing either: the outputs come back as bytes in the
 workers need no shared output folder and a killed worker leaves no half files).
 
 Rendering: an EGL context works only on the thread that created it
-(../shared/PLATFORM-NOTES.md § Threads), and :func:`snapcore.render.gl.gl_renderer`
-keeps one per thread. :func:`init_worker` creates it once when a worker process starts;
+(../shared/PLATFORM-NOTES.md § Threads), and :func:`snapcore.render.gl.bare_gl_context`
+keeps one per thread (the scene renderer and the face-id pass draw in it; pyrender is
+not loaded). :func:`init_worker` creates it once when a worker process starts;
 every scene of that worker then reuses it.
 """
 
@@ -234,9 +235,9 @@ def init_worker(
     if not renderer:
         return
     try:
-        from snapcore.render.gl import gl_renderer
+        from snapcore.render.gl import bare_gl_context
 
-        gl_renderer(*size)
+        bare_gl_context()
     except SnapshotError:
         # no GL here: each scene then fails with the renderer's own one-line reason
         pass
@@ -567,9 +568,9 @@ def _strip(scene, frames, view, size, body):
 def _worker(opts: BatchOptions) -> dict:
     """Who ran the task: the process and the id of its thread's GL renderer."""
     try:
-        from snapcore.render.gl import gl_renderer
+        from snapcore.render.gl import bare_gl_context
 
-        renderer = id(gl_renderer(*opts.size))
+        renderer = id(bare_gl_context())
     except SnapshotError:
         renderer = None
     return {

@@ -211,7 +211,14 @@ def gl_camera_pose(cam: Camera) -> np.ndarray:
     """The 4×4 camera-to-world matrix a pyrender scene node holding ``cam`` renders with:
     :attr:`Camera.pose` decomposed into translation, quaternion and scale and composed
     again (``pyrender.Node(matrix=cam.pose).matrix``), float64."""
-    m = cam.pose
+    return gl_node_matrix(cam.pose)
+
+
+def gl_node_matrix(m: np.ndarray) -> np.ndarray:
+    """The 4×4 matrix a pyrender scene node made with ``matrix=m`` renders with (a
+    camera's or a light's pose): ``m`` decomposed into translation, quaternion and
+    scale and composed again, float64."""
+    m = np.asarray(m, float)
     u = m[:3, :3]
     rotation = u / np.linalg.norm(u.T, axis=1)
     q = _quaternion_from_rotation(rotation)

@@ -434,3 +434,30 @@ def release_renderer() -> None:
         with _RENDERERS_LOCK:
             _RAW_CONTEXTS.pop(threading.current_thread(), None)
         _free_raw(ctx)
+
+
+def bare_gl_context():
+    """Make this thread's bare EGL context (:class:`_EGLContext`) current and return
+    it, made on first use: the context of the raw-GL scene renderer
+    (:mod:`snapcore.render.raster`), which never shares pyrender's, so it works the
+    same whether or not the thread also has a pyrender renderer. Other GL platforms
+    (``PYOPENGL_PLATFORM=osmesa``) get :func:`current_gl_context`'s.
+    """
+    if os.environ.get("PYOPENGL_PLATFORM") != "egl":
+        return current_gl_context(8, 8)
+    ctx = getattr(_THREAD, "raw_context", None)
+    if ctx is None:
+        _sweep_dead()
+        try:
+            ctx = _EGLContext()
+        except Exception as err:
+            raise RenderError(
+                f"cannot create an offscreen OpenGL context ({type(err).__name__}: {err});"
+                " is Mesa EGL installed (apt-get install libegl1 libegl-mesa0"
+                " libgl1-mesa-dri)?"
+            ) from err
+        _THREAD.raw_context = ctx
+        with _RENDERERS_LOCK:
+            _RAW_CONTEXTS[threading.current_thread()] = ctx
+    ctx.make_current()
+    return ctx

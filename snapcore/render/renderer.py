@@ -25,10 +25,9 @@ Conventions
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
-from dataclasses import replace
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,11 +40,15 @@ from snapcore.render.camera import (
     check_size,
     default_view,
     fit_camera,
+    gl_camera_pose,
+    gl_node_matrix,
+    gl_projection,
     motion_points,
     view_basis,
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
 from snapcore.render.mannequin import SceneBody
+from snapcore.render.raster import DrawMesh, Light, Pending, submit
 
 if TYPE_CHECKING:
     from snapcore.motion.scene import Scene
@@ -83,6 +86,10 @@ ORTHO_HORIZON_DEG = 4.0
 #: the characters' feet (floor colour below, sky above), no grid, no shadows: the look
 #: pictures meant to be compared share when one of them is under or near the horizon.
 FLOOR_STYLES = ("auto", "horizon")
+#: Ambient light (each channel, linear) and the bodies' roughness (highlight
+#: strength ``1 - roughness``).
+AMBIENT = 0.30
+BODY_ROUGHNESS = 0.7
 #: Floor and grid colours (sRGB 0-1) and the shadow's darkening of the floor.
 FLOOR_COLOR = (0.93, 0.925, 0.915)
 GRID_COLOR = (0.74, 0.74, 0.74)
@@ -102,7 +109,7 @@ def _srgb_to_linear(c: ArrayLike) -> np.ndarray:
     return np.asarray(c, np.float32) ** 2.2
 
 
-def _ground_mesh(centre_xz: Sequence[float] | np.ndarray, height: float) -> Any:
+def _ground_mesh(centre_xz: Sequence[float] | np.ndarray, height: float) -> DrawMesh:
     """The floor grid at ``height``: lines every :data:`GRID_SPACING` around
     ``centre_xz`` that fade into the floor colour within :data:`GRID_FADE_RADIUS`;
     thin unlit quads (no normals), one mesh.
@@ -113,7 +120,6 @@ def _ground_mesh(centre_xz: Sequence[float] | np.ndarray, height: float) -> Any:
     bodies on llvmpipe with 4× multisampling; the backdrop covers only what is above
     the horizon, and shows the horizon at the feet even in a horizontal view.
     """
-    pyrender = load_pyrender()
     cx, cz = centre_xz
     r = GRID_FADE_RADIUS
     n = int(np.ceil(r / GRID_SPACING))
@@ -147,23 +153,15 @@ def _ground_mesh(centre_xz: Sequence[float] | np.ndarray, height: float) -> Any:
     col = np.hstack([grid * (1 - t) + floor * t, np.ones((len(pos), 1))]).astype(np.float32)
     b = 4 * np.arange(len(q))
     faces = np.concatenate([np.stack([b, b + 1, b + 2], 1), np.stack([b, b + 2, b + 3], 1)])
-    mat = pyrender.MetallicRoughnessMaterial(
-        baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-        metallicFactor=0.0,
-        roughnessFactor=1.0,
-        doubleSided=True,
-    )
-    prim = pyrender.Primitive(
-        positions=pos.astype(np.float32),
-        color_0=col,
-        indices=faces.astype(np.uint32),
-        material=mat,
-        mode=4,
-    )
-    return pyrender.Mesh([prim])
+    return DrawMesh(
+        "grid", col, pos.astype(np.float32), col, faces.astype(np.uint32), double_sided=True,
+        static=True
+    )  # fmt: skip
 
 
-def _sky_mesh(centre: np.ndarray, cam: Camera, height: float, *, horizon: bool = False) -> Any:
+def _sky_mesh(
+    centre: np.ndarray, cam: Camera, height: float, *, horizon: bool = False
+) -> DrawMesh | None:
     """The sky: a huge unlit vertical backdrop in :data:`BACKGROUND` colour,
     :data:`SKY_DISTANCE` metres behind ``centre`` as seen along the camera axis; None
     when the picture has no horizon.
@@ -178,7 +176,6 @@ def _sky_mesh(centre: np.ndarray, cam: Camera, height: float, *, horizon: bool =
     ``horizon``: every orthographic view gets that horizon at the feet, whatever its
     elevation (views below the floor included; see :data:`FLOOR_STYLES`).
     """
-    pyrender = load_pyrender()
     y = np.array([0.0, 1.0, 0.0])
     back = cam.back
     hb = np.asarray(back, float) - y * (back @ y)
@@ -199,20 +196,8 @@ def _sky_mesh(centre: np.ndarray, cam: Camera, height: float, *, horizon: bool =
     w, h = 20 * SKY_DISTANCE, 20 * SKY_DISTANCE
     pos = np.array([c - hr * w, c + hr * w, c + hr * w + y * h, c - hr * w + y * h], np.float32)
     col = np.tile(np.append(_srgb_to_linear(BACKGROUND), 1.0), (4, 1)).astype(np.float32)
-    mat = pyrender.MetallicRoughnessMaterial(
-        baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-        metallicFactor=0.0,
-        roughnessFactor=1.0,
-        doubleSided=True,
-    )
-    prim = pyrender.Primitive(
-        positions=pos,
-        color_0=col,
-        indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
-        material=mat,
-        mode=4,
-    )
-    return pyrender.Mesh([prim])
+    faces = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    return DrawMesh("sky", pos, pos, col, faces, double_sided=True, static=True)
 
 
 def shadow_vertices(vertices: np.ndarray, light: ArrayLike, ground: float) -> np.ndarray:
@@ -265,7 +250,6 @@ class SceneRenderer:
         body: BodyKind | SceneBody = DEFAULT_BODY,
         floor: str = "auto",
     ) -> None:
-        pyrender = load_pyrender()
         self.scene = scene
         self.size = check_size(size)
         self.body = scene_body(scene, kind=body) if isinstance(body, str) else body
@@ -280,23 +264,11 @@ class SceneRenderer:
         self.shadows = bool(shadows) and self.ground and floor == "auto"
         self._thread = threading.get_ident()
         # cleared to the floor colour: the floor is everything the sky does not cover
-        bg = FLOOR_COLOR if self.ground else BACKGROUND
-        self.pscene = pyrender.Scene(bg_color=[*bg, 1.0], ambient_light=[0.30] * 3)
-        self._sky_node = None
-        self._material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.7
-        )
-        # projected shadows have faces of both windings: draw them unculled
-        self._shadow_material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-            metallicFactor=0.0,
-            roughnessFactor=1.0,
-            doubleSided=True,
-        )
+        self._clear = FLOOR_COLOR if self.ground else BACKGROUND
+        self._sky: DrawMesh | None = None
         n = len(self.body.characters)
-        # pyrender nodes (pyrender has no type information)
-        self._node: Any = None
-        self._shadow_node: Any = None
+        self._body_mesh: DrawMesh | None = None
+        self._shadow_mesh: DrawMesh | None = None
         self._below = False  # camera under the floor (set with the camera)
         self._vcols = np.vstack([self._vertex_colors(i) for i in range(n)])
         self._faces = self.body.faces.astype(np.uint32)
@@ -312,16 +284,16 @@ class SceneRenderer:
             )
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
+        self._grid: DrawMesh | None = None
         if self.ground:
             b = scene.bounds()
             self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
-            self.pscene.add(self._grid)
-        self._cam_node: Any = None
         self._last_cam: Camera | None = None
+        self._camera_uses = 0  # renders with the last camera
+        self._background_key: object = None  # its samples in GL (see _background_image)
         self._gl_cam: Camera | None = None  # set with the first camera, see _set_camera
-        self._cam_full = True
         self._background: np.ndarray | None = None
-        self._light_nodes: list[Any] = []
+        self._lights: list[Light] = []
         self._shadow_dir = np.array([0.0, 1.0, 0.0])
 
     def _vertex_colors(self, i: int) -> np.ndarray:
@@ -332,7 +304,6 @@ class SceneRenderer:
         return c
 
     def _set_camera(self, cam: Camera) -> None:
-        pyrender = load_pyrender()
         # The floor reaches far beyond the characters: extend the depth range so it is
         # not clipped (an orthographic eye can move back freely without changing the
         # image; a perspective one keeps its near plane and sees farther).
@@ -365,17 +336,11 @@ class SceneRenderer:
                 max(cam.zfar, far),
             )
         self._gl_cam = gl_cam
-        self._point_camera(gl_cam)
         self._background = None
-        if self.ground:
-            if self._sky_node is not None:
-                self.pscene.remove_node(self._sky_node)
-                self._sky_node = None
+        if self.ground and self._grid is not None:
             b = self.scene.bounds()
             centre = (b[0] + b[1]) / 2 if self.horizon_point is None else self.horizon_point
-            sky = _sky_mesh(centre, cam, self.scene.ground, horizon=self.floor == "horizon")
-            if sky is not None:
-                self._sky_node = self.pscene.add(sky)
+            self._sky = _sky_mesh(centre, cam, self.scene.ground, horizon=self.floor == "horizon")
             # an almost level orthographic view sees the grid edge-on: a row of dashes
             # along the horizon, not a floor; leave it out
             level = (
@@ -389,10 +354,7 @@ class SceneRenderer:
                 if cam.projection == "orthographic"
                 else cam.position[1] < self.scene.ground
             )
-            self._grid.is_visible = not (level or self._below or self.floor == "horizon")
-        for n in self._light_nodes:
-            self.pscene.remove_node(n)
-        self._light_nodes = []
+            self._grid.visible = not (level or self._below or self.floor == "horizon")
         y = np.array([0.0, 1.0, 0.0])
         # Lights follow the camera so every view is lit alike: a key light from above
         # the camera's left, a weaker fill from the right, a rim light from behind.
@@ -401,12 +363,13 @@ class SceneRenderer:
             (cam.back + 0.2 * y + 1.0 * cam.right, 0.9),
             (-cam.back + 1.2 * y + 0.3 * cam.right, 1.1),
         )
+        self._lights = []
         for direction, intensity in lights:
             d = direction / np.linalg.norm(direction)  # from the scene towards the light
             m = np.eye(4)
             m[:3, :3] = np.stack(view_basis(d, None if abs(d[1]) < POLE_COS else [1.0, 0, 0]), 1)
-            light = pyrender.DirectionalLight(color=[1.0, 1.0, 1.0], intensity=intensity)
-            self._light_nodes.append(self.pscene.add(light, pose=m))
+            # shining along the light's -z, through the matrix its scene node renders with
+            self._lights.append(Light(-gl_node_matrix(m)[:3, 2], intensity))
         # the shadow light, in world terms: horizontal part from the camera's side
         hb = cam.back - y * (cam.back @ y)
         hb = hb / np.linalg.norm(hb) if np.linalg.norm(hb) > 1e-6 else cam.up
@@ -416,38 +379,71 @@ class SceneRenderer:
         self._shadow_dir = d / np.linalg.norm(d)
         self._last_cam = cam
 
-    def _point_camera(self, gl_cam: Camera) -> None:
-        """Set the scene's camera node (its projection and pose) to ``gl_cam``."""
-        if self._cam_node is None:
-            self._cam_node = self.pscene.add(gl_cam.pyrender_camera(), pose=gl_cam.pose)
-        else:
-            self._cam_node.camera = gl_cam.pyrender_camera()
-            self.pscene.set_pose(self._cam_node, gl_cam.pose)
-        self._cam_full = gl_cam is self._gl_cam
-
     def _full_camera(self) -> Camera:
         """The GL camera of the whole view (set by :meth:`_set_camera`)."""
         if self._gl_cam is None:
             raise RenderError("internal: SceneRenderer used before its camera was set")
         return self._gl_cam
 
+    def draw_list(self, bodies: bool = True) -> list[DrawMesh]:
+        """What a picture draws, in order: the floor grid, the sky, the bodies and
+        their shadows (``bodies``), as posed by the last :meth:`render`."""
+        meshes = [self._grid, self._sky]
+        if bodies:
+            meshes += [self._body_mesh, self._shadow_mesh]
+        return [m for m in meshes if m is not None]
+
+    def lights(self) -> list[Light]:
+        """The directional lights of the last camera (ambient: :data:`AMBIENT`)."""
+        return list(self._lights)
+
+    def _draw(
+        self,
+        gl_cam: Camera,
+        bodies: bool = True,
+        window: tuple[int, int, int, int] | None = None,
+    ) -> np.ndarray:
+        """The picture ``gl_cam`` sees, (H, W, 3) uint8, or its rectangle ``window``
+        (``x0, y0, width, height``)."""
+        return self._submit_draw(gl_cam, bodies, window).read()
+
+    def _submit_draw(
+        self,
+        gl_cam: Camera,
+        bodies: bool = True,
+        window: tuple[int, int, int, int] | None = None,
+        keep: object = None,
+        background: object = None,
+    ) -> Pending:
+        pose = gl_camera_pose(gl_cam)
+        under = len(self.draw_list(False))
+        return submit(
+            self.draw_list(bodies),
+            keep=keep,
+            background=None if background is None else (background, under),
+            size=gl_cam.size,
+            view=np.linalg.inv(pose),
+            projection=gl_projection(gl_cam),
+            cam_pos=pose[:3, 3],
+            lights=self._lights,
+            ambient=AMBIENT,
+            clear=self._clear,
+            window=window,
+        )
+
     def _update_bodies(self, index: int) -> list[np.ndarray]:
-        # All characters in one mesh and all shadows in another: each draw call costs
-        # ~1 ms of Python and GL state in pyrender, the triangles themselves are cheap.
-        pyrender = load_pyrender()
+        # All characters in one mesh and all shadows in another: one draw call each.
         verts = self.body.vertices(index)
         drawn = [verts]
-        prim = pyrender.Primitive(
-            positions=verts.astype(np.float32),
+        self._body_mesh = DrawMesh(
+            "body",
+            self._vcols,
+            verts.astype(np.float32),
+            self._vcols,
+            self._faces,
             normals=self.body.normals(index).astype(np.float32),
-            color_0=self._vcols,
-            indices=self._faces,
-            material=self._material,
-            mode=4,
+            roughness=BODY_ROUGHNESS,
         )
-        if self._node is not None:
-            self.pscene.remove_node(self._node)
-        self._node = self.pscene.add(pyrender.Mesh([prim]))
         if self.shadows:
             # a coarse stand-in, and only its faces turned to the light: every closed piece
             # then covers its shadow once (a tenth of the triangles, no overdraw)
@@ -456,17 +452,16 @@ class SceneRenderer:
             tri = cv[sb.faces]
             lit = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) @ self._shadow_dir > 0
             sv = shadow_vertices(cv, self._shadow_dir, self.scene.ground + 3e-3)
-            sprim = pyrender.Primitive(
-                positions=sv.astype(np.float32),
-                color_0=self._shadow_rgb,
-                indices=sb.faces[lit].astype(np.uint32),
-                material=self._shadow_material,
-                mode=4,
+            self._shadow_mesh = DrawMesh(
+                "shadow",
+                self._shadow_rgb,
+                sv.astype(np.float32),
+                self._shadow_rgb,
+                sb.faces[lit].astype(np.uint32),
+                double_sided=True,
+                visible=not self._below,
+                dynamic_indices=True,
             )
-            if self._shadow_node is not None:
-                self.pscene.remove_node(self._shadow_node)
-            self._shadow_node = self.pscene.add(pyrender.Mesh([sprim]))
-            self._shadow_node.mesh.is_visible = not self._below
             if not self._below:
                 drawn.append(sv)
         return drawn
@@ -475,15 +470,44 @@ class SceneRenderer:
         """The image of the pose at internal index ``index`` (``frame - scene.frame_offset``)
         seen by ``camera``: (H, W, 3) uint8.
 
-        ``crop=True`` (for many frames seen by one orthographic camera, as in videos):
-        the picture without the bodies is rendered once per camera, and each frame
-        renders only the rectangle its bodies and shadows cover, through a camera that
-        sees exactly those pixels of the full view (an orthographic view shifted within
-        its image plane), pasted into a copy of it. The result is the full render's up
-        to rasterisation rounding at a few edge pixels; software GL pays per pixel
-        (multisampled), so this is 2-4x less work when the bodies fill part of the frame.
+        Many frames seen by one camera (a video, or ``crop=True`` from the first
+        frame; otherwise from the second frame with the same camera object): the
+        picture without the bodies is rendered once per camera, and each frame draws,
+        resolves and reads back only the rectangle its bodies and shadows cover (a
+        scissor in the full view: the same matrices, so those pixels are the full
+        render's bit for bit), pasted into a copy of it. The result equals the full
+        render; software GL pays per pixel (multisampled), so this is 2-4x less work
+        when the bodies fill part of the frame. A camera used once (a still, a
+        thumbnail) renders the whole frame: a background would cost a frame more.
         """
-        pyrender = load_pyrender()
+        return self._submit(index, camera, crop)()
+
+    def render_frames(
+        self, indices: Iterable[int], camera: Camera, *, crop: bool = True
+    ) -> Iterator[np.ndarray]:
+        """The images of the poses at ``indices`` seen by ``camera``, one after the
+        other, each as :meth:`render` gives it (the same pixels), pipelined: a frame's
+        bodies are posed while llvmpipe's threads rasterise the frame before. Videos
+        draw this way."""
+        pending = None
+        for index in indices:
+            frame = self._submit(int(index), camera, crop, previous=pending)
+            if pending is not None:
+                yield pending()
+            pending = frame
+        if pending is not None:
+            yield pending()
+
+    def _submit(
+        self,
+        index: int,
+        camera: Camera,
+        crop: bool,
+        previous: _Frame | None = None,
+    ) -> _Frame:
+        """Pose ``index``, draw it and return the frame (call it for the image).
+        ``previous``: the frame before, still rasterising: posing this one overlaps it,
+        and it is read back (kept for the caller) before this one's meshes upload."""
         if threading.get_ident() != self._thread:
             raise RenderError(
                 "a SceneRenderer must be used on the thread that created it "
@@ -494,40 +518,35 @@ class SceneRenderer:
         self.body._check(index)
         if camera is not self._last_cam:
             self._set_camera(camera)
+            self._camera_uses = 0
+        self._camera_uses += 1
         drawn = self._update_bodies(int(index))
-        window = self._crop_window(camera, drawn) if crop else None
+        many = crop or self._camera_uses > 1
+        window = self._crop_window(camera, drawn) if many else None
+        if previous is not None:
+            previous()  # read back before the GL buffers and framebuffer are reused
         gl_cam = self._full_camera()
         if window is None:
-            if not self._cam_full:
-                self._point_camera(gl_cam)
-            color, _ = gl_renderer(*self.size).render(self.pscene, flags=pyrender.RenderFlags.NONE)
-            return np.ascontiguousarray(color)
+            return _Frame(self._submit_draw(gl_cam), None, None)
         background = self._background_image()
-        x0, y0, cw, ch = window
-        p = gl_cam.pixel_size
-        w, h = self.size
-        shift = gl_cam.right * (x0 + cw / 2 - w / 2) * p + gl_cam.up * (h / 2 - y0 - ch / 2) * p
-        self._point_camera(
-            replace(gl_cam, position=gl_cam.position + shift, size=(cw, ch), half_height=ch * p / 2)
-        )
-        part, _ = gl_renderer(cw, ch).render(self.pscene, flags=pyrender.RenderFlags.NONE)
-        image = background.copy()
-        image[y0 : y0 + ch, x0 : x0 + cw] = part
-        return image
+        pending = self._submit_draw(gl_cam, window=window, background=self._background_key)
+        return _Frame(pending, background, window)
 
     def _crop_window(
         self, camera: Camera, drawn: list[np.ndarray]
     ) -> tuple[int, int, int, int] | None:
         """``(x0, y0, width, height)`` in pixels of a rectangle holding every drawn
         point (bodies, shadows) of this frame, or None to render the whole frame."""
-        if camera.projection != "orthographic":
-            return None  # a shifted perspective view is another picture
         w, h = self.size
-        xy = camera.project(np.concatenate([np.asarray(d, float) for d in drawn]))
+        points = np.concatenate([np.asarray(d, float) for d in drawn])
+        if camera.projection != "orthographic":
+            depth = (camera.position - points) @ camera.back
+            if not np.all(depth > camera.znear):  # beside or behind the eye: no box
+                return None
+        xy = camera.project(points)
         lo = np.floor(xy.min(axis=0)) - CROP_PAD_PX
         hi = np.ceil(xy.max(axis=0)) + CROP_PAD_PX
-        # sizes in steps of CROP_STEP_PX: the renderer's framebuffers are reallocated
-        # only when the step changes, not every frame
+        # sizes in steps of CROP_STEP_PX (llvmpipe draws in 64-pixel tiles)
         cw, ch = (
             int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
             for a, b, n in zip(lo, hi, (w, h))
@@ -539,20 +558,40 @@ class SceneRenderer:
         return x0, y0, cw, ch
 
     def _background_image(self) -> np.ndarray:
-        """The full view without bodies and shadows (once per camera)."""
+        """The full view without bodies and shadows (once per camera). Its samples are
+        kept in GL too: a frame's rectangle starts from them (a copy) instead of
+        clearing and drawing the floor and sky again."""
         if self._background is None:
-            pyrender = load_pyrender()
-            nodes = [n for n in (self._node, self._shadow_node) if n is not None]
-            shown = [n.mesh.is_visible for n in nodes]
-            for n in nodes:
-                n.mesh.is_visible = False
-            if not self._cam_full:
-                self._point_camera(self._full_camera())
-            color, _ = gl_renderer(*self.size).render(self.pscene, flags=pyrender.RenderFlags.NONE)
-            self._background = np.ascontiguousarray(color)
-            for n, v in zip(nodes, shown):
-                n.mesh.is_visible = v
+            self._background_key = object()
+            pending = self._submit_draw(self._full_camera(), False, keep=self._background_key)
+            self._background = np.ascontiguousarray(pending.read())
         return self._background
+
+
+class _Frame:
+    """A submitted frame: calling it waits for the picture (once; later calls return
+    the same image), pasted into the background when only a rectangle was drawn."""
+
+    def __init__(
+        self,
+        pending: Pending,
+        background: np.ndarray | None,
+        window: tuple[int, int, int, int] | None,
+    ) -> None:
+        self._pending, self._background, self._window = pending, background, window
+        self._image: np.ndarray | None = None
+
+    def __call__(self) -> np.ndarray:
+        if self._image is None:
+            part = self._pending.read()
+            if self._background is None or self._window is None:
+                self._image = np.ascontiguousarray(part)
+            else:
+                x0, y0, cw, ch = self._window
+                image = self._background.copy()
+                image[y0 : y0 + ch, x0 : x0 + cw] = part
+                self._image = image
+        return self._image
 
 
 def scene_index(scene: Scene, frame: int, what: str = "frame") -> int:

@@ -306,10 +306,10 @@ def render_video(
         leave=False,
     )
     try:
-        for f in frames:
+        # pipelined: a frame is posed while the one before rasterises
+        for f, img in zip(frames, sr.render_frames(frames, camera)):
             if failure:
                 break
-            img = sr.render(int(f), camera, crop=True)
             if frame_numbers:
                 src = int(scene.source_frame(int(f)))
                 img = draw_label(img, f"frame {src}   {f / scene.fps:6.2f} s")
