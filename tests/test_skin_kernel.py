@@ -110,6 +110,39 @@ def test_polar_rotation_is_the_svd_nearest_rotation():
     assert flip.any() and (np.linalg.det(a) > 0).any()  # both branches were taken
 
 
+def test_quaternions_of_matrices_in_every_branch():
+    """The kernel's matrix → quaternion conversion gives back the matrix (so q or -q of
+    SciPy's) for rotations near 0° and near 180° about each axis, where each of its
+    four readings is the one taken, and for random ones."""
+    from snapcore.motion.dq_kernel import _quaternions
+    from snapcore.motion.kinematics import quat_to_matrix
+
+    vecs = [np.zeros(3), *(np.pi * (np.eye(3)[i] * 0.999 + 0.01) for i in range(3))]
+    r = np.concatenate(
+        [
+            Rotation.from_rotvec(vecs).as_matrix(),
+            Rotation.random(200, random_state=4).as_matrix(),
+        ]
+    )
+    q = _quaternions(r)  # (4, N)
+    np.testing.assert_allclose(quat_to_matrix(q.T), r, atol=1e-14)
+    want = Rotation.from_matrix(r).as_quat()[:, [3, 0, 1, 2]]
+    np.testing.assert_allclose(np.abs(np.einsum("in,ni->n", q, want)), 1.0, atol=1e-14)
+
+
+def test_known_rotations_skin_as_the_polar_ones():
+    """A caller's rotations (the polar factors it built its matrices from) give what the
+    polar iteration gives; other rotations would not (so they are used)."""
+    rng = np.random.default_rng(7)
+    rest, w, m, centres, linear = _random_rig(rng, spread=1.0)
+    plan = dq_plan(rest, w, linear)
+    r = polar_rotation(m[..., :3])
+    got = dq_skin_planned(plan, m, centres, rotations=r)
+    np.testing.assert_allclose(got, dq_skin_planned(plan, m, centres), atol=TOL64)
+    other = dq_skin_planned(plan, m, centres, rotations=np.broadcast_to(np.eye(3), r.shape))
+    assert np.abs(other - got).max() > 1e-3
+
+
 def _salsa_body(motions_dir):
     from snapcore.motion.load import load_scene
     from snapcore.render.human import HumanBody

@@ -554,15 +554,21 @@ class Retarget(SoleFit):
             :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
             so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
-        m, st = self._unplanted(positions, rotations)
-        m = self._planted(m, st, positions)
+        m, st, _ = self._posed(positions, rotations)
         if stretch:
             return m, st
         return m
 
+    def _posed(self, positions, rotations):
+        """:meth:`group_matrices` with the stretch term and each matrix's rotation
+        (F, G, 3, 3): the matrices are rotation × positive scaling (W A^T · A D A^T),
+        so this is their polar decomposition's rotation, which the skinning needs."""
+        m, st, rot = self._unplanted(positions, rotations)
+        return self._planted(m, st, positions, rot), st, rot
+
     def _unplanted(self, positions, rotations):
-        """Group matrices before foot planting (F, G, 3, 4) and the stretch term
-        (F, G, 3) of :meth:`group_matrices`."""
+        """Group matrices before foot planting (F, G, 3, 4), the stretch term (F, G, 3)
+        of :meth:`group_matrices` and the matrices' rotations (F, G, 3, 3)."""
         pts, d, fingers = self._inputs(positions)
         h, tip = self._heads_tips(positions)
         fr = self._frames(pts, d, rotations, fingers)
@@ -584,10 +590,11 @@ class Retarget(SoleFit):
             [np.full((f, g), self.k), length, np.broadcast_to(self.k * self.sole_scale, (f, g))],
             axis=-1,
         )
-        lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
+        rig_t = np.swapaxes(self.frames_rig, -1, -2)
+        lin = (w * scale[..., None, :]) @ rig_t  # W D A^T
         trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
         st = (self.k - length)[..., None] * w[..., 1]
-        return np.concatenate([lin, trans[..., None]], axis=-1), st
+        return np.concatenate([lin, trans[..., None]], axis=-1), st, w @ rig_t
 
     def stretch_weights(self, points: np.ndarray, weights):
         """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
@@ -629,9 +636,10 @@ class Retarget(SoleFit):
         dropped, drop_w = self._drop_weights(points, weights)
         for a in range(0, f, SKIN_FRAMES):
             b = min(f, a + SKIN_FRAMES)
-            m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
+            m, st, rot = self._posed(positions[a:b], rotations[a:b])
+            g = self.bone_group
             dq_skin_planned(
-                plan, m[:, self.bone_group], self.asset.heads, st[:, self.bone_group], out=out[a:b]
+                plan, m[:, g], self.asset.heads, st[:, g], out=out[a:b], rotations=rot[:, g]
             )
             if dropped.size:
                 drops = self._shoulder_drops(positions[a:b])  # (chunk, 2, 3)

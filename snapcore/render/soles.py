@@ -57,7 +57,7 @@ class SoleFit:
     def stretch_weights(self, points: np.ndarray, weights) -> Any:
         raise NotImplementedError
 
-    def _unplanted(self, positions, rotations) -> tuple[np.ndarray, np.ndarray]:
+    def _unplanted(self, positions, rotations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
     def _sole_scale(self, positions) -> np.ndarray:
@@ -118,11 +118,14 @@ class SoleFit:
             )
         return out
 
-    def _plant_shifts(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    def _plant_shifts(
+        self, m: np.ndarray, st: np.ndarray, positions: np.ndarray, rot: np.ndarray
+    ) -> np.ndarray:
         """Foot planting, as game engines do after a retarget: how far to move each foot
         up or down (F, 2; left, right; metres) to put it on the floor where it is in
         contact, from the unplanted group matrices ``m`` (F, G, 3, 4), their stretch
-        term ``st`` (F, G, 3) and the poses ``positions`` (F, J, 3).
+        term ``st`` (F, G, 3), their rotations ``rot`` (F, G, 3, 3) and the poses
+        ``positions`` (F, J, 3).
 
         A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
         sliding into the floor, a foot pitched on its heel or toes), so no fixed foot
@@ -153,7 +156,9 @@ class SoleFit:
             plans = self.__dict__.setdefault("_sole_plans", {})  # made once per foot
             if s not in plans:
                 plans[s] = dq_plan(pts, ws, linear, shift_weights=stretch_w)
-            y = dq_skin_planned(plans[s], m[:, owners], centres, st[:, owners])[..., 1]
+            y = dq_skin_planned(
+                plans[s], m[:, owners], centres, st[:, owners], rotations=rot[:, owners]
+            )[..., 1]
             low_point = y.argmin(axis=1)
             r = y[np.arange(len(y)), low_point] - self.ground
             low = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
@@ -167,10 +172,12 @@ class SoleFit:
             out[:, i] = np.clip(shift, -PLANT_MAX_M, PLANT_MAX_M)
         return out
 
-    def _planted(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    def _planted(
+        self, m: np.ndarray, st: np.ndarray, positions: np.ndarray, rot: np.ndarray
+    ) -> np.ndarray:
         """The group matrices ``m`` (F, G, 3, 4) with each foot and toe group moved by
         its :meth:`_plant_shifts` (in place; ``m`` is returned)."""
-        shifts = self._plant_shifts(m, st, positions)
+        shifts = self._plant_shifts(m, st, positions, rot)
         for s, (*_, groups, _, _) in enumerate(self._soles.values()):
             m[:, groups, 1, 3] += shifts[:, s, None]
         return m
@@ -180,5 +187,5 @@ class SoleFit:
         left then right, for poses (F, J, 3) / (F, J, 3, 3); see :meth:`_plant_shifts`.
         The body's ankles leave the skeleton's by this much, on purpose: the soles, not
         the joints, stand on the floor."""
-        m, st = self._unplanted(positions, rotations)
-        return self._plant_shifts(m, st, positions)
+        m, st, rot = self._unplanted(positions, rotations)
+        return self._plant_shifts(m, st, positions, rot)
