@@ -59,10 +59,12 @@ from snapcore.motion.load import infer_ground
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
+    cross,
     frame_x,
     frame_z,
     hinge,
     mean_rotation,
+    norm,
     swing_matrices,
     unit,
 )
@@ -414,9 +416,10 @@ class Retarget(SoleFit):
                 u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
                 self._turn[i] = _about(axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u]))))
 
-    def _inputs(self, positions):
+    def _inputs(self, positions, heads_tips=None):
         """Skeleton points, group directions (tip - head) and finger directions for the
-        segment frames of poses ``positions`` (F, J, 3)."""
+        segment frames of poses ``positions`` (F, J, 3); ``heads_tips``: their
+        :meth:`_heads_tips` when the caller has them."""
         lm = self.landmarks
         pts = {k: positions[:, lm[k]] for k in _FRAME_JOINTS}
         if self.eyes is not None:
@@ -425,7 +428,7 @@ class Retarget(SoleFit):
                 "eye_R": positions[:, self.eyes[1]],
                 "head": positions[:, lm["head"]],
             }
-        h, tip = self._heads_tips(positions)
+        h, tip = self._heads_tips(positions) if heads_tips is None else heads_tips
         d = np.zeros(h.shape)
         d[:, self._tracked] = tip - h[:, self._tracked]
         fingers = {}
@@ -462,8 +465,8 @@ class Retarget(SoleFit):
         out = np.zeros((f, len(g_all), 3, 3))
         lat_p = pts["hip_L"] - pts["hip_R"]
         lat_c = pts["shoulder_L"] - pts["shoulder_R"]
-        front_p = np.cross(lat_p, d[:, 0])
-        front_c = np.cross(lat_c, d[:, self._spine1])
+        front_p = cross(lat_p, d[:, 0])
+        front_c = cross(lat_c, d[:, self._spine1])
         done = np.zeros(len(g_all), bool)
         # the torso first: the arms' stand-in hinge is carried by the chest
         for i, g in enumerate(g_all):
@@ -487,7 +490,7 @@ class Retarget(SoleFit):
             upper, fore = el - sh, wr - el
             chest = out[:, self._spine1]
             if rig:
-                stand = np.cross(upper, fore)  # the rig's arm is bent (40°): its own plane
+                stand = cross(upper, fore)  # the rig's arm is bent (40°): its own plane
             else:
                 rel = chest @ rig_f[self._spine1].T  # rig → skeleton, as the chest turns
                 a_up = rel @ self._rig_arm[s][0]
@@ -499,7 +502,7 @@ class Retarget(SoleFit):
             thigh, shank = kn - hp, an - kn
             foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{side}Foot")
             foot = d[:, foot_g] if foot_g in self._tracked else front_p
-            hinges["leg", s] = hinge(thigh, shank, np.cross(foot, thigh))
+            hinges["leg", s] = hinge(thigh, shank, cross(foot, thigh))
             if rig:
                 self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
         # the limbs' frames in one call (frame_x works point by point: the same values)
@@ -569,8 +572,8 @@ class Retarget(SoleFit):
     def _unplanted(self, positions, rotations):
         """Group matrices before foot planting (F, G, 3, 4), the stretch term (F, G, 3)
         of :meth:`group_matrices` and the matrices' rotations (F, G, 3, 3)."""
-        pts, d, fingers = self._inputs(positions)
         h, tip = self._heads_tips(positions)
+        pts, d, fingers = self._inputs(positions, (h, tip))
         fr = self._frames(pts, d, rotations, fingers)
         # segment frame on the skeleton, times the rig's inverse: rig axes → world axes
         # (the rig frames are also the axes the lengths scale along: W A = F_skeleton)
@@ -578,7 +581,7 @@ class Retarget(SoleFit):
         f, g = h.shape[:2]
         length = np.full((f, g), self.k)
         if self._tracked.size:
-            dist = np.linalg.norm(d[:, self._tracked], axis=-1)
+            dist = norm(d[:, self._tracked])
             ok = dist > 1e-9
             length[:, self._tracked] = np.where(ok, dist / self.rig_len[self._tracked], self.k)
             if self._at_tip.any():  # anchored at the tip: rig length, placed from the tip
