@@ -84,6 +84,13 @@ def test_a_plan_adds_its_shifts_and_writes_into_out():
         "vs,fsi->fvi", sw.toarray(), shifts
     )
     np.testing.assert_allclose(out, want, rtol=0, atol=TOL64)
+    # frames need not be adjacent (every other frame of a larger array) ...
+    big = np.full((6, 50, 3), np.nan)
+    dq_skin_planned(plan, m, centres, shifts, out=big[::2])
+    np.testing.assert_array_equal(big[::2], out)
+    # ... but each frame's vertices must be (the kernel writes them as one row)
+    with pytest.raises(ValueError, match="contiguous"):
+        dq_skin_planned(plan, m, centres, shifts, out=np.zeros((3, 3, 50)).transpose(0, 2, 1))
 
 
 def test_a_plan_leaves_the_callers_weights_as_they_were():
