@@ -199,7 +199,11 @@ def dq_plan(
     code = (pk * k + pl) * (k + 1) + (ppiv + 1)
     uniq, key_of = np.unique(code, return_inverse=True)
     keys = np.stack([uniq // (k + 1) // k, uniq // (k + 1) % k, uniq % (k + 1) - 1], axis=1)
-    key_of = key_of.ravel()
+    # the diagonal keys (k, k) first: the kernel takes their rows from the rigid
+    # transforms and computes the bilinear forms of the rest only
+    order = np.argsort(keys[:, 0] != keys[:, 1], kind="stable")
+    keys = keys[order]
+    key_of = np.argsort(order)[key_of.ravel()]
     slot = np.full(v, -1)
     slot[dq_rows] = np.arange(len(dq_rows))
     d, p = len(dq_rows), len(uniq)
@@ -307,7 +311,7 @@ def _quaternions(r: np.ndarray) -> np.ndarray:
     return q
 
 
-def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
+def _pair_table(q, qd, keys, rigid, dtype) -> tuple[np.ndarray, np.ndarray]:
     """Each key's signed bilinear forms per frame, componentwise over (P, F) arrays.
 
     Parameters
@@ -315,6 +319,9 @@ def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
     q, qd : ndarray of shape (4, K, F)
         The bones' real and dual quaternions ``(w, x, y, z)``, component first.
     keys : ndarray of int, shape (P, 3)
+        The diagonal keys ``(k, k, -1)`` first (:func:`dq_plan` orders them so).
+    rigid : ndarray of shape (F, K, 3, 4)
+        The bones' rigid transforms: the diagonal keys' forms, exactly.
     dtype : numpy dtype
         Of the returned tables (the signs are decided in float64).
 
@@ -326,43 +333,44 @@ def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
         ``σ q_k · q_l``.
     """
     k, j, p = keys[:, 0], keys[:, 1], keys[:, 2]
-    # signs first, in float64: s_k s_l; with the pivot in the pair (or k == l),
-    # sign(q_k · q_l)
-    c64 = np.einsum("apf,apf->pf", q[:, k], q[:, j])
+    nd = int(np.count_nonzero(k == j))
+    f = q.shape[2]
+    # the signs, in float64, from every pair's quaternion dot product per frame (a
+    # (K, K) Gram matrix per frame): s_k s_l; with the pivot in the pair, sign(q_k · q_l)
+    gram = np.matmul(q.transpose(2, 1, 0), q.transpose(2, 0, 1))  # (F, K, K)
+    c64 = gram[:, k, j].T  # (P, F)
     sign = np.where(c64 < 0, -1.0, 1.0)
-    far = p >= 0
-    if far.any():
-        qp = q[:, p[far]]
-        sk = np.einsum("apf,apf->pf", q[:, k[far]], qp) < 0
-        sl = np.einsum("apf,apf->pf", q[:, j[far]], qp) < 0
+    far = np.flatnonzero(p >= 0)
+    if far.size:
+        sk = gram[:, k[far], p[far]].T < 0
+        sl = gram[:, j[far], p[far]].T < 0
         sign[far] = np.where(sk ^ sl, -1.0, 1.0)
-    sign[k == j] = 1.0
-    q = q.astype(dtype, copy=False)
-    qd = qd.astype(dtype, copy=False)
-    sign = sign.astype(dtype)
-    w1, x1, y1, z1 = q[:, k] * sign  # the sign folded into one factor of each product
-    w2, x2, y2, z2 = q[:, j]
-    e1, a1, b1, c1 = qd[:, k] * sign  # dual parts: (w_e, x_e, y_e, z_e)
-    e2, a2, b2, c2 = qd[:, j]
-    vv = x1 * x2 + y1 * y2 + z1 * z2
-    s = w1 * w2 - vv
+    sign[:nd] = 1.0
+    n = np.empty((len(keys), 4, 3, f), dtype=dtype)
+    n[:nd] = _table(rigid[:, k[:nd]])  # N(d_k, d_k) = T_k
+    u = np.concatenate([q, qd]).astype(dtype)  # (8, K, F)
+    # the sign folded into one factor of each product
+    w1, x1, y1, z1, e1, a1, b1, c1 = u[:, k[nd:]] * sign[nd:].astype(dtype)
+    w2, x2, y2, z2, e2, a2, b2, c2 = u[:, j[nd:]]  # dual parts: (w_e, x_e, y_e, z_e)
+    o = n[nd:]
+    xx, yy, zz = x1 * x2, y1 * y2, z1 * z2
+    s = w1 * w2 - (xx + yy + zz)
     wx, wy, wz = w1 * x2 + w2 * x1, w1 * y2 + w2 * y1, w1 * z2 + w2 * z1
     xy, xz, yz = x1 * y2 + x2 * y1, x1 * z2 + x2 * z1, y1 * z2 + y2 * z1
-    n = np.empty((len(keys), 4, 3, q.shape[2]), dtype=dtype)
     # R(q, q') = (w w' - v·v') I + v v'ᵀ + v' vᵀ + w [v']× + w' [v]×
-    n[:, 0, 0] = s + 2 * x1 * x2
-    n[:, 1, 0] = xy - wz
-    n[:, 2, 0] = xz + wy
-    n[:, 0, 1] = xy + wz
-    n[:, 1, 1] = s + 2 * y1 * y2
-    n[:, 2, 1] = yz - wx
-    n[:, 0, 2] = xz - wy
-    n[:, 1, 2] = yz + wx
-    n[:, 2, 2] = s + 2 * z1 * z2
+    o[:, 0, 0] = s + 2 * xx
+    o[:, 1, 0] = xy - wz
+    o[:, 2, 0] = xz + wy
+    o[:, 0, 1] = xy + wz
+    o[:, 1, 1] = s + 2 * yy
+    o[:, 2, 1] = yz - wx
+    o[:, 0, 2] = xz - wy
+    o[:, 1, 2] = yz + wx
+    o[:, 2, 2] = s + 2 * zz
     # t(d, d') = w v_ε' + w' v_ε - w_ε v' - w_ε' v + v × v_ε' + v' × v_ε
-    n[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
-    n[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
-    n[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
+    o[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
+    o[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
+    o[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
     return n, (c64 * sign).astype(dtype)
 
 
@@ -444,9 +452,7 @@ def dq_skin_planned(
                 q[0] * tt[2] + tt[0] * q[2] - tt[1] * q[1],
             ]
         )
-        n_tab, c_tab = _pair_table(q, qd, plan.pair_keys, dtype)
-        diag = np.flatnonzero(plan.pair_keys[:, 0] == plan.pair_keys[:, 1])
-        n_tab[diag] = _table(rigid[:, plan.pair_keys[diag, 0]])  # exactly T_k
+        n_tab, c_tab = _pair_table(q, qd, plan.pair_keys, rigid, dtype)
         pair_table = n_tab.reshape(-1, 3, f)
     # frames in chunks, each product over KERNEL_FRAMES of them; vertices in blocks
     # whose products' output stays in cache for the transposing copy
