@@ -109,7 +109,7 @@ class DQPlan:
         ``(first, stop, lin_x rows, pair_x rows, pair_w rows, its dual-quaternion
         vertices' rows in the block)``, the pair parts None where it has none."""
         if size not in self._blocks:
-            v, out = self.n_vertices, []
+            v, out = self.n_vertices, list[tuple]()
             for r0 in range(0, v, size):
                 r1 = min(v, r0 + size)
                 whole = r0 == 0 and r1 == v

@@ -468,43 +468,55 @@ class Retarget(SoleFit):
         front_p = cross(lat_p, d[:, 0])
         front_c = cross(lat_c, d[:, self._spine1])
         done = np.zeros(len(g_all), bool)
-        # the torso first: the arms' stand-in hinge is carried by the chest
+        # the torso first: the arms' stand-in hinge is carried by the chest; each
+        # recipe's groups in one call (frame_x and frame_z work point by point)
+        xs, zs = [], []
+        ulat_p, ulat_c = unit(lat_p), unit(lat_c)
         for i, g in enumerate(g_all):
             kind = g.recipe[0]
             if kind == "torso":
                 u = g.recipe[1]
-                out[:, i] = frame_x(d[:, i], (1 - u) * unit(lat_p) + u * unit(lat_c))
+                xs.append((i, (1 - u) * ulat_p + u * ulat_c))
             elif kind == "neck":
-                out[:, i] = frame_x(d[:, i], lat_c)
+                xs.append((i, lat_c))
             elif kind == "hipjoint":
-                out[:, i] = frame_z(d[:, i], front_p)
+                zs.append((i, front_p))
             elif kind == "clavicle":
-                out[:, i] = frame_z(d[:, i], front_c)
-            else:
-                continue
-            done[i] = True
+                zs.append((i, front_c))
+        for frame, todo in ((frame_x, xs), (frame_z, zs)):
+            if todo:
+                idx = [i for i, _ in todo]
+                out[:, idx] = frame(d[:, idx], np.stack([ref for _, ref in todo], axis=1))
+                done[idx] = True
+        # the limbs' hinges, both arms and both legs in one call (hinge works point by
+        # point): arms (L, R), then legs (L, R)
+        sides = list(SIDES)
+        upper = np.stack([pts[f"elbow_{s}"] - pts[f"shoulder_{s}"] for s in sides], axis=1)
+        fore = np.stack([pts[f"wrist_{s}"] - pts[f"elbow_{s}"] for s in sides], axis=1)
+        if rig:
+            stand = cross(upper, fore)  # the rig's arm is bent (40°): its own plane
+        else:
+            # rig → skeleton, as the chest turns
+            rel = (out[:, self._spine1] @ self.frames_rig[self._spine1].T)[:, None]
+            a_up = (rel @ np.stack([self._rig_arm[s][0] for s in sides])[..., None])[..., 0]
+            b = rel @ np.stack([self._rig_arm[s][1] for s in sides])[..., None]
+            stand = (swing_matrices(a_up, upper) @ b)[..., 0]
+        thigh = np.stack([pts[f"knee_{s}"] - pts[f"hip_{s}"] for s in sides], axis=1)
+        shank = np.stack([pts[f"ankle_{s}"] - pts[f"knee_{s}"] for s in sides], axis=1)
+        foot = []
+        for s in sides:
+            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{SIDES[s]}Foot")
+            foot.append(d[:, foot_g] if foot_g in self._tracked else front_p)
+        axes = hinge(
+            np.concatenate([upper, thigh], axis=1),
+            np.concatenate([fore, shank], axis=1),
+            np.concatenate([stand, cross(np.stack(foot, axis=1), thigh)], axis=1),
+        )
         hinges = {}
-        rig_f = None if rig else self.frames_rig
-        for s, side in SIDES.items():
-            sh, el, wr = pts[f"shoulder_{s}"], pts[f"elbow_{s}"], pts[f"wrist_{s}"]
-            upper, fore = el - sh, wr - el
-            chest = out[:, self._spine1]
+        for n, s in enumerate(sides):
+            hinges["arm", s], hinges["leg", s] = axes[:, n], axes[:, 2 + n]
             if rig:
-                stand = cross(upper, fore)  # the rig's arm is bent (40°): its own plane
-            else:
-                rel = chest @ rig_f[self._spine1].T  # rig → skeleton, as the chest turns
-                a_up = rel @ self._rig_arm[s][0]
-                stand = (swing_matrices(a_up, upper) @ (rel @ self._rig_arm[s][1])[..., None])[
-                    ..., 0
-                ]
-            hinges["arm", s] = hinge(upper, fore, stand)
-            hp, kn, an = pts[f"hip_{s}"], pts[f"knee_{s}"], pts[f"ankle_{s}"]
-            thigh, shank = kn - hp, an - kn
-            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{side}Foot")
-            foot = d[:, foot_g] if foot_g in self._tracked else front_p
-            hinges["leg", s] = hinge(thigh, shank, cross(foot, thigh))
-            if rig:
-                self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
+                self._rig_arm[s] = (unit(upper[0, n]), axes[0, n])
         # the limbs' frames in one call (frame_x works point by point: the same values)
         limb = [(i, g.recipe) for i, g in enumerate(g_all) if g.recipe[0] in ("arm", "leg")]
         if limb:

@@ -66,7 +66,7 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def norm(v: np.ndarray, *, keepdims: bool = False) -> np.ndarray:
     """Euclidean length over the last axis: ``np.linalg.norm(v, axis=-1)``'s values (the
     same sum of squares) without its checks."""
-    return np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=keepdims))
+    return np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=keepdims))  # type: ignore[call-overload]
 
 
 def unit(v: np.ndarray) -> np.ndarray:
