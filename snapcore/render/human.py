@@ -444,8 +444,8 @@ class Retarget(SoleFit):
         tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
         # the rig's spine curve about the chord (see _spine_offsets)
         _, chord = self._chord(positions)
-        h = h + np.einsum("fij,gj->fgi", chord, self._off_head)
-        tip = tip + np.einsum("fij,gj->fgi", chord, self._off_tip[self._tracked])
+        h = h + self._off_head @ np.swapaxes(chord, -1, -2)  # chord @ offset per group
+        tip = tip + self._off_tip[self._tracked] @ np.swapaxes(chord, -1, -2)
         lm = self.landmarks
         for s, (foot, toes, drop) in self._drop.items():  # the ball (_ball_drops)
             ankle = positions[:, lm[f"ankle_{s}"]]
@@ -605,11 +605,17 @@ class Retarget(SoleFit):
             [np.full((f, g), self.k), length, np.broadcast_to(self.k * self.sole_scale, (f, g))],
             axis=-1,
         )
-        rig_t = np.swapaxes(self.frames_rig, -1, -2)
-        lin = (w * scale[..., None, :]) @ rig_t  # W D A^T
-        trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
+        # W D A^T and W A^T, as sums over the three axes (NumPy's matmul of 3 x 3
+        # stacks cost 3-5 times as much)
+        a = self.frames_rig  # (G, 3, 3): A, its rows A^T's columns
+        rot = sum(w[..., :, c, None] * a[:, None, :, c] for c in range(3))
+        lin = sum(
+            (w[..., :, c] * scale[..., None, c])[..., None] * a[:, None, :, c] for c in range(3)
+        )
+        o = self._rig_origin
+        trans = h - sum(lin[..., c] * o[:, c, None] for c in range(3))
         st = (self.k - length)[..., None] * w[..., 1]
-        return np.concatenate([lin, trans[..., None]], axis=-1), st, w @ rig_t
+        return np.concatenate([lin, trans[..., None]], axis=-1), st, rot
 
     def stretch_weights(self, points: np.ndarray, weights):
         """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
