@@ -259,3 +259,16 @@ def test_segment_frames_are_rotations_and_hinges_follow_the_bend():
     # bent: down x bent = -x, whatever the stand-in says; straight: the stand-in
     np.testing.assert_allclose(hinge(down, bent, x), -x, atol=1e-12)
     np.testing.assert_allclose(hinge(down, down, x), x, atol=1e-12)
+
+
+def test_segment_cross_and_norm_are_numpys():
+    """The retargeting's own ``cross`` and ``norm`` (no axis handling) give NumPy's values
+    bit for bit, broadcasting a single vector against a batch as ``np.cross`` does."""
+    from snapcore.render.segments import cross, norm
+
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(2, 7, 4, 3))
+    np.testing.assert_array_equal(cross(a, b), np.cross(a, b))
+    np.testing.assert_array_equal(cross(a[0, 0], b), np.cross(a[0, 0], b))
+    np.testing.assert_array_equal(norm(a), np.linalg.norm(a, axis=-1))
+    np.testing.assert_array_equal(norm(a, keepdims=True), np.linalg.norm(a, axis=-1, keepdims=True))

@@ -84,6 +84,13 @@ def test_a_plan_adds_its_shifts_and_writes_into_out():
         "vs,fsi->fvi", sw.toarray(), shifts
     )
     np.testing.assert_allclose(out, want, rtol=0, atol=TOL64)
+    # frames need not be adjacent (every other frame of a larger array) ...
+    big = np.full((6, 50, 3), np.nan)
+    dq_skin_planned(plan, m, centres, shifts, out=big[::2])
+    np.testing.assert_array_equal(big[::2], out)
+    # ... but each frame's vertices must be (the kernel writes them as one row)
+    with pytest.raises(ValueError, match="contiguous"):
+        dq_skin_planned(plan, m, centres, shifts, out=np.zeros((3, 3, 50)).transpose(0, 2, 1))
 
 
 def test_a_plan_leaves_the_callers_weights_as_they_were():
@@ -108,6 +115,39 @@ def test_polar_rotation_is_the_svd_nearest_rotation():
     u[flip, :, -1] *= -1
     np.testing.assert_allclose(polar_rotation(a), u @ vt, atol=1e-10)
     assert flip.any() and (np.linalg.det(a) > 0).any()  # both branches were taken
+
+
+def test_quaternions_of_matrices_in_every_branch():
+    """The kernel's matrix → quaternion conversion gives back the matrix (so q or -q of
+    SciPy's) for rotations near 0° and near 180° about each axis, where each of its
+    four readings is the one taken, and for random ones."""
+    from snapcore.motion.dq_kernel import _quaternions
+    from snapcore.motion.kinematics import quat_to_matrix
+
+    vecs = [np.zeros(3), *(np.pi * (np.eye(3)[i] * 0.999 + 0.01) for i in range(3))]
+    r = np.concatenate(
+        [
+            Rotation.from_rotvec(vecs).as_matrix(),
+            Rotation.random(200, random_state=4).as_matrix(),
+        ]
+    )
+    q = _quaternions(r)  # (4, N)
+    np.testing.assert_allclose(quat_to_matrix(q.T), r, atol=1e-14)
+    want = Rotation.from_matrix(r).as_quat()[:, [3, 0, 1, 2]]
+    np.testing.assert_allclose(np.abs(np.einsum("in,ni->n", q, want)), 1.0, atol=1e-14)
+
+
+def test_known_rotations_skin_as_the_polar_ones():
+    """A caller's rotations (the polar factors it built its matrices from) give what the
+    polar iteration gives; other rotations would not (so they are used)."""
+    rng = np.random.default_rng(7)
+    rest, w, m, centres, linear = _random_rig(rng, spread=1.0)
+    plan = dq_plan(rest, w, linear)
+    r = polar_rotation(m[..., :3])
+    got = dq_skin_planned(plan, m, centres, rotations=r)
+    np.testing.assert_allclose(got, dq_skin_planned(plan, m, centres), atol=TOL64)
+    other = dq_skin_planned(plan, m, centres, rotations=np.broadcast_to(np.eye(3), r.shape))
+    assert np.abs(other - got).max() > 1e-3
 
 
 def _salsa_body(motions_dir):

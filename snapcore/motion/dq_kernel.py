@@ -32,7 +32,7 @@ the pivot it is ``sign(q_k · q_l)`` (the key drops the pivot), otherwise
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,13 +40,25 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy import sparse
 
-__all__ = ["DQPlan", "dq_plan", "dq_skin_planned", "polar_rotation", "KERNEL_CHUNK_BYTES"]
+__all__ = [
+    "DQPlan",
+    "dq_plan",
+    "dq_skin_planned",
+    "polar_rotation",
+    "KERNEL_FRAMES",
+    "KERNEL_CHUNK_BYTES",
+]
 
-#: Memory budget (bytes) of one chunk of skinned vertices (V × frames × 3 of the
-#: dtype): the sparse products' outputs stay near the cache (2-4 MB measured best).
-KERNEL_CHUNK_BYTES = 3 * 2**20
-#: Vertices per block of the copy into the (F, V, 3) output.
-TRANSPOSE_BLOCK = 1024
+#: Frames per sparse product: its inner loop runs over 3 × this many columns (SciPy's
+#: products ran at 6.8 GFMA/s with 57 columns, 9.7 with 192).
+KERNEL_FRAMES = 64
+#: Memory budget (bytes) of one block of skinned vertices (rows × frames × 3 of the
+#: dtype): the products' output stays in cache for the transposing copy into the
+#: (F, V, 3) layout, so the mesh's rows are taken in blocks (1.5 MB: 2,048 vertices
+#: of 64 frames in float32, measured best with the frames above).
+KERNEL_CHUNK_BYTES = 3 * 2**19
+#: Output columns (vertex coordinates) per strip of the transposing copy.
+TRANSPOSE_STRIP = 2048
 #: A vertex whose one weight is within this of 1 moves by its bone's matrix alone.
 ONE_BONE_TOL = 1e-6
 
@@ -90,6 +102,37 @@ class DQPlan:
     pair_w: sparse.csr_matrix
     lin_x: sparse.csr_matrix
     dtype: np.dtype
+    _blocks: dict = field(default_factory=dict, repr=False)
+
+    def row_blocks(self, size: int) -> list[tuple]:
+        """The plan in blocks of ``size`` vertices (made once per size): per block
+        ``(first, stop, lin, pair_x rows, pair_w rows, first and stop of its
+        dual-quaternion rows)``, the pair parts None where it has none.
+
+        ``lin`` is ``[lin_x rows | S]``: ``S`` (rows, D) puts 1 at each of the block's
+        dual-quaternion vertices' row of the blended part, so one product over the
+        stacked columns ``[linear table; blended part]`` adds both (no scatter).
+        """
+        import scipy.sparse as sp
+
+        if size not in self._blocks:
+            v, d, out = self.n_vertices, len(self.dq_rows), list[tuple]()
+            for r0 in range(0, v, size):
+                r1 = min(v, r0 + size)
+                lx = self.lin_x[r0:r1]
+                j0, j1 = (int(i) for i in np.searchsorted(self.dq_rows, [r0, r1]))
+                sel = sp.csr_matrix(
+                    (np.ones(j1 - j0), (self.dq_rows[j0:j1] - r0, np.arange(j0, j1))),
+                    shape=(r1 - r0, d),
+                )
+                lin = sp.hstack([lx, sel], format="csr").astype(self.dtype)
+                lin.sort_indices()
+                if j1 == j0:
+                    out.append((r0, r1, lin, None, None, j0, j1))
+                else:
+                    out.append((r0, r1, lin, self.pair_x[j0:j1], self.pair_w[j0:j1], j0, j1))
+            self._blocks[size] = out
+        return self._blocks[size]
 
 
 def _times_point(rows, cols, coef, xh, shape):
@@ -165,7 +208,11 @@ def dq_plan(
     code = (pk * k + pl) * (k + 1) + (ppiv + 1)
     uniq, key_of = np.unique(code, return_inverse=True)
     keys = np.stack([uniq // (k + 1) // k, uniq // (k + 1) % k, uniq % (k + 1) - 1], axis=1)
-    key_of = key_of.ravel()
+    # the diagonal keys (k, k) first: the kernel takes their rows from the rigid
+    # transforms and computes the bilinear forms of the rest only
+    order = np.argsort(keys[:, 0] != keys[:, 1], kind="stable")
+    keys = keys[order]
+    key_of = np.argsort(order)[key_of.ravel()]
     slot = np.full(v, -1)
     slot[dq_rows] = np.arange(len(dq_rows))
     d, p = len(dq_rows), len(uniq)
@@ -246,14 +293,34 @@ def polar_rotation(a: np.ndarray, *, tol: float = 1e-13, max_iter: int = 30) -> 
 
 
 def _quaternions(r: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(w, x, y, z)`` of rotation matrices (..., 3, 3): (..., 4)."""
-    from scipy.spatial.transform import Rotation
+    """Quaternions ``(w, x, y, z)`` of rotation matrices (..., 3, 3), component first:
+    (4, ...).
 
-    q = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_quat()  # (x, y, z, w)
-    return q[:, [3, 0, 1, 2]].reshape(*r.shape[:-2], 4)
+    Shepperd's method: of the four ways to read a quaternion off the matrix, each
+    matrix takes the one whose square root is of the largest of ``1 + tr R`` and
+    ``1 + 2 R_ii - tr R`` (at least 1: no cancellation). Either sign of a quaternion
+    serves (the kernel signs every pair itself). SciPy's ``from_matrix`` gave the same
+    quaternions to 1e-16 at four times the cost (it also checks and projects).
+    """
+    r00, r01, r02 = r[..., 0, 0], r[..., 0, 1], r[..., 0, 2]
+    r10, r11, r12 = r[..., 1, 0], r[..., 1, 1], r[..., 1, 2]
+    r20, r21, r22 = r[..., 2, 0], r[..., 2, 1], r[..., 2, 2]
+    tr = r00 + r11 + r22
+    # 4 q_i q_j of the quaternion, off the diagonal: skew and symmetric parts of R
+    wx, wy, wz = r21 - r12, r02 - r20, r10 - r01
+    xy, xz, yz = r01 + r10, r02 + r20, r12 + r21
+    big = np.stack([1 + tr, 1 + 2 * r00 - tr, 1 + 2 * r11 - tr, 1 + 2 * r22 - tr])
+    which = np.argmax(big, axis=0)
+    q = np.stack([big[0], wx, wy, wz])  # 4 w q: most matrices (|angle| < 120°)
+    for i, row in ((1, (wx, big[1], xy, xz)), (2, (wy, xy, big[2], yz)), (3, (wz, xz, yz, big[3]))):
+        at = which == i  # 4 q_i q
+        if at.any():
+            q[:, at] = np.stack([c[at] for c in row])
+    q /= 2 * np.sqrt(big.max(axis=0))
+    return q
 
 
-def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
+def _pair_table(q, qd, keys, rigid, dtype) -> tuple[np.ndarray, np.ndarray]:
     """Each key's signed bilinear forms per frame, componentwise over (P, F) arrays.
 
     Parameters
@@ -261,6 +328,9 @@ def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
     q, qd : ndarray of shape (4, K, F)
         The bones' real and dual quaternions ``(w, x, y, z)``, component first.
     keys : ndarray of int, shape (P, 3)
+        The diagonal keys ``(k, k, -1)`` first (:func:`dq_plan` orders them so).
+    rigid : ndarray of shape (F, K, 3, 4)
+        The bones' rigid transforms: the diagonal keys' forms, exactly.
     dtype : numpy dtype
         Of the returned tables (the signs are decided in float64).
 
@@ -272,43 +342,44 @@ def _pair_table(q, qd, keys, dtype) -> tuple[np.ndarray, np.ndarray]:
         ``σ q_k · q_l``.
     """
     k, j, p = keys[:, 0], keys[:, 1], keys[:, 2]
-    # signs first, in float64: s_k s_l; with the pivot in the pair (or k == l),
-    # sign(q_k · q_l)
-    c64 = np.einsum("apf,apf->pf", q[:, k], q[:, j])
+    nd = int(np.count_nonzero(k == j))
+    f = q.shape[2]
+    # the signs, in float64, from every pair's quaternion dot product per frame (a
+    # (K, K) Gram matrix per frame): s_k s_l; with the pivot in the pair, sign(q_k · q_l)
+    gram = np.matmul(q.transpose(2, 1, 0), q.transpose(2, 0, 1))  # (F, K, K)
+    c64 = gram[:, k, j].T  # (P, F)
     sign = np.where(c64 < 0, -1.0, 1.0)
-    far = p >= 0
-    if far.any():
-        qp = q[:, p[far]]
-        sk = np.einsum("apf,apf->pf", q[:, k[far]], qp) < 0
-        sl = np.einsum("apf,apf->pf", q[:, j[far]], qp) < 0
+    far = np.flatnonzero(p >= 0)
+    if far.size:
+        sk = gram[:, k[far], p[far]].T < 0
+        sl = gram[:, j[far], p[far]].T < 0
         sign[far] = np.where(sk ^ sl, -1.0, 1.0)
-    sign[k == j] = 1.0
-    q = q.astype(dtype, copy=False)
-    qd = qd.astype(dtype, copy=False)
-    sign = sign.astype(dtype)
-    w1, x1, y1, z1 = q[:, k] * sign  # the sign folded into one factor of each product
-    w2, x2, y2, z2 = q[:, j]
-    e1, a1, b1, c1 = qd[:, k] * sign  # dual parts: (w_e, x_e, y_e, z_e)
-    e2, a2, b2, c2 = qd[:, j]
-    vv = x1 * x2 + y1 * y2 + z1 * z2
-    s = w1 * w2 - vv
+    sign[:nd] = 1.0
+    n = np.empty((len(keys), 4, 3, f), dtype=dtype)
+    n[:nd] = _table(rigid[:, k[:nd]])  # N(d_k, d_k) = T_k
+    u = np.concatenate([q, qd]).astype(dtype)  # (8, K, F)
+    # the sign folded into one factor of each product
+    w1, x1, y1, z1, e1, a1, b1, c1 = u[:, k[nd:]] * sign[nd:].astype(dtype)
+    w2, x2, y2, z2, e2, a2, b2, c2 = u[:, j[nd:]]  # dual parts: (w_e, x_e, y_e, z_e)
+    o = n[nd:]
+    xx, yy, zz = x1 * x2, y1 * y2, z1 * z2
+    s = w1 * w2 - (xx + yy + zz)
     wx, wy, wz = w1 * x2 + w2 * x1, w1 * y2 + w2 * y1, w1 * z2 + w2 * z1
     xy, xz, yz = x1 * y2 + x2 * y1, x1 * z2 + x2 * z1, y1 * z2 + y2 * z1
-    n = np.empty((len(keys), 4, 3, q.shape[2]), dtype=dtype)
     # R(q, q') = (w w' - v·v') I + v v'ᵀ + v' vᵀ + w [v']× + w' [v]×
-    n[:, 0, 0] = s + 2 * x1 * x2
-    n[:, 1, 0] = xy - wz
-    n[:, 2, 0] = xz + wy
-    n[:, 0, 1] = xy + wz
-    n[:, 1, 1] = s + 2 * y1 * y2
-    n[:, 2, 1] = yz - wx
-    n[:, 0, 2] = xz - wy
-    n[:, 1, 2] = yz + wx
-    n[:, 2, 2] = s + 2 * z1 * z2
+    o[:, 0, 0] = s + 2 * xx
+    o[:, 1, 0] = xy - wz
+    o[:, 2, 0] = xz + wy
+    o[:, 0, 1] = xy + wz
+    o[:, 1, 1] = s + 2 * yy
+    o[:, 2, 1] = yz - wx
+    o[:, 0, 2] = xz - wy
+    o[:, 1, 2] = yz + wx
+    o[:, 2, 2] = s + 2 * zz
     # t(d, d') = w v_ε' + w' v_ε - w_ε v' - w_ε' v + v × v_ε' + v' × v_ε
-    n[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
-    n[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
-    n[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
+    o[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
+    o[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
+    o[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
     return n, (c64 * sign).astype(dtype)
 
 
@@ -331,6 +402,7 @@ def dq_skin_planned(
     shifts: np.ndarray | None = None,
     *,
     out: np.ndarray | None = None,
+    rotations: np.ndarray | None = None,
 ) -> np.ndarray:
     """Dual-quaternion skinning (see :func:`snapcore.motion.skinning.dq_skin`) by a plan.
 
@@ -346,6 +418,9 @@ def dq_skin_planned(
         Translations added as ``shift_weights @ shifts`` (the plan's ``shift_weights``).
     out : ndarray of shape (F, V, 3), optional
         Where to write the result (of the plan's dtype).
+    rotations : ndarray of shape (F, K, 3, 3), optional
+        The rotations of the matrices' polar decompositions, when the caller has them
+        (the retargeting builds its matrices as rotation × scaling): no polar iteration.
 
     Returns
     -------
@@ -359,10 +434,13 @@ def dq_skin_planned(
         raise ValueError(f"matrices {m.shape} do not fit a plan of {plan.n_bones} bones")
     if out is None:
         out = np.empty((f, v, 3), dtype=dtype)
+    elif out.shape != (f, v, 3) or out.strides[1:] != (3 * dtype.itemsize, dtype.itemsize):
+        # each frame's vertices are written as one row of coordinates (a view)
+        raise ValueError(f"out must be ({f}, {v}, 3) of {dtype}, each frame contiguous")
     if f == 0 or v == 0:
         return out
     # -- per bone and frame (float64, F × K small): rigid part T x = R x + t, tables
-    r = polar_rotation(m[..., :3])
+    r = polar_rotation(m[..., :3]) if rotations is None else np.asarray(rotations, np.float64)
     t = np.einsum("fkij,kj->fki", m[..., :3] - r, np.asarray(centres, float)) + m[..., 3]
     rigid = np.concatenate([r, t[..., None]], axis=-1)
     rows = [_table(m - rigid), _table(m), _table(np.broadcast_to(np.eye(3, 4), (f, 1, 3, 4)))]
@@ -372,7 +450,7 @@ def dq_skin_planned(
     lin_table = np.concatenate(rows, axis=0).astype(dtype)  # (rows, 3, F)
     d = len(plan.dq_rows)
     if d:
-        q = _quaternions(r).transpose(2, 1, 0)  # (4, K, F)
+        q = _quaternions(r).transpose(0, 2, 1)  # (4, K, F)
         tt = t.transpose(2, 1, 0)  # (3, K, F)
         # dual part q_ε = ½ (0, t) q
         qd = 0.5 * np.stack(
@@ -383,25 +461,32 @@ def dq_skin_planned(
                 q[0] * tt[2] + tt[0] * q[2] - tt[1] * q[1],
             ]
         )
-        n_tab, c_tab = _pair_table(q, qd, plan.pair_keys, dtype)
-        diag = np.flatnonzero(plan.pair_keys[:, 0] == plan.pair_keys[:, 1])
-        n_tab[diag] = _table(rigid[:, plan.pair_keys[diag, 0]])  # exactly T_k
+        n_tab, c_tab = _pair_table(q, qd, plan.pair_keys, rigid, dtype)
         pair_table = n_tab.reshape(-1, 3, f)
-    step = max(1, int(KERNEL_CHUNK_BYTES // max(1, v * 3 * np.dtype(dtype).itemsize)))
-    for a in range(0, f, step):  # chunks: each product's output stays small
-        b = min(f, a + step)
-        nf = b - a
-        # columns (row i of the 3 x 4 matrices, frame): each coordinate is one block
-        y = plan.lin_x @ lin_table[..., a:b].reshape(-1, 3 * nf)  # (V, 3 nf)
+    # frames in chunks, each product over KERNEL_FRAMES of them; vertices in blocks
+    # whose products' output stays in cache for the transposing copy
+    nf = min(f, KERNEL_FRAMES)
+    size = max(256, int(KERNEL_CHUNK_BYTES // (3 * nf * np.dtype(dtype).itemsize)))
+    blocks = plan.row_blocks(size)
+    n_lin = lin_table.shape[0]
+    for a in range(0, f, nf):
+        b = min(f, a + nf)
+        # columns (row i of the 3 x 4 matrices, frame): each coordinate is one block;
+        # below the linear table, each dual-quaternion vertex's blended part
+        cols = np.empty((n_lin + d, 3 * (b - a)), dtype=dtype)
+        cols[:n_lin] = lin_table[..., a:b].reshape(-1, 3 * (b - a))
         if d:
-            num = plan.pair_x @ pair_table[..., a:b].reshape(-1, 3 * nf)
-            den = plan.pair_w @ np.ascontiguousarray(c_tab[:, a:b])  # (D, nf)
-            num = num.reshape(d, 3, nf)
-            num /= den[:, None]
-            y[plan.dq_rows] += num.reshape(d, -1)
-        # to (nf, V, 3): a transposing copy, in blocks of vertices that stay in cache
-        # (a third faster than in one piece, measured)
-        src, dst = y.reshape(v, 3, nf), out[a:b].transpose(1, 2, 0)
-        for s in range(0, v, TRANSPOSE_BLOCK):
-            dst[s : s + TRANSPOSE_BLOCK] = src[s : s + TRANSPOSE_BLOCK]
+            pair_cols = pair_table[..., a:b].reshape(-1, 3 * (b - a))
+            den_cols = np.ascontiguousarray(c_tab[:, a:b])
+        for r0, r1, lin, pair_x, pair_w, j0, j1 in blocks:
+            if pair_x is not None:
+                num = (pair_x @ pair_cols).reshape(j1 - j0, 3, b - a)
+                part = cols[n_lin + j0 : n_lin + j1].reshape(j1 - j0, 3, b - a)
+                np.divide(num, (pair_w @ den_cols)[:, None], out=part)
+            y = lin @ cols  # (rows, 3 nf): the linear part plus the blended one
+            # to (nf, rows, 3): (rows · 3, nf) → (nf, rows · 3) is a 2-D transpose;
+            # copied in column strips (15% faster than in one piece, measured)
+            src, dst = y.reshape(-1, b - a), out[a:b, r0:r1].reshape(b - a, -1)
+            for c in range(0, src.shape[0], TRANSPOSE_STRIP):
+                dst[:, c : c + TRANSPOSE_STRIP] = src[c : c + TRANSPOSE_STRIP].T
     return out

@@ -59,10 +59,12 @@ from snapcore.motion.load import infer_ground
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
+    cross,
     frame_x,
     frame_z,
     hinge,
     mean_rotation,
+    norm,
     swing_matrices,
     unit,
 )
@@ -414,9 +416,10 @@ class Retarget(SoleFit):
                 u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
                 self._turn[i] = _about(axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u]))))
 
-    def _inputs(self, positions):
+    def _inputs(self, positions, heads_tips=None):
         """Skeleton points, group directions (tip - head) and finger directions for the
-        segment frames of poses ``positions`` (F, J, 3)."""
+        segment frames of poses ``positions`` (F, J, 3); ``heads_tips``: their
+        :meth:`_heads_tips` when the caller has them."""
         lm = self.landmarks
         pts = {k: positions[:, lm[k]] for k in _FRAME_JOINTS}
         if self.eyes is not None:
@@ -425,7 +428,7 @@ class Retarget(SoleFit):
                 "eye_R": positions[:, self.eyes[1]],
                 "head": positions[:, lm["head"]],
             }
-        h, tip = self._heads_tips(positions)
+        h, tip = self._heads_tips(positions) if heads_tips is None else heads_tips
         d = np.zeros(h.shape)
         d[:, self._tracked] = tip - h[:, self._tracked]
         fingers = {}
@@ -441,8 +444,8 @@ class Retarget(SoleFit):
         tip = (1 - tt) * positions[:, self._tip_a] + tt * positions[:, self._tip_b]
         # the rig's spine curve about the chord (see _spine_offsets)
         _, chord = self._chord(positions)
-        h = h + np.einsum("fij,gj->fgi", chord, self._off_head)
-        tip = tip + np.einsum("fij,gj->fgi", chord, self._off_tip[self._tracked])
+        h = h + self._off_head @ np.swapaxes(chord, -1, -2)  # chord @ offset per group
+        tip = tip + self._off_tip[self._tracked] @ np.swapaxes(chord, -1, -2)
         lm = self.landmarks
         for s, (foot, toes, drop) in self._drop.items():  # the ball (_ball_drops)
             ankle = positions[:, lm[f"ankle_{s}"]]
@@ -462,46 +465,58 @@ class Retarget(SoleFit):
         out = np.zeros((f, len(g_all), 3, 3))
         lat_p = pts["hip_L"] - pts["hip_R"]
         lat_c = pts["shoulder_L"] - pts["shoulder_R"]
-        front_p = np.cross(lat_p, d[:, 0])
-        front_c = np.cross(lat_c, d[:, self._spine1])
+        front_p = cross(lat_p, d[:, 0])
+        front_c = cross(lat_c, d[:, self._spine1])
         done = np.zeros(len(g_all), bool)
-        # the torso first: the arms' stand-in hinge is carried by the chest
+        # the torso first: the arms' stand-in hinge is carried by the chest; each
+        # recipe's groups in one call (frame_x and frame_z work point by point)
+        xs, zs = [], []
+        ulat_p, ulat_c = unit(lat_p), unit(lat_c)
         for i, g in enumerate(g_all):
             kind = g.recipe[0]
             if kind == "torso":
                 u = g.recipe[1]
-                out[:, i] = frame_x(d[:, i], (1 - u) * unit(lat_p) + u * unit(lat_c))
+                xs.append((i, (1 - u) * ulat_p + u * ulat_c))
             elif kind == "neck":
-                out[:, i] = frame_x(d[:, i], lat_c)
+                xs.append((i, lat_c))
             elif kind == "hipjoint":
-                out[:, i] = frame_z(d[:, i], front_p)
+                zs.append((i, front_p))
             elif kind == "clavicle":
-                out[:, i] = frame_z(d[:, i], front_c)
-            else:
-                continue
-            done[i] = True
+                zs.append((i, front_c))
+        for frame, todo in ((frame_x, xs), (frame_z, zs)):
+            if todo:
+                idx = [i for i, _ in todo]
+                out[:, idx] = frame(d[:, idx], np.stack([ref for _, ref in todo], axis=1))
+                done[idx] = True
+        # the limbs' hinges, both arms and both legs in one call (hinge works point by
+        # point): arms (L, R), then legs (L, R)
+        sides = list(SIDES)
+        upper = np.stack([pts[f"elbow_{s}"] - pts[f"shoulder_{s}"] for s in sides], axis=1)
+        fore = np.stack([pts[f"wrist_{s}"] - pts[f"elbow_{s}"] for s in sides], axis=1)
+        if rig:
+            stand = cross(upper, fore)  # the rig's arm is bent (40°): its own plane
+        else:
+            # rig → skeleton, as the chest turns
+            rel = (out[:, self._spine1] @ self.frames_rig[self._spine1].T)[:, None]
+            a_up = (rel @ np.stack([self._rig_arm[s][0] for s in sides])[..., None])[..., 0]
+            b = rel @ np.stack([self._rig_arm[s][1] for s in sides])[..., None]
+            stand = (swing_matrices(a_up, upper) @ b)[..., 0]
+        thigh = np.stack([pts[f"knee_{s}"] - pts[f"hip_{s}"] for s in sides], axis=1)
+        shank = np.stack([pts[f"ankle_{s}"] - pts[f"knee_{s}"] for s in sides], axis=1)
+        foot = []
+        for s in sides:
+            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{SIDES[s]}Foot")
+            foot.append(d[:, foot_g] if foot_g in self._tracked else front_p)
+        axes = hinge(
+            np.concatenate([upper, thigh], axis=1),
+            np.concatenate([fore, shank], axis=1),
+            np.concatenate([stand, cross(np.stack(foot, axis=1), thigh)], axis=1),
+        )
         hinges = {}
-        rig_f = None if rig else self.frames_rig
-        for s, side in SIDES.items():
-            sh, el, wr = pts[f"shoulder_{s}"], pts[f"elbow_{s}"], pts[f"wrist_{s}"]
-            upper, fore = el - sh, wr - el
-            chest = out[:, self._spine1]
+        for n, s in enumerate(sides):
+            hinges["arm", s], hinges["leg", s] = axes[:, n], axes[:, 2 + n]
             if rig:
-                stand = np.cross(upper, fore)  # the rig's arm is bent (40°): its own plane
-            else:
-                rel = chest @ rig_f[self._spine1].T  # rig → skeleton, as the chest turns
-                a_up = rel @ self._rig_arm[s][0]
-                stand = (swing_matrices(a_up, upper) @ (rel @ self._rig_arm[s][1])[..., None])[
-                    ..., 0
-                ]
-            hinges["arm", s] = hinge(upper, fore, stand)
-            hp, kn, an = pts[f"hip_{s}"], pts[f"knee_{s}"], pts[f"ankle_{s}"]
-            thigh, shank = kn - hp, an - kn
-            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{side}Foot")
-            foot = d[:, foot_g] if foot_g in self._tracked else front_p
-            hinges["leg", s] = hinge(thigh, shank, np.cross(foot, thigh))
-            if rig:
-                self._rig_arm[s] = (unit(upper[0]), hinges["arm", s][0])
+                self._rig_arm[s] = (unit(upper[0, n]), axes[0, n])
         # the limbs' frames in one call (frame_x works point by point: the same values)
         limb = [(i, g.recipe) for i, g in enumerate(g_all) if g.recipe[0] in ("arm", "leg")]
         if limb:
@@ -554,17 +569,23 @@ class Retarget(SoleFit):
             :meth:`skin_points` adds, times a point's distance beyond the bone's ends,
             so only the bone's own span stretches by ``s`` (see :meth:`stretch_weights`).
         """
-        m, st = self._unplanted(positions, rotations)
-        m = self._planted(m, st, positions)
+        m, st, _ = self._posed(positions, rotations)
         if stretch:
             return m, st
         return m
 
+    def _posed(self, positions, rotations):
+        """:meth:`group_matrices` with the stretch term and each matrix's rotation
+        (F, G, 3, 3): the matrices are rotation × positive scaling (W A^T · A D A^T),
+        so this is their polar decomposition's rotation, which the skinning needs."""
+        m, st, rot = self._unplanted(positions, rotations)
+        return self._planted(m, st, positions, rot), st, rot
+
     def _unplanted(self, positions, rotations):
-        """Group matrices before foot planting (F, G, 3, 4) and the stretch term
-        (F, G, 3) of :meth:`group_matrices`."""
-        pts, d, fingers = self._inputs(positions)
+        """Group matrices before foot planting (F, G, 3, 4), the stretch term (F, G, 3)
+        of :meth:`group_matrices` and the matrices' rotations (F, G, 3, 3)."""
         h, tip = self._heads_tips(positions)
+        pts, d, fingers = self._inputs(positions, (h, tip))
         fr = self._frames(pts, d, rotations, fingers)
         # segment frame on the skeleton, times the rig's inverse: rig axes → world axes
         # (the rig frames are also the axes the lengths scale along: W A = F_skeleton)
@@ -572,7 +593,7 @@ class Retarget(SoleFit):
         f, g = h.shape[:2]
         length = np.full((f, g), self.k)
         if self._tracked.size:
-            dist = np.linalg.norm(d[:, self._tracked], axis=-1)
+            dist = norm(d[:, self._tracked])
             ok = dist > 1e-9
             length[:, self._tracked] = np.where(ok, dist / self.rig_len[self._tracked], self.k)
             if self._at_tip.any():  # anchored at the tip: rig length, placed from the tip
@@ -584,10 +605,17 @@ class Retarget(SoleFit):
             [np.full((f, g), self.k), length, np.broadcast_to(self.k * self.sole_scale, (f, g))],
             axis=-1,
         )
-        lin = (w * scale[..., None, :]) @ np.swapaxes(self.frames_rig, -1, -2)  # W D A^T
-        trans = h - np.einsum("fgij,gj->fgi", lin, self._rig_origin)
+        # W D A^T and W A^T, as sums over the three axes (NumPy's matmul of 3 x 3
+        # stacks cost 3-5 times as much)
+        a = self.frames_rig  # (G, 3, 3): A, its rows A^T's columns
+        rot = sum(w[..., :, c, None] * a[:, None, :, c] for c in range(3))
+        lin = sum(
+            (w[..., :, c] * scale[..., None, c])[..., None] * a[:, None, :, c] for c in range(3)
+        )
+        o = self._rig_origin
+        trans = h - sum(lin[..., c] * o[:, c, None] for c in range(3))
         st = (self.k - length)[..., None] * w[..., 1]
-        return np.concatenate([lin, trans[..., None]], axis=-1), st
+        return np.concatenate([lin, trans[..., None]], axis=-1), st, rot
 
     def stretch_weights(self, points: np.ndarray, weights):
         """Sparse (P, B): skin weight × how far each point lies beyond its bone's span.
@@ -629,9 +657,10 @@ class Retarget(SoleFit):
         dropped, drop_w = self._drop_weights(points, weights)
         for a in range(0, f, SKIN_FRAMES):
             b = min(f, a + SKIN_FRAMES)
-            m, st = self.group_matrices(positions[a:b], rotations[a:b], stretch=True)
+            m, st, rot = self._posed(positions[a:b], rotations[a:b])
+            g = self.bone_group
             dq_skin_planned(
-                plan, m[:, self.bone_group], self.asset.heads, st[:, self.bone_group], out=out[a:b]
+                plan, m[:, g], self.asset.heads, st[:, g], out=out[a:b], rotations=rot[:, g]
             )
             if dropped.size:
                 drops = self._shoulder_drops(positions[a:b])  # (chunk, 2, 3)

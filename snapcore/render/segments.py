@@ -36,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "cross",
+    "norm",
     "unit",
     "frame_x",
     "frame_z",
@@ -52,9 +54,24 @@ BEND_FROM_DEG = 8.0
 BEND_FULL_DEG = 30.0
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` over the last axis of (..., 3) arrays (broadcast): ``np.cross``'s values
+    (the same products and differences) without its axis handling, which cost more than
+    the arithmetic on the retargeting's arrays (26 calls per posing)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def norm(v: np.ndarray, *, keepdims: bool = False) -> np.ndarray:
+    """Euclidean length over the last axis: ``np.linalg.norm(v, axis=-1)``'s values (the
+    same sum of squares) without its checks."""
+    return np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=keepdims))  # type: ignore[call-overload]
+
+
 def unit(v: np.ndarray) -> np.ndarray:
     """``v`` scaled to unit length along its last axis (zero vectors stay zero)."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = norm(v, keepdims=True)
     return v / np.where(n > 1e-12, n, 1.0)
 
 
@@ -62,13 +79,13 @@ def _perp(y: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Unit component of ``ref`` perpendicular to unit ``y``; where ``ref`` is (nearly)
     parallel to ``y``, any fixed perpendicular (a degenerate reference has no twist)."""
     r = ref - y * np.sum(y * ref, axis=-1, keepdims=True)
-    n = np.linalg.norm(r, axis=-1, keepdims=True)
+    n = norm(r, keepdims=True)
     bad = n[..., 0] < 1e-9
     if np.any(bad):
         helper = np.where(np.abs(y[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
         alt = helper - y * np.sum(y * helper, axis=-1, keepdims=True)
         r = np.where(bad[..., None], alt, r)
-        n = np.linalg.norm(r, axis=-1, keepdims=True)
+        n = norm(r, keepdims=True)
     return r / n
 
 
@@ -76,7 +93,7 @@ def _axis(y) -> np.ndarray:
     """Unit ``y``; a zero vector (a bone of no length in some frame) becomes +Y, so the
     frame stays a rotation."""
     y = unit(np.asarray(y, float))
-    zero = np.linalg.norm(y, axis=-1) < 0.5
+    zero = norm(y) < 0.5
     return np.where(zero[..., None], [0.0, 1.0, 0.0], y) if np.any(zero) else y
 
 
@@ -84,14 +101,14 @@ def frame_x(y: np.ndarray, x_ref: np.ndarray) -> np.ndarray:
     """Frame with ``y`` along ``y`` and ``x`` towards ``x_ref``: (..., 3) → (..., 3, 3)."""
     y = _axis(y)
     x = _perp(y, np.broadcast_to(np.asarray(x_ref, float), y.shape))
-    return np.stack([x, y, np.cross(x, y)], axis=-1)
+    return np.stack([x, y, cross(x, y)], axis=-1)
 
 
 def frame_z(y: np.ndarray, z_ref: np.ndarray) -> np.ndarray:
     """Frame with ``y`` along ``y`` and ``z`` towards ``z_ref``: (..., 3) → (..., 3, 3)."""
     y = _axis(y)
     z = _perp(y, np.broadcast_to(np.asarray(z_ref, float), y.shape))
-    return np.stack([np.cross(y, z), y, z], axis=-1)
+    return np.stack([cross(y, z), y, z], axis=-1)
 
 
 def swing_matrices(a: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -103,7 +120,7 @@ def swing_matrices(a: np.ndarray, d: np.ndarray) -> np.ndarray:
     a, d = unit(np.asarray(a, float)), unit(np.asarray(d, float))
     a, d = np.broadcast_arrays(a, d)
     c = np.sum(a * d, axis=-1)[..., None, None]
-    v = np.cross(a, d)
+    v = cross(a, d)
     k = np.zeros(v.shape + (3,))
     k[..., 0, 1], k[..., 0, 2] = -v[..., 2], v[..., 1]
     k[..., 1, 0], k[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -123,8 +140,8 @@ def hinge(proximal: np.ndarray, distal: np.ndarray, stand_in: np.ndarray) -> np.
     ``proximal × distal``, blended into ``stand_in`` (unit, same sign convention) as the
     bend angle falls from :data:`BEND_FULL_DEG` to :data:`BEND_FROM_DEG`."""
     p, d = unit(proximal), unit(distal)
-    n = np.cross(p, d)
-    ang = np.degrees(np.arctan2(np.linalg.norm(n, axis=-1), np.sum(p * d, axis=-1)))
+    n = cross(p, d)
+    ang = np.degrees(np.arctan2(norm(n), np.sum(p * d, axis=-1)))
     w = np.clip((ang - BEND_FROM_DEG) / (BEND_FULL_DEG - BEND_FROM_DEG), 0.0, 1.0)
     w = (w * w * (3 - 2 * w))[..., None]  # smoothstep: no kink where the plane takes over
     s = unit(stand_in)
@@ -132,7 +149,7 @@ def hinge(proximal: np.ndarray, distal: np.ndarray, stand_in: np.ndarray) -> np.
     out = w * unit(n) + (1 - w) * unit(s)
     # a stand-in opposite to the plane's normal (an arm bent backwards) could cancel it
     # half-way: take whichever of the two weighs more there
-    weak = np.linalg.norm(out, axis=-1) < 0.2
+    weak = norm(out) < 0.2
     if np.any(weak):
         out = np.where(weak[..., None], np.where(w >= 0.5, unit(n), unit(s)), out)
     return unit(out)

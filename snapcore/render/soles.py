@@ -53,11 +53,12 @@ class SoleFit:
     groups: list
     bone_group: np.ndarray
     _linear_bones: np.ndarray
+    _sole_plan_memo: tuple | None = None
 
     def stretch_weights(self, points: np.ndarray, weights) -> Any:
         raise NotImplementedError
 
-    def _unplanted(self, positions, rotations) -> tuple[np.ndarray, np.ndarray]:
+    def _unplanted(self, positions, rotations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
     def _sole_scale(self, positions) -> np.ndarray:
@@ -79,6 +80,7 @@ class SoleFit:
         w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
         out = np.ones(len(self.groups))
         self._soles = {}
+        self._sole_plan_memo = None  # made from _soles on first use
         self._ankle_stand: dict[str, float] = {}
         for s, side in SIDES.items():
             bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
@@ -118,11 +120,14 @@ class SoleFit:
             )
         return out
 
-    def _plant_shifts(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    def _plant_shifts(
+        self, m: np.ndarray, st: np.ndarray, positions: np.ndarray, rot: np.ndarray
+    ) -> np.ndarray:
         """Foot planting, as game engines do after a retarget: how far to move each foot
         up or down (F, 2; left, right; metres) to put it on the floor where it is in
         contact, from the unplanted group matrices ``m`` (F, G, 3, 4), their stretch
-        term ``st`` (F, G, 3) and the poses ``positions`` (F, J, 3).
+        term ``st`` (F, G, 3), their rotations ``rot`` (F, G, 3, 3) and the poses
+        ``positions`` (F, J, 3).
 
         A skeleton's own foot height varies in stance by 2-5 cm (marker noise, feet
         sliding into the floor, a foot pitched on its heel or toes), so no fixed foot
@@ -146,14 +151,16 @@ class SoleFit:
         """
         lm = self.landmarks
         out = np.zeros((m.shape[0], len(self._soles)))
+        # the sole points as the skin will place them (blend and stretch): a point's
+        # rigid move with one bone misses the shank's share at the heel; both feet in
+        # one call (each its own bones: block-diagonal weights)
+        plan, owners, centres, split = self._sole_plan()
+        heights = dq_skin_planned(
+            plan, m[:, owners], centres, st[:, owners], rotations=rot[:, owners]
+        )[..., 1]
         for i, s in enumerate(self._soles):
-            pts, ws, stretch_w, owners, foot_share, _, centres, linear = self._soles[s]
-            # the sole points as the skin will place them (blend and stretch): a
-            # point's rigid move with one bone misses the shank's share at the heel
-            plans = self.__dict__.setdefault("_sole_plans", {})  # made once per foot
-            if s not in plans:
-                plans[s] = dq_plan(pts, ws, linear, shift_weights=stretch_w)
-            y = dq_skin_planned(plans[s], m[:, owners], centres, st[:, owners])[..., 1]
+            foot_share = self._soles[s][4]
+            y = heights[:, split[i] : split[i + 1]]
             low_point = y.argmin(axis=1)
             r = y[np.arange(len(y)), low_point] - self.ground
             low = np.clip((PLANT_FADE_M - r) / (PLANT_FADE_M - PLANT_FULL_M), 0.0, 1.0)
@@ -167,10 +174,33 @@ class SoleFit:
             out[:, i] = np.clip(shift, -PLANT_MAX_M, PLANT_MAX_M)
         return out
 
-    def _planted(self, m: np.ndarray, st: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    def _sole_plan(self) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
+        """The skinning plan of both soles' points (made once), their bones' groups
+        (B,), centres (B, 3) and where each foot's points start and end (feet + 1,)."""
+        if self._sole_plan_memo is None:
+            from scipy import sparse
+
+            parts = list(self._soles.values())
+            plan = dq_plan(
+                np.concatenate([p[0] for p in parts]),
+                sparse.block_diag([p[1] for p in parts], format="csr"),
+                np.concatenate([p[7] for p in parts]),
+                shift_weights=sparse.block_diag([p[2] for p in parts], format="csr"),
+            )
+            self._sole_plan_memo = (
+                plan,
+                np.concatenate([p[3] for p in parts]),
+                np.concatenate([p[6] for p in parts]),
+                np.cumsum([0] + [len(p[0]) for p in parts]),
+            )
+        return self._sole_plan_memo
+
+    def _planted(
+        self, m: np.ndarray, st: np.ndarray, positions: np.ndarray, rot: np.ndarray
+    ) -> np.ndarray:
         """The group matrices ``m`` (F, G, 3, 4) with each foot and toe group moved by
         its :meth:`_plant_shifts` (in place; ``m`` is returned)."""
-        shifts = self._plant_shifts(m, st, positions)
+        shifts = self._plant_shifts(m, st, positions, rot)
         for s, (*_, groups, _, _) in enumerate(self._soles.values()):
             m[:, groups, 1, 3] += shifts[:, s, None]
         return m
@@ -180,5 +210,5 @@ class SoleFit:
         left then right, for poses (F, J, 3) / (F, J, 3, 3); see :meth:`_plant_shifts`.
         The body's ankles leave the skeleton's by this much, on purpose: the soles, not
         the joints, stand on the floor."""
-        m, st = self._unplanted(positions, rotations)
-        return self._plant_shifts(m, st, positions)
+        m, st, rot = self._unplanted(positions, rotations)
+        return self._plant_shifts(m, st, positions, rot)
