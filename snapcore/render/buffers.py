@@ -88,18 +88,27 @@ def face_id_camera(vertices, view, *, resolution=FACE_ID_RESOLUTION, sphere=None
     )
 
 
-#: The id pass's shaders: the fragment writes the triangle's index within the draw
-#: call (``gl_PrimitiveID``, the face index for indexed triangles) + 1 into a 32-bit
-#: integer target, so ids are exact by construction (no colour encoding, no blending).
+#: The id pass's shaders: the fragment writes its face's index + 1 into a 32-bit integer
+#: target, so ids are exact by construction (no colour encoding, no blending). The id
+#: comes from the triangle's provoking (last) vertex as a flat integer attribute, not
+#: from ``gl_PrimitiveID``: Mesa's llvmpipe serves ``gl_PrimitiveID`` to a fragment
+#: shader by re-assembling every primitive with the id as an extra vertex (its
+#: "primitive assembler"), which cost ~30% of the pass, culled triangles included.
 _ID_VERTEX = """#version 330 core
 layout(location = 0) in vec3 position;
+layout(location = 1) in int face_in;
 uniform mat4 V;
 uniform mat4 P;
-void main() { gl_Position = P * V * vec4(position, 1.0); }
+flat out int face_id;
+void main() {
+    gl_Position = P * V * vec4(position, 1.0);
+    face_id = face_in;
+}
 """
 _ID_FRAGMENT = """#version 330 core
+flat in int face_id;
 out int face;
-void main() { face = gl_PrimitiveID + 1; }
+void main() { face = face_id; }
 """
 #: Views drawn per read-back: each view is one layer of an integer array texture, and
 #: the layers are read in one call (a pyrender render per view cost ~7 ms of scene set-up
@@ -136,6 +145,30 @@ def _id_program(renderer):
     return prog
 
 
+def _provoking_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh laid out for the id pass: every face's last corner is a vertex of its own.
+
+    Returns positions (N + M, 3) float32 (the N vertices, then for each face k a copy of
+    its last corner), per-vertex ids (N + M,) int32 (0 for the shared vertices, k + 1
+    for face k's copy) and indices (M, 3) uint32 (face k = its first two corners as
+    given and its copy). The last vertex is the provoking one, so a flat attribute
+    carries each face's id; the copy has the same float32 position, and each face keeps
+    its corners' order and its place in the draw, so the triangles rasterise as before.
+    """
+    v = np.ascontiguousarray(vertices, dtype=np.float32)
+    f = np.asarray(faces)
+    nv, nf = len(v), len(f)
+    pos = np.empty((nv + nf, 3), np.float32)
+    pos[:nv] = v
+    np.take(v, f[:, 2], axis=0, out=pos[nv:])
+    ids = np.zeros(nv + nf, np.int32)
+    ids[nv:] = np.arange(1, nf + 1, dtype=np.int32)
+    idx = np.empty((nf, 3), np.uint32)
+    idx[:, :2] = f[:, :2]
+    idx[:, 2] = np.arange(nv, nv + nf, dtype=np.uint32)
+    return pos, ids, idx
+
+
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
     """Face ids (0 = none, k + 1 = face k) of one mesh seen by ``cameras`` of one size,
     shape (V, H, W): one draw call per view into a layer of an integer array texture."""
@@ -146,19 +179,22 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
     n_views = len(cameras)
     layers = min(n_views, _LAYERS_PER_PASS)
     out = np.empty((n_views, h, w), np.int32)
-    v = np.ascontiguousarray(vertices, dtype=np.float32)
-    f = np.ascontiguousarray(faces, dtype=np.uint32)
+    pos, ids, f = _provoking_layout(vertices, faces)
     vao = gl.glGenVertexArrays(1)
-    vbo, ebo = gl.glGenBuffers(2)
+    vbo, ibo, ebo = gl.glGenBuffers(3)
     fbo = gl.glGenFramebuffers(1)
     tex = gl.glGenTextures(1)
     depth = gl.glGenRenderbuffers(1)
     try:
         gl.glBindVertexArray(vao)
         gl.glBindBuffer(gl.GL_ARRAY_BUFFER, vbo)
-        gl.glBufferData(gl.GL_ARRAY_BUFFER, v.nbytes, v, gl.GL_STATIC_DRAW)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, pos.nbytes, pos, gl.GL_STATIC_DRAW)
         gl.glEnableVertexAttribArray(0)
         gl.glVertexAttribPointer(0, 3, gl.GL_FLOAT, gl.GL_FALSE, 0, None)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, ibo)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, ids.nbytes, ids, gl.GL_STATIC_DRAW)
+        gl.glEnableVertexAttribArray(1)
+        gl.glVertexAttribIPointer(1, 1, gl.GL_INT, 0, None)
         gl.glBindBuffer(gl.GL_ELEMENT_ARRAY_BUFFER, ebo)
         gl.glBufferData(gl.GL_ELEMENT_ARRAY_BUFFER, f.nbytes, f, gl.GL_STATIC_DRAW)
         prog = _id_program(r)
@@ -199,6 +235,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glEnable(gl.GL_CULL_FACE)
         gl.glFrontFace(gl.GL_CCW)
         gl.glCullFace(gl.GL_BACK)
+        gl.glProvokingVertex(gl.GL_LAST_VERTEX_CONVENTION)  # the face's own copy
         gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 4)
         mats = [_view_projection(c) for c in cameras]
         block = np.empty((layers, h, w), np.int32)
@@ -222,7 +259,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glDeleteFramebuffers(1, [fbo])
         gl.glDeleteTextures([tex])
         gl.glDeleteRenderbuffers(1, [depth])
-        gl.glDeleteBuffers(2, [vbo, ebo])
+        gl.glDeleteBuffers(3, [vbo, ibo, ebo])
         gl.glDeleteVertexArrays(1, [vao])
     return out
 
