@@ -145,28 +145,22 @@ def _id_program(renderer):
     return prog
 
 
-def _provoking_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The mesh laid out for the id pass: every face's last corner is a vertex of its own.
+def _unshared_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh laid out for the id pass: three vertices of its own per face.
 
-    Returns positions (N + M, 3) float32 (the N vertices, then for each face k a copy of
-    its last corner), per-vertex ids (N + M,) int32 (0 for the shared vertices, k + 1
-    for face k's copy) and indices (M, 3) uint32 (face k = its first two corners as
-    given and its copy). The last vertex is the provoking one, so a flat attribute
-    carries each face's id; the copy has the same float32 position, and each face keeps
-    its corners' order and its place in the draw, so the triangles rasterise as before.
+    Returns positions (3M, 3) float32 (face k's corners, in their order, at rows
+    3k..3k+2) and per-vertex ids (3M,) int32 (k + 1 on all three). Drawn as a plain
+    triangle list (``glDrawArrays``), face k is the k-th triangle, drawn in its place
+    with the same float32 corners as from an index buffer, so it rasterises as before;
+    its last (provoking) vertex carries its id to the fragment as a flat attribute.
+    An indexed draw with a copy per face of only its last corner gave the same ids at
+    ~10% more CPU on llvmpipe (its index splitting and vertex cache cost more than
+    shading every corner).
     """
-    v = np.ascontiguousarray(vertices, dtype=np.float32)
-    f = np.asarray(faces)
-    nv, nf = len(v), len(f)
-    pos = np.empty((nv + nf, 3), np.float32)
-    pos[:nv] = v
-    np.take(v, f[:, 2], axis=0, out=pos[nv:])
-    ids = np.zeros(nv + nf, np.int32)
-    ids[nv:] = np.arange(1, nf + 1, dtype=np.int32)
-    idx = np.empty((nf, 3), np.uint32)
-    idx[:, :2] = f[:, :2]
-    idx[:, 2] = np.arange(nv, nv + nf, dtype=np.uint32)
-    return pos, ids, idx
+    v = np.asarray(vertices, dtype=np.float32)
+    pos = np.take(v, np.asarray(faces).reshape(-1), axis=0)
+    ids = np.repeat(np.arange(1, len(faces) + 1, dtype=np.int32), 3)
+    return pos, ids
 
 
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
@@ -179,9 +173,9 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
     n_views = len(cameras)
     layers = min(n_views, _LAYERS_PER_PASS)
     out = np.empty((n_views, h, w), np.int32)
-    pos, ids, f = _provoking_layout(vertices, faces)
+    pos, ids = _unshared_layout(vertices, faces)
     vao = gl.glGenVertexArrays(1)
-    vbo, ibo, ebo = gl.glGenBuffers(3)
+    vbo, ibo = gl.glGenBuffers(2)
     fbo = gl.glGenFramebuffers(1)
     tex = gl.glGenTextures(1)
     depth = gl.glGenRenderbuffers(1)
@@ -195,8 +189,6 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glBufferData(gl.GL_ARRAY_BUFFER, ids.nbytes, ids, gl.GL_STATIC_DRAW)
         gl.glEnableVertexAttribArray(1)
         gl.glVertexAttribIPointer(1, 1, gl.GL_INT, 0, None)
-        gl.glBindBuffer(gl.GL_ELEMENT_ARRAY_BUFFER, ebo)
-        gl.glBufferData(gl.GL_ELEMENT_ARRAY_BUFFER, f.nbytes, f, gl.GL_STATIC_DRAW)
         prog = _id_program(r)
         gl.glUseProgram(prog)
         loc_v = gl.glGetUniformLocation(prog, "V")
@@ -235,7 +227,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glEnable(gl.GL_CULL_FACE)
         gl.glFrontFace(gl.GL_CCW)
         gl.glCullFace(gl.GL_BACK)
-        gl.glProvokingVertex(gl.GL_LAST_VERTEX_CONVENTION)  # the face's own copy
+        gl.glProvokingVertex(gl.GL_LAST_VERTEX_CONVENTION)  # the flat id: the last corner's
         gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 4)
         mats = [_view_projection(c) for c in cameras]
         block = np.empty((layers, h, w), np.int32)
@@ -248,7 +240,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
                 gl.glClearBufferfv(gl.GL_DEPTH, 0, far)
                 gl.glUniformMatrix4fv(loc_v, 1, gl.GL_TRUE, mats[start + k][0])
                 gl.glUniformMatrix4fv(loc_p, 1, gl.GL_TRUE, mats[start + k][1])
-                gl.glDrawElements(gl.GL_TRIANGLES, f.size, gl.GL_UNSIGNED_INT, None)
+                gl.glDrawArrays(gl.GL_TRIANGLES, 0, len(pos))
             gl.glGetTexImage(gl.GL_TEXTURE_2D_ARRAY, 0, gl.GL_RED_INTEGER, gl.GL_INT, block)
             out[start : start + n] = block[:n, ::-1]  # GL rows run bottom-up
     finally:
@@ -259,7 +251,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glDeleteFramebuffers(1, [fbo])
         gl.glDeleteTextures([tex])
         gl.glDeleteRenderbuffers(1, [depth])
-        gl.glDeleteBuffers(3, [vbo, ibo, ebo])
+        gl.glDeleteBuffers(2, [vbo, ibo])
         gl.glDeleteVertexArrays(1, [vao])
     return out
 
