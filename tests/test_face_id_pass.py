@@ -11,6 +11,7 @@ random triangles of every size and slant, slivers and edge-on faces included.
 
 from __future__ import annotations
 
+import threading
 import warnings
 
 import numpy as np
@@ -18,6 +19,7 @@ import pytest
 import trimesh
 from face_id_reference import reference_face_ids
 
+from snapcore.render import buffers
 from snapcore.render.buffers import render_face_ids
 from snapcore.select.view import view_sphere
 
@@ -81,4 +83,6 @@ def test_two_human_bodies_in_a_hold_at_the_bench_frame(motions_dir):
     m = posed_mesh(scene, 900, kind="human")
     views = view_sphere(162)
     got = render_face_ids(m.vertices, m.faces, views, resolution=256)
+    if buffers._ID_THREADS > 1:  # a helper thread (its own GL context) drew some views
+        assert any(t.name.startswith("snapcore-ids") for t in threading.enumerate())
     np.testing.assert_array_equal(got, reference_face_ids(m.vertices, m.faces, views, 256))

@@ -21,6 +21,7 @@ depth-buffer quantisation.
 
 from __future__ import annotations
 
+import os
 import warnings
 from dataclasses import dataclass
 
@@ -163,17 +164,58 @@ def _unshared_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     return pos, ids
 
 
+#: GL contexts (threads) that draw the views of one call between them when it has at
+#: least :data:`_MIN_VIEWS_PER_THREAD` views each. llvmpipe does a draw's vertex
+#: processing, culling and binning on the thread that issues it (~70% of the pass's
+#: CPU) and rasterises on its own threads, so one issuing thread leaves a core idle.
+#: Every context draws with the same driver and program: the ids do not depend on
+#: which one drew a view.
+_ID_THREADS = min(2, os.cpu_count() or 1)
+_MIN_VIEWS_PER_THREAD = 16
+_POOL: list = []  # the helper threads' executor, made on first use
+
+
+def _helpers():
+    """The process's executor for helper draws (one per process: each of its threads
+    keeps its GL context and compiled program between calls)."""
+    if not _POOL:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL.append(
+            ThreadPoolExecutor(max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids")
+        )
+    return _POOL[0]
+
+
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
     """Face ids (0 = none, k + 1 = face k) of one mesh seen by ``cameras`` of one size,
-    shape (V, H, W): one draw call per view into a layer of an integer array texture."""
+    shape (V, H, W): one draw call per view into a layer of an integer array texture;
+    with many views, contiguous runs of them drawn by :data:`_ID_THREADS` threads."""
+    w, h = cameras[0].size
+    out = np.empty((len(cameras), h, w), np.int32)
+    pos, ids = _unshared_layout(vertices, faces)
+    parts = max(1, min(_ID_THREADS, len(cameras) // _MIN_VIEWS_PER_THREAD))
+    edges = [len(cameras) * i // parts for i in range(parts + 1)]
+    runs = [(cameras[a:b], out[a:b]) for a, b in zip(edges[:-1], edges[1:])]
+    helpers = [_helpers().submit(_draw_ids, pos, ids, c, o) for c, o in runs[1:]]
+    try:
+        _draw_ids(pos, ids, *runs[0])
+    finally:
+        for job in helpers:
+            job.result()
+    return out
+
+
+def _draw_ids(pos, ids, cameras, out) -> None:
+    """Draw the unshared triangle list ``pos``/``ids`` (:func:`_unshared_layout`) for
+    each camera into ``out`` (V, H, W) int32, in this thread's GL context."""
     from OpenGL import GL as gl
 
     w, h = cameras[0].size
     r = current_gl_context(w, h)
     n_views = len(cameras)
-    layers = min(n_views, _LAYERS_PER_PASS)
-    out = np.empty((n_views, h, w), np.int32)
-    pos, ids = _unshared_layout(vertices, faces)
+    passes = -(-n_views // _LAYERS_PER_PASS)
+    layers = -(-n_views // passes)  # the passes' views evened out
     vao = gl.glGenVertexArrays(1)
     vbo, ibo = gl.glGenBuffers(2)
     fbo = gl.glGenFramebuffers(1)
@@ -253,7 +295,6 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glDeleteRenderbuffers(1, [depth])
         gl.glDeleteBuffers(2, [vbo, ibo])
         gl.glDeleteVertexArrays(1, [vao])
-    return out
 
 
 def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) -> np.ndarray:
