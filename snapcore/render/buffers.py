@@ -7,16 +7,16 @@ GL context (:mod:`snapcore.render.gl`).
 
 Face-id buffers
 ---------------
-:func:`render_face_ids` draws the mesh indexed, one-sided, with a program of its own
-(raw GL in the thread's context, not a pyrender scene): the fragment shader writes the
-triangle's index + 1 (``gl_PrimitiveID + 1``; 0 = background) into a 32-bit integer
-target, single-sampled, with no lighting or blending, so every id is one face's. Each
-view is a layer of an array texture and the layers are read back together: 162 views
-of 75k faces take ~2.1 s where a pyrender render per view took ~3.6 s (``snapshot bench
---only "face ids"``), with ids identical to the pixel (the recorded viewpoint-entropy
-scores are unchanged). :func:`render_depth` reuses the id pass and intersects each
-pixel's ray with the plane of the face it shows, so depth is exact (float64), free of
-depth-buffer quantisation.
+:func:`render_face_ids` draws the mesh one-sided, with a program of its own (raw GL in
+the thread's context, not a pyrender scene): the fragment shader writes the face's index
++ 1 (0 = background), carried by the face's last vertex as a flat attribute, into a
+32-bit integer target, single-sampled, with no lighting or blending, so every id is one
+face's. Each view is a layer of an array texture and the layers are read back together;
+with many views two GL contexts on two threads draw half each. The ids are identical to
+the pixel to those of the plain pass (one indexed draw per view, ``gl_PrimitiveID + 1``:
+``tests/face_id_reference.py``), and the recorded viewpoint-entropy scores are unchanged.
+:func:`render_depth` reuses the id pass and intersects each pixel's ray with the plane of
+the face it shows, so depth is exact (float64), free of depth-buffer quantisation.
 """
 
 from __future__ import annotations
@@ -323,7 +323,7 @@ def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) ->
     normal points to (back faces are culled, so grazing back faces can never win a
     depth tie at a silhouette); the nearest front face wins the depth test. Ids are exact: no
     multisampling, no filtering, no lighting. Measured on 2 cores: 162 views of a
-    75k-face mesh at 256² in ~2.1 s (``snapshot bench --only "face ids"``).
+    75k-face mesh at 256² in ~1 s (``snapshot bench --only "face ids"``; docs/speed.md).
     """
     views = np.asarray(views, float)
     single = views.ndim == 1
