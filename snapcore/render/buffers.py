@@ -7,20 +7,21 @@ GL context (:mod:`snapcore.render.gl`).
 
 Face-id buffers
 ---------------
-:func:`render_face_ids` draws the mesh indexed, one-sided, with a program of its own
-(raw GL in the thread's context, not a pyrender scene): the fragment shader writes the
-triangle's index + 1 (``gl_PrimitiveID + 1``; 0 = background) into a 32-bit integer
-target, single-sampled, with no lighting or blending, so every id is one face's. Each
-view is a layer of an array texture and the layers are read back together: 162 views
-of 75k faces take ~2.1 s where a pyrender render per view took ~3.6 s (``snapshot bench
---only "face ids"``), with ids identical to the pixel (the recorded viewpoint-entropy
-scores are unchanged). :func:`render_depth` reuses the id pass and intersects each
-pixel's ray with the plane of the face it shows, so depth is exact (float64), free of
-depth-buffer quantisation.
+:func:`render_face_ids` draws the mesh one-sided, with a program of its own (raw GL in
+the thread's context, not a pyrender scene): the fragment shader writes the face's index
++ 1 (0 = background), carried by the face's last vertex as a flat attribute, into a
+32-bit integer target, single-sampled, with no lighting or blending, so every id is one
+face's. Each view is a layer of an array texture and the layers are read back together;
+with many views two GL contexts on two threads draw half each. The ids are identical to
+the pixel to those of the plain pass (one indexed draw per view, ``gl_PrimitiveID + 1``:
+``tests/face_id_reference.py``), and the recorded viewpoint-entropy scores are unchanged.
+:func:`render_depth` reuses the id pass and intersects each pixel's ray with the plane of
+the face it shows, so depth is exact (float64), free of depth-buffer quantisation.
 """
 
 from __future__ import annotations
 
+import os
 import warnings
 from dataclasses import dataclass
 
@@ -88,18 +89,27 @@ def face_id_camera(vertices, view, *, resolution=FACE_ID_RESOLUTION, sphere=None
     )
 
 
-#: The id pass's shaders: the fragment writes the triangle's index within the draw
-#: call (``gl_PrimitiveID``, the face index for indexed triangles) + 1 into a 32-bit
-#: integer target, so ids are exact by construction (no colour encoding, no blending).
+#: The id pass's shaders: the fragment writes its face's index + 1 into a 32-bit integer
+#: target, so ids are exact by construction (no colour encoding, no blending). The id
+#: comes from the triangle's provoking (last) vertex as a flat integer attribute, not
+#: from ``gl_PrimitiveID``: Mesa's llvmpipe serves ``gl_PrimitiveID`` to a fragment
+#: shader by re-assembling every primitive with the id as an extra vertex (its
+#: "primitive assembler"), which cost ~30% of the pass, culled triangles included.
 _ID_VERTEX = """#version 330 core
 layout(location = 0) in vec3 position;
+layout(location = 1) in int face_in;
 uniform mat4 V;
 uniform mat4 P;
-void main() { gl_Position = P * V * vec4(position, 1.0); }
+flat out int face_id;
+void main() {
+    gl_Position = P * V * vec4(position, 1.0);
+    face_id = face_in;
+}
 """
 _ID_FRAGMENT = """#version 330 core
+flat in int face_id;
 out int face;
-void main() { face = gl_PrimitiveID + 1; }
+void main() { face = face_id; }
 """
 #: Views drawn per read-back: each view is one layer of an integer array texture, and
 #: the layers are read in one call (a pyrender render per view cost ~7 ms of scene set-up
@@ -136,31 +146,91 @@ def _id_program(renderer):
     return prog
 
 
+def _unshared_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh laid out for the id pass: three vertices of its own per face.
+
+    Returns positions (3M, 3) float32 (face k's corners, in their order, at rows
+    3k..3k+2) and per-vertex ids (3M,) int32 (k + 1 on all three). Drawn as a plain
+    triangle list (``glDrawArrays``), face k is the k-th triangle, drawn in its place
+    with the same float32 corners as from an index buffer, so it rasterises as before;
+    its last (provoking) vertex carries its id to the fragment as a flat attribute.
+    An indexed draw with a copy per face of only its last corner gave the same ids at
+    ~10% more CPU on llvmpipe (its index splitting and vertex cache cost more than
+    shading every corner).
+    """
+    v = np.asarray(vertices, dtype=np.float32)
+    pos = np.take(v, np.asarray(faces).reshape(-1), axis=0)
+    ids = np.repeat(np.arange(1, len(faces) + 1, dtype=np.int32), 3)
+    return pos, ids
+
+
+#: GL contexts (threads) that draw the views of one call between them when it has at
+#: least :data:`_MIN_VIEWS_PER_THREAD` views each. llvmpipe does a draw's vertex
+#: processing, culling and binning on the thread that issues it (~70% of the pass's
+#: CPU) and rasterises on its own threads, so one issuing thread leaves a core idle.
+#: Every context draws with the same driver and program: the ids do not depend on
+#: which one drew a view.
+_ID_THREADS = min(2, os.cpu_count() or 1)
+_MIN_VIEWS_PER_THREAD = 16
+_POOL: list = []  # the helper threads' executor, made on first use
+
+
+def _helpers():
+    """The process's executor for helper draws (one per process: each of its threads
+    keeps its GL context and compiled program between calls)."""
+    if not _POOL:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL.append(
+            ThreadPoolExecutor(max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids")
+        )
+    return _POOL[0]
+
+
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
     """Face ids (0 = none, k + 1 = face k) of one mesh seen by ``cameras`` of one size,
-    shape (V, H, W): one draw call per view into a layer of an integer array texture."""
+    shape (V, H, W): one draw call per view into a layer of an integer array texture;
+    with many views, contiguous runs of them drawn by :data:`_ID_THREADS` threads."""
+    w, h = cameras[0].size
+    out = np.empty((len(cameras), h, w), np.int32)
+    pos, ids = _unshared_layout(vertices, faces)
+    parts = max(1, min(_ID_THREADS, len(cameras) // _MIN_VIEWS_PER_THREAD))
+    edges = [len(cameras) * i // parts for i in range(parts + 1)]
+    runs = [(cameras[a:b], out[a:b]) for a, b in zip(edges[:-1], edges[1:])]
+    helpers = [_helpers().submit(_draw_ids, pos, ids, c, o) for c, o in runs[1:]]
+    try:
+        _draw_ids(pos, ids, *runs[0])
+    finally:
+        for job in helpers:
+            job.result()
+    return out
+
+
+def _draw_ids(pos, ids, cameras, out) -> None:
+    """Draw the unshared triangle list ``pos``/``ids`` (:func:`_unshared_layout`) for
+    each camera into ``out`` (V, H, W) int32, in this thread's GL context."""
     from OpenGL import GL as gl
 
     w, h = cameras[0].size
     r = current_gl_context(w, h)
     n_views = len(cameras)
-    layers = min(n_views, _LAYERS_PER_PASS)
-    out = np.empty((n_views, h, w), np.int32)
-    v = np.ascontiguousarray(vertices, dtype=np.float32)
-    f = np.ascontiguousarray(faces, dtype=np.uint32)
+    passes = -(-n_views // _LAYERS_PER_PASS)
+    layers = -(-n_views // passes)  # the passes' views evened out
     vao = gl.glGenVertexArrays(1)
-    vbo, ebo = gl.glGenBuffers(2)
+    vbo, ibo = gl.glGenBuffers(2)
     fbo = gl.glGenFramebuffers(1)
     tex = gl.glGenTextures(1)
     depth = gl.glGenRenderbuffers(1)
     try:
         gl.glBindVertexArray(vao)
         gl.glBindBuffer(gl.GL_ARRAY_BUFFER, vbo)
-        gl.glBufferData(gl.GL_ARRAY_BUFFER, v.nbytes, v, gl.GL_STATIC_DRAW)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, pos.nbytes, pos, gl.GL_STATIC_DRAW)
         gl.glEnableVertexAttribArray(0)
         gl.glVertexAttribPointer(0, 3, gl.GL_FLOAT, gl.GL_FALSE, 0, None)
-        gl.glBindBuffer(gl.GL_ELEMENT_ARRAY_BUFFER, ebo)
-        gl.glBufferData(gl.GL_ELEMENT_ARRAY_BUFFER, f.nbytes, f, gl.GL_STATIC_DRAW)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, ibo)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, ids.nbytes, ids, gl.GL_STATIC_DRAW)
+        gl.glEnableVertexAttribArray(1)
+        gl.glVertexAttribIPointer(1, 1, gl.GL_INT, 0, None)
         prog = _id_program(r)
         gl.glUseProgram(prog)
         loc_v = gl.glGetUniformLocation(prog, "V")
@@ -199,6 +269,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glEnable(gl.GL_CULL_FACE)
         gl.glFrontFace(gl.GL_CCW)
         gl.glCullFace(gl.GL_BACK)
+        gl.glProvokingVertex(gl.GL_LAST_VERTEX_CONVENTION)  # the flat id: the last corner's
         gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 4)
         mats = [_view_projection(c) for c in cameras]
         block = np.empty((layers, h, w), np.int32)
@@ -211,7 +282,7 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
                 gl.glClearBufferfv(gl.GL_DEPTH, 0, far)
                 gl.glUniformMatrix4fv(loc_v, 1, gl.GL_TRUE, mats[start + k][0])
                 gl.glUniformMatrix4fv(loc_p, 1, gl.GL_TRUE, mats[start + k][1])
-                gl.glDrawElements(gl.GL_TRIANGLES, f.size, gl.GL_UNSIGNED_INT, None)
+                gl.glDrawArrays(gl.GL_TRIANGLES, 0, len(pos))
             gl.glGetTexImage(gl.GL_TEXTURE_2D_ARRAY, 0, gl.GL_RED_INTEGER, gl.GL_INT, block)
             out[start : start + n] = block[:n, ::-1]  # GL rows run bottom-up
     finally:
@@ -222,9 +293,8 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
         gl.glDeleteFramebuffers(1, [fbo])
         gl.glDeleteTextures([tex])
         gl.glDeleteRenderbuffers(1, [depth])
-        gl.glDeleteBuffers(2, [vbo, ebo])
+        gl.glDeleteBuffers(2, [vbo, ibo])
         gl.glDeleteVertexArrays(1, [vao])
-    return out
 
 
 def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) -> np.ndarray:
@@ -253,7 +323,7 @@ def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) ->
     normal points to (back faces are culled, so grazing back faces can never win a
     depth tie at a silhouette); the nearest front face wins the depth test. Ids are exact: no
     multisampling, no filtering, no lighting. Measured on 2 cores: 162 views of a
-    75k-face mesh at 256² in ~2.1 s (``snapshot bench --only "face ids"``).
+    75k-face mesh at 256² in ~1 s (``snapshot bench --only "face ids"``; docs/speed.md).
     """
     views = np.asarray(views, float)
     single = views.ndim == 1

@@ -46,8 +46,6 @@ VE_VIEWS = 162
 #: limit the PMA view keeps (:data:`snapcore.motion.facing.ABOVE_DEG`), so neither method is
 #: shown looking up through the floor. ``min_elevation_deg=None`` searches all views.
 MIN_ELEVATION_DEG = -10.0
-#: Views × faces per block of the per-view face histograms (bounded memory).
-_HIST_BLOCK = 4_000_000
 
 
 class EntropyError(SnapshotError):
@@ -74,8 +72,8 @@ def viewpoint_entropy(face_ids, n_faces: int | None = None) -> np.ndarray | floa
 
     Notes
     -----
-    Per-view histograms come from one ``bincount`` per block of views (ids offset by
-    the view's index), not from a loop over faces.
+    Per-view histograms come from one ``bincount`` per view, not from a loop over
+    faces.
     """
     ids = np.asarray(face_ids)
     single = ids.ndim == 2
@@ -96,22 +94,24 @@ def _entropy_visible(ids, n_faces):
         raise EntropyError(f"face id {int(ids.max()) - 1} is not below n_faces={n_faces}")
     v, h, w = ids.shape
     flat = ids.reshape(v, h * w)
-    entropy = np.empty(v)
-    visible = np.empty(v, dtype=np.int64)
-    step = max(1, _HIST_BLOCK // max(n_bins, h * w))
-    for i in range(0, v, step):
-        blk = flat[i : i + step].astype(np.int64)
-        nv = blk.shape[0]
-        keys = blk + (np.arange(nv) * n_bins)[:, None]
-        counts = np.bincount(keys.ravel(), minlength=nv * n_bins)
-        # only the bins that occur (a view shows a few thousand of the faces): the log
-        # of every empty bin cost ~3/4 of the time; the sum's order changes, ~1e-15
-        (hit,) = np.nonzero(counts)
-        view = hit // n_bins
-        p = counts[hit] / float(h * w)
-        entropy[i : i + nv] = -np.bincount(view, weights=p * np.log2(p), minlength=nv)
-        visible[i : i + nv] = np.bincount(view[hit % n_bins != 0], minlength=nv)
-    return entropy, visible
+    # One small histogram per view (n_bins counts, cache-sized), not one over
+    # view-offset int64 keys (V x n_bins counts, ~70 MB for the bench's 162 views of
+    # 53k faces): 72 -> 47 ms there. Only the bins that occur enter the sum (a view
+    # shows a few thousand of the faces). The terms are summed per view in the same
+    # order as before (background, then faces by index, one bincount accumulating
+    # sequentially), so the entropies are bit-identical.
+    hits, counts = [], []
+    for row in flat:
+        c = np.bincount(row.astype(np.intp, copy=False), minlength=n_bins)
+        hit = np.flatnonzero(c)
+        hits.append(hit)
+        counts.append(c[hit])
+    n_hit = np.fromiter((len(x) for x in hits), np.int64, count=v)
+    view = np.repeat(np.arange(v), n_hit)
+    p = (np.concatenate(counts) if v else np.empty(0)) / float(h * w)
+    entropy = -np.bincount(view, weights=p * np.log2(p), minlength=v)
+    background = np.fromiter((len(x) > 0 and x[0] == 0 for x in hits), np.int64, count=v)
+    return entropy, n_hit - background
 
 
 @dataclass
