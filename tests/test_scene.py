@@ -58,6 +58,57 @@ def test_fk_matches_scipy_reference_for_every_channel_order(order):
         np.testing.assert_allclose(c.local_rotations[i, 1], r1, atol=1e-9)
 
 
+@pytest.mark.parametrize("order", ["ZXY", "YZX"])
+def test_character_is_the_frame_major_kinematics_to_the_bit(order):
+    """The component-major path (trigonometry skipped on still channels) gives the
+    numbers of Euler conversion with trigonometry everywhere and frame-major matrices,
+    bit for bit: channels held at +0 or -0, a channel still but in one frame, moving
+    ones, and a 1-channel joint (padded axes)."""
+    from snapcore.motion.kinematics import euler_to_quat, forward_kinematics, quat_to_matrix
+
+    rng = np.random.default_rng(3)
+    f = 50
+    motion = np.concatenate([rng.normal(size=(f, 3)), rng.uniform(-180, 180, size=(f, 9))], axis=1)
+    motion[:, 6] = -0.0  # joint a: first axis held at -0, second at +0
+    motion[:, 7] = 0.0
+    motion[:, 9] = -0.0  # joint b (one channel): still ...
+    motion[17, 9] = 40.0  # ... but in one frame
+    doc = chain_document(order, motion)
+    chans = list(doc.channels)
+    chans[2] = (f"{order[1]}rotation",)
+    doc = BVHDocument(
+        doc.names,
+        doc.parents,
+        doc.offsets,
+        tuple(chans),
+        doc.end_site,
+        doc.frame_time,
+        motion[:, :10],
+    )
+    c = character_from_bvh(doc, scale=0.5)
+
+    # the reference: every angle through np.cos and np.sin, frame-major arrays
+    order_b = order[1] + "".join(a for a in "XYZ" if a != order[1])  # padded at angle 0
+    angles_b = np.zeros((f, 3))
+    angles_b[:, 0] = motion[:, 9]
+    quat = np.zeros((f, 4, 4))
+    quat[..., 0] = 1.0
+    quat[:, 0] = euler_to_quat(order, np.deg2rad(motion[:, 3:6]))
+    quat[:, 1] = euler_to_quat(order, np.deg2rad(motion[:, 6:9]))
+    quat[:, 2] = euler_to_quat(order_b, np.deg2rad(angles_b))
+    trans = np.broadcast_to(doc.offsets, (f, 4, 3)).copy()
+    trans[:, 0] = motion[:, :3]
+    positions, quat_world = forward_kinematics(doc.parents, quat, trans)
+
+    def same(x, y):
+        return np.array_equal(np.asarray(x).view(np.int64), np.asarray(y).view(np.int64))
+
+    assert same(c.local_quaternions, quat)
+    assert same(c.positions, positions * 0.5)
+    assert same(c.rotations, quat_to_matrix(quat_world))
+    assert same(c.local_rotations, quat_to_matrix(quat))
+
+
 def test_fk_hand_computed_right_angles():
     """Quarter turns give positions computable by hand."""
     # ZXY order; root turns 90° about Z: the chain's +Y offset points to -X.

@@ -15,7 +15,10 @@ __all__ = [
     "ChannelLayout",
     "channel_layout",
     "local_transforms",
+    "local_rows",
     "forward_kinematics",
+    "forward_kinematics_rows",
+    "rows_to_matrix",
     "joint_depths",
     "rest_positions",
     "euler_to_matrix",
@@ -144,16 +147,25 @@ def euler_to_quat(order: str, angles: np.ndarray) -> np.ndarray:
         Radians, in ``order`` order.
     """
     angles = np.asarray(angles, dtype=float)
-    shape = angles.shape[:-1]
+    halves = [0.5 * angles[..., k] for k in range(3)]
+    qw, qx, qy, qz = _compose_axes(order, [(np.cos(h), np.sin(h)) for h in halves])
+    return np.stack([qw, qx, qy, qz], axis=-1)
+
+
+def _compose_axes(order: str, cos_sin) -> tuple[np.ndarray, ...]:
+    """The four components of the identity composed with each axis's rotation in turn.
+
+    ``cos_sin`` holds, per letter of ``order``, the cosine and sine of half its angle
+    (arrays of one shape). This is ``quat_mul(q, e)`` term by term on separate
+    component arrays (no moveaxis and stack per axis), zero terms included so that
+    every sum, the sign of a zero too, is the one ``quat_mul`` gives.
+    """
+    shape = np.shape(cos_sin[0][0])
     zero = np.zeros(shape)
-    # the identity, composed with each axis's rotation in turn: quat_mul(q, e) term by
-    # term on separate component arrays (no moveaxis and stack per axis), zero terms
-    # included so that every sum, the sign of a zero too, is the one quat_mul gives
     qw, qx, qy, qz = np.ones(shape), zero, zero, zero
-    for k, axis in enumerate(order):
-        half = 0.5 * angles[..., k]
-        e = [np.cos(half), zero, zero, zero]
-        e[1 + _AXIS[axis]] = np.sin(half)
+    for (c, s), axis in zip(cos_sin, order):
+        e = [c, zero, zero, zero]
+        e[1 + _AXIS[axis]] = s
         bw, bx, by, bz = e
         qw, qx, qy, qz = (
             qw * bw - qx * bx - qy * by - qz * bz,
@@ -161,7 +173,7 @@ def euler_to_quat(order: str, angles: np.ndarray) -> np.ndarray:
             qw * by - qx * bz + qy * bw + qz * bx,
             qw * bz + qx * by - qy * bx + qz * bw,
         )
-    return np.stack([qw, qx, qy, qz], axis=-1)
+    return qw, qx, qy, qz
 
 
 def euler_to_matrix(order: str, angles: np.ndarray) -> np.ndarray:
@@ -188,23 +200,65 @@ def local_transforms(layout: ChannelLayout, offsets, motion):
         Local translation: the offset, with position channels replacing components
         (BVH semantics for the root and for 6-channel joints).
     """
+    quat, trans = local_rows(layout, offsets, motion)
+    return (
+        np.ascontiguousarray(quat.transpose(2, 1, 0)),
+        np.ascontiguousarray(trans.transpose(2, 1, 0)),
+    )
+
+
+def local_rows(layout: ChannelLayout, offsets, motion):
+    """:func:`local_transforms` component-major: each joint's component a row of frames.
+
+    Returns
+    -------
+    quat : ndarray of shape (4, J, F)
+        Local rotations, unit quaternions (w, x, y, z).
+    trans : ndarray of shape (3, J, F)
+        Local translations.
+
+    Notes
+    -----
+    The channels are transposed once to rows of frames, so every angle, sine and
+    product runs on contiguous rows. A row of angles that is zero at every frame (a
+    finger BVH exporters keep still: 54 of the salsa dancers' 129 rotation channels)
+    takes ``cos = 1`` and ``sin = angle`` (the sign of a zero kept) without the
+    trigonometry, which is what ``np.cos`` and ``np.sin`` return there. The results
+    are :func:`euler_to_quat`'s to the bit.
+    """
     motion = np.asarray(motion, dtype=float)
     f_count, j_count = motion.shape[0], len(layout.rot_order)
-    quat = np.zeros((f_count, j_count, 4))
-    quat[..., 0] = 1.0
+    rows = np.ascontiguousarray(motion.T)  # (C, F)
+    quat = np.empty((4, j_count, f_count))
+    quat[0] = 1.0
+    quat[1:] = 0.0
     by_order: dict[str, list[int]] = {}
     for j, order in enumerate(layout.rot_order):
         if order:
             by_order.setdefault(order, []).append(j)
     for order, joints in by_order.items():
-        cols = layout.rot_cols[joints]  # (Jg, 3), -1 for padded axes
-        angles = np.where(cols >= 0, motion[:, np.maximum(cols, 0)], 0.0)  # (F, Jg, 3)
-        quat[:, joints] = euler_to_quat(order, np.deg2rad(angles))
-    trans = np.broadcast_to(np.asarray(offsets, dtype=float), (f_count, j_count, 3)).copy()
+        cols = layout.rot_cols[joints]  # (Jg, 3), -1 for padded axes (angle 0)
+        cos_sin = []
+        for k in range(3):
+            half = np.zeros((len(joints), f_count))
+            have = np.flatnonzero(cols[:, k] >= 0)
+            half[have] = np.deg2rad(rows[cols[have, k]])
+            half *= 0.5
+            c, s = np.ones_like(half), half.copy()
+            moving = np.flatnonzero(half.any(axis=1))
+            if moving.size:
+                c[moving] = np.cos(half[moving])
+                s[moving] = np.sin(half[moving])
+            cos_sin.append((c, s))
+        idx = np.asarray(joints)
+        for comp, values in enumerate(_compose_axes(order, cos_sin)):
+            quat[comp, idx] = values
+    trans = np.empty((3, j_count, f_count))
+    trans[:] = np.asarray(offsets, dtype=float).T[:, :, None]
     has = layout.pos_cols >= 0
     if has.any():
         jj, aa = np.nonzero(has)
-        trans[:, jj, aa] = motion[:, layout.pos_cols[jj, aa]]
+        trans[aa, jj] = rows[layout.pos_cols[jj, aa]]
     return quat, trans
 
 
@@ -231,18 +285,44 @@ def forward_kinematics(parents, quat_local, trans_local):
     stacked 3x3 matrix products; joints are batched by tree depth so the Python loop
     runs about ten times, not once per joint or frame.
 
-    The work runs on component-major copies, (4, J, F) and (3, J, F): every joint's
-    component is a contiguous row of frames, so a level's parents are gathered as
-    whole rows and every product runs on contiguous rows. Gathering and scattering
-    (F, J, 4) across its middle axis, ``np.cross`` and ``np.stack`` took about 60 % of
-    this function's time. The arithmetic is :func:`quat_mul`'s and
-    :func:`quat_rotate`'s, term by term in the same order: the results are identical
-    to the bit.
+    The work runs on component-major copies (:func:`forward_kinematics_rows`).
     """
-    f_count, j_count = trans_local.shape[:2]
     parents = np.asarray(parents, dtype=int)
     ql = np.ascontiguousarray(np.asarray(quat_local, dtype=float).transpose(2, 1, 0))
     tl = np.ascontiguousarray(np.asarray(trans_local, dtype=float).transpose(2, 1, 0))
+    p, q = forward_kinematics_rows(parents, ql, tl)
+    return (
+        np.ascontiguousarray(p.transpose(2, 1, 0)),
+        np.ascontiguousarray(q.transpose(2, 1, 0)),
+    )
+
+
+def forward_kinematics_rows(parents, quat_local, trans_local):
+    """:func:`forward_kinematics` on component-major arrays.
+
+    Parameters
+    ----------
+    parents : ndarray of int, shape (J,)
+    quat_local : ndarray of shape (4, J, F)
+    trans_local : ndarray of shape (3, J, F)
+
+    Returns
+    -------
+    positions : ndarray of shape (3, J, F)
+    quat_world : ndarray of shape (4, J, F)
+
+    Notes
+    -----
+    Every joint's component is a contiguous row of frames, so a level's parents are
+    gathered as whole rows and every product runs on contiguous rows. Gathering and
+    scattering (F, J, 4) across its middle axis, ``np.cross`` and ``np.stack`` took
+    about 60 % of the time of the first version. The arithmetic is :func:`quat_mul`'s
+    and :func:`quat_rotate`'s, term by term in the same order: the results are
+    identical to the bit.
+    """
+    j_count, f_count = trans_local.shape[1:]
+    parents = np.asarray(parents, dtype=int)
+    ql, tl = quat_local, trans_local
     q = np.empty((4, j_count, f_count))
     p = np.empty((3, j_count, f_count))
     depth = joint_depths(parents)
@@ -269,10 +349,30 @@ def forward_kinematics(parents, quat_local, trans_local):
         p[0, idx] = px + (vx + aw * t0 + (ay * t2 - az * t1))
         p[1, idx] = py + (vy + aw * t1 + (az * t0 - ax * t2))
         p[2, idx] = pz + (vz + aw * t2 + (ax * t1 - ay * t0))
-    return (
-        np.ascontiguousarray(p.transpose(2, 1, 0)),
-        np.ascontiguousarray(q.transpose(2, 1, 0)),
-    )
+    return p, q
+
+
+def rows_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Component-major unit quaternions (4, J, F) to rotation matrices (F, J, 3, 3).
+
+    :func:`quat_to_matrix`'s arithmetic on contiguous rows, written straight into the
+    frame-major result (no transposed copy of the quaternions): identical to the bit.
+    """
+    w, x, y, z = q
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    m = np.empty((w.shape[1], w.shape[0], 3, 3))
+    mt = m.transpose(2, 3, 1, 0)  # (3, 3, J, F) view of the result
+    mt[0, 0] = 1 - 2 * (yy + zz)
+    mt[0, 1] = 2 * (xy - wz)
+    mt[0, 2] = 2 * (xz + wy)
+    mt[1, 0] = 2 * (xy + wz)
+    mt[1, 1] = 1 - 2 * (xx + zz)
+    mt[1, 2] = 2 * (yz - wx)
+    mt[2, 0] = 2 * (xz - wy)
+    mt[2, 1] = 2 * (yz + wx)
+    mt[2, 2] = 1 - 2 * (xx + yy)
+    return m
 
 
 def rest_positions(parents, offsets) -> np.ndarray:

@@ -39,12 +39,12 @@ from snapcore.motion.anatomy import REFERENCE_STATURE_M, body_landmarks, joint_r
 from snapcore.motion.bvh import BVHDocument
 from snapcore.motion.kinematics import (
     channel_layout,
-    forward_kinematics,
-    local_transforms,
+    forward_kinematics_rows,
+    local_rows,
     matrix_to_quat,
     quat_mul,
-    quat_to_matrix,
     rest_positions,
+    rows_to_matrix,
 )
 from snapcore.motion.skinning import SkinnedMesh
 
@@ -470,9 +470,12 @@ def character_from_bvh(
     """
     if not (np.isfinite(scale) and scale > 0):
         raise SceneError(f"scale must be a positive number of metres per unit, got {scale}")
-    layout = channel_layout(doc.channels)
-    quat_local, trans_local = local_transforms(layout, doc.offsets, doc.motion)
-    positions, quat_world = forward_kinematics(doc.parents, quat_local, trans_local)
+    # component-major (4, J, F) rows from the channels to the matrices: one transposed
+    # copy each for the positions and the local quaternions (see local_rows)
+    quat_local, trans_local = local_rows(channel_layout(doc.channels), doc.offsets, doc.motion)
+    pos_rows, quat_world = forward_kinematics_rows(doc.parents, quat_local, trans_local)
+    positions = np.empty(pos_rows.shape[::-1])
+    np.multiply(pos_rows.transpose(2, 1, 0), scale, out=positions)  # metres, (F, J, 3)
     skeleton = Skeleton(
         names=doc.names,
         parents=doc.parents,
@@ -489,13 +492,13 @@ def character_from_bvh(
     return Character(
         name=name,
         skeleton=skeleton,
-        positions=positions * scale,
-        rotations=quat_to_matrix(quat_world),
-        local_rotations=quat_to_matrix(quat_local),
+        positions=positions,
+        rotations=rows_to_matrix(quat_world),
+        local_rotations=rows_to_matrix(quat_local),
         fps=float(fps),
         scale=float(scale),
         source=doc,
-        local_quaternions=quat_local,
+        local_quaternions=np.ascontiguousarray(quat_local.transpose(2, 1, 0)),
     )
 
 
