@@ -522,7 +522,7 @@ def _decimal_block(block: str, n_rows: int, n_chan: int) -> np.ndarray | None:
     end = len(raw)  # whitespace after the last row is not read (no copy to strip it)
     while end and raw[end - 1] in b" \t\r\n":
         end -= 1
-    n_cr = raw.count(b"\r", 0, end)
+    n_cr = raw.count(b"\r", 0, end) if b"\r" in raw else 0  # `in` is memchr; count is not
     if n_cr and n_cr != raw.count(b"\r\n", 0, end):
         return None  # a lone CR ends a line too: the caller's line split decides
     # 8 spaces on either side: every word read below starts inside the buffer
