@@ -115,3 +115,43 @@ def test_parse_bvh_reads_exponents_and_integers_alike():
     for rows in (["0 -17 3.25", "1.5 -0.000 2"], ["0 5.1072e-06 3", "1 2 -5.5e-7"]):
         doc = parse_bvh(head + "\n".join(rows) + "\n")
         assert np.array_equal(_bits(doc.motion), _bits(_reference(rows)))
+
+
+HEAD = (
+    "HIERARCHY\nROOT Hips\n{\n\tOFFSET 0 0 0\n\tCHANNELS 3 Zrotation Xrotation Yrotation\n"
+    "\tEnd Site\n\t{\n\t\tOFFSET 0 5 0\n\t}\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n"
+)
+
+
+@pytest.mark.parametrize(
+    "rows, clean",
+    [
+        ("0 1.5 -2\n3 4 5\n6 7 8\n", True),
+        ("0 1.5 -2\r\n3 4 5\r\n6 7 8\r\n", True),  # CRLF
+        ("\t0 1.5 -2 \n3\t4 5\n6 7 8\n\n  \n", True),  # tabs, blank lines after the rows
+        ("0 1.5 -2\n\n3 4 5\n6 7 8\n", False),  # a blank line between rows
+        ("0 1.5 -2\r3 4 5\r6 7 8\r", False),  # CR alone
+        ("0 1.5 -2\n3 4 5\n6 7 8\n9 9 9\n", False),  # a row beyond the header's count
+        ("0 1.5e0 -2\n3 4 5\n6 7 8\n", False),  # an exponent
+    ],
+)
+def test_whole_block_route_agrees_with_the_line_route(rows, clean):
+    """The block route (the header split into lines, the rows read as one string)
+    reads the well-formed files and gives the line-by-line parse's document; the others
+    it leaves to the line route, which warns and names lines."""
+    import warnings
+
+    from snapcore.motion import bvh
+
+    text = HEAD + rows
+    fast = bvh._parse_clean(text, None)
+    assert (fast is not None) == clean
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        doc = parse_bvh(text)  # whichever route
+    ref = np.array([[0.0, 1.5, -2.0], [3.0, 4.0, 5.0], [6.0, 7.0, 8.0]])
+    assert np.array_equal(_bits(doc.motion), _bits(ref))
+    if fast is not None:
+        assert fast.names == doc.names and fast.channels == doc.channels
+        assert fast.frame_time == doc.frame_time
+        assert np.array_equal(fast.offsets, doc.offsets)
