@@ -44,8 +44,10 @@ __all__ = ["DrawMesh", "Light", "Pending", "draw", "submit", "MAX_LIGHTS"]
 MAX_LIGHTS = 4
 #: Samples per pixel (pyrender's multisampled main framebuffer).
 SAMPLES = 4
-#: Framebuffer sizes kept per thread (crops come in a few sizes, steps of 64 px).
-_KEEP_SIZES = 6
+#: Framebuffer sizes kept per thread, each as three sets (two for pipelined frames, one
+#: for backgrounds: ~100 MB at 1280x720 with 4x multisampling); a batch alternates
+#: two (thumbnails, preview panels).
+_KEEP_SIZES = 3
 
 
 @dataclass
