@@ -3,9 +3,11 @@
 Everything people look at comes from here: stills and the per-frame renderer
 (:class:`SceneRenderer`) used by videos (:mod:`snapcore.render.video`) and composites
 (:mod:`snapcore.render.composites`). Depth maps (for the relief) and face-id buffers (for
-the viewpoint-entropy baseline) are in :mod:`snapcore.render.buffers`. Cameras and framing are in :mod:`snapcore.render.camera` and the
-OpenGL context (pyrender on Mesa EGL, one renderer per thread) in
-:mod:`snapcore.render.gl`; their public names are re-exported here.
+the viewpoint-entropy baseline) are in :mod:`snapcore.render.buffers`. Cameras and
+framing are in :mod:`snapcore.render.camera`, the OpenGL contexts (a bare Mesa EGL
+context per thread; pyrender's for :func:`render_mesh` only) in
+:mod:`snapcore.render.gl`, and the drawing (raw GL, as pyrender drew, without
+importing it) in :mod:`snapcore.render.raster`.
 
 Conventions
 -----------
