@@ -50,12 +50,13 @@ __all__ = [
 ]
 
 #: Frames per sparse product: its inner loop runs over 3 × this many columns (SciPy's
-#: products ran at 6.8 GFMA/s with 57 columns, 9.7 with 192).
-KERNEL_FRAMES = 64
+#: products ran at 6.8 GFMA/s with 57 columns, 9.5-9.7 with 192-384; the whole skin
+#: case 3-5% faster with 128 frames than with 64).
+KERNEL_FRAMES = 128
 #: Memory budget (bytes) of one block of skinned vertices (rows × frames × 3 of the
 #: dtype): the products' output stays in cache for the transposing copy into the
-#: (F, V, 3) layout, so the mesh's rows are taken in blocks (1.5 MB: 2,048 vertices
-#: of 64 frames in float32, measured best with the frames above).
+#: (F, V, 3) layout, so the mesh's rows are taken in blocks (1.5 MB: 1,024 vertices
+#: of 128 frames in float32; 1-2 MB measured alike).
 KERNEL_CHUNK_BYTES = 3 * 2**19
 #: Output columns (vertex coordinates) per strip of the transposing copy.
 TRANSPOSE_STRIP = 2048
