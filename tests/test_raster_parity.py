@@ -124,3 +124,28 @@ def test_render_does_not_load_pyrender(tmp_path, motions_dir):
     assert res.returncode == 0, res.stderr[-2000:]
     assert "LOADED []" in res.stdout, res.stdout
     assert out.stat().st_size > 1000
+
+
+def test_odd_sizes_and_the_face_id_pass_between_pictures(motions_dir):
+    """An odd size (rows of 3 x 251 bytes: no padding may creep into the read-back)
+    against pyrender, and the same picture again after the face-id pass has drawn in
+    the same (bare) context: its GL state must not leak into the pictures."""
+    from snapcore.render.bodies import posed_mesh
+    from snapcore.render.buffers import render_face_ids
+    from snapcore.render.gl import _THREAD, bare_gl_context, current_gl_context, release_renderer
+
+    files, frame = SCENES["dance 05_06"]
+    scene = _load(motions_dir, files)
+    index = min(frame, scene.n_frames - 1)
+    release_renderer()  # no pyrender renderer on this thread: one bare context for both
+    sr = SceneRenderer(scene, size=(251, 167))
+    cam = fit_camera(sr.body.vertices(index), [0.6, 0.45, 1.0], size=sr.size)
+    first = sr.render(index, cam)
+    assert getattr(_THREAD, "renderer", None) is None
+    assert current_gl_context(8, 8) is bare_gl_context()  # the id pass draws in it too
+    m = posed_mesh(scene, index, kind="human")
+    ids = render_face_ids(m.vertices, m.faces, np.array([[0.0, 0.3, 1.0]]), resolution=64)
+    assert (ids > 0).any()
+    again = SceneRenderer(scene, size=(251, 167)).render(index, cam)
+    assert np.array_equal(first, again)
+    _agree(first, pyrender_picture(sr, cam, sr._full_camera()))

@@ -93,6 +93,28 @@ def test_a_plan_adds_its_shifts_and_writes_into_out():
         dq_skin_planned(plan, m, centres, shifts, out=np.zeros((3, 3, 50)).transpose(0, 2, 1))
 
 
+def test_blocks_of_frames_and_vertices_give_the_same_skin(monkeypatch):
+    """Frames in chunks and vertices in blocks (the kernel's cache sizes made small:
+    chunks of 4 frames, blocks of 256 vertices, the first block all on one bone, so
+    with no blended part) skin as the reference does."""
+    import snapcore.motion.dq_kernel as kernel
+
+    rng = np.random.default_rng(11)
+    rest, w, m, centres, linear = _random_rig(rng, v=900, k=7, f=10)
+    w = w.tolil()
+    w[:300] = 0.0
+    w[np.arange(300), rng.integers(0, 7, 300)] = 1.0  # vertices 0-299: one bone each
+    w = w.tocsr()
+    linear[300] = 0.0  # the weightless vertex: stays put (a linear share would scale it)
+    want = dq_reference(rest, w, m, centres, linear=linear)
+    monkeypatch.setattr(kernel, "KERNEL_FRAMES", 4)
+    monkeypatch.setattr(kernel, "KERNEL_CHUNK_BYTES", 1)  # the minimum block, 256 rows
+    plan = dq_plan(rest, w, linear)
+    assert [b[3] is None for b in plan.row_blocks(256)] == [True, False, False, False]
+    got = dq_skin_planned(plan, m, centres)
+    np.testing.assert_allclose(got, want, rtol=0, atol=TOL64)
+
+
 def test_a_plan_leaves_the_callers_weights_as_they_were():
     """The plan prunes stored zeros from its own copy: a shared weight matrix (the human
     asset's, used by every body) with a stored zero keeps it."""

@@ -50,12 +50,13 @@ __all__ = [
 ]
 
 #: Frames per sparse product: its inner loop runs over 3 × this many columns (SciPy's
-#: products ran at 6.8 GFMA/s with 57 columns, 9.7 with 192).
-KERNEL_FRAMES = 64
+#: products ran at 6.8 GFMA/s with 57 columns, 9.5-9.7 with 192-384; the whole skin
+#: case 3-5% faster with 128 frames than with 64).
+KERNEL_FRAMES = 128
 #: Memory budget (bytes) of one block of skinned vertices (rows × frames × 3 of the
 #: dtype): the products' output stays in cache for the transposing copy into the
-#: (F, V, 3) layout, so the mesh's rows are taken in blocks (1.5 MB: 2,048 vertices
-#: of 64 frames in float32, measured best with the frames above).
+#: (F, V, 3) layout, so the mesh's rows are taken in blocks (1.5 MB: 1,024 vertices
+#: of 128 frames in float32; 1-2 MB measured alike).
 KERNEL_CHUNK_BYTES = 3 * 2**19
 #: Output columns (vertex coordinates) per strip of the transposing copy.
 TRANSPOSE_STRIP = 2048
@@ -208,11 +209,7 @@ def dq_plan(
     code = (pk * k + pl) * (k + 1) + (ppiv + 1)
     uniq, key_of = np.unique(code, return_inverse=True)
     keys = np.stack([uniq // (k + 1) // k, uniq // (k + 1) % k, uniq % (k + 1) - 1], axis=1)
-    # the diagonal keys (k, k) first: the kernel takes their rows from the rigid
-    # transforms and computes the bilinear forms of the rest only
-    order = np.argsort(keys[:, 0] != keys[:, 1], kind="stable")
-    keys = keys[order]
-    key_of = np.argsort(order)[key_of.ravel()]
+    key_of = key_of.ravel()
     slot = np.full(v, -1)
     slot[dq_rows] = np.arange(len(dq_rows))
     d, p = len(dq_rows), len(uniq)
@@ -328,7 +325,6 @@ def _pair_table(q, qd, keys, rigid, dtype) -> tuple[np.ndarray, np.ndarray]:
     q, qd : ndarray of shape (4, K, F)
         The bones' real and dual quaternions ``(w, x, y, z)``, component first.
     keys : ndarray of int, shape (P, 3)
-        The diagonal keys ``(k, k, -1)`` first (:func:`dq_plan` orders them so).
     rigid : ndarray of shape (F, K, 3, 4)
         The bones' rigid transforms: the diagonal keys' forms, exactly.
     dtype : numpy dtype
@@ -342,26 +338,25 @@ def _pair_table(q, qd, keys, rigid, dtype) -> tuple[np.ndarray, np.ndarray]:
         ``σ q_k · q_l``.
     """
     k, j, p = keys[:, 0], keys[:, 1], keys[:, 2]
-    nd = int(np.count_nonzero(k == j))
-    f = q.shape[2]
-    # the signs, in float64, from every pair's quaternion dot product per frame (a
-    # (K, K) Gram matrix per frame): s_k s_l; with the pivot in the pair, sign(q_k · q_l)
-    gram = np.matmul(q.transpose(2, 1, 0), q.transpose(2, 0, 1))  # (F, K, K)
-    c64 = gram[:, k, j].T  # (P, F)
+    # the signs first, in float64: s_k s_l; with the pivot in the pair (or k == l),
+    # sign(q_k · q_l); the far pairs' from every pair's dot product per frame (a
+    # (K, K) Gram matrix per frame)
+    c64 = np.einsum("apf,apf->pf", q[:, k], q[:, j])
     sign = np.where(c64 < 0, -1.0, 1.0)
     far = np.flatnonzero(p >= 0)
     if far.size:
+        gram = np.matmul(q.transpose(2, 1, 0), q.transpose(2, 0, 1))  # (F, K, K)
         sk = gram[:, k[far], p[far]].T < 0
         sl = gram[:, j[far], p[far]].T < 0
         sign[far] = np.where(sk ^ sl, -1.0, 1.0)
-    sign[:nd] = 1.0
-    n = np.empty((len(keys), 4, 3, f), dtype=dtype)
-    n[:nd] = _table(rigid[:, k[:nd]])  # N(d_k, d_k) = T_k
+    diag = np.flatnonzero(k == j)
+    sign[diag] = 1.0
+    n = np.empty((len(keys), 4, 3, q.shape[2]), dtype=dtype)
     u = np.concatenate([q, qd]).astype(dtype)  # (8, K, F)
     # the sign folded into one factor of each product
-    w1, x1, y1, z1, e1, a1, b1, c1 = u[:, k[nd:]] * sign[nd:].astype(dtype)
-    w2, x2, y2, z2, e2, a2, b2, c2 = u[:, j[nd:]]  # dual parts: (w_e, x_e, y_e, z_e)
-    o = n[nd:]
+    w1, x1, y1, z1, e1, a1, b1, c1 = u[:, k] * sign.astype(dtype)
+    w2, x2, y2, z2, e2, a2, b2, c2 = u[:, j]  # dual parts: (w_e, x_e, y_e, z_e)
+    o = n
     xx, yy, zz = x1 * x2, y1 * y2, z1 * z2
     s = w1 * w2 - (xx + yy + zz)
     wx, wy, wz = w1 * x2 + w2 * x1, w1 * y2 + w2 * y1, w1 * z2 + w2 * z1
@@ -380,6 +375,7 @@ def _pair_table(q, qd, keys, rigid, dtype) -> tuple[np.ndarray, np.ndarray]:
     o[:, 3, 0] = w1 * a2 + w2 * a1 - e1 * x2 - e2 * x1 + (y1 * c2 - z1 * b2) + (y2 * c1 - z2 * b1)
     o[:, 3, 1] = w1 * b2 + w2 * b1 - e1 * y2 - e2 * y1 + (z1 * a2 - x1 * c2) + (z2 * a1 - x2 * c1)
     o[:, 3, 2] = w1 * c2 + w2 * c1 - e1 * z2 - e2 * z1 + (x1 * b2 - y1 * a2) + (x2 * b1 - y2 * a1)
+    n[diag] = _table(rigid[:, k[diag]])  # N(d_k, d_k) = T_k, exactly
     return n, (c64 * sign).astype(dtype)
 
 

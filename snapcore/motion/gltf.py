@@ -418,11 +418,28 @@ def _build_mesh(
 # --------------------------------------------------------------------------- reader
 
 
-def _load(path: Path):
-    import pygltflib
+#: The document :func:`_load` read last, by (path, modification time, size): a scene's
+#: loading reads one file twice (its characters' names, then each character), and
+#: pygltflib's decoding of the JSON is most of a glTF's load (0.5 s for BrainStem).
+_LAST: dict[tuple, object] = {}
 
+
+def _load(path: Path):
     if not path.is_file():
         raise GLTFError("no such file", path=str(path))
+    st = path.stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    g = _LAST.get(key)
+    if g is None:
+        g = _decode(path)
+        _LAST.clear()  # one document: a library's worker reads thousands of files
+        _LAST[key] = g
+    return g
+
+
+def _decode(path: Path):
+    import pygltflib
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -59,12 +59,14 @@ from snapcore.motion.load import infer_ground
 from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
+    axis_rotation,
     cross,
     frame_x,
     frame_z,
     hinge,
     mean_rotation,
     norm,
+    rest_frame,
     swing_matrices,
     unit,
 )
@@ -167,23 +169,6 @@ LINEAR_BONES = ("Hips", "LHipJoint", "RHipJoint")
 #: Segments turned about one of their axes (0: x, the left; 2: z, the front) to sit as
 #: the rig's relative to the chest in the clip's median pose (see Retarget._calibrate).
 TURNED = {"eyes": 0, "clavicle": 2}
-
-
-def _about(axis: int, angle: float) -> np.ndarray:
-    """The rotation by ``angle`` (radians) about coordinate axis ``axis``: (3, 3)."""
-    u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
-    m = np.eye(3)
-    m[u, u] = m[v, v] = np.cos(angle)
-    m[v, u], m[u, v] = np.sin(angle), -np.sin(angle)
-    return m
-
-
-def _frame(axis: np.ndarray) -> np.ndarray:
-    """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``."""
-    y = unit(axis)
-    helper = np.array([0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    x = unit(np.cross(y, helper))
-    return np.stack([x, y, np.cross(x, y)], axis=1)
 
 
 #: Joints of the skeleton whose positions the segment frames read, with the rig point
@@ -414,7 +399,9 @@ class Retarget(SoleFit):
                 rel = np.swapaxes(parent[:, c], -1, -2) @ parent[:, i]  # (S, 3, 3)
                 q = np.swapaxes(rel, -1, -2) @ (self.frames_rig[c].T @ self.frames_rig[i])
                 u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
-                self._turn[i] = _about(axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u]))))
+                self._turn[i] = axis_rotation(
+                    axis, float(np.median(np.arctan2(q[:, v, u], q[:, u, u])))
+                )
 
     def _inputs(self, positions, heads_tips=None):
         """Skeleton points, group directions (tip - head) and finger directions for the
@@ -468,26 +455,18 @@ class Retarget(SoleFit):
         front_p = cross(lat_p, d[:, 0])
         front_c = cross(lat_c, d[:, self._spine1])
         done = np.zeros(len(g_all), bool)
-        # the torso first: the arms' stand-in hinge is carried by the chest; each
+        # the torso first (the arms' stand-in hinge is carried by the chest), each
         # recipe's groups in one call (frame_x and frame_z work point by point)
-        xs, zs = [], []
         ulat_p, ulat_c = unit(lat_p), unit(lat_c)
-        for i, g in enumerate(g_all):
-            kind = g.recipe[0]
-            if kind == "torso":
-                u = g.recipe[1]
-                xs.append((i, (1 - u) * ulat_p + u * ulat_c))
-            elif kind == "neck":
-                xs.append((i, lat_c))
-            elif kind == "hipjoint":
-                zs.append((i, front_p))
-            elif kind == "clavicle":
-                zs.append((i, front_c))
-        for frame, todo in ((frame_x, xs), (frame_z, zs)):
-            if todo:
-                idx = [i for i, _ in todo]
-                out[:, idx] = frame(d[:, idx], np.stack([ref for _, ref in todo], axis=1))
-                done[idx] = True
+        refs = {"neck": lat_c, "hipjoint": front_p, "clavicle": front_c}
+        for frame, kinds in ((frame_x, ("torso", "neck")), (frame_z, ("hipjoint", "clavicle"))):
+            idx = [i for i, g in enumerate(g_all) if g.recipe[0] in kinds]
+            r = [  # a torso group's blend of the hip and shoulder lines (its recipe's u)
+                refs[k[0]] if k[0] in refs else (1 - k[1]) * ulat_p + k[1] * ulat_c
+                for k in (g_all[i].recipe for i in idx)
+            ]
+            if idx:
+                out[:, idx], done[idx] = frame(d[:, idx], np.stack(r, axis=1)), True
         # the limbs' hinges, both arms and both legs in one call (hinge works point by
         # point): arms (L, R), then legs (L, R)
         sides = list(SIDES)
@@ -503,10 +482,8 @@ class Retarget(SoleFit):
             stand = (swing_matrices(a_up, upper) @ b)[..., 0]
         thigh = np.stack([pts[f"knee_{s}"] - pts[f"hip_{s}"] for s in sides], axis=1)
         shank = np.stack([pts[f"ankle_{s}"] - pts[f"knee_{s}"] for s in sides], axis=1)
-        foot = []
-        for s in sides:
-            foot_g = next(i for i, g in enumerate(g_all) if g.bones[0] == f"{SIDES[s]}Foot")
-            foot.append(d[:, foot_g] if foot_g in self._tracked else front_p)
+        feet = [[g.bones[0] for g in g_all].index(f"{SIDES[s]}Foot") for s in sides]
+        foot = [d[:, i] if i in self._tracked else front_p for i in feet]
         axes = hinge(
             np.concatenate([upper, thigh], axis=1),
             np.concatenate([fore, shank], axis=1),
@@ -535,7 +512,7 @@ class Retarget(SoleFit):
                 out[:, i] = out[:, i][..., [1, 2, 0]]
             elif kind == "calibrated":
                 if rig or calibrating:
-                    out[:, i] = _frame(g.rig_tip - g.rig_head)
+                    out[:, i] = rest_frame(g.rig_tip - g.rig_head)
                     continue
                 fr = rotations[:, g.ref] @ self._calib[i]
                 target = d[:, i] if i in self._tracked else fingers.get(i)
@@ -575,9 +552,8 @@ class Retarget(SoleFit):
         return m
 
     def _posed(self, positions, rotations):
-        """:meth:`group_matrices` with the stretch term and each matrix's rotation
-        (F, G, 3, 3): the matrices are rotation × positive scaling (W A^T · A D A^T),
-        so this is their polar decomposition's rotation, which the skinning needs."""
+        """:meth:`group_matrices`, stretch term and each matrix's rotation (F, G, 3, 3): a
+        matrix is W A^T · A D A^T (D > 0), so W A^T is its polar factor (the skin's)."""
         m, st, rot = self._unplanted(positions, rotations)
         return self._planted(m, st, positions, rot), st, rot
 
@@ -608,10 +584,8 @@ class Retarget(SoleFit):
         # W D A^T and W A^T, as sums over the three axes (NumPy's matmul of 3 x 3
         # stacks cost 3-5 times as much)
         a = self.frames_rig  # (G, 3, 3): A, its rows A^T's columns
-        rot = sum(w[..., :, c, None] * a[:, None, :, c] for c in range(3))
-        lin = sum(
-            (w[..., :, c] * scale[..., None, c])[..., None] * a[:, None, :, c] for c in range(3)
-        )
+        ws = w * scale[..., None, :]  # W D
+        rot, lin = (sum(x[..., :, c, None] * a[:, None, :, c] for c in range(3)) for x in (w, ws))
         o = self._rig_origin
         trans = h - sum(lin[..., c] * o[:, c, None] for c in range(3))
         st = (self.k - length)[..., None] * w[..., 1]

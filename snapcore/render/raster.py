@@ -44,8 +44,10 @@ __all__ = ["DrawMesh", "Light", "Pending", "draw", "submit", "MAX_LIGHTS"]
 MAX_LIGHTS = 4
 #: Samples per pixel (pyrender's multisampled main framebuffer).
 SAMPLES = 4
-#: Framebuffer sizes kept per thread (crops come in a few sizes, steps of 64 px).
-_KEEP_SIZES = 6
+#: Framebuffer sizes kept per thread, each as three sets (two for pipelined frames, one
+#: for backgrounds: ~100 MB at 1280x720 with 4x multisampling); a batch alternates
+#: two (thumbnails, preview panels).
+_KEEP_SIZES = 3
 
 
 @dataclass
@@ -287,12 +289,13 @@ class _Framebuffers:
         self._copy(self.fb_ms, self.bg_fb, (0, 0, w, h))
         self.bg_key = key
 
-    def restore(self, key: object, rect: tuple[int, int, int, int]) -> bool:
-        """Put the kept samples of ``key`` back into ``rect`` (x, y from the bottom, w,
-        h) of the multisampled framebuffer; False if another picture is kept."""
+    def restore(self, key: object, rect: tuple[int, int, int, int], into: _Framebuffers) -> bool:
+        """Put the samples kept under ``key`` back into ``rect`` (x, y from the bottom,
+        w, h) of ``into``'s multisampled framebuffer (same size); False if another
+        picture is kept."""
         if self.bg_fb is None or self.bg_key is not key:
             return False
-        self._copy(self.bg_fb, self.fb_ms, rect)
+        self._copy(self.bg_fb, into.fb_ms, rect)
         return True
 
     @staticmethod
@@ -326,15 +329,20 @@ class _Canvas:
         self.ctx = ctx
         self.programs = {lit: _Program(lit) for lit in (True, False)}
         self.slots: dict[str, _Slot] = {}
-        self.fbs: OrderedDict[tuple[int, int], _Framebuffers] = OrderedDict()
+        self.fbs: OrderedDict[tuple[int, int, int], _Framebuffers] = OrderedDict()
+        #: per size, the framebuffers whose kept samples frames restore
+        self.kept: dict[tuple[int, int], _Framebuffers] = {}
 
-    def framebuffers(self, w: int, h: int) -> _Framebuffers:
-        fb = self.fbs.pop((w, h), None)
+    def framebuffers(self, w: int, h: int, buffer: int) -> _Framebuffers:
+        fb = self.fbs.pop((w, h, buffer), None)
         if fb is None:
             fb = _Framebuffers(w, h)
-            while len(self.fbs) >= _KEEP_SIZES:
-                self.fbs.popitem(last=False)[1].delete()
-        self.fbs[(w, h)] = fb
+            while len(self.fbs) >= _KEEP_SIZES * 3:
+                old = self.fbs.popitem(last=False)[1]
+                if self.kept.get(old.size) is old:
+                    del self.kept[old.size]
+                old.delete()
+        self.fbs[(w, h, buffer)] = fb
         return fb
 
     def slot(self, name: str) -> _Slot:
@@ -373,6 +381,7 @@ def submit(
     window: tuple[int, int, int, int] | None = None,
     keep: object = None,
     background: tuple[object, int] | None = None,
+    buffer: int = 0,
 ) -> Pending:
     """Rasterise ``meshes`` into an RGB image, as pyrender's forward pass would;
     :meth:`Pending.read` of the result waits for it and reads it back.
@@ -403,6 +412,9 @@ def submit(
         The first ``n`` meshes are the picture kept under ``key``: if it is still kept
         (same size), its samples are copied into the window instead of clearing and
         drawing those meshes again (the same samples: exact), else they are drawn.
+    buffer : int
+        Which of the thread's framebuffers and vertex buffers of this size to use
+        (0-2): a picture not yet read back keeps its own while the next is submitted.
 
     Returns
     -------
@@ -414,7 +426,7 @@ def submit(
 
     w, h = int(size[0]), int(size[1])
     canvas = _canvas()
-    fb = canvas.framebuffers(w, h)
+    fb = canvas.framebuffers(w, h, buffer)
     gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb_ms)
     gl.glViewport(0, 0, w, h)
     gl.glEnable(gl.GL_DEPTH_TEST)
@@ -429,7 +441,12 @@ def submit(
         rx, ry = x0, h - y0 - rh  # GL rows run bottom-up
         gl.glEnable(gl.GL_SCISSOR_TEST)
         gl.glScissor(rx, ry, rw, rh)
-    if background is not None and fb.restore(background[0], (rx, ry, rw, rh)):
+    kept = canvas.kept.get((w, h))
+    if (
+        background is not None
+        and kept is not None
+        and kept.restore(background[0], (rx, ry, rw, rh), into=fb)
+    ):
         meshes = meshes[background[1] :]
         gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb_ms)
     else:
@@ -465,7 +482,7 @@ def submit(
                 gl.glUniform1f(l_int, float(light.intensity))
             gl.glUniform1f(loc["material.roughness_factor"], float(mesh.roughness))
         gl.glUniform4fv(loc["material.base_color_factor"], 1, np.ones(4, f32))
-        slot = canvas.slot(mesh.slot)
+        slot = canvas.slot(f"{mesh.slot}/{buffer}")
         slot.load(mesh, program)
         if mesh.double_sided:
             gl.glDisable(gl.GL_CULL_FACE)
@@ -477,6 +494,14 @@ def submit(
     gl.glDisable(gl.GL_SCISSOR_TEST)
     if keep is not None:
         fb.keep(keep)
+        canvas.kept[(w, h)] = fb
+    # resolve (a linear blit) in the same flush, so a later picture's commands need
+    # not finish before this one can be read
+    gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb_ms)
+    gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb)
+    x1, y1 = rx + rw, ry + rh
+    gl.glBlitFramebuffer(rx, ry, x1, y1, rx, ry, x1, y1, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
+    gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
     gl.glFlush()  # llvmpipe's threads start on the fragments now
     return Pending(canvas, fb, (rx, ry, rw, rh))
 
@@ -489,18 +514,14 @@ class Pending:
         self._canvas, self._fb, self._rect = canvas, fb, rect
 
     def read(self) -> np.ndarray:
-        """Resolve the multisampled picture (a linear blit) and read it back: (H, W, 3)
-        uint8, row 0 at the top (a view of an RGBA array)."""
+        """Wait for the resolved picture and read it back: (H, W, 3) uint8, row 0 at
+        the top (a view of an RGBA array)."""
         from OpenGL import GL as gl
 
         if _canvas() is not self._canvas:
             raise RuntimeError("internal: a picture read back in another GL context")
         fb = self._fb
         rx, ry, rw, rh = self._rect
-        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb_ms)
-        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, fb.fb)
-        x1, y1 = rx + rw, ry + rh
-        gl.glBlitFramebuffer(rx, ry, x1, y1, rx, ry, x1, y1, gl.GL_COLOR_BUFFER_BIT, gl.GL_LINEAR)
         gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, fb.fb)
         gl.glPixelStorei(gl.GL_PACK_ALIGNMENT, 1)
         # RGBA: the renderbuffer's own layout, copied without a per-pixel conversion

@@ -3,9 +3,11 @@
 Everything people look at comes from here: stills and the per-frame renderer
 (:class:`SceneRenderer`) used by videos (:mod:`snapcore.render.video`) and composites
 (:mod:`snapcore.render.composites`). Depth maps (for the relief) and face-id buffers (for
-the viewpoint-entropy baseline) are in :mod:`snapcore.render.buffers`. Cameras and framing are in :mod:`snapcore.render.camera` and the
-OpenGL context (pyrender on Mesa EGL, one renderer per thread) in
-:mod:`snapcore.render.gl`; their public names are re-exported here.
+the viewpoint-entropy baseline) are in :mod:`snapcore.render.buffers`. Cameras and
+framing are in :mod:`snapcore.render.camera`, the OpenGL contexts (a bare Mesa EGL
+context per thread; pyrender's for :func:`render_mesh` only) in
+:mod:`snapcore.render.gl`, and the drawing (raw GL, as pyrender drew, without
+importing it) in :mod:`snapcore.render.raster`.
 
 Conventions
 -----------
@@ -414,12 +416,14 @@ class SceneRenderer:
         window: tuple[int, int, int, int] | None = None,
         keep: object = None,
         background: object = None,
+        buffer: int = 0,
     ) -> Pending:
         pose = gl_camera_pose(gl_cam)
         under = len(self.draw_list(False))
         return submit(
             self.draw_list(bodies),
             keep=keep,
+            buffer=buffer,
             background=None if background is None else (background, under),
             size=gl_cam.size,
             view=np.linalg.inv(pose),
@@ -490,8 +494,10 @@ class SceneRenderer:
         bodies are posed while llvmpipe's threads rasterise the frame before. Videos
         draw this way."""
         pending = None
-        for index in indices:
-            frame = self._submit(int(index), camera, crop, previous=pending)
+        for k, index in enumerate(indices):
+            # two sets of GL buffers taking turns: this frame is posed and submitted
+            # (llvmpipe's vertex work, on this thread) while the last one rasterises
+            frame = self._submit(int(index), camera, crop, buffer=k % 2)
             if pending is not None:
                 yield pending()
             pending = frame
@@ -503,11 +509,10 @@ class SceneRenderer:
         index: int,
         camera: Camera,
         crop: bool,
-        previous: _Frame | None = None,
+        buffer: int = 0,
     ) -> _Frame:
-        """Pose ``index``, draw it and return the frame (call it for the image).
-        ``previous``: the frame before, still rasterising: posing this one overlaps it,
-        and it is read back (kept for the caller) before this one's meshes upload."""
+        """Pose ``index``, submit it in GL buffer set ``buffer`` (0 or 1) and return the
+        frame (call it for the image). Set 2 draws backgrounds."""
         if threading.get_ident() != self._thread:
             raise RenderError(
                 "a SceneRenderer must be used on the thread that created it "
@@ -523,13 +528,13 @@ class SceneRenderer:
         drawn = self._update_bodies(int(index))
         many = crop or self._camera_uses > 1
         window = self._crop_window(camera, drawn) if many else None
-        if previous is not None:
-            previous()  # read back before the GL buffers and framebuffer are reused
         gl_cam = self._full_camera()
         if window is None:
-            return _Frame(self._submit_draw(gl_cam), None, None)
+            return _Frame(self._submit_draw(gl_cam, buffer=buffer), None, None)
         background = self._background_image()
-        pending = self._submit_draw(gl_cam, window=window, background=self._background_key)
+        pending = self._submit_draw(
+            gl_cam, window=window, background=self._background_key, buffer=buffer
+        )
         return _Frame(pending, background, window)
 
     def _crop_window(
@@ -563,7 +568,9 @@ class SceneRenderer:
         clearing and drawing the floor and sky again."""
         if self._background is None:
             self._background_key = object()
-            pending = self._submit_draw(self._full_camera(), False, keep=self._background_key)
+            pending = self._submit_draw(
+                self._full_camera(), False, keep=self._background_key, buffer=2
+            )
             self._background = np.ascontiguousarray(pending.read())
         return self._background
 

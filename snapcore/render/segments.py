@@ -36,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "axis_rotation",
+    "rest_frame",
     "cross",
     "norm",
     "unit",
@@ -73,6 +75,23 @@ def unit(v: np.ndarray) -> np.ndarray:
     """``v`` scaled to unit length along its last axis (zero vectors stay zero)."""
     n = norm(v, keepdims=True)
     return v / np.where(n > 1e-12, n, 1.0)
+
+
+def axis_rotation(axis: int, angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (radians) about coordinate axis ``axis``: (3, 3)."""
+    u, v = [k for k in range(3) if k != axis][:: -1 if axis == 1 else 1]
+    m = np.eye(3)
+    m[u, u] = m[v, v] = np.cos(angle)
+    m[v, u], m[u, v] = np.sin(angle), -np.sin(angle)
+    return m
+
+
+def rest_frame(axis: np.ndarray) -> np.ndarray:
+    """A right-handed orthonormal frame (columns x, y, z) with y along ``axis``: (3, 3)."""
+    y = unit(axis)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = unit(np.cross(y, helper))
+    return np.stack([x, y, np.cross(x, y)], axis=1)
 
 
 def _perp(y: np.ndarray, ref: np.ndarray) -> np.ndarray:
