@@ -172,19 +172,23 @@ def _unshared_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
 #: which one drew a view.
 _ID_THREADS = min(2, os.cpu_count() or 1)
 _MIN_VIEWS_PER_THREAD = 16
-_POOL: list = []  # the helper threads' executor, made on first use
+_POOL: dict = {}  # process id -> the helper threads' executor, made on first use
 
 
 def _helpers():
-    """The process's executor for helper draws (one per process: each of its threads
-    keeps its GL context and compiled program between calls)."""
-    if not _POOL:
+    """This process's executor for helper draws (each of its threads keeps its GL
+    context and compiled program between calls). Keyed by process: a child forked
+    after the first call inherits the executor but not its thread, and would wait on
+    it forever."""
+    pid = os.getpid()
+    if pid not in _POOL:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL.append(
-            ThreadPoolExecutor(max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids")
+        _POOL.clear()
+        _POOL[pid] = ThreadPoolExecutor(
+            max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids"
         )
-    return _POOL[0]
+    return _POOL[pid]
 
 
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
