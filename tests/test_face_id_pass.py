@@ -86,3 +86,20 @@ def test_two_human_bodies_in_a_hold_at_the_bench_frame(motions_dir):
     if buffers._ID_THREADS > 1:  # a helper thread (its own GL context) drew some views
         assert any(t.name.startswith("snapcore-ids") for t in threading.enumerate())
     np.testing.assert_array_equal(got, reference_face_ids(m.vertices, m.faces, views, 256))
+
+
+def test_blocks_hand_over_every_view_once_as_read_back():
+    """face_id_blocks (the entropy's way, views split between threads) delivers each
+    view's ids exactly once, rows bottom-up: render_face_ids flipped."""
+    v, f = _soup(2000, seed=7)
+    views = view_sphere(42)
+    seen = np.zeros(len(views), int)
+    got = np.full((len(views), 64, 64), -1, np.int32)
+
+    def take(first, ids):
+        seen[first : first + len(ids)] += 1
+        got[first : first + len(ids)] = ids
+
+    buffers.face_id_blocks(v, f, views, take, resolution=64)
+    assert np.all(seen == 1)
+    np.testing.assert_array_equal(got, render_face_ids(v, f, views, resolution=64)[:, ::-1])

@@ -31,7 +31,14 @@ from snapcore.errors import RenderError
 from snapcore.render.camera import Camera, gl_camera_pose, gl_projection, view_basis
 from snapcore.render.gl import current_gl_context
 
-__all__ = ["DepthMap", "render_face_ids", "face_id_camera", "render_depth", "FACE_ID_RESOLUTION"]
+__all__ = [
+    "DepthMap",
+    "render_face_ids",
+    "face_id_blocks",
+    "face_id_camera",
+    "render_depth",
+    "FACE_ID_RESOLUTION",
+]
 
 #: Default square resolution (pixels) of face-id buffers. The number of faces a view
 #: "sees" depends strongly on it (3.2k faces/view at 256² vs 8.9k at 512² for a 77k-face
@@ -172,19 +179,23 @@ def _unshared_layout(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
 #: which one drew a view.
 _ID_THREADS = min(2, os.cpu_count() or 1)
 _MIN_VIEWS_PER_THREAD = 16
-_POOL: list = []  # the helper threads' executor, made on first use
+_POOL: dict = {}  # process id -> the helper threads' executor, made on first use
 
 
 def _helpers():
-    """The process's executor for helper draws (one per process: each of its threads
-    keeps its GL context and compiled program between calls)."""
-    if not _POOL:
+    """This process's executor for helper draws (each of its threads keeps its GL
+    context and compiled program between calls). Keyed by process: a child forked
+    after the first call inherits the executor but not its thread, and would wait on
+    it forever."""
+    pid = os.getpid()
+    if pid not in _POOL:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL.append(
-            ThreadPoolExecutor(max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids")
+        _POOL.clear()
+        _POOL[pid] = ThreadPoolExecutor(
+            max_workers=_ID_THREADS - 1, thread_name_prefix="snapcore-ids"
         )
-    return _POOL[0]
+    return _POOL[pid]
 
 
 def _render_ids(vertices, faces, cameras) -> np.ndarray:
@@ -193,22 +204,34 @@ def _render_ids(vertices, faces, cameras) -> np.ndarray:
     with many views, contiguous runs of them drawn by :data:`_ID_THREADS` threads."""
     w, h = cameras[0].size
     out = np.empty((len(cameras), h, w), np.int32)
+    _draw_all(vertices, faces, cameras, out, None)
+    return out
+
+
+def _draw_all(vertices, faces, cameras, out, each_block) -> None:
+    """:func:`_render_ids` into ``out``, or, with ``out`` None, each read-back handed to
+    ``each_block(first, ids)`` (ids of views ``first ..`` as read, rows bottom-up, on
+    the thread that drew them: no (V, H, W) array is made or flipped)."""
     pos, ids = _unshared_layout(vertices, faces)
     parts = max(1, min(_ID_THREADS, len(cameras) // _MIN_VIEWS_PER_THREAD))
     edges = [len(cameras) * i // parts for i in range(parts + 1)]
-    runs = [(cameras[a:b], out[a:b]) for a, b in zip(edges[:-1], edges[1:])]
-    helpers = [_helpers().submit(_draw_ids, pos, ids, c, o) for c, o in runs[1:]]
+    runs = [
+        (cameras[a:b], None if out is None else out[a:b], each_block, a)
+        for a, b in zip(edges[:-1], edges[1:])
+    ]
+    helpers = [_helpers().submit(_draw_ids, pos, ids, *run) for run in runs[1:]]
     try:
         _draw_ids(pos, ids, *runs[0])
     finally:
         for job in helpers:
             job.result()
-    return out
 
 
-def _draw_ids(pos, ids, cameras, out) -> None:
+def _draw_ids(pos, ids, cameras, out, each_block=None, first=0) -> None:
     """Draw the unshared triangle list ``pos``/``ids`` (:func:`_unshared_layout`) for
-    each camera into ``out`` (V, H, W) int32, in this thread's GL context."""
+    each camera into ``out`` (V, H, W) int32 (or hand each read-back to ``each_block``
+    with the index of its first view, ``first`` for the first camera), in this thread's
+    GL context."""
     from OpenGL import GL as gl
 
     w, h = cameras[0].size
@@ -284,7 +307,10 @@ def _draw_ids(pos, ids, cameras, out) -> None:
                 gl.glUniformMatrix4fv(loc_p, 1, gl.GL_TRUE, mats[start + k][1])
                 gl.glDrawArrays(gl.GL_TRIANGLES, 0, len(pos))
             gl.glGetTexImage(gl.GL_TEXTURE_2D_ARRAY, 0, gl.GL_RED_INTEGER, gl.GL_INT, block)
-            out[start : start + n] = block[:n, ::-1]  # GL rows run bottom-up
+            if out is None:
+                each_block(first + start, block[:n])
+            else:
+                out[start : start + n] = block[:n, ::-1]  # GL rows run bottom-up
     finally:
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
         gl.glBindVertexArray(0)
@@ -325,16 +351,34 @@ def render_face_ids(vertices, faces, views, *, resolution=FACE_ID_RESOLUTION) ->
     multisampling, no filtering, no lighting. Measured on 2 cores: 162 views of a
     75k-face mesh at 256² in ~1 s (``snapshot bench --only "face ids"``; docs/speed.md).
     """
-    views = np.asarray(views, float)
-    single = views.ndim == 1
-    views = views.reshape(-1, 3)
+    single = np.ndim(views) == 1
+    v, f, cams = _face_id_cameras(vertices, faces, views, resolution)
+    ids = _render_ids(v, f, cams)
+    return ids[0] if single else ids
+
+
+def _face_id_cameras(vertices, faces, views, resolution):
+    """The checked mesh and the cameras of :func:`render_face_ids`."""
+    views = np.asarray(views, float).reshape(-1, 3)
     if views.shape[0] == 0:
         raise RenderError("no views given")
     v, f = _id_mesh(vertices, faces)
     sphere = _bounding_sphere(vertices)
-    cams = [face_id_camera(vertices, v, resolution=resolution, sphere=sphere) for v in views]
-    ids = _render_ids(v, f, cams)
-    return ids[0] if single else ids
+    cams = [face_id_camera(vertices, u, resolution=resolution, sphere=sphere) for u in views]
+    return v, f, cams
+
+
+def face_id_blocks(vertices, faces, views, each_block, *, resolution=FACE_ID_RESOLUTION) -> None:
+    """:func:`render_face_ids` for reductions that ignore the pixels' order (histograms).
+
+    ``each_block(first, ids)`` is called instead of returning the ids: ``ids`` int32 of
+    shape (n, resolution, resolution), the ids of views ``first .. first + n - 1`` with
+    rows bottom-up (as read back), possibly on a helper thread while other views are
+    drawn. No (V, H, W) array is made or flipped. The calls for different blocks may run
+    at the same time: ``each_block`` must only write results of its own views.
+    """
+    v, f, cams = _face_id_cameras(vertices, faces, views, resolution)
+    _draw_all(v, f, cams, None, each_block)
 
 
 # --------------------------------------------------------------------------- depth

@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.errors import SnapshotError
 from snapcore.render.bodies import DEFAULT_BODY, BodyKind, posed_mesh
-from snapcore.render.buffers import render_face_ids
+from snapcore.render.buffers import face_id_blocks
 from snapcore.select.view import view_sphere
 
 __all__ = [
@@ -93,25 +93,45 @@ def _entropy_visible(ids, n_faces):
     if ids.size and ids.max() >= n_bins:
         raise EntropyError(f"face id {int(ids.max()) - 1} is not below n_faces={n_faces}")
     v, h, w = ids.shape
-    flat = ids.reshape(v, h * w)
-    # One small histogram per view (n_bins counts, cache-sized), not one over
-    # view-offset int64 keys (V x n_bins counts, ~70 MB for the bench's 162 views of
-    # 53k faces): 72 -> 47 ms there. Only the bins that occur enter the sum (a view
-    # shows a few thousand of the faces). The terms are summed per view in the same
-    # order as before (background, then faces by index, one bincount accumulating
-    # sequentially), so the entropies are bit-identical.
-    hits, counts = [], []
-    for row in flat:
-        c = np.bincount(row.astype(np.intp, copy=False), minlength=n_bins)
-        hit = np.flatnonzero(c)
-        hits.append(hit)
-        counts.append(c[hit])
-    n_hit = np.fromiter((len(x) for x in hits), np.int64, count=v)
-    view = np.repeat(np.arange(v), n_hit)
-    p = (np.concatenate(counts) if v else np.empty(0)) / float(h * w)
-    entropy = -np.bincount(view, weights=p * np.log2(p), minlength=v)
-    background = np.fromiter((len(x) > 0 and x[0] == 0 for x in hits), np.int64, count=v)
-    return entropy, n_hit - background
+    hist = _Histograms(v, n_bins)
+    hist(0, ids)
+    return hist.entropy_visible(h * w)
+
+
+class _Histograms:
+    """Per-view face histograms, filled block by block (:meth:`__call__`, the
+    ``each_block`` of :func:`snapcore.render.buffers.face_id_blocks`; blocks of
+    different views may be filled from different threads), then reduced to entropies.
+
+    One small histogram per view (n_bins counts, cache-sized), not one over
+    view-offset int64 keys (V x n_bins counts, ~70 MB for the bench's 162 views of 53k
+    faces): 72 -> 47 ms there. Only the bins that occur enter the sum (a view shows a
+    few thousand of the faces). The terms are summed per view in the same order as
+    before (background, then faces by index, one bincount accumulating sequentially),
+    so the entropies are bit-identical to those of one bincount over all views.
+    """
+
+    def __init__(self, n_views: int, n_bins: int) -> None:
+        self.n_bins = n_bins
+        self.hits: list = [None] * n_views
+        self.counts: list = [None] * n_views
+
+    def __call__(self, first: int, ids) -> None:
+        for k, image in enumerate(ids):
+            c = np.bincount(image.reshape(-1).astype(np.intp, copy=False), minlength=self.n_bins)
+            hit = np.flatnonzero(c)
+            self.hits[first + k] = hit
+            self.counts[first + k] = c[hit]
+
+    def entropy_visible(self, n_pixels: int) -> tuple[np.ndarray, np.ndarray]:
+        """Entropy (bits) and visible faces per view, (V,) each."""
+        v = len(self.hits)
+        n_hit = np.fromiter((len(x) for x in self.hits), np.int64, count=v)
+        view = np.repeat(np.arange(v), n_hit)
+        p = (np.concatenate(self.counts) if v else np.empty(0)) / float(n_pixels)
+        entropy = -np.bincount(view, weights=p * np.log2(p), minlength=v)
+        background = np.fromiter((len(x) > 0 and x[0] == 0 for x in self.hits), np.int64, v)
+        return entropy, n_hit - background
 
 
 @dataclass
@@ -213,10 +233,13 @@ def select_view_entropy(
     if min_elevation_deg is not None:
         allowed = views[:, 1] >= math.sin(math.radians(min_elevation_deg)) - 1e-12
     keep = np.ones(len(views), dtype=bool) if score_all else allowed
-    ids = render_face_ids(vertices, faces, views[keep], resolution=resolution)
+    # the histograms are taken block by block as the views are read back (pixel order
+    # does not matter to them): no (V, H, W) id array
+    hist = _Histograms(int(keep.sum()), len(faces) + 1)
+    face_id_blocks(vertices, faces, views[keep], hist, resolution=resolution)
     scores = np.full(len(views), np.nan)
     visible = np.zeros(len(views), dtype=np.int64)
-    scores[keep], visible[keep] = _entropy_visible(ids, len(faces))
+    scores[keep], visible[keep] = hist.entropy_visible(resolution * resolution)
     best = int(np.nanargmax(np.where(allowed, scores, np.nan)))
     return EntropySelection(
         view=views[best].copy(),
