@@ -363,6 +363,13 @@ def parse_bvh(text: str, *, path: str | None = None) -> BVHDocument:
 
     n_chan = sum(len(c) for c in channels)
     motion = _parse_motion_block(lines, i + 1, n_frames, n_chan, path)
+    return _document((names, parents, offsets, channels, end_site), frame_time, motion, path)
+
+
+def _document(hierarchy, frame_time: float, motion: np.ndarray, path) -> BVHDocument:
+    """The document of a parsed ``hierarchy`` (what :func:`_parse_hierarchy` returns)
+    and its motion."""
+    names, parents, offsets, channels, end_site = hierarchy
     return BVHDocument(
         names=tuple(names),
         parents=np.asarray(parents, dtype=int),
@@ -399,12 +406,12 @@ def _parse_clean(text: str, path: str | None) -> BVHDocument | None:
     if m is None:
         return None
     try:
-        names, parents, offsets, channels, end_site = _parse_hierarchy(lines[:m], path)
+        hierarchy = _parse_hierarchy(lines[:m], path)
         n_frames, _, i = _header_number(lines, m + 1, "Frames:", int, "", path)
         frame_time, _, j = _header_number(lines, i + 1, "Frame Time:", float, "", path)
     except BVHError:
         return None
-    n_chan = sum(len(c) for c in channels)
+    n_chan = sum(len(c) for c in hierarchy[3])
     if j != len(lines) - 1 or n_frames <= 0 or n_chan == 0:
         return None
     if not (np.isfinite(frame_time) and frame_time > 0):
@@ -412,16 +419,7 @@ def _parse_clean(text: str, path: str | None) -> BVHDocument | None:
     motion = _decimal_block(text[hit.end() :], n_frames, n_chan)
     if motion is None:
         return None
-    return BVHDocument(
-        names=tuple(names),
-        parents=np.asarray(parents, dtype=int),
-        offsets=np.asarray(offsets, dtype=float).reshape(-1, 3),
-        channels=tuple(channels),
-        end_site=np.asarray(end_site, dtype=bool),
-        frame_time=frame_time,
-        motion=motion,
-        path=path,
-    )
+    return _document(hierarchy, frame_time, motion, path)
 
 
 def _parse_motion_block(lines, start, n_frames, n_chan, path) -> np.ndarray:
