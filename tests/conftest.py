@@ -51,6 +51,22 @@ def need(condition: bool, reason: str) -> None:
         pytest.skip(reason)
 
 
+def shared_scene(motions_dir, files, fps: float = 60):
+    """The scene of ``files`` (one clip, or the clips of one scene) under
+    ``motions_dir``, at ``fps``; skipped when the shared data lacks them. Unit fitting
+    and header warnings are silenced: the tests that use it are not about them."""
+    import warnings
+
+    from snapcore.motion.load import load_scene
+
+    paths = [motions_dir / f for f in files]
+    if not all(p.exists() for p in paths):
+        pytest.skip(f"{files} not in the shared data")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_scene(paths if len(paths) > 1 else paths[0], fps=fps)
+
+
 @pytest.fixture(scope="session")
 def motions_dir():
     """The real motion-capture folder (``SNAPSHOT_DATA`` or ``../shared/motions``)."""

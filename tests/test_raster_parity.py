@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import warnings
 
 import numpy as np
 import pytest
@@ -23,6 +22,7 @@ from render_reference import pyrender_picture
 
 from snapcore.render.camera import fit_camera
 from snapcore.render.renderer import SceneRenderer
+from tests.conftest import shared_scene
 
 pytestmark = pytest.mark.slow
 
@@ -46,14 +46,7 @@ VIEWS = [
 
 
 def _load(motions_dir, files):
-    from snapcore.motion.load import load_scene
-
-    paths = [motions_dir / f for f in files]
-    if not all(p.exists() for p in paths):
-        pytest.skip(f"{files} not in the shared data")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # units fitted, headers: not under test
-        return load_scene(paths if len(paths) > 1 else paths[0], fps=60)
+    return shared_scene(motions_dir, files)
 
 
 def _agree(ours, ref):

@@ -11,14 +11,13 @@ differing by at most :data:`RGB_TOL` levels at all but :data:`MAX_CHANGED` pixel
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 from skin_reference import dq_reference
 
 from snapcore.render.human import HumanBody
 from snapcore.render.shoulders import shoulder_masks
+from tests.conftest import shared_scene
 
 pytestmark = pytest.mark.slow
 
@@ -49,14 +48,7 @@ def _reference_skin(self, positions, rotations, *, dtype=np.float64):
 
 
 def _load(motions_dir, files):
-    from snapcore.motion.load import load_scene
-
-    paths = [motions_dir / f for f in files]
-    if not all(p.exists() for p in paths):
-        pytest.skip(f"{files} not in the shared data")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # units fitted, headers: not under test
-        return load_scene(paths if len(paths) > 1 else paths[0], fps=60)
+    return shared_scene(motions_dir, files)
 
 
 def _pictures(motions_dir, files, frame):
