@@ -301,18 +301,30 @@ def shadow_body(body: MixedSceneBody, tessellation) -> MixedSceneBody:
     """The stand-in that casts ``body``'s floor shadows: a coarse mannequin for every
     skeleton (a human body's shadow is its silhouette blurred by the floor's angle;
     capsules cast nearly the same one for a fifth of the triangles, measured 30% of a
-    1280x720 frame's time), a glTF character's own mesh (a fox is no mannequin)."""
+    1280x720 frame's time), a glTF character's own mesh (a fox is no mannequin).
+
+    The coarse mannequins are kept in the scene's body cache: every renderer of a scene
+    casts the same ones (a batch scene's thumbnail, human, and its preview strip,
+    mannequin, built them twice: ~6 ms a scene)."""
     colors = list(CHARACTER_COLORS)
+    # its own attribute, beside scene_body's cache (keyed by body kind)
+    cache = vars(body.scene).setdefault("_snapcore_shadow_pieces", {})
+
+    def coarse(i: int, character) -> CharacterBody:
+        key = (i, tessellation)
+        piece = cache.get(key)
+        if piece is None or piece.character is not character:
+            piece = cache[key] = CharacterBody(
+                character, color=colors[i % len(colors)], tessellation=tessellation
+            )
+        return piece
+
     return MixedSceneBody(
         body.scene,
         kind=body.kind,
         tessellation=tessellation,
         bodies=[
-            b
-            if isinstance(b, SkinnedBody)
-            else CharacterBody(
-                b.character, color=colors[i % len(colors)], tessellation=tessellation
-            )
+            b if isinstance(b, SkinnedBody) else coarse(i, b.character)
             for i, b in enumerate(body.characters)
         ],
     )

@@ -287,8 +287,10 @@ class SceneRenderer:
             rgb = np.append(_srgb_to_linear(FLOOR_COLOR) * SHADOW_DARKEN, 1.0)
             self._shadow_rgb = np.tile(rgb, (self._shadow_body.n_vertices, 1)).astype(np.float32)
         self._grid: DrawMesh | None = None
+        # the scene's box, once: every camera asks (a batch scene sets 13 cameras)
+        self._bounds = scene.bounds()
         if self.ground:
-            b = scene.bounds()
+            b = self._bounds
             self._grid = _ground_mesh((b[0, [0, 2]] + b[1, [0, 2]]) / 2, scene.ground)
         self._last_cam: Camera | None = None
         self._camera_uses = 0  # renders with the last camera
@@ -296,6 +298,7 @@ class SceneRenderer:
         self._gl_cam: Camera | None = None  # set with the first camera, see _set_camera
         self._background: np.ndarray | None = None
         self._lights: list[Light] = []
+        self._lights_key: object = None  # the camera direction the lights were made for
         self._shadow_dir = np.array([0.0, 1.0, 0.0])
 
     def _vertex_colors(self, i: int) -> np.ndarray:
@@ -309,7 +312,7 @@ class SceneRenderer:
         # The floor reaches far beyond the characters: extend the depth range so it is
         # not clipped (an orthographic eye can move back freely without changing the
         # image; a perspective one keeps its near plane and sees farther).
-        far = 2.0 * SKY_DISTANCE + float(np.ptp(self.scene.bounds()[:, [0, 2]]))
+        far = 2.0 * SKY_DISTANCE + float(np.ptp(self._bounds[:, [0, 2]]))
         if cam.projection == "orthographic":
             back = far
             gl_cam = Camera(
@@ -340,7 +343,7 @@ class SceneRenderer:
         self._gl_cam = gl_cam
         self._background = None
         if self.ground and self._grid is not None:
-            b = self.scene.bounds()
+            b = self._bounds
             centre = (b[0] + b[1]) / 2 if self.horizon_point is None else self.horizon_point
             self._sky = _sky_mesh(centre, cam, self.scene.ground, horizon=self.floor == "horizon")
             # an almost level orthographic view sees the grid edge-on: a row of dashes
@@ -365,13 +368,18 @@ class SceneRenderer:
             (cam.back + 0.2 * y + 1.0 * cam.right, 0.9),
             (-cam.back + 1.2 * y + 0.3 * cam.right, 1.1),
         )
-        self._lights = []
-        for direction, intensity in lights:
-            d = direction / np.linalg.norm(direction)  # from the scene towards the light
-            m = np.eye(4)
-            m[:3, :3] = np.stack(view_basis(d, None if abs(d[1]) < POLE_COS else [1.0, 0, 0]), 1)
-            # shining along the light's -z, through the matrix its scene node renders with
-            self._lights.append(Light(-gl_node_matrix(m)[:3, 2], intensity))
+        key = (cam.back.tobytes(), cam.right.tobytes())
+        if key != self._lights_key:  # the panels of a strip share one direction
+            self._lights_key = key
+            self._lights = []
+            for direction, intensity in lights:
+                d = direction / np.linalg.norm(direction)  # from the scene towards the light
+                m = np.eye(4)
+                m[:3, :3] = np.stack(
+                    view_basis(d, None if abs(d[1]) < POLE_COS else [1.0, 0, 0]), 1
+                )
+                # shining along the light's -z, through the matrix its scene node renders with
+                self._lights.append(Light(-gl_node_matrix(m)[:3, 2], intensity))
         # the shadow light, in world terms: horizontal part from the camera's side
         hb = cam.back - y * (cam.back @ y)
         hb = hb / np.linalg.norm(hb) if np.linalg.norm(hb) > 1e-6 else cam.up

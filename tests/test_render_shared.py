@@ -1,0 +1,87 @@
+"""What the renderers of one scene share, and the per-picture costs a batch scene avoids
+(issue 41: a library scene's thumbnail and 13 preview cameras)."""
+
+from __future__ import annotations
+
+import io
+import os
+import zlib
+
+import numpy as np
+import pytest
+
+from snapcore.motion import synth
+from snapcore.render.mannequin import TESSELLATION_COARSE, SceneBody
+from snapcore.render.renderer import SceneRenderer
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return synth.synth_scene("walk", fps=30)
+
+
+def test_renderers_of_one_scene_share_its_coarse_shadow_mannequins(walk):
+    human = SceneRenderer(walk, size=(64, 72), body="human")
+    mannequin = SceneRenderer(walk, size=(64, 72), body="mannequin")
+    a, b = human._shadow_body, mannequin._shadow_body
+    assert all(p is q for p, q in zip(a.characters, b.characters, strict=True))
+    # the shared pieces cast the shadow a coarse mannequin built afresh casts
+    fresh = SceneBody(walk, tessellation=TESSELLATION_COARSE)
+    np.testing.assert_array_equal(a.vertices(7), fresh.vertices(7))
+    np.testing.assert_array_equal(a.faces, fresh.faces)
+    # another scene object gets its own
+    other = synth.synth_scene("walk", fps=30)
+    c = SceneRenderer(other, size=(64, 72), body="mannequin")._shadow_body
+    assert c.characters[0] is not a.characters[0]
+    assert c.characters[0].character is other.characters[0]
+
+
+@pytest.mark.skipif(
+    os.environ.get("PYOPENGL_PLATFORM") != "egl", reason="the bare context is EGL's"
+)
+def test_the_bare_context_is_made_current_only_when_it_is_not(walk, monkeypatch):
+    import ctypes
+
+    from OpenGL import EGL as egl
+
+    from snapcore.render.gl import bare_gl_context
+    from snapcore.render.renderer import render_still
+
+    ctx = bare_gl_context()
+    calls = []
+    make_current = egl.eglMakeCurrent
+
+    def counted(*args):
+        calls.append(args)
+        return make_current(*args)
+
+    monkeypatch.setattr(egl, "eglMakeCurrent", counted)
+    image = render_still(walk, 3, size=(64, 72), body="mannequin")
+    assert image.std() > 0
+    # every draw and read-back asks for the context: none of them re-binds it
+    assert calls == []
+    # another context current (here none): asking makes the bare one current again
+    make_current(ctx._display, egl.EGL_NO_SURFACE, egl.EGL_NO_SURFACE, egl.EGL_NO_CONTEXT)
+    assert bare_gl_context() is ctx
+    assert len(calls) == 1
+    current = ctypes.cast(egl.eglGetCurrentContext(), ctypes.c_void_p).value
+    assert current == ctypes.cast(ctx._context, ctypes.c_void_p).value
+    np.testing.assert_array_equal(render_still(walk, 3, size=(64, 72), body="mannequin"), image)
+
+
+def test_batch_pictures_are_lossless_pngs_at_a_fast_zlib_level():
+    from PIL import Image
+
+    from snapcore.batch.task import _png
+
+    rng = np.random.default_rng(0)
+    image = np.repeat(rng.integers(0, 256, (40, 30, 3), dtype=np.uint8), 3, axis=1)
+    data = _png(image)
+    np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(data))), image)
+    # the IDAT stream's zlib header: FLEVEL (bits 6-7 of its second byte) is 1 for
+    # levels 2-5 ("fast"), 2 for the default 6
+    at = data.index(b"IDAT") + 4
+    assert (data[at + 1] >> 6) == 1
+    assert zlib.decompress(data[at : at + int.from_bytes(data[at - 8 : at - 4], "big")])
