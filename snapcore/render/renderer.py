@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -487,17 +488,26 @@ class SceneRenderer:
         return self._submit(index, camera, crop)()
 
     def render_frames(
-        self, indices: Iterable[int], camera: Camera, *, crop: bool = True
+        self,
+        indices: Iterable[int],
+        camera: Camera,
+        *,
+        crop: bool = True,
+        turns: Iterable[AbstractContextManager] | None = None,
     ) -> Iterator[np.ndarray]:
         """The images of the poses at ``indices`` seen by ``camera``, one after the
         other, each as :meth:`render` gives it (the same pixels), pipelined: a frame's
         bodies are posed while llvmpipe's threads rasterise the frame before. Videos
-        draw this way."""
+        draw this way. ``turns`` (one context manager per index) holds each frame's
+        posing, e.g. to pose in one order frames that two renderers draw on two
+        threads with one body (see :mod:`snapcore.render.video`)."""
         pending = None
+        turns_it = iter(turns) if turns is not None else None
         for k, index in enumerate(indices):
             # two sets of GL buffers taking turns: this frame is posed and submitted
             # (llvmpipe's vertex work, on this thread) while the last one rasterises
-            frame = self._submit(int(index), camera, crop, buffer=k % 2)
+            turn = next(turns_it) if turns_it is not None else None
+            frame = self._submit(int(index), camera, crop, buffer=k % 2, turn=turn)
             if pending is not None:
                 yield pending()
             pending = frame
@@ -510,9 +520,11 @@ class SceneRenderer:
         camera: Camera,
         crop: bool,
         buffer: int = 0,
+        turn: AbstractContextManager | None = None,
     ) -> _Frame:
-        """Pose ``index``, submit it in GL buffer set ``buffer`` (0 or 1) and return the
-        frame (call it for the image). Set 2 draws backgrounds."""
+        """Pose ``index`` (inside ``turn`` if given), submit it in GL buffer set
+        ``buffer`` (0 or 1) and return the frame (call it for the image). Set 2 draws
+        backgrounds."""
         if threading.get_ident() != self._thread:
             raise RenderError(
                 "a SceneRenderer must be used on the thread that created it "
@@ -525,7 +537,8 @@ class SceneRenderer:
             self._set_camera(camera)
             self._camera_uses = 0
         self._camera_uses += 1
-        drawn = self._update_bodies(int(index))
+        with turn if turn is not None else nullcontext():
+            drawn = self._update_bodies(int(index))
         many = crop or self._camera_uses > 1
         window = self._crop_window(camera, drawn) if many else None
         gl_cam = self._full_camera()
