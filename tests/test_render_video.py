@@ -347,7 +347,9 @@ def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_
     from snapcore.render.camera import default_view, fit_camera, motion_points
     from snapcore.render.renderer import SceneRenderer
 
-    paths = [motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")]
+    paths = [
+        motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
+    ]
     if not all(p.exists() for p in paths):
         pytest.skip("the salsa pair is not in the shared data")
     with warnings.catch_warnings():
