@@ -380,3 +380,35 @@ def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_
     for k, f in enumerate(frames):
         assert np.array_equal(sent[k], ref.render(int(f), cam, crop=True)), k
     assert not np.array_equal(sent[0], sent[-1])  # the dancers moved
+
+
+def test_video_frames_helper_failure_surfaces_and_no_thread_is_left(walk, monkeypatch):
+    """An error on the helper thread drawing the odd frames is raised on the caller's
+    thread (not a hang waiting for its turn), and stopping early ends the helper."""
+    import threading
+
+    from snapcore.render import video
+    from snapcore.render.camera import fit_camera, motion_points
+    from snapcore.render.renderer import SceneRenderer
+
+    if video.VIDEO_THREADS < 2:
+        pytest.skip("one core: one drawing thread")
+    sr = SceneRenderer(walk, size=(96, 64))
+    cam = fit_camera(motion_points(walk), [1.0, 0.5, 1.0], size=(96, 64))
+    frames = video.video_frames(sr, np.arange(30), cam)
+    for k, _ in enumerate(frames):
+        if k == 5:
+            break
+    frames.close()
+    assert not [t for t in threading.enumerate() if t.name == "snapcore-video-odd"]
+    init = SceneRenderer.__init__
+
+    def fail_on_helper(self, *args, **kwargs):
+        if threading.current_thread().name == "snapcore-video-odd":
+            raise ValueError("helper failed")
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(SceneRenderer, "__init__", fail_on_helper)
+    with pytest.raises(ValueError, match="helper failed"):
+        list(video.video_frames(sr, np.arange(30), cam))
+    assert not [t for t in threading.enumerate() if t.name == "snapcore-video-odd"]
