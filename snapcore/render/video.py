@@ -107,10 +107,19 @@ def draw_label(
     return np.asarray(im)
 
 
+def _video_threads() -> int:
+    """1 or 2: ``SNAPCORE_VIDEO_THREADS`` if set to 1 or 2 (to compare the two ways),
+    else 2 with two cores or more."""
+    asked = os.environ.get("SNAPCORE_VIDEO_THREADS", "").strip()
+    if asked in ("1", "2"):
+        return int(asked)
+    return min(2, os.cpu_count() or 1)
+
+
 #: Threads (each with its own GL context) that draw a video's frames between them.
 #: llvmpipe does a draw's vertex work and binning on the thread that issues it (12-15
 #: of a video frame's ~27 GL ms), so one drawing thread leaves the second core idle.
-VIDEO_THREADS = min(2, os.cpu_count() or 1)
+VIDEO_THREADS = _video_threads()
 #: Fewer frames than this are drawn on the calling thread alone (a second renderer
 #: draws its own background first: one full frame).
 _MIN_FRAMES_TWO_THREADS = 8
