@@ -291,8 +291,10 @@ def render_video(
 
     Notes
     -----
-    Rendering runs on the calling thread (EGL contexts are thread-bound); a second
-    thread feeds the frames to ffmpeg so encoding overlaps rendering.
+    The calling thread draws the even frames and, with two cores, a helper thread with
+    its own GL context the odd ones (:func:`video_frames`; EGL contexts are
+    thread-bound); another thread feeds the frames, in order, to ffmpeg so encoding
+    overlaps rendering.
 
     Examples
     --------
