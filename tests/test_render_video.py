@@ -329,3 +329,86 @@ def test_webm_copy_has_the_same_frames(walk, tmp_path):
     for k in (0, m_n // 2, m_n - 1):  # same pictures up to compression noise
         diff = np.abs(m_frames[k].astype(float) - w_frames[k].astype(float)).mean()
         assert diff < 4, (k, diff)
+
+
+def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_dir, monkeypatch):
+    """A video's frames, drawn by two threads taking alternate frames (each with its own
+    GL context and renderer, posing one body in turn), reach the encoder in order, each
+    exactly the frame one renderer draws alone (fails if a frame is lost, doubled or
+    out of order). The salsa pair's human bodies: one body object, whose posing keeps
+    state between frames (a block of skinned frames, the last contacts resolved)."""
+    import warnings
+
+    import imageio_ffmpeg
+
+    from snapcore.motion.load import load_scene
+    from snapcore.render import video
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.camera import default_view, fit_camera, motion_points
+    from snapcore.render.renderer import SceneRenderer
+
+    paths = [
+        motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
+    ]
+    if not all(p.exists() for p in paths):
+        pytest.skip("the salsa pair is not in the shared data")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = load_scene(paths, fps=60)
+    if video.VIDEO_THREADS < 2:
+        pytest.skip("one core: one drawing thread")
+    sent: list[np.ndarray] = []
+
+    def fake_writer(*args, **kwargs):
+        while True:
+            frame = yield
+            if frame is not None:
+                sent.append(np.array(frame, copy=True))
+
+    monkeypatch.setattr(imageio_ffmpeg, "write_frames", fake_writer)
+    size, start, n = (320, 180), 880, 23
+    off = scene.frame_offset
+    shown = video.render_video(
+        scene, "/tmp/unused.mp4", fps=scene.fps, size=size,
+        frame_range=(off + start, off + start + n), progress=False,
+    )  # fmt: skip
+    assert len(sent) == len(shown) == n
+    body = scene_body(scene, kind="human", detail="reduced")
+    frames = np.arange(start, start + n)
+    cam = fit_camera(motion_points(scene, frames=frames, body=body), default_view(scene), size=size)
+    ref = SceneRenderer(scene, size=size, body=body)
+    for k, f in enumerate(frames):
+        assert np.array_equal(sent[k], ref.render(int(f), cam, crop=True)), k
+    assert not np.array_equal(sent[0], sent[-1])  # the dancers moved
+
+
+def test_video_frames_helper_failure_surfaces_and_no_thread_is_left(walk, monkeypatch):
+    """An error on the helper thread drawing the odd frames is raised on the caller's
+    thread (not a hang waiting for its turn), and stopping early ends the helper."""
+    import threading
+
+    from snapcore.render import video
+    from snapcore.render.camera import fit_camera, motion_points
+    from snapcore.render.renderer import SceneRenderer
+
+    if video.VIDEO_THREADS < 2:
+        pytest.skip("one core: one drawing thread")
+    sr = SceneRenderer(walk, size=(96, 64))
+    cam = fit_camera(motion_points(walk), [1.0, 0.5, 1.0], size=(96, 64))
+    frames = video.video_frames(sr, np.arange(30), cam)
+    for k, _ in enumerate(frames):
+        if k == 5:
+            break
+    frames.close()
+    assert not [t for t in threading.enumerate() if t.name == "snapcore-video-odd"]
+    init = SceneRenderer.__init__
+
+    def fail_on_helper(self, *args, **kwargs):
+        if threading.current_thread().name == "snapcore-video-odd":
+            raise ValueError("helper failed")
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(SceneRenderer, "__init__", fail_on_helper)
+    with pytest.raises(ValueError, match="helper failed"):
+        list(video.video_frames(sr, np.arange(30), cam))
+    assert not [t for t in threading.enumerate() if t.name == "snapcore-video-odd"]

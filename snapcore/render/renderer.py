@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -495,17 +496,26 @@ class SceneRenderer:
         return self._submit(index, camera, crop)()
 
     def render_frames(
-        self, indices: Iterable[int], camera: Camera, *, crop: bool = True
+        self,
+        indices: Iterable[int],
+        camera: Camera,
+        *,
+        crop: bool = True,
+        turns: Iterable[AbstractContextManager] | None = None,
     ) -> Iterator[np.ndarray]:
         """The images of the poses at ``indices`` seen by ``camera``, one after the
         other, each as :meth:`render` gives it (the same pixels), pipelined: a frame's
         bodies are posed while llvmpipe's threads rasterise the frame before. Videos
-        draw this way."""
+        draw this way. ``turns`` (one context manager per index) holds each frame's
+        posing, e.g. to pose in one order frames that two renderers draw on two
+        threads with one body (see :mod:`snapcore.render.video`)."""
         pending = None
+        turns_it = iter(turns) if turns is not None else None
         for k, index in enumerate(indices):
             # two sets of GL buffers taking turns: this frame is posed and submitted
             # (llvmpipe's vertex work, on this thread) while the last one rasterises
-            frame = self._submit(int(index), camera, crop, buffer=k % 2)
+            turn = next(turns_it) if turns_it is not None else None
+            frame = self._submit(int(index), camera, crop, buffer=k % 2, turn=turn)
             if pending is not None:
                 yield pending()
             pending = frame
@@ -518,9 +528,11 @@ class SceneRenderer:
         camera: Camera,
         crop: bool,
         buffer: int = 0,
+        turn: AbstractContextManager | None = None,
     ) -> _Frame:
-        """Pose ``index``, submit it in GL buffer set ``buffer`` (0 or 1) and return the
-        frame (call it for the image). Set 2 draws backgrounds."""
+        """Pose ``index`` (inside ``turn`` if given), submit it in GL buffer set
+        ``buffer`` (0 or 1) and return the frame (call it for the image). Set 2 draws
+        backgrounds."""
         if threading.get_ident() != self._thread:
             raise RenderError(
                 "a SceneRenderer must be used on the thread that created it "
@@ -533,7 +545,8 @@ class SceneRenderer:
             self._set_camera(camera)
             self._camera_uses = 0
         self._camera_uses += 1
-        drawn = self._update_bodies(int(index))
+        with turn if turn is not None else nullcontext():
+            drawn = self._update_bodies(int(index))
         many = crop or self._camera_uses > 1
         window = self._crop_window(camera, drawn) if many else None
         gl_cam = self._full_camera()
@@ -600,13 +613,23 @@ class _Frame:
         if self._image is None:
             part = self._pending.read()
             if self._background is None or self._window is None:
-                self._image = np.ascontiguousarray(part)
+                self._image = _copy_rgb(part, np.empty(part.shape, np.uint8))
             else:
                 x0, y0, cw, ch = self._window
                 image = self._background.copy()
-                image[y0 : y0 + ch, x0 : x0 + cw] = part
+                _copy_rgb(part, image[y0 : y0 + ch, x0 : x0 + cw])
                 self._image = image
         return self._image
+
+
+def _copy_rgb(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Copy (H, W, 3) uint8 ``src`` (a strided view, e.g. the RGB of a read-back RGBA
+    array) into ``dst``, channel by channel: NumPy copies one strided byte plane ~4x
+    faster than 3-byte pixels (0.5 against 2.1 ms for a 640x704 rectangle), same
+    bytes. Returns ``dst``."""
+    for c in range(3):
+        dst[..., c] = src[..., c]
+    return dst
 
 
 def scene_index(scene: Scene, frame: int, what: str = "frame") -> int:

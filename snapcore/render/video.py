@@ -23,8 +23,11 @@ numbering every output of the suite uses.
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -104,6 +107,122 @@ def draw_label(
     return np.asarray(im)
 
 
+def _video_threads() -> int:
+    """1 or 2: ``SNAPCORE_VIDEO_THREADS`` if set to 1 or 2 (to compare the two ways),
+    else 2 with two cores or more."""
+    asked = os.environ.get("SNAPCORE_VIDEO_THREADS", "").strip()
+    if asked in ("1", "2"):
+        return int(asked)
+    return min(2, os.cpu_count() or 1)
+
+
+#: Threads (each with its own GL context) that draw a video's frames between them.
+#: llvmpipe does a draw's vertex work and binning on the thread that issues it (12-15
+#: of a video frame's ~27 GL ms), so one drawing thread leaves the second core idle.
+VIDEO_THREADS = _video_threads()
+#: Fewer frames than this are drawn on the calling thread alone (a second renderer
+#: draws its own background first: one full frame).
+_MIN_FRAMES_TWO_THREADS = 8
+
+
+class _Stopped(Exception):
+    """The other drawing thread failed or the frames are no longer wanted."""
+
+
+class _Turns:
+    """Frames posed strictly in order by threads taking turns: ``turn(k)`` is a context
+    manager that waits until frames ``0 .. k-1`` are posed. The body posing them keeps
+    state between calls (its block of posed frames, the last resolved contacts), so
+    each frame is posed with the same calls, in the same order, as on one thread."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._next = 0
+        self._stopped = False
+
+    def stop(self) -> None:
+        with self._cond:
+            self._stopped = True
+            self._cond.notify_all()
+
+    @contextmanager
+    def turn(self, k: int) -> Iterator[None]:
+        with self._cond:
+            while self._next != k and not self._stopped:
+                self._cond.wait()
+            if self._stopped:
+                raise _Stopped()
+        try:
+            yield
+        except BaseException:
+            self.stop()
+            raise
+        with self._cond:
+            self._next = k + 1
+            self._cond.notify_all()
+
+
+def video_frames(sr: SceneRenderer, frames: np.ndarray, camera: Camera) -> Iterator[np.ndarray]:
+    """The pictures of internal frames ``frames`` seen by ``camera``, in order, each
+    equal to ``sr.render(index, camera, crop=True)``.
+
+    With :data:`VIDEO_THREADS` = 2 and enough frames, a helper thread with its own GL
+    context and its own :class:`SceneRenderer` (the same scene, size, floor and body
+    object) draws the odd frames while this thread draws the even ones; both pose the
+    shared body in frame order (:class:`_Turns`), and llvmpipe's per-draw work on the
+    issuing thread runs on both cores.
+    """
+    frames = np.asarray(frames)
+    if VIDEO_THREADS < 2 or len(frames) < _MIN_FRAMES_TWO_THREADS:
+        yield from sr.render_frames(frames, camera)
+        return
+    from snapcore.render.gl import release_renderer
+
+    turns = _Turns()
+    odd: queue.Queue = queue.Queue()  # bounded by the turns: a frame or two ahead
+
+    def draw_odd() -> None:
+        try:
+            other = SceneRenderer(
+                sr.scene,
+                size=sr.size,
+                ground=sr.ground,
+                shadows=sr.shadows,
+                body=sr.body,
+                floor=sr.floor,
+            )
+            other.horizon_point = sr.horizon_point
+            mine = frames[1::2]
+            for img in other.render_frames(
+                mine, camera, turns=(turns.turn(2 * j + 1) for j in range(len(mine)))
+            ):
+                odd.put(img)
+        except BaseException as err:
+            turns.stop()
+            odd.put(err)
+        finally:
+            release_renderer()
+
+    helper = threading.Thread(target=draw_odd, name="snapcore-video-odd", daemon=True)
+    helper.start()
+    try:
+        even = frames[0::2]
+        for j, img in enumerate(
+            sr.render_frames(even, camera, turns=(turns.turn(2 * j) for j in range(len(even))))
+        ):
+            yield img
+            if 2 * j + 1 < len(frames):
+                item = odd.get()
+                if isinstance(item, BaseException):
+                    raise item
+                yield item
+    except _Stopped:  # the helper failed while this thread waited for its turn
+        raise odd.get() from None
+    finally:
+        turns.stop()
+        helper.join()
+
+
 def render_video(
     scene: Scene,
     path: str | Path,
@@ -172,8 +291,10 @@ def render_video(
 
     Notes
     -----
-    Rendering runs on the calling thread (EGL contexts are thread-bound); a second
-    thread feeds the frames to ffmpeg so encoding overlaps rendering.
+    The calling thread draws the even frames and, with two cores, a helper thread with
+    its own GL context the odd ones (:func:`video_frames`; EGL contexts are
+    thread-bound); another thread feeds the frames, in order, to ffmpeg so encoding
+    overlaps rendering.
 
     Examples
     --------
@@ -306,8 +427,9 @@ def render_video(
         leave=False,
     )
     try:
-        # pipelined: a frame is posed while the one before rasterises
-        for f, img in zip(frames, sr.render_frames(frames, camera)):
+        # two threads drawing alternate frames, each pipelined: a frame is posed
+        # while the one before rasterises
+        for f, img in zip(frames, video_frames(sr, frames, camera)):
             if failure:
                 break
             if frame_numbers:
