@@ -274,7 +274,8 @@ class LocalScores:
 
     def scores(self, u) -> np.ndarray:
         """Exact scores of views ``u`` (m, 3) that :meth:`covers` accepts."""
-        return u @ self.g_out + np.abs(u @ self.bc).sum(axis=1)
+        # in blocks with a reused buffer: a fresh (m, near) product is megabytes
+        return u @ self.g_out + abs_dot_sums(u, self.bc)
 
 
 def refine_exact(v, b, bn, max_iter, outer=None, bins=None):
