@@ -349,17 +349,18 @@ def _swept_block(
         e -= p  # link vectors (3, frames, L)
         g = p[:, 1:] - p[:, :-1]  # parent displacement
         d = e[:, 1:] + g  # diagonal x_c(i+1) - x_j(i)
-        g *= 0.5  # the ½ of the triangle areas, folded into two of the factors
-        _cross_into(0.5 * e[:, :-1], d, ac[:, 0])
+        # ac, nc and q2x are twice the areas: the ½ is applied once, to the quad areas
+        # (scaling by powers of two is exact, so a/MA_orig is the same double)
+        _cross_into(e[:, :-1], d, ac[:, 0])
         _cross_into(d, g, ac[:, 1])
         np.square(ac[0], out=nc)
         nc += np.square(ac[1])
         nc += np.square(ac[2])
         np.sqrt(nc, out=nc)
-        q = q2[s0:s1]
-        np.add(nc[0], nc[1], out=q)
-        w = np.zeros_like(q)
-        np.divide(1.0, q, out=w, where=q >= floor)
+        q2x = nc[0] + nc[1]
+        np.multiply(q2x, 0.5, out=q2[s0:s1])
+        w = np.zeros_like(q2x)
+        np.divide(1.0, q2x, out=w, where=q2x >= 2.0 * floor)
         np.multiply(ac, w, out=pb4[:, :, s0:s1])
         np.multiply(nc, w, out=pn3[:, s0:s1])
 
