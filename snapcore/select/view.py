@@ -127,7 +127,7 @@ class MotionTriangles:
     pma_norms : ndarray of shape (K,)
         ``|a_k| / MA_orig`` (0 for skipped quads). Read-only.
     quads : ndarray of shape (Q,)
-        ``MA_orig`` of every quad (m², ``Q = K / 2``).
+        ``MA_orig`` of every quad (m², ``Q = K / 2``). Read-only.
     frames : tuple of int
         ``(start, stop)``: internal frames ``start .. stop-1`` were used.
     blocks : list of tuple
@@ -157,7 +157,9 @@ class MotionTriangles:
     @property
     def n_quads(self) -> int:
         """Quads above the noise floor (the ones that vote)."""
-        return int(np.count_nonzero(self.quads >= self.floor))
+        if "n_quads" not in self._cache:  # asked three times per selection (0.07 ms each)
+            self._cache["n_quads"] = int(np.count_nonzero(self.quads >= self.floor))
+        return self._cache["n_quads"]
 
     @property
     def n_skipped(self) -> int:
@@ -309,6 +311,7 @@ def motion_triangles(
         off += size
     b_pma.setflags(write=False)
     n_pma.setflags(write=False)
+    quads.setflags(write=False)  # n_quads is cached
     return MotionTriangles(
         pma_vectors=b_pma,
         pma_norms=n_pma,
