@@ -81,3 +81,19 @@ def test_window_from_bins_gives_exact_scores(kind):
         near = np.abs(v0 @ b) < math.sin(math.asin(OUTER_WINDOW)) * bn
         tracked = {tuple(c) for c in loc.bc.T}  # by value: equal vectors share a bin
         assert all(tuple(c) in tracked for c in b[:, near].T)
+
+
+def test_triangles_do_not_depend_on_the_links_order():
+    """BVH links (children 1..L in a run) take a slice, other orders a gather: the same
+    quads either way, bit for bit."""
+    scene = synth_scene("walk")
+    c = scene.characters[0]
+    links = np.asarray(c.skeleton.links)
+    assert np.array_equal(links[:, 1], np.arange(1, links.shape[0] + 1))  # the slice path
+    perm = np.random.default_rng(3).permutation(links.shape[0])
+    a = motion_triangles([(c.positions, links)])
+    b = motion_triangles([(c.positions, links[perm])])
+    steps = c.positions.shape[0] - 1
+    va = a.pma_vectors.reshape(3, 2, steps, -1)[..., perm]
+    assert np.array_equal(va, b.pma_vectors.reshape(3, 2, steps, -1))
+    assert np.array_equal(a.quads.reshape(steps, -1)[:, perm], b.quads.reshape(steps, -1))
