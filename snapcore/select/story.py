@@ -501,8 +501,11 @@ def pose_surprisal(
     # noise-widened) D x D factor once, then one matrix product over the frames (a
     # solve with F right-hand sides is 4x slower)
     w = z @ np.linalg.inv(np.linalg.cholesky(cov)).T
-    w *= w
-    return 0.5 * w.sum(axis=1) / math.log(2.0)
+    # row sums of squares as one pass (``einsum``; ``(w * w).sum(axis=1)`` over rows of
+    # D ~ 36 values took twice as long): the same terms, added in another order
+    m2 = np.einsum("ij,ij->i", w, w)
+    m2 *= 0.5 / math.log(2.0)
+    return m2
 
 
 def tail_surprisal(values: np.ndarray) -> np.ndarray:
