@@ -580,18 +580,30 @@ def event_surprisal(
     each one carries ``-log2 P`` bits. Events of one frame add; the spread signal is
     ``sum_e I_e K(i - t_e)`` with ``K`` a (half-)Gaussian of peak 1.
     """
+    onset, release = _event_marks(state)
+    return _spread_events(onset, release, fps=fps, support_s=support_s, sided=sided)
+
+
+def _event_marks(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The onsets' and releases' bits at their frames (:func:`event_surprisal`), (F,) each."""
     st = np.asarray(state, dtype=bool)
     n_l, n_f = st.shape
     onset = np.zeros(n_f)
     release = np.zeros(n_f)
     if n_f < 2 or n_l == 0:
-        return onset
+        return onset, release
     d = np.diff(st.astype(np.int8), axis=1)  # (L, F-1): +1 onset at t+1, -1 release at t+1
     for kind, out in ((1, onset), (-1, release)):
         hit = d == kind
         n = hit.sum(axis=1)  # events per contactor
         bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
         out[1:] += (hit * bits[:, None]).sum(axis=0)
+    return onset, release
+
+
+def _spread_events(onset, release, *, fps: float, support_s: float, sided: bool) -> np.ndarray:
+    """Onsets credited before, releases after (:func:`event_surprisal`), (F,)."""
+    n_f = onset.size
     kernel, r = half_gaussian(support_s * fps, sided)
     if r == 0:
         return onset + release
@@ -667,6 +679,7 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     strike_bits = np.zeros(n_f)
+    onset_marks, release_marks = np.zeros(n_f), np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
@@ -716,9 +729,10 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
         contacts.append(lc)
         if p.w_event > 0:
             if p.event_model == "surprisal":
-                event_bits += event_surprisal(
-                    lc.state, fps=fps, support_s=p.event_support_s, sided=p.sided_support
-                )
+                # the characters' marks first, spread once after the loop (linear)
+                on_m, off_m = _event_marks(lc.state)
+                onset_marks += on_m
+                release_marks += off_m
             else:
                 event_bits += contact_state_entropy(lc.state)
         if strikes_on and tracks is not None:
@@ -727,18 +741,19 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             speed = np.take(tracks[2], np.searchsorted(have, eff), axis=1)
             speed *= fps / stature_of(c)
             strike_bits += strike_surprisal_of(
-                speed, fps=fps, threshold=p.strike_speed, support_s=p.event_support_s
+                speed, fps=fps, threshold=p.strike_speed, support_s=0
             )
-        elif strikes_on:
+        elif strikes_on:  # the marks (support 0), spread after the loop
             strike_bits += strike_surprisal(
-                x,
-                fps=fps,
-                stature=stature_of(c),
-                threshold=p.strike_speed,
-                support_s=p.event_support_s,
+                x, fps=fps, stature=stature_of(c), threshold=p.strike_speed, support_s=0
             )
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
+    if p.w_event > 0 and p.event_model == "surprisal":
+        sup = {"fps": fps, "support_s": p.event_support_s}
+        event_bits = _spread_events(onset_marks, release_marks, sided=p.sided_support, **sup)
+        kernel, r = half_gaussian(p.event_support_s * fps, True)  # strikes: before them
+        strike_bits = np.convolve(strike_bits, kernel[::-1])[r : r + n_f] if r else strike_bits
     for bits in (stance_bits, trunk_bits, novelty_bits, event_bits, strike_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
