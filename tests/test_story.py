@@ -332,3 +332,30 @@ def test_keymoments_acceptance(motions_dir):
     assert overall["story"]["top3_hits"] == 6
     for m, o in overall.items():
         assert o["top1_hits"] <= overall["story"]["top1_hits"], m
+
+
+@pytest.mark.parametrize("name,fps", [("push", 30), ("kick", 60), ("punch", 24)])
+def test_story_shares_one_gather_without_changing_contacts_or_strikes(name, fps):
+    """The story computes every character's contacts and strikes from one shared gather
+    of its joints (heights and speeds once); each must equal its stand-alone function
+    (24 fps: a Savitzky-Golay window wider than 3 frames, so the smoothing is not the
+    identity there)."""
+    from snapcore.motion.anatomy import stature_of
+    from snapcore.select.stance import key_positions
+    from snapcore.select.story import DEFAULT_STORY, debounced_contacts, story_information
+    from snapcore.select.strikes import strike_surprisal
+
+    scene = synth.synth_scene(name, fps=fps)
+    p = DEFAULT_STORY.with_(event_support_s=0.0, support_s=0.0)
+    info = _quiet(story_information, scene, p)
+    strikes = np.zeros(scene.n_frames)
+    for c, lc in zip(scene.characters, info.contacts):
+        alone = debounced_contacts(c, ground=scene.ground, fps=float(scene.fps), params=p)
+        np.testing.assert_array_equal(lc.state, alone.state)
+        x = key_positions(c, fps=float(scene.fps), smooth_s=p.smooth_s)
+        strikes += strike_surprisal(
+            x, fps=float(scene.fps), stature=stature_of(c), threshold=p.strike_speed, support_s=0.0
+        )
+    if float(strikes.max() - strikes.min()) <= 1e-12:
+        strikes[:] = 0.0
+    np.testing.assert_allclose(info.strike_bits, strikes, rtol=0, atol=1e-9)

@@ -105,7 +105,7 @@ from snapcore.select.stance import (
     stance_departure,
     trunk_departure,
 )
-from snapcore.select.strikes import strike_surprisal
+from snapcore.select.strikes import strike_surprisal, strike_surprisal_of
 
 __all__ = [
     "StoryParams",
@@ -396,7 +396,12 @@ def _limb_groups_of(roles: tuple, sides: tuple) -> tuple[tuple[str, ...], tuple[
 
 
 def debounced_contacts(
-    character, *, ground: float, fps: float, params: StoryParams = DEFAULT_STORY
+    character,
+    *,
+    ground: float,
+    fps: float,
+    params: StoryParams = DEFAULT_STORY,
+    _tracks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> LimbContacts:
     """Ground contacts of one character, one per limb, debounced.
 
@@ -407,6 +412,10 @@ def debounced_contacts(
         Height of the ground plane (m, world Y).
     fps : float
     params : StoryParams
+    _tracks : (joints, heights, speeds) or None
+        Internal (:func:`story_information`): sorted joints (A,) including every limb
+        joint, with their :func:`_tracks` heights and speeds, (F, A) each, already
+        computed for the story's other terms (one gather of the character's positions).
 
     Returns
     -------
@@ -423,34 +432,21 @@ def debounced_contacts(
     """
     p = params
     scale = stature_of(character) / REFERENCE_STATURE_M
-    if p.per_limb:
-        names, joints = limb_groups(character)
-    else:
-        names = list(character.joint_names)
-        joints = [np.array([j]) for j in range(character.n_joints)]
-    used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)
+    names, joints, used = _contact_joints(character, p)
     n_f = character.n_frames
     state = np.zeros((len(names), n_f), dtype=bool)
     if used.size == 0 or n_f < 2:
         return LimbContacts(names, joints, state)
-    # in increasing joint order: gathering unsorted joints took 2.5 times as long (cold)
-    x = joint_trajectories(character, used, fps=fps, smooth_s=p.smooth_s)  # (F, U, 3)
-    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, U)
-    # speed (metres per frame): np.gradient's central differences and one-sided ends,
-    # the same arithmetic written out (its checks and slicing took a third of this
-    # function's time)
-    g = np.empty_like(xc)
-    np.subtract(xc[:, 2:], xc[:, :-2], out=g[:, 1:-1])
-    g[:, 1:-1] *= 0.5
-    np.subtract(xc[:, 1], xc[:, 0], out=g[:, 0])
-    np.subtract(xc[:, -1], xc[:, -2], out=g[:, -1])
-    g *= g
-    v = np.sqrt(g[0] + g[1] + g[2])
-    v *= fps / (scale * p.support_speed)
-    h = xc[1] - ground
+    if _tracks is None:
+        # in increasing joint order: gathering unsorted joints took 2.5 times as long
+        x = joint_trajectories(character, used, fps=fps, smooth_s=p.smooth_s)  # (F, U, 3)
+        _tracks = (used, *_heights_speeds(x))
+    have, height, speed = _tracks
+    v = speed * (fps / (scale * p.support_speed))
+    h = height - ground
     h /= scale * p.support_height
-    score = np.maximum(h, v, out=h)  # (F, U)
-    col = np.searchsorted(used, np.concatenate(joints))  # the limbs' columns, limb after limb
+    score = np.maximum(h, v, out=h)  # (F, A)
+    col = np.searchsorted(have, np.concatenate(joints))  # the limbs' columns, limb after limb
     ends = np.cumsum([j.size for j in joints]).tolist()
     limb_score = np.stack(
         [score[:, col[e - j.size : e]].min(axis=1) for j, e in zip(joints, ends)], axis=1
@@ -464,6 +460,36 @@ def debounced_contacts(
         m_off = max(1, int(round(p.min_gap_s * fps)))
         on = enforce_min_durations(on, m_on, m_off)
     return LimbContacts(names, joints, np.ascontiguousarray(on))
+
+
+def _contact_joints(character, p: StoryParams) -> tuple[list, list, np.ndarray]:
+    """The contactors' names and joints, and all their joints sorted (U,)."""
+    if p.per_limb:
+        names, joints = limb_groups(character)
+    else:
+        names = list(character.joint_names)
+        joints = [np.array([j]) for j in range(character.n_joints)]
+    used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)
+    return names, joints, used
+
+
+def _heights_speeds(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World heights (m) and speeds (m per frame) of trajectories (F, N, 3): (F, N) each.
+
+    The speed is ``np.gradient``'s central differences and one-sided ends, written out
+    (its checks and slicing took a third of the contacts' time), on (3, F, N) rows; the
+    strikes' :func:`~snapcore.select.strikes.strike_speeds` is the same arithmetic.
+    """
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, N)
+    g = np.empty_like(xc)
+    np.subtract(xc[:, 2:], xc[:, :-2], out=g[:, 1:-1])
+    g[:, 1:-1] *= 0.5
+    np.subtract(xc[:, 1], xc[:, 0], out=g[:, 0])
+    np.subtract(xc[:, -1], xc[:, -2], out=g[:, -1])
+    g *= g
+    v = g[0] + g[1]
+    v += g[2]
+    return xc[1], np.sqrt(v, out=v)
 
 
 # ----------------------------------------------------------------------- pose term
@@ -501,8 +527,11 @@ def pose_surprisal(
     # noise-widened) D x D factor once, then one matrix product over the frames (a
     # solve with F right-hand sides is 4x slower)
     w = z @ np.linalg.inv(np.linalg.cholesky(cov)).T
-    w *= w
-    return 0.5 * w.sum(axis=1) / math.log(2.0)
+    # row sums of squares as one pass (``einsum``; ``(w * w).sum(axis=1)`` over rows of
+    # D ~ 36 values took twice as long): the same terms, added in another order
+    m2 = np.einsum("ij,ij->i", w, w)
+    m2 *= 0.5 / math.log(2.0)
+    return m2
 
 
 def tail_surprisal(values: np.ndarray) -> np.ndarray:
@@ -551,18 +580,30 @@ def event_surprisal(
     each one carries ``-log2 P`` bits. Events of one frame add; the spread signal is
     ``sum_e I_e K(i - t_e)`` with ``K`` a (half-)Gaussian of peak 1.
     """
+    onset, release = _event_marks(state)
+    return _spread_events(onset, release, fps=fps, support_s=support_s, sided=sided)
+
+
+def _event_marks(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The onsets' and releases' bits at their frames (:func:`event_surprisal`), (F,) each."""
     st = np.asarray(state, dtype=bool)
     n_l, n_f = st.shape
     onset = np.zeros(n_f)
     release = np.zeros(n_f)
     if n_f < 2 or n_l == 0:
-        return onset
+        return onset, release
     d = np.diff(st.astype(np.int8), axis=1)  # (L, F-1): +1 onset at t+1, -1 release at t+1
     for kind, out in ((1, onset), (-1, release)):
         hit = d == kind
         n = hit.sum(axis=1)  # events per contactor
         bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
         out[1:] += (hit * bits[:, None]).sum(axis=0)
+    return onset, release
+
+
+def _spread_events(onset, release, *, fps: float, support_s: float, sided: bool) -> np.ndarray:
+    """Onsets credited before, releases after (:func:`event_surprisal`), (F,)."""
+    n_f = onset.size
     kernel, r = half_gaussian(support_s * fps, sided)
     if r == 0:
         return onset + release
@@ -638,13 +679,24 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     strike_bits = np.zeros(n_f)
+    onset_marks, release_marks = np.zeros(n_f), np.zeros(n_f)
     contacts = []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
         pose_on = p.w_pose > 0 and (p.novelty or p.stance or p.trunk)
         strikes_on = p.w_event > 0 and p.strikes and p.event_model == "surprisal"
-        if pose_on or strikes_on:
+        tracks = None
+        if (pose_on or strikes_on) and c.n_frames >= 3:
+            # one gather of the key joints and the contacts' joints (sorted), their
+            # heights and speeds once for the contacts and the strikes: each step
+            # gathering its own joints read the (F, J, 3) positions twice per character
+            kj = key_joints(c)
+            have = np.union1d(kj, _contact_joints(c, p)[2])
+            xa = joint_trajectories(c, have, fps=fps, smooth_s=p.smooth_s)  # (F, A, 3)
+            x = np.take(xa, np.searchsorted(have, kj), axis=1)  # key_positions
+            tracks = (have, *_heights_speeds(xa))
+        elif pose_on or strikes_on:
             x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
         if pose_on:
             feats = descriptor_of(
@@ -673,25 +725,35 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
                         x, neutral, stature=stature_of(c), spread=p.trunk_spread
                     )
         tb = time.perf_counter()
-        lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
+        lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p, _tracks=tracks)
         contacts.append(lc)
         if p.w_event > 0:
             if p.event_model == "surprisal":
-                event_bits += event_surprisal(
-                    lc.state, fps=fps, support_s=p.event_support_s, sided=p.sided_support
-                )
+                # the characters' marks first, spread once after the loop (linear)
+                on_m, off_m = _event_marks(lc.state)
+                onset_marks += on_m
+                release_marks += off_m
             else:
                 event_bits += contact_state_entropy(lc.state)
-        if strikes_on:
+        if strikes_on and tracks is not None:
+            # strike_speeds' effectors (wrists and ankles of the six key joints)
+            eff = kj[2:6] if kj.size == 6 else kj
+            speed = np.take(tracks[2], np.searchsorted(have, eff), axis=1)
+            speed *= fps / stature_of(c)
+            strike_bits += strike_surprisal_of(
+                speed, fps=fps, threshold=p.strike_speed, support_s=0
+            )
+        elif strikes_on:  # the marks (support 0), spread after the loop
             strike_bits += strike_surprisal(
-                x,
-                fps=fps,
-                stature=stature_of(c),
-                threshold=p.strike_speed,
-                support_s=p.event_support_s,
+                x, fps=fps, stature=stature_of(c), threshold=p.strike_speed, support_s=0
             )
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
+    if p.w_event > 0 and p.event_model == "surprisal":
+        sup = {"fps": fps, "support_s": p.event_support_s}
+        event_bits = _spread_events(onset_marks, release_marks, sided=p.sided_support, **sup)
+        kernel, r = half_gaussian(p.event_support_s * fps, True)  # strikes: before them
+        strike_bits = np.convolve(strike_bits, kernel[::-1])[r : r + n_f] if r else strike_bits
     for bits in (stance_bits, trunk_bits, novelty_bits, event_bits, strike_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0

@@ -25,7 +25,7 @@ import numpy as np
 
 from snapcore.select.signals import find_peaks, half_gaussian
 
-__all__ = ["strike_speeds", "strike_frames", "strike_surprisal"]
+__all__ = ["strike_speeds", "strike_frames", "strike_surprisal", "strike_surprisal_of"]
 
 
 def strike_speeds(points: np.ndarray, *, fps: float, stature: float) -> np.ndarray:
@@ -118,6 +118,18 @@ def strike_surprisal(
         of peak 1 over ``i <= t``.
     """
     v = strike_speeds(points, fps=fps, stature=stature)
+    return strike_surprisal_of(v, fps=fps, threshold=threshold, support_s=support_s)
+
+
+def strike_surprisal_of(
+    speed: np.ndarray, *, fps: float, threshold: float = 2.5, support_s: float = 0.2
+) -> np.ndarray:
+    """:func:`strike_surprisal` from the effectors' :func:`strike_speeds` (F, E), (F,).
+
+    For a caller that has the speeds already (the story computes every tracked
+    joint's speed once, for the contacts and the strikes).
+    """
+    v = np.asarray(speed, dtype=float)
     n_f = v.shape[0]
     marks = np.zeros(n_f)
     if n_f < 3:
