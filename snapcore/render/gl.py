@@ -405,22 +405,7 @@ def current_gl_context(width: int, height: int):
     """
     r = getattr(_THREAD, "renderer", None)
     if r is None and os.environ.get("PYOPENGL_PLATFORM") == "egl":
-        ctx = getattr(_THREAD, "raw_context", None)
-        if ctx is None:
-            _sweep_dead()
-            try:
-                ctx = _EGLContext()
-            except Exception as err:
-                raise RenderError(
-                    f"cannot create an offscreen OpenGL context ({type(err).__name__}: {err});"
-                    " is Mesa EGL installed (apt-get install libegl1 libegl-mesa0"
-                    " libgl1-mesa-dri)?"
-                ) from err
-            _THREAD.raw_context = ctx
-            with _RENDERERS_LOCK:
-                _RAW_CONTEXTS[threading.current_thread()] = ctx
-        ctx.make_current()
-        return ctx
+        return _raw_context()
     r = gl_renderer(width, height)
     r._platform.make_current()
     return r
@@ -452,6 +437,11 @@ def bare_gl_context():
     """
     if os.environ.get("PYOPENGL_PLATFORM") != "egl":
         return current_gl_context(8, 8)
+    return _raw_context()
+
+
+def _raw_context() -> _EGLContext:
+    """This thread's bare EGL context, made on first use, made current."""
     ctx = getattr(_THREAD, "raw_context", None)
     if ctx is None:
         _sweep_dead()
