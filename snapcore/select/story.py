@@ -105,7 +105,7 @@ from snapcore.select.stance import (
     stance_departure,
     trunk_departure,
 )
-from snapcore.select.strikes import strike_surprisal, strike_surprisal_of
+from snapcore.select.strikes import rows_and_speeds, strike_surprisal, strike_surprisal_of
 
 __all__ = [
     "StoryParams",
@@ -476,20 +476,12 @@ def _contact_joints(character, p: StoryParams) -> tuple[list, list, np.ndarray]:
 def _heights_speeds(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World heights (m) and speeds (m per frame) of trajectories (F, N, 3): (F, N) each.
 
-    The speed is ``np.gradient``'s central differences and one-sided ends, written out
-    (its checks and slicing took a third of the contacts' time), on (3, F, N) rows; the
-    strikes' :func:`~snapcore.select.strikes.strike_speeds` is the same arithmetic.
+    The speed is the strikes' (:func:`~snapcore.select.strikes.rows_and_speeds`:
+    ``np.gradient`` written out, whose checks and slicing took a third of the contacts'
+    time).
     """
-    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))  # (3, F, N)
-    g = np.empty_like(xc)
-    np.subtract(xc[:, 2:], xc[:, :-2], out=g[:, 1:-1])
-    g[:, 1:-1] *= 0.5
-    np.subtract(xc[:, 1], xc[:, 0], out=g[:, 0])
-    np.subtract(xc[:, -1], xc[:, -2], out=g[:, -1])
-    g *= g
-    v = g[0] + g[1]
-    v += g[2]
-    return xc[1], np.sqrt(v, out=v)
+    xc, v = rows_and_speeds(x)
+    return xc[1], v
 
 
 # ----------------------------------------------------------------------- pose term

@@ -25,7 +25,13 @@ import numpy as np
 
 from snapcore.select.signals import find_peaks, half_gaussian
 
-__all__ = ["strike_speeds", "strike_frames", "strike_surprisal", "strike_surprisal_of"]
+__all__ = [
+    "strike_speeds",
+    "strike_frames",
+    "strike_surprisal",
+    "strike_surprisal_of",
+    "rows_and_speeds",
+]
 
 
 def strike_speeds(points: np.ndarray, *, fps: float, stature: float) -> np.ndarray:
@@ -46,11 +52,18 @@ def strike_speeds(points: np.ndarray, *, fps: float, stature: float) -> np.ndarr
     n_f = eff.shape[0]
     if n_f < 2:
         return np.zeros(eff.shape[:2])
-    # (3, F, E) contiguous, then np.gradient's central differences and one-sided ends
-    # written out, and the sum over the axes as two additions: the same arithmetic as
-    # np.gradient and .sum(axis=2), at a third of the time (no checks, no short
-    # strided reductions)
-    xc = np.ascontiguousarray(np.moveaxis(eff, -1, 0))
+    _, v = rows_and_speeds(eff)
+    v *= fps / stature
+    return v
+
+
+def rows_and_speeds(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Trajectories ``x`` (F, N, 3) as contiguous (3, F, N) rows, and their speeds (F, N)
+    in units per frame: ``np.gradient``'s central differences and one-sided ends, and
+    the norm over the axes as two additions, written out (the same arithmetic as
+    ``np.gradient`` and ``.sum(axis=2)``, at a third of the time: no checks, no short
+    strided reductions). At least two frames."""
+    xc = np.ascontiguousarray(np.moveaxis(x, -1, 0))
     g = np.empty_like(xc)
     np.subtract(xc[:, 2:], xc[:, :-2], out=g[:, 1:-1])
     g[:, 1:-1] *= 0.5
@@ -59,9 +72,7 @@ def strike_speeds(points: np.ndarray, *, fps: float, stature: float) -> np.ndarr
     g *= g
     v = g[0] + g[1]
     v += g[2]
-    np.sqrt(v, out=v)
-    v *= fps / stature
-    return v
+    return xc, np.sqrt(v, out=v)
 
 
 def strike_frames(speed: np.ndarray, *, threshold: float) -> list[np.ndarray]:
