@@ -258,7 +258,13 @@ def test_prolific_participant_back_reload_double_clicks(server, browser, artifac
     # the duration on the consent page comes from the stimuli (item 15)
     stim = load_stimuli(store_stimuli(server), verify=False)
     minutes = estimated_minutes([sc.n_video_frames / sc.video_fps for sc in stim.scenes.values()])
-    assert f"It takes about {minutes} minutes." in page.inner_text("body")
+    # the heading comes first and the page's text after it (Streamlit renders its
+    # elements as they arrive): wait for the sentence, not only the heading
+    from playwright.sync_api import expect
+
+    expect(page.locator("body")).to_contain_text(
+        f"It takes about {minutes} minutes.", timeout=30_000
+    )
     shot(page, f"{tag}-01-consent")
     pid = consent(page, double=True)
     shot(page, f"{tag}-02-background")
