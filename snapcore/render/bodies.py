@@ -55,6 +55,7 @@ from snapcore.render.mannequin import (
     PosedMesh,
     SceneBody,
 )
+from snapcore.render.mannequin import scene_body as mannequin_scene_body
 from snapcore.render.skinned import FrameBlocks
 
 __all__ = [
@@ -303,29 +304,19 @@ def shadow_body(body: MixedSceneBody, tessellation) -> MixedSceneBody:
     capsules cast nearly the same one for a fifth of the triangles, measured 30% of a
     1280x720 frame's time), a glTF character's own mesh (a fox is no mannequin).
 
-    The coarse mannequins are kept in the scene's body cache: every renderer of a scene
-    casts the same ones (a batch scene's thumbnail, human, and its preview strip,
-    mannequin, built them twice: ~6 ms a scene)."""
-    colors = list(CHARACTER_COLORS)
-    # its own attribute, beside scene_body's cache (keyed by body kind)
-    cache = vars(body.scene).setdefault("_snapcore_shadow_pieces", {})
-
-    def coarse(i: int, character) -> CharacterBody:
-        key = (i, tessellation)
-        piece = cache.get(key)
-        if piece is None or piece.character is not character:
-            piece = cache[key] = CharacterBody(
-                character, color=colors[i % len(colors)], tessellation=tessellation
-            )
-        return piece
-
+    The coarse mannequins are the scene's cached ones
+    (:func:`snapcore.render.mannequin.scene_body`): every renderer of a scene casts the
+    same (a batch scene's thumbnail, human, and its preview strip, mannequin, built them
+    twice: ~6 ms a scene)."""
+    skinned = [isinstance(b, SkinnedBody) for b in body.characters]
+    coarse = None if all(skinned) else mannequin_scene_body(body.scene, tessellation)
     return MixedSceneBody(
         body.scene,
         kind=body.kind,
         tessellation=tessellation,
         bodies=[
-            b if isinstance(b, SkinnedBody) else coarse(i, b.character)
-            for i, b in enumerate(body.characters)
+            b if own or coarse is None else coarse.characters[i]
+            for i, (b, own) in enumerate(zip(body.characters, skinned, strict=True))
         ],
     )
 
