@@ -28,6 +28,8 @@ from typing import ParamSpec, TypeVar
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from snapcore.select import kernels
+
 __all__ = [
     "ICOSPHERE_COUNTS",
     "RefineResult",
@@ -266,7 +268,10 @@ class LocalScores:
         c = bins.centres @ v0
         alpha = np.arcsin(np.minimum(np.abs(c), 1.0))
         far = alpha >= math.asin(sin_t) + bins.radius
-        sel = np.flatnonzero(np.take(~far, bins.index))
+        if kernels.compiled():  # one pass instead of a gather, a negation and a scan
+            sel = kernels.near_members(bins.index, ~far)
+        else:
+            sel = np.flatnonzero(np.take(~far, bins.index))
         self.bc, self.bcn = np.take(b, sel, axis=1), np.take(bn, sel)
         self.g_out = np.sign(c[far]) @ bins.gen[far]
         self.score0 = float(self.g_out @ v0 + np.abs(v0 @ self.bc).sum())
@@ -419,8 +424,23 @@ def _bin_generators(b, res, index=None):
     ``c_j``, so ``b_k·c_j ≥ |b_k| cos r_j``. ``index`` (K,) int32, if given, receives
     each vector's bin.
     """
+    gen = np.zeros((res * res, 3))
+    if index is None:
+        index = np.empty(b.shape[1], np.int32)
+    if kernels.compiled():  # one pass instead of ~20, the same sums in the same order
+        kernels.bin_vectors(b, res, CHUNK, index, gen)
+    else:
+        _bin_sums(b, res, index, gen)
+    centres, radius = _bin_geometry(res)
+    weight = np.maximum(np.einsum("ij,ij->i", gen, centres), 0.0) / np.cos(radius)
+    return gen, weight
+
+
+def _bin_sums(b, res, index, gen) -> None:
+    """:func:`_bin_generators`' pass in NumPy (the reference of
+    ``kernels.bin_vectors``): each vector's bin to ``index`` (K,), the folded vectors
+    added per bin to ``gen`` (res², 3), per chunk of :data:`CHUNK` vectors."""
     nb = res * res
-    gen = np.zeros((nb, 3))
     # (1 - 1e-9) keeps (s + 1)·h below res, so no index needs clipping
     h, h_in = res / 2.0, res / 2.0 * (1.0 - 1e-9)
     for z in chunk_slices(b.shape[1]):
@@ -441,14 +461,10 @@ def _bin_generators(b, res, index=None):
         idx = i.astype(np.intp)
         idx *= res
         idx += j.astype(np.intp)
-        if index is not None:
-            index[z] = idx
+        index[z] = idx
         gen[:, 0] += np.bincount(idx, fx, nb)
         gen[:, 1] += np.bincount(idx, fy, nb)
         gen[:, 2] += np.bincount(idx, fz, nb)
-    centres, radius = _bin_geometry(res)
-    weight = np.maximum(np.einsum("ij,ij->i", gen, centres), 0.0) / np.cos(radius)
-    return gen, weight
 
 
 def _grid_lower(views, gen):

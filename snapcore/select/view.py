@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike
 
 from snapcore.errors import SnapshotError
 from snapcore.motion.facing import choose_side, scene_facing
+from snapcore.select import kernels
 from snapcore.select.sphere import (
     CHUNK,
     ICOSPHERE_COUNTS,
@@ -299,9 +300,13 @@ def motion_triangles(
         if x.shape[0] != n_total:
             raise ViewError(f"character {ci} has {x.shape[0]} frames, expected {n_total}")
         blocks.append((ci, off, steps, lk))
-        if size:
+        xs = np.asarray(x[start:stop], float)
+        # one compiled pass (the same doubles) when built, else NumPy's ~25 passes
+        if size and not (
+            kernels.compiled() and kernels.swept_block(xs, lk, floor, b_pma, n_pma, quads, off)
+        ):
             _swept_block(
-                np.asarray(x[start:stop], float),
+                xs,
                 lk,
                 floor,
                 b_pma[:, off : off + size],

@@ -1,0 +1,24 @@
+"""The compiled part of the package: the view search's whole-array passes (Cython).
+
+Everything else is configured in pyproject.toml. ``optional=True``: without a C compiler
+the install still succeeds and the NumPy reference runs instead
+(:mod:`snapcore.select.kernels` chooses); the Makefile installs gcc before it builds.
+``-ffp-contract=off``: no fused multiply-adds, so the kernel's doubles are NumPy's.
+"""
+
+from Cython.Build import cythonize
+from setuptools import Extension, setup
+
+setup(
+    ext_modules=cythonize(
+        [
+            Extension(
+                "snapcore.select._pma_kernel",
+                ["snapcore/select/_pma_kernel.pyx"],
+                extra_compile_args=["-O3", "-ffp-contract=off"],
+                optional=True,
+            )
+        ],
+        quiet=True,
+    )
+)
