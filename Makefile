@@ -58,12 +58,12 @@ $(BLENDER_STAMP): $(STAMP)
 	$(VENV)/bin/uv pip install --python $(PY) --quiet -e '.[dev,blender]'
 	@touch $(BLENDER_STAMP)
 
-# The project's compiled part (setup.py: the view search's Cython kernel) is rebuilt when
-# its source changes; --reinstall-package because uv would otherwise reuse its cached
-# build of the project (its cache key is pyproject.toml and setup.py, not the .pyx).
+# The project's compiled part (setup.py: the view search's Cython kernel, its .pyx and C
+# header) is rebuilt when its sources change; --reinstall-package because uv would
+# otherwise reuse its cached build of the project (keyed on pyproject.toml and setup.py).
 # The C compiler comes first (`compiler`): without it the kernel is skipped and the
 # NumPy path runs, at about 1.5x the view search's time.
-KERNEL_SRC := setup.py $(wildcard snapcore/*/*.pyx)
+KERNEL_SRC := setup.py $(wildcard snapcore/*/*.pyx snapcore/*/*.h)
 
 $(STAMP): pyproject.toml $(KERNEL_SRC) | compiler
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)

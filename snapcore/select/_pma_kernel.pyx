@@ -2,19 +2,29 @@
 # cython: initializedcheck=False, nonecheck=False, embedsignature=True
 """Compiled whole-array passes of the view search (issue 41, docs/speed.md).
 
-The NumPy reference of each function is named in its docstring; the arithmetic is the
-same operations in the same order (built with ``-ffp-contract=off``: no fused
+The loops are in ``_pma_core.h`` (plain C, so the compiler vectorises them); this module
+checks the arrays' shapes and hands their memory over. Each loop repeats its NumPy
+reference's operations in the same order (built with ``-ffp-contract=off``: no fused
 multiply-adds), so the results are the same doubles. Typed wrappers and the choice
 between this module and NumPy: :mod:`snapcore.select.kernels`.
 
 Imports nothing (no NumPy): memoryviews of arrays the caller allocates, so importing it
-costs microseconds.
+costs well under a millisecond.
 """
 
-from libc.math cimport copysign, fabs, sqrt
 from libc.stdint cimport int32_t
-from libc.stdlib cimport calloc, free
-from libc.string cimport memset
+from libc.stdlib cimport free, malloc
+
+
+cdef extern from "_pma_core.h" nogil:
+    void pma_swept_block(const double *x, Py_ssize_t frames, Py_ssize_t joints,
+                         const Py_ssize_t *links, Py_ssize_t nl, double floor,
+                         double *b0, double *b1, double *b2, double *bn, double *quads)
+    int pma_bin_vectors(const double *bx, const double *by, const double *bz,
+                        Py_ssize_t nk, int res, Py_ssize_t chunk, int32_t *index,
+                        double *gen, double *acc)
+    Py_ssize_t pma_near_members(const int32_t *index, Py_ssize_t nk,
+                                const unsigned char *near_bin, Py_ssize_t *out)
 
 
 def swept_block(
@@ -33,50 +43,17 @@ def swept_block(
     and quads ``off/2 ..`` of ``quads``. Reference: ``view._swept_block``.
     """
     cdef Py_ssize_t steps = x.shape[0] - 1, nl = links.shape[0], n = steps * nl
-    cdef Py_ssize_t s, l, jp, jc, k, q0 = off // 2
-    cdef double p0, p1, p2, e0, e1, e2, g0, g1, g2, d0, d1, d2
-    cdef double a0, a1, a2, c0, c1, c2, na, nc, q2, w
-    cdef double two_floor = 2.0 * floor
+    if links.shape[1] != 2 or x.shape[2] != 3 or b.shape[0] != 3:
+        raise ValueError("swept_block: x (F, J, 3), links (L, 2), b (3, K)")
+    if steps < 1 or nl < 1:
+        return
+    if off < 0 or off % 2 or off + 2 * n > b.shape[1] or b.shape[1] > bn.shape[0]:
+        raise ValueError("swept_block: the triangles do not fit the outputs")
+    if off // 2 + n > quads.shape[0]:
+        raise ValueError("swept_block: the quads do not fit the output")
     with nogil:
-        for s in range(steps):
-            for l in range(nl):
-                jp = links[l, 0]
-                jc = links[l, 1]
-                p0 = x[s, jp, 0]
-                p1 = x[s, jp, 1]
-                p2 = x[s, jp, 2]
-                # link vector e, parent displacement g, diagonal d = e(i+1) + g
-                e0 = x[s, jc, 0] - p0
-                e1 = x[s, jc, 1] - p1
-                e2 = x[s, jc, 2] - p2
-                g0 = x[s + 1, jp, 0] - p0
-                g1 = x[s + 1, jp, 1] - p1
-                g2 = x[s + 1, jp, 2] - p2
-                d0 = (x[s + 1, jc, 0] - x[s + 1, jp, 0]) + g0
-                d1 = (x[s + 1, jc, 1] - x[s + 1, jp, 1]) + g1
-                d2 = (x[s + 1, jc, 2] - x[s + 1, jp, 2]) + g2
-                # twice the vector areas: a = e × d, c = d × g
-                a0 = e1 * d2 - e2 * d1
-                a1 = e2 * d0 - e0 * d2
-                a2 = e0 * d1 - e1 * d0
-                c0 = d1 * g2 - d2 * g1
-                c1 = d2 * g0 - d0 * g2
-                c2 = d0 * g1 - d1 * g0
-                na = sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-                nc = sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-                q2 = na + nc
-                quads[q0 + s * nl + l] = q2 * 0.5
-                w = 1.0 / q2 if q2 >= two_floor else 0.0
-                k = off + s * nl + l
-                b[0, k] = a0 * w
-                b[1, k] = a1 * w
-                b[2, k] = a2 * w
-                bn[k] = na * w
-                k = k + n
-                b[0, k] = c0 * w
-                b[1, k] = c1 * w
-                b[2, k] = c2 * w
-                bn[k] = nc * w
+        pma_swept_block(&x[0, 0, 0], x.shape[0], x.shape[1], &links[0, 0], nl, floor,
+                        &b[0, off], &b[1, off], &b[2, off], &bn[off], &quads[off // 2])
 
 
 def bin_vectors(
@@ -91,52 +68,25 @@ def bin_vectors(
 
     The sums run in the order of ``np.bincount`` per chunk of ``chunk`` vectors, each
     chunk's sums then added to ``gen``: the reference's order, so the same doubles.
-    Reference: ``sphere._bin_generators``. Raises ValueError on a non-finite vector
-    (where ``np.bincount`` would refuse its index).
+    Reference: ``sphere._bin_sums``. Raises ValueError on a non-finite vector (where
+    ``np.bincount`` refuses its index).
     """
-    cdef Py_ssize_t nk = b.shape[1], nb = <Py_ssize_t>res * res
-    cdef Py_ssize_t k, z, z1, idx, m
-    cdef double h = res / 2.0, h_in = res / 2.0 * (1.0 - 1e-9), top = res
-    cdef double bx, by, bz, sg, fx, fy, fz, den, fi, fj
-    cdef bint bad = False
-    cdef double *acc = <double *> calloc(nb * 3, sizeof(double))
+    cdef Py_ssize_t nk = b.shape[1], nb = <Py_ssize_t> res * res
+    cdef int err
+    if b.shape[0] != 3 or index.shape[0] != nk or gen.shape[0] != nb or gen.shape[1] != 3:
+        raise ValueError("bin_vectors: b (3, K), index (K,), gen (res², 3)")
+    if res < 1 or chunk < 1:
+        raise ValueError("bin_vectors: res and chunk must be positive")
+    if nk == 0:
+        return
+    cdef double *acc = <double *> malloc(nb * 3 * sizeof(double))
     if acc == NULL:
         raise MemoryError()
     with nogil:
-        z = 0
-        while z < nk and not bad:
-            z1 = min(nk, z + chunk)
-            memset(acc, 0, nb * 3 * sizeof(double))
-            for k in range(z, z1):
-                bx = b[0, k]
-                by = b[1, k]
-                bz = b[2, k]
-                sg = copysign(1.0, by)
-                fx = bx * sg
-                fy = fabs(by)
-                fz = bz * sg
-                den = fabs(fx) + fy
-                den = den + fabs(fz)
-                den = den + 1e-300
-                den = h_in / den
-                fi = (fx + fz) * den + h
-                fj = (fz - fx) * den + h
-                if not (fi >= 0.0 and fi < top and fj >= 0.0 and fj < top):
-                    bad = True
-                    break
-                idx = (<Py_ssize_t> fi) * res + (<Py_ssize_t> fj)
-                index[k] = <int32_t> idx
-                acc[3 * idx] += fx
-                acc[3 * idx + 1] += fy
-                acc[3 * idx + 2] += fz
-            if not bad:
-                for m in range(nb):
-                    gen[m, 0] += acc[3 * m]
-                    gen[m, 1] += acc[3 * m + 1]
-                    gen[m, 2] += acc[3 * m + 2]
-            z = z1
+        err = pma_bin_vectors(&b[0, 0], &b[1, 0], &b[2, 0], nk, res, chunk, &index[0],
+                              &gen[0, 0], acc)
     free(acc)
-    if bad:
+    if err:
         raise ValueError("a vector to bin is not finite")
 
 
@@ -147,11 +97,14 @@ def near_members(
 ):
     """Write the positions k (increasing) with ``near_bin[index[k]]`` set to ``out`` and
     return how many: ``np.flatnonzero(np.take(near_bin, index))`` in one pass
-    (``index`` entries lie in 0..len(near_bin)-1, as :func:`bin_vectors` writes them).
+    (``index`` entries lie in 0..len(near_bin)-1, as :func:`bin_vectors` writes them;
+    ``near_bin`` holds 0 or 1).
     """
-    cdef Py_ssize_t k, n = 0, nk = index.shape[0]
+    cdef Py_ssize_t n, nk = index.shape[0]
+    if out.shape[0] < nk:
+        raise ValueError("near_members: out is shorter than index")
+    if nk == 0:
+        return 0
     with nogil:
-        for k in range(nk):
-            out[n] = k
-            n += near_bin[index[k]]
+        n = pma_near_members(&index[0], nk, &near_bin[0], &out[0])
     return n
