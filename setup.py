@@ -1,36 +1,46 @@
 """The compiled part of the package: the view search's whole-array passes (Cython + C).
 
-Everything else is configured in pyproject.toml. The kernel is optional: where it cannot
-be built (no C compiler, no Python headers) the install still succeeds with a warning and
-the NumPy reference runs instead (:mod:`snapcore.select.kernels` chooses; the Makefile
-installs gcc first, and ``tests/test_view_kernel.py`` fails where gcc is but the kernel
-is not). ``-ffp-contract=off``: no fused multiply-adds, so the kernel's doubles are
-NumPy's; ``-fno-math-errno``: ``sqrt`` as one (vectorisable) instruction, the same
-correctly rounded result.
+Everything else is configured in pyproject.toml. The kernel is optional: on a machine
+without a C compiler or Python's headers it is left out (with a message) and the NumPy
+reference runs instead (:mod:`snapcore.select.kernels` chooses). The Makefile installs
+gcc first, and ``tests/test_view_kernel.py`` fails where gcc is but the kernel is not.
+A compile that fails with a compiler present fails the install: that is a bug to see.
+
+``-ffp-contract=off``: no fused multiply-adds, so the kernel's doubles are NumPy's;
+``-fno-math-errno``: ``sqrt`` as one (vectorisable) instruction, the same correctly
+rounded result.
 """
 
-from Cython.Build import cythonize
+import os
+import shlex
+import shutil
+import sys
+import sysconfig
+from pathlib import Path
+
 from setuptools import Extension, setup
-from setuptools.command.build_ext import build_ext
 
 
-class OptionalBuildExt(build_ext):
-    """Build each extension if the compiler works, else warn and go on.
+def _can_compile() -> bool:
+    """A C compiler (``$CC``, else the one Python was built with) and ``Python.h``."""
+    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    found = shutil.which(shlex.split(cc)[0]) is not None
+    headers = (Path(sysconfig.get_path("include")) / "Python.h").is_file()
+    if not (found and headers):
+        missing = "a C compiler" if not found else "Python's headers (Python.h)"
+        print(
+            f"setup.py: no {missing}: the view kernel is not built, NumPy runs instead",
+            file=sys.stderr,
+        )
+    return found and headers
 
-    setuptools' own ``optional=True`` is dropped by ``cythonize`` and does not cover a
-    missing compiler executable (an OSError), so the failure is caught here.
-    """
 
-    def build_extension(self, ext):
-        try:
-            super().build_extension(ext)
-        except Exception as exc:  # noqa: BLE001 - any build failure leaves the NumPy path
-            self.warn(f"{ext.name} was not built ({exc}): the NumPy path will run instead")
+def _extensions() -> list:
+    if not _can_compile():
+        return []
+    from Cython.Build import cythonize
 
-
-setup(
-    cmdclass={"build_ext": OptionalBuildExt},
-    ext_modules=cythonize(
+    return cythonize(
         [
             Extension(
                 "snapcore.select._pma_kernel",
@@ -41,5 +51,7 @@ setup(
             )
         ],
         quiet=True,
-    ),
-)
+    )
+
+
+setup(ext_modules=_extensions())
