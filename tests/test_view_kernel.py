@@ -160,16 +160,19 @@ def test_bins_refuse_a_non_finite_vector(monkeypatch):
     _both(monkeypatch, run)
 
 
-def test_near_members_are_the_numpy_selection():
+def test_near_columns_are_the_numpy_selection():
     if not kernels.compiled():
         pytest.skip("the compiled kernel is not built")
     rng = np.random.default_rng(6)
     index = rng.integers(0, 2304, 50_000).astype(np.int32)
+    b = _random_vectors(rng, 50_000)
+    bn = np.linalg.norm(b, axis=0)
     near = rng.random(2304) < 0.1
-    got = kernels.near_members(index, near)
-    want = np.flatnonzero(np.take(near, index))
-    assert got.dtype == want.dtype and np.array_equal(got, want)
-    assert kernels.near_members(index, np.zeros(2304, bool)).size == 0
+    bc, bcn = kernels.near_columns(index, near, b, bn)
+    sel = np.flatnonzero(np.take(near, index))
+    assert _same_bits(bc, np.take(b, sel, axis=1)) and _same_bits(bcn, np.take(bn, sel))
+    bc, bcn = kernels.near_columns(index, np.zeros(2304, bool), b, bn)
+    assert bc.shape == (3, 0) and bcn.shape == (0,)
 
 
 def _selection(sel):

@@ -148,16 +148,35 @@ PMA_CLONES static int pma_bin_vectors(const double *restrict bx, const double *r
     return 0;
 }
 
-/* Positions k (increasing) whose bin is flagged in near_bin (0/1): how many written. */
-static ptrdiff_t pma_near_members(const int32_t *index, ptrdiff_t nk,
-                                  const unsigned char *near_bin, ptrdiff_t *out)
+/* Members of the flagged bins (near_bin[index[k]] is 1, else 0): how many. */
+static ptrdiff_t pma_count_near(const int32_t *restrict index, ptrdiff_t nk,
+                                const unsigned char *restrict near_bin)
+{
+    ptrdiff_t n = 0;
+    for (ptrdiff_t k = 0; k < nk; k++)
+        n += near_bin[index[k]];
+    return n;
+}
+
+/* Their columns of b (rows b0, b1, b2) and norms bn, in increasing k, to o0, o1, o2, on
+ * (as many as pma_count_near counts). */
+static void pma_gather_near(const int32_t *restrict index, ptrdiff_t nk,
+                            const unsigned char *restrict near_bin,
+                            const double *restrict b0, const double *restrict b1,
+                            const double *restrict b2, const double *restrict bn,
+                            double *restrict o0, double *restrict o1, double *restrict o2,
+                            double *restrict on)
 {
     ptrdiff_t n = 0;
     for (ptrdiff_t k = 0; k < nk; k++) {
-        out[n] = k;
-        n += near_bin[index[k]];
+        if (near_bin[index[k]]) {
+            o0[n] = b0[k];
+            o1[n] = b1[k];
+            o2[n] = b2[k];
+            on[n] = bn[k];
+            n++;
+        }
     }
-    return n;
 }
 
 #endif

@@ -14,4 +14,12 @@ def swept_block(
 def bin_vectors(
     b: np.ndarray, res: int, chunk: int, index: np.ndarray, gen: np.ndarray
 ) -> None: ...
-def near_members(index: np.ndarray, near_bin: np.ndarray, out: np.ndarray) -> int: ...
+def count_near(index: np.ndarray, near_bin: np.ndarray) -> int: ...
+def gather_near(
+    index: np.ndarray,
+    near_bin: np.ndarray,
+    b: np.ndarray,
+    bn: np.ndarray,
+    bc: np.ndarray,
+    bcn: np.ndarray,
+) -> None: ...

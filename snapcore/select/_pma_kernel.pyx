@@ -23,8 +23,11 @@ cdef extern from "_pma_core.h" nogil:
     int pma_bin_vectors(const double *bx, const double *by, const double *bz,
                         Py_ssize_t nk, int res, Py_ssize_t chunk, int32_t *index,
                         double *gen, double *acc)
-    Py_ssize_t pma_near_members(const int32_t *index, Py_ssize_t nk,
-                                const unsigned char *near_bin, Py_ssize_t *out)
+    Py_ssize_t pma_count_near(const int32_t *index, Py_ssize_t nk,
+                              const unsigned char *near_bin)
+    void pma_gather_near(const int32_t *index, Py_ssize_t nk, const unsigned char *near_bin,
+                         const double *b0, const double *b1, const double *b2,
+                         const double *bn, double *o0, double *o1, double *o2, double *on)
 
 
 def swept_block(
@@ -90,21 +93,36 @@ def bin_vectors(
         raise ValueError("a vector to bin is not finite")
 
 
-def near_members(
-    const int32_t[::1] index,
-    const unsigned char[::1] near_bin,
-    Py_ssize_t[::1] out,
-):
-    """Write the positions k (increasing) with ``near_bin[index[k]]`` set to ``out`` and
-    return how many: ``np.flatnonzero(np.take(near_bin, index))`` in one pass
-    (``index`` entries lie in 0..len(near_bin)-1, as :func:`bin_vectors` writes them;
-    ``near_bin`` holds 0 or 1).
-    """
+def count_near(const int32_t[::1] index, const unsigned char[::1] near_bin):
+    """How many vectors lie in the flagged bins: ``near_bin[index[k]]`` (0 or 1) summed
+    (``index`` entries lie in 0..len(near_bin)-1, as :func:`bin_vectors` writes them)."""
     cdef Py_ssize_t n, nk = index.shape[0]
-    if out.shape[0] < nk:
-        raise ValueError("near_members: out is shorter than index")
     if nk == 0:
         return 0
     with nogil:
-        n = pma_near_members(&index[0], nk, &near_bin[0], &out[0])
+        n = pma_count_near(&index[0], nk, &near_bin[0])
     return n
+
+
+def gather_near(
+    const int32_t[::1] index,
+    const unsigned char[::1] near_bin,
+    const double[:, ::1] b,
+    const double[::1] bn,
+    double[:, ::1] bc,
+    double[::1] bcn,
+):
+    """The columns of ``b`` (3, K) and entries of ``bn`` (K,) whose bin is flagged, in
+    order, to ``bc`` (3, n) and ``bcn`` (n,), n from :func:`count_near`: what
+    ``np.take(b, np.flatnonzero(np.take(near_bin, index)), axis=1)`` gives, in one pass.
+    """
+    cdef Py_ssize_t nk = index.shape[0], n = bc.shape[1]
+    if b.shape[0] != 3 or b.shape[1] != nk or bn.shape[0] != nk or bc.shape[0] != 3:
+        raise ValueError("gather_near: index (K,), b (3, K), bn (K,), bc (3, n)")
+    if bcn.shape[0] != n or count_near(index, near_bin) != n:
+        raise ValueError("gather_near: the outputs do not hold the near vectors")
+    if n == 0:
+        return
+    with nogil:
+        pma_gather_near(&index[0], nk, &near_bin[0], &b[0, 0], &b[1, 0], &b[2, 0], &bn[0],
+                        &bc[0, 0], &bc[1, 0], &bc[2, 0], &bcn[0])

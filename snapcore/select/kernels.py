@@ -4,7 +4,7 @@
 ``setup.py``) fuses the whole-array passes of :func:`snapcore.select.view.select_view`
 over its ~500k swept triangles: the triangles' vectors, norms and quad areas in one pass
 instead of ~25 NumPy passes, the octahedral bin index and per-bin sums in one instead of
-~20, the members of the bins near a view in one instead of three (docs/speed.md § "Fourth
+~20, the vectors of the bins near a view in two instead of four (docs/speed.md § "Fourth
 pass: a compiled kernel"). Each kernel repeats its NumPy reference's operations in the
 same order, so the results are the same doubles.
 
@@ -20,7 +20,7 @@ from types import ModuleType
 
 import numpy as np
 
-__all__ = ["compiled", "swept_block", "bin_vectors", "near_members"]
+__all__ = ["compiled", "swept_block", "bin_vectors", "near_columns"]
 
 
 @functools.cache
@@ -96,8 +96,10 @@ def bin_vectors(b: np.ndarray, res: int, chunk: int, index: np.ndarray, gen: np.
     )
 
 
-def near_members(index: np.ndarray, near_bin: np.ndarray) -> np.ndarray:
-    """``np.flatnonzero(np.take(near_bin, index))`` in one pass.
+def near_columns(
+    index: np.ndarray, near_bin: np.ndarray, b: np.ndarray, bn: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The vectors of the flagged bins, in order: a count and one gathering pass.
 
     Parameters
     ----------
@@ -105,13 +107,27 @@ def near_members(index: np.ndarray, near_bin: np.ndarray) -> np.ndarray:
         Each vector's bin (as :func:`bin_vectors` writes it).
     near_bin : ndarray of bool, shape (B,)
         The bins whose members are wanted.
+    b : ndarray of shape (3, K)
+    bn : ndarray of shape (K,)
 
     Returns
     -------
-    ndarray of intp
-        The members' positions, increasing.
+    bc : ndarray of shape (3, n)
+    bcn : ndarray of shape (n,)
+        ``np.take(b, sel, axis=1)`` and ``np.take(bn, sel)`` with
+        ``sel = np.flatnonzero(np.take(near_bin, index))``.
     """
-    out = np.empty(index.shape[0], dtype=np.intp)
+    mod = _kernel()
+    idx = np.ascontiguousarray(index, dtype=np.int32)
     flags = np.ascontiguousarray(near_bin, dtype=bool).view(np.uint8)
-    n = _kernel().near_members(np.ascontiguousarray(index, dtype=np.int32), flags, out)
-    return out[:n]
+    n = mod.count_near(idx, flags)
+    bc, bcn = np.empty((3, n)), np.empty(n)
+    mod.gather_near(
+        idx,
+        flags,
+        np.ascontiguousarray(b, np.float64),
+        np.ascontiguousarray(bn, np.float64),
+        bc,
+        bcn,
+    )
+    return bc, bcn

@@ -268,11 +268,11 @@ class LocalScores:
         c = bins.centres @ v0
         alpha = np.arcsin(np.minimum(np.abs(c), 1.0))
         far = alpha >= math.asin(sin_t) + bins.radius
-        if kernels.compiled():  # one pass instead of a gather, a negation and a scan
-            sel = kernels.near_members(bins.index, ~far)
+        if kernels.compiled():  # a count and a gather instead of four passes
+            self.bc, self.bcn = kernels.near_columns(bins.index, ~far, b, bn)
         else:
             sel = np.flatnonzero(np.take(~far, bins.index))
-        self.bc, self.bcn = np.take(b, sel, axis=1), np.take(bn, sel)
+            self.bc, self.bcn = np.take(b, sel, axis=1), np.take(bn, sel)
         self.g_out = np.sign(c[far]) @ bins.gen[far]
         self.score0 = float(self.g_out @ v0 + np.abs(v0 @ self.bc).sum())
 
