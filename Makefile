@@ -116,4 +116,4 @@ check: install
 	$(VENV)/bin/mypy
 
 clean:
-	rm -rf $(VENV) var/ .pytest_cache
+	rm -rf $(VENV) var/ .pytest_cache build/ $(patsubst %.pyx,%.c,$(wildcard snapcore/*/*.pyx)) $(wildcard snapcore/*/*.so)
