@@ -205,7 +205,8 @@ def test_the_fallback_runs_numpy_when_the_extension_is_hidden(monkeypatch, numpy
     calls.clear()
     monkeypatch.delitem(sys.modules, "snapcore.select._pma_kernel")
     kernels._module.cache_clear()
-    if kernels.compiled():
+    if shutil.which("gcc") is not None:  # built there: the kernel is back, NumPy not called
+        assert kernels.compiled()
         select_view(scene)
         assert calls == []
 
