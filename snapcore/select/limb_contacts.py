@@ -26,6 +26,8 @@ __all__ = [
     "contactor_joints",
     "debounced_contacts",
     "contacts_from_tracks",
+    "limb_scores",
+    "debounce_scores",
 ]
 
 #: Roles (from :func:`snapcore.motion.anatomy.joint_roles`) that make up a leg and an arm.
@@ -79,14 +81,14 @@ def limb_groups(character) -> tuple[list[str], list[np.ndarray]]:
         unsided joint of an arm or leg role (rare naming) goes to the trunk.
     """
     sk = character.skeleton
-    names, joints = _limb_groups_of(sk.roles, sk.sides)
+    names, joints, _ = _contactors_of(sk.roles, sk.sides)
     return list(names), [j.copy() for j in joints]
 
 
 @lru_cache(maxsize=64)
-def _limb_groups_of(roles: tuple, sides: tuple) -> tuple[tuple[str, ...], tuple[np.ndarray, ...]]:
-    """:func:`limb_groups` of a skeleton's roles and sides, once per skeleton (a loop
-    over its joints; the result is read-only)."""
+def _contactors_of(roles: tuple, sides: tuple) -> tuple[tuple, tuple, np.ndarray]:
+    """:func:`limb_groups` of a skeleton's roles and sides and their joints sorted, once
+    per skeleton (a loop over its joints; the arrays are read-only)."""
     groups: dict[str, list[int]] = {}
     for j, (role, side) in enumerate(zip(roles, sides)):
         if role not in _CONTACT_ROLES:
@@ -101,9 +103,10 @@ def _limb_groups_of(roles: tuple, sides: tuple) -> tuple[tuple[str, ...], tuple[
     order = ["legL", "legR", "armL", "armR", "trunk"]
     names = tuple(n for n in order if n in groups)
     joints = tuple(np.asarray(groups[n], dtype=np.int64) for n in names)
-    for js in joints:
+    used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)
+    for js in (*joints, used):
         js.flags.writeable = False
-    return names, joints
+    return names, joints, used
 
 
 def debounced_contacts(
@@ -135,7 +138,7 @@ def debounced_contacts(
     """
     names, joints, used = contactor_joints(character, params)
     if used.size == 0 or character.n_frames < 2:
-        return LimbContacts(names, joints, np.zeros((len(names), character.n_frames), dtype=bool))
+        return _contacts(names, joints, np.zeros((len(names), character.n_frames), dtype=bool))
     tracks = JointTracks.of(character, used, fps=fps, smooth_s=params.smooth_s)
     return contacts_from_tracks(tracks, character, ground=ground, fps=fps, params=params)
 
@@ -145,8 +148,10 @@ def contacts_from_tracks(
 ) -> LimbContacts:
     """:func:`debounced_contacts` from the character's :class:`JointTracks`.
 
-    For the story (:func:`snapcore.select.story.story_information`), which gathers the
-    key joints' and the contactors' tracks once for all its terms.
+    :func:`debounce_scores` of :func:`limb_scores`. For a caller that has the tracks
+    already: the story (:func:`snapcore.select.story.story_information`) gathers the
+    key joints' and the contactors' tracks once for all its terms (and debounces its
+    characters' scores in one call).
 
     Parameters
     ----------
@@ -158,39 +163,71 @@ def contacts_from_tracks(
     fps : float
     params : StoryParams
     """
+    names, joints, _ = contactor_joints(character, params)
+    if not joints or character.n_frames < 2:
+        return _contacts(names, joints, np.zeros((len(names), character.n_frames), dtype=bool))
+    scores = limb_scores(tracks, character, ground=ground, fps=fps, params=params)
+    return _contacts(names, joints, debounce_scores(scores, fps=fps, params=params))
+
+
+def _contacts(names: list, joints: list, state: np.ndarray) -> LimbContacts:
+    """``LimbContacts`` with the caller's own (writeable) copies of the cached joints."""
+    return LimbContacts(names, [j.copy() for j in joints], state)
+
+
+def limb_scores(
+    tracks: JointTracks, character, *, ground: float, fps: float, params: StoryParams
+) -> np.ndarray:
+    """Each contactor's weight-bearing score per frame, shape (L, F).
+
+    ``min_j max(h_j / h_on, v_j / v_on)`` over the contactor's joints (see
+    :func:`debounced_contacts`): at most 1 where it can bear weight. ``tracks`` as for
+    :func:`contacts_from_tracks`; at least one contactor.
+    """
     p = params
     scale = stature_of(character) / REFERENCE_STATURE_M
-    names, joints, used = contactor_joints(character, p)
-    n_f = character.n_frames
-    if used.size == 0 or n_f < 2:
-        return LimbContacts(names, joints, np.zeros((len(names), n_f), dtype=bool))
+    _, joints, _ = contactor_joints(character, p)
     v = tracks.speed * (fps / (scale * p.support_speed))
     h = tracks.height - ground
     h /= scale * p.support_height
-    score = np.maximum(h, v, out=h)  # (F, A)
-    col = tracks.columns(np.concatenate(joints))  # the limbs' columns, limb after limb
-    ends = np.cumsum([j.size for j in joints]).tolist()
-    limb_score = np.stack(
-        [score[:, col[e - j.size : e]].min(axis=1) for j, e in zip(joints, ends)], axis=1
-    )  # (F, L)
+    score = np.maximum(h, v, out=h)  # (A, F)
+    # the limbs' rows, limb after limb; each limb's minimum over its rows in one call
+    rows = score.take(tracks.columns(np.concatenate(joints)), axis=0)
+    starts = np.cumsum([0] + [j.size for j in joints[:-1]])
+    return np.minimum.reduceat(rows, starts, axis=0)
+
+
+def debounce_scores(scores: np.ndarray, *, fps: float, params: StoryParams) -> np.ndarray:
+    """Contact states from :func:`limb_scores`, shape (L, F) of bool, each row on its own.
+
+    :func:`~snapcore.select.signals.hysteresis` along the frames (on at 1, off above
+    ``min(h_off / h_on, v_off / v_on)``), then
+    :func:`~snapcore.select.signals.enforce_min_durations` (with ``params.debounce``).
+    Rows are independent: several characters' scores stacked give their states stacked.
+    """
+    p = params
     off = min(p.release_height / p.support_height, p.release_speed / p.support_speed)
     if not p.debounce:
         off = 1.0
-    on = hysteresis(limb_score, 1.0, off).T
+    on = hysteresis(scores.T, 1.0, off).T
     if p.debounce:
         m_on = max(1, int(round(p.min_contact_s * fps)))
         m_off = max(1, int(round(p.min_gap_s * fps)))
         on = enforce_min_durations(on, m_on, m_off)
-    return LimbContacts(names, joints, np.ascontiguousarray(on))
+    return np.ascontiguousarray(on)
 
 
 def contactor_joints(character, params: StoryParams) -> tuple[list, list, np.ndarray]:
     """The contactors' names and joints (:func:`limb_groups`, or every joint on its own
-    when ``params.per_limb`` is off), and all their joints sorted, shape (U,)."""
+    when ``params.per_limb`` is off), and all their joints sorted, shape (U,).
+
+    The arrays are read-only (computed once per skeleton).
+    """
     if params.per_limb:
-        names, joints = limb_groups(character)
-    else:
-        names = list(character.joint_names)
-        joints = [np.array([j]) for j in range(character.n_joints)]
+        sk = character.skeleton
+        names, joints, used = _contactors_of(sk.roles, sk.sides)
+        return list(names), list(joints), used
+    names = list(character.joint_names)
+    joints = [np.array([j]) for j in range(character.n_joints)]
     used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)
     return names, joints, used

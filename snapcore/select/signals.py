@@ -213,15 +213,19 @@ def hysteresis(score: np.ndarray, on: float, off: float) -> np.ndarray:
     Notes
     -----
     Vectorised: the state at frame i is the one set by the last frame ``<= i`` where
-    the score was outside the band, found with a running maximum of indices.
+    the score was outside the band, found with a running maximum of indices. The
+    state set there rides in the index's lowest bit (``2 i + 2 + [score <= on]``, 0
+    where undecided), so the running maximum carries it: no gather afterwards.
     """
     s = np.asarray(score, dtype=float)
     n = s.shape[0]
-    decided = (s <= on) | (s > off)
-    idx = np.where(decided, np.arange(n).reshape((n,) + (1,) * (s.ndim - 1)), -1)
-    last = np.maximum.accumulate(idx, axis=0)
-    val = np.take_along_axis(s <= on, np.maximum(last, 0), axis=0)
-    return val & (last >= 0)
+    low = s <= on
+    decided = low | (s > off)
+    key = np.arange(2, 2 * n + 2, 2).reshape((n,) + (1,) * (s.ndim - 1)) + low
+    key *= decided
+    last = np.maximum.accumulate(key, axis=0)
+    last &= 1
+    return last.astype(bool)
 
 
 def true_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -30,6 +30,8 @@ __all__ = [
     "pose_descriptor",
     "stance_departure",
     "trunk_departure",
+    "descriptor_rows",
+    "trunk_departure_rows",
 ]
 
 #: Key joints of the pose descriptor where landmarks are missing: (role, side), the
@@ -144,7 +146,7 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     step = max(1, character.n_frames // _MEASURE_FRAMES)
     x = np.take(character.positions[::step], idx, axis=1)  # one block per frame, not 8
     y = x[..., 1]
-    ankle_h = float(np.percentile(y[:, 4:6] - ground, 5))
+    ankle_h = _percentile(y[:, 4:6] - ground, 5)
     ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
     # four nearly rigid body measurements, their medians in one call (one call each
     # took 0.1 of this function's 0.16 ms; the same values): hip to hip and shoulder to
@@ -152,11 +154,13 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     # part barely changes with the pelvis's tilt), the shoulder joints above the joint
     # both arms hang from (the chest)
     rigid = np.empty((4, x.shape[0]))
-    rigid[0] = np.linalg.norm(x[:, 0] - x[:, 1], axis=1)
-    rigid[1] = np.linalg.norm(x[:, 2] - x[:, 3], axis=1)
+    # norms as ``np.linalg.norm(d, axis=1)`` computes them (square, sum the row, root)
+    d = x[:, [0, 2]] - x[:, [1, 3]]  # (F', 2, 3): hip to hip, shoulder to shoulder
+    d *= d
+    np.sqrt(d.sum(axis=2).T, out=rigid[:2])
     rigid[2] = y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])
     rigid[3] = 0.5 * (y[:, 2] + y[:, 3]) - y[:, 7]
-    hip_d, sh_d, drop, rise = np.median(rigid, axis=1).tolist()
+    hip_d, sh_d, drop, rise = _row_medians(rigid)
     hip_w, sh_w = hip_d / 2, sh_d / 2
     pelvis_h = ankle_h + leg + drop
     head_h = pelvis_h + spine
@@ -176,6 +180,44 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
         ]
     )
     return out if np.isfinite(out).all() else None
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    """``float(np.percentile(values, q))`` (the default, linear method), the same double.
+
+    NumPy's own arithmetic written out for one quantile of a small array (its
+    ``percentile`` spent ~40 us in argument handling around a partition of 500 values):
+    the virtual index ``(n - 1) q / 100``, a partition at its two neighbours, and
+    ``_lerp``'s two-sided interpolation. NaN anywhere: NumPy's answer.
+    """
+    v = np.ravel(values)
+    n = v.size
+    if n == 0 or np.isnan(v).any():
+        return float(np.percentile(values, q))
+    vi = (n - 1) * (q / 100)
+    lo = math.floor(vi)
+    hi = min(lo + 1, n - 1)
+    part = np.partition(v, (lo, hi) if hi > lo else lo)
+    a, b = float(part[lo]), float(part[hi])
+    g = vi - lo
+    diff = b - a
+    return b - diff * (1 - g) if g >= 0.5 else a + diff * g
+
+
+def _row_medians(values: np.ndarray) -> list[float]:
+    """``np.median(values, axis=1).tolist()`` for a small (R, N) array, the same doubles:
+    a partition at the middle (two middles for even N, their mean ``(a + b) / 2``) per
+    row, without ``median``'s argument handling. NaN anywhere: NumPy's answer."""
+    n = values.shape[1]
+    if n == 0 or np.isnan(values).any():
+        return np.median(values, axis=1).tolist()
+    h = n // 2
+    if n % 2:
+        return np.partition(values, h, axis=1)[:, h].tolist()
+    part = np.partition(values, (h - 1, h), axis=1)
+    mid = part[:, h - 1] + part[:, h]
+    mid /= 2
+    return mid.tolist()
 
 
 @lru_cache(maxsize=64)
@@ -270,11 +312,39 @@ def descriptor_of(
         for ablation).
     """
     x = np.asarray(points, dtype=float)
-    n_f, k = x.shape[:2]
     # (3, K, F): a contiguous row of frames per axis and joint, so that the pairs are
     # gathered as whole rows (gathering them across the last axis of (3, F, K) took
     # three times as long); the values are the same, element by element
-    xt = np.ascontiguousarray(x.transpose(2, 1, 0))
+    out = descriptor_rows(
+        np.ascontiguousarray(x.transpose(2, 1, 0)),
+        ground=ground,
+        stature=stature,
+        horizontal=horizontal,
+    )
+    return np.ascontiguousarray(out.T)
+
+
+def descriptor_rows(
+    rows: np.ndarray, *, ground: float, stature: float, horizontal: bool = True
+) -> np.ndarray:
+    """:func:`descriptor_of` of key-joint rows, feature-major: shape (D, F).
+
+    Parameters
+    ----------
+    rows : ndarray of shape (3, K, F)
+        Key-joint positions (m, Y up) component-major, each (component, joint) a
+        contiguous row of frames (:class:`snapcore.select.tracks.JointTracks` rows).
+    ground, stature, horizontal
+        As for :func:`descriptor_of`.
+
+    Returns
+    -------
+    ndarray of shape (D, F)
+        ``descriptor_of(points).T`` (the same values), a contiguous row per feature:
+        the story's novelty and stance terms work on these rows directly.
+    """
+    xt = np.asarray(rows, dtype=float)
+    k, n_f = xt.shape[1:]
     a, b = _pairs(k)
     d = np.take(xt, a, axis=1)
     d -= np.take(xt, b, axis=1)  # (3, P, F)
@@ -289,8 +359,7 @@ def descriptor_of(
     if horizontal:
         np.sqrt(flat, out=out[k + n_p :])
     out /= stature
-    # back to one row per frame, C order: pose_surprisal's sums run in the same order
-    return np.ascontiguousarray(out.T)
+    return out
 
 
 @lru_cache(maxsize=8)
@@ -455,19 +524,49 @@ def trunk_departure(
     clasped in front).
     """
     x = np.asarray(points, dtype=float)
+    # components first, a contiguous row of frames per joint: the arithmetic is on rows
+    rows = np.ascontiguousarray(x.transpose(2, 1, 0))
+    return trunk_departure_rows(rows, neutral, stature=stature, spread=spread)
+
+
+def trunk_departure_rows(
+    rows: np.ndarray, neutral: np.ndarray, *, stature: float, spread: float
+) -> np.ndarray:
+    """:func:`trunk_departure` of key-joint rows (3, K, F) (see
+    :func:`descriptor_rows`), shape (F,): the same values, element by element."""
+    xs, ys, zs = np.asarray(rows, dtype=float)
     n = np.asarray(neutral, dtype=float)
-    # components first, each (F, K) contiguous: the arithmetic below is on 1-D rows
-    xs, ys, zs = np.ascontiguousarray(np.moveaxis(x, -1, 0))
-    off = n[0] - n[1]
-    dx = xs[:, 0] - xs[:, 1] - off[0]
-    dy = ys[:, 0] - ys[:, 1] - off[1]
-    dz = zs[:, 0] - zs[:, 1] - off[2]
-    head = dx * dx + dy * dy + dz * dz
+    off = (n[0] - n[1]).tolist()
+    dx = xs[0] - xs[1]
+    dx -= off[0]
+    dy = ys[0] - ys[1]
+    dy -= off[1]
+    dz = zs[0] - zs[1]
+    dz -= off[2]
+    dx *= dx
+    dy *= dy
+    dx += dy
+    dz *= dz
+    head = dx
+    head += dz
     # the legs: each ankle's vertical and horizontal distance from the pelvis
-    legs = np.zeros(x.shape[0])
+    legs = None
     for a in (4, 5):
-        nv = n[a] - n[1]
-        dv = ys[:, a] - ys[:, 1] - nv[1]
-        dh = np.hypot(xs[:, a] - xs[:, 1], zs[:, a] - zs[:, 1]) - math.hypot(nv[0], nv[2])
-        legs += 0.5 * (dv * dv + dh * dh)
-    return 0.5 * head / (spread**2 * stature**2 + legs) / math.log(2.0)
+        nv = (n[a] - n[1]).tolist()
+        dv = ys[a] - ys[1]
+        dv -= nv[1]
+        dh = np.hypot(xs[a] - xs[1], zs[a] - zs[1])
+        dh -= math.hypot(nv[0], nv[2])
+        dv *= dv
+        dh *= dh
+        dv += dh
+        dv *= 0.5
+        if legs is None:
+            legs = dv
+        else:
+            legs += dv
+    legs += spread**2 * stature**2
+    head *= 0.5
+    head /= legs
+    head /= math.log(2.0)
+    return head

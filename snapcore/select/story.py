@@ -103,20 +103,23 @@ from snapcore.select.contact_events import (
 from snapcore.select.limb_contacts import (
     LimbContacts,
     contactor_joints,
-    contacts_from_tracks,
+    debounce_scores,
     debounced_contacts,
     limb_groups,
+    limb_scores,
 )
 from snapcore.select.novelty import pose_surprisal, tail_surprisal
 from snapcore.select.signals import enforce_min_durations, half_gaussian, hysteresis, minmax
 from snapcore.select.stance import (
     descriptor_of,
+    descriptor_rows,
     key_joints,
     key_positions,
     neutral_stance,
     pose_descriptor,
     stance_departure,
     trunk_departure,
+    trunk_departure_rows,
 )
 from snapcore.select.story_params import (
     COMBINE_MODES,
@@ -125,7 +128,7 @@ from snapcore.select.story_params import (
     ZERO_BITS,
     StoryParams,
 )
-from snapcore.select.strikes import strike_surprisal, strike_surprisal_of
+from snapcore.select.strikes import strike_surprisal_of
 from snapcore.select.tracks import JointTracks
 
 __all__ = [
@@ -232,27 +235,34 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
     novelty_bits = np.zeros(n_f)
     event_bits = np.zeros(n_f)
     strike_bits = np.zeros(n_f)
-    onset_marks, release_marks = np.zeros(n_f), np.zeros(n_f)
-    contacts = []
+    pose_on = p.w_pose > 0 and (p.novelty or p.stance or p.trunk)
+    strikes_on = p.w_event > 0 and p.strikes and p.event_model == "surprisal"
+    # per character: contactors (names, joints) and weight-bearing scores (L, F) or None
+    contactors, scores = [], []
     t_pose = t_event = 0.0
     for c in scene.characters:
         ta = time.perf_counter()
-        pose_on = p.w_pose > 0 and (p.novelty or p.stance or p.trunk)
-        strikes_on = p.w_event > 0 and p.strikes and p.event_model == "surprisal"
-        tracks = None
-        if (pose_on or strikes_on) and c.n_frames >= 3:
-            # one gather of the key joints and the contacts' joints (sorted), their
-            # heights and speeds once for the contacts and the strikes: each step
-            # gathering its own joints read the (F, J, 3) positions twice per character
-            kj = key_joints(c)
-            have = np.union1d(kj, contactor_joints(c, p)[2])
-            tracks = JointTracks.of(c, have, fps=fps, smooth_s=p.smooth_s)
-            x = np.take(tracks.positions, tracks.columns(kj), axis=1)  # key_positions
-        elif pose_on or strikes_on:
+        names, joints, used = contactor_joints(c, p)
+        stature = stature_of(c)
+        tracks = rows = kj = None
+        if c.n_frames >= 2 and (pose_on or strikes_on or used.size):
+            # one gather of the key joints and the contacts' joints, component-major,
+            # their speeds once, for every term: each step gathering its own joints
+            # read the (F, J, 3) positions again
+            kj = key_joints(c) if pose_on or strikes_on else np.zeros(0, dtype=np.int64)
+            tracks = JointTracks.of(c, np.union1d(kj, used), fps=fps, smooth_s=p.smooth_s)
+            rows = tracks.rows.take(tracks.columns(kj), axis=1)  # (3, K, F)
+        elif pose_on:
             x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
-        if pose_on:
-            feats = descriptor_of(
-                x, ground=scene.ground, stature=stature_of(c), horizontal=p.horizontal
+            rows = np.ascontiguousarray(x.transpose(2, 1, 0))
+        if pose_on and rows is not None:
+            # one row per frame, C order, as descriptor_of returns it: the novelty's
+            # tail surprisal ranks frames, and frames whose surprisal ties up to
+            # rounding would trade places if its sums ran in another order
+            feats = np.ascontiguousarray(
+                descriptor_rows(
+                    rows, ground=scene.ground, stature=stature, horizontal=p.horizontal
+                ).T
             )
             if p.novelty:
                 novelty_bits += tail_surprisal(
@@ -269,46 +279,44 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             elif neutral is not None:
                 if p.stance:
                     nd = descriptor_of(
-                        neutral[None], ground=0.0, stature=stature_of(c), horizontal=p.horizontal
+                        neutral[None], ground=0.0, stature=stature, horizontal=p.horizontal
                     )[0]
                     stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
                 if p.trunk:
-                    trunk_bits += trunk_departure(
-                        x, neutral, stature=stature_of(c), spread=p.trunk_spread
+                    trunk_bits += trunk_departure_rows(
+                        rows, neutral, stature=stature, spread=p.trunk_spread
                     )
         tb = time.perf_counter()
-        if tracks is None:
-            lc = debounced_contacts(c, ground=scene.ground, fps=fps, params=p)
-        else:
-            lc = contacts_from_tracks(tracks, c, ground=scene.ground, fps=fps, params=p)
-        contacts.append(lc)
-        if p.w_event > 0:
-            if p.event_model == "surprisal":
-                # the characters' marks first, spread once after the loop (linear)
-                on_m, off_m = event_marks(lc.state)
-                onset_marks += on_m
-                release_marks += off_m
-            else:
-                event_bits += contact_state_entropy(lc.state)
-        if strikes_on and tracks is not None:
-            # strike_speeds' effectors (wrists and ankles of the six key joints)
+        contactors.append((names, joints))
+        has_scores = tracks is not None and len(joints) > 0
+        scores.append(
+            limb_scores(tracks, c, ground=scene.ground, fps=fps, params=p) if has_scores else None
+        )
+        if strikes_on and tracks is not None and kj is not None:
+            # strike_speeds' effectors (wrists and ankles of the six key joints), a row each
             eff = kj[2:6] if kj.size == 6 else kj
-            speed = np.take(tracks.speed, tracks.columns(eff), axis=1)
-            speed *= fps / stature_of(c)
+            speed = tracks.speed.take(tracks.columns(eff), axis=0)
+            speed *= fps / stature
+            # the marks (support 0), spread after the loop
             strike_bits += strike_surprisal_of(
-                speed, fps=fps, threshold=p.strike_speed, support_s=0
-            )
-        elif strikes_on:  # the marks (support 0), spread after the loop
-            strike_bits += strike_surprisal(
-                x, fps=fps, stature=stature_of(c), threshold=p.strike_speed, support_s=0
+                speed.T, fps=fps, threshold=p.strike_speed, support_s=0
             )
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
+    tb = time.perf_counter()
+    contacts = _debounced(contactors, scores, n_f=n_f, fps=fps, params=p)
     if p.w_event > 0 and p.event_model == "surprisal":
+        # all characters' contactors at once: the marks add over them (linear)
+        state = np.concatenate([lc.state for lc in contacts]) if contacts else np.zeros((0, n_f))
+        onset_marks, release_marks = event_marks(state)
         sup = {"fps": fps, "support_s": p.event_support_s}
         event_bits = spread_events(onset_marks, release_marks, sided=p.sided_support, **sup)
         kernel, r = half_gaussian(p.event_support_s * fps, True)  # strikes: before them
         strike_bits = np.convolve(strike_bits, kernel[::-1])[r : r + n_f] if r else strike_bits
+    elif p.w_event > 0:
+        for lc in contacts:
+            event_bits += contact_state_entropy(lc.state)
+    t_event += time.perf_counter() - tb
     for bits in (stance_bits, trunk_bits, novelty_bits, event_bits, strike_bits):
         if float(bits.max() - bits.min()) <= ZERO_BITS:
             bits[:] = 0.0
@@ -350,3 +358,22 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
         p,
         timings,
     )
+
+
+def _debounced(
+    contactors: list, scores: list, *, n_f: int, fps: float, params: StoryParams
+) -> list[LimbContacts]:
+    """Every character's :class:`LimbContacts` from its contactors and
+    :func:`~snapcore.select.limb_contacts.limb_scores` (None: never in contact), the
+    scores debounced in one call (rows are independent)."""
+    have = [sc for sc in scores if sc is not None]
+    state = debounce_scores(np.concatenate(have), fps=fps, params=params) if have else None
+    out, row = [], 0
+    for (names, joints), sc in zip(contactors, scores):
+        if sc is None:
+            st = np.zeros((len(names), n_f), dtype=bool)
+        else:
+            st = state[row : row + sc.shape[0]]
+            row += sc.shape[0]
+        out.append(LimbContacts(names, [j.copy() for j in joints], st))
+    return out
