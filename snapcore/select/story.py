@@ -90,6 +90,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -201,10 +202,21 @@ def temporal_support(values: np.ndarray, *, fps: float, support_s: float) -> np.
     sigma = support_s * fps
     if sigma <= 0 or v.size == 0:
         return v.copy()
+    k = _support_kernel(sigma)
+    r = k.size // 2
+    return np.convolve(v, k)[r : r + v.size]
+
+
+@lru_cache(maxsize=16)
+def _support_kernel(sigma: float) -> np.ndarray:
+    """:func:`temporal_support`'s normalised Gaussian of ``sigma`` frames over ``-r..r``,
+    ``r = ceil(3 sigma)``: once per width (the story supports five terms with one),
+    read-only."""
     r = int(math.ceil(3 * sigma))
     k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
     k /= k.sum()
-    return np.convolve(v, k)[r : r + v.size]
+    k.flags.writeable = False
+    return k
 
 
 def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInformation:

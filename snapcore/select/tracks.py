@@ -102,11 +102,16 @@ def row_speeds(rows: np.ndarray) -> np.ndarray:
         the norm over the components as two additions: the arithmetic of
         :func:`snapcore.select.strikes.rows_and_speeds`, element by element.
     """
-    g = np.empty_like(rows)
-    np.subtract(rows[..., 2:], rows[..., :-2], out=g[..., 1:-1])
-    g[..., 1:-1] *= 0.5
-    np.subtract(rows[..., 1], rows[..., 0], out=g[..., 0])
-    np.subtract(rows[..., -1], rows[..., -2], out=g[..., -1])
+    x = np.ascontiguousarray(rows)
+    g = np.empty_like(x)
+    # central differences over the rows laid end to end, one flat pass (on the (3, A,
+    # F - 2) slices, 3.5 times as long): each row's first and last frame get values
+    # across a row boundary, overwritten below by the one-sided ends
+    flat, gf = x.reshape(-1), g.reshape(-1)
+    np.subtract(flat[2:], flat[:-2], out=gf[1:-1])
+    gf *= 0.5
+    np.subtract(x[..., 1], x[..., 0], out=g[..., 0])
+    np.subtract(x[..., -1], x[..., -2], out=g[..., -1])
     g *= g
     v = g[0] + g[1]
     v += g[2]
