@@ -60,10 +60,12 @@ def event_marks(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return onset, release
     d = np.diff(st.astype(np.int8), axis=1)  # (L, F-1): +1 onset at t+1, -1 release at t+1
     for kind, out in ((1, onset), (-1, release)):
-        hit = d == kind
-        n = hit.sum(axis=1)  # events per contactor
+        # the events (a few dozen), contactor by contactor: per frame their bits add in
+        # contactor order, as the column sums of a dense (L, F-1) array of bits would
+        limb, frame = np.nonzero(d == kind)
+        n = np.bincount(limb, minlength=n_l)  # events per contactor
         bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
-        out[1:] += (hit * bits[:, None]).sum(axis=0)
+        out[1:] += np.bincount(frame, weights=bits.take(limb), minlength=n_f - 1)
     return onset, release
 
 

@@ -44,7 +44,11 @@ def pose_surprisal(
     """
     x = np.asarray(features, dtype=float)
     n_f, d = x.shape
-    z = x - x.mean(axis=0)
+    # the mean as ``x.mean(axis=0)`` computes it (the column sums over the count), without
+    # its argument handling
+    mu = np.add.reduce(x, axis=0)
+    mu /= n_f
+    z = x - mu
     cov = (z.T @ z) / max(n_f - 1, 1)
     cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise**2) * np.eye(d)
     # Cholesky: C = L L^T, m^2 = |L^-1 z|^2; L^-1 of the small, well-conditioned (shrunk,

@@ -144,7 +144,7 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     # at most ~256 evenly spaced frames (medians of body measurements need no more):
     # (F', 8, 3)
     step = max(1, character.n_frames // _MEASURE_FRAMES)
-    x = np.take(character.positions[::step], idx, axis=1)  # one block per frame, not 8
+    x = character.positions[::step, idx]  # (np.take would copy the strided frames first)
     y = x[..., 1]
     ankle_h = _percentile(y[:, 4:6] - ground, 5)
     ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))

@@ -316,10 +316,9 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
         t_pose += tb - ta
         t_event += time.perf_counter() - tb
     tb = time.perf_counter()
-    contacts = _debounced(contactors, scores, n_f=n_f, fps=fps, params=p)
+    contacts, state = _debounced(contactors, scores, n_f=n_f, fps=fps, params=p)
     if p.w_event > 0 and p.event_model == "surprisal":
         # all characters' contactors at once: the marks add over them (linear)
-        state = np.concatenate([lc.state for lc in contacts]) if contacts else np.zeros((0, n_f))
         onset_marks, release_marks = event_marks(state)
         sup = {"fps": fps, "support_s": p.event_support_s}
         event_bits = spread_events(onset_marks, release_marks, sided=p.sided_support, **sup)
@@ -374,18 +373,26 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
 
 def _debounced(
     contactors: list, scores: list, *, n_f: int, fps: float, params: StoryParams
-) -> list[LimbContacts]:
+) -> tuple[list[LimbContacts], np.ndarray]:
     """Every character's :class:`LimbContacts` from its contactors and
     :func:`~snapcore.select.limb_contacts.limb_scores` (None: never in contact), the
-    scores debounced in one call (rows are independent)."""
+    scores debounced in one call (rows are independent); and all their states stacked,
+    (sum L, F), of which the characters' states are views."""
+    n_rows = [
+        len(names) if sc is None else sc.shape[0] for (names, _), sc in zip(contactors, scores)
+    ]
     have = [sc for sc in scores if sc is not None]
-    state = debounce_scores(np.concatenate(have), fps=fps, params=params) if have else None
+    if len(have) == len(scores) and have:
+        state = debounce_scores(np.concatenate(have), fps=fps, params=params)
+    else:
+        state = np.zeros((sum(n_rows), n_f), dtype=bool)
+        row = 0
+        for rows, sc in zip(n_rows, scores):
+            if sc is not None:
+                state[row : row + rows] = debounce_scores(sc, fps=fps, params=params)
+            row += rows
     out, row = [], 0
-    for (names, joints), sc in zip(contactors, scores):
-        if sc is None:
-            st = np.zeros((len(names), n_f), dtype=bool)
-        else:
-            st = state[row : row + sc.shape[0]]
-            row += sc.shape[0]
-        out.append(LimbContacts(names, [j.copy() for j in joints], st))
-    return out
+    for (names, joints), rows in zip(contactors, n_rows):
+        out.append(LimbContacts(names, [j.copy() for j in joints], state[row : row + rows]))
+        row += rows
+    return out, state
