@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from snapcore.motion.anatomy import REFERENCE_STATURE_M, stature_of
-from snapcore.select.signals import enforce_min_durations, hysteresis, true_runs
+from snapcore.select.signals import enforce_min_durations, hysteresis_rows, true_runs
 from snapcore.select.story_params import DEFAULT_STORY, StoryParams
 from snapcore.select.tracks import JointTracks
 
@@ -205,7 +205,7 @@ def limb_scores(
 def debounce_scores(scores: np.ndarray, *, fps: float, params: StoryParams) -> np.ndarray:
     """Contact states from :func:`limb_scores`, shape (L, F) of bool, each row on its own.
 
-    :func:`~snapcore.select.signals.hysteresis` along the frames (on at 1, off above
+    :func:`~snapcore.select.signals.hysteresis_rows` along the frames (on at 1, off above
     ``min(h_off / h_on, v_off / v_on)``), then
     :func:`~snapcore.select.signals.enforce_min_durations` (with ``params.debounce``).
     Rows are independent: several characters' scores stacked give their states stacked.
@@ -214,7 +214,7 @@ def debounce_scores(scores: np.ndarray, *, fps: float, params: StoryParams) -> n
     off = min(p.release_height / p.support_height, p.release_speed / p.support_speed)
     if not p.debounce:
         off = 1.0
-    on = hysteresis(scores.T, 1.0, off).T
+    on = hysteresis_rows(scores, 1.0, off)
     if p.debounce:
         m_on = max(1, int(round(p.min_contact_s * fps)))
         m_off = max(1, int(round(p.min_gap_s * fps)))

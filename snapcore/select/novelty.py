@@ -73,8 +73,11 @@ def tail_surprisal(values: np.ndarray) -> np.ndarray:
     """
     v = np.asarray(values, dtype=float)
     n = v.size
-    if n == 0 or float(v.max() - v.min()) <= ZERO_BITS:
-        return np.zeros(n)
+    if n == 0:
+        return np.zeros(0)
     srt = np.sort(v)
+    # the range from the sorted ends (NaN sorts last, so a NaN range stays NaN)
+    if float(srt[-1] - srt[0]) <= ZERO_BITS:
+        return np.zeros(n)
     at_least = n - np.searchsorted(srt, v, side="left")  # frames with value >= v_i
     return -np.log2(at_least / n)

@@ -33,6 +33,7 @@ __all__ = [
     "half_gaussian",
     "find_peaks",
     "hysteresis",
+    "hysteresis_rows",
     "true_runs",
     "enforce_min_durations",
     "merge_adjacent",
@@ -218,12 +219,22 @@ def hysteresis(score: np.ndarray, on: float, off: float) -> np.ndarray:
     where undecided), so the running maximum carries it: no gather afterwards.
     """
     s = np.asarray(score, dtype=float)
-    n = s.shape[0]
+    # frames last and contiguous: along a strided first axis (a (F, L) score) every
+    # step below took several times as long
+    rows = np.ascontiguousarray(np.moveaxis(s, 0, -1))
+    return np.moveaxis(hysteresis_rows(rows, on, off), -1, 0)
+
+
+def hysteresis_rows(score: np.ndarray, on: float, off: float) -> np.ndarray:
+    """:func:`hysteresis` along the *last* axis: ``score`` of shape (..., F), one signal
+    per row of frames (the story's contactors, (L, F)); bool of the same shape."""
+    s = np.asarray(score, dtype=float)
+    n = s.shape[-1]
     low = s <= on
     decided = low | (s > off)
-    key = np.arange(2, 2 * n + 2, 2).reshape((n,) + (1,) * (s.ndim - 1)) + low
+    key = np.arange(2, 2 * n + 2, 2) + low
     key *= decided
-    last = np.maximum.accumulate(key, axis=0)
+    last = np.maximum.accumulate(key, axis=-1)
     last &= 1
     return last.astype(bool)
 

@@ -147,7 +147,7 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     x = character.positions[::step, idx]  # (np.take would copy the strided frames first)
     y = x[..., 1]
     ankle_h = _percentile(y[:, 4:6] - ground, 5)
-    ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
+    ankle_h = min(max(ankle_h, 0.02 * stature), 0.10 * stature)  # np.clip's (NaN stays)
     # four nearly rigid body measurements, their medians in one call (one call each
     # took 0.1 of this function's 0.16 ms; the same values): hip to hip and shoulder to
     # shoulder, the pelvis joint above the hip joints (below on some rigs; its vertical
