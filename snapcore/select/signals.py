@@ -137,15 +137,23 @@ def half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
 
     ``sided``: zero at negative offsets (convolved with a signal of events, it credits
     the frames after each event; reversed, the frames before). ``sigma_frames <= 0``
-    gives the one-frame kernel ``[1]`` and ``r = 0``.
+    gives the one-frame kernel ``[1]`` and ``r = 0``. The kernel is read-only (made
+    once per width and side).
     """
+    return _half_gaussian(float(sigma_frames), bool(sided))
+
+
+@lru_cache(maxsize=32)
+def _half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
     if sigma_frames <= 0:
-        return np.ones(1), 0
-    r = int(math.ceil(3 * sigma_frames))
-    off = np.arange(-r, r + 1)
-    k = np.exp(-0.5 * (off / sigma_frames) ** 2)
-    if sided:
-        k = np.where(off >= 0, k, 0.0)
+        k, r = np.ones(1), 0
+    else:
+        r = int(math.ceil(3 * sigma_frames))
+        off = np.arange(-r, r + 1)
+        k = np.exp(-0.5 * (off / sigma_frames) ** 2)
+        if sided:
+            k = np.where(off >= 0, k, 0.0)
+    k.flags.writeable = False
     return k, r
 
 
