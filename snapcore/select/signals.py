@@ -183,8 +183,13 @@ def find_peaks(x: np.ndarray, *, height: float, prominence: float) -> np.ndarray
     if n < 3:
         return np.zeros(0, dtype=np.intp)
     # runs of equal values (NaN never equals, so each NaN is its own run)
-    start = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
-    end = np.r_[start[1:], n] - 1
+    change = np.empty(n, dtype=bool)  # (np.r_'s index machinery took longer than this)
+    change[0] = True
+    np.not_equal(x[1:], x[:-1], out=change[1:])
+    start = np.flatnonzero(change)
+    end = np.empty_like(start)
+    end[:-1] = start[1:] - 1
+    end[-1] = n - 1
     v = x[start]
     inner = np.arange(1, len(start) - 1)
     up = v[inner - 1] < v[inner]
