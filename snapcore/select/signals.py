@@ -295,6 +295,11 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     All rows at once: they are laid end to end with one free frame after each, so that
     no contact runs from one row into the next, and a gap that reaches that frame
     touches its row's end.
+
+    Worked on the contacts' ends alone: the interior gaps are those between two
+    consecutive contacts of one row, so closing the short ones joins those contacts
+    (each contact that follows a closed gap continues the one before it), and the
+    contacts that stay too short are left out when the result is written.
     """
     st = np.asarray(state, dtype=bool)
     rows = st.reshape(-1, st.shape[-1]) if st.ndim else st.reshape(1, 1)
@@ -302,15 +307,18 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     width = n + 1
     padded = np.zeros((rows.shape[0], width), dtype=bool)
     padded[:, :n] = rows
-    b = padded.reshape(-1)  # a view: the rows end to end
-    s, e = true_runs(~b)
-    # interior: the gap starts after its row's first frame and ends before its last
-    short = (e - s < min_off) & (s % width > 0) & (e - (s // width) * width < n)
-    _set_runs(b, s[short], e[short], True)
-    s, e = true_runs(b)
-    short = e - s < min_on
-    _set_runs(b, s[short], e[short], False)
-    return padded[:, :n].reshape(st.shape).copy()
+    s, e = true_runs(padded.reshape(-1))  # contacts, the rows end to end
+    # a gap shorter than min_off between two contacts of one row is closed
+    closed = (s[1:] - e[:-1] < min_off) & (s[1:] // width == s[:-1] // width)
+    first = np.ones(s.size, dtype=bool)  # contacts that do not continue the one before
+    first[1:] = ~closed
+    last = np.ones(s.size, dtype=bool)  # contacts not continued by the next
+    last[:-1] = ~closed
+    s, e = s[first], e[last]
+    long = e - s >= min_on
+    out = np.zeros(padded.size, dtype=bool)
+    _set_runs(out, s[long], e[long], True)
+    return out.reshape(padded.shape)[:, :n].reshape(st.shape).copy()
 
 
 def merge_adjacent(

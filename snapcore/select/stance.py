@@ -534,37 +534,25 @@ def trunk_departure_rows(
 ) -> np.ndarray:
     """:func:`trunk_departure` of key-joint rows (3, K, F) (see
     :func:`descriptor_rows`), shape (F,): the same values, element by element."""
-    xs, ys, zs = np.asarray(rows, dtype=float)
+    x = np.asarray(rows, dtype=float)
     n = np.asarray(neutral, dtype=float)
-    off = (n[0] - n[1]).tolist()
-    dx = xs[0] - xs[1]
-    dx -= off[0]
-    dy = ys[0] - ys[1]
-    dy -= off[1]
-    dz = zs[0] - zs[1]
-    dz -= off[2]
-    dx *= dx
-    dy *= dy
-    dx += dy
-    dz *= dz
-    head = dx
-    head += dz
-    # the legs: each ankle's vertical and horizontal distance from the pelvis
-    legs = None
-    for a in (4, 5):
-        nv = (n[a] - n[1]).tolist()
-        dv = ys[a] - ys[1]
-        dv -= nv[1]
-        dh = np.hypot(xs[a] - xs[1], zs[a] - zs[1])
-        dh -= math.hypot(nv[0], nv[2])
-        dv *= dv
-        dh *= dh
-        dv += dh
-        dv *= 0.5
-        if legs is None:
-            legs = dv
-        else:
-            legs += dv
+    # the head's place over the pelvis, the three components at once: (3, F)
+    d = x[:, 0] - x[:, 1]
+    d -= (n[0] - n[1])[:, None]
+    d *= d
+    head = d[0] + d[1]
+    head += d[2]
+    # the legs: both ankles' vertical and horizontal distance from the pelvis, (2, F)
+    a = x[:, 4:6] - x[:, 1:2]  # (3, 2, F)
+    nv = n[4:6] - n[1]  # (2, 3)
+    dv = a[1] - nv[:, 1:2]
+    dh = np.hypot(a[0], a[2])
+    dh -= np.array([[math.hypot(v[0], v[2])] for v in nv.tolist()])  # math's, as before
+    dv *= dv
+    dh *= dh
+    dv += dh
+    dv *= 0.5
+    legs = dv[0] + dv[1]
     legs += spread**2 * stature**2
     head *= 0.5
     head /= legs
