@@ -230,8 +230,8 @@ def contactor_joints(character, params: StoryParams) -> tuple[list, list, np.nda
     """
     if params.per_limb:
         sk = character.skeleton
-        names, joints, used = _contactors_of(sk.roles, sk.sides)
-        return list(names), list(joints), used
+        limbs, groups, used = _contactors_of(sk.roles, sk.sides)
+        return list(limbs), list(groups), used
     names = list(character.joint_names)
     joints = [np.array([j]) for j in range(character.n_joints)]
     used = np.unique(np.concatenate(joints)) if joints else np.zeros(0, dtype=np.int64)

@@ -300,9 +300,10 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
                     )
         tb = time.perf_counter()
         contactors.append((names, joints))
-        has_scores = tracks is not None and len(joints) > 0
         scores.append(
-            limb_scores(tracks, c, ground=scene.ground, fps=fps, params=p) if has_scores else None
+            limb_scores(tracks, c, ground=scene.ground, fps=fps, params=p)
+            if tracks is not None and joints
+            else None
         )
         if strikes_on and tracks is not None and kj is not None:
             # strike_speeds' effectors (wrists and ankles of the six key joints), a row each
