@@ -9,7 +9,13 @@ import pytest
 
 from snapcore.motion import synth
 from snapcore.select.signals import enforce_min_durations, hysteresis, hysteresis_rows
-from snapcore.select.stance import _percentile, _row_medians, joint_trajectories
+from snapcore.select.stance import (
+    _percentile,
+    _row_medians,
+    joint_trajectories,
+    stance_departure,
+    stance_departure_rows,
+)
 from snapcore.select.tracks import JointTracks
 
 
@@ -110,3 +116,15 @@ def test_stance_percentile_and_medians_are_numpys():
     assert np.isnan(_percentile(v, 5))
     r[1, 0] = np.nan
     assert np.isnan(_row_medians(r)[1])
+
+
+def test_stance_departure_rows_is_the_frame_major_departure():
+    """Feature-major rows give the same bits as stance_departure on (F, D), up to the
+    order of the additions; a frame at the neutral stance has 0 bits."""
+    rng = np.random.default_rng(6)
+    feats = rng.normal(size=(500, 36))
+    neutral = rng.normal(size=36)
+    feats[7] = neutral
+    rows = stance_departure_rows(np.ascontiguousarray(feats.T), neutral, spread=0.15)
+    np.testing.assert_allclose(rows, stance_departure(feats, neutral, spread=0.15), rtol=1e-13)
+    assert rows[7] == 0.0

@@ -32,6 +32,7 @@ __all__ = [
     "trunk_departure",
     "descriptor_rows",
     "trunk_departure_rows",
+    "stance_departure_rows",
 ]
 
 #: Key joints of the pose descriptor where landmarks are missing: (role, side), the
@@ -474,6 +475,21 @@ def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
     # row sums of squares in one pass (einsum; square-then-sum over short rows took
     # twice as long): the same terms, added in another order
     d2 = np.einsum("ij,ij->i", z, z)
+    d2 *= 0.5 / (spread**2 * math.log(2.0))
+    return d2
+
+
+def stance_departure_rows(rows: np.ndarray, neutral: np.ndarray, *, spread: float) -> np.ndarray:
+    """:func:`stance_departure` of feature-major descriptors (D, F)
+    (:func:`descriptor_rows`), shape (F,).
+
+    The same terms, added feature by feature (one pass per row of frames, instead of a
+    short sum per frame): equal to :func:`stance_departure` up to the order of the
+    additions (a few units in the last place).
+    """
+    z = np.asarray(rows, dtype=float) - np.asarray(neutral, dtype=float)[:, None]
+    z *= z
+    d2 = np.add.reduce(z, axis=0)
     d2 *= 0.5 / (spread**2 * math.log(2.0))
     return d2
 

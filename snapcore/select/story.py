@@ -119,6 +119,7 @@ from snapcore.select.stance import (
     neutral_stance,
     pose_descriptor,
     stance_departure,
+    stance_departure_rows,
     trunk_departure,
     trunk_departure_rows,
 )
@@ -271,11 +272,10 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             # one row per frame, C order, as descriptor_of returns it: the novelty's
             # tail surprisal ranks frames, and frames whose surprisal ties up to
             # rounding would trade places if its sums ran in another order
-            feats = np.ascontiguousarray(
-                descriptor_rows(
-                    rows, ground=scene.ground, stature=stature, horizontal=p.horizontal
-                ).T
-            )
+            feats_rows = descriptor_rows(
+                rows, ground=scene.ground, stature=stature, horizontal=p.horizontal
+            )  # (D, F)
+            feats = np.ascontiguousarray(feats_rows.T)
             if p.novelty:
                 novelty_bits += tail_surprisal(
                     pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
@@ -293,7 +293,7 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
                     nd = descriptor_of(
                         neutral[None], ground=0.0, stature=stature, horizontal=p.horizontal
                     )[0]
-                    stance_bits += stance_departure(feats, nd, spread=p.stance_spread)
+                    stance_bits += stance_departure_rows(feats_rows, nd, spread=p.stance_spread)
                 if p.trunk:
                     trunk_bits += trunk_departure_rows(
                         rows, neutral, stature=stature, spread=p.trunk_spread
