@@ -12,6 +12,7 @@ from snapcore.select.signals import enforce_min_durations, hysteresis, hysteresi
 from snapcore.select.stance import (
     _percentile,
     _row_medians,
+    descriptor_of,
     joint_trajectories,
     stance_departure,
     stance_departure_rows,
@@ -128,3 +129,18 @@ def test_stance_departure_rows_is_the_frame_major_departure():
     rows = stance_departure_rows(np.ascontiguousarray(feats.T), neutral, spread=0.15)
     np.testing.assert_allclose(rows, stance_departure(feats, neutral, spread=0.15), rtol=1e-13)
     assert rows[7] == 0.0
+
+
+@pytest.mark.parametrize("horizontal", [True, False])
+def test_descriptor_is_heights_and_pairwise_distances(horizontal):
+    """descriptor_of: the heights above the ground, then the 3-D and (optionally) the
+    horizontal distances of the pairs in np.triu_indices order, over the stature."""
+    rng = np.random.default_rng(7)
+    x = rng.normal(size=(50, 5, 3))
+    got = descriptor_of(x, ground=0.2, stature=1.6, horizontal=horizontal)
+    a, b = np.triu_indices(5, 1)
+    d = x[:, a] - x[:, b]
+    parts = [x[..., 1] - 0.2, np.linalg.norm(d, axis=2)]
+    if horizontal:
+        parts.append(np.linalg.norm(d[..., ::2], axis=2))
+    np.testing.assert_allclose(got, np.concatenate(parts, axis=1) / 1.6, rtol=1e-14)

@@ -346,12 +346,17 @@ def descriptor_rows(
     """
     xt = np.asarray(rows, dtype=float)
     k, n_f = xt.shape[1:]
-    a, b = _pairs(k)
-    d = np.take(xt, a, axis=1)
-    d -= np.take(xt, b, axis=1)  # (3, P, F)
+    n_p = k * (k - 1) // 2
+    # the pairs (a, b > a) in np.triu_indices order, joint a's to every later joint in
+    # one subtraction (two gathers of (3, P, F) copies took longer); b - a instead of
+    # a - b, squared next: the same doubles
+    d = np.empty((3, n_p, n_f))
+    i = 0
+    for a in range(k - 1):
+        np.subtract(xt[:, a + 1 :], xt[:, a : a + 1], out=d[:, i : i + k - 1 - a])
+        i += k - 1 - a
     d *= d
     flat = d[0] + d[2]  # squared horizontal distance
-    n_p = a.size
     out = np.empty((k + (2 if horizontal else 1) * n_p, n_f))
     np.subtract(xt[1], ground, out=out[:k])
     flat_3d = d[1]
@@ -361,15 +366,6 @@ def descriptor_rows(
         np.sqrt(flat, out=out[k + n_p :])
     out /= stature
     return out
-
-
-@lru_cache(maxsize=8)
-def _pairs(k: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.triu_indices(k, 1)``, once per ``k``: the joint pairs of the descriptor."""
-    a, b = np.triu_indices(k, 1)
-    a.flags.writeable = False
-    b.flags.writeable = False
-    return a, b
 
 
 def pose_descriptor(
