@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from snapcore.motion import synth
-from snapcore.select.novelty import pose_surprisal, pose_surprisal_rows
 from snapcore.select.signals import enforce_min_durations, hysteresis, hysteresis_rows
 from snapcore.select.stance import (
     _percentile,
@@ -145,21 +144,3 @@ def test_descriptor_is_heights_and_pairwise_distances(horizontal):
     if horizontal:
         parts.append(np.linalg.norm(d[..., ::2], axis=2))
     np.testing.assert_allclose(got, np.concatenate(parts, axis=1) / 1.6, rtol=1e-14)
-
-
-def test_pose_surprisal_rows_is_the_frame_major_surprisal_to_the_bit():
-    """The story's feature-major novelty equals pose_surprisal on (F, D) exactly, also
-    where frames repeat (the tail surprisal ranks them, so ties must stay ties)."""
-    rng = np.random.default_rng(8)
-    for n_f in (1, 2, 7, 300, 2001):
-        feats = rng.normal(size=(n_f, 36)) * rng.uniform(0.01, 1.0, size=36)
-        feats[n_f // 2 :] = feats[: n_f - n_f // 2]  # repeated poses
-        rows = np.ascontiguousarray(feats.T)
-        np.testing.assert_array_equal(pose_surprisal_rows(rows), pose_surprisal(feats))
-    x = synth.synth_scene("punch", fps=30).characters[0]
-    from snapcore.select.stance import pose_descriptor
-
-    feats = pose_descriptor(x, ground=0.0, fps=30.0)
-    np.testing.assert_array_equal(
-        pose_surprisal_rows(np.ascontiguousarray(feats.T)), pose_surprisal(feats)
-    )

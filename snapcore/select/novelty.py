@@ -16,7 +16,7 @@ import numpy as np
 
 from snapcore.select.story_params import ZERO_BITS
 
-__all__ = ["pose_surprisal", "pose_surprisal_rows", "tail_surprisal"]
+__all__ = ["pose_surprisal", "tail_surprisal"]
 
 
 def pose_surprisal(
@@ -43,48 +43,12 @@ def pose_surprisal(
         up to a constant that is the same for every frame.
     """
     x = np.asarray(features, dtype=float)
+    n_f, d = x.shape
     # the mean as ``x.mean(axis=0)`` computes it (the column sums over the count), without
     # its argument handling
     mu = np.add.reduce(x, axis=0)
-    mu /= x.shape[0]
-    return _mahalanobis_bits(x - mu, shrinkage=shrinkage, noise=noise)
-
-
-def pose_surprisal_rows(
-    rows: np.ndarray, *, shrinkage: float = 0.5, noise: float = 0.02
-) -> np.ndarray:
-    """:func:`pose_surprisal` of feature-major descriptors (D, F), the same doubles.
-
-    Parameters
-    ----------
-    rows : ndarray of shape (D, F)
-        A row of frames per feature (:func:`snapcore.select.stance.descriptor_rows`).
-    shrinkage, noise : float
-        As for :func:`pose_surprisal`.
-
-    Notes
-    -----
-    The arithmetic must be :func:`pose_surprisal`'s to the bit: the tail surprisal ranks
-    frames, and frames whose terms tie up to rounding would trade places if the sums ran
-    in another order. Its column sums over the frames run frame after frame (a
-    reduction along the outer axis), which is what a running sum along each row does:
-    the means are the last column of ``cumsum``. The centred descriptors are then
-    written frame-major in the subtraction itself, so the products see the same
-    (F, D) array -- one pass fewer than a transposed copy, its column sums and a
-    centring.
-    """
-    x = np.asarray(rows, dtype=float)
-    d, n_f = x.shape
-    mu = np.cumsum(x, axis=1)[:, -1] if n_f else np.zeros(d)
     mu /= n_f
-    z = np.empty((n_f, d))
-    np.subtract(x.T, mu, out=z)
-    return _mahalanobis_bits(z, shrinkage=shrinkage, noise=noise)
-
-
-def _mahalanobis_bits(z: np.ndarray, *, shrinkage: float, noise: float) -> np.ndarray:
-    """:func:`pose_surprisal`'s bits from the centred descriptors ``z`` (F, D), C order."""
-    n_f, d = z.shape
+    z = x - mu
     cov = (z.T @ z) / max(n_f - 1, 1)
     cov = (1.0 - shrinkage) * cov + (shrinkage * np.trace(cov) / max(d, 1) + noise**2) * np.eye(d)
     # Cholesky: C = L L^T, m^2 = |L^-1 z|^2; L^-1 of the small, well-conditioned (shrunk,

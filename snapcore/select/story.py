@@ -109,7 +109,7 @@ from snapcore.select.limb_contacts import (
     limb_groups,
     limb_scores,
 )
-from snapcore.select.novelty import pose_surprisal, pose_surprisal_rows, tail_surprisal
+from snapcore.select.novelty import pose_surprisal, tail_surprisal
 from snapcore.select.signals import enforce_min_durations, half_gaussian, hysteresis, minmax
 from snapcore.select.stance import (
     descriptor_of,
@@ -269,14 +269,16 @@ def story_information(scene, params: StoryParams = DEFAULT_STORY) -> StoryInform
             x = key_positions(c, fps=fps, smooth_s=p.smooth_s)
             rows = np.ascontiguousarray(x.transpose(2, 1, 0))
         if pose_on and rows is not None:
-            # feature-major (D, F); the novelty from it to the bit as from descriptor_of's
-            # (F, D) (its tail surprisal ranks frames: see pose_surprisal_rows)
+            # one row per frame, C order, as descriptor_of returns it: the novelty's
+            # tail surprisal ranks frames, and frames whose surprisal ties up to
+            # rounding would trade places if its sums ran in another order
             feats_rows = descriptor_rows(
                 rows, ground=scene.ground, stature=stature, horizontal=p.horizontal
             )  # (D, F)
+            feats = np.ascontiguousarray(feats_rows.T)
             if p.novelty:
                 novelty_bits += tail_surprisal(
-                    pose_surprisal_rows(feats_rows, shrinkage=p.shrinkage, noise=p.noise)
+                    pose_surprisal(feats, shrinkage=p.shrinkage, noise=p.noise)
                 )
             neutral = neutral_stance(c, ground=scene.ground) if p.stance or p.trunk else None
             if neutral is None and (p.stance or p.trunk):
