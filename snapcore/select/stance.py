@@ -156,7 +156,7 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     # both arms hang from (the chest)
     rigid = np.empty((4, x.shape[0]))
     # norms as ``np.linalg.norm(d, axis=1)`` computes them (square, sum the row, root)
-    d = x[:, [0, 2]] - x[:, [1, 3]]  # (F', 2, 3): hip to hip, shoulder to shoulder
+    d = x[:, 0:4:2] - x[:, 1:4:2]  # (F', 2, 3): hip to hip, shoulder to shoulder
     d *= d
     np.sqrt(d.sum(axis=2).T, out=rigid[:2])
     rigid[2] = y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])
