@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from snapcore.errors import SelectionError, SnapshotError
-from snapcore.select.contacts import DEFAULT_TOLERANCES, GROUND, Event, Interactions
+from snapcore.select.contacts import (
+    DEFAULT_TOLERANCES,
+    GROUND,
+    Event,
+    Interactions,
+    _event,  # Event without the frozen dataclass's setattrs
+)
 from snapcore.select.paper import REST_SPEED, select_pose_paper
 from snapcore.select.pose_baselines import (
     middle_frames,
@@ -215,19 +221,33 @@ def story_interactions(scene: Scene, info: StoryInformation) -> Interactions:
     its joint is the contactor's lowest-numbered joint of the foot or hand when there is
     one (named in the JSON), else its first joint.
     """
-    events = []
+    events: list[Event] = []
     active = []
     for ci, (c, lc) in enumerate(zip(scene.characters, info.contacts)):
-        # joint-major (J, F): the contactor's joints are active where it is in contact,
-        # each joint's row at once (one assignment per interval took half of this
-        # function's time; columns of a frame-major array, 2.5 times as long as rows)
-        act = np.zeros((c.n_joints, scene.n_frames), dtype=bool)
-        for li, js in enumerate(lc.joints):
-            j = int(_representative(c, js))
-            for s, e in lc.intervals(li):
-                events.append(Event(ci, j, GROUND, int(s), int(e)))
-            act[js] |= lc.state[li]
-        active.append(np.ascontiguousarray(act.T))  # (F, J), as Interactions holds it
+        # (F, J), as Interactions holds it: the contactor's joints are active where it is
+        # in contact, all the contactors' columns in one assignment (one assignment per
+        # interval took half of this function's time; a joint-major array and its
+        # transposed copy, a third longer)
+        act = np.zeros((scene.n_frames, c.n_joints), dtype=bool)
+        state = np.asarray(lc.state, dtype=bool)
+        if state.shape[0]:
+            # every contactor's contacts at once, in contactor then frame order:
+            # +1 where a contact starts, -1 on the frame after it ends
+            edge = np.zeros((state.shape[0], state.shape[1] + 2), dtype=np.int8)
+            edge[:, 1:-1] = state
+            edge = np.diff(edge, axis=1)
+            limb, start = np.nonzero(edge == 1)
+            end = np.nonzero(edge == -1)[1] - 1
+            rep = [int(_representative(c, js)) for js in lc.joints]
+            for li, s, e in zip(limb.tolist(), start.tolist(), end.tolist()):
+                events.append(_event(ci, rep[li], GROUND, s, e, None))
+            joints = np.concatenate(lc.joints)
+            if np.unique(joints).size == joints.size:  # disjoint contactors (limbs, joints)
+                act[:, joints] = np.repeat(state, [js.size for js in lc.joints], axis=0).T
+            else:
+                for li, js in enumerate(lc.joints):
+                    act[:, js] |= state[li][:, None]
+        active.append(act)
     return Interactions(
         events, active, [GROUND], scene.n_frames, float(scene.fps), DEFAULT_TOLERANCES
     )

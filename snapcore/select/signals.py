@@ -33,6 +33,7 @@ __all__ = [
     "half_gaussian",
     "find_peaks",
     "hysteresis",
+    "hysteresis_rows",
     "true_runs",
     "enforce_min_durations",
     "merge_adjacent",
@@ -136,15 +137,23 @@ def half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
 
     ``sided``: zero at negative offsets (convolved with a signal of events, it credits
     the frames after each event; reversed, the frames before). ``sigma_frames <= 0``
-    gives the one-frame kernel ``[1]`` and ``r = 0``.
+    gives the one-frame kernel ``[1]`` and ``r = 0``. The kernel is read-only (made
+    once per width and side).
     """
+    return _half_gaussian(float(sigma_frames), bool(sided))
+
+
+@lru_cache(maxsize=32)
+def _half_gaussian(sigma_frames: float, sided: bool) -> tuple[np.ndarray, int]:
     if sigma_frames <= 0:
-        return np.ones(1), 0
-    r = int(math.ceil(3 * sigma_frames))
-    off = np.arange(-r, r + 1)
-    k = np.exp(-0.5 * (off / sigma_frames) ** 2)
-    if sided:
-        k = np.where(off >= 0, k, 0.0)
+        k, r = np.ones(1), 0
+    else:
+        r = int(math.ceil(3 * sigma_frames))
+        off = np.arange(-r, r + 1)
+        k = np.exp(-0.5 * (off / sigma_frames) ** 2)
+        if sided:
+            k = np.where(off >= 0, k, 0.0)
+    k.flags.writeable = False
     return k, r
 
 
@@ -174,8 +183,13 @@ def find_peaks(x: np.ndarray, *, height: float, prominence: float) -> np.ndarray
     if n < 3:
         return np.zeros(0, dtype=np.intp)
     # runs of equal values (NaN never equals, so each NaN is its own run)
-    start = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
-    end = np.r_[start[1:], n] - 1
+    change = np.empty(n, dtype=bool)  # (np.r_'s index machinery took longer than this)
+    change[0] = True
+    np.not_equal(x[1:], x[:-1], out=change[1:])
+    start = np.flatnonzero(change)
+    end = np.empty_like(start)
+    end[:-1] = start[1:] - 1
+    end[-1] = n - 1
     v = x[start]
     inner = np.arange(1, len(start) - 1)
     up = v[inner - 1] < v[inner]
@@ -213,15 +227,29 @@ def hysteresis(score: np.ndarray, on: float, off: float) -> np.ndarray:
     Notes
     -----
     Vectorised: the state at frame i is the one set by the last frame ``<= i`` where
-    the score was outside the band, found with a running maximum of indices.
+    the score was outside the band, found with a running maximum of indices. The
+    state set there rides in the index's lowest bit (``2 i + 2 + [score <= on]``, 0
+    where undecided), so the running maximum carries it: no gather afterwards.
     """
     s = np.asarray(score, dtype=float)
-    n = s.shape[0]
-    decided = (s <= on) | (s > off)
-    idx = np.where(decided, np.arange(n).reshape((n,) + (1,) * (s.ndim - 1)), -1)
-    last = np.maximum.accumulate(idx, axis=0)
-    val = np.take_along_axis(s <= on, np.maximum(last, 0), axis=0)
-    return val & (last >= 0)
+    # frames last and contiguous: along a strided first axis (a (F, L) score) every
+    # step below took several times as long
+    rows = np.ascontiguousarray(np.moveaxis(s, 0, -1))
+    return np.moveaxis(hysteresis_rows(rows, on, off), -1, 0)
+
+
+def hysteresis_rows(score: np.ndarray, on: float, off: float) -> np.ndarray:
+    """:func:`hysteresis` along the *last* axis: ``score`` of shape (..., F), one signal
+    per row of frames (the story's contactors, (L, F)); bool of the same shape."""
+    s = np.asarray(score, dtype=float)
+    n = s.shape[-1]
+    low = s <= on
+    decided = low | (s > off)
+    key = np.arange(2, 2 * n + 2, 2) + low
+    key *= decided
+    last = np.maximum.accumulate(key, axis=-1)
+    last &= 1
+    return last.astype(bool)
 
 
 def true_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -267,6 +295,11 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     All rows at once: they are laid end to end with one free frame after each, so that
     no contact runs from one row into the next, and a gap that reaches that frame
     touches its row's end.
+
+    Worked on the contacts' ends alone: the interior gaps are those between two
+    consecutive contacts of one row, so closing the short ones joins those contacts
+    (each contact that follows a closed gap continues the one before it), and the
+    contacts that stay too short are left out when the result is written.
     """
     st = np.asarray(state, dtype=bool)
     rows = st.reshape(-1, st.shape[-1]) if st.ndim else st.reshape(1, 1)
@@ -274,15 +307,18 @@ def enforce_min_durations(state: np.ndarray, min_on: int, min_off: int) -> np.nd
     width = n + 1
     padded = np.zeros((rows.shape[0], width), dtype=bool)
     padded[:, :n] = rows
-    b = padded.reshape(-1)  # a view: the rows end to end
-    s, e = true_runs(~b)
-    # interior: the gap starts after its row's first frame and ends before its last
-    short = (e - s < min_off) & (s % width > 0) & (e - (s // width) * width < n)
-    _set_runs(b, s[short], e[short], True)
-    s, e = true_runs(b)
-    short = e - s < min_on
-    _set_runs(b, s[short], e[short], False)
-    return padded[:, :n].reshape(st.shape).copy()
+    s, e = true_runs(padded.reshape(-1))  # contacts, the rows end to end
+    # a gap shorter than min_off between two contacts of one row is closed
+    closed = (s[1:] - e[:-1] < min_off) & (s[1:] // width == s[:-1] // width)
+    first = np.ones(s.size, dtype=bool)  # contacts that do not continue the one before
+    first[1:] = ~closed
+    last = np.ones(s.size, dtype=bool)  # contacts not continued by the next
+    last[:-1] = ~closed
+    s, e = s[first], e[last]
+    long = e - s >= min_on
+    out = np.zeros(padded.size, dtype=bool)
+    _set_runs(out, s[long], e[long], True)
+    return out.reshape(padded.shape)[:, :n].reshape(st.shape).copy()
 
 
 def merge_adjacent(

@@ -30,6 +30,9 @@ __all__ = [
     "pose_descriptor",
     "stance_departure",
     "trunk_departure",
+    "descriptor_rows",
+    "trunk_departure_rows",
+    "stance_departure_rows",
 ]
 
 #: Key joints of the pose descriptor where landmarks are missing: (role, side), the
@@ -142,21 +145,23 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
     # at most ~256 evenly spaced frames (medians of body measurements need no more):
     # (F', 8, 3)
     step = max(1, character.n_frames // _MEASURE_FRAMES)
-    x = np.take(character.positions[::step], idx, axis=1)  # one block per frame, not 8
+    x = character.positions[::step, idx]  # (np.take would copy the strided frames first)
     y = x[..., 1]
-    ankle_h = float(np.percentile(y[:, 4:6] - ground, 5))
-    ankle_h = float(np.clip(ankle_h, 0.02 * stature, 0.10 * stature))
+    ankle_h = _percentile(y[:, 4:6] - ground, 5)
+    ankle_h = min(max(ankle_h, 0.02 * stature), 0.10 * stature)  # np.clip's (NaN stays)
     # four nearly rigid body measurements, their medians in one call (one call each
     # took 0.1 of this function's 0.16 ms; the same values): hip to hip and shoulder to
     # shoulder, the pelvis joint above the hip joints (below on some rigs; its vertical
     # part barely changes with the pelvis's tilt), the shoulder joints above the joint
     # both arms hang from (the chest)
     rigid = np.empty((4, x.shape[0]))
-    rigid[0] = np.linalg.norm(x[:, 0] - x[:, 1], axis=1)
-    rigid[1] = np.linalg.norm(x[:, 2] - x[:, 3], axis=1)
+    # norms as ``np.linalg.norm(d, axis=1)`` computes them (square, sum the row, root)
+    d = x[:, 0:4:2] - x[:, 1:4:2]  # (F', 2, 3): hip to hip, shoulder to shoulder
+    d *= d
+    np.sqrt(d.sum(axis=2).T, out=rigid[:2])
     rigid[2] = y[:, 6] - 0.5 * (y[:, 0] + y[:, 1])
     rigid[3] = 0.5 * (y[:, 2] + y[:, 3]) - y[:, 7]
-    hip_d, sh_d, drop, rise = np.median(rigid, axis=1).tolist()
+    hip_d, sh_d, drop, rise = _row_medians(rigid)
     hip_w, sh_w = hip_d / 2, sh_d / 2
     pelvis_h = ankle_h + leg + drop
     head_h = pelvis_h + spine
@@ -176,6 +181,44 @@ def neutral_stance(character, *, ground: float) -> np.ndarray | None:
         ]
     )
     return out if np.isfinite(out).all() else None
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    """``float(np.percentile(values, q))`` (the default, linear method), the same double.
+
+    NumPy's own arithmetic written out for one quantile of a small array (its
+    ``percentile`` spent ~40 us in argument handling around a partition of 500 values):
+    the virtual index ``(n - 1) q / 100``, a partition at its two neighbours, and
+    ``_lerp``'s two-sided interpolation. NaN anywhere: NumPy's answer.
+    """
+    v = np.ravel(values)
+    n = v.size
+    if n == 0 or np.isnan(v).any():
+        return float(np.percentile(values, q))
+    vi = (n - 1) * (q / 100)
+    lo = math.floor(vi)
+    hi = min(lo + 1, n - 1)
+    part = np.partition(v, (lo, hi) if hi > lo else lo)
+    a, b = float(part[lo]), float(part[hi])
+    g = vi - lo
+    diff = b - a
+    return b - diff * (1 - g) if g >= 0.5 else a + diff * g
+
+
+def _row_medians(values: np.ndarray) -> list[float]:
+    """``np.median(values, axis=1).tolist()`` for a small (R, N) array, the same doubles:
+    a partition at the middle (two middles for even N, their mean ``(a + b) / 2``) per
+    row, without ``median``'s argument handling. NaN anywhere: NumPy's answer."""
+    n = values.shape[1]
+    if n == 0 or np.isnan(values).any():
+        return np.median(values, axis=1).tolist()
+    h = n // 2
+    if n % 2:
+        return np.partition(values, h, axis=1)[:, h].tolist()
+    part = np.partition(values, (h - 1, h), axis=1)
+    mid = part[:, h - 1] + part[:, h]
+    mid /= 2
+    return mid.tolist()
 
 
 @lru_cache(maxsize=64)
@@ -270,17 +313,50 @@ def descriptor_of(
         for ablation).
     """
     x = np.asarray(points, dtype=float)
-    n_f, k = x.shape[:2]
     # (3, K, F): a contiguous row of frames per axis and joint, so that the pairs are
     # gathered as whole rows (gathering them across the last axis of (3, F, K) took
     # three times as long); the values are the same, element by element
-    xt = np.ascontiguousarray(x.transpose(2, 1, 0))
-    a, b = _pairs(k)
-    d = np.take(xt, a, axis=1)
-    d -= np.take(xt, b, axis=1)  # (3, P, F)
+    out = descriptor_rows(
+        np.ascontiguousarray(x.transpose(2, 1, 0)),
+        ground=ground,
+        stature=stature,
+        horizontal=horizontal,
+    )
+    return np.ascontiguousarray(out.T)
+
+
+def descriptor_rows(
+    rows: np.ndarray, *, ground: float, stature: float, horizontal: bool = True
+) -> np.ndarray:
+    """:func:`descriptor_of` of key-joint rows, feature-major: shape (D, F).
+
+    Parameters
+    ----------
+    rows : ndarray of shape (3, K, F)
+        Key-joint positions (m, Y up) component-major, each (component, joint) a
+        contiguous row of frames (:class:`snapcore.select.tracks.JointTracks` rows).
+    ground, stature, horizontal
+        As for :func:`descriptor_of`.
+
+    Returns
+    -------
+    ndarray of shape (D, F)
+        ``descriptor_of(points).T`` (the same values), a contiguous row per feature:
+        the story's novelty and stance terms work on these rows directly.
+    """
+    xt = np.asarray(rows, dtype=float)
+    k, n_f = xt.shape[1:]
+    n_p = k * (k - 1) // 2
+    # the pairs (a, b > a) in np.triu_indices order, joint a's to every later joint in
+    # one subtraction (two gathers of (3, P, F) copies took longer); b - a instead of
+    # a - b, squared next: the same doubles
+    d = np.empty((3, n_p, n_f))
+    i = 0
+    for a in range(k - 1):
+        np.subtract(xt[:, a + 1 :], xt[:, a : a + 1], out=d[:, i : i + k - 1 - a])
+        i += k - 1 - a
     d *= d
     flat = d[0] + d[2]  # squared horizontal distance
-    n_p = a.size
     out = np.empty((k + (2 if horizontal else 1) * n_p, n_f))
     np.subtract(xt[1], ground, out=out[:k])
     flat_3d = d[1]
@@ -289,17 +365,7 @@ def descriptor_of(
     if horizontal:
         np.sqrt(flat, out=out[k + n_p :])
     out /= stature
-    # back to one row per frame, C order: pose_surprisal's sums run in the same order
-    return np.ascontiguousarray(out.T)
-
-
-@lru_cache(maxsize=8)
-def _pairs(k: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.triu_indices(k, 1)``, once per ``k``: the joint pairs of the descriptor."""
-    a, b = np.triu_indices(k, 1)
-    a.flags.writeable = False
-    b.flags.writeable = False
-    return a, b
+    return out
 
 
 def pose_descriptor(
@@ -409,6 +475,21 @@ def stance_departure(features: np.ndarray, neutral: np.ndarray, *, spread: float
     return d2
 
 
+def stance_departure_rows(rows: np.ndarray, neutral: np.ndarray, *, spread: float) -> np.ndarray:
+    """:func:`stance_departure` of feature-major descriptors (D, F)
+    (:func:`descriptor_rows`), shape (F,).
+
+    The same terms, added feature by feature (one pass per row of frames, instead of a
+    short sum per frame): equal to :func:`stance_departure` up to the order of the
+    additions (a few units in the last place).
+    """
+    z = np.asarray(rows, dtype=float) - np.asarray(neutral, dtype=float)[:, None]
+    z *= z
+    d2 = np.add.reduce(z, axis=0)
+    d2 *= 0.5 / (spread**2 * math.log(2.0))
+    return d2
+
+
 def trunk_departure(
     points: np.ndarray, neutral: np.ndarray, *, stature: float, spread: float
 ) -> np.ndarray:
@@ -455,19 +536,37 @@ def trunk_departure(
     clasped in front).
     """
     x = np.asarray(points, dtype=float)
+    # components first, a contiguous row of frames per joint: the arithmetic is on rows
+    rows = np.ascontiguousarray(x.transpose(2, 1, 0))
+    return trunk_departure_rows(rows, neutral, stature=stature, spread=spread)
+
+
+def trunk_departure_rows(
+    rows: np.ndarray, neutral: np.ndarray, *, stature: float, spread: float
+) -> np.ndarray:
+    """:func:`trunk_departure` of key-joint rows (3, K, F) (see
+    :func:`descriptor_rows`), shape (F,): the same values, element by element."""
+    x = np.asarray(rows, dtype=float)
     n = np.asarray(neutral, dtype=float)
-    # components first, each (F, K) contiguous: the arithmetic below is on 1-D rows
-    xs, ys, zs = np.ascontiguousarray(np.moveaxis(x, -1, 0))
-    off = n[0] - n[1]
-    dx = xs[:, 0] - xs[:, 1] - off[0]
-    dy = ys[:, 0] - ys[:, 1] - off[1]
-    dz = zs[:, 0] - zs[:, 1] - off[2]
-    head = dx * dx + dy * dy + dz * dz
-    # the legs: each ankle's vertical and horizontal distance from the pelvis
-    legs = np.zeros(x.shape[0])
-    for a in (4, 5):
-        nv = n[a] - n[1]
-        dv = ys[:, a] - ys[:, 1] - nv[1]
-        dh = np.hypot(xs[:, a] - xs[:, 1], zs[:, a] - zs[:, 1]) - math.hypot(nv[0], nv[2])
-        legs += 0.5 * (dv * dv + dh * dh)
-    return 0.5 * head / (spread**2 * stature**2 + legs) / math.log(2.0)
+    # the head's place over the pelvis, the three components at once: (3, F)
+    d = x[:, 0] - x[:, 1]
+    d -= (n[0] - n[1])[:, None]
+    d *= d
+    head = d[0] + d[1]
+    head += d[2]
+    # the legs: both ankles' vertical and horizontal distance from the pelvis, (2, F)
+    a = x[:, 4:6] - x[:, 1:2]  # (3, 2, F)
+    nv = n[4:6] - n[1]  # (2, 3)
+    dv = a[1] - nv[:, 1:2]
+    dh = np.hypot(a[0], a[2])
+    dh -= np.array([[math.hypot(v[0], v[2])] for v in nv.tolist()])  # math's, as before
+    dv *= dv
+    dh *= dh
+    dv += dh
+    dv *= 0.5
+    legs = dv[0] + dv[1]
+    legs += spread**2 * stature**2
+    head *= 0.5
+    head /= legs
+    head /= math.log(2.0)
+    return head

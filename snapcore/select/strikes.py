@@ -93,8 +93,14 @@ def strike_frames(speed: np.ndarray, *, threshold: float) -> list[np.ndarray]:
         One array of frames per effector.
     """
     v = np.asarray(speed, dtype=float)
+    # a peak is at least ``threshold`` high, so an effector that never reaches it has
+    # none: one comparison for all of them instead of find_peaks' ~25 calls for each
+    # (most effectors of most clips: 7 of the salsa pair's 8)
+    hot: list[bool] = np.any(v >= threshold, axis=0).tolist()
+    none = np.zeros(0, dtype=np.intp)
     return [
-        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold) for e in range(v.shape[1])
+        find_peaks(v[:, e], height=threshold, prominence=0.5 * threshold) if hot[e] else none
+        for e in range(v.shape[1])
     ]
 
 
