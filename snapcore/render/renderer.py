@@ -102,9 +102,12 @@ SHADOW_DARKEN = 0.80
 SHADOW_LIGHT = (0.35, 1.0, -0.25)  # (towards camera, up, right)
 #: Cropped renders (``SceneRenderer.render(..., crop=True)``): margin around the drawn
 #: points (px; covers anti-aliased edges), size step (px) and the largest share of the
-#: frame worth cropping (above it the whole frame is rendered).
+#: frame worth cropping (above it the whole frame is rendered). The step is small: the
+#: rectangle's restore, resolve, read-back and paste cost by the pixel (a scissor cuts
+#: llvmpipe's 64-pixel tiles anywhere); steps of 8 instead of 64 px made the salsa
+#: video's rectangles 13% smaller.
 CROP_PAD_PX = 3
-CROP_STEP_PX = 64
+CROP_STEP_PX = 8
 CROP_MAX_AREA = 0.7
 
 
@@ -564,14 +567,17 @@ class SceneRenderer:
         """``(x0, y0, width, height)`` in pixels of a rectangle holding every drawn
         point (bodies, shadows) of this frame, or None to render the whole frame."""
         w, h = self.size
-        points = np.concatenate([np.asarray(d, float) for d in drawn])
-        if camera.projection != "orthographic":
+        if camera.projection == "orthographic":
+            lo, hi = _ortho_box(camera, drawn)
+        else:
+            points = np.concatenate([np.asarray(d, float) for d in drawn])
             depth = (camera.position - points) @ camera.back
             if not np.all(depth > camera.znear):  # beside or behind the eye: no box
                 return None
-        xy = camera.project(points)
-        lo = np.floor(xy.min(axis=0)) - CROP_PAD_PX
-        hi = np.ceil(xy.max(axis=0)) + CROP_PAD_PX
+            xy = camera.project(points)
+            lo, hi = xy.min(axis=0), xy.max(axis=0)
+        lo = np.floor(lo) - CROP_PAD_PX
+        hi = np.ceil(hi) + CROP_PAD_PX
         # sizes in steps of CROP_STEP_PX (llvmpipe draws in 64-pixel tiles)
         cw, ch = (
             int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
@@ -594,6 +600,28 @@ class SceneRenderer:
             )
             self._background = np.ascontiguousarray(pending.read())
         return self._background
+
+
+def _ortho_box(camera: Camera, drawn: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest pixel coordinates (x right, y down; shape (2,) each) of the
+    points ``drawn`` (arrays of shape (N, 3), metres) seen by orthographic ``camera``:
+    :meth:`Camera.project`'s affine map as one float32 product per array (~10x faster
+    than projecting the float64 points: ~0.1 against ~0.9 ms for a video frame's
+    bodies and shadows). Its rounding, ~1e-4 px at coordinates of a few thousand px,
+    is far inside the rectangle's :data:`CROP_PAD_PX` margin."""
+    w, h = camera.size
+    s = camera.half_height
+    ax = np.asarray(camera.right, float) * (w / 2 / (s * camera.aspect))
+    ay = np.asarray(camera.up, float) * (-h / 2 / s)
+    pos = np.asarray(camera.position, float)
+    offset = np.array([w / 2 - pos @ ax, h / 2 - pos @ ay])
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for d in drawn:
+        d32 = np.asarray(d, np.float32).reshape(-1, 3)
+        for i, a in enumerate((ax, ay)):
+            c = d32 @ a.astype(np.float32)  # a matrix-vector product (BLAS sgemv)
+            lo[i], hi[i] = min(lo[i], c.min()), max(hi[i], c.max())
+    return lo + offset, hi + offset
 
 
 class _Frame:
