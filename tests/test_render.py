@@ -445,10 +445,11 @@ def test_a_cropped_render_is_the_full_render(walk):
 
 def test_the_crop_box_of_an_orthographic_view_is_the_projected_points_box():
     """The rectangle of a video frame comes from a float32 shortcut of the orthographic
-    projection (``_ortho_box``); it must hold every point ``Camera.project`` puts on the
+    projection (``ortho_box``); it must hold every point ``Camera.project`` puts on the
     picture, to well within the rectangle's margin, also for points far from the origin
     (float32 keeps ~7 digits) and for views from below."""
-    from snapcore.render.renderer import CROP_PAD_PX, _ortho_box
+    from snapcore.render.camera import ortho_box
+    from snapcore.render.renderer import CROP_PAD_PX
 
     rng = np.random.default_rng(3)
     for shift, view in (
@@ -461,7 +462,7 @@ def test_the_crop_box_of_an_orthographic_view_is_the_projected_points_box():
             rng.normal(size=(700, 3)) * 0.5 + shift,  # float64, like the shadows
         ]
         cam = fit_camera(np.vstack(parts), view, size=(1280, 720))
-        lo, hi = _ortho_box(cam, parts)
+        lo, hi = ortho_box(cam, parts)
         xy = cam.project(np.vstack([np.asarray(p, float) for p in parts]))
         assert np.abs(lo - xy.min(axis=0)).max() < 0.01 * CROP_PAD_PX
         assert np.abs(hi - xy.max(axis=0)).max() < 0.01 * CROP_PAD_PX

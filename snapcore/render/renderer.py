@@ -47,6 +47,7 @@ from snapcore.render.camera import (
     gl_node_matrix,
     gl_projection,
     motion_points,
+    ortho_box,
     view_basis,
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
@@ -568,7 +569,7 @@ class SceneRenderer:
         point (bodies, shadows) of this frame, or None to render the whole frame."""
         w, h = self.size
         if camera.projection == "orthographic":
-            lo, hi = _ortho_box(camera, drawn)
+            lo, hi = ortho_box(camera, drawn)
         else:
             points = np.concatenate([np.asarray(d, float) for d in drawn])
             depth = (camera.position - points) @ camera.back
@@ -600,28 +601,6 @@ class SceneRenderer:
             )
             self._background = np.ascontiguousarray(pending.read())
         return self._background
-
-
-def _ortho_box(camera: Camera, drawn: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest and largest pixel coordinates (x right, y down; shape (2,) each) of the
-    points ``drawn`` (arrays of shape (N, 3), metres) seen by orthographic ``camera``:
-    :meth:`Camera.project`'s affine map as one float32 product per array (~10x faster
-    than projecting the float64 points: ~0.1 against ~0.9 ms for a video frame's
-    bodies and shadows). Its rounding, ~1e-4 px at coordinates of a few thousand px,
-    is far inside the rectangle's :data:`CROP_PAD_PX` margin."""
-    w, h = camera.size
-    s = camera.half_height
-    ax = np.asarray(camera.right, float) * (w / 2 / (s * camera.aspect))
-    ay = np.asarray(camera.up, float) * (-h / 2 / s)
-    pos = np.asarray(camera.position, float)
-    offset = np.array([w / 2 - pos @ ax, h / 2 - pos @ ay])
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    for d in drawn:
-        d32 = np.asarray(d, np.float32).reshape(-1, 3)
-        for i, a in enumerate((ax, ay)):
-            c = d32 @ a.astype(np.float32)  # a matrix-vector product (BLAS sgemv)
-            lo[i], hi[i] = min(lo[i], c.min()), max(hi[i], c.max())
-    return lo + offset, hi + offset
 
 
 class _Frame:
