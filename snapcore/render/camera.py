@@ -177,6 +177,8 @@ def ortho_box(camera: Camera, drawn: list[np.ndarray]) -> tuple[np.ndarray, np.n
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for d in drawn:
         d32 = np.asarray(d, np.float32).reshape(-1, 3)
+        if not len(d32):
+            continue
         for i, a in enumerate((ax, ay)):
             c = d32 @ a.astype(np.float32)  # a matrix-vector product (BLAS sgemv)
             lo[i], hi[i] = min(lo[i], c.min()), max(hi[i], c.max())
