@@ -50,6 +50,7 @@ __all__ = [
     "VIDEO_CRF",
     "VIDEO_PRESET",
     "VIDEO_X264_PARAMS",
+    "VIDEO_SWS_FLAGS",
     "VP9_CRF",
 ]
 
@@ -63,6 +64,11 @@ VIDEO_PRESET = "veryfast"
 #: (of ~8), files ~9% larger, PSNR against the rendered frames 0.13 dB lower (45.4 dB);
 #: "superfast" itself saved as much but made files 2.9x larger (docs/speed.md).
 VIDEO_X264_PARAMS = "subme=1:me=dia"
+#: swscale's filter for the rgb24 → yuv420p conversion of H.264 videos (ffmpeg's
+#: default: bicubic): each 2x2 block's chroma from one of its pixels. ~0.7 ms less
+#: ffmpeg CPU a frame at 1280x720, and decoded (by ffmpeg) closer to the rendered
+#: frames: RGB PSNR 39.25 → 40.0 and 38.74 → 39.42 dB on two salsa clips.
+VIDEO_SWS_FLAGS = "neighbor"
 #: libvpx-vp9 constant quality (0-63; 32 looks like x264's 23 on flat renders).
 VP9_CRF = 32
 
@@ -378,6 +384,8 @@ def render_video(
             "-preset",
             preset,
             *(["-x264-params", VIDEO_X264_PARAMS] if preset == VIDEO_PRESET else []),
+            "-sws_flags",
+            VIDEO_SWS_FLAGS,
             "-crf",
             str(int(crf)),
             "-g",
