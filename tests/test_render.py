@@ -443,6 +443,31 @@ def test_a_cropped_render_is_the_full_render(walk):
     assert sr._crop_window(eye, [sr.body.vertices(0)]) is None
 
 
+def test_the_crop_box_of_an_orthographic_view_is_the_projected_points_box():
+    """The rectangle of a video frame comes from a float32 shortcut of the orthographic
+    projection (``ortho_box``); it must hold every point ``Camera.project`` puts on the
+    picture, to well within the rectangle's margin, also for points far from the origin
+    (float32 keeps ~7 digits) and for views from below."""
+    from snapcore.render.camera import ortho_box
+    from snapcore.render.renderer import CROP_PAD_PX
+
+    rng = np.random.default_rng(3)
+    for shift, view in (
+        (0.0, [1.0, 0.8, 2.0]),
+        (0.0, [0.3, -0.6, -1.0]),
+        (500.0, [-1.0, 0.2, 0.4]),
+    ):
+        parts = [
+            (rng.normal(size=(5000, 3)) + shift).astype(np.float32),
+            rng.normal(size=(700, 3)) * 0.5 + shift,  # float64, like the shadows
+        ]
+        cam = fit_camera(np.vstack(parts), view, size=(1280, 720))
+        lo, hi = ortho_box(cam, parts)
+        xy = cam.project(np.vstack([np.asarray(p, float) for p in parts]))
+        assert np.abs(lo - xy.min(axis=0)).max() < 0.01 * CROP_PAD_PX
+        assert np.abs(hi - xy.max(axis=0)).max() < 0.01 * CROP_PAD_PX
+
+
 def test_pipelined_frames_are_the_frames_rendered_one_by_one(walk):
     """``render_frames`` (videos: a frame posed while the one before rasterises) gives
     each frame exactly as a renderer drawing it alone, across a camera change."""

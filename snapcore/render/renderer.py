@@ -47,6 +47,7 @@ from snapcore.render.camera import (
     gl_node_matrix,
     gl_projection,
     motion_points,
+    ortho_box,
     view_basis,
 )
 from snapcore.render.gl import gl_renderer, load_pyrender
@@ -102,9 +103,12 @@ SHADOW_DARKEN = 0.80
 SHADOW_LIGHT = (0.35, 1.0, -0.25)  # (towards camera, up, right)
 #: Cropped renders (``SceneRenderer.render(..., crop=True)``): margin around the drawn
 #: points (px; covers anti-aliased edges), size step (px) and the largest share of the
-#: frame worth cropping (above it the whole frame is rendered).
+#: frame worth cropping (above it the whole frame is rendered). The step is small: the
+#: rectangle's restore, resolve, read-back and paste cost by the pixel (a scissor cuts
+#: llvmpipe's 64-pixel tiles anywhere); steps of 8 instead of 64 px made the salsa
+#: video's rectangles 13% smaller.
 CROP_PAD_PX = 3
-CROP_STEP_PX = 64
+CROP_STEP_PX = 8
 CROP_MAX_AREA = 0.7
 
 
@@ -564,15 +568,19 @@ class SceneRenderer:
         """``(x0, y0, width, height)`` in pixels of a rectangle holding every drawn
         point (bodies, shadows) of this frame, or None to render the whole frame."""
         w, h = self.size
-        points = np.concatenate([np.asarray(d, float) for d in drawn])
-        if camera.projection != "orthographic":
+        if camera.projection == "orthographic":
+            lo, hi = ortho_box(camera, drawn)
+        else:
+            points = np.concatenate([np.asarray(d, float) for d in drawn])
             depth = (camera.position - points) @ camera.back
             if not np.all(depth > camera.znear):  # beside or behind the eye: no box
                 return None
-        xy = camera.project(points)
-        lo = np.floor(xy.min(axis=0)) - CROP_PAD_PX
-        hi = np.ceil(xy.max(axis=0)) + CROP_PAD_PX
-        # sizes in steps of CROP_STEP_PX (llvmpipe draws in 64-pixel tiles)
+            xy = camera.project(points)
+            lo, hi = xy.min(axis=0), xy.max(axis=0)
+        lo = np.floor(lo) - CROP_PAD_PX
+        hi = np.ceil(hi) + CROP_PAD_PX
+        # sizes in steps of CROP_STEP_PX (8 px: within 2% of the tight box in area, and
+        # read-back rows of RGBA in multiples of 32 bytes)
         cw, ch = (
             int(min(n, np.ceil(max(b - a, 1) / CROP_STEP_PX) * CROP_STEP_PX))
             for a, b, n in zip(lo, hi, (w, h))
