@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from snapcore.motion import synth
-from snapcore.select.signals import enforce_min_durations, hysteresis, hysteresis_rows
+from snapcore.select.novelty import tail_surprisal
+from snapcore.select.signals import (
+    enforce_min_durations,
+    hysteresis,
+    hysteresis_rows,
+    nonzero_rows,
+)
 from snapcore.select.stance import (
     _percentile,
     _row_medians,
@@ -71,6 +77,36 @@ def test_hysteresis_matches_the_frame_by_frame_switch():
         want = np.stack([_hysteresis_loop(x[:, j], 1.0, 1.5) for j in range(4)], axis=1)
         np.testing.assert_array_equal(hysteresis(x, 1.0, 1.5), want)
         np.testing.assert_array_equal(hysteresis_rows(np.ascontiguousarray(x.T), 1.0, 1.5), want.T)
+    assert hysteresis_rows(np.zeros((3, 0)), 1.0, 1.5).shape == (3, 0)
+    np.testing.assert_array_equal(hysteresis_rows(np.array([[1.2], [0.5]]), 1.0, 1.5), [[0], [1]])
+
+
+def test_tail_surprisal_counts_the_frames_at_least_as_far_out():
+    """Random curves with ties (and a signed zero): each frame's -log2 of the share of
+    frames whose value is at least its own, counted frame by frame; NaN ties with NaN
+    (sorted last, as NumPy sorts it)."""
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        n = int(rng.integers(2, 50))
+        v = rng.uniform(0, 10, n)
+        if rng.random() < 0.5:
+            v = np.round(v)  # ties
+        v[rng.integers(n)] = -0.0
+        at_least = np.array([np.count_nonzero(v >= x) for x in v])
+        np.testing.assert_array_equal(tail_surprisal(v), -np.log2(at_least / n))
+    v = np.array([1.0, np.nan, 3.0, np.nan])
+    np.testing.assert_array_equal(tail_surprisal(v), -np.log2(np.array([4, 2, 3, 2]) / 4))
+
+
+def test_nonzero_rows_is_numpys_nonzero():
+    """Rows and columns of the True entries of random 2-D masks, zero-sized included,
+    in NumPy's (row-major) order and integer type."""
+    rng = np.random.default_rng(6)
+    for _ in range(300):
+        m = rng.random((int(rng.integers(0, 6)), int(rng.integers(0, 30)))) < rng.random()
+        for got, want in zip(nonzero_rows(m), np.nonzero(m)):
+            np.testing.assert_array_equal(got, want)
+            assert got.dtype == want.dtype
 
 
 def test_min_durations_match_the_run_by_run_rule():

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapcore.select.signals import half_gaussian
+from snapcore.select.signals import half_gaussian, nonzero_rows
 
 __all__ = ["event_surprisal", "event_marks", "spread_events", "contact_state_entropy"]
 
@@ -62,7 +62,7 @@ def event_marks(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for kind, out in ((1, onset), (-1, release)):
         # the events (a few dozen), contactor by contactor: per frame their bits add in
         # contactor order, as the column sums of a dense (L, F-1) array of bits would
-        limb, frame = np.nonzero(d == kind)
+        limb, frame = nonzero_rows(d == kind)
         n = np.bincount(limb, minlength=n_l)  # events per contactor
         bits = np.where(n > 0, -np.log2(np.maximum(n, 1) / n_f), 0.0)
         out[1:] += np.bincount(frame, weights=bits.take(limb), minlength=n_f - 1)

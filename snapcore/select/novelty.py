@@ -75,9 +75,23 @@ def tail_surprisal(values: np.ndarray) -> np.ndarray:
     n = v.size
     if n == 0:
         return np.zeros(0)
-    srt = np.sort(v)
+    # a stable argsort (a merge sort of the few runs of a smooth curve) was faster than
+    # ``np.sort`` and a binary search of every frame in the result
+    order = np.argsort(v, kind="stable")
+    srt = v[order]
     # the range from the sorted ends (NaN sorts last, so a NaN range stays NaN)
     if float(srt[-1] - srt[0]) <= ZERO_BITS:
         return np.zeros(n)
-    at_least = n - np.searchsorted(srt, v, side="left")  # frames with value >= v_i
+    if np.isnan(srt[-1]):
+        at_least = n - np.searchsorted(srt, v, side="left")  # NaNs tie with each other
+    else:
+        # frames with value >= v_i: n minus the sorted place of the first of v_i's ties
+        # (``np.searchsorted(srt, v, side="left")``), written back in frame order
+        first = np.arange(n)
+        tied = np.flatnonzero(srt[1:] == srt[:-1]) + 1
+        if tied.size:
+            first[tied] = 0
+            first = np.maximum.accumulate(first)
+        at_least = np.empty(n, dtype=np.intp)
+        at_least[order] = n - first
     return -np.log2(at_least / n)

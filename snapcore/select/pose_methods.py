@@ -42,7 +42,7 @@ from snapcore.select.pose_baselines import (
     stretch_score,
 )
 from snapcore.select.pose_selection import MIN_SEPARATION_S, PoseScores, PoseSelection, top_peaks
-from snapcore.select.signals import SMOOTH_S
+from snapcore.select.signals import SMOOTH_S, nonzero_rows
 from snapcore.select.story import DEFAULT_STORY, StoryInformation, StoryParams, story_information
 
 if TYPE_CHECKING:
@@ -236,8 +236,8 @@ def story_interactions(scene: Scene, info: StoryInformation) -> Interactions:
             edge = np.zeros((state.shape[0], state.shape[1] + 2), dtype=np.int8)
             edge[:, 1:-1] = state
             edge = np.diff(edge, axis=1)
-            limb, start = np.nonzero(edge == 1)
-            end = np.nonzero(edge == -1)[1] - 1
+            limb, start = nonzero_rows(edge == 1)
+            end = nonzero_rows(edge == -1)[1] - 1
             rep = [int(_representative(c, js)) for js in lc.joints]
             for li, s, e in zip(limb.tolist(), start.tolist(), end.tolist()):
                 events.append(_event(ci, rep[li], GROUND, s, e, None))
