@@ -120,7 +120,12 @@ vec3 shade(vec3 base, vec3 n, vec3 p) {
         vec3 l = -directional_lights[i].direction;
         float d = max(dot(n, l), 0.0);
         vec3 h = normalize(l + e);
+#ifdef HIGHLIGHT_BY_SQUARES
+        float x = max(dot(n, h), 0.0), x3 = x * x * x, x6 = x3 * x3, x12 = x6 * x6;
+        float s = shine * 0.5 * (x12 * x12) * step(0.0, d);
+#else
         float s = shine * 0.5 * pow(max(dot(n, h), 0.0), 24.0) * step(0.0, d);
+#endif
         c += directional_lights[i].color * directional_lights[i].intensity * 0.32
              * (base * d + vec3(s));
     }

@@ -42,8 +42,13 @@ __all__ = ["DrawMesh", "Light", "Pending", "draw", "submit", "MAX_LIGHTS"]
 
 #: pyrender's ``MAX_N_LIGHTS``: the size of the shaders' light array.
 MAX_LIGHTS = 4
-#: Samples per pixel (pyrender's multisampled main framebuffer).
+#: Samples per pixel (pyrender's multisampled main framebuffer). llvmpipe has no other
+#: multisampled count: asked for 2 (or 1), it makes 4.
 SAMPLES = 4
+#: The highlight's ``x ** 24`` as products (``x * x * x``, squared three times), not
+#: ``pow``: ~1.5 CPU-ms less a 1280x720 frame of the salsa pair (of ~32); a few pixels
+#: one level apart (docs/speed.md). Off: the pictures stay pyrender's.
+HIGHLIGHT_BY_SQUARES = False
 #: Framebuffer sizes kept per thread, each as three sets (two for pipelined frames, one
 #: for backgrounds: ~100 MB at 1280x720 with 4x multisampling); a batch alternates
 #: two (thumbnails, preview panels).
@@ -154,6 +159,8 @@ class _Program:
         defines.update(MAX_DIRECTIONAL_LIGHTS=MAX_LIGHTS, MAX_SPOT_LIGHTS=MAX_LIGHTS)
         defines["MAX_POINT_LIGHTS"] = MAX_LIGHTS
         defines["USE_METALLIC_MATERIAL"] = 1
+        if HIGHLIGHT_BY_SQUARES:
+            defines["HIGHLIGHT_BY_SQUARES"] = 1
         if lit and vertex_lighting:
             defines["VERTEX_LIGHTING"] = 1
         self.lit = lit
