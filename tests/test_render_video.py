@@ -499,3 +499,60 @@ def test_video_encoder_settings_keep_the_quality_and_size(motions_dir, walk, tmp
     size_new, size_old = new.stat().st_size, old.stat().st_size
     assert psnr_new >= psnr_old - 0.3, (psnr_new, psnr_old)
     assert size_new <= 1.2 * size_old, (size_new, size_old)
+
+
+def test_vertex_lighting_of_video_frames_stays_within_its_tolerance(motions_dir, monkeypatch):
+    """``VIDEO_LIGHTING = "vertex"`` (off by default: the test above holds the default
+    frames to the per-pixel renders) lights the salsa pair's bodies at the vertices on
+    both drawing threads: every frame differs from the per-pixel one (fails if the choice
+    is not passed on, e.g. to the second thread's renderer), and by little (fails for a
+    broken shade: black bodies are 7 levels off on average). The bounds are ~3x the
+    differences measured on 120 frames of three clips at this size (mean 0.04-0.06 levels,
+    0.007-0.02% of the pixels more than 16 apart; docs/speed.md)."""
+    import warnings
+
+    import imageio_ffmpeg
+
+    from snapcore.motion.load import load_scene
+    from snapcore.render import video
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.camera import default_view, fit_camera, motion_points
+    from snapcore.render.renderer import SceneRenderer
+
+    paths = [
+        motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
+    ]
+    if not all(p.exists() for p in paths):
+        pytest.skip("the salsa pair is not in the shared data")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = load_scene(paths, fps=60)
+    sent: list[np.ndarray] = []
+
+    def fake_writer(*args, **kwargs):
+        while True:
+            frame = yield
+            if frame is not None:
+                sent.append(np.array(frame, copy=True))
+
+    monkeypatch.setattr(imageio_ffmpeg, "write_frames", fake_writer)
+    monkeypatch.setattr(video, "VIDEO_LIGHTING", "vertex")
+    size, start, n = (1280, 720), 600, 10
+    off = scene.frame_offset
+    video.render_video(
+        scene, "/tmp/unused.mp4", fps=scene.fps, size=size,
+        frame_range=(off + start, off + start + n), progress=False,
+    )  # fmt: skip
+    assert len(sent) == n
+    body = scene_body(scene, kind="human", detail="reduced")
+    frames = np.arange(start, start + n)
+    cam = fit_camera(motion_points(scene, frames=frames, body=body), default_view(scene), size=size)
+    ref = SceneRenderer(scene, size=size, body=body)
+    mean, beyond = [], []
+    for k, f in enumerate(frames):
+        d = np.abs(sent[k].astype(int) - ref.render(int(f), cam, crop=True).astype(int))
+        assert d.any(), k
+        mean.append(d.mean())
+        beyond.append((d.max(axis=2) > 16).mean())
+    assert np.mean(mean) < 0.2
+    assert np.mean(beyond) < 6e-4

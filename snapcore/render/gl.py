@@ -103,7 +103,38 @@ def _stub_viewer() -> None:
 # unlit in their vertex colour (the floor grid and the shadows). Colours are linear; output is
 # gamma-encoded (1/2.2) like pyrender's. (The exact id pass has its own program:
 # :mod:`snapcore.render.buffers`.)
-_VERT = """#version 330 core
+#: The lighting (uniforms and a function of the linear base colour, unit normal and
+#: world position), shared by the per-pixel shader below and the per-vertex one.
+_LIGHTING = """struct DirectionalLight { vec3 direction; vec3 color; float intensity; };
+struct Material { vec4 base_color_factor; float roughness_factor; };
+uniform Material material;
+uniform DirectionalLight directional_lights[MAX_DIRECTIONAL_LIGHTS];
+uniform int n_directional_lights;
+uniform vec3 ambient_light;
+uniform vec3 cam_pos;
+vec3 shade(vec3 base, vec3 n, vec3 p) {
+    vec3 e = normalize(cam_pos - p);
+    float shine = 1.0 - material.roughness_factor;
+    vec3 c = ambient_light * base;
+    for (int i = 0; i < n_directional_lights; i++) {
+        vec3 l = -directional_lights[i].direction;
+        float d = max(dot(n, l), 0.0);
+        vec3 h = normalize(l + e);
+#ifdef HIGHLIGHT_BY_SQUARES
+        float x = max(dot(n, h), 0.0), x3 = x * x * x, x6 = x3 * x3, x12 = x6 * x6;
+        float s = shine * 0.5 * (x12 * x12) * step(0.0, d);
+#else
+        float s = shine * 0.5 * pow(max(dot(n, h), 0.0), 24.0) * step(0.0, d);
+#endif
+        c += directional_lights[i].color * directional_lights[i].intensity * 0.32
+             * (base * d + vec3(s));
+    }
+    return c;
+}
+"""
+
+_VERT = (
+    """#version 330 core
 layout(location = 0) in vec3 position;
 #ifdef NORMAL_LOC
 layout(location = NORMAL_LOC) in vec3 normal;
@@ -118,6 +149,11 @@ uniform mat4 P;
 out vec3 frag_position;
 out vec3 frag_normal;
 out vec4 vcolor;
+#ifdef VERTEX_LIGHTING
+"""
+    + _LIGHTING
+    + """out vec3 vertex_lit;
+#endif
 void main() {
     mat4 MI = M * inst_m;
     vec4 wp = MI * vec4(position, 1.0);
@@ -133,19 +169,23 @@ void main() {
 #else
     vcolor = vec4(1.0);
 #endif
+#ifdef VERTEX_LIGHTING
+    // front faces only (the bodies are culled): a vertex cannot know the side it is seen from
+    vertex_lit = shade(material.base_color_factor.rgb * vcolor.rgb, normalize(frag_normal), wp.xyz);
+#endif
 }
 """
-_MESH_FRAG = """#version 330 core
-struct DirectionalLight { vec3 direction; vec3 color; float intensity; };
-struct Material { vec4 base_color_factor; float roughness_factor; };
-uniform Material material;
-uniform DirectionalLight directional_lights[MAX_DIRECTIONAL_LIGHTS];
-uniform int n_directional_lights;
-uniform vec3 ambient_light;
-uniform vec3 cam_pos;
-in vec3 frag_position;
+)
+_MESH_FRAG = (
+    """#version 330 core
+"""
+    + _LIGHTING
+    + """in vec3 frag_position;
 in vec3 frag_normal;
 in vec4 vcolor;
+#ifdef VERTEX_LIGHTING
+in vec3 vertex_lit;
+#endif
 out vec4 frag_color;
 void main() {
     vec3 base = material.base_color_factor.rgb * vcolor.rgb;
@@ -154,22 +194,17 @@ void main() {
     frag_color = vec4(pow(clamp(base, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
     return;
 #endif
+#ifdef VERTEX_LIGHTING
+    // lit at the vertices (see _VERT), interpolated; only the gamma per pixel
+    frag_color = vec4(pow(clamp(vertex_lit, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+    return;
+#endif
     vec3 n = normalize(frag_normal);
     if (!gl_FrontFacing) n = -n;
-    vec3 e = normalize(cam_pos - frag_position);
-    float shine = 1.0 - material.roughness_factor;
-    vec3 c = ambient_light * base;
-    for (int i = 0; i < n_directional_lights; i++) {
-        vec3 l = -directional_lights[i].direction;
-        float d = max(dot(n, l), 0.0);
-        vec3 h = normalize(l + e);
-        float s = shine * 0.5 * pow(max(dot(n, h), 0.0), 24.0) * step(0.0, d);
-        c += directional_lights[i].color * directional_lights[i].intensity * 0.32
-             * (base * d + vec3(s));
-    }
-    frag_color = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+    frag_color = vec4(pow(clamp(shade(base, n, frag_position), 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 }
 """
+)
 _SHADER_DIR = None
 
 

@@ -42,8 +42,13 @@ __all__ = ["DrawMesh", "Light", "Pending", "draw", "submit", "MAX_LIGHTS"]
 
 #: pyrender's ``MAX_N_LIGHTS``: the size of the shaders' light array.
 MAX_LIGHTS = 4
-#: Samples per pixel (pyrender's multisampled main framebuffer).
+#: Samples per pixel (pyrender's multisampled main framebuffer). llvmpipe has no other
+#: multisampled count: asked for 2 (or 1), it makes 4.
 SAMPLES = 4
+#: The highlight's ``x ** 24`` as products (``x * x * x``, squared three times), not
+#: ``pow``: ~1.5 CPU-ms less a 1280x720 frame of the salsa pair (of ~32); a few pixels
+#: one level apart (docs/speed.md). Off: the pictures stay pyrender's.
+HIGHLIGHT_BY_SQUARES = False
 #: Framebuffer sizes kept per thread, each as three sets (two for pipelined frames, one
 #: for backgrounds: ~100 MB at 1280x720 with 4x multisampling); a batch alternates
 #: two (thumbnails, preview panels).
@@ -72,6 +77,10 @@ class DrawMesh:
         Lit when given (Lambert and a soft highlight); unlit (its colour) without.
     roughness : float
         The material's roughness factor (the highlight's strength is ``1 - roughness``).
+    vertex_lighting : bool
+        Light it at the vertices and interpolate the colour (Gouraud; only the gamma per
+        pixel) instead of per pixel: front faces only. ~9 CPU-ms less a 1280x720 frame
+        of the salsa pair; pixels differ a little (docs/speed.md).
     double_sided : bool
         Draw back faces too (no culling).
     visible : bool
@@ -89,6 +98,7 @@ class DrawMesh:
     indices: np.ndarray
     normals: np.ndarray | None = None
     roughness: float = 1.0
+    vertex_lighting: bool = False
     double_sided: bool = False
     visible: bool = True
     dynamic_indices: bool = False
@@ -122,7 +132,8 @@ def _program_source(text: str, defines: dict[str, int]) -> str:
 
 
 class _Program:
-    """The mesh program for lit (with normals) or unlit primitives, and its uniforms."""
+    """The mesh program for lit (with normals) or unlit primitives, and its uniforms;
+    lit ones per pixel or, with ``vertex_lighting``, per vertex."""
 
     _NAMES = (
         "M",
@@ -135,7 +146,7 @@ class _Program:
         "material.roughness_factor",
     )
 
-    def __init__(self, lit: bool) -> None:
+    def __init__(self, lit: bool, vertex_lighting: bool = False) -> None:
         from OpenGL import GL as gl
         from OpenGL.GL import shaders
 
@@ -148,6 +159,10 @@ class _Program:
         defines.update(MAX_DIRECTIONAL_LIGHTS=MAX_LIGHTS, MAX_SPOT_LIGHTS=MAX_LIGHTS)
         defines["MAX_POINT_LIGHTS"] = MAX_LIGHTS
         defines["USE_METALLIC_MATERIAL"] = 1
+        if HIGHLIGHT_BY_SQUARES:
+            defines["HIGHLIGHT_BY_SQUARES"] = 1
+        if lit and vertex_lighting:
+            defines["VERTEX_LIGHTING"] = 1
         self.lit = lit
         self.color_loc = defines["COLOR_0_LOC"]
         self.inst_loc = defines["INST_M_LOC"]
@@ -328,6 +343,7 @@ class _Canvas:
     def __init__(self, ctx: object) -> None:
         self.ctx = ctx
         self.programs = {lit: _Program(lit) for lit in (True, False)}
+        self._vertex_lit: _Program | None = None  # compiled when first asked for
         self.slots: dict[str, _Slot] = {}
         self.fbs: OrderedDict[tuple[int, int, int], _Framebuffers] = OrderedDict()
         #: per size, the framebuffers whose kept samples frames restore
@@ -344,6 +360,13 @@ class _Canvas:
                 old.delete()
         self.fbs[(w, h, buffer)] = fb
         return fb
+
+    def program(self, mesh: DrawMesh) -> _Program:
+        if mesh.normals is None or not mesh.vertex_lighting:
+            return self.programs[mesh.normals is not None]
+        if self._vertex_lit is None:
+            self._vertex_lit = _Program(True, vertex_lighting=True)
+        return self._vertex_lit
 
     def slot(self, name: str) -> _Slot:
         if name not in self.slots:
@@ -466,7 +489,7 @@ def submit(
     for mesh in meshes:
         if not mesh.visible or len(mesh.indices) == 0:
             continue
-        program = canvas.programs[mesh.normals is not None]
+        program = canvas.program(mesh)
         gl.glUseProgram(program.id)
         loc = program.loc
         gl.glUniformMatrix4fv(loc["V"], 1, gl.GL_TRUE, v32)

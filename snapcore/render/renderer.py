@@ -269,6 +269,8 @@ class SceneRenderer:
         #: passes the pose's own floor contact, where the figure stands.
         self.horizon_point: np.ndarray | None = None
         self.shadows = bool(shadows) and self.ground and floor == "auto"
+        #: Light the bodies per vertex (:attr:`~snapcore.render.raster.DrawMesh.vertex_lighting`).
+        self.vertex_lighting = False
         self._thread = threading.get_ident()
         # cleared to the floor colour: the floor is everything the sky does not cover
         self._clear = FLOOR_COLOR if self.ground else BACKGROUND
@@ -460,6 +462,7 @@ class SceneRenderer:
             self._faces,
             normals=self.body.normals(index).astype(np.float32),
             roughness=BODY_ROUGHNESS,
+            vertex_lighting=self.vertex_lighting,
         )
         if self.shadows:
             # a coarse stand-in, and only its faces turned to the light: every closed piece

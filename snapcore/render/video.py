@@ -51,6 +51,7 @@ __all__ = [
     "VIDEO_PRESET",
     "VIDEO_X264_PARAMS",
     "VIDEO_SWS_FLAGS",
+    "VIDEO_LIGHTING",
     "VP9_CRF",
 ]
 
@@ -69,6 +70,12 @@ VIDEO_X264_PARAMS = "subme=1:me=dia"
 #: ffmpeg CPU a frame at 1280x720, and decoded (by ffmpeg) closer to the rendered
 #: frames: RGB PSNR 39.25 → 40.0 and 38.74 → 39.42 dB on two salsa clips.
 VIDEO_SWS_FLAGS = "neighbor"
+#: How video frames light the bodies: "pixel" (as stills: the default) or "vertex"
+#: (``SNAPCORE_VIDEO_LIGHTING=vertex``; Gouraud, see
+#: :attr:`~snapcore.render.raster.DrawMesh.vertex_lighting`): on the salsa pair ~8-9
+#: CPU-ms less a 1280x720 frame (of ~33), pixels 0.04-0.06 levels apart on average,
+#: 0.01-0.02% of them more than 16 apart (the highlights; docs/speed.md).
+VIDEO_LIGHTING = "vertex" if os.environ.get("SNAPCORE_VIDEO_LIGHTING") == "vertex" else "pixel"
 #: libvpx-vp9 constant quality (0-63; 32 looks like x264's 23 on flat renders).
 VP9_CRF = 32
 
@@ -212,6 +219,7 @@ def video_frames(sr: SceneRenderer, frames: np.ndarray, camera: Camera) -> Itera
                 floor=sr.floor,
             )
             other.horizon_point = sr.horizon_point
+            other.vertex_lighting = sr.vertex_lighting
             mine = frames[1::2]
             for img in other.render_frames(
                 mine, camera, turns=(turns.turn(2 * j + 1) for j in range(len(mine)))
@@ -360,6 +368,7 @@ def render_video(
         shadows=shadows,
         body=scene_body(scene, kind=body, detail=detail),
     )
+    sr.vertex_lighting = VIDEO_LIGHTING == "vertex"
     if camera is None:
         if view is None:
             view = default_view(scene)
