@@ -377,6 +377,7 @@ def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_
     frames = np.arange(start, start + n)
     cam = fit_camera(motion_points(scene, frames=frames, body=body), default_view(scene), size=size)
     ref = SceneRenderer(scene, size=size, body=body)
+    ref.vertex_lighting = video.VIDEO_LIGHTING == "vertex"  # lit as the video's frames are
     for k, f in enumerate(frames):
         assert np.array_equal(sent[k], ref.render(int(f), cam, crop=True)), k
     assert not np.array_equal(sent[0], sent[-1])  # the dancers moved
@@ -502,9 +503,8 @@ def test_video_encoder_settings_keep_the_quality_and_size(motions_dir, walk, tmp
 
 
 def test_vertex_lighting_of_video_frames_stays_within_its_tolerance(motions_dir, monkeypatch):
-    """``VIDEO_LIGHTING = "vertex"`` (off by default: the test above holds the default
-    frames to the per-pixel renders) lights the salsa pair's bodies at the vertices on
-    both drawing threads: every frame differs from the per-pixel one (fails if the choice
+    """``VIDEO_LIGHTING = "vertex"`` (the default) lights the salsa pair's bodies at the
+    vertices on both drawing threads: every frame differs from the per-pixel one (fails if the choice
     is not passed on, e.g. to the second thread's renderer), and by little (fails for a
     broken shade: black bodies are 7 levels off on average). The bounds are ~3x the
     differences measured on 120 frames of three clips at this size (mean 0.04-0.06 levels,

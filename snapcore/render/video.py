@@ -70,12 +70,14 @@ VIDEO_X264_PARAMS = "subme=1:me=dia"
 #: ffmpeg CPU a frame at 1280x720, and decoded (by ffmpeg) closer to the rendered
 #: frames: RGB PSNR 39.25 → 40.0 and 38.74 → 39.42 dB on two salsa clips.
 VIDEO_SWS_FLAGS = "neighbor"
-#: How video frames light the bodies: "pixel" (as stills: the default) or "vertex"
-#: (``SNAPCORE_VIDEO_LIGHTING=vertex``; Gouraud, see
-#: :attr:`~snapcore.render.raster.DrawMesh.vertex_lighting`): on the salsa pair ~8-9
-#: CPU-ms less a 1280x720 frame (of ~33), pixels 0.04-0.06 levels apart on average,
-#: 0.01-0.02% of them more than 16 apart (the highlights; docs/speed.md).
-VIDEO_LIGHTING = "vertex" if os.environ.get("SNAPCORE_VIDEO_LIGHTING") == "vertex" else "pixel"
+#: How video frames light the bodies: "vertex" (the default; Gouraud, see
+#: :attr:`~snapcore.render.raster.DrawMesh.vertex_lighting`) or "pixel" (as stills:
+#: ``SNAPCORE_VIDEO_LIGHTING=pixel``). Per vertex, the 1,000-frame salsa video costs
+#: ~8-9 CPU-ms less a 1280x720 frame (of ~33: 23.7 -> 19.1 s); its pixels are 0.04-0.06
+#: levels from the per-pixel frame's on average, 0.01-0.02% of them more than 16 apart
+#: (the small highlights on fingers), not told apart at 1:1 (docs/speed.md). Video frames
+#: already draw the reduced body, so they were never the stills' pixels.
+VIDEO_LIGHTING = "pixel" if os.environ.get("SNAPCORE_VIDEO_LIGHTING") == "pixel" else "vertex"
 #: libvpx-vp9 constant quality (0-63; 32 looks like x264's 23 on flat renders).
 VP9_CRF = 32
 
