@@ -159,6 +159,10 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
 #: Frames whose bone matrices are made at a time when skinning (bounds their memory;
 #: the kernel itself works in smaller chunks).
 SKIN_FRAMES = 256
+#: Shoulder-drop masks kept (:meth:`Retarget._drop_weights`), the most recent first:
+#: (asset, points, weights, moved points, their masks).
+_DROPS: list[tuple] = []
+_DROPS_KEPT = 4
 
 #: Rig bones whose skin is blended linearly, not as dual quaternions: the pelvis and
 #: hip pieces, whose short stretched bones meet the thigh at up to 120° (a dancer's
@@ -645,12 +649,17 @@ class Retarget(SoleFit):
         """The points the shoulder drop moves (D,) and their masks (D, 2): only they take
         it. Fixed by the rest points and weights, so kept for the last ones asked (a
         still poses one frame per call, where the masks cost as much as the skinning)."""
-        c = getattr(self, "_drops_memo", None)
-        if c is None or c[0] is not points or c[1] is not weights:
-            w = shoulder_masks(self.asset, points, weights)  # (P, 2)
-            keep = np.flatnonzero(np.any(w != 0, axis=1))
-            c = self._drops_memo = (points, weights, keep, w[keep])
-        return c[2], c[3]
+        # kept per process, not per body: the mesh's points and weights are the cached
+        # asset's own arrays, the same objects for every body of every scene (held here,
+        # so an entry's objects stay alive and their ids are not reused)
+        for c in list(_DROPS):
+            if c[0] is self.asset and c[1] is points and c[2] is weights:
+                return c[3], c[4]
+        w = shoulder_masks(self.asset, points, weights)  # (P, 2)
+        keep = np.flatnonzero(np.any(w != 0, axis=1))
+        _DROPS.insert(0, (self.asset, points, weights, keep, w[keep]))
+        del _DROPS[_DROPS_KEPT:]
+        return keep, w[keep]
 
     def _shoulder_drops(self, positions) -> np.ndarray:
         """The top of each shoulder's drop as the arm hangs (F, 2, 3): see
