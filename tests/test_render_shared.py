@@ -38,6 +38,35 @@ def test_renderers_of_one_scene_share_its_coarse_shadow_mannequins(walk):
     assert c.characters[0].character is other.characters[0]
 
 
+def test_mannequins_of_two_tessellations_measure_their_pieces_once(monkeypatch):
+    """A batch scene draws the mannequin (strip) and casts shadows with a coarse one
+    (thumbnail and strip): both are the same pieces, measured from the motion once per
+    character; tessellated from them, each is the body built on a fresh scene."""
+    import snapcore.render.mannequin as mannequin
+    from snapcore.render.mannequin import TESSELLATION
+
+    calls = []
+    measure = mannequin.CharacterBody._measure_pieces
+    monkeypatch.setattr(
+        mannequin.CharacterBody,
+        "_measure_pieces",
+        lambda self, base: calls.append(1) or measure(self, base),
+    )
+    scene = synth.synth_scene("jump", fps=30)
+    coarse = SceneBody(scene, tessellation=TESSELLATION_COARSE)
+    fine = SceneBody(scene, tessellation=TESSELLATION)
+    assert len(calls) == 1
+    assert fine.n_faces > 2 * coarse.n_faces
+    for tess, body in ((TESSELLATION, fine), (TESSELLATION_COARSE, coarse)):
+        alone = SceneBody(synth.synth_scene("jump", fps=30), tessellation=tess)
+        np.testing.assert_array_equal(body.vertices(9), alone.vertices(9))
+        np.testing.assert_array_equal(body.normals(9), alone.normals(9))
+        np.testing.assert_array_equal(body.faces, alone.faces)
+        np.testing.assert_array_equal(body.face_colors, alone.face_colors)
+        assert body.characters[0].pieces == alone.characters[0].pieces
+    assert len(calls) == 3
+
+
 @pytest.mark.skipif(
     os.environ.get("PYOPENGL_PLATFORM") != "egl", reason="the bare context is EGL's"
 )

@@ -366,24 +366,13 @@ class CharacterBody:
 
     # ---- construction
     def _build(self, base):
-        c = self.character
-        sk = c.skeleton
-        parents = np.asarray(sk.parents)
-        offsets = np.asarray(sk.offsets, float)
+        """The mesh at this body's tessellation, from the character's pieces (made once
+        per character and colour: the coarse shadow stand-in and the drawn mannequin of
+        one scene differ in their tessellation alone)."""
         k = self.size
-        roles = self.roles
         pieces = []  # (joint, verts_local, normals_local, faces, rgb)
         self.pieces: list[dict] = []
-
-        def colour_of(j):
-            side = self.sides[j]
-            if side == "L":
-                return _lighten(base, LEFT_LIGHTEN)
-            if side == "R":
-                return base * (1 - RIGHT_DARKEN)
-            return base
-
-        def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
+        for j, length, a, b, cap, frame, start, rgb, kind, child in self._piece_specs(base):
             around, rings = _tessellation(max(a, b) / k, self._table)  # relative to stature
             v, n, f = _capsule(length, a, b, cap, around, rings)
             pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
@@ -396,6 +385,56 @@ class CharacterBody:
                     "length": float(length),
                 }
             )
+        if not pieces:
+            raise SceneError(f"character '{self.character.name}' has no bones to draw")
+        joint, verts, norms, faces, cols, which = [], [], [], [], [], []
+        n0 = 0
+        for k_piece, (j, v, n, f, rgb) in enumerate(pieces):
+            which.append(np.full(len(v), k_piece))
+            joint.append(np.full(len(v), j))
+            verts.append(v)
+            norms.append(n)
+            faces.append(f + n0)
+            cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
+            n0 += len(v)
+        self.joint = np.concatenate(joint)
+        self.piece = np.concatenate(which)
+        self.local_vertices = np.vstack(verts)
+        self.local_normals = np.vstack(norms)
+        self.faces = np.vstack(faces).astype(np.int64)
+        self.face_colors = np.round(np.vstack(cols) * 255).astype(np.uint8)
+
+    def _piece_specs(self, base) -> list[tuple]:
+        """The character's rigid pieces, whatever the tessellation: per piece ``(joint,
+        length, a, b, cap, frame (3, 3), start (3,), rgb, kind, child)`` (see
+        :func:`_capsule`). Kept on the character, by colour and stature (the pieces
+        follow the motion: each is oriented by cues measured over its frames)."""
+        memo = vars(self.character).setdefault("_snapcore_mannequin_pieces", {})
+        key = (np.asarray(base, float).tobytes(), float(self.size))
+        if key not in memo:
+            memo[key] = self._measure_pieces(base)
+        return memo[key]
+
+    def _measure_pieces(self, base) -> list[tuple]:
+        """:meth:`_piece_specs`, measured."""
+        c = self.character
+        sk = c.skeleton
+        parents = np.asarray(sk.parents)
+        offsets = np.asarray(sk.offsets, float)
+        k = self.size
+        roles = self.roles
+        specs: list[tuple] = []
+
+        def colour_of(j):
+            side = self.sides[j]
+            if side == "L":
+                return _lighten(base, LEFT_LIGHTEN)
+            if side == "R":
+                return base * (1 - RIGHT_DARKEN)
+            return base
+
+        def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
+            specs.append((j, length, a, b, cap, frame, start, rgb, kind, child))
 
         lateral_cache: dict[int, np.ndarray | None] = {}
 
@@ -484,24 +523,7 @@ class CharacterBody:
                 "hand",
             )
 
-        if not pieces:
-            raise SceneError(f"character '{c.name}' has no bones to draw")
-        joint, verts, norms, faces, cols, which = [], [], [], [], [], []
-        n0 = 0
-        for k_piece, (j, v, n, f, rgb) in enumerate(pieces):
-            which.append(np.full(len(v), k_piece))
-            joint.append(np.full(len(v), j))
-            verts.append(v)
-            norms.append(n)
-            faces.append(f + n0)
-            cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
-            n0 += len(v)
-        self.joint = np.concatenate(joint)
-        self.piece = np.concatenate(which)
-        self.local_vertices = np.vstack(verts)
-        self.local_normals = np.vstack(norms)
-        self.faces = np.vstack(faces).astype(np.int64)
-        self.face_colors = np.round(np.vstack(cols) * 255).astype(np.uint8)
+        return specs
 
     @property
     def n_vertices(self) -> int:
