@@ -65,6 +65,8 @@ __all__ = [
     "TESSELLATION",
     "TESSELLATION_COARSE",
     "TESSELLATION_FINE",
+    "tessellation_for",
+    "COARSE_MAX_PX",
 ]
 
 # Sizes below are fractions of the stature (:func:`~snapcore.motion.anatomy.per_stature`).
@@ -114,6 +116,14 @@ MIN_BONE_M = 1e-4
 TESSELLATION = _by_radius(((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1))))
 #: Coarse tessellation for stand-ins whose facets never show (e.g. shadows on the floor).
 TESSELLATION_COARSE = _by_radius(((0.08, (10, 2)), (0.035, (8, 2)), (0.018, (6, 1)), (0.0, (4, 1))))
+#: Pictures at most this tall (pixels) draw the mannequin at :data:`TESSELLATION_COARSE`
+#: (:func:`tessellation_for`): a batch's preview-strip panels (135 px). There the
+#: figure stands at most ~125 px, its thickest piece (the trunk, ~0.08 of the stature
+#: in radius) ~10 px: 10 segments around put the silhouette within 10 (1 - cos 18°) =
+#: 0.5 px of the round one (16: 0.2 px). llvmpipe pays per triangle at this size
+#: (4x multisampling or one sample cost the same): a 12-panel strip of one figure drew
+#: in ~62 ms with the 4,192 triangles of :data:`TESSELLATION`, ~45 ms with 1,560.
+COARSE_MAX_PX = 200
 #: Fine tessellation for surfaces that are read as geometry, not as shaded pictures:
 #: a relief carves the depth itself, where the flat facets of :data:`TESSELLATION`
 #: would show as ridges in raking light (~5x the faces).
@@ -199,6 +209,12 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     return verts, normals, faces
+
+
+def tessellation_for(height_px: int) -> tuple:
+    """The mannequin's tessellation for a picture ``height_px`` pixels tall: coarse up to
+    :data:`COARSE_MAX_PX` (small panels), else :data:`TESSELLATION`."""
+    return TESSELLATION_COARSE if int(height_px) <= COARSE_MAX_PX else TESSELLATION
 
 
 def _tessellation(radius: float, table=TESSELLATION) -> tuple[int, int]:
