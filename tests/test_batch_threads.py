@@ -80,3 +80,43 @@ def test_every_local_worker_runs_one_blas_thread(tmp_path, monkeypatch):
         assert len(w["blas_threads"]) >= 2, w  # NumPy's and SciPy's
         assert set(w["blas_threads"].values()) == {1}, w
     assert not set(worker_env(1)) & set(os.environ)
+
+
+def test_idle_workers_get_their_next_scenes_before_the_results_are_written(monkeypatch):
+    """With ``--jobs N``, the scenes that finished are handed back (and written by the
+    caller) only after the idle workers have their next scenes: a worker once waited
+    for the main process to write every scene's files before it got another."""
+    from concurrent.futures import Future
+
+    import snapcore.batch.run as run
+
+    submitted = []
+
+    class Pool:
+        def __init__(self, jobs, size):
+            pass
+
+        def submit(self, task, back_to=None):
+            submitted.append(task)
+            f = Future()
+            f.set_result(task)  # finished at once
+            return f
+
+        def close(self):
+            pass
+
+    class Options:
+        size = (64, 72)
+
+    class Task:
+        options = Options()
+
+    monkeypatch.setattr(run, "_Pool", Pool)
+    tasks = [Task() for _ in range(6)]
+    seen = []
+    for result in run._local(tasks, 2, print):
+        # when a result is handed back, every worker has a scene again (or none is left)
+        seen.append(len(submitted))
+        assert len(submitted) - len(seen) >= min(2, len(tasks) - len(seen))
+    assert sorted(map(id, submitted)) == sorted(map(id, tasks))
+    assert len(seen) == 6

@@ -436,10 +436,25 @@ def _local(
                         t = queue.pop()
                         running[pool.submit(t, back_to=queue)] = t
                     done, _ = wait(running, return_when=FIRST_COMPLETED)
+                    ready, broken = [], None
                     for f in done:
-                        result = f.result()  # raises for a broken pool: f stays in running
+                        try:
+                            ready.append(f.result())
+                        except BrokenProcessPool as err:  # f stays in running
+                            broken = err
+                            break
                         del running[f]
-                        yield result
+                    # the idle workers get their next scenes before this process writes
+                    # the finished ones' files (a worker waited for that on every scene)
+                    try:
+                        while broken is None and not alone and queue and len(running) < jobs:
+                            t = queue.pop()
+                            running[pool.submit(t, back_to=queue)] = t
+                    except BrokenProcessPool as err:
+                        broken = err
+                    yield from ready
+                    if broken is not None:
+                        raise broken
                     if alone:
                         break
             except BrokenProcessPool:
