@@ -67,6 +67,18 @@ def test_mannequins_of_two_tessellations_measure_their_pieces_once(monkeypatch):
     assert len(calls) == 3
 
 
+def test_the_drawn_coarse_mannequin_is_the_shadows_one(walk):
+    """A batch strip draws the coarse mannequin its shadows are cast with: one build."""
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.mannequin import scene_body as mannequin_scene_body
+
+    drawn = scene_body(walk, TESSELLATION_COARSE, kind="mannequin")
+    shadows = mannequin_scene_body(walk, TESSELLATION_COARSE)
+    assert all(p is q for p, q in zip(drawn.characters, shadows.characters, strict=True))
+    np.testing.assert_array_equal(drawn.faces, shadows.faces)
+    np.testing.assert_array_equal(drawn.face_colors, shadows.face_colors)
+
+
 @pytest.mark.skipif(
     os.environ.get("PYOPENGL_PLATFORM") != "egl", reason="the bare context is EGL's"
 )

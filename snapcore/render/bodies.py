@@ -292,6 +292,10 @@ def scene_body(
                 )
                 for i, b in enumerate(other.characters)
             ]
+        if reuse is None and kind == "mannequin":
+            # the mannequin's pieces as the renderers' shadows take them (one build of
+            # each tessellation per scene: a batch strip draws the coarse one)
+            reuse = mannequin_scene_body(scene, tessellation).characters
         body = bodies[(kind, tessellation, detail)] = MixedSceneBody(
             scene, kind=kind, tessellation=tessellation, bodies=reuse, detail=detail
         )
