@@ -126,3 +126,30 @@ def test_batch_pictures_are_lossless_pngs_at_a_fast_zlib_level():
     at = data.index(b"IDAT") + 4
     assert (data[at + 1] >> 6) == 1
     assert zlib.decompress(data[at : at + int.from_bytes(data[at - 8 : at - 4], "big")])
+
+
+def test_common_orthographic_cameras_are_the_fits_at_the_common_scale():
+    """The panels' cameras at one scale are each panel's fit with ``half_height`` forced
+    to the largest (as fit_camera makes them), field for field: only their half-height
+    is set, the fits are not made twice."""
+    from snapcore.render.camera import fit_camera
+    from snapcore.render.composites import common_cameras
+
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        pts = [
+            rng.normal(size=(50, 3)) * rng.uniform(0.1, 3) + rng.normal(size=3) * 5
+            for _ in range(4)
+        ]
+        views = [rng.normal(size=3) for _ in range(4)]
+        size = (int(rng.integers(20, 400)), int(rng.integers(20, 400)))
+        hh = max(fit_camera(p, v, size=size).half_height for p, v in zip(pts, views))
+        for got, want in zip(
+            common_cameras(pts, views, size=size),
+            [fit_camera(p, v, size=size, half_height=hh) for p, v in zip(pts, views)],
+        ):
+            for name in ("position", "right", "up", "back"):
+                np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+            for name in ("size", "projection", "half_height", "yfov", "znear", "zfar"):
+                assert getattr(got, name) == getattr(want, name)
+                assert type(getattr(got, name)) is type(getattr(want, name))
