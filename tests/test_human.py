@@ -336,8 +336,8 @@ def test_the_reduced_body_follows_the_full_one(motions_dir):
 
 def test_bodies_on_one_rig_share_what_depends_on_the_mesh_alone():
     """A library batch builds a body per scene, on a few rigs: the rig's sole points,
-    the shoulder-drop masks and the skinning plan are made once per process and
-    shared (the same objects), and a body posed with them is the one posed with
+    the shoulder-drop masks, the skinning plan and the colours are made once per
+    process and shared (the same objects), and a body posed with them is the one posed with
     everything made afresh, bit for bit."""
     import snapcore.motion.dq_kernel as kernel
     import snapcore.render.human as human
@@ -355,10 +355,18 @@ def test_bodies_on_one_rig_share_what_depends_on_the_mesh_alone():
     assert soles._sole_points(a.asset, "Left") is soles._sole_points(b.asset, "Left")
     drops = a.retarget._drop_weights(a.asset.vertices, a.asset.weights)
     assert drops[0] is b.retarget._drop_weights(b.asset.vertices, b.asset.weights)[0]
+    assert a.face_colors is b.face_colors and not a.face_colors.flags.writeable
+    assert a.vertex_rgb is b.vertex_rgb
     kernel._PLANS.clear()
     human._DROPS.clear()
+    human._COLOURS.clear()
     soles._SOLES.clear()
     fresh = HumanBody(jump.characters[0], ground=jump.ground)
+    assert fresh.face_colors is not a.face_colors
+    np.testing.assert_array_equal(fresh.face_colors, a.face_colors)
+    np.testing.assert_array_equal(fresh.vertex_rgb, a.vertex_rgb)
+    other = HumanBody(jump.characters[0], ground=jump.ground, color=(0.8, 0.3, 0.2))
+    assert not np.array_equal(other.face_colors, a.face_colors)
     np.testing.assert_array_equal(fresh.vertices(11), pose_b)
     assert fresh._plan(np.float32) is not b._plan(np.float32)
     np.testing.assert_array_equal(

@@ -153,3 +153,19 @@ def test_common_orthographic_cameras_are_the_fits_at_the_common_scale():
             for name in ("size", "projection", "half_height", "yfov", "znear", "zfar"):
                 assert getattr(got, name) == getattr(want, name)
                 assert type(getattr(got, name)) is type(getattr(want, name))
+
+
+def test_renderers_of_human_bodies_share_their_vertex_colours():
+    """Every scene's human body has the same colours (read-only, shared): the
+    renderers' per-vertex colours are computed once, and equal a fresh computation."""
+    import snapcore.render.renderer as renderer
+
+    a = SceneRenderer(synth.synth_scene("walk"), size=(64, 72), body="human")
+    b = SceneRenderer(synth.synth_scene("kick", seed=2), size=(64, 72), body="human")
+    kept = a._vertex_colors(0)
+    assert kept is b._vertex_colors(0)
+    renderer._VERTEX_COLOURS.clear()
+    fresh = b._vertex_colors(0)
+    assert fresh is not kept
+    np.testing.assert_array_equal(fresh, kept)
+    np.testing.assert_array_equal(fresh, a._vcols)

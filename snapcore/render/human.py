@@ -678,6 +678,35 @@ class Retarget(SoleFit):
         return dq_plan(points, weights, linear, shift_weights=stretch_w, dtype=dtype)
 
 
+#: Colours of the human mesh kept per (asset, base colour): (asset, rgb, arrays).
+_COLOURS: list[tuple] = []
+
+
+def _body_colours(asset, color) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex RGB (V, 3) 0-1 and face colours (M, 4) uint8 of the mesh in base colour
+    ``color``: left limbs lighter, right limbs darker. The same for every body of a
+    colour (a library's scenes), so kept (read-only arrays)."""
+    base = np.asarray(color, float)
+    for a, key, arrays in list(_COLOURS):
+        if a is asset and np.array_equal(key, base):
+            return arrays
+    sides = joint_sides(asset.bone_names)
+    w = asset.weights
+    left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
+    right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
+    rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (1 - RIGHT_DARKEN * right[:, None])
+    vertex_rgb = np.clip(rgb, 0, 1)
+    faces = asset.faces
+    face_colors = np.round(
+        np.append(vertex_rgb[faces].mean(axis=1), np.ones((len(faces), 1)), axis=1) * 255
+    ).astype(np.uint8)
+    for x in (vertex_rgb, face_colors):
+        x.flags.writeable = False
+    _COLOURS.insert(0, (asset, base, (vertex_rgb, face_colors)))
+    del _COLOURS[8:]
+    return vertex_rgb, face_colors
+
+
 class HumanBody(FrameBlocks):
     """The human mesh on one character, posable at any frame (like ``CharacterBody``).
 
@@ -715,21 +744,7 @@ class HumanBody(FrameBlocks):
         self.asset = asset = human_asset(detail)
         self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
-        sides = joint_sides(asset.bone_names)
-        w = asset.weights
-        left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
-        right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
-        base = np.asarray(color, float)
-        rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (
-            1 - RIGHT_DARKEN * right[:, None]
-        )
-        self.vertex_rgb = np.clip(rgb, 0, 1)
-        self.face_colors = np.round(
-            np.append(
-                self.vertex_rgb[self.faces].mean(axis=1), np.ones((len(self.faces), 1)), axis=1
-            )
-            * 255
-        ).astype(np.uint8)
+        self.vertex_rgb, self.face_colors = _body_colours(asset, color)
 
     @property
     def n_vertices(self) -> int:
