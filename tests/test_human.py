@@ -341,6 +341,7 @@ def test_bodies_on_one_rig_share_what_depends_on_the_mesh_alone():
     everything made afresh, bit for bit."""
     import snapcore.motion.dq_kernel as kernel
     import snapcore.render.human as human
+    import snapcore.render.human_asset as human_asset
     import snapcore.render.soles as soles
     from snapcore.motion.synth import synth_scene
     from snapcore.render.human import HumanBody
@@ -359,7 +360,7 @@ def test_bodies_on_one_rig_share_what_depends_on_the_mesh_alone():
     assert a.vertex_rgb is b.vertex_rgb
     kernel._PLANS.clear()
     human._DROPS.clear()
-    human._COLOURS.clear()
+    human_asset._COLOURS.clear()
     soles._SOLES.clear()
     fresh = HumanBody(jump.characters[0], ground=jump.ground)
     assert fresh.face_colors is not a.face_colors

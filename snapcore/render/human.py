@@ -52,11 +52,18 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
+from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks
 from snapcore.motion.dq_kernel import dq_plan, dq_skin_planned
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
-from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
+from snapcore.render.human_asset import (
+    LEFT_LIGHTEN,
+    RIGHT_DARKEN,
+    HumanAsset,
+    body_colours,
+    human_asset,
+    surface_weights,
+)
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
     axis_rotation,
@@ -86,9 +93,6 @@ __all__ = [
     "RIGHT_DARKEN",
 ]
 
-#: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
-LEFT_LIGHTEN = 0.22
-RIGHT_DARKEN = 0.12
 #: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
 LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
     f"{limb}_{s}": f"{side}{bone}"
@@ -678,35 +682,6 @@ class Retarget(SoleFit):
         return dq_plan(points, weights, linear, shift_weights=stretch_w, dtype=dtype)
 
 
-#: Colours of the human mesh kept per (asset, base colour): (asset, rgb, arrays).
-_COLOURS: list[tuple] = []
-
-
-def _body_colours(asset, color) -> tuple[np.ndarray, np.ndarray]:
-    """Vertex RGB (V, 3) 0-1 and face colours (M, 4) uint8 of the mesh in base colour
-    ``color``: left limbs lighter, right limbs darker. The same for every body of a
-    colour (a library's scenes), so kept (read-only arrays)."""
-    base = np.asarray(color, float)
-    for a, key, arrays in list(_COLOURS):
-        if a is asset and np.array_equal(key, base):
-            return arrays
-    sides = joint_sides(asset.bone_names)
-    w = asset.weights
-    left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
-    right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
-    rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (1 - RIGHT_DARKEN * right[:, None])
-    vertex_rgb = np.clip(rgb, 0, 1)
-    faces = asset.faces
-    face_colors = np.round(
-        np.append(vertex_rgb[faces].mean(axis=1), np.ones((len(faces), 1)), axis=1) * 255
-    ).astype(np.uint8)
-    for x in (vertex_rgb, face_colors):
-        x.flags.writeable = False
-    _COLOURS.insert(0, (asset, base, (vertex_rgb, face_colors)))
-    del _COLOURS[8:]
-    return vertex_rgb, face_colors
-
-
 class HumanBody(FrameBlocks):
     """The human mesh on one character, posable at any frame (like ``CharacterBody``).
 
@@ -744,7 +719,7 @@ class HumanBody(FrameBlocks):
         self.asset = asset = human_asset(detail)
         self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
-        self.vertex_rgb, self.face_colors = _body_colours(asset, color)
+        self.vertex_rgb, self.face_colors = body_colours(asset, color)
 
     @property
     def n_vertices(self) -> int:
