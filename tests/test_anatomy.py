@@ -322,3 +322,30 @@ def test_toes_named_like_fingers_are_toes_whatever_the_order_of_children():
         assert roles[7:10] == ["toe"] * 3, roles
         assert roles[names.index("CC_Base_JawRoot")] != "pelvis"
         assert body_landmarks(names, parents)["toe_L"] == toe_base
+
+
+def test_joint_readings_are_kept_per_skeleton_and_handed_out_as_copies(monkeypatch):
+    """A library reads one rig's names for every scene and body: the readings are made
+    once per skeleton (by value: a new list of the same names hits), and each call
+    gets its own copy, so a caller that edits one changes no later answer."""
+    import snapcore.motion.anatomy as anatomy
+
+    doc = humanoid_document("walk", seconds=0.5)
+    names, parents = list(doc.names), np.asarray(doc.parents)
+    calls = []
+    real = anatomy._joint_roles
+    monkeypatch.setattr(anatomy, "_joint_roles", lambda n, p: calls.append(1) or real(n, p))
+    anatomy._joint_roles_memo.cache_clear()
+    anatomy._body_landmarks_memo.cache_clear()
+    roles = anatomy.joint_roles(names, parents)
+    again = anatomy.joint_roles([str(n) for n in names], parents.copy())
+    assert again == roles and again is not roles
+    again[0] = "edited"
+    assert anatomy.joint_roles(names, parents) == roles
+    lm = body_landmarks(names, parents)
+    lm["pelvis"] = -5
+    assert body_landmarks(names, parents)["pelvis"] == names.index("Hips")
+    assert len(calls) == 1  # body_landmarks read the kept roles too
+    sides = anatomy.joint_sides(names)
+    sides.clear()
+    assert anatomy.joint_sides(names)[names.index("LeftUpLeg")] == "L"

@@ -80,3 +80,70 @@ def test_every_local_worker_runs_one_blas_thread(tmp_path, monkeypatch):
         assert len(w["blas_threads"]) >= 2, w  # NumPy's and SciPy's
         assert set(w["blas_threads"].values()) == {1}, w
     assert not set(worker_env(1)) & set(os.environ)
+
+
+def test_idle_workers_get_their_next_scenes_before_the_results_are_written(monkeypatch):
+    """With ``--jobs N``, the scenes that finished are handed back (and written by the
+    caller) only after the idle workers have their next scenes: a worker once waited
+    for the main process to write every scene's files before it got another."""
+    from concurrent.futures import Future
+
+    import snapcore.batch.run as run
+
+    submitted = []
+
+    class Pool:
+        def __init__(self, jobs, size):
+            pass
+
+        def submit(self, task, back_to=None):
+            submitted.append(task)
+            f = Future()
+            f.set_result(task)  # finished at once
+            return f
+
+        def close(self):
+            pass
+
+    class Options:
+        size = (64, 72)
+
+    class Task:
+        options = Options()
+
+    monkeypatch.setattr(run, "_Pool", Pool)
+    tasks = [Task() for _ in range(6)]
+    seen = []
+    for _result in run._local(tasks, 2, print):
+        # when a result is handed back, every worker has a scene again (or none is left)
+        seen.append(len(submitted))
+        assert len(submitted) - len(seen) >= min(2, len(tasks) - len(seen))
+    assert sorted(map(id, submitted)) == sorted(map(id, tasks))
+    assert len(seen) == 6
+
+
+def test_scenes_run_in_this_process_with_one_blas_thread_and_the_limits_come_back(tmp_path):
+    """``--jobs 1`` runs the scenes in the calling process: one BLAS thread while they
+    run, as in a worker (a second spins on small products: a glTF character's load took
+    2.3x the CPU), and the caller's own thread counts afterwards. Run in a fresh
+    process without thread settings, where OpenBLAS starts a thread per core."""
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    write_bvh(synth.humanoid_document("walk", seconds=0.5), lib / "a.bvh")
+    code = (
+        "import sys, numpy, scipy.linalg\n"
+        "from snapcore.batch.discover import discover\n"
+        "from snapcore.batch.run import run_batch\n"
+        "from snapcore.batch.task import BatchOptions, blas_threads\n"
+        "before = blas_threads()\n"
+        "opts = BatchOptions(snapshot={'baselines': False}, size=(64, 72), preview=2)\n"
+        f"r = run_batch(discover([{str(lib)!r}]).scenes, {str(tmp_path / 'out')!r}, opts)\n"
+        "print(repr((before, r.workers[0]['blas_threads'], blas_threads())))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=_clean_env(), capture_output=True, text=True, check=True
+    )
+    before, during, after = eval(out.stdout.strip().splitlines()[-1])
+    assert max(before.values()) >= 2
+    assert set(during.values()) == {1}, during
+    assert after == before

@@ -332,3 +332,44 @@ def test_the_reduced_body_follows_the_full_one(motions_dir):
         want = np.einsum("nk,nkd->nd", bary, a.vertices(f)[full.faces[owner]].astype(float))
         worst = max(worst, float(np.linalg.norm(b.vertices(f) - want, axis=1).max()))
     assert worst < 0.01, f"{worst * 100:.2f} cm"
+
+
+def test_bodies_on_one_rig_share_what_depends_on_the_mesh_alone():
+    """A library batch builds a body per scene, on a few rigs: the rig's sole points,
+    the shoulder-drop masks, the skinning plan and the colours are made once per
+    process and shared (the same objects), and a body posed with them is the one posed with
+    everything made afresh, bit for bit."""
+    import snapcore.motion.dq_kernel as kernel
+    import snapcore.render.human as human
+    import snapcore.render.human_asset as human_asset
+    import snapcore.render.soles as soles
+    from snapcore.motion.synth import synth_scene
+    from snapcore.render.human import HumanBody
+
+    walk, jump = synth_scene("walk"), synth_scene("jump", seed=3)
+    a = HumanBody(walk.characters[0], ground=walk.ground)
+    b = HumanBody(jump.characters[0], ground=jump.ground)
+    pose_a = a.vertices(7)
+    pose_b = b.vertices(11)
+    assert a._plan(np.float32) is b._plan(np.float32)
+    assert a.retarget._soles["L"][0] is not None
+    assert soles._sole_points(a.asset, "Left") is soles._sole_points(b.asset, "Left")
+    drops = a.retarget._drop_weights(a.asset.vertices, a.asset.weights)
+    assert drops[0] is b.retarget._drop_weights(b.asset.vertices, b.asset.weights)[0]
+    assert a.face_colors is b.face_colors and not a.face_colors.flags.writeable
+    assert a.vertex_rgb is b.vertex_rgb
+    kernel._PLANS.clear()
+    human._DROPS.clear()
+    human_asset._COLOURS.clear()
+    soles._SOLES.clear()
+    fresh = HumanBody(jump.characters[0], ground=jump.ground)
+    assert fresh.face_colors is not a.face_colors
+    np.testing.assert_array_equal(fresh.face_colors, a.face_colors)
+    np.testing.assert_array_equal(fresh.vertex_rgb, a.vertex_rgb)
+    other = HumanBody(jump.characters[0], ground=jump.ground, color=(0.8, 0.3, 0.2))
+    assert not np.array_equal(other.face_colors, a.face_colors)
+    np.testing.assert_array_equal(fresh.vertices(11), pose_b)
+    assert fresh._plan(np.float32) is not b._plan(np.float32)
+    np.testing.assert_array_equal(
+        HumanBody(walk.characters[0], ground=walk.ground).vertices(7), pose_a
+    )

@@ -127,6 +127,38 @@ def test_a_plan_leaves_the_callers_weights_as_they_were():
         np.testing.assert_array_equal(now, then)
 
 
+def test_plans_are_shared_by_inputs_of_equal_value():
+    """A library's scenes share rigs: a plan asked again with inputs of the same values
+    (new arrays, as each scene's body makes them) is the one made before, and skins as
+    a plan made afresh does; a change to any value (a shift weight, the dtype) makes
+    another plan."""
+    import snapcore.motion.dq_kernel as kernel
+
+    rng = np.random.default_rng(5)
+    rest, w, m, centres, linear = _random_rig(rng, v=60, k=5, f=4)
+    sw = sparse.random(60, 5, density=0.3, random_state=2, format="csr")
+    shifts = rng.normal(size=(4, 5, 3))
+    first = dq_plan(rest, w, linear, shift_weights=sw)
+    again = dq_plan(rest.copy(), w.copy(), linear.copy(), shift_weights=sw.copy())
+    assert again is first
+    kernel._PLANS.clear()
+    fresh = dq_plan(rest, w, linear, shift_weights=sw)
+    assert fresh is not first
+    np.testing.assert_array_equal(
+        dq_skin_planned(first, m, centres, shifts), dq_skin_planned(fresh, m, centres, shifts)
+    )
+    moved = sw.copy()
+    moved.data[0] += 0.25
+    assert dq_plan(rest, w, linear, shift_weights=moved) is not fresh
+    assert dq_plan(rest, w, linear, shift_weights=sw, dtype=np.float32) is not fresh
+    assert dq_plan(rest, w, linear, shift_weights=sw) is fresh
+    # bounded: the oldest plans go
+    for i in range(kernel.PLAN_CACHE_SIZE + 1):
+        dq_plan(rest + i, w, linear)
+    assert len(kernel._PLANS) == kernel.PLAN_CACHE_SIZE
+    assert dq_plan(rest, w, linear, shift_weights=sw) is not fresh
+
+
 def test_polar_rotation_is_the_svd_nearest_rotation():
     """Newton's iteration gives the SVD's polar factor; a mirror (det < 0) gets the
     nearest proper rotation as before."""

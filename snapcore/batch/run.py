@@ -9,7 +9,8 @@ seconds, so even a killed run keeps most of its progress) and, at the end, the g
 
 Executors, all running :func:`snapcore.batch.task.run_scene`:
 
-- ``jobs=1``: in this process (no start-up cost; the renderer lives on this thread);
+- ``jobs=1``: in this process (no start-up cost; the renderer lives on this thread;
+  one BLAS thread while the scenes run, the caller's limits back afterwards);
 - ``jobs=N``: N worker processes (spawned: a fresh interpreter has no inherited GL or
   BLAS state), each with one GL renderer made by its initializer;
 - ``scheduler="tcp://host:8786"``: an existing Dask distributed cluster, through a
@@ -414,9 +415,15 @@ def _local(
 
     size = tasks[0].options.size
     if jobs == 1:
+        from threadpoolctl import threadpool_limits
+
         init_worker(size, ignore_sigint=False, threads=None)
-        for t in tasks:
-            yield run_scene(t)
+        # one BLAS thread while the scenes run here, as in a worker: a second one only
+        # spins on a scene's small products (a glTF character's load took 2.3x the CPU
+        # with two); the caller's own limits come back after
+        with threadpool_limits(1):
+            for t in tasks:
+                yield run_scene(t)
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
@@ -436,10 +443,25 @@ def _local(
                         t = queue.pop()
                         running[pool.submit(t, back_to=queue)] = t
                     done, _ = wait(running, return_when=FIRST_COMPLETED)
+                    ready, broken = [], None
                     for f in done:
-                        result = f.result()  # raises for a broken pool: f stays in running
+                        try:
+                            ready.append(f.result())
+                        except BrokenProcessPool as err:  # f stays in running
+                            broken = err
+                            break
                         del running[f]
-                        yield result
+                    # the idle workers get their next scenes before this process writes
+                    # the finished ones' files (a worker waited for that on every scene)
+                    try:
+                        while broken is None and not alone and queue and len(running) < jobs:
+                            t = queue.pop()
+                            running[pool.submit(t, back_to=queue)] = t
+                    except BrokenProcessPool as err:
+                        broken = err
+                    yield from ready
+                    if broken is not None:
+                        raise broken
                     if alone:
                         break
             except BrokenProcessPool:

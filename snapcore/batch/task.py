@@ -558,11 +558,19 @@ def _strip(scene, frames, view, size, body):
     them, no caption or gap: panel ``i`` is columns ``i*W .. (i+1)*W``."""
     import numpy as np
 
+    from snapcore.render.bodies import scene_body
     from snapcore.render.composites import common_cameras, floor_aligned
+    from snapcore.render.mannequin import tessellation_for
     from snapcore.render.renderer import SceneRenderer
 
-    sr = SceneRenderer(scene, size=size, body=body)
-    pts = [sr.body.vertices(f) for f in frames]
+    # small panels draw a mannequin of fewer triangles (see tessellation_for), framed
+    # as the full one is: the same cameras, so the floor and the figures' places in
+    # the panels do not move
+    sr = SceneRenderer(
+        scene, size=size, body=scene_body(scene, tessellation_for(size[1]), kind=body)
+    )
+    full = scene_body(scene, kind=body)
+    pts = [full.vertices(f) for f in frames]
     cams = common_cameras(pts, [view] * len(frames), size=size)
     feet = [np.mean([c.positions[f, 0] for c in scene.characters], axis=0) for f in frames]
     for ft in feet:

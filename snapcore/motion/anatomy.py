@@ -26,6 +26,7 @@ to a file whose unit is unknown) use :data:`REFERENCE_STATURE_M`.
 
 from __future__ import annotations
 
+import functools
 import re
 from typing import Any
 
@@ -173,12 +174,42 @@ def _split_side(name: str) -> tuple[str, str]:
     return "", base.lower()
 
 
+#: Skeletons whose names are read again and again (every scene of a library on one rig,
+#: every body and renderer of a scene): the readings are kept, by value, for this many.
+_MEMO_SIZE = 64
+
+
+def _rig_key(names, parents=None) -> tuple:
+    """A hashable key of a skeleton's names (and parents): its values."""
+    key = tuple(str(n) for n in names)
+    if parents is None:
+        return key
+    return key, tuple(int(p) for p in np.asarray(parents).ravel())
+
+
 def joint_sides(names) -> list[str]:
     """Side of each joint from its name: ``'L'``, ``'R'`` or ``''`` (centre)."""
-    return [_split_side(n)[0] for n in names]
+    return list(_joint_sides(_rig_key(names)))
+
+
+@functools.lru_cache(maxsize=_MEMO_SIZE)
+def _joint_sides(names: tuple) -> tuple:
+    return tuple(_split_side(n)[0] for n in names)
 
 
 def joint_roles(names, parents) -> list[str]:
+    """Body role of each joint, read from its name (see :func:`_joint_roles`; kept per
+    skeleton, a new list each call)."""
+    key = _rig_key(names, parents)
+    return list(_joint_roles_memo(key))
+
+
+@functools.lru_cache(maxsize=_MEMO_SIZE)
+def _joint_roles_memo(key: tuple) -> tuple:
+    return tuple(_joint_roles(list(key[0]), np.array(key[1], dtype=int)))
+
+
+def _joint_roles(names, parents) -> list[str]:
     """Body role of each joint, read from its name (case-insensitive).
 
     Parameters
@@ -348,6 +379,17 @@ REQUIRED_LANDMARKS = (
 
 
 def body_landmarks(names, parents) -> dict[str, Any]:
+    """The joints a human body is fitted to, found by role and side (see
+    :func:`_body_landmarks`; kept per skeleton, a new dict each call)."""
+    return dict(_body_landmarks_memo(_rig_key(names, parents)))
+
+
+@functools.lru_cache(maxsize=_MEMO_SIZE)
+def _body_landmarks_memo(key: tuple) -> dict[str, Any]:
+    return _body_landmarks(list(key[0]), np.array(key[1], dtype=int))
+
+
+def _body_landmarks(names, parents) -> dict[str, Any]:
     """The joints a human body is fitted to, found by role and side.
 
     Parameters

@@ -282,16 +282,19 @@ def scene_body(
     if body is None:
         other = next((b for (k, _, d), b in bodies.items() if k == kind and d == detail), None)
         reuse = None
+        # mannequin pieces are the ones the renderers' shadows take (the scene's cached
+        # mannequin of that tessellation, default colours: CharacterBody's by index), so
+        # each tessellation is built once per scene (a batch strip draws the coarse one)
         if other is not None:
-            colors = list(CHARACTER_COLORS)
+            pieces = None
+            if any(isinstance(b, CharacterBody) for b in other.characters):
+                pieces = mannequin_scene_body(scene, tessellation).characters
             reuse = [
-                b
-                if not isinstance(b, CharacterBody)
-                else CharacterBody(
-                    b.character, color=colors[i % len(colors)], tessellation=tessellation
-                )
+                pieces[i] if isinstance(b, CharacterBody) and pieces is not None else b
                 for i, b in enumerate(other.characters)
             ]
+        elif kind == "mannequin":
+            reuse = mannequin_scene_body(scene, tessellation).characters
         body = bodies[(kind, tessellation, detail)] = MixedSceneBody(
             scene, kind=kind, tessellation=tessellation, bodies=reuse, detail=detail
         )

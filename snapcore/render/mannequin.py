@@ -65,6 +65,8 @@ __all__ = [
     "TESSELLATION",
     "TESSELLATION_COARSE",
     "TESSELLATION_FINE",
+    "tessellation_for",
+    "COARSE_MAX_PX",
 ]
 
 # Sizes below are fractions of the stature (:func:`~snapcore.motion.anatomy.per_stature`).
@@ -114,6 +116,14 @@ MIN_BONE_M = 1e-4
 TESSELLATION = _by_radius(((0.08, (16, 4)), (0.035, (12, 3)), (0.018, (8, 2)), (0.0, (6, 1))))
 #: Coarse tessellation for stand-ins whose facets never show (e.g. shadows on the floor).
 TESSELLATION_COARSE = _by_radius(((0.08, (10, 2)), (0.035, (8, 2)), (0.018, (6, 1)), (0.0, (4, 1))))
+#: Pictures at most this tall (pixels) draw the mannequin at :data:`TESSELLATION_COARSE`
+#: (:func:`tessellation_for`): a batch's preview-strip panels (135 px). There the
+#: figure stands at most ~125 px, its thickest piece (the trunk, ~0.08 of the stature
+#: in radius) ~10 px: 10 segments around put the silhouette within 10 (1 - cos 18°) =
+#: 0.5 px of the round one (16: 0.2 px). llvmpipe pays per triangle at this size
+#: (4x multisampling or one sample cost the same): a 12-panel strip of one figure drew
+#: in ~62 ms with the 4,192 triangles of :data:`TESSELLATION`, ~45 ms with 1,560.
+COARSE_MAX_PX = 200
 #: Fine tessellation for surfaces that are read as geometry, not as shaded pictures:
 #: a relief carves the depth itself, where the flat facets of :data:`TESSELLATION`
 #: would show as ridges in raking light (~5x the faces).
@@ -199,6 +209,12 @@ def _capsule(length: float, a: float, b: float, c: float, around: int, rings: in
     normals = np.vstack([[0.0, 0.0, -1.0], ring_n, [0.0, 0.0, 1.0]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     return verts, normals, faces
+
+
+def tessellation_for(height_px: int) -> tuple:
+    """The mannequin's tessellation for a picture ``height_px`` pixels tall: coarse up to
+    :data:`COARSE_MAX_PX` (small panels), else :data:`TESSELLATION`."""
+    return TESSELLATION_COARSE if int(height_px) <= COARSE_MAX_PX else TESSELLATION
 
 
 def _tessellation(radius: float, table=TESSELLATION) -> tuple[int, int]:
@@ -366,24 +382,13 @@ class CharacterBody:
 
     # ---- construction
     def _build(self, base):
-        c = self.character
-        sk = c.skeleton
-        parents = np.asarray(sk.parents)
-        offsets = np.asarray(sk.offsets, float)
+        """The mesh at this body's tessellation, from the character's pieces (made once
+        per character and colour: the coarse shadow stand-in and the drawn mannequin of
+        one scene differ in their tessellation alone)."""
         k = self.size
-        roles = self.roles
         pieces = []  # (joint, verts_local, normals_local, faces, rgb)
         self.pieces: list[dict] = []
-
-        def colour_of(j):
-            side = self.sides[j]
-            if side == "L":
-                return _lighten(base, LEFT_LIGHTEN)
-            if side == "R":
-                return base * (1 - RIGHT_DARKEN)
-            return base
-
-        def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
+        for j, length, a, b, cap, frame, start, rgb, kind, child in self._piece_specs(base):
             around, rings = _tessellation(max(a, b) / k, self._table)  # relative to stature
             v, n, f = _capsule(length, a, b, cap, around, rings)
             pieces.append((j, v @ frame.T + start, n @ frame.T, f, rgb))
@@ -396,6 +401,56 @@ class CharacterBody:
                     "length": float(length),
                 }
             )
+        if not pieces:
+            raise SceneError(f"character '{self.character.name}' has no bones to draw")
+        joint, verts, norms, faces, cols, which = [], [], [], [], [], []
+        n0 = 0
+        for k_piece, (j, v, n, f, rgb) in enumerate(pieces):
+            which.append(np.full(len(v), k_piece))
+            joint.append(np.full(len(v), j))
+            verts.append(v)
+            norms.append(n)
+            faces.append(f + n0)
+            cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
+            n0 += len(v)
+        self.joint = np.concatenate(joint)
+        self.piece = np.concatenate(which)
+        self.local_vertices = np.vstack(verts)
+        self.local_normals = np.vstack(norms)
+        self.faces = np.vstack(faces).astype(np.int64)
+        self.face_colors = np.round(np.vstack(cols) * 255).astype(np.uint8)
+
+    def _piece_specs(self, base) -> list[tuple]:
+        """The character's rigid pieces, whatever the tessellation: per piece ``(joint,
+        length, a, b, cap, frame (3, 3), start (3,), rgb, kind, child)`` (see
+        :func:`_capsule`). Kept on the character, by colour and stature (the pieces
+        follow the motion: each is oriented by cues measured over its frames)."""
+        memo = vars(self.character).setdefault("_snapcore_mannequin_pieces", {})
+        key = (np.asarray(base, float).tobytes(), float(self.size))
+        if key not in memo:
+            memo[key] = self._measure_pieces(base)
+        return memo[key]
+
+    def _measure_pieces(self, base) -> list[tuple]:
+        """:meth:`_piece_specs`, measured."""
+        c = self.character
+        sk = c.skeleton
+        parents = np.asarray(sk.parents)
+        offsets = np.asarray(sk.offsets, float)
+        k = self.size
+        roles = self.roles
+        specs: list[tuple] = []
+
+        def colour_of(j):
+            side = self.sides[j]
+            if side == "L":
+                return _lighten(base, LEFT_LIGHTEN)
+            if side == "R":
+                return base * (1 - RIGHT_DARKEN)
+            return base
+
+        def add(j, length, a, b, cap, frame, start, rgb, kind="bone", child=-1):
+            specs.append((j, length, a, b, cap, frame, start, rgb, kind, child))
 
         lateral_cache: dict[int, np.ndarray | None] = {}
 
@@ -484,24 +539,7 @@ class CharacterBody:
                 "hand",
             )
 
-        if not pieces:
-            raise SceneError(f"character '{c.name}' has no bones to draw")
-        joint, verts, norms, faces, cols, which = [], [], [], [], [], []
-        n0 = 0
-        for k_piece, (j, v, n, f, rgb) in enumerate(pieces):
-            which.append(np.full(len(v), k_piece))
-            joint.append(np.full(len(v), j))
-            verts.append(v)
-            norms.append(n)
-            faces.append(f + n0)
-            cols.append(np.repeat([np.append(np.clip(rgb, 0, 1), 1.0)], len(f), axis=0))
-            n0 += len(v)
-        self.joint = np.concatenate(joint)
-        self.piece = np.concatenate(which)
-        self.local_vertices = np.vstack(verts)
-        self.local_normals = np.vstack(norms)
-        self.faces = np.vstack(faces).astype(np.int64)
-        self.face_colors = np.round(np.vstack(cols) * 255).astype(np.uint8)
+        return specs
 
     @property
     def n_vertices(self) -> int:

@@ -219,6 +219,10 @@ def shadow_vertices(vertices: np.ndarray, light: ArrayLike, ground: float) -> np
     return out
 
 
+#: Per-vertex colours of shared read-only meshes (:meth:`SceneRenderer._vertex_colors`).
+_VERTEX_COLOURS: list[tuple] = []
+
+
 class SceneRenderer:
     """Renders one scene's bodies, floor, shadows and lights, frame after frame.
 
@@ -310,9 +314,18 @@ class SceneRenderer:
 
     def _vertex_colors(self, i: int) -> np.ndarray:
         b = self.body.characters[i]
+        # kept for a body whose faces and colours are shared arrays (the human mesh's:
+        # the same for every scene of a library), by identity; entries hold the arrays
+        for faces, colours, c in list(_VERTEX_COLOURS):
+            if faces is b.faces and colours is b.face_colors:
+                return c
         c = np.zeros((b.n_vertices, 4), np.float32)
         c[b.faces.ravel()] = np.repeat(b.face_colors, 3, axis=0) / 255.0
         c[:, :3] = c[:, :3] ** 2.2  # colours are sRGB; the shader multiplies in linear light
+        if not b.face_colors.flags.writeable:  # a shared mesh's colours (see above)
+            c.flags.writeable = False
+            _VERTEX_COLOURS.insert(0, (b.faces, b.face_colors, c))
+            del _VERTEX_COLOURS[4:]
         return c
 
     def _set_camera(self, cam: Camera) -> None:

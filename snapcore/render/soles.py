@@ -41,6 +41,41 @@ PLANT_ANKLE_FADE_M = 0.04
 PLANT_REACH_M = 0.08
 
 
+#: The rig's sole points per (asset, side), kept: the same for every body of a process.
+_SOLES: dict[tuple[int, str], tuple] = {}
+
+
+def _sole_points(asset, side: str) -> tuple:
+    """The rig's sole on one side (``"Left"``/``"Right"``), from the asset alone: its
+    foot bones, the ankle's and the sole's heights (metres), the sole points (the foot
+    vertices within 1.5 cm of its lowest, on their convex hull), their weights (sparse,
+    all bones), the bones that carry them and the foot's share of each point."""
+    hit = _SOLES.get((id(asset), side))
+    if hit is not None and hit[0] is asset:  # the entry holds the asset: ids not reused
+        return hit[1]
+    from scipy import sparse
+    from scipy.spatial import ConvexHull
+
+    a = asset
+    w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
+    bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
+    foot_v = w[:, bones].sum(axis=1) > 0.5
+    sole_y = a.vertices[foot_v, 1].min()
+    # the sole: foot vertices within 1.5 cm of its lowest, with their skin weights (for
+    # the per-frame contact in _plant_shifts)
+    sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < sole_y + 0.015))
+    # the lowest point of a (nearly rigidly) moved point set is on its hull: ~1/5 of
+    # the sole's points, the planting's cost with it
+    sole = sole[ConvexHull(a.vertices[sole]).vertices]
+    # only the bones that carry the sole: the planting skins a few hundred points with
+    # a handful of matrices, not the whole rig's
+    ws = sparse.csr_matrix(w[sole])
+    cols = np.unique(ws.indices)
+    out = (bones, a.heads[bones[0]][1], sole_y, sole, ws, cols, w[sole][:, bones].sum(axis=1))
+    _SOLES[(id(asset), side)] = (asset, out)
+    return out
+
+
 class SoleFit:
     """Mixin of :class:`snapcore.render.human.Retarget`: it provides ``asset``, ``k``,
     ``ground``, ``landmarks``, ``groups``, ``bone_group``, :meth:`stretch_weights` and
@@ -73,20 +108,14 @@ class SoleFit:
         is scaled from the rig's (x k) to it, within [0.75, 1.35] (a foot no flatter or
         deeper than that; the rest is left to the per-frame planting, :meth:`_plant_shifts`).
         """
-        from scipy import sparse
-        from scipy.spatial import ConvexHull
-
         a = self.asset
-        w = a.weights.toarray() if hasattr(a.weights, "toarray") else np.asarray(a.weights)
         out = np.ones(len(self.groups))
         self._soles = {}
         self._sole_plan_memo = None  # made from _soles on first use
         self._ankle_stand: dict[str, float] = {}
         for s, side in SIDES.items():
-            bones = [a.bone(f"{side}Foot"), a.bone(f"{side}ToeBase")]
-            foot_v = w[:, bones].sum(axis=1) > 0.5
-            ankle_rig = a.heads[bones[0]][1]
-            depth = (ankle_rig - a.vertices[foot_v, 1].min()) * self.k  # rig: ankle over sole
+            bones, ankle_rig, sole_y, sole, ws, cols, share = _sole_points(a, side)
+            depth = (ankle_rig - sole_y) * self.k  # rig: ankle over sole
             h = np.percentile(
                 positions[:, self.landmarks[f"ankle_{s}"], 1] - self.ground, SOLE_PERCENTILE
             )
@@ -98,22 +127,12 @@ class SoleFit:
             ]
             out[groups] = scale
             self._ankle_stand[s] = self.ground + h
-            # the sole: foot vertices within 1.5 cm of its lowest, with their skin
-            # weights (for the per-frame contact in _plant_shifts)
-            sole = np.flatnonzero(foot_v & (a.vertices[:, 1] < a.vertices[foot_v, 1].min() + 0.015))
-            # the lowest point of a (nearly rigidly) moved point set is on its hull:
-            # ~1/5 of the sole's points, the planting's cost with it
-            sole = sole[ConvexHull(a.vertices[sole]).vertices]
-            # only the bones that carry the sole: the planting skins a few hundred
-            # points with a handful of matrices, not the whole rig's
-            ws = sparse.csr_matrix(w[sole])
-            cols = np.unique(ws.indices)
             self._soles[s] = (
                 a.vertices[sole],
                 ws[:, cols],
                 self.stretch_weights(a.vertices[sole], ws)[:, cols],
                 self.bone_group[cols],
-                w[sole][:, bones].sum(axis=1),  # the foot's share of each point
+                share,  # the foot's share of each point
                 np.array(groups),
                 self.asset.heads[cols],
                 np.asarray(ws @ self._linear_bones).ravel(),
