@@ -206,6 +206,19 @@ def heading(page, text: str):
     return h
 
 
+def completion_code(page) -> str:
+    """The completion code on the "Thank you!" page, read once the page is the only one
+    shown: Streamlit sends the new page's elements one by one and removes the previous
+    page's (the attention check's resume link is a code block too) only when the run
+    ends, so right after the heading two code blocks can be on screen."""
+    from playwright.sync_api import expect
+
+    settle(page)
+    code = page.locator("[data-testid=stCode]")
+    expect(code).to_have_count(1, timeout=30_000)
+    return code.inner_text().strip()
+
+
 def agree_and_start(page) -> str:
     from playwright.sync_api import expect
 
@@ -365,7 +378,7 @@ def test_participant_session_in_browser(server, page, artifacts, stimuli_dir):
     page.get_by_role("button", name="Continue").click()
     heading(page, "Thank you!")
     shot(page, artifacts, "07-done")
-    code = page.locator("[data-testid=stCode]").inner_text().strip()
+    code = completion_code(page)
 
     rows = store.responses(pid)
     assert [r["trial_index"] for r in rows] == [0, 1, 2, 3, 4]

@@ -15,7 +15,7 @@ import time
 import pytest
 import test_e2e
 from app_helpers import fixture_study_doc, write_fixture_stimuli
-from test_e2e import SETTLED, heading, settle, start_study, stop_process
+from test_e2e import SETTLED, completion_code, heading, settle, start_study, stop_process
 from test_e2e_described import ff_press
 from test_e2e_firefox import DEEP, InterceptingBidi, ff_heading, ff_no_traceback, firefox
 
@@ -98,7 +98,7 @@ def finish(page, store, pid: str) -> str:
     time.sleep(1.2)  # the study's min_answer_s
     page.get_by_role("button", name="Continue").click()
     heading(page, "Thank you!")
-    code = page.locator("[data-testid=stCode]").inner_text().strip()
+    code = completion_code(page)
     part = store.get_participant(pid)
     assert part["completion_code"] == code and part["completed_at"] is not None
     return code
