@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from snapcore.batch.discover import discover
+from snapcore.batch.discover import SceneSource, discover
 from snapcore.batch.run import run_batch
 from snapcore.batch.task import BatchOptions, worker_env
 from snapcore.motion import synth
@@ -110,6 +110,7 @@ def test_idle_workers_get_their_next_scenes_before_the_results_are_written(monke
 
     class Task:
         options = Options()
+        scene = SceneSource(key="a.bvh", kind="bvh", path=__file__)
 
     monkeypatch.setattr(run, "_Pool", Pool)
     tasks = [Task() for _ in range(6)]
@@ -147,3 +148,52 @@ def test_scenes_run_in_this_process_with_one_blas_thread_and_the_limits_come_bac
     assert max(before.values()) >= 2
     assert set(during.values()) == {1}, during
     assert after == before
+
+
+def test_workers_take_the_largest_scenes_first(tmp_path, monkeypatch):
+    """With ``--jobs N`` the scenes are handed out from the largest source files to the
+    smallest (a manifest counts its members), equal sizes in the library's order, so a
+    run does not end on one worker loading a large clip while the other waits; a file
+    that cannot be read goes first (its error row costs nothing)."""
+    from concurrent.futures import Future
+    from dataclasses import dataclass
+
+    import snapcore.batch.run as run
+
+    submitted: list[str] = []
+
+    class Pool:
+        def __init__(self, jobs, size):
+            pass
+
+        def submit(self, task, back_to=None):
+            submitted.append(task.scene.key)
+            f = Future()
+            f.set_result(task)
+            return f
+
+        def close(self):
+            pass
+
+    class Options:
+        size = (64, 72)
+
+    @dataclass
+    class Task:
+        scene: SceneSource
+        options = Options()
+
+    def scene(key: str, n_bytes: int, members: tuple[str, ...] = ()) -> Task:
+        path = tmp_path / key
+        path.write_bytes(b"x" * n_bytes)
+        return Task(SceneSource(key=key, kind="bvh", path=str(path), members=members))
+
+    small, big, tie1, tie2 = (
+        scene(k, n) for k, n in (("s", 10), ("b", 900), ("t1", 50), ("t2", 50))
+    )
+    pair = scene("m", 5, members=(big.scene.path, small.scene.path))  # 5 + 900 + 10 bytes
+    gone = Task(SceneSource(key="gone", kind="bvh", path=str(tmp_path / "missing.bvh")))
+    monkeypatch.setattr(run, "_Pool", Pool)
+    done = [r.scene.key for r in run._local([small, tie1, big, gone, tie2, pair], 2, print)]
+    assert submitted == ["gone", "m", "b", "t1", "t2", "s"]
+    assert sorted(done) == sorted(submitted)

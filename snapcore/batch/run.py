@@ -24,6 +24,7 @@ carrying the report.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import threading
 import time
@@ -427,7 +428,7 @@ def _local(
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    queue = list(reversed(tasks))  # pop() from the end: the tasks' order
+    queue = _largest_last(tasks)  # pop() from the end: the largest scenes first
     suspects: list[SceneTask] = []  # in flight when a worker died: re-run one by one
     pool = _Pool(jobs, size)
     try:
@@ -484,6 +485,27 @@ def _local(
                 pool = _Pool(jobs, size)
     finally:
         pool.close()
+
+
+def _largest_last(tasks: list[SceneTask]) -> list[SceneTask]:
+    """The tasks from the smallest source files to the largest (a stable sort: equal
+    sizes keep their order, reversed).
+
+    Workers popping from the end take the largest scenes first, so the run ends on
+    small ones: a large clip handed out last (a glTF character, ~1 s against ~0.13 s
+    for a typical clip) kept the other worker idle until it finished. The files' bytes
+    stand for a scene's cost (frames x channels for BVH; mesh and keys for glTF)."""
+
+    def size(t: SceneTask) -> int:
+        total = 0
+        for path in (t.scene.path, *t.scene.members):
+            try:
+                total += os.stat(path).st_size
+            except OSError:  # missing or unreadable: its error row comes soon, first
+                total += 1 << 40
+        return total
+
+    return sorted(reversed(tasks), key=size)
 
 
 class _Pool:
