@@ -49,3 +49,36 @@ def test_a_case_may_report_its_own_figure(monkeypatch):
     monkeypatch.setattr(runner, "CASES", cases)
     (r,) = runner.run_cases(BenchContext(data=None), repeats=3)
     assert (r.min_ms, r.median_ms, r.status) == (123.0, 123.0, "ok")
+
+
+def test_library_cases_take_each_ratio_within_one_pair_of_runs(monkeypatch):
+    """``-n 3`` with ``SNAPSHOT_BENCH_SCALE``: three ``--jobs 1`` / ``--jobs 2`` pairs run
+    one after the other, the CPU row the median of the three ``--jobs 1`` runs and the
+    ratio row the median of the three ratios, each of a ``--jobs 2`` run over the
+    ``--jobs 1`` run just before it (the machine drifts over minutes: a ratio across
+    pairs, or of one run each, said more about the drift than the batch)."""
+    from snapcore.bench import cases_speed, runner
+    from snapcore.bench.registry import BenchContext
+
+    walls = iter([40.0, 20.0, 36.0, 21.0, 38.0, 19.5])  # pair 0, pair 1, pair 2
+    order = []
+
+    def fake_run(ctx, jobs, k):
+        key = f"library-run-{jobs}-{k}"
+        if key not in ctx.cache:
+            order.append((jobs, k))
+            ctx.cache[key] = {"scenes": 300, "wall_s": next(walls), "cpu_s": 3.0 * (1 + k)}
+        return ctx.cache[key]
+
+    monkeypatch.setenv("SNAPSHOT_BENCH_SCALE", "300")
+    monkeypatch.setattr(cases_speed, "_library_run", fake_run)
+    monkeypatch.setattr(runner, "CASES", runner.select_cases("library:"))
+    results = {
+        r.name.split(" (")[0]: r for r in runner.run_cases(BenchContext(data=None), repeats=3)
+    }
+    assert order == [(1, 0), (2, 0), (1, 1), (2, 1), (1, 2), (2, 2)]
+    cpu = results["library: CPU per scene"]
+    assert (cpu.min_ms, cpu.median_ms) == (10.0, 20.0)  # 3, 6 and 9 CPU-s over 300 scenes
+    ratio = results["library: --jobs 2 wall per 1000 ms of --jobs 1"]
+    assert ratio.median_ms == 1000.0 * 19.5 / 38.0  # of 500, 583.3 and 513.2
+    assert ratio.min_ms == 500.0
