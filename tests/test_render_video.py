@@ -331,21 +331,11 @@ def test_webm_copy_has_the_same_frames(walk, tmp_path):
         assert diff < 4, (k, diff)
 
 
-def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_dir, monkeypatch):
-    """A video's frames, drawn by two threads taking alternate frames (each with its own
-    GL context and renderer, posing one body in turn), reach the encoder in order, each
-    exactly the frame one renderer draws alone (fails if a frame is lost, doubled or
-    out of order). The salsa pair's human bodies: one body object, whose posing keeps
-    state between frames (a block of skinned frames, the last contacts resolved)."""
+def _salsa_pair(motions_dir):
+    """The Daz salsa pair at 60 fps (the test is skipped without it)."""
     import warnings
 
-    import imageio_ffmpeg
-
     from snapcore.motion.load import load_scene
-    from snapcore.render import video
-    from snapcore.render.bodies import scene_body
-    from snapcore.render.camera import default_view, fit_camera, motion_points
-    from snapcore.render.renderer import SceneRenderer
 
     paths = [
         motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
@@ -353,10 +343,15 @@ def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_
     if not all(p.exists() for p in paths):
         pytest.skip("the salsa pair is not in the shared data")
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scene = load_scene(paths, fps=60)
-    if video.VIDEO_THREADS < 2:
-        pytest.skip("one core: one drawing thread")
+        warnings.simplefilter("ignore")  # the salsa unit is fitted, which warns
+        return load_scene(paths, fps=60)
+
+
+def _frames_sent_to_the_encoder(monkeypatch) -> list[np.ndarray]:
+    """A list that receives a copy of every frame ``render_video`` pipes to the encoder
+    (imageio-ffmpeg's writer replaced: nothing is encoded)."""
+    import imageio_ffmpeg
+
     sent: list[np.ndarray] = []
 
     def fake_writer(*args, **kwargs):
@@ -366,6 +361,25 @@ def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_
                 sent.append(np.array(frame, copy=True))
 
     monkeypatch.setattr(imageio_ffmpeg, "write_frames", fake_writer)
+    return sent
+
+
+def test_frames_piped_to_the_encoder_are_the_frames_rendered_one_by_one(motions_dir, monkeypatch):
+    """A video's frames, drawn by two threads taking alternate frames (each with its own
+    GL context and renderer, posing one body in turn), reach the encoder in order, each
+    exactly the frame one renderer draws alone (fails if a frame is lost, doubled or
+    out of order). The salsa pair's human bodies: one body object, whose posing keeps
+    state between frames (a block of skinned frames, the last contacts resolved)."""
+
+    from snapcore.render import video
+    from snapcore.render.bodies import scene_body
+    from snapcore.render.camera import default_view, fit_camera, motion_points
+    from snapcore.render.renderer import SceneRenderer
+
+    scene = _salsa_pair(motions_dir)
+    if video.VIDEO_THREADS < 2:
+        pytest.skip("one core: one drawing thread")
+    sent = _frames_sent_to_the_encoder(monkeypatch)
     size, start, n = (320, 180), 880, 23
     off = scene.frame_offset
     shown = video.render_video(
@@ -450,11 +464,9 @@ def test_video_encoder_settings_keep_the_quality_and_size(motions_dir, walk, tmp
     quality or size for speed beyond that (``superfast``: 2.9x the bytes), or if
     ``render_video`` does not hand the settings to x264 (which writes its options into
     the stream) or the conversion's filter to ffmpeg."""
-    import warnings
 
     import imageio_ffmpeg
 
-    from snapcore.motion.load import load_scene
     from snapcore.render import video
     from snapcore.render.bodies import scene_body
     from snapcore.render.camera import default_view, fit_camera, motion_points
@@ -476,14 +488,7 @@ def test_video_encoder_settings_keep_the_quality_and_size(motions_dir, walk, tmp
         mp.setattr(imageio_ffmpeg, "write_frames", fake_writer)
         render_video(walk, path, fps=24, size=(160, 96), frame_range=(0, 3), progress=False)
     assert sent[0][sent[0].index("-sws_flags") + 1] == video.VIDEO_SWS_FLAGS
-    paths = [
-        motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
-    ]
-    if not all(p.exists() for p in paths):
-        pytest.skip("the salsa pair is not in the shared data")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scene = load_scene(paths, fps=60)
+    scene = _salsa_pair(motions_dir)
     size, indices = (640, 360), np.arange(600, 690)
     body = scene_body(scene, kind="human", detail="reduced")
     cam = fit_camera(
@@ -509,33 +514,14 @@ def test_vertex_lighting_of_video_frames_stays_within_its_tolerance(motions_dir,
     broken shade: black bodies are 7 levels off on average). The bounds are ~3x the
     differences measured on 120 frames of three clips at this size (mean 0.04-0.06 levels,
     0.007-0.02% of the pixels more than 16 apart; docs/speed.md)."""
-    import warnings
 
-    import imageio_ffmpeg
-
-    from snapcore.motion.load import load_scene
     from snapcore.render import video
     from snapcore.render.bodies import scene_body
     from snapcore.render.camera import default_view, fit_camera, motion_points
     from snapcore.render.renderer import SceneRenderer
 
-    paths = [
-        motions_dir / f for f in ("two_person/60_01_scaled.bvh", "two_person/61_01_scaled.bvh")
-    ]
-    if not all(p.exists() for p in paths):
-        pytest.skip("the salsa pair is not in the shared data")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scene = load_scene(paths, fps=60)
-    sent: list[np.ndarray] = []
-
-    def fake_writer(*args, **kwargs):
-        while True:
-            frame = yield
-            if frame is not None:
-                sent.append(np.array(frame, copy=True))
-
-    monkeypatch.setattr(imageio_ffmpeg, "write_frames", fake_writer)
+    scene = _salsa_pair(motions_dir)
+    sent = _frames_sent_to_the_encoder(monkeypatch)
     monkeypatch.setattr(video, "VIDEO_LIGHTING", "vertex")
     size, start, n = (1280, 720), 600, 10
     off = scene.frame_offset
