@@ -246,7 +246,7 @@ def body_near(
         [glo[c].take(bi, axis=0) for c in range(3)],
         [ghi[c].take(bi, axis=0) for c in range(3)],
     )
-    n2, g2 = np.nonzero(ov)
+    n2, g2 = np.divmod(np.flatnonzero(ov), n_g)  # np.nonzero of 2-D: ~3x slower
     # Level 3: against the bones of those groups, (n2, S).
     llo, lhi = (
         np.ascontiguousarray(v.transpose(0, 2, 1)).reshape(3, n_b * n_g, size) for v in (llo, lhi)
@@ -260,7 +260,7 @@ def body_near(
     )
     if n_g * size > n_l:  # padding repeats the last link: test it once
         ov3 &= (np.arange(n_g * size) < n_l).reshape(n_g, size).take(g2, axis=0)
-    r3, c3 = np.nonzero(ov3)
+    r3, c3 = np.divmod(np.flatnonzero(ov3), size)
     if r3.size == 0:
         return near, bone
     link3 = g_links.take(g2.take(r3) * size + c3)

@@ -474,7 +474,9 @@ class _Distances:
         d -= self.rel.take(s, axis=1)[:, :, None]
         d = _norm(d)
         if self.ref is not None:
-            r, c = np.nonzero((self.ref.take(t) != self.ref.take(s)[:, None]) & ~skip)
+            r, c = np.divmod(  # np.nonzero of a 2-D mask is ~3x slower
+                np.flatnonzero((self.ref.take(t) != self.ref.take(s)[:, None]) & ~skip), t.shape[1]
+            )
             if r.size:
                 d[r, c] = self._ask(s.take(r), t[r, c])
         return d > tol
