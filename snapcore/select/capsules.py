@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from snapcore.motion.anatomy import DEFAULT_ROLE, ROLE_RADII, bone_role
+from snapcore.select.signals import nonzero_rows
 
 __all__ = ["segment_distance", "bone_radii", "body_near", "BODY_BLOCK_S"]
 
@@ -246,7 +247,7 @@ def body_near(
         [glo[c].take(bi, axis=0) for c in range(3)],
         [ghi[c].take(bi, axis=0) for c in range(3)],
     )
-    n2, g2 = np.divmod(np.flatnonzero(ov), n_g)  # np.nonzero of 2-D: ~3x slower
+    n2, g2 = nonzero_rows(ov)  # np.nonzero of a 2-D mask is ~3x slower here
     # Level 3: against the bones of those groups, (n2, S).
     llo, lhi = (
         np.ascontiguousarray(v.transpose(0, 2, 1)).reshape(3, n_b * n_g, size) for v in (llo, lhi)
@@ -260,7 +261,7 @@ def body_near(
     )
     if n_g * size > n_l:  # padding repeats the last link: test it once
         ov3 &= (np.arange(n_g * size) < n_l).reshape(n_g, size).take(g2, axis=0)
-    r3, c3 = np.divmod(np.flatnonzero(ov3), size)
+    r3, c3 = nonzero_rows(ov3)
     if r3.size == 0:
         return near, bone
     link3 = g_links.take(g2.take(r3) * size + c3)

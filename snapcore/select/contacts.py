@@ -36,7 +36,7 @@ import numpy as np
 from snapcore.errors import SceneError, SelectionError
 from snapcore.motion.anatomy import REFERENCE_STATURE_M
 from snapcore.select.capsules import BODY_BLOCK_S, body_near, bone_radii, segment_distance
-from snapcore.select.signals import merge_adjacent
+from snapcore.select.signals import merge_adjacent, nonzero_rows
 
 if TYPE_CHECKING:
     from snapcore.motion.scene import Character, Scene
@@ -467,16 +467,14 @@ class _Distances:
         where ``skip`` is set may be anything (not asked of the displacements)."""
         if self.rel is None:
             out = np.ones(t.shape, dtype=bool)
-            r, c = np.nonzero(~skip)
+            r, c = nonzero_rows(~skip)
             out[r, c] = self._ask(s.take(r), t[r, c]) > tol
             return out
         d = self.rel.take(t, axis=1)  # (3, R, W)
         d -= self.rel.take(s, axis=1)[:, :, None]
         d = _norm(d)
         if self.ref is not None:
-            r, c = np.divmod(  # np.nonzero of a 2-D mask is ~3x slower
-                np.flatnonzero((self.ref.take(t) != self.ref.take(s)[:, None]) & ~skip), t.shape[1]
-            )
+            r, c = nonzero_rows((self.ref.take(t) != self.ref.take(s)[:, None]) & ~skip)
             if r.size:
                 d[r, c] = self._ask(s.take(r), t[r, c])
         return d > tol
@@ -562,7 +560,7 @@ class _Distances:
                             self.ref.take(np.minimum(t, self.ref.size - 1))
                             != ref.take(rows)[:, None]
                         )
-                        i, k = np.nonzero(bad)
+                        i, k = nonzero_rows(bad)
                         if i.size:
                             far[rows[i], k] = self._ask(entry.take(rows[i]), t[i, k]) > tol
         k = far.argmax(axis=1)
