@@ -322,16 +322,26 @@ def _within_reach(xrows, yrows, links, reach, jb, link, n_b) -> np.ndarray:
     b = jb % n_b
     p = _rows(xrows, jb)  # (3, n, block)
     ya = _rows(yrows, links[:, 0].take(link) * n_b + b)
-    yb = _rows(yrows, links[:, 1].take(link) * n_b + b)
-    ab = yb - ya
-    ap = p - ya
-    den = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
-    num = ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]
-    d2 = ap[0] * ap[0] + ap[1] * ap[1] + ap[2] * ap[2]
+    ab = _rows(yrows, links[:, 1].take(link) * n_b + b)
+    # In place, with ya's first plane as scratch once it is used: fewer temporaries
+    # (~10% of this function); the sums run in the same order, (x + y) + z.
+    ab -= ya
+    ap = p
+    ap -= ya
+    tmp = ya[0]
+    den = ab[0] * ab[0]
+    den += np.multiply(ab[1], ab[1], out=tmp)
+    den += np.multiply(ab[2], ab[2], out=tmp)
+    num = ap[0] * ab[0]
+    num += np.multiply(ap[1], ab[1], out=tmp)
+    num += np.multiply(ap[2], ab[2], out=tmp)
+    d2 = ap[0] * ap[0]
+    d2 += np.multiply(ap[1], ap[1], out=tmp)
+    d2 += np.multiply(ap[2], ap[2], out=tmp)
     t = num / np.where(den > 0, den, np.inf)  # 0 for a zero-length bone
     np.clip(t, 0.0, 1.0, out=t)
     num *= 2.0
-    num -= t * den
+    num -= np.multiply(t, den, out=tmp)
     num *= t
     d2 -= num
     lim = reach.take(link) * (1.0 + _FILTER_SLACK)  # reach > 0 (bones that touch)
