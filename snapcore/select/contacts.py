@@ -625,11 +625,13 @@ class _BodyDisplacement:
     def _rel(self, frames: np.ndarray, j: np.ndarray, parent: np.ndarray) -> np.ndarray:
         """``R_p^T (x_j - y_p)`` at ``frames``, component-first (3, n)."""
         rows = frames * self.y.shape[1] + parent
-        r = self.rot.reshape(-1, 9).take(rows, axis=0).T  # r[3k + i] = R[k, i]
+        # Copied component-first, so the products below run on contiguous rows (on the
+        # transposed views they stride by 9 and 3 doubles: ~30% slower in all).
+        r = self.rot.reshape(-1, 9).take(rows, axis=0).T.copy()  # r[3k + i] = R[k, i]
         v = (
             self.x.reshape(-1, 3).take(frames * self.x.shape[1] + j, axis=0)
             - self.y.reshape(-1, 3).take(rows, axis=0)
-        ).T
+        ).T.copy()
         out = r[0:3] * v[0]
         out += r[3:6] * v[1]
         out += r[6:9] * v[2]
