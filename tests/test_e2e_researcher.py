@@ -205,6 +205,10 @@ def test_researcher_page_end_to_end(server, browser):
 
     # -- close switch, then a cap: the study link turns new people away
     page.get_by_text("Close the study").click()
+    # the toggle reruns the page: Save is clicked on the page that shows it on, as a
+    # person would (a click landing while the rerun replaced the button was lost once
+    # in a full run; see the closing note of 2026-12-05)
+    settled(page)
     page.get_by_role("button", name="Save recruitment").click()
     page.get_by_text("Recruitment saved: closed").wait_for()
     assert rows(engine, "SELECT closed, cap FROM study_controls") == [(True, None)]
